@@ -1,0 +1,37 @@
+# The README's two commands are `make reproduce` and `make test`.
+PYTHON ?= python3
+VENV   ?= .venv
+BIN    := $(VENV)/bin
+STAMP  := $(VENV)/.installed
+
+.PHONY: venv install reproduce test lint lab bench clean
+
+venv: $(STAMP)
+
+# torch==2.13.0 (pinned in pyproject.toml) is the CPU wheel; see docs/environment.md for CUDA.
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(BIN)/python -m pip install --quiet -e '.[dev,bench,distributed]'
+	touch $(STAMP)
+
+install: $(STAMP)
+
+reproduce: $(STAMP)
+	$(BIN)/sunlab reproduce $(ARGS)
+
+test: $(STAMP)
+	SUNLAB_QUICK=1 $(BIN)/python -m pytest --doctest-modules sunlab tests --nbmake notebooks $(ARGS)
+
+lint: $(STAMP)
+	$(BIN)/ruff check sunlab tests benchmarks
+
+lab: $(STAMP)
+	$(BIN)/python -m pip install --quiet jupyterlab
+	$(BIN)/jupyter lab notebooks
+
+bench: $(STAMP)
+	for b in benchmarks/bench_*.py; do $(BIN)/python $$b || exit 1; done
+
+clean:
+	rm -rf $(VENV) results .pytest_cache

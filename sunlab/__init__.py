@@ -1,0 +1,47 @@
+"""sunlab: reproduce, teach and extend the laboratory calibration of a pinhole APS sun sensor.
+
+Submodules are loaded on first use so that ``import sunlab`` stays light (no torch, no serial
+ports, no widgets until asked for).
+
+Examples
+--------
+>>> import sunlab
+>>> sunlab.schema.FRAMES_SCHEMA
+'frames/1'
+"""
+
+from __future__ import annotations
+
+import importlib
+
+from ._errors import ConfigurationError, SchemaError, SunlabError
+
+__version__ = "0.1.0"
+
+_SUBMODULES = {
+    "schema",
+    "io",
+    "plans",
+    "sim",
+    "centroid",
+    "geometry",
+    "calibration",
+    "stats",
+    "multihole",
+    "bench",
+    "plots",
+    "widgets",
+    "cli",
+}
+
+__all__ = ["SunlabError", "SchemaError", "ConfigurationError", "__version__", *sorted(_SUBMODULES)]
+
+
+def __getattr__(name: str):
+    if name in _SUBMODULES:
+        return importlib.import_module(f".{name}", __name__)
+    raise AttributeError(f"module 'sunlab' has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(set(globals()) | _SUBMODULES)

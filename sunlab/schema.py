@@ -1,0 +1,402 @@
+"""The on-disk data contract: build and validate frame cubes and centroid tables.
+
+The contract is written down in ``data_schema/`` (JSON Schema files plus prose). This module builds
+datasets that follow it and checks datasets read from disk, raising :class:`sunlab.SchemaError`
+with the field, the value found, the value expected and the fix.
+
+Conventions (``docs/nomenclature.md``): pixel coordinates are (x = column, y = row) with the
+centre of the first pixel at 0; angles are degrees; poses are a flat dimension.
+
+Examples
+--------
+>>> import numpy as np
+>>> from sunlab import schema
+>>> cube = schema.frames_dataset(np.zeros((2, 8, 4, 5), np.uint16), alpha=[0.0, 1.0], beta=[0.0, 0.0])
+>>> cube.frames.dims
+('pose', 'shot', 'y', 'x')
+>>> schema.validate_frames(cube).attrs["sunlab_schema"]
+'frames/1'
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+import xarray as xr
+
+from ._errors import SchemaError
+
+__all__ = [
+    "FRAMES_SCHEMA",
+    "CENTROIDS_SCHEMA",
+    "CALIBRATION_SCHEMA",
+    "STATUS",
+    "STATUS_NAMES",
+    "IBIS4",
+    "frames_dataset",
+    "empty_frames",
+    "validate_frames",
+    "centroids_dataset",
+    "validate_centroids",
+    "status_name",
+]
+
+FRAMES_SCHEMA = "frames/1"
+CENTROIDS_SCHEMA = "centroids/1"
+CALIBRATION_SCHEMA = "calibration/1"
+
+#: Centroid status codes (CF ``flag_values`` / ``flag_meanings`` on the ``status`` variable).
+STATUS: dict[str, int] = {
+    "ok": 0,
+    "no_spot": 1,
+    "saturated": 2,
+    "clipped": 3,
+    "ambiguous": 4,
+    "invalid": 5,
+}
+STATUS_NAMES: dict[int, str] = {v: k for k, v in STATUS.items()}
+
+#: The paper's detector (PAPER.md sec. 1): Ibis4, 1280 x 1024 pixels of 7 um, 10-bit ADC.
+IBIS4 = {"nx": 1280, "ny": 1024, "pixel_pitch_mm": 0.007, "bit_depth": 10}
+
+_FRAME_DTYPES = (np.dtype(np.uint8), np.dtype(np.uint16))
+_SENSOR_ATTRS = {
+    "pixel_pitch_mm": "pixel pitch in mm (Ibis4: 0.007)",
+    "mask_distance_mm": "nominal mask-to-focal-plane distance F in mm",
+    "x_cf_px": "column of the design projection of the hole centre (sun at zenith), px",
+    "y_cf_px": "row of the design projection of the hole centre (sun at zenith), px",
+    "bit_depth": "ADC bit depth (Ibis4: 10)",
+}
+
+
+def status_name(code: int) -> str:
+    """Name of a centroid status code, e.g. ``status_name(1) == 'no_spot'``."""
+    return STATUS_NAMES[int(code)]
+
+
+def _sensor_attrs(
+    pixel_pitch_mm: float,
+    mask_distance_mm: float,
+    x_cf_px: float,
+    y_cf_px: float,
+    bit_depth: int,
+) -> dict:
+    return {
+        "pixel_pitch_mm": float(pixel_pitch_mm),
+        "mask_distance_mm": float(mask_distance_mm),
+        "x_cf_px": float(x_cf_px),
+        "y_cf_px": float(y_cf_px),
+        "bit_depth": int(bit_depth),
+    }
+
+
+def frames_dataset(
+    frames,
+    alpha: Sequence[float],
+    beta: Sequence[float],
+    *,
+    pixel_pitch_mm: float = IBIS4["pixel_pitch_mm"],
+    mask_distance_mm: float = 5.0,
+    x_cf_px: float | None = None,
+    y_cf_px: float | None = None,
+    bit_depth: int = IBIS4["bit_depth"],
+    mask: str = "single",
+    experiment: str = "",
+    coords: Mapping[str, tuple] | None = None,
+    attrs: Mapping | None = None,
+) -> xr.Dataset:
+    """Build a frame cube (contract ``frames/1``) from an array of frames.
+
+    Parameters
+    ----------
+    frames : array_like of uint8 or uint16, shape (pose, shot, y, x)
+        Raw frames in digital numbers (DN). NumPy or Dask arrays.
+    alpha, beta : sequence of float, length pose
+        Commanded platform angles of each pose, degrees (outer axis alpha, inner axis beta).
+    pixel_pitch_mm : float
+        Pixel pitch, mm.
+    mask_distance_mm : float
+        Nominal mask-to-focal-plane distance F, mm.
+    x_cf_px, y_cf_px : float, optional
+        Design projection of the hole centre (the spot centroid with the sun at zenith), px.
+        Default: the centre of the detector.
+    bit_depth : int
+        ADC bit depth; every DN must be below ``2**bit_depth``.
+    mask : str
+        Mask description, e.g. ``"single"`` or ``"grid10x10"``.
+    experiment : str
+        Experiment name, e.g. ``"I"``.
+    coords : mapping, optional
+        Extra coordinates as ``name: (dims, values[, attrs])``, e.g. ``alpha_read`` on
+        ``("pose", "shot")``.
+    attrs : mapping, optional
+        Extra attributes.
+
+    Returns
+    -------
+    xarray.Dataset
+        A validated frame cube.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> cube = frames_dataset(np.zeros((1, 2, 3, 4), np.uint16), alpha=[0.0], beta=[1.0])
+    >>> dict(cube.sizes)
+    {'pose': 1, 'shot': 2, 'y': 3, 'x': 4}
+    """
+    if not hasattr(frames, "dtype"):
+        frames = np.asarray(frames)
+    if frames.ndim != 4:
+        raise SchemaError(
+            "frames", f"{frames.ndim}-d array of shape {frames.shape}", "4-d (pose, shot, y, x)",
+            "stack single frames as frames[None, None] or reshape to (pose, shot, y, x)",
+        )
+    n_pose, n_shot, ny, nx = frames.shape
+    alpha = np.asarray(alpha, dtype=float)
+    beta = np.asarray(beta, dtype=float)
+    for name, val in (("alpha", alpha), ("beta", beta)):
+        if val.shape != (n_pose,):
+            raise SchemaError(name, f"shape {val.shape}", f"shape ({n_pose},), one angle per pose")
+    all_attrs = {
+        "sunlab_schema": FRAMES_SCHEMA,
+        **_sensor_attrs(
+            pixel_pitch_mm,
+            mask_distance_mm,
+            (nx - 1) / 2 if x_cf_px is None else x_cf_px,
+            (ny - 1) / 2 if y_cf_px is None else y_cf_px,
+            bit_depth,
+        ),
+        "mask": str(mask),
+        "experiment": str(experiment),
+    }
+    all_attrs.update(attrs or {})
+    ds = xr.Dataset(
+        {"frames": (("pose", "shot", "y", "x"), frames, {"units": "DN"})},
+        coords={
+            "pose": np.arange(n_pose),
+            "shot": np.arange(n_shot),
+            "alpha": ("pose", alpha, {"units": "deg", "long_name": "commanded outer-axis angle"}),
+            "beta": ("pose", beta, {"units": "deg", "long_name": "commanded inner-axis angle"}),
+            **dict(coords or {}),
+        },
+        attrs=all_attrs,
+    )
+    return validate_frames(ds)
+
+
+def empty_frames(
+    n_pose: int,
+    n_shot: int,
+    alpha: Sequence[float],
+    beta: Sequence[float],
+    *,
+    ny: int = IBIS4["ny"],
+    nx: int = IBIS4["nx"],
+    dtype=np.uint16,
+    **kwargs,
+) -> xr.Dataset:
+    """A lazily allocated (Dask zeros) frame cube, chunked one frame per chunk.
+
+    Used to pre-allocate an acquisition store. Keyword arguments go to :func:`frames_dataset`.
+
+    Examples
+    --------
+    >>> cube = empty_frames(3, 8, alpha=[0, 1, 2], beta=[0, 0, 0])
+    >>> cube.frames.data.chunksize
+    (1, 1, 1024, 1280)
+    """
+    import dask.array as da
+
+    frames = da.zeros((n_pose, n_shot, ny, nx), dtype=dtype, chunks=(1, 1, ny, nx))
+    return frames_dataset(frames, alpha, beta, **kwargs)
+
+
+def _check_schema_attr(ds: xr.Dataset, expected: str) -> None:
+    found = ds.attrs.get("sunlab_schema")
+    if found is None:
+        raise SchemaError(
+            "attrs['sunlab_schema']", None, repr(expected),
+            "build the dataset with sunlab.schema or set the attribute after checking the layout",
+        )
+    if found != expected:
+        raise SchemaError(
+            "attrs['sunlab_schema']", found, repr(expected),
+            "convert the file with the sunlab version that wrote it, or rebuild it with "
+            "sunlab.schema",
+        )
+
+
+def _check_dims(ds: xr.Dataset, var: str, allowed: Sequence[tuple[str, ...]]) -> None:
+    if var not in ds.variables:
+        raise SchemaError(
+            var, f"missing (variables: {sorted(map(str, ds.variables))})",
+            f"a variable {var!r} on dims {' or '.join(map(str, allowed))}",
+        )
+    dims = tuple(map(str, ds[var].dims))
+    if dims not in [tuple(a) for a in allowed]:
+        raise SchemaError(f"{var}.dims", dims, " or ".join(map(str, allowed)))
+
+
+def validate_frames(ds: xr.Dataset) -> xr.Dataset:
+    """Check that ``ds`` is a frame cube of contract ``frames/1``; return it unchanged.
+
+    Raises
+    ------
+    SchemaError
+        Naming the first field that breaks the contract, the value found and the fix.
+
+    Examples
+    --------
+    >>> import numpy as np, xarray as xr
+    >>> try:
+    ...     validate_frames(xr.Dataset({"img": (("y", "x"), np.zeros((2, 2)))}))
+    ... except SchemaError as err:
+    ...     print(err.field)
+    attrs['sunlab_schema']
+    """
+    if not isinstance(ds, xr.Dataset):
+        raise SchemaError("cube", type(ds).__name__, "an xarray.Dataset", "open it with sunlab.io")
+    _check_schema_attr(ds, FRAMES_SCHEMA)
+    _check_dims(ds, "frames", [("pose", "shot", "y", "x")])
+    dtype = ds["frames"].dtype
+    if dtype not in _FRAME_DTYPES:
+        raise SchemaError(
+            "frames.dtype", str(dtype), "uint8 or uint16 digital numbers",
+            "convert with np.asarray(frames).astype(np.uint16) after checking the range",
+        )
+    for name in ("alpha", "beta"):
+        _check_dims(ds, name, [("pose",)])
+        if not np.issubdtype(ds[name].dtype, np.floating):
+            raise SchemaError(f"{name}.dtype", str(ds[name].dtype), "float degrees")
+        if not np.all(np.isfinite(ds[name].values)):
+            raise SchemaError(name, "non-finite angles", "finite commanded angles in degrees")
+    for name in ("alpha_read", "beta_read", "time", "true_alpha", "true_beta"):
+        if name in ds.variables:
+            _check_dims(ds, name, [("pose", "shot")])
+    for name in ("true_x", "true_y"):
+        if name in ds.variables:
+            _check_dims(ds, name, [("pose", "shot"), ("pose", "shot", "hole")])
+    for name, meaning in _SENSOR_ATTRS.items():
+        value = ds.attrs.get(name)
+        if value is None:
+            raise SchemaError(f"attrs[{name!r}]", None, meaning)
+        if not np.isfinite(float(value)) or (name != "x_cf_px" and name != "y_cf_px" and value <= 0):
+            raise SchemaError(f"attrs[{name!r}]", value, meaning)
+    bits = int(ds.attrs["bit_depth"])
+    if bits > 8 * dtype.itemsize:
+        raise SchemaError(
+            "attrs['bit_depth']", bits, f"<= {8 * dtype.itemsize} for {dtype} frames"
+        )
+    return ds
+
+
+def centroids_dataset(
+    x,
+    y,
+    *,
+    flux=None,
+    status=None,
+    window=None,
+    alpha=None,
+    beta=None,
+    method: str = "",
+    attrs: Mapping | None = None,
+    extra: Mapping[str, tuple] | None = None,
+) -> xr.Dataset:
+    """Build a centroid table (contract ``centroids/1``).
+
+    Parameters
+    ----------
+    x, y : array_like, shape (pose, shot) or (pose, shot, hole)
+        Spot centroid, px (x = column, y = row, centre of the first pixel = 0). NaN where no
+        usable spot was found.
+    flux : array_like, optional
+        Background-subtracted spot flux in the window, DN.
+    status : array_like of int, optional
+        Status codes of :data:`STATUS`; default ``ok`` where x is finite, ``no_spot`` elsewhere.
+    window : tuple of 4 array_like, optional
+        Window bounds ``(x0, x1, y0, y1)``, half-open pixel ranges; -1 where no window.
+    alpha, beta : array_like of length pose, optional
+        Commanded angles, degrees, carried over from the frame cube.
+    method : str
+        Name of the centroid method.
+    attrs : mapping, optional
+        Extra attributes (e.g. the cube's sensor attributes).
+    extra : mapping, optional
+        Extra data variables as ``name: (dims, values[, attrs])`` (quality metrics).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> cen = centroids_dataset(np.array([[1.0, np.nan]]), np.array([[2.0, np.nan]]))
+    >>> cen.status.values.tolist()
+    [[0, 1]]
+    """
+    x = np.asarray(x, dtype=float)
+    y = np.asarray(y, dtype=float)
+    if x.shape != y.shape or x.ndim not in (2, 3):
+        raise SchemaError("x, y", f"shapes {x.shape}, {y.shape}", "equal (pose, shot[, hole]) shapes")
+    dims = ("pose", "shot", "hole")[: x.ndim]
+    if status is None:
+        status = np.where(np.isfinite(x) & np.isfinite(y), STATUS["ok"], STATUS["no_spot"])
+    status = np.asarray(status, dtype=np.int8)
+    flux = np.full(x.shape, np.nan) if flux is None else np.asarray(flux, dtype=float)
+    if window is None:
+        window = [np.full(x.shape, -1, dtype=np.int32)] * 4
+    data = {
+        "x": (dims, x, {"units": "px", "long_name": "spot centroid column"}),
+        "y": (dims, y, {"units": "px", "long_name": "spot centroid row"}),
+        "flux": (dims, flux, {"units": "DN", "long_name": "background-subtracted spot flux"}),
+        "status": (
+            dims,
+            status,
+            {
+                "flag_values": np.array(list(STATUS.values()), dtype=np.int8),
+                "flag_meanings": " ".join(STATUS),
+            },
+        ),
+    }
+    for name, bound in zip(("x0", "x1", "y0", "y1"), window, strict=True):
+        data[name] = (dims, np.asarray(bound, dtype=np.int32), {"units": "px"})
+    data.update(dict(extra or {}))
+    coords = {"pose": np.arange(x.shape[0]), "shot": np.arange(x.shape[1])}
+    if x.ndim == 3:
+        coords["hole"] = np.arange(x.shape[2])
+    if alpha is not None:
+        coords["alpha"] = ("pose", np.asarray(alpha, dtype=float), {"units": "deg"})
+    if beta is not None:
+        coords["beta"] = ("pose", np.asarray(beta, dtype=float), {"units": "deg"})
+    ds = xr.Dataset(
+        data,
+        coords=coords,
+        attrs={**dict(attrs or {}), "sunlab_schema": CENTROIDS_SCHEMA, "method": str(method)},
+    )
+    return validate_centroids(ds)
+
+
+def validate_centroids(ds: xr.Dataset) -> xr.Dataset:
+    """Check that ``ds`` is a centroid table of contract ``centroids/1``; return it unchanged.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> cen = centroids_dataset(np.zeros((2, 3)), np.zeros((2, 3)))
+    >>> validate_centroids(cen) is cen
+    True
+    """
+    if not isinstance(ds, xr.Dataset):
+        raise SchemaError("centroids", type(ds).__name__, "an xarray.Dataset")
+    _check_schema_attr(ds, CENTROIDS_SCHEMA)
+    allowed = [("pose", "shot"), ("pose", "shot", "hole")]
+    _check_dims(ds, "x", allowed)
+    dims = ds["x"].dims
+    for name in ("y", "flux", "status", "x0", "x1", "y0", "y1"):
+        _check_dims(ds, name, [dims])
+    if not np.issubdtype(ds["status"].dtype, np.integer):
+        raise SchemaError("status.dtype", str(ds["status"].dtype), "integer status codes")
+    codes = np.unique(np.asarray(ds["status"].values))
+    unknown = sorted(set(codes.tolist()) - set(STATUS.values()))
+    if unknown:
+        raise SchemaError("status", unknown, f"codes in {STATUS}")
+    return ds
