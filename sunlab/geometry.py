@@ -1,4 +1,5 @@
-"""Geometric models of the pinhole sun sensor: the ideal model (1) and sun-vector conversions.
+"""Geometric models of the pinhole sun sensor: the ideal model (1), the optimised model (3)-(4),
+an exact pinhole forward model with mounting errors, and sun-vector conversions.
 
 Sign convention (``docs/nomenclature.md``): the sensor frame has z along the boresight, from the
 focal plane toward the mask; x along detector columns, y along rows. The platform's outer axis sets
@@ -11,6 +12,27 @@ Sunlight passes the hole along :math:`-\\mathbf{s}`, so the spot moves by
 :math:`-F (s_x / s_z, s_y / s_z) = F(\\tan\\alpha, \\tan\\beta / \\cos\\alpha)`: +x with +alpha and
 +y with +beta, which is the paper's eq. (1).
 
+The optimised model, eqs. (3)-(4), adopted here (the source's formulas were lost; this is the
+reconstruction of PAPER.md sec. 4.1). Parameters: the mask-distance error :math:`\\delta F`, the
+mounting errors :math:`\\alpha_0, \\beta_0` of the sensor on the platform, and the measured
+zero-pose centroid :math:`(x_{zp}, y_{zp})` (the centroid with the platform at alpha = beta = 0).
+With :math:`F' = F + \\delta F` and the pixel pitch :math:`p`,
+
+.. math::
+
+    \\tan a_s = \\frac{(x - x_{cf})\\,p}{F'}, \\qquad
+    \\tan b_s = \\frac{(y - y_{cf})\\,p\\cos a_s}{F'}, \\qquad
+    \\alpha_m = a_s - \\alpha_0, \\qquad \\beta_m = b_s - \\beta_0            \\quad (3)
+
+.. math::
+
+    x_{cf} = x_{zp} - \\frac{F'}{p}\\tan\\alpha_0, \\qquad
+    y_{cf} = y_{zp} - \\frac{F'}{p}\\frac{\\tan\\beta_0}{\\cos\\alpha_0}            \\quad (4)
+
+so that the zero pose maps exactly to :math:`(x_{zp}, y_{zp})`. The mounting errors are additive
+angle offsets, the small-angle form of a rotation; :func:`pinhole_centroid` is the exact forward
+model with a rigid mounting rotation, which the optimised model only approximates.
+
 References
 ----------
 .. [1] PAPER.md, sec. 1 and 4.1 (the 2005 preprint on the Naples APS sun sensor).
@@ -18,9 +40,25 @@ References
 
 from __future__ import annotations
 
+from dataclasses import asdict, dataclass
+
 import numpy as np
 
-__all__ = ["sun_vector", "sun_angles", "ideal_centroid", "ideal_angles"]
+from ._errors import ConfigurationError
+
+__all__ = [
+    "sun_vector",
+    "sun_angles",
+    "ideal_centroid",
+    "ideal_angles",
+    "optimised_centroid",
+    "optimised_angles",
+    "OptimisedFit",
+    "fit_optimised_model",
+    "mounting_matrix",
+    "pinhole_centroid",
+    "synthetic_centroids",
+]
 
 
 def sun_vector(alpha, beta):
@@ -115,3 +153,490 @@ def ideal_angles(x, y, mask_distance_mm, pixel_pitch_mm, x_cf, y_cf):
     a = np.arctan((np.asarray(x, dtype=float) - x_cf) / k)
     b = np.arctan((np.asarray(y, dtype=float) - y_cf) * np.cos(a) / k)
     return np.rad2deg(a), np.rad2deg(b)
+
+
+def _optimised_cf(mask_distance_mm, pixel_pitch_mm, delta_f_mm, alpha0, beta0, x_zp, y_zp):
+    """Design projection (x_cf, y_cf) that eq. (4) ties to the zero-pose centroid, px."""
+    k = (mask_distance_mm + delta_f_mm) / pixel_pitch_mm
+    a0 = np.deg2rad(alpha0)
+    b0 = np.deg2rad(beta0)
+    return x_zp - k * np.tan(a0), y_zp - k * np.tan(b0) / np.cos(a0)
+
+
+def optimised_centroid(
+    alpha, beta, mask_distance_mm, pixel_pitch_mm, delta_f_mm, alpha0, beta0, x_zp, y_zp
+):
+    """Spot centroid predicted by the optimised model, eqs. (3)-(4), for platform angles.
+
+    The forward direction of :func:`optimised_angles`: the sensor sees the angles
+    ``(alpha + alpha0, beta + beta0)`` through a mask at ``F + delta_f_mm``, and the design
+    projection ``(x_cf, y_cf)`` is set so that the zero pose lands on ``(x_zp, y_zp)``.
+
+    Parameters
+    ----------
+    alpha, beta : array_like
+        Platform angles, degrees.
+    mask_distance_mm : float
+        Nominal mask-to-focal-plane distance F, mm.
+    pixel_pitch_mm : float
+        Pixel pitch p, mm.
+    delta_f_mm : float
+        Mask-distance error dF, mm.
+    alpha0, beta0 : float
+        Mounting errors of the sensor on the platform, degrees.
+    x_zp, y_zp : float
+        Centroid at the zero pose (alpha = beta = 0), px.
+
+    Returns
+    -------
+    x, y : numpy.ndarray
+        Centroid column and row, px.
+
+    Notes
+    -----
+    Eqs. (3)-(4) as reconstructed in the module docstring, solved for (x, y):
+
+    .. math:: x = x_{cf} + \\frac{F'}{p}\\tan(\\alpha + \\alpha_0), \\qquad
+              y = y_{cf} + \\frac{F'}{p}\\frac{\\tan(\\beta + \\beta_0)}{\\cos(\\alpha + \\alpha_0)}
+
+    Examples
+    --------
+    >>> x, y = optimised_centroid(0.0, 0.0, 5.0, 0.007, 0.094, 1.864, 0.415, 600.0, 500.0)
+    >>> round(float(x), 9), round(float(y), 9)  # the zero pose maps to the zero-pose centroid
+    (600.0, 500.0)
+    """
+    x_cf, y_cf = _optimised_cf(
+        mask_distance_mm, pixel_pitch_mm, delta_f_mm, alpha0, beta0, x_zp, y_zp
+    )
+    return ideal_centroid(
+        np.asarray(alpha, dtype=float) + alpha0,
+        np.asarray(beta, dtype=float) + beta0,
+        mask_distance_mm + delta_f_mm,
+        pixel_pitch_mm,
+        x_cf,
+        y_cf,
+    )
+
+
+def optimised_angles(
+    x, y, mask_distance_mm, pixel_pitch_mm, delta_f_mm, alpha0, beta0, x_zp, y_zp
+):
+    """Platform angles from a spot centroid by the optimised model, eqs. (3)-(4).
+
+    Parameters
+    ----------
+    x, y : array_like
+        Centroid column and row, px.
+    mask_distance_mm, pixel_pitch_mm, delta_f_mm, alpha0, beta0, x_zp, y_zp
+        As in :func:`optimised_centroid` (mm, mm, mm, deg, deg, px, px).
+
+    Returns
+    -------
+    alpha, beta : numpy.ndarray
+        Platform angles, degrees.
+
+    Notes
+    -----
+    .. math:: \\alpha_m = \\arctan\\frac{(x - x_{cf})p}{F'} - \\alpha_0, \\qquad
+              \\beta_m = \\arctan\\frac{(y - y_{cf})p\\cos a_s}{F'} - \\beta_0  \\quad (3)
+
+    with :math:`F' = F + \\delta F` and :math:`(x_{cf}, y_{cf})` from eq. (4).
+
+    Examples
+    --------
+    >>> p = (5.0, 0.007, 0.094, 1.864, 0.415, 600.0, 500.0)
+    >>> a, b = optimised_angles(*optimised_centroid(-12.0, 9.0, *p), *p)
+    >>> round(float(a), 9), round(float(b), 9)
+    (-12.0, 9.0)
+    """
+    x_cf, y_cf = _optimised_cf(
+        mask_distance_mm, pixel_pitch_mm, delta_f_mm, alpha0, beta0, x_zp, y_zp
+    )
+    a_s, b_s = ideal_angles(x, y, mask_distance_mm + delta_f_mm, pixel_pitch_mm, x_cf, y_cf)
+    return a_s - alpha0, b_s - beta0
+
+
+@dataclass(frozen=True)
+class OptimisedFit:
+    """Result of :func:`fit_optimised_model`.
+
+    Attributes
+    ----------
+    delta_f_mm : float
+        Mask-distance error dF, mm.
+    alpha0, beta0 : float
+        Mounting errors, degrees.
+    x_zp, y_zp : float
+        Zero-pose centroid, px (measured, or fitted when ``zero_pose_fitted``).
+    x_cf, y_cf : float
+        Design projection implied by eq. (4), px.
+    mask_distance_mm, pixel_pitch_mm : float
+        The nominal F and the pixel pitch used, mm.
+    stderr : dict
+        One-sigma standard errors of the fitted parameters from the Jacobian (same units).
+    rms_alpha, rms_beta : float
+        RMS residual of the fit per angle, degrees.
+    n_points : int
+        Number of centroids used.
+    zero_pose_fitted : bool
+        True when (x_zp, y_zp) were free parameters.
+    success : bool
+        Whether the optimiser reported convergence.
+    message : str
+        The optimiser's message.
+    """
+
+    delta_f_mm: float
+    alpha0: float
+    beta0: float
+    x_zp: float
+    y_zp: float
+    x_cf: float
+    y_cf: float
+    mask_distance_mm: float
+    pixel_pitch_mm: float
+    stderr: dict
+    rms_alpha: float
+    rms_beta: float
+    n_points: int
+    zero_pose_fitted: bool
+    success: bool
+    message: str
+
+    @property
+    def params(self) -> tuple:
+        """``(mask_distance_mm, pixel_pitch_mm, delta_f_mm, alpha0, beta0, x_zp, y_zp)``, the
+        trailing arguments of :func:`optimised_angles` and :func:`optimised_centroid`."""
+        return (
+            self.mask_distance_mm,
+            self.pixel_pitch_mm,
+            self.delta_f_mm,
+            self.alpha0,
+            self.beta0,
+            self.x_zp,
+            self.y_zp,
+        )
+
+    def to_dict(self) -> dict:
+        """Plain-Python dictionary (JSON-ready)."""
+        return asdict(self)
+
+
+def fit_optimised_model(
+    x,
+    y,
+    alpha,
+    beta,
+    mask_distance_mm,
+    pixel_pitch_mm,
+    x_zp=None,
+    y_zp=None,
+    *,
+    initial=(0.0, 0.0, 0.0),
+) -> OptimisedFit:
+    """Fit dF, alpha0, beta0 of the optimised model (3)-(4) by nonlinear least squares.
+
+    Minimises :math:`\\sum_i (\\alpha_m(x_i, y_i) - \\alpha_i)^2 + (\\beta_m(x_i, y_i) - \\beta_i)^2`
+    over the calibration centroids with :func:`scipy.optimize.least_squares` (trust-region
+    reflective, Jacobian-scaled), as in PAPER.md sec. 4.1.
+
+    Parameters
+    ----------
+    x, y : array_like
+        Centroids, px. Non-finite entries are ignored.
+    alpha, beta : array_like
+        Platform angles of each centroid (broadcast against x), degrees.
+    mask_distance_mm, pixel_pitch_mm : float
+        Nominal F and pixel pitch, mm.
+    x_zp, y_zp : float, optional
+        Measured zero-pose centroid, px. When either is None, both become free parameters of the
+        fit (use this when the calibration plan has no pose at alpha = beta = 0).
+    initial : tuple of 3 float
+        Starting ``(delta_f_mm, alpha0, beta0)``, mm and degrees.
+
+    Returns
+    -------
+    OptimisedFit
+
+    Raises
+    ------
+    ConfigurationError
+        If fewer usable centroids than parameters remain.
+
+    Examples
+    --------
+    >>> a, b = np.meshgrid(np.arange(-17.0, 3.0), np.arange(-2.0, 18.0), indexing="ij")
+    >>> x, y = optimised_centroid(a, b, 5.0, 0.007, 0.094, 1.864, 0.415, 640.0, 512.0)
+    >>> fit = fit_optimised_model(x, y, a, b, 5.0, 0.007, x_zp=640.0, y_zp=512.0)
+    >>> round(fit.delta_f_mm, 6), round(fit.alpha0, 6), round(fit.beta0, 6)
+    (0.094, 1.864, 0.415)
+    """
+    from scipy.optimize import least_squares
+
+    x, y, alpha, beta = np.broadcast_arrays(*(np.asarray(v, dtype=float) for v in (x, y, alpha, beta)))
+    ok = np.isfinite(x) & np.isfinite(y) & np.isfinite(alpha) & np.isfinite(beta)
+    x, y, alpha, beta = x[ok], y[ok], alpha[ok], beta[ok]
+    free_zp = x_zp is None or y_zp is None
+    n_par = 5 if free_zp else 3
+    if x.size < n_par:
+        raise ConfigurationError(
+            f"centroids: found {x.size} usable centroids, expected at least {n_par} for the "
+            "optimised model. Fix: pass a calibration table with more poses of status ok"
+        )
+    F, p = float(mask_distance_mm), float(pixel_pitch_mm)
+    p0 = [float(v) for v in initial]
+    if free_zp:
+        k = F / p
+        a = np.deg2rad(alpha)
+        p0 += [
+            float(np.median(x - k * np.tan(a))),
+            float(np.median(y - k * np.tan(np.deg2rad(beta)) / np.cos(a))),
+        ]
+
+    def residuals(q):
+        zp = (q[3], q[4]) if free_zp else (x_zp, y_zp)
+        am, bm = optimised_angles(x, y, F, p, q[0], q[1], q[2], *zp)
+        return np.concatenate([am - alpha, bm - beta])
+
+    res = least_squares(
+        residuals, p0, method="trf", x_scale="jac", xtol=1e-14, ftol=1e-14, gtol=1e-14,
+        max_nfev=2000,
+    )
+    q = res.x
+    names = ["delta_f_mm", "alpha0", "beta0", "x_zp", "y_zp"][:n_par]
+    dof = max(res.fun.size - n_par, 1)
+    s2 = 2.0 * res.cost / dof
+    try:
+        cov = np.linalg.inv(res.jac.T @ res.jac) * s2
+        err = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    except np.linalg.LinAlgError:
+        err = np.full(n_par, np.nan)
+    zp = (float(q[3]), float(q[4])) if free_zp else (float(x_zp), float(y_zp))
+    x_cf, y_cf = _optimised_cf(F, p, q[0], q[1], q[2], *zp)
+    n = x.size
+    return OptimisedFit(
+        delta_f_mm=float(q[0]),
+        alpha0=float(q[1]),
+        beta0=float(q[2]),
+        x_zp=zp[0],
+        y_zp=zp[1],
+        x_cf=float(x_cf),
+        y_cf=float(y_cf),
+        mask_distance_mm=F,
+        pixel_pitch_mm=p,
+        stderr={k: float(v) for k, v in zip(names, err, strict=True)},
+        rms_alpha=float(np.sqrt(np.mean(res.fun[:n] ** 2))),
+        rms_beta=float(np.sqrt(np.mean(res.fun[n:] ** 2))),
+        n_points=int(n),
+        zero_pose_fitted=bool(free_zp),
+        success=bool(res.success),
+        message=str(res.message),
+    )
+
+
+def _rx(t):
+    c, s = np.cos(t), np.sin(t)
+    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+
+
+def _ry(t):
+    c, s = np.cos(t), np.sin(t)
+    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+
+
+def _rz(t):
+    c, s = np.cos(t), np.sin(t)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def mounting_matrix(alpha0=0.0, beta0=0.0, gamma0=0.0):
+    """Rotation from the platform frame to the sensor frame for a misaligned mounting.
+
+    .. math:: M = R_z(\\gamma_0)\\, R_y(-\\alpha_0)\\, R_x(\\beta_0)
+
+    so that a sun vector on the platform's boresight appears in the sensor frame at the angles
+    (alpha0, beta0), rotated by gamma0 about the boresight (an in-plane rotation the optimised
+    model does not describe).
+
+    Parameters
+    ----------
+    alpha0, beta0, gamma0 : float
+        Mounting rotations about the sensor's y, x and z axes, degrees.
+
+    Returns
+    -------
+    numpy.ndarray, shape (3, 3)
+
+    Examples
+    --------
+    >>> M = mounting_matrix(1.864, 0.415)
+    >>> a, b = sun_angles(M @ sun_vector(0.0, 0.0))
+    >>> round(float(a), 9), round(float(b), 9)
+    (1.864, 0.415)
+    """
+    a0, b0, g0 = np.deg2rad([alpha0, beta0, gamma0])
+    return _rz(g0) @ _ry(-a0) @ _rx(b0)
+
+
+def pinhole_centroid(
+    alpha,
+    beta,
+    mask_distance_mm,
+    pixel_pitch_mm,
+    x_cf,
+    y_cf,
+    *,
+    delta_f_mm=0.0,
+    mounting_deg=(0.0, 0.0, 0.0),
+):
+    """Exact pinhole forward model: centroid of the spot for platform angles (alpha, beta).
+
+    The sun vector of the platform, :func:`sun_vector`, is rotated into the sensor frame by the
+    rigid mounting rotation :func:`mounting_matrix`, and the ray through the hole at height
+    :math:`F + \\delta F` above the focal plane (above pixel ``(x_cf, y_cf)``) is intersected
+    with the focal plane:
+
+    .. math:: \\mathbf{s}' = M\\,\\mathbf{s}(\\alpha, \\beta), \\qquad
+              x = x_{cf} - \\frac{F + \\delta F}{p}\\frac{s'_x}{s'_z}, \\qquad
+              y = y_{cf} - \\frac{F + \\delta F}{p}\\frac{s'_y}{s'_z}
+
+    With no mounting error this is eq. (1); with (alpha0, beta0) only it agrees with the
+    optimised model (3)-(4) along the axes and differs by second-order cross terms elsewhere.
+
+    Parameters
+    ----------
+    alpha, beta : array_like
+        Platform angles, degrees.
+    mask_distance_mm, pixel_pitch_mm : float
+        Nominal F and pixel pitch, mm.
+    x_cf, y_cf : float
+        Foot of the hole on the focal plane (true, not design), px.
+    delta_f_mm : float
+        Mask-distance error, mm.
+    mounting_deg : tuple of 3 float
+        ``(alpha0, beta0, gamma0)`` of :func:`mounting_matrix`, degrees.
+
+    Returns
+    -------
+    x, y : numpy.ndarray
+        Centroid column and row, px.
+
+    Examples
+    --------
+    >>> x, y = pinhole_centroid(-10.0, 5.0, 5.0, 0.007, 640.0, 512.0)
+    >>> xi, yi = ideal_centroid(-10.0, 5.0, 5.0, 0.007, 640.0, 512.0)
+    >>> bool(np.allclose([x, y], [xi, yi], atol=1e-9))
+    True
+    """
+    s = sun_vector(alpha, beta) @ mounting_matrix(*mounting_deg).T
+    k = (mask_distance_mm + delta_f_mm) / pixel_pitch_mm
+    return x_cf - k * s[..., 0] / s[..., 2], y_cf - k * s[..., 1] / s[..., 2]
+
+
+def synthetic_centroids(
+    alpha,
+    beta,
+    shots: int = 8,
+    *,
+    mask_distance_mm: float = 5.0,
+    pixel_pitch_mm: float = 0.007,
+    x_cf: float = 639.5,
+    y_cf: float = 511.5,
+    delta_f_mm: float = 0.0,
+    mounting_deg=(0.0, 0.0, 0.0),
+    hole_offset_px=(0.0, 0.0),
+    pose_error_deg=(0.0, 0.0),
+    jitter_deg: float = 0.0,
+    noise_px: float = 0.0,
+    seed: int = 0,
+    experiment: str = "",
+):
+    """A centroid-level Monte Carlo of the bench: a ``centroids/1`` table with known truth.
+
+    No frames are rendered (that is :mod:`sunlab.sim`): the true platform angles are the
+    commanded ones plus a per-pose positioning error (uniform in ``[-w, w]`` per axis, bounded
+    as PAPER.md sec. 8 infers) and a per-shot normal jitter; :func:`pinhole_centroid` maps them
+    to the focal plane through the misaligned sensor, and a normal centroid noise is added.
+
+    Parameters
+    ----------
+    alpha, beta : array_like, shape (pose,)
+        Commanded platform angles, degrees.
+    shots : int
+        Frames per pose (the paper: 8).
+    mask_distance_mm, pixel_pitch_mm : float
+        Nominal F and pixel pitch, mm (written to the table's attributes).
+    x_cf, y_cf : float
+        Design projection of the hole, px (written to the attributes).
+    delta_f_mm : float
+        True mask-distance error, mm.
+    mounting_deg : tuple of 3 float
+        True mounting rotation ``(alpha0, beta0, gamma0)``, degrees.
+    hole_offset_px : tuple of 2 float
+        True hole position minus the design one, px.
+    pose_error_deg : tuple of 2 float
+        Half-widths of the uniform per-pose platform error on (alpha, beta), degrees.
+    jitter_deg : float
+        Standard deviation of the per-shot platform jitter, degrees.
+    noise_px : float
+        Standard deviation of the centroid noise, px.
+    seed : int
+        Seed of :func:`numpy.random.default_rng`.
+    experiment : str
+        Experiment name written to the attributes.
+
+    Returns
+    -------
+    xarray.Dataset
+        Contract ``centroids/1`` on ``(pose, shot)`` with coordinates ``alpha``, ``beta``
+        (commanded), the sensor attributes, and truth variables ``true_alpha``, ``true_beta``.
+
+    Examples
+    --------
+    >>> cen = synthetic_centroids([0.0, -5.0], [0.0, 3.0], shots=2)
+    >>> cen.x.dims, float(cen.x[0, 0])
+    (('pose', 'shot'), 639.5)
+    """
+    from .schema import centroids_dataset
+
+    alpha = np.asarray(alpha, dtype=float).ravel()
+    beta = np.asarray(beta, dtype=float).ravel()
+    if alpha.shape != beta.shape:
+        raise ConfigurationError(
+            f"alpha, beta: found shapes {alpha.shape} and {beta.shape}, expected equal lengths "
+            "(one pair per pose). Fix: pass flat arrays of the plan's poses"
+        )
+    if int(shots) < 1:
+        raise ConfigurationError(f"shots: found {shots}, expected >= 1")
+    rng = np.random.default_rng(seed)
+    n = alpha.size
+    shape = (n, int(shots))
+    wa, wb = pose_error_deg
+    true_a = alpha[:, None] + rng.uniform(-wa, wa, (n, 1)) + rng.normal(0.0, jitter_deg, shape)
+    true_b = beta[:, None] + rng.uniform(-wb, wb, (n, 1)) + rng.normal(0.0, jitter_deg, shape)
+    x, y = pinhole_centroid(
+        true_a,
+        true_b,
+        mask_distance_mm,
+        pixel_pitch_mm,
+        x_cf + hole_offset_px[0],
+        y_cf + hole_offset_px[1],
+        delta_f_mm=delta_f_mm,
+        mounting_deg=mounting_deg,
+    )
+    x = x + rng.normal(0.0, noise_px, shape)
+    y = y + rng.normal(0.0, noise_px, shape)
+    attrs = {
+        "pixel_pitch_mm": float(pixel_pitch_mm),
+        "mask_distance_mm": float(mask_distance_mm),
+        "x_cf_px": float(x_cf),
+        "y_cf_px": float(y_cf),
+        "experiment": str(experiment),
+    }
+    truth = {
+        "true_alpha": (("pose", "shot"), true_a, {"units": "deg"}),
+        "true_beta": (("pose", "shot"), true_b, {"units": "deg"}),
+    }
+    return centroids_dataset(
+        x, y, alpha=alpha, beta=beta, method="synthetic", attrs=attrs, extra=truth
+    )

@@ -1,0 +1,63 @@
+"""Calibration functions: from a spot centroid (x, y) to platform angles (alpha, beta).
+
+Every method shares one interface (:class:`Calibration`): ``fit(train, validation=None)``,
+``predict(centroids)``, ``save(path)``; :func:`load` restores any saved calibration.
+
+========================  ==========================================================  =========
+class                     method (PAPER.md sec. 4)                                    kind
+========================  ==========================================================  =========
+:class:`IdealModel`       ideal geometric model, eq. (1); nothing fitted              ideal
+:class:`OptimisedModel`   optimised model, eqs. (3)-(4): dF, alpha0, beta0            optimised
+:class:`Polynomial`       polynomial of total degree n in (x, y), one per angle       polynomial
+:class:`Trigonometric`    2-D Fourier expansion                                       trigonometric
+:class:`Interpolation`    linear / cubic interpolation of the calibration table       interpolation-linear,
+                                                                                      interpolation-cubic
+:class:`NeuralNet`        one tanh hidden layer per angle, strategies 1-4 (Table 2)   neural
+========================  ==========================================================  =========
+
+Submodules load on first use; torch is imported only when a :class:`NeuralNet` is fitted.
+
+Examples
+--------
+>>> import sys, sunlab.calibration as cal
+>>> sorted(cal.KINDS)[:2]
+['ideal', 'interpolation-cubic']
+>>> cal.NeuralNet.__name__
+'NeuralNet'
+"""
+
+from __future__ import annotations
+
+import importlib
+
+from .base import KINDS, Calibration, TrainingData, combine, from_dict, load, training_data
+
+_LAZY = {
+    "Polynomial": "polynomial",
+    "Trigonometric": "trigonometric",
+    "Interpolation": "interpolation",
+    "NeuralNet": "neural",
+    "IdealModel": "model",
+    "OptimisedModel": "model",
+}
+
+__all__ = [
+    "Calibration",
+    "TrainingData",
+    "KINDS",
+    "load",
+    "from_dict",
+    "combine",
+    "training_data",
+    *_LAZY,
+]
+
+
+def __getattr__(name: str):
+    if name in _LAZY:
+        return getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
+    raise AttributeError(f"module 'sunlab.calibration' has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_LAZY))

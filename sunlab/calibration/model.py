@@ -1,0 +1,162 @@
+"""The geometric models as calibrations: ideal model (1) and optimised model (3)-(4).
+
+Both share the :class:`~sunlab.calibration.Calibration` interface so that they sit beside the
+high-accuracy functions in every comparison. The equations are in :mod:`sunlab.geometry`.
+
+Examples
+--------
+>>> import numpy as np
+>>> from sunlab import geometry
+>>> a, b = np.meshgrid(np.arange(-17.0, 3.0), np.arange(-2.0, 18.0), indexing="ij")
+>>> cen = geometry.synthetic_centroids(a.ravel(), b.ravel(), shots=1, delta_f_mm=0.094)
+>>> opt = OptimisedModel().fit(cen)
+>>> round(opt.result.delta_f_mm, 6)
+0.094
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .. import geometry
+from .base import Calibration, TrainingData, sensor_attrs
+
+__all__ = ["IdealModel", "OptimisedModel", "fit_optimised"]
+
+#: Poses within this distance of alpha = beta = 0 (deg) count as the zero pose.
+ZERO_POSE_TOL_DEG = 1e-9
+
+
+class IdealModel(Calibration):
+    """The ideal geometric model, eq. (1): nothing is fitted.
+
+    ``fit`` only reads F, the pixel pitch and (x_cf, y_cf) from the training table's attributes
+    (``mask_distance_mm``, ``pixel_pitch_mm``, ``x_cf_px``, ``y_cf_px``), unless given here.
+
+    Parameters
+    ----------
+    mask_distance_mm, pixel_pitch_mm, x_cf_px, y_cf_px : float, optional
+        Override the table's sensor attributes (mm, mm, px, px).
+
+    Notes
+    -----
+    .. math:: \\tan\\alpha = \\frac{(x - x_{cf})p}{F}, \\qquad
+              \\tan\\beta = \\frac{(y - y_{cf})p\\cos\\alpha}{F}  \\qquad (1)
+
+    Examples
+    --------
+    >>> from sunlab import geometry
+    >>> cen = geometry.synthetic_centroids([0.0, -10.0], [0.0, 5.0])
+    >>> est = IdealModel().fit(cen).predict(cen)
+    >>> [round(float(v), 9) for v in est.alpha.isel(shot=0)]
+    [0.0, -10.0]
+    """
+
+    kind = "ideal"
+
+    def __init__(self, mask_distance_mm=None, pixel_pitch_mm=None, x_cf_px=None, y_cf_px=None):
+        super().__init__()
+        self._given = {"mask_distance_mm": mask_distance_mm, "pixel_pitch_mm": pixel_pitch_mm,
+                       "x_cf_px": x_cf_px, "y_cf_px": y_cf_px}
+        self.sensor: dict | None = None
+
+    @property
+    def label(self) -> str:
+        return "ideal model (1)"
+
+    def _fit(self, data: TrainingData, validation) -> None:
+        attrs = {**data.attrs, **{k: v for k, v in self._given.items() if v is not None}}
+        self.sensor = sensor_attrs(attrs)
+
+    def _predict_xy(self, x, y):
+        s = self.sensor
+        return geometry.ideal_angles(x, y, s["mask_distance_mm"], s["pixel_pitch_mm"],
+                                     s["x_cf_px"], s["y_cf_px"])
+
+    def _parameters(self) -> dict:
+        return dict(self.sensor)
+
+    @classmethod
+    def _from_parameters(cls, p: dict):
+        obj = cls()
+        obj.sensor = sensor_attrs(p, name="parameters")
+        return obj
+
+
+def fit_optimised(data: TrainingData, sensor: dict, fit_zero_pose: bool | None = None):
+    """Fit the optimised model on training points; return a :class:`geometry.OptimisedFit`.
+
+    The zero-pose centroid is the mean of the training points at alpha = beta = 0; when the
+    table has no such pose (or ``fit_zero_pose`` is True) it becomes a free parameter.
+    """
+    zero = (np.abs(data.alpha) <= ZERO_POSE_TOL_DEG) & (np.abs(data.beta) <= ZERO_POSE_TOL_DEG)
+    free = (not zero.any()) if fit_zero_pose is None else bool(fit_zero_pose)
+    zp = (None, None) if free else (float(data.x[zero].mean()), float(data.y[zero].mean()))
+    return geometry.fit_optimised_model(
+        data.x, data.y, data.alpha, data.beta, sensor["mask_distance_mm"],
+        sensor["pixel_pitch_mm"], *zp,
+    )
+
+
+class OptimisedModel(Calibration):
+    """The optimised geometric model, eqs. (3)-(4): fits dF, alpha0, beta0.
+
+    Parameters
+    ----------
+    fit_zero_pose : bool, optional
+        None (default): use the measured zero-pose centroid (mean of the ok shots at
+        alpha = beta = 0) when the training table has that pose, else fit it. True: always fit
+        it; False: always measure it.
+    average : {"pose", "shot"}
+        Fit on pose-mean centroids (default) or on every ok shot.
+
+    Attributes
+    ----------
+    result : sunlab.geometry.OptimisedFit
+        The fitted parameters (``delta_f_mm``, ``alpha0``, ``beta0``, ...), their standard
+        errors and the fit's RMS residuals.
+
+    Notes
+    -----
+    Minimises :math:`\\sum_i (\\alpha_m - \\alpha_i)^2 + (\\beta_m - \\beta_i)^2` with
+    :func:`sunlab.geometry.fit_optimised_model`; the paper found alpha0 = 1.864 deg,
+    beta0 = 0.415 deg, dF = 0.094 mm (PAPER.md sec. 4.1).
+
+    Examples
+    --------
+    >>> OptimisedModel().label
+    'optimised model (3)-(4)'
+    """
+
+    kind = "optimised"
+
+    def __init__(self, fit_zero_pose: bool | None = None, average: str = "pose"):
+        super().__init__()
+        self.fit_zero_pose = fit_zero_pose
+        self.average = average
+        self.result: geometry.OptimisedFit | None = None
+
+    @property
+    def label(self) -> str:
+        return "optimised model (3)-(4)"
+
+    def _fit(self, data: TrainingData, validation) -> None:
+        self.result = fit_optimised(data, sensor_attrs(data.attrs), self.fit_zero_pose)
+
+    def _predict_xy(self, x, y):
+        return geometry.optimised_angles(x, y, *self.result.params)
+
+    def _parameters(self) -> dict:
+        return {"fit_zero_pose": self.fit_zero_pose, **self.result.to_dict()}
+
+    @classmethod
+    def _from_parameters(cls, p: dict):
+        obj = cls(fit_zero_pose=p.get("fit_zero_pose"))
+        fields = geometry.OptimisedFit.__dataclass_fields__
+        kw = {k: p[k] for k in fields}
+        kw["stderr"] = {k: (np.nan if v is None else float(v)) for k, v in kw["stderr"].items()}
+        for k in ("delta_f_mm", "alpha0", "beta0", "x_zp", "y_zp", "x_cf", "y_cf",
+                  "mask_distance_mm", "pixel_pitch_mm"):
+            kw[k] = float(kw[k])
+        obj.result = geometry.OptimisedFit(**kw)
+        return obj

@@ -1,0 +1,300 @@
+"""Neural-network calibration functions, the four strategies of the paper's Table 2.
+
+One network per angle: a feed-forward net with one hidden layer of ``hidden`` tanh neurons and
+one linear output neuron (PAPER.md sec. 4.2). The strategies differ in what the net sees and
+learns:
+
+=====  ===============================================  =====================================
+#      input                                            output
+=====  ===============================================  =====================================
+1      centroid (x, y)                                  platform angles (alpha, beta)
+2      angles from the ideal model (1)                  platform angles
+3      angles from the optimised model (3)-(4)          platform angles
+4      centroid (x, y)                                  error of model (1): the estimate is
+                                                        model (1) + the learned error
+=====  ===============================================  =====================================
+
+Training (our choices; the paper gives none): inputs and outputs standardised with the training
+means and standard deviations; full-batch L-BFGS (strong-Wolfe line search) in float64 on the
+CPU on the mean squared error; each "epoch" is one L-BFGS step of up to 20 iterations. With a
+validation table (experiment II) training stops when the validation loss has not improved for
+``patience`` epochs and the best weights are kept (early stopping); without one it stops at
+convergence or after ``max_epochs``. Weights are initialised from ``torch.Generator`` seeded with
+``seed`` (the beta net with ``seed + 1``), deterministic algorithms are switched on during the
+fit, so a fit is reproducible on a given machine and thread count.
+
+torch is imported inside :meth:`NeuralNet.fit` only: predicting with a fitted or loaded network
+is plain NumPy (the weights are stored as lists in the JSON artifact).
+
+Examples
+--------
+>>> import numpy as np
+>>> from sunlab import geometry
+>>> a, b = np.meshgrid(np.arange(-17.0, 3.0, 2), np.arange(-2.0, 18.0, 2), indexing="ij")
+>>> cen = geometry.synthetic_centroids(a.ravel(), b.ravel(), shots=1, delta_f_mm=0.094,
+...                                    mounting_deg=(1.864, 0.415, 0.0))
+>>> net = NeuralNet(strategy=4, hidden=6, max_epochs=20).fit(cen)
+>>> net.residuals["alpha"]["mean_abs"] < 0.01
+True
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .. import geometry
+from .._errors import ConfigurationError
+from .base import Calibration, TrainingData, sensor_attrs
+from .model import fit_optimised
+
+__all__ = ["NeuralNet", "STRATEGIES"]
+
+#: Table 2 of the paper: strategy -> (input, output).
+STRATEGIES = {
+    1: ("centroid (x, y)", "platform angles"),
+    2: ("angles from the ideal model (1)", "platform angles"),
+    3: ("angles from the optimised model (3)-(4)", "platform angles"),
+    4: ("centroid (x, y)", "error of model (1)"),
+}
+
+
+def _forward(z: np.ndarray, net: dict) -> np.ndarray:
+    """NumPy forward pass of one standardised network: tanh hidden layer, linear output."""
+    h = np.tanh(z @ net["W1"].T + net["b1"])
+    return h @ net["W2"] + net["b2"]
+
+
+class NeuralNet(Calibration):
+    """Neural-network calibration (one net per angle), strategies 1-4 of Table 2.
+
+    Parameters
+    ----------
+    strategy : {1, 2, 3, 4}
+        Training strategy (module docstring).
+    hidden : int
+        Number n of tanh neurons of the hidden layer.
+    seed : int
+        Seed of the weight initialisation.
+    max_epochs : int
+        Most L-BFGS steps (of up to 20 iterations each) per network.
+    patience : int
+        Epochs without validation improvement before early stopping.
+    weight_decay : float
+        L2 penalty on the weights (standardised units); 0 by default.
+    average : {"pose", "shot"}
+        Train on pose-mean centroids (default) or on every ok shot.
+
+    Attributes
+    ----------
+    history : dict
+        Per angle: epochs run, best epoch, final training and validation losses.
+
+    Examples
+    --------
+    >>> NeuralNet(strategy=4, hidden=8).label
+    'NN strategy 4'
+    """
+
+    kind = "neural"
+
+    def __init__(self, strategy: int = 4, hidden: int = 8, seed: int = 0, *,
+                 max_epochs: int = 150, patience: int = 15, weight_decay: float = 0.0,
+                 average: str = "pose"):
+        super().__init__()
+        if strategy not in STRATEGIES:
+            raise ConfigurationError(
+                f"strategy: found {strategy!r}, expected one of {sorted(STRATEGIES)} (Table 2)"
+            )
+        if int(hidden) != hidden or hidden < 1:
+            raise ConfigurationError(f"hidden: found {hidden!r}, expected a positive integer")
+        for name, v in (("max_epochs", max_epochs), ("patience", patience)):
+            if int(v) != v or v < 1:
+                raise ConfigurationError(f"{name}: found {v!r}, expected a positive integer")
+        self.strategy = int(strategy)
+        self.hidden = int(hidden)
+        self.seed = int(seed)
+        self.max_epochs = int(max_epochs)
+        self.patience = int(patience)
+        self.weight_decay = float(weight_decay)
+        self.average = average
+        self.sensor: dict | None = None
+        self.optimised: geometry.OptimisedFit | None = None
+        self.input_scaling: dict | None = None
+        self.networks: dict | None = None
+        self.history: dict | None = None
+
+    @property
+    def label(self) -> str:
+        return f"NN strategy {self.strategy}"
+
+    # --- inputs and targets of each strategy -----------------------------------------------
+    def _ideal(self, x, y):
+        s = self.sensor
+        return geometry.ideal_angles(x, y, s["mask_distance_mm"], s["pixel_pitch_mm"],
+                                     s["x_cf_px"], s["y_cf_px"])
+
+    def _inputs(self, x, y) -> np.ndarray:
+        if self.strategy in (1, 4):
+            return np.column_stack([x, y])
+        if self.strategy == 2:
+            return np.column_stack(self._ideal(x, y))
+        return np.column_stack(geometry.optimised_angles(x, y, *self.optimised.params))
+
+    def _targets(self, d: TrainingData) -> np.ndarray:
+        if self.strategy == 4:
+            ia, ib = self._ideal(d.x, d.y)
+            return np.column_stack([d.alpha - ia, d.beta - ib])
+        return np.column_stack([d.alpha, d.beta])
+
+    # --- training ----------------------------------------------------------------------------
+    def _fit(self, data: TrainingData, validation: TrainingData | None) -> None:
+        self.sensor = sensor_attrs(data.attrs) if self.strategy != 1 else None
+        self.optimised = fit_optimised(data, self.sensor) if self.strategy == 3 else None
+        X = self._inputs(data.x, data.y)
+        T = self._targets(data)
+        mean, std = X.mean(axis=0), X.std(axis=0)
+        std = np.where(std > 0, std, 1.0)
+        self.input_scaling = {"mean": mean, "std": std}
+        Z = (X - mean) / std
+        Zv = Tv = None
+        if validation is not None:
+            Zv = (self._inputs(validation.x, validation.y) - mean) / std
+            Tv = self._targets(validation)
+        self.networks, self.history = {}, {}
+        for k, angle in enumerate(("alpha", "beta")):
+            t_mean, t_std = float(T[:, k].mean()), float(T[:, k].std()) or 1.0
+            net, hist = self._train_one(
+                Z, (T[:, k] - t_mean) / t_std,
+                None if Zv is None else Zv,
+                None if Tv is None else (Tv[:, k] - t_mean) / t_std,
+                self.seed + k,
+            )
+            net.update(target_mean=t_mean, target_std=t_std)
+            self.networks[angle] = net
+            self.history[angle] = hist
+
+    def _train_one(self, Z, t, Zv, tv, seed):
+        import torch
+
+        was_det = torch.are_deterministic_algorithms_enabled()
+        torch.use_deterministic_algorithms(True)
+        try:
+            gen = torch.Generator().manual_seed(seed)
+            dt = torch.float64
+            n_in, h = Z.shape[1], self.hidden
+            b1_bound, b2_bound = 1.0 / np.sqrt(n_in), 1.0 / np.sqrt(h)
+            params = [
+                ((torch.rand(h, n_in, generator=gen, dtype=dt) * 2 - 1) * b1_bound),
+                ((torch.rand(h, generator=gen, dtype=dt) * 2 - 1) * b1_bound),
+                ((torch.rand(h, generator=gen, dtype=dt) * 2 - 1) * b2_bound),
+                ((torch.rand(1, generator=gen, dtype=dt) * 2 - 1) * b2_bound),
+            ]
+            for p in params:
+                p.requires_grad_(True)
+            W1, b1, W2, b2 = params
+            Zt = torch.as_tensor(Z, dtype=dt)
+            tt = torch.as_tensor(t, dtype=dt)
+            Zvt = None if Zv is None else torch.as_tensor(Zv, dtype=dt)
+            tvt = None if tv is None else torch.as_tensor(tv, dtype=dt)
+
+            def model(z):
+                return torch.tanh(z @ W1.T + b1) @ W2 + b2
+
+            def loss_fn():
+                loss = torch.mean((model(Zt) - tt) ** 2)
+                if self.weight_decay:
+                    loss = loss + self.weight_decay * (W1.pow(2).sum() + W2.pow(2).sum())
+                return loss
+
+            opt = torch.optim.LBFGS(params, lr=1.0, max_iter=20, history_size=50,
+                                    line_search_fn="strong_wolfe", tolerance_grad=1e-12,
+                                    tolerance_change=1e-16)
+
+            def closure():
+                opt.zero_grad()
+                loss = loss_fn()
+                loss.backward()
+                return loss
+
+            best = (np.inf, [p.detach().clone() for p in params], 0)
+            previous = np.inf
+            epoch = 0
+            for epoch in range(1, self.max_epochs + 1):
+                opt.step(closure)
+                with torch.no_grad():
+                    train_loss = float(loss_fn())
+                    score = (train_loss if Zvt is None
+                             else float(torch.mean((model(Zvt) - tvt) ** 2)))
+                if not np.isfinite(train_loss):
+                    break
+                if score < best[0]:
+                    best = (score, [p.detach().clone() for p in params], epoch)
+                if Zvt is not None and epoch - best[2] >= self.patience:
+                    break
+                if abs(previous - train_loss) <= 1e-14 * max(abs(train_loss), 1e-300):
+                    break
+                previous = train_loss
+            W1b, b1b, W2b, b2b = (p.numpy().astype(float) for p in best[1])
+        finally:
+            torch.use_deterministic_algorithms(was_det)
+        net = {"W1": W1b, "b1": b1b, "W2": W2b, "b2": float(b2b[0])}
+        train_loss = float(np.mean((_forward(Z, net) - t) ** 2))
+        val_loss = None if Zv is None else float(np.mean((_forward(Zv, net) - tv) ** 2))
+        return net, {"epochs": int(epoch), "best_epoch": int(best[2]),
+                     "train_loss": train_loss, "val_loss": val_loss}
+
+    # --- prediction (NumPy) ------------------------------------------------------------------
+    def _predict_xy(self, x, y):
+        Z = (self._inputs(x, y) - self.input_scaling["mean"]) / self.input_scaling["std"]
+        out = [
+            _forward(Z, net) * net["target_std"] + net["target_mean"]
+            for net in (self.networks["alpha"], self.networks["beta"])
+        ]
+        if self.strategy == 4:
+            ia, ib = self._ideal(x, y)
+            out = [ia + out[0], ib + out[1]]
+        return out[0], out[1]
+
+    # --- artifact ----------------------------------------------------------------------------
+    def _parameters(self) -> dict:
+        return {
+            "strategy": self.strategy,
+            "strategy_io": list(STRATEGIES[self.strategy]),
+            "hidden": self.hidden,
+            "seed": self.seed,
+            "max_epochs": self.max_epochs,
+            "patience": self.patience,
+            "weight_decay": self.weight_decay,
+            "activation": "tanh hidden layer, linear output",
+            "sensor": self.sensor,
+            "optimised": None if self.optimised is None else self.optimised.to_dict(),
+            "input_scaling": {k: np.asarray(v).tolist() for k, v in self.input_scaling.items()},
+            "networks": {a: {k: np.asarray(v).tolist() for k, v in net.items()}
+                         for a, net in self.networks.items()},
+            "history": self.history,
+        }
+
+    @classmethod
+    def _from_parameters(cls, p: dict):
+        from .model import OptimisedModel
+
+        obj = cls(strategy=int(p["strategy"]), hidden=int(p["hidden"]), seed=int(p["seed"]),
+                  max_epochs=int(p["max_epochs"]), patience=int(p["patience"]),
+                  weight_decay=float(p["weight_decay"]))
+        obj.sensor = None if p["sensor"] is None else sensor_attrs(p["sensor"], name="sensor")
+        if obj.strategy == 3:
+            obj.optimised = OptimisedModel._from_parameters(p["optimised"]).result
+        obj.input_scaling = {k: np.asarray(p["input_scaling"][k], dtype=float)
+                             for k in ("mean", "std")}
+        obj.networks = {}
+        h = obj.hidden
+        for angle in ("alpha", "beta"):
+            q = p["networks"][angle]
+            net = {"W1": np.asarray(q["W1"], dtype=float), "b1": np.asarray(q["b1"], dtype=float),
+                   "W2": np.asarray(q["W2"], dtype=float), "b2": float(q["b2"]),
+                   "target_mean": float(q["target_mean"]), "target_std": float(q["target_std"])}
+            if net["W1"].shape != (h, 2) or net["b1"].shape != (h,) or net["W2"].shape != (h,):
+                raise ValueError(f"{angle} network weights do not match hidden={h}")
+            obj.networks[angle] = net
+        obj.history = p.get("history")
+        return obj

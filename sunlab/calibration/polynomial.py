@@ -1,0 +1,238 @@
+"""Polynomial calibration functions of total degree n (PAPER.md sec. 4.2).
+
+.. math:: f(x, y) = \\sum_{k=0}^{n} \\sum_{l=0}^{k} a_{kl}\\, u^{k-l} v^{l}
+
+one coefficient set per angle, fitted by linear least squares (:func:`numpy.linalg.lstsq`, SVD)
+over the calibration poses. For conditioning the centroid is first scaled to [-1, 1] over the
+training domain, :math:`u = (2x - x_{min} - x_{max}) / (x_{max} - x_{min})` and likewise
+:math:`v` for y; the coefficients :math:`a_{kl}` refer to (u, v), the same polynomial space as the
+paper's monomials in (x, y). The order is chosen on the validation experiment II with
+:meth:`Polynomial.select_order`.
+
+Examples
+--------
+>>> import numpy as np
+>>> from sunlab import geometry
+>>> a, b = np.meshgrid(np.arange(-17.0, 3.0), np.arange(-2.0, 18.0), indexing="ij")
+>>> cen = geometry.synthetic_centroids(a.ravel(), b.ravel(), shots=1, delta_f_mm=0.094,
+...                                    mounting_deg=(1.864, 0.415, 0.0))
+>>> cal = Polynomial(order=5).fit(cen)
+>>> cal.residuals["alpha"]["max_abs"] < 1e-4
+True
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from .._errors import ConfigurationError
+from .base import Calibration, TrainingData
+
+__all__ = ["Polynomial", "monomial_exponents", "design_matrix"]
+
+
+def monomial_exponents(order: int) -> list[tuple[int, int]]:
+    """Exponents ``(k - l, l)`` of the monomials :math:`u^{k-l} v^l` in the paper's order.
+
+    Examples
+    --------
+    >>> monomial_exponents(2)
+    [(0, 0), (1, 0), (0, 1), (2, 0), (1, 1), (0, 2)]
+    """
+    return [(k - l, l) for k in range(order + 1) for l in range(k + 1)]
+
+
+def design_matrix(u, v, order: int) -> np.ndarray:
+    """Matrix of the monomials :math:`u^{k-l} v^l`, shape ``(len(u), (n + 1)(n + 2) / 2)``.
+
+    Examples
+    --------
+    >>> design_matrix(np.array([2.0]), np.array([3.0]), 1).tolist()
+    [[1.0, 2.0, 3.0]]
+    """
+    u = np.asarray(u, dtype=float)
+    v = np.asarray(v, dtype=float)
+    pu = [np.ones_like(u)]
+    pv = [np.ones_like(v)]
+    for _ in range(order):
+        pu.append(pu[-1] * u)
+        pv.append(pv[-1] * v)
+    return np.stack([pu[i] * pv[j] for i, j in monomial_exponents(order)], axis=-1)
+
+
+def _scaling(values: np.ndarray, name: str) -> list[float]:
+    lo, hi = float(np.min(values)), float(np.max(values))
+    if not hi > lo:
+        raise ConfigurationError(
+            f"{name}: the training centroids span [{lo}, {hi}] px, expected a range. Fix: "
+            "calibrate on poses that move the spot in both axes"
+        )
+    return [lo, hi]
+
+
+def _scale(values, bounds) -> np.ndarray:
+    lo, hi = bounds
+    return (2.0 * np.asarray(values, dtype=float) - (lo + hi)) / (hi - lo)
+
+
+def _orders(order) -> tuple[int, int]:
+    orders = (order, order) if np.ndim(order) == 0 else tuple(order)
+    if len(orders) != 2 or any(int(n) != n or n < 0 for n in orders):
+        raise ConfigurationError(
+            f"order: found {order!r}, expected a non-negative integer or a pair (alpha, beta). "
+            "Fix: e.g. order=5 or order=(5, 6)"
+        )
+    return int(orders[0]), int(orders[1])
+
+
+_METRICS = ("mean_abs", "rms", "max_abs")
+
+
+def _errors_table(cal: Calibration, table) -> dict:
+    """Per-shot validation errors of a fitted calibration: mean_abs, rms, max_abs per angle."""
+    res = cal._residuals(table)
+    return {f"{a}_{s}": res[a][s] for a in ("alpha", "beta") for s in _METRICS}
+
+
+class Polynomial(Calibration):
+    """Polynomial calibration of total degree n, one coefficient set per angle.
+
+    Parameters
+    ----------
+    order : int or (int, int)
+        Total degree n (the same for both angles, or ``(n_alpha, n_beta)``).
+    average : {"pose", "shot"}
+        Fit on pose-mean centroids (default) or on every ok shot.
+
+    Notes
+    -----
+    PAPER.md sec. 4.2: :math:`\\alpha = f_1(x_c, y_c)`, :math:`\\beta = f_2(x_c, y_c)` with
+    :math:`f(x, y) = \\sum_{k=0}^{n}\\sum_{l=0}^{k} a_{kl} x^{k-l} y^l`, here in the scaled
+    variables (u, v) of the module docstring. The paper picks n on experiment II.
+
+    Examples
+    --------
+    >>> Polynomial(order=5).label
+    'polynomial(5)'
+    """
+
+    kind = "polynomial"
+
+    def __init__(self, order=5, average: str = "pose"):
+        super().__init__()
+        self.orders = _orders(order)
+        self.average = average
+        self.scaling: dict | None = None
+        self.coefficients: dict | None = None
+
+    @property
+    def label(self) -> str:
+        na, nb = self.orders
+        return f"polynomial({na})" if na == nb else f"polynomial({na},{nb})"
+
+    def _fit(self, data: TrainingData, validation) -> None:
+        self.scaling = {"x": _scaling(data.x, "x"), "y": _scaling(data.y, "y")}
+        u, v = _scale(data.x, self.scaling["x"]), _scale(data.y, self.scaling["y"])
+        self.coefficients = {}
+        for angle, n, target in zip(("alpha", "beta"), self.orders, (data.alpha, data.beta),
+                                    strict=True):
+            A = design_matrix(u, v, n)
+            if A.shape[0] < A.shape[1]:
+                raise ConfigurationError(
+                    f"order: {n} needs {A.shape[1]} coefficients but the training table has "
+                    f"{A.shape[0]} points. Fix: lower the order or add poses"
+                )
+            coef, *_ = np.linalg.lstsq(A, target, rcond=None)
+            self.coefficients[angle] = coef
+
+    def _predict_xy(self, x, y):
+        u, v = _scale(x, self.scaling["x"]), _scale(y, self.scaling["y"])
+        return tuple(
+            design_matrix(u, v, n) @ self.coefficients[angle]
+            for angle, n in zip(("alpha", "beta"), self.orders, strict=True)
+        )
+
+    def _parameters(self) -> dict:
+        return {
+            "order": list(self.orders),
+            "basis": "monomials u^(k-l) v^l, k = 0..n, l = 0..k, u = (2x - x_min - x_max) / "
+                     "(x_max - x_min), v likewise for y",
+            "scaling": self.scaling,
+            "coefficients": {a: np.asarray(c).tolist() for a, c in self.coefficients.items()},
+        }
+
+    @classmethod
+    def _from_parameters(cls, p: dict):
+        obj = cls(order=tuple(p["order"]))
+        obj.scaling = {k: [float(v[0]), float(v[1])] for k, v in p["scaling"].items()}
+        obj.coefficients = {}
+        for angle, n in zip(("alpha", "beta"), obj.orders, strict=True):
+            coef = np.asarray(p["coefficients"][angle], dtype=float)
+            if coef.shape != (len(monomial_exponents(n)),):
+                raise ValueError(f"{angle} has {coef.size} coefficients for order {n}")
+            obj.coefficients[angle] = coef
+        return obj
+
+    @classmethod
+    def select_order(cls, train, validation, orders=range(1, 9), *, metric: str = "mean_abs",
+                     per_angle: bool = False, average: str = "pose"):
+        """Pick the order on a validation table (experiment II), as the paper does.
+
+        Parameters
+        ----------
+        train, validation : xarray.Dataset
+            ``centroids/1`` tables (experiments I and II).
+        orders : iterable of int
+            Candidate total degrees.
+        metric : {"mean_abs", "rms", "max_abs"}
+            Per-shot validation error to minimise (``mean_abs`` is the paper's mu-like measure).
+        per_angle : bool
+            Choose the order of each angle separately; otherwise minimise the sum over both.
+        average : {"pose", "shot"}
+            Passed to the constructor.
+
+        Returns
+        -------
+        best : Polynomial
+            Fitted on ``train`` (with ``validation`` recorded) at the chosen order.
+        scores : pandas.DataFrame
+            Validation errors (deg) per candidate order: columns ``alpha_mean_abs`` ...
+            ``beta_max_abs``.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from sunlab import geometry
+        >>> g = lambda s: np.meshgrid(np.arange(-17.0, 3.0, s), np.arange(-2.0, 18.0, s))
+        >>> (a, b), (va, vb) = g(2.0), g(1.5)
+        >>> kw = dict(delta_f_mm=0.1, mounting_deg=(1.8, 0.4, 0.0))
+        >>> tr = geometry.synthetic_centroids(a.ravel(), b.ravel(), **kw)
+        >>> va = geometry.synthetic_centroids(va.ravel(), vb.ravel(), **kw)
+        >>> best, scores = Polynomial.select_order(tr, va, orders=[1, 2, 3])
+        >>> best.orders, list(scores.index)
+        ((3, 3), [1, 2, 3])
+        """
+        if metric not in _METRICS:
+            raise ConfigurationError(f"metric: found {metric!r}, expected one of {_METRICS}")
+        rows = {}
+        for n in orders:
+            try:
+                cal = cls(order=int(n), average=average).fit(train)
+            except ConfigurationError:
+                continue
+            rows[int(n)] = _errors_table(cal, validation)
+        if not rows:
+            raise ConfigurationError(
+                f"orders: none of {list(orders)} could be fitted. Fix: lower the orders"
+            )
+        scores = pd.DataFrame.from_dict(rows, orient="index").astype(float)
+        scores.index.name = "order"
+        if per_angle:
+            chosen = (int(scores[f"alpha_{metric}"].idxmin()),
+                      int(scores[f"beta_{metric}"].idxmin()))
+        else:
+            n = int((scores[f"alpha_{metric}"] + scores[f"beta_{metric}"]).idxmin())
+            chosen = (n, n)
+        best = cls(order=chosen, average=average).fit(train, validation)
+        return best, scores
