@@ -1,0 +1,68 @@
+"""The bench: drive a two-axis rotation platform and a camera, and record resumable runs.
+
+- :class:`ESP300`: a Newport ESP300/ESP301 driver over pyserial (any ``serial_for_url`` URL),
+  with timeouts, bounded retries, error decoding, limit checks and a settle time;
+  :func:`open_stage` opens one from a URL (``fake://``, ``socket://``, a device path).
+- :class:`FakeESP`: the same protocol over a pseudo-terminal or loopback TCP, backed by the
+  virtual bench's platform model, with fault injection.
+- :class:`Camera`: the camera protocol; :class:`SimCamera` renders from the virtual bench,
+  :class:`FolderCamera` picks up the image files a real camera writes.
+- :func:`acquire`: plan -> move -> settle -> N shots -> a pre-allocated Zarr store, one pose at a
+  time, resumable after a crash or Ctrl-C.
+
+This subpackage talks to hardware; ``import sunlab`` does not import it.
+
+Examples
+--------
+>>> from sunlab import bench
+>>> sorted(bench.__all__)[:4]
+['Camera', 'CameraError', 'CameraTimeout', 'ControllerError']
+"""
+
+from __future__ import annotations
+
+from ._errors import (
+    BenchError,
+    CameraError,
+    CameraTimeout,
+    ControllerError,
+    ControllerLimitError,
+    LimitError,
+    MotionTimeout,
+    StageDisconnected,
+    StageError,
+    StageProtocolError,
+    StageTimeout,
+)
+from .camera import Camera, FolderCamera, SimCamera
+from .esp import ESP300, decode_error, open_transport
+from .fake import FakeESP, Fault
+from .runner import RunResult, acquire, open_run
+from .stage import Stage, open_stage
+
+__all__ = [
+    "BenchError",
+    "CameraError",
+    "CameraTimeout",
+    "ControllerError",
+    "ControllerLimitError",
+    "LimitError",
+    "MotionTimeout",
+    "StageDisconnected",
+    "StageError",
+    "StageProtocolError",
+    "StageTimeout",
+    "Camera",
+    "FolderCamera",
+    "SimCamera",
+    "ESP300",
+    "decode_error",
+    "open_transport",
+    "FakeESP",
+    "Fault",
+    "RunResult",
+    "acquire",
+    "open_run",
+    "Stage",
+    "open_stage",
+]

@@ -1,0 +1,184 @@
+"""Exceptions raised by the bench: stage, camera and acquisition faults.
+
+Every fault of the hardware has its own class so that a script can catch exactly what it can
+recover from; every message names the device, the command or field, what was found and the fix.
+All derive from :class:`sunlab.SunlabError`, so ``sunlab acquire`` reports them on one line.
+"""
+
+from __future__ import annotations
+
+from .._errors import SunlabError
+
+__all__ = [
+    "BenchError",
+    "StageError",
+    "StageTimeout",
+    "StageProtocolError",
+    "StageDisconnected",
+    "ControllerError",
+    "LimitError",
+    "ControllerLimitError",
+    "MotionTimeout",
+    "CameraError",
+    "CameraTimeout",
+]
+
+
+class BenchError(SunlabError):
+    """Base class of every bench fault (stage, camera, acquisition store)."""
+
+
+class StageError(BenchError):
+    """A fault of the rotation stage or of its controller link."""
+
+
+class StageTimeout(StageError):
+    """The controller sent no complete reply within the timeout, after every retry.
+
+    Parameters
+    ----------
+    command : str
+        The command whose reply never came.
+    attempts : int
+        How many times it was sent.
+    timeout_s : float
+        Read timeout of each attempt, s.
+    """
+
+    def __init__(self, command: str, attempts: int, timeout_s: float):
+        self.command = command
+        self.attempts = attempts
+        self.timeout_s = timeout_s
+        super().__init__(
+            f"stage: no reply to {command!r} after {attempts} attempt(s) of {timeout_s:g} s. "
+            "Fix: check the cable, the port and the baud rate (ESP300: 19200 8N1, RTS/CTS), "
+            "that the controller is powered, and raise `timeout` if it goes silent after a limit"
+        )
+
+
+class StageProtocolError(StageError):
+    """The controller's replies could not be parsed (garbled line, wrong terminator).
+
+    Parameters
+    ----------
+    command : str
+        The command sent.
+    reply : bytes
+        The last reply received.
+    expected : str
+        What a valid reply looks like.
+    """
+
+    def __init__(self, command: str, reply: bytes, expected: str, attempts: int = 1):
+        self.command = command
+        self.reply = reply
+        self.expected = expected
+        self.attempts = attempts
+        super().__init__(
+            f"stage: reply {reply!r} to {command!r} is not {expected} "
+            f"(after {attempts} attempt(s)). Fix: check the baud rate and flow control, and "
+            "that no other program is using the port"
+        )
+
+
+class StageDisconnected(StageError):
+    """The link to the controller was lost (port closed, cable pulled, server gone)."""
+
+    def __init__(self, port: str, detail: str):
+        self.port = port
+        self.detail = detail
+        super().__init__(
+            f"stage: link to {port!r} lost ({detail}). Fix: reconnect the cable or restart the "
+            "controller, then resume the run with `--resume`"
+        )
+
+
+class ControllerError(StageError):
+    """The controller reported an error code (read from its error buffer with ``TB?``).
+
+    Parameters
+    ----------
+    code : int
+        The controller's error code; axis errors are ``axis * 100 + code``.
+    message : str
+        The decoded meaning.
+    axis : int or None
+        The axis of an axis error, None for a general error.
+    command : str
+        The command after which the error was read.
+    """
+
+    def __init__(self, code: int, message: str, axis: int | None = None, command: str = ""):
+        self.code = int(code)
+        self.message = message
+        self.axis = axis
+        self.command = command
+        where = f"axis {axis}" if axis is not None else "controller"
+        after = f" after {command!r}" if command else ""
+        super().__init__(
+            f"stage: {where} reported error {self.code} ({message}){after}. "
+            f"Fix: {_fix_for(self.code)}"
+        )
+
+
+class LimitError(StageError):
+    """A target outside the travel limits of an axis.
+
+    Raised by the driver before any motion command is sent when a target lies outside the
+    software limits (the controller's ``SL``/``SR`` intersected with the user's limits); its
+    subclass :class:`ControllerLimitError` is the controller's own report of a limit.
+    """
+
+    @classmethod
+    def outside(cls, field: str, value: float, low: float, high: float) -> LimitError:
+        """The error for ``field = value`` outside ``[low, high]`` (degrees)."""
+        err = cls(
+            f"stage: {field} = {value!r} deg is outside the travel [{low:g}, {high:g}] deg; "
+            "nothing was moved. Fix: drop the pose from the plan, or widen the limits "
+            "(controller SL/SR, or the driver's `limits`) if the mechanics allow it"
+        )
+        err.field, err.value, err.low, err.high = field, value, low, high
+        return err
+
+
+class ControllerLimitError(ControllerError, LimitError):
+    """The controller reported a hardware or software limit (axis error codes 4 to 7)."""
+
+
+class MotionTimeout(StageError):
+    """A move did not finish (``MD?`` stayed 0) within the motion timeout: a stuck axis."""
+
+    def __init__(self, axes: list[int], target: dict[int, float], timeout_s: float):
+        self.axes = axes
+        self.target = target
+        self.timeout_s = timeout_s
+        super().__init__(
+            f"stage: axis {axes} did not reach {target} within {timeout_s:g} s and was stopped. "
+            "Fix: check for a mechanical block or a disabled motor, then raise `motion_timeout` "
+            "if the move is just long"
+        )
+
+
+class CameraError(BenchError):
+    """A camera fault: a frame of the wrong shape or type, an unreadable image file."""
+
+
+class CameraTimeout(CameraError):
+    """No frame arrived within the camera timeout."""
+
+
+def _fix_for(code: int) -> str:
+    sub = code % 100 if code >= 100 else None
+    if sub in (4, 5):
+        return "move the axis back inside its travel, then check the plan's angle range"
+    if sub in (6, 7):
+        return "keep targets inside the software limits (SL/SR) or widen them on the controller"
+    if sub in (2, 3, 9):
+        return "check the motor cable and the load, re-enable the motor (MO) and home the axis"
+    if sub in (8, 13):
+        return "connect the stage and enable the motor (MO)"
+    if code in (6, 7, 9, 37, 38):
+        return "the command sent is invalid for this controller; report it as a sunlab bug"
+    if code == 4:
+        return "release the emergency stop and re-enable the motors"
+    return "see the controller manual's error table for this code"

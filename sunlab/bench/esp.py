@@ -1,0 +1,700 @@
+"""Newport ESP300 / ESP301 motion controller: a two-axis rotation stage over a serial link.
+
+The driver speaks the controller's ASCII command set (Newport ESP300 and ESP301 user's manuals,
+"Command Interface"): a command is ``[axis]MNEMONIC[parameter]`` terminated by a carriage return
+(``CR``); only queries (a mnemonic followed by ``?``) are answered, each with one line terminated
+by ``CR LF``. The subset used here:
+
+=============  =====================================  ==========================================
+command        meaning                                reply
+=============  =====================================  ==========================================
+``VE?``        firmware version                       ``ESP301 Version 3.0.2 6/29/11``
+``TB?``        pop the oldest error, with its text    ``code, timestamp, message``
+``TE?``        pop the oldest error code               ``code``
+``nSN?``       displacement units of axis n           ``7`` (degree)
+``nSL?``       left (negative) software limit          ``-170.00000``
+``nSR?``       right (positive) software limit         ``170.00000``
+``nMO?``       motor power of axis n                  ``1`` on, ``0`` off
+``nMO``        motor on                               (none)
+``nPA<x>``     move axis n to absolute position x      (none)
+``nMD?``       motion done                            ``1`` done, ``0`` moving
+``nTP?``       actual position (encoder)              ``12.50000``
+``nST``        stop motion of axis n                  (none)
+=============  =====================================  ==========================================
+
+Errors go to a first-in first-out buffer read with ``TB?``/``TE?`` (code 0 when empty). Axis
+errors are coded ``axis * 100 + code`` (``104``: axis 1, positive hardware limit); general
+errors are below 100. The controller may go silent for seconds after a limit: a query then gets
+no reply until it recovers, so every query is retried with a growing delay before
+:class:`~sunlab.bench.StageTimeout` is raised.
+
+The transport is anything with ``write``, ``read_until``, ``reset_input_buffer`` and ``close``
+(a :class:`serial.Serial`); :func:`open_transport` opens any :func:`serial.serial_for_url` URL
+(``/dev/ttyUSB0``, ``COM3``, ``socket://host:port``, ``rfc2217://...``), so other controllers
+can reuse the same plumbing.
+
+Examples
+--------
+Drive the in-process fake controller (same protocol, over a pseudo-terminal):
+
+>>> from sunlab.bench import ESP300, FakeESP
+>>> fake = FakeESP(velocity_deg_s=1e4)
+>>> with ESP300(fake.serve_pty(), retry_delay_s=0.0, poll_s=0.001) as stage:
+...     stage.move_to(12.5, -3.0)
+(12.5, -3.0)
+>>> fake.close()
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import re
+import time
+from collections.abc import Callable, Sequence
+from typing import Protocol, runtime_checkable
+
+from .._errors import ConfigurationError
+from ._errors import (
+    ControllerError,
+    ControllerLimitError,
+    LimitError,
+    MotionTimeout,
+    StageDisconnected,
+    StageError,
+    StageProtocolError,
+    StageTimeout,
+)
+
+__all__ = [
+    "WRITE_TERMINATOR",
+    "READ_TERMINATOR",
+    "UNITS",
+    "GENERAL_ERRORS",
+    "AXIS_ERRORS",
+    "Transport",
+    "open_transport",
+    "decode_error",
+    "format_number",
+    "ESP300",
+]
+
+log = logging.getLogger("sunlab.bench")
+
+WRITE_TERMINATOR = b"\r"
+READ_TERMINATOR = b"\r\n"
+
+#: ``SN`` unit codes of the ESP300/301 (the driver needs 7, degrees, on both axes).
+UNITS = {
+    0: "encoder count",
+    1: "motor step",
+    2: "millimeter",
+    3: "micrometer",
+    4: "inch",
+    5: "milli-inch",
+    6: "micro-inch",
+    7: "degree",
+    8: "gradian",
+    9: "radian",
+    10: "milliradian",
+    11: "microradian",
+}
+
+#: General (controller) error codes, below 100 (ESP300/301 manuals, "Error Messages").
+GENERAL_ERRORS = {
+    0: "no error detected",
+    1: "PCI communication time-out",
+    4: "emergency stop activated",
+    6: "command does not exist",
+    7: "parameter out of range",
+    8: "cable interlock error",
+    9: "axis number out of range",
+    13: "group number missing",
+    14: "group number out of range",
+    15: "group number not assigned",
+    16: "group number already assigned",
+    17: "group axis out of range",
+    18: "group axis already assigned",
+    19: "group axis duplicated",
+    20: "data acquisition is busy",
+    21: "data acquisition setup error",
+    22: "data acquisition not enabled",
+    23: "servo cycle (400 us) tick failure",
+    25: "download in progress",
+    26: "stored program not started",
+    27: "command not allowed",
+    28: "stored program flash area full",
+    29: "group parameter missing",
+    30: "group parameter out of range",
+    31: "group maximum velocity exceeded",
+    32: "group maximum acceleration exceeded",
+    33: "group maximum deceleration exceeded",
+    34: "group move not allowed during motion",
+    35: "program not found",
+    37: "axis number missing",
+    38: "command parameter missing",
+    39: "program label not found",
+    40: "last command cannot be repeated",
+    41: "maximum number of labels per program exceeded",
+}
+
+#: Axis error codes: the controller reports ``axis * 100 + code``.
+AXIS_ERRORS = {
+    0: "motor type not defined",
+    1: "parameter out of range",
+    2: "amplifier fault detected",
+    3: "following error threshold exceeded",
+    4: "positive hardware limit detected",
+    5: "negative hardware limit detected",
+    6: "positive software limit detected",
+    7: "negative software limit detected",
+    8: "motor / stage not connected",
+    9: "feedback signal fault detected",
+    10: "maximum velocity exceeded",
+    11: "maximum acceleration exceeded",
+    13: "motor not enabled",
+    15: "maximum jerk exceeded",
+    16: "maximum DAC offset exceeded",
+    17: "ESP critical settings are protected",
+    18: "ESP stage device error",
+    19: "ESP stage data invalid",
+    20: "homing aborted",
+    21: "motor current not defined",
+    22: "unidrive communications error",
+    23: "unidrive not detected",
+    24: "speed out of range",
+    25: "invalid trajectory master axis",
+    26: "parameter change not allowed",
+    27: "invalid trajectory mode for homing",
+    28: "invalid encoder step ratio",
+    29: "digital I/O interlock detected",
+    30: "command not allowed during homing",
+    31: "command not allowed due to group assignment",
+    32: "invalid trajectory mode for moving",
+}
+
+_LIMIT_CODES = (4, 5, 6, 7)
+_TB_RE = re.compile(r"^\s*(\d+)\s*,\s*(\d+)\s*,\s*(.*?)\s*$")
+
+
+@runtime_checkable
+class Transport(Protocol):
+    """The byte link to a controller: what :class:`serial.Serial` offers."""
+
+    def write(self, data: bytes) -> int | None: ...
+
+    def read_until(self, expected: bytes = ..., size: int | None = None) -> bytes: ...
+
+    def reset_input_buffer(self) -> None: ...
+
+    def close(self) -> None: ...
+
+
+def open_transport(url: str, *, baudrate: int = 19200, timeout: float = 1.0, rtscts: bool = False):
+    """Open a serial link from a device path or a :func:`serial.serial_for_url` URL.
+
+    Parameters
+    ----------
+    url : str
+        ``/dev/ttyUSB0``, ``COM3``, ``socket://127.0.0.1:5000``, ``rfc2217://host:port``, ...
+    baudrate : int
+        Bits per second (ESP300: 19200; ESP301 over USB: 921600).
+    timeout : float
+        Read timeout, s.
+    rtscts : bool
+        Hardware flow control (the ESP300's RS-232 port uses RTS/CTS).
+
+    Returns
+    -------
+    serial.Serial
+        The open port.
+
+    Raises
+    ------
+    StageDisconnected
+        When the port cannot be opened.
+
+    Examples
+    --------
+    >>> port = open_transport("loop://", timeout=0.1)
+    >>> port.write(b"1TP?\\r") and port.read_until(b"\\r")
+    b'1TP?\\r'
+    >>> port.close()
+    """
+    import serial
+
+    try:
+        return serial.serial_for_url(
+            url, baudrate=baudrate, timeout=timeout, write_timeout=timeout, rtscts=rtscts
+        )
+    except (serial.SerialException, OSError, ValueError) as err:
+        raise StageDisconnected(url, f"cannot open: {err}") from err
+
+
+def decode_error(code: int) -> tuple[int | None, str]:
+    """Axis and meaning of an ESP300/301 error code.
+
+    Parameters
+    ----------
+    code : int
+        Code from ``TE?`` or ``TB?``; axis errors are ``axis * 100 + code``.
+
+    Returns
+    -------
+    axis : int or None
+        The axis (1, 2, 3) of an axis error; None for a general error.
+    message : str
+        The meaning of the code.
+
+    Examples
+    --------
+    >>> decode_error(104)
+    (1, 'positive hardware limit detected')
+    >>> decode_error(6)
+    (None, 'command does not exist')
+    """
+    code = int(code)
+    if code >= 100:
+        axis, sub = divmod(code, 100)
+        return axis, AXIS_ERRORS.get(sub, f"unknown axis error {sub}")
+    return None, GENERAL_ERRORS.get(code, f"unknown error {code}")
+
+
+def format_number(value: float) -> str:
+    """A position as the shortest fixed-point text, to 1e-6 (the form sent after ``PA``).
+
+    Examples
+    --------
+    >>> format_number(12.5), format_number(-3.0), format_number(0.1234567)
+    ('12.5', '-3', '0.123457')
+    """
+    text = f"{float(value):.6f}".rstrip("0").rstrip(".")
+    return "0" if text in ("", "-0") else text
+
+
+def _parse_float(text: str) -> float:
+    value = float(text)
+    if not math.isfinite(value):
+        raise ValueError(text)
+    return value
+
+
+def _parse_flag(text: str) -> bool:
+    if text not in ("0", "1"):
+        raise ValueError(text)
+    return text == "1"
+
+
+def _parse_tb(text: str) -> tuple[int, int, str]:
+    match = _TB_RE.match(text)
+    if match is None:
+        raise ValueError(text)
+    return int(match.group(1)), int(match.group(2)), match.group(3)
+
+
+def _parse_text(text: str) -> str:
+    if not text or not text.isprintable():
+        raise ValueError(text)
+    return text
+
+
+class _NoReply(Exception):
+    pass
+
+
+class _Garbled(Exception):
+    def __init__(self, raw: bytes):
+        self.raw = raw
+
+
+class ESP300:
+    """A two-axis rotation platform on a Newport ESP300 or ESP301 controller.
+
+    The outer platform axis (alpha) and the inner one (beta) are two controller axes, in degrees
+    (``SN7``). The driver checks targets against the travel limits before sending any motion
+    command, retries queries that time out or come back garbled, reconnects a link that drops
+    when it was opened from a URL, decodes the controller's error buffer after each move, and
+    waits for motion done plus a settle time before reading the encoders back.
+
+    Parameters
+    ----------
+    port : str or Transport
+        A device path or :func:`serial.serial_for_url` URL, or an open transport.
+    axes : (int, int)
+        Controller axes of alpha and beta.
+    timeout : float
+        Read timeout of one attempt, s.
+    retries : int
+        Extra attempts of a query (or a write whose link dropped) before giving up.
+    retry_delay_s : float
+        Delay before the first retry, s; doubled at each further retry.
+    settle_s : float
+        Wait after motion done, before the read-back and the first frame, s.
+    motion_timeout_s : float
+        Longest wait for motion done, s; a stuck axis is then stopped (``ST``).
+    poll_s : float
+        Interval of the ``MD?`` polls, s.
+    limits : dict, optional
+        ``{"alpha": (low, high), "beta": (low, high)}`` in degrees, intersected with the
+        controller's software limits read at :meth:`connect`.
+    tolerance_deg : float
+        Largest accepted |read-back - target| after a move, degrees.
+    enable_motors : bool
+        Turn a motor that is off on at :meth:`connect` (``MO``); otherwise raise.
+    baudrate : int
+        Used when ``port`` is a path or URL.
+    rtscts : bool
+        Hardware flow control, used when ``port`` is a path or URL.
+    connect : bool
+        Run the :meth:`connect` handshake at once.
+
+    Notes
+    -----
+    A move is ``nPA`` for both axes, ``TB?`` (a refused command is reported at once), ``nMD?``
+    polls until both axes are done, ``TB?`` again (a limit or following error during the move),
+    the settle wait, and ``nTP?`` for the read-back. Position queries are idempotent and so are
+    absolute moves, which makes resending them after a fault safe. After a timeout the input
+    buffer is flushed before the resend so a late reply cannot be taken for the next one.
+
+    Examples
+    --------
+    >>> from sunlab.bench import FakeESP
+    >>> fake = FakeESP(velocity_deg_s=1e4)
+    >>> stage = ESP300(fake.serve_pty(), retry_delay_s=0.0, poll_s=0.001)
+    >>> stage.identity.startswith("ESP301")
+    True
+    >>> stage.limits["alpha"]
+    (-170.0, 170.0)
+    >>> stage.close(); fake.close()
+    """
+
+    def __init__(
+        self,
+        port: str | Transport,
+        *,
+        axes: Sequence[int] = (1, 2),
+        timeout: float = 1.0,
+        retries: int = 3,
+        retry_delay_s: float = 0.2,
+        settle_s: float = 0.0,
+        motion_timeout_s: float = 60.0,
+        poll_s: float = 0.05,
+        limits: dict[str, tuple[float, float]] | None = None,
+        tolerance_deg: float = 0.01,
+        enable_motors: bool = True,
+        baudrate: int = 19200,
+        rtscts: bool = False,
+        connect: bool = True,
+        sleep: Callable[[float], None] = time.sleep,
+    ):
+        axes = tuple(int(a) for a in axes)
+        if len(axes) != 2 or len(set(axes)) != 2 or min(axes) < 1:
+            raise ConfigurationError(
+                f"axes: found {axes!r}, expected two distinct controller axes (1, 2 or 3) for "
+                "alpha and beta. Fix: pass axes=(1, 2)"
+            )
+        for name, value in (("timeout", timeout), ("motion_timeout_s", motion_timeout_s)):
+            if not value > 0:
+                raise ConfigurationError(f"{name}: found {value!r}, expected a positive time in s")
+        for name, value in (("retries", retries), ("retry_delay_s", retry_delay_s),
+                            ("settle_s", settle_s), ("poll_s", poll_s)):
+            if not value >= 0:
+                raise ConfigurationError(f"{name}: found {value!r}, expected a value >= 0")
+        self.axes = axes
+        self.timeout = float(timeout)
+        self.retries = int(retries)
+        self.retry_delay_s = float(retry_delay_s)
+        self.settle_s = float(settle_s)
+        self.motion_timeout_s = float(motion_timeout_s)
+        self.poll_s = float(poll_s)
+        self.tolerance_deg = float(tolerance_deg)
+        self.enable_motors = bool(enable_motors)
+        self._user_limits = dict(limits or {})
+        self._baudrate = int(baudrate)
+        self._rtscts = bool(rtscts)
+        self._sleep = sleep
+        if isinstance(port, str):
+            self.url: str | None = port
+            self._port = open_transport(port, baudrate=baudrate, timeout=timeout, rtscts=rtscts)
+        else:
+            self.url = None
+            self._port = port
+        self.port_name = self.url or type(port).__name__
+        self.identity = ""
+        self.limits: dict[str, tuple[float, float]] = {}
+        self.stale_errors: list[ControllerError] = []
+        self.reconnects = 0
+        if connect:
+            self.connect()
+
+    # -- link ---------------------------------------------------------------------------------
+    def _reopen(self, detail: str) -> None:
+        if self.url is None:
+            raise StageDisconnected(self.port_name, detail)
+        try:
+            self._port.close()
+        except Exception:  # noqa: BLE001 - the old link is already broken
+            pass
+        self._port = open_transport(
+            self.url, baudrate=self._baudrate, timeout=self.timeout, rtscts=self._rtscts
+        )
+        self.reconnects += 1
+        log.warning("stage: reconnected to %s after: %s", self.url, detail)
+
+    def _send(self, command: str) -> None:
+        self._port.write(command.encode("ascii") + WRITE_TERMINATOR)
+
+    def _readline(self) -> bytes:
+        raw = self._port.read_until(READ_TERMINATOR, 256)
+        if not raw:
+            raise _NoReply
+        if not raw.endswith(READ_TERMINATOR):
+            raise _Garbled(raw)
+        return raw
+
+    def _exchange(self, command: str, parse: Callable[[str], object] | None, expected: str):
+        """Send ``command``; with ``parse``, read and parse its reply. Retries on faults."""
+        import serial
+
+        last: Exception | None = None
+        for attempt in range(self.retries + 1):
+            if attempt:
+                self._sleep(self.retry_delay_s * 2 ** (attempt - 1))
+            try:
+                if attempt:
+                    self._port.reset_input_buffer()
+                self._send(command)
+                if parse is None:
+                    return None
+                raw = self._readline()
+                try:
+                    return parse(raw[: -len(READ_TERMINATOR)].decode("ascii"))
+                except (UnicodeDecodeError, ValueError) as err:
+                    raise _Garbled(raw) from err
+            except _NoReply:
+                last = StageTimeout(command, attempt + 1, self.timeout)
+                log.info("stage: no reply to %r (attempt %d)", command, attempt + 1)
+            except _Garbled as err:
+                last = StageProtocolError(command, err.raw, expected, attempt + 1)
+                log.info("stage: garbled reply %r to %r (attempt %d)", err.raw, command,
+                         attempt + 1)
+            except (serial.SerialException, OSError) as err:
+                last = StageDisconnected(self.port_name, str(err))
+                if attempt == self.retries:
+                    break
+                self._reopen(str(err))
+        assert last is not None
+        raise last
+
+    def query(self, command: str, parse: Callable[[str], object] = _parse_text,
+              expected: str = "a line of printable ASCII"):
+        """Send a query and return its parsed reply, retrying timeouts and garbled replies.
+
+        Parameters
+        ----------
+        command : str
+            E.g. ``"1TP?"`` (without the terminator).
+        parse : callable
+            Turns the reply text (terminator removed) into a value; raises ValueError when the
+            reply is not valid.
+        expected : str
+            How a valid reply looks, for the error message.
+
+        Raises
+        ------
+        StageTimeout, StageProtocolError, StageDisconnected
+        """
+        return self._exchange(command, parse, expected)
+
+    def write(self, command: str) -> None:
+        """Send a command that has no reply (``1PA12.5``); a dropped link is reopened once."""
+        self._exchange(command, None, "")
+
+    def close(self) -> None:
+        """Close the link (motors stay as they are)."""
+        self._port.close()
+
+    def __enter__(self) -> ESP300:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    # -- controller state ---------------------------------------------------------------------
+    def connect(self) -> ESP300:
+        """Handshake: identify, drain stale errors, check units, read limits, enable motors.
+
+        Raises
+        ------
+        ConfigurationError
+            When an axis is not in degrees.
+        StageError
+            When a motor is off and ``enable_motors`` is False.
+        """
+        self._port.reset_input_buffer()
+        self.identity = self.query("VE?")
+        self.stale_errors = self.errors()
+        for err in self.stale_errors:
+            log.warning("stage: stale error in the controller buffer: %s", err)
+        limits = {}
+        for name, ax in zip(("alpha", "beta"), self.axes, strict=True):
+            units = self.query(f"{ax}SN?", int, "a unit code")
+            if units != 7:
+                raise ConfigurationError(
+                    f"stage axis {ax} ({name}) units: found {units} "
+                    f"({UNITS.get(units, 'unknown')}), expected 7 (degree). Fix: send "
+                    f"'{ax}SN7' and save with 'SM', or use the controller's front panel"
+                )
+            low = self.query(f"{ax}SL?", _parse_float, "a number")
+            high = self.query(f"{ax}SR?", _parse_float, "a number")
+            user = self._user_limits.get(name)
+            if user is not None:
+                low, high = max(low, float(user[0])), min(high, float(user[1]))
+            if not low < high:
+                raise ConfigurationError(
+                    f"stage {name} limits: found [{low}, {high}], expected low < high. Fix: check "
+                    "`limits` against the controller's SL/SR"
+                )
+            limits[name] = (low, high)
+            if not self.query(f"{ax}MO?", _parse_flag, "0 or 1"):
+                if not self.enable_motors:
+                    raise StageError(
+                        f"stage axis {ax} ({name}): motor is off. Fix: pass enable_motors=True "
+                        f"or send '{ax}MO'"
+                    )
+                self.write(f"{ax}MO")
+                self.check_errors(f"{ax}MO")
+        self.limits = limits
+        return self
+
+    def errors(self, command: str = "", max_errors: int = 10) -> list[ControllerError]:
+        """Drain the controller's error buffer (``TB?`` until code 0), oldest first.
+
+        Parameters
+        ----------
+        command : str
+            The command the errors follow, for the messages.
+        max_errors : int
+            At most this many are read (the ESP buffer holds 10).
+        """
+        found = []
+        for _ in range(max_errors):
+            code, _stamp, text = self.query("TB?", _parse_tb, "'code, timestamp, message'")
+            if code == 0:
+                break
+            found.append(self._error(code, text, command))
+        return found
+
+    def _error(self, code: int, text: str = "", command: str = "") -> ControllerError:
+        axis, meaning = decode_error(code)
+        message = meaning if not text else f"{meaning}; controller says {text!r}"
+        cls = ControllerLimitError if axis is not None and code % 100 in _LIMIT_CODES else (
+            ControllerError
+        )
+        return cls(code, message, axis, command)
+
+    def check_errors(self, command: str = "") -> None:
+        """Raise the oldest error in the controller's buffer, if any (the rest are logged)."""
+        found = self.errors(command)
+        if found:
+            for extra in found[1:]:
+                log.warning("stage: further error: %s", extra)
+            raise found[0]
+
+    def position(self) -> tuple[float, float]:
+        """Encoder read-back of (alpha, beta), degrees."""
+        a, b = (self.query(f"{ax}TP?", _parse_float, "a number") for ax in self.axes)
+        return a, b
+
+    def motion_done(self) -> bool:
+        """True when both axes report motion done."""
+        return all(self.query(f"{ax}MD?", _parse_flag, "0 or 1") for ax in self.axes)
+
+    def stop(self) -> None:
+        """Stop both axes (``ST``)."""
+        for ax in self.axes:
+            self.write(f"{ax}ST")
+
+    def check_target(self, alpha: float, beta: float) -> None:
+        """Raise :class:`LimitError` if (alpha, beta) is outside the limits; sends nothing."""
+        for name, value in (("alpha", alpha), ("beta", beta)):
+            if not isinstance(value, int | float) or not math.isfinite(value):
+                raise LimitError(
+                    f"stage: {name} = {value!r} is not a finite angle in degrees. Fix: check "
+                    "the plan"
+                )
+            low, high = self.limits.get(name, (-math.inf, math.inf))
+            if not low <= value <= high:
+                raise LimitError.outside(name, value, low, high)
+
+    def move_to(self, alpha: float, beta: float) -> tuple[float, float]:
+        """Move to (alpha, beta) degrees, wait for motion done and settle; return the read-back.
+
+        Parameters
+        ----------
+        alpha, beta : float
+            Target angles of the outer and inner axis, degrees.
+
+        Returns
+        -------
+        (float, float)
+            Encoder read-back of (alpha, beta) after the settle time, degrees.
+
+        Raises
+        ------
+        LimitError
+            Target outside the limits (nothing sent), or the controller hit a limit.
+        ControllerError
+            Any other error the controller reported for the move.
+        MotionTimeout
+            An axis did not finish within ``motion_timeout_s`` (it was stopped).
+        StageError
+            The read-back is further than ``tolerance_deg`` from the target.
+        StageTimeout, StageProtocolError, StageDisconnected
+            Link faults that outlasted the retries.
+        """
+        alpha, beta = float(alpha), float(beta)
+        self.check_target(alpha, beta)
+        target = dict(zip(self.axes, (alpha, beta), strict=True))
+        for ax, value in target.items():
+            self.write(f"{ax}PA{format_number(value)}")
+        self.check_errors("PA")
+        t_end = time.monotonic() + self.motion_timeout_s
+        pending = list(self.axes)
+        while pending:
+            pending = [ax for ax in pending
+                       if not self.query(f"{ax}MD?", _parse_flag, "0 or 1")]
+            if not pending:
+                break
+            if time.monotonic() > t_end:
+                self.stop()
+                for err in self.errors():
+                    log.warning("stage: after stopping a stuck move: %s", err)
+                raise MotionTimeout(pending, {ax: target[ax] for ax in pending},
+                                    self.motion_timeout_s)
+            self._sleep(self.poll_s)
+        self.check_errors("PA")
+        if self.settle_s:
+            self._sleep(self.settle_s)
+        read = self.position()
+        for name, ax, want, got in zip(("alpha", "beta"), self.axes, (alpha, beta), read,
+                                       strict=True):
+            if abs(got - want) > self.tolerance_deg:
+                raise StageError(
+                    f"stage axis {ax} ({name}): read back {got} deg after a move to {want} deg, "
+                    f"more than tolerance_deg = {self.tolerance_deg} off. Fix: check the encoder "
+                    "and the servo tuning, or raise tolerance_deg"
+                )
+        return read
+
+    def describe(self) -> dict:
+        """What the run metadata records about the stage."""
+        return {
+            "driver": "sunlab.bench.ESP300",
+            "port": self.port_name,
+            "identity": self.identity,
+            "axes": list(self.axes),
+            "limits_deg": {k: list(v) for k, v in self.limits.items()},
+            "settle_s": self.settle_s,
+            "tolerance_deg": self.tolerance_deg,
+        }

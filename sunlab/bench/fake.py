@@ -1,0 +1,446 @@
+"""A fake Newport ESP300/ESP301 controller: the same byte protocol, a simulated platform.
+
+:class:`FakeESP` answers the command subset that :class:`~sunlab.bench.ESP300` uses (and a few
+more) exactly as the controller does: commands end with ``CR``, query replies end with ``CR LF``,
+errors queue in a 10-deep buffer read with ``TB?``/``TE?``, axis errors are ``axis * 100 +
+code``. Axes move at a finite velocity, so ``MD?`` reads 0 until the move is over. It serves
+
+- a pseudo-terminal (:meth:`FakeESP.serve_pty`: ``os.openpty`` and a thread on the master side;
+  the driver opens the slave path like any serial port), and
+- a loopback TCP port (:meth:`FakeESP.serve_tcp`: 127.0.0.1 only; the driver opens
+  ``socket://127.0.0.1:PORT``).
+
+The platform behind the axes is the virtual bench's (:func:`sunlab.sim.platform_pose`): the
+encoders read the commanded angles, while :meth:`FakeESP.true_pose` gives the angles the platform
+really takes, with its offsets, non-orthogonality, per-pose error and per-shot jitter. Without a
+bench the platform is ideal (true = commanded).
+
+Faults are injected with :meth:`FakeESP.inject`:
+
+==============  ==============================================================================
+kind            effect on the next ``count`` commands that contain ``match``
+==============  ==============================================================================
+``timeout``     the reply is not sent
+``garble``      the reply's bytes are corrupted (high bit set), the terminator kept
+``error``       the command runs, then error ``code`` is queued; a limit code (axis 4 to 7)
+                also stops the axis and silences the controller for ``silent_s``
+``silent``      after the command, nothing is answered for ``silent_s`` seconds
+``stuck``       a ``PA`` move stops half-way and never reports motion done (until ``ST``)
+``disconnect``  the link is closed (the TCP server then accepts a new connection)
+==============  ==============================================================================
+
+Examples
+--------
+>>> fake = FakeESP(velocity_deg_s=1e6)
+>>> fake.handle(b"1PA2.5")
+>>> fake.handle(b"1TP?")
+b'2.500000\\r\\n'
+>>> fake.handle(b"3PA999"); fake.handle(b"TB?").split(b", ")[0]
+b'306'
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+import select
+import socket
+import threading
+import time
+from collections import deque
+from dataclasses import dataclass
+
+from .._errors import ConfigurationError
+from .esp import decode_error
+
+__all__ = ["FAULT_KINDS", "Fault", "FakeESP", "DISCONNECT"]
+
+FAULT_KINDS = ("timeout", "garble", "error", "silent", "stuck", "disconnect")
+
+#: Returned by :meth:`FakeESP.handle` when the link must be closed.
+DISCONNECT = object()
+
+_CMD_RE = re.compile(r"^(\d*)([A-Za-z]{2})(.*)$")
+
+
+@dataclass
+class Fault:
+    """One injected fault (see the module docstring for the kinds)."""
+
+    kind: str
+    match: str = ""
+    count: int = 1
+    code: int = 0
+    silent_s: float = 2.0
+
+
+class _Axis:
+    def __init__(self, low: float, high: float, velocity: float, motor_on: bool):
+        self.low, self.high, self.velocity = low, high, velocity
+        self.motor_on = motor_on
+        self.units = 7
+        self.start = self.target = 0.0
+        self.t0 = self.t1 = 0.0
+        self.stuck = False
+
+    def position(self, now: float) -> float:
+        if self.stuck:
+            return self.start + 0.5 * (self.target - self.start)
+        if now >= self.t1:
+            return self.target
+        return self.start + (self.target - self.start) * (now - self.t0) / (self.t1 - self.t0)
+
+    def done(self, now: float) -> bool:
+        return not self.stuck and now >= self.t1
+
+    def move(self, target: float, now: float, stuck: bool = False) -> None:
+        self.start = self.position(now)
+        self.target = target
+        self.t0 = now
+        self.t1 = now + abs(target - self.start) / self.velocity
+        self.stuck = stuck
+
+    def halt(self, now: float) -> None:
+        here = self.position(now)
+        self.start = self.target = here
+        self.t0 = self.t1 = now
+        self.stuck = False
+
+
+class FakeESP:
+    """An ESP301-like controller behind a pseudo-terminal or a loopback TCP port.
+
+    Parameters
+    ----------
+    bench : sunlab.sim.Bench, optional
+        Virtual bench whose platform model maps commanded to true angles; None: ideal platform.
+    seed : int
+        Seed of the platform model (per-pose error and per-shot jitter).
+    alpha_axis, beta_axis : int
+        Controller axes that carry alpha and beta (for :meth:`true_pose`).
+    n_axes : int
+        Number of axes the controller has (ESP301: up to 3).
+    velocity_deg_s : float
+        Slew rate of every axis, deg/s.
+    limits : (float, float)
+        Software limits ``SL``, ``SR`` of every axis, degrees.
+    resolution_deg : float
+        Encoder resolution; ``TP?`` reads the position rounded to it, degrees.
+    motors_on : bool
+        Motor power at start.
+    version : str
+        The ``VE?`` reply.
+    """
+
+    def __init__(
+        self,
+        *,
+        bench=None,
+        seed: int = 0,
+        alpha_axis: int = 1,
+        beta_axis: int = 2,
+        n_axes: int = 3,
+        velocity_deg_s: float = 20.0,
+        limits: tuple[float, float] = (-170.0, 170.0),
+        resolution_deg: float = 1e-4,
+        motors_on: bool = True,
+        version: str = "ESP301 Version 3.0.2 6/29/11 (sunlab fake)",
+    ):
+        if not velocity_deg_s > 0:
+            raise ConfigurationError(f"velocity_deg_s: found {velocity_deg_s!r}, expected > 0")
+        self.bench = bench
+        self.seed = int(seed)
+        self.alpha_axis, self.beta_axis = int(alpha_axis), int(beta_axis)
+        self.resolution_deg = float(resolution_deg)
+        self.version = version
+        self._axes = {
+            n: _Axis(float(limits[0]), float(limits[1]), float(velocity_deg_s), motors_on)
+            for n in range(1, n_axes + 1)
+        }
+        self._errors: deque[int] = deque(maxlen=10)
+        self._faults: list[Fault] = []
+        self._silent_until = -math.inf
+        self._lock = threading.RLock()
+        self._t_boot = time.monotonic()
+        self._stop = threading.Event()
+        self._threads: list[threading.Thread] = []
+        self._closers: list = []
+        self.received: list[str] = []
+
+    # -- faults -------------------------------------------------------------------------------
+    def inject(self, kind: str, match: str = "", *, count: int = 1, code: int = 0,
+               silent_s: float = 2.0) -> Fault:
+        """Queue a fault for the next ``count`` commands containing ``match`` (see module doc).
+
+        Examples
+        --------
+        >>> fake = FakeESP()
+        >>> _ = fake.inject("timeout", "1TP?")
+        >>> fake.handle(b"1TP?") is None, fake.handle(b"1TP?")
+        (True, b'0.000000\\r\\n')
+        """
+        if kind not in FAULT_KINDS:
+            raise ConfigurationError(f"fault kind: found {kind!r}, expected one of {FAULT_KINDS}")
+        fault = Fault(kind, match, int(count), int(code), float(silent_s))
+        with self._lock:
+            self._faults.append(fault)
+        return fault
+
+    def _take_fault(self, command: str) -> Fault | None:
+        for fault in self._faults:
+            if fault.count > 0 and fault.match in command:
+                fault.count -= 1
+                if fault.count == 0:
+                    self._faults.remove(fault)
+                return fault
+        return None
+
+    # -- protocol -----------------------------------------------------------------------------
+    def handle(self, line: bytes):
+        """Run one received line (without its ``CR``); return the reply bytes, None or
+        :data:`DISCONNECT`."""
+        text = line.decode("ascii", "replace").strip()
+        if not text:
+            return None
+        now = time.monotonic()
+        out = []
+        with self._lock:
+            self.received.append(text)
+            for command in filter(None, (c.strip() for c in text.split(";"))):
+                fault = self._take_fault(command)
+                if fault is not None and fault.kind == "disconnect":
+                    return DISCONNECT
+                reply = self._execute(command, now, fault)
+                if fault is not None:
+                    if fault.kind == "timeout":
+                        reply = None
+                    elif fault.kind == "garble" and reply is not None:
+                        reply = bytes(b | 0x80 for b in reply.encode("ascii")).decode("latin-1")
+                    elif fault.kind == "silent":
+                        self._silent_until = now + fault.silent_s
+                    elif fault.kind == "error":
+                        self._errors.append(fault.code)
+                        axis = fault.code // 100
+                        if axis in self._axes and fault.code % 100 in (4, 5, 6, 7):
+                            self._axes[axis].halt(now)
+                            self._silent_until = now + fault.silent_s
+                if reply is not None and now >= self._silent_until:
+                    out.append(reply.encode("latin-1") + b"\r\n")
+        return b"".join(out) or None
+
+    def _error_text(self, code: int, now: float) -> str:
+        stamp = int((now - self._t_boot) * 1000)
+        message = "NO ERROR DETECTED" if code == 0 else decode_error(code)[1].upper()
+        return f"{code}, {stamp}, {message}"
+
+    def _execute(self, command: str, now: float, fault: Fault | None) -> str | None:
+        match = _CMD_RE.match(command)
+        if match is None:
+            self._errors.append(6)
+            return None
+        axis_text, mnemonic, rest = match.groups()
+        mnemonic = mnemonic.upper()
+        query = rest == "?"
+        if not axis_text:
+            if mnemonic == "VE" and query:
+                return self.version
+            if mnemonic == "TB" and query:
+                return self._error_text(self._errors.popleft() if self._errors else 0, now)
+            if mnemonic == "TE" and query:
+                return str(self._errors.popleft() if self._errors else 0)
+            if mnemonic == "AB":
+                for ax in self._axes.values():
+                    ax.halt(now)
+                return None
+            if mnemonic in {"TP", "MD", "PA", "SL", "SR", "SN", "MO", "MF", "ST", "VA"}:
+                self._errors.append(37)
+            else:
+                self._errors.append(6)
+            return None
+        n = int(axis_text)
+        if n not in self._axes:
+            self._errors.append(9)
+            return None
+        ax = self._axes[n]
+        if query:
+            if mnemonic == "TP":
+                q = round(ax.position(now) / self.resolution_deg) * self.resolution_deg
+                return f"{q:.6f}"
+            values = {"MD": lambda: str(int(ax.done(now))), "PA": lambda: f"{ax.target:.6f}",
+                      "SL": lambda: f"{ax.low:.6f}", "SR": lambda: f"{ax.high:.6f}",
+                      "SN": lambda: str(ax.units), "MO": lambda: str(int(ax.motor_on)),
+                      "VA": lambda: f"{ax.velocity:.6f}"}
+            if mnemonic in values:
+                return values[mnemonic]()
+            self._errors.append(6)
+            return None
+        if mnemonic in ("MO", "MF", "ST") and rest == "":
+            if mnemonic == "MO":
+                ax.motor_on = True
+            else:
+                ax.halt(now)
+                ax.motor_on = ax.motor_on and mnemonic == "ST"
+            return None
+        if mnemonic in ("PA", "SL", "SR", "VA"):
+            try:
+                value = float(rest)
+            except ValueError:
+                self._errors.append(38 if rest == "" else 7)
+                return None
+            if not math.isfinite(value):
+                self._errors.append(7)
+            elif mnemonic == "PA":
+                if not ax.motor_on:
+                    self._errors.append(100 * n + 13)
+                elif value > ax.high:
+                    self._errors.append(100 * n + 6)
+                elif value < ax.low:
+                    self._errors.append(100 * n + 7)
+                else:
+                    ax.move(value, now, stuck=fault is not None and fault.kind == "stuck")
+            elif mnemonic == "VA":
+                if value > 0:
+                    ax.velocity = value
+                else:
+                    self._errors.append(100 * n + 1)
+            elif mnemonic == "SL":
+                ax.low = value
+            else:
+                ax.high = value
+            return None
+        self._errors.append(6)
+        return None
+
+    # -- the platform -------------------------------------------------------------------------
+    def position(self) -> tuple[float, float]:
+        """Commanded-frame position of (alpha, beta) axes now (not rounded), degrees."""
+        now = time.monotonic()
+        with self._lock:
+            return (self._axes[self.alpha_axis].position(now),
+                    self._axes[self.beta_axis].position(now))
+
+    def true_pose(self, pose: int = 0, shot: int = 0) -> tuple[float, float]:
+        """True platform angles (alpha, beta) now, degrees, from the virtual bench's platform.
+
+        Deterministic in (seed, pose, shot) for a given position; see
+        :func:`sunlab.sim.platform_pose`.
+        """
+        alpha, beta = self.position()
+        if self.bench is None:
+            return alpha, beta
+        from ..sim import platform_pose
+
+        a, b = platform_pose(self.bench, alpha, beta, seed=self.seed, pose=pose, shot=shot)
+        return float(a), float(b)
+
+    # -- transports ---------------------------------------------------------------------------
+    def serve_pty(self) -> str:
+        """Serve the protocol on a new pseudo-terminal; return the slave's path."""
+        import tty
+
+        master, slave = os.openpty()
+        tty.setraw(slave)
+        path = os.ttyname(slave)
+        closed = threading.Event()
+
+        def close() -> None:
+            if not closed.is_set():
+                closed.set()
+                for fd in (master, slave):
+                    try:
+                        os.close(fd)
+                    except OSError:
+                        pass
+
+        def serve() -> None:
+            buf = b""
+            try:
+                while not self._stop.is_set() and not closed.is_set():
+                    ready, _, _ = select.select([master], [], [], 0.05)
+                    if not ready:
+                        continue
+                    buf += os.read(master, 4096)
+                    while b"\r" in buf:
+                        line, buf = buf.split(b"\r", 1)
+                        reply = self.handle(line)
+                        if reply is DISCONNECT:
+                            return
+                        if reply:
+                            os.write(master, reply)
+            except OSError:
+                pass
+            finally:
+                close()
+
+        self._start(serve, close)
+        return path
+
+    def serve_tcp(self, port: int = 0) -> str:
+        """Serve the protocol on 127.0.0.1:``port`` (0: any free); return ``socket://`` URL.
+
+        One client at a time; after a ``disconnect`` fault the server accepts the next one.
+        """
+        server = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+        server.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        server.bind(("127.0.0.1", int(port)))
+        server.listen(4)
+        server.settimeout(0.05)
+        host, bound = server.getsockname()
+
+        def serve_client(conn: socket.socket) -> None:
+            conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+            conn.settimeout(0.05)
+            buf = b""
+            with conn:
+                while not self._stop.is_set():
+                    try:
+                        data = conn.recv(4096)
+                    except TimeoutError:
+                        continue
+                    except OSError:
+                        return
+                    if not data:
+                        return
+                    buf += data
+                    while b"\r" in buf:
+                        line, buf = buf.split(b"\r", 1)
+                        reply = self.handle(line)
+                        if reply is DISCONNECT:
+                            return
+                        if reply:
+                            conn.sendall(reply)
+
+        def serve() -> None:
+            with server:
+                while not self._stop.is_set():
+                    try:
+                        conn, _ = server.accept()
+                    except TimeoutError:
+                        continue
+                    except OSError:
+                        return
+                    serve_client(conn)
+
+        self._start(serve, server.close)
+        return f"socket://{host}:{bound}"
+
+    def _start(self, target, closer) -> None:
+        thread = threading.Thread(target=target, name="sunlab-fake-esp", daemon=True)
+        self._threads.append(thread)
+        self._closers.append(closer)
+        thread.start()
+
+    def close(self) -> None:
+        """Stop serving and close every transport."""
+        self._stop.set()
+        for thread in self._threads:
+            thread.join(timeout=2.0)
+        for closer in self._closers:
+            closer()
+
+    def __enter__(self) -> FakeESP:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()

@@ -1,0 +1,463 @@
+"""Resumable acquisition: a plan of poses -> a pre-allocated Zarr frame cube, one pose at a time.
+
+For each pose of a :class:`sunlab.plans.Plan` the runner moves the stage (which waits for
+motion done and settles), takes ``plan.shots`` frames, each with the encoder read-back and a
+timestamp, and writes the pose into a Zarr store that was allocated up front in the frames/1
+contract (:func:`sunlab.schema.empty_frames`): frames, ``alpha_read``, ``beta_read`` and
+``time`` on (pose, shot), and a per-pose flag ``done``.
+
+Crash safety rests on one ordering: a pose's frames and read-backs are written (and fsync'ed)
+before its ``done`` flag, and every chunk file is replaced atomically by Zarr (write to a
+temporary file, then rename). A run killed at any instant therefore leaves poses that are
+either complete and flagged, or unflagged; restarting with ``resume=True`` continues at the first
+unflagged pose and rewrites it whole. The store itself is created in a temporary directory and
+renamed into place, so a half-created store is never mistaken for a run.
+
+Run metadata live in the store's attributes: ``uid``, ``plan``, ``versions``, ``start``,
+``stop``, ``exit_status`` (``running``, ``complete``, ``interrupted``, ``failed``), ``error``,
+``stage``, ``camera`` and ``sessions`` (one entry per start or resume; a session that was killed
+keeps ``running`` until the next resume marks it ``killed``).
+
+Examples
+--------
+>>> import tempfile, os
+>>> from sunlab import plans
+>>> from sunlab.bench import acquire, open_run, open_stage
+>>> stage = open_stage("fake://?velocity=1e4", retry_delay_s=0.0, poll_s=0.001)
+>>> class Ramp:  # a minimal camera: any object with grab, shape, dtype, bit_depth
+...     shape, dtype, bit_depth = (4, 5), np.dtype(np.uint16), 10
+...     def grab(self):
+...         return np.arange(20, dtype=np.uint16).reshape(4, 5)
+>>> path = os.path.join(tempfile.mkdtemp(), "run.zarr")
+>>> result = acquire(plans.custom([0.0, 1.0], [0.0, 2.0], shots=2), stage, Ramp(), path,
+...                  progress=False)
+>>> result.exit_status, result.poses_done
+('complete', 2)
+>>> run = open_run(path)
+>>> run.beta_read.values.tolist()
+[[0.0, 0.0], [2.0, 2.0]]
+>>> stage.close()
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import platform
+import signal
+import sys
+import threading
+import time
+import uuid
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from pathlib import Path
+
+import numpy as np
+
+from .._errors import ConfigurationError
+from ._errors import BenchError, CameraError
+
+__all__ = ["RunResult", "acquire", "open_run", "TIME_UNITS"]
+
+#: Units of the ``time`` coordinate (CF): float seconds since the Unix epoch, UTC.
+TIME_UNITS = "seconds since 1970-01-01T00:00:00+00:00"
+
+_PER_POSE = ("frames", "alpha_read", "beta_read", "time")
+
+
+@dataclass(frozen=True)
+class RunResult:
+    """What :func:`acquire` did.
+
+    Attributes
+    ----------
+    path : str
+        The Zarr store.
+    uid : str
+        Run identifier (kept across resumes).
+    exit_status : str
+        ``complete``, ``interrupted`` or ``failed``.
+    poses_total, poses_done : int
+        Poses in the plan, and poses flagged done in the store.
+    poses_this_session : int
+        Poses written by this call.
+    error : str or None
+        The fault that stopped a failed run.
+    """
+
+    path: str
+    uid: str
+    exit_status: str
+    poses_total: int
+    poses_done: int
+    poses_this_session: int
+    error: str | None = None
+
+
+def _now() -> str:
+    return datetime.now(UTC).isoformat(timespec="milliseconds")
+
+
+def _versions() -> dict:
+    import serial
+    import xarray
+    import zarr
+
+    from .. import __version__
+
+    return {
+        "sunlab": __version__,
+        "python": platform.python_version(),
+        "numpy": np.__version__,
+        "xarray": xarray.__version__,
+        "zarr": zarr.__version__,
+        "pyserial": serial.VERSION,
+    }
+
+
+def _plan_arrays(plan) -> tuple[np.ndarray, np.ndarray, int, str]:
+    try:
+        alpha = np.asarray(plan.alpha, dtype=float).ravel()
+        beta = np.asarray(plan.beta, dtype=float).ravel()
+        shots = int(plan.shots)
+        name = str(getattr(plan, "name", ""))
+    except (AttributeError, TypeError, ValueError) as err:
+        raise ConfigurationError(
+            f"plan: found {type(plan).__name__}, expected a sunlab.plans.Plan (alpha, beta in "
+            "degrees, shots). Fix: build one with sunlab.plans.experiment/grid/custom"
+        ) from err
+    if alpha.shape != beta.shape or alpha.size == 0 or shots < 1:
+        raise ConfigurationError(
+            f"plan: found {alpha.size} alpha, {beta.size} beta, shots={shots}, expected equal "
+            "non-empty angle lists and shots >= 1"
+        )
+    if not (np.all(np.isfinite(alpha)) and np.all(np.isfinite(beta))):
+        raise ConfigurationError("plan: found non-finite angles, expected finite degrees")
+    return alpha, beta, shots, name
+
+
+def _camera_spec(camera) -> tuple[tuple[int, int], np.dtype, int]:
+    try:
+        shape = tuple(int(n) for n in camera.shape)
+        dtype = np.dtype(camera.dtype)
+        bits = int(camera.bit_depth)
+    except (AttributeError, TypeError, ValueError) as err:
+        raise ConfigurationError(
+            f"camera: found {type(camera).__name__}, expected a sunlab.bench.Camera (grab(), "
+            "shape, dtype, bit_depth)"
+        ) from err
+    if len(shape) != 2 or min(shape) < 1 or dtype not in (np.dtype(np.uint8), np.dtype(np.uint16)):
+        raise ConfigurationError(
+            f"camera: found shape {shape} dtype {dtype}, expected a 2-d (ny, nx) frame of uint8 "
+            "or uint16"
+        )
+    return shape, dtype, bits
+
+
+def _describe(obj) -> dict:
+    describe = getattr(obj, "describe", None)
+    info = describe() if callable(describe) else {"type": type(obj).__name__}
+    return json.loads(json.dumps(info, default=str))
+
+
+def _create_store(path: Path, alpha, beta, shots, name, camera, stage, attrs) -> None:
+    import dask.array as da
+    import zarr
+
+    from .. import schema
+
+    (ny, nx), dtype, bits = _camera_spec(camera)
+    n = alpha.size
+    sensor = dict(getattr(camera, "attrs", None) or {})
+    sensor.setdefault("bit_depth", bits)
+    nan = da.full((n, shots), np.nan, chunks=(1, shots))
+    coords = {
+        "alpha_read": (("pose", "shot"), nan,
+                       {"units": "deg", "long_name": "encoder read-back of the outer axis"}),
+        "beta_read": (("pose", "shot"), nan,
+                      {"units": "deg", "long_name": "encoder read-back of the inner axis"}),
+        "time": (("pose", "shot"), da.full((n, shots), np.datetime64("NaT", "ns"),
+                                           chunks=(1, shots)),
+                 {"long_name": "start of the frame's capture, UTC"}),
+        "done": ("pose", da.zeros(n, dtype=np.uint8, chunks=1),
+                 {"flag_values": [0, 1], "flag_meanings": "pending done",
+                  "long_name": "pose fully written"}),
+    }
+    cube = schema.empty_frames(n, shots, alpha, beta, ny=ny, nx=nx, dtype=dtype,
+                               experiment=name, coords=coords, **sensor)
+    tmp = path.with_name(f".{path.name}.{uuid.uuid4().hex[:8]}.tmp")
+    # time is stored as float seconds since the epoch (NaN until taken), decoded to datetime64
+    encoding = {v: {"_FillValue": np.nan} for v in ("alpha_read", "beta_read")}
+    encoding["time"] = {"units": TIME_UNITS, "calendar": "proleptic_gregorian",
+                        "dtype": "float64", "_FillValue": np.nan}
+    cube.to_zarr(tmp, compute=False, consolidated=False, encoding=encoding)
+    group = zarr.open_group(tmp, mode="r+")
+    group.attrs.update({
+        "uid": uuid.uuid4().hex,
+        "plan": {"name": name, "n_poses": int(n), "shots": int(shots)},
+        "versions": _versions(),
+        "stage": _describe(stage),
+        "camera": _describe(camera),
+        "start": None,
+        "stop": None,
+        "exit_status": "created",
+        "error": None,
+        "sessions": [],
+        **dict(attrs or {}),
+    })
+    os.replace(tmp, path)
+
+
+def _check_store(group, alpha, beta, shots, camera) -> None:
+    (ny, nx), dtype, _ = _camera_spec(camera)
+    attrs = group.attrs
+    if attrs.get("sunlab_schema") != "frames/1" or "uid" not in attrs or "done" not in group:
+        raise ConfigurationError(
+            f"out: {group.store} is not a sunlab acquisition store (no frames/1 schema, uid or "
+            "done flags). Fix: choose a new path"
+        )
+    frames = group["frames"]
+    found = (tuple(frames.shape), np.dtype(frames.dtype))
+    expected = ((alpha.size, shots, ny, nx), dtype)
+    if found != expected:
+        raise ConfigurationError(
+            f"out: store frames {found} do not match this plan and camera {expected}. Fix: "
+            "resume with the plan and camera settings of the original run, or choose a new path"
+        )
+    if not (np.array_equal(group["alpha"][:], alpha) and np.array_equal(group["beta"][:], beta)):
+        raise ConfigurationError(
+            "out: the store's commanded angles differ from the plan's. Fix: resume with the "
+            "original plan, or choose a new path"
+        )
+
+
+def _fsync_pose(root: Path, names, pose: int) -> None:
+    """fsync the chunk files of one pose (zarr v3 'c/' keys) and their folders."""
+    dirs = set()
+    for name in names:
+        base = root / name / "c" / str(pose)
+        files = [base] if base.is_file() else sorted(p for p in base.rglob("*") if p.is_file())
+        for file in files:
+            fd = os.open(file, os.O_RDONLY)
+            try:
+                os.fsync(fd)
+            finally:
+                os.close(fd)
+            dirs.add(file.parent)
+    for folder in dirs:
+        try:
+            fd = os.open(folder, os.O_RDONLY)
+        except OSError:
+            continue
+        try:
+            os.fsync(fd)
+        except OSError:
+            pass
+        finally:
+            os.close(fd)
+
+
+def _capture_pose(stage, camera, pose, alpha, beta, shots, shape, dtype, bits):
+    """Move and capture one pose into memory; nothing is written here."""
+    stage.move_to(alpha, beta)
+    frames = np.empty((shots, *shape), dtype=dtype)
+    read = np.empty((2, shots))
+    stamps = np.empty(shots)
+    set_index = getattr(camera, "set_index", None)
+    for shot in range(shots):
+        read[:, shot] = stage.position()
+        if callable(set_index):
+            set_index(pose, shot, alpha=read[0, shot], beta=read[1, shot])
+        stamps[shot] = time.time()
+        frame = np.asarray(camera.grab())
+        if frame.shape != shape or frame.dtype != dtype:
+            raise CameraError(
+                f"camera: pose {pose} shot {shot} gave a {frame.dtype} frame of shape "
+                f"{frame.shape}, expected {dtype} {shape}. Fix: check the camera's ROI, binning "
+                "and pixel format"
+            )
+        top = int(frame.max()) if frame.size else 0
+        if top >= 2**bits:
+            raise CameraError(
+                f"camera: pose {pose} shot {shot} holds {top} DN, above the {bits}-bit range. "
+                "Fix: set the camera's bit_depth to its ADC's"
+            )
+        frames[shot] = frame
+    return frames, read, stamps
+
+
+def acquire(
+    plan,
+    stage,
+    camera,
+    out,
+    *,
+    resume: bool = False,
+    progress: bool = True,
+    stop: threading.Event | None = None,
+    fsync: bool = True,
+    attrs: dict | None = None,
+    handle_sigint: bool = True,
+) -> RunResult:
+    """Run a plan on the bench into a resumable Zarr store.
+
+    Parameters
+    ----------
+    plan : sunlab.plans.Plan
+        Poses (alpha outer, beta inner, degrees) and shots per pose.
+    stage : sunlab.bench.Stage
+        The platform; ``move_to`` must return once settled (e.g. :class:`~sunlab.bench.ESP300`).
+    camera : sunlab.bench.Camera
+        ``grab()``, ``shape``, ``dtype``, ``bit_depth``; optional ``set_index(pose, shot,
+        alpha=, beta=)`` (called before each grab with the read-back angles) and ``attrs``
+        (sensor attributes of the cube: ``pixel_pitch_mm``, ``mask_distance_mm``, ``x_cf_px``,
+        ``y_cf_px``, ``mask``).
+    out : str or path
+        The Zarr store (a directory). Created if missing.
+    resume : bool
+        Continue an existing store of the same plan and camera at its first unfinished pose;
+        without it an existing ``out`` is an error.
+    progress : bool
+        Show a tqdm progress bar (poses).
+    stop : threading.Event, optional
+        Set it to stop between poses (as Ctrl-C does).
+    fsync : bool
+        fsync each pose's chunk files before flagging it done (survives a power cut as well as
+        a killed process).
+    attrs : dict, optional
+        Extra JSON-able attributes recorded when the store is created.
+    handle_sigint : bool
+        In the main thread, turn the first Ctrl-C into a stop between poses (a second one
+        interrupts at once).
+
+    Returns
+    -------
+    RunResult
+        With ``exit_status`` ``complete`` or ``interrupted``.
+
+    Raises
+    ------
+    ConfigurationError
+        ``out`` exists without ``resume``, or does not match the plan and camera.
+    BenchError
+        A stage or camera fault that outlasted its retries; the store then records
+        ``exit_status = 'failed'`` and the error, and the failed pose holds nothing.
+    """
+    import zarr
+    from tqdm.auto import tqdm
+
+    alpha, beta, shots, name = _plan_arrays(plan)
+    shape, dtype, bits = _camera_spec(camera)
+    path = Path(out)
+    if path.exists() and not resume:
+        raise ConfigurationError(
+            f"out: {str(path)!r} exists. Fix: pass resume=True (--resume) to continue that run, "
+            "or choose a new path"
+        )
+    if not path.exists():
+        path.parent.mkdir(parents=True, exist_ok=True)
+        _create_store(path, alpha, beta, shots, name, camera, stage, attrs)
+    for leftover in path.rglob("*.partial"):  # temporary chunk files of a killed writer
+        leftover.unlink(missing_ok=True)
+    with zarr.config.set({"array.write_empty_chunks": True}):  # a dark frame is a chunk too
+        group = zarr.open_group(path, mode="r+")
+        arrays = {k: group[k] for k in ("frames", "alpha_read", "beta_read", "time", "done")}
+    _check_store(group, alpha, beta, shots, camera)
+    done = np.asarray(arrays["done"][:], dtype=bool)
+    sessions = [dict(s, exit_status="killed") if s.get("exit_status") == "running" else s
+                for s in group.attrs.get("sessions", [])]
+    session = {"start": _now(), "stop": None, "exit_status": "running", "poses": 0}
+    group.attrs.update({
+        "start": group.attrs.get("start") or session["start"],
+        "exit_status": "running",
+        "sessions": [*sessions, session],
+    })
+
+    stop = stop if stop is not None else threading.Event()
+    previous = None
+    if handle_sigint and threading.current_thread() is threading.main_thread():
+        def on_sigint(signum, frame):
+            if stop.is_set():
+                raise KeyboardInterrupt
+            stop.set()
+            print("sunlab acquire: stopping after this pose (Ctrl-C again to abort)",
+                  file=sys.stderr)
+
+        previous = signal.signal(signal.SIGINT, on_sigint)
+
+    written = 0
+    status, error = "complete", None
+    bar = tqdm(total=alpha.size, initial=int(done.sum()), unit="pose", disable=not progress,
+               desc=f"acquire {name}".strip())
+    try:
+        for pose in np.flatnonzero(~done):
+            if stop.is_set():
+                status = "interrupted"
+                break
+            frames, read, stamps = _capture_pose(
+                stage, camera, int(pose), alpha[pose], beta[pose], shots, shape, dtype, bits
+            )
+            arrays["frames"][pose] = frames
+            arrays["alpha_read"][pose] = read[0]
+            arrays["beta_read"][pose] = read[1]
+            arrays["time"][pose] = stamps
+            if fsync:
+                _fsync_pose(path, _PER_POSE, int(pose))
+            arrays["done"][pose] = 1
+            if fsync:
+                _fsync_pose(path, ("done",), int(pose))
+            done[pose] = True
+            written += 1
+            bar.update(1)
+        else:
+            status = "complete" if done.all() else "interrupted"
+    except KeyboardInterrupt:
+        status = "interrupted"
+        raise
+    except BenchError as err:
+        status, error = "failed", str(err)
+        raise
+    except BaseException as err:
+        status, error = "failed", f"{type(err).__name__}: {err}"
+        raise
+    finally:
+        bar.close()
+        if previous is not None:
+            signal.signal(signal.SIGINT, previous)
+        session.update(stop=_now(), exit_status=status, poses=written)
+        group.attrs.update({
+            "stop": session["stop"],
+            "exit_status": status,
+            "error": error,
+            "sessions": [*sessions, session],
+        })
+    return RunResult(str(path), str(group.attrs["uid"]), status, int(alpha.size),
+                     int(done.sum()), written, error)
+
+
+def open_run(path, *, chunks=None):
+    """Open an acquisition store as a frame cube (lazy, Dask-backed, one frame per chunk).
+
+    Parameters
+    ----------
+    path : str or path
+        The Zarr store written by :func:`acquire`.
+    chunks : dict, optional
+        Dask chunks as :func:`xarray.open_zarr`; default: the store's (one frame per chunk).
+
+    Returns
+    -------
+    xarray.Dataset
+        Contract frames/1, with ``alpha_read``, ``beta_read``, ``time`` (datetime64, NaT for
+        frames not yet taken) and ``done`` coordinates, and the run metadata in ``attrs``.
+    """
+    import xarray as xr
+
+    from .. import schema
+
+    path = Path(path)
+    if not path.exists():
+        raise ConfigurationError(f"path: {str(path)!r} does not exist, expected a run store")
+    ds = xr.open_zarr(path, consolidated=False, chunks={} if chunks is None else chunks)
+    return schema.validate_frames(ds)
