@@ -1,0 +1,296 @@
+"""Protocol tests of the Newport ESP300/301 driver: exact bytes out, exact bytes in.
+
+In the style of PyMeasure's ``expected_protocol``: an in-memory transport holds the list of
+(bytes the driver must send, bytes the controller answers) and fails on the first byte that
+differs, on a missing exchange and on an unread reply.
+"""
+
+from __future__ import annotations
+
+from contextlib import contextmanager
+
+import pytest
+import serial
+
+from sunlab import ConfigurationError
+from sunlab.bench import (
+    ESP300,
+    ControllerError,
+    ControllerLimitError,
+    LimitError,
+    MotionTimeout,
+    StageDisconnected,
+    StageError,
+    StageProtocolError,
+    StageTimeout,
+)
+from sunlab.bench.esp import decode_error, format_number
+
+NO_ERROR = b"0, 451322, NO ERROR DETECTED\r\n"
+
+
+class ProtocolTransport:
+    """A transport that asserts the exact byte exchange.
+
+    ``pairs`` is a list of ``(sent, reply)``: ``sent`` the bytes the driver must write next,
+    ``reply`` the bytes then readable (None: silence, a read times out; an exception instance:
+    the link breaks on the read).
+    """
+
+    def __init__(self, pairs):
+        self.pairs = list(pairs)
+        self.index = 0
+        self.pending = b""
+        self.broken: Exception | None = None
+        self.flushes = 0
+
+    def write(self, data: bytes) -> int:
+        assert self.index < len(self.pairs), f"unexpected write {data!r} after the last exchange"
+        sent, reply = self.pairs[self.index]
+        assert data == sent, f"exchange {self.index}: driver sent {data!r}, expected {sent!r}"
+        self.index += 1
+        if isinstance(reply, Exception):
+            self.broken = reply
+        elif reply is not None:
+            self.pending += reply
+        return len(data)
+
+    def read_until(self, expected: bytes = b"\n", size: int | None = None) -> bytes:
+        if self.broken is not None:
+            err, self.broken = self.broken, None
+            raise err
+        end = self.pending.find(expected)
+        if end < 0:  # no terminator: what arrived before the timeout
+            out, self.pending = self.pending, b""
+            return out
+        out, self.pending = self.pending[: end + len(expected)], self.pending[end + len(expected):]
+        return out
+
+    def reset_input_buffer(self) -> None:
+        self.flushes += 1
+        self.pending = b""
+
+    def close(self) -> None:
+        pass
+
+
+@contextmanager
+def expected_protocol(pairs, **kwargs):
+    """Yield an unconnected ESP300 on a :class:`ProtocolTransport`; check every pair was used."""
+    transport = ProtocolTransport(pairs)
+    options = {"retry_delay_s": 0.0, "poll_s": 0.0, "sleep": lambda s: None}
+    options.update(kwargs)
+    stage = ESP300(transport, connect=False, **options)
+    yield stage
+    assert transport.index == len(transport.pairs), (
+        f"exchanges never made: {transport.pairs[transport.index:]}"
+    )
+    assert transport.pending == b"", f"reply left unread: {transport.pending!r}"
+
+
+def connected(stage, limits=((-170.0, 170.0), (-170.0, 170.0))):
+    stage.limits = {"alpha": limits[0], "beta": limits[1]}
+    return stage
+
+
+HANDSHAKE = [
+    (b"VE?\r", b"ESP301 Version 3.0.2 6/29/11\r\n"),
+    (b"TB?\r", NO_ERROR),
+    (b"1SN?\r", b"7\r\n"),
+    (b"1SL?\r", b"-170.00000\r\n"),
+    (b"1SR?\r", b"170.00000\r\n"),
+    (b"1MO?\r", b"1\r\n"),
+    (b"2SN?\r", b"7\r\n"),
+    (b"2SL?\r", b"-45.00000\r\n"),
+    (b"2SR?\r", b"45.00000\r\n"),
+    (b"2MO?\r", b"0\r\n"),
+    (b"2MO\r", None),
+    (b"TB?\r", NO_ERROR),
+]
+
+
+def test_connect_handshake_bytes():
+    with expected_protocol(HANDSHAKE) as stage:
+        stage.connect()
+    assert stage.identity == "ESP301 Version 3.0.2 6/29/11"
+    assert stage.limits == {"alpha": (-170.0, 170.0), "beta": (-45.0, 45.0)}
+
+
+def test_connect_intersects_user_limits_and_reports_stale_errors():
+    pairs = [HANDSHAKE[0], (b"TB?\r", b"108, 1200, AXIS 1 MOTOR NOT CONNECTED\r\n"),
+             (b"TB?\r", NO_ERROR), *HANDSHAKE[2:]]
+    with expected_protocol(pairs, limits={"alpha": (-20.0, 5.0)}) as stage:
+        stage.connect()
+    assert stage.limits["alpha"] == (-20.0, 5.0)
+    assert [e.code for e in stage.stale_errors] == [108]
+    assert stage.stale_errors[0].axis == 1
+
+
+def test_connect_rejects_an_axis_not_in_degrees():
+    pairs = [*HANDSHAKE[:2], (b"1SN?\r", b"2\r\n")]
+    with pytest.raises(ConfigurationError, match=r"1SN7"):
+        with expected_protocol(pairs) as stage:
+            stage.connect()
+
+
+def test_connect_refuses_a_motor_that_is_off_when_asked_not_to_enable():
+    with pytest.raises(StageError, match="motor is off"):
+        with expected_protocol(HANDSHAKE[:10], enable_motors=False) as stage:
+            stage.connect()
+
+
+def test_move_bytes_with_motion_polling_and_readback():
+    pairs = [
+        (b"1PA12.5\r", None),
+        (b"2PA-3\r", None),
+        (b"TB?\r", NO_ERROR),
+        (b"1MD?\r", b"0\r\n"),
+        (b"2MD?\r", b"1\r\n"),
+        (b"1MD?\r", b"1\r\n"),  # only the pending axis is polled again
+        (b"TB?\r", NO_ERROR),
+        (b"1TP?\r", b"12.50010\r\n"),
+        (b"2TP?\r", b"-2.99990\r\n"),
+    ]
+    with expected_protocol(pairs) as stage:
+        read = connected(stage).move_to(12.5, -3.0)
+    assert read == (12.5001, -2.9999)
+
+
+def test_move_uses_the_configured_axes():
+    pairs = [(b"3PA1\r", None), (b"1PA2\r", None), (b"TB?\r", NO_ERROR),
+             (b"3MD?\r", b"1\r\n"), (b"1MD?\r", b"1\r\n"), (b"TB?\r", NO_ERROR),
+             (b"3TP?\r", b"1.00000\r\n"), (b"1TP?\r", b"2.00000\r\n")]
+    with expected_protocol(pairs, axes=(3, 1)) as stage:
+        assert connected(stage).move_to(1, 2) == (1.0, 2.0)
+
+
+@pytest.mark.parametrize("alpha, beta, field", [(171.0, 0.0, "alpha"), (0.0, -45.5, "beta"),
+                                                (float("nan"), 0.0, "alpha")])
+def test_limits_are_checked_before_anything_is_sent(alpha, beta, field):
+    with expected_protocol([]) as stage:  # no exchange allowed
+        connected(stage, ((-170.0, 170.0), (-45.0, 45.0)))
+        with pytest.raises(LimitError, match=field):
+            stage.move_to(alpha, beta)
+
+
+def test_a_refused_move_is_reported_with_its_decoded_code():
+    pairs = [(b"1PA1\r", None), (b"2PA2\r", None),
+             (b"TB?\r", b"213, 9001, AXIS 2 MOTOR NOT ENABLED\r\n"), (b"TB?\r", NO_ERROR)]
+    with expected_protocol(pairs) as stage:
+        with pytest.raises(ControllerError) as info:
+            connected(stage).move_to(1, 2)
+    assert (info.value.code, info.value.axis) == (213, 2)
+    assert "motor not enabled" in str(info.value) and "'PA'" in str(info.value)
+
+
+def test_a_limit_hit_during_the_move_is_a_limit_error():
+    pairs = [(b"1PA1\r", None), (b"2PA2\r", None), (b"TB?\r", NO_ERROR),
+             (b"1MD?\r", b"1\r\n"), (b"2MD?\r", b"1\r\n"),
+             (b"TB?\r", b"104, 9001, AXIS 1 POSITIVE HARDWARE LIMIT DETECTED\r\n"),
+             (b"TB?\r", NO_ERROR)]
+    with expected_protocol(pairs) as stage:
+        with pytest.raises(ControllerLimitError, match="positive hardware limit") as info:
+            connected(stage).move_to(1, 2)
+    assert isinstance(info.value, LimitError) and info.value.axis == 1
+
+
+def test_a_stuck_axis_times_out_and_is_stopped():
+    pairs = [(b"1PA1\r", None), (b"2PA2\r", None), (b"TB?\r", NO_ERROR),
+             (b"1MD?\r", b"1\r\n"), (b"2MD?\r", b"0\r\n"),
+             (b"1ST\r", None), (b"2ST\r", None), (b"TB?\r", NO_ERROR)]
+    with expected_protocol(pairs, motion_timeout_s=1e-9) as stage:
+        with pytest.raises(MotionTimeout, match=r"axis \[2\]") as info:
+            connected(stage).move_to(1, 2)
+    assert info.value.axes == [2]
+
+
+def test_a_readback_off_target_is_an_error():
+    pairs = [(b"1PA1\r", None), (b"2PA2\r", None), (b"TB?\r", NO_ERROR),
+             (b"1MD?\r", b"1\r\n"), (b"2MD?\r", b"1\r\n"), (b"TB?\r", NO_ERROR),
+             (b"1TP?\r", b"1.00000\r\n"), (b"2TP?\r", b"2.50000\r\n")]
+    with expected_protocol(pairs, tolerance_deg=0.01) as stage:
+        with pytest.raises(StageError, match="tolerance_deg"):
+            connected(stage).move_to(1, 2)
+
+
+def test_settle_time_is_waited_after_motion_done():
+    waits = []
+    pairs = [(b"1PA0\r", None), (b"2PA0\r", None), (b"TB?\r", NO_ERROR),
+             (b"1MD?\r", b"1\r\n"), (b"2MD?\r", b"1\r\n"), (b"TB?\r", NO_ERROR),
+             (b"1TP?\r", b"0.00000\r\n"), (b"2TP?\r", b"0.00000\r\n")]
+    with expected_protocol(pairs, settle_s=0.25, sleep=waits.append) as stage:
+        connected(stage).move_to(0, 0)
+    assert waits == [0.25]
+
+
+@pytest.mark.parametrize("bad", [None, b"12.5", b"\xb1\xb2.5\r\n", b"twelve\r\n", b"nan\r\n"])
+def test_one_bad_reply_is_retried_after_a_flush(bad):
+    pairs = [(b"1TP?\r", bad), (b"1TP?\r", b"12.50000\r\n"),
+             (b"2TP?\r", b"-1.00000\r\n")]
+    waits = []
+    with expected_protocol(pairs, retry_delay_s=0.2, sleep=waits.append) as stage:
+        assert stage.position() == (12.5, -1.0)
+    assert waits == [0.2]
+
+
+def test_silence_outlasting_the_retries_is_a_timeout_with_backoff():
+    waits = []
+    pairs = [(b"1MD?\r", None)] * 4
+    with expected_protocol(pairs, retries=3, retry_delay_s=0.1, timeout=0.5,
+                           sleep=waits.append) as stage:
+        with pytest.raises(StageTimeout, match=r"'1MD\?' after 4 attempt") as info:
+            stage.motion_done()
+    assert waits == [0.1, 0.2, 0.4]
+    assert info.value.attempts == 4
+
+
+def test_garbage_outlasting_the_retries_is_a_protocol_error():
+    pairs = [(b"TB?\r", b"0; 1; ok\r\n")] * 3
+    with expected_protocol(pairs, retries=2) as stage:
+        with pytest.raises(StageProtocolError, match="code, timestamp, message"):
+            stage.errors()
+
+
+def test_a_broken_link_without_url_is_reported():
+    pairs = [(b"1TP?\r", serial.SerialException("device reports readiness to read but "
+                                                  "returned no data"))]
+    with expected_protocol(pairs) as stage:
+        with pytest.raises(StageDisconnected, match="resume"):
+            stage.position()
+
+
+@pytest.mark.parametrize(
+    "code, axis, text, cls",
+    [
+        (0, None, "no error detected", ControllerError),
+        (6, None, "command does not exist", ControllerError),
+        (104, 1, "positive hardware limit detected", ControllerLimitError),
+        (205, 2, "negative hardware limit detected", ControllerLimitError),
+        (306, 3, "positive software limit detected", ControllerLimitError),
+        (107, 1, "negative software limit detected", ControllerLimitError),
+        (203, 2, "following error threshold exceeded", ControllerError),
+        (113, 1, "motor not enabled", ControllerError),
+    ],
+)
+def test_error_codes_decode(code, axis, text, cls):
+    assert decode_error(code) == (axis, text)
+    err = ESP300(ProtocolTransport([]), connect=False)._error(code)
+    assert type(err) is cls and err.code == code and err.axis == axis
+
+
+@pytest.mark.parametrize("value, text", [(12.5, "12.5"), (-3.0, "-3"), (0.0, "0"), (-0.0, "0"),
+                                         (1e-7, "0"), (0.1234567, "0.123457"), (90, "90")])
+def test_numbers_are_sent_in_short_fixed_point(value, text):
+    assert format_number(value) == text
+
+
+@pytest.mark.parametrize("kwargs", [{"axes": (1, 1)}, {"axes": (1,)}, {"timeout": 0},
+                                    {"retries": -1}, {"motion_timeout_s": -1}])
+def test_bad_driver_settings_are_configuration_errors(kwargs):
+    with pytest.raises(ConfigurationError):
+        ESP300(ProtocolTransport([]), connect=False, **kwargs)
+
+
+def test_an_unopenable_port_is_a_clear_error(tmp_path):
+    with pytest.raises(StageDisconnected, match="cannot open"):
+        ESP300(str(tmp_path / "no-such-tty"), timeout=0.1)
