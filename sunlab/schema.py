@@ -1,8 +1,13 @@
 """The on-disk data contract: build and validate frame cubes and centroid tables.
 
-The contract is written down in ``data_schema/`` (JSON Schema files plus prose). This module builds
-datasets that follow it and checks datasets read from disk, raising :class:`sunlab.SchemaError`
-with the field, the value found, the value expected and the fix.
+The contract is written down as JSON Schema files shipped with the package in ``sunlab/schemas/``
+(``data_schema/`` at the top of the repository holds the prose and relative links to the same
+files). This module builds datasets that follow it and checks datasets read from disk, raising
+:class:`sunlab.SchemaError` with the field, the value found, the value expected and the fix.
+
+Every check runs in two stages: explicit Python checks first (they give the most specific
+messages and check what JSON Schema cannot, such as the DN range), then the JSON Schema file
+itself against ``ds.to_dict(data=False)``, so the code and the published contract cannot drift.
 
 Conventions (``docs/nomenclature.md``): pixel coordinates are (x = column, y = row) with the
 centre of the first pixel at 0; angles are degrees; poses are a flat dimension.
@@ -20,7 +25,11 @@ Examples
 
 from __future__ import annotations
 
+import functools
+import json
+import math
 from collections.abc import Mapping, Sequence
+from importlib import resources
 
 import numpy as np
 import xarray as xr
@@ -31,6 +40,7 @@ __all__ = [
     "FRAMES_SCHEMA",
     "CENTROIDS_SCHEMA",
     "CALIBRATION_SCHEMA",
+    "SCHEMA_FILES",
     "STATUS",
     "STATUS_NAMES",
     "IBIS4",
@@ -39,12 +49,22 @@ __all__ = [
     "validate_frames",
     "centroids_dataset",
     "validate_centroids",
+    "validate_calibration",
+    "json_schema",
+    "schema_file",
     "status_name",
 ]
 
 FRAMES_SCHEMA = "frames/1"
 CENTROIDS_SCHEMA = "centroids/1"
 CALIBRATION_SCHEMA = "calibration/1"
+
+#: JSON Schema file of each contract, in ``sunlab/schemas/`` (package data).
+SCHEMA_FILES: dict[str, str] = {
+    FRAMES_SCHEMA: "frames-1.schema.json",
+    CENTROIDS_SCHEMA: "centroids-1.schema.json",
+    CALIBRATION_SCHEMA: "calibration-1.schema.json",
+}
 
 #: Centroid status codes (CF ``flag_values`` / ``flag_meanings`` on the ``status`` variable).
 STATUS: dict[str, int] = {
@@ -73,6 +93,128 @@ _SENSOR_ATTRS = {
 def status_name(code: int) -> str:
     """Name of a centroid status code, e.g. ``status_name(1) == 'no_spot'``."""
     return STATUS_NAMES[int(code)]
+
+
+def schema_file(contract: str):
+    """The JSON Schema file of a contract, shipped as package data in ``sunlab/schemas/``.
+
+    Parameters
+    ----------
+    contract : str
+        ``"frames/1"``, ``"centroids/1"`` or ``"calibration/1"``.
+
+    Returns
+    -------
+    importlib.resources.abc.Traversable
+        The file (a :class:`pathlib.Path` for an ordinary installation).
+
+    Examples
+    --------
+    >>> schema_file("frames/1").name
+    'frames-1.schema.json'
+    """
+    name = SCHEMA_FILES.get(contract)
+    if name is None:
+        raise SchemaError(
+            "contract", contract, f"one of {sorted(SCHEMA_FILES)}",
+            "name a contract and version this sunlab knows, e.g. 'frames/1'",
+        )
+    return resources.files("sunlab").joinpath("schemas", name)
+
+
+@functools.cache
+def _schema_text(contract: str) -> str:
+    return schema_file(contract).read_text(encoding="utf-8")
+
+
+def json_schema(contract: str) -> dict:
+    """The JSON Schema (draft 2020-12) of a contract, as a new dict.
+
+    Examples
+    --------
+    >>> json_schema("centroids/1")["properties"]["attrs"]["required"]
+    ['sunlab_schema', 'method']
+    """
+    return json.loads(_schema_text(contract))
+
+
+@functools.cache
+def _validator(contract: str):
+    import jsonschema
+
+    return jsonschema.Draft202012Validator(json_schema(contract))
+
+
+def _jsonable(obj):
+    """Plain JSON types for a jsonschema check (tuples -> lists, numpy -> Python)."""
+    if isinstance(obj, Mapping):
+        return {str(k): _jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_jsonable(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return _jsonable(obj.tolist())
+    if isinstance(obj, np.generic):
+        return obj.item()
+    return obj
+
+
+def _short(value, limit: int = 80):
+    """A value for an error message: small values as they are, large ones summarised."""
+    if isinstance(value, Mapping):
+        value = f"an object with keys {sorted(map(str, value))}"
+    text = repr(value)
+    if len(text) <= limit:
+        return value
+    return text[: limit - 5] + " ...)"
+
+
+def _dataset_field(path: Sequence) -> str:
+    """``['data_vars', 'frames', 'dtype']`` -> ``'frames.dtype'``; attrs -> ``attrs['name']``."""
+    path = [str(p) for p in path]
+    if not path:
+        return "dataset"
+    if path[0] in ("attrs", "dims"):
+        return path[0] + "".join(f"[{p!r}]" for p in path[1:])
+    if path[0] in ("data_vars", "coords") and len(path) > 1:
+        field = path[1]
+        rest = path[2:]
+        if rest[:1] == ["attrs"]:
+            return field + ".attrs" + "".join(f"[{p!r}]" for p in rest[1:])
+        return ".".join([field, *rest])
+    return ".".join(path)
+
+
+def _json_field(path: Sequence) -> str:
+    """``['domain', 'alpha', 1]`` -> ``'domain.alpha[1]'``."""
+    out = ""
+    for p in path:
+        out += f"[{p}]" if isinstance(p, int) else (f".{p}" if out else str(p))
+    return out or "document"
+
+
+def _check_json_schema(instance, contract: str, field_of, fix: str | None = None) -> None:
+    """Validate ``instance`` against the contract's JSON Schema; raise the most relevant error."""
+    from jsonschema.exceptions import best_match
+
+    error = best_match(_validator(contract).iter_errors(instance))
+    if error is None:
+        return
+    path = list(error.absolute_path)
+    if error.validator == "required" and isinstance(error.instance, Mapping):
+        missing = [k for k in error.validator_value if k not in error.instance]
+        name = missing[0] if missing else "?"
+        prop = error.schema.get("properties", {}).get(name, {})
+        expected = prop.get("description") or f"a required field {name!r}"
+        raise SchemaError(
+            field_of([*path, name]), "missing", expected,
+            fix or f"add {name!r} (see the contract {contract!r} in data_schema/)",
+        )
+    expected = error.schema.get("description") if isinstance(error.schema, Mapping) else None
+    expected = f"{expected} ({error.message})" if expected else error.message
+    raise SchemaError(
+        field_of(path), _short(error.instance), expected,
+        fix or f"see the contract {contract!r} in data_schema/",
+    )
 
 
 def _sensor_attrs(
@@ -220,11 +362,21 @@ def _check_schema_attr(ds: xr.Dataset, expected: str) -> None:
             "build the dataset with sunlab.schema or set the attribute after checking the layout",
         )
     if found != expected:
-        raise SchemaError(
-            "attrs['sunlab_schema']", found, repr(expected),
-            "convert the file with the sunlab version that wrote it, or rebuild it with "
-            "sunlab.schema",
-        )
+        family, _, version = str(found).partition("/")
+        if family == expected.partition("/")[0]:
+            fix = (
+                f"this sunlab reads {expected!r} but the file holds version {version!r}: open it "
+                "with the sunlab version that wrote it (see attrs['sunlab_version'] if present) "
+                "and save it again, or upgrade sunlab"
+            )
+        elif found in SCHEMA_FILES:
+            fix = (
+                f"this is a {found!r} dataset, not {expected!r}: open it with "
+                "sunlab.io.open_dataset, which picks the reader from this attribute"
+            )
+        else:
+            fix = "rebuild the dataset with sunlab.schema"
+        raise SchemaError("attrs['sunlab_schema']", found, repr(expected), fix)
 
 
 def _check_dims(ds: xr.Dataset, var: str, allowed: Sequence[tuple[str, ...]]) -> None:
@@ -232,10 +384,16 @@ def _check_dims(ds: xr.Dataset, var: str, allowed: Sequence[tuple[str, ...]]) ->
         raise SchemaError(
             var, f"missing (variables: {sorted(map(str, ds.variables))})",
             f"a variable {var!r} on dims {' or '.join(map(str, allowed))}",
+            f"add {var!r} (build the dataset with sunlab.schema), or check that this is the "
+            "kind of dataset you meant: sunlab.io.open_dataset picks the reader from "
+            "attrs['sunlab_schema']",
         )
     dims = tuple(map(str, ds[var].dims))
     if dims not in [tuple(a) for a in allowed]:
-        raise SchemaError(f"{var}.dims", dims, " or ".join(map(str, allowed)))
+        fix = None
+        if sorted(dims) in [sorted(a) for a in allowed]:
+            fix = f"reorder with ds[{var!r}].transpose(*{allowed[0]!r})"
+        raise SchemaError(f"{var}.dims", dims, " or ".join(map(str, allowed)), fix)
 
 
 def validate_frames(ds: xr.Dataset) -> xr.Dataset:
@@ -279,15 +437,22 @@ def validate_frames(ds: xr.Dataset) -> xr.Dataset:
             _check_dims(ds, name, [("pose", "shot"), ("pose", "shot", "hole")])
     for name, meaning in _SENSOR_ATTRS.items():
         value = ds.attrs.get(name)
+        fix = f"set cube.attrs[{name!r}] (frames_dataset takes it as a keyword)"
         if value is None:
-            raise SchemaError(f"attrs[{name!r}]", None, meaning)
+            raise SchemaError(f"attrs[{name!r}]", None, meaning, fix)
+        if isinstance(value, bool | np.bool_ | str) or not np.isscalar(value):
+            raise SchemaError(f"attrs[{name!r}]", value, f"a number: {meaning}", fix)
         if not np.isfinite(float(value)) or (name != "x_cf_px" and name != "y_cf_px" and value <= 0):
-            raise SchemaError(f"attrs[{name!r}]", value, meaning)
-    bits = int(ds.attrs["bit_depth"])
-    if bits > 8 * dtype.itemsize:
+            raise SchemaError(f"attrs[{name!r}]", value, meaning, fix)
+    bits = ds.attrs["bit_depth"]
+    if isinstance(bits, bool | np.bool_) or float(bits) != int(bits):
+        raise SchemaError("attrs['bit_depth']", bits, "an integer number of bits, e.g. 10")
+    if int(bits) > 8 * dtype.itemsize:
         raise SchemaError(
-            "attrs['bit_depth']", bits, f"<= {8 * dtype.itemsize} for {dtype} frames"
+            "attrs['bit_depth']", bits, f"<= {8 * dtype.itemsize} for {dtype} frames",
+            "store frames of more than 8 bits as uint16",
         )
+    _check_json_schema(_jsonable(ds.to_dict(data=False)), FRAMES_SCHEMA, _dataset_field)
     return ds
 
 
@@ -399,4 +564,103 @@ def validate_centroids(ds: xr.Dataset) -> xr.Dataset:
     unknown = sorted(set(codes.tolist()) - set(STATUS.values()))
     if unknown:
         raise SchemaError("status", unknown, f"codes in {STATUS}")
+    _check_json_schema(_jsonable(ds.to_dict(data=False)), CENTROIDS_SCHEMA, _dataset_field)
     return ds
+
+
+def _check_json_values(value, path: list) -> None:
+    """Strict JSON: plain types only, finite numbers; raise naming the first offending value."""
+    if isinstance(value, Mapping):
+        for k, v in value.items():
+            if not isinstance(k, str):
+                raise SchemaError(
+                    _json_field(path), f"key {k!r} of type {type(k).__name__}", "string keys",
+                    "JSON object keys are strings: convert the key with str()",
+                )
+            _check_json_values(v, [*path, k])
+    elif isinstance(value, list | tuple):
+        for i, v in enumerate(value):
+            _check_json_values(v, [*path, i])
+    elif isinstance(value, float):
+        if not math.isfinite(value):
+            raise SchemaError(
+                _json_field(path), value, "a finite number",
+                "strict JSON has no NaN or Infinity: write null (None) for a missing value",
+            )
+    elif value is None or isinstance(value, str | int):
+        return
+    else:
+        raise SchemaError(
+            _json_field(path), f"a value of type {type(value).__name__}",
+            "a JSON value: number, string, boolean, null, list or object",
+            "convert arrays with .tolist() and numpy scalars with float() or int(); "
+            "never embed pickles or binary blobs",
+        )
+
+
+def validate_calibration(doc: Mapping) -> Mapping:
+    """Check a calibration artifact (contract ``calibration/1``); return it unchanged.
+
+    The artifact is one strict JSON document (``data_schema/calibration-1.schema.json``)::
+
+        {"sunlab_schema": "calibration/1", "kind": "polynomial", "sunlab_version": "0.1.0",
+         "parameters": {...}, "training": {...}, "domain": {"alpha": [lo, hi], "beta": [lo, hi],
+         "x": [lo, hi], "y": [lo, hi]}, "residuals": {"alpha": {...}, "beta": {...}}}
+
+    Angles in the domain and residuals are degrees; x, y are pixels.
+
+    Parameters
+    ----------
+    doc : mapping
+        The document, as built before ``json.dump`` or as read by ``json.load``.
+
+    Returns
+    -------
+    mapping
+        ``doc`` itself.
+
+    Raises
+    ------
+    SchemaError
+        Naming the first field at fault (a dotted path such as ``domain.alpha[1]``), the value
+        found, the value expected and the fix.
+
+    Examples
+    --------
+    >>> doc = {"sunlab_schema": "calibration/1", "kind": "polynomial", "sunlab_version": "0.1.0",
+    ...        "parameters": {"degree": 3, "coef_alpha": [0.1, 0.2]}, "training": {"n_samples": 8},
+    ...        "domain": {"alpha": [-30, 30], "beta": [-30, 30], "x": [10, 1270], "y": [5, 1010]},
+    ...        "residuals": {"alpha": {"rms": 0.01}, "beta": {"rms": 0.02}}}
+    >>> validate_calibration(doc)["kind"]
+    'polynomial'
+    >>> doc["domain"]["alpha"] = [30, -30]
+    >>> try:
+    ...     validate_calibration(doc)
+    ... except SchemaError as err:
+    ...     print(err.field)
+    domain.alpha
+    """
+    if not isinstance(doc, Mapping):
+        raise SchemaError(
+            "calibration", type(doc).__name__, f"a JSON object of contract {CALIBRATION_SCHEMA!r}",
+            "read the file with json.load or sunlab.calibration.load",
+        )
+    found = doc.get("sunlab_schema")
+    if found != CALIBRATION_SCHEMA:
+        fix = (
+            "set 'sunlab_schema': 'calibration/1' when writing the artifact"
+            if found is None
+            else "this sunlab reads 'calibration/1': refit with this version, or load the file "
+            "with the sunlab version that wrote it"
+        )
+        raise SchemaError("sunlab_schema", found if found is not None else "missing",
+                          repr(CALIBRATION_SCHEMA), fix)
+    _check_json_values(doc, [])
+    _check_json_schema(_jsonable(doc), CALIBRATION_SCHEMA, _json_field)
+    for name in ("alpha", "beta", "x", "y"):
+        low, high = doc["domain"][name]
+        if low > high:
+            raise SchemaError(
+                f"domain.{name}", [low, high], "[low, high] with low <= high", "swap the bounds"
+            )
+    return doc
