@@ -16,7 +16,8 @@ Examples
 --------
 >>> import numpy as np
 >>> from sunlab import schema
->>> cube = schema.frames_dataset(np.zeros((2, 8, 4, 5), np.uint16), alpha=[0.0, 1.0], beta=[0.0, 0.0])
+>>> cube = schema.frames_dataset(np.zeros((2, 8, 4, 5), np.uint16), alpha=[0.0, 1.0],
+...                              beta=[0.0, 0.0])
 >>> cube.frames.dims
 ('pose', 'shot', 'y', 'x')
 >>> schema.validate_frames(cube).attrs["sunlab_schema"]
@@ -207,13 +208,13 @@ def _check_json_schema(instance, contract: str, field_of, fix: str | None = None
         expected = prop.get("description") or f"a required field {name!r}"
         raise SchemaError(
             field_of([*path, name]), "missing", expected,
-            fix or f"add {name!r} (see the contract {contract!r} in data_schema/)",
+            fix or f"add {name!r}; the contract is data_schema/{SCHEMA_FILES[contract]}",
         )
     expected = error.schema.get("description") if isinstance(error.schema, Mapping) else None
     expected = f"{expected} ({error.message})" if expected else error.message
     raise SchemaError(
         field_of(path), _short(error.instance), expected,
-        fix or f"see the contract {contract!r} in data_schema/",
+        fix or f"correct the value; the contract is data_schema/{SCHEMA_FILES[contract]}",
     )
 
 
@@ -442,7 +443,8 @@ def validate_frames(ds: xr.Dataset) -> xr.Dataset:
             raise SchemaError(f"attrs[{name!r}]", None, meaning, fix)
         if isinstance(value, bool | np.bool_ | str) or not np.isscalar(value):
             raise SchemaError(f"attrs[{name!r}]", value, f"a number: {meaning}", fix)
-        if not np.isfinite(float(value)) or (name != "x_cf_px" and name != "y_cf_px" and value <= 0):
+        positive = name not in ("x_cf_px", "y_cf_px")
+        if not np.isfinite(float(value)) or (positive and value <= 0):
             raise SchemaError(f"attrs[{name!r}]", value, meaning, fix)
     bits = ds.attrs["bit_depth"]
     if isinstance(bits, bool | np.bool_) or float(bits) != int(bits):
@@ -501,7 +503,9 @@ def centroids_dataset(
     x = np.asarray(x, dtype=float)
     y = np.asarray(y, dtype=float)
     if x.shape != y.shape or x.ndim not in (2, 3):
-        raise SchemaError("x, y", f"shapes {x.shape}, {y.shape}", "equal (pose, shot[, hole]) shapes")
+        raise SchemaError(
+            "x, y", f"shapes {x.shape}, {y.shape}", "equal (pose, shot[, hole]) shapes"
+        )
     dims = ("pose", "shot", "hole")[: x.ndim]
     if status is None:
         status = np.where(np.isfinite(x) & np.isfinite(y), STATUS["ok"], STATUS["no_spot"])
