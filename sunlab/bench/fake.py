@@ -23,8 +23,9 @@ kind            effect on the next ``count`` commands that contain ``match``
 ``timeout``     the reply is not sent
 ``garble``      the reply's bytes are corrupted (high bit set), the terminator kept
 ``error``       the command runs, then error ``code`` is queued; a limit code (axis 4 to 7)
-                also stops the axis and silences the controller for ``silent_s``
-``silent``      after the command, nothing is answered for ``silent_s`` seconds
+                also stops the axis and silences the controller (as ``silent``) for
+                ``silent_s``
+``silent``      after the command, nothing is executed or answered for ``silent_s`` seconds
 ``stuck``       a ``PA`` move stops half-way and never reports motion done (until ``ST``)
 ``disconnect``  the link is closed (the TCP server then accepts a new connection)
 ==============  ==============================================================================
@@ -208,6 +209,8 @@ class FakeESP:
         with self._lock:
             self.received.append(text)
             for command in filter(None, (c.strip() for c in text.split(";"))):
+                if now < self._silent_until:  # busy recovering: the command is lost
+                    continue
                 fault = self._take_fault(command)
                 if fault is not None and fault.kind == "disconnect":
                     return DISCONNECT
@@ -225,7 +228,7 @@ class FakeESP:
                         if axis in self._axes and fault.code % 100 in (4, 5, 6, 7):
                             self._axes[axis].halt(now)
                             self._silent_until = now + fault.silent_s
-                if reply is not None and now >= self._silent_until:
+                if reply is not None and now >= self._silent_until:  # no reply if silenced now
                     out.append(reply.encode("latin-1") + b"\r\n")
         return b"".join(out) or None
 
