@@ -156,7 +156,7 @@ def random_layout(n_holes: int = 100, *, extent_mm=(4.5, 4.5), min_sep_mm: float
     tries = 0
     while len(pts) < n_holes:
         tries += 1
-        if tries > 100000:
+        if tries > 20000:
             raise ConfigurationError(
                 f"min_sep_mm: found {min_sep_mm!r}, too large to place {n_holes} holes in "
                 f"{extent_mm} mm; lower it or enlarge extent_mm"
@@ -743,7 +743,9 @@ def combine_estimates(est, *, holes=None, weights=None, clip: float | None = Non
         Non-negative weights, e.g. 1 / (hole's residual variance); default equal.
     clip : float, optional
         Sigma-clipping threshold: in every frame, estimates further than ``clip`` robust standard
-        deviations (1.4826 MAD) from the weighted median are dropped, ``n_iter`` times.
+        deviations from the median of the kept ones are dropped, ``n_iter`` times (the scale is
+        1.4826 MAD, bounded below by the standard deviation of the survivors after the first
+        pass).
     dim : str
         Dimension to combine.
 
@@ -774,13 +776,13 @@ def combine_estimates(est, *, holes=None, weights=None, clip: float | None = Non
     w = xr.ones_like(est) if weights is None else xr.DataArray(np.asarray(weights, float), dims=dim)
     w = w.where(ok, 0.0)
     if clip is not None:
-        for _ in range(n_iter):
+        for it in range(n_iter):
             cur = est.where(w > 0)
             med = cur.median(dim)
-            mad = 1.4826 * np.abs(cur - med).median(dim)
-            # the floor keeps a perfect consensus from rejecting everything
-            floor = 1e-9 + 0.0 * mad
-            keep = np.abs(est - med) <= clip * np.maximum(mad, floor)
+            scale = 1.4826 * np.abs(cur - med).median(dim)
+            if it > 0:  # a few survivors can have MAD 0: their standard deviation bounds it
+                scale = np.maximum(scale, cur.std(dim))
+            keep = np.abs(est - med) <= clip * scale
             w = w.where(keep, 0.0)
     wsum = w.sum(dim)
     mean = (est.fillna(0.0) * w).sum(dim) / wsum.where(wsum > 0)

@@ -1,0 +1,267 @@
+"""Tests of sunlab.multihole on centroid-level synthetic data with known truth.
+
+Synthetic tables: a 10 x 10 grid at 0.5 mm pitch, F = 5 mm, 7 um pixels; every spot moves by the
+ideal model, eq. (1), from its hole's design position; per-hole, common-mode and per-frame errors
+are injected. One test at the end runs the virtual bench (frames) when it is available.
+"""
+
+import numpy as np
+import pytest
+import xarray as xr
+from numpy.testing import assert_allclose
+
+from sunlab import multihole as mh
+from sunlab.schema import STATUS
+
+# A small field of view: 7 x 7 poses over the paper's test range (deg).
+A = np.repeat(np.linspace(-16.5, 1.5, 7), 7)
+B = np.tile(np.linspace(-1.5, 16.5, 7), 7)
+K_DEG_PER_PX = np.rad2deg(0.007 / 5.0)  # about 0.08 deg per pixel at F = 5 mm
+
+
+def table(seed, shift=0.0, **kw):
+    kw.setdefault("shots", 2)
+    return mh.synthetic_centroids(A + shift, B + shift, seed=seed, **kw)
+
+
+# ---------------------------------------------------------------------------- hole indexing
+@pytest.mark.parametrize("drop", [[], [0, 1, 2], list(range(0, 100, 10)), list(range(50, 100))])
+@pytest.mark.parametrize("shift", [(0.0, 0.0), (-180.0, 35.0), (20.0, 210.0)])
+def test_assign_holes_survives_missing_and_shuffled_spots(drop, shift):
+    dx, dy, _, _ = mh.grid_layout(10)
+    rng = np.random.default_rng(3)
+    keep = np.setdiff1d(np.arange(100), drop)
+    order = rng.permutation(keep)
+    x = dx[order] + shift[0] + rng.normal(0, 0.3, order.size)
+    y = dy[order] + shift[1] + rng.normal(0, 0.3, order.size)
+    # the commanded pose predicts the shift to a few pixels
+    got = mh.assign_holes(x, y, dx, dy, shift=(shift[0] + 4.0, shift[1] - 3.0))
+    assert got.tolist() == order.tolist()
+
+
+def test_assign_holes_a_lost_column_needs_the_pose_prior():
+    # the first column is off the detector: without a prior, one pitch to the left fits 90 of 90
+    # spots just as well; the commanded pose picks the right one
+    dx, dy, _, j = mh.grid_layout(10)
+    keep = np.flatnonzero(j > 0)
+    got = mh.assign_holes(dx[keep] + 5.0, dy[keep], dx, dy, shift=(0.0, 0.0))
+    assert got.tolist() == keep.tolist()
+    wrong = mh.assign_holes(dx[keep] + 5.0, dy[keep], dx, dy, shift=(71.4, 0.0))
+    assert wrong.tolist() == (keep - 1).tolist()
+
+
+def test_assign_holes_ignores_stray_spots_and_nan():
+    dx, dy, _, _ = mh.grid_layout(10)
+    x = np.concatenate([dx + 2.0, [5.0, np.nan], [dx[0] + 2.0 + 35.0]])
+    y = np.concatenate([dy - 1.0, [5.0, np.nan], [dy[0] - 1.0]])
+    got = mh.assign_holes(x, y, dx, dy)
+    assert got[:100].tolist() == list(range(100))
+    assert got[100:].tolist() == [-1, -1, -1]
+
+
+def test_hole_grid_from_coordinates_and_fallback():
+    cen = table(0, shots=1)
+    i, j, nr, nc = mh.hole_grid(cen)
+    assert (nr, nc) == (10, 10)
+    assert_allclose(i * 10 + j, np.arange(100))
+    bare = cen.drop_vars(["hole_i", "hole_j"])
+    assert mh.hole_grid(bare)[2:] == (10, 10)
+
+
+def test_synthetic_table_follows_eq1():
+    cen = table(0, shots=1)
+    x_cf = cen.hole_x_cf.values
+    # alpha = -16.5 deg moves every spot by F/p tan(alpha) px
+    dx = cen.x.isel(pose=0, shot=0).values - x_cf
+    assert_allclose(dx, 5.0 / 0.007 * np.tan(np.deg2rad(-16.5)), atol=1e-9)
+    assert (cen.status == STATUS["ok"]).all()
+
+
+# -------------------------------------------------------------------- strategy 1: missing
+def test_geometric_centre_does_not_jump_when_holes_go_missing():
+    kw = dict(shots=2, noise_px=0.01, hole_scale=1 + np.linspace(-2e-3, 2e-3, 100))
+    full = table(1, **kw)
+    lossy = table(1, **kw, defects={h: {"missing": 0.5} for h in (0, 9, 45, 99)})
+    s1 = mh.GeometricCentre(order=4).fit(full)
+    c_full = s1.centre(full)
+    c_fill = s1.centre(lossy)
+    c_plain = mh.geometric_centre(lossy)
+    lost = (mh.usable(lossy).sum("hole") < 100).values
+    assert lost.sum() > 10
+    jump_fill = np.abs(c_fill.x.values - c_full.x.values)[lost]
+    jump_plain = np.abs(c_plain.x.values - c_full.x.values)[lost]
+    # the plain mean jumps by (offset of the lost hole) / N: up to 321 px / 97 = 3 px
+    assert jump_plain.max() > 1.0
+    # the fitted offsets keep the centre within the noise of the holes (0.01 px / sqrt(96))
+    assert jump_fill.max() < 0.01
+    # and the estimated angles carry no bias
+    err = mh.angle_errors(s1.predict(lossy)) - mh.angle_errors(s1.predict(full))
+    assert abs(float(err.alpha.where(xr.DataArray(lost, dims=("pose", "shot"))).mean())) < 1e-4
+
+
+def test_geometric_centre_needs_min_holes():
+    cen = table(2, shots=1)
+    cen["status"][:] = np.int8(STATUS["no_spot"])
+    s1 = mh.GeometricCentre(fill=False)
+    c = s1.centre(cen)
+    assert np.isnan(c.x).all() and (c.status == STATUS["no_spot"]).all()
+
+
+# --------------------------------------------------------- strategy 2 = strategy 1 (linear)
+def test_averaging_equals_geometric_centre_in_the_linear_case():
+    # order 1: the mean of per-hole linear maps is the linear map of the mean centroid when all
+    # holes see the same geometry; they differ only by the per-hole noise, averaged
+    kw = dict(shots=2, noise_px=0.02)
+    train, test = table(3, **kw), table(4, shift=0.5, **kw)
+    p1 = mh.GeometricCentre(order=1).fit(train).predict(test)
+    p2 = mh.PerHoleAverage(order=1).fit(train).predict(test)
+    tol = 3 * 0.02 * K_DEG_PER_PX  # three single-hole noise sigmas: far above the averaged noise
+    assert_allclose(p2.alpha, p1.alpha, atol=tol)
+    assert_allclose(p2.beta, p1.beta, atol=tol)
+    # and the difference is much smaller than the tan() nonlinearity both share
+    assert float(np.abs(mh.angle_errors(p1).alpha).max()) > 10 * tol
+
+
+def test_averaging_is_unbiased_with_missing_holes():
+    kw = dict(shots=2, noise_px=0.01)
+    train = table(5, **kw)
+    test = table(6, shift=0.5, **kw)
+    lossy = table(6, shift=0.5, **kw, defects={h: {"missing": 0.7} for h in range(0, 100, 7)})
+    s2 = mh.PerHoleAverage(order=4).fit(train)
+    d = mh.angle_errors(s2.predict(lossy)).alpha - mh.angle_errors(s2.predict(test)).alpha
+    assert abs(float(d.mean())) < 2e-5
+    assert float(np.abs(d).max()) < 0.002
+
+
+@pytest.mark.parametrize("clip", [None, 3.0])
+def test_combine_estimates_weights_and_clip(clip):
+    est = xr.DataArray([[1.0, 1.0, 1.2, np.nan, 9.0]], dims=("pose", "hole"))
+    w = np.array([1.0, 1.0, 2.0, 1.0, 1e-6])
+    m, n = mh.combine_estimates(est, weights=w, clip=clip)
+    expected = (1 + 1 + 2 * 1.2) / 4
+    if clip is None:
+        expected = (1 + 1 + 2.4 + 9e-6) / (4 + 1e-6)
+    assert_allclose(float(m[0]), expected, rtol=1e-9)
+    assert int(n[0]) == (3 if clip else 4)
+    m, _ = mh.combine_estimates(est, holes=[True, False, True, True, False])
+    assert_allclose(float(m[0]), 1.1)
+
+
+# ----------------------------------------------------------------- defect metrics, rejection
+BAD = {12: {"flux": 0.35}, 47: {"sigma_px": 0.8}, 63: {"noise_px": 0.6}, 88: {"missing": 0.4},
+       90: {"sigma_px": 0.5, "flux": 0.6}}
+
+
+@pytest.fixture(scope="module")
+def defective():
+    kw = dict(shots=2, noise_px=0.01, hole_sigma_px=0.05, defects=BAD)
+    train, test = table(7, **kw), table(8, shift=0.5, **kw)
+    s2 = mh.PerHoleAverage(order=4).fit(train)
+    return train, test, s2
+
+
+def test_injected_defects_are_flagged_and_only_them(defective):
+    train, _, s2 = defective
+    m = mh.defect_metrics(train, strategy=s2)
+    bad = mh.reject_bad_holes(m)
+    assert np.flatnonzero(bad.values).tolist() == sorted(BAD)
+    z = mh.robust_z(m)
+    assert float(z.flux_deficit[12]) > 5 and float(z.scatter[47]) > 5
+    assert float(z.missing_fraction[88]) > 5
+    assert float(m.flux_deficit[12]) == pytest.approx(0.65, abs=0.01)
+
+
+def test_edge_clipping_is_not_a_defect():
+    # a grid sitting low on the detector: its first row leaves it at the lowest beta
+    x, y, i, j = mh.grid_layout(10, centre_px=(572.0, 350.0))
+    cen = mh.synthetic_centroids(A, B, shots=1, x_cf=x, y_cf=y, hole_i=i, hole_j=j)
+    assert (cen.status == STATUS["clipped"]).any()
+    assert not mh.reject_bad_holes(mh.defect_metrics(cen)).any()
+
+
+def test_rejection_improves_the_statistics(defective):
+    train, test, s2 = defective
+    est = s2.predict_holes(test)
+    bad = mh.reject_bad_holes(mh.defect_metrics(train, strategy=s2)).values
+    plain = mh.global_stats(mh.angle_errors(s2.combine(est)))
+    robust = mh.PerHoleAverage(order=4, holes=~bad, weighting="inverse_variance", clip=4.0,
+                               calibrations_=s2.calibrations_, variance_=s2.variance_)
+    rej = mh.global_stats(mh.angle_errors(robust.combine(est)))
+    for angle in ("alpha", "beta"):
+        assert rej[angle]["mu"] < 0.8 * plain[angle]["mu"]
+        assert rej[angle]["M"] < 0.8 * plain[angle]["M"]
+
+
+def test_inverse_variance_weights_follow_the_hole_scatter(defective):
+    _, _, s2 = defective
+    w = s2.__class__(weighting="inverse_variance", variance_=s2.variance_).weights()
+    assert w[47] < 0.1 * np.median(w)
+
+
+# ------------------------------------------------------------------------- gain and budget
+@pytest.mark.parametrize(
+    "common, hole, lo, hi",
+    [
+        # the paper's budget (PAPER.md sec. 8): common 0.005 deg, specific 0.008 deg -> about 2x
+        ((0.005, 0.005), 0.008 / K_DEG_PER_PX, 1.5, 2.6),
+        # no common error: the gain approaches sqrt(100) = 10
+        ((0.0, 0.0), 0.008 / K_DEG_PER_PX, 7.0, 12.5),
+    ],
+)
+def test_gain_over_one_hole(common, hole, lo, hi):
+    kw = dict(shots=2, noise_px=0.005, hole_sigma_px=hole, common_sigma_deg=common)
+    g = mh.gain_study(table(9, **kw), table(10, shift=0.5, **kw), order=4)
+    gain = g["gain"]["averaging"]["alpha"]["rms"]
+    assert lo < gain < hi
+    b = g["budget"]["alpha"]
+    assert_allclose(b["specific"], 0.008, rtol=0.15)
+    assert_allclose(b["common"], np.hypot(common[0], 0.0), atol=0.0015)
+    assert_allclose(gain, b["gain_limit"], rtol=0.25)
+
+
+def test_error_budget_separates_common_and_specific():
+    rng = np.random.default_rng(0)
+    e = rng.normal(0, 0.01, (300, 2, 100)) + rng.normal(0, 0.004, (300, 1, 1))
+    dims = ("pose", "shot", "hole")
+    est = xr.Dataset({"alpha": (dims, e), "beta": (dims, 2 * e)},
+                     coords={"alpha_cmd": ("pose", np.zeros(300)),
+                             "beta_cmd": ("pose", np.zeros(300))})
+    b = mh.error_budget(est)
+    assert_allclose(b["alpha"]["specific"], 0.01, rtol=0.03)
+    assert_allclose(b["alpha"]["common"], 0.004, rtol=0.1)
+    assert_allclose(b["beta"]["common"], 0.008, rtol=0.1)
+    assert b["alpha"]["gain_limit"] < 0.5 * b["alpha"]["sqrt_n"]
+
+
+# ------------------------------------------------------------------------------ layouts
+def test_random_layout_respects_separation_and_seed():
+    x1, y1 = mh.random_layout(100, seed=4)
+    x2, y2 = mh.random_layout(100, seed=4)
+    assert_allclose(x1, x2)
+    d = np.hypot(x1[:, None] - x1, y1[:, None] - y1) + 1e9 * np.eye(100)
+    assert d.min() * 0.007 >= 0.35
+    with pytest.raises(mh.ConfigurationError, match="min_sep_mm"):
+        mh.random_layout(100, min_sep_mm=2.0)
+
+
+# ------------------------------------------------------------------------------ figures
+def test_figures(defective):
+    import matplotlib.pyplot as plt
+
+    train, _, s2 = defective
+    m = mh.defect_metrics(train, strategy=s2)
+    frame = np.zeros((1024, 1280))
+    cf = train.isel(pose=3, shot=0)
+    figs = [
+        mh.fig13_frame(frame, cf, bad=mh.reject_bad_holes(m).values),
+        mh.fig14_bad_holes(frame, cf, [12, 47], reference=0, metrics=m),
+        mh.fig15_rectangles({"a": {"alpha": {"M": 0.01, "sigma_M": 0.005},
+                                   "beta": {"M": 0.02, "sigma_M": 0.008}}}),
+        mh.plot_metric_map(m, "scatter", bad=mh.reject_bad_holes(m).values),
+    ]
+    assert len(figs[1].axes) == 3
+    assert len(figs[2].axes[0].patches) == 1
+    for f in figs:
+        plt.close(f)
+    with pytest.raises(mh.ConfigurationError, match="metric"):
+        mh.plot_metric_map(m, "nope")
