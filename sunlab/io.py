@@ -88,7 +88,13 @@ def _encode_attrs(attrs: Mapping, where: str) -> dict:
             continue
         if isinstance(value, np.generic):
             value = value.item()
-        if isinstance(value, bool) or value is None or isinstance(value, list | tuple | dict):
+        big_int = isinstance(value, int) and not -(2**63) <= value < 2**63
+        if (
+            isinstance(value, bool)
+            or value is None
+            or isinstance(value, list | tuple | dict)
+            or big_int
+        ):
             try:
                 out[key] = json.dumps(value, allow_nan=False, default=_json_default)
             except (TypeError, ValueError) as exc:
@@ -290,8 +296,13 @@ def save_frames(
     fmt = _format_of(path, format)
     ds = _prepare(cube, fmt)
     for name in [n for n, v in ds.variables.items() if n != "frames" and v.chunks is not None]:
-        # Small metadata arrays: one chunk each, not one file per frame.
-        var = ds.variables[name].chunk({d: -1 for d in ds.variables[name].dims})
+        # Metadata and ground truth: a few large chunks (<= ~32 MB), not one file per frame.
+        var = ds.variables[name]
+        per_pose = max(var.nbytes // max(var.sizes.get("pose", 1), 1), 1)
+        block = {d: -1 for d in var.dims}
+        if "pose" in var.dims:
+            block["pose"] = int(max(1, min(var.sizes["pose"], 32_000_000 // per_pose)))
+        var = var.chunk(block)
         ds = ds.assign_coords({name: var}) if name in ds.coords else ds.assign({name: var})
     n_pose, n_shot, ny, nx = ds["frames"].shape
     block = (1, 1 if chunks == "frame" else max(n_shot, 1), max(ny, 1), max(nx, 1))

@@ -50,6 +50,7 @@ def cube():
             "stage": {"axis": "beta", "backlash_deg": 0.01},
             "window_px": (130, 130),
             "seed": np.int64(7),
+            "entropy": 2**100 + 1,
             "weights": np.array([[1, 2], [3, 4]], dtype=np.int8),
             "note": "",
         },
@@ -88,6 +89,7 @@ def test_frames_round_trip_is_exact(tmp_path, cube, name, chunks):
         assert back.attrs["window_px"] == (130, 130)
         assert back.attrs["stage"] == {"axis": "beta", "backlash_deg": 0.01}
         assert type(back.attrs["seed"]) is int
+        assert back.attrs["entropy"] == 2**100 + 1
         assert back.attrs["weights"].dtype == np.int8
         assert_array_equal(back.attrs["weights"], [[1, 2], [3, 4]])
     # Saving never touches the caller's dataset.
@@ -107,6 +109,8 @@ def test_uint8_round_trip(tmp_path, name):
 def test_lazy_cube_writes_with_progress_bar(tmp_path, capsys):
     cube = schema.empty_frames(NP, NS, alpha=[0, 1], beta=[0, 0], ny=NY, nx=NX)
     cube["frames"] = cube.frames + np.uint16(3)
+    cube["true_x"] = cube.alpha.chunk(pose=1) + xr.zeros_like(cube.shot, dtype=float)
+    assert cube.true_x.dims == ("pose", "shot") and cube.true_x.chunks is not None
     io.save_frames(cube, tmp_path / "lazy.zarr", progress=True)
     out = capsys.readouterr().out
     assert "100%" in out and "Completed" in out
@@ -116,6 +120,8 @@ def test_lazy_cube_writes_with_progress_bar(tmp_path, capsys):
     assert len(list((tmp_path / "lazy.zarr" / "frames" / "c").rglob("*"))) >= NP * NS
     zarr_frames = zarr.open_array(tmp_path / "lazy.zarr" / "frames", mode="r")
     assert zarr_frames.nchunks_initialized == NP * NS
+    # Per-pose lazy metadata (ground truth) is not split into one file per pose.
+    assert zarr.open_array(tmp_path / "lazy.zarr" / "true_x", mode="r").nchunks == 1
 
 
 @pytest.mark.parametrize("name", ["cen.zarr", "cen.nc"])
