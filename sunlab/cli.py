@@ -34,8 +34,112 @@ def _run_info(args) -> int:
     return 0
 
 
+def _add_acquire(sub) -> None:
+    p = sub.add_parser(
+        "acquire",
+        help="drive the bench (rotation stage + camera) through a plan into a resumable Zarr run",
+        description="Move the two-axis stage through a plan, take N frames per pose and write "
+        "each pose into a pre-allocated Zarr store (contract frames/1). Restart with --resume "
+        "to continue at the first unfinished pose. Ctrl-C stops cleanly between poses.",
+    )
+    p.add_argument("--stage", required=True, metavar="URL",
+                   help="fake:// (in-process fake ESP301), socket://HOST:PORT, or a serial device "
+                   "path (/dev/ttyUSB0, COM3) of a Newport ESP300/ESP301")
+    p.add_argument("--camera", required=True, metavar="sim|folder:PATH",
+                   help="'sim' (virtual bench) or 'folder:PATH' (a camera that writes image files)")
+    p.add_argument("--plan", required=True,
+                   help="experiment I, II or III, or a CSV file with columns alpha,beta (deg)")
+    p.add_argument("--out", required=True, help="the run's Zarr store (a directory)")
+    p.add_argument("--resume", action="store_true", help="continue an existing run in --out")
+    p.add_argument("--shots", type=int, default=8, help="frames per pose (default 8)")
+    p.add_argument("--step", type=int, default=1, help="keep every STEP-th pose (quick runs)")
+    p.add_argument("--settle", type=float, default=0.5, help="settle time after a move, s")
+    p.add_argument("--seed", type=int, default=0, help="seed of the virtual bench (sim, fake)")
+    p.add_argument("--bench", choices=("single", "multi"), default="single",
+                   help="virtual bench preset for the sim camera and fake stage")
+    p.add_argument("--binning", type=int, default=1, help="sim camera pixel binning")
+    p.add_argument("--roi", default=None, metavar="Y0,Y1,X0,X1",
+                   help="sim camera region of interest, px (half-open)")
+    p.add_argument("--shape", default="1024x1280", metavar="NYxNX",
+                   help="folder camera frame shape (default 1024x1280)")
+    p.add_argument("--bit-depth", type=int, default=10, help="folder camera ADC bits")
+    p.add_argument("--frame-timeout", type=float, default=10.0,
+                   help="folder camera: longest wait for a new image file, s")
+    p.add_argument("--baudrate", type=int, default=19200, help="serial baud rate")
+    p.add_argument("--timeout", type=float, default=1.0, help="serial read timeout, s")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=_run_acquire)
+
+
+def _run_acquire(args) -> int:
+    from pathlib import Path
+
+    from . import plans, sim
+    from ._errors import ConfigurationError
+    from .bench import FolderCamera, SimCamera, acquire, open_stage
+
+    if args.plan.upper() in plans.EXPERIMENTS:
+        plan = plans.experiment(args.plan.upper(), shots=args.shots)
+    elif Path(args.plan).is_file():
+        import pandas as pd
+
+        table = pd.read_csv(args.plan)
+        missing = {"alpha", "beta"} - set(table.columns)
+        if missing:
+            raise ConfigurationError(
+                f"--plan {args.plan}: columns {sorted(table.columns)}, missing {sorted(missing)}. "
+                "Fix: a CSV with a header line 'alpha,beta' and one pose (deg) per row"
+            )
+        plan = plans.custom(table["alpha"], table["beta"], shots=args.shots,
+                            name=Path(args.plan).stem)
+    else:
+        raise ConfigurationError(
+            f"--plan: found {args.plan!r}, expected I, II, III or an existing CSV file"
+        )
+    plan = plan.subset(args.step)
+    bench = (sim.Bench.paper_single_hole() if args.bench == "single"
+             else sim.Bench.paper_multi_hole())
+    stage = open_stage(args.stage, bench=bench, seed=args.seed, settle_s=args.settle,
+                       baudrate=args.baudrate, timeout=args.timeout)
+    try:
+        if args.camera == "sim":
+            roi = None
+            if args.roi:
+                try:
+                    roi = [int(v) for v in args.roi.split(",")]
+                except ValueError:
+                    roi = []
+                if len(roi) != 4:
+                    raise ConfigurationError(
+                        f"--roi: found {args.roi!r}, expected four integers Y0,Y1,X0,X1"
+                    )
+            fake = getattr(stage, "fake", None)
+            camera = SimCamera(bench, seed=args.seed, roi=roi, binning=args.binning,
+                               truth=None if fake is None else fake.true_pose)
+        elif args.camera.startswith("folder:"):
+            try:
+                shape = tuple(int(v) for v in args.shape.lower().split("x"))
+            except ValueError:
+                shape = ()
+            if len(shape) != 2:
+                raise ConfigurationError(f"--shape: found {args.shape!r}, expected NYxNX")
+            camera = FolderCamera(args.camera[len("folder:"):], shape=shape,
+                                  bit_depth=args.bit_depth, timeout_s=args.frame_timeout)
+        else:
+            raise ConfigurationError(
+                f"--camera: found {args.camera!r}, expected 'sim' or 'folder:PATH'"
+            )
+        result = acquire(plan, stage, camera, args.out, resume=args.resume,
+                         progress=not args.no_progress)
+    finally:
+        stage.close()
+    print(f"sunlab acquire: {result.poses_done}/{result.poses_total} poses in {result.path} "
+          f"({result.exit_status}; {result.poses_this_session} this session; run {result.uid})")
+    return 0 if result.exit_status == "complete" else 130
+
+
 # One adder per subcommand, in the order `sunlab --help` lists them.
-_ADDERS = [_add_info]
+_ADDERS = [_add_info, _add_acquire]
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -177,17 +177,16 @@ class SimCamera:
         det = self.bench.detector
         b = self.binning
         y0, _, x0, _ = self.roi
-        ny, nx = (int(n) for n in det.shape)
-        x_cf = float(getattr(det, "x_cf_px", (nx - 1) / 2))
-        y_cf = float(getattr(det, "y_cf_px", (ny - 1) / 2))
+        x_design, y_design = self.bench.hole_design_px()
+        x_cf, y_cf = float(np.mean(x_design)), float(np.mean(y_design))
         return {
             "pixel_pitch_mm": float(det.pixel_pitch_mm) * b,
             "mask_distance_mm": float(self.bench.mask_distance_mm),
-            # centre of binned pixel j covers unbinned pixels b*j .. b*j+b-1 (centre b*j+(b-1)/2)
+            # binned pixel j sums pixels b*j .. b*j + b-1, whose centre is b*j + (b-1)/2
             "x_cf_px": (x_cf - x0 - (b - 1) / 2) / b,
             "y_cf_px": (y_cf - y0 - (b - 1) / 2) / b,
             "bit_depth": self.bit_depth,
-            "mask": str(getattr(self.bench.mask, "name", "single")),
+            "mask": str(self.bench.mask.name),
         }
 
     def describe(self) -> dict:
