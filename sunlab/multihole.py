@@ -970,12 +970,19 @@ def angle_errors(pred: xr.Dataset, cen: xr.Dataset | None = None) -> xr.Dataset:
                        else pred["beta"] - xr.DataArray(cb.values, dims="pose")})
 
 
-def global_stats(err: xr.Dataset) -> dict:
-    """The paper's global statistics of each angle: mu, sigma, M, sigma_M (deg).
+def global_stats(est: xr.Dataset) -> dict:
+    """The paper's global statistics of each angle: mu, sigma, M, sigma_M (deg), plus the RMS.
 
     Local error = mean over the shots of |error|, maximum error = max over the shots; mu and
-    sigma are the mean and standard deviation of the local errors over the poses, M and sigma_M
-    those of the maximum errors (PAPER.md sec. 5). Uses :mod:`sunlab.stats` where available.
+    sigma are the mean and (sample) standard deviation of the local errors over the poses, M and
+    sigma_M those of the maximum errors (PAPER.md sec. 5), computed by :mod:`sunlab.stats`.
+    ``rms`` is the root mean square of the per-shot errors.
+
+    Parameters
+    ----------
+    est : xarray.Dataset
+        Estimates ``alpha``, ``beta`` on (pose, shot) with the commanded angles ``alpha_cmd``,
+        ``beta_cmd`` as coordinates (the strategies' output), or signed errors (no ``*_cmd``).
 
     Examples
     --------
@@ -985,16 +992,18 @@ def global_stats(err: xr.Dataset) -> dict:
     >>> round(s["alpha"]["mu"], 6), round(s["alpha"]["M"], 6)
     (0.2, 0.25)
     """
+    from . import stats
+
+    ref = None
+    if "alpha_cmd" not in est.variables or "beta_cmd" not in est.variables:
+        ref = {"alpha": xr.DataArray(0.0), "beta": xr.DataArray(0.0)}
+    loc = stats.local_errors(est[["alpha", "beta"]], ref)
+    table = stats.global_stats({"m": loc})["m"]
+    err = stats.shot_errors(est[["alpha", "beta"]], ref)
     out = {}
     for name in ("alpha", "beta"):
-        a = np.abs(np.asarray(err[name].values, dtype=float))
-        keep = np.isfinite(a).any(axis=1)
-        a = a[keep]
-        local = np.nanmean(a, axis=1)
-        mx = np.nanmax(a, axis=1)
-        out[name] = {"mu": float(np.mean(local)), "sigma": float(np.std(local)),
-                     "M": float(np.mean(mx)), "sigma_M": float(np.std(mx)),
-                     "rms": float(np.sqrt(np.nanmean(a**2)))}
+        out[name] = {k: float(table.loc[(name, k)]) for k in stats.STATS}
+        out[name]["rms"] = float(np.sqrt(np.nanmean(np.asarray(err[name].values) ** 2)))
     return out
 
 
@@ -1354,21 +1363,18 @@ def gain_study(train: xr.Dataset, test: xr.Dataset, *, order: int = 5, model=Non
     s1 = GeometricCentre(order=order, model=model).fit(train)
     s1r = GeometricCentre(order=order, model=model, holes=good).fit(train)
     est = s2.predict_holes(test)
-    err_h = angle_errors(est)
     # one hole: each good hole alone
-    singles = []
-    for h in np.flatnonzero(good):
-        singles.append(global_stats(err_h.isel(hole=h)))
+    singles = [global_stats(est.isel(hole=h)) for h in np.flatnonzero(good)]
     stats = {
         "one_hole_median": {a: {k: float(np.median([s[a][k] for s in singles]))
                                 for k in singles[0][a]} for a in ("alpha", "beta")},
-        "geometric_centre": global_stats(angle_errors(s1.predict(test))),
-        "geometric_centre_rejected": global_stats(angle_errors(s1r.predict(test))),
-        "averaging": global_stats(angle_errors(s2.combine(est))),
-        "averaging_rejected": global_stats(angle_errors(
+        "geometric_centre": global_stats(s1.predict(test)),
+        "geometric_centre_rejected": global_stats(s1r.predict(test)),
+        "averaging": global_stats(s2.combine(est)),
+        "averaging_rejected": global_stats(
             PerHoleAverage(order=order, model=model, holes=good, weighting="inverse_variance",
                            clip=clip, calibrations_=s2.calibrations_, variance_=s2.variance_
-                           ).combine(est))),
+                           ).combine(est)),
     }
     one = stats["one_hole_median"]
     gain = {k: {a: {"sigma": one[a]["sigma"] / v[a]["sigma"], "mu": one[a]["mu"] / v[a]["mu"],

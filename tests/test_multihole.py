@@ -183,10 +183,10 @@ def test_rejection_improves_the_statistics(defective):
     train, test, s2 = defective
     est = s2.predict_holes(test)
     bad = mh.reject_bad_holes(mh.defect_metrics(train, strategy=s2)).values
-    plain = mh.global_stats(mh.angle_errors(s2.combine(est)))
+    plain = mh.global_stats(s2.combine(est))
     robust = mh.PerHoleAverage(order=4, holes=~bad, weighting="inverse_variance", clip=4.0,
                                calibrations_=s2.calibrations_, variance_=s2.variance_)
-    rej = mh.global_stats(mh.angle_errors(robust.combine(est)))
+    rej = mh.global_stats(robust.combine(est))
     for angle in ("alpha", "beta"):
         assert rej[angle]["mu"] < 0.8 * plain[angle]["mu"]
         assert rej[angle]["M"] < 0.8 * plain[angle]["M"]

@@ -1,0 +1,125 @@
+"""Tests of sunlab.widgets.HoleExplorer, driven from pytest like a user would (.value, .click())."""
+
+import base64
+
+import numpy as np
+import pytest
+
+from sunlab import multihole as mh
+from sunlab import schema
+
+pytest.importorskip("ipywidgets")
+from sunlab.widgets import HoleExplorer, figure_output  # noqa: E402
+
+A = np.repeat(np.linspace(-8.0, 2.0, 5), 5)
+B = np.tile(np.linspace(-2.0, 8.0, 5), 5)
+BAD = {7: {"sigma_px": 1.5}, 33: {"flux": 0.3}}
+
+
+def _cube_from(cen, half=14, shape=(1024, 1280)):
+    """Frames with a uniform disk at every centroid (pose 0, shot 0 only, others blank)."""
+    n_p, n_s = cen.sizes["pose"], cen.sizes["shot"]
+    frames = np.zeros((n_p, n_s, *shape), np.uint16)
+    yy, xx = np.mgrid[-half:half + 1, -half:half + 1]
+    for h in range(cen.sizes["hole"]):
+        x, y = cen.x.values[0, 0, h], cen.y.values[0, 0, h]
+        xi, yi = int(round(x)), int(round(y))
+        disk = ((xx + xi - x) ** 2 + (yy + yi - y) ** 2 < 12**2) * 600
+        frames[0, 0, yi - half:yi + half + 1, xi - half:xi + half + 1] = disk.astype(np.uint16)
+    return schema.frames_dataset(frames, cen.alpha.values, cen.beta.values)
+
+
+@pytest.fixture(scope="module")
+def explorer():
+    train = mh.synthetic_centroids(A, B, shots=2, noise_px=0.01, hole_sigma_px=0.03,
+                                   defects=BAD, seed=1)
+    test = mh.synthetic_centroids(A + 0.5, B + 0.5, shots=2, noise_px=0.01,
+                                  hole_sigma_px=0.03, defects=BAD, seed=2)
+    return HoleExplorer(_cube_from(test), test, train=train, order=2)
+
+
+def _png(out):
+    assert len(out.outputs) == 1
+    return base64.b64decode(out.outputs[0]["data"]["image/png"])
+
+
+def test_layout_and_flags(explorer):
+    ex = explorer
+    assert len(ex.buttons) == 100 and len(ex.grid.children) == 100
+    assert np.flatnonzero(ex.flagged).tolist() == sorted(BAD)
+    assert ex.grid.layout.grid_template_columns.startswith("repeat(10")
+
+
+def test_click_selects_and_redraws(explorer):
+    ex = explorer
+    before = _png(ex.stamp_out)
+    ex.pose.value = 0
+    ex.shot.value = 0
+    ex.buttons[33].click()
+    assert ex.selected == 33
+    assert "hole 33" in ex.info.value and "flagged" in ex.info.value
+    assert ex.buttons[33].layout.border.startswith("3px")
+    assert not ex.buttons[0].layout.border
+    after = _png(ex.stamp_out)
+    assert after[:8] == b"\x89PNG\r\n\x1a\n" and after != before
+    assert "hole 33" in ex.stats_html.value
+    assert ex.stats["hole"]["alpha"]["mu"] > 0
+
+
+def test_stamp_follows_pose_slider(explorer):
+    ex = explorer
+    ex.buttons[5].click()
+    ex.pose.value = 0
+    with_spot = _png(ex.stamp_out)
+    ex.pose.value = 3  # blank frame in this cube: a different picture
+    assert _png(ex.stamp_out) != with_spot
+    ex.pose.value = 0
+
+
+def test_metric_dropdown_recolours_the_map(explorer):
+    ex = explorer
+    ex.metric.value = "scatter"
+    c_scatter = [b.style.button_color for b in ex.buttons]
+    ex.metric.value = "flux_deficit"
+    c_flux = [b.style.button_color for b in ex.buttons]
+    assert c_scatter != c_flux
+    assert "flux_deficit" in ex.buttons[33].tooltip
+
+
+def test_toggling_holes_changes_the_statistics(explorer):
+    ex = explorer
+    ex.include_all.click()
+    base = ex.stats["included"]["alpha"]["mu"]
+    assert base == pytest.approx(ex.stats["all"]["alpha"]["mu"])
+    ex.buttons[7].click()
+    ex.include.value = False
+    assert not ex.included[7] and ex.buttons[7].description == "✕"
+    out7 = ex.stats["included"]["alpha"]["mu"]
+    assert out7 < base  # the noisy hole spoiled the average
+    assert "average of 99 included holes" in ex.stats_html.value
+    ex.include.value = True
+    assert ex.stats["included"]["alpha"]["mu"] == pytest.approx(base)
+    ex.reject.click()
+    assert ex.included.sum() == 98 and not ex.included[33]
+    assert ex.stats["included"]["alpha"]["mu"] < base
+    ex.include_all.click()
+    assert ex.included.all()
+
+
+def test_bad_arguments(explorer):
+    with pytest.raises(mh.ConfigurationError, match="hole"):
+        explorer.select(100)
+    with pytest.raises(mh.ConfigurationError, match="pose, shot, hole"):
+        HoleExplorer(None, explorer.centroids.isel(hole=0))
+
+
+def test_figure_output_sets_png():
+    import ipywidgets as w
+    import matplotlib.pyplot as plt
+
+    out = w.Output()
+    fig, ax = plt.subplots()
+    ax.plot([0, 1])
+    figure_output(out, fig)
+    assert _png(out)[:4] == b"\x89PNG"
+    assert not plt.get_fignums()
