@@ -196,6 +196,10 @@ class SimCamera:
                 "truth": "stage controller" if self.truth is not None else "read-back angles"}
 
 
+class _Unreadable(CameraError):
+    """The decoder failed: a truncated file still being written, or a corrupt one."""
+
+
 def read_image(path) -> np.ndarray:
     """Read a TIFF (tifffile) or PNG (Pillow) image file as a 2-d array.
 
@@ -230,7 +234,7 @@ def read_image(path) -> np.ndarray:
     except CameraError:
         raise
     except Exception as err:  # noqa: BLE001 - any decoder failure is an unreadable file
-        raise CameraError(f"camera: cannot read {str(path)!r}: {err}") from err
+        raise _Unreadable(f"camera: cannot read {str(path)!r}: {err}") from err
     data = np.asarray(data)
     if data.ndim != 2:
         raise CameraError(
@@ -327,7 +331,7 @@ class FolderCamera:
             self.trigger()
         t_end = time.monotonic() + self.timeout_s
         sizes: dict[Path, tuple[int, float]] = {}
-        last_error: CameraError | None = None
+        last_error: _Unreadable | None = None
         while True:
             now = time.monotonic()
             for path in (p for p in self._listing() if p not in self._seen):
@@ -344,7 +348,7 @@ class FolderCamera:
                     continue
                 try:
                     data = read_image(path)
-                except CameraError as err:  # still being written: try again at the next poll
+                except _Unreadable as err:  # still being written: try again at the next poll
                     last_error = err
                     sizes[path] = (size, now)
                     continue
