@@ -4,7 +4,8 @@ Two on-disk formats hold the same datasets (contracts ``frames/1`` and ``centroi
 ``data_schema/``):
 
 * **Zarr v3** (the default; any path not ending in ``.nc``): a directory store, frames chunked one
-  frame (or one pose) per chunk, every chunk written, opened lazily as Dask arrays.
+  frame (or one pose) per chunk, Blosc-compressed (byte shuffle + Zstandard), every chunk
+  written, opened lazily as Dask arrays.
 * **NetCDF4/HDF5** (``.nc``): one file written with the ``h5netcdf`` engine, frames chunked and
   compressed the same way; uint16 DN survive as uint16.
 
@@ -269,7 +270,8 @@ def save_frames(
     progress : bool
         Show a Dask progress bar while writing.
     compression_level : int
-        Zstandard level (Zarr) or gzip level (NetCDF), 0 .. 9.
+        Zarr: Blosc (byte shuffle + Zstandard) level; NetCDF: HDF5 shuffle + gzip level; 0 .. 9
+        (0 stores the frames uncompressed in NetCDF).
 
     Raises
     ------
@@ -309,11 +311,19 @@ def save_frames(
     ds["frames"] = ds["frames"].chunk(dict(zip(ds["frames"].dims, block, strict=True)))
     level = int(compression_level)
     if fmt == "zarr":
-        from zarr.codecs import ZstdCodec
+        from zarr.codecs import BloscCodec
 
-        encoding = {"frames": {"compressors": (ZstdCodec(level=level),)}}
+        # Byte shuffle + Zstandard: on noisy 10-bit frames a better ratio than plain Zstandard
+        # at about twice its speed.
+        codec = BloscCodec(cname="zstd", clevel=level, shuffle="shuffle",
+                           typesize=ds["frames"].dtype.itemsize)
+        encoding = {"frames": {"compressors": (codec,)}}
     else:
-        encoding = {"frames": {"chunksizes": block, "zlib": level > 0, "complevel": level}}
+        encoding = {
+            "frames": {
+                "chunksizes": block, "zlib": level > 0, "complevel": level, "shuffle": level > 0,
+            }
+        }
     _clear_target(path, overwrite)
     _write(ds, path, fmt, encoding, progress)
 
