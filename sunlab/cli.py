@@ -30,7 +30,9 @@ def _add_info(sub) -> None:
 def _run_info(args) -> int:
     from . import io
 
-    print(io.summary(io.open_dataset(args.path)))
+    # Describe incomplete stores (an acquisition in progress) instead of refusing them:
+    # the summary names the missing chunk files.
+    print(io.summary(io.open_dataset(args.path, check_chunks=False)))
     return 0
 
 

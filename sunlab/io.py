@@ -444,10 +444,11 @@ def _open_raw(path, format: str | None = None) -> xr.Dataset:
     return ds
 
 
-def _check_chunks(ds: xr.Dataset, path: Path) -> None:
-    """Every chunk of a sunlab Zarr store exists (missing chunks would read as silent zeros)."""
+def _chunk_report(path: Path) -> dict[str, tuple[int, int, list[str]]]:
+    """Arrays of a Zarr store with missing chunk files: name -> (missing, total, examples)."""
     import zarr
 
+    report = {}
     group = zarr.open_group(str(path), mode="r")
     for name, arr in group.arrays():
         n_missing = arr.nchunks - arr.nchunks_initialized
@@ -464,14 +465,21 @@ def _check_chunks(ds: xr.Dataset, path: Path) -> None:
                         break
         except AttributeError:  # zarr v2 metadata: no example paths
             pass
+        report[name] = (n_missing, arr.nchunks, examples)
+    return report
+
+
+def _check_chunks(ds: xr.Dataset, path: Path) -> None:
+    """Every chunk of a sunlab Zarr store exists (missing chunks would read as silent zeros)."""
+    for name, (n_missing, total, examples) in _chunk_report(path).items():
         raise SchemaError(
             f"{name} chunks",
-            f"{n_missing} of {arr.nchunks} chunk files missing"
+            f"{n_missing} of {total} chunk files missing"
             + (f", e.g. {', '.join(examples)}" if examples else ""),
             "every chunk of the store on disk",
-            "the store is incomplete (an interrupted copy or write, or deleted files): copy it "
-            "again from its source or re-create it; to read it anyway, with missing frames as 0 "
-            "DN, pass check_chunks=False",
+            "the store is incomplete (an interrupted copy, write or acquisition, or deleted "
+            "files): copy it again from its source, re-create it, or finish the acquisition; "
+            "to read it anyway, with missing frames as 0 DN, pass check_chunks=False",
         )
 
 
@@ -1018,7 +1026,9 @@ def summary(ds: xr.Dataset) -> str:
 
     Frame cubes: contract, dims, pose grid ranges, shots, dtype and bit depth, chunking, size,
     sensor attributes and extra coordinates. Centroid tables: dims, method, status counts and
-    the centroid ranges. Only coordinates are read; the frames stay lazy.
+    the centroid ranges. A Zarr store opened with ``check_chunks=False`` that lacks chunk files
+    (an acquisition in progress, an interrupted copy) gets an ``INCOMPLETE`` line per array.
+    Only coordinates are read; the frames stay lazy.
 
     Examples
     --------
@@ -1033,11 +1043,19 @@ def summary(ds: xr.Dataset) -> str:
     contract = ds.attrs.get("sunlab_schema")
     source = ds.encoding.get("source")
     dims = ", ".join(f"{k}={v}" for k, v in ds.sizes.items())
+    storage = []
+    if ds.encoding.get("sunlab_format") == "zarr" and source:
+        for name, (n_missing, total, examples) in _chunk_report(Path(source)).items():
+            storage.append(
+                f"  INCOMPLETE: {name}: {n_missing} of {total} chunk files missing (they read "
+                f"as 0 or NaN){', e.g. ' + examples[0] if examples else ''}"
+            )
     if contract == FRAMES_SCHEMA:
         frames = ds["frames"]
         lines = [f"sunlab frame cube ({contract})"]
         if source:
             lines.append(f"  source: {source}")
+        lines.extend(storage)
         lines.append(f"  dims: {dims}")
         chunks = getattr(frames.data, "chunksize", None)
         lines.append(
@@ -1069,6 +1087,7 @@ def summary(ds: xr.Dataset) -> str:
         lines = [f"sunlab centroid table ({contract})"]
         if source:
             lines.append(f"  source: {source}")
+        lines.extend(storage)
         lines.append(f"  dims: {dims}")
         lines.append(f"  method: {ds.attrs.get('method') or '(not recorded)'}")
         status = np.asarray(ds["status"].values).ravel()

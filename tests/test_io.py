@@ -470,12 +470,22 @@ def test_cli_info(tmp_path, cube, centroids, capsys):
     assert "ok 5 (62.5 %)" in capsys.readouterr().out
 
 
-def test_cli_info_reports_errors(tmp_path, cube, capsys):
+def test_cli_info_describes_an_incomplete_store(tmp_path, cube, capsys):
     io.save_frames(cube, tmp_path / "c.zarr")
     shutil.rmtree(tmp_path / "c.zarr" / "frames" / "c" / "0")
-    assert main(["info", str(tmp_path / "c.zarr")]) == 1
+    assert main(["info", str(tmp_path / "c.zarr")]) == 0
+    out = capsys.readouterr().out
+    assert "INCOMPLETE: frames: 2 of 4 chunk files missing" in out
+    assert str(tmp_path / "c.zarr" / "frames" / "c" / "0" / "0" / "0" / "0") in out
+
+
+def test_cli_info_reports_errors(tmp_path, capsys):
+    (tmp_path / "c.nc").write_bytes(b"\x89HDF\r\n\x1a\n" + b"\0" * 100)
+    assert main(["info", str(tmp_path / "c.nc")]) == 1
     err = capsys.readouterr().err
-    assert "sunlab info: error: frames chunks" in err and "check_chunks=False" in err
+    assert "sunlab info: error:" in err and "c.nc: cannot be read as NetCDF4" in err
+    assert main(["info", str(tmp_path / "nothing.zarr")]) == 1
+    assert "no such file or directory" in capsys.readouterr().err
 
 
 def test_codec_attribute_is_plain_json(tmp_path, cube):
