@@ -1,0 +1,606 @@
+"""Numba kernels behind :mod:`sunlab.centroid` (private).
+
+Every kernel is compiled with ``cache=True`` (compiled once per dtype, kept on disk) and
+``nogil=True`` so that Dask's threaded scheduler runs frames in parallel. Frames are 2-D arrays
+indexed ``frame[row, column]``; coordinates returned are (x = column, y = row) with the centre of
+the first pixel at 0. Sums of integer frames are exact in float64, so the ``reassoc`` fast-math
+flag (which lets LLVM vectorise the reductions) changes no result for DN frames; ``nnan`` is left
+off because the callers test for NaN first.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+__all__: list[str] = []
+
+_FM = {"reassoc", "contract", "nsz", "arcp"}
+
+
+# --------------------------------------------------------------------------------------------
+# Algorithm A (threshold + fixed window)
+# --------------------------------------------------------------------------------------------
+@njit(cache=True, nogil=True, fastmath=_FM)
+def ring_mean(frame, r0, r1, c0, c1, w):
+    """Mean of the ``w`` outermost rows and columns of frame[r0:r1, c0:c1] (each pixel once)."""
+    s = 0.0
+    n = 0
+    for r in range(r0, r1):
+        edge_row = r < r0 + w or r >= r1 - w
+        for c in range(c0, c1):
+            if edge_row or c < c0 + w or c >= c1 - w:
+                s += frame[r, c]
+                n += 1
+    return s / n if n > 0 else np.nan
+
+
+@njit(cache=True, nogil=True)
+def scan_first(frame, thr, half, need, r0, r1, c0, c1, er0, er1, ec0, ec1):
+    """Raster scan of frame[r0:r1, c0:c1] for the first pixel above ``thr`` whose
+    (2 half + 1)^2 neighbourhood holds at least ``need`` pixels above ``thr`` (pixels outside
+    the frame count as below). Pixels inside the excluded box [er0:er1, ec0:ec1] are skipped.
+    Returns (row, col), or (-1, -1)."""
+    ny, nx = frame.shape
+    for r in range(r0, r1):
+        in_rows = er0 <= r < er1
+        for c in range(c0, c1):
+            if frame[r, c] > thr:
+                if in_rows and ec0 <= c < ec1:
+                    continue
+                n = 0
+                for rr in range(max(r - half, 0), min(r + half + 1, ny)):
+                    for cc in range(max(c - half, 0), min(c + half + 1, nx)):
+                        if frame[rr, cc] > thr:
+                            n += 1
+                if n >= need:
+                    return r, c
+    return -1, -1
+
+
+@njit(cache=True, nogil=True, fastmath=_FM)
+def com_above(frame, r0, r1, c0, c1, thr):
+    """Centre of mass of (I - thr) over the pixels of frame[r0:r1, c0:c1] with I > thr.
+
+    Returns (sum, x, y, max of I over the box)."""
+    s = 0.0
+    sx = 0.0
+    sy = 0.0
+    vmax = -np.inf
+    for r in range(r0, r1):
+        for c in range(c0, c1):
+            v = float(frame[r, c])
+            if v > vmax:
+                vmax = v
+            if v > thr:
+                w = v - thr
+                s += w
+                sx += w * c
+                sy += w * r
+    if s > 0:
+        return s, sx / s, sy / s, vmax
+    return s, np.nan, np.nan, vmax
+
+
+# --------------------------------------------------------------------------------------------
+# Algorithm B (projection window)
+# --------------------------------------------------------------------------------------------
+@njit(cache=True, nogil=True, fastmath=_FM)
+def profiles(frame):
+    """Column profile (sum over rows, length nx) and row profile (sum over columns, length ny)."""
+    ny, nx = frame.shape
+    col = np.zeros(nx, np.float64)
+    row = np.zeros(ny, np.float64)
+    for r in range(ny):
+        s = 0.0
+        for c in range(nx):
+            v = float(frame[r, c])
+            s += v
+            col[c] += v
+        row[r] = s
+    return col, row
+
+
+@njit(cache=True, nogil=True, fastmath=_FM)
+def com_box(frame, r0, r1, c0, c1, bkg):
+    """Centre of mass of (I - bkg) over frame[r0:r1, c0:c1]; returns (sum, x, y, max I)."""
+    s = 0.0
+    sx = 0.0
+    sy = 0.0
+    vmax = -np.inf
+    for r in range(r0, r1):
+        rs = 0.0
+        for c in range(c0, c1):
+            v = float(frame[r, c])
+            if v > vmax:
+                vmax = v
+            w = v - bkg
+            rs += w
+            sx += w * c
+        s += rs
+        sy += rs * r
+    if s != 0:
+        return s, sx / s, sy / s, vmax
+    return s, np.nan, np.nan, vmax
+
+
+# --------------------------------------------------------------------------------------------
+# Detection on a coarse grid of samples
+# --------------------------------------------------------------------------------------------
+@njit(cache=True, nogil=True)
+def sample_stats(frame, stride):
+    """Median and MAD-based sigma (1.4826 MAD) of a strided sample of the frame, plus the
+    sample maximum."""
+    ny, nx = frame.shape
+    off = stride // 2
+    gy = (ny - off + stride - 1) // stride
+    gx = (nx - off + stride - 1) // stride
+    buf = np.empty(gy * gx, np.float64)
+    k = 0
+    vmax = -np.inf
+    for i in range(gy):
+        for j in range(gx):
+            v = float(frame[off + i * stride, off + j * stride])
+            buf[k] = v
+            k += 1
+            if v > vmax:
+                vmax = v
+    med = np.median(buf)
+    for i in range(k):
+        buf[i] = abs(buf[i] - med)
+    mad = np.median(buf)
+    return med, 1.4826 * mad, vmax
+
+
+@njit(cache=True, nogil=True)
+def coarse_blobs(frame, stride, thr, bkg):
+    """8-connected groups of strided samples above ``thr``.
+
+    Samples sit at (off + i stride, off + j stride), off = stride // 2. Returns, per group,
+    arrays: number of samples, sum of (I - bkg), weighted column and row (px), bounding box of
+    the samples in frame pixels (r0, r1, c0, c1; inclusive) and the peak sample.
+    """
+    ny, nx = frame.shape
+    off = stride // 2
+    gy = (ny - off + stride - 1) // stride
+    gx = (nx - off + stride - 1) // stride
+    lab = np.zeros((gy, gx), np.int32)
+    stack = np.empty(gy * gx, np.int64)
+    cap = 16
+    cnt = np.zeros(cap, np.int64)
+    flux = np.zeros(cap)
+    cx = np.zeros(cap)
+    cy = np.zeros(cap)
+    bb = np.zeros((cap, 4), np.int64)
+    peak = np.zeros(cap)
+    nb = 0
+    for i in range(gy):
+        for j in range(gx):
+            if lab[i, j] != 0 or not frame[off + i * stride, off + j * stride] > thr:
+                continue
+            if nb == cap:
+                cap *= 2
+                cnt = np.concatenate((cnt, np.zeros(cap - nb, np.int64)))
+                flux = np.concatenate((flux, np.zeros(cap - nb)))
+                cx = np.concatenate((cx, np.zeros(cap - nb)))
+                cy = np.concatenate((cy, np.zeros(cap - nb)))
+                bb = np.concatenate((bb, np.zeros((cap - nb, 4), np.int64)))
+                peak = np.concatenate((peak, np.zeros(cap - nb)))
+            lab_id = nb + 1
+            lab[i, j] = lab_id
+            top = 0
+            stack[top] = i * gx + j
+            top += 1
+            n = 0
+            s = 0.0
+            sx = 0.0
+            sy = 0.0
+            pk = -np.inf
+            bi0, bi1, bj0, bj1 = i, i, j, j
+            while top > 0:
+                top -= 1
+                q = stack[top]
+                qi = q // gx
+                qj = q - qi * gx
+                r = off + qi * stride
+                c = off + qj * stride
+                v = float(frame[r, c])
+                w = v - bkg
+                n += 1
+                s += w
+                sx += w * c
+                sy += w * r
+                if v > pk:
+                    pk = v
+                bi0 = min(bi0, qi)
+                bi1 = max(bi1, qi)
+                bj0 = min(bj0, qj)
+                bj1 = max(bj1, qj)
+                for di in range(-1, 2):
+                    ii = qi + di
+                    if ii < 0 or ii >= gy:
+                        continue
+                    for dj in range(-1, 2):
+                        jj = qj + dj
+                        if jj < 0 or jj >= gx or lab[ii, jj] != 0:
+                            continue
+                        if frame[off + ii * stride, off + jj * stride] > thr:
+                            lab[ii, jj] = lab_id
+                            stack[top] = ii * gx + jj
+                            top += 1
+            cnt[nb] = n
+            flux[nb] = s
+            cx[nb] = sx / s if s > 0 else off + 0.5 * (bj0 + bj1) * stride
+            cy[nb] = sy / s if s > 0 else off + 0.5 * (bi0 + bi1) * stride
+            bb[nb, 0] = off + bi0 * stride
+            bb[nb, 1] = off + bi1 * stride
+            bb[nb, 2] = off + bj0 * stride
+            bb[nb, 3] = off + bj1 * stride
+            peak[nb] = pk
+            nb += 1
+    return cnt[:nb], flux[:nb], cx[:nb], cy[:nb], bb[:nb], peak[:nb]
+
+
+# --------------------------------------------------------------------------------------------
+# Tight, background-subtracted circular window
+# --------------------------------------------------------------------------------------------
+@njit(cache=True, nogil=True, inline="always")
+def _span(xc, dy2, q2, nx):
+    """Columns [c0, c1) whose centres satisfy (c - xc)^2 + dy2 <= q2, clipped to [0, nx)."""
+    h2 = q2 - dy2
+    if h2 < 0:
+        return 0, 0
+    h = math.sqrt(h2)
+    c0 = max(int(math.ceil(xc - h)), 0)
+    c1 = min(int(math.floor(xc + h)) + 1, nx)
+    return c0, c1
+
+
+@njit(cache=True, nogil=True, fastmath=_FM)
+def annulus_background(frame, xc, yc, r_in, r_out, clip):
+    """Sigma-clipped mean (one clipping pass at ``clip`` sigma) of the pixels whose centres lie
+    in the annulus r_in < d <= r_out around (xc, yc). Returns (mean, std, n)."""
+    ny, nx = frame.shape
+    r0 = max(int(math.ceil(yc - r_out)), 0)
+    r1 = min(int(math.floor(yc + r_out)) + 1, ny)
+    a2 = r_in * r_in
+    b2 = r_out * r_out
+    s = 0.0
+    s2 = 0.0
+    n = 0
+    for r in range(r0, r1):
+        dy2 = (r - yc) ** 2
+        o0, o1 = _span(xc, dy2, b2, nx)
+        i0, i1 = _span(xc, dy2, a2, nx)
+        if i1 <= i0:
+            i0 = o1
+            i1 = o1
+        for c in range(o0, i0):
+            v = float(frame[r, c])
+            s += v
+            s2 += v * v
+        for c in range(i1, o1):
+            v = float(frame[r, c])
+            s += v
+            s2 += v * v
+        n += (i0 - o0) + (o1 - i1)
+    if n == 0:
+        return np.nan, np.nan, 0
+    m = s / n
+    sd = math.sqrt(max(s2 / n - m * m, 0.0))
+    lo = m - clip * sd
+    hi = m + clip * sd
+    s = 0.0
+    s2 = 0.0
+    k = 0
+    for r in range(r0, r1):
+        dy2 = (r - yc) ** 2
+        o0, o1 = _span(xc, dy2, b2, nx)
+        i0, i1 = _span(xc, dy2, a2, nx)
+        if i1 <= i0:
+            i0 = o1
+            i1 = o1
+        for c in range(o0, i0):
+            v = float(frame[r, c])
+            if lo <= v <= hi:
+                s += v
+                s2 += v * v
+                k += 1
+        for c in range(i1, o1):
+            v = float(frame[r, c])
+            if lo <= v <= hi:
+                s += v
+                s2 += v * v
+                k += 1
+    if k == 0:
+        return m, sd, n
+    m = s / k
+    return m, math.sqrt(max(s2 / k - m * m, 0.0)), k
+
+
+@njit(cache=True, nogil=True, fastmath=_FM)
+def aperture_com(frame, xc, yc, r_ap, bkg):
+    """Centre of mass of (I - bkg) over the pixels whose centres lie within ``r_ap`` of
+    (xc, yc). Returns (sum, x, y)."""
+    ny, nx = frame.shape
+    r0 = max(int(math.ceil(yc - r_ap)), 0)
+    r1 = min(int(math.floor(yc + r_ap)) + 1, ny)
+    q2 = r_ap * r_ap
+    s = 0.0
+    sx = 0.0
+    sy = 0.0
+    for r in range(r0, r1):
+        c0, c1 = _span(xc, (r - yc) ** 2, q2, nx)
+        rs = 0.0
+        rx = 0.0
+        for c in range(c0, c1):
+            w = float(frame[r, c]) - bkg
+            rs += w
+            rx += w * c
+        s += rs
+        sx += rx
+        sy += rs * r
+    if s > 0:
+        return s, sx / s, sy / s
+    return s, np.nan, np.nan
+
+
+@njit(cache=True, nogil=True, fastmath=_FM)
+def aperture_moments(frame, xc, yc, r_ap, bkg, sat):
+    """Moments of (I - bkg) over the pixels whose centres lie within ``r_ap`` of (xc, yc).
+
+    Returns an array: [sum, x, y, mxx, myy, mxy, m30, m21, m12, m03, max I, n_pixels,
+    n_saturated (I >= sat)] with central moments about (x, y) in px^k.
+    """
+    ny, nx = frame.shape
+    r0 = max(int(math.ceil(yc - r_ap)), 0)
+    r1 = min(int(math.floor(yc + r_ap)) + 1, ny)
+    q2 = r_ap * r_ap
+    s = 0.0
+    sx = 0.0
+    sy = 0.0
+    sxx = 0.0
+    syy = 0.0
+    sxy = 0.0
+    sxxx = 0.0
+    sxxy = 0.0
+    sxyy = 0.0
+    syyy = 0.0
+    vmax = -np.inf
+    npx = 0
+    nsat = 0
+    for r in range(r0, r1):
+        dy = r - yc
+        c0, c1 = _span(xc, dy * dy, q2, nx)
+        npx += c1 - c0
+        for c in range(c0, c1):
+            dx = c - xc
+            v = float(frame[r, c])
+            if v > vmax:
+                vmax = v
+            if v >= sat:
+                nsat += 1
+            w = v - bkg
+            wx = w * dx
+            wy = w * dy
+            s += w
+            sx += wx
+            sy += wy
+            sxx += wx * dx
+            syy += wy * dy
+            sxy += wx * dy
+            sxxx += wx * dx * dx
+            sxxy += wx * dx * dy
+            sxyy += wx * dy * dy
+            syyy += wy * dy * dy
+    out = np.full(13, np.nan)
+    out[10] = vmax
+    out[11] = npx
+    out[12] = nsat
+    out[0] = s
+    if not s > 0:
+        return out
+    mx = sx / s
+    my = sy / s
+    out[1] = xc + mx
+    out[2] = yc + my
+    exx = sxx / s
+    eyy = syy / s
+    exy = sxy / s
+    out[3] = exx - mx * mx
+    out[4] = eyy - my * my
+    out[5] = exy - mx * my
+    out[6] = sxxx / s - 3 * mx * exx + 2 * mx**3
+    out[7] = sxxy / s - 2 * mx * exy - my * exx + 2 * mx * mx * my
+    out[8] = sxyy / s - 2 * my * exy - mx * eyy + 2 * mx * my * my
+    out[9] = syyy / s - 3 * my * eyy + 2 * my**3
+    return out
+
+
+#: Columns of the array returned by :func:`measure_spots`.
+MEASURE_FIELDS = (
+    "flux", "x", "y", "mxx", "myy", "mxy", "m30", "m21", "m12", "m03", "peak", "npix", "nsat",
+    "background", "background_std", "r_ap",
+)
+
+
+@njit(cache=True, nogil=True)
+def measure_spots(frame, xs, ys, r0s, margin, annulus, clip, n_iter, sat):
+    """Tight-window measurement of spots started at (xs, ys) with first aperture radii ``r0s``.
+
+    For each spot: the background is the sigma-clipped mean of an annulus ``annulus`` px wide
+    just outside the aperture; the centre of mass of (I - background) inside the circular
+    aperture re-centres the aperture ``n_iter`` times; after the first pass the aperture radius
+    becomes the equivalent uniform-disk radius sqrt(2 (mxx + myy)) of the spot plus ``margin``.
+    The last pass returns the moments. Returns an (n, 16) array, columns MEASURE_FIELDS.
+    """
+    n = xs.shape[0]
+    out = np.full((n, 16), np.nan)
+    for k in range(n):
+        xc = xs[k]
+        yc = ys[k]
+        r_ap = r0s[k]
+        bkg, bsd, nb = annulus_background(frame, xc, yc, r_ap + 1.0, r_ap + 1.0 + annulus, clip)
+        if nb == 0:
+            continue
+        good = True
+        for _ in range(n_iter - 1):
+            s, x1, y1 = aperture_com(frame, xc, yc, r_ap, bkg)
+            if not (s > 0) or not (abs(x1 - xc) < r_ap and abs(y1 - yc) < r_ap):
+                good = False
+                break
+            xc = x1
+            yc = y1
+        if not good:
+            continue
+        m = aperture_moments(frame, xc, yc, r_ap, bkg, sat)
+        if not (m[0] > 0):
+            continue
+        rad = math.sqrt(max(2.0 * (m[3] + m[4]), 0.0))
+        if rad > 0 and abs(rad + margin - r_ap) > 1.0:
+            # Re-size the aperture to the spot (equivalent uniform-disk radius + margin).
+            r_ap = rad + margin
+            bkg, bsd, nb = annulus_background(
+                frame, m[1], m[2], r_ap + 1.0, r_ap + 1.0 + annulus, clip
+            )
+            if nb == 0:
+                continue
+            m = aperture_moments(frame, m[1], m[2], r_ap, bkg, sat)
+            if not (m[0] > 0):
+                continue
+        out[k, :13] = m
+        out[k, 13] = bkg
+        out[k, 14] = bsd
+        out[k, 15] = r_ap
+    return out
+
+
+# --------------------------------------------------------------------------------------------
+# Disk-model fit (Levenberg-Marquardt)
+# --------------------------------------------------------------------------------------------
+_SQRT2 = math.sqrt(2.0)
+_INV_SQRT2PI = 1.0 / math.sqrt(2.0 * math.pi)
+
+
+@njit(cache=True, nogil=True, fastmath=_FM)
+def _disk_normal(frame, p, r0, r1, c0, c1, v0, vk, sat):
+    """Normal equations of the weighted least-squares fit of the edge-blurred disk model
+
+    m = b + A * erfc((d - R) / (sqrt(2) s)) / 2,  d = |(c, r) - (x, y)|,
+
+    with weights 1 / (v0 + vk * max(m - b, 0)); pixels >= sat are left out.
+    Returns (J^T W J, J^T W res, chi2)."""
+    x, y, rad, amp, b, s = p[0], p[1], p[2], p[3], p[4], p[5]
+    jtj = np.zeros((6, 6))
+    jtr = np.zeros(6)
+    g = np.empty(6)
+    chi2 = 0.0
+    inv = 1.0 / (_SQRT2 * s)
+    for r in range(r0, r1):
+        dy = r - y
+        for c in range(c0, c1):
+            v = float(frame[r, c])
+            if v >= sat:
+                continue
+            dx = c - x
+            d = math.sqrt(dx * dx + dy * dy)
+            u = (d - rad) * inv
+            e = 0.5 * math.erfc(u)
+            phi = amp * _INV_SQRT2PI / s * math.exp(-u * u)
+            res = v - (b + amp * e)
+            wgt = 1.0 / (v0 + vk * max(amp * e, 0.0))
+            dinv = 1.0 / d if d > 1e-9 else 0.0
+            g[0] = phi * dx * dinv
+            g[1] = phi * dy * dinv
+            g[2] = phi
+            g[3] = e
+            g[4] = 1.0
+            g[5] = phi * (d - rad) / s
+            chi2 += wgt * res * res
+            for i in range(6):
+                gi = wgt * g[i]
+                jtr[i] += gi * res
+                for j in range(i + 1):
+                    jtj[i, j] += gi * g[j]
+    for i in range(6):
+        for j in range(i + 1, 6):
+            jtj[i, j] = jtj[j, i]
+    return jtj, jtr, chi2
+
+
+@njit(cache=True, nogil=True)
+def fit_disk(frame, p0, half, max_iter, v0, vk, tol, sat):
+    """Levenberg-Marquardt fit of the disk model of :func:`_disk_normal` on the square cutout of
+    half-size ``half`` around the start (x, y). Returns (params, covariance, chi2, n_pixels,
+    iterations, window r0, r1, c0, c1)."""
+    ny, nx = frame.shape
+    p = p0.copy()
+    r0 = max(int(math.floor(p[1] - half)), 0)
+    r1 = min(int(math.ceil(p[1] + half)) + 1, ny)
+    c0 = max(int(math.floor(p[0] - half)), 0)
+    c1 = min(int(math.ceil(p[0] + half)) + 1, nx)
+    lam = 1e-3
+    jtj, jtr, chi2 = _disk_normal(frame, p, r0, r1, c0, c1, v0, vk, sat)
+    it = 0
+    for _it in range(1, max_iter + 1):
+        it = _it
+        a = jtj.copy()
+        for i in range(6):
+            a[i, i] *= 1.0 + lam
+        step = np.linalg.solve(a, jtr)
+        q = p + step
+        q[5] = max(q[5], 0.05)
+        q[2] = max(q[2], 0.5)
+        jtj2, jtr2, chi2_new = _disk_normal(frame, q, r0, r1, c0, c1, v0, vk, sat)
+        if chi2_new <= chi2:
+            p = q
+            jtj, jtr = jtj2, jtr2
+            small = abs(step[0]) < tol and abs(step[1]) < tol
+            chi2 = chi2_new
+            lam = max(lam * 0.1, 1e-7)
+            if small:
+                break
+        else:
+            lam *= 10.0
+            if lam > 1e8:
+                break
+    cov = np.full((6, 6), np.nan)
+    if np.all(np.isfinite(jtj)) and abs(np.linalg.det(jtj)) > 0:
+        cov = np.linalg.inv(jtj)
+    return p, cov, chi2, (r1 - r0) * (c1 - c0), it, r0, r1, c0, c1
+
+
+@njit(cache=True, nogil=True)
+def disk_noise(frame, p, r0, r1, c0, c1, sat):
+    """Noise model from the residuals of a disk fit: variance v0 on the background
+    (model < b + 0.05 A) and v0 + vk A on the plateau (model > b + 0.95 A). Returns (v0, vk)."""
+    x, y, rad, amp, b, s = p[0], p[1], p[2], p[3], p[4], p[5]
+    inv = 1.0 / (_SQRT2 * s)
+    sb = 0.0
+    nb = 0
+    sp = 0.0
+    npl = 0
+    for r in range(r0, r1):
+        dy = r - y
+        for c in range(c0, c1):
+            v = float(frame[r, c])
+            if v >= sat:
+                continue
+            dx = c - x
+            e = 0.5 * math.erfc((math.sqrt(dx * dx + dy * dy) - rad) * inv)
+            res = v - (b + amp * e)
+            if e < 0.05:
+                sb += res * res
+                nb += 1
+            elif e > 0.95:
+                sp += res * res
+                npl += 1
+    if nb < 10:
+        return np.nan, 0.0
+    v0 = sb / nb
+    vk = 0.0
+    if npl >= 10 and amp > 0:
+        vk = max((sp / npl - v0) / amp, 0.0)
+    return v0, vk

@@ -1,0 +1,244 @@
+"""Tests of sunlab.centroid on synthetic frames with exactly known truth (tests/_spots.py)."""
+
+from __future__ import annotations
+
+import math
+
+import _spots
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from sunlab import centroid as C
+from sunlab._errors import ConfigurationError, SchemaError
+from sunlab.schema import STATUS
+
+SINGLE = ["threshold", "projection", "tight", "fit"]
+EDGE = 3.25  # sun-disk blur at F = 5 mm, px
+
+
+# ------------------------------------------------------------------------------------------------
+# Noise-free exactness
+# ------------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("method", SINGLE)
+@pytest.mark.parametrize("xy", [(640.3, 500.7), (100.13, 200.77), (1003.5, 880.25)])
+@pytest.mark.parametrize("background", [0.0, 30.0])
+def test_noise_free_symmetric_spot_to_1e_3_px(method, xy, background):
+    frame = _spots.frame([xy], noise=False, edge=EDGE, background=background)
+    c = C.METHODS[method](frame)
+    assert c.status == STATUS["ok"], c
+    assert_allclose([c.x, c.y], xy, atol=1e-3)
+    x0, x1, y0, y1 = c.window
+    assert x0 <= xy[0] < x1 and y0 <= xy[1] < y1
+
+
+@pytest.mark.parametrize("method", ["projection", "tight"])
+def test_flux_is_background_subtracted_total(method):
+    frame = _spots.frame([(640.3, 500.7)], noise=False, edge=EDGE, background=30.0)
+    truth = (frame - 30.0).sum()
+    assert_allclose(C.METHODS[method](frame).flux, truth, rtol=1e-6)
+
+
+# ------------------------------------------------------------------------------------------------
+# Noisy frames at the paper's SNR: each algorithm within its expected error
+# ------------------------------------------------------------------------------------------------
+def _noisy_errors(method, n=12, **kw):
+    rng = np.random.default_rng(7)
+    err = []
+    for k in range(n):
+        xy = (rng.uniform(150, 1100), rng.uniform(150, 870))
+        frame = _spots.frame([xy], edge=EDGE, seed=k, **kw)
+        c = C.METHODS[method](frame)
+        assert c.status == STATUS["ok"]
+        err.append((c.x - xy[0], c.y - xy[1]))
+    return np.array(err)
+
+
+def _crlb():
+    flux = 400.0 * math.pi * 17.5**2
+    return C.crlb(flux, 30.0, 2.5, gain=4.0, radius=17.5, edge=EDGE)
+
+
+@pytest.mark.parametrize("method, factor", [("projection", 3.0), ("tight", 2.5), ("fit", 1.8)])
+def test_noisy_error_near_crlb(method, factor):
+    """B, the tight window and the fit are unbiased; their scatter is a small multiple of the CRLB
+    (COM: ~1.5-1.7x; fit: ~1.0-1.1x; the factors allow for 12 frames of sampling noise)."""
+    err = _noisy_errors(method)
+    bound = _crlb().sigma_x
+    rms = np.sqrt((err**2).mean())
+    assert rms < factor * bound
+    assert np.abs(err).max() < 5 * factor * bound
+
+
+def test_algorithm_a_bias_is_the_predicted_window_pull():
+    """Algorithm A's 128 x 128 window is centred on the spot's top edge: positive noise above
+    the ROI-border threshold pulls the centroid toward that window centre. The expected pull is
+    E[max(n - t, 0)] over the window's background pixels times the offset, over the total."""
+    rng = np.random.default_rng(3)
+    errs, pred = [], []
+    for k in range(6):
+        xy = (rng.uniform(200, 1000), rng.uniform(200, 800))
+        frame = _spots.frame([xy], edge=EDGE, seed=100 + k)
+        c = C.threshold_window(frame)
+        assert c.status == STATUS["ok"]
+        x0, x1, y0, y1 = c.window
+        roi = frame[y0 - 1 : y1 + 1, x0 - 1 : x1 + 1].astype(float)
+        t = np.mean(np.concatenate([roi[:2].ravel(), roi[-2:].ravel(), roi[2:-2, :2].ravel(),
+                                    roi[2:-2, -2:].ravel()]))
+        yy, xx = np.mgrid[y0:y1, x0:x1]
+        bg = np.hypot(xx - xy[0], yy - xy[1]) > 17.5 + EDGE + 1
+        w = np.clip(frame[y0:y1, x0:x1] - t, 0, None) * bg   # the positive-noise pedestal
+        flux = 400.0 * math.pi * 17.5**2
+        pull = np.array([(w * (xx - xy[0])).sum(), (w * (yy - xy[1])).sum()])
+        pred.append(pull / (flux + w.sum()))
+        errs.append((c.x - xy[0], c.y - xy[1]))
+    errs, pred = np.array(errs), np.array(pred)
+    assert np.all(errs[:, 1] < -0.3)  # pulled up toward the spot's top edge
+    assert_allclose(errs, pred, atol=0.05)
+
+
+# ------------------------------------------------------------------------------------------------
+# Status codes: never an exception for a frame that cannot be processed
+# ------------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("method", SINGLE)
+def test_no_spot(method):
+    frame = _spots.frame([], seed=1)
+    c = C.METHODS[method](frame)
+    assert c.status == STATUS["no_spot"] and math.isnan(c.x) and math.isnan(c.y)
+    assert c.window == (-1, -1, -1, -1)
+
+
+@pytest.mark.parametrize("method", SINGLE)
+def test_two_spots_are_ambiguous(method):
+    frame = _spots.frame([(400.2, 300.6), (900.7, 700.1)], edge=EDGE, seed=2)
+    c = C.METHODS[method](frame)
+    assert c.status == STATUS["ambiguous"]
+    # The estimate still belongs to one of the spots.
+    d = min(math.hypot(c.x - 400.2, c.y - 300.6), math.hypot(c.x - 900.7, c.y - 700.1))
+    assert d < 2.0
+
+
+@pytest.mark.parametrize("method", SINGLE)
+def test_saturated(method):
+    frame = _spots.frame([(640.3, 500.7)], peak=1500.0, edge=EDGE, seed=3)
+    assert frame.max() == 1023
+    c = C.METHODS[method](frame)
+    assert c.status == STATUS["saturated"]
+    assert math.hypot(c.x - 640.3, c.y - 500.7) < 1.5
+
+
+def test_fit_ignores_saturated_pixels():
+    frame = _spots.frame([(640.3, 500.7)], peak=1500.0, edge=EDGE, seed=3)
+    c = C.disk_fit(frame)
+    assert_allclose([c.x, c.y], [640.3, 500.7], atol=0.03)
+
+
+@pytest.mark.parametrize("method", SINGLE)
+@pytest.mark.parametrize("xy", [(8.4, 500.2), (640.3, 1020.6), (1275.0, 3.0)])
+def test_clipped_at_the_edge(method, xy):
+    frame = _spots.frame([xy], edge=EDGE, seed=4)
+    c = C.METHODS[method](frame)
+    assert c.status == STATUS["clipped"], c
+
+
+@pytest.mark.parametrize("method", SINGLE)
+def test_hot_pixels_alone_are_no_spot(method):
+    frame = _spots.frame([], seed=5)
+    rng = np.random.default_rng(5)
+    rows, cols = rng.integers(0, 1024, 40), rng.integers(0, 1280, 40)
+    frame[rows, cols] = 1023
+    c = C.METHODS[method](frame)
+    assert c.status == STATUS["no_spot"], c
+
+
+@pytest.mark.parametrize("method", SINGLE)
+def test_hot_pixels_beside_a_spot_do_not_move_it(method):
+    frame = _spots.frame([(640.3, 500.7)], edge=EDGE, seed=6)
+    rng = np.random.default_rng(6)
+    rows, cols = rng.integers(0, 1024, 40), rng.integers(0, 1280, 40)
+    far = np.hypot(cols - 640.3, rows - 500.7) > 80
+    frame[rows[far], cols[far]] = 1023
+    c = C.METHODS[method](frame)
+    assert c.status == STATUS["ok"], c
+    tol = 1.5 if method == "threshold" else 0.05
+    assert math.hypot(c.x - 640.3, c.y - 500.7) < tol
+
+
+@pytest.mark.parametrize("method", SINGLE)
+@pytest.mark.parametrize(
+    "frame",
+    [
+        np.zeros((1024, 1280), np.uint16),
+        np.full((1024, 1280), np.nan),
+        _spots.frame([(640.3, 500.7)], noise=False).astype(float) * np.where(
+            np.arange(1280) == 5, np.nan, 1.0),
+        np.full((1024, 1280), np.inf, np.float32),
+        np.zeros((4, 4), np.uint16),
+    ],
+    ids=["all-zero", "all-nan", "one-nan-column", "inf", "tiny"],
+)
+def test_invalid_frames(method, frame):
+    c = C.METHODS[method](frame)
+    assert c.status == STATUS["invalid"] and math.isnan(c.x)
+
+
+@pytest.mark.parametrize("method", SINGLE)
+def test_constant_frame_is_no_spot(method):
+    assert C.METHODS[method](np.full((1024, 1280), 30, np.uint16)).status == STATUS["no_spot"]
+
+
+@pytest.mark.parametrize("method", SINGLE)
+def test_wrong_dimensions_raise_a_named_error(method):
+    with pytest.raises(SchemaError, match="frame"):
+        C.METHODS[method](np.zeros((2, 8, 8)))
+
+
+@pytest.mark.parametrize("dtype", [np.uint8, np.int16, np.int32, np.float32, np.float64])
+def test_dtypes(dtype):
+    frame = _spots.frame([(200.4, 150.6)], noise=False, edge=EDGE, peak=200, shape=(300, 400))
+    c = C.tight_window(frame.astype(dtype))
+    assert c.ok
+    assert_allclose([c.x, c.y], [200.4, 150.6], atol=0.02)
+
+
+def test_result_type_is_a_named_tuple():
+    c = C.projection_window(_spots.frame([(640.3, 500.7)], edge=EDGE))
+    x, y, flux, window, status = c
+    assert c.status_name == "ok" and c.ok and len(window) == 4 and flux > 0
+    assert isinstance(c, C.Centroid)
+
+
+def test_disk_fit_rejects_unknown_option():
+    with pytest.raises(ConfigurationError, match="unknown option"):
+        C.disk_fit(np.zeros((64, 64)), strid=4)
+
+
+# ------------------------------------------------------------------------------------------------
+# Cramér–Rao bound
+# ------------------------------------------------------------------------------------------------
+def test_crlb_gaussian_spot_matches_closed_form():
+    """A Gaussian spot on zero background with pure Gaussian noise: sigma_x^2 = sigma_n^2 /
+    sum (d mu / dx)^2 = 8 pi s^4 sigma_n^2 / F^2 for pixels small against s."""
+    s, flux, rn = 3.0, 1e4, 2.0
+
+    def model(dx, dy):
+        return np.exp(-(dx**2 + dy**2) / (2 * s * s))
+
+    b = C.crlb(flux, 0.0, rn, gain=1e12, model=model, half_size=25, quantisation=False)
+    expected = math.sqrt(8 * math.pi * s**4 * rn**2 / flux**2)
+    assert_allclose([b.sigma_x, b.sigma_y], expected, rtol=0.01)
+
+
+def test_crlb_scales_with_flux_and_shape():
+    b1 = C.crlb(4e5, 30, 2.5, gain=4.0)
+    b4 = C.crlb(1.6e6, 30, 2.5, gain=4.0)
+    # sigma ~ 1 / sqrt(flux) when photon-limited, ~ 1 / flux when read/background-limited.
+    assert 2.0 < b1.sigma_x / b4.sigma_x < 4.0
+    hard = C.crlb(4e5, 30, 2.5, gain=4.0, edge=0.0)
+    assert hard.sigma_x < b1.sigma_x  # a sharper edge carries more position information
+    assert_allclose(b1.sigma_x, b1.sigma_y, rtol=0.02)
+
+
+def test_crlb_bad_input():
+    with pytest.raises(ConfigurationError, match="flux"):
+        C.crlb(-1.0, 30, 2.5)
