@@ -3,17 +3,17 @@
 Every method shares one interface (:class:`Calibration`): ``fit(train, validation=None)``,
 ``predict(centroids)``, ``save(path)``; :func:`load` restores any saved calibration.
 
-========================  ==========================================================  =========
-class                     method (PAPER.md sec. 4)                                    kind
-========================  ==========================================================  =========
-:class:`IdealModel`       ideal geometric model, eq. (1); nothing fitted              ideal
-:class:`OptimisedModel`   optimised model, eqs. (3)-(4): dF, alpha0, beta0            optimised
-:class:`Polynomial`       polynomial of total degree n in (x, y), one per angle       polynomial
-:class:`Trigonometric`    2-D Fourier expansion                                       trigonometric
-:class:`Interpolation`    linear / cubic interpolation of the calibration table       interpolation-linear,
-                                                                                      interpolation-cubic
-:class:`NeuralNet`        one tanh hidden layer per angle, strategies 1-4 (Table 2)   neural
-========================  ==========================================================  =========
+========================  ========================================================  ===========
+class                     method (PAPER.md sec. 4)                                  kind
+========================  ========================================================  ===========
+:class:`IdealModel`       ideal geometric model, eq. (1); nothing fitted            ideal
+:class:`OptimisedModel`   optimised model, eqs. (3)-(4): dF, alpha0, beta0          optimised
+:class:`Polynomial`       polynomial of total degree n in (x, y), one per angle     polynomial
+:class:`Trigonometric`    2-D Fourier expansion                                     trigonometric
+:class:`Interpolation`    linear / cubic interpolation of the calibration table     interpolation-
+                                                                                    linear / -cubic
+:class:`NeuralNet`        one tanh hidden layer per angle, strategies 1-4 (Table 2) neural
+========================  ========================================================  ===========
 
 Submodules load on first use; torch is imported only when a :class:`NeuralNet` is fitted.
 
