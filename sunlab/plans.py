@@ -1,0 +1,291 @@
+"""Pose plans: the platform poses of an experiment and the number of frames (shots) per pose.
+
+A plan is a flat list of commanded platform poses (alpha, beta) in degrees plus the number of
+shots taken at each pose. The paper's three experiments (Table 3, PAPER.md sec. 5) are regular
+grids with the outer axis alpha as the outer loop; any other grid or a custom list of poses is a
+plan too, so that every acquisition or simulation goes through one type.
+
+Examples
+--------
+>>> from sunlab import plans
+>>> exp3 = plans.experiment("III")
+>>> len(exp3), exp3.shots
+(361, 8)
+>>> float(exp3.alpha[0]), float(exp3.beta[0]), float(exp3.beta[1])
+(-16.5, -1.5, -0.5)
+
+References
+----------
+.. [1] PAPER.md, sec. 5, Table 3 (poses of experiments I, II and III).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ._errors import ConfigurationError
+
+__all__ = ["Plan", "experiment", "grid", "custom", "EXPERIMENTS"]
+
+#: The paper's Table 3: (alpha_min, alpha_max, alpha_step, beta_min, beta_max, beta_step), deg.
+EXPERIMENTS: dict[str, tuple[float, float, float, float, float, float]] = {
+    "I": (-17.0, 2.0, 1.0, -2.0, 17.0, 1.0),
+    "II": (-16.25, 1.75, 1.5, -1.75, 16.25, 1.5),
+    "III": (-16.5, 1.5, 1.0, -1.5, 16.5, 1.0),
+}
+
+#: Largest platform angle a plan may command, deg: beyond 90 deg the sun is behind the mask.
+MAX_ANGLE_DEG = 90.0
+
+
+def _check_angles(name: str, values: np.ndarray) -> None:
+    if values.ndim != 1:
+        raise ConfigurationError(
+            f"{name}: found an array of shape {values.shape}; expected a flat list of angles "
+            "(one per pose). Fix: pass np.ravel(angles)."
+        )
+    if not np.all(np.isfinite(values)):
+        raise ConfigurationError(
+            f"{name}: found non-finite angles; expected finite degrees. Fix: drop NaN/inf poses."
+        )
+    bad = np.abs(values) >= MAX_ANGLE_DEG
+    if np.any(bad):
+        raise ConfigurationError(
+            f"{name}: found {values[bad][0]!r} deg; expected |angle| < {MAX_ANGLE_DEG:g} deg "
+            "(the sun "
+            "must stay in front of the mask). Fix: command angles in degrees within (-90, 90)."
+        )
+
+
+def _check_shots(shots) -> int:
+    if isinstance(shots, bool) or not isinstance(shots, int | np.integer) or shots < 1:
+        raise ConfigurationError(
+            f"shots: found {shots!r}; expected a positive integer number of frames per pose "
+            "(the paper takes 8). Fix: pass shots=8."
+        )
+    return int(shots)
+
+
+@dataclass(frozen=True, eq=False)
+class Plan:
+    """A list of commanded platform poses and the number of frames taken at each.
+
+    Parameters
+    ----------
+    name : str
+        Name of the plan, e.g. ``"III"``; stored as the ``experiment`` attribute of a cube.
+    alpha, beta : numpy.ndarray of float, shape (pose,)
+        Commanded outer- and inner-axis angles of each pose, degrees. For a grid, alpha is the
+        outer loop (``beta`` varies fastest).
+    shots : int
+        Frames per pose (the paper: 8).
+
+    Examples
+    --------
+    >>> p = Plan("demo", np.array([0.0, 1.0]), np.array([0.0, 0.0]), shots=2)
+    >>> len(p), p.n_frames
+    (2, 4)
+    >>> p[1:].alpha.tolist()
+    [1.0]
+    """
+
+    name: str
+    alpha: np.ndarray
+    beta: np.ndarray
+    shots: int = 8
+
+    def __post_init__(self):
+        alpha = np.atleast_1d(np.array(self.alpha, dtype=float))
+        beta = np.atleast_1d(np.array(self.beta, dtype=float))
+        _check_angles("alpha", alpha)
+        _check_angles("beta", beta)
+        if alpha.shape != beta.shape:
+            raise ConfigurationError(
+                f"alpha, beta: found {alpha.size} and {beta.size} angles; expected one alpha and "
+                "one beta per pose. Fix: pass equal-length lists."
+            )
+        if alpha.size == 0:
+            raise ConfigurationError(
+                "alpha, beta: found an empty plan; expected at least one pose. Fix: widen the "
+                "range or the slice."
+            )
+        alpha.setflags(write=False)
+        beta.setflags(write=False)
+        object.__setattr__(self, "alpha", alpha)
+        object.__setattr__(self, "beta", beta)
+        object.__setattr__(self, "shots", _check_shots(self.shots))
+        object.__setattr__(self, "name", str(self.name))
+
+    def __len__(self) -> int:
+        return int(self.alpha.size)
+
+    def __getitem__(self, index) -> Plan:
+        """A plan of a subset of the poses (slice, integer array or boolean mask)."""
+        if isinstance(index, int | np.integer):
+            index = [int(index)]
+        return Plan(self.name, self.alpha[index], self.beta[index], self.shots)
+
+    def __eq__(self, other) -> bool:
+        return (
+            isinstance(other, Plan)
+            and self.name == other.name
+            and self.shots == other.shots
+            and np.array_equal(self.alpha, other.alpha)
+            and np.array_equal(self.beta, other.beta)
+        )
+
+    __hash__ = None  # mutable-looking contents: plans are compared by value, not hashed
+
+    @property
+    def n_frames(self) -> int:
+        """Number of frames of the plan: ``len(plan) * plan.shots``."""
+        return len(self) * self.shots
+
+    def subset(self, step: int) -> Plan:
+        """Every ``step``-th pose, for quick runs (``step=1`` returns an equal plan).
+
+        Examples
+        --------
+        >>> len(experiment("I").subset(10))
+        40
+        """
+        if isinstance(step, bool) or not isinstance(step, int | np.integer) or step < 1:
+            raise ConfigurationError(
+                f"step: found {step!r}; expected a positive integer. Fix: pass step=2 to keep "
+                "every other pose."
+            )
+        return self[:: int(step)]
+
+    def with_shots(self, shots: int) -> Plan:
+        """The same poses with another number of shots per pose."""
+        return Plan(self.name, self.alpha, self.beta, shots)
+
+    def unstack_shape(self) -> tuple[int, int] | None:
+        """(n_alpha, n_beta) if the plan is a full alpha-outer grid, else None.
+
+        Examples
+        --------
+        >>> experiment("II").unstack_shape()
+        (13, 13)
+        """
+        ua = np.unique(self.alpha)
+        ub = np.unique(self.beta)
+        if ua.size * ub.size != len(self):
+            return None
+        if np.array_equal(self.alpha, np.repeat(ua, ub.size)) and np.array_equal(
+            self.beta, np.tile(ub, ua.size)
+        ):
+            return int(ua.size), int(ub.size)
+        return None
+
+    def __repr__(self) -> str:
+        return (
+            f"Plan(name={self.name!r}, poses={len(self)}, shots={self.shots}, "
+            f"alpha=[{self.alpha.min():g}, {self.alpha.max():g}] deg, "
+            f"beta=[{self.beta.min():g}, {self.beta.max():g}] deg)"
+        )
+
+
+def _axis(vmin: float, vmax: float, step: float, name: str) -> np.ndarray:
+    if not (np.isfinite(vmin) and np.isfinite(vmax) and np.isfinite(step)):
+        raise ConfigurationError(f"{name}: found non-finite bounds or step; expected finite deg.")
+    if step <= 0:
+        raise ConfigurationError(
+            f"{name}_step: found {step!r}; expected a positive step in degrees. Fix: pass e.g. 1.0."
+        )
+    if vmax < vmin:
+        raise ConfigurationError(
+            f"{name}_min, {name}_max: found {vmin!r} > {vmax!r}; expected min <= max. "
+            "Fix: swap them."
+        )
+    n = int(np.floor((vmax - vmin) / step + 1e-9)) + 1
+    # Built from integers so that -16.25 + 12 * 1.5 is exactly 1.75, not 1.7500000000000002.
+    return np.round(vmin + step * np.arange(n), 10)
+
+
+def grid(
+    alpha_min: float,
+    alpha_max: float,
+    alpha_step: float,
+    beta_min: float,
+    beta_max: float,
+    beta_step: float,
+    shots: int = 8,
+    name: str = "grid",
+) -> Plan:
+    """A regular grid of poses, alpha as the outer loop, bounds inclusive.
+
+    Parameters
+    ----------
+    alpha_min, alpha_max, alpha_step : float
+        Outer-axis range and step, degrees.
+    beta_min, beta_max, beta_step : float
+        Inner-axis range and step, degrees.
+    shots : int
+        Frames per pose.
+    name : str
+        Name of the plan.
+
+    Returns
+    -------
+    Plan
+
+    Examples
+    --------
+    >>> p = grid(0, 2, 1, -1, 1, 1, shots=3)
+    >>> len(p), p.alpha.tolist()[:4], p.beta.tolist()[:4]
+    (9, [0.0, 0.0, 0.0, 1.0], [-1.0, 0.0, 1.0, -1.0])
+    """
+    a = _axis(float(alpha_min), float(alpha_max), float(alpha_step), "alpha")
+    b = _axis(float(beta_min), float(beta_max), float(beta_step), "beta")
+    return Plan(name, np.repeat(a, b.size), np.tile(b, a.size), shots)
+
+
+def experiment(name: str, shots: int = 8) -> Plan:
+    """The paper's experiment I (calibration), II (validation) or III (test), Table 3.
+
+    Parameters
+    ----------
+    name : {"I", "II", "III"}
+        Experiment name (case-insensitive; "1", "2", "3" also accepted).
+    shots : int
+        Frames per pose; the paper takes 8.
+
+    Returns
+    -------
+    Plan
+        400, 169 or 361 poses.
+
+    Examples
+    --------
+    >>> [len(experiment(n)) for n in ("I", "II", "III")]
+    [400, 169, 361]
+    >>> p = experiment("II"); float(p.alpha.max()), float(p.beta.min())
+    (1.75, -1.75)
+    """
+    key = {"1": "I", "2": "II", "3": "III"}.get(str(name).strip(), str(name).strip().upper())
+    if key not in EXPERIMENTS:
+        raise ConfigurationError(
+            f"experiment: found {name!r}; expected one of 'I', 'II', 'III' (PAPER.md Table 3). "
+            "Fix: use sunlab.plans.grid(...) for other poses."
+        )
+    return grid(*EXPERIMENTS[key], shots=shots, name=key)
+
+
+def custom(alpha, beta, shots: int = 8, name: str = "custom") -> Plan:
+    """A plan from explicit lists of commanded angles (degrees), one (alpha, beta) per pose.
+
+    Examples
+    --------
+    >>> p = custom([0.0, -5.0], [0.0, 3.0], shots=1)
+    >>> p.alpha.tolist(), p.beta.tolist(), p.shots
+    ([0.0, -5.0], [0.0, 3.0], 1)
+    """
+    return Plan(
+        name,
+        np.atleast_1d(np.asarray(alpha, dtype=float)),
+        np.atleast_1d(np.asarray(beta, dtype=float)),
+        shots,
+    )

@@ -1,0 +1,69 @@
+"""The virtual bench: a physically faithful simulator of the paper's laboratory bench.
+
+The paper's raw frames are not public, so every table sunlab reproduces comes from this simulator.
+A :class:`Bench` is a dataclass of dataclasses -- :class:`Source` (the 0.52 deg solar simulator),
+:class:`Mask` (holes with defects, F, dF, tilt, rotation, offset, play), :class:`Detector` (an
+Ibis4-like APS with fill factor, PRNU, DSNU, hot pixels, noise and a 10-bit ADC) and
+:class:`Platform` (two axes, mounting errors, per-pose error, jitter) -- and every default is
+documented with its rationale where it is defined; the module docstring of
+:mod:`sunlab.sim.bench` summarises the error budget (PAPER.md sec. 8).
+
+Main entry points: :func:`simulate` (a lazy cube of a plan), :func:`render_frame` (one frame),
+:func:`platform_pose` (true angles for commanded ones), :func:`spot_truth` (true centroids).
+
+Examples
+--------
+>>> from sunlab import sim, plans
+>>> bench = sim.Bench.paper_single_hole()
+>>> a, b = sim.platform_pose(bench, -8.0, 4.0, seed=0, pose=0, shot=0)
+>>> frame = sim.render_frame(bench, a, b, seed=0)
+>>> frame.shape, int(frame.max()) <= 1023
+((1024, 1280), True)
+"""
+
+from .bench import Bench, plan_key, platform_pose, simulate
+from .detector import Detector, FixedPattern, fixed_pattern
+from .mask import DEFECT_FLAGS, Burred, Dust, Elliptical, Hole, Mask, Undersized
+from .platform import Platform, sensor_sun_vector
+from .render import (
+    SpotGeometry,
+    expected_frame,
+    frame_key,
+    mask_play,
+    ray_positions,
+    render_frame,
+    spot_geometry,
+    spot_image,
+    spot_truth,
+)
+from .source import PAPER_SOURCE_DIAMETER_DEG, Source
+
+__all__ = [
+    "Bench",
+    "Source",
+    "Mask",
+    "Hole",
+    "Dust",
+    "Elliptical",
+    "Burred",
+    "Undersized",
+    "DEFECT_FLAGS",
+    "Detector",
+    "FixedPattern",
+    "fixed_pattern",
+    "Platform",
+    "PAPER_SOURCE_DIAMETER_DEG",
+    "SpotGeometry",
+    "platform_pose",
+    "simulate",
+    "plan_key",
+    "render_frame",
+    "spot_truth",
+    "spot_image",
+    "spot_geometry",
+    "ray_positions",
+    "expected_frame",
+    "frame_key",
+    "mask_play",
+    "sensor_sun_vector",
+]

@@ -1,0 +1,284 @@
+"""Numba kernels of the virtual bench: the ADC of a full frame, of a spot region, and the Fourier
+transform of a polygon. Private: the public API is in :mod:`sunlab.sim.render`."""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+__all__ = ["adc_frame", "adc_region", "normal_table", "polygon_ft", "clip_convex", "real_spectrum"]
+
+
+_GOLDEN = np.uint64(0x9E3779B97F4A7C15)
+_M1 = np.uint64(0xBF58476D1CE4E5B9)
+_M2 = np.uint64(0x94D049BB133111EB)
+
+
+@numba.njit(inline="always")
+def _splitmix64(state):
+    """One 64-bit output of SplitMix64 (Steele, Lea & Flood 2014); advances state[0]."""
+    state[0] += _GOLDEN
+    z = state[0]
+    z = (z ^ (z >> np.uint64(30))) * _M1
+    z = (z ^ (z >> np.uint64(27))) * _M2
+    return z ^ (z >> np.uint64(31))
+
+
+@numba.njit(nogil=True, cache=True)
+def adc_frame(mean_dn, sigma_dn, table, state, max_dn, out):
+    """out = clip(rint(mean + sigma * z), 0, max_dn) over the whole frame.
+
+    z is a standard normal deviate drawn by inverse-CDF table lookup: each 64-bit SplitMix64
+    output gives four 16-bit indices into ``table`` (the 65 536 equiprobable midpoint quantiles
+    of N(0, 1)). ``state`` (uint64[1]) is advanced; an empty ``table`` means no noise.
+    """
+    ny, nx = mean_dn.shape
+    noisy = table.shape[0] > 0
+    r = np.uint64(0)
+    left = 0
+    for i in range(ny):
+        for j in range(nx):
+            v = mean_dn[i, j]
+            if noisy:
+                if left == 0:
+                    r = _splitmix64(state)
+                    left = 4
+                v += sigma_dn[i, j] * table[r & np.uint64(0xFFFF)]
+                r = r >> np.uint64(16)
+                left -= 1
+            v = math.floor(v + 0.5)
+            if v < 0.0:
+                v = 0.0
+            elif v > max_dn:
+                v = max_dn
+            out[i, j] = np.uint16(v)
+
+
+@numba.njit(nogil=True, cache=True)
+def adc_region(
+    y0,
+    x0,
+    signal_e,
+    gain,
+    dark_e,
+    offset_dn,
+    table,
+    state,
+    read_var_e,
+    inv_gain,
+    full_well_e,
+    max_dn,
+    out,
+):
+    """Recompute the pixels of a region holding spot signal (photo-electrons before PRNU).
+
+    Mean electrons = gain * signal + dark; variance = mean + read noise^2 (photon and dark shot
+    noise in the Gaussian limit); saturation at the full well; rounding and clipping to the ADC.
+    Noise as in :func:`adc_frame`, continuing the same stream.
+    """
+    ny, nx = signal_e.shape
+    noisy = table.shape[0] > 0
+    r = np.uint64(0)
+    left = 0
+    for i in range(ny):
+        for j in range(nx):
+            yy = y0 + i
+            xx = x0 + j
+            e = gain[yy, xx] * signal_e[i, j] + dark_e[yy, xx]
+            if e < 0.0:
+                e = 0.0
+            if noisy:
+                if left == 0:
+                    r = _splitmix64(state)
+                    left = 4
+                e += math.sqrt(e + read_var_e) * table[r & np.uint64(0xFFFF)]
+                r = r >> np.uint64(16)
+                left -= 1
+            if e > full_well_e:
+                e = full_well_e
+            v = math.floor(offset_dn[yy, xx] + e * inv_gain + 0.5)
+            if v < 0.0:
+                v = 0.0
+            elif v > max_dn:
+                v = max_dn
+            out[yy, xx] = np.uint16(v)
+
+
+def normal_table() -> np.ndarray:
+    """The 65 536 midpoint quantiles of N(0, 1), float32 (variance 0.9998, tails at 4.3 sigma)."""
+    from scipy.special import ndtri
+
+    return ndtri((np.arange(65536) + 0.5) / 65536).astype(np.float32)
+
+
+@numba.njit(nogil=True, cache=True)
+def polygon_ft(vx, vy, fx, fy):
+    """Fourier transform of a polygon's indicator, F(f) = integral of exp(-2 pi i f.x) over it.
+
+    By the divergence theorem, for a counter-clockwise polygon with edges d_k = v_{k+1} - v_k and
+    midpoints m_k,
+
+    F(f) = i / (2 pi |f|^2) sum_k (f_x d_ky - f_y d_kx) exp(-2 pi i f.m_k) sinc(f.d_k)
+
+    with sinc(t) = sin(pi t) / (pi t); F(0) is the area. ``fx`` (nfx,) and ``fy`` (nfy,) are the
+    grid's axes in cycles per unit length; returns (nfy, nfx) complex128.
+    """
+    n = vx.shape[0]
+    nfx = fx.shape[0]
+    nfy = fy.shape[0]
+    out = np.zeros((nfy, nfx), dtype=np.complex128)
+    area = 0.0
+    for k in range(n):
+        k1 = (k + 1) % n
+        area += vx[k] * vy[k1] - vx[k1] * vy[k]
+    area *= 0.5
+    ex = np.empty(nfx, dtype=np.complex128)
+    ey = np.empty(nfy, dtype=np.complex128)
+    for k in range(n):
+        k1 = (k + 1) % n
+        dx = vx[k1] - vx[k]
+        dy = vy[k1] - vy[k]
+        mx = 0.5 * (vx[k1] + vx[k])
+        my = 0.5 * (vy[k1] + vy[k])
+        for a in range(nfx):
+            ex[a] = complex(math.cos(2 * math.pi * fx[a] * mx), -math.sin(2 * math.pi * fx[a] * mx))
+        for b in range(nfy):
+            ey[b] = complex(math.cos(2 * math.pi * fy[b] * my), -math.sin(2 * math.pi * fy[b] * my))
+        for b in range(nfy):
+            for a in range(nfx):
+                t = math.pi * (fx[a] * dx + fy[b] * dy)
+                sc = 1.0 if abs(t) < 1e-12 else math.sin(t) / t
+                w = fx[a] * dy - fy[b] * dx
+                out[b, a] += (w * sc) * ex[a] * ey[b]
+    for b in range(nfy):
+        for a in range(nfx):
+            f2 = fx[a] * fx[a] + fy[b] * fy[b]
+            if f2 < 1e-18:
+                out[b, a] = area
+            else:
+                out[b, a] = out[b, a] * complex(0.0, 1.0 / (2 * math.pi * f2))
+    return out
+
+
+@numba.njit(cache=True)
+def clip_convex(px, py, cx, cy):
+    """Sutherland-Hodgman: the part of polygon (px, py) inside the convex CCW polygon (cx, cy)."""
+    ox = list(px)
+    oy = list(py)
+    m = cx.shape[0]
+    for k in range(m):
+        if len(ox) == 0:
+            break
+        ax, ay = cx[k], cy[k]
+        bx, by = cx[(k + 1) % m], cy[(k + 1) % m]
+        ix = ox
+        iy = oy
+        ox = []
+        oy = []
+        n = len(ix)
+        for i in range(n):
+            x1, y1 = ix[i], iy[i]
+            x0, y0 = ix[i - 1], iy[i - 1]
+            s1 = (bx - ax) * (y1 - ay) - (by - ay) * (x1 - ax)
+            s0 = (bx - ax) * (y0 - ay) - (by - ay) * (x0 - ax)
+            if s1 >= 0:
+                if s0 < 0:
+                    t = s0 / (s0 - s1)
+                    ox.append(x0 + t * (x1 - x0))
+                    oy.append(y0 + t * (y1 - y0))
+                ox.append(x1)
+                oy.append(y1)
+            elif s0 >= 0:
+                t = s0 / (s0 - s1)
+                ox.append(x0 + t * (x1 - x0))
+                oy.append(y0 + t * (y1 - y0))
+    return np.array(ox, dtype=np.float64), np.array(oy, dtype=np.float64)
+
+
+@numba.njit(inline="always")
+def _bessel_j1(x):
+    """J1(x) by the rational and asymptotic approximations of Numerical Recipes (|error| < 1e-8)."""
+    ax = abs(x)
+    if ax < 8.0:
+        y = x * x
+        a1 = x * (
+            72362614232.0
+            + y
+            * (
+                -7895059235.0
+                + y * (242396853.1 + y * (-2972611.439 + y * (15704.48260 + y * (-30.16036606))))
+            )
+        )
+        a2 = 144725228442.0 + y * (
+            2300535178.0 + y * (18583304.74 + y * (99447.43394 + y * (376.9991397 + y * 1.0)))
+        )
+        return a1 / a2
+    z = 8.0 / ax
+    y = z * z
+    xx = ax - 2.356194491
+    a1 = 1.0 + y * (
+        0.183105e-2 + y * (-0.3516396496e-4 + y * (0.2457520174e-5 + y * (-0.240337019e-6)))
+    )
+    a2 = 0.04687499995 + y * (
+        -0.2002690873e-3 + y * (0.8449199096e-5 + y * (-0.88228987e-6 + y * 0.105787412e-6))
+    )
+    ans = math.sqrt(0.636619772 / ax) * (math.cos(xx) * a1 - z * math.sin(xx) * a2)
+    return -ans if x < 0.0 else ans
+
+
+@numba.njit(inline="always")
+def _disk_ft(k, u):
+    """Normalised transform of the unit disk with linear limb darkening u at k = 2 pi |f| r."""
+    if k < 1e-4:
+        jinc = 1.0 - k * k / 8.0
+        ld = 1.0 / 3.0 - k * k / 30.0
+    else:
+        jinc = 2.0 * _bessel_j1(k) / k
+        if u == 0.0:
+            return jinc
+        if k < 0.05:
+            ld = 1.0 / 3.0 - k * k / 30.0
+        else:
+            ld = (math.sin(k) / k - math.cos(k)) / (k * k)
+    if u == 0.0:
+        return jinc
+    return ((1.0 - u) * 0.5 * jinc + u * ld) / ((1.0 - u) * 0.5 + u / 3.0)
+
+
+@numba.njit(nogil=True, cache=True)
+def real_spectrum(fx, fy, ap, area, km, u, ax, ay, diff, use_ap):
+    """Real, centred spectrum on the grid fy (nfy,) x fx (nfx,): aperture x kernel x pixel.
+
+    aperture: ``area * jinc(2 pi |ap^T f|)`` (an affine image ``ap`` of the unit disk) when
+    ``use_ap``, else 1; kernel: the limb-darkened disk stretched by the symmetric matrix ``km``;
+    pixel: the sensitive rectangle ``ax`` x ``ay`` (two sincs, area included; 0 for none) and a
+    Gaussian
+    diffusion of RMS ``diff``. Phases (positions) are applied by the caller.
+    """
+    nfx = fx.shape[0]
+    nfy = fy.shape[0]
+    out = np.empty((nfy, nfx))
+    sx = np.empty(nfx)
+    for a in range(nfx):
+        t = math.pi * ax * fx[a]
+        sx[a] = 1.0 if ax <= 0.0 else ax * (1.0 if abs(t) < 1e-12 else math.sin(t) / t)
+    for b in range(nfy):
+        t = math.pi * ay * fy[b]
+        sy = 1.0 if ay <= 0.0 else ay * (1.0 if abs(t) < 1e-12 else math.sin(t) / t)
+        for a in range(nfx):
+            f1 = fx[a]
+            f2 = fy[b]
+            v = sx[a] * sy
+            if use_ap:
+                g1 = ap[0, 0] * f1 + ap[1, 0] * f2
+                g2 = ap[0, 1] * f1 + ap[1, 1] * f2
+                v *= area * _disk_ft(2.0 * math.pi * math.sqrt(g1 * g1 + g2 * g2), 0.0)
+            h1 = km[0, 0] * f1 + km[1, 0] * f2
+            h2 = km[0, 1] * f1 + km[1, 1] * f2
+            v *= _disk_ft(2.0 * math.pi * math.sqrt(h1 * h1 + h2 * h2), u)
+            if diff > 0.0:
+                v *= math.exp(-2.0 * (math.pi * diff) ** 2 * (f1 * f1 + f2 * f2))
+            out[b, a] = v
+    return out

@@ -1,0 +1,432 @@
+"""The virtual bench: source + mask + detector + platform, presets, and lazy simulated cubes.
+
+Error budget of the presets (our reading of PAPER.md sec. 8; every number is documented where it
+is defined):
+
+* per shot, about 0.0007 deg: platform jitter 0.0005 deg RMS per axis
+  (:class:`~sunlab.sim.Platform`) plus photon, dark and read noise on the centroid (a few
+  thousandths of a pixel for the default spot of about 14 000 e- per pixel);
+* common mode, shared by all holes of a frame: the platform's per-pose error, uniform within
+  +-0.008 deg (alpha) and +-0.028 deg (beta), an inner-axis wobble, non-orthogonality, mounting
+  errors alpha0 = 1.864 deg and beta0 = 0.415 deg (the paper's fitted values), the mask distance
+  error dF = 0.094 mm (the paper's fitted value), the mask's tilt and offset; for the 100-hole mask
+  also a mask held with +-5.3 um of play along y, a new mounting error at every pose (the paper
+  blames "the new mask's mounting" for the worse beta of Table 5);
+* hole specific, about 0.1 px: the pixel response (fill factor, white and correlated PRNU, DSNU
+  and hot pixels in the spot's window, :class:`~sunlab.sim.Detector`) as a fixed function of
+  where the spot falls; 100-hole averaging removes it, so 100 holes gain only about 2x on alpha.
+
+Examples
+--------
+>>> bench = Bench.paper_single_hole()
+>>> bench.detector.shape, bench.mask_distance_mm, len(bench.mask.holes)
+((1024, 1280), 5.0, 1)
+>>> Bench.paper_multi_hole().n_holes
+100
+"""
+
+from __future__ import annotations
+
+import json
+import zlib
+from dataclasses import asdict, dataclass, field, replace
+
+import numpy as np
+
+from .._errors import ConfigurationError
+from .detector import Detector
+from .mask import PAPER_GRID_CENTRE_MM, Mask
+from .platform import Platform
+from .render import _entropy, _truth, mask_play, render_frame, spot_geometry
+from .source import Source
+
+__all__ = ["Bench", "platform_pose", "simulate", "plan_key"]
+
+_TAG_POSE = 0x905E
+_TAG_SHOT = 0x5407
+
+
+@dataclass(frozen=True)
+class Bench:
+    """The virtual laboratory bench (a dataclass of dataclasses).
+
+    Parameters
+    ----------
+    source : Source
+        The solar simulator.
+    mask : Mask
+        The pinhole mask and its placement.
+    detector : Detector
+        The APS detector.
+    platform : Platform
+        The two-axis platform and the sensor's mounting.
+
+    Examples
+    --------
+    >>> b = Bench.paper_single_hole().noise_free().ideal_platform()
+    >>> b.detector.temporal_noise, b.platform.alpha0_deg
+    (False, 0.0)
+    >>> b.replace(mask__delta_f_mm=0.0).mask.true_distance_mm
+    5.0
+    """
+
+    source: Source = field(default_factory=Source)
+    mask: Mask = field(default_factory=Mask.single_hole)
+    detector: Detector = field(default_factory=Detector)
+    platform: Platform = field(default_factory=Platform)
+
+    def __post_init__(self):
+        for name, kind in (
+            ("source", Source),
+            ("mask", Mask),
+            ("detector", Detector),
+            ("platform", Platform),
+        ):
+            if not isinstance(getattr(self, name), kind):
+                raise ConfigurationError(
+                    f"bench.{name}: found {type(getattr(self, name)).__name__}; expected a "
+                    f"{kind.__name__}. Fix: build it with sunlab.sim.{kind.__name__}(...)."
+                )
+
+    # ---------------------------------------------------------------- presets
+    @classmethod
+    def paper_single_hole(cls) -> Bench:
+        """The paper's bench with the one-hole mask (PAPER.md sec. 1-2, 5).
+
+        Mask: one 0.2 mm hole at F = 5.0 mm (our choice) with dF = 0.094 mm (the paper's fitted
+        value), tilted by 0.25 deg / -0.15 deg about x / y and offset by (12, -8) um (our choice:
+        "the mask plane is not parallel to the focal plane", PAPER.md sec. 4.1).
+        """
+        mask = Mask.single_hole(
+            delta_f_mm=0.094,
+            tilt_x_deg=0.25,
+            tilt_y_deg=-0.15,
+            offset_x_mm=0.012,
+            offset_y_mm=-0.008,
+        )
+        return cls(Source(), mask, Detector(), Platform())
+
+    @classmethod
+    def paper_multi_hole(cls, n_bad: int = 6) -> Bench:
+        """The paper's bench with the 100-hole mask (PAPER.md sec. 6).
+
+        Mask: a 10 x 10 grid of 0.2 mm holes at 0.5 mm pitch, off-centre by
+        :data:`~sunlab.sim.mask.PAPER_GRID_CENTRE_MM` so that every spot stays on the detector
+        over experiments I-III; dF = 0.06 mm, tilt 0.2 / 0.3 deg, in-plane rotation 0.4 deg, play
+        +-5.3 um along y (a new mounting error at every pose, our reading of Table 5's worse
+        beta); ``n_bad`` holes with random defects (dust standing above the mask, burrs,
+        elliptical or undersized holes: the "bad holes" of Fig. 14).
+        """
+        mask = Mask.grid(
+            10,
+            10,
+            0.5,
+            0.2,
+            centre_mm=PAPER_GRID_CENTRE_MM,
+            delta_f_mm=0.06,
+            tilt_x_deg=0.2,
+            tilt_y_deg=0.3,
+            rotation_deg=0.4,
+            offset_x_mm=-0.01,
+            offset_y_mm=0.015,
+            play_y_mm=0.0053,
+        )
+        if n_bad:
+            mask = mask.with_random_defects(n_bad, seed=2005)
+        return cls(Source(), mask, Detector(), Platform())
+
+    # ---------------------------------------------------------------- switches
+    def replace(self, **changes) -> Bench:
+        """A copy with parts or fields changed; ``section__field=value`` reaches inside a part.
+
+        Examples
+        --------
+        >>> Bench().replace(detector__read_noise_e=0.0).detector.read_noise_e
+        0.0
+        """
+        top = {}
+        nested: dict[str, dict] = {}
+        for key, value in changes.items():
+            if "__" in key:
+                part, name = key.split("__", 1)
+                nested.setdefault(part, {})[name] = value
+            else:
+                top[key] = value
+        for part, kw in nested.items():
+            if part not in ("source", "mask", "detector", "platform"):
+                raise ConfigurationError(
+                    f"replace: found {part!r}; expected source, mask, detector or platform."
+                )
+            base = top.get(part, getattr(self, part))
+            try:
+                top[part] = replace(base, **kw)
+            except TypeError as err:
+                raise ConfigurationError(f"replace: {err}. Fix: check the field names.") from None
+        try:
+            return replace(self, **top)
+        except TypeError as err:
+            raise ConfigurationError(f"replace: {err}. Fix: check the field names.") from None
+
+    def noise_free(self) -> Bench:
+        """Copy with an ideal detector: no temporal noise and no fixed patterns (bias and
+        quantisation remain)."""
+        return self.replace(detector__temporal_noise=False, detector__fixed_pattern=False)
+
+    def ideal_platform(self) -> Bench:
+        """Copy with a perfect platform and mounting: true angles = commanded angles."""
+        return self.replace(platform=Platform.ideal())
+
+    def ideal_mask(self) -> Bench:
+        """Copy with the mask at its design place: no dF, tilt, rotation, offset or play."""
+        return self.replace(
+            mask__delta_f_mm=0.0,
+            mask__tilt_x_deg=0.0,
+            mask__tilt_y_deg=0.0,
+            mask__rotation_deg=0.0,
+            mask__offset_x_mm=0.0,
+            mask__offset_y_mm=0.0,
+            mask__play_x_mm=0.0,
+            mask__play_y_mm=0.0,
+        )
+
+    # ---------------------------------------------------------------- properties
+    @property
+    def mask_distance_mm(self) -> float:
+        """Nominal mask-to-focal-plane distance F, mm (the calibration's prior)."""
+        return self.mask.distance_mm
+
+    @property
+    def pixel_pitch_mm(self) -> float:
+        return self.detector.pixel_pitch_mm
+
+    @property
+    def n_holes(self) -> int:
+        return len(self.mask.holes)
+
+    def hole_design_px(self):
+        """Design zenith projection of each hole centre, (x, y) px arrays (n_holes,)."""
+        xr, yr = self.detector.reference_px
+        p = self.detector.pixel_pitch_mm
+        x = np.array([xr + h.x_mm / p for h in self.mask.holes])
+        y = np.array([yr + h.y_mm / p for h in self.mask.holes])
+        return x, y
+
+    def to_json(self) -> str:
+        """The bench's parameters as JSON (provenance attribute of simulated cubes)."""
+
+        def default(o):
+            if isinstance(o, np.generic):
+                return o.item()
+            raise TypeError(type(o).__name__)
+
+        d = asdict(self)
+        for h, hole in zip(d["mask"]["holes"], self.mask.holes, strict=True):
+            h["defect"] = [{"kind": type(x).__name__, **asdict(x)} for x in hole.defect]
+        return json.dumps(d, default=default, separators=(",", ":"))
+
+
+# --------------------------------------------------------------------------- platform
+def _check_cmd(alpha_cmd, beta_cmd):
+    for name, v in (("alpha_cmd", alpha_cmd), ("beta_cmd", beta_cmd)):
+        v = np.asarray(v, dtype=float)
+        if not np.all(np.isfinite(v)) or np.any(np.abs(v) >= 90.0):
+            raise ConfigurationError(
+                f"{name}: found {v!r}; expected finite angles with |angle| < 90 deg. "
+                "Fix: command platform angles in degrees."
+            )
+
+
+def platform_pose(
+    bench: Bench, alpha_cmd: float, beta_cmd: float, *, seed, pose: int, shot: int
+) -> tuple[float, float]:
+    """True platform angles (deg) for commanded ones, deterministic in (seed, pose, shot).
+
+    The per-pose error (uniform, bounded) depends on (seed, pose), the jitter (normal) on
+    (seed, pose, shot); the systematic errors (encoder, wobble) on the commanded angles only.
+    See :mod:`sunlab.sim.platform` for the model and its defaults.
+
+    Examples
+    --------
+    >>> b = Bench.paper_single_hole()
+    >>> a, _ = platform_pose(b, -10.0, 5.0, seed=0, pose=3, shot=0)
+    >>> bool(abs(a + 10.0) < 0.008 + 5 * 0.0005)
+    True
+    >>> platform_pose(b.ideal_platform(), -10.0, 5.0, seed=0, pose=3, shot=0)
+    (-10.0, 5.0)
+    """
+    _check_cmd(alpha_cmd, beta_cmd)
+    plat = bench.platform
+    at, bt = plat.systematic(float(alpha_cmd), float(beta_cmd))
+    key = _entropy(seed)
+    if plat.alpha_pose_error_deg or plat.beta_pose_error_deg:
+        u = np.random.default_rng(np.random.SeedSequence(key + [_TAG_POSE, int(pose)])).uniform(
+            -1.0, 1.0, 2
+        )
+        at = at + u[0] * plat.alpha_pose_error_deg
+        bt = bt + u[1] * plat.beta_pose_error_deg
+    if plat.alpha_jitter_deg or plat.beta_jitter_deg:
+        j = np.random.default_rng(
+            np.random.SeedSequence(key + [_TAG_SHOT, int(pose), int(shot)])
+        ).standard_normal(2)
+        at = at + j[0] * plat.alpha_jitter_deg
+        bt = bt + j[1] * plat.beta_jitter_deg
+    return float(at), float(bt)
+
+
+# --------------------------------------------------------------------------- cubes
+def plan_key(plan) -> int:
+    """A stable 32-bit code of a plan (name, poses, shots), mixed into a cube's seed so that two
+    experiments simulated with the same seed do not share platform errors or noise."""
+    h = zlib.crc32(plan.name.encode())
+    h = zlib.crc32(np.ascontiguousarray(plan.alpha, dtype="<f8").tobytes(), h)
+    h = zlib.crc32(np.ascontiguousarray(plan.beta, dtype="<f8").tobytes(), h)
+    return zlib.crc32(int(plan.shots).to_bytes(4, "little"), h)
+
+
+def _frame_task(bench, a, b, key, pose, shot):
+    return render_frame(bench, a, b, seed=key, pose=pose, shot=shot)[None, None]
+
+
+def _truth_task(bench, a_row, b_row, key, pose):
+    """(4, 1, shots, holes): true x, true y, ray x, ray y of every shot of one pose."""
+    n_s = len(a_row)
+    out = np.full((4, 1, n_s, bench.n_holes), np.nan)
+    play = mask_play(bench, key, pose)
+    for s in range(n_s):
+        geom = spot_geometry(bench, a_row[s], b_row[s], play)
+        out[2, 0, s] = geom.ray[:, 0]
+        out[3, 0, s] = geom.ray[:, 1]
+        out[0, 0, s], out[1, 0, s] = _truth(bench, geom)
+    return out
+
+
+def simulate(plan, bench: Bench | None = None, seed=0):
+    """A lazy, Dask-backed frame cube (contract frames/1) of a plan on the virtual bench.
+
+    Frames are rendered on demand, one chunk per frame, deterministically from
+    (seed, plan, pose, shot); the cube's ``sim_key`` attribute is the seed entropy actually used
+    (``[seed, plan_key(plan)]``), so ``render_frame(bench, true_alpha, true_beta,
+    seed=cube.attrs["sim_key"], pose=p, shot=s)`` reproduces frame (p, s).
+
+    Parameters
+    ----------
+    plan : sunlab.plans.Plan
+        Commanded poses and shots.
+    bench : Bench, optional
+        Default :meth:`Bench.paper_single_hole`.
+    seed : int or sequence of int
+        Seed of the experiment.
+
+    Returns
+    -------
+    xarray.Dataset
+        ``frames`` (pose, shot, y, x) uint16, lazy; ground truth ``true_alpha``, ``true_beta`` on
+        (pose, shot) (true axis angles, deg); ``true_x``, ``true_y`` (true centroids, px) and
+        ``ray_x``, ``ray_y`` (geometric rays through the hole centres, px) on (pose, shot) for one
+        hole or (pose, shot, hole), lazy; for multi-hole masks the coordinates ``hole_i``,
+        ``hole_j``, ``hole_x_cf``, ``hole_y_cf`` (design zenith projections, px) and
+        ``hole_defect`` (bit flags of :data:`sunlab.sim.mask.DEFECT_FLAGS`) on ``hole``.
+
+    Examples
+    --------
+    >>> from sunlab import plans
+    >>> cube = simulate(plans.experiment("III").subset(60), seed=1)
+    >>> dict(cube.frames.sizes), cube.frames.data.chunksize
+    ({'pose': 7, 'shot': 8, 'y': 1024, 'x': 1280}, (1, 1, 1024, 1280))
+    >>> frame = cube.frames[0, 0].values
+    >>> bool(frame.max() > 300)
+    True
+    """
+    import dask.array as da
+    from dask.base import tokenize
+
+    from .. import schema
+    from ..plans import Plan
+
+    if not isinstance(plan, Plan):
+        raise ConfigurationError(
+            f"plan: found {type(plan).__name__}; expected a sunlab.plans.Plan. Fix: use "
+            "sunlab.plans.experiment('III') or sunlab.plans.custom(alpha, beta)."
+        )
+    bench = Bench.paper_single_hole() if bench is None else bench
+    if not isinstance(bench, Bench):
+        raise ConfigurationError(
+            f"bench: found {type(bench).__name__}; expected a sunlab.sim.Bench."
+        )
+    key = _entropy(seed) + [plan_key(plan)]
+    n_p, n_s = len(plan), plan.shots
+    ny, nx = bench.detector.shape
+    ta = np.empty((n_p, n_s))
+    tb = np.empty((n_p, n_s))
+    for p in range(n_p):
+        for s in range(n_s):
+            ta[p, s], tb[p, s] = platform_pose(
+                bench, plan.alpha[p], plan.beta[p], seed=key, pose=p, shot=s
+            )
+    token = tokenize(bench.to_json(), key, ta, tb)
+    name = "sunlab-sim-frames-" + token
+    dsk = {
+        (name, p, s, 0, 0): (_frame_task, bench, ta[p, s], tb[p, s], key, p, s)
+        for p in range(n_p)
+        for s in range(n_s)
+    }
+    frames = da.Array(dsk, name, chunks=((1,) * n_p, (1,) * n_s, (ny,), (nx,)), dtype=np.uint16)
+    n_h = bench.n_holes
+    tname = "sunlab-sim-truth-" + token
+    tdsk = {(tname, 0, p, 0, 0): (_truth_task, bench, ta[p], tb[p], key, p) for p in range(n_p)}
+    truth = da.Array(tdsk, tname, chunks=((4,), (1,) * n_p, (n_s,), (n_h,)), dtype=float)
+    multi = n_h > 1
+    dims = ("pose", "shot", "hole") if multi else ("pose", "shot")
+    if not multi:
+        truth = truth[..., 0]
+    xd, yd = bench.hole_design_px()
+    coords = {}
+    if multi:
+        coords = {
+            "hole_i": ("hole", np.array([h.i for h in bench.mask.holes], dtype=np.int32)),
+            "hole_j": ("hole", np.array([h.j for h in bench.mask.holes], dtype=np.int32)),
+            "hole_x_cf": ("hole", xd, {"units": "px", "long_name": "design zenith projection x"}),
+            "hole_y_cf": ("hole", yd, {"units": "px", "long_name": "design zenith projection y"}),
+            "hole_defect": (
+                "hole",
+                np.array([h.defect_flags for h in bench.mask.holes], dtype=np.int8),
+                {
+                    "flag_masks": np.array([1, 2, 4, 8], dtype=np.int8),
+                    "flag_meanings": "dust elliptical burred undersized",
+                },
+            ),
+        }
+    ds = schema.frames_dataset(
+        frames,
+        plan.alpha,
+        plan.beta,
+        pixel_pitch_mm=bench.detector.pixel_pitch_mm,
+        mask_distance_mm=bench.mask_distance_mm,
+        x_cf_px=float(np.mean(xd)),
+        y_cf_px=float(np.mean(yd)),
+        bit_depth=bench.detector.bit_depth,
+        mask=bench.mask.name,
+        experiment=plan.name,
+        coords=coords,
+        attrs={
+            "source": "sunlab virtual bench",
+            "sim_seed": _entropy(seed),
+            "sim_key": list(key),
+            "sim_bench": bench.to_json(),
+        },
+    )
+    ds["true_alpha"] = (
+        ("pose", "shot"),
+        ta,
+        {"units": "deg", "long_name": "true outer-axis angle"},
+    )
+    ds["true_beta"] = (("pose", "shot"), tb, {"units": "deg", "long_name": "true inner-axis angle"})
+    long = {
+        "true_x": "true centroid column (noiseless expected signal, fill factor included)",
+        "true_y": "true centroid row (noiseless expected signal, fill factor included)",
+        "ray_x": "geometric ray through the hole centre, column",
+        "ray_y": "geometric ray through the hole centre, row",
+    }
+    for i, var in enumerate(("true_x", "true_y", "ray_x", "ray_y")):
+        ds[var] = (dims, truth[i], {"units": "px", "long_name": long[var]})
+    return schema.validate_frames(ds)

@@ -1,0 +1,208 @@
+"""The two-axis rotation platform: commanded versus true angles, and the sensor's mounting.
+
+The outer axis sets alpha, the inner axis beta (the paper's eq. (1) convention,
+``docs/nomenclature.md``). The true axis angles for a commanded pose are
+
+.. math::
+
+    \\alpha_t = \\alpha_c (1 + k_\\alpha) + \\delta\\alpha_{enc} + e_\\alpha + j_\\alpha, \\qquad
+    \\beta_t  = \\beta_c (1 + k_\\beta) + \\delta\\beta_{enc} + w \\sin(2\\pi\\alpha_c / P + \\phi)
+               + e_\\beta + j_\\beta
+
+with encoder scale errors k, encoder zero offsets, an inner-axis wobble of amplitude w and period P
+in the outer angle (a systematic, learnable error), a per-pose positioning error e drawn uniformly
+in +-``*_pose_error_deg`` (bounded: the stage's positioning resolution and backlash; PAPER.md
+sec. 8 shows that sigma / mu of the paper's local errors is about 0.6, the value of a uniform, not
+a normal, error) and a per-shot jitter j (normal). The sun vector in the sensor frame is
+
+.. math::
+
+    \\mathbf{s} = R_z(\\gamma_0) R_y(-\\alpha_0) R_x(\\beta_0)\\;
+                 R_y(-\\alpha_t)\\, R_u(\\beta_t)\\,
+    \\mathbf{e}_z, \\qquad \\mathbf{u} = (\\cos\\epsilon, \\sin\\epsilon, 0),
+
+where the inner axis u leans by the non-orthogonality epsilon toward the outer axis y and the
+fixed rotation in front is the sensor's mounting on the platform (alpha0, beta0, gamma0). For
+alpha0 = beta0 = 0 and epsilon = 0 this is :func:`sunlab.geometry.sun_vector`.
+
+Default error budget (our reading of PAPER.md sec. 8; the rationale of each number):
+
+* mounting alpha0 = 1.864 deg, beta0 = 0.415 deg: the paper's fitted values (sec. 4.1).
+* per-pose error, uniform in +-0.008 deg (alpha) and +-0.028 deg (beta): the paper's common-mode
+  error. With 100 holes, where hole-specific errors average out, mu(alpha) = 0.0041 deg, the mean
+  absolute value of U(-0.008, 0.008); beta's larger range reproduces mu(beta) of about 0.017 deg
+  with one hole ("beta is always worse: the platform's second axis").
+* inner-axis wobble 0.006 deg with a 10 deg period: a systematic part of the beta error that a
+  learning method (NN strategy 4) can follow better than a low-order polynomial.
+* non-orthogonality 0.02 deg, encoder offsets and scale errors 0: indistinguishable from mounting
+  errors and F over the test range; available for experiments.
+* jitter 0.0005 deg RMS per shot on each axis: with the centroid noise this gives the paper's
+  per-shot scatter of about 0.0007 deg (M - mu = 0.001 deg, PAPER.md sec. 8).
+
+Examples
+--------
+>>> p = Platform()
+>>> p.alpha0_deg, p.beta0_deg
+(1.864, 0.415)
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from .._errors import ConfigurationError
+
+__all__ = ["Platform", "sensor_sun_vector", "rotation_x", "rotation_y", "rotation_z"]
+
+
+def rotation_x(t: float) -> np.ndarray:
+    """Right-handed rotation by ``t`` rad about x."""
+    c, s = math.cos(t), math.sin(t)
+    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+
+
+def rotation_y(t: float) -> np.ndarray:
+    """Right-handed rotation by ``t`` rad about y."""
+    c, s = math.cos(t), math.sin(t)
+    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+
+
+def rotation_z(t: float) -> np.ndarray:
+    """Right-handed rotation by ``t`` rad about z."""
+    c, s = math.cos(t), math.sin(t)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+@dataclass(frozen=True)
+class Platform:
+    """Errors of the two-axis platform and of the sensor's mounting on it (module notes).
+
+    Parameters
+    ----------
+    alpha0_deg, beta0_deg, gamma0_deg : float
+        Mounting rotation of the sensor on the inner gimbal, deg (gamma0: about the boresight).
+    alpha_offset_deg, beta_offset_deg : float
+        Encoder zero offsets, deg.
+    alpha_scale, beta_scale : float
+        Encoder scale errors (relative).
+    nonorthogonality_deg : float
+        Lean of the inner axis toward the outer axis, deg.
+    beta_wobble_deg, beta_wobble_period_deg, beta_wobble_phase_deg : float
+        Inner-axis wobble: amplitude, period in the outer angle and phase, deg.
+    alpha_pose_error_deg, beta_pose_error_deg : float
+        Half-width of the uniform per-pose positioning error, deg.
+    alpha_jitter_deg, beta_jitter_deg : float
+        RMS per-shot jitter, deg.
+    """
+
+    alpha0_deg: float = 1.864
+    beta0_deg: float = 0.415
+    gamma0_deg: float = 0.0
+    alpha_offset_deg: float = 0.0
+    beta_offset_deg: float = 0.0
+    alpha_scale: float = 0.0
+    beta_scale: float = 0.0
+    nonorthogonality_deg: float = 0.02
+    beta_wobble_deg: float = 0.006
+    beta_wobble_period_deg: float = 10.0
+    beta_wobble_phase_deg: float = 40.0
+    alpha_pose_error_deg: float = 0.008
+    beta_pose_error_deg: float = 0.028
+    alpha_jitter_deg: float = 0.0005
+    beta_jitter_deg: float = 0.0005
+
+    def __post_init__(self):
+        for name, v in self.__dict__.items():
+            if not math.isfinite(v):
+                raise ConfigurationError(f"platform.{name}: found {v!r}; expected a finite number.")
+        for name in (
+            "alpha_pose_error_deg",
+            "beta_pose_error_deg",
+            "alpha_jitter_deg",
+            "beta_jitter_deg",
+            "beta_wobble_deg",
+        ):
+            if getattr(self, name) < 0:
+                raise ConfigurationError(
+                    f"platform.{name}: found {getattr(self, name)!r}; expected >= 0 deg."
+                )
+        if self.beta_wobble_period_deg <= 0:
+            raise ConfigurationError(
+                f"platform.beta_wobble_period_deg: found {self.beta_wobble_period_deg!r}; expected"
+                " a positive period in deg."
+            )
+        for name in ("alpha0_deg", "beta0_deg", "gamma0_deg", "nonorthogonality_deg"):
+            if abs(getattr(self, name)) >= 45:
+                raise ConfigurationError(
+                    f"platform.{name}: found {getattr(self, name)!r}; expected a small angle "
+                    "(|value| < 45 deg)."
+                )
+
+    @classmethod
+    def ideal(cls) -> Platform:
+        """A perfect platform: true angles equal commanded ones, sensor aligned."""
+        return cls(**{k: 0.0 for k in cls.__dataclass_fields__ if k != "beta_wobble_period_deg"})
+
+    def replace(self, **changes) -> Platform:
+        """A copy with some fields changed."""
+        return replace(self, **changes)
+
+    def systematic(self, alpha_cmd, beta_cmd):
+        """True angles without the random parts (encoder, wobble), deg."""
+        a = np.asarray(alpha_cmd, dtype=float)
+        b = np.asarray(beta_cmd, dtype=float)
+        at = a * (1 + self.alpha_scale) + self.alpha_offset_deg
+        bt = b * (1 + self.beta_scale) + self.beta_offset_deg
+        if self.beta_wobble_deg:
+            bt = bt + self.beta_wobble_deg * np.sin(
+                2 * np.pi * a / self.beta_wobble_period_deg
+                + math.radians(self.beta_wobble_phase_deg)
+            )
+        return at, bt
+
+    def mount_matrix(self) -> np.ndarray:
+        """The sensor's mounting rotation R_z(gamma0) R_y(-alpha0) R_x(beta0)."""
+        return (
+            rotation_z(math.radians(self.gamma0_deg))
+            @ rotation_y(-math.radians(self.alpha0_deg))
+            @ rotation_x(math.radians(self.beta0_deg))
+        )
+
+
+def sensor_sun_vector(platform: Platform, alpha_true, beta_true) -> np.ndarray:
+    """Unit vector toward the sun in the sensor frame for true axis angles (deg).
+
+    Parameters
+    ----------
+    platform : Platform
+        Mounting and axis geometry.
+    alpha_true, beta_true : float or array_like
+        True outer and inner axis angles, deg.
+
+    Returns
+    -------
+    numpy.ndarray, shape (..., 3)
+
+    Examples
+    --------
+    >>> from sunlab.geometry import sun_vector
+    >>> s = sensor_sun_vector(Platform.ideal(), -10.0, 5.0)
+    >>> bool(np.allclose(s, sun_vector(-10.0, 5.0)))
+    True
+    """
+    a = np.deg2rad(np.asarray(alpha_true, dtype=float))
+    b = np.deg2rad(np.asarray(beta_true, dtype=float))
+    eps = math.radians(platform.nonorthogonality_deg)
+    # R_u(beta) e_z for the inner axis u = (cos eps, sin eps, 0) (Rodrigues), then R_y(-alpha).
+    v = np.stack(
+        np.broadcast_arrays(math.sin(eps) * np.sin(b), -math.cos(eps) * np.sin(b), np.cos(b)),
+        axis=-1,
+    )
+    ca, sa = np.cos(a), np.sin(a)
+    g = np.stack(
+        [ca * v[..., 0] - sa * v[..., 2], v[..., 1], sa * v[..., 0] + ca * v[..., 2]], axis=-1
+    )
+    return g @ platform.mount_matrix().T

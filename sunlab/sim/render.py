@@ -1,0 +1,664 @@
+"""Rendering: from true platform angles to spot images, their true centroids and full frames.
+
+Physics (PAPER.md sec. 1-2; ``docs/nomenclature.md`` for the frames):
+
+* The sun vector in the sensor frame, s, follows from the true axis angles, the axis geometry and
+  the sensor's mounting (:func:`sunlab.sim.platform.sensor_sun_vector`).
+* A hole whose centre is at Q (mm, detector frame, height Q_z above the focal plane) casts its
+  *geometric ray* at Q_xy - Q_z s_xy / s_z: for a hole at height F this is the paper's eq. (1),
+  F (tan alpha, tan beta / cos alpha) from the hole's zenith projection.
+* The spot is the aperture projected along s onto the focal plane (an exact affine image of the
+  hole's outline, with dust shadows that slide if the dust stands above the mask) convolved with
+  the projected sun disk. The sun-disk kernel is the distribution of -H (d_xy / d_z - s_xy / s_z)
+  over the source's directions d, weighted by radiance and by the aperture's projected area
+  (d . n_mask); it is computed by quadrature and represented by the source profile stretched to
+  the same mean and covariance (exact to second order, the disk being 0.0045 rad in radius).
+* The irradiance is the beam's fluence times s_z; the spot's total flux is therefore
+  fluence x hole area x (s . n_mask): the cosine projection of the hole.
+* A pixel collects the irradiance over its sensitive rectangle (fill factor), times QE.
+
+All of this is a product in the Fourier domain: aperture (a jinc for circles and ellipses, an
+exact polygon transform otherwise) x kernel (the source profile's transform) x the sensitive
+rectangle (two sincs) x a phase for the position. Pixel values are obtained by an inverse FFT of
+that product folded over the neighbouring alias bands (the Poisson summation formula), i.e. the
+exact pixel integrals up to the spectrum beyond 1.5 cycles/px, which is below 1e-6 of the peak.
+The *true centroid* of a frame is the centroid of this noiseless expected signal, computed
+directly by the same summation formula (derivative of the spectrum at the integer frequencies):
+it includes the fill-factor sampling error and is exact to far better than 0.001 px; PRNU and the
+other fixed patterns are detector errors and are left out of the truth on purpose.
+
+Examples
+--------
+>>> from sunlab.sim import Bench
+>>> bench = Bench.paper_single_hole().ideal_platform().ideal_mask()
+>>> x, y = spot_truth(bench, 0.0, 0.0)
+>>> bool(abs(x[0] - 639.5) < 0.01 and abs(y[0] - 511.5) < 0.01)
+True
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import special
+
+from .._errors import ConfigurationError
+from . import _kernels
+from .detector import Detector, fixed_pattern
+from .platform import sensor_sun_vector
+
+__all__ = [
+    "SpotGeometry",
+    "spot_geometry",
+    "spot_truth",
+    "ray_positions",
+    "spot_image",
+    "expected_frame",
+    "render_frame",
+    "frame_key",
+    "mask_play",
+]
+
+_TAG_FRAME = 0xF7A3E
+_TAG_PLAY = 0x91A7
+_STAMP_SIZES = (32, 40, 48, 56, 64, 80, 96, 128, 160, 192, 256, 320, 384, 512, 768, 1024)
+
+
+# --------------------------------------------------------------------------- seeding
+def _entropy(seed) -> list[int]:
+    """Seed as a list of non-negative ints (an int or a sequence of ints)."""
+    items = [seed] if isinstance(seed, int | np.integer) else list(seed)
+    out = []
+    for v in items:
+        if isinstance(v, bool) or not isinstance(v, int | np.integer) or v < 0:
+            raise ConfigurationError(
+                f"seed: found {seed!r}; expected a non-negative integer or a sequence of them. "
+                "Fix: pass seed=0."
+            )
+        out.append(int(v))
+    return out
+
+
+def frame_key(seed, pose: int, shot: int) -> np.random.SeedSequence:
+    """The SeedSequence of frame (pose, shot): every frame's noise stream, from (seed, pose, shot).
+
+    Examples
+    --------
+    >>> frame_key(0, 3, 1).entropy
+    [0, 1014334, 3, 1]
+    """
+    return np.random.SeedSequence(_entropy(seed) + [_TAG_FRAME, int(pose), int(shot)])
+
+
+def mask_play(bench, seed, pose: int) -> tuple[float, float]:
+    """Per-pose offset of a loosely held mask, mm, uniform within +-play (0 without play)."""
+    m = bench.mask
+    if m.play_x_mm == 0 and m.play_y_mm == 0:
+        return (0.0, 0.0)
+    rng = np.random.default_rng(np.random.SeedSequence(_entropy(seed) + [_TAG_PLAY, int(pose)]))
+    u = rng.uniform(-1.0, 1.0, 2)
+    return (float(u[0] * m.play_x_mm), float(u[1] * m.play_y_mm))
+
+
+# --------------------------------------------------------------------------- geometry
+@dataclass
+class SpotGeometry:
+    """Geometry of every spot of one frame (all lengths in px unless stated).
+
+    Attributes
+    ----------
+    s : ndarray (3,)
+        Sun vector in the sensor frame.
+    lit : bool
+        Whether the sun is in front of the mask (s . n_mask > 0).
+    ray : ndarray (n, 2)
+        Geometric ray through each hole centre on the focal plane (x, y).
+    height_mm : ndarray (n,)
+        Height of each hole centre above the focal plane, mm.
+    proj : ndarray (2, 2)
+        Projection of mask-plane vectors (mm) onto the focal plane along s (px).
+    proj_w : ndarray (2,)
+        Projection of a mask-normal offset of 1 mm (px).
+    q_e : float
+        Photo-electrons per px^2 of fully lit focal plane (before fill factor).
+    kernel_mu, kernel_cov : ndarray
+        Mean (2,) and covariance (2, 2) of the sun-disk kernel per mm of height (px, px^2/mm^2).
+    limb_darkening, second_moment : float
+        The source profile and its <x^2> on the unit disk.
+    """
+
+    s: np.ndarray
+    lit: bool
+    ray: np.ndarray
+    height_mm: np.ndarray
+    proj: np.ndarray
+    proj_w: np.ndarray
+    q_e: float
+    kernel_mu: np.ndarray
+    kernel_cov: np.ndarray
+    limb_darkening: float
+    second_moment: float
+
+
+@functools.lru_cache(maxsize=8)
+def _quadrature(n_r: int = 8, n_phi: int = 16):
+    x, w = np.polynomial.legendre.leggauss(n_r)
+    r = 0.5 * (x + 1.0)
+    wr = 0.5 * w
+    phi = (np.arange(n_phi) + 0.5) * 2 * np.pi / n_phi
+    return r, wr, phi
+
+
+def spot_geometry(bench, alpha_true, beta_true, play_mm=(0.0, 0.0)) -> SpotGeometry:
+    """Ray positions, projections and the sun-disk kernel for true platform angles (deg).
+
+    Examples
+    --------
+    >>> from sunlab.sim import Bench
+    >>> g = spot_geometry(Bench.paper_single_hole().ideal_platform().ideal_mask(), 10.0, 0.0)
+    >>> round(float(g.ray[0, 0] - 639.5), 4)  # F tan(10 deg) / p, F = 5 mm, p = 7 um
+    125.9478
+    """
+    a = float(alpha_true)
+    b = float(beta_true)
+    if not (abs(a) < 90 and abs(b) < 90):
+        raise ConfigurationError(
+            f"alpha_true, beta_true: found ({a!r}, {b!r}) deg; expected |angle| < 90 deg (the sun "
+            "in front of the mask). Fix: pass platform angles in degrees."
+        )
+    det: Detector = bench.detector
+    mask = bench.mask
+    src = bench.source
+    p = det.pixel_pitch_mm
+    s = sensor_sun_vector(bench.platform, a, b)
+    rot = mask.rotation_matrix()
+    n_m = rot[:, 2]
+    sn = float(s @ n_m)
+    lit = bool(s[2] > 1e-6 and sn > 1e-6)
+    sz = s[2] if lit else 1.0
+    xr, yr = det.reference_px
+    origin = np.array(
+        [
+            xr * p + mask.offset_x_mm + play_mm[0],
+            yr * p + mask.offset_y_mm + play_mm[1],
+            mask.true_distance_mm,
+        ]
+    )
+    uv = np.array([[h.x_mm, h.y_mm] for h in mask.holes], dtype=float)
+    q = origin[None, :] + uv @ rot[:, :2].T
+    ray = (q[:, :2] - q[:, 2:3] * (s[:2] / sz)[None, :]) / p
+    proj = (rot[:2, :2] - np.outer(s[:2], rot[2, :2]) / sz) / p
+    proj_w = (rot[:2, 2] - s[:2] * rot[2, 2] / sz) / p
+    # Sun-disk kernel by quadrature over the source (per mm of hole height).
+    rho = src.radius_rad
+    if rho > 0 and lit:
+        r, wr, phi = _quadrature()
+        e1 = np.cross([0.0, 1.0, 0.0], s)
+        e1 /= np.linalg.norm(e1)
+        e2 = np.cross(s, e1)
+        rr = (r * rho)[:, None]
+        d = np.cos(rr)[..., None] * s + np.sin(rr)[..., None] * (
+            np.cos(phi)[None, :, None] * e1 + np.sin(phi)[None, :, None] * e2
+        )
+        w = (src.profile(r)[:, None] * wr[:, None] * np.sin(rr)) * np.clip(d @ n_m, 0, None)
+        w = np.broadcast_to(w, d.shape[:2])
+        disp = -(d[..., :2] / d[..., 2:3] - s[:2] / sz) / p
+        wsum = w.sum()
+        mu = (w[..., None] * disp).sum(axis=(0, 1)) / wsum
+        dd = disp - mu
+        cov = np.einsum("ij,ijk,ijl->kl", w, dd, dd) / wsum
+        lsum = (src.profile(r)[:, None] * wr[:, None] * np.sin(rr) * np.ones_like(phi)).sum()
+        flux_factor = wsum / lsum / sn
+    else:
+        mu = np.zeros(2)
+        cov = np.zeros((2, 2))
+        flux_factor = 1.0
+    q_e = src.fluence_photons_per_um2 * (p * 1e3) ** 2 * det.qe * sz * flux_factor if lit else 0.0
+    return SpotGeometry(
+        s=s,
+        lit=lit,
+        ray=ray,
+        height_mm=q[:, 2].copy(),
+        proj=proj,
+        proj_w=proj_w,
+        q_e=float(q_e),
+        kernel_mu=mu,
+        kernel_cov=cov,
+        limb_darkening=src.limb_darkening,
+        second_moment=src.second_moment(),
+    )
+
+
+def ray_positions(bench, alpha_true, beta_true, play_mm=(0.0, 0.0)):
+    """Geometric ray through each hole centre on the focal plane: (x, y) px arrays (n_holes,).
+
+    Examples
+    --------
+    >>> from sunlab.sim import Bench
+    >>> x, y = ray_positions(Bench.paper_single_hole().ideal_platform().ideal_mask(), 0.0, 10.0)
+    >>> round(float(y[0] - 511.5), 4)
+    125.9478
+    """
+    g = spot_geometry(bench, alpha_true, beta_true, play_mm)
+    return g.ray[:, 0].copy(), g.ray[:, 1].copy()
+
+
+# --------------------------------------------------------------------------- spectra
+def _jinc(k):
+    """2 J1(k) / k, the normalised transform of a uniform unit disk (k = 2 pi |f| radius)."""
+    k = np.maximum(np.asarray(k, dtype=float), 1e-30)
+    return 2.0 * special.j1(k) / k
+
+
+def _profile_ft(k, u: float):
+    """Normalised transform of the limb-darkened unit disk 1 - u (1 - sqrt(1 - r^2))."""
+    if u == 0.0:
+        return _jinc(k)
+    k = np.asarray(k, dtype=float)
+    small = k < 0.05
+    ks = np.where(small, 1.0, k)
+    ld = np.where(small, 1.0 / 3.0 - k * k / 30.0, (np.sin(ks) / ks - np.cos(ks)) / ks**2)
+    dc = (1 - u) * 0.5 + u / 3.0
+    return ((1 - u) * 0.5 * _jinc(k) + u * ld) / dc
+
+
+def _axes(f):
+    return np.ascontiguousarray(np.ravel(f), dtype=float)
+
+
+class _Group:
+    """Holes of one frame sharing an aperture design (identical affine holes, or one polygon
+    hole). Spectrum of hole h relative to its ray: ``common(f) * exp(-2 pi i f . shift_h)``, so
+    the expected photo-electrons are ``q_e * common(f) * exp(-2 pi i f . centre_h)`` with
+    ``centre_h = ray_h + shift_h``; ``common`` holds the aperture (px^2), the sun-disk kernel
+    (unit integral) and the pixel's sensitive area, ``shift_h`` the kernel's centroid (which
+    scales with the hole's height) minus the sensitive area's offset."""
+
+    def __init__(self, geom: SpotGeometry, det: Detector, hole, idx):
+        self.idx = np.atleast_1d(np.asarray(idx, dtype=int))
+        self.ray = geom.ray[self.idx]
+        h = geom.height_mm[self.idx]
+        mu = geom.kernel_mu[None, :] * h[:, None]
+        self.centre = self.ray + mu - np.asarray(det.sensitive_offset_px)[None, :]
+        hbar = float(np.mean(h))
+        cov = geom.kernel_cov * hbar * hbar
+        if np.any(cov):
+            w, v = np.linalg.eigh(cov / geom.second_moment)
+            self.kernel_m = (v * np.sqrt(np.clip(w, 0, None))) @ v.T
+        else:
+            self.kernel_m = np.zeros((2, 2))
+        self.u = float(geom.limb_darkening)
+        self.ax, self.ay = det.sensitive_size_px
+        self.diff = float(det.diffusion_px)
+        aff = hole.affine()
+        occ = hole.occluders()
+        self.cut = []
+        if aff is not None and not occ:
+            self.affine = geom.proj @ aff
+            self.area = math.pi * abs(float(np.linalg.det(self.affine)))
+            self.poly = None
+            r_ap = float(np.linalg.norm(self.affine, 2))
+        else:
+            self.affine = np.zeros((2, 2))
+            self.area = 0.0
+            self.poly = hole.outline() @ geom.proj.T
+            for poly, hd in occ:
+                shadow = poly @ geom.proj.T + geom.proj_w * hd
+                cx, cy = _kernels.clip_convex(
+                    self.poly[:, 0].copy(),
+                    self.poly[:, 1].copy(),
+                    shadow[:, 0].copy(),
+                    shadow[:, 1].copy(),
+                )
+                if cx.size >= 3:
+                    self.cut.append(np.stack([cx, cy], axis=-1))
+            r_ap = float(np.max(np.hypot(self.poly[:, 0], self.poly[:, 1])))
+        self.radius = (
+            r_ap
+            + 1.05 * float(np.linalg.norm(self.kernel_m, 2))
+            + float(np.max(np.hypot(*(self.centre - self.ray).T)))
+            + 0.5 * math.hypot(self.ax, self.ay)
+            + 4 * self.diff
+        )
+
+    def common(self, fx, fy, pixel: bool = True):
+        """Centred spectrum on the grid fy x fx (1-D axes, cycles/px); (nfy, nfx)."""
+        fx = _axes(fx)
+        fy = _axes(fy)
+        ax, ay = (self.ax, self.ay) if pixel else (0.0, 0.0)
+        out = _kernels.real_spectrum(
+            fx,
+            fy,
+            self.affine,
+            self.area,
+            self.kernel_m,
+            self.u,
+            ax,
+            ay,
+            self.diff if pixel else 0.0,
+            self.poly is None,
+        )
+        if self.poly is not None:
+            ap = _kernels.polygon_ft(self.poly[:, 0].copy(), self.poly[:, 1].copy(), fx, fy)
+            for c in self.cut:
+                ap = ap - _kernels.polygon_ft(c[:, 0].copy(), c[:, 1].copy(), fx, fy)
+            out = out * ap
+        return out
+
+    def centroids(self, n_alias: int = 2, h: float = 1e-5):
+        """Centroids (x, y) of the sampled spots by the Poisson summation formula, and the total
+        signal sum(S) / q_e (px^2 x fill factor)."""
+        k = np.arange(-n_alias, n_alias + 1, dtype=float)
+        t = self.common(k, k)
+        tx = (self.common(k + h, k) - self.common(k - h, k)) / (2 * h)
+        ty = (self.common(k, k + h) - self.common(k, k - h)) / (2 * h)
+        px = np.exp(-2j * np.pi * self.centre[:, 0:1] * k[None, :])  # (n, K)
+        py = np.exp(-2j * np.pi * self.centre[:, 1:2] * k[None, :])
+        den = np.einsum("nb,ba,na->n", py, t, px)
+        nx_ = np.einsum("nb,ba,na->n", py, tx, px)
+        ny_ = np.einsum("nb,ba,na->n", py, ty, px)
+        cx = self.centre[:, 0] + np.real(1j / (2 * np.pi) * nx_ / den)
+        cy = self.centre[:, 1] + np.real(1j / (2 * np.pi) * ny_ / den)
+        return cx, cy, np.real(den)
+
+    def stamp_size(self) -> int:
+        need = 2 * self.radius + 4
+        return next((n for n in _STAMP_SIZES if n >= need), int(2 ** math.ceil(math.log2(need))))
+
+    def stamps(
+        self,
+        q_e: float,
+        size: int | None = None,
+        oversample: int = 1,
+        pixel: bool = True,
+        n_alias: int = 1,
+        members=None,
+    ):
+        """Expected photo-electrons on a size x size grid around each spot of the group.
+
+        Yields (k, image, x0, y0, step): image[i, j] is at x = x0 + j * step, y = y0 + i * step;
+        k indexes the group's holes.
+        """
+        size = self.stamp_size() if size is None else int(size)
+        step = 1.0 / oversample
+        m = size * oversample
+        fxb = np.arange(m // 2 + 1) / size
+        fyb = np.fft.fftfreq(m, d=step)
+        al = np.arange(-n_alias, n_alias + 1) * oversample
+        fx = (al[:, None] + fxb[None, :]).ravel()
+        fy = (al[:, None] + fyb[None, :]).ravel()
+        t = self.common(fx, fy, pixel=pixel)
+        na = al.size
+        members = range(len(self.idx)) if members is None else members
+        for k in members:
+            x0 = math.floor(self.ray[k, 0]) - size // 2 + 1
+            y0 = math.floor(self.ray[k, 1]) - size // 2 + 1
+            dx = self.centre[k, 0] - x0
+            dy = self.centre[k, 1] - y0
+            ph = t * np.exp(-2j * np.pi * fy * dy)[:, None] * np.exp(-2j * np.pi * fx * dx)[None, :]
+            acc = ph.reshape(na, m, na, m // 2 + 1).sum(axis=(0, 2))
+            img = np.fft.irfft2(acc, s=(m, m)) * (q_e / step**2)
+            yield k, img, x0, y0, step
+
+
+def _groups(bench, geom: SpotGeometry) -> list[_Group]:
+    """Group the mask's holes by aperture design (affine holes without dust share a spectrum)."""
+    det = bench.detector
+    holes = bench.mask.holes
+    keyed: dict = {}
+    out = []
+    for k, h in enumerate(holes):
+        aff = h.affine()
+        if aff is not None and not h.occluders():
+            keyed.setdefault(tuple(np.round(aff, 12).ravel()), []).append(k)
+        else:
+            out.append(_Group(geom, det, h, [k]))
+    for idx in keyed.values():
+        out.append(_Group(geom, det, holes[idx[0]], idx))
+    return out
+
+
+def _on_detector(group: _Group, det: Detector) -> np.ndarray:
+    r = group.radius
+    x, y = group.ray[:, 0], group.ray[:, 1]
+    return (x - r >= -0.5) & (y - r >= -0.5) & (x + r <= det.nx - 0.5) & (y + r <= det.ny - 0.5)
+
+
+def _truth(bench, geom: SpotGeometry):
+    n = len(bench.mask.holes)
+    x = np.full(n, np.nan)
+    y = np.full(n, np.nan)
+    if not geom.lit:
+        return x, y
+    for g in _groups(bench, geom):
+        ok = _on_detector(g, bench.detector)
+        if np.any(ok):
+            cx, cy, _ = g.centroids()
+            x[g.idx[ok]] = cx[ok]
+            y[g.idx[ok]] = cy[ok]
+    return x, y
+
+
+def spot_truth(bench, alpha_true, beta_true, *, play_mm=(0.0, 0.0)):
+    """True centroids of the noiseless expected spots, px: (x, y) arrays of shape (n_holes,).
+
+    The centroid of the expected photo-signal sampled by the pixels' sensitive areas (fill factor
+    included, PRNU excluded), computed exactly by the Poisson summation formula. NaN for a spot
+    that is not entirely on the detector or not lit.
+
+    Parameters
+    ----------
+    bench : Bench
+        The virtual bench.
+    alpha_true, beta_true : float
+        True platform angles, deg.
+    play_mm : (float, float)
+        The mask's per-pose offset (see :func:`mask_play`), mm.
+
+    Examples
+    --------
+    >>> from sunlab.sim import Bench
+    >>> from sunlab.geometry import ideal_centroid
+    >>> b = Bench.paper_single_hole().ideal_platform().ideal_mask()
+    >>> x, y = spot_truth(b, -12.0, 7.0)
+    >>> xi, yi = ideal_centroid(-12.0, 7.0, 5.0, 0.007, 639.5, 511.5)
+    >>> bool(abs(x[0] - xi) < 0.01 and abs(y[0] - yi) < 0.01)
+    True
+    """
+    return _truth(bench, spot_geometry(bench, alpha_true, beta_true, play_mm))
+
+
+def spot_image(
+    bench,
+    alpha_true,
+    beta_true,
+    *,
+    hole: int = 0,
+    oversample: int = 1,
+    pixel: bool = True,
+    size: int | None = None,
+    play_mm=(0.0, 0.0),
+):
+    """The noiseless expected image of one spot, photo-electrons (before PRNU).
+
+    Parameters
+    ----------
+    bench : Bench
+    alpha_true, beta_true : float
+        True platform angles, deg.
+    hole : int
+        Index of the hole.
+    oversample : int
+        Samples per pixel along each axis (1: one value per pixel).
+    pixel : bool
+        True: integrate over each pixel's sensitive area (what pixels record); False: the
+        irradiance itself, photo-electrons per px^2 of a fully sensitive surface.
+    size : int, optional
+        Side of the stamp, px (default: just large enough for the spot).
+
+    Returns
+    -------
+    image : ndarray (m, m)
+    x0, y0 : float
+        Coordinates (px) of ``image[0, 0]``.
+    step : float
+        Sample spacing, px.
+
+    Examples
+    --------
+    >>> from sunlab.sim import Bench
+    >>> img, x0, y0, step = spot_image(Bench.paper_single_hole(), 0.0, 0.0)
+    >>> img.shape, step
+    ((48, 48), 1.0)
+    """
+    geom = spot_geometry(bench, alpha_true, beta_true, play_mm)
+    g = _Group(geom, bench.detector, bench.mask.holes[hole], [hole])
+    _, img, x0, y0, step = next(
+        g.stamps(geom.q_e, size=size, oversample=int(oversample), pixel=pixel)
+    )
+    return img, x0, y0, step
+
+
+# --------------------------------------------------------------------------- frames
+def _signal_stamps(bench, alpha_true, beta_true, play_mm):
+    geom = spot_geometry(bench, alpha_true, beta_true, play_mm)
+    out = []
+    if not geom.lit:
+        return out
+    det = bench.detector
+    for g in _groups(bench, geom):
+        r = g.radius
+        x, y = g.ray[:, 0], g.ray[:, 1]
+        vis = ~((x + r < -0.5) | (y + r < -0.5) | (x - r > det.nx - 0.5) | (y - r > det.ny - 0.5))
+        members = np.flatnonzero(vis)
+        if members.size:
+            for _, img, x0, y0, _ in g.stamps(geom.q_e, members=members):
+                out.append((img, int(x0), int(y0)))
+    return out
+
+
+def _clip_region(img, x0, y0, det: Detector):
+    n_y, n_x = img.shape
+    xa, ya = max(x0, 0), max(y0, 0)
+    xb, yb = min(x0 + n_x, det.nx), min(y0 + n_y, det.ny)
+    if xa >= xb or ya >= yb:
+        return None
+    return img[ya - y0 : yb - y0, xa - x0 : xb - x0], xa, ya
+
+
+def _signal_map(stamps, det: Detector):
+    """Accumulate stamps into (regions, full-frame signal) handling overlaps."""
+    regions = []
+    sig = None
+    for img, x0, y0 in stamps:
+        c = _clip_region(img, x0, y0, det)
+        if c is None:
+            continue
+        regions.append(c)
+    if len(regions) > 1:
+        sig = np.zeros(det.shape, dtype=np.float64)
+        for part, xa, ya in regions:
+            sig[ya : ya + part.shape[0], xa : xa + part.shape[1]] += part
+        regions = [
+            (sig[ya : ya + p.shape[0], xa : xa + p.shape[1]], xa, ya) for p, xa, ya in regions
+        ]
+    return regions
+
+
+@functools.lru_cache(maxsize=1)
+def _table():
+    t = _kernels.normal_table()
+    t.setflags(write=False)
+    return t
+
+
+def expected_frame(bench, alpha_true, beta_true, *, play_mm=(0.0, 0.0)):
+    """The model's mean (DN, before rounding) and variance (DN^2) of every pixel of a frame.
+
+    The mean is bias + column pattern + (dark + PRNU x signal) / gain; the variance is
+    (dark + PRNU x signal + read noise^2) / gain^2 (without the 1/12 DN^2 of rounding and without
+    clipping). For testing the noise model and for teaching.
+
+    Examples
+    --------
+    >>> from sunlab.sim import Bench
+    >>> mean, var = expected_frame(Bench.paper_single_hole(), 0.0, 0.0)
+    >>> mean.shape, bool(mean.max() > 300)
+    ((1024, 1280), True)
+    """
+    det = bench.detector
+    fp = fixed_pattern(det)
+    g = det.gain_e_per_dn
+    e = fp.dark_e.astype(np.float64).copy()
+    for part, xa, ya in _signal_map(_signal_stamps(bench, alpha_true, beta_true, play_mm), det):
+        sl = (slice(ya, ya + part.shape[0]), slice(xa, xa + part.shape[1]))
+        e[sl] = fp.dark_e[sl] + fp.gain[sl] * part
+    e = np.clip(e, 0, None)
+    mean = fp.offset_dn + e / g
+    var = (e + det.read_noise_e**2) / g**2 if det.temporal_noise else np.zeros_like(mean)
+    return mean, var
+
+
+def render_frame(
+    bench, alpha_true, beta_true, *, seed, pose: int = 0, shot: int = 0, play_mm=None
+) -> np.ndarray:
+    """One full detector frame, uint16 (ny, nx), deterministic in (seed, pose, shot).
+
+    Parameters
+    ----------
+    bench : Bench
+        The virtual bench.
+    alpha_true, beta_true : float
+        True platform angles (see :func:`sunlab.sim.platform_pose`), deg.
+    seed : int or sequence of int
+        Seed of the experiment.
+    pose, shot : int
+        Indices of the frame: the noise stream is derived from (seed, pose, shot); a loosely held
+        mask's offset from (seed, pose).
+    play_mm : (float, float), optional
+        Override the mask's per-pose offset, mm.
+
+    Returns
+    -------
+    numpy.ndarray of uint16, shape (ny, nx)
+
+    Examples
+    --------
+    >>> from sunlab.sim import Bench
+    >>> bench = Bench.paper_single_hole()
+    >>> f1 = render_frame(bench, -5.0, 5.0, seed=1, pose=0, shot=0)
+    >>> f2 = render_frame(bench, -5.0, 5.0, seed=1, pose=0, shot=0)
+    >>> f1.dtype.name, f1.shape, bool((f1 == f2).all())
+    ('uint16', (1024, 1280), True)
+    """
+    det = bench.detector
+    if play_mm is None:
+        play_mm = mask_play(bench, seed, pose)
+    stamps = _signal_stamps(bench, alpha_true, beta_true, play_mm)
+    fp = fixed_pattern(det)
+    table = _table() if det.temporal_noise else np.empty(0, dtype=np.float32)
+    state = frame_key(seed, pose, shot).generate_state(1, dtype=np.uint64)
+    out = np.empty(det.shape, dtype=np.uint16)
+    max_dn = float(det.max_dn)
+    _kernels.adc_frame(fp.bg_mean_dn, fp.bg_sigma_dn, table, state, max_dn, out)
+    read_var = float(det.read_noise_e**2) if det.temporal_noise else 0.0
+    for part, xa, ya in _signal_map(stamps, det):
+        _kernels.adc_region(
+            ya,
+            xa,
+            np.ascontiguousarray(part, dtype=np.float64),
+            fp.gain,
+            fp.dark_e,
+            fp.offset_dn,
+            table,
+            state,
+            read_var,
+            1.0 / det.gain_e_per_dn,
+            float(det.full_well_e),
+            max_dn,
+            out,
+        )
+    return out

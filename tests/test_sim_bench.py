@@ -1,0 +1,121 @@
+"""The virtual bench (sunlab.sim.bench): presets, switches, lazy cubes, determinism, errors."""
+
+import dask.array as da
+import numpy as np
+import pytest
+
+from sunlab import ConfigurationError, plans, schema
+from sunlab.sim import Bench, Hole, Mask, platform_pose, render_frame, simulate, spot_truth
+
+
+@pytest.fixture(scope="module")
+def cube():
+    return simulate(plans.experiment("III").subset(90), seed=4)
+
+
+def test_cube_is_lazy_and_follows_the_contract(cube):
+    schema.validate_frames(cube)
+    assert isinstance(cube.frames.data, da.Array)
+    assert cube.frames.data.chunksize == (1, 1, 1024, 1280)
+    assert dict(cube.frames.sizes) == {"pose": 5, "shot": 8, "y": 1024, "x": 1280}
+    assert cube.true_x.dims == ("pose", "shot") and isinstance(cube.true_x.data, da.Array)
+    assert cube.attrs["experiment"] == "III" and cube.attrs["mask"] == "single"
+    assert cube.attrs["x_cf_px"] == 639.5 and cube.attrs["mask_distance_mm"] == 5.0
+
+
+def test_cube_frames_are_deterministic_per_seed_pose_shot(cube):
+    f = cube.frames[2, 3].values
+    again = simulate(plans.experiment("III").subset(90), seed=4).frames[2, 3].values
+    assert np.array_equal(f, again)
+    assert not np.array_equal(f, cube.frames[2, 4].values)  # another shot, other noise
+    other = simulate(plans.experiment("III").subset(90), seed=5).frames[2, 3].values
+    assert not np.array_equal(f, other)
+    # the cube's frame is render_frame of its truth and key
+    key = cube.attrs["sim_key"]
+    same = render_frame(
+        Bench.paper_single_hole(),
+        float(cube.true_alpha[2, 3]),
+        float(cube.true_beta[2, 3]),
+        seed=key,
+        pose=2,
+        shot=3,
+    )
+    assert np.array_equal(f, same)
+
+
+def test_cube_truth_matches_its_frames(cube):
+    # truth vs the frame's own high-SNR centroid (background from the dark rows of the frame)
+    p, s = 1, 0
+    f = cube.frames[p, s].values.astype(float)
+    x, y = float(cube.true_x[p, s]), float(cube.true_y[p, s])
+    x0, y0 = int(round(x)) - 30, int(round(y)) - 30
+    w = f[y0 : y0 + 60, x0 : x0 + 60] - np.median(f[y0 - 40 : y0 - 20, x0 : x0 + 60])
+    w = np.where(w > 15, w, 0.0)
+    yy, xx = np.mgrid[y0 : y0 + 60, x0 : x0 + 60]
+    assert abs((w * xx).sum() / w.sum() - x) < 0.3 and abs((w * yy).sum() / w.sum() - y) < 0.3
+    # truth is near the geometric ray and close to eq. (1) with the mounting errors
+    assert float(np.abs(cube.true_x - cube.ray_x).max()) < 0.05
+
+
+def test_experiments_differ_even_with_one_seed():
+    e1 = simulate(plans.experiment("I")[:3], seed=0)
+    e3 = simulate(plans.experiment("III")[:3], seed=0)
+    err1 = e1.true_alpha.values - e1.alpha.values[:, None]
+    err3 = e3.true_alpha.values - e3.alpha.values[:, None]
+    assert not np.allclose(err1, err3)
+
+
+def test_ideal_platform_truth_equals_commanded():
+    c = simulate(plans.custom([-5.0, 1.0], [2.0, 3.0], shots=2), Bench().ideal_platform(), seed=1)
+    assert np.array_equal(c.true_alpha.values, np.repeat(c.alpha.values[:, None], 2, axis=1))
+
+
+def test_multi_hole_cube_has_hole_coordinates_and_all_spots_on_the_detector():
+    bench = Bench.paper_multi_hole()
+    c = simulate(plans.custom([-16.5, 1.5], [16.5, -1.5], shots=1), bench, seed=2)
+    assert c.true_x.dims == ("pose", "shot", "hole") and c.sizes["hole"] == 100
+    assert c.hole_i.values.tolist()[:12] == [0] * 10 + [1, 1]
+    assert int(np.count_nonzero(c.hole_defect.values)) == 6
+    assert np.all(np.diff(c.hole_x_cf.values[:10]) == pytest.approx(0.5 / 0.007))
+    # corners of experiments I-III: every spot entirely on the detector (truth not NaN)
+    for a in (-17.0, 2.0):
+        for b in (-2.0, 17.0):
+            ta, tb = platform_pose(bench, a, b, seed=0, pose=0, shot=0)
+            x, y = spot_truth(bench, ta, tb)
+            assert np.all(np.isfinite(x)), (a, b)
+    f = c.frames[0, 0].values
+    tx, ty = c.true_x.values[0, 0], c.true_y.values[0, 0]
+    vals = f[np.round(ty).astype(int), np.round(tx).astype(int)]
+    good = c.hole_defect.values == 0
+    assert np.all(vals[good] > 200)  # a bright spot at every good hole's true centroid
+
+
+def test_presets_and_switches():
+    b = Bench.paper_single_hole()
+    assert b.platform.alpha0_deg == 1.864 and b.mask.delta_f_mm == 0.094
+    nf = b.noise_free()
+    assert not nf.detector.temporal_noise and not nf.detector.fixed_pattern
+    assert b.ideal_mask().mask.true_distance_mm == 5.0
+    assert b.replace(source__limb_darkening=0.6).source.limb_darkening == 0.6
+    with pytest.raises(ConfigurationError, match="replace"):
+        b.replace(lens__f=1.0)
+    assert '"alpha0_deg":1.864' in b.to_json()
+
+
+@pytest.mark.parametrize(
+    ("call", "field"),
+    [
+        (lambda: Mask.single_hole(distance_mm=-5.0), "distance_mm"),
+        (lambda: Mask(holes=(Hole(7.0, 0.0),)), "holes"),
+        (lambda: Mask(holes=()), "holes"),
+        (lambda: Hole(0.0, 0.0, diameter_mm=-0.2), "diameter_mm"),
+        (lambda: plans.experiment("III", shots=0), "shots"),
+        (lambda: render_frame(Bench(), 91.0, 0.0, seed=0), "alpha_true"),
+        (lambda: simulate(plans.custom([0.0], [0.0]), seed=-1), "seed"),
+        (lambda: simulate("III"), "plan"),
+        (lambda: Mask.single_hole(delta_f_mm=-6.0), "delta_f_mm"),
+    ],
+)
+def test_bad_configuration_raises(call, field):
+    with pytest.raises(ConfigurationError, match=field):
+        call()

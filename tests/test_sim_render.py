@@ -1,0 +1,158 @@
+"""Physics of sunlab.sim.render: spot positions, sizes, fluxes, true centroids and defects."""
+
+import math
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from sunlab.geometry import ideal_centroid
+from sunlab.sim import Bench, Burred, Dust, Hole, Mask, render
+
+P = 0.007  # pixel pitch, mm
+F = 5.0  # nominal mask distance, mm
+
+
+@pytest.fixture(scope="module")
+def ideal():
+    """One 0.2 mm hole at exactly F = 5 mm, perfect platform."""
+    return Bench.paper_single_hole().ideal_platform().ideal_mask()
+
+
+def _window_centroid(frame, x, y, bg, half=30):
+    x0, y0 = int(round(x)) - half, int(round(y)) - half
+    w = (
+        frame[y0 : y0 + 2 * half, x0 : x0 + 2 * half].astype(float)
+        - bg[y0 : y0 + 2 * half, x0 : x0 + 2 * half]
+    )
+    yy, xx = np.mgrid[y0 : y0 + 2 * half, x0 : x0 + 2 * half]
+    return (w * xx).sum() / w.sum(), (w * yy).sum() / w.sum()
+
+
+@pytest.mark.parametrize(("alpha", "beta"), [(0.0, 0.0), (-16.5, 16.5), (-8.2, 3.7), (1.5, -1.5)])
+def test_rendered_spot_centroid_matches_eq1(ideal, alpha, beta):
+    # A high-SNR frame (shot, dark and read noise on; fixed patterns off, so the background is
+    # known): its background-subtracted centroid sits at F (tan a, tan b / cos a) within 0.01 px.
+    bench = ideal.replace(detector__fixed_pattern=False)
+    frame = render.render_frame(bench, alpha, beta, seed=5, pose=1, shot=2)
+    xi, yi = ideal_centroid(alpha, beta, F, P, 639.5, 511.5)
+    mean_bg, _ = render.expected_frame(
+        bench.replace(source__fluence_photons_per_um2=0.0), alpha, beta
+    )
+    xc, yc = _window_centroid(frame, xi, yi, mean_bg)
+    assert abs(xc - xi) < 0.01 and abs(yc - yi) < 0.01
+
+
+@pytest.mark.parametrize(("alpha", "beta"), [(0.0, 0.0), (-16.5, 16.5), (-3.3, 9.9)])
+def test_truth_is_the_centroid_of_the_expected_signal(ideal, alpha, beta):
+    x, y = render.spot_truth(ideal, alpha, beta)
+    img, x0, y0, _ = render.spot_image(ideal, alpha, beta)
+    yy, xx = np.mgrid[0 : img.shape[0], 0 : img.shape[1]]
+    assert_allclose((img * (xx + x0)).sum() / img.sum(), x[0], atol=1e-4)
+    assert_allclose((img * (yy + y0)).sum() / img.sum(), y[0], atol=1e-4)
+    # and it is the analytic position: the sun disk and the fill factor move it by < 0.01 px
+    xi, yi = ideal_centroid(alpha, beta, F, P, 639.5, 511.5)
+    assert abs(x[0] - xi) < 0.01 and abs(y[0] - yi) < 0.01
+    xr, yr = render.ray_positions(ideal, alpha, beta)
+    assert_allclose([xr[0], yr[0]], [xi, yi], atol=1e-9)
+
+
+def test_spot_diameter_is_hole_plus_sun_disk(ideal):
+    # Irradiance of a normally incident spot, 8 samples per pixel: the plateau ends at
+    # R_hole - r_sun and the light at R_hole + r_sun, with r_sun = F tan(0.26 deg).
+    img, x0, y0, step = render.spot_image(ideal, 0.0, 0.0, oversample=8, pixel=False)
+    xc, yc = render.spot_truth(ideal, 0.0, 0.0)
+    yy, xx = np.mgrid[0 : img.shape[0], 0 : img.shape[1]]
+    r = np.hypot(x0 + xx * step - xc[0], y0 + yy * step - yc[0]).ravel()
+    v = img.ravel() / img.max()
+    r_hole = 0.1 / P
+    r_sun = F * math.tan(math.radians(ideal.source.diameter_deg / 2)) / P
+    assert r[v > 1e-3].max() == pytest.approx(r_hole + r_sun, abs=0.25)
+    assert r[v < 0.999].min() == pytest.approx(r_hole - r_sun, abs=0.25)
+    # the half-intensity contour lies at the hole's edge (slightly inside: curvature)
+    half = r[(v > 0.45) & (v < 0.55)]
+    assert half.mean() == pytest.approx(r_hole, abs=0.2)
+
+
+@pytest.mark.parametrize(
+    ("alpha", "beta"), [(-16.5, 0.0), (0.0, 16.5), (-12.0, 12.0), (-30.0, 20.0)]
+)
+def test_flux_follows_projected_hole_area(ideal, alpha, beta):
+    def flux(a, b):
+        img, *_ = render.spot_image(ideal, a, b, size=96)
+        return img.sum()
+
+    ratio = flux(alpha, beta) / flux(0.0, 0.0)
+    assert ratio == pytest.approx(
+        math.cos(math.radians(alpha)) * math.cos(math.radians(beta)), rel=2e-4
+    )
+
+
+def test_flux_absolute(ideal):
+    # fluence x hole area x QE x fill factor, in electrons
+    img, *_ = render.spot_image(ideal, 0.0, 0.0)
+    det = ideal.detector
+    expected = ideal.source.fluence_photons_per_um2 * math.pi * 100.0**2 * det.qe * det.fill_factor
+    assert img.sum() == pytest.approx(expected, rel=1e-4)
+
+
+def test_fill_factor_makes_centroid_depend_on_subpixel_position():
+    # A sharp-edged spot (point source) on pixels with a small sensitive area: the sampled
+    # centroid departs from the geometric ray by an amount that depends on the sub-pixel phase.
+    bench = (
+        Bench.paper_single_hole()
+        .ideal_platform()
+        .ideal_mask()
+        .replace(source__diameter_deg=0.0, detector__fill_factor=0.16)
+    )
+    errs = []
+    for a in np.linspace(0.0, 0.08, 9):  # 0.08 deg = one pixel of travel
+        x, _ = render.spot_truth(bench, a, 0.0)
+        xr, _ = render.ray_positions(bench, a, 0.0)
+        errs.append(x[0] - xr[0])
+    errs = np.array(errs)
+    assert 1e-4 < np.ptp(errs) < 0.05
+
+
+def test_polygon_path_agrees_with_jinc_path(ideal):
+    # A burr of zero amplitude forces the polygon transform of a circle.
+    poly = ideal.replace(mask=Mask(holes=(Hole(0.0, 0.0, 0.2, defect=Burred(0.0)),)))
+    for a, b in [(0.0, 0.0), (-10.0, 6.0)]:
+        x1, y1 = render.spot_truth(ideal, a, b)
+        x2, y2 = render.spot_truth(poly, a, b)
+        assert_allclose([x2[0], y2[0]], [x1[0], y1[0]], atol=1e-4)
+        f1 = render.spot_image(ideal, a, b)[0].sum()
+        f2 = render.spot_image(poly, a, b)[0].sum()
+        assert f2 == pytest.approx(f1, rel=1e-3)
+
+
+def test_dust_above_the_mask_makes_a_pose_dependent_error(ideal):
+    def bias(height):
+        m = Mask(holes=(Hole(0.0, 0.0, 0.2, defect=Dust(0.07, 0.0, 0.06, height)),))
+        b = ideal.replace(mask=m)
+        out = []
+        for a in (-15.0, 0.0):
+            x, _ = render.spot_truth(b, a, 0.0)
+            xr, _ = render.ray_positions(b, a, 0.0)
+            out.append(x[0] - xr[0])
+        return np.array(out)
+
+    flat = bias(0.0)
+    raised = bias(0.05)
+    assert np.all(flat < -0.1)  # dust on the +x side pulls the centroid to -x ...
+    assert abs(flat[0] - flat[1]) < 0.05  # ... by a nearly constant amount when it lies flat
+    assert abs(raised[0] - raised[1]) > 0.1  # its shadow slides when it stands above the mask
+
+
+def test_tilted_mask_and_dF_move_the_spot(ideal):
+    x0, _ = render.spot_truth(ideal, -10.0, 0.0)
+    x1, _ = render.spot_truth(ideal.replace(mask__delta_f_mm=0.094), -10.0, 0.0)
+    assert x1[0] - x0[0] == pytest.approx(0.094 * math.tan(math.radians(-10.0)) / P, abs=0.01)
+
+
+def test_sun_behind_the_mask_gives_no_spot(ideal):
+    bench = ideal.replace(mask__tilt_y_deg=20.0)
+    g = render.spot_geometry(bench, 80.0, 0.0)
+    assert not g.lit
+    x, y = render.spot_truth(bench, 80.0, 0.0)
+    assert np.isnan(x[0]) and np.isnan(y[0])
