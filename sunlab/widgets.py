@@ -160,7 +160,8 @@ class HoleExplorer:
         order_ = np.lexsort((self._j, self._i))  # row-major placement on the grid
         self.grid = w.GridBox(
             [self.buttons[h] for h in order_],
-            layout=w.Layout(grid_template_columns=f"repeat({nc}, 44px)", grid_gap="2px"),
+            layout=w.Layout(grid_template_columns=f"repeat({nc}, 44px)", grid_gap="2px",
+                            width=f"{46 * nc}px", overflow="visible"),
         )
         self.colorbar = w.HTML()
         self.include = w.ToggleButton(value=True, description="in the average",
@@ -183,9 +184,11 @@ class HoleExplorer:
         self.shot.observe(lambda ch: self._show_stamp(), names="value")
 
         left = w.VBox([self.metric, self.grid, self.colorbar,
-                       w.HBox([self.reject, self.include_all])])
+                       w.HBox([self.reject, self.include_all])],
+                      layout=w.Layout(min_width=f"{46 * nc + 20}px", flex="0 0 auto"))
         right = w.VBox([w.HBox([self.include, self.info]), self.pose, self.shot,
-                        w.HBox([self.stamp_out, self.residual_out])])
+                        w.HBox([self.stamp_out, self.residual_out])],
+                       layout=w.Layout(flex="1 1 auto"))
         self.ui = w.VBox([w.HTML("<b>Holes of the mask</b>: click a hole; colour = defect "
                                  "metric; ✕ = left out of the average"),
                           w.HBox([left, right]), self.stats_html])

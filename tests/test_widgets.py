@@ -17,15 +17,20 @@ BAD = {7: {"sigma_px": 1.5}, 33: {"flux": 0.3}}
 
 
 def _cube_from(cen, half=14, shape=(1024, 1280)):
-    """Frames with a uniform disk at every centroid (pose 0, shot 0 only, others blank)."""
+    """A lazy cube: a uniform disk at every centroid in frame (0, 0), blank frames elsewhere."""
+    import dask.array as da
+
     n_p, n_s = cen.sizes["pose"], cen.sizes["shot"]
-    frames = np.zeros((n_p, n_s, *shape), np.uint16)
+    frame = np.zeros(shape, np.uint16)
     yy, xx = np.mgrid[-half:half + 1, -half:half + 1]
     for h in range(cen.sizes["hole"]):
         x, y = cen.x.values[0, 0, h], cen.y.values[0, 0, h]
         xi, yi = int(round(x)), int(round(y))
         disk = ((xx + xi - x) ** 2 + (yy + yi - y) ** 2 < 12**2) * 600
-        frames[0, 0, yi - half:yi + half + 1, xi - half:xi + half + 1] = disk.astype(np.uint16)
+        frame[yi - half:yi + half + 1, xi - half:xi + half + 1] = disk.astype(np.uint16)
+    first = da.from_array(frame[None, None], chunks=(1, 1, *shape))
+    rest = da.zeros((n_p * n_s - 1, 1, *shape), dtype=np.uint16, chunks=(1, 1, *shape))
+    frames = da.concatenate([first, rest]).reshape(n_p, n_s, *shape)
     return schema.frames_dataset(frames, cen.alpha.values, cen.beta.values)
 
 
