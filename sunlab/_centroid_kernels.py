@@ -426,15 +426,66 @@ MEASURE_FIELDS = (
 )
 
 
+@njit(cache=True, nogil=True, fastmath=_FM)
+def annulus_mean(frame, xc, yc, r_in, r_out, lo, hi):
+    """Mean of the pixels of the annulus r_in < d <= r_out around (xc, yc) whose values lie in
+    [lo, hi] (one pass; falls back to all annulus pixels when none does). Returns (mean, std, n).
+    """
+    ny, nx = frame.shape
+    r0 = max(int(math.ceil(yc - r_out)), 0)
+    r1 = min(int(math.floor(yc + r_out)) + 1, ny)
+    a2 = r_in * r_in
+    b2 = r_out * r_out
+    s = 0.0
+    s2 = 0.0
+    k = 0
+    sa = 0.0
+    sa2 = 0.0
+    n = 0
+    for r in range(r0, r1):
+        dy2 = (r - yc) ** 2
+        o0, o1 = _span(xc, dy2, b2, nx)
+        i0, i1 = _span(xc, dy2, a2, nx)
+        if i1 <= i0:
+            i0 = o1
+            i1 = o1
+        for c in range(o0, i0):
+            v = float(frame[r, c])
+            sa += v
+            sa2 += v * v
+            if lo <= v <= hi:
+                s += v
+                s2 += v * v
+                k += 1
+        for c in range(i1, o1):
+            v = float(frame[r, c])
+            sa += v
+            sa2 += v * v
+            if lo <= v <= hi:
+                s += v
+                s2 += v * v
+                k += 1
+        n += (i0 - o0) + (o1 - i1)
+    if k == 0:
+        if n == 0:
+            return np.nan, np.nan, 0
+        s, s2, k = sa, sa2, n
+    m = s / k
+    return m, math.sqrt(max(s2 / k - m * m, 0.0)), k
+
+
 @njit(cache=True, nogil=True)
-def measure_spots(frame, xs, ys, r0s, margin, annulus, clip, n_iter, sat):
+def measure_spots(frame, xs, ys, r0s, margin, annulus, lo, hi, n_iter, sat):
     """Tight-window measurement of spots started at (xs, ys) with first aperture radii ``r0s``.
 
-    For each spot: the background is the sigma-clipped mean of an annulus ``annulus`` px wide
-    just outside the aperture; the centre of mass of (I - background) inside the circular
-    aperture re-centres the aperture ``n_iter`` times; after the first pass the aperture radius
-    becomes the equivalent uniform-disk radius sqrt(2 (mxx + myy)) of the spot plus ``margin``.
-    The last pass returns the moments. Returns an (n, 16) array, columns MEASURE_FIELDS.
+    For each spot: the background is the mean of the pixels of a ring ``annulus`` px wide just
+    outside the first aperture whose values lie in [lo, hi] (a band about the frame's background
+    level, which rejects hot pixels and neighbouring spots); the centre of mass of
+    (I - background) inside the circular aperture re-centres it ``n_iter - 1`` times; the moments
+    in that aperture give the spot's equivalent uniform-disk radius sqrt(2 (mxx + myy)); the
+    final centroid and flux are the centre of mass in an aperture of that radius plus ``margin``
+    (if smaller than the first), centred on the previous estimate.
+    Returns an (n, 16) array, columns MEASURE_FIELDS (moments from the first aperture).
     """
     n = xs.shape[0]
     out = np.full((n, 16), np.nan)
@@ -442,7 +493,7 @@ def measure_spots(frame, xs, ys, r0s, margin, annulus, clip, n_iter, sat):
         xc = xs[k]
         yc = ys[k]
         r_ap = r0s[k]
-        bkg, bsd, nb = annulus_background(frame, xc, yc, r_ap + 1.0, r_ap + 1.0 + annulus, clip)
+        bkg, bsd, nb = annulus_mean(frame, xc, yc, r_ap + 1.0, r_ap + 1.0 + annulus, lo, hi)
         if nb == 0:
             continue
         good = True
@@ -459,17 +510,13 @@ def measure_spots(frame, xs, ys, r0s, margin, annulus, clip, n_iter, sat):
         if not (m[0] > 0):
             continue
         rad = math.sqrt(max(2.0 * (m[3] + m[4]), 0.0))
-        if rad > 0 and abs(rad + margin - r_ap) > 1.0:
-            # Re-size the aperture to the spot (equivalent uniform-disk radius + margin).
+        if rad > 0 and rad + margin < r_ap - 0.5:
             r_ap = rad + margin
-            bkg, bsd, nb = annulus_background(
-                frame, m[1], m[2], r_ap + 1.0, r_ap + 1.0 + annulus, clip
-            )
-            if nb == 0:
-                continue
-            m = aperture_moments(frame, m[1], m[2], r_ap, bkg, sat)
-            if not (m[0] > 0):
-                continue
+            s, x1, y1 = aperture_com(frame, m[1], m[2], r_ap, bkg)
+            if s > 0:
+                m[0] = s
+                m[1] = x1
+                m[2] = y1
         out[k, :13] = m
         out[k, 13] = bkg
         out[k, 14] = bsd
