@@ -204,12 +204,23 @@ def test_a_stuck_axis_times_out_and_is_stopped():
     assert info.value.axes == [2]
 
 
-def test_a_readback_off_target_is_an_error():
-    pairs = [(b"1PA1\r", None), (b"2PA2\r", None), (b"TB?\r", NO_ERROR),
-             (b"1MD?\r", b"1\r\n"), (b"2MD?\r", b"1\r\n"), (b"TB?\r", NO_ERROR),
-             (b"1TP?\r", b"1.00000\r\n"), (b"2TP?\r", b"2.50000\r\n")]
+MOVE_1_2 = [(b"1PA1\r", None), (b"2PA2\r", None), (b"TB?\r", NO_ERROR),
+            (b"1MD?\r", b"1\r\n"), (b"2MD?\r", b"1\r\n"), (b"TB?\r", NO_ERROR)]
+
+
+def test_a_lost_move_command_is_sent_again():
+    """Motion commands have no reply: a command lost while the controller was busy shows only
+    in the read-back, and the (idempotent) absolute move is sent once more."""
+    pairs = [*MOVE_1_2, (b"1TP?\r", b"1.00000\r\n"), (b"2TP?\r", b"-7.00000\r\n"),
+             *MOVE_1_2, (b"1TP?\r", b"1.00000\r\n"), (b"2TP?\r", b"2.00000\r\n")]
+    with expected_protocol(pairs) as stage:
+        assert connected(stage).move_to(1, 2) == (1.0, 2.0)
+
+
+def test_a_readback_that_stays_off_target_is_an_error():
+    pairs = [*MOVE_1_2, (b"1TP?\r", b"1.00000\r\n"), (b"2TP?\r", b"2.50000\r\n")] * 2
     with expected_protocol(pairs, tolerance_deg=0.01) as stage:
-        with pytest.raises(StageError, match="tolerance_deg"):
+        with pytest.raises(StageError, match="after 2 move.*tolerance_deg"):
             connected(stage).move_to(1, 2)
 
 

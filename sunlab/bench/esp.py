@@ -339,6 +339,9 @@ class ESP300:
         controller's software limits read at :meth:`connect`.
     tolerance_deg : float
         Largest accepted |read-back - target| after a move, degrees.
+    move_retries : int
+        Extra moves when the read-back is off target (a motion command the controller lost
+        while busy: commands have no reply, so only the read-back reveals it).
     enable_motors : bool
         Turn a motor that is off on at :meth:`connect` (``MO``); otherwise raise.
     baudrate : int
@@ -381,6 +384,7 @@ class ESP300:
         poll_s: float = 0.05,
         limits: dict[str, tuple[float, float]] | None = None,
         tolerance_deg: float = 0.01,
+        move_retries: int = 1,
         enable_motors: bool = True,
         baudrate: int = 19200,
         rtscts: bool = False,
@@ -396,7 +400,8 @@ class ESP300:
         for name, value in (("timeout", timeout), ("motion_timeout_s", motion_timeout_s)):
             if not value > 0:
                 raise ConfigurationError(f"{name}: found {value!r}, expected a positive time in s")
-        for name, value in (("retries", retries), ("retry_delay_s", retry_delay_s),
+        for name, value in (("retries", retries), ("move_retries", move_retries),
+                            ("retry_delay_s", retry_delay_s),
                             ("settle_s", settle_s), ("poll_s", poll_s)):
             if not value >= 0:
                 raise ConfigurationError(f"{name}: found {value!r}, expected a value >= 0")
@@ -408,6 +413,7 @@ class ESP300:
         self.motion_timeout_s = float(motion_timeout_s)
         self.poll_s = float(poll_s)
         self.tolerance_deg = float(tolerance_deg)
+        self.move_retries = int(move_retries)
         self.enable_motors = bool(enable_motors)
         self._user_limits = dict(limits or {})
         self._baudrate = int(baudrate)
@@ -649,13 +655,31 @@ class ESP300:
         MotionTimeout
             An axis did not finish within ``motion_timeout_s`` (it was stopped).
         StageError
-            The read-back is further than ``tolerance_deg`` from the target.
+            The read-back is further than ``tolerance_deg`` from the target after
+            ``move_retries`` extra moves.
         StageTimeout, StageProtocolError, StageDisconnected
             Link faults that outlasted the retries.
         """
         alpha, beta = float(alpha), float(beta)
         self.check_target(alpha, beta)
         target = dict(zip(self.axes, (alpha, beta), strict=True))
+        for attempt in range(self.move_retries + 1):
+            read = self._move_once(target)
+            off = [(name, ax, want, got) for name, ax, want, got
+                   in zip(("alpha", "beta"), self.axes, (alpha, beta), read, strict=True)
+                   if abs(got - want) > self.tolerance_deg]
+            if not off:
+                return read
+            log.warning("stage: read-back %s after a move to %s (attempt %d): move again",
+                        read, (alpha, beta), attempt + 1)
+        name, ax, want, got = off[0]
+        raise StageError(
+            f"stage axis {ax} ({name}): read back {got} deg after {self.move_retries + 1} "
+            f"move(s) to {want} deg, more than tolerance_deg = {self.tolerance_deg} off. Fix: "
+            "check the encoder and the servo tuning, or raise tolerance_deg"
+        )
+
+    def _move_once(self, target: dict[int, float]) -> tuple[float, float]:
         for ax, value in target.items():
             self.write(f"{ax}PA{format_number(value)}")
         self.check_errors("PA")
@@ -676,16 +700,7 @@ class ESP300:
         self.check_errors("PA")
         if self.settle_s:
             self._sleep(self.settle_s)
-        read = self.position()
-        for name, ax, want, got in zip(("alpha", "beta"), self.axes, (alpha, beta), read,
-                                       strict=True):
-            if abs(got - want) > self.tolerance_deg:
-                raise StageError(
-                    f"stage axis {ax} ({name}): read back {got} deg after a move to {want} deg, "
-                    f"more than tolerance_deg = {self.tolerance_deg} off. Fix: check the encoder "
-                    "and the servo tuning, or raise tolerance_deg"
-                )
-        return read
+        return self.position()
 
     def describe(self) -> dict:
         """What the run metadata records about the stage."""

@@ -212,7 +212,9 @@ def _create_store(path: Path, alpha, beta, shots, name, camera, stage, attrs) ->
 def _check_store(group, alpha, beta, shots, camera) -> None:
     (ny, nx), dtype, _ = _camera_spec(camera)
     attrs = group.attrs
-    if attrs.get("sunlab_schema") != "frames/1" or "uid" not in attrs or "done" not in group:
+    names = set(group.array_keys())
+    if (attrs.get("sunlab_schema") != "frames/1" or "uid" not in attrs
+            or not names >= {"frames", "alpha", "beta", "alpha_read", "beta_read", "time", "done"}):
         raise ConfigurationError(
             f"out: {group.store} is not a sunlab acquisition store (no frames/1 schema, uid or "
             "done flags). Fix: choose a new path"
@@ -362,8 +364,8 @@ def acquire(
         leftover.unlink(missing_ok=True)
     with zarr.config.set({"array.write_empty_chunks": True}):  # a dark frame is a chunk too
         group = zarr.open_group(path, mode="r+")
+        _check_store(group, alpha, beta, shots, camera)
         arrays = {k: group[k] for k in ("frames", "alpha_read", "beta_read", "time", "done")}
-    _check_store(group, alpha, beta, shots, camera)
     done = np.asarray(arrays["done"][:], dtype=bool)
     sessions = [dict(s, exit_status="killed") if s.get("exit_status") == "running" else s
                 for s in group.attrs.get("sessions", [])]
