@@ -19,6 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from .. import geometry
+from .._errors import ConfigurationError
 from .base import Calibration, TrainingData, sensor_attrs
 
 __all__ = ["IdealModel", "OptimisedModel", "fit_optimised"]
@@ -91,6 +92,12 @@ def fit_optimised(data: TrainingData, sensor: dict, fit_zero_pose: bool | None =
     """
     zero = (np.abs(data.alpha) <= ZERO_POSE_TOL_DEG) & (np.abs(data.beta) <= ZERO_POSE_TOL_DEG)
     free = (not zero.any()) if fit_zero_pose is None else bool(fit_zero_pose)
+    if not free and not zero.any():
+        raise ConfigurationError(
+            "fit_zero_pose: found False, but the training table has no pose at alpha = beta = 0 "
+            "to measure the zero-pose centroid from. Fix: add that pose to the plan, or pass "
+            "fit_zero_pose=None (fit it when absent)"
+        )
     zp = (None, None) if free else (float(data.x[zero].mean()), float(data.y[zero].mean()))
     return geometry.fit_optimised_model(
         data.x, data.y, data.alpha, data.beta, sensor["mask_distance_mm"],
