@@ -140,8 +140,36 @@ def _run_acquire(args) -> int:
     return 0 if result.exit_status == "complete" else 130
 
 
+def _add_centroid(sub) -> None:
+    p = sub.add_parser("centroid", help="centroid every frame of a cube into a centroid table")
+    p.add_argument("cube", help="a frame cube (.zarr store or .nc file)")
+    p.add_argument("--method", default="projection",
+                   choices=["threshold", "projection", "tight", "fit"],
+                   help="A = threshold, B = projection (default), tight window, disk fit")
+    p.add_argument("--out", required=True, help="output centroid table (.nc or .zarr)")
+    p.add_argument("--scheduler", default="threads",
+                   choices=["threads", "processes", "synchronous"], help="local Dask scheduler")
+    p.add_argument("--address", default=None, help="dask.distributed scheduler address")
+    p.add_argument("--workers", type=int, default=None, help="local threads or processes")
+    p.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing output")
+    p.set_defaults(func=_run_centroid)
+
+
+def _run_centroid(args) -> int:
+    from . import centroid, io
+
+    cube = io.open_frames(args.cube)
+    cen = centroid.locate(cube, args.method, scheduler=args.scheduler, address=args.address,
+                          num_workers=args.workers, progress=not args.no_progress)
+    io.save_centroids(cen, args.out, overwrite=args.overwrite)
+    ok = int((cen.status.values == 0).sum())
+    print(f"{args.out}: {cen.status.size} centroids ({ok} ok) by method {args.method!r}")
+    return 0
+
+
 # One adder per subcommand, in the order `sunlab --help` lists them.
-_ADDERS = [_add_info, _add_acquire]
+_ADDERS = [_add_info, _add_acquire, _add_centroid]
 
 
 def build_parser() -> argparse.ArgumentParser:

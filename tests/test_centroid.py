@@ -242,3 +242,120 @@ def test_crlb_scales_with_flux_and_shape():
 def test_crlb_bad_input():
     with pytest.raises(ConfigurationError, match="flux"):
         C.crlb(-1.0, 30, 2.5)
+
+
+# ------------------------------------------------------------------------------------------------
+# Multi-spot frames
+# ------------------------------------------------------------------------------------------------
+def _grid_frame(angle=1.0, missing=(), dim=(), seed=3):
+    pos, ii, jj = _spots.grid_spots(angle_deg=angle)
+    peak = np.full(100, 400.0)
+    peak[list(missing)] = 0.0
+    peak[list(dim)] = 80.0
+    return _spots.frame(pos, peak=peak, edge=EDGE, seed=seed), pos, ii, jj, peak
+
+
+@pytest.mark.parametrize("angle", [0.0, 1.0, -2.0])
+def test_locate_spots_indexes_a_grid_with_missing_and_dim_holes(angle):
+    frame, pos, ii, jj, peak = _grid_frame(angle, missing=(5, 37, 62), dim=(11, 48))
+    s = C.locate_spots(frame)
+    present = peak > 0
+    assert np.all(s.status[~present] == STATUS["no_spot"])
+    assert np.all(s.status[present] == STATUS["ok"])
+    assert_allclose(s.x[present], pos[present, 0], atol=0.1)
+    assert_allclose(s.y[present], pos[present, 1], atol=0.1)
+    assert np.array_equal(s.i, ii) and np.array_equal(s.j, jj)
+    assert_allclose(np.hypot(*s.lattice[1]), 500 / 7, rtol=1e-3)
+    assert np.nanmax(s.metrics["ellipticity"]) < 0.05
+    assert_allclose(np.nanmedian(s.metrics["radius"]), math.hypot(17.5, EDGE / 2), rtol=0.03)
+    df = s.to_dataframe()
+    assert len(df) == 100 and {"i", "j", "x", "asymmetry"} <= set(df.columns)
+
+
+def test_locate_spots_missing_outer_column_needs_expected_positions():
+    frame, pos, ii, jj, peak = _grid_frame(0.0, missing=range(0, 100, 10))
+    s = C.locate_spots(frame, expected=pos + np.array([3.0, -4.0]))
+    present = peak > 0
+    assert np.all(s.status[~present] == STATUS["no_spot"])
+    assert_allclose(s.x[present], pos[present, 0], atol=0.1)
+
+
+def test_locate_spots_occluded_hole_is_asymmetric():
+    frame, pos, *_ = _grid_frame(0.0)
+    x, y = pos[44]
+    yy, xx = np.mgrid[0:1024, 0:1280]
+    occ = (xx > x + 6) & (np.hypot(xx - x, yy - y) < 25)
+    frame = np.where(occ, 30, frame).astype(np.uint16)  # dust over a third of one hole
+    s = C.locate_spots(frame)
+    others = np.delete(s.metrics["asymmetry"], 44)
+    assert s.metrics["asymmetry"][44] > 10 * np.nanmax(others)
+
+
+@pytest.mark.parametrize("frame", [np.zeros((1024, 1280), np.uint16),
+                                   np.full((1024, 1280), 30, np.uint16)])
+def test_locate_spots_empty_frames(frame):
+    s = C.locate_spots(frame)
+    expected = STATUS["invalid"] if frame.max() == 0 else STATUS["no_spot"]
+    assert np.all(s.status == expected) and np.all(np.isnan(s.x))
+
+
+# ------------------------------------------------------------------------------------------------
+# Cube level and command line
+# ------------------------------------------------------------------------------------------------
+def _small_cube():
+    from sunlab import schema
+
+    truth = np.array([[[200.3, 150.6], [201.1, 149.2]], [[120.7, 90.4], [0.0, 0.0]]])
+    frames = np.empty((2, 2, 300, 400), np.uint16)
+    for p in range(2):
+        for s in range(2):
+            spots = [] if (p, s) == (1, 1) else [tuple(truth[p, s])]
+            frames[p, s] = _spots.frame(spots, edge=EDGE, seed=10 * p + s, shape=(300, 400))
+    cube = schema.frames_dataset(frames, alpha=[0.0, -1.0], beta=[0.5, 0.0],
+                                 experiment="test")
+    cube["true_x"] = (("pose", "shot"), truth[..., 0])
+    return cube, truth
+
+
+@pytest.mark.parametrize("method", SINGLE)
+def test_locate_cube(method):
+    from sunlab.schema import validate_centroids
+
+    cube, truth = _small_cube()
+    import dask.array as da
+
+    cube["frames"] = cube["frames"].copy(data=da.from_array(cube["frames"].values,
+                                                            chunks=(1, 1, 300, 400)))
+    cen = C.locate(cube, method, progress=False)
+    validate_centroids(cen)
+    assert cen.attrs["method"] == method and cen.attrs["experiment"] == "test"
+    assert_allclose(cen.alpha.values, [0.0, -1.0])
+    assert cen.status.values.tolist() == [[0, 0], [0, 1]]
+    tol = 1.5 if method == "threshold" else 0.05
+    ok = cen.status.values == 0
+    assert_allclose(cen.x.values[ok], truth[..., 0][ok], atol=tol)
+    assert_allclose(cen.y.values[ok], truth[..., 1][ok], atol=tol)
+    assert "true_x" in cen
+
+
+def test_locate_lazy_and_bad_method():
+    cube, _ = _small_cube()
+    lazy = C.locate(cube, "tight", compute=False)
+    assert hasattr(lazy.x.data, "dask")
+    assert_allclose(lazy.x.compute().values, C.locate(cube, "tight", progress=False).x.values)
+    with pytest.raises(ConfigurationError, match="method"):
+        C.locate(cube, "nope")
+
+
+def test_cli_centroid(tmp_path, capsys):
+    from sunlab import io
+    from sunlab.cli import main
+
+    cube, truth = _small_cube()
+    io.save_frames(cube, tmp_path / "cube.zarr")
+    out = tmp_path / "cen.nc"
+    assert main(["centroid", str(tmp_path / "cube.zarr"), "--method", "projection", "--out",
+                 str(out), "--no-progress"]) == 0
+    cen = io.open_centroids(out)
+    assert_allclose(cen.x.values[0], truth[0, :, 0], atol=0.05)
+    assert "3 ok" in capsys.readouterr().out
