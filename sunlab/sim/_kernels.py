@@ -8,7 +8,15 @@ import math
 import numba
 import numpy as np
 
-__all__ = ["adc_frame", "adc_region", "normal_table", "polygon_ft", "clip_convex", "real_spectrum"]
+__all__ = [
+    "adc_frame",
+    "adc_region",
+    "normal_table",
+    "polygon_ft",
+    "clip_convex",
+    "real_spectrum",
+    "fold_phase",
+]
 
 
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
@@ -123,19 +131,24 @@ def polygon_ft(vx, vy, fx, fy):
     F(f) = i / (2 pi |f|^2) sum_k (f_x d_ky - f_y d_kx) exp(-2 pi i f.m_k) sinc(f.d_k)
 
     with sinc(t) = sin(pi t) / (pi t); F(0) is the area. ``fx`` (nfx,) and ``fy`` (nfy,) are the
-    grid's axes in cycles per unit length; returns (nfy, nfx) complex128.
+    grid's axes in cycles per unit length; returns (nfy, nfx) complex128. The exponentials are
+    separable in fx and fy and are tabulated per edge, so the inner loop has no transcendental.
     """
     n = vx.shape[0]
     nfx = fx.shape[0]
     nfy = fy.shape[0]
-    out = np.zeros((nfy, nfx), dtype=np.complex128)
+    acc_re = np.zeros((nfy, nfx))
+    acc_im = np.zeros((nfy, nfx))
     area = 0.0
     for k in range(n):
         k1 = (k + 1) % n
         area += vx[k] * vy[k1] - vx[k1] * vy[k]
     area *= 0.5
-    ex = np.empty(nfx, dtype=np.complex128)
-    ey = np.empty(nfy, dtype=np.complex128)
+    exr = np.empty(nfx)
+    exi = np.empty(nfx)
+    hxr = np.empty(nfx)
+    hxi = np.empty(nfx)
+    tx = np.empty(nfx)
     for k in range(n):
         k1 = (k + 1) % n
         dx = vx[k1] - vx[k]
@@ -143,22 +156,40 @@ def polygon_ft(vx, vy, fx, fy):
         mx = 0.5 * (vx[k1] + vx[k])
         my = 0.5 * (vy[k1] + vy[k])
         for a in range(nfx):
-            ex[a] = complex(math.cos(2 * math.pi * fx[a] * mx), -math.sin(2 * math.pi * fx[a] * mx))
+            ph = -2.0 * math.pi * fx[a] * mx
+            exr[a] = math.cos(ph)
+            exi[a] = math.sin(ph)
+            tx[a] = math.pi * fx[a] * dx
+            hxr[a] = math.cos(tx[a])
+            hxi[a] = math.sin(tx[a])
         for b in range(nfy):
-            ey[b] = complex(math.cos(2 * math.pi * fy[b] * my), -math.sin(2 * math.pi * fy[b] * my))
-        for b in range(nfy):
+            ph = -2.0 * math.pi * fy[b] * my
+            eyr = math.cos(ph)
+            eyi = math.sin(ph)
+            ty = math.pi * fy[b] * dy
+            hyr = math.cos(ty)
+            hyi = math.sin(ty)
             for a in range(nfx):
-                t = math.pi * (fx[a] * dx + fy[b] * dy)
-                sc = 1.0 if abs(t) < 1e-12 else math.sin(t) / t
-                w = fx[a] * dy - fy[b] * dx
-                out[b, a] += (w * sc) * ex[a] * ey[b]
+                t = tx[a] + ty
+                if abs(t) < 1e-9:
+                    sc = 1.0
+                else:
+                    sc = (hxi[a] * hyr + hxr[a] * hyi) / t  # sin(tx + ty) / t
+                w = (fx[a] * dy - fy[b] * dx) * sc
+                er = exr[a] * eyr - exi[a] * eyi
+                ei = exr[a] * eyi + exi[a] * eyr
+                acc_re[b, a] += w * er
+                acc_im[b, a] += w * ei
+    out = np.empty((nfy, nfx), dtype=np.complex128)
     for b in range(nfy):
         for a in range(nfx):
             f2 = fx[a] * fx[a] + fy[b] * fy[b]
             if f2 < 1e-18:
                 out[b, a] = area
             else:
-                out[b, a] = out[b, a] * complex(0.0, 1.0 / (2 * math.pi * f2))
+                c = 1.0 / (2 * math.pi * f2)
+                # i * c * (re + i im) = -c im + i c re
+                out[b, a] = complex(-c * acc_im[b, a], c * acc_re[b, a])
     return out
 
 
@@ -282,3 +313,25 @@ def real_spectrum(fx, fy, ap, area, km, u, ax, ay, diff, use_ap):
                 v *= math.exp(-2.0 * (math.pi * diff) ** 2 * (f1 * f1 + f2 * f2))
             out[b, a] = v
     return out
+
+
+@numba.njit(nogil=True, cache=True)
+def fold_phase(t4, wy, wx, ey, ex):
+    """Fold alias bands and apply each spot's position phase.
+
+    acc[n, i, j] = ey[n, i] ex[n, j] sum_{a, b} t4[a, i, b, j] wy[n, a] wx[n, b]
+    """
+    na, m, _, m2 = t4.shape
+    n = wy.shape[0]
+    acc = np.empty((n, m, m2), dtype=np.complex128)
+    for q in range(n):
+        for i in range(m):
+            for j in range(m2):
+                s = 0j
+                for a in range(na):
+                    r = 0j
+                    for b in range(na):
+                        r += t4[a, i, b, j] * wx[q, b]
+                    s += r * wy[q, a]
+                acc[q, i, j] = s * ey[q, i] * ex[q, j]
+    return acc

@@ -25,15 +25,15 @@ Defaults and their rationale (our choices where the paper is silent, PAPER.md se
 * dark signal 400 e- (10 DN) per frame with 15 % DSNU, bias 32 DN, column FPN 0.5 DN RMS: a
   background of a few tens of DN, as the task asks for an uncooled APS in a dark room.
 * hot pixels: 2e-4 of the array with an exponential dark signal of mean 8000 e-.
-* PRNU: 1 % white plus 2.5 % correlated over 4 px (Gaussian correlation). The correlated part is
-  what turns pixel response into the paper's *hole-specific* error: PAPER.md sec. 8 infers that a
-  single hole carries a pose-dependent error of about 0.008 deg (about 0.1 px at F = 5 mm) that
-  100-hole averaging removes. A white 1 % PRNU moves a 35 px spot's centroid by only about
-  0.003 px; a response that varies over a few pixels by a few per cent (cover-glass contamination,
-  implant and microlens non-uniformity of a low-cost sensor) moves it by about
-  ``prnu_correlated * prnu_correlation_px / sqrt(2)`` = 0.07 px per axis, a fixed function of
-  where the spot falls that a smooth calibration cannot follow. Set ``prnu_correlated=0`` for an
-  ideal sensor.
+* PRNU: 1 % white plus 4 % spatially correlated (white noise smoothed by a Gaussian of 6 px).
+  The correlated part is what turns pixel response into the paper's *hole-specific* error:
+  PAPER.md sec. 8 infers that a single hole carries a pose-dependent error of about 0.008 deg
+  (about 0.1 px at F = 5 mm) that 100-hole averaging removes. A white 1 % PRNU moves a 35 px
+  spot's centroid by only about 0.003 px; a response that varies over a few pixels by a few per
+  cent (cover-glass contamination, implant and microlens non-uniformity of a low-cost sensor)
+  moves it by about 0.1 px RMS per axis (measured: ``python benchmarks/bench_sim.py`` prints it),
+  a fixed function of where the spot falls that a smooth calibration cannot follow. Set
+  ``prnu_correlated=0`` for an ideal sensor.
 
 Examples
 --------
@@ -97,7 +97,8 @@ class Detector:
     prnu_correlated : float
         Relative RMS of the spatially correlated response non-uniformity.
     prnu_correlation_px : float
-        Correlation length (Gaussian sigma) of the correlated PRNU, px.
+        Sigma of the Gaussian that smooths white noise into the correlated PRNU, px (its
+        autocorrelation is exp(-d^2 / (4 sigma^2))).
     hot_pixel_fraction : float
         Fraction of hot pixels.
     hot_pixel_dark_e : float
@@ -128,8 +129,8 @@ class Detector:
     column_fpn_dn: float = 0.5
     bias_dn: float = 32.0
     prnu: float = 0.01
-    prnu_correlated: float = 0.025
-    prnu_correlation_px: float = 4.0
+    prnu_correlated: float = 0.04
+    prnu_correlation_px: float = 6.0
     hot_pixel_fraction: float = 2e-4
     hot_pixel_dark_e: float = 8000.0
     diffusion_px: float = 0.0

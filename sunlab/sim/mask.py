@@ -260,7 +260,7 @@ class Hole:
             a = rot @ np.diag([1.0, e.axis_ratio]) @ rot.T @ a
         return a
 
-    def outline(self, n: int = 96) -> np.ndarray:
+    def outline(self, n: int = 72) -> np.ndarray:
         """The aperture outline as a counter-clockwise polygon, (n, 2) mm relative to the centre."""
         phi = np.linspace(0.0, 2 * np.pi, n, endpoint=False)
         r = self.effective_diameter_mm / 2.0
@@ -270,7 +270,8 @@ class Hole:
             s = np.sin(phi)
             rho = r / np.maximum(np.abs(c), np.abs(s))
         else:
-            rho = np.full(n, r)
+            # vertices slightly outside the circle so that the polygon keeps the circle's area
+            rho = np.full(n, r * math.sqrt((2 * math.pi / n) / math.sin(2 * math.pi / n)))
         for b in self._find(Burred):
             rho = rho * b.radius_factor(phi)
         pts = np.stack([rho * np.cos(phi), rho * np.sin(phi)], axis=-1)
@@ -280,7 +281,7 @@ class Hole:
             pts = pts @ (rot @ np.diag([1.0, e.axis_ratio]) @ rot.T).T
         return pts
 
-    def occluders(self, n: int = 48) -> list[tuple[np.ndarray, float]]:
+    def occluders(self, n: int = 36) -> list[tuple[np.ndarray, float]]:
         """Dust particles as (convex polygon (n, 2) mm relative to the hole centre, height mm)."""
         out = []
         phi = np.linspace(0.0, 2 * np.pi, n, endpoint=False)

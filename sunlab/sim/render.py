@@ -392,16 +392,25 @@ class _Group:
         fy = (al[:, None] + fyb[None, :]).ravel()
         t = self.common(fx, fy, pixel=pixel)
         na = al.size
-        members = range(len(self.idx)) if members is None else members
-        for k in members:
-            x0 = math.floor(self.ray[k, 0]) - size // 2 + 1
-            y0 = math.floor(self.ray[k, 1]) - size // 2 + 1
-            dx = self.centre[k, 0] - x0
-            dy = self.centre[k, 1] - y0
-            ph = t * np.exp(-2j * np.pi * fy * dy)[:, None] * np.exp(-2j * np.pi * fx * dx)[None, :]
-            acc = ph.reshape(na, m, na, m // 2 + 1).sum(axis=(0, 2))
-            img = np.fft.irfft2(acc, s=(m, m)) * (q_e / step**2)
-            yield k, img, x0, y0, step
+        members = np.arange(len(self.idx)) if members is None else np.asarray(members, dtype=int)
+        if members.size == 0:
+            return
+        x0 = np.floor(self.ray[members, 0]).astype(int) - size // 2 + 1
+        y0 = np.floor(self.ray[members, 1]).astype(int) - size // 2 + 1
+        dx = self.centre[members, 0] - x0
+        dy = self.centre[members, 1] - y0
+        # Phase of hole n at alias (a, b) and base frequency (i, j) factorises:
+        # exp(-2 pi i (al_a + fy_i) dy_n) exp(-2 pi i (al_b + fx_j) dx_n).
+        wy = np.exp(-2j * np.pi * al[None, :] * dy[:, None])
+        wx = np.exp(-2j * np.pi * al[None, :] * dx[:, None])
+        m2 = m // 2 + 1
+        ey = np.exp(-2j * np.pi * fyb[None, :] * dy[:, None])
+        ex = np.exp(-2j * np.pi * fxb[None, :] * dx[:, None])
+        t4 = np.ascontiguousarray(t.reshape(na, m, na, m2), dtype=np.complex128)
+        acc = _kernels.fold_phase(t4, wy, wx, ey, ex)
+        imgs = np.fft.irfft2(acc, s=(m, m), axes=(-2, -1)) * (q_e / step**2)
+        for n, k in enumerate(members):
+            yield int(k), imgs[n], int(x0[n]), int(y0[n]), step
 
 
 def _groups(bench, geom: SpotGeometry) -> list[_Group]:
