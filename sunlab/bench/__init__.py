@@ -15,8 +15,10 @@ This subpackage talks to hardware; ``import sunlab`` does not import it.
 Examples
 --------
 >>> from sunlab import bench
->>> sorted(bench.__all__)[:4]
-['Camera', 'CameraError', 'CameraTimeout', 'ControllerError']
+>>> stage = bench.open_stage("fake://?velocity=1e4", retry_delay_s=0.0, poll_s=0.001)
+>>> stage.move_to(-16.5, 2.0)
+(-16.5, 2.0)
+>>> stage.close()
 """
 
 from __future__ import annotations
