@@ -1,0 +1,58 @@
+"""Tests of sunlab.plots: the figures carry the expected artists (not pixels)."""
+
+import numpy as np
+import pytest
+from matplotlib.figure import Figure
+from matplotlib.patches import Rectangle
+
+from sunlab import ConfigurationError, geometry, plots, stats
+from sunlab.calibration import Polynomial
+
+
+@pytest.fixture(scope="module")
+def local():
+    a, b = np.meshgrid(np.arange(-4.0, 1.0), np.arange(-1.0, 3.0), indexing="ij")
+    cen = geometry.synthetic_centroids(a.ravel(), b.ravel(), 3, pose_error_deg=(0.01, 0.02),
+                                       seed=1)
+    return stats.local_errors(Polynomial(order=2).fit(cen).predict(cen))
+
+
+def test_error_maps_fig10(local):
+    fig = plots.error_maps(local, title="polynomial")
+    assert isinstance(fig, Figure)
+    panels = [ax for ax in fig.axes if ax.get_title()]
+    assert [ax.get_title() for ax in panels] == [
+        "local error of alpha", "local error of beta",
+        "maximum error of alpha", "maximum error of beta"]
+    mesh = panels[0].collections[0]
+    assert mesh.get_array().shape == (4, 5)  # beta rows x alpha columns
+    values = local.local_error.sel(angle="alpha").values
+    assert np.isclose(mesh.get_array().max(), values.max())
+    assert panels[0].get_xlabel() == "alpha (deg)"
+
+
+def test_error_histogram_fig11(local):
+    fig = plots.error_histogram(local, angle="beta")
+    ax = fig.axes[0]
+    assert len(ax.lines) == 1 and len(ax.patches) >= 2
+    v = local.local_error.sel(angle="beta").values
+    assert f"mu = {v.mean():.4f}" in ax.lines[0].get_label()
+    # the normal curve integrates to about 1 over its range
+    x, y = ax.lines[0].get_data()
+    assert 0.95 < np.trapezoid(y, x) < 1.01
+    with pytest.raises(ConfigurationError, match="variable"):
+        plots.error_histogram(local, variable="nope")
+
+
+def test_error_rectangles_fig12():
+    tab = stats.paper_table4()
+    fig = plots.error_rectangles(tab)
+    rects = [p for p in fig.axes[0].patches if isinstance(p, Rectangle)]
+    assert len(rects) == 4
+    r = stats.rectangles(tab).loc["polynomial"]
+    poly = rects[list(tab.columns).index("polynomial")]
+    assert np.isclose(poly.get_x(), r["alpha_low"]) and np.isclose(poly.get_y(), r["beta_low"])
+    assert np.isclose(poly.get_width() * poly.get_height(), r["area"])
+    assert poly.get_label().startswith("polynomial (area")
+    # accepts the rectangles table too
+    assert len(plots.error_rectangles(stats.rectangles(tab)).axes[0].patches) == 4
