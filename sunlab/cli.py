@@ -168,8 +168,131 @@ def _run_centroid(args) -> int:
     return 0
 
 
+def _add_simulate(sub) -> None:
+    p = sub.add_parser("simulate", help="render an experiment on the virtual bench into a cube")
+    p.add_argument("--experiment", default="III",
+                   help="the paper's experiment I, II or III (Table 3); default III")
+    p.add_argument("--mask", default="single", choices=["single", "multi", "random"],
+                   help="one 0.2 mm hole, the 10 x 10 grid, or 50 random holes")
+    p.add_argument("--out", required=True, help="output cube (.zarr store or .nc file)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the experiment (default 0)")
+    p.add_argument("--shots", type=int, default=8, help="frames per pose (default 8)")
+    p.add_argument("--subset", type=int, default=1, metavar="STEP",
+                   help="keep every STEP-th pose, for quick runs")
+    p.add_argument("--noise-free", action="store_true", help="ideal detector: no noise, no FPN")
+    p.add_argument("--ideal-platform", action="store_true", help="true angles = commanded")
+    p.add_argument("--chunks", default="frame", choices=["frame", "pose"],
+                   help="store one frame or one pose per chunk")
+    p.add_argument("--workers", type=int, default=None, help="threads rendering in parallel")
+    p.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing output")
+    p.set_defaults(func=_run_simulate)
+
+
+def _run_simulate(args) -> int:
+    import dask
+
+    from . import io, plans, sim
+
+    plan = plans.experiment(args.experiment, shots=args.shots).subset(args.subset)
+    bench = {
+        "single": sim.Bench.paper_single_hole,
+        "multi": sim.Bench.paper_multi_hole,
+        "random": lambda: sim.Bench.paper_single_hole().replace(
+            mask=sim.Mask.random_layout(50, seed=args.seed)),
+    }[args.mask]()
+    if args.noise_free:
+        bench = bench.noise_free()
+    if args.ideal_platform:
+        bench = bench.ideal_platform()
+    cube = sim.simulate(plan, bench, seed=args.seed)
+    with dask.config.set(scheduler="threads", num_workers=args.workers):
+        io.save_frames(cube, args.out, chunks=args.chunks, overwrite=args.overwrite,
+                       progress=not args.no_progress)
+    print(f"{args.out}: experiment {plan.name}, {len(plan)} poses x {plan.shots} shots, "
+          f"mask {bench.mask.name} ({bench.n_holes} holes), seed {args.seed}")
+    return 0
+
+
+def _add_calibrate(sub) -> None:
+    p = sub.add_parser("calibrate", help="fit a calibration function on a centroid table")
+    p.add_argument("train", help="training centroid table (experiment I; .nc or .zarr)")
+    p.add_argument("--method", default="polynomial",
+                   choices=["polynomial", "trigonometric", "linear", "cubic", "neural", "ideal",
+                            "optimised"],
+                   help="calibration function (PAPER.md sec. 4); default polynomial")
+    p.add_argument("--order", default="5",
+                   help="polynomial / trigonometric order, or 'auto' to pick the polynomial "
+                        "order on --validation (default 5)")
+    p.add_argument("--strategy", type=int, default=4, choices=[1, 2, 3, 4],
+                   help="neural-network strategy of Table 2 (default 4)")
+    p.add_argument("--hidden", type=int, default=8, help="hidden tanh neurons (default 8)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the network weights")
+    p.add_argument("--extrapolate", action="store_true",
+                   help="interpolation: nearest node outside the convex hull (default NaN)")
+    p.add_argument("--validation", default=None,
+                   help="validation centroid table (experiment II): early stopping, order")
+    p.add_argument("--out", required=True, help="output calibration (.json)")
+    p.set_defaults(func=_run_calibrate)
+
+
+def _run_calibrate(args) -> int:
+    import time
+
+    from . import calibration, io
+    from ._errors import ConfigurationError
+
+    train = io.open_dataset(args.train)
+    val = None if args.validation is None else io.open_dataset(args.validation)
+    order = None
+    if args.order != "auto":
+        try:
+            order = int(args.order)
+        except ValueError:
+            raise ConfigurationError(
+                f"--order: found {args.order!r}, expected an integer or 'auto'") from None
+    t0 = time.perf_counter()
+    if args.method == "polynomial" and order is None:
+        if val is None:
+            raise ConfigurationError(
+                "--order: found 'auto' without --validation. Fix: pass --validation VAL.nc")
+        cal, scores = calibration.Polynomial.select_order(train, val)
+        print(scores.to_string(float_format=lambda v: f"{v:.5f}"))
+    else:
+        if order is None:
+            raise ConfigurationError(
+                f"--order: 'auto' applies to --method polynomial, not {args.method!r}")
+        cal = {
+            "polynomial": lambda: calibration.Polynomial(order=order),
+            "trigonometric": lambda: calibration.Trigonometric(order=order),
+            "linear": lambda: calibration.Interpolation(
+                "linear", extrapolate="nearest" if args.extrapolate else None),
+            "cubic": lambda: calibration.Interpolation(
+                "cubic", extrapolate="nearest" if args.extrapolate else None),
+            "neural": lambda: calibration.NeuralNet(strategy=args.strategy,
+                                                    hidden=args.hidden, seed=args.seed),
+            "ideal": lambda: calibration.IdealModel(),
+            "optimised": lambda: calibration.OptimisedModel(),
+        }[args.method]()
+        cal.fit(train, val)
+    elapsed = time.perf_counter() - t0
+    cal.save(args.out)
+    res = cal.residuals
+
+    def fmt(r):
+        return ", ".join(f"{a} mean|e| {r[a]['mean_abs'] or float('nan'):.5f} "
+                         f"max {r[a]['max_abs'] or float('nan'):.5f}" for a in ("alpha", "beta"))
+
+    line = fmt(res)
+    print(f"{args.out}: {cal.label} fitted on {cal.training['n_poses']} poses in "
+          f"{elapsed:.2f} s; training residuals (deg): {line}")
+    if res.get("validation"):
+        print("  validation residuals (deg): " + fmt(res["validation"]))
+    return 0
+
+
 # One adder per subcommand, in the order `sunlab --help` lists them.
-_ADDERS = [_add_info, _add_acquire, _add_centroid]
+_ADDERS = [_add_info, _add_acquire, _add_centroid, _add_simulate, _add_calibrate]
 
 
 def build_parser() -> argparse.ArgumentParser:
