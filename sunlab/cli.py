@@ -228,6 +228,8 @@ def _add_calibrate(sub) -> None:
                    help="neural-network strategy of Table 2 (default 4)")
     p.add_argument("--hidden", type=int, default=8, help="hidden tanh neurons (default 8)")
     p.add_argument("--seed", type=int, default=0, help="seed of the network weights")
+    p.add_argument("--max-iter", type=int, default=3000,
+                   help="most L-BFGS iterations per network (default 3000)")
     p.add_argument("--extrapolate", action="store_true",
                    help="interpolation: nearest node outside the convex hull (default NaN)")
     p.add_argument("--validation", default=None,
@@ -270,7 +272,8 @@ def _run_calibrate(args) -> int:
             "cubic": lambda: calibration.Interpolation(
                 "cubic", extrapolate="nearest" if args.extrapolate else None),
             "neural": lambda: calibration.NeuralNet(strategy=args.strategy,
-                                                    hidden=args.hidden, seed=args.seed),
+                                                    hidden=args.hidden, seed=args.seed,
+                                                    max_iter=args.max_iter),
             "ideal": lambda: calibration.IdealModel(),
             "optimised": lambda: calibration.OptimisedModel(),
         }[args.method]()

@@ -192,3 +192,36 @@ def test_import_does_not_load_torch():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True)
     assert out.stdout.strip() == "False"
+
+
+@pytest.mark.parametrize("argv", [
+    ["--method", "polynomial", "--order", "3"],
+    ["--method", "polynomial", "--order", "auto"],
+    ["--method", "cubic", "--extrapolate"],
+    ["--method", "neural", "--strategy", "2", "--hidden", "4", "--max-iter", "40"],
+])
+def test_cli_calibrate(tables, tmp_path, argv, capsys):
+    from sunlab import io
+    from sunlab.cli import main
+
+    train, val = tables
+    io.save_centroids(train, tmp_path / "I.nc")
+    io.save_centroids(val, tmp_path / "II.nc")
+    out = tmp_path / "cal.json"
+    rc = main(["calibrate", str(tmp_path / "I.nc"), *argv, "--validation",
+               str(tmp_path / "II.nc"), "--out", str(out)])
+    assert rc == 0
+    text = capsys.readouterr().out
+    assert "training residuals" in text and "validation residuals" in text
+    cal = calibration.load(out)
+    assert_allclose(cal.predict(val).alpha, val.alpha.broadcast_like(val.x), atol=0.1)
+
+
+def test_cli_calibrate_bad_order(tables, tmp_path, capsys):
+    from sunlab import io
+    from sunlab.cli import main
+
+    io.save_centroids(tables[0], tmp_path / "I.nc")
+    rc = main(["calibrate", str(tmp_path / "I.nc"), "--order", "auto", "--out",
+               str(tmp_path / "c.json")])
+    assert rc == 1 and "--validation" in capsys.readouterr().err
