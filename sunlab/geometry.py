@@ -336,7 +336,8 @@ def fit_optimised_model(
 ) -> OptimisedFit:
     """Fit dF, alpha0, beta0 of the optimised model (3)-(4) by nonlinear least squares.
 
-    Minimises :math:`\\sum_i (\\alpha_m(x_i, y_i) - \\alpha_i)^2 + (\\beta_m(x_i, y_i) - \\beta_i)^2`
+    Minimises
+    :math:`\\sum_i (\\alpha_m(x_i, y_i) - \\alpha_i)^2 + (\\beta_m(x_i, y_i) - \\beta_i)^2`
     over the calibration centroids with :func:`scipy.optimize.least_squares` (trust-region
     reflective, Jacobian-scaled), as in PAPER.md sec. 4.1.
 
@@ -373,7 +374,9 @@ def fit_optimised_model(
     """
     from scipy.optimize import least_squares
 
-    x, y, alpha, beta = np.broadcast_arrays(*(np.asarray(v, dtype=float) for v in (x, y, alpha, beta)))
+    x, y, alpha, beta = np.broadcast_arrays(
+        *(np.asarray(v, dtype=float) for v in (x, y, alpha, beta))
+    )
     ok = np.isfinite(x) & np.isfinite(y) & np.isfinite(alpha) & np.isfinite(beta)
     x, y, alpha, beta = x[ok], y[ok], alpha[ok], beta[ok]
     free_zp = x_zp is None or y_zp is None
