@@ -33,6 +33,7 @@ References
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
@@ -49,6 +50,7 @@ __all__ = [
     "hole_grid",
     "assign_holes",
     "usable",
+    "locate_layout",
     "geometric_centre",
     "GeometricCentre",
     "PerHoleAverage",
@@ -426,6 +428,87 @@ def assign_holes(x, y, design_x, design_y, *, shift=None, gate_px: float = 20.0)
     sub[r[keep]] = c[keep]
     out[np.flatnonzero(ok)] = sub
     return out
+
+
+def locate_layout(cube: xr.Dataset, *, half: int = 38, progress: bool = False,
+                  **options) -> xr.Dataset:
+    """Centroid every hole of a free (non-grid) layout, e.g. a random mask.
+
+    Each hole's spot is looked for in a ``2 half + 1`` px cut-out about its position predicted by
+    eq. (1) from the hole's design position (``hole_x_cf``, ``hole_y_cf``) and the commanded
+    pose, and centroided by :func:`sunlab.centroid.tight_window` in that cut-out. Holes must be
+    at least ``half`` px plus a spot radius apart; the platform's mounting error must be small
+    next to ``half`` (true on a bench with a good platform). Frames are processed one by one
+    (:func:`sunlab.centroid.locate` is the parallel path for grids).
+
+    Returns
+    -------
+    xarray.Dataset
+        Contract ``centroids/1`` on (pose, shot, hole) with the cube's hole coordinates and
+        ``radius``, ``ellipticity``, ``asymmetry`` from the stamp moments.
+
+    Examples
+    --------
+    >>> from sunlab import schema
+    >>> yy, xx = np.mgrid[0:200, 0:300]
+    >>> img = (400.0 * (np.hypot(xx - 80.3, yy - 100) < 15)
+    ...        + 400.0 * (np.hypot(xx - 200, yy - 90.6) < 12))
+    >>> cube = schema.frames_dataset(img.astype(np.uint16)[None, None], alpha=[0.0], beta=[0.0])
+    >>> cube = cube.assign_coords(hole_x_cf=("hole", [80.0, 200.0]),
+    ...                           hole_y_cf=("hole", [100.0, 90.0]))
+    >>> cen = locate_layout(cube)
+    >>> bool(np.allclose(cen.x[0, 0], [80.3, 200.0], atol=0.15)
+    ...      and np.allclose(cen.y[0, 0], [100.0, 90.6], atol=0.15))
+    True
+    """
+    from . import centroid
+
+    for c in ("hole_x_cf", "hole_y_cf"):
+        if c not in cube.coords:
+            raise SchemaError(c, "missing", "design positions of the holes on 'hole', px",
+                              "simulate a multi-hole mask or assign the coordinates")
+    dx = np.asarray(cube["hole_x_cf"].values, float)
+    dy = np.asarray(cube["hole_y_cf"].values, float)
+    n_p, n_s, n_h = cube.sizes["pose"], cube.sizes["shot"], dx.size
+    F = float(cube.attrs["mask_distance_mm"])
+    pitch = float(cube.attrs["pixel_pitch_mm"])
+    sx, sy = geometry.ideal_centroid(cube["alpha"].values, cube["beta"].values, F, pitch, 0.0, 0.0)
+    res = np.full((n_p, n_s, n_h, 8), np.nan)
+    status = np.full((n_p, n_s, n_h), schema.STATUS["no_spot"], dtype=np.int8)
+    options.setdefault("saturation", 2 ** int(cube.attrs.get("bit_depth", 10)) - 1)
+    it = [(p, s) for p in range(n_p) for s in range(n_s)]
+    if progress:
+        from tqdm.auto import tqdm
+
+        it = tqdm(it, desc="locate_layout")
+    for p, s in it:
+        frame = np.asarray(cube["frames"].isel(pose=p, shot=s).values, dtype=float)
+        for h in range(n_h):
+            st, (x0, y0) = _stamp(frame, dx[h] + sx[p], dy[h] + sy[p], half)
+            if st.shape != (2 * half + 1, 2 * half + 1):
+                status[p, s, h] = schema.STATUS["clipped"]
+                continue
+            c = centroid.tight_window(st, **options)
+            status[p, s, h] = c.status
+            if np.isfinite(c.x):
+                r, e, a = _stamp_moments(st)
+                res[p, s, h] = (c.x + x0, c.y + y0, c.flux, c.window[0] + x0, c.window[1] + x0,
+                                r, e, a)
+    ok = status == schema.STATUS["ok"]
+    x = np.where(ok, res[..., 0], np.nan)
+    y = np.where(ok, res[..., 1], np.nan)
+    dims = ("pose", "shot", "hole")
+    cen = schema.centroids_dataset(
+        x, y, flux=res[..., 2], status=status, alpha=cube["alpha"].values,
+        beta=cube["beta"].values, method="tight (layout)",
+        attrs={k: cube.attrs[k] for k in ("pixel_pitch_mm", "mask_distance_mm", "bit_depth")
+               if k in cube.attrs},
+        extra={"radius": (dims, res[..., 5]), "ellipticity": (dims, res[..., 6]),
+               "asymmetry": (dims, res[..., 7])},
+    )
+    coords = {c: ("hole", cube[c].values) for c in ("hole_i", "hole_j", "hole_x_cf", "hole_y_cf",
+                                                    "hole_defect") if c in cube.coords}
+    return cen.assign_coords(coords)
 
 
 def usable(cen: xr.Dataset, accept: Sequence[str] = ("ok",)) -> xr.DataArray:
@@ -1100,12 +1183,9 @@ def spot_metrics(cube: xr.Dataset, cen: xr.Dataset, *, poses=None, shot: int = 0
                 continue
             st, _ = _stamp(frame, cen["x"].values[p, shot, h], cen["y"].values[p, shot, h], half)
             res[n, h] = _stamp_moments(st)
-    with np.errstate(all="ignore"):
-        import warnings
-
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)
-            med = np.nanmedian(res, axis=0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        med = np.nanmedian(res, axis=0)
     return xr.Dataset(
         {"radius": ("hole", med[:, 0], {"units": "px"}), "ellipticity": ("hole", med[:, 1]),
          "asymmetry": ("hole", med[:, 2])},
@@ -1177,7 +1257,9 @@ def defect_metrics(cen: xr.Dataset, *, strategy: PerHoleAverage | None = None, c
     strategy : PerHoleAverage, optional
         A fitted per-hole calibration; gives the residual metrics.
     cube : xarray.Dataset, optional
-        The frame cube of ``cen``; gives the spot-shape metrics.
+        The frame cube of ``cen``; gives the spot-shape metrics (:func:`spot_metrics`). Without
+        it they come from the per-spot ``radius``, ``ellipticity``, ``asymmetry`` of the table
+        when :func:`sunlab.centroid.locate` measured them.
     accept : sequence of str
         Status codes counted as present.
     **spot_kw
@@ -1200,12 +1282,19 @@ def defect_metrics(cen: xr.Dataset, *, strategy: PerHoleAverage | None = None, c
     missing = 1.0 - ok.where(on_detector).mean(("pose", "shot"))
     flux = cen["flux"].where(ok)
     rel = flux / flux.median("hole")
-    import warnings
-
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
         deficit = 1.0 - rel.median(("pose", "shot"))
     data = {"missing_fraction": ("hole", missing.values), "flux_deficit": ("hole", deficit.values)}
+    if cube is None and all(k in cen for k in ("radius", "ellipticity", "asymmetry")):
+        # per-spot shape metrics measured by the centroiding step (sunlab.centroid.locate)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            shape = {k: cen[k].where(ok).median(("pose", "shot")).values
+                     for k in ("radius", "ellipticity", "asymmetry")}
+        data["size_deficit"] = ("hole", 1.0 - shape["radius"] / np.nanmedian(shape["radius"]))
+        data["ellipticity"] = ("hole", shape["ellipticity"])
+        data["asymmetry"] = ("hole", shape["asymmetry"])
     if cube is not None:
         sm = spot_metrics(cube, cen, **spot_kw)
         r = sm["radius"].values
