@@ -431,7 +431,12 @@ class ESP300:
         self.stale_errors: list[ControllerError] = []
         self.reconnects = 0
         if connect:
-            self.connect()
+            try:
+                self.connect()
+            except BaseException:
+                if self.url is not None:  # we opened it: do not leak the port
+                    self._port.close()
+                raise
 
     # -- link ---------------------------------------------------------------------------------
     def _reopen(self, detail: str) -> None:
