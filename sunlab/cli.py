@@ -294,8 +294,53 @@ def _run_calibrate(args) -> int:
     return 0
 
 
+def _add_reproduce(sub) -> None:
+    p = sub.add_parser(
+        "reproduce",
+        help="reproduce the paper's tables on the virtual bench (ours beside the paper's)",
+        description="Simulate experiments I-III on the virtual bench, centroid every frame, fit "
+        "every calibration method and print the paper's table with our value beside each of its "
+        "values; write figures and a machine-readable results file.",
+    )
+    p.add_argument("--table", choices=["4", "5", "all"], default="4",
+                   help="Table 4 (one hole, every method) or Table 5 (100 holes); default 4")
+    p.add_argument("--quick", action="store_true",
+                   help="small settings: every third pose, 2 shots (minutes -> seconds)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the virtual bench (default 0)")
+    p.add_argument("--method", default="projection",
+                   help="centroid method (default projection: the paper's algorithm B)")
+    p.add_argument("--no-neural", action="store_true", help="leave out the neural networks")
+    p.add_argument("--out", default="results", help="output folder (default results/)")
+    p.add_argument("--address", default=None, help="dask.distributed scheduler address")
+    p.add_argument("--no-progress", action="store_true", help="no progress bars")
+    p.set_defaults(func=_run_reproduce)
+
+
+def _run_reproduce(args) -> int:
+    from pathlib import Path
+
+    progress = not args.no_progress
+    if args.table in ("4", "all"):
+        from .reproduce import format_table, reproduce_table4
+
+        res = reproduce_table4(
+            quick=args.quick, seed=args.seed, method=args.method, neural=not args.no_neural,
+            out=args.out, progress=progress, address=args.address,
+        )
+        print()
+        print(format_table(res))
+        print("\nwrote " + ", ".join(res.files))
+    if args.table in ("5", "all"):
+        from .reproduce_table5 import reproduce_table5
+
+        reproduce_table5(quick=args.quick, seed=args.seed, out=Path(args.out), progress=progress)
+    return 0
+
+
 # One adder per subcommand, in the order `sunlab --help` lists them.
-_ADDERS = [_add_info, _add_acquire, _add_centroid, _add_simulate, _add_calibrate]
+_ADDERS = [
+    _add_reproduce, _add_simulate, _add_centroid, _add_calibrate, _add_acquire, _add_info,
+]
 
 
 def build_parser() -> argparse.ArgumentParser:
