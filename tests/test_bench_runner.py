@@ -326,6 +326,7 @@ def _check_consistent(path, truth_frames):
     return int(done.sum())
 
 
+@pytest.mark.slow
 def test_sigkill_at_random_points_then_resume_equals_an_uninterrupted_run(rig, tmp_path):
     store = tmp_path / "killed.zarr"
     cfg = {"nx": NX, "seed": SEED, "binning": BINNING, "alpha": KILL_PLAN.alpha.tolist(),
