@@ -30,8 +30,12 @@ def test_cube_frames_are_deterministic_per_seed_pose_shot(cube):
     assert not np.array_equal(f, cube.frames[2, 4].values)  # another shot, other noise
     other = simulate(plans.experiment("III").subset(90), seed=5).frames[2, 3].values
     assert not np.array_equal(f, other)
-    # the cube's frame is render_frame of its truth and key
+    # the cube's truth is platform_pose and its frame render_frame, of its key
     key = cube.attrs["sim_key"]
+    bench = Bench.paper_single_hole()
+    assert platform_pose(
+        bench, float(cube.alpha[2]), float(cube.beta[2]), seed=key, pose=2, shot=3
+    ) == (float(cube.true_alpha[2, 3]), float(cube.true_beta[2, 3]))
     same = render_frame(
         Bench.paper_single_hole(),
         float(cube.true_alpha[2, 3]),

@@ -8,8 +8,24 @@ from sunlab.cli import main
 
 def test_simulate_writes_a_cube_with_truth(tmp_path, capsys):
     out = tmp_path / "exp3.zarr"
-    rc = main(["simulate", "--experiment", "III", "--mask", "single", "--subset", "120",
-               "--shots", "2", "--seed", "3", "--out", str(out), "--no-progress"])
+    rc = main(
+        [
+            "simulate",
+            "--experiment",
+            "III",
+            "--mask",
+            "single",
+            "--subset",
+            "120",
+            "--shots",
+            "2",
+            "--seed",
+            "3",
+            "--out",
+            str(out),
+            "--no-progress",
+        ]
+    )
     assert rc == 0
     assert "experiment III, 4 poses x 2 shots" in capsys.readouterr().out
     with io.open_frames(out) as cube:

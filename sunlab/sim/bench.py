@@ -236,6 +236,24 @@ def _check_cmd(alpha_cmd, beta_cmd):
             )
 
 
+def _pose_error(plat: Platform, key: list[int], pose: int) -> tuple[float, float]:
+    if not (plat.alpha_pose_error_deg or plat.beta_pose_error_deg):
+        return 0.0, 0.0
+    u = np.random.default_rng(np.random.SeedSequence(key + [_TAG_POSE, int(pose)])).uniform(
+        -1.0, 1.0, 2
+    )
+    return float(u[0]) * plat.alpha_pose_error_deg, float(u[1]) * plat.beta_pose_error_deg
+
+
+def _jitter(plat: Platform, key: list[int], pose: int, shot: int) -> tuple[float, float]:
+    if not (plat.alpha_jitter_deg or plat.beta_jitter_deg):
+        return 0.0, 0.0
+    j = np.random.default_rng(
+        np.random.SeedSequence(key + [_TAG_SHOT, int(pose), int(shot)])
+    ).standard_normal(2)
+    return float(j[0]) * plat.alpha_jitter_deg, float(j[1]) * plat.beta_jitter_deg
+
+
 def platform_pose(
     bench: Bench, alpha_cmd: float, beta_cmd: float, *, seed, pose: int, shot: int
 ) -> tuple[float, float]:
@@ -258,19 +276,25 @@ def platform_pose(
     plat = bench.platform
     at, bt = plat.systematic(float(alpha_cmd), float(beta_cmd))
     key = _entropy(seed)
-    if plat.alpha_pose_error_deg or plat.beta_pose_error_deg:
-        u = np.random.default_rng(np.random.SeedSequence(key + [_TAG_POSE, int(pose)])).uniform(
-            -1.0, 1.0, 2
-        )
-        at = at + u[0] * plat.alpha_pose_error_deg
-        bt = bt + u[1] * plat.beta_pose_error_deg
-    if plat.alpha_jitter_deg or plat.beta_jitter_deg:
-        j = np.random.default_rng(
-            np.random.SeedSequence(key + [_TAG_SHOT, int(pose), int(shot)])
-        ).standard_normal(2)
-        at = at + j[0] * plat.alpha_jitter_deg
-        bt = bt + j[1] * plat.beta_jitter_deg
-    return float(at), float(bt)
+    ea, eb = _pose_error(plat, key, pose)
+    ja, jb = _jitter(plat, key, pose, shot)
+    return float(at) + ea + ja, float(bt) + eb + jb
+
+
+def _platform_table(bench: Bench, plan, key: list[int]):
+    """True angles (pose, shot) of a whole plan; identical to :func:`platform_pose` per frame."""
+    plat = bench.platform
+    ta = np.empty((len(plan), plan.shots))
+    tb = np.empty((len(plan), plan.shots))
+    for p in range(len(plan)):
+        # scalar arithmetic, as in platform_pose, so that both agree to the last bit
+        at, bt = plat.systematic(float(plan.alpha[p]), float(plan.beta[p]))
+        ea, eb = _pose_error(plat, key, p)
+        for s in range(plan.shots):
+            ja, jb = _jitter(plat, key, p, s)
+            ta[p, s] = float(at) + ea + ja
+            tb[p, s] = float(bt) + eb + jb
+    return ta, tb
 
 
 # --------------------------------------------------------------------------- cubes
@@ -356,13 +380,7 @@ def simulate(plan, bench: Bench | None = None, seed=0):
     key = _entropy(seed) + [plan_key(plan)]
     n_p, n_s = len(plan), plan.shots
     ny, nx = bench.detector.shape
-    ta = np.empty((n_p, n_s))
-    tb = np.empty((n_p, n_s))
-    for p in range(n_p):
-        for s in range(n_s):
-            ta[p, s], tb[p, s] = platform_pose(
-                bench, plan.alpha[p], plan.beta[p], seed=key, pose=p, shot=s
-            )
+    ta, tb = _platform_table(bench, plan, key)
     token = tokenize(bench.to_json(), key, ta, tb)
     name = "sunlab-sim-frames-" + token
     dsk = {
