@@ -72,7 +72,7 @@ __all__ = [
 
 #: Defect metrics (name -> meaning); large values are bad for every one of them.
 DEFECT_METRICS: dict[str, str] = {
-    "missing_fraction": "fraction of frames without a usable spot (spots off the edge excepted)",
+    "missing_fraction": "fraction of frames where the hole's spot is lost (no_spot, ambiguous)",
     "flux_deficit": "1 - (hole flux / median hole flux in the same frame), median over frames",
     "size_deficit": "1 - (spot RMS radius / median spot RMS radius)",
     "ellipticity": "(l1 - l2) / (l1 + l2) of the spot's second-moment matrix",
@@ -1277,9 +1277,10 @@ def defect_metrics(cen: xr.Dataset, *, strategy: PerHoleAverage | None = None, c
     (7, 0.6)
     """
     ok = usable(cen, accept)
-    # a spot off the detector edge (status clipped) is geometry, not a defect of the hole
-    on_detector = cen["status"] != schema.STATUS["clipped"]
-    missing = 1.0 - ok.where(on_detector).mean(("pose", "shot"))
+    # a lost or confused spot counts against the hole; a spot off the detector edge (clipped)
+    # or touched by a hot pixel at full scale (saturated) is geometry or detector, not the hole
+    lost = cen["status"].isin([schema.STATUS["no_spot"], schema.STATUS["ambiguous"]])
+    missing = lost.mean(("pose", "shot"))
     flux = cen["flux"].where(ok)
     rel = flux / flux.median("hole")
     with warnings.catch_warnings():

@@ -265,3 +265,22 @@ def test_figures(defective):
         plt.close(f)
     with pytest.raises(mh.ConfigurationError, match="metric"):
         mh.plot_metric_map(m, "nope")
+
+
+# ------------------------------------------------------------- on the virtual bench (frames)
+def test_defects_injected_in_the_simulator_are_flagged():
+    sim = pytest.importorskip("sunlab.sim")
+    from sunlab import centroid, plans
+
+    mask = sim.Mask.grid(10, 10, 0.5, 0.2, centre_mm=sim.mask.PAPER_GRID_CENTRE_MM)
+    mask = mask.with_defects({23: sim.Undersized(0.6),
+                              68: sim.Dust(0.07, 0.0, 0.09, 0.0)})
+    bench = sim.Bench.paper_multi_hole(n_bad=0).replace(mask=mask)
+    plan = plans.custom([-10.0, -2.0, -6.0], [2.0, 10.0, 6.0], shots=1)
+    cen = centroid.locate(sim.simulate(plan, bench, seed=3), "tight", progress=False)
+    m = mh.defect_metrics(cen)
+    bad = np.flatnonzero(mh.reject_bad_holes(m).values).tolist()
+    assert bad == [23, 68]
+    assert float(m.flux_deficit[23]) == pytest.approx(1 - 0.6**2, abs=0.05)
+    z = mh.robust_z(m)
+    assert float(z.asymmetry[68]) > 5
