@@ -291,6 +291,7 @@ print("ready", flush=True)
 for line in sys.stdin:
     cmd = line.split()
     if cmd[0] == "run":
+        store = cmd[1]
         pid = os.fork()
         if pid == 0:
             null = os.open(os.devnull, os.O_WRONLY)
@@ -302,7 +303,7 @@ for line in sys.stdin:
                 stage = ESP300(fake.serve_pty(), **cfg["driver"])
                 cam = SimCamera(bench, seed=cfg["seed"], truth=fake.true_pose,
                                 binning=cfg["binning"])
-                result = acquire(plan, stage, cam, cfg["store"], resume=True, progress=False,
+                result = acquire(plan, stage, cam, store, resume=True, progress=False,
                                  handle_sigint=False)
                 code = 0 if result.exit_status == "complete" else 2
             finally:
@@ -326,12 +327,26 @@ def _check_consistent(path, truth_frames):
     return int(done.sum())
 
 
+def _check_complete(path, reference):
+    """A finished store equals the uninterrupted run: every (pose, shot) exactly once."""
+    run = open_run(path)
+    assert run.done.values.all()
+    assert_array_equal(run.frames.values, reference.frames.values)
+    assert not np.isnat(run.time.values).any()
+    np.testing.assert_allclose(run.alpha_read.values, reference.alpha_read.values)
+    np.testing.assert_allclose(run.beta_read.values, reference.beta_read.values)
+    sessions = run.attrs["sessions"]
+    assert sessions[-1]["exit_status"] == "complete"
+    assert sum(s["poses"] for s in sessions if s["exit_status"] != "killed") <= run.sizes["pose"]
+    assert not list(path.rglob("*.partial"))
+    return sum(s["exit_status"] == "killed" for s in sessions)
+
+
 @pytest.mark.slow
 def test_sigkill_at_random_points_then_resume_equals_an_uninterrupted_run(rig, tmp_path):
-    store = tmp_path / "killed.zarr"
     cfg = {"nx": NX, "seed": SEED, "binning": BINNING, "alpha": KILL_PLAN.alpha.tolist(),
            "beta": KILL_PLAN.beta.tolist(), "shots": KILL_PLAN.shots, "name": KILL_PLAN.name,
-           "store": str(store), "driver": DRIVER}
+           "driver": DRIVER}
     # the forking server starts (imports, compiled kernels) while this process works below
     zygote = subprocess.Popen([sys.executable, "-c", ZYGOTE, json.dumps(cfg)],
                               stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True,
@@ -344,16 +359,22 @@ def test_sigkill_at_random_points_then_resume_equals_an_uninterrupted_run(rig, t
     per_pose = (time.perf_counter() - t0) / len(KILL_PLAN)
     reference = open_run(ref.path)
     truth_frames = reference.frames.values
-    stop = threading.Event()
-    stop.set()
-    acquire(KILL_PLAN, r.stage, r.camera, store, progress=False, stop=stop)  # allocate only
+    stopped = threading.Event()
+    stopped.set()
+
+    def allocate(k):
+        path = tmp_path / f"killed-{k}.zarr"
+        acquire(KILL_PLAN, r.stage, r.camera, path, progress=False, stop=stopped)
+        return path
+
+    stores = [allocate(0)]
     rng = np.random.default_rng(20240607)
-    kills, attempts, progress, windows = 0, 0, [], []
+    kills, attempts, progress, windows, killed_sessions = 0, 0, [[]], [], 0
     try:
         assert zygote.stdout.readline().strip() == "ready"
 
-        def run_child(delay):
-            zygote.stdin.write("run\n")
+        def run_child(path, delay):
+            zygote.stdin.write(f"run {path}\n")
             zygote.stdin.flush()
             pid = int(zygote.stdout.readline().split()[1])
             if delay is not None:
@@ -366,40 +387,34 @@ def test_sigkill_at_random_points_then_resume_equals_an_uninterrupted_run(rig, t
         # kill at a uniform random time in [0, window]; the window adapts to the machine's
         # speed: it grows while kills land before the first pose and shrinks while whole
         # poses go through, so the kills fall before, inside and between pose writes
-        window = 0.05 + 1.5 * per_pose
+        window = 0.1 + 2.5 * per_pose
         while kills < 10:
             attempts += 1
             assert attempts <= 60, f"only {kills} kills in 60 attempts"
             windows.append(round(window, 3))
-            status = run_child(rng.uniform(0.0, window))
+            status = run_child(stores[-1], rng.uniform(0.0, window))
             if os.WIFSIGNALED(status) and os.WTERMSIG(status) == signal.SIGKILL:
                 kills += 1
             else:
-                assert os.WIFEXITED(status), status
-            progress.append(_check_consistent(store, truth_frames))
-            gained = progress[-1] - (progress[-2] if len(progress) > 1 else 0)
+                assert os.WIFEXITED(status) and os.WEXITSTATUS(status) == 0, status
+            done = _check_consistent(stores[-1], truth_frames)
+            gained = done - (progress[-1][-1] if progress[-1] else 0)
+            progress[-1].append(done)
             window *= 1.3 if gained == 0 else (1 / 1.3 if gained > 1 else 1.0)
-            if progress[-1] == len(KILL_PLAN):
-                break  # the runs outpaced the kills; the assertion below reports it
-        status = run_child(None)  # the last resume runs to the end
+            if done == len(KILL_PLAN) and kills < 10:  # the runs outpaced the kills
+                killed_sessions += _check_complete(stores[-1], reference)
+                stores.append(allocate(len(stores)))
+                progress.append([])
+        status = run_child(stores[-1], None)  # the last resume runs to the end
         assert os.WIFEXITED(status) and os.WEXITSTATUS(status) == 0
+        killed_sessions += _check_complete(stores[-1], reference)
     finally:
         zygote.communicate("quit\n", timeout=30)
-    print(f"\nSIGKILL test: {kills} kills in {attempts} runs; poses done after each run: "
-          f"{progress}; kill windows (s): {windows}")
+    print(f"\nSIGKILL test: {kills} kills in {attempts} runs on {len(stores)} store(s); poses "
+          f"done after each run: {progress}; kill windows (s): {windows}")
     assert kills >= 10
-    assert progress == sorted(progress)  # never lost a finished pose
-    run = open_run(store)
-    assert run.done.values.all()
-    assert_array_equal(run.frames.values, truth_frames)  # every (pose, shot) exactly once
-    assert not np.isnat(run.time.values).any()
-    np.testing.assert_allclose(run.alpha_read.values, reference.alpha_read.values)
-    np.testing.assert_allclose(run.beta_read.values, reference.beta_read.values)
-    sessions = run.attrs["sessions"]
-    assert sessions[-1]["exit_status"] == "complete"
-    assert sum(s["exit_status"] == "killed" for s in sessions) <= kills
-    assert sum(s["poses"] for s in sessions if s["exit_status"] != "killed") <= len(KILL_PLAN)
-    assert not list(store.rglob("*.partial"))
+    assert all(p == sorted(p) for p in progress)  # a finished pose was never lost
+    assert 1 <= killed_sessions <= kills  # kills before a session was recorded leave none
 
 
 # -- the command line -------------------------------------------------------------------------
