@@ -1327,7 +1327,9 @@ def locate(
             cen = cen.assign_coords({name: ("hole", np.asarray(cube[name].values))})
     for name in ("true_x", "true_y", "true_alpha", "true_beta", "alpha_read", "beta_read"):
         if name in cube.variables and set(cube[name].dims) <= set(dims):
-            cen[name] = cube[name].transpose(*[d for d in dims if d in cube[name].dims])
+            # the bare variable: a cube's own coordinates (e.g. alpha_read, time on an
+            # acquisition store) must not collide with the table's
+            cen[name] = cube[name].variable.transpose(*[d for d in dims if d in cube[name].dims])
             if compute:
                 cen[name] = cen[name].compute()
     if n_pose != cen.sizes["pose"] or n_shot != cen.sizes["shot"]:  # pragma: no cover

@@ -347,6 +347,19 @@ def test_locate_lazy_and_bad_method():
         C.locate(cube, "nope")
 
 
+def test_locate_acquisition_store_with_read_back_coordinates():
+    # An acquisition run keeps alpha_read / beta_read as (pose, shot) coordinates (frames/1
+    # allows it); the table carries them over as variables without a coordinate clash.
+    cube, _ = _small_cube()
+    read = np.array([[0.001, -0.002], [-1.003, -0.999]])
+    cube = cube.assign_coords(alpha_read=(("pose", "shot"), read),
+                              beta_read=(("pose", "shot"), read + 0.5))
+    cen = C.locate(cube, "tight", progress=False)
+    assert_allclose(cen["alpha_read"].values, read)
+    assert_allclose(cen["beta_read"].values, read + 0.5)
+    assert cen.status.values.tolist() == [[0, 0], [0, 1]]
+
+
 def test_cli_centroid(tmp_path, capsys):
     from sunlab import io
     from sunlab.cli import main

@@ -125,6 +125,7 @@ def test_figure_output_sets_png():
     out = w.Output()
     fig, ax = plt.subplots()
     ax.plot([0, 1])
+    assert fig.number in plt.get_fignums()
     figure_output(out, fig)
     assert _png(out)[:4] == b"\x89PNG"
-    assert not plt.get_fignums()
+    assert fig.number not in plt.get_fignums()  # closed: no figure leaks per callback
