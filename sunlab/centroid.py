@@ -58,6 +58,7 @@ __all__ = [
     "disk_profile",
     "locate_spots",
     "locate",
+    "compute",
 ]
 
 #: Full scale of the paper's 10-bit ADC (Ibis4), DN: a pixel at or above it is saturated.
@@ -1337,8 +1338,38 @@ def locate(
     return cen
 
 
-def _compute(res, scheduler, address, num_workers, progress):
-    """Compute a lazy DataArray with a progress bar on a local scheduler or a cluster."""
+def compute(*objs, scheduler: str = "threads", address: str | None = None,
+            num_workers: int | None = None, progress: bool = True) -> tuple:
+    """Compute lazy results (e.g. of ``locate(..., compute=False)``) in one pass of Dask.
+
+    Several cubes computed together keep every worker busy to the end, where one after the
+    other leave workers idle at each tail.
+
+    Parameters
+    ----------
+    *objs : dask collections (xarray objects with Dask data, Dask arrays)
+    scheduler : str
+        Local Dask scheduler when no address is given (``"threads"``, ``"processes"``,
+        ``"synchronous"``).
+    address : str, optional
+        Address of a ``dask.distributed`` scheduler.
+    num_workers : int, optional
+        Threads or processes of a local scheduler.
+    progress : bool
+        Show a progress bar.
+
+    Returns
+    -------
+    tuple
+        The computed objects, in order.
+
+    Examples
+    --------
+    >>> import dask.array as da
+    >>> a, b = compute(da.ones(4, chunks=2).sum(), da.arange(3, chunks=1).max(), progress=False)
+    >>> int(a), int(b)
+    (4, 2)
+    """
     import dask
 
     if address is not None:
@@ -1346,10 +1377,10 @@ def _compute(res, scheduler, address, num_workers, progress):
         from distributed import progress as dprogress
 
         with Client(address) as client:
-            fut = client.compute(res)
+            futs = client.compute(list(objs))
             if progress:
-                dprogress(fut)
-            return fut.result()
+                dprogress(futs)
+            return tuple(client.gather(futs))
     kw = {"scheduler": scheduler}
     if num_workers:
         kw["num_workers"] = int(num_workers)
@@ -1357,6 +1388,11 @@ def _compute(res, scheduler, address, num_workers, progress):
         from dask.diagnostics import ProgressBar
 
         with ProgressBar(minimum=1.0):
-            return res.compute(**kw)
-    with dask.config.set(**kw):
-        return res.compute()
+            return dask.compute(*objs, **kw)
+    return dask.compute(*objs, **kw)
+
+
+def _compute(res, scheduler, address, num_workers, progress):
+    """Compute one lazy result (see :func:`compute`)."""
+    return compute(res, scheduler=scheduler, address=address, num_workers=num_workers,
+                   progress=progress)[0]

@@ -166,16 +166,20 @@ def simulate_and_locate(
     from . import centroid, plans, sim
 
     bench = sim.Bench.paper_single_hole() if bench is None else bench
-    out = {}
+    lazy = {}
     for name in EXPERIMENTS:
         plan = plans.experiment(name)
         plan = plan.subset(step or (3 if quick else 1)).with_shots(shots or (2 if quick else 8))
-        cube = sim.simulate(plan, bench, seed=seed)
+        cube = sim.simulate(plan, bench, seed=seed, chunks="pose")
         if progress:
             print(f"experiment {name} ({EXPERIMENTS[name]}): {len(plan)} poses x "
-                  f"{plan.shots} shots, rendering and centroiding ({method})", flush=True)
-        out[name] = centroid.locate(cube, method=method, progress=progress, address=address)
-    return out
+                  f"{plan.shots} shots", flush=True)
+        lazy[name] = centroid.locate(cube, method=method, compute=False)
+    if progress:
+        n_frames = sum(c.sizes["pose"] * c.sizes["shot"] for c in lazy.values())
+        print(f"rendering and centroiding {n_frames} frames ({method})", flush=True)
+    done = centroid.compute(*lazy.values(), address=address, progress=progress)
+    return dict(zip(lazy, done, strict=True))
 
 
 def table4_methods(*, neural: bool = True, hidden: int = 8, seed: int = 0) -> dict[str, Callable]:

@@ -23,6 +23,14 @@ def test_cube_is_lazy_and_follows_the_contract(cube):
     assert cube.attrs["x_cf_px"] == 639.5 and cube.attrs["mask_distance_mm"] == 5.0
 
 
+def test_pose_chunks_render_the_same_frames(cube):
+    by_pose = simulate(plans.experiment("III").subset(90), seed=4, chunks="pose")
+    assert by_pose.frames.data.chunksize == (1, 8, 1024, 1280)
+    assert np.array_equal(by_pose.frames[1:3].values, cube.frames[1:3].values)
+    with pytest.raises(ConfigurationError, match="chunks"):
+        simulate(plans.experiment("III").subset(90), chunks="shot")
+
+
 def test_cube_frames_are_deterministic_per_seed_pose_shot(cube):
     f = cube.frames[2, 3].values
     again = simulate(plans.experiment("III").subset(90), seed=4).frames[2, 3].values

@@ -311,6 +311,12 @@ def _frame_task(bench, a, b, key, pose, shot):
     return render_frame(bench, a, b, seed=key, pose=pose, shot=shot)[None, None]
 
 
+def _pose_task(bench, a_row, b_row, key, pose):
+    """All shots of one pose: (1, shots, ny, nx)."""
+    return np.stack([render_frame(bench, a, b, seed=key, pose=pose, shot=s)
+                     for s, (a, b) in enumerate(zip(a_row, b_row, strict=True))])[None]
+
+
 def _truth_task(bench, a_row, b_row, key, pose):
     """(4, 1, shots, holes): true x, true y, ray x, ray y of every shot of one pose."""
     n_s = len(a_row)
@@ -324,7 +330,7 @@ def _truth_task(bench, a_row, b_row, key, pose):
     return out
 
 
-def simulate(plan, bench: Bench | None = None, seed=0):
+def simulate(plan, bench: Bench | None = None, seed=0, chunks: str = "frame"):
     """A lazy, Dask-backed frame cube (contract frames/1) of a plan on the virtual bench.
 
     Frames are rendered on demand, one chunk per frame, deterministically from
@@ -340,6 +346,10 @@ def simulate(plan, bench: Bench | None = None, seed=0):
         Default :meth:`Bench.paper_single_hole`.
     seed : int or sequence of int
         Seed of the experiment.
+    chunks : {"frame", "pose"}
+        One Dask chunk (and task) per frame, or per pose with all its shots: fewer, larger
+        tasks for pipelines that reduce every frame at once (``sunlab reproduce``). The frames
+        are identical either way.
 
     Returns
     -------
@@ -383,12 +393,22 @@ def simulate(plan, bench: Bench | None = None, seed=0):
     ta, tb = _platform_table(bench, plan, key)
     token = tokenize(bench.to_json(), key, ta, tb)
     name = "sunlab-sim-frames-" + token
-    dsk = {
-        (name, p, s, 0, 0): (_frame_task, bench, ta[p, s], tb[p, s], key, p, s)
-        for p in range(n_p)
-        for s in range(n_s)
-    }
-    frames = da.Array(dsk, name, chunks=((1,) * n_p, (1,) * n_s, (ny,), (nx,)), dtype=np.uint16)
+    if chunks == "frame":
+        dsk = {
+            (name, p, s, 0, 0): (_frame_task, bench, ta[p, s], tb[p, s], key, p, s)
+            for p in range(n_p)
+            for s in range(n_s)
+        }
+        shot_chunks = (1,) * n_s
+    elif chunks == "pose":
+        dsk = {(name, p, 0, 0, 0): (_pose_task, bench, ta[p], tb[p], key, p) for p in range(n_p)}
+        shot_chunks = (n_s,)
+    else:
+        raise ConfigurationError(
+            f"chunks: found {chunks!r}; expected 'frame' or 'pose'. Fix: chunks='frame' (one "
+            "frame per chunk) or chunks='pose' (all shots of a pose per chunk)."
+        )
+    frames = da.Array(dsk, name, chunks=((1,) * n_p, shot_chunks, (ny,), (nx,)), dtype=np.uint16)
     n_h = bench.n_holes
     tname = "sunlab-sim-truth-" + token
     tdsk = {(tname, 0, p, 0, 0): (_truth_task, bench, ta[p], tb[p], key, p) for p in range(n_p)}
