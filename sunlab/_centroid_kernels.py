@@ -320,6 +320,36 @@ def annulus_background(frame, xc, yc, r_in, r_out, clip):
     return m, math.sqrt(max(s2 / k - m * m, 0.0)), k
 
 
+@njit(cache=True, nogil=True, fastmath=_FM, inline="always")
+def _row_sums1(row, c0, c1, cr):
+    """Sum of row[c0:c1] and of row[c] * (c - cr)."""
+    s0 = 0.0
+    s1 = 0.0
+    u = float(c0 - cr)
+    for c in range(c0, c1):
+        v = float(row[c])
+        s0 += v
+        s1 += v * u
+        u += 1.0
+    return s0, s1
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _psum(a, b, k):
+    """Sum of u**k for integers a <= u < b (k = 0..3), closed form."""
+    fa = float(a)
+    fb = float(b)
+    if k == 0:
+        return fb - fa
+    if k == 1:
+        return (fb * (fb - 1.0) - fa * (fa - 1.0)) * 0.5
+    if k == 2:
+        return ((fb - 1.0) * fb * (2.0 * fb - 1.0) - (fa - 1.0) * fa * (2.0 * fa - 1.0)) / 6.0
+    tb = fb * (fb - 1.0) * 0.5
+    ta = fa * (fa - 1.0) * 0.5
+    return tb * tb - ta * ta
+
+
 @njit(cache=True, nogil=True, fastmath=_FM)
 def aperture_com(frame, xc, yc, r_ap, bkg):
     """Centre of mass of (I - bkg) over the pixels whose centres lie within ``r_ap`` of
@@ -328,22 +358,23 @@ def aperture_com(frame, xc, yc, r_ap, bkg):
     r0 = max(int(math.ceil(yc - r_ap)), 0)
     r1 = min(int(math.floor(yc + r_ap)) + 1, ny)
     q2 = r_ap * r_ap
+    cr = int(math.floor(xc + 0.5))
+    rr = int(math.floor(yc + 0.5))
     s = 0.0
-    sx = 0.0
-    sy = 0.0
+    su = 0.0
+    st = 0.0
     for r in range(r0, r1):
         c0, c1 = _span(xc, (r - yc) ** 2, q2, nx)
-        rs = 0.0
-        rx = 0.0
-        for c in range(c0, c1):
-            w = float(frame[r, c]) - bkg
-            rs += w
-            rx += w * c
-        s += rs
-        sx += rx
-        sy += rs * r
+        if c1 <= c0:
+            continue
+        a0, a1 = _row_sums1(frame[r], c0, c1, cr)
+        w0 = a0 - bkg * (c1 - c0)
+        w1 = a1 - bkg * _psum(c0 - cr, c1 - cr, 1)
+        s += w0
+        su += w1
+        st += w0 * (r - rr)
     if s > 0:
-        return s, sx / s, sy / s
+        return s, cr + su / s, rr + st / s
     return s, np.nan, np.nan
 
 
@@ -358,50 +389,82 @@ def aperture_moments(frame, xc, yc, r_ap, bkg, sat):
     r0 = max(int(math.ceil(yc - r_ap)), 0)
     r1 = min(int(math.floor(yc + r_ap)) + 1, ny)
     q2 = r_ap * r_ap
-    s = 0.0
-    sx = 0.0
-    sy = 0.0
-    sxx = 0.0
-    syy = 0.0
-    sxy = 0.0
-    sxxx = 0.0
-    sxxy = 0.0
-    sxyy = 0.0
-    syyy = 0.0
+    cr = int(math.floor(xc + 0.5))
+    rr = int(math.floor(yc + 0.5))
+    # p[a, b] = sum of (I - bkg) u^a t^b, u = c - cr, t = r - rr (integers), a + b <= 3
+    p00 = p10 = p20 = p30 = p01 = p11 = p21 = p02 = p12 = p03 = 0.0
     vmax = -np.inf
     npx = 0
-    nsat = 0
     for r in range(r0, r1):
         dy = r - yc
         c0, c1 = _span(xc, dy * dy, q2, nx)
+        if c1 <= c0:
+            continue
         npx += c1 - c0
+        a0 = 0.0
+        a1 = 0.0
+        a2 = 0.0
+        a3 = 0.0
+        rmax = -np.inf
+        u = float(c0 - cr)
         for c in range(c0, c1):
-            dx = c - xc
             v = float(frame[r, c])
-            if v > vmax:
-                vmax = v
-            if v >= sat:
-                nsat += 1
-            w = v - bkg
-            wx = w * dx
-            wy = w * dy
-            s += w
-            sx += wx
-            sy += wy
-            sxx += wx * dx
-            syy += wy * dy
-            sxy += wx * dy
-            sxxx += wx * dx * dx
-            sxxy += wx * dx * dy
-            sxyy += wx * dy * dy
-            syyy += wy * dy * dy
+            rmax = max(rmax, v)
+            vu = v * u
+            a0 += v
+            a1 += vu
+            vuu = vu * u
+            a2 += vuu
+            a3 += vuu * u
+            u += 1.0
+        vmax = max(vmax, rmax)
+        ua = c0 - cr
+        ub = c1 - cr
+        w0 = a0 - bkg * (ub - ua)
+        w1 = a1 - bkg * _psum(ua, ub, 1)
+        w2 = a2 - bkg * _psum(ua, ub, 2)
+        w3 = a3 - bkg * _psum(ua, ub, 3)
+        t = float(r - rr)
+        t2 = t * t
+        p00 += w0
+        p10 += w1
+        p20 += w2
+        p30 += w3
+        p01 += w0 * t
+        p11 += w1 * t
+        p21 += w2 * t
+        p02 += w0 * t2
+        p12 += w1 * t2
+        p03 += w0 * t2 * t
+    nsat = 0
+    if vmax >= sat:
+        for r in range(r0, r1):
+            dy = r - yc
+            c0, c1 = _span(xc, dy * dy, q2, nx)
+            for c in range(c0, c1):
+                if frame[r, c] >= sat:
+                    nsat += 1
     out = np.full(13, np.nan)
     out[10] = vmax
     out[11] = npx
     out[12] = nsat
+    s = p00
     out[0] = s
     if not s > 0:
         return out
+    # Raw moments about (xc, yc): dx = u - f, dy = t - g.
+    f = xc - cr
+    g = yc - rr
+    sx = p10 - f * p00
+    sy = p01 - g * p00
+    sxx = p20 - 2 * f * p10 + f * f * p00
+    syy = p02 - 2 * g * p01 + g * g * p00
+    sxy = p11 - f * p01 - g * p10 + f * g * p00
+    sxxx = p30 - 3 * f * p20 + 3 * f * f * p10 - f * f * f * p00
+    syyy = p03 - 3 * g * p02 + 3 * g * g * p01 - g * g * g * p00
+    # sum w dx^2 dy = sum w (u-f)^2 (t-g)
+    sxxy = (p21 - 2 * f * p11 + f * f * p01) - g * (p20 - 2 * f * p10 + f * f * p00)
+    sxyy = (p12 - 2 * g * p11 + g * g * p10) - f * (p02 - 2 * g * p01 + g * g * p00)
     mx = sx / s
     my = sy / s
     out[1] = xc + mx
@@ -426,6 +489,22 @@ MEASURE_FIELDS = (
 )
 
 
+@njit(cache=True, nogil=True, fastmath=_FM, inline="always")
+def _band_sums(frame, r, a, b, lo, hi):
+    """Sums of v, v^2 and the count of the pixels of frame[r, a:b] with lo <= v <= hi."""
+    s = 0.0
+    s2 = 0.0
+    k = 0.0
+    for c in range(a, b):
+        v = float(frame[r, c])
+        m = 1.0 if (v >= lo and v <= hi) else 0.0
+        vm = v * m
+        s += vm
+        s2 += vm * v
+        k += m
+    return s, s2, k
+
+
 @njit(cache=True, nogil=True, fastmath=_FM)
 def annulus_mean(frame, xc, yc, r_in, r_out, lo, hi):
     """Mean of the pixels of the annulus r_in < d <= r_out around (xc, yc) whose values lie in
@@ -438,9 +517,7 @@ def annulus_mean(frame, xc, yc, r_in, r_out, lo, hi):
     b2 = r_out * r_out
     s = 0.0
     s2 = 0.0
-    k = 0
-    sa = 0.0
-    sa2 = 0.0
+    k = 0.0
     n = 0
     for r in range(r0, r1):
         dy2 = (r - yc) ** 2
@@ -449,29 +526,35 @@ def annulus_mean(frame, xc, yc, r_in, r_out, lo, hi):
         if i1 <= i0:
             i0 = o1
             i1 = o1
-        for c in range(o0, i0):
-            v = float(frame[r, c])
-            sa += v
-            sa2 += v * v
-            if lo <= v <= hi:
-                s += v
-                s2 += v * v
-                k += 1
-        for c in range(i1, o1):
-            v = float(frame[r, c])
-            sa += v
-            sa2 += v * v
-            if lo <= v <= hi:
-                s += v
-                s2 += v * v
-                k += 1
+        x1, x2, x3 = _band_sums(frame, r, o0, i0, lo, hi)
+        y1, y2, y3 = _band_sums(frame, r, i1, o1, lo, hi)
+        s += x1 + y1
+        s2 += x2 + y2
+        k += x3 + y3
         n += (i0 - o0) + (o1 - i1)
     if k == 0:
         if n == 0:
             return np.nan, np.nan, 0
-        s, s2, k = sa, sa2, n
+        s = 0.0
+        s2 = 0.0
+        for r in range(r0, r1):
+            dy2 = (r - yc) ** 2
+            o0, o1 = _span(xc, dy2, b2, nx)
+            i0, i1 = _span(xc, dy2, a2, nx)
+            if i1 <= i0:
+                i0 = o1
+                i1 = o1
+            for c in range(o0, i0):
+                v = float(frame[r, c])
+                s += v
+                s2 += v * v
+            for c in range(i1, o1):
+                v = float(frame[r, c])
+                s += v
+                s2 += v * v
+        k = float(n)
     m = s / k
-    return m, math.sqrt(max(s2 / k - m * m, 0.0)), k
+    return m, math.sqrt(max(s2 / k - m * m, 0.0)), int(k)
 
 
 @njit(cache=True, nogil=True)
