@@ -1323,7 +1323,7 @@ def locate(
             cen[name] = (dims, arr, template[name].attrs)
         for name, val in extra.items():
             cen[name] = val
-    for name in ("hole_i", "hole_j", "hole_x_cf", "hole_y_cf"):
+    for name in ("hole_i", "hole_j", "hole_x_cf", "hole_y_cf", "hole_defect"):
         if multi and name in cube.variables:
             cen = cen.assign_coords({name: ("hole", np.asarray(cube[name].values))})
     for name in ("true_x", "true_y", "true_alpha", "true_beta", "alpha_read", "beta_read"):
