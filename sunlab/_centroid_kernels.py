@@ -734,3 +734,241 @@ def disk_noise(frame, p, r0, r1, c0, c1, sat):
     if npl >= 10 and amp > 0:
         vk = max((sp / npl - v0) / amp, 0.0)
     return v0, vk
+
+
+# --------------------------------------------------------------------------------------------
+# Lattice of the multi-hole mask
+# --------------------------------------------------------------------------------------------
+@njit(cache=True, nogil=True)
+def neighbour_vectors(q, pitch, k):
+    """Vectors from each point of ``q`` (m, 2) to those of its ``k`` nearest points (itself
+    included) that lie between 0.7 and 1.3 ``pitch`` away. Returns an (n_vectors, 2) array."""
+    m = q.shape[0]
+    kk = min(k, m)
+    out = np.empty((m * kk, 2))
+    nv = 0
+    bd = np.empty(kk)
+    bi = np.empty(kk, np.int64)
+    lo = 0.7 * pitch
+    hi = 1.3 * pitch
+    for i in range(m):
+        nb = 0
+        for j in range(m):
+            d = math.hypot(q[j, 0] - q[i, 0], q[j, 1] - q[i, 1])
+            if nb < kk:
+                pos = nb
+                nb += 1
+            elif d < bd[kk - 1]:
+                pos = kk - 1
+            else:
+                continue
+            while pos > 0 and bd[pos - 1] > d:
+                bd[pos] = bd[pos - 1]
+                bi[pos] = bi[pos - 1]
+                pos -= 1
+            bd[pos] = d
+            bi[pos] = j
+        for t in range(nb):
+            if lo < bd[t] < hi:
+                out[nv, 0] = q[bi[t], 0] - q[i, 0]
+                out[nv, 1] = q[bi[t], 1] - q[i, 1]
+                nv += 1
+    return out[:nv]
+
+
+@njit(cache=True, nogil=True)
+def _lattice_coords(p, origin, basis):
+    """Lattice coordinates (u, v) of points p: solve basis @ (u, v) = p - origin."""
+    a, b, c, d = basis[0, 0], basis[0, 1], basis[1, 0], basis[1, 1]
+    det = a * d - b * c
+    n = p.shape[0]
+    uv = np.empty((n, 2))
+    for k in range(n):
+        x = p[k, 0] - origin[0]
+        y = p[k, 1] - origin[1]
+        uv[k, 0] = (d * x - b * y) / det
+        uv[k, 1] = (a * y - c * x) / det
+    return uv
+
+
+@njit(cache=True, nogil=True)
+def fit_lattice(p, good, pitch, max_residual):
+    """Affine lattice through the spots ``p`` (n, 2) marked ``good`` (see
+    :func:`sunlab.centroid.locate_spots`, step 3). Returns (ij (n, 2) int, origin (2,),
+    basis (2, 2): columns the steps along j and i, residual (n,) px); ``ok`` False when no
+    spot is good."""
+    n = p.shape[0]
+    m = 0
+    for k in range(n):
+        if good[k]:
+            m += 1
+    q = np.empty((m, 2))
+    t = 0
+    for k in range(n):
+        if good[k]:
+            q[t, 0] = p[k, 0]
+            q[t, 1] = p[k, 1]
+            t += 1
+    if m == 0:
+        return np.zeros((n, 2), np.int64), np.full(2, np.nan), np.full((2, 2), np.nan), \
+            np.full(n, np.nan), False
+    ex0, ex1, ey0, ey1, step = 1.0, 0.0, 0.0, 1.0, pitch
+    if m >= 2:
+        v = neighbour_vectors(q, pitch, 5)
+        nv = v.shape[0]
+        if nv > 0:
+            sc = 0.0
+            ss = 0.0
+            for k in range(nv):
+                th = math.atan2(v[k, 1], v[k, 0])
+                sc += math.cos(4.0 * th)
+                ss += math.sin(4.0 * th)
+            phi = math.atan2(ss / nv, sc / nv) / 4.0
+            ex0, ex1 = math.cos(phi), math.sin(phi)
+            ey0, ey1 = -math.sin(phi), math.cos(phi)
+            proj = np.empty(nv)
+            for k in range(nv):
+                proj[k] = max(abs(v[k, 0] * ex0 + v[k, 1] * ex1),
+                              abs(v[k, 0] * ey0 + v[k, 1] * ey1))
+            step = np.median(proj)
+    mx = np.median(q[:, 0])
+    my = np.median(q[:, 1])
+    best = 0
+    bd = np.inf
+    for k in range(m):
+        d = math.hypot(q[k, 0] - mx, q[k, 1] - my)
+        if d < bd:
+            bd = d
+            best = k
+    origin = q[best].copy()
+    basis = np.empty((2, 2))
+    basis[0, 0] = ex0 * step
+    basis[1, 0] = ex1 * step
+    basis[0, 1] = ey0 * step
+    basis[1, 1] = ey1 * step
+    for _ in range(2):
+        uv = _lattice_coords(q, origin, basis)
+        keep = np.zeros(m, np.bool_)
+        nk = 0
+        j_lo = i_lo = 1 << 60
+        j_hi = i_hi = -(1 << 60)
+        for k in range(m):
+            fj = np.rint(uv[k, 0])
+            fi = np.rint(uv[k, 1])
+            du = uv[k, 0] - fj
+            dv = uv[k, 1] - fi
+            rx = basis[0, 0] * du + basis[0, 1] * dv
+            ry = basis[1, 0] * du + basis[1, 1] * dv
+            if math.hypot(rx, ry) < max_residual * step:
+                keep[k] = True
+                nk += 1
+                j_lo = min(j_lo, int(fj))
+                j_hi = max(j_hi, int(fj))
+                i_lo = min(i_lo, int(fi))
+                i_hi = max(i_hi, int(fi))
+        if nk >= 3 and j_hi > j_lo and i_hi > i_lo:
+            a = np.empty((nk, 3))
+            b = np.empty((nk, 2))
+            t = 0
+            for k in range(m):
+                if keep[k]:
+                    a[t, 0] = 1.0
+                    a[t, 1] = np.rint(uv[k, 0])
+                    a[t, 2] = np.rint(uv[k, 1])
+                    b[t, 0] = q[k, 0]
+                    b[t, 1] = q[k, 1]
+                    t += 1
+            sol = np.linalg.lstsq(a, b)[0]
+            origin = sol[0].copy()
+            basis = np.ascontiguousarray(sol[1:].T)
+        else:
+            break
+    uv = _lattice_coords(p, origin, basis)
+    ij = np.empty((n, 2), np.int64)
+    resid = np.empty(n)
+    for k in range(n):
+        fj = np.rint(uv[k, 0])
+        fi = np.rint(uv[k, 1])
+        ij[k, 0] = int(fj)
+        ij[k, 1] = int(fi)
+        du = uv[k, 0] - fj
+        dv = uv[k, 1] - fi
+        resid[k] = math.hypot(basis[0, 0] * du + basis[0, 1] * dv,
+                              basis[1, 0] * du + basis[1, 1] * dv)
+    return ij, origin, basis, resid, True
+
+
+@njit(cache=True, nogil=True)
+def spot_table(m, nx, ny, ok, saturated, clipped):
+    """Windows and status of measured spots (rows of :func:`measure_spots`, flux > 0).
+
+    Returns (window (4, n) int32: x0, x1, y0, y1 of the circular aperture's bounding box,
+    status (n,) int8: ``clipped`` when the aperture crosses the frame edge, else ``saturated``
+    when a pixel reached full scale, else ``ok``)."""
+    n = m.shape[0]
+    win = np.empty((4, n), np.int32)
+    st = np.empty(n, np.int8)
+    for k in range(n):
+        x = m[k, 1]
+        y = m[k, 2]
+        r = m[k, 15]
+        win[0, k] = max(math.ceil(x - r), 0)
+        win[1, k] = min(math.floor(x + r) + 1, nx)
+        win[2, k] = max(math.ceil(y - r), 0)
+        win[3, k] = min(math.floor(y + r) + 1, ny)
+        if x - r < 0 or y - r < 0 or x + r >= nx - 1 or y + r >= ny - 1:
+            st[k] = clipped
+        elif m[k, 12] > 0:
+            st[k] = saturated
+        else:
+            st[k] = ok
+    return win, st
+
+
+#: Columns of the array returned by :func:`spot_metrics` (the order of SPOT_METRICS).
+METRIC_FIELDS = ("peak", "background", "mxx", "myy", "mxy", "radius", "ellipticity",
+                 "asymmetry", "lattice_residual")
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def spot_metrics(m, resid):
+    """Quality metrics of measured spots (rows of :func:`measure_spots`) and their lattice
+    residuals: an (n, 9) array, columns METRIC_FIELDS (NaN where undefined)."""
+    n = m.shape[0]
+    out = np.empty((n, 9))
+    for k in range(n):
+        mxx = m[k, 3]
+        myy = m[k, 4]
+        mxy = m[k, 5]
+        tr = mxx + myy
+        disc = math.sqrt(max((mxx - myy) ** 2 / 4 + mxy * mxy, 0.0))
+        out[k, 0] = m[k, 10]
+        out[k, 1] = m[k, 13]
+        out[k, 2] = mxx
+        out[k, 3] = myy
+        out[k, 4] = mxy
+        out[k, 5] = math.sqrt(max(2 * tr, 0.0))
+        out[k, 6] = 2 * disc / tr
+        out[k, 7] = math.hypot(m[k, 6] + m[k, 8], m[k, 7] + m[k, 9]) / tr**1.5
+        out[k, 8] = resid[k]
+    return out
+
+
+@njit(cache=True, nogil=True)
+def assign_holes(hole, resid, n_holes):
+    """Nearest spot of each hole: ``hole`` (n,) the hole of each spot (-1: none), ``resid``
+    its distance from the node. Returns (spot of each hole or -1, duplicate flag per hole:
+    more than one spot claims it)."""
+    win = np.full(n_holes, -1, np.int64)
+    dup = np.zeros(n_holes, np.bool_)
+    order = np.argsort(resid)
+    for t in range(order.size):
+        k = order[t]
+        h = hole[k]
+        if h < 0:
+            continue
+        if win[h] < 0:
+            win[h] = k
+        else:
+            dup[h] = True
+    return win, dup

@@ -879,45 +879,14 @@ class Spots(NamedTuple):
 
 def _fit_lattice(p, shape, pitch, good, max_residual):
     """Lattice indices of spots ``p`` (n, 2): relative integer (j, i), the affine lattice
-    (origin, step_j, step_i) and each spot's residual, px. ``good`` marks spots used for the fit.
+    (origin, step_j, step_i) and each spot's residual, px. ``good`` marks spots used for the fit
+    (compiled: :func:`sunlab._centroid_kernels.fit_lattice`); None when no spot is good.
     """
-    q = p[good]
-    m = len(q)
-    if m == 0:
+    ij, origin, basis, resid, ok = _k.fit_lattice(
+        np.ascontiguousarray(p, dtype=np.float64), np.ascontiguousarray(good, dtype=bool),
+        float(pitch), float(max_residual))
+    if not ok:
         return None
-    v = np.zeros((0, 2))
-    if m >= 2:
-        from scipy.spatial import cKDTree
-
-        dist, idx = cKDTree(q).query(q, k=min(5, m))
-        near = (dist > 0.7 * pitch) & (dist < 1.3 * pitch)
-        v = (q[idx] - q[:, None, :])[near]
-    if len(v):
-        theta = np.arctan2(v[:, 1], v[:, 0])
-        phi = np.angle(np.mean(np.exp(4j * theta))) / 4.0
-        ex = np.array([math.cos(phi), math.sin(phi)])
-        ey = np.array([-math.sin(phi), math.cos(phi)])
-        proj = np.abs(np.column_stack([v @ ex, v @ ey])).max(axis=1)
-        step = float(np.median(proj))
-    else:
-        ex, ey, step = np.array([1.0, 0.0]), np.array([0.0, 1.0]), float(pitch)
-    med = np.median(q, axis=0)
-    ref = q[np.argmin(np.hypot(*(q - med).T))]
-    basis = np.column_stack([ex * step, ey * step])  # columns: step along j, step along i
-    origin = ref
-    for _ in range(2):
-        uv = np.linalg.solve(basis, (q - origin).T).T
-        ij = np.rint(uv)
-        keep = np.hypot(*((uv - ij) @ basis.T).T) < max_residual * step
-        if keep.sum() >= 3 and len(np.unique(ij[keep, 0])) > 1 and len(np.unique(ij[keep, 1])) > 1:
-            a = np.column_stack([np.ones(keep.sum()), ij[keep]])
-            sol, *_ = np.linalg.lstsq(a, q[keep], rcond=None)
-            origin, basis = sol[0], sol[1:].T
-        else:
-            break
-    uv = np.linalg.solve(basis, (p - origin).T).T
-    ij = np.rint(uv).astype(int)
-    resid = np.hypot(*((uv - ij) @ basis.T).T)
     return ij, origin, basis, resid
 
 
@@ -1034,20 +1003,14 @@ def locate_spots(
     band_lo, band_hi = _background_band(det)
     m = _k.measure_spots(arr, det.x, det.y, r0, float(margin), float(annulus), band_lo, band_hi,
                          int(n_iter), float(saturation))
-    found = m[:, 0] > 0
-    m = m[found]
+    m = m[m[:, 0] > 0]
     if m.shape[0] == 0:
         return empty
     sx, sy = m[:, 1].copy(), m[:, 2].copy()
     sflux = m[:, 0].copy()
     ny, nx = arr.shape
-    r_ap = m[:, 15]
-    wx0 = np.maximum(np.ceil(sx - r_ap), 0).astype(np.int32)
-    wx1 = np.minimum(np.floor(sx + r_ap) + 1, nx).astype(np.int32)
-    wy0 = np.maximum(np.ceil(sy - r_ap), 0).astype(np.int32)
-    wy1 = np.minimum(np.floor(sy + r_ap) + 1, ny).astype(np.int32)
-    clipped = (sx - r_ap < 0) | (sy - r_ap < 0) | (sx + r_ap >= nx - 1) | (sy + r_ap >= ny - 1)
-    sstat = np.where(clipped, _CLIPPED, np.where(m[:, 12] > 0, _SATURATED, _OK)).astype(np.int8)
+    swin, sstat = _k.spot_table(m, nx, ny, _OK, _SATURATED, _CLIPPED)
+    wx0, wx1, wy0, wy1 = swin
     if method == "fit":
         for k in range(len(sx)):
             c = _fit_from(arr, m[k], int(sstat[k]), 1.5, 30, True, saturation)
@@ -1095,32 +1058,18 @@ def locate_spots(
     in_grid = on_node & (jj >= 0) & (jj < cols) & (ii >= 0) & (ii < rows)
     hole = np.full(len(sx), -1)
     hole[in_grid] = lut[ii[in_grid], jj[in_grid]]
-    assigned = hole >= 0
     # Two spots on one node: keep the nearer one, flag the hole.
-    order = np.argsort(resid)
-    mxx, myy, mxy = m[:, 3], m[:, 4], m[:, 5]
-    tr = mxx + myy
-    disc = np.sqrt(np.maximum((mxx - myy) ** 2 / 4 + mxy**2, 0.0))
-    with np.errstate(invalid="ignore", divide="ignore"):
-        ell = 2 * disc / tr
-        asym = np.hypot(m[:, 6] + m[:, 8], m[:, 7] + m[:, 9]) / tr**1.5
-    per_spot = {"peak": m[:, 10], "background": m[:, 13], "mxx": mxx, "myy": myy, "mxy": mxy,
-                "radius": np.sqrt(np.maximum(2 * tr, 0)), "ellipticity": ell, "asymmetry": asym,
-                "lattice_residual": resid}
-    ks = order[hole[order] >= 0]  # assigned spots, nearest to their node first
-    hs = hole[ks]
-    _, first = np.unique(hs, return_index=True)
-    win = ks[first]  # the nearest spot of each claimed hole
-    h = hole[win]
-    dup = np.zeros(n_holes, bool)
-    dup[hs[np.setdiff1d(np.arange(hs.size), first)]] = True
-    assigned[:] = False
+    spot, dup = _k.assign_holes(hole, resid, n_holes)
+    h = np.flatnonzero(spot >= 0)
+    win = spot[h]
+    assigned = np.zeros(len(sx), bool)
     assigned[win] = True
     x[h], y[h], flux[h] = sx[win], sy[win], sflux[win]
-    window[:, h] = np.vstack([wx0[win], wx1[win], wy0[win], wy1[win]])
+    window[:, h] = swin[:, win]
     status[h] = sstat[win]
-    for name, val in per_spot.items():
-        metrics[name][h] = val[win]
+    per_spot = _k.spot_metrics(m[win], resid[win])
+    for k, name in enumerate(_k.METRIC_FIELDS):
+        metrics[name][h] = per_spot[:, k]
     status[dup] = _AMBIGUOUS
     lattice = np.vstack([origin, basis[:, 0], basis[:, 1]])
     return Spots(x, y, flux, window, status, hi, hj, metrics, pts[~assigned], lattice)

@@ -372,3 +372,64 @@ def test_cli_centroid(tmp_path, capsys):
     cen = io.open_centroids(out)
     assert_allclose(cen.x.values[0], truth[0, :, 0], atol=0.05)
     assert "3 ok" in capsys.readouterr().out
+
+
+def test_locate_spots_on_a_rendered_bench_frame_matches_truth():
+    # The virtual bench's 10 x 10 mask at the paper's SNR, full detector model (PRNU, DSNU,
+    # fill factor, hot pixels): every hole found, indexed as the truth orders them, and the
+    # centroids within the ~0.1-0.2 px of fixed-pattern error PAPER.md sec. 8 expects.
+    from sunlab import sim
+
+    bench = sim.Bench.paper_multi_hole()
+    a, b = sim.platform_pose(bench, -8.0, 7.0, seed=0, pose=0, shot=0)
+    frame = sim.render_frame(bench, a, b, seed=0)
+    tx, ty = sim.spot_truth(bench, a, b)
+    s = C.locate_spots(frame)
+    assert np.all(np.isfinite(tx)) and tx.size == 100
+    assert np.all(s.status == STATUS["ok"]) and s.unassigned.shape == (0, 2)
+    err = np.hypot(s.x - tx, s.y - ty)
+    assert np.sqrt(np.mean(err**2) / 2) < 0.25 and err.max() < 0.7
+    assert_allclose(np.hypot(*s.lattice[1]), 500 / 7, rtol=5e-3)
+    assert_allclose(np.hypot(*s.lattice[2]), 500 / 7, rtol=5e-3)
+    assert np.all((s.window[0] <= s.x) & (s.x < s.window[1]))
+    assert np.all((s.window[2] <= s.y) & (s.y < s.window[3]))
+    assert np.nanmax(s.metrics["lattice_residual"]) < 2.0  # a flat-lattice fit: ~1 px
+    assert np.all(s.metrics["radius"] > 10) and np.all(s.metrics["radius"] < 25)
+
+
+@pytest.mark.parametrize("dtype", [np.uint16, np.float64])
+def test_aperture_moments_kernel_matches_direct_sums(dtype):
+    # The compiled moments sum raw intensities per row and expand about the centre; compare
+    # with the textbook per-pixel central moments of (I - b).
+    from sunlab import _centroid_kernels as K
+
+    rng = np.random.default_rng(3)
+    frame = rng.integers(20, 900, (120, 140)).astype(dtype)
+    xc, yc, r_ap, bkg = 70.37, 58.81, 21.3, 41.7
+    got = K.aperture_moments(frame, xc, yc, r_ap, bkg, 880.0)
+    yy, xx = np.mgrid[0:120, 0:140]
+    sel = np.hypot(xx - xc, yy - yc) <= r_ap
+    w = frame[sel].astype(float) - bkg
+    s = w.sum()
+    x, y = xc + (w * (xx[sel] - xc)).sum() / s, yc + (w * (yy[sel] - yc)).sum() / s
+    dx, dy = xx[sel] - x, yy[sel] - y
+    mom = [(w * dx**p * dy**q).sum() / s for p, q in
+           [(2, 0), (0, 2), (1, 1), (3, 0), (2, 1), (1, 2), (0, 3)]]
+    assert_allclose(got[:3], [s, x, y], rtol=1e-12)
+    assert_allclose(got[3:10], mom, rtol=1e-9, atol=1e-9)
+    assert got[10] == frame[sel].max() and got[11] == sel.sum()
+    assert got[12] == (frame[sel] >= 880.0).sum()
+    c = K.aperture_com(frame, xc, yc, r_ap, bkg)
+    assert_allclose(c, [s, (w * xx[sel]).sum() / s, (w * yy[sel]).sum() / s], rtol=1e-12)
+    m, sd, n = K.annulus_mean(frame, xc, yc, r_ap, r_ap + 6, 100.0, 800.0)
+    ring = (np.hypot(xx - xc, yy - yc) > r_ap) & (np.hypot(xx - xc, yy - yc) <= r_ap + 6)
+    v = frame[ring].astype(float)
+    v = v[(v >= 100) & (v <= 800)]
+    assert n == v.size
+    assert_allclose([m, sd], [v.mean(), v.std()], rtol=1e-10)
+
+
+def test_metric_fields_follow_spot_metrics():
+    from sunlab import _centroid_kernels as K
+
+    assert K.METRIC_FIELDS == tuple(C.SPOT_METRICS)
