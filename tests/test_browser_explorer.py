@@ -64,6 +64,7 @@ def test_explorer_renders_in_chromium(tmp_path):
     _requirements()
     import nbformat
     from PIL import Image
+    from playwright.sync_api import Error as PlaywrightError
     from playwright.sync_api import sync_playwright
 
     nb = nbformat.v4.new_notebook()
@@ -114,7 +115,17 @@ def test_explorer_renders_in_chromium(tmp_path):
             buttons.nth(7).click()
             page.wait_for_selector("text=hole 7 (row 0, column 7)", timeout=30000)
             stamp_png = tmp_path / "stamp.png"
-            imgs.first.screenshot(path=str(stamp_png))
+            # the click re-renders the figures: an image found mid-swap is detached from the
+            # DOM, so take the stamp once the new one stands still (bounded retries)
+            for attempt in range(20):
+                try:
+                    page.locator(".widget-output img").first.screenshot(
+                        path=str(stamp_png), timeout=5000)
+                    break
+                except PlaywrightError:
+                    if attempt == 19:
+                        raise
+                    page.wait_for_timeout(250)
             shot = tmp_path / "explorer.png"
             page.screenshot(path=str(shot), full_page=True)
             browser.close()
