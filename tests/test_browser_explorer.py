@@ -114,6 +114,10 @@ def test_explorer_renders_in_chromium(tmp_path):
             # clicking a hole goes through the kernel and comes back
             buttons.nth(7).click()
             page.wait_for_selector("text=hole 7 (row 0, column 7)", timeout=30000)
+            # the statistics table is redrawn last by a selection: then stamp and residual
+            # map have been re-rendered too
+            page.wait_for_selector("text=hole 7 alone", timeout=30000)
+            assert page.locator("text=hole 0 alone").count() == 0
             stamp_png = tmp_path / "stamp.png"
             # the click re-renders the figures: an image found mid-swap is detached from the
             # DOM, so take the stamp once the new one stands still (bounded retries)
