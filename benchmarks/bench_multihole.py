@@ -38,15 +38,16 @@ import time
 import numpy as np
 
 
-def dust_masks(mask, kind: str, n_bad: int, seed: int = 0):
+def dust_masks(mask, kind: str, n_bad: int, seed: int = 0, height_mm=(0.2, 0.5)):
     """Calibration and test masks with ``n_bad`` dusty holes of the given ``kind``.
 
     Returns ``(mask_I, mask_III, holes)``. Particles are 0.05-0.08 mm across on 0.2 mm holes
     (a quarter of the aperture at most). ``moving``/``static``: in the hole's plane, centre
     0.05-0.08 mm off the hole centre; for ``moving`` the particle of experiment III sits at
     another azimuth (90-270 deg away) at the same distance. ``parallax``: the particle stands
-    0.2-0.5 mm above the mask at 0.08-0.13 mm from the hole centre, so that its shadow enters and
-    leaves the aperture over the test's +-17 deg.
+    ``height_mm`` (default 0.2-0.5 mm) above the mask at 0.08-0.13 mm from the hole centre, so
+    that its shadow (moving by height x tan(angle)) enters and leaves the aperture over the
+    test's 18 deg range.
     """
     from sunlab import sim
 
@@ -57,7 +58,7 @@ def dust_masks(mask, kind: str, n_bad: int, seed: int = 0):
         ang = rng.uniform(0, 2 * np.pi)
         size = rng.uniform(0.05, 0.08)
         if kind == "parallax":
-            dist, height = rng.uniform(0.08, 0.13), rng.uniform(0.2, 0.5)
+            dist, height = rng.uniform(0.08, 0.13), rng.uniform(*height_mm)
         else:
             dist, height = rng.uniform(0.05, 0.08), 0.0
         cal[k] = sim.Dust(dist * math.cos(ang), dist * math.sin(ang), size, height)
@@ -76,7 +77,8 @@ def defect_study(args):
 
     bench = (sim.Bench.paper_multi_hole(n_bad=0).ideal_platform()
              .replace(mask__play_x_mm=0.0, mask__play_y_mm=0.0))
-    m1, m3, injected = dust_masks(bench.mask, args.defects, args.bad, seed=args.seed)
+    m1, m3, injected = dust_masks(bench.mask, args.defects, args.bad, seed=args.seed,
+                                   height_mm=args.height)
     t0 = time.perf_counter()
     tabs = []
     for exp, mask in (("I", m1), ("III", m3)):
@@ -133,6 +135,8 @@ def main(argv=None):
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--kappa", type=float, default=5.0, help="rejection threshold (robust z)")
     ap.add_argument("--platform", action="store_true", help="keep the paper's platform errors")
+    ap.add_argument("--height", type=float, nargs=2, default=(0.2, 0.5), metavar=("LO", "HI"),
+                    help="range of the parallax particles' height above the mask, mm")
     ap.add_argument("--defects", choices=("moving", "parallax", "static"), default=None,
                     help="run the dust study instead (see the module notes)")
     args = ap.parse_args(argv)
