@@ -166,9 +166,22 @@ def coarse_blobs(frame, stride, thr, bkg):
     off = stride // 2
     gy = (ny - off + stride - 1) // stride
     gx = (nx - off + stride - 1) // stride
-    lab = np.zeros((gy, gx), np.int32)
-    stack = np.empty(gy * gx, np.int64)
-    cap = 16
+    # Flags on a grid with a one-sample border: 1 above threshold, 2 visited, 0 otherwise.
+    # One sequential pass over the samples, then the flood fill touches only the flagged ones.
+    gw = gx + 2
+    flag = np.zeros((gy + 2) * gw, np.uint8)
+    nab = 0
+    for i in range(gy):
+        row = frame[off + i * stride]
+        base = (i + 1) * gw + 1
+        for j in range(gx):
+            a = row[off + j * stride] > thr
+            flag[base + j] = a
+            nab += a
+    # At most one group per flagged sample: allocated once (arrays re-bound inside the loops
+    # would cost numba reference counting on every iteration).
+    cap = max(nab, 1)
+    stack = np.empty(cap, np.int64)
     cnt = np.zeros(cap, np.int64)
     flux = np.zeros(cap)
     cx = np.zeros(cap)
@@ -176,20 +189,13 @@ def coarse_blobs(frame, stride, thr, bkg):
     bb = np.zeros((cap, 4), np.int64)
     peak = np.zeros(cap)
     nb = 0
+    if nab == 0:
+        return cnt[:0], flux[:0], cx[:0], cy[:0], bb[:0], peak[:0]
     for i in range(gy):
         for j in range(gx):
-            if lab[i, j] != 0 or not frame[off + i * stride, off + j * stride] > thr:
+            if flag[(i + 1) * gw + j + 1] != 1:
                 continue
-            if nb == cap:
-                cap *= 2
-                cnt = np.concatenate((cnt, np.zeros(cap - nb, np.int64)))
-                flux = np.concatenate((flux, np.zeros(cap - nb)))
-                cx = np.concatenate((cx, np.zeros(cap - nb)))
-                cy = np.concatenate((cy, np.zeros(cap - nb)))
-                bb = np.concatenate((bb, np.zeros((cap - nb, 4), np.int64)))
-                peak = np.concatenate((peak, np.zeros(cap - nb)))
-            lab_id = nb + 1
-            lab[i, j] = lab_id
+            flag[(i + 1) * gw + j + 1] = 2
             top = 0
             stack[top] = i * gx + j
             top += 1
@@ -219,16 +225,11 @@ def coarse_blobs(frame, stride, thr, bkg):
                 bj0 = min(bj0, qj)
                 bj1 = max(bj1, qj)
                 for di in range(-1, 2):
-                    ii = qi + di
-                    if ii < 0 or ii >= gy:
-                        continue
+                    fb = (qi + di + 1) * gw + qj + 1
                     for dj in range(-1, 2):
-                        jj = qj + dj
-                        if jj < 0 or jj >= gx or lab[ii, jj] != 0:
-                            continue
-                        if frame[off + ii * stride, off + jj * stride] > thr:
-                            lab[ii, jj] = lab_id
-                            stack[top] = ii * gx + jj
+                        if flag[fb + dj] == 1:
+                            flag[fb + dj] = 2
+                            stack[top] = (qi + di) * gx + qj + dj
                             top += 1
             cnt[nb] = n
             flux[nb] = s
@@ -321,13 +322,13 @@ def annulus_background(frame, xc, yc, r_in, r_out, clip):
 
 
 @njit(cache=True, nogil=True, fastmath=_FM, inline="always")
-def _row_sums1(row, c0, c1, cr):
-    """Sum of row[c0:c1] and of row[c] * (c - cr)."""
+def _row_sums1(frame, r, c0, c1, cr):
+    """Sum of frame[r, c0:c1] and of frame[r, c] * (c - cr)."""
     s0 = 0.0
     s1 = 0.0
     u = float(c0 - cr)
     for c in range(c0, c1):
-        v = float(row[c])
+        v = float(frame[r, c])
         s0 += v
         s1 += v * u
         u += 1.0
@@ -367,7 +368,7 @@ def aperture_com(frame, xc, yc, r_ap, bkg):
         c0, c1 = _span(xc, (r - yc) ** 2, q2, nx)
         if c1 <= c0:
             continue
-        a0, a1 = _row_sums1(frame[r], c0, c1, cr)
+        a0, a1 = _row_sums1(frame, r, c0, c1, cr)
         w0 = a0 - bkg * (c1 - c0)
         w1 = a1 - bkg * _psum(c0 - cr, c1 - cr, 1)
         s += w0
@@ -405,11 +406,15 @@ def aperture_moments(frame, xc, yc, r_ap, bkg, sat):
         a1 = 0.0
         a2 = 0.0
         a3 = 0.0
-        rmax = -np.inf
+        imax = frame[r, c0]
+        for c in range(c0 + 1, c1):
+            iv = frame[r, c]
+            if iv > imax:
+                imax = iv
+        rmax = float(imax)
         u = float(c0 - cr)
         for c in range(c0, c1):
             v = float(frame[r, c])
-            rmax = max(rmax, v)
             vu = v * u
             a0 += v
             a1 += vu
@@ -747,14 +752,16 @@ def neighbour_vectors(q, pitch, k):
     kk = min(k, m)
     out = np.empty((m * kk, 2))
     nv = 0
-    bd = np.empty(kk)
+    bd = np.empty(kk)  # squared distances (ordering only)
     bi = np.empty(kk, np.int64)
     lo = 0.7 * pitch
     hi = 1.3 * pitch
     for i in range(m):
         nb = 0
         for j in range(m):
-            d = math.hypot(q[j, 0] - q[i, 0], q[j, 1] - q[i, 1])
+            dx = q[j, 0] - q[i, 0]
+            dy = q[j, 1] - q[i, 1]
+            d = dx * dx + dy * dy
             if nb < kk:
                 pos = nb
                 nb += 1
@@ -769,7 +776,7 @@ def neighbour_vectors(q, pitch, k):
             bd[pos] = d
             bi[pos] = j
         for t in range(nb):
-            if lo < bd[t] < hi:
+            if lo < math.hypot(q[bi[t], 0] - q[i, 0], q[bi[t], 1] - q[i, 1]) < hi:
                 out[nv, 0] = q[bi[t], 0] - q[i, 0]
                 out[nv, 1] = q[bi[t], 1] - q[i, 1]
                 nv += 1
