@@ -979,3 +979,114 @@ def assign_holes(hole, resid, n_holes):
         else:
             dup[h] = True
     return win, dup
+
+
+# --------------------------------------------------------------------------------------------
+# locate_spots (method "tight") in two compiled calls
+# --------------------------------------------------------------------------------------------
+@njit(cache=True, nogil=True)
+def tight_spots(frame, stride, nsigma, min_contrast, min_samples, margin, annulus, n_iter, sat,
+                pitch, max_residual, ok, saturated, clipped):
+    """Steps 1-3 of :func:`sunlab.centroid.locate_spots` with the tight window: detection,
+    measurement (:func:`measure_spots`, spots with flux > 0), windows and status
+    (:func:`spot_table`), the spots good for the lattice and the lattice fit
+    (:func:`fit_lattice`). Returns (n_groups detected, sample maximum, m (n, 16), window (4, n),
+    status (n,), good (n,), ij (n, 2), origin (2,), basis (2, 2), residual (n,), on_node (n,))."""
+    ny, nx = frame.shape
+    med, sig, smax = sample_stats(frame, max(2 * stride, 1))
+    thr = med + max(nsigma * sig, min_contrast)
+    cnt, _flux, cx, cy, _bb, _pk = coarse_blobs(frame, stride, thr, med)
+    nd = 0
+    for k in range(cnt.size):
+        if cnt[k] >= min_samples:
+            nd += 1
+    xs = np.empty(nd)
+    ys = np.empty(nd)
+    r0s = np.empty(nd)
+    t = 0
+    for k in range(cnt.size):
+        if cnt[k] >= min_samples:
+            xs[t] = cx[k]
+            ys[t] = cy[k]
+            r0s[t] = math.sqrt(cnt[k] * float(stride) ** 2 / np.pi) + stride / 3.0 + margin
+            t += 1
+    half = max(10.0 * sig, 20.0)
+    mall = measure_spots(frame, xs, ys, r0s, margin, annulus, med - half, med + half, n_iter,
+                         sat)
+    n = 0
+    for k in range(nd):
+        if mall[k, 0] > 0:
+            n += 1
+    m = np.empty((n, 16))
+    t = 0
+    for k in range(nd):
+        if mall[k, 0] > 0:
+            m[t] = mall[k]
+            t += 1
+    win, st = spot_table(m, nx, ny, ok, saturated, clipped)
+    p = np.empty((n, 2))
+    good = np.zeros(n, np.bool_)
+    ij = np.zeros((n, 2), np.int64)
+    origin = np.full(2, np.nan)
+    basis = np.full((2, 2), np.nan)
+    resid = np.full(n, np.nan)
+    on_node = np.zeros(n, np.bool_)
+    if n == 0:
+        return nd, smax, m, win, st, good, ij, origin, basis, resid, on_node
+    for k in range(n):
+        p[k, 0] = m[k, 1]
+        p[k, 1] = m[k, 2]
+    med_flux = np.median(m[:, 0])
+    ng = 0
+    for k in range(n):
+        good[k] = st[k] == ok and m[k, 0] > 0.3 * med_flux
+        ng += good[k]
+    if ng == 0:
+        good[:] = True
+    ij, origin, basis, resid, fitted = fit_lattice(p, good, pitch, max_residual)
+    lim = max_residual * math.sqrt(abs(np.linalg.det(basis)))
+    for k in range(n):
+        on_node[k] = resid[k] < lim
+    return nd, smax, m, win, st, good, ij, origin, basis, resid, on_node
+
+
+@njit(cache=True, nogil=True)
+def fill_holes(m, win, st, ij, dj, di, on_node, resid, lut, n_holes, x, y, flux, window, status,
+               metrics, ambiguous):
+    """Step 4 of :func:`sunlab.centroid.locate_spots` once the grid offset (dj, di) is known:
+    hole of each spot (``lut[i, j]``, -1 none), the nearer spot of each hole
+    (:func:`assign_holes`) written into the per-hole outputs (x, y, flux, window (4, n_holes),
+    status, metrics (9, n_holes), columns METRIC_FIELDS). Returns whether each spot was
+    assigned."""
+    rows, cols = lut.shape
+    n = m.shape[0]
+    hole = np.full(n, -1, np.int64)
+    for k in range(n):
+        jj = ij[k, 0] + dj
+        ii = ij[k, 1] + di
+        if on_node[k] and 0 <= jj < cols and 0 <= ii < rows:
+            hole[k] = lut[ii, jj]
+    spot, dup = assign_holes(hole, resid, n_holes)
+    assigned = np.zeros(n, np.bool_)
+    one = np.empty((1, 16))
+    rs = np.empty(1)
+    for h in range(n_holes):
+        k = spot[h]
+        if k < 0:
+            continue
+        assigned[k] = True
+        x[h] = m[k, 1]
+        y[h] = m[k, 2]
+        flux[h] = m[k, 0]
+        for q in range(4):
+            window[q, h] = win[q, k]
+        status[h] = st[k]
+        one[0] = m[k]
+        rs[0] = resid[k]
+        met = spot_metrics(one, rs)
+        for q in range(9):
+            metrics[q, h] = met[0, q]
+    for h in range(n_holes):
+        if dup[h]:
+            status[h] = ambiguous
+    return assigned

@@ -994,39 +994,28 @@ def locate_spots(
     if not usable:
         status[:] = _INVALID
         return empty
-    det = _detect(arr, stride, nsigma, min_contrast, min_samples)
-    if det.count.size == 0:
-        if det.sample_max == 0 and _all_zero(arr):
-            status[:] = _INVALID
-        return empty
-    r0 = _first_radius(det.count, stride, margin)
-    band_lo, band_hi = _background_band(det)
-    m = _k.measure_spots(arr, det.x, det.y, r0, float(margin), float(annulus), band_lo, band_hi,
-                         int(n_iter), float(saturation))
-    m = m[m[:, 0] > 0]
-    if m.shape[0] == 0:
-        return empty
-    sx, sy = m[:, 1].copy(), m[:, 2].copy()
-    sflux = m[:, 0].copy()
-    ny, nx = arr.shape
-    swin, sstat = _k.spot_table(m, nx, ny, _OK, _SATURATED, _CLIPPED)
-    wx0, wx1, wy0, wy1 = swin
-    if method == "fit":
-        for k in range(len(sx)):
-            c = _fit_from(arr, m[k], int(sstat[k]), 1.5, 30, True, saturation)
-            if np.isfinite(c.x):
-                sx[k], sy[k], sflux[k] = c.x, c.y, c.flux
-                wx0[k], wx1[k], wy0[k], wy1[k] = c.window
-
-    # Lattice indexing.
-    pts = np.column_stack([sx, sy])
-    med_flux = np.median(sflux)
-    good = (sstat == _OK) & (sflux > 0.3 * med_flux)
-    if not good.any():
-        good = np.ones(len(sx), bool)
-    fit = _fit_lattice(pts, (rows, cols), pitch, good, max_residual)
-    ij, origin, basis, resid = fit
-    on_node = resid < max_residual * math.sqrt(abs(np.linalg.det(basis)))
+    if method == "tight":
+        nd, smax, m, swin, sstat, good, ij, origin, basis, resid, on_node = _k.tight_spots(
+            arr, int(stride), float(nsigma), float(min_contrast), int(min_samples),
+            float(margin), float(annulus), int(n_iter), float(saturation), float(pitch),
+            float(max_residual), _OK, _SATURATED, _CLIPPED)
+        if nd == 0:
+            if smax == 0 and _all_zero(arr):
+                status[:] = _INVALID
+            return empty
+        if m.shape[0] == 0:
+            return empty
+        pts = m[:, 1:3].copy()
+    else:
+        fitted = _measure_and_fit(arr, method, stride, nsigma, min_contrast, min_samples, margin,
+                                  annulus, n_iter, saturation, pitch, max_residual)
+        if fitted is None:
+            if _all_zero(arr):
+                status[:] = _INVALID
+            return empty
+        if fitted is False:
+            return empty
+        m, swin, sstat, good, ij, origin, basis, resid, on_node, pts = fitted
     ref = on_node & good if (on_node & good).any() else on_node
     if not ref.any():
         return empty._replace(unassigned=pts)
@@ -1054,25 +1043,50 @@ def locate_spots(
     else:
         dj, di = cands[0]
     origin = origin - dj * basis[:, 0] - di * basis[:, 1]
-    jj, ii = ij[:, 0] + dj, ij[:, 1] + di
-    in_grid = on_node & (jj >= 0) & (jj < cols) & (ii >= 0) & (ii < rows)
-    hole = np.full(len(sx), -1)
-    hole[in_grid] = lut[ii[in_grid], jj[in_grid]]
-    # Two spots on one node: keep the nearer one, flag the hole.
-    spot, dup = _k.assign_holes(hole, resid, n_holes)
-    h = np.flatnonzero(spot >= 0)
-    win = spot[h]
-    assigned = np.zeros(len(sx), bool)
-    assigned[win] = True
-    x[h], y[h], flux[h] = sx[win], sy[win], sflux[win]
-    window[:, h] = swin[:, win]
-    status[h] = sstat[win]
-    per_spot = _k.spot_metrics(m[win], resid[win])
-    for k, name in enumerate(_k.METRIC_FIELDS):
-        metrics[name][h] = per_spot[:, k]
-    status[dup] = _AMBIGUOUS
+    met = np.full((len(SPOT_METRICS), n_holes), np.nan)
+    assigned = _k.fill_holes(m, swin, sstat, ij, int(dj), int(di), on_node, resid, lut, n_holes,
+                             x, y, flux, window, status, met, _AMBIGUOUS)
+    metrics = dict(zip(_k.METRIC_FIELDS, met, strict=True))
     lattice = np.vstack([origin, basis[:, 0], basis[:, 1]])
     return Spots(x, y, flux, window, status, hi, hj, metrics, pts[~assigned], lattice)
+
+
+def _measure_and_fit(arr, method, stride, nsigma, min_contrast, min_samples, margin, annulus,
+                     n_iter, saturation, pitch, max_residual):
+    """Steps 1-3 of :func:`locate_spots` for ``method="fit"`` (the tight-window measurement,
+    then a disk fit of each spot). None: no spot detected and the frame's samples are all 0;
+    False: nothing to index."""
+    det = _detect(arr, stride, nsigma, min_contrast, min_samples)
+    if det.count.size == 0:
+        return None if det.sample_max == 0 else False
+    r0 = _first_radius(det.count, stride, margin)
+    band_lo, band_hi = _background_band(det)
+    m = _k.measure_spots(arr, det.x, det.y, r0, float(margin), float(annulus), band_lo, band_hi,
+                         int(n_iter), float(saturation))
+    m = m[m[:, 0] > 0]
+    if m.shape[0] == 0:
+        return False
+    sx, sy = m[:, 1].copy(), m[:, 2].copy()
+    sflux = m[:, 0].copy()
+    ny, nx = arr.shape
+    swin, sstat = _k.spot_table(m, nx, ny, _OK, _SATURATED, _CLIPPED)
+    wx0, wx1, wy0, wy1 = swin
+    for k in range(len(sx)):
+        c = _fit_from(arr, m[k], int(sstat[k]), 1.5, 30, True, saturation)
+        if np.isfinite(c.x):
+            sx[k], sy[k], sflux[k] = c.x, c.y, c.flux
+            wx0[k], wx1[k], wy0[k], wy1[k] = c.window
+    # The per-hole outputs are read from m: carry the fitted values there.
+    m = m.copy()
+    m[:, 0], m[:, 1], m[:, 2] = sflux, sx, sy
+    pts = np.column_stack([sx, sy])
+    med_flux = np.median(sflux)
+    good = (sstat == _OK) & (sflux > 0.3 * med_flux)
+    if not good.any():
+        good = np.ones(len(sx), bool)
+    ij, origin, basis, resid = _fit_lattice(pts, None, pitch, good, max_residual)
+    on_node = resid < max_residual * math.sqrt(abs(np.linalg.det(basis)))
+    return m, swin, sstat, good, ij, origin, basis, resid, on_node, pts
 
 
 # ------------------------------------------------------------------------------------------------
