@@ -34,6 +34,7 @@ Examples
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable
 from typing import NamedTuple
@@ -890,6 +891,17 @@ def _fit_lattice(p, shape, pitch, good, max_residual):
     return ij, origin, basis, resid
 
 
+@functools.lru_cache(maxsize=8)
+def _raster_holes(rows, cols):
+    """Grid row, column of the holes in raster order and the (rows, cols) hole lookup table
+    (read-only, shared between calls)."""
+    hi, hj = np.divmod(np.arange(rows * cols), cols)
+    lut = np.arange(rows * cols).reshape(rows, cols)
+    for a in (hi, hj, lut):
+        a.setflags(write=False)
+    return hi, hj, lut
+
+
 def locate_spots(
     frame,
     *,
@@ -973,20 +985,22 @@ def locate_spots(
     if method not in ("tight", "fit"):
         raise ConfigurationError(f"method: found {method!r}, expected 'tight' or 'fit'")
     if holes is None:
-        hi, hj = np.divmod(np.arange(rows * cols), cols)
+        hi, hj, lut = _raster_holes(rows, cols)
+        hi, hj = hi.copy(), hj.copy()
     else:
         hi, hj = (np.asarray(h, dtype=int) for h in holes)
+        lut = np.full((rows, cols), -1, dtype=int)
+        inside = (hi >= 0) & (hi < rows) & (hj >= 0) & (hj < cols)
+        lut[hi[inside], hj[inside]] = np.flatnonzero(inside)
     n_holes = hi.size
-    lut = np.full((rows, cols), -1, dtype=int)
-    inside = (hi >= 0) & (hi < rows) & (hj >= 0) & (hj < cols)
-    lut[hi[inside], hj[inside]] = np.flatnonzero(inside)
 
-    x = np.full(n_holes, np.nan)
-    y = np.full(n_holes, np.nan)
-    flux = np.full(n_holes, np.nan)
+    # x, y, flux and the metrics (columns METRIC_FIELDS, the order of SPOT_METRICS): rows of
+    # one block, filled in place by the compiled hole assignment.
+    vals = np.full((3 + len(SPOT_METRICS), n_holes), np.nan)
+    x, y, flux, met = vals[0], vals[1], vals[2], vals[3:]
     window = np.full((4, n_holes), -1, dtype=np.int32)
     status = np.full(n_holes, _NO_SPOT, dtype=np.int8)
-    metrics = {k: np.full(n_holes, np.nan) for k in SPOT_METRICS}
+    metrics = dict(zip(_k.METRIC_FIELDS, met, strict=True))
     empty = Spots(x, y, flux, window, status, hi, hj, metrics, np.zeros((0, 2)),
                   np.full((3, 2), np.nan))
 
@@ -1043,10 +1057,8 @@ def locate_spots(
     else:
         dj, di = cands[0]
     origin = origin - dj * basis[:, 0] - di * basis[:, 1]
-    met = np.full((len(SPOT_METRICS), n_holes), np.nan)
     assigned = _k.fill_holes(m, swin, sstat, ij, int(dj), int(di), on_node, resid, lut, n_holes,
                              x, y, flux, window, status, met, _AMBIGUOUS)
-    metrics = dict(zip(_k.METRIC_FIELDS, met, strict=True))
     lattice = np.vstack([origin, basis[:, 0], basis[:, 1]])
     return Spots(x, y, flux, window, status, hi, hj, metrics, pts[~assigned], lattice)
 
