@@ -433,3 +433,36 @@ def test_metric_fields_follow_spot_metrics():
     from sunlab import _centroid_kernels as K
 
     assert K.METRIC_FIELDS == tuple(C.SPOT_METRICS)
+
+
+@pytest.mark.parametrize("stride", [3, 8])
+def test_coarse_blobs_match_8_connected_labels(stride):
+    # The compiled detection groups strided samples above threshold; compare with
+    # scipy.ndimage.label (8-connectivity) on the same samples.
+    from scipy import ndimage
+
+    from sunlab import _centroid_kernels as K
+
+    rng = np.random.default_rng(5)
+    frame = rng.integers(0, 40, (203, 257)).astype(np.uint16)
+    yy, xx = np.mgrid[0:203, 0:257]
+    for x0, y0, r in [(40, 30, 14), (200, 60, 9), (120, 150, 20), (5, 195, 12), (250, 2, 6)]:
+        frame[np.hypot(xx - x0, yy - y0) < r] += 500
+    frame[100, 100] = 900  # a lone hot sample (maybe on the grid)
+    off = stride // 2
+    samples = frame[off::stride, off::stride].astype(float)
+    thr, bkg = 300.0, 20.0
+    lab, n = ndimage.label(samples > thr, structure=np.ones((3, 3)))
+    cnt, flux, cx, cy, bb, peak = K.coarse_blobs(frame, stride, thr, bkg)
+    assert cnt.size == n
+    rows, cols = np.mgrid[off:203:stride, off:257:stride]
+    # Both number the groups in raster order of their first sample.
+    for k in range(n):
+        sel = lab == k + 1
+        w = samples[sel] - bkg
+        assert cnt[k] == sel.sum()
+        assert_allclose([flux[k], cx[k], cy[k]],
+                        [w.sum(), (w * cols[sel]).sum() / w.sum(), (w * rows[sel]).sum() / w.sum()],
+                        rtol=1e-12)
+        assert list(bb[k]) == [rows[sel].min(), rows[sel].max(), cols[sel].min(), cols[sel].max()]
+        assert peak[k] == samples[sel].max()
