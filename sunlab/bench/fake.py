@@ -338,6 +338,18 @@ class FakeESP:
         return float(a), float(b)
 
     # -- transports ---------------------------------------------------------------------------
+    def _answer(self, buf: bytes, write) -> tuple[bytes, bool]:
+        """Answer every complete (CR-terminated) command in ``buf`` through ``write``; return the
+        unfinished rest and False if a ``disconnect`` fault hung up the line."""
+        while b"\r" in buf:
+            line, buf = buf.split(b"\r", 1)
+            reply = self.handle(line)
+            if reply is DISCONNECT:
+                return buf, False
+            if reply:
+                write(reply)
+        return buf, True
+
     def serve_pty(self) -> str:
         """Serve the protocol on a new pseudo-terminal; return the slave's path."""
         import tty
@@ -363,14 +375,10 @@ class FakeESP:
                     ready, _, _ = select.select([master], [], [], 0.05)
                     if not ready:
                         continue
-                    buf += os.read(master, 4096)
-                    while b"\r" in buf:
-                        line, buf = buf.split(b"\r", 1)
-                        reply = self.handle(line)
-                        if reply is DISCONNECT:
-                            return
-                        if reply:
-                            os.write(master, reply)
+                    buf, connected = self._answer(buf + os.read(master, 4096),
+                                                  lambda r: os.write(master, r))
+                    if not connected:
+                        return
             except OSError:
                 pass
             finally:
@@ -405,14 +413,9 @@ class FakeESP:
                         return
                     if not data:
                         return
-                    buf += data
-                    while b"\r" in buf:
-                        line, buf = buf.split(b"\r", 1)
-                        reply = self.handle(line)
-                        if reply is DISCONNECT:
-                            return
-                        if reply:
-                            conn.sendall(reply)
+                    buf, connected = self._answer(buf + data, conn.sendall)
+                    if not connected:
+                        return
 
         def serve() -> None:
             with server:
