@@ -290,50 +290,6 @@ def _ring_sums(frame, xc, yc, r_in, r_out):
     return s, s2, n
 
 
-@njit(cache=True, nogil=True, fastmath=_FM)
-def annulus_background(frame, xc, yc, r_in, r_out, clip):
-    """Sigma-clipped mean (one clipping pass at ``clip`` sigma) of the pixels whose centres lie
-    in the annulus r_in < d <= r_out around (xc, yc). Returns (mean, std, n)."""
-    ny, nx = frame.shape
-    r0 = max(int(math.ceil(yc - r_out)), 0)
-    r1 = min(int(math.floor(yc + r_out)) + 1, ny)
-    a2 = r_in * r_in
-    b2 = r_out * r_out
-    s, s2, n = _ring_sums(frame, xc, yc, r_in, r_out)
-    if n == 0:
-        return np.nan, np.nan, 0
-    m = s / n
-    sd = math.sqrt(max(s2 / n - m * m, 0.0))
-    lo = m - clip * sd
-    hi = m + clip * sd
-    s = 0.0
-    s2 = 0.0
-    k = 0
-    for r in range(r0, r1):
-        dy2 = (r - yc) ** 2
-        o0, o1 = _span(xc, dy2, b2, nx)
-        i0, i1 = _span(xc, dy2, a2, nx)
-        if i1 <= i0:
-            i0 = o1
-            i1 = o1
-        for c in range(o0, i0):
-            v = float(frame[r, c])
-            if lo <= v <= hi:
-                s += v
-                s2 += v * v
-                k += 1
-        for c in range(i1, o1):
-            v = float(frame[r, c])
-            if lo <= v <= hi:
-                s += v
-                s2 += v * v
-                k += 1
-    if k == 0:
-        return m, sd, n
-    m = s / k
-    return m, math.sqrt(max(s2 / k - m * m, 0.0)), k
-
-
 @njit(cache=True, nogil=True, fastmath=_FM, inline="always")
 def _row_sums1(frame, r, c0, c1, cr):
     """Sum of frame[r, c0:c1] and of frame[r, c] * (c - cr)."""
