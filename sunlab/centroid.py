@@ -1368,6 +1368,7 @@ def compute(*objs, scheduler: str = "threads", address: str | None = None,
 
 
 def _compute(res, scheduler, address, num_workers, progress):
-    """Compute one lazy result (see :func:`compute`)."""
+    """Compute one lazy result with :func:`compute` (inside :func:`locate`, whose ``compute``
+    flag shadows that name)."""
     return compute(res, scheduler=scheduler, address=address, num_workers=num_workers,
                    progress=progress)[0]
