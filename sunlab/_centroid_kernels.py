@@ -1050,3 +1050,144 @@ def fill_holes(m, win, st, ij, dj, di, on_node, resid, lut, n_holes, x, y, flux,
         if dup[h]:
             status[h] = ambiguous
     return assigned
+
+
+
+@njit(cache=True, nogil=True)
+def grid_offset(ij, pts, ref, lut, exp, has_exp):
+    """Step 4a of :func:`sunlab.centroid.locate_spots`: the offset (dj, di) that puts the
+    lattice indices ``ij`` (n, 2) of the reference spots (``ref``) on the mask's grid (``lut``,
+    (rows, cols)). Of the offsets that keep them all inside the grid, the first (dj outer, di
+    inner) that minimises, when ``has_exp``, the mean distance of the reference spots at
+    ``pts`` (n, 2) from the ``exp``ected positions of their holes ((n_holes, 2), NaN unknown),
+    else the distance of their mean index from the grid's centre."""
+    rows, cols = lut.shape
+    n = ij.shape[0]
+    jmin = imin = 1 << 60
+    jmax = imax = -(1 << 60)
+    nref = 0
+    sj = 0
+    si = 0
+    for k in range(n):
+        if ref[k]:
+            jmin = min(jmin, ij[k, 0])
+            jmax = max(jmax, ij[k, 0])
+            imin = min(imin, ij[k, 1])
+            imax = max(imax, ij[k, 1])
+            sj += ij[k, 0]
+            si += ij[k, 1]
+            nref += 1
+    if jmax - jmin < cols:
+        dj0, dj1 = -jmin, cols - jmax
+    else:
+        dj0, dj1 = -jmin, -jmin + 1
+    if imax - imin < rows:
+        di0, di1 = -imin, rows - imax
+    else:
+        di0, di1 = -imin, -imin + 1
+    if (dj1 - dj0) * (di1 - di0) == 1:
+        return dj0, di0
+    mj = sj / nref
+    mi = si / nref
+    cj = (cols - 1) / 2
+    ci = (rows - 1) / 2
+    best = np.inf
+    bj = dj0
+    bi = di0
+    for dj in range(dj0, dj1):
+        for di in range(di0, di1):
+            if has_exp:
+                tot = 0.0
+                cnt = 0
+                for k in range(n):
+                    if not ref[k]:
+                        continue
+                    h = lut[min(max(ij[k, 1] + di, 0), rows - 1),
+                            min(max(ij[k, 0] + dj, 0), cols - 1)]
+                    if h >= 0 and math.isfinite(exp[h, 0]) and math.isfinite(exp[h, 1]):
+                        tot += math.hypot(pts[k, 0] - exp[h, 0], pts[k, 1] - exp[h, 1])
+                        cnt += 1
+                cost = tot / cnt if cnt > 0 else np.inf
+            else:
+                cost = abs(mj + dj - cj) + abs(mi + di - ci)
+            if cost < best:
+                best = cost
+                bj = dj
+                bi = di
+    return bj, bi
+
+
+@njit(cache=True, nogil=True)
+def new_holes(n_holes, no_spot):
+    """Per-hole outputs of :func:`sunlab.centroid.locate_spots` before any spot is assigned:
+    values (3 + 9, n_holes) (rows x, y, flux, then the metrics, columns METRIC_FIELDS) all
+    NaN, windows (4, n_holes) all -1, status (n_holes,) all ``no_spot``."""
+    return (np.full((3 + len(METRIC_FIELDS), n_holes), np.nan),
+            np.full((4, n_holes), -1, np.int32), np.full(n_holes, no_spot, np.int8))
+
+
+@njit(cache=True, nogil=True)
+def assign_grid(m, win, st, good, ij, origin, basis, resid, on_node, pts, lut, exp, has_exp,
+                vals, window, status, ambiguous):
+    """Step 4 of :func:`sunlab.centroid.locate_spots` for measured spots (rows of
+    :func:`measure_spots` with their windows, status, lattice indices, residuals and
+    positions ``pts``): reference spots (on a node and good, or on a node if none is good),
+    grid offset (:func:`grid_offset`) and the per-hole outputs (:func:`fill_holes`) written
+    into ``vals``, ``window`` and ``status`` (see :func:`new_holes`). Returns (positions of
+    the spots assigned to no hole (k, 2), lattice (3, 2): origin of hole (0, 0) and the steps
+    along j and i; NaN when no spot is a reference)."""
+    n = m.shape[0]
+    ref = np.empty(n, np.bool_)
+    nr = 0
+    for k in range(n):
+        ref[k] = on_node[k] and good[k]
+        nr += ref[k]
+    if nr == 0:
+        for k in range(n):
+            ref[k] = on_node[k]
+            nr += ref[k]
+    lattice = np.full((3, 2), np.nan)
+    if nr == 0:
+        return pts.copy(), lattice
+    dj, di = grid_offset(ij, pts, ref, lut, exp, has_exp)
+    for q in range(2):
+        lattice[0, q] = origin[q] - dj * basis[q, 0] - di * basis[q, 1]
+        lattice[1, q] = basis[q, 0]
+        lattice[2, q] = basis[q, 1]
+    assigned = fill_holes(m, win, st, ij, dj, di, on_node, resid, lut, vals.shape[1], vals[0],
+                          vals[1], vals[2], window, status, vals[3:], ambiguous)
+    nu = 0
+    for k in range(n):
+        nu += not assigned[k]
+    unassigned = np.empty((nu, 2))
+    t = 0
+    for k in range(n):
+        if not assigned[k]:
+            unassigned[t, 0] = pts[k, 0]
+            unassigned[t, 1] = pts[k, 1]
+            t += 1
+    return unassigned, lattice
+
+
+@njit(cache=True, nogil=True)
+def locate_tight(frame, stride, nsigma, min_contrast, min_samples, margin, annulus, n_iter, sat,
+                 pitch, max_residual, ok, saturated, clipped, lut, exp, has_exp, n_holes,
+                 no_spot, ambiguous):
+    """:func:`sunlab.centroid.locate_spots` with the tight window in one compiled call:
+    :func:`tight_spots` then :func:`assign_grid`. Returns (values, windows, status (see
+    :func:`new_holes`), n_groups detected, sample maximum, unassigned spots (k, 2),
+    lattice (3, 2))."""
+    vals, window, status = new_holes(n_holes, no_spot)
+    nd, smax, m, win, st, good, ij, origin, basis, resid, on_node = tight_spots(
+        frame, stride, nsigma, min_contrast, min_samples, margin, annulus, n_iter, sat, pitch,
+        max_residual, ok, saturated, clipped)
+    n = m.shape[0]
+    pts = np.empty((n, 2))
+    for k in range(n):
+        pts[k, 0] = m[k, 1]
+        pts[k, 1] = m[k, 2]
+    if n == 0:
+        return vals, window, status, nd, smax, pts, np.full((3, 2), np.nan)
+    unassigned, lattice = assign_grid(m, win, st, good, ij, origin, basis, resid, on_node, pts,
+                                      lut, exp, has_exp, vals, window, status, ambiguous)
+    return vals, window, status, nd, smax, unassigned, lattice

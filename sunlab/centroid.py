@@ -993,74 +993,38 @@ def locate_spots(
         inside = (hi >= 0) & (hi < rows) & (hj >= 0) & (hj < cols)
         lut[hi[inside], hj[inside]] = np.flatnonzero(inside)
     n_holes = hi.size
-
-    # x, y, flux and the metrics (columns METRIC_FIELDS, the order of SPOT_METRICS): rows of
-    # one block, filled in place by the compiled hole assignment.
-    vals = np.full((3 + len(SPOT_METRICS), n_holes), np.nan)
-    x, y, flux, met = vals[0], vals[1], vals[2], vals[3:]
-    window = np.full((4, n_holes), -1, dtype=np.int32)
-    status = np.full(n_holes, _NO_SPOT, dtype=np.int8)
-    metrics = dict(zip(_k.METRIC_FIELDS, met, strict=True))
-    empty = Spots(x, y, flux, window, status, hi, hj, metrics, np.zeros((0, 2)),
-                  np.full((3, 2), np.nan))
-
     arr, usable = _prepare(frame)
+    if expected is not None:
+        exp = np.ascontiguousarray(np.asarray(expected, dtype=float).reshape(n_holes, 2))
+    else:
+        exp = np.empty((0, 2))
+    unassigned, lattice = np.zeros((0, 2)), np.full((3, 2), np.nan)
     if not usable:
-        status[:] = _INVALID
-        return empty
-    if method == "tight":
-        nd, smax, m, swin, sstat, good, ij, origin, basis, resid, on_node = _k.tight_spots(
+        vals, window, status = _k.new_holes(n_holes, _INVALID)
+    elif method == "tight":
+        vals, window, status, nd, smax, unassigned, lattice = _k.locate_tight(
             arr, int(stride), float(nsigma), float(min_contrast), int(min_samples),
             float(margin), float(annulus), int(n_iter), float(saturation), float(pitch),
-            float(max_residual), _OK, _SATURATED, _CLIPPED)
-        if nd == 0:
-            if smax == 0 and _all_zero(arr):
-                status[:] = _INVALID
-            return empty
-        if m.shape[0] == 0:
-            return empty
-        pts = m[:, 1:3].copy()
+            float(max_residual), _OK, _SATURATED, _CLIPPED, lut, exp, expected is not None,
+            n_holes, _NO_SPOT, _AMBIGUOUS)
+        if nd == 0 and smax == 0 and _all_zero(arr):
+            status[:] = _INVALID
     else:
+        vals, window, status = _k.new_holes(n_holes, _NO_SPOT)
         fitted = _measure_and_fit(arr, method, stride, nsigma, min_contrast, min_samples, margin,
                                   annulus, n_iter, saturation, pitch, max_residual)
         if fitted is None:
             if _all_zero(arr):
                 status[:] = _INVALID
-            return empty
-        if fitted is False:
-            return empty
-        m, swin, sstat, good, ij, origin, basis, resid, on_node, pts = fitted
-    ref = on_node & good if (on_node & good).any() else on_node
-    if not ref.any():
-        return empty._replace(unassigned=pts)
-    jmin, jmax = ij[ref, 0].min(), ij[ref, 0].max()
-    imin, imax = ij[ref, 1].min(), ij[ref, 1].max()
-    dj_range = range(-jmin, cols - jmax) if jmax - jmin < cols else range(-jmin, -jmin + 1)
-    di_range = range(-imin, rows - imax) if imax - imin < rows else range(-imin, -imin + 1)
-    cands = [(dj, di) for dj in dj_range for di in di_range]
-    if len(cands) > 1 and expected is not None:
-        exp = np.asarray(expected, dtype=float).reshape(n_holes, 2)
-
-        def cost(c):
-            jj, ii = ij[ref, 0] + c[0], ij[ref, 1] + c[1]
-            h = lut[ii.clip(0, rows - 1), jj.clip(0, cols - 1)]
-            ok = (h >= 0) & np.all(np.isfinite(exp[h.clip(0)]), axis=1)
-            if not ok.any():
-                return np.inf
-            return float(np.mean(np.hypot(*(pts[ref][ok] - exp[h[ok]]).T)))
-
-        dj, di = min(cands, key=cost)
-    elif len(cands) > 1:
-        cj, ci = (cols - 1) / 2, (rows - 1) / 2
-        dj, di = min(cands, key=lambda c: abs(ij[ref, 0].mean() + c[0] - cj)
-                     + abs(ij[ref, 1].mean() + c[1] - ci))
-    else:
-        dj, di = cands[0]
-    origin = origin - dj * basis[:, 0] - di * basis[:, 1]
-    assigned = _k.fill_holes(m, swin, sstat, ij, int(dj), int(di), on_node, resid, lut, n_holes,
-                             x, y, flux, window, status, met, _AMBIGUOUS)
-    lattice = np.vstack([origin, basis[:, 0], basis[:, 1]])
-    return Spots(x, y, flux, window, status, hi, hj, metrics, pts[~assigned], lattice)
+        elif fitted is not False:
+            m, swin, sstat, good, ij, origin, basis, resid, on_node, pts = fitted
+            unassigned, lattice = _k.assign_grid(
+                m, swin, sstat, good, ij, origin, basis, resid, on_node, pts, lut, exp,
+                expected is not None, vals, window, status, _AMBIGUOUS)
+    # x, y, flux and the metrics (columns METRIC_FIELDS, the order of SPOT_METRICS) are rows
+    # of one block.
+    metrics = dict(zip(_k.METRIC_FIELDS, vals[3:], strict=True))
+    return Spots(vals[0], vals[1], vals[2], window, status, hi, hj, metrics, unassigned, lattice)
 
 
 def _measure_and_fit(arr, method, stride, nsigma, min_contrast, min_samples, margin, annulus,
