@@ -135,9 +135,34 @@ def com_box(frame, r0, r1, c0, c1, bkg):
 # Detection on a coarse grid of samples
 # --------------------------------------------------------------------------------------------
 @njit(cache=True, nogil=True)
+def _order_stat(hist, k):
+    """Index of the k-th smallest (0-based) of the values counted by ``hist``."""
+    c = 0
+    for v in range(hist.size):
+        c += hist[v]
+        if c > k:
+            return v
+    return hist.size - 1
+
+
+@njit(cache=True, nogil=True)
+def _hist_median(hist, n):
+    """Median of the n values counted by ``hist``, as :func:`numpy.median` gives it (the mean
+    of the two middle values when n is even)."""
+    if n % 2:
+        return float(_order_stat(hist, n // 2))
+    return (float(_order_stat(hist, n // 2 - 1)) + float(_order_stat(hist, n // 2))) / 2
+
+
+@njit(cache=True, nogil=True)
 def sample_stats(frame, stride):
     """Median and MAD-based sigma (1.4826 MAD) of a strided sample of the frame, plus the
-    sample maximum."""
+    sample maximum.
+
+    When the samples are non-negative integers (DN frames) below 65536, both medians come from
+    counts of the values (O(n + range) instead of a selection over the samples; the same
+    numbers: the deviations from a median are multiples of 1/2, counted doubled).
+    """
     ny, nx = frame.shape
     off = stride // 2
     gy = (ny - off + stride - 1) // stride
@@ -145,13 +170,28 @@ def sample_stats(frame, stride):
     buf = np.empty(gy * gx, np.float64)
     k = 0
     vmax = -np.inf
+    integral = True
     for i in range(gy):
+        row = frame[off + i * stride]
         for j in range(gx):
-            v = float(frame[off + i * stride, off + j * stride])
+            v = float(row[off + j * stride])
             buf[k] = v
             k += 1
-            if v > vmax:
-                vmax = v
+            vmax = max(vmax, v)
+            integral &= v >= 0 and v == math.floor(v)
+    if integral and k > 0 and vmax < 65536:
+        top = int(vmax)
+        hist = np.zeros(top + 1, np.int64)
+        for t in range(k):
+            hist[int(buf[t])] += 1
+        med = _hist_median(hist, k)
+        m2 = int(2 * med)
+        dev = np.zeros(max(m2, 2 * top - m2) + 1, np.int64)  # |2 v - 2 med|
+        for v in range(top + 1):
+            if hist[v]:
+                dev[abs(2 * v - m2)] += hist[v]
+        mad = _hist_median(dev, k) / 2
+        return med, 1.4826 * mad, vmax
     med = np.median(buf)
     for i in range(k):
         buf[i] = abs(buf[i] - med)
@@ -707,34 +747,73 @@ def disk_noise(frame, p, r0, r1, c0, c1, sat):
 @njit(cache=True, nogil=True)
 def neighbour_vectors(q, pitch, k):
     """Vectors from each point of ``q`` (m, 2) to those of its ``k`` nearest points (itself
-    included) that lie between 0.7 and 1.3 ``pitch`` away. Returns an (n_vectors, 2) array."""
+    included) that lie between 0.7 and 1.3 ``pitch`` away. Returns an (n_vectors, 2) array.
+
+    Only points less than 1.3 pitch away can be kept, and all points nearer than a kept one
+    are nearer than 1.3 pitch too, so the search runs over the 3 x 3 cells of 1.3 pitch
+    around each point, ranking candidates by (distance, index) as a scan of all pairs in
+    index order would: the same vectors in the same order, in O(m) instead of O(m^2).
+    """
     m = q.shape[0]
     kk = min(k, m)
     out = np.empty((m * kk, 2))
     nv = 0
-    bd = np.empty(kk)  # squared distances (ordering only)
-    bi = np.empty(kk, np.int64)
+    if m == 0:
+        return out
     lo = 0.7 * pitch
     hi = 1.3 * pitch
+    x0 = q[0, 0]
+    y0 = q[0, 1]
+    x1 = x0
+    y1 = y0
     for i in range(m):
+        x0 = min(x0, q[i, 0])
+        x1 = max(x1, q[i, 0])
+        y0 = min(y0, q[i, 1])
+        y1 = max(y1, q[i, 1])
+    ncx = min(int((x1 - x0) / hi), m) + 1
+    ncy = min(int((y1 - y0) / hi), m) + 1
+    cell = np.empty(m, np.int64)
+    start = np.zeros(ncx * ncy + 1, np.int64)
+    for i in range(m):
+        c = min(int((q[i, 1] - y0) / hi), ncy - 1) * ncx + min(int((q[i, 0] - x0) / hi), ncx - 1)
+        cell[i] = c
+        start[c + 1] += 1
+    for c in range(ncx * ncy):
+        start[c + 1] += start[c]
+    fill = start[:-1].copy()
+    order = np.empty(m, np.int64)
+    for i in range(m):  # counting sort: each cell's points in index order
+        order[fill[cell[i]]] = i
+        fill[cell[i]] += 1
+    bd = np.empty(kk)  # squared distances (ordering only)
+    bi = np.empty(kk, np.int64)
+    for i in range(m):
+        cy, cx = divmod(cell[i], ncx)
         nb = 0
-        for j in range(m):
-            dx = q[j, 0] - q[i, 0]
-            dy = q[j, 1] - q[i, 1]
-            d = dx * dx + dy * dy
-            if nb < kk:
-                pos = nb
-                nb += 1
-            elif d < bd[kk - 1]:
-                pos = kk - 1
-            else:
-                continue
-            while pos > 0 and bd[pos - 1] > d:
-                bd[pos] = bd[pos - 1]
-                bi[pos] = bi[pos - 1]
-                pos -= 1
-            bd[pos] = d
-            bi[pos] = j
+        for yy in range(max(cy - 1, 0), min(cy + 2, ncy)):
+            for xx in range(max(cx - 1, 0), min(cx + 2, ncx)):
+                c = yy * ncx + xx
+                for t in range(start[c], start[c + 1]):
+                    j = order[t]
+                    dx = q[j, 0] - q[i, 0]
+                    dy = q[j, 1] - q[i, 1]
+                    d = dx * dx + dy * dy
+                    # the k smallest in (distance, index) order, which is what a scan in
+                    # index order keeps
+                    if nb < kk:
+                        pos = nb
+                        nb += 1
+                    elif d < bd[kk - 1] or (d == bd[kk - 1] and j < bi[kk - 1]):
+                        pos = kk - 1
+                    else:
+                        continue
+                    while pos > 0 and (bd[pos - 1] > d or (bd[pos - 1] == d and bi[pos - 1] > j)):
+                        bd[pos] = bd[pos - 1]
+                        bi[pos] = bi[pos - 1]
+                        pos -= 1
+                    bd[pos] = d
+                    bi[pos] = j
         for t in range(nb):
             if lo < math.hypot(q[bi[t], 0] - q[i, 0], q[bi[t], 1] - q[i, 1]) < hi:
                 out[nv, 0] = q[bi[t], 0] - q[i, 0]
@@ -756,6 +835,57 @@ def _lattice_coords(p, origin, basis):
         uv[k, 0] = (d * x - b * y) / det
         uv[k, 1] = (a * y - c * x) / det
     return uv
+
+
+@njit(cache=True, nogil=True)
+def _affine_fit(uv, q, keep):
+    """Least-squares affine map from the rounded lattice coordinates ``rint(uv)`` (j, i) to
+    the points ``q`` (x, y) over the rows marked ``keep``: q = origin + basis @ (j, i).
+    Normal equations about the means of (j, i), whose 2 x 2 matrix is that of integer grid
+    indices (well conditioned for any two independent directions); returns (origin (2,),
+    basis (2, 2), whether the kept nodes span the plane)."""
+    n = 0
+    mj = 0.0
+    mi = 0.0
+    mx = 0.0
+    my = 0.0
+    for k in range(q.shape[0]):
+        if keep[k]:
+            n += 1
+            mj += np.rint(uv[k, 0])
+            mi += np.rint(uv[k, 1])
+            mx += q[k, 0]
+            my += q[k, 1]
+    mj /= n
+    mi /= n
+    mx /= n
+    my /= n
+    sjj = sji = sii = sjx = six = sjy = siy = 0.0
+    for k in range(q.shape[0]):
+        if keep[k]:
+            dj = np.rint(uv[k, 0]) - mj
+            di = np.rint(uv[k, 1]) - mi
+            dx = q[k, 0] - mx
+            dy = q[k, 1] - my
+            sjj += dj * dj
+            sji += dj * di
+            sii += di * di
+            sjx += dj * dx
+            six += di * dx
+            sjy += dj * dy
+            siy += di * dy
+    det = sjj * sii - sji * sji
+    basis = np.full((2, 2), np.nan)
+    origin = np.full(2, np.nan)
+    if not det > 1e-9 * sjj * sii:  # all kept nodes on one line of the grid
+        return origin, basis, False
+    basis[0, 0] = (sii * sjx - sji * six) / det
+    basis[0, 1] = (sjj * six - sji * sjx) / det
+    basis[1, 0] = (sii * sjy - sji * siy) / det
+    basis[1, 1] = (sjj * siy - sji * sjy) / det
+    origin[0] = mx - basis[0, 0] * mj - basis[0, 1] * mi
+    origin[1] = my - basis[1, 0] * mj - basis[1, 1] * mi
+    return origin, basis, True
 
 
 @njit(cache=True, nogil=True)
@@ -786,10 +916,12 @@ def fit_lattice(p, good, pitch, max_residual):
         if nv > 0:
             sc = 0.0
             ss = 0.0
-            for k in range(nv):
-                th = math.atan2(v[k, 1], v[k, 0])
-                sc += math.cos(4.0 * th)
-                ss += math.sin(4.0 * th)
+            for k in range(nv):  # cos and sin of 4 theta: (x + i y)^4 / |x + i y|^4
+                x2 = v[k, 0] * v[k, 0]
+                y2 = v[k, 1] * v[k, 1]
+                r4 = (x2 + y2) * (x2 + y2)
+                sc += ((x2 - y2) * (x2 - y2) - 4.0 * x2 * y2) / r4
+                ss += 4.0 * v[k, 0] * v[k, 1] * (x2 - y2) / r4
             phi = math.atan2(ss / nv, sc / nv) / 4.0
             ex0, ex1 = math.cos(phi), math.sin(phi)
             ey0, ey1 = -math.sin(phi), math.cos(phi)
@@ -834,20 +966,10 @@ def fit_lattice(p, good, pitch, max_residual):
                 i_lo = min(i_lo, int(fi))
                 i_hi = max(i_hi, int(fi))
         if nk >= 3 and j_hi > j_lo and i_hi > i_lo:
-            a = np.empty((nk, 3))
-            b = np.empty((nk, 2))
-            t = 0
-            for k in range(m):
-                if keep[k]:
-                    a[t, 0] = 1.0
-                    a[t, 1] = np.rint(uv[k, 0])
-                    a[t, 2] = np.rint(uv[k, 1])
-                    b[t, 0] = q[k, 0]
-                    b[t, 1] = q[k, 1]
-                    t += 1
-            sol = np.linalg.lstsq(a, b)[0]
-            origin = sol[0].copy()
-            basis = np.ascontiguousarray(sol[1:].T)
+            o, b, ok = _affine_fit(uv, q, keep)
+            if not ok:
+                break
+            origin, basis = o, b
         else:
             break
     uv = _lattice_coords(p, origin, basis)

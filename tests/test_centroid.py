@@ -466,3 +466,91 @@ def test_coarse_blobs_match_8_connected_labels(stride):
                         rtol=1e-12)
         assert list(bb[k]) == [rows[sel].min(), rows[sel].max(), cols[sel].min(), cols[sel].max()]
         assert peak[k] == samples[sel].max()
+
+
+def _neighbour_vectors_all_pairs(q, pitch, k):
+    # Reference: the k nearest of each point by a scan of all points in index order (a stable
+    # sort by distance), kept when 0.7 pitch < distance < 1.3 pitch.
+    out = []
+    for i in range(len(q)):
+        d2 = ((q - q[i]) ** 2).sum(axis=1)
+        for j in np.argsort(d2, kind="stable")[:k]:
+            if 0.7 * pitch < np.hypot(*(q[j] - q[i])) < 1.3 * pitch:
+                out.append(q[j] - q[i])
+    return np.array(out).reshape(-1, 2)
+
+
+@pytest.mark.parametrize("case", ["grid", "jittered", "sparse", "spread"])
+def test_neighbour_vectors_match_all_pairs(case):
+    # The cell search must give the vectors of the O(m^2) scan, in the same order, ties
+    # (exact lattice points) included.
+    from sunlab import _centroid_kernels as K
+
+    rng = np.random.default_rng(11)
+    pitch = 70.0
+    jj, ii = np.meshgrid(np.arange(10), np.arange(8))
+    q = np.column_stack([100 + pitch * jj.ravel(), 50 + pitch * ii.ravel()]).astype(float)
+    if case == "jittered":
+        q += rng.normal(0, 4, q.shape)
+    elif case == "sparse":
+        q = q[rng.random(len(q)) < 0.5]
+    elif case == "spread":  # two clumps far apart: the cells are capped
+        q = np.vstack([q[:5], q[:5] + 1e5])
+    got = K.neighbour_vectors(np.ascontiguousarray(q), pitch, 5)
+    ref = _neighbour_vectors_all_pairs(q, pitch, 5)
+    assert got.shape == ref.shape
+    assert np.array_equal(got, ref)
+
+
+def test_fit_lattice_affine_fit_matches_lstsq():
+    # The closed-form fit (normal equations about the mean node) against numpy's SVD
+    # least squares on a sheared, rotated lattice with noise and missing nodes.
+    from sunlab import _centroid_kernels as K
+
+    rng = np.random.default_rng(3)
+    jj, ii = np.meshgrid(np.arange(10), np.arange(10))
+    keep = rng.random(100) > 0.2
+    nodes = np.column_stack([jj.ravel(), ii.ravel()])[keep]
+    basis = np.array([[71.0, -2.5], [1.8, 70.2]])
+    origin = np.array([140.3, 97.9])
+    p = origin + nodes @ basis.T + rng.normal(0, 0.3, (keep.sum(), 2))
+    ij, o, b, resid, ok = K.fit_lattice(p, np.ones(len(p), bool), 71.0, 0.3)
+    assert ok
+    a = np.column_stack([np.ones(len(p)), ij])
+    sol = np.linalg.lstsq(a, p, rcond=None)[0]
+    assert_allclose(o, sol[0], rtol=0, atol=1e-9)
+    assert_allclose(b, sol[1:].T, rtol=0, atol=1e-9)
+    assert_allclose(resid, np.hypot(*(p - a @ sol).T), rtol=0, atol=1e-9)
+
+
+def test_fit_lattice_nodes_on_one_line_keep_the_first_estimate():
+    # Three spots on a diagonal of the grid: no affine map is defined, the fit keeps the
+    # orientation estimate instead of dividing by zero.
+    from sunlab import _centroid_kernels as K
+
+    p = np.array([[100.0, 100.0], [170.0, 170.0], [240.0, 240.0]])
+    ij, o, b, resid, ok = K.fit_lattice(p, np.ones(3, bool), 70.0, 0.3)
+    assert ok and np.all(np.isfinite(b)) and np.all(np.isfinite(resid))
+
+
+@pytest.mark.parametrize("top", [2, 30, 1024, 65535])
+def test_sample_stats_counts_equal_numpy_medians(top):
+    # DN frames take the counting path; its median and MAD must be numpy's to the last bit
+    # (even sample counts, constant frames, 16-bit values); non-integer frames take np.median.
+    from sunlab import _centroid_kernels as K
+
+    rng = np.random.default_rng(top)
+    for t in range(40):
+        ny, nx = rng.integers(8, 150, 2)
+        f = rng.integers(0, top, (ny, nx)).astype(np.uint16)
+        if t % 5 == 0:
+            f[:] = 7
+        stride = int(rng.integers(1, 12))
+        off = stride // 2
+        for frame in (f, f + 0.25):
+            smp = frame[off::stride, off::stride].astype(float).ravel()
+            med, sig, vmax = K.sample_stats(frame, stride)
+            m0 = np.median(smp)
+            assert med == m0
+            assert sig == 1.4826 * np.median(np.abs(smp - m0))
+            assert vmax == smp.max()
