@@ -336,21 +336,6 @@ def _ring_sums(frame, xc, yc, r_in, r_out):
     return s, s2, n
 
 
-@njit(cache=True, nogil=True, fastmath=_FM, inline="always")
-def _row_sums1(frame, r, c0, c1, cr):
-    """Sum of frame[r, c0:c1] and of frame[r, c] * (c - cr) (0 <= c0)."""
-    s0 = 0.0
-    s1 = 0.0
-    u = float(c0 - cr)
-    row = frame[r]
-    for c in range(_U(c0), _U(c1)):
-        v = float(row[c])
-        s0 += v
-        s1 += v * u
-        u += 1.0
-    return s0, s1
-
-
 @njit(cache=True, nogil=True, inline="always")
 def _psum(a, b, k):
     """Sum of u**k for integers a <= u < b (k = 0..3), closed form."""
@@ -367,26 +352,133 @@ def _psum(a, b, k):
     return tb * tb - ta * ta
 
 
+# Apertures work on row tables: for each row r0 <= r < r1 of a circular aperture, its span of
+# columns [c0, c1) (spn[r - r0]) and the power sums sum v u^k, k = 0..3, u = c - cr over the
+# span (tab[r - r0, k]), cr = round(xc). For DN frames every sum is an integer below 2^53, so
+# the sums are exact in float64 whatever the order of the additions: a table moved to a nearby
+# centre by adding and removing the columns at the ends of each row (:func:`shift_rows`)
+# holds the same numbers as one summed afresh there, and the moments and centroids computed
+# from it are the same to the last bit. (For float frames they agree to rounding.)
+@njit(cache=True, nogil=True, fastmath=_FM, inline="always")
+def _row_pows(row, a, b, cr, npow):
+    """Sums of row[c] (c - cr)^k over a <= c < b (0 <= a), k < npow (2 or 4; higher sums 0)."""
+    s0 = 0.0
+    s1 = 0.0
+    s2 = 0.0
+    s3 = 0.0
+    u = float(a - cr)
+    if npow > 2:
+        for c in range(_U(a), _U(b)):
+            v = float(row[c])
+            vu = v * u
+            s0 += v
+            s1 += vu
+            vuu = vu * u
+            s2 += vuu
+            s3 += vuu * u
+            u += 1.0
+    else:
+        for c in range(_U(a), _U(b)):
+            v = float(row[c])
+            s0 += v
+            s1 += v * u
+            u += 1.0
+    return s0, s1, s2, s3
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _signed_pows(row, x, y, cr, npow):
+    """:func:`_row_pows` over [x, y), or minus those over [y, x) when y < x."""
+    if y >= x:
+        return _row_pows(row, x, y, cr, npow)
+    s0, s1, s2, s3 = _row_pows(row, y, x, cr, npow)
+    return -s0, -s1, -s2, -s3
+
+
 @njit(cache=True, nogil=True, fastmath=_FM)
-def aperture_com(frame, xc, yc, r_ap, bkg):
-    """Centre of mass of (I - bkg) over the pixels whose centres lie within ``r_ap`` of
-    (xc, yc). Returns (sum, x, y)."""
+def aperture_rows(frame, xc, yc, r_ap, npow, tab, spn):
+    """Row table of the aperture of radius ``r_ap`` about (xc, yc) (pixel centres within
+    ``r_ap``; see the comment above): fills ``tab`` (rows, 4) and ``spn`` (rows, 2) and
+    returns (r0, r1, cr). ``npow`` 2 sums the powers 0 and 1 only."""
     ny, nx = frame.shape
     r0 = max(int(math.ceil(yc - r_ap)), 0)
     r1 = min(int(math.floor(yc + r_ap)) + 1, ny)
     q2 = r_ap * r_ap
     cr = int(math.floor(xc + 0.5))
+    for r in range(r0, r1):
+        dy = r - yc
+        c0, c1 = _span(xc, dy * dy, q2, nx)
+        i = r - r0
+        spn[i, 0] = c0
+        spn[i, 1] = c1
+        if c1 <= c0:
+            tab[i, 0] = tab[i, 1] = tab[i, 2] = tab[i, 3] = 0.0
+            continue
+        tab[i, 0], tab[i, 1], tab[i, 2], tab[i, 3] = _row_pows(frame[r], c0, c1, cr, npow)
+    return r0, r1, cr
+
+
+@njit(cache=True, nogil=True, fastmath=_FM)
+def shift_rows(frame, tab, spn, r0, r1, cr, xc, yc, r_ap, npow, out, ospn):
+    """The row table of the aperture of radius ``r_ap`` about (xc, yc) (into ``out``,
+    ``ospn``) from that of a nearby aperture (``tab``, ``spn``, rows [r0, r1), centre column
+    ``cr``): each row's sums plus those of the columns gained and minus those of the columns
+    lost at its two ends, re-expanded about the new round(xc) (sum v (u + d)^k from the
+    sums of v u^k); rows the old table lacks are summed afresh. Returns (r0, r1, cr) of the
+    new table."""
+    ny, nx = frame.shape
+    n0 = max(int(math.ceil(yc - r_ap)), 0)
+    n1 = min(int(math.floor(yc + r_ap)) + 1, ny)
+    q2 = r_ap * r_ap
+    nc = int(math.floor(xc + 0.5))
+    d = float(cr - nc)  # c - nc = (c - cr) + d
+    for r in range(n0, n1):
+        dy = r - yc
+        c0, c1 = _span(xc, dy * dy, q2, nx)
+        i = r - n0
+        ospn[i, 0] = c0
+        ospn[i, 1] = c1
+        if c1 <= c0:
+            out[i, 0] = out[i, 1] = out[i, 2] = out[i, 3] = 0.0
+            continue
+        row = frame[r]
+        t = r - r0
+        if r0 <= r < r1 and spn[t, 1] > spn[t, 0]:
+            a = spn[t, 0]
+            b = spn[t, 1]
+            e0, e1, e2, e3 = _signed_pows(row, c0, a, cr, npow)
+            f0, f1, f2, f3 = _signed_pows(row, b, c1, cr, npow)
+            s0 = tab[t, 0] + e0 + f0
+            s1 = tab[t, 1] + e1 + f1
+            s2 = tab[t, 2] + e2 + f2
+            s3 = tab[t, 3] + e3 + f3
+            out[i, 0] = s0
+            out[i, 1] = s1 + d * s0
+            if npow > 2:
+                out[i, 2] = s2 + 2.0 * d * s1 + d * d * s0
+                out[i, 3] = s3 + 3.0 * d * s2 + 3.0 * d * d * s1 + d * d * d * s0
+            else:
+                out[i, 2] = out[i, 3] = 0.0
+        else:
+            out[i, 0], out[i, 1], out[i, 2], out[i, 3] = _row_pows(row, c0, c1, nc, npow)
+    return n0, n1, nc
+
+
+@njit(cache=True, nogil=True, fastmath=_FM)
+def rows_com(tab, spn, r0, r1, cr, yc, bkg):
+    """Centre of mass of (I - bkg) from a row table: (sum, x, y)."""
     rr = int(math.floor(yc + 0.5))
     s = 0.0
     su = 0.0
     st = 0.0
     for r in range(r0, r1):
-        c0, c1 = _span(xc, (r - yc) ** 2, q2, nx)
+        i = r - r0
+        c0 = spn[i, 0]
+        c1 = spn[i, 1]
         if c1 <= c0:
             continue
-        a0, a1 = _row_sums1(frame, r, c0, c1, cr)
-        w0 = a0 - bkg * (c1 - c0)
-        w1 = a1 - bkg * _psum(c0 - cr, c1 - cr, 1)
+        w0 = tab[i, 0] - bkg * (c1 - c0)
+        w1 = tab[i, 1] - bkg * _psum(c0 - cr, c1 - cr, 1)
         s += w0
         su += w1
         st += w0 * (r - rr)
@@ -396,54 +488,35 @@ def aperture_com(frame, xc, yc, r_ap, bkg):
 
 
 @njit(cache=True, nogil=True, fastmath=_FM)
-def aperture_moments(frame, xc, yc, r_ap, bkg, sat):
-    """Moments of (I - bkg) over the pixels whose centres lie within ``r_ap`` of (xc, yc).
+def rows_moments(frame, tab, spn, r0, r1, cr, xc, yc, bkg, sat):
+    """Moments of (I - bkg) from a row table (4 powers) of the aperture about (xc, yc).
 
     Returns an array: [sum, x, y, mxx, myy, mxy, m30, m21, m12, m03, max I, n_pixels,
     n_saturated (I >= sat)] with central moments about (x, y) in px^k.
     """
-    ny, nx = frame.shape
-    r0 = max(int(math.ceil(yc - r_ap)), 0)
-    r1 = min(int(math.floor(yc + r_ap)) + 1, ny)
-    q2 = r_ap * r_ap
-    cr = int(math.floor(xc + 0.5))
     rr = int(math.floor(yc + 0.5))
     # p[a, b] = sum of (I - bkg) u^a t^b, u = c - cr, t = r - rr (integers), a + b <= 3
     p00 = p10 = p20 = p30 = p01 = p11 = p21 = p02 = p12 = p03 = 0.0
     vmax = -np.inf
     npx = 0
     for r in range(r0, r1):
-        dy = r - yc
-        c0, c1 = _span(xc, dy * dy, q2, nx)
+        i = r - r0
+        c0 = spn[i, 0]
+        c1 = spn[i, 1]
         if c1 <= c0:
             continue
         npx += c1 - c0
-        a0 = 0.0
-        a1 = 0.0
-        a2 = 0.0
-        a3 = 0.0
         row = frame[r]
         imax = row[c0]
         for c in range(_U(c0), _U(c1)):
             imax = max(imax, row[c])
-        rmax = float(imax)
-        u = float(c0 - cr)
-        for c in range(_U(c0), _U(c1)):
-            v = float(row[c])
-            vu = v * u
-            a0 += v
-            a1 += vu
-            vuu = vu * u
-            a2 += vuu
-            a3 += vuu * u
-            u += 1.0
-        vmax = max(vmax, rmax)
+        vmax = max(vmax, float(imax))
         ua = c0 - cr
         ub = c1 - cr
-        w0 = a0 - bkg * (ub - ua)
-        w1 = a1 - bkg * _psum(ua, ub, 1)
-        w2 = a2 - bkg * _psum(ua, ub, 2)
-        w3 = a3 - bkg * _psum(ua, ub, 3)
+        w0 = tab[i, 0] - bkg * (ub - ua)
+        w1 = tab[i, 1] - bkg * _psum(ua, ub, 1)
+        w2 = tab[i, 2] - bkg * _psum(ua, ub, 2)
+        w3 = tab[i, 3] - bkg * _psum(ua, ub, 3)
         t = float(r - rr)
         t2 = t * t
         p00 += w0
@@ -459,9 +532,8 @@ def aperture_moments(frame, xc, yc, r_ap, bkg, sat):
     nsat = 0
     if vmax >= sat:
         for r in range(r0, r1):
-            dy = r - yc
-            c0, c1 = _span(xc, dy * dy, q2, nx)
-            for c in range(c0, c1):
+            i = r - r0
+            for c in range(spn[i, 0], spn[i, 1]):
                 if frame[r, c] >= sat:
                     nsat += 1
     out = np.full(13, np.nan)
@@ -500,6 +572,28 @@ def aperture_moments(frame, xc, yc, r_ap, bkg, sat):
     out[8] = sxyy / s - 2 * my * exy - mx * eyy + 2 * mx * my * my
     out[9] = syyy / s - 3 * my * eyy + 2 * my**3
     return out
+
+
+@njit(cache=True, nogil=True)
+def aperture_com(frame, xc, yc, r_ap, bkg):
+    """Centre of mass of (I - bkg) over the pixels whose centres lie within ``r_ap`` of
+    (xc, yc). Returns (sum, x, y)."""
+    n = 2 * int(math.ceil(r_ap)) + 3
+    tab = np.empty((n, 4))
+    spn = np.empty((n, 2), np.int64)
+    r0, r1, cr = aperture_rows(frame, xc, yc, r_ap, 2, tab, spn)
+    return rows_com(tab, spn, r0, r1, cr, yc, bkg)
+
+
+@njit(cache=True, nogil=True)
+def aperture_moments(frame, xc, yc, r_ap, bkg, sat):
+    """Moments of (I - bkg) over the pixels whose centres lie within ``r_ap`` of (xc, yc)
+    (see :func:`rows_moments`)."""
+    n = 2 * int(math.ceil(r_ap)) + 3
+    tab = np.empty((n, 4))
+    spn = np.empty((n, 2), np.int64)
+    r0, r1, cr = aperture_rows(frame, xc, yc, r_ap, 4, tab, spn)
+    return rows_moments(frame, tab, spn, r0, r1, cr, xc, yc, bkg, sat)
 
 
 #: Columns of the array returned by :func:`measure_spots`.
@@ -577,6 +671,13 @@ def measure_spots(frame, xs, ys, r0s, margin, annulus, lo, hi, n_iter, sat):
     """
     n = xs.shape[0]
     out = np.full((n, 16), np.nan)
+    nt = 3
+    for k in range(n):
+        nt = max(nt, 2 * int(math.ceil(r0s[k])) + 3)
+    ta = np.empty((nt, 4))
+    sa = np.empty((nt, 2), np.int64)
+    tb = np.empty((nt, 4))
+    sb = np.empty((nt, 2), np.int64)
     for k in range(n):
         xc = xs[k]
         yc = ys[k]
@@ -584,23 +685,30 @@ def measure_spots(frame, xs, ys, r0s, margin, annulus, lo, hi, n_iter, sat):
         bkg, bsd, nb = annulus_mean(frame, xc, yc, r_ap + 1.0, r_ap + 1.0 + annulus, lo, hi)
         if nb == 0:
             continue
+        # One pass over the pixels of the first aperture; the re-centred apertures are its
+        # row table moved (shift_rows), which touches only the columns at the rows' ends.
+        r0, r1, cr = aperture_rows(frame, xc, yc, r_ap, 4, ta, sa)
         good = True
         for _ in range(n_iter - 1):
-            s, x1, y1 = aperture_com(frame, xc, yc, r_ap, bkg)
+            s, x1, y1 = rows_com(ta, sa, r0, r1, cr, yc, bkg)
             if not (s > 0) or not (abs(x1 - xc) < r_ap and abs(y1 - yc) < r_ap):
                 good = False
                 break
             xc = x1
             yc = y1
+            r0, r1, cr = shift_rows(frame, ta, sa, r0, r1, cr, xc, yc, r_ap, 4, tb, sb)
+            ta, tb = tb, ta
+            sa, sb = sb, sa
         if not good:
             continue
-        m = aperture_moments(frame, xc, yc, r_ap, bkg, sat)
+        m = rows_moments(frame, ta, sa, r0, r1, cr, xc, yc, bkg, sat)
         if not (m[0] > 0):
             continue
         rad = math.sqrt(max(2.0 * (m[3] + m[4]), 0.0))
         if rad > 0 and rad + margin < r_ap - 0.5:
             r_ap = rad + margin
-            s, x1, y1 = aperture_com(frame, m[1], m[2], r_ap, bkg)
+            f0, f1, fc = shift_rows(frame, ta, sa, r0, r1, cr, m[1], m[2], r_ap, 2, tb, sb)
+            s, x1, y1 = rows_com(tb, sb, f0, f1, fc, m[2], bkg)
             if s > 0:
                 m[0] = s
                 m[1] = x1
