@@ -13,7 +13,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from llvmlite import ir
+from numba import njit, types
+from numba.core import cgutils
+from numba.extending import intrinsic
 
 __all__: list[str] = []
 
@@ -23,6 +26,59 @@ _FM = {"reassoc", "contract", "nsz", "arcp"}
 #: ``0 <= c0``: numba then drops its negative-index wrap-around from every access, and LLVM
 #: vectorises the loop (measured 1.3-2.6x on the aperture sums of 100-spot frames).
 _U = np.uint64
+
+
+@intrinsic
+def _prefetch(typingctx, arr, i):
+    """Ask the CPU to fetch the cache line of ``arr[i]`` (1-D array) ahead of use (LLVM's
+    prefetch intrinsic: no fault, no wait, no effect on results)."""
+    if not isinstance(arr, types.Array) or arr.ndim != 1 or not isinstance(i, types.Integer):
+        return None
+
+    def codegen(context, builder, signature, args):
+        aryty = signature.args[0]
+        ary = context.make_array(aryty)(context, builder, args[0])
+        idx = context.cast(builder, args[1], signature.args[1], types.intp)
+        ptr = cgutils.get_item_pointer(context, builder, aryty, ary, [idx], wraparound=False)
+        i8p = ir.IntType(8).as_pointer()
+        i32 = ir.IntType(32)
+        fn = cgutils.get_or_insert_function(
+            builder.module, ir.FunctionType(ir.VoidType(), [i8p, i32, i32, i32]),
+            "llvm.prefetch.p0")
+        # read, highest locality, data cache
+        builder.call(fn, [builder.bitcast(ptr, i8p), ir.Constant(i32, 0), ir.Constant(i32, 3),
+                          ir.Constant(i32, 1)])
+        return context.get_dummy_value()
+
+    return types.void(arr, i), codegen
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _prefetch_row(line, c0, c1):
+    """Prefetch line[c0:c1], one request per 64-byte cache line."""
+    c1 = min(c1, line.size)
+    for c in range(c0, c1, max(64 // line.itemsize, 1)):
+        _prefetch(line, c)
+
+
+@njit(cache=True, nogil=True)
+def prefetch_box(frame, xc, yc, r):
+    """Prefetch the pixels within ``r`` px (box) of (xc, yc), one request per 64-byte line:
+    issued for the next spot while the current one is measured, the memory latency of a frame
+    fresh from the camera or the disk overlaps the arithmetic."""
+    ny, nx = frame.shape
+    if not (math.isfinite(xc) and math.isfinite(yc)):
+        return
+    r0 = max(int(yc - r), 0)
+    r1 = min(int(yc + r) + 1, ny)
+    c0 = max(int(xc - r), 0)
+    c1 = min(int(xc + r) + 1, nx)
+    if c1 <= c0:
+        return
+    for row in range(r0, r1):
+        line = frame[row]
+        _prefetch_row(line, c0, c1)
+        _prefetch(line, c1 - 1)
 
 
 # --------------------------------------------------------------------------------------------
@@ -173,6 +229,8 @@ def sample_stats(frame, stride):
     integral = True
     for i in range(gy):
         row = frame[off + i * stride]
+        if i + 1 < gy:
+            _prefetch_row(frame[off + (i + 1) * stride], off, stride * gx)
         for j in range(gx):
             v = float(row[off + j * stride])
             buf[k] = v
@@ -218,6 +276,8 @@ def coarse_blobs(frame, stride, thr, bkg):
     nab = 0
     for i in range(gy):
         row = frame[off + i * stride]
+        if i + 1 < gy:  # the next sampled row's lines, while this one is compared
+            _prefetch_row(frame[off + (i + 1) * stride], off, stride * gx)
         base = (i + 1) * gw + 1
         for j in range(gx):
             a = row[off + j * stride] > thr
@@ -405,12 +465,13 @@ def aperture_rows(frame, xc, yc, r_ap, npow, tab, spn):
     r1 = min(int(math.floor(yc + r_ap)) + 1, ny)
     q2 = r_ap * r_ap
     cr = int(math.floor(xc + 0.5))
-    for r in range(r0, r1):
+    for r in range(r0, r1):  # spans first: the row loops then start without waiting on sqrt
         dy = r - yc
-        c0, c1 = _span(xc, dy * dy, q2, nx)
+        spn[r - r0, 0], spn[r - r0, 1] = _span(xc, dy * dy, q2, nx)
+    for r in range(r0, r1):
         i = r - r0
-        spn[i, 0] = c0
-        spn[i, 1] = c1
+        c0 = spn[i, 0]
+        c1 = spn[i, 1]
         if c1 <= c0:
             tab[i, 0] = tab[i, 1] = tab[i, 2] = tab[i, 3] = 0.0
             continue
@@ -434,10 +495,11 @@ def shift_rows(frame, tab, spn, r0, r1, cr, xc, yc, r_ap, npow, out, ospn):
     d = float(cr - nc)  # c - nc = (c - cr) + d
     for r in range(n0, n1):
         dy = r - yc
-        c0, c1 = _span(xc, dy * dy, q2, nx)
+        ospn[r - n0, 0], ospn[r - n0, 1] = _span(xc, dy * dy, q2, nx)
+    for r in range(n0, n1):
         i = r - n0
-        ospn[i, 0] = c0
-        ospn[i, 1] = c1
+        c0 = ospn[i, 0]
+        c1 = ospn[i, 1]
         if c1 <= c0:
             out[i, 0] = out[i, 1] = out[i, 2] = out[i, 3] = 0.0
             continue
@@ -633,13 +695,23 @@ def annulus_mean(frame, xc, yc, r_in, r_out, lo, hi):
     s2 = 0.0
     k = 0.0
     n = 0
-    for r in range(r0, r1):
+    sp = np.empty((max(r1 - r0, 0), 4), np.int64)
+    for r in range(r0, r1):  # spans first: the row loops then start without waiting on sqrt
         dy2 = (r - yc) ** 2
         o0, o1 = _span(xc, dy2, b2, nx)
         i0, i1 = _span(xc, dy2, a2, nx)
         if i1 <= i0:
             i0 = o1
             i1 = o1
+        sp[r - r0, 0] = o0
+        sp[r - r0, 1] = i0
+        sp[r - r0, 2] = i1
+        sp[r - r0, 3] = o1
+    for r in range(r0, r1):
+        o0 = sp[r - r0, 0]
+        i0 = sp[r - r0, 1]
+        i1 = sp[r - r0, 2]
+        o1 = sp[r - r0, 3]
         row = frame[r]
         x1, x2, x3 = _band_sums(row, o0, i0, lo, hi)
         y1, y2, y3 = _band_sums(row, i1, o1, lo, hi)
@@ -678,10 +750,14 @@ def measure_spots(frame, xs, ys, r0s, margin, annulus, lo, hi, n_iter, sat):
     sa = np.empty((nt, 2), np.int64)
     tb = np.empty((nt, 4))
     sb = np.empty((nt, 2), np.int64)
+    if n > 0:
+        prefetch_box(frame, xs[0], ys[0], r0s[0] + 1.0 + annulus)
     for k in range(n):
         xc = xs[k]
         yc = ys[k]
         r_ap = r0s[k]
+        if k + 1 < n:
+            prefetch_box(frame, xs[k + 1], ys[k + 1], r0s[k + 1] + 1.0 + annulus)
         bkg, bsd, nb = annulus_mean(frame, xc, yc, r_ap + 1.0, r_ap + 1.0 + annulus, lo, hi)
         if nb == 0:
             continue
