@@ -62,15 +62,18 @@ def _prefetch_row(line, c0, c1):
 
 
 @njit(cache=True, nogil=True)
-def prefetch_box(frame, xc, yc, r):
-    """Prefetch the pixels within ``r`` px (box) of (xc, yc), one request per 64-byte line:
-    issued for the next spot while the current one is measured, the memory latency of a frame
-    fresh from the camera or the disk overlaps the arithmetic."""
+def prefetch_box(frame, xc, yc, r, part=0, nparts=1):
+    """Prefetch the pixels within ``r`` px (box) of (xc, yc), one request per 64-byte line
+    (rows of part ``part`` of ``nparts``): issued for the next spot in parts while the current
+    one is measured, the memory latency of a frame fresh from the camera or the disk overlaps
+    the arithmetic without more requests in flight than the core can track."""
     ny, nx = frame.shape
     if not (math.isfinite(xc) and math.isfinite(yc)):
         return
-    r0 = max(int(yc - r), 0)
-    r1 = min(int(yc + r) + 1, ny)
+    b0 = max(int(yc - r), 0)
+    b1 = min(int(yc + r) + 1, ny)
+    r0 = b0 + (b1 - b0) * part // nparts
+    r1 = b0 + (b1 - b0) * (part + 1) // nparts
     c0 = max(int(xc - r), 0)
     c1 = min(int(xc + r) + 1, nx)
     if c1 <= c0:
@@ -756,9 +759,14 @@ def measure_spots(frame, xs, ys, r0s, margin, annulus, lo, hi, n_iter, sat):
         xc = xs[k]
         yc = ys[k]
         r_ap = r0s[k]
+        # the next spot's pixels, a third before each of this spot's passes
+        nxt = min(k + 1, n - 1)
+        rn = r0s[nxt] + 1.0 + annulus
         if k + 1 < n:
-            prefetch_box(frame, xs[k + 1], ys[k + 1], r0s[k + 1] + 1.0 + annulus)
+            prefetch_box(frame, xs[nxt], ys[nxt], rn, 0, 3)
         bkg, bsd, nb = annulus_mean(frame, xc, yc, r_ap + 1.0, r_ap + 1.0 + annulus, lo, hi)
+        if k + 1 < n:
+            prefetch_box(frame, xs[nxt], ys[nxt], rn, 1, 3)
         if nb == 0:
             continue
         # One pass over the pixels of the first aperture; the re-centred apertures are its
@@ -775,6 +783,8 @@ def measure_spots(frame, xs, ys, r0s, margin, annulus, lo, hi, n_iter, sat):
             r0, r1, cr = shift_rows(frame, ta, sa, r0, r1, cr, xc, yc, r_ap, 4, tb, sb)
             ta, tb = tb, ta
             sa, sb = sb, sa
+        if k + 1 < n:
+            prefetch_box(frame, xs[nxt], ys[nxt], rn, 2, 3)
         if not good:
             continue
         m = rows_moments(frame, ta, sa, r0, r1, cr, xc, yc, bkg, sat)
