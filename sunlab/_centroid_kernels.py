@@ -458,19 +458,28 @@ def _signed_pows(row, x, y, cr, npow):
     return -s0, -s1, -s2, -s3
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _aperture_spans(xc, yc, r_ap, ny, nx, spn):
+    """Rows [r0, r1) of the aperture of radius ``r_ap`` about (xc, yc) and each row's span of
+    columns into ``spn[r - r0]``, all before any row loop (which then starts without waiting on
+    sqrt). Returns (r0, r1)."""
+    r0 = max(int(math.ceil(yc - r_ap)), 0)
+    r1 = min(int(math.floor(yc + r_ap)) + 1, ny)
+    q2 = r_ap * r_ap
+    for r in range(r0, r1):
+        dy = r - yc
+        spn[r - r0, 0], spn[r - r0, 1] = _span(xc, dy * dy, q2, nx)
+    return r0, r1
+
+
 @njit(cache=True, nogil=True, fastmath=_FM)
 def aperture_rows(frame, xc, yc, r_ap, npow, tab, spn):
     """Row table of the aperture of radius ``r_ap`` about (xc, yc) (pixel centres within
     ``r_ap``; see the comment above): fills ``tab`` (rows, 4) and ``spn`` (rows, 2) and
     returns (r0, r1, cr). ``npow`` 2 sums the powers 0 and 1 only."""
     ny, nx = frame.shape
-    r0 = max(int(math.ceil(yc - r_ap)), 0)
-    r1 = min(int(math.floor(yc + r_ap)) + 1, ny)
-    q2 = r_ap * r_ap
+    r0, r1 = _aperture_spans(xc, yc, r_ap, ny, nx, spn)
     cr = int(math.floor(xc + 0.5))
-    for r in range(r0, r1):  # spans first: the row loops then start without waiting on sqrt
-        dy = r - yc
-        spn[r - r0, 0], spn[r - r0, 1] = _span(xc, dy * dy, q2, nx)
     for r in range(r0, r1):
         i = r - r0
         c0 = spn[i, 0]
@@ -491,14 +500,9 @@ def shift_rows(frame, tab, spn, r0, r1, cr, xc, yc, r_ap, npow, out, ospn):
     sums of v u^k); rows the old table lacks are summed afresh. Returns (r0, r1, cr) of the
     new table."""
     ny, nx = frame.shape
-    n0 = max(int(math.ceil(yc - r_ap)), 0)
-    n1 = min(int(math.floor(yc + r_ap)) + 1, ny)
-    q2 = r_ap * r_ap
+    n0, n1 = _aperture_spans(xc, yc, r_ap, ny, nx, ospn)
     nc = int(math.floor(xc + 0.5))
     d = float(cr - nc)  # c - nc = (c - cr) + d
-    for r in range(n0, n1):
-        dy = r - yc
-        ospn[r - n0, 0], ospn[r - n0, 1] = _span(xc, dy * dy, q2, nx)
     for r in range(n0, n1):
         i = r - n0
         c0 = ospn[i, 0]
