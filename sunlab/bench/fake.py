@@ -3,7 +3,9 @@
 :class:`FakeESP` answers the command subset that :class:`~sunlab.bench.ESP300` uses (and a few
 more) exactly as the controller does: commands end with ``CR``, query replies end with ``CR LF``,
 errors queue in a 10-deep buffer read with ``TB?``/``TE?``, axis errors are ``axis * 100 +
-code``. Axes move at a finite velocity, so ``MD?`` reads 0 until the move is over. It serves
+code``. Axes move at a finite velocity, so ``MD?`` reads 0 until the move is over
+(``velocity_deg_s=math.inf`` makes every move instant, for protocol tests; ``clock=`` takes any
+monotonic clock, e.g. a :class:`ManualClock` that a test advances by hand). It serves
 
 - a pseudo-terminal (:meth:`FakeESP.serve_pty`: ``os.openpty`` and a thread on the master side;
   the driver opens the slave path like any serial port), and
@@ -32,7 +34,7 @@ kind            effect on the next ``count`` commands that contain ``match``
 
 Examples
 --------
->>> fake = FakeESP(velocity_deg_s=1e6)
+>>> fake = FakeESP(velocity_deg_s=math.inf)   # instant moves: no wall-clock race
 >>> fake.handle(b"1PA2.5")
 >>> fake.handle(b"1TP?")
 b'2.500000\\r\\n'
@@ -55,7 +57,7 @@ from dataclasses import dataclass
 from .._errors import ConfigurationError
 from .esp import decode_error
 
-__all__ = ["FAULT_KINDS", "Fault", "FakeESP", "DISCONNECT"]
+__all__ = ["FAULT_KINDS", "Fault", "FakeESP", "ManualClock", "DISCONNECT"]
 
 FAULT_KINDS = ("timeout", "garble", "error", "silent", "stuck", "disconnect")
 
@@ -63,6 +65,32 @@ FAULT_KINDS = ("timeout", "garble", "error", "silent", "stuck", "disconnect")
 DISCONNECT = object()
 
 _CMD_RE = re.compile(r"^(\d*)([A-Za-z]{2})(.*)$")
+
+
+class ManualClock:
+    """A monotonic clock that moves only when told to (for tests of timed behaviour).
+
+    Examples
+    --------
+    >>> clock = ManualClock()
+    >>> fake = FakeESP(velocity_deg_s=10.0, clock=clock)
+    >>> fake.handle(b"1PA5"); fake.handle(b"1MD?")       # 0.5 s move, no time has passed
+    b'0\\r\\n'
+    >>> clock.advance(0.5); fake.handle(b"1MD?"), fake.handle(b"1TP?")
+    (b'1\\r\\n', b'5.000000\\r\\n')
+    """
+
+    def __init__(self, start: float = 0.0):
+        self.now = float(start)
+
+    def __call__(self) -> float:
+        return self.now
+
+    def advance(self, seconds: float) -> None:
+        """Move the clock forward by ``seconds`` (>= 0)."""
+        if not seconds >= 0:
+            raise ConfigurationError(f"advance: found {seconds!r} s, expected >= 0")
+        self.now += float(seconds)
 
 
 @dataclass
@@ -99,7 +127,8 @@ class _Axis:
         self.start = self.position(now)
         self.target = target
         self.t0 = now
-        self.t1 = now + abs(target - self.start) / self.velocity
+        # an infinite velocity (instant motion) ends the move now, exactly
+        self.t1 = now if math.isinf(self.velocity) else now + abs(target - self.start) / self.velocity
         self.stuck = stuck
 
     def halt(self, now: float) -> None:
@@ -123,7 +152,8 @@ class FakeESP:
     n_axes : int
         Number of axes the controller has (ESP301: up to 3).
     velocity_deg_s : float
-        Slew rate of every axis, deg/s.
+        Slew rate of every axis, deg/s; ``math.inf`` makes every move instant (``MD?`` reads 1
+        and ``TP?`` the target at once, whatever the clock).
     limits : (float, float)
         Software limits ``SL``, ``SR`` of every axis, degrees.
     resolution_deg : float
@@ -132,6 +162,9 @@ class FakeESP:
         Motor power at start.
     version : str
         The ``VE?`` reply.
+    clock : callable, optional
+        Monotonic clock in seconds (default :func:`time.monotonic`); a :class:`ManualClock`
+        makes timed behaviour (moves, silences, error time stamps) deterministic.
     """
 
     def __init__(
@@ -147,6 +180,7 @@ class FakeESP:
         resolution_deg: float = 1e-4,
         motors_on: bool = True,
         version: str = "ESP301 Version 3.0.2 6/29/11 (sunlab fake)",
+        clock=None,
     ):
         if not velocity_deg_s > 0:
             raise ConfigurationError(f"velocity_deg_s: found {velocity_deg_s!r}, expected > 0")
@@ -163,7 +197,8 @@ class FakeESP:
         self._faults: list[Fault] = []
         self._silent_until = -math.inf
         self._lock = threading.RLock()
-        self._t_boot = time.monotonic()
+        self._clock = time.monotonic if clock is None else clock
+        self._t_boot = self._clock()
         self._stop = threading.Event()
         self._threads: list[threading.Thread] = []
         self._closers: list = []
@@ -204,7 +239,7 @@ class FakeESP:
         text = line.decode("ascii", "replace").strip()
         if not text:
             return None
-        now = time.monotonic()
+        now = self._clock()
         out = []
         with self._lock:
             self.received.append(text)
@@ -318,7 +353,7 @@ class FakeESP:
     # -- the platform -------------------------------------------------------------------------
     def position(self) -> tuple[float, float]:
         """Commanded-frame position of (alpha, beta) axes now (not rounded), degrees."""
-        now = time.monotonic()
+        now = self._clock()
         with self._lock:
             return (self._axes[self.alpha_axis].position(now),
                     self._axes[self.beta_axis].position(now))
