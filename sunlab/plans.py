@@ -158,6 +158,35 @@ class Plan:
             )
         return self[:: int(step)]
 
+    def thin(self, step: int) -> Plan:
+        """Every ``step``-th angle along each grid axis, so a thinned grid is still a grid.
+
+        For a full alpha-outer grid (:meth:`unstack_shape` is not None) this keeps every
+        ``step``-th alpha and every ``step``-th beta (about ``len / step**2`` poses) and maps
+        stay maps; any other plan keeps every ``step``-th pose (as :meth:`subset`). Quick runs
+        of the notebooks and the command line use this.
+
+        Examples
+        --------
+        >>> exp1 = experiment("I")          # 20 x 20 grid, 1-degree steps
+        >>> quick = exp1.thin(3)
+        >>> quick.unstack_shape(), float(quick.alpha[1] - quick.alpha[0])
+        ((7, 7), 0.0)
+        >>> float(np.unique(quick.alpha)[1] - np.unique(quick.alpha)[0])
+        3.0
+        >>> len(custom([0.0, 1.0, 2.0], [0.0, 0.0, 5.0]).thin(2))
+        2
+        """
+        self.subset(step)  # the same check of step
+        shape = self.unstack_shape()
+        if shape is None or step == 1:
+            return self.subset(step)
+        n_alpha, n_beta = shape
+        ia = np.arange(0, n_alpha, int(step))
+        ib = np.arange(0, n_beta, int(step))
+        index = (ia[:, None] * n_beta + ib[None, :]).ravel()
+        return self[index]
+
     def with_shots(self, shots: int) -> Plan:
         """The same poses with another number of shots per pose."""
         return Plan(self.name, self.alpha, self.beta, shots)

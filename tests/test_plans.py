@@ -61,3 +61,14 @@ def test_grid_and_custom_and_slicing():
 def test_bad_plans_raise(call, field):
     with pytest.raises(ConfigurationError, match=field):
         call()
+
+
+def test_thin_keeps_a_grid_a_grid():
+    exp3 = plans.experiment("III")  # 19 x 19
+    quick = exp3.thin(3)
+    assert quick.unstack_shape() == (7, 7)
+    assert np.allclose(np.diff(np.unique(quick.alpha)), 3.0)
+    assert np.allclose(np.diff(np.unique(quick.beta)), 3.0)
+    assert exp3.thin(1) == exp3
+    odd = plans.custom([0.0, 1.0, 2.0, 3.0], [0.0, 0.0, 5.0, 1.0])
+    assert odd.thin(2) == odd.subset(2)
