@@ -15,6 +15,7 @@ from __future__ import annotations
 import importlib
 
 from ._errors import ConfigurationError, SchemaError, SunlabError
+from ._options import OPTIONS, set_options, show_progress
 
 __version__ = "0.1.0"
 
@@ -34,7 +35,16 @@ _SUBMODULES = {
     "cli",
 }
 
-__all__ = ["SunlabError", "SchemaError", "ConfigurationError", "__version__", *sorted(_SUBMODULES)]
+__all__ = [
+    "SunlabError",
+    "SchemaError",
+    "ConfigurationError",
+    "OPTIONS",
+    "set_options",
+    "show_progress",
+    "__version__",
+    *sorted(_SUBMODULES),
+]
 
 
 def __getattr__(name: str):

@@ -43,6 +43,7 @@ import numpy as np
 
 from . import _centroid_kernels as _k
 from ._errors import ConfigurationError, SchemaError
+from ._options import show_progress
 from .schema import STATUS, STATUS_NAMES
 
 __all__ = [
@@ -1317,13 +1318,13 @@ def compute(*objs, scheduler: str = "threads", address: str | None = None,
 
         with Client(address) as client:
             futs = client.compute(list(objs))
-            if progress:
+            if show_progress(progress):
                 dprogress(futs)
             return tuple(client.gather(futs))
     kw = {"scheduler": scheduler}
     if num_workers:
         kw["num_workers"] = int(num_workers)
-    if progress:
+    if show_progress(progress):
         from dask.diagnostics import ProgressBar
 
         with ProgressBar(minimum=1.0):

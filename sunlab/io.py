@@ -209,7 +209,9 @@ def _clear_target(path: Path, overwrite: bool) -> None:
 
 @contextlib.contextmanager
 def _maybe_progress(progress: bool):
-    if progress:
+    from ._options import show_progress
+
+    if show_progress(progress):
         from dask.diagnostics import ProgressBar
 
         with ProgressBar():

@@ -42,6 +42,7 @@ import xarray as xr
 
 from . import geometry, schema
 from ._errors import ConfigurationError, SchemaError
+from ._options import show_progress
 
 __all__ = [
     "grid_layout",
@@ -477,7 +478,7 @@ def locate_layout(cube: xr.Dataset, *, half: int = 38, progress: bool = False,
     status = np.full((n_p, n_s, n_h), schema.STATUS["no_spot"], dtype=np.int8)
     options.setdefault("saturation", 2 ** int(cube.attrs.get("bit_depth", 10)) - 1)
     it = [(p, s) for p in range(n_p) for s in range(n_s)]
-    if progress:
+    if show_progress(progress):
         from tqdm.auto import tqdm
 
         it = tqdm(it, desc="locate_layout")

@@ -128,7 +128,8 @@ class _Axis:
         self.target = target
         self.t0 = now
         # an infinite velocity (instant motion) ends the move now, exactly
-        self.t1 = now if math.isinf(self.velocity) else now + abs(target - self.start) / self.velocity
+        travel = abs(target - self.start)
+        self.t1 = now if math.isinf(self.velocity) else now + travel / self.velocity
         self.stuck = stuck
 
     def halt(self, now: float) -> None:

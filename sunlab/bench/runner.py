@@ -56,6 +56,7 @@ from pathlib import Path
 import numpy as np
 
 from .._errors import ConfigurationError
+from .._options import show_progress
 from ._errors import BenchError, CameraError
 
 __all__ = ["RunResult", "acquire", "open_run", "TIME_UNITS"]
@@ -390,8 +391,8 @@ def acquire(
 
     written = 0
     status, error = "complete", None
-    bar = tqdm(total=alpha.size, initial=int(done.sum()), unit="pose", disable=not progress,
-               desc=f"acquire {name}".strip())
+    bar = tqdm(total=alpha.size, initial=int(done.sum()), unit="pose",
+               disable=not show_progress(progress), desc=f"acquire {name}".strip())
     try:
         for pose in np.flatnonzero(~done):
             if stop.is_set():
