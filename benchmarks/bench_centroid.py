@@ -8,7 +8,7 @@ extract; float32 input), photutils ``centroid_com`` on a background-subtracted c
 (the memory floor). Two accuracy columns:
 
 * ``paper bench``: the full detector (PRNU, DSNU, fill factor, hot pixels) -- systematic pixel
-  response errors of ~0.1 px dominate, as PAPER.md sec. 8 expects;
+  response errors of ~0.1 px dominate, as docs/paper.md sec. 8 expects;
 * ``temporal noise``: the same geometry with fixed patterns off (shot + read noise only), where
   the Cramér–Rao bound applies.
 

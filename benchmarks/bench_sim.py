@@ -7,7 +7,7 @@ process CPU time are reported: on a shared machine the CPU time is the fairer fi
 <= 15 ms per single-hole frame.
 
 With ``--budget`` it also measures the hole-specific centroid error that the detector's fixed
-patterns give a single spot (PAPER.md sec. 8 asks for about 0.1 px): noiseless frames of the
+patterns give a single spot (docs/paper.md sec. 8 asks for about 0.1 px): noiseless frames of the
 default bench at random poses, a window centroid above the window's border level, minus the true
 centroid; the RMS over poses per axis.
 
@@ -108,7 +108,7 @@ def budget(n: int = 120) -> None:
         print(
             f"  {name:34s} x {sx:.4f}  y {sy:.4f}   (= {sx * px_deg:.4f} / {sy * px_deg:.4f} deg)"
         )
-    print("  PAPER.md sec. 8 target: about 0.1 px (0.008 deg)")
+    print("  docs/paper.md sec. 8 target: about 0.1 px (0.008 deg)")
 
 
 def main() -> None:

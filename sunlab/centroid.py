@@ -7,7 +7,7 @@ in DN, ``window`` the half-open pixel box ``(x0, x1, y0, y1)`` the estimate used
 code of :data:`sunlab.schema.STATUS`. A frame without a usable spot gives NaN and a status, never
 an exception; only a wrongly shaped argument (not 2-D) raises.
 
-Estimators (PAPER.md sec. 3 and beyond):
+Estimators (docs/paper.md sec. 3 and beyond):
 
 * :func:`threshold_window` — algorithm A, the group's earlier threshold + fixed 130 x 130 window;
 * :func:`projection_window` — algorithm B, the paper's projection-profile window;
@@ -225,7 +225,7 @@ def threshold_window(
 
     References
     ----------
-    PAPER.md sec. 3, algorithm A.
+    docs/paper.md sec. 3, algorithm A.
 
     Examples
     --------
@@ -369,7 +369,7 @@ def projection_window(
 
     References
     ----------
-    PAPER.md sec. 3, algorithm B.
+    docs/paper.md sec. 3, algorithm B.
 
     Examples
     --------

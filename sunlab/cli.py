@@ -220,7 +220,7 @@ def _add_calibrate(sub) -> None:
     p.add_argument("--method", default="polynomial",
                    choices=["polynomial", "trigonometric", "linear", "cubic", "neural", "ideal",
                             "optimised"],
-                   help="calibration function (PAPER.md sec. 4); default polynomial")
+                   help="calibration function (docs/paper.md sec. 4); default polynomial")
     p.add_argument("--order", default="5",
                    help="polynomial / trigonometric order, or 'auto' to pick the polynomial "
                         "order on --validation (default 5)")

@@ -13,7 +13,8 @@ Sunlight passes the hole along :math:`-\\mathbf{s}`, so the spot moves by
 +y with +beta, which is the paper's eq. (1).
 
 The optimised model, eqs. (3)-(4), adopted here (the source's formulas were lost; this is the
-reconstruction of PAPER.md sec. 4.1). Parameters: the mask-distance error :math:`\\delta F`, the
+reconstruction of docs/paper.md sec. 4.1). Parameters: the mask-distance error
+:math:`\\delta F`, the
 mounting errors :math:`\\alpha_0, \\beta_0` of the sensor on the platform, and the measured
 zero-pose centroid :math:`(x_{zp}, y_{zp})` (the centroid with the platform at alpha = beta = 0).
 With :math:`F' = F + \\delta F` and the pixel pitch :math:`p`,
@@ -35,7 +36,7 @@ model with a rigid mounting rotation, which the optimised model only approximate
 
 References
 ----------
-.. [1] PAPER.md, sec. 1 and 4.1 (the 2005 preprint on the Naples APS sun sensor).
+.. [1] docs/paper.md, sec. 1 and 4.1 (the 2005 preprint on the Naples APS sun sensor).
 """
 
 from __future__ import annotations
@@ -339,7 +340,7 @@ def fit_optimised_model(
     Minimises
     :math:`\\sum_i (\\alpha_m(x_i, y_i) - \\alpha_i)^2 + (\\beta_m(x_i, y_i) - \\beta_i)^2`
     over the calibration centroids with :func:`scipy.optimize.least_squares` (trust-region
-    reflective, Jacobian-scaled), as in PAPER.md sec. 4.1.
+    reflective, Jacobian-scaled), as in docs/paper.md sec. 4.1.
 
     Parameters
     ----------
@@ -558,7 +559,7 @@ def synthetic_centroids(
 
     No frames are rendered (that is :mod:`sunlab.sim`): the true platform angles are the
     commanded ones plus a per-pose positioning error (uniform in ``[-w, w]`` per axis, bounded
-    as PAPER.md sec. 8 infers) and a per-shot normal jitter; :func:`pinhole_centroid` maps them
+    as docs/paper.md sec. 8 infers) and a per-shot normal jitter; :func:`pinhole_centroid` maps them
     to the focal plane through the misaligned sensor, and a normal centroid noise is added.
 
     Parameters

@@ -27,7 +27,7 @@ row/column ``hole_i``, ``hole_j`` and design position ``hole_x_cf``, ``hole_y_cf
 
 References
 ----------
-.. [1] PAPER.md, sec. 6 and Table 5 (the 2005 preprint on the Naples APS sun sensor).
+.. [1] docs/paper.md, sec. 6 and Table 5 (the 2005 preprint on the Naples APS sun sensor).
 """
 
 from __future__ import annotations
@@ -99,7 +99,8 @@ def grid_layout(n: int = 10, pitch_mm: float = 0.5, *, centre_px=(572.0, 375.0),
         Hole spacing, mm (the paper: 0.5 mm).
     centre_px : (float, float)
         Design position of the grid centre (column, row), px. The default sits off the detector
-        centre so that all spots stay on the Ibis4 over the paper's test range (PAPER.md sec. 8).
+        centre so that all spots stay on the Ibis4 over the paper's test range
+        (docs/paper.md sec. 8).
     pixel_pitch_mm : float
         Detector pixel pitch, mm.
 
@@ -1059,7 +1060,7 @@ def global_stats(est: xr.Dataset) -> dict:
 
     Local error = mean over the shots of |error|, maximum error = max over the shots; mu and
     sigma are the mean and (sample) standard deviation of the local errors over the poses, M and
-    sigma_M those of the maximum errors (PAPER.md sec. 5), computed by :mod:`sunlab.stats`.
+    sigma_M those of the maximum errors (docs/paper.md sec. 5), computed by :mod:`sunlab.stats`.
     ``rms`` is the root mean square of the per-shot errors.
 
     Parameters

@@ -1,7 +1,7 @@
 """Pose plans: the platform poses of an experiment and the number of frames (shots) per pose.
 
 A plan is a flat list of commanded platform poses (alpha, beta) in degrees plus the number of
-shots taken at each pose. The paper's three experiments (Table 3, PAPER.md sec. 5) are regular
+shots taken at each pose. The paper's three experiments (Table 3, docs/paper.md sec. 5) are regular
 grids with the outer axis alpha as the outer loop; any other grid or a custom list of poses is a
 plan too, so that every acquisition or simulation goes through one type.
 
@@ -16,7 +16,7 @@ Examples
 
 References
 ----------
-.. [1] PAPER.md, sec. 5, Table 3 (poses of experiments I, II and III).
+.. [1] docs/paper.md, sec. 5, Table 3 (poses of experiments I, II and III).
 """
 
 from __future__ import annotations
@@ -297,7 +297,8 @@ def experiment(name: str, shots: int = 8) -> Plan:
     key = {"1": "I", "2": "II", "3": "III"}.get(str(name).strip(), str(name).strip().upper())
     if key not in EXPERIMENTS:
         raise ConfigurationError(
-            f"experiment: found {name!r}; expected one of 'I', 'II', 'III' (PAPER.md Table 3). "
+            f"experiment: found {name!r}; expected one of 'I', 'II', 'III' "
+            "(docs/paper.md Table 3). "
             "Fix: use sunlab.plans.grid(...) for other poses."
         )
     return grid(*EXPERIMENTS[key], shots=shots, name=key)

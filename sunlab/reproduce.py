@@ -1,6 +1,6 @@
 """Reproduce the paper's Table 4 on the virtual bench: simulate, centroid, calibrate, compare.
 
-The pipeline of PAPER.md sec. 5, end to end:
+The pipeline of docs/paper.md sec. 5, end to end:
 
 1. simulate experiments I (calibration), II (validation) and III (test) of Table 3 on
    :meth:`sunlab.sim.Bench.paper_single_hole` (full 1280 x 1024 frames, 8 shots per pose), each
@@ -48,7 +48,7 @@ __all__ = [
     "format_table",
 ]
 
-#: The paper's optimised-model parameters (PAPER.md sec. 4.1).
+#: The paper's optimised-model parameters (docs/paper.md sec. 4.1).
 PAPER_OPTIMISED = {"alpha0": 1.864, "beta0": 0.415, "delta_f_mm": 0.094}
 #: Experiments of Table 3 and their roles.
 EXPERIMENTS = {"I": "calibration", "II": "validation", "III": "test"}
@@ -103,7 +103,7 @@ class Table4Result:
         return {
             "sunlab_version": __version__,
             "table": "4",
-            "source": "sunlab virtual bench (ours) beside PAPER.md Table 4 (paper)",
+            "source": "sunlab virtual bench (ours) beside docs/paper.md Table 4 (paper)",
             "ours": frame(self.table),
             "paper": frame(self.paper),
             "rectangle_area_deg2": {

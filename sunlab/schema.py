@@ -78,7 +78,7 @@ STATUS: dict[str, int] = {
 }
 STATUS_NAMES: dict[int, str] = {v: k for k, v in STATUS.items()}
 
-#: The paper's detector (PAPER.md sec. 1): Ibis4, 1280 x 1024 pixels of 7 um, 10-bit ADC.
+#: The paper's detector (docs/paper.md sec. 1): Ibis4, 1280 x 1024 pixels of 7 um, 10-bit ADC.
 IBIS4 = {"nx": 1280, "ny": 1024, "pixel_pitch_mm": 0.007, "bit_depth": 10}
 
 _FRAME_DTYPES = (np.dtype(np.uint8), np.dtype(np.uint16))

@@ -1,4 +1,5 @@
-"""Error statistics of a calibration on a test experiment (PAPER.md sec. 5), and the paper's tables.
+"""Error statistics of a calibration on a test experiment (docs/paper.md sec. 5), and the
+paper's tables.
 
 Protocol of the paper, per pose of the test experiment III and per angle:
 
@@ -59,7 +60,8 @@ ANGLES = ("alpha", "beta")
 #: Row labels of the global statistics, in the paper's order (Table 4).
 STATS = ("mu", "sigma", "M", "sigma_M")
 
-_REFERENCE = ("PAPER.md sec. 5, Tables 4 and 5 (the 2005 preprint on the Naples APS sun sensor: "
+_REFERENCE = ("docs/paper.md sec. 5, Tables 4 and 5 (the 2005 preprint on the Naples APS sun "
+              "sensor: "
               "laboratory tests and calibration)")
 
 
@@ -312,7 +314,7 @@ def paper_table4() -> pd.DataFrame:
     """The paper's Table 4: global statistics on experiment III, one hole, deg.
 
     Columns ``linear interp.``, ``cubic interp.``, ``polynomial``, ``NN strategy 4``; index
-    ``(angle, stat)`` as :func:`global_stats`. Source: PAPER.md sec. 5, Table 4.
+    ``(angle, stat)`` as :func:`global_stats`. Source: docs/paper.md sec. 5, Table 4.
 
     Examples
     --------
@@ -332,7 +334,7 @@ def paper_table5() -> pd.DataFrame:
     """The paper's Table 5: polynomial calibration, 100 holes vs one hole, deg.
 
     Columns ``100 holes: geometric centre``, ``100 holes: averaging``, ``1 hole``. Source:
-    PAPER.md sec. 6, Table 5.
+    docs/paper.md sec. 6, Table 5.
 
     Examples
     --------

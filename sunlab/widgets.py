@@ -3,7 +3,7 @@
 :class:`HoleExplorer` shows the holes of a multi-hole mask as a clickable map coloured by a
 defect metric (:data:`sunlab.multihole.DEFECT_METRICS`); selecting a hole shows its spot stamp
 at a chosen pose and shot, its metrics and its residual map over the field of view; toggling a
-hole in or out of the average updates the global statistics (PAPER.md sec. 5 and 6) live.
+hole in or out of the average updates the global statistics (docs/paper.md sec. 5 and 6) live.
 
 Figures are rendered to PNG and placed in ``ipywidgets.Output`` widgets as display data, which
 works the same in a kernel, in Voila and in a plain Python process (tests drive the widgets by

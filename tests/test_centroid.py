@@ -377,7 +377,7 @@ def test_cli_centroid(tmp_path, capsys):
 def test_locate_spots_on_a_rendered_bench_frame_matches_truth():
     # The virtual bench's 10 x 10 mask at the paper's SNR, full detector model (PRNU, DSNU,
     # fill factor, hot pixels): every hole found, indexed as the truth orders them, and the
-    # centroids within the ~0.1-0.2 px of fixed-pattern error PAPER.md sec. 8 expects.
+    # centroids within the ~0.1-0.2 px of fixed-pattern error docs/paper.md sec. 8 expects.
     from sunlab import sim
 
     bench = sim.Bench.paper_multi_hole()

@@ -202,7 +202,8 @@ def test_inverse_variance_weights_follow_the_hole_scatter(defective):
 @pytest.mark.parametrize(
     "common, hole, lo, hi",
     [
-        # the paper's budget (PAPER.md sec. 8): common 0.005 deg, specific 0.008 deg -> about 2x
+        # the paper's budget (docs/paper.md sec. 8): common 0.005 deg, specific 0.008 deg
+        # -> about 2x
         ((0.005, 0.005), 0.008 / K_DEG_PER_PX, 1.5, 2.6),
         # no common error: the gain approaches sqrt(100) = 10
         ((0.0, 0.0), 0.008 / K_DEG_PER_PX, 7.0, 12.5),

@@ -27,7 +27,7 @@ def test_calibrated_methods_reach_hundredths_of_a_degree(result):
     t = result.table
     # The ideal model (1) ignores dF and the mounting: errors of the order of the mounting
     # angles (about 1.9 deg in alpha). A calibrated polynomial reaches the platform's own
-    # pose error (PAPER.md sec. 8: about 0.01 deg in alpha, 0.02 deg in beta).
+    # pose error (docs/paper.md sec. 8: about 0.01 deg in alpha, 0.02 deg in beta).
     assert t.loc[("alpha", "mu"), "ideal model (1)"] > 1.0
     assert t.loc[("alpha", "mu"), "polynomial"] < 0.02
     assert t.loc[("beta", "mu"), "polynomial"] < 0.04

@@ -27,7 +27,8 @@ def test_pose_error_is_bounded_uniform_and_larger_on_beta():
     for e, hw in ((ea, plat.alpha_pose_error_deg), (eb, plat.beta_pose_error_deg)):
         assert np.abs(e).max() <= hw
         assert e.std() == pytest.approx(hw / np.sqrt(3), rel=0.04)
-        # sigma / mu of |e| is 0.577 for a uniform error (0.756 for a normal one), PAPER.md sec. 8
+        # sigma / mu of |e| is 0.577 for a uniform error (0.756 for a normal one),
+        # docs/paper.md sec. 8
         assert np.abs(e).std() / np.abs(e).mean() == pytest.approx(1 / np.sqrt(3), abs=0.03)
     assert eb.std() > 3 * ea.std()
 

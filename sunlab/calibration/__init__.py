@@ -4,7 +4,7 @@ Every method shares one interface (:class:`Calibration`): ``fit(train, validatio
 ``predict(centroids)``, ``save(path)``; :func:`load` restores any saved calibration.
 
 ========================  ========================================================  ===========
-class                     method (PAPER.md sec. 4)                                  kind
+class                     method (docs/paper.md sec. 4)                                  kind
 ========================  ========================================================  ===========
 :class:`IdealModel`       ideal geometric model, eq. (1); nothing fitted            ideal
 :class:`OptimisedModel`   optimised model, eqs. (3)-(4): dF, alpha0, beta0          optimised

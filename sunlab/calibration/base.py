@@ -1,7 +1,7 @@
 """The common interface of every calibration function, and the ``calibration/1`` JSON artifact.
 
 A calibration maps a spot centroid ``(x, y)`` (px) to platform angles ``(alpha, beta)`` (deg):
-``alpha = f1(x, y)``, ``beta = f2(x, y)`` (PAPER.md sec. 4). Every method in
+``alpha = f1(x, y)``, ``beta = f2(x, y)`` (docs/paper.md sec. 4). Every method in
 :mod:`sunlab.calibration` is a :class:`Calibration` with the same three verbs:
 
 - ``fit(train, validation=None)`` on ``centroids/1`` tables with the commanded angles as

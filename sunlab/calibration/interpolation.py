@@ -1,4 +1,4 @@
-"""Calibration table + interpolation (PAPER.md sec. 4.2): linear and cubic.
+"""Calibration table + interpolation (docs/paper.md sec. 4.2): linear and cubic.
 
 The calibration table is the set of nodes (mean centroid of the ok shots of each pose ->
 commanded angles). The centroids of a pose grid do not lie on a grid (the mapping is

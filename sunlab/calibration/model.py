@@ -127,7 +127,7 @@ class OptimisedModel(Calibration):
     -----
     Minimises :math:`\\sum_i (\\alpha_m - \\alpha_i)^2 + (\\beta_m - \\beta_i)^2` with
     :func:`sunlab.geometry.fit_optimised_model`; the paper found alpha0 = 1.864 deg,
-    beta0 = 0.415 deg, dF = 0.094 mm (PAPER.md sec. 4.1).
+    beta0 = 0.415 deg, dF = 0.094 mm (docs/paper.md sec. 4.1).
 
     Examples
     --------

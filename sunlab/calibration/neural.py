@@ -1,7 +1,7 @@
 """Neural-network calibration functions, the four strategies of the paper's Table 2.
 
 One network per angle: a feed-forward net with one hidden layer of ``hidden`` tanh neurons and
-one linear output neuron (PAPER.md sec. 4.2). The strategies differ in what the net sees and
+one linear output neuron (docs/paper.md sec. 4.2). The strategies differ in what the net sees and
 learns:
 
 =====  ===============================================  =====================================

@@ -1,4 +1,4 @@
-"""Polynomial calibration functions of total degree n (PAPER.md sec. 4.2).
+"""Polynomial calibration functions of total degree n (docs/paper.md sec. 4.2).
 
 .. math:: f(x, y) = \\sum_{k=0}^{n} \\sum_{l=0}^{k} a_{kl}\\, u^{k-l} v^{l}
 
@@ -107,7 +107,7 @@ class Polynomial(Calibration):
 
     Notes
     -----
-    PAPER.md sec. 4.2: :math:`\\alpha = f_1(x_c, y_c)`, :math:`\\beta = f_2(x_c, y_c)` with
+    docs/paper.md sec. 4.2: :math:`\\alpha = f_1(x_c, y_c)`, :math:`\\beta = f_2(x_c, y_c)` with
     :math:`f(x, y) = \\sum_{k=0}^{n}\\sum_{l=0}^{k} a_{kl} x^{k-l} y^l`, here in the scaled
     variables (u, v) of the module docstring. The paper picks n on experiment II.
 

@@ -1,4 +1,4 @@
-"""Trigonometric (2-D Fourier) calibration functions (PAPER.md sec. 4.2, "much worse").
+"""Trigonometric (2-D Fourier) calibration functions (docs/paper.md sec. 4.2, "much worse").
 
 .. math:: f(u, v) = \\sum_{i=0}^{2n} \\sum_{j=0}^{2n} c_{ij}\\, \\phi_i(u)\\, \\phi_j(v), \\qquad
           \\phi \\in \\{1, \\cos(k\\omega u), \\sin(k\\omega u)\\}_{k=1..n}, \\quad

@@ -6,7 +6,7 @@ A :class:`Bench` is a dataclass of dataclasses -- :class:`Source` (the 0.52 deg 
 Ibis4-like APS with fill factor, PRNU, DSNU, hot pixels, noise and a 10-bit ADC) and
 :class:`Platform` (two axes, mounting errors, per-pose error, jitter) -- and every default is
 documented with its rationale where it is defined; the module docstring of
-:mod:`sunlab.sim.bench` summarises the error budget (PAPER.md sec. 8).
+:mod:`sunlab.sim.bench` summarises the error budget (docs/paper.md sec. 8).
 
 Main entry points: :func:`simulate` (a lazy cube of a plan), :func:`render_frame` (one frame),
 :func:`platform_pose` (true angles for commanded ones), :func:`spot_truth` (true centroids).

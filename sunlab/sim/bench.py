@@ -1,7 +1,7 @@
 """The virtual bench: source + mask + detector + platform, presets, and lazy simulated cubes.
 
-Error budget of the presets (our reading of PAPER.md sec. 8; every number is documented where it
-is defined):
+Error budget of the presets (our reading of docs/paper.md sec. 8; every number is documented
+where it is defined):
 
 * per shot, about 0.0007 deg: platform jitter 0.0005 deg RMS per axis
   (:class:`~sunlab.sim.Platform`) plus photon, dark and read noise on the centroid (a few
@@ -91,11 +91,11 @@ class Bench:
     # ---------------------------------------------------------------- presets
     @classmethod
     def paper_single_hole(cls) -> Bench:
-        """The paper's bench with the one-hole mask (PAPER.md sec. 1-2, 5).
+        """The paper's bench with the one-hole mask (docs/paper.md sec. 1-2, 5).
 
         Mask: one 0.2 mm hole at F = 5.0 mm (our choice) with dF = 0.094 mm (the paper's fitted
         value), tilted by 0.25 deg / -0.15 deg about x / y and offset by (12, -8) um (our choice:
-        "the mask plane is not parallel to the focal plane", PAPER.md sec. 4.1).
+        "the mask plane is not parallel to the focal plane", docs/paper.md sec. 4.1).
         """
         mask = Mask.single_hole(
             delta_f_mm=0.094,
@@ -108,7 +108,7 @@ class Bench:
 
     @classmethod
     def paper_multi_hole(cls, n_bad: int = 6) -> Bench:
-        """The paper's bench with the 100-hole mask (PAPER.md sec. 6).
+        """The paper's bench with the 100-hole mask (docs/paper.md sec. 6).
 
         Mask: a 10 x 10 grid of 0.2 mm holes at 0.5 mm pitch, off-centre by
         :data:`~sunlab.sim.mask.PAPER_GRID_CENTRE_MM` so that every spot stays on the detector

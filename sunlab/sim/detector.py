@@ -14,7 +14,7 @@ Signal chain of one pixel (electrons e-, digital numbers DN):
    pattern (column FPN); rounding to the nearest DN (quantisation, variance 1/12 DN^2); clipping to
    0 .. 2**bit_depth - 1 = 1023.
 
-Defaults and their rationale (our choices where the paper is silent, PAPER.md sec. 1, 8):
+Defaults and their rationale (our choices where the paper is silent, docs/paper.md sec. 1, 8):
 
 * 1280 x 1024 pixels of 7 um, 10 bits: the paper's Ibis4.
 * fill factor 0.5 x QE 0.7 = 0.35: the paper gives only the product FF x QE = 35 %; we split it so
@@ -27,7 +27,7 @@ Defaults and their rationale (our choices where the paper is silent, PAPER.md se
 * hot pixels: 2e-4 of the array with an exponential dark signal of mean 8000 e-.
 * PRNU: 1 % white plus 4 % spatially correlated (white noise smoothed by a Gaussian of 6 px).
   The correlated part is what turns pixel response into the paper's *hole-specific* error:
-  PAPER.md sec. 8 infers that a single hole carries a pose-dependent error of about 0.008 deg
+  docs/paper.md sec. 8 infers that a single hole carries a pose-dependent error of about 0.008 deg
   (about 0.1 px at F = 5 mm) that 100-hole averaging removes. A white 1 % PRNU moves a 35 px
   spot's centroid by only about 0.003 px; a response that varies over a few pixels by a few per
   cent (cover-glass contamination, implant and microlens non-uniformity of a low-cost sensor)

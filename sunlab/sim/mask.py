@@ -13,7 +13,7 @@ Defects (per hole, any combination):
 
 * :class:`Dust` -- an opaque particle over part of the hole, optionally standing ``height_mm``
   above the mask plane, so that its shadow slides over the aperture with the sun angle (a
-  pose-dependent centroid error: a "bad hole" of PAPER.md Fig. 14);
+  pose-dependent centroid error: a "bad hole" of docs/paper.md Fig. 14);
 * :class:`Elliptical` -- an elliptical outline (a drill that wandered, an etch that ran);
 * :class:`Burred` -- an irregular, burred rim (random low-order harmonics of the radius);
 * :class:`Undersized` -- a smaller diameter (a partly closed hole).
@@ -53,7 +53,7 @@ DEFECT_FLAGS = {"dust": 1, "elliptical": 2, "burred": 4, "undersized": 8}
 #: Centre of the paper-like 10 x 10 grid relative to the detector centre, mm (our choice): the
 #: spots sweep -16.5..1.5 deg in alpha and -1.5..16.5 deg in beta (plus the 1.864 / 0.415 deg
 #: mounting errors), i.e. about -200..+50 px in x and -20..+240 px in y, so the array sits left
-#: of and above the centre to keep every spot on the 1280 x 1024 detector (PAPER.md sec. 8).
+#: of and above the centre to keep every spot on the 1280 x 1024 detector (docs/paper.md sec. 8).
 PAPER_GRID_CENTRE_MM = (0.52, -0.78)
 
 
@@ -320,7 +320,7 @@ class Mask:
     distance_mm : float
         Nominal (design) mask-to-focal-plane distance F, mm. Default 5.0: our choice (the paper
         does not give F); with 7 um pixels it makes about 0.08 deg per pixel and a 35 px spot,
-        consistent with the paper's 130 px ROI being "about 2.5 spots" (PAPER.md sec. 1).
+        consistent with the paper's 130 px ROI being "about 2.5 spots" (docs/paper.md sec. 1).
     delta_f_mm : float
         Error of the mask distance: the true distance is F + dF, mm (the paper fitted 0.094).
     tilt_x_deg, tilt_y_deg : float
@@ -490,7 +490,8 @@ class Mask:
         min_separation_mm: float = 0.45,
         **kwargs,
     ) -> Mask:
-        """Randomly placed holes of random diameters (the paper's open problem, PAPER.md sec. 6).
+        """Randomly placed holes of random diameters (the paper's open problem, docs/paper.md
+        sec. 6).
 
         Parameters
         ----------

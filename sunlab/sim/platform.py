@@ -11,7 +11,7 @@ The outer axis sets alpha, the inner axis beta (the paper's eq. (1) convention,
 
 with encoder scale errors k, encoder zero offsets, an inner-axis wobble of amplitude w and period P
 in the outer angle (a systematic, learnable error), a per-pose positioning error e drawn uniformly
-in +-``*_pose_error_deg`` (bounded: the stage's positioning resolution and backlash; PAPER.md
+in +-``*_pose_error_deg`` (bounded: the stage's positioning resolution and backlash; docs/paper.md
 sec. 8 shows that sigma / mu of the paper's local errors is about 0.6, the value of a uniform, not
 a normal, error) and a per-shot jitter j (normal). The sun vector in the sensor frame is
 
@@ -25,7 +25,7 @@ where the inner axis u leans by the non-orthogonality epsilon toward the outer a
 fixed rotation in front is the sensor's mounting on the platform (alpha0, beta0, gamma0). For
 alpha0 = beta0 = 0 and epsilon = 0 this is :func:`sunlab.geometry.sun_vector`.
 
-Default error budget (our reading of PAPER.md sec. 8; the rationale of each number):
+Default error budget (our reading of docs/paper.md sec. 8; the rationale of each number):
 
 * mounting alpha0 = 1.864 deg, beta0 = 0.415 deg: the paper's fitted values (sec. 4.1).
 * per-pose error, uniform in +-0.008 deg (alpha) and +-0.028 deg (beta): the paper's common-mode
@@ -37,7 +37,7 @@ Default error budget (our reading of PAPER.md sec. 8; the rationale of each numb
 * non-orthogonality 0.02 deg, encoder offsets and scale errors 0: indistinguishable from mounting
   errors and F over the test range; available for experiments.
 * jitter 0.0005 deg RMS per shot on each axis: with the centroid noise this gives the paper's
-  per-shot scatter of about 0.0007 deg (M - mu = 0.001 deg, PAPER.md sec. 8).
+  per-shot scatter of about 0.0007 deg (M - mu = 0.001 deg, docs/paper.md sec. 8).
 
 Examples
 --------

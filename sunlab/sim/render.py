@@ -1,6 +1,6 @@
 """Rendering: from true platform angles to spot images, their true centroids and full frames.
 
-Physics (PAPER.md sec. 1-2; ``docs/nomenclature.md`` for the frames):
+Physics (docs/paper.md sec. 1-2; ``docs/nomenclature.md`` for the frames):
 
 * The sun vector in the sensor frame, s, follows from the true axis angles, the axis geometry and
   the sensor's mounting (:func:`sunlab.sim.platform.sensor_sun_vector`).

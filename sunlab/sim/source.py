@@ -1,6 +1,6 @@
 """The solar simulator: a collimated, uniform (optionally limb-darkened) disk of 0.52 deg.
 
-The paper's source (PAPER.md sec. 2) is the exit port of an integrating sphere, radius
+The paper's source (docs/paper.md sec. 2) is the exit port of an integrating sphere, radius
 R = 6.82 mm, at the focus of a lens of focal length f = 1500 mm: every point of the port becomes a
 parallel beam, so the sensor sees a disk of angular diameter 2 atan(R / f) = 0.521 deg, the Sun's
 apparent size from Earth orbit. An integrating sphere's port is Lambertian, so the disk is uniform
@@ -37,7 +37,7 @@ class Source:
     ----------
     diameter_deg : float
         Apparent angular diameter of the disk, deg. Default 2 atan(6.82 / 1500) = 0.5210 deg
-        (PAPER.md sec. 2).
+        (docs/paper.md sec. 2).
     limb_darkening : float
         Coefficient u of the linear limb-darkening law I(mu) = 1 - u (1 - mu), 0 <= u <= 1.
         Default 0: the integrating sphere's port is Lambertian, i.e. a uniform disk. The real
