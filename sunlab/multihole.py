@@ -1556,7 +1556,8 @@ def fig14_bad_holes(frame, cen_frame, holes, *, reference=None, half: int = 30, 
     show = ([reference] if reference is not None else []) + [int(h) for h in holes]
     if not show:
         raise ConfigurationError("holes: no hole to show; pass at least one hole index")
-    fig, axes = plt.subplots(1, len(show), figsize=(2.6 * len(show), 3.0), squeeze=False)
+    fig, axes = plt.subplots(1, len(show), figsize=(2.6 * len(show), 3.4), squeeze=False,
+                             layout="constrained")
     frame = np.asarray(frame)
     for ax, h in zip(axes[0], show, strict=True):
         x, y = float(cen_frame["x"].values[h]), float(cen_frame["y"].values[h])
@@ -1570,14 +1571,14 @@ def fig14_bad_holes(frame, cen_frame, holes, *, reference=None, half: int = 30, 
         title = f"hole {h}" + (" (good)" if h == reference else "")
         if metrics is not None:
             m = metrics.sel(hole=h) if "hole" in metrics.dims else metrics
-            bits = [f"{k[:5]}={float(m[k]):.2g}" for k in ("flux_deficit", "ellipticity",
-                                                         "asymmetry") if k in m]
-            title += "\n" + " ".join(bits)
+            short = {"flux_deficit": "flux deficit", "ellipticity": "ellipticity",
+                     "asymmetry": "asymmetry", "edge_roughness": "edge roughness"}
+            bits = [f"{name} {float(m[k]):.2g}" for k, name in short.items() if k in m]
+            title += "".join(("\n" if n % 2 == 0 else ", ") + b for n, b in enumerate(bits))
         ax.set_title(title, fontsize=8)
         ax.set_xticks([])
         ax.set_yticks([])
-    fig.suptitle("Spots of bad holes (Fig. 14)")
-    fig.tight_layout()
+    fig.suptitle("Spots of bad holes (Fig. 14)", fontsize=10)  # constrained layout: no overlap
     return fig
 
 
@@ -1602,31 +1603,20 @@ def fig15_rectangles(table: Mapping[str, Mapping], *, ax=None):
     1
     """
     import matplotlib.pyplot as plt
-    from matplotlib.patches import Rectangle
 
-    fig = ax.figure if ax is not None else plt.figure(figsize=(6, 5))
+    from .plots import draw_rectangles
+
+    fig = ax.figure if ax is not None else plt.figure(figsize=(6, 5.8), layout="constrained")
     ax = ax or fig.add_subplot()
-    colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
-    lo = [np.inf, np.inf]
-    hi = [-np.inf, -np.inf]
-    for n, (label, s) in enumerate(table.items()):
-        a0 = s["alpha"]["M"] - 3 * s["alpha"]["sigma_M"]
-        a1 = s["alpha"]["M"] + 3 * s["alpha"]["sigma_M"]
-        b0 = s["beta"]["M"] - 3 * s["beta"]["sigma_M"]
-        b1 = s["beta"]["M"] + 3 * s["beta"]["sigma_M"]
-        area = (a1 - a0) * (b1 - b0)
-        ax.add_patch(Rectangle((a0, b0), a1 - a0, b1 - b0, fill=False, lw=2,
-                               color=colors[n % len(colors)],
-                               label=f"{label} (area {area:.2e} deg$^2$)"))
-        lo = [min(lo[0], a0), min(lo[1], b0)]
-        hi = [max(hi[0], a1), max(hi[1], b1)]
-    pad = [0.05 * (hi[0] - lo[0]) + 1e-6, 0.05 * (hi[1] - lo[1]) + 1e-6]
-    ax.set_xlim(lo[0] - pad[0], hi[0] + pad[0])
-    ax.set_ylim(lo[1] - pad[1], hi[1] + pad[1])
+    boxes = [(label, s["alpha"]["M"] - 3 * s["alpha"]["sigma_M"],
+              s["alpha"]["M"] + 3 * s["alpha"]["sigma_M"],
+              s["beta"]["M"] - 3 * s["beta"]["sigma_M"], s["beta"]["M"] + 3 * s["beta"]["sigma_M"])
+             for label, s in table.items()]
+    # numbered rectangles, a shared tag where they coincide, the legend below the axes
+    draw_rectangles(ax, boxes)
     ax.set_xlabel(r"$\alpha$ error, deg: $M \pm 3\sigma_M$")
     ax.set_ylabel(r"$\beta$ error, deg: $M \pm 3\sigma_M$")
     ax.set_title("One hole vs 100 holes (Fig. 15)")
-    ax.legend(fontsize=8)
     return fig
 
 

@@ -5,8 +5,11 @@
 - :func:`error_rectangles` — Fig. 12: the [M - 3 sigma_M, M + 3 sigma_M] rectangles of the
   methods.
 
-Figures are built with :class:`matplotlib.figure.Figure` (no pyplot state, no GUI): they display
-as cell outputs in Jupyter and save with ``fig.savefig(path)``.
+Figures are built without pyplot (no global figure state, no GUI window, nothing to close in a
+loop) as :class:`ShownFigure`, a :class:`matplotlib.figure.Figure` that also knows how to show
+itself: returned as the last expression of a Jupyter cell (or passed to ``display``) it appears
+as a PNG in any kernel, even one where pyplot never drew, which a bare ``Figure`` does not (it
+prints ``<Figure size ...>`` there). In scripts it saves with ``fig.savefig(path)`` as usual.
 
 Examples
 --------
@@ -27,9 +30,50 @@ from matplotlib.patches import Rectangle
 from ._errors import ConfigurationError
 from .stats import ANGLES, rectangles, unstack_poses
 
-__all__ = ["error_maps", "error_histogram", "error_rectangles"]
+__all__ = ["ShownFigure", "new_figure", "error_maps", "error_histogram", "error_rectangles",
+           "draw_rectangles"]
 
 _LABELS = {"local_error": "local error", "max_error": "maximum error"}
+
+
+class ShownFigure(Figure):
+    """A :class:`matplotlib.figure.Figure` that displays as a PNG in Jupyter without pyplot.
+
+    IPython shows a figure as an image only when pyplot's inline backend has registered its
+    formatter, which happens once pyplot has drawn something in the kernel; this class adds
+    ``_repr_png_`` so the figure shows in a fresh kernel too. Where the inline formatter is
+    registered it takes precedence, so the figure is shown once, never twice.
+
+    Examples
+    --------
+    >>> fig = ShownFigure(figsize=(2, 1.5))
+    >>> _ = fig.subplots().plot([0, 1], [0, 1])
+    >>> fig._repr_png_()[:8] == b"\\x89PNG\\r\\n\\x1a\\n"
+    True
+    """
+
+    def _repr_png_(self) -> bytes:
+        import io
+
+        buf = io.BytesIO()
+        self.savefig(buf, format="png", dpi=self.dpi, bbox_inches="tight",
+                     facecolor="white")
+        return buf.getvalue()
+
+
+def new_figure(**kwargs) -> ShownFigure:
+    """A new :class:`ShownFigure` (keywords as :class:`matplotlib.figure.Figure`'s).
+
+    The one place where sunlab's figure functions make a figure: no pyplot state, no GUI, shown
+    as a PNG when a notebook cell returns it.
+
+    Examples
+    --------
+    >>> fig = new_figure(figsize=(3, 2), layout="constrained")
+    >>> isinstance(fig, Figure), fig.get_size_inches().tolist()
+    (True, [3.0, 2.0])
+    """
+    return ShownFigure(**kwargs)
 
 
 def error_maps(local: xr.Dataset, *, variables=("local_error", "max_error"), angles=ANGLES,
@@ -66,7 +110,7 @@ def error_maps(local: xr.Dataset, *, variables=("local_error", "max_error"), ang
     8
     """
     grid = unstack_poses(local[list(variables)])
-    fig = Figure(figsize=(4.2 * len(angles), 3.4 * len(variables)), layout="constrained")
+    fig = new_figure(figsize=(4.2 * len(angles), 3.4 * len(variables)), layout="constrained")
     axes = fig.subplots(len(variables), len(angles), squeeze=False)
     for i, var in enumerate(variables):
         for j, ang in enumerate(angles):
@@ -128,7 +172,7 @@ def error_histogram(values, *, angle: str = "alpha", variable: str = "local_erro
     if v.size < 2:
         raise ConfigurationError(f"values: found {v.size} finite errors, expected at least 2")
     mu, sigma = float(v.mean()), float(v.std(ddof=1))
-    fig = Figure(figsize=(5.5, 3.8), layout="constrained")
+    fig = new_figure(figsize=(5.5, 3.8), layout="constrained")
     ax = fig.subplots()
     ax.hist(v, bins=bins, density=True, color="0.75", edgecolor="0.4", label=f"{v.size} values")
     if sigma > 0:
@@ -160,36 +204,109 @@ def error_rectangles(table: pd.DataFrame, *, title: str | None = None,
     Returns
     -------
     matplotlib.figure.Figure
-        One :class:`matplotlib.patches.Rectangle` per method (in table order), labelled with
-        its area in deg^2; a smaller rectangle is a better method.
+        One :class:`matplotlib.patches.Rectangle` per method (in table order), labelled
+        ``"k: method (area ...)"`` with its number k (also written at its corner) and its area
+        in deg^2; a smaller rectangle is a better method. The legend sits below the axes;
+        coinciding rectangles share a tag (:func:`draw_rectangles`).
 
     Examples
     --------
     >>> from sunlab import stats
     >>> ax = error_rectangles(stats.paper_table4()).axes[0]
-    >>> ax.patches[2].get_label().startswith("polynomial")
+    >>> ax.patches[2].get_label().startswith("3: polynomial")
     True
     """
     rect = table if "area" in table.columns else rectangles(table)
-    fig = Figure(figsize=(5.5, 5.0), layout="constrained")
+    fig = new_figure(figsize=(5.5, 5.6), layout="constrained")
     ax = fig.subplots()
-    for k, (method, r) in enumerate(rect.iterrows()):
-        color = colors[k] if colors is not None else f"C{k % 10}"
-        ax.add_patch(Rectangle(
-            (r["alpha_low"], r["beta_low"]), r["alpha_high"] - r["alpha_low"],
-            r["beta_high"] - r["beta_low"], fill=False, edgecolor=color, linewidth=1.8,
-            label=f"{method} (area {r['area']:.2e} deg$^2$)",
-        ))
-    lo = min(rect["alpha_low"].min(), rect["beta_low"].min())
-    hi = max(rect["alpha_high"].max(), rect["beta_high"].max())
-    pad = 0.05 * (hi - lo) if hi > lo else 1.0
-    ax.set_xlim(rect["alpha_low"].min() - pad, rect["alpha_high"].max() + pad)
-    ax.set_ylim(rect["beta_low"].min() - pad, rect["beta_high"].max() + pad)
-    ax.axhline(0.0, color="0.8", linewidth=0.8)
-    ax.axvline(0.0, color="0.8", linewidth=0.8)
+    boxes = [(str(method), r["alpha_low"], r["alpha_high"], r["beta_low"], r["beta_high"])
+             for method, r in rect.iterrows()]
+    draw_rectangles(ax, boxes, colors=colors)
     ax.set_xlabel("alpha error interval (deg)")
     ax.set_ylabel("beta error interval (deg)")
-    ax.legend(loc="upper left", fontsize="small")
     if title:
         ax.set_title(title)
     return fig
+
+
+def draw_rectangles(ax, boxes, *, colors=None, tol: float = 0.02, legend: bool = True) -> list:
+    """Draw error rectangles (Figs. 12 and 15) so that every one stays readable.
+
+    Each rectangle gets a number, written at its upper right corner and in front of its legend
+    entry. Rectangles that coincide (every side within ``tol`` of the axis span) share one tag,
+    ``"1 = 2 = 3"``, and get different line styles, so a reader sees that they overlap rather
+    than that some are missing. The legend goes below the axes, never over a rectangle.
+
+    Parameters
+    ----------
+    ax : matplotlib.axes.Axes
+    boxes : sequence of (str, float, float, float, float)
+        ``(label, alpha_low, alpha_high, beta_low, beta_high)`` per rectangle, deg.
+    colors : sequence, optional
+        One matplotlib colour per rectangle (default the colour cycle).
+    tol : float
+        Relative tolerance (fraction of the axis span) under which two rectangles coincide.
+    legend : bool
+        Draw the legend (below the axes).
+
+    Returns
+    -------
+    list of list of int
+        The groups of coinciding rectangles (indices into ``boxes``), one list per tag.
+
+    Examples
+    --------
+    >>> fig = new_figure()
+    >>> ax = fig.subplots()
+    >>> draw_rectangles(ax, [("a", 0, 1, 0, 2), ("b", 0, 1.001, 0, 2), ("c", 2, 3, 1, 4)])
+    [[0, 1], [2]]
+    >>> [t.get_text() for t in ax.texts]
+    ['1 = 2', '3']
+    """
+    from matplotlib.ticker import MaxNLocator
+
+    boxes = [(str(b[0]), *map(float, b[1:])) for b in boxes]
+    if not boxes:
+        raise ConfigurationError("boxes: no rectangle to draw; pass at least one")
+    lo_a = min(b[1] for b in boxes)
+    hi_a = max(b[2] for b in boxes)
+    lo_b = min(b[3] for b in boxes)
+    hi_b = max(b[4] for b in boxes)
+    span_a = (hi_a - lo_a) or 1.0
+    span_b = (hi_b - lo_b) or 1.0
+    groups: list[list[int]] = []
+    for k, b in enumerate(boxes):
+        for g in groups:
+            r = boxes[g[0]]
+            if (abs(b[1] - r[1]) <= tol * span_a and abs(b[2] - r[2]) <= tol * span_a
+                    and abs(b[3] - r[3]) <= tol * span_b and abs(b[4] - r[4]) <= tol * span_b):
+                g.append(k)
+                break
+        else:
+            groups.append([k])
+    styles = ["-", "--", ":", "-."]
+    rank = {k: n for g in groups for n, k in enumerate(g)}  # place within its group
+    for k, (label, a0, a1, b0, b1) in enumerate(boxes):  # patches in the order of `boxes`
+        color = colors[k] if colors is not None else f"C{k % 10}"
+        area = (a1 - a0) * (b1 - b0)
+        ax.add_patch(Rectangle(
+            (a0, b0), a1 - a0, b1 - b0, fill=False, edgecolor=color,
+            linewidth=2.2 if rank[k] == 0 else 1.6, linestyle=styles[rank[k] % len(styles)],
+            label=f"{k + 1}: {label} (area {area:.2e} deg$^2$)",
+        ))
+    for g in groups:
+        _, a0, a1, b0, b1 = boxes[g[0]]
+        tag = " = ".join(str(k + 1) for k in g)
+        color = colors[g[0]] if colors is not None else f"C{g[0] % 10}"
+        ax.annotate(tag, (a1, b1), xytext=(2, 2), textcoords="offset points", fontsize=9,
+                    color=color, fontweight="bold", ha="left", va="bottom")
+    pad_a, pad_b = 0.08 * span_a, 0.08 * span_b
+    ax.set_xlim(lo_a - pad_a, hi_a + 2 * pad_a)
+    ax.set_ylim(lo_b - pad_b, hi_b + 2 * pad_b)
+    ax.axhline(0.0, color="0.85", linewidth=0.8, zorder=0)
+    ax.axvline(0.0, color="0.85", linewidth=0.8, zorder=0)
+    ax.xaxis.set_major_locator(MaxNLocator(nbins=5))
+    ax.yaxis.set_major_locator(MaxNLocator(nbins=6))
+    if legend:
+        ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.13), fontsize=8, frameon=False)
+    return groups

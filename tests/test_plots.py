@@ -53,6 +53,35 @@ def test_error_rectangles_fig12():
     poly = rects[list(tab.columns).index("polynomial")]
     assert np.isclose(poly.get_x(), r["alpha_low"]) and np.isclose(poly.get_y(), r["beta_low"])
     assert np.isclose(poly.get_width() * poly.get_height(), r["area"])
-    assert poly.get_label().startswith("polynomial (area")
+    assert poly.get_label().startswith("3: polynomial (area")
+    # the legend sits below the axes, over no rectangle (axes coordinates: y < 0)
+    fig.canvas.draw()
+    ax = fig.axes[0]
+    box = ax.get_legend().get_window_extent().transformed(ax.transAxes.inverted())
+    assert box.y1 < 0, box
+    # each rectangle is tagged with its number at its corner
+    assert sorted(t.get_text() for t in ax.texts) == ["1", "2", "3", "4"]
     # accepts the rectangles table too
     assert len(plots.error_rectangles(stats.rectangles(tab)).axes[0].patches) == 4
+
+
+def test_coinciding_rectangles_share_a_tag():
+    """Fig. 15's three 100-hole rectangles can coincide: one tag names them all."""
+    from sunlab.plots import draw_rectangles, new_figure
+
+    ax = new_figure().subplots()
+    groups = draw_rectangles(ax, [("geometric centre", 0.0, 0.01, 0.0, 0.05),
+                                  ("averaging", 0.0, 0.0101, 0.0, 0.0502),
+                                  ("1 hole", 0.0, 0.02, 0.0, 0.03)])
+    assert groups == [[0, 1], [2]]
+    assert [t.get_text() for t in ax.texts] == ["1 = 2", "3"]
+    styles = [p.get_linestyle() for p in ax.patches]
+    assert styles[0] != styles[1]  # both coinciding outlines stay visible
+
+
+def test_figures_show_in_a_fresh_kernel():
+    """A returned figure carries its own PNG (IPython shows it without pyplot's formatter)."""
+    fig = plots.error_rectangles(stats.paper_table4())
+    assert isinstance(fig, plots.ShownFigure)
+    png = fig._repr_png_()
+    assert png.startswith(b"\x89PNG") and len(png) > 10_000
