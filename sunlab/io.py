@@ -9,6 +9,14 @@ Two on-disk formats hold the same datasets (contracts ``frames/1`` and ``centroi
 * **NetCDF4/HDF5** (``.nc``): one file written with the ``h5netcdf`` engine, frames chunked and
   compressed the same way; uint16 DN survive as uint16.
 
+Nothing lost, nothing silent: every chunk carries a checksum (Zarr: a CRC-32C codec after the
+compressor; NetCDF: the HDF5 Fletcher-32 filter on the frames), so a damaged chunk fails to read
+with a :class:`sunlab.SunlabError` that names the store, the variable and the chunk; stores
+written before checksums still open. Outputs are written to a hidden temporary sibling and
+renamed into place (:mod:`sunlab._atomic`): an existing output is replaced only with
+``overwrite=True`` and survives a write that fails. Frames read from disk are checked against
+the store's ``bit_depth`` chunk by chunk.
+
 Round trips are exact: dtypes, coordinates and attributes come back as they were saved. Attribute
 values that NetCDF or Zarr cannot hold natively (booleans, None, lists, dicts, numpy arrays in Zarr)
 are stored as JSON text or flat arrays and listed, per dataset or variable, in the attribute
@@ -34,13 +42,13 @@ from __future__ import annotations
 
 import contextlib
 import json
-import shutil
 from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
 import xarray as xr
 
+from . import _atomic
 from ._errors import SchemaError, SunlabError
 from .schema import (
     CENTROIDS_SCHEMA,
@@ -189,22 +197,22 @@ def _prepare(ds: xr.Dataset, fmt: str) -> xr.Dataset:
     return ds
 
 
-def _clear_target(path: Path, overwrite: bool) -> None:
-    if not path.exists() and not path.is_symlink():
-        return
-    if not overwrite:
-        raise SunlabError(
-            f"{path}: already exists. Fix: pass overwrite=True to replace it, or choose a new path"
-        )
-    if path.is_dir():
-        if not (path / "zarr.json").exists() and not (path / ".zgroup").exists():
-            raise SunlabError(
-                f"{path}: is a directory but not a Zarr store; sunlab will not delete it. "
-                "Fix: choose another path"
-            )
-        shutil.rmtree(path)
-    else:
-        path.unlink()
+def _check_target(path: Path, fmt: str, overwrite: bool) -> None:
+    """Refuse an existing output without ``overwrite``, a missing or read-only folder: early."""
+    _atomic.check_target(path, overwrite=overwrite, kind="zarr" if fmt == "zarr" else "file")
+
+
+def _zarr_checksum_encoding(ds: xr.Dataset, encoding: dict) -> dict:
+    """Encoding that gives every array of a Zarr store a CRC-32C checksum after compression."""
+    from zarr.codecs import Crc32cCodec, ZstdCodec
+
+    out = {}
+    for name in ds.variables:
+        enc = dict(encoding.get(name, {}))
+        compressors = tuple(enc.get("compressors", (ZstdCodec(level=0),)))
+        enc["compressors"] = (*compressors, Crc32cCodec())
+        out[name] = enc
+    return out
 
 
 @contextlib.contextmanager
@@ -220,24 +228,20 @@ def _maybe_progress(progress: bool):
         yield
 
 
-def _write(ds: xr.Dataset, path: Path, fmt: str, encoding: dict, progress: bool) -> None:
-    if fmt == "zarr":
-        job = ds.to_zarr(
-            path, mode="w-", zarr_format=3, consolidated=False, write_empty_chunks=True,
-            encoding=encoding, compute=False,
-        )
-    else:
-        job = ds.to_netcdf(path, engine="h5netcdf", encoding=encoding, compute=False)
-    try:
+def _write(ds: xr.Dataset, path: Path, fmt: str, encoding: dict, progress: bool,
+           overwrite: bool) -> None:
+    """Write to a temporary sibling, then rename it into place (the old output survives)."""
+    with _atomic.atomic_output(path, overwrite=overwrite,
+                               kind="zarr" if fmt == "zarr" else "file") as tmp:
+        if fmt == "zarr":
+            job = ds.to_zarr(
+                tmp, mode="w-", zarr_format=3, consolidated=False, write_empty_chunks=True,
+                encoding=_zarr_checksum_encoding(ds, encoding), compute=False,
+            )
+        else:
+            job = ds.to_netcdf(tmp, engine="h5netcdf", encoding=encoding, compute=False)
         with _maybe_progress(progress):
             job.compute()
-    except BaseException:
-        # Never leave a half-written store that looks complete.
-        if path.is_dir():
-            shutil.rmtree(path, ignore_errors=True)
-        elif path.exists():
-            path.unlink()
-        raise
 
 
 def save_frames(
@@ -280,7 +284,15 @@ def save_frames(
     SchemaError
         The cube breaks the contract.
     SunlabError
-        ``path`` exists and ``overwrite`` is False.
+        ``path`` exists and ``overwrite`` is False, or its folder is missing or read-only
+        (checked before any frame is computed).
+
+    Notes
+    -----
+    The store is written to a hidden sibling (``.NAME.tmp-XXXXXXXX``) and renamed into place
+    only when complete; with ``overwrite=True`` the old output is moved aside, the new one moved
+    in, and only then the old one deleted, so a failed write leaves the old output intact.
+    Every Zarr chunk carries a CRC-32C checksum, every NetCDF frame chunk a Fletcher-32 one.
 
     Examples
     --------
@@ -293,11 +305,12 @@ def save_frames(
     ...     print(back.frames.dtype, back.frames.data.chunksize)
     uint16 (1, 1, 3, 4)
     """
+    path = Path(path)
+    fmt = _format_of(path, format)
+    _check_target(path, fmt, overwrite)
     validate_frames(cube)
     if chunks not in _CHUNKING:
         raise SchemaError("chunks", chunks, f"one of {_CHUNKING}", "per frame or per pose")
-    path = Path(path)
-    fmt = _format_of(path, format)
     ds = _prepare(cube, fmt)
     for name in [n for n, v in ds.variables.items() if n != "frames" and v.chunks is not None]:
         # Metadata and ground truth: a few large chunks (<= ~32 MB), not one file per frame.
@@ -324,10 +337,14 @@ def save_frames(
         encoding = {
             "frames": {
                 "chunksizes": block, "zlib": level > 0, "complevel": level, "shuffle": level > 0,
+                "fletcher32": True,
             }
         }
-    _clear_target(path, overwrite)
-    _write(ds, path, fmt, encoding, progress)
+    # Lazy frames (validate_frames checked in-memory ones): each chunk's DN range is checked
+    # against the bit depth as it is written.
+    ds["frames"] = ds["frames"].copy(data=_checked_dn(ds["frames"].data, cube.attrs["bit_depth"],
+                                                      f"{path} (being written)"))
+    _write(ds, path, fmt, encoding, progress, overwrite)
 
 
 def save_centroids(
@@ -349,13 +366,149 @@ def save_centroids(
     >>> open_centroids(path).status.values.tolist()
     [[0, 1]]
     """
-    validate_centroids(centroids)
     path = Path(path)
     fmt = _format_of(path, format)
+    _check_target(path, fmt, overwrite)
+    validate_centroids(centroids)
     ds = _prepare(centroids, fmt)
     ds = ds.chunk({d: -1 for d in ds.dims})
-    _clear_target(path, overwrite)
-    _write(ds, path, fmt, {}, progress=False)
+    _write(ds, path, fmt, {}, progress=False, overwrite=overwrite)
+
+
+# --------------------------------------------------------------------------------------------
+# Checked reading: every chunk read from disk names itself when it fails
+# --------------------------------------------------------------------------------------------
+def _chunk_label(dims, index) -> str:
+    return ", ".join(f"{d} {i}" for d, i in zip(dims, index, strict=True))
+
+
+def _dn_error(where: str, label: str, peak: int, bits: int) -> SchemaError:
+    return SchemaError(
+        f"{where} frames chunk ({label})", f"DN up to {peak}",
+        f"< 2**{bits} = {2**bits} DN for attrs['bit_depth'] = {bits}",
+        "set the true ADC bit depth (frames_dataset(bit_depth=...)); if the camera left-aligns "
+        "its data in the 16-bit word, divide the frames by 2**(16 - bit_depth) first",
+    )
+
+
+def _check_dn_block(block, bits, where, dims, block_info=None):
+    if block.size and int(block.max()) >= 2**bits:
+        loc = (block_info or {}).get(0, {}).get("chunk-location") or ()
+        raise _dn_error(where, _chunk_label(dims, loc) if loc else "?", int(block.max()), bits)
+    return block
+
+
+def _checked_dn(data, bits, where: str):
+    """A Dask array (``data`` itself if not Dask) whose chunks fail if DN >= 2**bits."""
+    if not hasattr(data, "map_blocks") or data.dtype.kind != "u":
+        return data
+    bits = int(bits)
+    if bits >= 8 * data.dtype.itemsize:
+        return data
+    return data.map_blocks(_check_dn_block, bits, where, ("pose", "shot", "y", "x"),
+                           dtype=data.dtype, meta=np.empty((0,) * data.ndim, data.dtype))
+
+
+class _ChunkReader:
+    """Array-like over one lazily opened variable that names its chunk when a read fails.
+
+    Dask reads the stored chunks through it, one ``__getitem__`` per chunk; a checksum mismatch,
+    a decompression error or DN above the bit depth becomes a :class:`SunlabError` naming the
+    store, the variable, the chunk index and its file.
+    """
+
+    def __init__(self, var: xr.Variable, path: Path, name: str, fmt: str, chunks, bits):
+        self.var = var
+        self.path, self.name, self.fmt, self.chunks, self.bits = path, name, fmt, chunks, bits
+        self.shape, self.ndim = var.shape, var.ndim
+        self.dtype = var.dtype if var.dtype.kind in "OSUT" else var.dtype.newbyteorder("=")
+
+    def __getitem__(self, key):
+        try:
+            block = np.asarray(self.var[key].values, dtype=self.dtype)
+        except Exception as exc:  # noqa: BLE001 - any decoder failure is reported with the chunk
+            raise self._error(key, exc) from exc
+        if self.bits is not None and block.size and int(block.max()) >= 2**self.bits:
+            raise _dn_error(str(self.path), self._label(key), int(block.max()), self.bits)
+        return block
+
+    def _index(self, key) -> tuple[int, ...]:
+        key = key if isinstance(key, tuple) else (key,)
+        out = []
+        for k, size in zip(key, self.chunks, strict=False):
+            start = k.start or 0 if isinstance(k, slice) else int(k)
+            out.append(start // max(size, 1))
+        return tuple(out)
+
+    def _label(self, key) -> str:
+        return _chunk_label(self.var.dims, self._index(key))
+
+    def _chunk_file(self, index) -> str:
+        if self.fmt != "zarr":
+            return f"{self.path} (HDF5 variable {self.name!r})"
+        try:
+            import zarr
+
+            arr = zarr.open_array(str(self.path / self.name), mode="r")
+            return str(self.path / self.name / arr.metadata.chunk_key_encoding.encode_chunk_key(
+                index))
+        except Exception:  # noqa: BLE001 - the file name is a courtesy; the index is enough
+            return f"{self.path / self.name} chunk {index}"
+
+    def _error(self, key, exc: Exception) -> SunlabError:
+        index = self._index(key)
+        text = str(exc)
+        checksum = "checksum" in text.lower() or "fletcher" in text.lower()
+        what = "fails its checksum (the data were changed after writing)" if checksum else \
+            f"cannot be decoded ({type(exc).__name__}: {text})"
+        return SunlabError(
+            f"{self._chunk_file(index)}: chunk ({_chunk_label(self.var.dims, index)}) of "
+            f"variable {self.name!r} in {self.path} {what}. Fix: the store is damaged (disk "
+            "error, interrupted or edited copy): copy it again from its source or re-create it; "
+            "sunlab will not read corrupt data"
+        )
+
+
+def _stored_chunks(var: xr.Variable) -> tuple[int, ...]:
+    enc = var.encoding
+    preferred = enc.get("preferred_chunks")
+    if preferred:
+        return tuple(int(preferred.get(d, n)) for d, n in zip(var.dims, var.shape, strict=True))
+    chunks = enc.get("chunks") or enc.get("chunksizes")
+    if chunks and len(chunks) == var.ndim:
+        return tuple(int(c) for c in chunks)
+    return tuple(int(n) for n in var.shape)
+
+
+def _checked_lazy(ds: xr.Dataset, path: Path, fmt: str) -> xr.Dataset:
+    """Dask-back every non-index variable of a lazily opened dataset through a _ChunkReader."""
+    import dask.array as da
+    from dask.base import tokenize
+
+    try:
+        stamp = path.stat().st_mtime_ns
+    except OSError:  # pragma: no cover - the store was just opened
+        stamp = 0
+    bits = ds.attrs.get("bit_depth")
+    bits = int(bits) if isinstance(bits, int | np.integer) and not isinstance(bits, bool) \
+        else None
+    new = {}
+    for name, var in ds.variables.items():
+        if name in ds.indexes or var.ndim == 0:
+            continue
+        chunks = _stored_chunks(var)
+        lazy = xr.Variable(var.dims, var._data)  # the backend's lazily indexed array
+        check = bits if name == "frames" and var.dtype.kind == "u" else None
+        reader = _ChunkReader(lazy, path, str(name), fmt, chunks, check)
+        data = da.from_array(
+            reader, chunks=chunks, asarray=False, fancy=False,
+            name=f"sunlab-open-{name}-{tokenize(str(path), stamp, name, chunks)}",
+            meta=np.empty((0,) * var.ndim, reader.dtype),
+        )
+        new[name] = var.copy(deep=False, data=data)
+    coords = {n: v for n, v in new.items() if n in ds.coords}
+    ds = ds.assign_coords(coords).assign({n: v for n, v in new.items() if n not in coords})
+    return ds
 
 
 # --------------------------------------------------------------------------------------------
@@ -414,12 +567,12 @@ def _open_raw(path, format: str | None = None) -> xr.Dataset:
                 "directory, or copy the store again if its metadata is missing"
             )
         try:
-            ds = xr.open_zarr(path, consolidated=False, chunks={})
+            ds = xr.open_zarr(path, consolidated=False, chunks=None)
         except Exception as exc:  # noqa: BLE001 - turned into a message naming the file
             _fail_zarr(path, exc)
     else:
         try:
-            ds = xr.open_dataset(path, engine="h5netcdf", chunks={})
+            ds = xr.open_dataset(path, engine="h5netcdf", chunks=None)
         except Exception as exc:  # noqa: BLE001 - turned into a message naming the file
             raise SunlabError(
                 f"{path}: cannot be read as NetCDF4/HDF5 ({type(exc).__name__}: {exc}). Fix: "
@@ -441,6 +594,7 @@ def _open_raw(path, format: str | None = None) -> xr.Dataset:
             f"{path}: unreadable attribute {_CODEC_ATTR!r} ({exc}). Fix: the metadata was edited "
             "by hand or by another tool; remove that attribute or re-create the store"
         ) from exc
+    ds = _checked_lazy(ds, path, format)
     ds.encoding["sunlab_format"] = format
     ds.encoding["source"] = str(path)
     return ds
@@ -657,15 +811,23 @@ def read_image(path, *, bit_depth: int | None = None) -> np.ndarray:
             "export raw DN as 8- or 16-bit unsigned integers; float or 32-bit images are not "
             "raw frames",
         )
-    if path.suffix.lower() == ".png":
-        from PIL import Image
+    try:
+        if path.suffix.lower() == ".png":
+            from PIL import Image
 
-        with Image.open(path) as im:
-            frame = np.asarray(im)
-    else:
-        import tifffile
+            with Image.open(path) as im:
+                frame = np.asarray(im)
+        else:
+            import tifffile
 
-        frame = tifffile.imread(path)
+            frame = tifffile.imread(path)
+    except Exception as exc:  # noqa: BLE001 - any decoder failure is reported with the file
+        raise SchemaError(
+            f"image {path}", f"unreadable pixel data ({type(exc).__name__}: {exc})",
+            "a complete single-channel PNG or TIFF image",
+            "the file is truncated or corrupt (an interrupted copy or write); copy or export "
+            "it again",
+        ) from exc
     frame = np.ascontiguousarray(frame, dtype=dtype.newbyteorder("="))
     if bit_depth is not None and frame.size and int(frame.max()) >= 2**bit_depth:
         shift = 16 - bit_depth if dtype.itemsize == 2 else 8 - bit_depth

@@ -397,6 +397,38 @@ def _check_dims(ds: xr.Dataset, var: str, allowed: Sequence[tuple[str, ...]]) ->
         raise SchemaError(f"{var}.dims", dims, " or ".join(map(str, allowed)), fix)
 
 
+def _check_indices(ds: xr.Dataset, dims=("pose", "shot")) -> None:
+    """The index coordinates ``pose`` and ``shot`` are 0 .. n-1, as the contract says."""
+    for dim in dims:
+        if dim not in ds.coords:
+            continue
+        values = np.asarray(ds[dim].values)
+        n = values.size
+        if values.dtype.kind not in "iu" or not np.array_equal(values, np.arange(n)):
+            raise SchemaError(
+                f"coords[{dim!r}]", _short(values.tolist()), f"the integers 0 .. {n - 1}",
+                f"renumber with ds.assign_coords({dim}=np.arange(ds.sizes[{dim!r}])); keep "
+                "labels of your own in another coordinate (e.g. 'shot_label')",
+            )
+
+
+def _check_dn(ds: xr.Dataset) -> None:
+    """In-memory frames: every DN below 2**bit_depth. (Lazy frames are checked on read/write.)"""
+    frames = ds["frames"]
+    bits = int(ds.attrs["bit_depth"])
+    if frames.chunks is not None or frames.size == 0 or bits >= 8 * frames.dtype.itemsize:
+        return
+    peak = int(np.asarray(frames.values).max())
+    if peak >= 2**bits:
+        n_over = int((np.asarray(frames.values) >= 2**bits).sum())
+        raise SchemaError(
+            "frames", f"DN up to {peak} ({n_over} pixels >= {2**bits})",
+            f"DN < 2**{bits} = {2**bits} for attrs['bit_depth'] = {bits}",
+            "give the true ADC bit depth (frames_dataset(bit_depth=...)); if the camera "
+            "left-aligns its data in the 16-bit word, divide the frames by 2**(16 - bit_depth)",
+        )
+
+
 def validate_frames(ds: xr.Dataset) -> xr.Dataset:
     """Check that ``ds`` is a frame cube of contract ``frames/1``; return it unchanged.
 
@@ -454,6 +486,10 @@ def validate_frames(ds: xr.Dataset) -> xr.Dataset:
             "attrs['bit_depth']", bits, f"<= {8 * dtype.itemsize} for {dtype} frames",
             "store frames of more than 8 bits as uint16",
         )
+    if int(bits) < 1:
+        raise SchemaError("attrs['bit_depth']", bits, "an integer number of bits >= 1, e.g. 10")
+    _check_indices(ds)
+    _check_dn(ds)
     _check_json_schema(_jsonable(ds.to_dict(data=False)), FRAMES_SCHEMA, _dataset_field)
     return ds
 
@@ -568,6 +604,7 @@ def validate_centroids(ds: xr.Dataset) -> xr.Dataset:
     unknown = sorted(set(codes.tolist()) - set(STATUS.values()))
     if unknown:
         raise SchemaError("status", unknown, f"codes in {STATUS}")
+    _check_indices(ds)
     _check_json_schema(_jsonable(ds.to_dict(data=False)), CENTROIDS_SCHEMA, _dataset_field)
     return ds
 
