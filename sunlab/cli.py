@@ -4,6 +4,10 @@ Each subcommand has an ``_add_<name>(subparsers)`` function that declares its ar
 ``func`` to a ``_run_<name>(args)`` handler; handlers import what they need lazily so that
 ``sunlab --help`` stays fast.
 
+User errors (a wrong path, a read-only folder, a corrupt input, a bad argument) end in one line
+on stderr that names the thing and the fix, and a non-zero exit status; ``--debug`` (anywhere on
+the line) shows the Python traceback instead.
+
 Examples
 --------
 >>> from sunlab.cli import build_parser
@@ -19,6 +23,47 @@ import sys
 from ._errors import SunlabError
 
 __all__ = ["build_parser", "main"]
+
+
+def _count(low: int):
+    """An argparse type: an integer >= ``low`` (the message names the value and the bound)."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"found {text!r}, expected an integer") from None
+        if value < low:
+            raise argparse.ArgumentTypeError(f"found {value}, expected an integer >= {low}")
+        return value
+
+    parse.__name__ = f"integer >= {low}"
+    return parse
+
+
+def _seconds(text: str) -> float:
+    """An argparse type: a finite number of seconds >= 0."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"found {text!r}, expected seconds") from None
+    if not value >= 0 or value == float("inf"):
+        raise argparse.ArgumentTypeError(f"found {text!r}, expected finite seconds >= 0")
+    return value
+
+
+_POSITIVE = _count(1)
+
+
+def _check_out(path, overwrite: bool, kind: str = "file") -> None:
+    """Check an output path before the work starts (folder, permissions, existing output)."""
+    from pathlib import Path
+
+    from . import _atomic, io
+
+    if kind == "auto":
+        kind = "file" if Path(path).suffix.lower() in io.NETCDF_SUFFIXES else "zarr"
+    _atomic.check_target(path, overwrite=overwrite, kind=kind, flag="--overwrite")
 
 
 def _add_info(sub) -> None:
@@ -53,22 +98,23 @@ def _add_acquire(sub) -> None:
                    help="experiment I, II or III, or a CSV file with columns alpha,beta (deg)")
     p.add_argument("--out", required=True, help="the run's Zarr store (a directory)")
     p.add_argument("--resume", action="store_true", help="continue an existing run in --out")
-    p.add_argument("--shots", type=int, default=8, help="frames per pose (default 8)")
-    p.add_argument("--step", type=int, default=1, help="keep every STEP-th pose (quick runs)")
-    p.add_argument("--settle", type=float, default=0.5, help="settle time after a move, s")
+    p.add_argument("--shots", type=_POSITIVE, default=8, help="frames per pose (default 8)")
+    p.add_argument("--step", type=_POSITIVE, default=1,
+                   help="keep every STEP-th pose (quick runs)")
+    p.add_argument("--settle", type=_seconds, default=0.5, help="settle time after a move, s")
     p.add_argument("--seed", type=int, default=0, help="seed of the virtual bench (sim, fake)")
     p.add_argument("--bench", choices=("single", "multi"), default="single",
                    help="virtual bench preset for the sim camera and fake stage")
-    p.add_argument("--binning", type=int, default=1, help="sim camera pixel binning")
+    p.add_argument("--binning", type=_POSITIVE, default=1, help="sim camera pixel binning")
     p.add_argument("--roi", default=None, metavar="Y0,Y1,X0,X1",
                    help="sim camera region of interest, px (half-open)")
     p.add_argument("--shape", default="1024x1280", metavar="NYxNX",
                    help="folder camera frame shape (default 1024x1280)")
-    p.add_argument("--bit-depth", type=int, default=10, help="folder camera ADC bits")
-    p.add_argument("--frame-timeout", type=float, default=10.0,
+    p.add_argument("--bit-depth", type=_POSITIVE, default=10, help="folder camera ADC bits")
+    p.add_argument("--frame-timeout", type=_seconds, default=10.0,
                    help="folder camera: longest wait for a new image file, s")
-    p.add_argument("--baudrate", type=int, default=19200, help="serial baud rate")
-    p.add_argument("--timeout", type=float, default=1.0, help="serial read timeout, s")
+    p.add_argument("--baudrate", type=_POSITIVE, default=19200, help="serial baud rate")
+    p.add_argument("--timeout", type=_seconds, default=1.0, help="serial read timeout, s")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=_run_acquire)
 
@@ -80,6 +126,9 @@ def _run_acquire(args) -> int:
     from ._errors import ConfigurationError
     from .bench import FolderCamera, SimCamera, acquire, open_stage
 
+    if not args.resume:
+        # The folder must exist and be writable; an existing run is the runner's to judge.
+        _check_out(args.out, overwrite=True, kind="zarr")
     if args.plan.upper() in plans.EXPERIMENTS:
         plan = plans.experiment(args.plan.upper(), shots=args.shots)
     elif Path(args.plan).is_file():
@@ -150,7 +199,8 @@ def _add_centroid(sub) -> None:
     p.add_argument("--scheduler", default="threads",
                    choices=["threads", "processes", "synchronous"], help="local Dask scheduler")
     p.add_argument("--address", default=None, help="dask.distributed scheduler address")
-    p.add_argument("--workers", type=int, default=None, help="local threads or processes")
+    p.add_argument("--workers", type=_POSITIVE, default=None,
+                   help="local threads or processes")
     p.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output")
     p.set_defaults(func=_run_centroid)
@@ -159,6 +209,7 @@ def _add_centroid(sub) -> None:
 def _run_centroid(args) -> int:
     from . import centroid, io
 
+    _check_out(args.out, args.overwrite, kind="auto")
     cube = io.open_frames(args.cube)
     cen = centroid.locate(cube, args.method, scheduler=args.scheduler, address=args.address,
                           num_workers=args.workers, progress=not args.no_progress)
@@ -176,14 +227,15 @@ def _add_simulate(sub) -> None:
                    help="one 0.2 mm hole, the 10 x 10 grid, or 50 random holes")
     p.add_argument("--out", required=True, help="output cube (.zarr store or .nc file)")
     p.add_argument("--seed", type=int, default=0, help="seed of the experiment (default 0)")
-    p.add_argument("--shots", type=int, default=8, help="frames per pose (default 8)")
-    p.add_argument("--subset", type=int, default=1, metavar="STEP",
+    p.add_argument("--shots", type=_POSITIVE, default=8, help="frames per pose (default 8)")
+    p.add_argument("--subset", type=_POSITIVE, default=1, metavar="STEP",
                    help="keep every STEP-th pose, for quick runs")
     p.add_argument("--noise-free", action="store_true", help="ideal detector: no noise, no FPN")
     p.add_argument("--ideal-platform", action="store_true", help="true angles = commanded")
     p.add_argument("--chunks", default="frame", choices=["frame", "pose"],
                    help="store one frame or one pose per chunk")
-    p.add_argument("--workers", type=int, default=None, help="threads rendering in parallel")
+    p.add_argument("--workers", type=_POSITIVE, default=None,
+                   help="threads rendering in parallel")
     p.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output")
     p.set_defaults(func=_run_simulate)
@@ -194,6 +246,7 @@ def _run_simulate(args) -> int:
 
     from . import io, plans, sim
 
+    _check_out(args.out, args.overwrite, kind="auto")
     plan = plans.experiment(args.experiment, shots=args.shots).subset(args.subset)
     bench = {
         "single": sim.Bench.paper_single_hole,
@@ -226,15 +279,17 @@ def _add_calibrate(sub) -> None:
                         "order on --validation (default 5)")
     p.add_argument("--strategy", type=int, default=4, choices=[1, 2, 3, 4],
                    help="neural-network strategy of Table 2 (default 4)")
-    p.add_argument("--hidden", type=int, default=8, help="hidden tanh neurons (default 8)")
+    p.add_argument("--hidden", type=_POSITIVE, default=8,
+                   help="hidden tanh neurons (default 8)")
     p.add_argument("--seed", type=int, default=0, help="seed of the network weights")
-    p.add_argument("--max-iter", type=int, default=3000,
+    p.add_argument("--max-iter", type=_POSITIVE, default=3000,
                    help="most L-BFGS iterations per network (default 3000)")
     p.add_argument("--extrapolate", action="store_true",
                    help="interpolation: nearest node outside the convex hull (default NaN)")
     p.add_argument("--validation", default=None,
                    help="validation centroid table (experiment II): early stopping, order")
     p.add_argument("--out", required=True, help="output calibration (.json)")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing output")
     p.set_defaults(func=_run_calibrate)
 
 
@@ -244,6 +299,7 @@ def _run_calibrate(args) -> int:
     from . import calibration, io
     from ._errors import ConfigurationError
 
+    _check_out(args.out, args.overwrite)
     train = io.open_dataset(args.train)
     val = None if args.validation is None else io.open_dataset(args.validation)
     order = None
@@ -279,7 +335,7 @@ def _run_calibrate(args) -> int:
         }[args.method]()
         cal.fit(train, val)
     elapsed = time.perf_counter() - t0
-    cal.save(args.out)
+    cal.save(args.out, overwrite=args.overwrite)
     res = cal.residuals
 
     def fmt(r):
@@ -357,14 +413,42 @@ def build_parser() -> argparse.ArgumentParser:
         description="Reproduce, teach and extend the lab calibration of a pinhole APS sun sensor.",
     )
     parser.add_argument("--version", action="version", version=f"sunlab {__version__}")
+    parser.add_argument("--debug", action="store_true",
+                        help="show the Python traceback of an error (also after the command)")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for adder in _ADDERS:
         adder(sub)
     return parser
 
 
+def _one_line(err: BaseException) -> str:
+    """The message of an error on one line; OS errors name the file and say what to check."""
+    if isinstance(err, OSError) and not isinstance(err, SunlabError):
+        where = err.filename if err.filename is not None else ""
+        what = err.strerror or str(err) or type(err).__name__
+        fix = {
+            PermissionError: "check the permissions of the file or folder, or choose a path "
+                             "you can write to",
+            FileNotFoundError: "check the path (relative paths start at the current folder)",
+            IsADirectoryError: "give a file, not a folder",
+            NotADirectoryError: "check the path: a part of it is a file, not a folder",
+        }.get(type(err), "check the path, the free disk space and the permissions")
+        text = f"{where}: {what}. Fix: {fix}" if where else f"{what}. Fix: {fix}"
+    else:
+        text = str(err) or type(err).__name__
+    return " ".join(text.split())
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of the ``sunlab`` console script; returns the exit status."""
+    """Entry point of the ``sunlab`` console script; returns the exit status.
+
+    Exit status 0 on success, 1 for an error in the inputs, files or settings (one line on
+    stderr naming the thing and the fix), 2 for a bad command line, 3 for an unexpected internal
+    error, 130 when interrupted. ``--debug`` re-raises the error with its traceback.
+    """
+    argv = list(sys.argv[1:] if argv is None else argv)
+    debug = "--debug" in argv
+    argv = [a for a in argv if a != "--debug"]
     parser = build_parser()
     args = parser.parse_args(argv)
     if getattr(args, "func", None) is None:
@@ -372,12 +456,23 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     try:
         return int(args.func(args) or 0)
-    except SunlabError as err:
-        print(f"sunlab {args.command}: error: {err}", file=sys.stderr)
-        return 1
     except KeyboardInterrupt:
+        if debug:
+            raise
         print(f"sunlab {args.command}: interrupted", file=sys.stderr)
         return 130
+    except (SunlabError, OSError) as err:
+        if debug:
+            raise
+        print(f"sunlab {args.command}: error: {_one_line(err)}", file=sys.stderr)
+        return 1
+    except Exception as err:  # noqa: BLE001 - never a traceback without --debug
+        if debug:
+            raise
+        print(f"sunlab {args.command}: internal error: {type(err).__name__}: {_one_line(err)}. "
+              "Fix: this is probably a bug in sunlab; run again with --debug and report the "
+              "traceback", file=sys.stderr)
+        return 3
 
 
 if __name__ == "__main__":  # pragma: no cover
