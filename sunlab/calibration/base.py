@@ -299,6 +299,7 @@ class Calibration:
             polynomials, and the validation residuals of the artifact.
         """
         data = training_data(train, self.average, name="train")
+        self._check_poses(data)
         val = None if validation is None else training_data(validation, self.average,
                                                                name="validation")
         self._fit(data, val)
@@ -324,13 +325,70 @@ class Calibration:
         }
         self.residuals = {**self._residuals(train),
                           "validation": None if validation is None
-                          else self._residuals(validation)}
+                          else self._residuals(validation),
+                          **self._extra_residuals(data)}
         return self
+
+    def min_poses(self) -> int:
+        """Fewest distinct training poses (alpha, beta) this calibration can be fitted on.
+
+        One per free coefficient of a linear model (a polynomial of order n has
+        (n + 1)(n + 2) / 2 per angle), one per weight of a network; fewer poses would be fitted
+        exactly whatever the data, with meaningless zero residuals.
+
+        Examples
+        --------
+        >>> from sunlab.calibration import Polynomial
+        >>> Polynomial(order=2).min_poses()
+        6
+        """
+        return 1
+
+    def _check_poses(self, data: TrainingData) -> None:
+        distinct = len(set(zip(data.alpha.tolist(), data.beta.tolist(), strict=True)))
+        need = self.min_poses()
+        if distinct < need:
+            raise ConfigurationError(
+                f"train: {distinct} distinct poses (alpha, beta) in {data.n_poses} poses with "
+                f"ok shots, but {self.label} needs at least {need}. Fix: calibrate on more "
+                "distinct poses (a grid such as experiment I), or choose a smaller model"
+            )
+
+    def inside(self, x, y) -> np.ndarray:
+        """True where a centroid ``(x, y)`` (px) lies inside the calibrated domain.
+
+        The domain is the box ``domain['x'] x domain['y']`` of the training centroids (for
+        interpolation: the convex hull of the nodes). Outside it, estimates are
+        extrapolations and :meth:`predict` flags them (``in_domain`` False).
+
+        Examples
+        --------
+        >>> from sunlab import geometry
+        >>> from sunlab.calibration import Polynomial
+        >>> cen = geometry.synthetic_centroids([0.0, 1, 2, 0, 1, 2], [0.0, 0, 0, 1, 1, 1])
+        >>> cal = Polynomial(order=1).fit(cen)
+        >>> cal.inside([cal.domain["x"][0], 1e4], [cal.domain["y"][0], 0.0]).tolist()
+        [True, False]
+        """
+        self._require_fitted()
+        x, y = np.broadcast_arrays(np.asarray(x, dtype=float), np.asarray(y, dtype=float))
+        (x0, x1), (y0, y1) = self.domain["x"], self.domain["y"]
+        return (x >= x0) & (x <= x1) & (y >= y0) & (y <= y1)
+
+    def summary(self) -> str:
+        """A human-readable account of the calibration: method, size, domain, errors, origin.
+
+        The same text as ``sunlab info CAL.json``.
+        """
+        from .._cli_lab import calibration_summary
+
+        return calibration_summary(self.to_dict())
 
     def predict_xy(self, x, y):
         """Angles (alpha, beta) in degrees for centroid arrays ``x``, ``y`` (px), any shape.
 
-        NaN where x or y is not finite (and, for interpolation, outside the convex hull).
+        NaN where x or y is not finite (and, for interpolation, outside the convex hull). No
+        check of the domain: see :meth:`inside`, or :meth:`predict`, which flags extrapolation.
         """
         self._require_fitted()
         x, y = np.broadcast_arrays(np.asarray(x, dtype=float), np.asarray(y, dtype=float))
@@ -348,10 +406,15 @@ class Calibration:
         -------
         xarray.Dataset
             ``alpha``, ``beta`` (deg) on the dims of ``x``; ``status`` copied from the table;
+            ``in_domain`` (bool): False where the centroid lies outside the calibrated domain
+            (:meth:`inside`), so that the estimate there is an extrapolation (or NaN for a
+            method that cannot extrapolate) — attribute ``n_out_of_domain`` counts them;
             coordinates ``alpha_cmd``, ``beta_cmd`` (the table's commanded angles, if any).
         """
         validate_centroids(centroids)
         a, b = self.predict_xy(centroids["x"].values, centroids["y"].values)
+        finite = np.isfinite(centroids["x"].values) & np.isfinite(centroids["y"].values)
+        inside = self.inside(centroids["x"].values, centroids["y"].values)
         dims = centroids["x"].dims
         coords = {d: (d, centroids[d].values) for d in dims if d in centroids.coords}
         for c in ("alpha", "beta"):
@@ -363,19 +426,20 @@ class Calibration:
                 "alpha": (dims, a, {"units": "deg", "long_name": "estimated outer-axis angle"}),
                 "beta": (dims, b, {"units": "deg", "long_name": "estimated inner-axis angle"}),
                 "status": centroids["status"].variable.copy(),
+                "in_domain": (dims, inside | ~finite, {
+                    "long_name": "centroid inside the calibrated domain (False: extrapolated)"}),
             },
             coords=coords,
             attrs={"calibration": self.kind, "label": self.label,
-                   "experiment": str(centroids.attrs.get("experiment", ""))},
+                   "experiment": str(centroids.attrs.get("experiment", "")),
+                   "n_out_of_domain": int((finite & ~inside).sum())},
         )
         return ds
 
     def in_domain(self, centroids: xr.Dataset) -> xr.DataArray:
-        """True where a centroid lies inside the training ranges of x and y (the domain)."""
-        self._require_fitted()
-        (x0, x1), (y0, y1) = self.domain["x"], self.domain["y"]
-        return ((centroids["x"] >= x0) & (centroids["x"] <= x1)
-                & (centroids["y"] >= y0) & (centroids["y"] <= y1))
+        """True where a centroid lies inside the calibrated domain (:meth:`inside`)."""
+        return xr.DataArray(self.inside(centroids["x"].values, centroids["y"].values),
+                            dims=centroids["x"].dims, coords=centroids["x"].coords)
 
     @property
     def label(self) -> str:
@@ -428,6 +492,10 @@ class Calibration:
         ca = np.broadcast_to(table["alpha"].values[:, None], ok.shape)
         cb = np.broadcast_to(table["beta"].values[:, None], ok.shape)
         return {"alpha": _err_summary(a[ok], ca[ok]), "beta": _err_summary(b[ok], cb[ok])}
+
+    def _extra_residuals(self, data: TrainingData) -> dict:
+        """Further entries of ``residuals`` (interpolation: its leave-one-out errors)."""
+        return {}
 
     def _require_fitted(self) -> None:
         if not self.is_fitted:

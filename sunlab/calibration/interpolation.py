@@ -96,9 +96,86 @@ class Interpolation(Calibration):
             ) from err
         self._nearest = NearestNDInterpolator(pts, vals, rescale=True)
 
+    def min_poses(self) -> int:
+        return 3  # one triangle
+
     def _fit(self, data: TrainingData, validation) -> None:
         self.nodes = {"x": data.x, "y": data.y, "alpha": data.alpha, "beta": data.beta}
         self._build()
+
+    def inside(self, x, y) -> np.ndarray:
+        """True inside the convex hull of the nodes (where the interpolant is defined)."""
+        self._require_fitted()
+        x, y = np.broadcast_arrays(np.asarray(x, dtype=float), np.asarray(y, dtype=float))
+        ok = np.isfinite(x) & np.isfinite(y)
+        pts = np.column_stack([np.where(ok, x, 0.0).ravel(), np.where(ok, y, 0.0).ravel()])
+        tri = self._interp.tri
+        scaled = (pts - self._interp.offset) / self._interp.scale
+        return ((tri.find_simplex(scaled) >= 0).reshape(x.shape)) & ok
+
+    def leave_one_out(self, neighbours: int = 24) -> dict:
+        """Leave-one-out errors of the table: each node predicted without it, deg.
+
+        An interpolant passes through its nodes, so its training residuals say nothing; the
+        leave-one-out error is the honest estimate of its error between nodes. Each node is
+        predicted by the same interpolation built on its ``neighbours`` nearest other nodes
+        (in the rescaled centroid plane): removing a node changes the Delaunay triangulation
+        only around it, so for linear interpolation this equals the global leave-one-out;
+        cubic gradients are estimated from the neighbourhood. Nodes outside the hull of their
+        neighbours (the rim of the table) are left out of the statistics.
+
+        Returns
+        -------
+        dict
+            Per angle the statistics of ``residuals`` (``mean_abs``, ``rms``, ``max_abs``, ...).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from sunlab import geometry
+        >>> a, b = np.meshgrid(np.arange(-6.0, 3.0), np.arange(-2.0, 7.0), indexing="ij")
+        >>> cen = geometry.synthetic_centroids(a.ravel(), b.ravel())
+        >>> loo = Interpolation("linear").fit(cen).residuals["leave_one_out"]
+        >>> 49 <= loo["alpha"]["n"] < 81, 0 < loo["alpha"]["max_abs"] < 0.05  # 7 x 7 inner nodes
+        (True, True)
+        """
+        from scipy.interpolate import CloughTocher2DInterpolator
+        from scipy.spatial import Delaunay, QhullError, cKDTree
+
+        from .base import _err_summary
+
+        pts = np.column_stack([self.nodes["x"], self.nodes["y"]])
+        vals = np.column_stack([self.nodes["alpha"], self.nodes["beta"]])
+        lo, span = pts.min(axis=0), np.ptp(pts, axis=0)
+        span = np.where(span > 0, span, 1.0)
+        z = (pts - lo) / span
+        k = min(int(neighbours) + 1, len(z))
+        _, idx = cKDTree(z).query(z, k=k)
+        est = np.full(vals.shape, np.nan)
+        for i, near in enumerate(np.atleast_2d(idx)):
+            near = near[near != i]
+            if len(near) < 3:
+                continue
+            try:
+                if self.method == "linear":  # barycentric weights on the Delaunay triangle
+                    tri = Delaunay(z[near])
+                    s = int(tri.find_simplex(z[i]))
+                    if s < 0:
+                        continue
+                    T = tri.transform[s]
+                    c = T[:2] @ (z[i] - T[2])
+                    w = np.append(c, 1.0 - c.sum())
+                    est[i] = w @ vals[near][tri.simplices[s]]
+                else:
+                    est[i] = CloughTocher2DInterpolator(z[near], vals[near],
+                                                        fill_value=np.nan)(z[i:i + 1])[0]
+            except QhullError:  # degenerate neighbourhood (collinear nodes): skip the node
+                continue
+        return {"alpha": _err_summary(est[:, 0], vals[:, 0]),
+                "beta": _err_summary(est[:, 1], vals[:, 1])}
+
+    def _extra_residuals(self, data: TrainingData) -> dict:
+        return {"leave_one_out": self.leave_one_out()}
 
     def _predict_xy(self, x, y):
         pts = np.column_stack([x, y])

@@ -147,6 +147,9 @@ class OptimisedModel(Calibration):
     def label(self) -> str:
         return "optimised model (3)-(4)"
 
+    def min_poses(self) -> int:
+        return 3  # dF, alpha0, beta0 (+ the zero pose): two equations per pose
+
     def _fit(self, data: TrainingData, validation) -> None:
         self.result = fit_optimised(data, sensor_attrs(data.attrs), self.fit_zero_pose)
 

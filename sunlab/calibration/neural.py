@@ -160,6 +160,10 @@ class NeuralNet(Calibration):
             return np.column_stack([d.alpha - ia, d.beta - ib])
         return np.column_stack([d.alpha, d.beta])
 
+    def min_poses(self) -> int:
+        # weights of one net: hidden x 2 inputs, hidden biases, hidden outputs, output bias
+        return 4 * self.hidden + 1
+
     # --- training ----------------------------------------------------------------------------
     def _fit(self, data: TrainingData, validation: TrainingData | None) -> None:
         self.sensor = sensor_attrs(data.attrs) if self.strategy != 1 else None

@@ -131,6 +131,9 @@ class Polynomial(Calibration):
         na, nb = self.orders
         return f"polynomial({na})" if na == nb else f"polynomial({na},{nb})"
 
+    def min_poses(self) -> int:
+        return max(len(monomial_exponents(n)) for n in self.orders)
+
     def _fit(self, data: TrainingData, validation) -> None:
         self.scaling = {"x": _scaling(data.x, "x"), "y": _scaling(data.y, "y")}
         u, v = _scale(data.x, self.scaling["x"]), _scale(data.y, self.scaling["y"])

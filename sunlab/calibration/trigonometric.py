@@ -89,6 +89,9 @@ class Trigonometric(Calibration):
         bv = fourier_basis(_scale(y, self.scaling["y"]), self.order, self.period)
         return (bu[:, :, None] * bv[:, None, :]).reshape(len(bu), -1)
 
+    def min_poses(self) -> int:
+        return (2 * self.order + 1) ** 2
+
     def _fit(self, data: TrainingData, validation) -> None:
         self.scaling = {"x": _scaling(data.x, "x"), "y": _scaling(data.y, "y")}
         A = self._design(data.x, data.y)
