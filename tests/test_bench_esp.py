@@ -17,6 +17,7 @@ from sunlab.bench import (
     ESP300,
     ControllerError,
     ControllerLimitError,
+    ErrorReplyLost,
     LimitError,
     MotionTimeout,
     StageDisconnected,
@@ -255,11 +256,128 @@ def test_silence_outlasting_the_retries_is_a_timeout_with_backoff():
     assert info.value.attempts == 4
 
 
-def test_garbage_outlasting_the_retries_is_a_protocol_error():
+def test_garbage_outlasting_the_retries_is_a_lost_error_reply():
+    """Three garbled TB? replies in a row: three errors may be gone and the buffer was never
+    read to empty; the fault says so and chains the protocol error."""
     pairs = [(b"TB?\r", b"0; 1; ok\r\n")] * 3
     with expected_protocol(pairs, retries=2) as stage:
-        with pytest.raises(StageProtocolError, match="code, timestamp, message"):
+        with pytest.raises(ErrorReplyLost, match="may have been lost") as info:
             stage.errors()
+    assert (info.value.lost, info.value.empty, info.value.errors) == (3, False, [])
+    assert isinstance(info.value.__cause__, StageProtocolError)
+    assert "code, timestamp, message" in str(info.value.__cause__)
+
+
+# -- an error query whose reply is lost is never read as "no error" ------------------------------
+LIMIT_104 = b"104, 9001, AXIS 1 POSITIVE HARDWARE LIMIT DETECTED\r\n"
+MOTOR_213 = b"213, 9002, AXIS 2 MOTOR NOT ENABLED\r\n"
+BAD_REPLIES = {
+    "timeout": None,
+    "high bit": bytes(b | 0x80 for b in LIMIT_104[:-2]) + b"\r\n",
+    "truncated": LIMIT_104[:9],
+    "no message": b"104\r\n",
+    "noise": b"\x00\xff\r\n",
+}
+MOVE_START = [(b"1PA1\r", None), (b"2PA2\r", None)]
+MOVE_DONE = [(b"1MD?\r", b"1\r\n"), (b"2MD?\r", b"1\r\n")]
+
+
+@pytest.mark.parametrize("bad", BAD_REPLIES.values(), ids=BAD_REPLIES.keys())
+@pytest.mark.parametrize(
+    "position, before, after, read",
+    [
+        # the reply to the TB? right after the PA commands (an error of the command)
+        ("after PA", MOVE_START, [(b"TB?\r", NO_ERROR)], []),
+        # the reply to the TB? after motion done (a limit hit during the move)
+        ("after motion", [*MOVE_START, (b"TB?\r", NO_ERROR), *MOVE_DONE],
+         [(b"TB?\r", NO_ERROR)], []),
+        # the second of two errors: the first was read cleanly, the next reply is lost
+        ("second error", [*MOVE_START, (b"TB?\r", MOTOR_213)], [(b"TB?\r", NO_ERROR)], [213]),
+        # an unreadable reply, then a clean error, then the clean "no error"
+        ("before an error", MOVE_START, [(b"TB?\r", LIMIT_104), (b"TB?\r", NO_ERROR)], [104]),
+    ],
+)
+def test_a_lost_error_reply_raises_and_the_buffer_is_read_to_empty(position, before, after,
+                                                                   read, bad):
+    """Each TB? pops one error, so whatever the lost reply carried is gone: the driver reads
+    the buffer until a clean code 0, then raises ErrorReplyLost; never a success."""
+    waits = []
+    pairs = [*before, (b"TB?\r", bad), *after]
+    with expected_protocol(pairs, retry_delay_s=0.1, sleep=waits.append) as stage:
+        with pytest.raises(ErrorReplyLost, match="may have been lost") as info:
+            connected(stage).move_to(1, 2)
+    err = info.value
+    assert (err.lost, err.empty, err.command) == (1, True, "PA")
+    assert [e.code for e in err.errors] == read
+    assert waits == [0.1]  # one back-off before the re-query (and a flush, checked below)
+    if read:
+        assert err.__cause__ is err.errors[0] and f"error {read[0]}" in str(err)
+
+
+def test_a_lost_reply_on_an_empty_buffer_is_still_reported():
+    """The driver cannot tell a lost "no error" from a lost error: it never guesses."""
+    pairs = [*MOVE_START, (b"TB?\r", None), (b"TB?\r", NO_ERROR)]
+    with expected_protocol(pairs) as stage:
+        with pytest.raises(ErrorReplyLost) as info:
+            connected(stage).move_to(1, 2)
+    assert info.value.empty and info.value.errors == []
+
+
+def test_error_replies_lost_in_a_row_are_counted_and_flushed():
+    transport = ProtocolTransport([*MOVE_START, (b"TB?\r", None), (b"TB?\r", b"10\r\n"),
+                                   (b"TB?\r", MOTOR_213), (b"TB?\r", NO_ERROR)])
+    stage = ESP300(transport, connect=False, retry_delay_s=0.0, sleep=lambda s: None)
+    with pytest.raises(ErrorReplyLost, match="2 replies") as info:
+        connected(stage).move_to(1, 2)
+    assert (info.value.lost, [e.code for e in info.value.errors]) == (2, [213])
+    assert transport.flushes == 2 and transport.index == len(transport.pairs)
+
+
+def test_error_replies_lost_past_the_retries_never_read_empty():
+    pairs = [*MOVE_START, (b"TB?\r", LIMIT_104), *[(b"TB?\r", None)] * 3]
+    with expected_protocol(pairs, retries=2) as stage:
+        with pytest.raises(ErrorReplyLost, match="could not be read to empty") as info:
+            connected(stage).move_to(1, 2)
+    assert (info.value.lost, info.value.empty) == (3, False)
+    assert [e.code for e in info.value.errors] == [104]
+    assert isinstance(info.value.__cause__, StageTimeout)
+
+
+def test_a_clean_buffer_still_passes_and_clean_errors_keep_their_type():
+    with expected_protocol([*MOVE_START, (b"TB?\r", NO_ERROR), *MOVE_DONE, (b"TB?\r", NO_ERROR),
+                            (b"1TP?\r", b"1.00000\r\n"), (b"2TP?\r", b"2.00000\r\n")]) as stage:
+        assert connected(stage).move_to(1, 2) == (1.0, 2.0)
+    assert stage.errors.__doc__ and "ErrorReplyLost" in stage.errors.__doc__
+    pairs = [*MOVE_START, (b"TB?\r", LIMIT_104), (b"TB?\r", NO_ERROR)]
+    with expected_protocol(pairs) as stage:
+        with pytest.raises(ControllerLimitError):
+            connected(stage).move_to(1, 2)
+
+
+def test_stale_errors_lost_at_connect_are_logged_not_raised(caplog):
+    """Stale errors never fail the handshake; a lost one is logged once the buffer reads
+    empty (and the handshake goes on)."""
+    pairs = [HANDSHAKE[0], (b"TB?\r", None), (b"TB?\r", NO_ERROR), *HANDSHAKE[2:]]
+    with expected_protocol(pairs) as stage:
+        stage.connect()
+    assert stage.stale_errors == []
+    assert "may have been lost" in caplog.text
+
+
+def test_a_stale_buffer_that_never_reads_empty_fails_the_connect():
+    pairs = [HANDSHAKE[0], *[(b"TB?\r", b"garbage\r\n")] * 2]
+    with expected_protocol(pairs, retries=1) as stage:
+        with pytest.raises(ErrorReplyLost, match="could not be read to empty"):
+            stage.connect()
+
+
+def test_a_lost_reply_after_stopping_a_stuck_axis_keeps_the_motion_timeout(caplog):
+    pairs = [*MOVE_START, (b"TB?\r", NO_ERROR), (b"1MD?\r", b"1\r\n"), (b"2MD?\r", b"0\r\n"),
+             (b"1ST\r", None), (b"2ST\r", None), (b"TB?\r", None), (b"TB?\r", NO_ERROR)]
+    with expected_protocol(pairs, motion_timeout_s=1e-9) as stage:
+        with pytest.raises(MotionTimeout):
+            connected(stage).move_to(1, 2)
+    assert "may have been lost" in caplog.text
 
 
 def test_a_broken_link_without_url_is_reported():

@@ -12,6 +12,7 @@ from sunlab.bench import (
     ESP300,
     ControllerError,
     ControllerLimitError,
+    ErrorReplyLost,
     FakeESP,
     MotionTimeout,
     StageDisconnected,
@@ -111,6 +112,110 @@ def test_fake_encoder_reads_in_resolution_steps():
     assert fake.handle(b"1TP?") == b"1.235000\r\n"
 
 
+# -- the manual's forms and the commands pymeasure's ESP300 driver sends -------------------------
+def _no_error(fake):
+    assert fake.handle(b"TE?") == b"0\r\n", "the fake queued an error"
+
+
+def test_fake_reads_the_position_without_question_mark():
+    fake = FakeESP(velocity_deg_s=math.inf)
+    fake.handle(b"2PA-7.125")
+    assert fake.handle(b"2TP") == fake.handle(b"2TP?") == b"-7.125000\r\n"
+    assert fake.handle(b"2 TP") == b"-7.125000\r\n"  # blanks between fields are ignored
+    _no_error(fake)
+
+
+def test_fake_blanks_between_fields_are_ignored():
+    fake = FakeESP(velocity_deg_s=math.inf)
+    assert fake.handle(b"1 PA 5 ; 1 TP ?") == b"5.000000\r\n"
+    _no_error(fake)
+
+
+def test_fake_id_reads_the_positioner_model_and_serial():
+    fake = FakeESP(stage_model="URS75BCC")
+    assert fake.handle(b"1ID?") == b"URS75BCC, SN0001\r\n"
+    assert fake.handle(b"3 ID ?") == b"URS75BCC, SN0003\r\n"
+    _no_error(fake)
+    fake.handle(b"ID?")
+    assert fake.handle(b"TE?") == b"37\r\n"  # axis number missing
+
+
+def test_fake_ts_status_byte():
+    clock = ManualClock()
+    fake = FakeESP(velocity_deg_s=10.0, clock=clock)
+    assert fake.handle(b"TS") == b"P\r\n"  # 0x50: motor power on, nothing moving
+    fake.handle(b"1PA1;3PA1")  # 0.1 s moves
+    assert ord(fake.handle(b"TS")[:1]) == 0x40 | 0x10 | 0b101  # axes 1 and 3 moving
+    clock.advance(0.1)
+    assert fake.handle(b"TS") == b"P\r\n"
+    fake.handle(b"1MF;2MF;3MF")
+    assert fake.handle(b"TS") == b"@\r\n"  # all motors off
+    _no_error(fake)
+
+
+def test_fake_dp_reads_the_desired_position_during_a_move():
+    clock = ManualClock()
+    fake = FakeESP(velocity_deg_s=10.0, clock=clock)
+    fake.handle(b"1PA4")
+    clock.advance(0.2)
+    assert fake.handle(b"1DP?") == b"4.000000\r\n"
+    assert fake.handle(b"1TP?") == b"2.000000\r\n"
+    _no_error(fake)
+
+
+def test_fake_ws_holds_later_commands_until_the_axis_stops():
+    clock = ManualClock()
+    fake = FakeESP(velocity_deg_s=10.0, clock=clock)
+    assert fake.handle(b"1PA5") is None and fake.handle(b"1MD?") == b"0\r\n"  # 0.5 s move
+    assert fake.handle(b"1WS250") is None  # wait for stop, then 250 ms
+    # the controller runs what follows once the wait is over: the move is done by then
+    assert fake.handle(b"1MD?;1TP?") == b"1\r\n5.000000\r\n"
+    assert fake.handle(b"1PA6;1MD?") == b"0\r\n"  # a move after the wait starts at its end
+    clock.advance(0.75 + 0.1)
+    assert fake.handle(b"1MD?") == b"1\r\n"
+    assert fake.handle(b"1WS") is None  # default: no delay
+    _no_error(fake)
+
+
+def test_fake_or_homes_and_dh_defines_home():
+    clock = ManualClock()
+    fake = FakeESP(velocity_deg_s=10.0, clock=clock)
+    fake.handle(b"1PA3")
+    clock.advance(0.3)
+    fake.handle(b"1DH")  # here reads 0
+    assert fake.handle(b"1TP") == b"0.000000\r\n" and fake.handle(b"1DH?") == b"0.000000\r\n"
+    fake.handle(b"1DH2.5")  # here reads 2.5
+    assert fake.handle(b"1TP") == b"2.500000\r\n" and fake.handle(b"1DH?") == b"2.500000\r\n"
+    fake.handle(b"1PA-1.5")
+    clock.advance(0.4)
+    assert fake.handle(b"1OR1") is None and fake.handle(b"1MD?") == b"0\r\n"  # home search
+    clock.advance(0.4)
+    assert fake.handle(b"1MD?") == b"1\r\n" and fake.handle(b"1TP") == b"2.500000\r\n"
+    _no_error(fake)
+
+
+def test_fake_sn_sets_the_units():
+    fake = FakeESP()
+    fake.handle(b"2SN2")
+    assert fake.handle(b"2SN?") == b"2\r\n"
+    _no_error(fake)
+
+
+@pytest.mark.parametrize("command, code", [(b"1OR9", 7), (b"1SN12", 7), (b"1WS-5", 7),
+                                           (b"OR1", 37), (b"WS", 37), (b"1DHx", 7),
+                                           (b"TS?", 6), (b"1DP", 6)])
+def test_fake_new_commands_refuse_bad_forms(command, code):
+    fake = FakeESP()
+    assert fake.handle(command) is None
+    assert fake.handle(b"TE?") == f"{code}\r\n".encode()
+
+
+def test_fake_or_refuses_a_motor_that_is_off():
+    fake = FakeESP(motors_on=False)
+    fake.handle(b"2OR1")
+    assert fake.handle(b"TE?") == b"213\r\n"
+
+
 def test_fake_fault_matching_and_counts():
     fake = FakeESP()
     fake.inject("timeout", "2TP?", count=2)
@@ -121,6 +226,8 @@ def test_fake_fault_matching_and_counts():
     assert fake.handle(b"VE?")[0] >= 0x80
     fake.inject("disconnect", "1MD?")
     assert fake.handle(b"1MD?") is DISCONNECT
+    fake.inject("timeout", "TB?", after=2)  # the third TB? loses its reply
+    assert [fake.handle(b"TB?") is None for _ in range(4)] == [False, False, True, False]
 
 
 # -- end to end through a real pty / socket -----------------------------------------------------
@@ -147,7 +254,7 @@ def test_moves_wait_for_motion_done(fake):
 
 
 @pytest.mark.parametrize("kind, match", [("timeout", "1TP?"), ("garble", "2TP?"),
-                                         ("timeout", "1MD?"), ("garble", "TB?")])
+                                         ("timeout", "1MD?"), ("garble", "2MD?")])
 def test_transient_faults_are_survived(pty_link, kind, match):
     fake, stage, _ = pty_link
     fake.inject(kind, match, count=2)
@@ -155,18 +262,33 @@ def test_transient_faults_are_survived(pty_link, kind, match):
     assert fake.received.count(match) >= 3  # two lost replies, one good one
 
 
-def test_short_silence_after_a_limit_is_survived(pty_link):
+def test_short_silence_on_a_query_is_survived(pty_link):
     fake, stage, _ = pty_link
-    fake.inject("silent", "2PA", silent_s=0.15)
+    fake.inject("silent", "1MD?", silent_s=0.15)  # 1MD? and what follows: no reply, 0.15 s
     assert stage.move_to(1.0, 1.0) == (1.0, 1.0)
 
 
-def test_long_silence_is_a_timeout(pty_link):
+def test_long_silence_on_a_query_is_a_timeout(pty_link):
     fake, stage, _ = pty_link
     stage.retries, stage.retry_delay_s, stage.timeout = 1, 0.0, 0.05
-    fake.inject("silent", "2PA", silent_s=5.0)
-    with pytest.raises(StageTimeout, match=r"'TB\?' after 2 attempt"):
+    fake.inject("silent", "1MD?", silent_s=5.0)
+    with pytest.raises(StageTimeout, match=r"'1MD\?' after 2 attempt"):
         stage.move_to(1.0, 1.0)
+
+
+@pytest.mark.parametrize("silent_s, empty", [(0.15, True), (5.0, False)])
+def test_silence_after_a_move_is_a_lost_error_reply(pty_link, silent_s, empty):
+    """The TB? after the move gets no reply: it may have popped an error, so the move is not
+    reported as a success, whether the buffer then reads empty or the silence outlasts the
+    retries."""
+    fake, stage, _ = pty_link
+    stage.retries, stage.retry_delay_s = 1, 0.1
+    fake.inject("silent", "2PA", silent_s=silent_s)
+    with pytest.raises(ErrorReplyLost) as info:
+        stage.move_to(1.0, 1.0)
+    assert info.value.empty is empty
+    if not empty:
+        assert isinstance(info.value.__cause__, StageTimeout)
 
 
 @pytest.mark.parametrize("code, cls, text", [
@@ -176,10 +298,28 @@ def test_long_silence_is_a_timeout(pty_link):
 ])
 def test_controller_errors_are_reported(pty_link, code, cls, text):
     fake, stage, _ = pty_link
-    fake.inject("error", "1PA", code=code, silent_s=0.05)
+    fake.inject("error", "1PA", code=code, silent_s=0.0)
     with pytest.raises(cls, match=text) as info:
         stage.move_to(2.0, 2.0)
-    assert info.value.code == code
+    assert type(info.value) is cls and info.value.code == code
+
+
+@pytest.mark.parametrize("kind", ["timeout", "garble"])
+@pytest.mark.parametrize("match, code, tb", [("1PA", 104, 0), ("2PA", 202, 0), ("1MD?", 113, 1),
+                                            ("2MD?", 205, 1)])
+def test_an_error_whose_reply_is_lost_is_never_a_success(pty_link, kind, match, code, tb):
+    """The controller queues an error, then the reply to the TB? that pops it (the first, after
+    the PA commands, or the second, after motion done) is lost or garbled: before the fix,
+    move_to reported success (3 of 3)."""
+    fake, stage, _ = pty_link
+    fake.inject("error", match, code=code, silent_s=0.0)
+    fake.inject(kind, "TB?", count=1, after=tb)
+    tb_before = fake.received.count("TB?")
+    with pytest.raises(ErrorReplyLost, match="may have been lost") as info:
+        stage.move_to(2.0, 2.0)
+    assert info.value.lost == 1 and info.value.empty and info.value.errors == []
+    assert fake.handle(b"TE?") == b"0\r\n"  # the error really is gone from the controller
+    assert fake.received.count("TB?") - tb_before >= 2  # re-queried until a clean "no error"
 
 
 def test_a_stuck_axis_is_a_motion_timeout_and_gets_stopped(pty_link):

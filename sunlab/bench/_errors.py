@@ -16,6 +16,7 @@ __all__ = [
     "StageProtocolError",
     "StageDisconnected",
     "ControllerError",
+    "ErrorReplyLost",
     "LimitError",
     "ControllerLimitError",
     "MotionTimeout",
@@ -118,6 +119,60 @@ class ControllerError(StageError):
         super().__init__(
             f"stage: {where} reported error {self.code} ({message}){after}. "
             f"Fix: {_fix_for(self.code)}"
+        )
+
+
+class ErrorReplyLost(StageError):
+    """A reply to an error query (``TB?``) was lost or garbled: a controller error may be lost.
+
+    Every ``TB?`` (and ``TE?``) pops one entry from the controller's error buffer, so a reply
+    that never arrives, or arrives garbled, may have carried an error that can never be read
+    again; resending the query reads the *next* entry. The driver therefore never takes an
+    unreadable error query for "no error": it re-queries until the buffer is provably empty
+    (a clean ``0, ..., NO ERROR DETECTED`` reply) and then raises this fault, whatever it read.
+
+    Parameters
+    ----------
+    command : str
+        The command the errors follow (``'PA'``), or ``''``.
+    lost : int
+        Error-query replies that timed out, came back garbled, or were cut by a dropped link.
+    errors : list of ControllerError
+        The errors that were read cleanly (oldest first); more may have been lost.
+    empty : bool
+        True when a clean "no error" reply proved the buffer empty afterwards.
+    detail : str
+        What happened to the last unreadable reply.
+
+    Examples
+    --------
+    >>> err = ErrorReplyLost("PA", 1, [], True, "no reply within 1 s")
+    >>> err.lost, err.empty
+    (1, True)
+    >>> "may have been lost" in str(err)
+    True
+    """
+
+    def __init__(self, command: str, lost: int, errors: list[ControllerError], empty: bool,
+                 detail: str = ""):
+        self.command = command
+        self.lost = int(lost)
+        self.errors = list(errors)
+        self.empty = bool(empty)
+        self.detail = detail
+        after = f" after {command!r}" if command else ""
+        read = ("; read cleanly: " + "; ".join(f"error {e.code} ({e.message})" for e in errors)
+                if errors else "")
+        state = ("the buffer was then read to empty" if empty else
+                 "the buffer could not be read to empty")
+        why = f" (last: {detail})" if detail else ""
+        replies = "1 reply" if self.lost == 1 else f"{self.lost} replies"
+        super().__init__(
+            f"stage: {replies} to the error query 'TB?'{after} lost or garbled{why}; each "
+            "'TB?' pops one error from the controller's buffer, so a controller error may "
+            f"have been lost{read}; {state}. The command is not known to "
+            "have succeeded. Fix: check the stage position and the controller's front panel "
+            "for an error, then the cable, baud rate and flow control, and resume the run"
         )
 
 

@@ -22,11 +22,15 @@ command        meaning                                reply
 ``nST``        stop motion of axis n                  (none)
 =============  =====================================  ==========================================
 
-Errors go to a first-in first-out buffer read with ``TB?``/``TE?`` (code 0 when empty). Axis
-errors are coded ``axis * 100 + code`` (``104``: axis 1, positive hardware limit); general
-errors are below 100. The controller may go silent for seconds after a limit: a query then gets
-no reply until it recovers, so every query is retried with a growing delay before
-:class:`~sunlab.bench.StageTimeout` is raised.
+Errors go to a first-in first-out buffer, ten deep, read with ``TB?``/``TE?`` (code 0 when
+empty). Axis errors are coded ``axis * 100 + code`` (``104``: axis 1, positive hardware limit);
+general errors are below 100. Reading an error removes it, so an error query is never retried
+blindly: a ``TB?`` reply that is lost or garbled may have carried an error, the buffer is read
+again until a clean ``0, ..., NO ERROR DETECTED`` proves it empty, and
+:class:`~sunlab.bench.ErrorReplyLost` is raised (an error may have been lost; the command is
+not reported as a success). The controller may go silent for seconds after a limit: a query
+then gets no reply until it recovers, so every other query is retried with a growing delay
+before :class:`~sunlab.bench.StageTimeout` is raised.
 
 The transport is anything with ``write``, ``read_until``, ``reset_input_buffer`` and ``close``
 (a :class:`serial.Serial`); :func:`open_transport` opens any :func:`serial.serial_for_url` URL
@@ -58,6 +62,7 @@ from .._errors import ConfigurationError
 from ._errors import (
     ControllerError,
     ControllerLimitError,
+    ErrorReplyLost,
     LimitError,
     MotionTimeout,
     StageDisconnected,
@@ -355,9 +360,11 @@ class ESP300:
     -----
     A move is ``nPA`` for both axes, ``TB?`` (a refused command is reported at once), ``nMD?``
     polls until both axes are done, ``TB?`` again (a limit or following error during the move),
-    the settle wait, and ``nTP?`` for the read-back. Position queries are idempotent and so are
-    absolute moves, which makes resending them after a fault safe. After a timeout the input
-    buffer is flushed before the resend so a late reply cannot be taken for the next one.
+    the settle wait, and ``nTP?`` for the read-back. An unreadable ``TB?`` reply is never
+    read as "no error" (:class:`~sunlab.bench.ErrorReplyLost`). Position queries are
+    idempotent and so are absolute moves, which makes resending them after a fault safe. After
+    a timeout the input buffer is flushed before the resend so a late reply cannot be taken for
+    the next one.
 
     Examples
     --------
@@ -463,34 +470,48 @@ class ESP300:
             raise _Garbled(raw)
         return raw
 
+    def _once(self, command: str, parse: Callable[[str], object] | None):
+        """Send ``command`` once; with ``parse``, read and parse its reply (no retry).
+
+        Raises _NoReply, _Garbled, or the link's own exception."""
+        self._send(command)
+        if parse is None:
+            return None
+        raw = self._readline()
+        try:
+            return parse(raw[: -len(READ_TERMINATOR)].decode("ascii"))
+        except (UnicodeDecodeError, ValueError) as err:
+            raise _Garbled(raw) from err
+
+    def _fault(self, command: str, err: BaseException, attempt: int, expected: str) -> StageError:
+        """The driver's error for one failed attempt of ``command`` (attempt counts from 1)."""
+        if isinstance(err, _NoReply):
+            log.info("stage: no reply to %r (attempt %d)", command, attempt)
+            return StageTimeout(command, attempt, self.timeout)
+        if isinstance(err, _Garbled):
+            log.info("stage: garbled reply %r to %r (attempt %d)", err.raw, command, attempt)
+            return StageProtocolError(command, err.raw, expected, attempt)
+        return StageDisconnected(self.port_name, str(err))
+
+    def _backoff(self, attempt: int) -> None:
+        """Wait before retry number ``attempt`` (1, 2, ...) and flush any late reply."""
+        self._sleep(self.retry_delay_s * 2 ** (attempt - 1))
+        self._port.reset_input_buffer()
+
     def _exchange(self, command: str, parse: Callable[[str], object] | None, expected: str):
         """Send ``command``; with ``parse``, read and parse its reply. Retries on faults."""
         import serial
 
         last: Exception | None = None
         for attempt in range(self.retries + 1):
-            if attempt:
-                self._sleep(self.retry_delay_s * 2 ** (attempt - 1))
             try:
                 if attempt:
-                    self._port.reset_input_buffer()
-                self._send(command)
-                if parse is None:
-                    return None
-                raw = self._readline()
-                try:
-                    return parse(raw[: -len(READ_TERMINATOR)].decode("ascii"))
-                except (UnicodeDecodeError, ValueError) as err:
-                    raise _Garbled(raw) from err
-            except _NoReply:
-                last = StageTimeout(command, attempt + 1, self.timeout)
-                log.info("stage: no reply to %r (attempt %d)", command, attempt + 1)
-            except _Garbled as err:
-                last = StageProtocolError(command, err.raw, expected, attempt + 1)
-                log.info("stage: garbled reply %r to %r (attempt %d)", err.raw, command,
-                         attempt + 1)
+                    self._backoff(attempt)
+                return self._once(command, parse)
+            except (_NoReply, _Garbled) as err:
+                last = self._fault(command, err, attempt + 1, expected)
             except (serial.SerialException, OSError) as err:
-                last = StageDisconnected(self.port_name, str(err))
+                last = self._fault(command, err, attempt + 1, expected)
                 if attempt == self.retries:
                     break
                 self._reopen(str(err))
@@ -544,7 +565,11 @@ class ESP300:
         """
         self._port.reset_input_buffer()
         self.identity = self.query("VE?")
-        self.stale_errors = self.errors()
+        self.stale_errors, lost = self._drain()
+        if lost is not None and not lost.empty:
+            raise lost
+        if lost is not None:  # stale errors never fail the handshake: a lost one is logged
+            log.warning("stage: at connect, %s", lost)
         for err in self.stale_errors:
             log.warning("stage: stale error in the controller buffer: %s", err)
         limits = {}
@@ -578,6 +603,54 @@ class ESP300:
         self.limits = limits
         return self
 
+    def _drain(self, command: str = "", max_errors: int = 10):
+        """Read the error buffer (``TB?``) until a clean "no error" reply; never retry blindly.
+
+        Each ``TB?`` pops one entry, so an unreadable reply (timeout, garbled, dropped link) is
+        counted as lost, since it may have carried an error, and the buffer is queried again,
+        up to ``retries`` unreadable replies in a row. Returns ``(errors, lost)``: the errors
+        read cleanly (oldest first), and None or, when any reply was unreadable, the
+        :class:`ErrorReplyLost` to raise (chained to the last link fault when the buffer was
+        never proved empty, else to the first error read).
+        """
+        import serial
+
+        expected = "'code, timestamp, message'"
+        found: list[ControllerError] = []
+        lost = bad_in_a_row = 0
+        detail = ""
+        last: StageError | None = None
+        empty = False
+        while len(found) < max_errors:
+            try:
+                if bad_in_a_row:
+                    self._backoff(bad_in_a_row)
+                code, _stamp, text = self._once("TB?", _parse_tb)
+            except (_NoReply, _Garbled, serial.SerialException, OSError) as err:
+                last = self._fault("TB?", err, bad_in_a_row + 1, expected)
+                lost += 1
+                bad_in_a_row += 1
+                detail = (f"no reply within {self.timeout:g} s" if isinstance(err, _NoReply)
+                          else f"garbled reply {err.raw!r}" if isinstance(err, _Garbled)
+                          else f"link dropped: {err}")
+                log.warning("stage: reply to 'TB?' lost (%s): an error may have been lost",
+                            detail)
+                if bad_in_a_row > self.retries:
+                    break
+                if isinstance(last, StageDisconnected):
+                    self._reopen(str(err))
+                continue
+            bad_in_a_row = 0
+            if code == 0:
+                empty = True
+                break
+            found.append(self._error(code, text, command))
+        if not lost:
+            return found, None
+        fault = ErrorReplyLost(command, lost, found, empty, detail)
+        fault.__cause__ = last if not empty else (found[0] if found else None)
+        return found, fault
+
     def errors(self, command: str = "", max_errors: int = 10) -> list[ControllerError]:
         """Drain the controller's error buffer (``TB?`` until code 0), oldest first.
 
@@ -587,13 +660,21 @@ class ESP300:
             The command the errors follow, for the messages.
         max_errors : int
             At most this many are read (the ESP buffer holds 10).
+
+        Returns
+        -------
+        list of ControllerError
+            The errors read, oldest first; empty when the first clean reply is code 0.
+
+        Raises
+        ------
+        ErrorReplyLost
+            When any ``TB?`` reply was lost or garbled (each ``TB?`` pops an error, so one may
+            be gone): raised even when the buffer then reads empty, and when it never does.
         """
-        found = []
-        for _ in range(max_errors):
-            code, _stamp, text = self.query("TB?", _parse_tb, "'code, timestamp, message'")
-            if code == 0:
-                break
-            found.append(self._error(code, text, command))
+        found, lost = self._drain(command, max_errors)
+        if lost is not None:
+            raise lost
         return found
 
     def _error(self, code: int, text: str = "", command: str = "") -> ControllerError:
@@ -657,6 +738,8 @@ class ESP300:
             Target outside the limits (nothing sent), or the controller hit a limit.
         ControllerError
             Any other error the controller reported for the move.
+        ErrorReplyLost
+            A reply to ``TB?`` was lost or garbled, so an error of the move may have been lost.
         MotionTimeout
             An axis did not finish within ``motion_timeout_s`` (it was stopped).
         StageError
@@ -697,7 +780,8 @@ class ESP300:
                 break
             if time.monotonic() > t_end:
                 self.stop()
-                for err in self.errors():
+                found, lost = self._drain("ST")
+                for err in found if lost is None else [lost]:
                     log.warning("stage: after stopping a stuck move: %s", err)
                 raise MotionTimeout(pending, {ax: target[ax] for ax in pending},
                                     self.motion_timeout_s)

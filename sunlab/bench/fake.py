@@ -12,6 +12,29 @@ monotonic clock, e.g. a :class:`ManualClock` that a test advances by hand). It s
 - a loopback TCP port (:meth:`FakeESP.serve_tcp`: 127.0.0.1 only; the driver opens
   ``socket://127.0.0.1:PORT``).
 
+Commands (``n`` an axis; blanks between fields are ignored, ``;`` chains commands on a line):
+
+==================  ==========================================================================
+``VE?``             firmware version
+``TB?``, ``TE?``    pop the oldest error (``code, timestamp, message``; the code); 0 when empty
+``TS``              status byte, one character: bit n-1 axis n moving, bit 4 a motor on
+``nTP?``, ``nTP``   actual position (the manual also reads it without ``?``, as pymeasure does)
+``nDP?``            desired position (the destination of the move)
+``nMD?``            motion done (1) or moving (0)
+``nID?``            positioner model and serial number: ``URS100BCC, SN0001``
+``nPA<x>``          move to absolute position x (limit errors ``n06``/``n07``; ``n13`` motor off)
+``nWS[ms]``         wait for stop: later commands run once axis n has stopped, plus ms
+``nOR[mode]``       home search (mode 0 to 6): the axis moves to its home position
+``nDH[x]``, ``nDH?``  define home: the position here reads x (default 0); read the home value
+``nSN[u]``, ``nSN?``  units (0 to 11; 7 degree)
+``nSL``/``nSR``     software limits (set, or read with ``?``); ``nVA`` velocity
+``nMO``, ``nMF``    motor on / off; ``nMO?`` motor state; ``nST`` stop; ``AB`` abort all
+==================  ==========================================================================
+
+Anything else queues error 6 (command does not exist), 37 (axis number missing), 9 (axis out of
+range), 38 (parameter missing) or 7 (parameter out of range), as the controller does; only
+queries are answered.
+
 The platform behind the axes is the virtual bench's (:func:`sunlab.sim.platform_pose`): the
 encoders read the commanded angles, while :meth:`FakeESP.true_pose` gives the angles the platform
 really takes, with its offsets, non-orthogonality, per-pose error and per-shot jitter. Without a
@@ -40,6 +63,8 @@ Examples
 b'2.500000\\r\\n'
 >>> fake.handle(b"3PA999"); fake.handle(b"TB?").split(b", ")[0]
 b'306'
+>>> fake.handle(b"1TP"), fake.handle(b"1 ID ?"), fake.handle(b"TS")
+(b'2.500000\\r\\n', b'URS100BCC, SN0001\\r\\n', b'P\\r\\n')
 """
 
 from __future__ import annotations
@@ -65,6 +90,17 @@ FAULT_KINDS = ("timeout", "garble", "error", "silent", "stuck", "disconnect")
 DISCONNECT = object()
 
 _CMD_RE = re.compile(r"^(\d*)([A-Za-z]{2})(.*)$")
+
+#: Reads the manual also writes without ``?`` (pymeasure's ESP300 reads the position as ``1TP``).
+_READ_WITHOUT_MARK = frozenset({"TP"})
+#: Commands that need an axis number (error 37 without one).
+_AXIS_COMMANDS = frozenset({"TP", "DP", "MD", "PA", "SL", "SR", "SN", "MO", "MF", "ST", "VA",
+                            "WS", "OR", "DH", "ID"})
+_NUMBER_COMMANDS = ("PA", "SL", "SR", "VA")
+#: ``SN`` unit codes (0 encoder count ... 7 degree ... 11 microradian).
+_UNIT_CODES = frozenset(range(12))
+#: ``OR`` home search modes.
+_HOME_MODES = frozenset(range(7))
 
 
 class ManualClock:
@@ -102,6 +138,7 @@ class Fault:
     count: int = 1
     code: int = 0
     silent_s: float = 2.0
+    after: int = 0
 
 
 class _Axis:
@@ -109,6 +146,7 @@ class _Axis:
         self.low, self.high, self.velocity = low, high, velocity
         self.motor_on = motor_on
         self.units = 7
+        self.home = 0.0
         self.start = self.target = 0.0
         self.t0 = self.t1 = 0.0
         self.stuck = False
@@ -118,6 +156,8 @@ class _Axis:
             return self.start + 0.5 * (self.target - self.start)
         if now >= self.t1:
             return self.target
+        if now <= self.t0:  # a move that starts after a WS wait has not started yet
+            return self.start
         return self.start + (self.target - self.start) * (now - self.t0) / (self.t1 - self.t0)
 
     def done(self, now: float) -> bool:
@@ -137,6 +177,13 @@ class _Axis:
         self.start = self.target = here
         self.t0 = self.t1 = now
         self.stuck = False
+
+    def define(self, value: float, now: float) -> None:
+        """``DH``: the position here now reads ``value`` (the whole move shifts with it)."""
+        shift = value - self.position(now)
+        self.start += shift
+        self.target += shift
+        self.home = value
 
 
 class FakeESP:
@@ -163,6 +210,8 @@ class FakeESP:
         Motor power at start.
     version : str
         The ``VE?`` reply.
+    stage_model : str
+        Positioner model in the ``nID?`` reply (``URS100BCC, SN0001`` for axis 1).
     clock : callable, optional
         Monotonic clock in seconds (default :func:`time.monotonic`); a :class:`ManualClock`
         makes timed behaviour (moves, silences, error time stamps) deterministic.
@@ -181,6 +230,7 @@ class FakeESP:
         resolution_deg: float = 1e-4,
         motors_on: bool = True,
         version: str = "ESP301 Version 3.0.2 6/29/11 (sunlab fake)",
+        stage_model: str = "URS100BCC",
         clock=None,
     ):
         if not velocity_deg_s > 0:
@@ -190,6 +240,7 @@ class FakeESP:
         self.alpha_axis, self.beta_axis = int(alpha_axis), int(beta_axis)
         self.resolution_deg = float(resolution_deg)
         self.version = version
+        self.stage_model = stage_model
         self._axes = {
             n: _Axis(float(limits[0]), float(limits[1]), float(velocity_deg_s), motors_on)
             for n in range(1, n_axes + 1)
@@ -197,6 +248,7 @@ class FakeESP:
         self._errors: deque[int] = deque(maxlen=10)
         self._faults: list[Fault] = []
         self._silent_until = -math.inf
+        self._wait_until = -math.inf
         self._lock = threading.RLock()
         self._clock = time.monotonic if clock is None else clock
         self._t_boot = self._clock()
@@ -207,8 +259,9 @@ class FakeESP:
 
     # -- faults -------------------------------------------------------------------------------
     def inject(self, kind: str, match: str = "", *, count: int = 1, code: int = 0,
-               silent_s: float = 2.0) -> Fault:
-        """Queue a fault for the next ``count`` commands containing ``match`` (see module doc).
+               silent_s: float = 2.0, after: int = 0) -> Fault:
+        """Queue a fault for the next ``count`` commands containing ``match`` (see module doc),
+        once ``after`` such commands have passed untouched.
 
         Examples
         --------
@@ -219,7 +272,7 @@ class FakeESP:
         """
         if kind not in FAULT_KINDS:
             raise ConfigurationError(f"fault kind: found {kind!r}, expected one of {FAULT_KINDS}")
-        fault = Fault(kind, match, int(count), int(code), float(silent_s))
+        fault = Fault(kind, match, int(count), int(code), float(silent_s), int(after))
         with self._lock:
             self._faults.append(fault)
         return fault
@@ -227,6 +280,9 @@ class FakeESP:
     def _take_fault(self, command: str) -> Fault | None:
         for fault in self._faults:
             if fault.count > 0 and fault.match in command:
+                if fault.after > 0:  # let this one pass
+                    fault.after -= 1
+                    continue
                 fault.count -= 1
                 if fault.count == 0:
                     self._faults.remove(fault)
@@ -240,11 +296,14 @@ class FakeESP:
         text = line.decode("ascii", "replace").strip()
         if not text:
             return None
-        now = self._clock()
         out = []
         with self._lock:
+            # commands after a WS run when its wait is over (answered at once, as if it were)
+            now = max(self._clock(), self._wait_until)
             self.received.append(text)
-            for command in filter(None, (c.strip() for c in text.split(";"))):
+            # the manual: blanks between the fields of a command are ignored ("2 PA 1000")
+            for command in filter(None, (c.replace(" ", "") for c in text.split(";"))):
+                now = max(now, self._wait_until)
                 if now < self._silent_until:  # busy recovering: the command is lost
                     continue
                 fault = self._take_fault(command)
@@ -273,6 +332,17 @@ class FakeESP:
         message = "NO ERROR DETECTED" if code == 0 else decode_error(code)[1].upper()
         return f"{code}, {stamp}, {message}"
 
+    def _status(self, now: float) -> str:
+        """``TS``: bit n-1 set while axis n moves, bit 4 while any motor is on; bit 6 is set
+        as in the manual's example replies, which keeps the byte a printable character."""
+        bits = 0x40
+        for n, ax in self._axes.items():
+            if n <= 3 and not ax.done(now):
+                bits |= 1 << (n - 1)
+        if any(ax.motor_on for ax in self._axes.values()):
+            bits |= 0x10
+        return chr(bits)
+
     def _execute(self, command: str, now: float, fault: Fault | None) -> str | None:
         match = _CMD_RE.match(command)
         if match is None:
@@ -280,7 +350,8 @@ class FakeESP:
             return None
         axis_text, mnemonic, rest = match.groups()
         mnemonic = mnemonic.upper()
-        query = rest == "?"
+        # a read: "?" after the mnemonic, or no parameter for those the manual reads without it
+        query = rest == "?" or (rest == "" and mnemonic in _READ_WITHOUT_MARK)
         if not axis_text:
             if mnemonic == "VE" and query:
                 return self.version
@@ -288,14 +359,13 @@ class FakeESP:
                 return self._error_text(self._errors.popleft() if self._errors else 0, now)
             if mnemonic == "TE" and query:
                 return str(self._errors.popleft() if self._errors else 0)
+            if mnemonic == "TS" and rest == "":
+                return self._status(now)
             if mnemonic == "AB":
                 for ax in self._axes.values():
                     ax.halt(now)
                 return None
-            if mnemonic in {"TP", "MD", "PA", "SL", "SR", "SN", "MO", "MF", "ST", "VA"}:
-                self._errors.append(37)
-            else:
-                self._errors.append(6)
+            self._errors.append(37 if mnemonic in _AXIS_COMMANDS else 6)
             return None
         n = int(axis_text)
         if n not in self._axes:
@@ -307,9 +377,11 @@ class FakeESP:
                 q = round(ax.position(now) / self.resolution_deg) * self.resolution_deg
                 return f"{q:.6f}"
             values = {"MD": lambda: str(int(ax.done(now))), "PA": lambda: f"{ax.target:.6f}",
+                      "DP": lambda: f"{ax.target:.6f}", "DH": lambda: f"{ax.home:.6f}",
                       "SL": lambda: f"{ax.low:.6f}", "SR": lambda: f"{ax.high:.6f}",
                       "SN": lambda: str(ax.units), "MO": lambda: str(int(ax.motor_on)),
-                      "VA": lambda: f"{ax.velocity:.6f}"}
+                      "VA": lambda: f"{ax.velocity:.6f}",
+                      "ID": lambda: f"{self.stage_model}, SN{n:04d}"}
             if mnemonic in values:
                 return values[mnemonic]()
             self._errors.append(6)
@@ -321,34 +393,56 @@ class FakeESP:
                 ax.halt(now)
                 ax.motor_on = ax.motor_on and mnemonic == "ST"
             return None
-        if mnemonic in ("PA", "SL", "SR", "VA"):
-            try:
-                value = float(rest)
-            except ValueError:
-                self._errors.append(38 if rest == "" else 7)
-                return None
-            if not math.isfinite(value):
-                self._errors.append(7)
-            elif mnemonic == "PA":
-                if not ax.motor_on:
-                    self._errors.append(100 * n + 13)
-                elif value > ax.high:
-                    self._errors.append(100 * n + 6)
-                elif value < ax.low:
-                    self._errors.append(100 * n + 7)
-                else:
-                    ax.move(value, now, stuck=fault is not None and fault.kind == "stuck")
-            elif mnemonic == "VA":
-                if value > 0:
-                    ax.velocity = value
-                else:
-                    self._errors.append(100 * n + 1)
-            elif mnemonic == "SL":
-                ax.low = value
-            else:
-                ax.high = value
-            return None
+        if mnemonic in ("WS", "OR", "DH", "SN") or mnemonic in _NUMBER_COMMANDS:
+            return self._set(n, ax, mnemonic, rest, now, fault)
         self._errors.append(6)
+        return None
+
+    def _set(self, n: int, ax: _Axis, mnemonic: str, rest: str, now: float,
+             fault: Fault | None) -> None:
+        """Run a command of axis ``n`` that takes a number (optional for WS, OR and DH)."""
+        default = {"WS": 0.0, "OR": 0.0, "DH": 0.0}.get(mnemonic)
+        try:
+            value = default if rest == "" and default is not None else float(rest)
+        except ValueError:
+            self._errors.append(38 if rest == "" else 7)
+            return None
+        if not math.isfinite(value):
+            self._errors.append(7)
+        elif mnemonic == "WS":  # wait for stop, then ``value`` ms; a stuck axis is not awaited
+            if not ax.stuck and value >= 0:
+                self._wait_until = max(self._wait_until, max(ax.t1, now) + value / 1000.0)
+            elif value < 0:
+                self._errors.append(7)
+        elif mnemonic == "DH":
+            ax.define(value, now)
+        elif mnemonic == "SN":
+            if value in _UNIT_CODES:
+                ax.units = int(value)
+            else:
+                self._errors.append(7)
+        elif mnemonic in ("PA", "OR"):
+            if mnemonic == "OR" and value not in _HOME_MODES:
+                self._errors.append(7)
+            elif not ax.motor_on:
+                self._errors.append(100 * n + 13)
+            elif mnemonic == "OR":  # home search: to the home switch, where DH's value reads
+                ax.move(ax.home, now)
+            elif value > ax.high:
+                self._errors.append(100 * n + 6)
+            elif value < ax.low:
+                self._errors.append(100 * n + 7)
+            else:
+                ax.move(value, now, stuck=fault is not None and fault.kind == "stuck")
+        elif mnemonic == "VA":
+            if value > 0:
+                ax.velocity = value
+            else:
+                self._errors.append(100 * n + 1)
+        elif mnemonic == "SL":
+            ax.low = value
+        else:
+            ax.high = value
         return None
 
     # -- the platform -------------------------------------------------------------------------
