@@ -20,6 +20,7 @@ from __future__ import annotations
 import argparse
 import sys
 
+from . import _cli_lab as _lab
 from ._errors import SunlabError
 
 __all__ = ["build_parser", "main"]
@@ -67,12 +68,19 @@ def _check_out(path, overwrite: bool, kind: str = "file") -> None:
 
 
 def _add_info(sub) -> None:
-    p = sub.add_parser("info", help="print a summary of a frame cube or centroid table")
-    p.add_argument("path", help="a .zarr store, a .nc file")
+    p = sub.add_parser("info", help="print a summary of a frame cube, centroid table or "
+                                    "calibration file")
+    p.add_argument("path", help="a .zarr store, a .nc file, or a calibration .json")
     p.set_defaults(func=_run_info)
 
 
 def _run_info(args) -> int:
+    from ._cli_lab import calibration_summary, read_calibration_json
+
+    doc = read_calibration_json(args.path)  # standard library only: fast
+    if doc is not None:
+        print(calibration_summary(doc))
+        return 0
     from . import io
 
     # Describe incomplete stores (an acquisition in progress) instead of refusing them:
@@ -191,7 +199,8 @@ def _run_acquire(args) -> int:
 
 def _add_centroid(sub) -> None:
     p = sub.add_parser("centroid", help="centroid every frame of a cube into a centroid table")
-    p.add_argument("cube", help="a frame cube (.zarr store or .nc file)")
+    p.add_argument("cube", help="a frame cube (.zarr store or .nc file), or a folder of "
+                                "PNG/TIFF frames with manifest.csv (as sunlab import)")
     p.add_argument("--method", default="projection",
                    choices=["threshold", "projection", "tight", "fit"],
                    help="A = threshold, B = projection (default), tight window, disk fit")
@@ -203,6 +212,7 @@ def _add_centroid(sub) -> None:
                    help="local threads or processes")
     p.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output")
+    _lab.add_folder_options(p)
     p.set_defaults(func=_run_centroid)
 
 
@@ -210,7 +220,10 @@ def _run_centroid(args) -> int:
     from . import centroid, io
 
     _check_out(args.out, args.overwrite, kind="auto")
-    cube = io.open_frames(args.cube)
+    from ._cli_lab import cube_from_folder, is_image_folder
+
+    cube = (cube_from_folder(args.cube, args) if is_image_folder(args.cube)
+            else io.open_frames(args.cube))
     cen = centroid.locate(cube, args.method, scheduler=args.scheduler, address=args.address,
                           num_workers=args.workers, progress=not args.no_progress)
     io.save_centroids(cen, args.out, overwrite=args.overwrite)
@@ -221,7 +234,7 @@ def _run_centroid(args) -> int:
 
 def _add_simulate(sub) -> None:
     p = sub.add_parser("simulate", help="render an experiment on the virtual bench into a cube")
-    p.add_argument("--experiment", default="III",
+    p.add_argument("--experiment", default="III", choices=["I", "II", "III"],
                    help="the paper's experiment I, II or III (Table 3); default III")
     p.add_argument("--mask", default="single", choices=["single", "multi", "random"],
                    help="one 0.2 mm hole, the 10 x 10 grid, or 50 random holes")
@@ -229,7 +242,8 @@ def _add_simulate(sub) -> None:
     p.add_argument("--seed", type=int, default=0, help="seed of the experiment (default 0)")
     p.add_argument("--shots", type=_POSITIVE, default=8, help="frames per pose (default 8)")
     p.add_argument("--subset", type=_POSITIVE, default=1, metavar="STEP",
-                   help="keep every STEP-th pose, for quick runs")
+                   help="keep every STEP-th angle along each grid axis (about 1/STEP^2 of "
+                        "the poses; maps stay maps), for quick runs")
     p.add_argument("--noise-free", action="store_true", help="ideal detector: no noise, no FPN")
     p.add_argument("--ideal-platform", action="store_true", help="true angles = commanded")
     p.add_argument("--chunks", default="frame", choices=["frame", "pose"],
@@ -247,7 +261,7 @@ def _run_simulate(args) -> int:
     from . import io, plans, sim
 
     _check_out(args.out, args.overwrite, kind="auto")
-    plan = plans.experiment(args.experiment, shots=args.shots).subset(args.subset)
+    plan = plans.experiment(args.experiment, shots=args.shots).thin(args.subset)
     bench = {
         "single": sim.Bench.paper_single_hole,
         "multi": sim.Bench.paper_multi_hole,
@@ -269,20 +283,23 @@ def _run_simulate(args) -> int:
 
 def _add_calibrate(sub) -> None:
     p = sub.add_parser("calibrate", help="fit a calibration function on a centroid table")
-    p.add_argument("train", help="training centroid table (experiment I; .nc or .zarr)")
+    p.add_argument("train", help="training centroid table (experiment I; .nc, .zarr, or .csv "
+                                 "with columns alpha, beta, x, y[, shot])")
     p.add_argument("--method", default="polynomial",
                    choices=["polynomial", "trigonometric", "linear", "cubic", "neural", "ideal",
                             "optimised"],
                    help="calibration function (docs/paper.md sec. 4); default polynomial")
-    p.add_argument("--order", default="5",
+    # None defaults: an option given to a method it does not apply to is refused
+    p.add_argument("--order", default=None,
                    help="polynomial / trigonometric order, or 'auto' to pick the polynomial "
                         "order on --validation (default 5)")
-    p.add_argument("--strategy", type=int, default=4, choices=[1, 2, 3, 4],
+    p.add_argument("--strategy", type=int, default=None, choices=[1, 2, 3, 4],
                    help="neural-network strategy of Table 2 (default 4)")
-    p.add_argument("--hidden", type=_POSITIVE, default=8,
+    p.add_argument("--hidden", type=_POSITIVE, default=None,
                    help="hidden tanh neurons (default 8)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the network weights")
-    p.add_argument("--max-iter", type=_POSITIVE, default=3000,
+    p.add_argument("--seed", type=int, default=None, help="seed of the network weights "
+                                                          "(default 0)")
+    p.add_argument("--max-iter", type=_POSITIVE, default=None,
                    help="most L-BFGS iterations per network (default 3000)")
     p.add_argument("--extrapolate", action="store_true",
                    help="interpolation: nearest node outside the convex hull (default NaN)")
@@ -296,12 +313,25 @@ def _add_calibrate(sub) -> None:
 def _run_calibrate(args) -> int:
     import time
 
-    from . import calibration, io
+    from . import calibration
+    from ._cli_lab import CALIBRATE_OPTIONS, open_centroid_table
     from ._errors import ConfigurationError
 
+    for name, methods in CALIBRATE_OPTIONS.items():
+        if getattr(args, name) not in (None, False) and args.method not in methods:
+            flag = "--" + name.replace("_", "-")
+            raise ConfigurationError(
+                f"{flag}: does not apply to --method {args.method} (only to "
+                f"{', '.join(methods)}). Fix: leave {flag} out, or choose one of those methods")
+    args.order = "5" if args.order is None else args.order
+    args.strategy = 4 if args.strategy is None else args.strategy
+    args.hidden = 8 if args.hidden is None else args.hidden
+    args.seed = 0 if args.seed is None else args.seed
+    args.max_iter = 3000 if args.max_iter is None else args.max_iter
     _check_out(args.out, args.overwrite)
-    train = io.open_dataset(args.train)
-    val = None if args.validation is None else io.open_dataset(args.validation)
+    train = open_centroid_table(args.train, "train")
+    val = None if args.validation is None else open_centroid_table(args.validation,
+                                                                   "validation")
     order = None
     if args.order != "auto":
         try:
@@ -342,9 +372,12 @@ def _run_calibrate(args) -> int:
         return ", ".join(f"{a} mean|e| {r[a]['mean_abs'] or float('nan'):.5f} "
                          f"max {r[a]['max_abs'] or float('nan'):.5f}" for a in ("alpha", "beta"))
 
-    line = fmt(res)
+    if res.get("leave_one_out"):  # an interpolant passes through its nodes: ~0 residuals
+        line = "leave-one-out errors (deg): " + fmt(res["leave_one_out"])
+    else:
+        line = "training residuals (deg): " + fmt(res)
     print(f"{args.out}: {cal.label} fitted on {cal.training['n_poses']} poses in "
-          f"{elapsed:.2f} s; training residuals (deg): {line}")
+          f"{elapsed:.2f} s; {line}")
     if res.get("validation"):
         print("  validation residuals (deg): " + fmt(res["validation"]))
     return 0
@@ -398,9 +431,15 @@ def _run_reproduce(args) -> int:
     return 0
 
 
+def _add_lab(name: str):
+    """The adder of a lab subcommand (import, evaluate, export) from sunlab._cli_lab."""
+    return getattr(_lab, f"_add_{name}")
+
+
 # One adder per subcommand, in the order `sunlab --help` lists them.
 _ADDERS = [
-    _add_reproduce, _add_simulate, _add_centroid, _add_calibrate, _add_acquire, _add_info,
+    _add_reproduce, _add_simulate, _add_lab("import"), _add_centroid, _add_calibrate,
+    _add_lab("evaluate"), _add_lab("export"), _add_acquire, _add_info,
 ]
 
 

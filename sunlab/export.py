@@ -57,7 +57,8 @@ import numpy as np
 
 from ._errors import ConfigurationError
 
-__all__ = ["FLAGS", "FORMATS", "export", "export_c", "c_sources", "find_c_compiler", "run_c"]
+__all__ = ["FLAGS", "FORMATS", "export", "export_c", "c_sources", "find_c_compiler", "run_c",
+           "check_c"]
 
 #: Return values of the exported C functions.
 FLAGS = {"ok": 0, "outside": 1, "undefined": 2, "bad_input": 3}
@@ -441,21 +442,26 @@ int {name}({P.t} x_px, {P.t} y_px, {P.t} *alpha_deg, {P.t} *beta_deg)
     return header, "".join(parts)
 
 
-def export_c(cal, out) -> tuple[Path, Path]:
+def export_c(cal, out, *, overwrite: bool = False) -> tuple[Path, Path]:
     """Write ``out/sunlab_calibration.h`` and ``out/sunlab_calibration.c``; return the paths.
 
-    See the module docstring for what each method exports and :func:`c_sources`.
+    See the module docstring for what each method exports and :func:`c_sources`. Existing
+    files are replaced only with ``overwrite=True``.
     """
+    from . import _atomic
+
     header, source = c_sources(cal)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     h, c = out / f"{BASENAME}.h", out / f"{BASENAME}.c"
-    h.write_text(header, encoding="utf-8")
-    c.write_text(source, encoding="utf-8")
+    for path in (h, c):
+        _atomic.check_target(path, overwrite=overwrite, flag="--overwrite")
+    _atomic.write_text(h, header, overwrite=overwrite, flag="--overwrite")
+    _atomic.write_text(c, source, overwrite=overwrite, flag="--overwrite")
     return h, c
 
 
-def export(cal, out, format: str = "c") -> list[Path]:
+def export(cal, out, format: str = "c", *, overwrite: bool = False) -> list[Path]:
     """Export a calibration: ``"c"`` (header + source, :func:`export_c`) or ``"json"``.
 
     Parameters
@@ -466,6 +472,8 @@ def export(cal, out, format: str = "c") -> list[Path]:
         Output folder (created); ``"json"`` writes ``out/sunlab_calibration.json``, the
         interchange format (contract ``calibration/1``).
     format : {"c", "json"}
+    overwrite : bool
+        Replace existing files.
 
     Returns
     -------
@@ -476,10 +484,10 @@ def export(cal, out, format: str = "c") -> list[Path]:
         raise ConfigurationError(f"format: found {format!r}, expected one of {FORMATS}")
     cal = _load(cal)
     if format == "c":
-        return list(export_c(cal, out))
+        return list(export_c(cal, out, overwrite=overwrite))
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    return [cal.save(out / f"{BASENAME}.json")]
+    return [cal.save(out / f"{BASENAME}.json", overwrite=overwrite)]
 
 
 def find_c_compiler() -> str | None:
@@ -551,3 +559,44 @@ def run_c(folder, x, y, *, cc: str | None = None, timeout: float = 60.0) -> dict
     rows = rows.reshape(-1, 6)
     return {"flag": rows[:, 0].astype(int), "alpha": rows[:, 1], "beta": rows[:, 2],
             "flag_f": rows[:, 3].astype(int), "alpha_f": rows[:, 4], "beta_f": rows[:, 5]}
+
+
+def check_c(cal, folder, n: int = 1000, *, seed: int = 0, cc: str | None = None) -> dict:
+    """Compile an export and compare it with Python ``predict_xy`` on ``n`` points.
+
+    The points are drawn uniformly in the box of the training centroids (``domain['x']`` x
+    ``domain['y']``) widened by 10 % on each side, so that some fall outside the domain; the
+    float function is compared with Python at the float-rounded centroids (the rounding of the
+    input is the caller's, not the export's).
+
+    Returns
+    -------
+    dict
+        ``max_error_double``, ``max_error_float`` (deg, over the points where Python gives a
+        finite angle), ``flags_agree`` (the C flag is 0 exactly where :meth:`inside` is True,
+        for both precisions), ``nan_agree`` (NaN where Python gives NaN), ``n``,
+        ``n_outside``, ``compiler``.
+    """
+    cal = _load(cal)
+    rng = np.random.default_rng(seed)
+    (x0, x1), (y0, y1) = cal.domain["x"], cal.domain["y"]
+    x = rng.uniform(x0 - 0.1 * (x1 - x0), x1 + 0.1 * (x1 - x0), n)
+    y = rng.uniform(y0 - 0.1 * (y1 - y0), y1 + 0.1 * (y1 - y0), n)
+    compiler = cc or find_c_compiler()
+    got = run_c(folder, x, y, cc=compiler)
+    a, b = cal.predict_xy(x, y)
+    xf, yf = (v.astype(np.float32).astype(float) for v in (x, y))
+    af, bf = cal.predict_xy(xf, yf)
+    fin, finf = np.isfinite(a), np.isfinite(af)
+    inside, insidef = cal.inside(x, y), cal.inside(xf, yf)
+    err64 = np.abs(np.concatenate([got["alpha"] - a, got["beta"] - b])[np.r_[fin, fin]])
+    err32 = np.abs(np.concatenate([got["alpha_f"] - af, got["beta_f"] - bf])[np.r_[finf, finf]])
+    return {
+        "n": int(n), "n_outside": int((~inside).sum()), "compiler": compiler,
+        "max_error_double": float(err64.max()) if err64.size else float("nan"),
+        "max_error_float": float(err32.max()) if err32.size else float("nan"),
+        "flags_agree": bool(np.array_equal(got["flag"] == 0, inside)
+                            and np.array_equal(got["flag_f"] == 0, insidef)),
+        "nan_agree": bool(np.array_equal(np.isnan(got["alpha"]), ~fin)
+                          and np.array_equal(np.isnan(got["alpha_f"]), ~finf)),
+    }
