@@ -12,27 +12,35 @@ Sunlight passes the hole along :math:`-\\mathbf{s}`, so the spot moves by
 :math:`-F (s_x / s_z, s_y / s_z) = F(\\tan\\alpha, \\tan\\beta / \\cos\\alpha)`: +x with +alpha and
 +y with +beta, which is the paper's eq. (1).
 
-The optimised model, eqs. (3)-(4), adopted here (the source's formulas were lost; this is the
-reconstruction of docs/paper.md sec. 4.1). Parameters: the mask-distance error
-:math:`\\delta F`, the
-mounting errors :math:`\\alpha_0, \\beta_0` of the sensor on the platform, and the measured
-zero-pose centroid :math:`(x_{zp}, y_{zp})` (the centroid with the platform at alpha = beta = 0).
-With :math:`F' = F + \\delta F` and the pixel pitch :math:`p`,
+The optimised model, eqs. (3)-(4) (the source's formulas were lost; this is our reconstruction
+of docs/paper.md sec. 4.1). Parameters: the mask-distance error :math:`\\delta F`, the mounting
+errors :math:`\\alpha_0, \\beta_0` of the sensor on the platform, and the zero-pose centroid
+:math:`(x_{zp}, y_{zp})` (where the spot falls with the platform at alpha = beta = 0). The
+mounting is a rigid rotation, the one the virtual bench applies
+(:meth:`sunlab.sim.Platform.mount_matrix`), so that the fit estimates the bench's own numbers:
 
 .. math::
 
-    \\tan a_s = \\frac{(x - x_{cf})\\,p}{F'}, \\qquad
-    \\tan b_s = \\frac{(y - y_{cf})\\,p\\cos a_s}{F'}, \\qquad
-    \\alpha_m = a_s - \\alpha_0, \\qquad \\beta_m = b_s - \\beta_0            \\quad (3)
+    M = R_y(-\\alpha_0) R_x(\\beta_0), \\qquad
+    \\mathbf{s}' = M\\,\\mathbf{s}(\\alpha, \\beta), \\qquad
+    x = x_{cf} - \\frac{F'}{p}\\frac{s'_x}{s'_z}, \\qquad
+    y = y_{cf} - \\frac{F'}{p}\\frac{s'_y}{s'_z}                                 \\quad (3)
+
+with :math:`F' = F + \\delta F`, and the foot of the hole :math:`(x_{cf}, y_{cf})` tied to the
+zero-pose centroid by
 
 .. math::
 
-    x_{cf} = x_{zp} - \\frac{F'}{p}\\tan\\alpha_0, \\qquad
-    y_{cf} = y_{zp} - \\frac{F'}{p}\\frac{\\tan\\beta_0}{\\cos\\alpha_0}            \\quad (4)
+    x_{cf} = x_{zp} + \\frac{F'}{p}\\frac{(M\\mathbf{e}_z)_x}{(M\\mathbf{e}_z)_z}, \\qquad
+    y_{cf} = y_{zp} + \\frac{F'}{p}\\frac{(M\\mathbf{e}_z)_y}{(M\\mathbf{e}_z)_z}     \\quad (4)
 
-so that the zero pose maps exactly to :math:`(x_{zp}, y_{zp})`. The mounting errors are additive
-angle offsets, the small-angle form of a rotation; :func:`pinhole_centroid` is the exact forward
-model with a rigid mounting rotation, which the optimised model only approximates.
+Inverting (3): :math:`\\mathbf{s} \\propto M^T ((x_{cf} - x)p/F', (y_{cf} - y)p/F', 1)`, and
+(alpha, beta) are the platform angles of :math:`\\mathbf{s}` (:func:`sun_angles`). To first order
+in the mounting angles this is the additive form ``alpha_m = a_s - alpha0, beta_m = b_s - beta0`` of the digest
+(``mounting="additive"``, kept for comparison); off the axes the two differ because rotations
+do not commute (a roll of about beta0 sin(alpha): 0.12 deg at alpha = -17 deg), and a fit of the
+additive form to a rotated mounting returns biased alpha0, beta0. The zero-pose centroid is a
+fitted parameter by default (:func:`fit_optimised_model`), not one noisy measured frame.
 
 References
 ----------
@@ -156,22 +164,39 @@ def ideal_angles(x, y, mask_distance_mm, pixel_pitch_mm, x_cf, y_cf):
     return np.rad2deg(a), np.rad2deg(b)
 
 
-def _optimised_cf(mask_distance_mm, pixel_pitch_mm, delta_f_mm, alpha0, beta0, x_zp, y_zp):
-    """Design projection (x_cf, y_cf) that eq. (4) ties to the zero-pose centroid, px."""
+_MOUNTINGS = ("rotation", "additive")
+
+
+def _check_mounting(mounting: str) -> None:
+    if mounting not in _MOUNTINGS:
+        raise ConfigurationError(
+            f"mounting: found {mounting!r}; expected 'rotation' (the bench's rigid mounting, "
+            "default) or 'additive' (alpha0, beta0 as angle offsets)."
+        )
+
+
+def _optimised_cf(mask_distance_mm, pixel_pitch_mm, delta_f_mm, alpha0, beta0, x_zp, y_zp,
+                  mounting: str = "additive"):
+    """Foot of the hole (x_cf, y_cf) that eq. (4) ties to the zero-pose centroid, px."""
     k = (mask_distance_mm + delta_f_mm) / pixel_pitch_mm
+    if mounting == "rotation":
+        m = mounting_matrix(alpha0, beta0)[:, 2]
+        return x_zp + k * m[0] / m[2], y_zp + k * m[1] / m[2]
     a0 = np.deg2rad(alpha0)
     b0 = np.deg2rad(beta0)
     return x_zp - k * np.tan(a0), y_zp - k * np.tan(b0) / np.cos(a0)
 
 
 def optimised_centroid(
-    alpha, beta, mask_distance_mm, pixel_pitch_mm, delta_f_mm, alpha0, beta0, x_zp, y_zp
+    alpha, beta, mask_distance_mm, pixel_pitch_mm, delta_f_mm, alpha0, beta0, x_zp, y_zp,
+    *, mounting: str = "rotation",
 ):
-    """Spot centroid predicted by the optimised model, eqs. (3)-(4), for platform angles.
+    r"""Spot centroid predicted by the optimised model, eqs. (3)-(4), for platform angles.
 
-    The forward direction of :func:`optimised_angles`: the sensor sees the angles
-    ``(alpha + alpha0, beta + beta0)`` through a mask at ``F + delta_f_mm``, and the design
-    projection ``(x_cf, y_cf)`` is set so that the zero pose lands on ``(x_zp, y_zp)``.
+    The forward direction of :func:`optimised_angles`: the platform's sun vector is rotated by
+    the mounting ``M = R_y(-alpha0) R_x(beta0)`` into the sensor frame and projected through a
+    hole at ``F + delta_f_mm``; the foot of the hole is set so that the zero pose lands on
+    ``(x_zp, y_zp)`` (module notes).
 
     Parameters
     ----------
@@ -187,6 +212,9 @@ def optimised_centroid(
         Mounting errors of the sensor on the platform, degrees.
     x_zp, y_zp : float
         Centroid at the zero pose (alpha = beta = 0), px.
+    mounting : {"rotation", "additive"}
+        The mounting as a rigid rotation (default, as the bench) or as additive angle offsets
+        (``alpha + alpha0``, ``beta + beta0`` through eq. (1)).
 
     Returns
     -------
@@ -195,10 +223,9 @@ def optimised_centroid(
 
     Notes
     -----
-    Eqs. (3)-(4) as reconstructed in the module docstring, solved for (x, y):
-
-    .. math:: x = x_{cf} + \\frac{F'}{p}\\tan(\\alpha + \\alpha_0), \\qquad
-              y = y_{cf} + \\frac{F'}{p}\\frac{\\tan(\\beta + \\beta_0)}{\\cos(\\alpha + \\alpha_0)}
+    .. math:: \mathbf{s}' = R_y(-\alpha_0) R_x(\beta_0)\,\mathbf{s}(\alpha, \beta), \qquad
+              x = x_{cf} - \frac{F'}{p}\frac{s'_x}{s'_z}, \qquad
+              y = y_{cf} - \frac{F'}{p}\frac{s'_y}{s'_z}  \qquad (3)
 
     Examples
     --------
@@ -206,9 +233,13 @@ def optimised_centroid(
     >>> round(float(x), 9), round(float(y), 9)  # the zero pose maps to the zero-pose centroid
     (600.0, 500.0)
     """
+    _check_mounting(mounting)
     x_cf, y_cf = _optimised_cf(
-        mask_distance_mm, pixel_pitch_mm, delta_f_mm, alpha0, beta0, x_zp, y_zp
+        mask_distance_mm, pixel_pitch_mm, delta_f_mm, alpha0, beta0, x_zp, y_zp, mounting
     )
+    if mounting == "rotation":
+        return pinhole_centroid(alpha, beta, mask_distance_mm, pixel_pitch_mm, x_cf, y_cf,
+                                delta_f_mm=delta_f_mm, mounting_deg=(alpha0, beta0, 0.0))
     return ideal_centroid(
         np.asarray(alpha, dtype=float) + alpha0,
         np.asarray(beta, dtype=float) + beta0,
@@ -220,9 +251,10 @@ def optimised_centroid(
 
 
 def optimised_angles(
-    x, y, mask_distance_mm, pixel_pitch_mm, delta_f_mm, alpha0, beta0, x_zp, y_zp
+    x, y, mask_distance_mm, pixel_pitch_mm, delta_f_mm, alpha0, beta0, x_zp, y_zp,
+    *, mounting: str = "rotation",
 ):
-    """Platform angles from a spot centroid by the optimised model, eqs. (3)-(4).
+    r"""Platform angles from a spot centroid by the optimised model, eqs. (3)-(4).
 
     Parameters
     ----------
@@ -230,6 +262,8 @@ def optimised_angles(
         Centroid column and row, px.
     mask_distance_mm, pixel_pitch_mm, delta_f_mm, alpha0, beta0, x_zp, y_zp
         As in :func:`optimised_centroid` (mm, mm, mm, deg, deg, px, px).
+    mounting : {"rotation", "additive"}
+        As in :func:`optimised_centroid`.
 
     Returns
     -------
@@ -238,10 +272,12 @@ def optimised_angles(
 
     Notes
     -----
-    .. math:: \\alpha_m = \\arctan\\frac{(x - x_{cf})p}{F'} - \\alpha_0, \\qquad
-              \\beta_m = \\arctan\\frac{(y - y_{cf})p\\cos a_s}{F'} - \\beta_0  \\quad (3)
+    .. math:: \mathbf{s} \propto M^T \left(\frac{(x_{cf} - x)p}{F'},
+              \frac{(y_{cf} - y)p}{F'}, 1\right), \qquad
+              (\alpha_m, \beta_m) = \mathrm{angles}(\mathbf{s})  \quad (3)
 
-    with :math:`F' = F + \\delta F` and :math:`(x_{cf}, y_{cf})` from eq. (4).
+    with :math:`F' = F + \delta F`, :math:`M = R_y(-\alpha_0) R_x(\beta_0)` and
+    :math:`(x_{cf}, y_{cf})` from eq. (4).
 
     Examples
     --------
@@ -250,9 +286,15 @@ def optimised_angles(
     >>> round(float(a), 9), round(float(b), 9)
     (-12.0, 9.0)
     """
+    _check_mounting(mounting)
     x_cf, y_cf = _optimised_cf(
-        mask_distance_mm, pixel_pitch_mm, delta_f_mm, alpha0, beta0, x_zp, y_zp
+        mask_distance_mm, pixel_pitch_mm, delta_f_mm, alpha0, beta0, x_zp, y_zp, mounting
     )
+    if mounting == "rotation":
+        k = (mask_distance_mm + delta_f_mm) / pixel_pitch_mm
+        x, y = np.broadcast_arrays(np.asarray(x, dtype=float), np.asarray(y, dtype=float))
+        sp = np.stack([(x_cf - x) / k, (y_cf - y) / k, np.ones_like(x)], axis=-1)
+        return sun_angles(sp @ mounting_matrix(alpha0, beta0))
     a_s, b_s = ideal_angles(x, y, mask_distance_mm + delta_f_mm, pixel_pitch_mm, x_cf, y_cf)
     return a_s - alpha0, b_s - beta0
 
@@ -270,11 +312,11 @@ class OptimisedFit:
     x_zp, y_zp : float
         Zero-pose centroid, px (measured, or fitted when ``zero_pose_fitted``).
     x_cf, y_cf : float
-        Design projection implied by eq. (4), px.
+        Foot of the hole implied by eq. (4), px.
     mask_distance_mm, pixel_pitch_mm : float
         The nominal F and the pixel pitch used, mm.
     stderr : dict
-        One-sigma standard errors of the fitted parameters from the Jacobian (same units).
+        One-sigma standard errors of the fitted parameters (same units), by ``stderr_method``.
     rms_alpha, rms_beta : float
         RMS residual of the fit per angle, degrees.
     n_points : int
@@ -285,6 +327,11 @@ class OptimisedFit:
         Whether the optimiser reported convergence.
     message : str
         The optimiser's message.
+    mounting : str
+        ``"rotation"`` or ``"additive"`` (:func:`optimised_centroid`).
+    stderr_method : str
+        ``"jacobian"`` (white residuals) or ``"block bootstrap"`` (see
+        :func:`fit_optimised_model`).
     """
 
     delta_f_mm: float
@@ -303,11 +350,14 @@ class OptimisedFit:
     zero_pose_fitted: bool
     success: bool
     message: str
+    mounting: str = "rotation"
+    stderr_method: str = "jacobian"
 
     @property
     def params(self) -> tuple:
         """``(mask_distance_mm, pixel_pitch_mm, delta_f_mm, alpha0, beta0, x_zp, y_zp)``, the
-        trailing arguments of :func:`optimised_angles` and :func:`optimised_centroid`."""
+        trailing arguments of :func:`optimised_angles` and :func:`optimised_centroid` (pass
+        ``mounting=fit.mounting`` with them, or use :meth:`angles`)."""
         return (
             self.mask_distance_mm,
             self.pixel_pitch_mm,
@@ -317,6 +367,10 @@ class OptimisedFit:
             self.x_zp,
             self.y_zp,
         )
+
+    def angles(self, x, y):
+        """Platform angles (deg) of centroids (px) by the fitted model."""
+        return optimised_angles(x, y, *self.params, mounting=self.mounting)
 
     def to_dict(self) -> dict:
         """Plain-Python dictionary (JSON-ready)."""
@@ -334,8 +388,12 @@ def fit_optimised_model(
     y_zp=None,
     *,
     initial=(0.0, 0.0, 0.0),
+    mounting: str = "rotation",
+    blocks=None,
+    n_boot: int = 0,
+    seed: int = 0,
 ) -> OptimisedFit:
-    """Fit dF, alpha0, beta0 of the optimised model (3)-(4) by nonlinear least squares.
+    """Fit dF, alpha0, beta0 (and the zero-pose centroid) of the optimised model (3)-(4).
 
     Minimises
     :math:`\\sum_i (\\alpha_m(x_i, y_i) - \\alpha_i)^2 + (\\beta_m(x_i, y_i) - \\beta_i)^2`
@@ -351,10 +409,23 @@ def fit_optimised_model(
     mask_distance_mm, pixel_pitch_mm : float
         Nominal F and pixel pitch, mm.
     x_zp, y_zp : float, optional
-        Measured zero-pose centroid, px. When either is None, both become free parameters of the
-        fit (use this when the calibration plan has no pose at alpha = beta = 0).
+        Measured zero-pose centroid, px. When either is None (default), both are free
+        parameters fitted jointly with the others from every pose, rather than anchored on the
+        few noisy frames of one pose.
     initial : tuple of 3 float
         Starting ``(delta_f_mm, alpha0, beta0)``, mm and degrees.
+    mounting : {"rotation", "additive"}
+        Form of the mounting (:func:`optimised_centroid`).
+    blocks : array_like of int, optional
+        A block label per centroid for the block bootstrap (e.g. poses grouped into
+        2 x 2-degree squares of the grid): residuals inside a block may be correlated
+        (shots of one pose share the platform's pose error; neighbouring poses share the
+        pixel pattern under the spot), different blocks are taken as independent.
+    n_boot : int
+        Bootstrap replicas; 0 (default) gives the Jacobian standard errors, which assume
+        white residuals.
+    seed : int
+        Seed of the bootstrap's resampling.
 
     Returns
     -------
@@ -369,16 +440,21 @@ def fit_optimised_model(
     --------
     >>> a, b = np.meshgrid(np.arange(-17.0, 3.0), np.arange(-2.0, 18.0), indexing="ij")
     >>> x, y = optimised_centroid(a, b, 5.0, 0.007, 0.094, 1.864, 0.415, 640.0, 512.0)
-    >>> fit = fit_optimised_model(x, y, a, b, 5.0, 0.007, x_zp=640.0, y_zp=512.0)
+    >>> fit = fit_optimised_model(x, y, a, b, 5.0, 0.007)
     >>> round(fit.delta_f_mm, 6), round(fit.alpha0, 6), round(fit.beta0, 6)
     (0.094, 1.864, 0.415)
+    >>> round(fit.x_zp, 6), round(fit.y_zp, 6)
+    (640.0, 512.0)
     """
     from scipy.optimize import least_squares
 
+    _check_mounting(mounting)
     x, y, alpha, beta = np.broadcast_arrays(
         *(np.asarray(v, dtype=float) for v in (x, y, alpha, beta))
     )
     ok = np.isfinite(x) & np.isfinite(y) & np.isfinite(alpha) & np.isfinite(beta)
+    if blocks is not None:
+        blocks = np.broadcast_to(np.asarray(blocks), x.shape)[ok]
     x, y, alpha, beta = x[ok], y[ok], alpha[ok], beta[ok]
     free_zp = x_zp is None or y_zp is None
     n_par = 5 if free_zp else 3
@@ -397,26 +473,42 @@ def fit_optimised_model(
             float(np.median(y - k * np.tan(np.deg2rad(beta)) / np.cos(a))),
         ]
 
-    def residuals(q):
-        zp = (q[3], q[4]) if free_zp else (x_zp, y_zp)
-        am, bm = optimised_angles(x, y, F, p, q[0], q[1], q[2], *zp)
-        return np.concatenate([am - alpha, bm - beta])
+    def solve(xs, ys, al, be, start):
+        def residuals(q):
+            zp = (q[3], q[4]) if free_zp else (x_zp, y_zp)
+            am, bm = optimised_angles(xs, ys, F, p, q[0], q[1], q[2], *zp, mounting=mounting)
+            return np.concatenate([am - al, bm - be])
 
-    res = least_squares(
-        residuals, p0, method="trf", x_scale="jac", xtol=1e-14, ftol=1e-14, gtol=1e-14,
-        max_nfev=2000,
-    )
+        return least_squares(
+            residuals, start, method="trf", x_scale="jac", xtol=1e-14, ftol=1e-14, gtol=1e-14,
+            max_nfev=2000,
+        )
+
+    res = solve(x, y, alpha, beta, p0)
     q = res.x
     names = ["delta_f_mm", "alpha0", "beta0", "x_zp", "y_zp"][:n_par]
-    dof = max(res.fun.size - n_par, 1)
-    s2 = 2.0 * res.cost / dof
-    try:
-        cov = np.linalg.inv(res.jac.T @ res.jac) * s2
-        err = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-    except np.linalg.LinAlgError:
-        err = np.full(n_par, np.nan)
+    if n_boot and n_boot > 1:
+        labels = np.arange(x.size) if blocks is None else np.asarray(blocks)
+        uniq, inv = np.unique(labels, return_inverse=True)
+        members = [np.flatnonzero(inv == i) for i in range(uniq.size)]
+        rng = np.random.default_rng(seed)
+        reps = []
+        for _ in range(int(n_boot)):
+            pick = np.concatenate([members[i] for i in rng.integers(0, uniq.size, uniq.size)])
+            reps.append(solve(x[pick], y[pick], alpha[pick], beta[pick], q).x)
+        err = np.std(np.array(reps), axis=0, ddof=1)
+        method = "block bootstrap"
+    else:
+        dof = max(res.fun.size - n_par, 1)
+        s2 = 2.0 * res.cost / dof
+        try:
+            cov = np.linalg.inv(res.jac.T @ res.jac) * s2
+            err = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+        except np.linalg.LinAlgError:
+            err = np.full(n_par, np.nan)
+        method = "jacobian"
     zp = (float(q[3]), float(q[4])) if free_zp else (float(x_zp), float(y_zp))
-    x_cf, y_cf = _optimised_cf(F, p, q[0], q[1], q[2], *zp)
+    x_cf, y_cf = _optimised_cf(F, p, q[0], q[1], q[2], *zp, mounting)
     n = x.size
     return OptimisedFit(
         delta_f_mm=float(q[0]),
@@ -435,6 +527,8 @@ def fit_optimised_model(
         zero_pose_fitted=bool(free_zp),
         success=bool(res.success),
         message=str(res.message),
+        mounting=mounting,
+        stderr_method=method,
     )
 
 

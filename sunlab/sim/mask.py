@@ -45,6 +45,8 @@ __all__ = [
     "Undersized",
     "DEFECT_FLAGS",
     "PAPER_GRID_CENTRE_MM",
+    "PAPER_TRACK_CENTRE_MM",
+    "PAPER_DISTANCE_MM",
 ]
 
 #: Bit flags of the ``hole_defect`` coordinate of a simulated cube.
@@ -55,6 +57,20 @@ DEFECT_FLAGS = {"dust": 1, "elliptical": 2, "burred": 4, "undersized": 8}
 #: mounting errors), i.e. about -200..+50 px in x and -20..+240 px in y, so the array sits left
 #: of and above the centre to keep every spot on the 1280 x 1024 detector (docs/paper.md sec. 8).
 PAPER_GRID_CENTRE_MM = (0.52, -0.78)
+
+#: Mask-to-focal-plane distance F of the paper's bench as identified from its numbers, mm
+#: (:mod:`sunlab.sim.identify`): the 130 px ROI "about 2.5 times the spot" puts the spot at
+#: about 52 px, (0.2 mm + F x 0.0091 rad) / 7 um, so F is about 17 mm, and at 17 mm the
+#: interpolation tables lose to the polynomial on alpha as in Table 4.
+PAPER_DISTANCE_MM = 17.0
+
+#: Where the presets put the one hole (and the centre of the 100-hole grid) relative to the
+#: detector centre, mm: at F = 17 mm the spot travels about 830 x 865 px over the test range
+#: (-17..2 deg in alpha, -2..17 deg in beta, plus the mounting errors), which fits on the
+#: 1280 x 1024 detector only if the hole sits off centre so that the track is centred
+#: (computed from the ray positions at the range's corners; the paper tests "part of the field
+#: of view", the part this placement sees).
+PAPER_TRACK_CENTRE_MM = (1.73, -2.52)
 
 
 def _positive(name: str, value: float, fix: str) -> None:
@@ -318,9 +334,9 @@ class Mask:
     holes : tuple of Hole
         The holes, design positions in the mask frame (see the module notes).
     distance_mm : float
-        Nominal (design) mask-to-focal-plane distance F, mm. Default 5.0: our choice (the paper
-        does not give F); with 7 um pixels it makes about 0.08 deg per pixel and a 35 px spot,
-        consistent with the paper's 130 px ROI being "about 2.5 spots" (docs/paper.md sec. 1).
+        Nominal (design) mask-to-focal-plane distance F, mm. Default 5.0 (a generic short
+        sensor: 0.08 deg per pixel, a 35 px spot); the paper's bench, as identified by
+        :mod:`sunlab.sim.identify`, has F = :data:`PAPER_DISTANCE_MM` (17 mm, a 51 px spot).
     delta_f_mm : float
         Error of the mask distance: the true distance is F + dF, mm (the paper fitted 0.094).
     tilt_x_deg, tilt_y_deg : float
