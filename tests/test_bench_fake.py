@@ -56,6 +56,8 @@ def _protocol_round(fake):
     assert fake.handle(b"1PA-12.25") is None
     assert fake.handle(b"1TP?") == b"-12.250000\r\n"
     assert fake.handle(b"1MD?") == b"1\r\n"
+    assert fake.handle(b"1TP") == b"-12.250000\r\n"  # the manual's form without "?"
+    assert fake.handle(b"1WS;1DP?;TS") == b"-12.250000\r\nP\r\n"
     assert fake.handle(b"TB?").startswith(b"0, ")
 
 
