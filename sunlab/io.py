@@ -68,6 +68,7 @@ __all__ = [
     "open_centroids",
     "open_dataset",
     "from_image_folder",
+    "example_folder",
     "read_image",
     "summary",
 ]
@@ -1153,6 +1154,38 @@ def from_image_folder(
         attrs=attrs,
         **frames_kwargs,
     )
+
+
+def example_folder(name: str = "train") -> Path:
+    """A small recording shipped with sunlab: a folder of 16-bit PNG frames, as a lab's own.
+
+    ``"train"``: a 5 x 5 grid of poses (alpha -10..-6 deg, beta 5..9 deg, 1-degree steps),
+    ``"test"``: the 4 x 4 grid between them; 2 shots per pose, frames of the virtual bench's
+    one-hole sensor cropped to the region the spot crosses. Each folder holds ``manifest.csv``
+    (file, alpha, beta, shot) and ``sensor.json`` (pixel pitch, mask distance, design centre,
+    bit depth), so ``sunlab import FOLDER --out cube.zarr`` needs no other option.
+
+    Examples
+    --------
+    >>> folder = example_folder("train")
+    >>> sorted(p.name for p in folder.glob("*.json")), (folder / "manifest.csv").exists()
+    (['sensor.json'], True)
+    >>> cube = from_image_folder(folder, mask_distance_mm=17.0, bit_depth=10)
+    >>> dict(cube.sizes)["pose"], cube.frames.dtype
+    (25, dtype('uint16'))
+    """
+    names = ("train", "test")
+    if name not in names:
+        raise SchemaError("name", name, f"one of {names}", "pass 'train' or 'test'")
+    from importlib import resources
+
+    folder = Path(str(resources.files("sunlab") / "data" / "example" / name))
+    if not (folder / "manifest.csv").is_file():
+        raise SunlabError(
+            f"example_folder: {folder} has no manifest.csv. Fix: reinstall sunlab (the package "
+            "data is missing), or regenerate it with sunlab/data/make_example.py"
+        )
+    return folder
 
 
 # --------------------------------------------------------------------------------------------
