@@ -172,6 +172,7 @@ def test_fake_ws_holds_later_commands_until_the_axis_stops():
     assert fake.handle(b"1WS250") is None  # wait for stop, then 250 ms
     # the controller runs what follows once the wait is over: the move is done by then
     assert fake.handle(b"1MD?;1TP?") == b"1\r\n5.000000\r\n"
+    assert fake.position()[0] == 5.0  # the platform agrees with the controller's time
     assert fake.handle(b"1PA6;1MD?") == b"0\r\n"  # a move after the wait starts at its end
     clock.advance(0.75 + 0.1)
     assert fake.handle(b"1MD?") == b"1\r\n"

@@ -671,6 +671,22 @@ class ESP300:
         ErrorReplyLost
             When any ``TB?`` reply was lost or garbled (each ``TB?`` pops an error, so one may
             be gone): raised even when the buffer then reads empty, and when it never does.
+
+        Examples
+        --------
+        >>> from sunlab.bench import ErrorReplyLost, FakeESP
+        >>> fake = FakeESP()
+        >>> stage = ESP300(fake.serve_pty(), retry_delay_s=0.0, timeout=0.2)
+        >>> stage.write("9PA1"); [err.code for err in stage.errors("9PA1")]
+        [9]
+        >>> _ = fake.inject("garble", "TB?")      # line noise on the reply that carries error 9
+        >>> stage.write("9PA1")
+        >>> try:
+        ...     stage.errors("9PA1")
+        ... except ErrorReplyLost as err:
+        ...     print(err.lost, err.empty, err.errors)
+        1 True []
+        >>> stage.close(); fake.close()
         """
         found, lost = self._drain(command, max_errors)
         if lost is not None:

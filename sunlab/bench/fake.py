@@ -14,22 +14,23 @@ monotonic clock, e.g. a :class:`ManualClock` that a test advances by hand). It s
 
 Commands (``n`` an axis; blanks between fields are ignored, ``;`` chains commands on a line):
 
-==================  ==========================================================================
-``VE?``             firmware version
-``TB?``, ``TE?``    pop the oldest error (``code, timestamp, message``; the code); 0 when empty
-``TS``              status byte, one character: bit n-1 axis n moving, bit 4 a motor on
-``nTP?``, ``nTP``   actual position (the manual also reads it without ``?``, as pymeasure does)
-``nDP?``            desired position (the destination of the move)
-``nMD?``            motion done (1) or moving (0)
-``nID?``            positioner model and serial number: ``URS100BCC, SN0001``
-``nPA<x>``          move to absolute position x (limit errors ``n06``/``n07``; ``n13`` motor off)
-``nWS[ms]``         wait for stop: later commands run once axis n has stopped, plus ms
-``nOR[mode]``       home search (mode 0 to 6): the axis moves to its home position
-``nDH[x]``, ``nDH?``  define home: the position here reads x (default 0); read the home value
-``nSN[u]``, ``nSN?``  units (0 to 11; 7 degree)
-``nSL``/``nSR``     software limits (set, or read with ``?``); ``nVA`` velocity
-``nMO``, ``nMF``    motor on / off; ``nMO?`` motor state; ``nST`` stop; ``AB`` abort all
-==================  ==========================================================================
+======================  ========================================================================
+``VE?``                 firmware version
+``TB?``, ``TE?``        pop the oldest error (``code, timestamp, message``; the code); 0 when empty
+``TS``                  status byte, one character: bit n-1 axis n moving, bit 4 a motor on
+``nTP?``, ``nTP``       actual position (the manual also reads it without ``?``, as pymeasure does)
+``nDP?``                desired position (the destination of the move)
+``nMD?``                motion done (1) or moving (0)
+``nID?``                positioner model and serial number: ``URS100BCC, SN0001``
+``nPA<x>``              move to x (errors ``n06``/``n07`` past a limit, ``n13`` motor off)
+``nWS[ms]``             wait for stop: later commands run once axis n has stopped, plus ms (the
+                        fake answers them at once, its time moved on to the end of the wait)
+``nOR[mode]``           home search (mode 0 to 6): the axis moves to its home position
+``nDH[x]``, ``nDH?``    define home: the position here reads x (default 0); read the home value
+``nSN[u]``, ``nSN?``    units (0 to 11; 7 degree)
+``nSL``/``nSR``         software limits (set, or read with ``?``); ``nVA`` velocity
+``nMO``, ``nMF``        motor on / off; ``nMO?`` motor state; ``nST`` stop; ``AB`` abort all
+======================  ========================================================================
 
 Anything else queues error 6 (command does not exist), 37 (axis number missing), 9 (axis out of
 range), 38 (parameter missing) or 7 (parameter out of range), as the controller does; only
@@ -447,9 +448,11 @@ class FakeESP:
 
     # -- the platform -------------------------------------------------------------------------
     def position(self) -> tuple[float, float]:
-        """Commanded-frame position of (alpha, beta) axes now (not rounded), degrees."""
-        now = self._clock()
+        """Commanded-frame position of (alpha, beta) axes now (not rounded), degrees.
+
+        "Now" is the controller's time: a ``WS`` wait moves it on to the end of the wait."""
         with self._lock:
+            now = max(self._clock(), self._wait_until)
             return (self._axes[self.alpha_axis].position(now),
                     self._axes[self.beta_axis].position(now))
 
