@@ -146,22 +146,64 @@ def _ideal_call(P: _Prec, sensor: dict, x: str, y: str, a: str, b: str) -> str:
     return f"ideal_{P.tag}({x}, {y}, {xh}, {xl}, {yh}, {yl}, {P.lit(k)}, &{a}, &{b});\n"
 
 
-def _optimised_sensor(fit) -> tuple[dict, float, float]:
-    """The optimised model as an ideal model (F + dF, x_cf, y_cf) minus (alpha0, beta0)."""
-    from .geometry import _optimised_cf
+def _atan2_fn(P: _Prec) -> str:
+    """atan2 from atan (the only inverse tangent the exported code may use)."""
+    T, f, pi = P.t, P.fn, math.pi
+    return f"""
+static {T} atan2_{P.tag}({T} y, {T} x)
+{{
+    if (x > {P.lit(0.0)})
+        return {f("atan")}(y / x);
+    if (x < {P.lit(0.0)})
+        return {f("atan")}(y / x) + (y >= {P.lit(0.0)} ? {P.lit(pi)} : {P.lit(-pi)});
+    if (y > {P.lit(0.0)})
+        return {P.lit(pi / 2)};
+    return y < {P.lit(0.0)} ? {P.lit(-pi / 2)} : {P.lit(0.0)};
+}}
+"""
 
+
+def _optimised_helpers(mounting: str, P: _Prec) -> str:
+    return _atan2_fn(P) if mounting == "rotation" else _ideal_fn(P)
+
+
+def _optimised_call(P: _Prec, fit, x: str, y: str, a: str, b: str,
+                    mounting: str | None = None) -> str:
+    """Eqs. (3)-(4) with the fitted dF, alpha0, beta0 and zero pose: code setting a, b (deg).
+
+    ``mounting`` "rotation": s = M^T ((x_cf - x) p / F', (y_cf - y) p / F', 1), alpha =
+    atan2(-s_x, s_z), beta = asin(-s_y / |s|) = atan(-s_y / sqrt(s_x^2 + s_z^2)), as
+    :func:`sunlab.geometry.optimised_angles`; "additive": eq. (1) at F + dF minus the offsets.
+    """
+    from .geometry import _optimised_cf, mounting_matrix
+
+    mounting = mounting or getattr(fit, "mounting", "additive")
     x_cf, y_cf = _optimised_cf(fit.mask_distance_mm, fit.pixel_pitch_mm, fit.delta_f_mm,
-                               fit.alpha0, fit.beta0, fit.x_zp, fit.y_zp)
-    sensor = {"mask_distance_mm": fit.mask_distance_mm + fit.delta_f_mm,
-              "pixel_pitch_mm": fit.pixel_pitch_mm, "x_cf_px": float(x_cf),
-              "y_cf_px": float(y_cf)}
-    return sensor, float(fit.alpha0), float(fit.beta0)
-
-
-def _optimised_call(P: _Prec, fit, x: str, y: str, a: str, b: str) -> str:
-    sensor, a0, b0 = _optimised_sensor(fit)
-    return (_ideal_call(P, sensor, x, y, a, b)
-            + f"    {a} -= {P.lit(a0)};\n    {b} -= {P.lit(b0)};\n")
+                               fit.alpha0, fit.beta0, fit.x_zp, fit.y_zp, mounting)
+    k = (fit.mask_distance_mm + fit.delta_f_mm) / fit.pixel_pitch_mm
+    if mounting != "rotation":
+        sensor = {"mask_distance_mm": fit.mask_distance_mm + fit.delta_f_mm,
+                  "pixel_pitch_mm": fit.pixel_pitch_mm, "x_cf_px": float(x_cf),
+                  "y_cf_px": float(y_cf)}
+        return (_ideal_call(P, sensor, x, y, a, b)
+                + f"    {a} -= {P.lit(fit.alpha0)};\n    {b} -= {P.lit(fit.beta0)};\n")
+    T, f, tag = P.t, P.fn, P.tag
+    M = mounting_matrix(fit.alpha0, fit.beta0)
+    xh, xl = P.split(float(x_cf))
+    yh, yl = P.split(float(y_cf))
+    r2d = P.lit(180.0 / math.pi)
+    s_terms = [f"t0 * {P.lit(M[0, j])} + t1 * {P.lit(M[1, j])} + {P.lit(M[2, j])}"
+               for j in range(3)]
+    return f"""{{   /* optimised model (3)-(4), rigid mounting rotation */
+        {T} t0 = (({xh} - {x}) + {xl}) / {P.lit(k)};
+        {T} t1 = (({yh} - {y}) + {yl}) / {P.lit(k)};
+        {T} s0 = {s_terms[0]};
+        {T} s1 = {s_terms[1]};
+        {T} s2 = {s_terms[2]};
+        {a} = atan2_{tag}(-s0, s2) * {r2d};
+        {b} = {f("atan")}(-s1 / {f("sqrt")}(s0 * s0 + s2 * s2)) * {r2d};
+    }}
+"""
 
 
 # --------------------------------------------------------------------------------------------
@@ -273,8 +315,10 @@ def _neural(cal, P: _Prec) -> tuple[str, str]:
     T, tag, f = P.t, P.tag, P.fn
     h = cal.hidden
     tables = ""
-    if cal.strategy in (2, 3, 4):
+    if cal.strategy in (2, 4):
         tables += _ideal_fn(P)
+    if cal.strategy == 3:  # as NeuralNet._inputs: geometry.optimised_angles' default mounting
+        tables += _optimised_helpers("rotation", P)
     tables += f"""
 /* One network: tanh hidden layer of {h} neurons, linear output (standardised units). */
 static {T} net_{tag}(const {T} *w1, const {T} *b1, const {T} *w2, {T} b2, {T} z0, {T} z1)
@@ -294,7 +338,7 @@ static {T} net_{tag}(const {T} *w1, const {T} *b1, const {T} *w2, {T} b2, {T} z0
                                                          "in1")
     else:
         body += f"    {T} in0, in1;\n    " + _optimised_call(P, cal.optimised, "x_px", "y_px",
-                                                             "in0", "in1")
+                                                             "in0", "in1", mounting="rotation")
     mean, std = cal.input_scaling["mean"], cal.input_scaling["std"]
     for k in range(2):
         mh, ml = P.split(mean[k])
@@ -325,7 +369,8 @@ def _optimised(cal, P: _Prec) -> tuple[str, str]:
     body = _box(cal, P) + f"    {T} a, b;\n    " + _optimised_call(P, cal.result, "x_px",
                                                                      "y_px", "a", "b")
     body += "    *alpha_deg = a;\n    *beta_deg = b;\n"
-    return _ideal_fn(P), body + "    return flag;\n"
+    mounting = getattr(cal.result, "mounting", "additive")
+    return _optimised_helpers(mounting, P), body + "    return flag;\n"
 
 
 _GENERATORS = {
