@@ -23,6 +23,7 @@ from sunlab import ConfigurationError, plans, schema, sim
 from sunlab.bench import (
     ESP300,
     CameraError,
+    ErrorReplyLost,
     FakeESP,
     MotionTimeout,
     SimCamera,
@@ -253,11 +254,22 @@ def test_link_faults_during_a_run_are_survived(rig, tmp_path, truth_frames):
     r = rig()
     r.fake.inject("garble", "1TP?", count=3)
     r.fake.inject("timeout", "2MD?", count=2)
-    r.fake.inject("silent", "1PA-0.5", silent_s=0.15)
-    r.fake.inject("timeout", "TB?", count=1)
+    r.fake.inject("silent", "1MD?", silent_s=0.15)
     result = acquire(PLAN, r.stage, r.camera, tmp_path / "run.zarr", progress=False)
     assert result.exit_status == "complete"
     assert_array_equal(open_run(result.path).frames.values, truth_frames)
+
+
+def test_a_lost_error_reply_fails_the_run_and_resume_completes_it(rig, tmp_path, truth_frames):
+    r = rig()
+    path = tmp_path / "run.zarr"
+    r.fake.inject("timeout", "TB?", count=1, after=4)
+    with pytest.raises(ErrorReplyLost):
+        acquire(PLAN, r.stage, r.camera, path, progress=False)
+    assert zarr.open_group(path).attrs["exit_status"] == "failed"
+    done = acquire(PLAN, r.stage, r.camera, path, resume=True, progress=False)
+    assert done.exit_status == "complete"
+    assert_array_equal(open_run(path).frames.values, truth_frames)
 
 
 def test_leftovers_of_a_killed_writer_are_cleaned_on_resume(rig, tmp_path):
