@@ -29,7 +29,7 @@ BENCH = dict(delta_f_mm=0.094, mounting_deg=(1.864, 0.415, 0.0))
 TOL_DOUBLE, TOL_FLOAT = 1e-9, 1e-5
 
 
-def _table(step=2.0, seed=1, lo=(-17.0, -2.0), hi=(2.0, 17.0)):
+def _table(step=3.0, seed=1, lo=(-17.0, -2.0), hi=(2.0, 17.0)):
     a, b = np.meshgrid(np.arange(lo[0], hi[0] + 1e-9, step), np.arange(lo[1], hi[1] + 1e-9, step),
                        indexing="ij")
     return geometry.synthetic_centroids(a.ravel(), b.ravel(), 2, seed=seed, **BENCH)
@@ -46,9 +46,9 @@ def _fits(train):
         "polynomial-mixed": lambda: Polynomial(order=(3, 4)).fit(train),
         "linear": lambda: Interpolation("linear").fit(train),
         "linear-nearest": lambda: Interpolation("linear", extrapolate="nearest").fit(train),
-        "neural-4": lambda: NeuralNet(strategy=4, hidden=5, max_iter=150).fit(train),
-        "neural-1": lambda: NeuralNet(strategy=1, hidden=4, max_iter=150).fit(train),
-        "neural-3": lambda: NeuralNet(strategy=3, hidden=4, max_iter=100).fit(train),
+        "neural-4": lambda: NeuralNet(strategy=4, hidden=5, max_iter=60).fit(train),
+        "neural-1": lambda: NeuralNet(strategy=1, hidden=4, max_iter=60).fit(train),
+        "neural-3": lambda: NeuralNet(strategy=3, hidden=4, max_iter=60).fit(train),
         "ideal": lambda: IdealModel().fit(train),
         "optimised": lambda: OptimisedModel().fit(train),
     }
