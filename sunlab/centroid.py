@@ -17,7 +17,10 @@ Estimators (docs/paper.md sec. 3 and beyond):
 
 Many spots (the 10 x 10 mask): :func:`locate_spots`. A whole frame cube: :func:`locate`.
 
-Status precedence when several apply: invalid > no_spot > ambiguous > clipped > saturated > ok.
+Status precedence when several apply: invalid > no_spot > ambiguous > clipped > saturated >
+repaired > ok. ``saturated`` means the spot saturates (touching clipped pixels); an isolated clipped
+pixel in the window (a hot pixel) is replaced by the median of its 8 neighbours and the spot keeps
+a usable status, ``repaired`` (algorithms A and B).
 ``x, y`` are NaN only for ``invalid`` and ``no_spot``; a clipped, saturated or ambiguous spot
 keeps its (possibly biased) estimate so that it can be inspected.
 
@@ -72,6 +75,7 @@ _SATURATED = STATUS["saturated"]
 _CLIPPED = STATUS["clipped"]
 _AMBIGUOUS = STATUS["ambiguous"]
 _INVALID = STATUS["invalid"]
+_REPAIRED = STATUS["repaired"]
 _NO_WINDOW = (-1, -1, -1, -1)
 
 
@@ -104,8 +108,8 @@ class Centroid(NamedTuple):
 
     @property
     def ok(self) -> bool:
-        """True when the status is ``ok``."""
-        return int(self.status) == _OK
+        """True when the centroid is usable: status ``ok`` or ``repaired``."""
+        return int(self.status) in (_OK, _REPAIRED)
 
 
 def _fail(status: int) -> Centroid:
@@ -146,6 +150,39 @@ def _status(*, clipped=False, saturated=False, ambiguous=False) -> int:
     if saturated:
         return _SATURATED
     return _OK
+
+
+def _repair_hot(arr, window, bkg, s, x, y, saturation, threshold=False):
+    """Separate a saturated spot from isolated clipped pixels (hot pixels) in a window.
+
+    A pixel at or above ``saturation`` whose 8 neighbours are all below it is a hot pixel, not
+    spot light at full scale: its value is replaced by the median of its 8 neighbours and the
+    centre of mass ``(s, x, y)`` of ``I - bkg`` is corrected for the change (with
+    ``threshold=True`` the weights are ``max(I - bkg, 0)``, algorithm A). Two or more touching
+    clipped pixels mean the spot (or a cluster) saturates.
+
+    Returns ``(s, x, y, n_repaired, saturated)``.
+    """
+    x0, x1, y0, y1 = window
+    sub = arr[y0:y1, x0:x1]
+    rows, cols = np.nonzero(sub >= saturation)
+    if rows.size == 0:
+        return s, x, y, 0, False
+    ny, nx = arr.shape
+    sx, sy = x * s, y * s
+    n = 0
+    for r, c in zip(rows + y0, cols + x0, strict=True):
+        r0, r1, c0, c1 = max(r - 1, 0), min(r + 2, ny), max(c - 1, 0), min(c + 2, nx)
+        nb = arr[r0:r1, c0:c1].astype(float).ravel()
+        centre = (r - r0) * (c1 - c0) + (c - c0)
+        nb = np.delete(nb, centre)
+        if nb.size < 3 or (nb >= saturation).any():
+            return s, x, y, 0, True
+        m = float(np.median(nb))
+        d = float(arr[r, c]) - bkg - (max(m - bkg, 0.0) if threshold else m - bkg)
+        s, sx, sy = s - d, sx - d * c, sy - d * r
+        n += 1
+    return s, sx / s, sy / s, n, False
 
 
 def _check_positive(name, value, fix="use a positive value"):
@@ -261,7 +298,13 @@ def threshold_window(
             arr, thr, half, int(test_count), 1, ny - 1, 1, nx - 1, rr0, rr1, cc0, cc1
         )
         ambiguous = r2 >= 0
-    status = _status(clipped=clipped, saturated=vmax >= saturation, ambiguous=ambiguous)
+    n_hot, saturated = 0, False
+    if vmax >= saturation:
+        s, x, y, n_hot, saturated = _repair_hot(arr, (ic0, ic1, ir0, ir1), thr2, s, x, y,
+                                                saturation, threshold=True)
+    status = _status(clipped=clipped, saturated=saturated, ambiguous=ambiguous)
+    if status == _OK and n_hot:
+        status = _REPAIRED
     return Centroid(float(x), float(y), float(s), (ic0, ic1, ir0, ir1), status)
 
 
@@ -406,9 +449,14 @@ def projection_window(
             if best is None or s > best[0]:
                 best = (s, x, y, vmax, (x0, x1, y0, y1), clipped)
     s, x, y, vmax, (x0, x1, y0, y1), clipped = best
+    n_hot, saturated = 0, False
+    if vmax >= saturation:
+        s, x, y, n_hot, saturated = _repair_hot(arr, (x0, x1, y0, y1), bkg, s, x, y, saturation)
     if not s > 0:
         return _fail(_NO_SPOT)
-    status = _status(clipped=clipped, saturated=vmax >= saturation, ambiguous=ambiguous)
+    status = _status(clipped=clipped, saturated=saturated, ambiguous=ambiguous)
+    if status == _OK and n_hot:
+        status = _REPAIRED
     return Centroid(float(x), float(y), float(s), (x0, x1, y0, y1), status)
 
 

@@ -44,6 +44,7 @@ __all__ = [
     "SCHEMA_FILES",
     "STATUS",
     "STATUS_NAMES",
+    "USABLE_STATUS",
     "IBIS4",
     "frames_dataset",
     "empty_frames",
@@ -75,8 +76,13 @@ STATUS: dict[str, int] = {
     "clipped": 3,
     "ambiguous": 4,
     "invalid": 5,
+    # a usable spot whose window held isolated clipped pixels (hot pixels), each replaced by the
+    # median of its 8 neighbours before the centre of mass: the spot itself is not saturated
+    "repaired": 6,
 }
 STATUS_NAMES: dict[int, str] = {v: k for k, v in STATUS.items()}
+#: Status codes whose centroid is usable for calibration and statistics.
+USABLE_STATUS: tuple[str, ...] = ("ok", "repaired")
 
 #: The paper's detector (docs/paper.md sec. 1): Ibis4, 1280 x 1024 pixels of 7 um, 10-bit ADC.
 IBIS4 = {"nx": 1280, "ny": 1024, "pixel_pitch_mm": 0.007, "bit_depth": 10}

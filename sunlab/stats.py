@@ -41,7 +41,7 @@ import pandas as pd
 import xarray as xr
 
 from ._errors import ConfigurationError, SchemaError
-from .schema import STATUS
+from .schema import STATUS, USABLE_STATUS
 
 __all__ = [
     "ANGLES",
@@ -102,7 +102,7 @@ def shot_errors(estimate: xr.Dataset, reference=None, *, absolute: bool = True) 
     Returns
     -------
     xarray.Dataset
-        ``alpha``, ``beta`` errors (deg) on the estimate's dims; NaN where the status is not ok.
+        ``alpha``, ``beta`` errors (deg) on the estimate's dims; NaN where the status is not usable (``ok`` or ``repaired``).
 
     Examples
     --------
@@ -118,7 +118,8 @@ def shot_errors(estimate: xr.Dataset, reference=None, *, absolute: bool = True) 
         if absolute:
             e = abs(e)
         if "status" in estimate.variables:
-            e = e.where(estimate["status"] == STATUS["ok"])
+            usable = [STATUS[k] for k in USABLE_STATUS]
+            e = e.where(estimate["status"].isin(usable))
         out[a] = e.assign_attrs(units="deg", long_name=f"{'absolute ' if absolute else ''}"
                                                        f"error of {a}")
     return xr.Dataset(out, attrs=dict(estimate.attrs))

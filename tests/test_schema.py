@@ -221,7 +221,7 @@ def test_empty_frames_is_lazy_and_chunked_per_frame():
 def test_status_defaults_and_names():
     cen = schema.centroids_dataset([[1.0, np.nan]], [[1.0, 2.0]])
     assert cen.status.values.tolist() == [[0, 1]]
-    assert [schema.status_name(c) for c in range(6)] == list(schema.STATUS)
+    assert [schema.status_name(c) for c in range(7)] == list(schema.STATUS)
     assert schema.STATUS_NAMES[2] == "saturated"
 
 

@@ -84,11 +84,17 @@ class IdealModel(Calibration):
         return obj
 
 
-def fit_optimised(data: TrainingData, sensor: dict, fit_zero_pose: bool | None = None):
+def fit_optimised(data: TrainingData, sensor: dict, fit_zero_pose: bool | None = True, *,
+                  n_boot: int = 0, block_deg: float = 2.0, seed: int = 0):
     """Fit the optimised model on training points; return a :class:`geometry.OptimisedFit`.
 
-    The zero-pose centroid is the mean of the training points at alpha = beta = 0; when the
-    table has no such pose (or ``fit_zero_pose`` is True) it becomes a free parameter.
+    The zero-pose centroid is fitted jointly with dF, alpha0, beta0 (``fit_zero_pose=True``,
+    default); ``False`` takes the mean of the training points at alpha = beta = 0 instead, and
+    ``None`` measures it when that pose exists. Standard errors come from a block bootstrap
+    (``n_boot`` replicas; 0, the default here, for the Jacobian ones) whose blocks are the poses in squares of
+    ``block_deg`` x ``block_deg`` degrees of the grid: every shot of a pose shares its
+    platform error, and neighbouring poses share the pixel pattern under the spot, so the
+    residuals are correlated within a block and the Jacobian's white-noise errors are too small.
     """
     zero = (np.abs(data.alpha) <= ZERO_POSE_TOL_DEG) & (np.abs(data.beta) <= ZERO_POSE_TOL_DEG)
     free = (not zero.any()) if fit_zero_pose is None else bool(fit_zero_pose)
@@ -96,12 +102,13 @@ def fit_optimised(data: TrainingData, sensor: dict, fit_zero_pose: bool | None =
         raise ConfigurationError(
             "fit_zero_pose: found False, but the training table has no pose at alpha = beta = 0 "
             "to measure the zero-pose centroid from. Fix: add that pose to the plan, or pass "
-            "fit_zero_pose=None (fit it when absent)"
+            "fit_zero_pose=True (fit it jointly)"
         )
     zp = (None, None) if free else (float(data.x[zero].mean()), float(data.y[zero].mean()))
+    blocks = (np.floor(data.alpha / block_deg) * 100003 + np.floor(data.beta / block_deg))
     return geometry.fit_optimised_model(
         data.x, data.y, data.alpha, data.beta, sensor["mask_distance_mm"],
-        sensor["pixel_pitch_mm"], *zp,
+        sensor["pixel_pitch_mm"], *zp, blocks=blocks, n_boot=n_boot, seed=seed,
     )
 
 
@@ -111,11 +118,14 @@ class OptimisedModel(Calibration):
     Parameters
     ----------
     fit_zero_pose : bool, optional
-        None (default): use the measured zero-pose centroid (mean of the ok shots at
-        alpha = beta = 0) when the training table has that pose, else fit it. True: always fit
-        it; False: always measure it.
+        True (default): fit the zero-pose centroid jointly with the other parameters from
+        every pose; False: measure it (mean of the ok shots at alpha = beta = 0); None:
+        measure it when the training table has that pose, else fit it.
     average : {"pose", "shot"}
         Fit on pose-mean centroids (default) or on every ok shot.
+    n_boot : int
+        Block-bootstrap replicas for the standard errors (0: Jacobian errors, which assume
+        white residuals); see :func:`fit_optimised`.
 
     Attributes
     ----------
@@ -127,7 +137,9 @@ class OptimisedModel(Calibration):
     -----
     Minimises :math:`\\sum_i (\\alpha_m - \\alpha_i)^2 + (\\beta_m - \\beta_i)^2` with
     :func:`sunlab.geometry.fit_optimised_model`; the paper found alpha0 = 1.864 deg,
-    beta0 = 0.415 deg, dF = 0.094 mm (docs/paper.md sec. 4.1).
+    beta0 = 0.415 deg, dF = 0.094 mm (docs/paper.md sec. 4.1). The mounting is the rigid
+    rotation R_y(-alpha0) R_x(beta0) that the virtual bench applies (our reconstruction of the
+    lost eqs. (3)-(4), :mod:`sunlab.geometry`), so the fit estimates the bench's own numbers.
 
     Examples
     --------
@@ -137,10 +149,12 @@ class OptimisedModel(Calibration):
 
     kind = "optimised"
 
-    def __init__(self, fit_zero_pose: bool | None = None, average: str = "pose"):
+    def __init__(self, fit_zero_pose: bool | None = True, average: str = "pose",
+                 n_boot: int = 200):
         super().__init__()
         self.fit_zero_pose = fit_zero_pose
         self.average = average
+        self.n_boot = int(n_boot)
         self.result: geometry.OptimisedFit | None = None
 
     @property
@@ -151,10 +165,11 @@ class OptimisedModel(Calibration):
         return 3  # dF, alpha0, beta0 (+ the zero pose): two equations per pose
 
     def _fit(self, data: TrainingData, validation) -> None:
-        self.result = fit_optimised(data, sensor_attrs(data.attrs), self.fit_zero_pose)
+        self.result = fit_optimised(data, sensor_attrs(data.attrs), self.fit_zero_pose,
+                                    n_boot=self.n_boot)
 
     def _predict_xy(self, x, y):
-        return geometry.optimised_angles(x, y, *self.result.params)
+        return self.result.angles(x, y)
 
     def _parameters(self) -> dict:
         return {"fit_zero_pose": self.fit_zero_pose, **self.result.to_dict()}
@@ -163,7 +178,9 @@ class OptimisedModel(Calibration):
     def _from_parameters(cls, p: dict):
         obj = cls(fit_zero_pose=p.get("fit_zero_pose"))
         fields = geometry.OptimisedFit.__dataclass_fields__
-        kw = {k: p[k] for k in fields}
+        # files written before the rotation mounting hold the additive form's parameters
+        defaults = {"mounting": "additive", "stderr_method": "jacobian"}
+        kw = {k: p.get(k, defaults.get(k)) for k in fields}
         kw["stderr"] = {k: (np.nan if v is None else float(v)) for k, v in kw["stderr"].items()}
         for k in ("delta_f_mm", "alpha0", "beta0", "x_zp", "y_zp", "x_cf", "y_cf",
                   "mask_distance_mm", "pixel_pitch_mm"):
