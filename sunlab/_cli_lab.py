@@ -478,7 +478,9 @@ def _run_evaluate(args) -> int:
     est, local, table = res["estimate"], res["local"], res["table"]
     col = table[cal.label]
     n_out = int(est.attrs["n_out_of_domain"])
-    n_ok = int((test["status"].values == 0).sum())
+    from .schema import STATUS, USABLE_STATUS
+
+    n_ok = int(np.isin(test["status"].values, [STATUS[k] for k in USABLE_STATUS]).sum())
     print(f"{cal.label} on {args.test}: {test.sizes['pose']} poses x {test.sizes['shot']} shots "
           f"({n_ok} ok); global statistics (deg), as the paper's Table 4:")
     shown = table.rename(columns={cal.label: f"{cal.label} (sunlab)"})

@@ -373,7 +373,8 @@ def _run_calibrate(args) -> int:
                          f"max {r[a]['max_abs'] or float('nan'):.5f}" for a in ("alpha", "beta"))
 
     if res.get("leave_one_out"):  # an interpolant passes through its nodes: ~0 residuals
-        line = "leave-one-out errors (deg): " + fmt(res["leave_one_out"])
+        line = ("leave-one-out errors (deg): " + fmt(res["leave_one_out"])
+                + " (training residuals ~0 by construction)")
     else:
         line = "training residuals (deg): " + fmt(res)
     print(f"{args.out}: {cal.label} fitted on {cal.training['n_poses']} poses in "
@@ -394,10 +395,12 @@ def _add_reproduce(sub) -> None:
     p.add_argument("--table", choices=["4", "5", "all"], default="4",
                    help="Table 4 (one hole, every method) or Table 5 (100 holes); default 4")
     p.add_argument("--quick", action="store_true",
-                   help="small settings: every third pose, 2 shots (minutes -> seconds)")
+                   help="small settings for both tables: every 2nd angle along each grid axis, "
+                   "2 shots per pose (minutes -> seconds)")
     p.add_argument("--seed", type=int, default=0, help="seed of the virtual bench (default 0)")
     p.add_argument("--method", default="projection",
-                   help="centroid method (default projection: the paper's algorithm B)")
+                   help="centroid method of both tables (default projection: the paper's "
+                   "algorithm B; on 100-hole frames each spot gets a tight window)")
     p.add_argument("--no-neural", action="store_true", help="leave out the neural networks")
     p.add_argument("--out", default="results", help="output folder (default results/)")
     p.add_argument("--address", default=None, help="dask.distributed scheduler address")
@@ -423,10 +426,13 @@ def _run_reproduce(args) -> int:
         from .reproduce_table5 import reproduce_table5
 
         res5 = reproduce_table5(quick=args.quick, seed=args.seed, out=Path(args.out),
-                                progress=progress)
+                                progress=progress, method=args.method)
         print("\nTable 5 - polynomial calibration, 100 holes vs one hole (deg); ours = sunlab "
               "virtual bench, paper = the 2005 preprint")
         print(res5["table"].round(4).to_string())
+        print("Frames removed (status: count): " + "; ".join(
+            f"{k}: " + (", ".join(f"{n} {s}" for s, n in v["removed"].items()) or "none")
+            for k, v in res5["centroid_status"].items()))
         print(f"\n{res5['runtime_s']:.0f} s; wrote " + ", ".join(map(str, res5["files"])))
     return 0
 
