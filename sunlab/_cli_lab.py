@@ -291,11 +291,17 @@ def centroids_from_csv(path, *, attrs: dict | None = None):
 
 
 def open_centroid_table(path, name: str = "table"):
-    """A centroid table from NetCDF, Zarr or CSV (columns alpha, beta, x, y)."""
+    """A centroid table from NetCDF, Zarr or CSV (columns alpha, beta, x, y).
+
+    A CSV table takes its sensor attributes (pixel pitch, mask distance, x_cf, y_cf) from a
+    ``sensor.json`` in its folder, if there is one.
+    """
     from . import io
 
     if Path(path).suffix.lower() in (".csv", ".txt"):
-        return centroids_from_csv(path)
+        sensor = _sensor_json(Path(path).resolve().parent, None)
+        keys = ("pixel_pitch_mm", "mask_distance_mm", "x_cf_px", "y_cf_px")
+        return centroids_from_csv(path, attrs={k: sensor[k] for k in keys if k in sensor})
     ds = io.open_dataset(path)
     if ds.attrs.get("sunlab_schema") != "centroids/1":
         raise SchemaError(

@@ -235,3 +235,19 @@ def test_example_recording_is_a_lab_folder():
     assert size <= 5 * 2**20
     with Image.open(folder / manifest.file[0]) as im:
         assert im.mode in ("I;16", "I;16L", "I;16B")
+
+
+def test_csv_table_takes_sensor_json_beside_it(tmp_path, capsys):
+    a, b = np.meshgrid([-2.0, 0.0, 2.0], [-2.0, 0.0, 2.0], indexing="ij")
+    cen = geometry.synthetic_centroids(a.ravel(), b.ravel(), 1)  # F 5 mm, centre 639.5, 511.5
+    csv = tmp_path / "train.csv"
+    pd.DataFrame({"alpha": cen.alpha.values, "beta": cen.beta.values,
+                  "x": cen.x.values[:, 0], "y": cen.y.values[:, 0]}).to_csv(csv, index=False)
+    out = tmp_path / "ideal.json"
+    assert main(["calibrate", str(csv), "--method", "ideal", "--out", str(out)]) == 1
+    assert "mask_distance_mm" in capsys.readouterr().err
+    (tmp_path / "sensor.json").write_text(json.dumps(
+        {"mask_distance_mm": 5.0, "pixel_pitch_mm": 0.007, "x_cf_px": 639.5, "y_cf_px": 511.5}))
+    assert main(["calibrate", str(csv), "--method", "ideal", "--out", str(out)]) == 0
+    # noise-free ideal-model centroids: the ideal model recovers the angles exactly
+    assert load(out).residuals["alpha"]["max_abs"] < 1e-9
