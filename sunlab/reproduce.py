@@ -41,6 +41,9 @@ from ._errors import ConfigurationError
 __all__ = [
     "PAPER_OPTIMISED",
     "EXPERIMENTS",
+    "QUICK",
+    "experiment_plans",
+    "bench_optimised_truth",
     "Table4Result",
     "simulate_and_locate",
     "table4_methods",
@@ -52,6 +55,9 @@ __all__ = [
 PAPER_OPTIMISED = {"alpha0": 1.864, "beta0": 0.415, "delta_f_mm": 0.094}
 #: Experiments of Table 3 and their roles.
 EXPERIMENTS = {"I": "calibration", "II": "validation", "III": "test"}
+#: Quick mode, for Table 4 and Table 5 alike: every 2nd angle along each grid axis
+#: (:meth:`sunlab.plans.Plan.thin`, so maps stay maps) and 2 shots per pose.
+QUICK = {"step": 2, "shots": 2}
 
 
 @dataclass
@@ -142,11 +148,12 @@ def simulate_and_locate(
     seed : int
         Seed of the virtual bench; each experiment mixes its plan into it.
     quick : bool
-        Every third pose and 2 shots per pose (for notebooks and tests).
+        :data:`QUICK` settings: every 2nd angle along each grid axis, 2 shots per pose.
     method : str
         Centroid method of :func:`sunlab.centroid.locate`.
     step, shots : int, optional
-        Keep every ``step``-th pose and take ``shots`` frames per pose (override ``quick``).
+        Keep every ``step``-th angle along each grid axis (:meth:`sunlab.plans.Plan.thin`) and
+        take ``shots`` frames per pose (override ``quick``).
     progress : bool
         Show a progress bar per experiment.
     address : str, optional
@@ -159,17 +166,15 @@ def simulate_and_locate(
 
     Examples
     --------
-    >>> cens = simulate_and_locate(seed=1, step=40, shots=1, progress=False)
+    >>> cens = simulate_and_locate(seed=1, step=7, shots=1, progress=False)
     >>> {k: int(v.sizes["pose"]) for k, v in cens.items()}
-    {'I': 10, 'II': 5, 'III': 10}
+    {'I': 9, 'II': 4, 'III': 9}
     """
-    from . import centroid, plans, sim
+    from . import centroid, sim
 
     bench = sim.Bench.paper_single_hole() if bench is None else bench
     lazy = {}
-    for name in EXPERIMENTS:
-        plan = plans.experiment(name)
-        plan = plan.subset(step or (3 if quick else 1)).with_shots(shots or (2 if quick else 8))
+    for name, plan in experiment_plans(quick=quick, step=step, shots=shots).items():
         cube = sim.simulate(plan, bench, seed=seed, chunks="pose")
         if progress:
             print(f"experiment {name} ({EXPERIMENTS[name]}): {len(plan)} poses x "
@@ -180,6 +185,54 @@ def simulate_and_locate(
         print(f"rendering and centroiding {n_frames} frames ({method})", flush=True)
     done = centroid.compute(*lazy.values(), address=address, progress=progress)
     return dict(zip(lazy, done, strict=True))
+
+
+def experiment_plans(names=tuple(EXPERIMENTS), *, quick: bool = False, step: int | None = None,
+                     shots: int | None = None) -> dict:
+    """The plans of Table 3 as ``sunlab reproduce`` runs them (full, quick, or thinned).
+
+    Examples
+    --------
+    >>> {k: len(p) for k, p in experiment_plans(quick=True).items()}
+    {'I': 100, 'II': 49, 'III': 100}
+    """
+    from . import plans
+
+    step = step or (QUICK["step"] if quick else 1)
+    shots = shots or (QUICK["shots"] if quick else 8)
+    return {n: plans.experiment(n).thin(step).with_shots(shots) for n in names}
+
+
+def bench_optimised_truth(bench) -> dict:
+    """The bench's own values of what the optimised model (3)-(4) estimates.
+
+    alpha0, beta0: the platform's mounting rotation; ``delta_f_mm``: the hole's true height
+    above the focal plane minus the nominal F (the mask's dF plus what its tilt adds at the
+    hole's off-centre place), the distance a pinhole model sees.
+
+    Examples
+    --------
+    >>> from sunlab import sim
+    >>> t = bench_optimised_truth(sim.Bench.paper_single_hole())
+    >>> t["alpha0"], t["beta0"], round(t["delta_f_mm"], 4)
+    (1.864, 0.415, 0.0875)
+    """
+    from .sim.render import spot_geometry
+
+    height = float(spot_geometry(bench, 0.0, 0.0).height_mm[0])
+    return {"alpha0": float(bench.platform.alpha0_deg), "beta0": float(bench.platform.beta0_deg),
+            "delta_f_mm": height - float(bench.mask_distance_mm)}
+
+
+def usable_table(cen: xr.Dataset) -> xr.Dataset:
+    """The centroid table with every usable status (:data:`sunlab.schema.USABLE_STATUS`)
+    marked ``ok``, as the calibrations select their training points by ``ok``: a ``repaired``
+    frame (a hot pixel replaced in the window) keeps its spot and is used."""
+    from .schema import STATUS, USABLE_STATUS
+
+    st = cen["status"]
+    usable = st.isin([STATUS[k] for k in USABLE_STATUS])
+    return cen.assign(status=st.where(~usable, STATUS["ok"]).astype(st.dtype))
 
 
 def table4_methods(*, neural: bool = True, hidden: int = 8, seed: int = 0) -> dict[str, Callable]:
@@ -238,10 +291,18 @@ def _select_on_validation(make, orders, train, validation):
 
 
 def _status_counts(cen: xr.Dataset) -> dict:
+    """Frames per centroid status; the statuses other than ``ok`` and ``repaired`` are the
+    frames removed from the calibrations and statistics."""
     from .schema import STATUS_NAMES
 
     codes, counts = np.unique(np.asarray(cen["status"].values), return_counts=True)
     return {STATUS_NAMES[int(c)]: int(n) for c, n in zip(codes, counts, strict=True)}
+
+
+def _removed(counts: dict) -> dict:
+    from .schema import USABLE_STATUS
+
+    return {k: n for k, n in counts.items() if k not in USABLE_STATUS}
 
 
 def reproduce_table4(
@@ -262,7 +323,8 @@ def reproduce_table4(
     Parameters
     ----------
     quick : bool
-        Small settings (every third pose, 2 shots): the table's pattern in a fraction of the time.
+        :data:`QUICK` settings (every 2nd angle along each grid axis, 2 shots): the table's
+        pattern in a fraction of the time.
     seed : int
         Seed of the virtual bench.
     method : str
@@ -286,9 +348,9 @@ def reproduce_table4(
 
     Examples
     --------
-    A thinned run (every 7th pose, one frame per pose) in a few seconds:
+    A thinned run (every 4th angle of each grid axis, one frame per pose) in a few seconds:
 
-    >>> res = reproduce_table4(step=7, shots=1, neural=False, out=None, progress=False)
+    >>> res = reproduce_table4(step=4, shots=1, neural=False, out=None, progress=False)
     >>> bool(res.table.loc[("alpha", "mu"), "polynomial"] < 0.05)
     True
     >>> bool(res.table.loc[("alpha", "mu"), "ideal model (1)"] > 1.0)  # mounting errors
@@ -304,7 +366,7 @@ def reproduce_table4(
         step=step, shots=shots,
     )
     timings["simulate_and_centroid"] = time.perf_counter() - t0
-    train, val, test = cens["I"], cens["II"], cens["III"]
+    train, val, test = (usable_table(cens[k]) for k in ("I", "II", "III"))
 
     local, fitted = {}, {}
     for label, fit in table4_methods(neural=neural, seed=seed).items():
@@ -318,14 +380,11 @@ def reproduce_table4(
     table = stats.global_stats(local)
     poly = fitted["polynomial"]
     opt = fitted["optimised model (3)-(4)"].result
-    truth = {
-        "alpha0": bench.platform.alpha0_deg,
-        "beta0": bench.platform.beta0_deg,
-        "delta_f_mm": bench.mask.delta_f_mm,
-    }
+    truth = bench_optimised_truth(bench)
     optimised = {
         k: {"fitted": float(getattr(opt, k)), "stderr": _num(opt.stderr.get(k, np.nan)),
-            "bench": float(truth[k]), "paper": PAPER_OPTIMISED[k]}
+            "bench": float(truth[k]), "paper": PAPER_OPTIMISED[k],
+            "stderr_method": opt.stderr_method}
         for k in PAPER_OPTIMISED
     }
     result = Table4Result(
@@ -335,7 +394,8 @@ def reproduce_table4(
         local=local,
         optimised=optimised,
         polynomial_order=tuple(int(n) for n in poly.orders),
-        centroid_status={k: _status_counts(v) for k, v in cens.items()},
+        centroid_status={k: {**_status_counts(v), "removed": _removed(_status_counts(v))}
+                         for k, v in cens.items()},
         timings={**timings, "total": time.perf_counter() - t0},
         settings={
             "seed": seed, "quick": quick, "centroid_method": method,
@@ -383,7 +443,7 @@ def format_table(res: Table4Result) -> str:
 
     Examples
     --------
-    >>> res = reproduce_table4(step=7, shots=1, neural=False, out=None, progress=False)
+    >>> res = reproduce_table4(step=4, shots=1, neural=False, out=None, progress=False)
     >>> print(format_table(res).splitlines()[0])
     Table 4 - global statistics on experiment III, one hole (deg)
     """
@@ -413,13 +473,17 @@ def format_table(res: Table4Result) -> str:
         se = float("nan") if v["stderr"] is None else v["stderr"]
         lines.append(f"  {k:<11s} {v['fitted']:8.4f} +- {se:.4f} | {v['bench']:7.4f} | "
                      f"{v['paper']:7.4f} {unit}")
-    lines.append("  (the bench mounts the sensor by a rotation R_y(-alpha0) R_x(beta0); eq. (3) "
-                 "treats alpha0, beta0 as additive\n   offsets identified only through the "
-                 "curvature of tan over the field, so its fit absorbs the difference)")
+    method = next(iter(res.optimised.values())).get("stderr_method", "jacobian")
+    lines.append(f"  (s.e. by {method} over 2 x 2-degree blocks of poses; mounting as the bench's "
+                 "rotation R_y(-alpha0) R_x(beta0);\n   bench dF = the hole's true height "
+                 "above the focal plane minus F)")
     lines.append("Polynomial order chosen on experiment II (alpha, beta): "
                  f"{res.polynomial_order}")
     lines.append("Centroid status: " + "; ".join(
-        f"{k}: " + ", ".join(f"{n} {s}" for s, n in v.items())
+        f"{k}: " + ", ".join(f"{n} {s}" for s, n in v.items() if s != "removed")
+        for k, v in res.centroid_status.items()))
+    lines.append("Frames removed (status: count): " + "; ".join(
+        f"{k}: " + (", ".join(f"{n} {s}" for s, n in v["removed"].items()) or "none")
         for k, v in res.centroid_status.items()))
     lines.append(
         f"Time: {res.timings['simulate_and_centroid']:.1f} s simulate + centroid, "
