@@ -102,7 +102,8 @@ def shot_errors(estimate: xr.Dataset, reference=None, *, absolute: bool = True) 
     Returns
     -------
     xarray.Dataset
-        ``alpha``, ``beta`` errors (deg) on the estimate's dims; NaN where the status is not usable (``ok`` or ``repaired``).
+        ``alpha``, ``beta`` errors (deg) on the estimate's dims; NaN where the status is not
+        usable (``ok`` or ``repaired``).
 
     Examples
     --------
