@@ -93,8 +93,9 @@ def fit_optimised(data: TrainingData, sensor: dict, fit_zero_pose: bool | None =
     ``None`` measures it when that pose exists. Standard errors come from a block bootstrap
     (``n_boot`` replicas; 0, the default here, for the Jacobian ones) whose blocks are the
     poses in squares of ``block_deg`` x ``block_deg`` degrees of the grid: every shot of a pose
-    shares its platform error, and neighbouring poses share the pixel pattern under the spot, so the
-    residuals are correlated within a block and the Jacobian's white-noise errors are too small.
+    shares its platform error, and neighbouring poses share the pixel pattern under the spot,
+    so the residuals are correlated within a block and the Jacobian's white-noise errors are
+    too small.
     """
     zero = (np.abs(data.alpha) <= ZERO_POSE_TOL_DEG) & (np.abs(data.beta) <= ZERO_POSE_TOL_DEG)
     free = (not zero.any()) if fit_zero_pose is None else bool(fit_zero_pose)
