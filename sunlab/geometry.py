@@ -35,12 +35,12 @@ zero-pose centroid by
     y_{cf} = y_{zp} + \\frac{F'}{p}\\frac{(M\\mathbf{e}_z)_y}{(M\\mathbf{e}_z)_z}     \\quad (4)
 
 Inverting (3): :math:`\\mathbf{s} \\propto M^T ((x_{cf} - x)p/F', (y_{cf} - y)p/F', 1)`, and
-(alpha, beta) are the platform angles of :math:`\\mathbf{s}` (:func:`sun_angles`). To first
-order in the mounting angles this is the additive form ``alpha_m = a_s - alpha0``,
-``beta_m = b_s - beta0`` (``mounting="additive"``, kept for comparison); off the axes the two
-differ because rotations do not commute (a roll of about beta0 sin(alpha): 0.12 deg at alpha = -17 deg), and a fit of the
-additive form to a rotated mounting returns biased alpha0, beta0. The zero-pose centroid is a
-fitted parameter by default (:func:`fit_optimised_model`), not one noisy measured frame.
+(alpha, beta) are the platform angles of :math:`\\mathbf{s}` (:func:`sun_angles`). To first order
+in the mounting angles this is the additive form ``alpha_m = a_s - alpha0``, ``beta_m = b_s -
+beta0`` (``mounting="additive"``, kept for comparison); off the axes the two differ because
+rotations do not commute (a roll of about beta0 sin(alpha): 0.12 deg at alpha = -17 deg), and a fit
+of the additive form to a rotated mounting returns biased alpha0, beta0. The zero-pose centroid is
+a fitted parameter by default (:func:`fit_optimised_model`), not one noisy measured frame.
 
 References
 ----------
