@@ -34,34 +34,64 @@ def _splitmix64(state):
     return z ^ (z >> np.uint64(31))
 
 
+@numba.njit(inline="always")
+def _mix64(z):
+    """The output function of SplitMix64 applied to the counter value z."""
+    z = (z ^ (z >> np.uint64(30))) * _M1
+    z = (z ^ (z >> np.uint64(27))) * _M2
+    return z ^ (z >> np.uint64(31))
+
+
+@numba.njit(inline="always")
+def _to_dn(v, max_dn):
+    """floor(v + 0.5) clipped to 0 .. max_dn, as uint16 (v float32, the sum taken in float64).
+
+    Clamping to [0, max_dn + 0.5] first makes truncation equal to the floor, which compiles to
+    one conversion instead of a libm call, an integer round trip and two branches.
+    """
+    w = np.float64(v) + 0.5
+    w = min(max(w, 0.0), max_dn + 0.5)
+    return np.uint16(np.int32(w))
+
+
 @numba.njit(nogil=True, cache=True)
 def adc_frame(mean_dn, sigma_dn, table, state, max_dn, out):
     """out = clip(rint(mean + sigma * z), 0, max_dn) over the whole frame.
 
     z is a standard normal deviate drawn by inverse-CDF table lookup: each 64-bit SplitMix64
     output gives four 16-bit indices into ``table`` (the 65 536 equiprobable midpoint quantiles
-    of N(0, 1)). ``state`` (uint64[1]) is advanced; an empty ``table`` means no noise.
+    of N(0, 1)), low bits first, pixels in row-major order. ``state`` (uint64[1]) is advanced by
+    one step per four pixels (rounded up); an empty ``table`` means no noise. SplitMix64 is
+    counter-based (output b is a fixed function of ``state + b * golden``), so the loop takes
+    four pixels per output without carrying bits from one iteration to the next.
     """
     ny, nx = mean_dn.shape
-    noisy = table.shape[0] > 0
-    r = np.uint64(0)
-    left = 0
-    for i in range(ny):
-        for j in range(nx):
-            v = mean_dn[i, j]
-            if noisy:
-                if left == 0:
-                    r = _splitmix64(state)
-                    left = 4
-                v += sigma_dn[i, j] * table[r & np.uint64(0xFFFF)]
-                r = r >> np.uint64(16)
-                left -= 1
-            v = math.floor(v + 0.5)
-            if v < 0.0:
-                v = 0.0
-            elif v > max_dn:
-                v = max_dn
-            out[i, j] = np.uint16(v)
+    n = ny * nx
+    if table.shape[0] == 0:
+        for i in range(ny):
+            for j in range(nx):
+                out[i, j] = _to_dn(mean_dn[i, j], max_dn)
+        return
+    m = mean_dn.reshape(n)
+    s = sigma_dn.reshape(n)
+    o = out.reshape(n)
+    s0 = state[0]
+    low = np.uint64(0xFFFF)
+    n4 = n // 4
+    for b in range(n4):
+        r = _mix64(s0 + np.uint64(b + 1) * _GOLDEN)
+        k = 4 * b
+        o[k] = _to_dn(m[k] + s[k] * table[r & low], max_dn)
+        o[k + 1] = _to_dn(m[k + 1] + s[k + 1] * table[(r >> np.uint64(16)) & low], max_dn)
+        o[k + 2] = _to_dn(m[k + 2] + s[k + 2] * table[(r >> np.uint64(32)) & low], max_dn)
+        o[k + 3] = _to_dn(m[k + 3] + s[k + 3] * table[r >> np.uint64(48)], max_dn)
+    steps = n4 + (1 if n > 4 * n4 else 0)
+    if n > 4 * n4:
+        r = _mix64(s0 + np.uint64(steps) * _GOLDEN)
+        for k in range(4 * n4, n):
+            o[k] = _to_dn(m[k] + s[k] * table[r & low], max_dn)
+            r = r >> np.uint64(16)
+    state[0] = s0 + np.uint64(steps) * _GOLDEN
 
 
 @numba.njit(nogil=True, cache=True)
