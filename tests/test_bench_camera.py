@@ -19,8 +19,11 @@ from sunlab.bench import Camera, CameraError, CameraTimeout, FakeESP, FolderCame
 
 @pytest.fixture(scope="module")
 def small_bench():
-    """The paper's single-hole bench on a 128 x 128 detector (the hole above its centre)."""
-    return sim.Bench.paper_single_hole().replace(detector__nx=128, detector__ny=128)
+    """The paper's single-hole bench on a 128 x 128 detector, the hole above its centre at
+    F = 5 mm (a 35 px spot that stays on the small detector over +-1 deg)."""
+    return sim.Bench.paper_single_hole().replace(
+        detector__nx=128, detector__ny=128, mask__distance_mm=5.0,
+        mask__holes=(sim.Hole(0.0, 0.0, 0.2),))
 
 
 def _centroid(frame: np.ndarray, background: float) -> tuple[float, float]:

@@ -44,11 +44,18 @@ def test_ideal_model_overrides_and_bias_from_mounting():
 
 def test_optimised_model_recovers_injected_parameters():
     a, b = _grid()
+    # by default the zero-pose centroid is fitted jointly (noise-free data: exact)
     cal = OptimisedModel().fit(_optimised_table(a, b))
+    r = cal.result
+    assert r.zero_pose_fitted
+    assert_allclose([r.delta_f_mm, r.alpha0, r.beta0, r.x_zp, r.y_zp],
+                    [0.094, 1.864, 0.415, XZP, YZP], atol=1e-6)
+    assert cal.residuals["alpha"]["max_abs"] < 1e-8
+    # anchored on the plan's (0, 0) pose, the paper's procedure
+    cal = OptimisedModel(fit_zero_pose=False).fit(_optimised_table(a, b))
     r = cal.result
     assert not r.zero_pose_fitted and (r.x_zp, r.y_zp) == (XZP, YZP)
     assert_allclose([r.delta_f_mm, r.alpha0, r.beta0], [0.094, 1.864, 0.415], atol=1e-7)
-    assert cal.residuals["alpha"]["max_abs"] < 1e-8
 
 
 def test_optimised_model_fits_the_zero_pose_when_the_plan_lacks_it():

@@ -93,11 +93,14 @@ def test_pinhole_model_matches_ideal_and_optimised_along_alpha():
 
 
 def test_mounting_beta_error_is_not_additive_off_axis():
-    # R_x(beta0) and R_y(-alpha) do not commute: the optimised model (3)-(4) is approximate
+    # R_x(beta0) and R_y(-alpha) do not commute: the additive reading of (3)-(4) is approximate
+    # off axis (a roll of about beta0 sin(alpha)), the rotation reading exact
     x, y = geometry.pinhole_centroid(-17.0, 0.0, F, P, 640.0, 512.0, mounting_deg=(0, 0.415, 0))
     zp = geometry.pinhole_centroid(0.0, 0.0, F, P, 640.0, 512.0, mounting_deg=(0, 0.415, 0))
-    a, b = geometry.optimised_angles(x, y, F, P, 0.0, 0.0, 0.415, *zp)
+    a, b = geometry.optimised_angles(x, y, F, P, 0.0, 0.0, 0.415, *zp, mounting="additive")
     assert 1e-3 < abs(float(a) + 17.0) + abs(float(b)) < 0.2
+    a, b = geometry.optimised_angles(x, y, F, P, 0.0, 0.0, 0.415, *zp, mounting="rotation")
+    assert abs(float(a) + 17.0) + abs(float(b)) < 1e-9
 
 
 def test_synthetic_centroids_contract_truth_and_determinism():

@@ -38,11 +38,17 @@ def test_calibrated_methods_reach_hundredths_of_a_degree(result):
     assert (t.xs("M", level="stat") >= t.xs("mu", level="stat") - 1e-12).all().all()
 
 
-def test_optimised_model_dF_near_the_bench(result):
-    # dF is well identified by the scale of the spot motion; 0.03 mm is 0.6 % of F.
-    opt = result.optimised["delta_f_mm"]
-    assert abs(opt["fitted"] - opt["bench"]) < 0.03
-    assert opt["paper"] == 0.094
+def test_optimised_model_finds_the_bench_within_its_standard_errors(result):
+    # The model applies the mounting as the bench does (a rotation), so the fit estimates the
+    # bench's own numbers; on this thinned run (16 calibration poses, 2 shots) the block-bootstrap
+    # standard errors are large, and each parameter lies within 3 of them of the bench's value.
+    for name in ("alpha0", "beta0", "delta_f_mm"):
+        opt = result.optimised[name]
+        assert opt["stderr_method"] == "block bootstrap"
+        assert 0 < opt["stderr"] and abs(opt["fitted"] - opt["bench"]) < 3 * opt["stderr"], name
+    # dF is identified by the scale of the spot motion: to a few hundredths of a mm (0.2 % of F)
+    assert result.optimised["delta_f_mm"]["stderr"] < 0.04
+    assert result.optimised["delta_f_mm"]["paper"] == 0.094
 
 
 def test_outputs_written(result):

@@ -104,14 +104,23 @@ def _readme_examples():
     return [json.loads(block) for block in re.findall(r"```json\n(.*?)```", text, re.S)]
 
 
-def test_readme_examples_follow_the_schemas():
+def test_readme_examples_follow_the_schemas(tmp_path):
+    from sunlab._cli_lab import _SENSOR_KEYS, _sensor_json
+
     examples = _readme_examples()
     found = set()
     for doc in examples:
+        if "sunlab_schema" not in doc and "sunlab_schema" not in doc.get("attrs", {}):
+            # not a contract: the sensor.json of an image folder, read as `sunlab import` does
+            assert set(doc) - {"attrs"} <= set(_SENSOR_KEYS), doc
+            (tmp_path / "sensor.json").write_text(json.dumps(doc))
+            assert _sensor_json(tmp_path, None) == doc
+            found.add("sensor.json")
+            continue
         contract = doc.get("sunlab_schema") or doc["attrs"]["sunlab_schema"]
         jsonschema.validate(doc, _published(contract))
         found.add(contract)
-    assert found == set(CONTRACTS)
+    assert found == set(CONTRACTS) | {"sensor.json"}
     calibration = next(d for d in examples if d.get("sunlab_schema") == "calibration/1")
     assert schema.validate_calibration(calibration) is calibration
 

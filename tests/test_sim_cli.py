@@ -1,6 +1,7 @@
 """`sunlab simulate`: the virtual bench from the command line."""
 
 import numpy as np
+import pytest
 
 from sunlab import io
 from sunlab.cli import main
@@ -16,7 +17,7 @@ def test_simulate_writes_a_cube_with_truth(tmp_path, capsys):
             "--mask",
             "single",
             "--subset",
-            "120",
+            "10",
             "--shots",
             "2",
             "--seed",
@@ -36,6 +37,10 @@ def test_simulate_writes_a_cube_with_truth(tmp_path, capsys):
 
 
 def test_simulate_bad_experiment_is_a_clean_error(tmp_path, capsys):
-    rc = main(["simulate", "--experiment", "V", "--out", str(tmp_path / "x.zarr")])
-    assert rc == 1
-    assert "experiment" in capsys.readouterr().err
+    # a bad choice is a bad argument: argparse names the option and the choices, exit 2
+    with pytest.raises(SystemExit) as info:
+        main(["simulate", "--experiment", "V", "--out", str(tmp_path / "x.zarr")])
+    assert info.value.code == 2
+    err = capsys.readouterr().err
+    assert "--experiment" in err and "'I', 'II', 'III'" in err
+    assert not (tmp_path / "x.zarr").exists()

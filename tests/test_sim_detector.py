@@ -4,17 +4,18 @@ import numpy as np
 import pytest
 
 from sunlab import ConfigurationError
-from sunlab.sim import Bench, Detector, fixed_pattern, render
+from sunlab.sim import Bench, Detector, Hole, fixed_pattern, render
 
 
 @pytest.fixture(scope="module")
 def small():
-    """A 200 x 160 px detector with the spot in the middle (fast frames)."""
+    """A 200 x 160 px detector with the hole above its centre, the spot in the middle (fast
+    frames)."""
     return (
         Bench.paper_single_hole()
         .ideal_platform()
         .ideal_mask()
-        .replace(detector__nx=200, detector__ny=160)
+        .replace(detector__nx=200, detector__ny=160, mask__holes=(Hole(0.0, 0.0, 0.2),))
     )
 
 

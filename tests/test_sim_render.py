@@ -13,10 +13,17 @@ P = 0.007  # pixel pitch, mm
 F = 5.0  # nominal mask distance, mm
 
 
+def _centred(bench):
+    """The bench with one 0.2 mm hole above the detector centre at exactly F = 5 mm (a short
+    sensor: 0.08 deg per px, the spot on the detector over the paper's whole test range)."""
+    return bench.ideal_platform().ideal_mask().replace(
+        mask__distance_mm=F, mask__holes=(Hole(0.0, 0.0, 0.2),))
+
+
 @pytest.fixture(scope="module")
 def ideal():
-    """One 0.2 mm hole at exactly F = 5 mm, perfect platform."""
-    return Bench.paper_single_hole().ideal_platform().ideal_mask()
+    """One 0.2 mm hole at exactly F = 5 mm above the detector centre, perfect platform."""
+    return _centred(Bench.paper_single_hole())
 
 
 def _window_centroid(frame, x, y, bg, half=30):
@@ -99,12 +106,8 @@ def test_flux_absolute(ideal):
 def test_fill_factor_makes_centroid_depend_on_subpixel_position():
     # A sharp-edged spot (point source) on pixels with a small sensitive area: the sampled
     # centroid departs from the geometric ray by an amount that depends on the sub-pixel phase.
-    bench = (
-        Bench.paper_single_hole()
-        .ideal_platform()
-        .ideal_mask()
-        .replace(source__diameter_deg=0.0, detector__fill_factor=0.16)
-    )
+    bench = _centred(Bench.paper_single_hole()).replace(
+        source__diameter_deg=0.0, detector__fill_factor=0.16)
     errs = []
     for a in np.linspace(0.0, 0.08, 9):  # 0.08 deg = one pixel of travel
         x, _ = render.spot_truth(bench, a, 0.0)

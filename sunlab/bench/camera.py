@@ -86,12 +86,14 @@ class SimCamera:
     Examples
     --------
     >>> from sunlab.sim import Bench
-    >>> cam = SimCamera(Bench.paper_single_hole(), roi=(448, 576, 576, 704), binning=2)
+    >>> # a 128 px ROI (rows 105-233, columns 904-1032) round the zero-pose spot, binned 2 x 2
+    >>> cam = SimCamera(Bench.paper_single_hole(), roi=(105, 233, 904, 1032), binning=2)
     >>> cam.shape, cam.bit_depth
     ((64, 64), 12)
     >>> cam.set_index(0, 0, alpha=0.0, beta=0.0)
     >>> frame = cam.grab()
-    >>> frame.dtype, int(np.unravel_index(frame.argmax(), frame.shape)[0]) in range(20, 44)
+    >>> row, col = np.unravel_index(frame.argmax(), frame.shape)
+    >>> frame.dtype, bool(20 <= row < 44 and 20 <= col < 44)
     (dtype('uint16'), True)
     """
 

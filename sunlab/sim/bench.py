@@ -1,26 +1,28 @@
 """The virtual bench: source + mask + detector + platform, presets, and lazy simulated cubes.
 
-Error budget of the presets (our reading of docs/paper.md sec. 8; every number is documented
-where it is defined):
+Error budget of the presets, as identified from the paper's tables by :mod:`sunlab.sim.identify`
+(every number is documented where it is defined, with the paper cells that pin it):
 
 * per shot, about 0.0007 deg: platform jitter 0.0005 deg RMS per axis
-  (:class:`~sunlab.sim.Platform`) plus photon, dark and read noise on the centroid (a few
-  thousandths of a pixel for the default spot of about 14 000 e- per pixel);
-* common mode, shared by all holes of a frame: the platform's per-pose error, uniform within
-  +-0.008 deg (alpha) and +-0.028 deg (beta), an inner-axis wobble, non-orthogonality, mounting
-  errors alpha0 = 1.864 deg and beta0 = 0.415 deg (the paper's fitted values), the mask distance
-  error dF = 0.094 mm (the paper's fitted value), the mask's tilt and offset; for the 100-hole mask
-  also a mask held with +-5.3 um of play along y, a new mounting error at every pose (the paper
-  blames "the new mask's mounting" for the worse beta of Table 5);
-* hole specific, about 0.1 px: the pixel response (fill factor, white and correlated PRNU, DSNU
-  and hot pixels in the spot's window, :class:`~sunlab.sim.Detector`) as a fixed function of
-  where the spot falls; 100-hole averaging removes it, so 100 holes gain only about 2x on alpha.
+  (:class:`~sunlab.sim.Platform`) plus photon, dark and read noise on the centroid;
+* per pose, shared by all holes of a frame: the platform's positioning error, uniform within
+  +-0.008 deg on alpha; on beta a settling offset of +-0.017 deg (its side drawn per pose) plus
+  a uniform +-0.007 deg, a bimodal error; the inner-axis wobble and non-orthogonality; the
+  mounting alpha0 = 1.864 deg, beta0 = 0.415 deg (a rotation of the sensor on the platform) and
+  the mask height error dF = 0.094 mm (the paper's fitted values), the mask's tilt and offset;
+  for the 100-hole mask also +-12 um of play along y, a new mounting error at every pose (the
+  paper blames "the new mask's mounting" for the worse beta of Table 5);
+* hole specific, about 0.3 px RMS per axis (0.007 deg at F = 17 mm): the pixel response (a
+  correlated response pattern of 12 % RMS over 6 px, white PRNU, fill factor, DSNU and hot
+  pixels, :class:`~sunlab.sim.Detector`) under the 51 px spot, a fixed function of where the
+  spot falls that a 1-degree calibration grid cannot learn; 100-hole averaging removes it, so
+  100 holes gain about 2x on alpha.
 
 Examples
 --------
 >>> bench = Bench.paper_single_hole()
 >>> bench.detector.shape, bench.mask_distance_mm, len(bench.mask.holes)
-((1024, 1280), 5.0, 1)
+((1024, 1280), 17.0, 1)
 >>> Bench.paper_multi_hole().n_holes
 100
 """
@@ -76,7 +78,7 @@ class Bench:
     >>> b.detector.temporal_noise, b.platform.alpha0_deg
     (False, 0.0)
     >>> b.replace(mask__delta_f_mm=0.0).mask.true_distance_mm
-    5.0
+    17.0
     """
 
     source: Source = field(default_factory=Source)

@@ -41,7 +41,7 @@ Examples
 >>> t["table4"].loc[("alpha", "mu"), "polynomial"], t["roi_over_spot"]
 (np.float64(0.0089), 2.5)
 >>> round(spot_diameter_px(Bench.paper_single_hole()), 1)
-51.7
+50.8
 """
 
 from __future__ import annotations
@@ -108,14 +108,14 @@ def spot_diameter_px(bench) -> float:
     The spot of a pinhole of diameter d under a source of angular diameter theta at height F'
     is d + F' theta across (the umbra shrinks and the penumbra grows with F'). The paper's
     algorithm A takes a 130 px ROI that is "about 2.5 times the spot" (docs/paper.md sec. 1),
-    which puts the spot at about 52 px and F at about 17 mm.
+    which puts the spot at about 52 px and F at about 17 mm (51 px at F = 17 mm).
 
     Examples
     --------
     >>> from sunlab.sim import Bench
     >>> b = Bench.paper_single_hole()
     >>> round(130 / spot_diameter_px(b), 2)
-    2.51
+    2.56
     """
     theta = 2.0 * bench.source.radius_rad
     d = max(h.diameter_mm for h in bench.mask.holes)
