@@ -1,8 +1,10 @@
-"""Numba kernels of the virtual bench: the ADC of a full frame, of a spot region, and the Fourier
-transform of a polygon. Private: the public API is in :mod:`sunlab.sim.render`."""
+"""Numba kernels of the virtual bench: the ADC of a full frame, of a spot region, the Fourier
+transform of a polygon, and the spot spectra (exact, or with tabulated disk transforms).
+Private: the public API is in :mod:`sunlab.sim.render`."""
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numba
@@ -16,6 +18,8 @@ __all__ = [
     "clip_convex",
     "real_spectrum",
     "fold_phase",
+    "disk_ft_table",
+    "real_spectrum_tabulated",
 ]
 
 
@@ -365,3 +369,84 @@ def fold_phase(t4, wy, wx, ey, ex):
                     s += r * wy[q, a]
                 acc[q, i, j] = s * ey[q, i] * ex[q, j]
     return acc
+
+
+#: Spacing and range of the tabulated disk transforms (:func:`disk_ft_table`).
+TABLE_STEP = 1.0 / 64.0
+TABLE_KMAX = 256.0
+
+
+@numba.njit(nogil=True, cache=True)
+def _build_table(u, h, n):
+    tab = np.empty(n + 3)
+    for i in range(n + 3):
+        tab[i] = _disk_ft(abs(i - 1) * h, u)
+    return tab
+
+
+@functools.lru_cache(maxsize=8)
+def disk_ft_table(u: float) -> np.ndarray:
+    """``_disk_ft(k, u)`` at k = (i - 1) h, i = 0 .. n + 2 (h = :data:`TABLE_STEP`, n h =
+    :data:`TABLE_KMAX`), read-only: the samples of :func:`real_spectrum_tabulated`."""
+    tab = _build_table(float(u), TABLE_STEP, int(round(TABLE_KMAX / TABLE_STEP)))
+    tab.setflags(write=False)
+    return tab
+
+
+@numba.njit(inline="always")
+def _lookup(tab, inv_h, k, u):
+    """Cubic (4-point Lagrange) interpolation of a :func:`disk_ft_table` at k >= 0, or the exact
+    transform beyond the table. Error bound (3/128) h^4 max|f''''| < 1e-9 for h = 1/64."""
+    x = k * inv_h
+    i = int(x)
+    if i + 3 >= tab.shape[0]:
+        return _disk_ft(k, u)
+    t = x - i
+    tm1 = t - 1.0
+    tm2 = t - 2.0
+    tp1 = t + 1.0
+    return (
+        -tab[i] * t * tm1 * tm2
+        + 3.0 * tab[i + 1] * tp1 * tm1 * tm2
+        - 3.0 * tab[i + 2] * tp1 * t * tm2
+        + tab[i + 3] * tp1 * t * tm1
+    ) / 6.0
+
+
+@numba.njit(nogil=True, cache=True)
+def real_spectrum_tabulated(fx, fy, ap, area, km, u, ax, ay, diff, use_ap, tab_ap, tab_u):
+    """:func:`real_spectrum` with the two disk transforms interpolated in tables.
+
+    ``tab_ap`` = ``disk_ft_table(0.0)`` (the aperture's jinc) and ``tab_u`` =
+    ``disk_ft_table(u)`` (the sun disk). The interpolation error, below 2e-10 of the spectrum's
+    peak on the paper's bench (``tests/test_sim_kernels.py`` measures it), is smaller than the
+    1e-8 of the Bessel approximation both paths share; the evaluation is 3-4x faster (no
+    trigonometric call per frequency).
+    """
+    nfx = fx.shape[0]
+    nfy = fy.shape[0]
+    inv_h = 1.0 / TABLE_STEP
+    out = np.empty((nfy, nfx))
+    sx = np.empty(nfx)
+    for a in range(nfx):
+        t = math.pi * ax * fx[a]
+        sx[a] = 1.0 if ax <= 0.0 else ax * (1.0 if abs(t) < 1e-12 else math.sin(t) / t)
+    tp = 2.0 * math.pi
+    for b in range(nfy):
+        t = math.pi * ay * fy[b]
+        sy = 1.0 if ay <= 0.0 else ay * (1.0 if abs(t) < 1e-12 else math.sin(t) / t)
+        f2 = fy[b]
+        for a in range(nfx):
+            f1 = fx[a]
+            v = sx[a] * sy
+            if use_ap:
+                g1 = ap[0, 0] * f1 + ap[1, 0] * f2
+                g2 = ap[0, 1] * f1 + ap[1, 1] * f2
+                v *= area * _lookup(tab_ap, inv_h, tp * math.sqrt(g1 * g1 + g2 * g2), 0.0)
+            h1 = km[0, 0] * f1 + km[1, 0] * f2
+            h2 = km[0, 1] * f1 + km[1, 1] * f2
+            v *= _lookup(tab_u, inv_h, tp * math.sqrt(h1 * h1 + h2 * h2), u)
+            if diff > 0.0:
+                v *= math.exp(-2.0 * (math.pi * diff) ** 2 * (f1 * f1 + f2 * f2))
+            out[b, a] = v
+    return out
