@@ -181,6 +181,7 @@ def error_histogram(values, *, angle: str = "alpha", variable: str = "local_erro
         ax.plot(x, pdf, color="C3", label=f"normal fit: mu = {mu:.4f}, sigma = {sigma:.4f}")
     ax.set_xlabel(xlabel)
     ax.set_ylabel("probability density (1/deg)")
+    ax.set_ylim(0.0, 1.3 * ax.get_ylim()[1])  # headroom: the legend sits above the bars
     ax.legend(loc="upper right", fontsize="small")
     if title:
         ax.set_title(title)
