@@ -27,7 +27,8 @@ import numpy as np
 
 from ._errors import ConfigurationError
 
-__all__ = ["Plan", "experiment", "grid", "custom", "EXPERIMENTS"]
+__all__ = ["Plan", "experiment", "grid", "custom", "zero_check", "EXPERIMENTS", "SCANS",
+           "APPROACHES", "PAPER_SCAN"]
 
 #: The paper's Table 3: (alpha_min, alpha_max, alpha_step, beta_min, beta_max, beta_step), deg.
 EXPERIMENTS: dict[str, tuple[float, float, float, float, float, float]] = {
@@ -35,6 +36,22 @@ EXPERIMENTS: dict[str, tuple[float, float, float, float, float, float]] = {
     "II": (-16.25, 1.75, 1.5, -1.75, 16.25, 1.5),
     "III": (-16.5, 1.5, 1.0, -1.5, 16.5, 1.0),
 }
+
+#: Orders in which the stage visits a plan's poses (:meth:`Plan.visit_order`): ``"raster"`` in
+#: the listed order (for a grid: every row of the inner axis beta from its minimum up, so the
+#: inner axis runs back at each row start), ``"serpentine"`` with every other row of the outer
+#: axis reversed (the inner axis alternates its direction row by row: the shortest path), and
+#: ``"random"`` a fixed pseudo-random permutation of the poses.
+SCANS = ("raster", "serpentine", "random")
+#: How the inner axis reaches a pose: ``"direct"`` (the last move's direction, so a backlash
+#: follows the scan) or ``"unidirectional"`` (overshoot below the target and return: every pose
+#: is approached upward, so a backlash is the same at every pose and a calibration absorbs it).
+APPROACHES = ("direct", "unidirectional")
+#: The scan order assumed for the paper's experiments: the paper does not state it; a serpentine
+#: scan is what a stage program does to save travel, and the beta statistics of Table 4 (sigma /
+#: mu of 0.47, below the bound of any symmetric unimodal error) ask for an inner-axis error whose
+#: sign alternates (:mod:`sunlab.platform_fault`). Our inference.
+PAPER_SCAN = "serpentine"
 
 #: Largest platform angle a plan may command, deg: beyond 90 deg the sun is behind the mask.
 MAX_ANGLE_DEG = 90.0
@@ -81,6 +98,11 @@ class Plan:
         outer loop (``beta`` varies fastest).
     shots : int
         Frames per pose (the paper: 8).
+    scan : {"raster", "serpentine", "random"}
+        Order in which the stage visits the poses (:data:`SCANS`, :meth:`visit_order`); the
+        poses stay listed in their own order (a grid stays a grid), the scan is the motion.
+    approach : {"direct", "unidirectional"}
+        How the inner axis reaches each pose (:data:`APPROACHES`).
 
     Examples
     --------
@@ -95,6 +117,8 @@ class Plan:
     alpha: np.ndarray
     beta: np.ndarray
     shots: int = 8
+    scan: str = "raster"
+    approach: str = "direct"
 
     def __post_init__(self):
         alpha = np.atleast_1d(np.array(self.alpha, dtype=float))
@@ -117,6 +141,15 @@ class Plan:
         object.__setattr__(self, "beta", beta)
         object.__setattr__(self, "shots", _check_shots(self.shots))
         object.__setattr__(self, "name", str(self.name))
+        if self.scan not in SCANS:
+            raise ConfigurationError(
+                f"scan: found {self.scan!r}; expected one of {SCANS}. Fix: scan='serpentine'."
+            )
+        if self.approach not in APPROACHES:
+            raise ConfigurationError(
+                f"approach: found {self.approach!r}; expected one of {APPROACHES}. Fix: "
+                "approach='unidirectional' (overshoot and return)."
+            )
 
     def __len__(self) -> int:
         return int(self.alpha.size)
@@ -125,7 +158,8 @@ class Plan:
         """A plan of a subset of the poses (slice, integer array or boolean mask)."""
         if isinstance(index, int | np.integer):
             index = [int(index)]
-        return Plan(self.name, self.alpha[index], self.beta[index], self.shots)
+        return Plan(self.name, self.alpha[index], self.beta[index], self.shots, self.scan,
+                    self.approach)
 
     def __eq__(self, other) -> bool:
         return (
@@ -134,6 +168,8 @@ class Plan:
             and self.shots == other.shots
             and np.array_equal(self.alpha, other.alpha)
             and np.array_equal(self.beta, other.beta)
+            and self.scan == other.scan
+            and self.approach == other.approach
         )
 
     __hash__ = None  # mutable-looking contents: plans are compared by value, not hashed
@@ -189,7 +225,78 @@ class Plan:
 
     def with_shots(self, shots: int) -> Plan:
         """The same poses with another number of shots per pose."""
-        return Plan(self.name, self.alpha, self.beta, shots)
+        return Plan(self.name, self.alpha, self.beta, shots, self.scan, self.approach)
+
+    def with_motion(self, scan: str | None = None, approach: str | None = None) -> Plan:
+        """The same poses visited in another order or approached another way.
+
+        Examples
+        --------
+        >>> p = experiment("III").with_motion(approach="unidirectional")
+        >>> p.scan, p.approach
+        ('serpentine', 'unidirectional')
+        """
+        return Plan(self.name, self.alpha, self.beta, self.shots,
+                    self.scan if scan is None else scan,
+                    self.approach if approach is None else approach)
+
+    def visit_order(self) -> np.ndarray:
+        """Indices of the poses in the order the stage visits them (:data:`SCANS`).
+
+        ``"serpentine"`` reverses every other run of equal outer angle alpha (for a grid: every
+        other row), ``"random"`` is a permutation seeded by the plan's name and poses, so a
+        plan always replays the same way.
+
+        Examples
+        --------
+        >>> g = grid(0, 1, 1, 0, 2, 1, shots=1)
+        >>> g.visit_order().tolist()
+        [0, 1, 2, 3, 4, 5]
+        >>> g.with_motion(scan="serpentine").visit_order().tolist()
+        [0, 1, 2, 5, 4, 3]
+        """
+        n = len(self)
+        if self.scan == "raster":
+            return np.arange(n)
+        if self.scan == "serpentine":
+            starts = np.flatnonzero(np.r_[True, self.alpha[1:] != self.alpha[:-1]])
+            runs = np.split(np.arange(n), starts[1:])
+            return np.concatenate([r if k % 2 == 0 else r[::-1] for k, r in enumerate(runs)])
+        import zlib
+
+        h = zlib.crc32(self.name.encode())
+        h = zlib.crc32(np.ascontiguousarray(self.alpha, dtype="<f8").tobytes(), h)
+        h = zlib.crc32(np.ascontiguousarray(self.beta, dtype="<f8").tobytes(), h)
+        return np.random.default_rng([h, 0x5CA7]).permutation(n)
+
+    def beta_approach(self, *, home_deg: float = 0.0) -> np.ndarray:
+        """Direction (+1 up, -1 down) in which the inner axis arrives at each pose, by pose.
+
+        The stage starts at ``home_deg`` having last moved upward (a homing ends on an upward
+        approach). Along :meth:`visit_order`, a pose is reached in the direction of the move
+        from the previous pose; a pose with no inner-axis move keeps the last direction (the
+        gear stays on the same flank). With ``approach="unidirectional"`` every pose is reached
+        upward (an overshoot below the target, then the return).
+
+        Examples
+        --------
+        >>> g = grid(0, 1, 1, 0, 2, 1, shots=1, scan="serpentine")
+        >>> g.beta_approach().tolist()   # row 2 runs down; its first visit (beta 2) keeps +1
+        [1, 1, 1, -1, -1, 1]
+        >>> g.with_motion(approach="unidirectional").beta_approach().tolist()
+        [1, 1, 1, 1, 1, 1]
+        """
+        out = np.ones(len(self), dtype=np.int8)
+        if self.approach == "unidirectional":
+            return out
+        last_b, last_d = float(home_deg), 1
+        for p in self.visit_order():
+            b = float(self.beta[p])
+            if b != last_b:
+                last_d = 1 if b > last_b else -1
+            out[p] = last_d
+            last_b = b
+        return out
 
     def unstack_shape(self) -> tuple[int, int] | None:
         """(n_alpha, n_beta) if the plan is a full alpha-outer grid, else None.
@@ -211,7 +318,7 @@ class Plan:
 
     def __repr__(self) -> str:
         return (
-            f"Plan(name={self.name!r}, poses={len(self)}, shots={self.shots}, "
+            f"Plan(name={self.name!r}, poses={len(self)}, shots={self.shots}, scan={self.scan}, "
             f"alpha=[{self.alpha.min():g}, {self.alpha.max():g}] deg, "
             f"beta=[{self.beta.min():g}, {self.beta.max():g}] deg)"
         )
@@ -243,6 +350,8 @@ def grid(
     beta_step: float,
     shots: int = 8,
     name: str = "grid",
+    scan: str = "raster",
+    approach: str = "direct",
 ) -> Plan:
     """A regular grid of poses, alpha as the outer loop, bounds inclusive.
 
@@ -256,6 +365,8 @@ def grid(
         Frames per pose.
     name : str
         Name of the plan.
+    scan, approach : str
+        The motion (:data:`SCANS`, :data:`APPROACHES`).
 
     Returns
     -------
@@ -269,10 +380,11 @@ def grid(
     """
     a = _axis(float(alpha_min), float(alpha_max), float(alpha_step), "alpha")
     b = _axis(float(beta_min), float(beta_max), float(beta_step), "beta")
-    return Plan(name, np.repeat(a, b.size), np.tile(b, a.size), shots)
+    return Plan(name, np.repeat(a, b.size), np.tile(b, a.size), shots, scan, approach)
 
 
-def experiment(name: str, shots: int = 8) -> Plan:
+def experiment(name: str, shots: int = 8, *, scan: str = PAPER_SCAN,
+               approach: str = "direct") -> Plan:
     """The paper's experiment I (calibration), II (validation) or III (test), Table 3.
 
     Parameters
@@ -281,11 +393,14 @@ def experiment(name: str, shots: int = 8) -> Plan:
         Experiment name (case-insensitive; "1", "2", "3" also accepted).
     shots : int
         Frames per pose; the paper takes 8.
+    scan, approach : str
+        The motion; default :data:`PAPER_SCAN` (our inference: the paper does not state it)
+        and a direct approach.
 
     Returns
     -------
     Plan
-        400, 169 or 361 poses.
+        400, 169 or 361 poses, listed alpha-outer (a grid) whatever the scan.
 
     Examples
     --------
@@ -301,10 +416,11 @@ def experiment(name: str, shots: int = 8) -> Plan:
             "(docs/paper.md Table 3). "
             "Fix: use sunlab.plans.grid(...) for other poses."
         )
-    return grid(*EXPERIMENTS[key], shots=shots, name=key)
+    return grid(*EXPERIMENTS[key], shots=shots, name=key, scan=scan, approach=approach)
 
 
-def custom(alpha, beta, shots: int = 8, name: str = "custom") -> Plan:
+def custom(alpha, beta, shots: int = 8, name: str = "custom", scan: str = "raster",
+           approach: str = "direct") -> Plan:
     """A plan from explicit lists of commanded angles (degrees), one (alpha, beta) per pose.
 
     Examples
@@ -318,4 +434,44 @@ def custom(alpha, beta, shots: int = 8, name: str = "custom") -> Plan:
         np.atleast_1d(np.asarray(alpha, dtype=float)),
         np.atleast_1d(np.asarray(beta, dtype=float)),
         shots,
+        scan,
+        approach,
     )
+
+
+def zero_check(plan: Plan, checks: int = 4, *, shots: int | None = None) -> Plan:
+    """The zero-pose check of a run: ``checks`` visits of the zero pose, each approached upward.
+
+    Taken right after the stage is homed, before the run's poses (the runner acquires it with
+    the same homing). It carries the run's name, so that on the virtual bench it shares the
+    run's homing offset; comparing the zero-pose centroids of two runs measures how far their
+    inner-axis zeros differ (:func:`sunlab.platform_fault.fit_correction`). Between checks the
+    axis moves away and back (an overshoot of its own), so each check is a separate pose.
+
+    Parameters
+    ----------
+    plan : Plan
+        The run.
+    checks : int
+        Visits of the zero pose.
+    shots : int, optional
+        Frames per visit; default the run's.
+
+    Examples
+    --------
+    >>> z = zero_check(experiment("III"))
+    >>> len(z), z.name, z.approach, float(z.alpha.max()), float(z.beta.max())
+    (4, 'III', 'unidirectional', 0.0, 0.0)
+    """
+    if not isinstance(plan, Plan):
+        raise ConfigurationError(
+            f"plan: found {type(plan).__name__}; expected a sunlab.plans.Plan."
+        )
+    if isinstance(checks, bool) or not isinstance(checks, int | np.integer) or checks < 1:
+        raise ConfigurationError(
+            f"checks: found {checks!r}; expected a positive number of zero-pose visits. "
+            "Fix: checks=4."
+        )
+    n = int(checks)
+    return Plan(plan.name, np.zeros(n), np.zeros(n), plan.shots if shots is None else shots,
+                "raster", "unidirectional")

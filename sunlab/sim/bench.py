@@ -55,6 +55,7 @@ PAPER_MASK_PLAY_MM = 0.012
 
 _TAG_POSE = 0x905E
 _TAG_SHOT = 0x5407
+_TAG_HOME = 0x803E
 
 
 @dataclass(frozen=True)
@@ -295,15 +296,30 @@ def _check_cmd(alpha_cmd, beta_cmd):
             )
 
 
-def _pose_error(plat: Platform, key: list[int], pose: int) -> tuple[float, float]:
-    if not (plat.alpha_pose_error_deg or plat.beta_pose_error_deg or plat.beta_backlash_deg):
-        return 0.0, 0.0
+def _pose_error(plat: Platform, key: list[int], pose: int, approach: int = 1,
+                homing: float = 0.0) -> tuple[float, float]:
+    """Per-pose errors (alpha, beta), deg: uniform positioning errors, plus on beta the
+    backlash for the approach direction (+1 up, -1 down; :meth:`Plan.beta_approach`) and the
+    run's homing offset (:func:`_homing`)."""
+    eb = homing - approach * plat.beta_backlash_deg
+    if not (plat.alpha_pose_error_deg or plat.beta_pose_error_deg):
+        return 0.0, float(eb)
     u = np.random.default_rng(np.random.SeedSequence(key + [_TAG_POSE, int(pose)])).uniform(
         -1.0, 1.0, 3
     )
-    side = 1.0 if u[2] >= 0 else -1.0
     return (float(u[0]) * plat.alpha_pose_error_deg,
-            float(u[1]) * plat.beta_pose_error_deg + side * plat.beta_backlash_deg)
+            float(u[1]) * plat.beta_pose_error_deg + eb)
+
+
+def _homing(plat: Platform, seed_key: list[int], run: str) -> float:
+    """The inner axis's zero offset of one run (one homing), deg: uniform in
+    +-``beta_homing_deg``, drawn from the seed and the run's name (a zero-pose check taken
+    with the run, :func:`sunlab.plans.zero_check`, shares it)."""
+    if not plat.beta_homing_deg:
+        return 0.0
+    tag = zlib.crc32(str(run).encode())
+    u = np.random.default_rng(np.random.SeedSequence(list(seed_key) + [_TAG_HOME, tag]))
+    return float(u.uniform(-1.0, 1.0)) * plat.beta_homing_deg
 
 
 def _jitter(plat: Platform, key: list[int], pose: int, shot: int) -> tuple[float, float]:
@@ -316,12 +332,15 @@ def _jitter(plat: Platform, key: list[int], pose: int, shot: int) -> tuple[float
 
 
 def platform_pose(
-    bench: Bench, alpha_cmd: float, beta_cmd: float, *, seed, pose: int, shot: int
+    bench: Bench, alpha_cmd: float, beta_cmd: float, *, seed, pose: int, shot: int,
+    approach: int = 1, run: str | None = None,
 ) -> tuple[float, float]:
     """True platform angles (deg) for commanded ones, deterministic in (seed, pose, shot).
 
     The per-pose error (uniform, bounded) depends on (seed, pose), the jitter (normal) on
-    (seed, pose, shot); the systematic errors (encoder, wobble) on the commanded angles only.
+    (seed, pose, shot); the systematic errors (encoder, wobble, gear) on the commanded angles
+    only; the inner axis's backlash on the direction ``approach`` (+1 up, -1 down) in which it
+    reached the pose, and its homing offset on (seed, ``run``) (none when ``run`` is None).
     See :mod:`sunlab.sim.platform` for the model and its defaults.
 
     Examples
@@ -337,20 +356,28 @@ def platform_pose(
     plat = bench.platform
     at, bt = plat.systematic(float(alpha_cmd), float(beta_cmd))
     key = _entropy(seed)
-    ea, eb = _pose_error(plat, key, pose)
+    if approach not in (1, -1):
+        raise ConfigurationError(
+            f"approach: found {approach!r}; expected +1 (reached upward) or -1 (downward)."
+        )
+    home = 0.0 if run is None else _homing(plat, key, run)
+    ea, eb = _pose_error(plat, key, pose, approach, home)
     ja, jb = _jitter(plat, key, pose, shot)
     return float(at) + ea + ja, float(bt) + eb + jb
 
 
 def _platform_table(bench: Bench, plan, key: list[int]):
-    """True angles (pose, shot) of a whole plan; identical to :func:`platform_pose` per frame."""
+    """True angles (pose, shot) of a whole plan; identical to :func:`platform_pose` per frame
+    (with each pose's approach direction from the plan's motion and the plan's name as run)."""
     plat = bench.platform
     ta = np.empty((len(plan), plan.shots))
     tb = np.empty((len(plan), plan.shots))
+    approach = plan.beta_approach()
+    home = _homing(plat, key[:-1], plan.name)
     for p in range(len(plan)):
         # scalar arithmetic, as in platform_pose, so that both agree to the last bit
         at, bt = plat.systematic(float(plan.alpha[p]), float(plan.beta[p]))
-        ea, eb = _pose_error(plat, key, p)
+        ea, eb = _pose_error(plat, key, p, int(approach[p]), home)
         for s in range(plan.shots):
             ja, jb = _jitter(plat, key, p, s)
             ta[p, s] = float(at) + ea + ja
@@ -495,6 +522,8 @@ def simulate(plan, bench: Bench | None = None, seed=0, chunks: str = "frame"):
                 },
             ),
         }
+    coords["beta_approach"] = ("pose", plan.beta_approach(), {
+        "long_name": "direction in which the inner axis reached the pose (+1 up, -1 down)"})
     ds = schema.frames_dataset(
         frames,
         plan.alpha,
@@ -512,6 +541,10 @@ def simulate(plan, bench: Bench | None = None, seed=0, chunks: str = "frame"):
             "sim_seed": _entropy(seed),
             "sim_key": list(key),
             "sim_bench": bench.to_json(),
+            # the motion history (sunlab.platform_fault reads it back)
+            "scan_order": plan.scan,
+            "approach": plan.approach,
+            "visit_order": plan.visit_order().astype(np.int32),
         },
     )
     ds["true_alpha"] = (

@@ -97,11 +97,21 @@ class Platform:
     alpha_jitter_deg, beta_jitter_deg : float
         RMS per-shot jitter, deg.
     beta_backlash_deg : float
-        Inner-axis settling offset, deg: at each pose the axis stops +-``beta_backlash_deg`` off
-        its target, the sign drawn per pose (the side the axis settles on). It makes beta's
-        per-pose error bimodal, the shape that Table 4's sigma / mu of 0.47 on beta (below the
-        0.577 of any symmetric unimodal error) asks for; a stand-in for the platform's fault,
-        whose mechanism the paper leaves open.
+        Inner-axis backlash, deg (half the dead band of the worm gear): the load lags the motor,
+        so a pose reached upward ends ``beta_backlash_deg`` below its target and one reached
+        downward as far above, :math:`\\beta_t = \\ldots - d\\,b` with the approach direction
+        d = +-1 of :meth:`sunlab.plans.Plan.beta_approach` (the motion history: scan order and
+        approach). A serpentine scan alternates d row by row, which makes beta's per-pose error
+        bimodal, the shape that Table 4's sigma / mu of 0.47 on beta (below the 0.577 of any
+        symmetric unimodal error) asks for (:mod:`sunlab.platform_fault`).
+    beta_homing_deg : float
+        Half-width of the inner axis's homing (zero) offset, deg: drawn uniformly once per run
+        (each time the stage is homed), the same for every pose of the run; a calibration
+        absorbs its own run's offset, so a test run is off by the difference of the two.
+    beta_gear_deg, beta_gear_period_deg, beta_gear_phase_deg : float
+        Periodic gear error of the inner axis: amplitude, period in beta and phase, deg
+        (a worm's eccentricity repeats once per worm turn). With a period under two grid steps
+        a calibration on a 1-degree grid only sees it aliased.
     """
 
     alpha0_deg: float = 1.864
@@ -120,6 +130,10 @@ class Platform:
     alpha_jitter_deg: float = 0.0005
     beta_jitter_deg: float = 0.0005
     beta_backlash_deg: float = 0.0
+    beta_homing_deg: float = 0.0
+    beta_gear_deg: float = 0.0
+    beta_gear_period_deg: float = 1.6
+    beta_gear_phase_deg: float = 0.0
 
     def __post_init__(self):
         for name, v in self.__dict__.items():
@@ -132,11 +146,18 @@ class Platform:
             "beta_jitter_deg",
             "beta_wobble_deg",
             "beta_backlash_deg",
+            "beta_homing_deg",
+            "beta_gear_deg",
         ):
             if getattr(self, name) < 0:
                 raise ConfigurationError(
                     f"platform.{name}: found {getattr(self, name)!r}; expected >= 0 deg."
                 )
+        if self.beta_gear_period_deg <= 0:
+            raise ConfigurationError(
+                f"platform.beta_gear_period_deg: found {self.beta_gear_period_deg!r}; expected a"
+                " positive period in deg."
+            )
         if self.beta_wobble_period_deg <= 0:
             raise ConfigurationError(
                 f"platform.beta_wobble_period_deg: found {self.beta_wobble_period_deg!r}; expected"
@@ -152,14 +173,15 @@ class Platform:
     @classmethod
     def ideal(cls) -> Platform:
         """A perfect platform: true angles equal commanded ones, sensor aligned."""
-        return cls(**{k: 0.0 for k in cls.__dataclass_fields__ if k != "beta_wobble_period_deg"})
+        return cls(**{k: 0.0 for k in cls.__dataclass_fields__
+                      if k not in ("beta_wobble_period_deg", "beta_gear_period_deg")})
 
     def replace(self, **changes) -> Platform:
         """A copy with some fields changed."""
         return replace(self, **changes)
 
     def systematic(self, alpha_cmd, beta_cmd):
-        """True angles without the random parts (encoder, wobble), deg."""
+        """True angles without the random parts (encoder, wobble, gear error), deg."""
         a = np.asarray(alpha_cmd, dtype=float)
         b = np.asarray(beta_cmd, dtype=float)
         at = a * (1 + self.alpha_scale) + self.alpha_offset_deg
@@ -168,6 +190,10 @@ class Platform:
             bt = bt + self.beta_wobble_deg * np.sin(
                 2 * np.pi * a / self.beta_wobble_period_deg
                 + math.radians(self.beta_wobble_phase_deg)
+            )
+        if self.beta_gear_deg:
+            bt = bt + self.beta_gear_deg * np.sin(
+                2 * np.pi * b / self.beta_gear_period_deg + math.radians(self.beta_gear_phase_deg)
             )
         return at, bt
 
