@@ -295,15 +295,23 @@ def draw_rectangles(ax, boxes, *, colors=None, tol: float = 0.02, legend: bool =
             linewidth=2.2 if rank[k] == 0 else 1.6, linestyle=styles[rank[k] % len(styles)],
             label=f"{k + 1}: {label} (area {area:.2e} deg$^2$)",
         ))
+    pad_a, pad_b = 0.08 * span_a, 0.08 * span_b
+    xlim = (lo_a - pad_a, hi_a + 2 * pad_a)
+    ylim = (lo_b - pad_b, hi_b + 2 * pad_b)
+    placed: list[tuple[float, float]] = []  # tags' corners in axes fractions
     for g in groups:
         _, a0, a1, b0, b1 = boxes[g[0]]
         tag = " = ".join(str(k + 1) for k in g)
         color = colors[g[0]] if colors is not None else f"C{g[0] % 10}"
-        ax.annotate(tag, (a1, b1), xytext=(2, 2), textcoords="offset points", fontsize=9,
-                    color=color, fontweight="bold", ha="left", va="bottom")
-    pad_a, pad_b = 0.08 * span_a, 0.08 * span_b
-    ax.set_xlim(lo_a - pad_a, hi_a + 2 * pad_a)
-    ax.set_ylim(lo_b - pad_b, hi_b + 2 * pad_b)
+        # a tag whose corner is close to one already written moves up a line, never on top of it
+        fx = (a1 - xlim[0]) / (xlim[1] - xlim[0])
+        fy = (b1 - ylim[0]) / (ylim[1] - ylim[0])
+        lift = sum(abs(fx - px) < 0.08 and abs(fy - py) < 0.05 for px, py in placed)
+        placed.append((fx, fy + 0.045 * lift))
+        ax.annotate(tag, (a1, b1), xytext=(2, 2 + 11 * lift), textcoords="offset points",
+                    fontsize=9, color=color, fontweight="bold", ha="left", va="bottom")
+    ax.set_xlim(*xlim)
+    ax.set_ylim(*ylim)
     ax.axhline(0.0, color="0.85", linewidth=0.8, zorder=0)
     ax.axvline(0.0, color="0.85", linewidth=0.8, zorder=0)
     ax.xaxis.set_major_locator(MaxNLocator(nbins=5))

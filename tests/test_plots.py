@@ -85,3 +85,18 @@ def test_figures_show_in_a_fresh_kernel():
     assert isinstance(fig, plots.ShownFigure)
     png = fig._repr_png_()
     assert png.startswith(b"\x89PNG") and len(png) > 10_000
+
+
+def test_tags_of_nearby_rectangles_do_not_overlap():
+    """Two distinct rectangles with almost the same corner (05's linear and cubic interpolation):
+    their tags are drawn apart, so both numbers stay readable."""
+    from sunlab.plots import draw_rectangles, new_figure
+
+    fig = new_figure(figsize=(5.5, 5.6))
+    ax = fig.subplots()
+    draw_rectangles(ax, [("a", 0.0, 0.035, 0.0, 0.066), ("b", -0.01, 0.036, -0.02, 0.067),
+                         ("c", 0.0, 0.08, -0.1, 0.17)])
+    fig.canvas.draw()
+    boxes = [t.get_window_extent() for t in ax.texts]
+    assert [t.get_text() for t in ax.texts] == ["1", "2", "3"]
+    assert not boxes[0].overlaps(boxes[1]), (boxes[0], boxes[1])
