@@ -1,0 +1,674 @@
+"""Find the platform fault that makes beta worse than alpha, from data a lab already has.
+
+The paper ends with an open problem: beta is worse than alpha for every method and every mask,
+"which points at the rotation platform (its second axis)" (docs/paper.md sec. 5-7). Three faults
+of a worm-gear rotation stage's inner axis explain a beta error that is larger than alpha's and
+not a symmetric unimodal one; they differ in how their sign depends on the motion history:
+
+* **backlash**: the load lags the motor by the half dead band b, so a pose reached upward ends
+  b below its target and one reached downward b above; in a serpentine scan the inner axis
+  alternates its direction row by row (the outer axis moves monotonically, so alpha cannot show
+  it), a sign that follows the *approach direction*;
+* **homing offset**: the inner axis's zero differs between the calibration run and the test
+  run (each run homes the stage); a sign that is *constant within a run*;
+* **periodic gear error**: a worm's eccentricity repeats once per worm turn; with a period under
+  two grid steps a 1-degree calibration grid sees it only aliased, and the test grid, offset by
+  half a step, sees its other phase; a sign that is *periodic in beta*, the same in every row.
+
+The tests, each on the signed beta errors of a test run (estimate minus commanded angle, mean
+over the shots of each pose):
+
+1. **shape**: for any symmetric unimodal error X, sigma / mu of |X| is at least
+   :data:`UNIMODAL_BOUND` = 1/sqrt(3) (uniform is the minimum; normal gives 0.76); below it the
+   error is bimodal or offset (:func:`shape_test`; applied to the paper's own tables by
+   :func:`paper_shape`);
+2. **approach split**: the mean error of the poses reached downward minus that of the poses
+   reached upward is 2 b (:func:`approach_split`);
+3. **run offset**: the mean error of the run, with the approach term removed
+   (:func:`run_offset`);
+4. **periodogram against beta**: the error averaged over the scan rows at each beta, detrended,
+   against sinusoids of beta; a gear error stands above what the within-row scatter allows
+   (:func:`beta_periodogram`).
+
+:func:`diagnose` turns each into a z-score and names the candidate; :func:`fit_correction` fits
+the backlash (and, given zero-pose checks, the homing offset, and given a period, the gear
+error) jointly with the polynomial calibration, with standard errors, and corrects the test
+run's reference angles from its recorded motion.
+
+Examples
+--------
+>>> ps = paper_shape()
+>>> round(float(ps.loc[("polynomial", "beta"), "ratio"]), 3), bool(ps.loc[("polynomial", "beta"),
+...                                                                      "below_bound"])
+(0.473, True)
+>>> round(UNIMODAL_BOUND, 4)
+0.5774
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+import xarray as xr
+
+from ._errors import ConfigurationError
+
+__all__ = [
+    "UNIMODAL_BOUND",
+    "FAULTS",
+    "shape_test",
+    "paper_shape",
+    "signed_pose_errors",
+    "approach_of",
+    "approach_split",
+    "row_split",
+    "run_offset",
+    "beta_periodogram",
+    "Diagnosis",
+    "diagnose",
+    "fault_bench",
+    "JointCorrection",
+    "fit_correction",
+]
+
+#: sigma / mu of |X| for X uniform: the least any symmetric unimodal error can give.
+UNIMODAL_BOUND = 1.0 / math.sqrt(3.0)
+#: The candidate faults of the inner axis, and the sign pattern of each.
+FAULTS = {
+    "backlash": "follows the approach direction (alternates with the scan rows)",
+    "homing": "constant within a run (differs between the calibration and test runs)",
+    "gear": "periodic in beta, the same in every scan row",
+}
+
+
+# --------------------------------------------------------------------------- shape
+def shape_test(table: pd.DataFrame) -> pd.DataFrame:
+    """sigma / mu of the local errors per method and angle, against :data:`UNIMODAL_BOUND`.
+
+    Parameters
+    ----------
+    table : pandas.DataFrame
+        Global statistics as :func:`sunlab.stats.global_stats` lays them out (index
+        ``(angle, stat)``, one column per method), ours or the paper's.
+
+    Returns
+    -------
+    pandas.DataFrame
+        Index ``(method, angle)``; columns ``mu``, ``sigma``, ``ratio`` and ``below_bound``
+        (True: the error is not symmetric unimodal, i.e. bimodal or offset).
+
+    Examples
+    --------
+    >>> from sunlab import stats
+    >>> t = shape_test(stats.paper_table4())
+    >>> round(float(t.loc[("polynomial", "alpha"), "ratio"]), 2)
+    0.6
+    """
+    if not isinstance(table, pd.DataFrame) or ("alpha", "mu") not in table.index:
+        raise ConfigurationError(
+            "table: expected a DataFrame indexed (angle, stat) as sunlab.stats.global_stats "
+            "returns. Fix: pass stats.global_stats(local) or stats.paper_table4()."
+        )
+    rows = {}
+    for m in table.columns:
+        for a in ("alpha", "beta"):
+            mu, sd = float(table.loc[(a, "mu"), m]), float(table.loc[(a, "sigma"), m])
+            ratio = sd / mu if mu > 0 else float("nan")
+            rows[(str(m), a)] = {"mu": mu, "sigma": sd, "ratio": ratio,
+                                 "below_bound": bool(ratio < UNIMODAL_BOUND)}
+    out = pd.DataFrame.from_dict(rows, orient="index")
+    out.index = pd.MultiIndex.from_tuples(out.index, names=["method", "angle"])
+    return out
+
+
+def paper_shape() -> pd.DataFrame:
+    """:func:`shape_test` on the paper's Table 4 and Table 5 (docs/paper.md sec. 5-6).
+
+    Examples
+    --------
+    >>> t = paper_shape()
+    >>> round(float(t.loc[("linear interp.", "beta"), "ratio"]), 2)
+    0.48
+    """
+    from . import stats
+
+    return pd.concat([shape_test(stats.paper_table4()),
+                      shape_test(stats.paper_table5().drop(columns="1 hole"))])
+
+
+# --------------------------------------------------------------------------- errors
+def signed_pose_errors(estimate: xr.Dataset, reference=None) -> xr.Dataset:
+    """Signed error (estimate minus reference) per pose, mean over the usable shots, deg.
+
+    Parameters
+    ----------
+    estimate : xarray.Dataset
+        Output of :meth:`sunlab.calibration.Calibration.predict`.
+    reference : mapping, optional
+        As :func:`sunlab.stats.shot_errors`; default the commanded angles.
+
+    Examples
+    --------
+    >>> est = xr.Dataset({"alpha": (("pose", "shot"), [[0.1, 0.3]]),
+    ...                   "beta": (("pose", "shot"), [[-0.2, np.nan]])},
+    ...                  coords={"alpha_cmd": ("pose", [0.0]), "beta_cmd": ("pose", [0.0])})
+    >>> e = signed_pose_errors(est)
+    >>> [round(float(e.alpha[0]), 6), round(float(e.beta[0]), 6)]
+    [0.2, -0.2]
+    """
+    import warnings
+
+    from . import stats
+
+    err = stats.shot_errors(estimate, reference, absolute=False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", category=RuntimeWarning)  # all-NaN pose -> NaN
+        return err.mean("shot", skipna=True).assign_attrs(units="deg")
+
+
+def approach_of(source) -> np.ndarray:
+    """The inner axis's approach direction (+1 up, -1 down) per pose, from the motion record.
+
+    Parameters
+    ----------
+    source : sunlab.plans.Plan or xarray.Dataset
+        The plan that was run, or a cube with the coordinate ``beta_approach`` (what
+        :func:`sunlab.sim.simulate` and the acquisition runner record).
+
+    Examples
+    --------
+    >>> from sunlab import plans
+    >>> approach_of(plans.grid(0, 1, 1, 0, 1, 1, shots=1, scan="serpentine")).tolist()
+    [1, 1, -1, 1]
+    """
+    from .plans import Plan
+
+    if isinstance(source, Plan):
+        return source.beta_approach().astype(int)
+    if isinstance(source, xr.Dataset) and "beta_approach" in source.variables:
+        return np.asarray(source["beta_approach"].values, dtype=int)
+    raise ConfigurationError(
+        f"source: found {type(source).__name__} without a motion record; expected the "
+        "sunlab.plans.Plan that was run or a cube with a 'beta_approach' coordinate. Fix: pass "
+        "the plan (its scan and approach say how each pose was reached)."
+    )
+
+
+def _finite(e, *arrays):
+    ok = np.isfinite(e)
+    return (e[ok],) + tuple(np.asarray(a)[ok] for a in arrays)
+
+
+def approach_split(beta_error, approach) -> dict:
+    """Mean signed beta error of the poses reached upward and downward; the backlash they imply.
+
+    With the backlash b the error is -b on poses reached upward and +b on poses reached
+    downward, so b = (mean_down - mean_up) / 2; its standard error is from the scatter of the
+    poses about their group means (independent per-pose errors).
+
+    Parameters
+    ----------
+    beta_error : array_like, shape (pose,)
+        Signed beta error per pose, deg (:func:`signed_pose_errors`).
+    approach : array_like of +-1, shape (pose,)
+        :func:`approach_of`.
+
+    Returns
+    -------
+    dict
+        ``mean_up``, ``mean_down``, ``n_up``, ``n_down``, ``backlash_deg``, ``stderr_deg``, ``z``.
+
+    Examples
+    --------
+    >>> d = np.array([1, -1] * 50)
+    >>> r = approach_split(-0.01 * d + 0.001 * np.sin(np.arange(100)), d)
+    >>> round(r["backlash_deg"], 4), r["z"] > 10
+    (0.01, True)
+    """
+    e, d = _finite(np.asarray(beta_error, dtype=float), np.asarray(approach))
+    up, down = e[d > 0], e[d < 0]
+    if up.size < 2 or down.size < 2:
+        return {"mean_up": float(np.mean(up)) if up.size else float("nan"),
+                "mean_down": float(np.mean(down)) if down.size else float("nan"),
+                "n_up": int(up.size), "n_down": int(down.size), "backlash_deg": float("nan"),
+                "stderr_deg": float("nan"), "z": 0.0}
+    resid = np.concatenate([up - up.mean(), down - down.mean()])
+    s2 = float(resid @ resid) / (e.size - 2)
+    se = 0.5 * math.sqrt(s2 * (1 / up.size + 1 / down.size))
+    b = 0.5 * float(down.mean() - up.mean())
+    return {"mean_up": float(up.mean()), "mean_down": float(down.mean()), "n_up": int(up.size),
+            "n_down": int(down.size), "backlash_deg": b, "stderr_deg": se,
+            "z": abs(b) / se if se > 0 else float("inf")}
+
+
+def row_split(beta_error, alpha_cmd, approach) -> pd.DataFrame:
+    """Mean signed beta error per scan row (outer angle alpha) with the row's main direction.
+
+    Examples
+    --------
+    >>> r = row_split([0.01, 0.01, -0.01, -0.01], [0, 0, 1, 1], [-1, -1, 1, 1])
+    >>> r["mean_error_deg"].tolist(), r["approach"].tolist()
+    ([0.01, -0.01], [-1, 1])
+    """
+    df = pd.DataFrame({"alpha": np.asarray(alpha_cmd, dtype=float),
+                       "e": np.asarray(beta_error, dtype=float),
+                       "d": np.asarray(approach, dtype=float)})
+    g = df.groupby("alpha")
+    out = pd.DataFrame({"mean_error_deg": g["e"].mean(),
+                        "approach": np.sign(g["d"].mean()).astype(int), "poses": g["e"].count()})
+    out.index.name = "alpha_cmd"
+    return out
+
+
+def run_offset(beta_error, approach) -> dict:
+    """The run's mean beta error with the approach term removed (regression on [1, d]).
+
+    Returns
+    -------
+    dict
+        ``offset_deg`` (the intercept), ``stderr_deg``, ``z``.
+
+    Examples
+    --------
+    >>> d = np.array([1, -1] * 50)
+    >>> r = run_offset(0.02 - 0.01 * d + 0.001 * np.cos(np.arange(100)), d)
+    >>> round(r["offset_deg"], 4), r["z"] > 10
+    (0.02, True)
+    """
+    e, d = _finite(np.asarray(beta_error, dtype=float), np.asarray(approach, dtype=float))
+    A = np.column_stack([np.ones_like(e), d])
+    coef, *_ = np.linalg.lstsq(A, e, rcond=None)
+    r = e - A @ coef
+    s2 = float(r @ r) / max(e.size - 2, 1)
+    cov = s2 * np.linalg.pinv(A.T @ A)
+    se = math.sqrt(cov[0, 0])
+    return {"offset_deg": float(coef[0]), "stderr_deg": se,
+            "z": abs(float(coef[0])) / se if se > 0 else float("inf")}
+
+
+def beta_periodogram(beta_error, beta_cmd, approach, *, detrend: int = 3,
+                     frequencies=None) -> dict:
+    """Periodogram against beta of the error averaged over the scan rows at each beta.
+
+    The approach and run terms are removed (:func:`run_offset`'s regression), the residuals
+    averaged per commanded beta (the mean over the rows), a polynomial of degree ``detrend`` in
+    beta removed (what a smooth calibration misfit leaves), and a sinusoid of each frequency
+    fitted by least squares. Under the null (no error that repeats in beta) the row means
+    scatter with the within-beta variance over the number of rows, so the power of one
+    frequency, in those units, is chi-square with 2 degrees of freedom; the false-alarm
+    probability of the peak is ``1 - (1 - exp(-P/2))**K`` for K independent frequencies.
+
+    Parameters
+    ----------
+    beta_error, beta_cmd, approach : array_like, shape (pose,)
+    detrend : int
+        Degree of the polynomial in beta removed before the periodogram.
+    frequencies : array_like, optional
+        Cycles per degree; default 0.02 to the Nyquist frequency of the beta grid.
+
+    Returns
+    -------
+    dict
+        ``frequency`` (cycles/deg), ``power`` (chi-square units), ``peak_frequency``,
+        ``peak_period_deg``, ``peak_amplitude_deg``, ``false_alarm``, ``z``.
+
+    Examples
+    --------
+    >>> b = np.tile(np.arange(19.0), 19)
+    >>> rng = np.random.default_rng(0)
+    >>> e = 0.02 * np.sin(2 * np.pi * b / 2.7) + rng.normal(0, 0.01, b.size)
+    >>> r = beta_periodogram(e, b, np.ones(b.size))
+    >>> round(r["peak_period_deg"], 1), r["z"] > 5
+    (2.7, True)
+    """
+    from scipy import stats as sst
+
+    e, b, d = _finite(np.asarray(beta_error, dtype=float), np.asarray(beta_cmd, dtype=float),
+                      np.asarray(approach, dtype=float))
+    A = np.column_stack([np.ones_like(e), d])
+    coef, *_ = np.linalg.lstsq(A, e, rcond=None)
+    r = e - A @ coef
+    ub, inv = np.unique(b, return_inverse=True)
+    n_j = np.bincount(inv).astype(float)
+    m_j = np.bincount(inv, weights=r) / n_j
+    within = r - m_j[inv]
+    dof = e.size - ub.size
+    if ub.size < detrend + 4 or dof < 2:
+        raise ConfigurationError(
+            f"beta_cmd: found {ub.size} distinct beta values over {e.size} poses; the "
+            "periodogram needs several rows at each of at least "
+            f"{detrend + 4} betas. Fix: pass a full grid experiment."
+        )
+    s2_w = float(within @ within) / dof
+    w = n_j / s2_w  # inverse variance of each row mean
+    x = (ub - ub.mean()) / max(np.ptp(ub), 1e-12)
+    V = np.vander(x, detrend + 1)
+    sw = np.sqrt(w)
+    c, *_ = np.linalg.lstsq(V * sw[:, None], m_j * sw, rcond=None)
+    m_d = m_j - V @ c
+    step = float(np.min(np.diff(ub))) if ub.size > 1 else 1.0
+    if frequencies is None:
+        frequencies = np.arange(0.02, 0.5 / step + 1e-9, 0.0025)
+    freqs = np.asarray(frequencies, dtype=float)
+    power = np.empty(freqs.size)
+    amps = np.empty(freqs.size)
+    for k, f in enumerate(freqs):
+        S = np.column_stack([np.sin(2 * np.pi * f * ub), np.cos(2 * np.pi * f * ub), V])
+        cc, *_ = np.linalg.lstsq(S * sw[:, None], m_j * sw, rcond=None)
+        res = m_j - S @ cc
+        power[k] = float(np.sum(w * m_d**2) - np.sum(w * res**2))
+        amps[k] = math.hypot(cc[0], cc[1])
+    i = int(np.argmax(power))
+    k_ind = max(int(ub.size // 2), 1)
+    p_one = math.exp(-0.5 * max(power[i], 0.0))
+    fa = 1.0 - (1.0 - p_one) ** k_ind if p_one > 1e-12 else k_ind * p_one
+    z = float(sst.norm.isf(max(fa, 1e-300)))
+    return {"frequency": freqs, "power": power, "peak_frequency": float(freqs[i]),
+            "peak_period_deg": float(1.0 / freqs[i]), "peak_amplitude_deg": float(amps[i]),
+            "false_alarm": float(fa), "z": max(z, 0.0)}
+
+
+@dataclass
+class Diagnosis:
+    """The result of :func:`diagnose`.
+
+    Attributes
+    ----------
+    candidate : str
+        One of :data:`FAULTS`, or ``"none"`` when no test passes the threshold.
+    z : dict
+        z-score of each candidate's test.
+    evidence : dict
+        The numbers behind each test (deg; JSON-ready).
+    """
+
+    candidate: str
+    z: dict
+    evidence: dict = field(default_factory=dict)
+
+    def to_dict(self) -> dict:
+        return {"candidate": self.candidate, "z": {k: float(v) for k, v in self.z.items()},
+                "evidence": self.evidence}
+
+
+def diagnose(estimate: xr.Dataset, motion, *, threshold: float = 4.0) -> Diagnosis:
+    """Name the inner-axis fault from a test run's estimates and its motion record.
+
+    Parameters
+    ----------
+    estimate : xarray.Dataset
+        A calibration's prediction on the test run (:meth:`Calibration.predict`), with the
+        commanded angles.
+    motion : sunlab.plans.Plan or xarray.Dataset or array_like
+        The run's plan or cube (:func:`approach_of`), or the approach direction per pose.
+    threshold : float
+        Smallest z-score that names a candidate; the largest z wins.
+
+    Returns
+    -------
+    Diagnosis
+
+    Examples
+    --------
+    >>> from sunlab import plans
+    >>> plan = plans.experiment("III", shots=1)
+    >>> d = plan.beta_approach()
+    >>> rng = np.random.default_rng(1)
+    >>> est = xr.Dataset({"alpha": (("pose", "shot"), plan.alpha[:, None]),
+    ...                   "beta": (("pose", "shot"), (plan.beta - 0.015 * d
+    ...                            + rng.uniform(-0.01, 0.01, d.size))[:, None])},
+    ...                  coords={"alpha_cmd": ("pose", plan.alpha),
+    ...                          "beta_cmd": ("pose", plan.beta)})
+    >>> diagnose(est, plan).candidate
+    'backlash'
+    """
+    d = (np.asarray(motion, dtype=int) if isinstance(motion, np.ndarray | list | tuple)
+         else approach_of(motion))
+    err = signed_pose_errors(estimate)
+    e = np.asarray(err["beta"].values, dtype=float)
+    if d.shape != e.shape:
+        raise ConfigurationError(
+            f"motion: found {d.size} approach directions for {e.size} poses; expected one per "
+            "pose of the test run. Fix: pass the plan of the run that was predicted."
+        )
+    b_cmd = np.asarray(estimate["beta_cmd"].values, dtype=float)
+    a_cmd = np.asarray(estimate["alpha_cmd"].values, dtype=float)
+    ap = approach_split(e, d)
+    ro = run_offset(e, d)
+    pg = beta_periodogram(e, b_cmd, d)
+    z = {"backlash": float(ap["z"]), "homing": float(ro["z"]), "gear": float(pg["z"])}
+    best = max(z, key=z.get)
+    evidence = {
+        "approach_split": {k: float(v) for k, v in ap.items()},
+        "run_offset": {k: float(v) for k, v in ro.items()},
+        "periodogram": {k: float(pg[k]) for k in ("peak_frequency", "peak_period_deg",
+                                                   "peak_amplitude_deg", "false_alarm", "z")},
+        "rows": {f"{k:g}": float(v)
+                 for k, v in row_split(e, a_cmd, d)["mean_error_deg"].items()},
+        "threshold_z": float(threshold),
+    }
+    for a in ("alpha", "beta"):
+        ae = np.abs(np.asarray(err[a].values, dtype=float))
+        ae = ae[np.isfinite(ae)]
+        mu = float(ae.mean()) if ae.size > 1 else 0.0
+        evidence[f"{a}_sigma_over_mu"] = float(ae.std(ddof=1)) / mu if mu > 0 else None
+    evidence["unimodal_bound"] = UNIMODAL_BOUND
+    return Diagnosis(best if z[best] >= threshold else "none", z, evidence)
+
+
+def fault_bench(bench, kind: str, size_deg: float, *, period_deg: float = 1.6):
+    """The bench with one inner-axis fault only (the others, and the stand-ins, set to zero).
+
+    Parameters
+    ----------
+    bench : sunlab.sim.Bench
+    kind : {"backlash", "homing", "gear"}
+        The fault (:data:`FAULTS`): ``beta_backlash_deg``, ``beta_homing_deg`` (half-width of
+        the per-run offset) or ``beta_gear_deg`` (amplitude, with ``period_deg``).
+    size_deg : float
+        Its size, deg.
+
+    Examples
+    --------
+    >>> from sunlab.sim import Bench
+    >>> fault_bench(Bench.paper_single_hole(), "gear", 0.02).platform.beta_gear_deg
+    0.02
+    """
+    if kind not in FAULTS:
+        raise ConfigurationError(f"kind: found {kind!r}; expected one of {tuple(FAULTS)}.")
+    base = bench.replace(platform__beta_backlash_deg=0.0, platform__beta_homing_deg=0.0,
+                         platform__beta_gear_deg=0.0)
+    field_ = {"backlash": "beta_backlash_deg", "homing": "beta_homing_deg",
+              "gear": "beta_gear_deg"}[kind]
+    out = base.replace(**{f"platform__{field_}": float(size_deg)})
+    if kind == "gear":
+        out = out.replace(platform__beta_gear_period_deg=float(period_deg))
+    return out
+
+
+# --------------------------------------------------------------------------- remedy (b)
+def _pose_means(cen: xr.Dataset):
+    """Pose-mean centroids of the usable shots, px (NaN for a pose without one)."""
+    import warnings
+
+    from .schema import STATUS, USABLE_STATUS
+
+    ok = np.asarray(cen["status"].isin([STATUS[k] for k in USABLE_STATUS]).values)
+    x = np.where(ok, np.asarray(cen["x"].values, dtype=float), np.nan)
+    y = np.where(ok, np.asarray(cen["y"].values, dtype=float), np.nan)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", category=RuntimeWarning)
+        return np.nanmean(x, axis=1), np.nanmean(y, axis=1)
+
+
+@dataclass
+class JointCorrection:
+    """A polynomial calibration whose beta part was fitted jointly with fault terms.
+
+    Attributes
+    ----------
+    calibration : sunlab.calibration.Polynomial
+        alpha as fitted alone; beta the polynomial part of the joint fit (it estimates the
+        true inner-axis angle, not the commanded one).
+    parameters : dict
+        ``name -> {"fitted": value, "stderr": value}`` (deg): ``beta_backlash_deg``, and when
+        fitted ``beta_homing_difference_deg`` (test run minus calibration run) and
+        ``beta_gear_amplitude_deg``.
+    gear_frequency : float or None
+        Frequency of the gear term, cycles/deg.
+    """
+
+    calibration: object
+    parameters: dict
+    gear_frequency: float | None = None
+    _coef: dict = field(default_factory=dict, repr=False)
+
+    def predict(self, centroids: xr.Dataset) -> xr.Dataset:
+        """The calibration's estimate (:meth:`sunlab.calibration.Calibration.predict`)."""
+        return self.calibration.predict(centroids)
+
+    def reference(self, estimate: xr.Dataset, motion) -> dict:
+        """The test run's reference angles corrected from its motion record, deg.
+
+        beta: commanded - b d + g(beta) + h, with the fitted backlash b, approach d, gear
+        error g and homing difference h; alpha: commanded. Pass as ``reference`` to
+        :func:`sunlab.stats.local_errors`.
+        """
+        d = (np.asarray(motion, dtype=float) if isinstance(motion, np.ndarray | list | tuple)
+             else approach_of(motion).astype(float))
+        b_cmd = estimate["beta_cmd"]
+        beta = b_cmd - self._coef.get("backlash", 0.0) * xr.DataArray(d, dims=b_cmd.dims)
+        if self.gear_frequency is not None:
+            ph = 2 * np.pi * self.gear_frequency * b_cmd
+            beta = beta - (self._coef["sin"] * np.sin(ph) + self._coef["cos"] * np.cos(ph))
+        beta = beta + self.parameters.get("beta_homing_difference_deg", {}).get("fitted", 0.0)
+        return {"alpha": estimate["alpha_cmd"], "beta": beta}
+
+
+def fit_correction(train: xr.Dataset, train_motion, validation: xr.Dataset | None = None, *,
+                   order=None, gear_frequency: float | None = None,
+                   zero_train: xr.Dataset | None = None,
+                   zero_test: xr.Dataset | None = None,
+                   backlash: bool = True) -> JointCorrection:
+    """Fit the polynomial calibration jointly with the inner axis's fault terms.
+
+    The beta polynomial P of the centroid estimates the true inner-axis angle; the commanded
+    angle of each calibration pose is
+
+    .. math:: \\beta_{cmd} = P(x, y) + b\\,d - g(\\beta_{cmd}),
+              \\quad g(\\beta) = s \\sin 2\\pi f\\beta + c \\cos 2\\pi f\\beta
+
+    with the approach direction d of the pose (the motion record), the backlash b and, when
+    ``gear_frequency`` f is given, the gear error g (at the grid, a period under two steps is
+    only seen aliased, so f is the alias the periodogram finds; the amplitude is the same).
+    All coefficients come from one least-squares fit over the pose means, the standard errors
+    from its covariance (residuals independent between poses: the per-pose errors are). The
+    homing offset of the test run relative to the calibration run comes from their zero-pose
+    checks (:func:`sunlab.plans.zero_check`): the mean of P over the test run's checks minus
+    that over the calibration run's, its standard error from the checks' scatter.
+
+    Parameters
+    ----------
+    train : xarray.Dataset
+        Centroid table of the calibration run (experiment I).
+    train_motion : sunlab.plans.Plan or xarray.Dataset or array_like
+        Its motion record (:func:`approach_of`).
+    validation : xarray.Dataset, optional
+        Experiment II: picks the polynomial order (:meth:`Polynomial.select_order`).
+    order : int or (int, int), optional
+        The order, when no validation table is given (default 5).
+    gear_frequency : float, optional
+        Fit a gear term at this frequency, cycles/deg.
+    zero_train, zero_test : xarray.Dataset, optional
+        Centroid tables of the zero-pose checks of the calibration and test runs.
+    backlash : bool
+        Fit the backlash term (leave it out for a unidirectional plan, where every pose is
+        reached upward and the term cannot be told from the polynomial's constant).
+
+    Returns
+    -------
+    JointCorrection
+
+    Examples
+    --------
+    >>> from sunlab import plans
+    >>> from sunlab.sim import Bench
+    >>> from sunlab.sim.identify import surrogate_centroids
+    >>> bench = fault_bench(Bench.paper_single_hole(), "backlash", 0.02)
+    >>> plan = plans.experiment("I", shots=1)
+    >>> jc = fit_correction(surrogate_centroids(bench, plan, 0), plan, order=5)
+    >>> p = jc.parameters["beta_backlash_deg"]
+    >>> abs(p["fitted"] - 0.02) < 3 * p["stderr"] < 0.002
+    True
+    """
+    from .calibration import Polynomial
+    from .calibration.polynomial import _scale, design_matrix
+
+    if validation is not None:
+        cal, _ = Polynomial.select_order(train, validation)
+    else:
+        cal = Polynomial(5 if order is None else order).fit(train)
+    d = (np.asarray(train_motion, dtype=float)
+         if isinstance(train_motion, np.ndarray | list | tuple)
+         else approach_of(train_motion).astype(float))
+    xm, ym = _pose_means(train)
+    b_cmd = np.asarray(train["beta"].values, dtype=float)
+    if d.shape != b_cmd.shape:
+        raise ConfigurationError(
+            f"train_motion: found {d.size} approach directions for {b_cmd.size} poses; "
+            "expected the motion record of the calibration run. Fix: pass its plan."
+        )
+    ok = np.isfinite(xm) & np.isfinite(ym)
+    u, v = _scale(xm[ok], cal.scaling["x"]), _scale(ym[ok], cal.scaling["y"])
+    n_b = cal.orders[1]
+    P = design_matrix(u, v, n_b)
+    cols = [P, d[ok, None]] if backlash else [P]
+    if gear_frequency is not None:
+        ph = 2 * np.pi * float(gear_frequency) * b_cmd[ok]
+        cols.append(np.column_stack([np.sin(ph), np.cos(ph)]))
+    A = np.hstack(cols)
+    coef, *_ = np.linalg.lstsq(A, b_cmd[ok], rcond=None)
+    r = b_cmd[ok] - A @ coef
+    s2 = float(r @ r) / (A.shape[0] - A.shape[1])
+    cov = s2 * np.linalg.pinv(A.T @ A)
+    k = P.shape[1]
+    cal.coefficients["beta"] = coef[:k]
+    params, extra = {}, {}
+    if backlash:
+        params["beta_backlash_deg"] = {"fitted": float(coef[k]),
+                                       "stderr": math.sqrt(float(cov[k, k]))}
+        extra["backlash"] = float(coef[k])
+        k += 1
+    if gear_frequency is not None:
+        s, c = float(coef[k]), float(coef[k + 1])
+        amp = math.hypot(s, c)
+        g = np.array([s, c]) / max(amp, 1e-300)
+        se = math.sqrt(float(g @ cov[k:k + 2, k:k + 2] @ g))
+        params["beta_gear_amplitude_deg"] = {"fitted": amp, "stderr": se}
+        extra.update({"sin": -s, "cos": -c})
+    if (zero_train is None) != (zero_test is None):
+        raise ConfigurationError(
+            "zero_train, zero_test: found one of them; expected both zero-pose checks (the "
+            "calibration run's and the test run's) or neither. Fix: plans.zero_check(plan) "
+            "for each run."
+        )
+    if zero_train is not None:
+        vals = []
+        for z in (zero_train, zero_test):
+            zx, zy = _pose_means(z)
+            _, bz = cal.predict_xy(zx, zy)
+            bz = bz[np.isfinite(bz)]
+            if bz.size < 2:
+                raise ConfigurationError(
+                    "zero check: found fewer than 2 usable zero-pose visits; expected several. "
+                    "Fix: plans.zero_check(plan, checks=4)."
+                )
+            vals.append(bz)
+        h = float(vals[1].mean() - vals[0].mean())
+        se = math.sqrt(vals[0].var(ddof=1) / vals[0].size + vals[1].var(ddof=1) / vals[1].size)
+        params["beta_homing_difference_deg"] = {"fitted": h, "stderr": se}
+    return JointCorrection(cal, params, None if gear_frequency is None else float(gear_frequency),
+                           extra)

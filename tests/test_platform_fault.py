@@ -1,0 +1,138 @@
+"""sunlab.platform_fault: the diagnosis names the one fault a bench carries; the joint fit
+recovers the fault's size within its standard error; the remedies remove it. Benches carrying a
+single fault, centroids from the fast surrogate (sunlab.sim.identify)."""
+
+import numpy as np
+import pytest
+
+from sunlab import ConfigurationError, plans, stats
+from sunlab import platform_fault as pf
+from sunlab.calibration import Polynomial
+from sunlab.sim import Bench
+from sunlab.sim.bench import _homing
+from sunlab.sim.identify import surrogate_centroids
+from sunlab.sim.render import _entropy
+
+SIZES = {"backlash": 0.017, "homing": 0.03, "gear": 0.02}
+SEED = 3
+
+
+def _plans(approach="direct"):
+    # 1-degree beta grids as Table 3 (the test grid offset by half a step), fewer alpha rows
+    cal = plans.grid(-17, 2, 2, -2, 17, 1, shots=1, name="I", scan="serpentine",
+                     approach=approach)
+    test = plans.grid(-16.5, 1.5, 3, -1.5, 16.5, 1, shots=1, name="III", scan="serpentine",
+                      approach=approach)
+    return cal, test
+
+
+@pytest.fixture(scope="module")
+def runs():
+    cal, test = _plans()
+    out = {}
+    for kind, size in SIZES.items():
+        bench = pf.fault_bench(Bench.paper_single_hole(), kind, size)
+        tr = surrogate_centroids(bench, cal, SEED, spot_error=False)
+        te = surrogate_centroids(bench, test, SEED, spot_error=False)
+        out[kind] = (bench, tr, te)
+    return out
+
+
+def test_paper_statistics_fail_the_unimodal_bound_on_beta_only():
+    shape = pf.paper_shape()
+    for m in ("polynomial", "linear interp."):
+        assert shape.loc[(m, "beta"), "below_bound"]
+        assert not shape.loc[(m, "alpha"), "below_bound"]
+        assert shape.loc[(m, "beta"), "ratio"] == pytest.approx(0.475, abs=0.01)
+
+
+@pytest.mark.parametrize("kind", list(SIZES))
+def test_diagnosis_names_the_one_fault(runs, kind):
+    bench, tr, te = runs[kind]
+    cal, test = _plans()
+    if kind == "homing":  # the two runs' zeros must differ for the fault to show at all
+        key = _entropy(SEED)
+        diff = _homing(bench.platform, key, "III") - _homing(bench.platform, key, "I")
+        assert abs(diff) > 0.01
+    est = Polynomial(5).fit(tr).predict(te)
+    diag = pf.diagnose(est, test)
+    assert diag.candidate == kind, diag.z
+    others = [v for k, v in diag.z.items() if k != kind]
+    assert max(others) < 4.0
+    if kind == "gear":  # the test grid sees the 1.6-degree period aliased to 1 / (1 - 1/1.6)
+        assert diag.evidence["periodogram"]["peak_period_deg"] == pytest.approx(2.667, rel=0.03)
+
+
+def test_joint_fit_recovers_backlash_and_remedies_remove_it(runs):
+    bench, tr, te = runs["backlash"]
+    cal, test = _plans()
+    jc = pf.fit_correction(tr, cal, order=5)
+    p = jc.parameters["beta_backlash_deg"]
+    assert abs(p["fitted"] - SIZES["backlash"]) < 2.5 * p["stderr"]
+    assert p["stderr"] < 0.1 * SIZES["backlash"]
+    plain = stats.global_stats(stats.local_errors(Polynomial(5).fit(tr).predict(te)))
+    est = jc.predict(te)
+    fixed = stats.global_stats(stats.local_errors(est, jc.reference(est, test)))
+    # unidirectional approach: the same poses, every one reached upward
+    ucal, utest = _plans("unidirectional")
+    assert set(utest.beta_approach().tolist()) == {1}
+    utr = surrogate_centroids(bench, ucal, SEED, spot_error=False)
+    ute = surrogate_centroids(bench, utest, SEED, spot_error=False)
+    uni = stats.global_stats(stats.local_errors(Polynomial(5).fit(utr).predict(ute)))
+    b_plain = plain.loc[("beta", "mu")].iloc[0]
+    for t in (fixed, uni):
+        b = t.loc[("beta", "mu")].iloc[0]
+        # what is left is the uniform +-0.007 deg pose error (mu 0.0035) and jitter
+        assert b < 0.5 * b_plain
+        assert b == pytest.approx(0.0035, abs=0.0012)
+
+
+def test_zero_checks_measure_the_homing_difference(runs):
+    bench, tr, te = runs["homing"]
+    cal, test = _plans()
+    zc = {n: surrogate_centroids(bench, plans.zero_check(p, 6), SEED, spot_error=False)
+          for n, p in (("I", cal), ("III", test))}
+    jc = pf.fit_correction(tr, cal, order=5, zero_train=zc["I"], zero_test=zc["III"])
+    key = _entropy(SEED)
+    truth = _homing(bench.platform, key, "III") - _homing(bench.platform, key, "I")
+    p = jc.parameters["beta_homing_difference_deg"]
+    assert abs(p["fitted"] - truth) < 2.5 * p["stderr"]
+    assert p["stderr"] < 0.005
+    est = jc.predict(te)
+    fixed = stats.global_stats(stats.local_errors(est, jc.reference(est, test)))
+    assert fixed.loc[("beta", "mu")].iloc[0] < 0.006
+    with pytest.raises(ConfigurationError, match="zero_train"):
+        pf.fit_correction(tr, cal, order=5, zero_train=zc["I"])
+
+
+def test_gear_term_recovers_the_amplitude_at_the_aliased_frequency(runs):
+    bench, tr, te = runs["gear"]
+    cal, test = _plans()
+    est = Polynomial(5).fit(tr).predict(te)
+    f = pf.diagnose(est, test).evidence["periodogram"]["peak_frequency"]
+    jc = pf.fit_correction(tr, cal, order=5, gear_frequency=f)
+    p = jc.parameters["beta_gear_amplitude_deg"]
+    assert abs(p["fitted"] - SIZES["gear"]) < 2.5 * p["stderr"]
+    est2 = jc.predict(te)
+    fixed = stats.global_stats(stats.local_errors(est2, jc.reference(est2, test)))
+    plain = stats.global_stats(stats.local_errors(est))
+    assert fixed.loc[("beta", "mu")].iloc[0] < 0.6 * plain.loc[("beta", "mu")].iloc[0]
+
+
+def test_backlash_follows_the_approach_in_the_platform_table():
+    bench = pf.fault_bench(Bench.paper_single_hole(), "backlash", 0.02).replace(
+        platform__beta_pose_error_deg=0.0, platform__beta_jitter_deg=0.0)
+    cal, _ = _plans()
+    cen = surrogate_centroids(bench, cal, 0, spot_error=False)
+    _, bt = bench.platform.systematic(cal.alpha, cal.beta)
+    err = cen["true_beta"].values[:, 0] - bt
+    np.testing.assert_allclose(err, -0.02 * cal.beta_approach(), atol=1e-12)
+
+
+def test_bad_inputs_name_the_field():
+    with pytest.raises(ConfigurationError, match="kind"):
+        pf.fault_bench(Bench.paper_single_hole(), "wobble", 0.01)
+    with pytest.raises(ConfigurationError, match="source"):
+        pf.approach_of([1, 2, 3])
+    with pytest.raises(ConfigurationError, match="table"):
+        pf.shape_test("not a table")
