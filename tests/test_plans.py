@@ -72,3 +72,48 @@ def test_thin_keeps_a_grid_a_grid():
     assert exp3.thin(1) == exp3
     odd = plans.custom([0.0, 1.0, 2.0, 3.0], [0.0, 0.0, 5.0, 1.0])
     assert odd.thin(2) == odd.subset(2)
+
+
+def test_scan_orders_visit_every_pose_once_and_keep_the_listing():
+    raster = plans.experiment("I", scan="raster")
+    serp = plans.experiment("I")  # the paper's experiments: serpentine (our inference)
+    rnd = plans.experiment("I", scan="random")
+    assert serp.scan == plans.PAPER_SCAN == "serpentine"
+    for p in (raster, serp, rnd):
+        assert sorted(p.visit_order().tolist()) == list(range(400))
+        assert p.unstack_shape() == (20, 20)  # the listing stays a grid whatever the scan
+    assert_array_equal(raster.visit_order(), np.arange(400))
+    # serpentine: the second row (alpha = -16) is visited from beta = 17 down to -2
+    row2 = serp.visit_order()[20:40]
+    assert_array_equal(serp.beta[row2], np.arange(17.0, -3.0, -1.0))
+    assert_array_equal(rnd.visit_order(), plans.experiment("I", scan="random").visit_order())
+    assert not np.array_equal(rnd.visit_order(), np.arange(400))
+    # thin, subset, slicing and with_shots keep the motion
+    assert serp.thin(2).scan == "serpentine" and serp[3:].approach == "direct"
+    assert serp.with_shots(2).scan == "serpentine" and serp != raster
+
+
+def test_beta_approach_follows_the_scan():
+    serp = plans.experiment("III")  # 19 x 19
+    d = serp.beta_approach().reshape(19, 19)
+    # a row scanned upward is reached upward, a downward row downward, except the first
+    # visit of a row, where the inner axis does not move and keeps its flank; the run starts
+    # from home (0 deg) with a move down to -1.5 deg
+    assert d[0, 0] == -1 and (d[0, 1:] == 1).all() and (d[2, 1:] == 1).all() and d[2, 0] == -1
+    assert (d[1, :-1] == -1).all() and d[1, -1] == 1
+    raster = serp.with_motion(scan="raster").beta_approach().reshape(19, 19)
+    assert (raster[:, 1:] == 1).all() and (raster[:, 0] == -1).all()  # row starts run back
+    uni = serp.with_motion(approach="unidirectional")
+    assert (uni.beta_approach() == 1).all()
+
+
+def test_zero_check_and_bad_motion():
+    z = plans.zero_check(plans.experiment("III"), 3, shots=2)
+    assert (len(z), z.shots, z.name, z.approach) == (3, 2, "III", "unidirectional")
+    assert not z.alpha.any() and not z.beta.any()
+    with pytest.raises(ConfigurationError, match="checks"):
+        plans.zero_check(plans.experiment("III"), 0)
+    with pytest.raises(ConfigurationError, match="scan"):
+        plans.experiment("I", scan="spiral")
+    with pytest.raises(ConfigurationError, match="approach"):
+        plans.grid(0, 1, 1, 0, 1, 1, approach="sideways")
