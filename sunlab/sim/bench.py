@@ -150,9 +150,12 @@ class Bench:
 
         alpha: uniform per-pose error within +-0.008 deg (Table 5's 100-hole alpha mu of
         0.0041 deg is its mean absolute value; the spot-specific error averages out over the
-        holes); beta: a settling offset of +-``PAPER_BETA_BACKLASH_DEG`` (sign per pose) plus a
-        uniform +-``PAPER_BETA_POSE_DEG``: a bimodal error, as beta's sigma / mu of 0.47 in
-        Table 4 requires, of the size of Table 4's beta mu (polynomial, 0.0169 deg).
+        holes); beta: a backlash of ``PAPER_BETA_BACKLASH_DEG`` whose sign follows the
+        direction in which the inner axis reaches each pose (alternating row by row in the
+        serpentine scan of :data:`sunlab.plans.PAPER_SCAN`) plus a uniform
+        +-``PAPER_BETA_POSE_DEG``: a bimodal error, as beta's sigma / mu of 0.47 in Table 4
+        requires, of the size of Table 4's beta mu (polynomial, 0.0169 deg);
+        :mod:`sunlab.platform_fault` diagnoses it and removes it.
         """
         return Platform(
             alpha_pose_error_deg=PAPER_ALPHA_POSE_DEG,
