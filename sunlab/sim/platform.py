@@ -13,7 +13,12 @@ with encoder scale errors k, encoder zero offsets, an inner-axis wobble of ampli
 in the outer angle (a systematic, learnable error), a per-pose positioning error e drawn uniformly
 in +-``*_pose_error_deg`` (bounded: the stage's positioning resolution and backlash; docs/paper.md
 sec. 8 shows that sigma / mu of the paper's local errors is about 0.6, the value of a uniform, not
-a normal, error) and a per-shot jitter j (normal). The sun vector in the sensor frame is
+a normal, error) and a per-shot jitter j (normal). Three faults of the inner axis depend on the
+motion history or on beta (:mod:`sunlab.platform_fault` tells them apart): a backlash b, entering
+as :math:`-d\\,b` with the direction d = +-1 in which the axis reached the pose (the plan's scan
+order and approach, :meth:`sunlab.plans.Plan.beta_approach`); a homing offset drawn once per run;
+a periodic gear error :math:`g \\sin(2\\pi\\beta_c / P_g + \\phi_g)`. The sun vector in the
+sensor frame is
 
 .. math::
 
