@@ -136,3 +136,51 @@ def test_bad_inputs_name_the_field():
         pf.approach_of([1, 2, 3])
     with pytest.raises(ConfigurationError, match="table"):
         pf.shape_test("not a table")
+
+
+class _Recorder:
+    """A stage that records its moves (the Stage protocol)."""
+
+    def __init__(self):
+        self.moves, self.at = [], (0.0, 0.0)
+
+    def move_to(self, alpha, beta):
+        self.moves.append((float(alpha), float(beta)))
+        self.at = (float(alpha), float(beta))
+        return self.at
+
+    def position(self):
+        return self.at
+
+    def describe(self):
+        return {"type": "recorder"}
+
+    def close(self):
+        pass
+
+
+class _Ramp:
+    shape, dtype, bit_depth = (4, 5), np.dtype(np.uint16), 10
+
+    def grab(self):
+        return np.arange(20, dtype=np.uint16).reshape(4, 5)
+
+
+@pytest.mark.parametrize("approach", ["direct", "unidirectional"])
+def test_runner_follows_the_scan_and_overshoots(tmp_path, approach):
+    from sunlab.bench import acquire, open_run
+
+    plan = plans.grid(0, 1, 1, 0, 2, 1, shots=1, scan="serpentine", approach=approach)
+    stage = _Recorder()
+    res = acquire(plan, stage, _Ramp(), tmp_path / "run.zarr", progress=False,
+                  handle_sigint=False, fsync=False, overshoot_deg=0.3)
+    assert res.exit_status == "complete"
+    visits = [(float(plan.alpha[p]), float(plan.beta[p])) for p in plan.visit_order()]
+    if approach == "direct":
+        assert stage.moves == visits
+    else:  # below each target first, then up to it
+        assert stage.moves[1::2] == visits
+        assert stage.moves[0::2] == [(a, pytest.approx(b - 0.3)) for a, b in visits]
+    run = open_run(tmp_path / "run.zarr")
+    assert run.attrs["scan_order"] == "serpentine" and run.attrs["approach"] == approach
+    np.testing.assert_array_equal(pf.approach_of(run), plan.beta_approach())

@@ -138,6 +138,16 @@ def _plan_arrays(plan) -> tuple[np.ndarray, np.ndarray, int, str]:
     return alpha, beta, shots, name
 
 
+def _motion(plan, n: int) -> dict:
+    """How the stage moves through the plan: visit order, scan, approach, and the direction in
+    which the inner axis reaches each pose (:meth:`sunlab.plans.Plan.beta_approach`)."""
+    if not callable(getattr(plan, "visit_order", None)):
+        return {"order": np.arange(n), "scan": "raster", "approach": "direct",
+                "beta_approach": None}
+    return {"order": np.asarray(plan.visit_order()), "scan": plan.scan,
+            "approach": plan.approach, "beta_approach": plan.beta_approach()}
+
+
 def _camera_spec(camera) -> tuple[tuple[int, int], np.dtype, int]:
     try:
         shape = tuple(int(n) for n in camera.shape)
@@ -162,7 +172,8 @@ def _describe(obj) -> dict:
     return json.loads(json.dumps(info, default=str))
 
 
-def _create_store(path: Path, alpha, beta, shots, name, camera, stage, attrs) -> None:
+def _create_store(path: Path, alpha, beta, shots, name, camera, stage, attrs,
+                  motion=None) -> None:
     import dask.array as da
     import zarr
 
@@ -185,6 +196,9 @@ def _create_store(path: Path, alpha, beta, shots, name, camera, stage, attrs) ->
                  {"flag_values": [0, 1], "flag_meanings": "pending done",
                   "long_name": "pose fully written"}),
     }
+    if motion is not None and motion["beta_approach"] is not None:
+        coords["beta_approach"] = ("pose", np.asarray(motion["beta_approach"], dtype=np.int8), {
+            "long_name": "direction in which the inner axis reached the pose (+1 up, -1 down)"})
     cube = schema.empty_frames(n, shots, alpha, beta, ny=ny, nx=nx, dtype=dtype,
                                experiment=name, coords=coords, **sensor)
     tmp = path.with_name(f".{path.name}.{uuid.uuid4().hex[:8]}.tmp")
@@ -205,6 +219,9 @@ def _create_store(path: Path, alpha, beta, shots, name, camera, stage, attrs) ->
         "exit_status": "created",
         "error": None,
         "sessions": [],
+        **({} if motion is None else {
+            "scan_order": motion["scan"], "approach": motion["approach"],
+            "visit_order": [int(i) for i in motion["order"]]}),
         **dict(attrs or {}),
     })
     os.replace(tmp, path)
@@ -261,8 +278,13 @@ def _fsync_pose(root: Path, names, pose: int) -> None:
             os.close(fd)
 
 
-def _capture_pose(stage, camera, pose, alpha, beta, shots, shape, dtype, bits):
-    """Move and capture one pose into memory; nothing is written here."""
+def _capture_pose(stage, camera, pose, alpha, beta, shots, shape, dtype, bits,
+                  overshoot=0.0):
+    """Move and capture one pose into memory; nothing is written here. With ``overshoot``
+    the inner axis first goes that far below the target, then up to it (a unidirectional
+    approach: the same gear flank at every pose)."""
+    if overshoot:
+        stage.move_to(alpha, beta - overshoot)
     stage.move_to(alpha, beta)
     frames = np.empty((shots, *shape), dtype=dtype)
     read = np.empty((2, shots))
@@ -302,6 +324,7 @@ def acquire(
     fsync: bool = True,
     attrs: dict | None = None,
     handle_sigint: bool = True,
+    overshoot_deg: float = 0.5,
 ) -> RunResult:
     """Run a plan on the bench into a resumable Zarr store.
 
@@ -333,6 +356,14 @@ def acquire(
     handle_sigint : bool
         In the main thread, turn the first Ctrl-C into a stop between poses (a second one
         interrupts at once).
+    overshoot_deg : float
+        For a plan with ``approach="unidirectional"``: how far below each pose the inner axis
+        goes before it returns upward to it, deg (more than the axis's backlash). The poses are
+        visited in the plan's scan order (:meth:`sunlab.plans.Plan.visit_order`), and the
+        store records the motion (``scan_order``, ``approach``, ``visit_order`` attributes and
+        ``beta_approach`` on pose) for :mod:`sunlab.platform_fault`. A resumed direct-approach
+        run reaches its first pose from wherever the stage stood: use a unidirectional approach
+        where the approach matters.
 
     Returns
     -------
@@ -351,6 +382,13 @@ def acquire(
     from tqdm.auto import tqdm
 
     alpha, beta, shots, name = _plan_arrays(plan)
+    motion = _motion(plan, alpha.size)
+    overshoot = float(overshoot_deg) if motion["approach"] == "unidirectional" else 0.0
+    if not (np.isfinite(overshoot) and overshoot >= 0):
+        raise ConfigurationError(
+            f"overshoot_deg: found {overshoot_deg!r}; expected a non-negative angle in deg "
+            "(more than the inner axis's backlash). Fix: overshoot_deg=0.5."
+        )
     shape, dtype, bits = _camera_spec(camera)
     path = Path(out)
     if path.exists() and not resume:
@@ -360,7 +398,7 @@ def acquire(
         )
     if not path.exists():
         path.parent.mkdir(parents=True, exist_ok=True)
-        _create_store(path, alpha, beta, shots, name, camera, stage, attrs)
+        _create_store(path, alpha, beta, shots, name, camera, stage, attrs, motion)
     for leftover in path.rglob("*.partial"):  # temporary chunk files of a killed writer
         leftover.unlink(missing_ok=True)
     with zarr.config.set({"array.write_empty_chunks": True}):  # a dark frame is a chunk too
@@ -394,12 +432,13 @@ def acquire(
     bar = tqdm(total=alpha.size, initial=int(done.sum()), unit="pose",
                disable=not show_progress(progress), desc=f"acquire {name}".strip())
     try:
-        for pose in np.flatnonzero(~done):
+        for pose in motion["order"][~done[motion["order"]]]:
             if stop.is_set():
                 status = "interrupted"
                 break
             frames, read, stamps = _capture_pose(
-                stage, camera, int(pose), alpha[pose], beta[pose], shots, shape, dtype, bits
+                stage, camera, int(pose), alpha[pose], beta[pose], shots, shape, dtype, bits,
+                overshoot,
             )
             arrays["frames"][pose] = frames
             arrays["alpha_read"][pose] = read[0]
