@@ -289,10 +289,13 @@ def test_defects_injected_in_the_simulator_are_flagged():
 
 # ------------------------------------------- on the virtual bench: dust that moves (or stays)
 # Four holes carry a 0.08 mm particle lying in the hole plane 0.07 mm from the centre (azimuth
-# 45 deg) during the calibration; in the "moved" test it has settled on the opposite side. Each
-# hole's calibration learnt the offset of the first position (about 2 px, 0.15 deg), so after the
-# move the hole is biased by roughly twice that, the same way for the four; the "same" test keeps
-# the particles still (a fixed offset the calibrations absorb: the control case).
+# 90 deg: along the detector rows' normal, +y) during the calibration; in the "moved" test it has
+# settled on the opposite side (270 deg). The particle hides 16 % of the hole and moves its spot's
+# centroid by about 0.013 mm (1.9 px, 0.045 deg at F = 17 mm) along y; each hole's calibration
+# learnt the first offset, so after the move the hole's beta is biased by about twice that and its
+# alpha not at all. The "same" test keeps the particles still (a fixed offset the calibrations
+# absorb: the control case). At F = 17 mm the corner holes leave the detector at many poses: a
+# 5 x 5 training grid gives 98 holes the 15 poses a cubic of their own needs.
 DUSTY = [14, 37, 62, 85]
 
 
@@ -310,10 +313,10 @@ def dusty_bench():
         c, s = math.cos(math.radians(az_deg)), math.sin(math.radians(az_deg))
         return sim.Dust(0.07 * c, 0.07 * s, 0.08, 0.0)
 
-    cal = bench.mask.with_defects({k: dust(45.0) for k in DUSTY})
-    moved = bench.mask.with_defects({k: dust(225.0) for k in DUSTY})
-    g = np.linspace(-15.0, 0.0, 4)
-    train_plan = plans.custom(np.repeat(g, 4), np.tile(g + 15.0, 4), shots=1)
+    cal = bench.mask.with_defects({k: dust(90.0) for k in DUSTY})
+    moved = bench.mask.with_defects({k: dust(270.0) for k in DUSTY})
+    g = np.linspace(-15.0, 0.0, 5)
+    train_plan = plans.custom(np.repeat(g, 5), np.tile(g + 15.0, 5), shots=1)
     t = np.linspace(-12.5, -2.5, 3)
     test_plan = plans.custom(np.repeat(t, 3), np.tile(t + 15.0, 3), shots=1)
 
@@ -328,6 +331,8 @@ def dusty_bench():
 
 
 def test_dusty_holes_are_flagged_from_the_calibration_frames(dusty_bench):
+    # a good hole with one or two tail frames of its pixel-response error in 25 is not flagged
+    # (the outlier fraction is judged against its binomial counting noise)
     _, bad, _ = dusty_bench
     assert np.flatnonzero(bad).tolist() == DUSTY
 
@@ -338,21 +343,53 @@ def test_rejection_pays_only_when_the_dust_moves(dusty_bench, case):
     est = s2.predict_holes(tests[case])
     plain = mh.global_stats(s2.combine(est))
     rej = mh.global_stats(s2.combine(est, holes=~bad))
-    good_mu = np.median([mh.global_stats(est.isel(hole=h))["alpha"]["mu"]
-                         for h in np.flatnonzero(~bad)])
-    dusty_mu = np.median([mh.global_stats(est.isel(hole=h))["alpha"]["mu"] for h in DUSTY])
-    for angle in ("alpha", "beta"):
-        ratio = rej[angle]["mu"] / plain[angle]["mu"]
-        if case == "moved":
-            # measured 0.17 (alpha), 0.24 (beta): the four biased holes put about
-            # 4 / 100 x 0.1 deg = 0.004 deg into the plain average, 3x its noise-limited mu
-            assert ratio < 0.4
-        else:
-            # measured 1.11, 0.94: the two averages share 96 holes, leaving 4 out moves each
-            # frame's mean by about 4 / 96 of a single hole's error (0.009 deg), i.e. <= 30 %
-            # of mu (0.0013 deg); no bias to remove
-            assert 0.7 < ratio < 1.3
+    singles = [mh.global_stats(est.isel(hole=h)) for h in np.flatnonzero(~bad)]
+    # holes without a calibration of their own (seen at too few training poses) have no
+    # estimate: they report n_poses = 0 and NaN, without a warning
+    seen = [s for s in singles if s["alpha"]["n_poses"] > 0]
+    assert 0 < len(singles) - len(seen) <= 4
+    assert all(np.isnan(s["beta"]["mu"]) for s in singles if s["beta"]["n_poses"] == 0)
+    good_mu = {a: np.median([s[a]["mu"] for s in seen]) for a in ("alpha", "beta")}
+    dusty_mu = {a: np.median([mh.global_stats(est.isel(hole=h))[a]["mu"] for h in DUSTY])
+                for a in ("alpha", "beta")}
+    ratio = {a: rej[a]["mu"] / plain[a]["mu"] for a in ("alpha", "beta")}
     if case == "moved":
-        assert dusty_mu > 5 * good_mu  # the moved dust makes each of them a bad hole
-    else:
-        assert dusty_mu < 2 * good_mu  # the calibration absorbed the still particle
+        # measured 0.45: the four holes biased by about 0.09 deg put 4 / 98 x 0.09 = 0.004 deg
+        # into the plain average, above its noise-limited mu (0.0029 deg)
+        assert ratio["beta"] < 0.65
+        assert dusty_mu["beta"] > 5 * good_mu["beta"]
+    # alpha: the particle moved along y, so alpha is untouched (measured 1.09 moved, 1.12 same;
+    # the two averages share 94 holes, leaving 4 out moves each frame's mean by about 4 / 94 of
+    # a single hole's error, <= 30 % of mu)
+    assert 0.7 < ratio["alpha"] < 1.3
+    assert dusty_mu["alpha"] < 2 * good_mu["alpha"]
+    if case == "same":
+        # the still particle is a fixed offset the calibration absorbed (measured 0.99)
+        assert 0.7 < ratio["beta"] < 1.3
+        assert dusty_mu["beta"] < 2 * good_mu["beta"]
+
+
+# ------------------------------------------------- on the virtual bench: burred rims (Fig. 14)
+def test_edge_roughness_flags_burred_holes_and_no_good_one():
+    # a burr (5 % RMS ripple of the rim radius, harmonics 2-12, as the paper bench's burred holes)
+    # barely moves the centroid, flux or second moments; it leaves a persistent out-of-round
+    # shape that the other holes, seeing the Sun from the same direction, lack
+    sim = pytest.importorskip("sunlab.sim")
+    from sunlab import centroid, plans
+
+    bench = sim.Bench.paper_multi_hole(n_bad=0)
+    mask = bench.mask.with_defects({37: sim.Burred(0.05, seed=1), 85: sim.Burred(0.05, seed=2)})
+    g = np.linspace(-12.0, -3.0, 6)
+    plan = plans.custom(np.repeat(g, 6), np.tile(g + 15.0, 6), shots=1)
+    cube = sim.simulate(plan, bench.replace(mask=mask), seed=4)
+    cen = centroid.locate(cube, "tight", progress=False)
+    m = mh.defect_metrics(cen, cube=cube)
+    z = mh.robust_z(m).edge_roughness.values
+    # measured: 13.9 and 8.1 for the burred holes, at most 2.3 for the 98 others (36 frames)
+    assert z[37] > 6 and z[85] > 6
+    assert np.nanmax(np.delete(z, [37, 85])) < 3.5
+    bad = mh.reject_bad_holes(m, use=["edge_roughness"]).values
+    assert np.flatnonzero(bad).tolist() == [37, 85]
+    # the moment metrics do not see the burr of hole 85
+    zz = mh.robust_z(m)
+    assert max(float(zz[k][85]) for k in ("flux_deficit", "size_deficit", "asymmetry")) < 3
