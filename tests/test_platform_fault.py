@@ -184,3 +184,22 @@ def test_runner_follows_the_scan_and_overshoots(tmp_path, approach):
     run = open_run(tmp_path / "run.zarr")
     assert run.attrs["scan_order"] == "serpentine" and run.attrs["approach"] == approach
     np.testing.assert_array_equal(pf.approach_of(run), plan.beta_approach())
+
+
+def test_reproduce_platform_writes_its_contract(tmp_path):
+    import json
+
+    from sunlab.reproduce_platform import ROWS, reproduce_platform
+
+    res = reproduce_platform(engine="surrogate", quick=True, out=tmp_path, progress=False)
+    doc = json.loads((tmp_path / "platform.json").read_text())
+    assert set(ROWS) == set(doc["rows"])
+    assert all(len(v) == 8 for v in doc["rows"].values())
+    assert set(doc["parameters"]) == {"beta_backlash_deg", "beta_homing_difference_deg"}
+    for p in doc["parameters"].values():
+        assert {"fitted", "stderr", "bench"} <= set(p) and abs(p["z"]) < 2.5
+    assert doc["diagnosis"]["candidate"] == "backlash"
+    assert doc["paper_shape"]["polynomial beta"]["below_bound"]
+    poly, best = doc["rows"][ROWS[0]], doc["must_show"]["best_beta_mu"]
+    assert best < 0.7 * poly["beta.mu"] and best < 1.3 * poly["alpha.mu"]
+    assert res["settings"]["scan"] == "serpentine"
