@@ -69,6 +69,7 @@ __all__ = [
     "fig14_bad_holes",
     "fig15_rectangles",
     "plot_metric_map",
+    "metric_scale",
     "DEFECT_METRICS",
 ]
 
@@ -1821,6 +1822,30 @@ def fig15_rectangles(table: Mapping[str, Mapping], *, ax=None):
     return fig
 
 
+def metric_scale(values) -> tuple[float, float]:
+    """Colour scale (low, high) of a defect metric: its 2nd and 98th percentiles over the holes.
+
+    One scale for every view of a metric (:func:`plot_metric_map`, the buttons of
+    :class:`sunlab.widgets.HoleExplorer`), robust to the one bad hole that would otherwise
+    squeeze all good holes into one colour.
+
+    Examples
+    --------
+    >>> [round(v, 2) for v in metric_scale([0.0, 1.0, 2.0, np.nan, 100.0])]
+    [0.06, 94.12]
+    >>> metric_scale([np.nan])
+    (0.0, 1.0)
+    """
+    v = np.asarray(values, dtype=float)
+    v = v[np.isfinite(v)]
+    if not v.size:
+        return 0.0, 1.0
+    lo, hi = (float(q) for q in np.percentile(v, [2, 98]))
+    if hi <= lo:
+        hi = lo + max(abs(lo) * 1e-6, 1e-12)
+    return lo, hi
+
+
 def plot_metric_map(metrics: xr.Dataset, name: str, *, bad=None, ax=None):
     """The mask's holes as a map coloured by one defect metric; rejected holes crossed.
 
@@ -1840,8 +1865,9 @@ def plot_metric_map(metrics: xr.Dataset, name: str, *, bad=None, ax=None):
     grid[i, j] = metrics[name].values
     fig = ax.figure if ax is not None else plt.figure(figsize=(4.8, 4))
     ax = ax or fig.add_subplot()
-    im = ax.imshow(grid, cmap="viridis", origin="upper")
-    fig.colorbar(im, ax=ax, label=metrics[name].attrs.get("units", ""))
+    lo, hi = metric_scale(metrics[name].values)
+    im = ax.imshow(grid, cmap="viridis", origin="upper", vmin=lo, vmax=hi)
+    fig.colorbar(im, ax=ax, label=metrics[name].attrs.get("units", ""), extend="both")
     if bad is not None:
         b = np.asarray(bad, bool)
         ax.plot(j[b], i[b], "x", color="red", ms=12, mew=2)

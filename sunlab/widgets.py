@@ -1,13 +1,21 @@
 """Interactive explorers (ipywidgets + matplotlib) for JupyterLab and Voila.
 
 :class:`HoleExplorer` shows the holes of a multi-hole mask as a clickable map coloured by a
-defect metric (:data:`sunlab.multihole.DEFECT_METRICS`); selecting a hole shows its spot stamp
-at a chosen pose and shot, its metrics and its residual map over the field of view; toggling a
-hole in or out of the average updates the global statistics (docs/paper.md sec. 5 and 6) live.
+defect metric (:data:`sunlab.multihole.DEFECT_METRICS`), on one colour scale
+(:func:`sunlab.multihole.metric_scale`) shown as a colour bar beside it. Holes that the
+automatic rejection flags carry a ⚑ and an orange frame from the start; in simulated data the
+holes the bench gave defects (``hole_defect``) are underlined, so flagged and injected can be
+compared at a glance. Selecting a hole shows its spot close-up at a chosen pose and shot with
+its residual maps over the field of view beside it, and its metrics; toggling a hole in or out
+of the average updates the global statistics (docs/paper.md sec. 5 and 6) live. "reject flagged
+holes" leaves the flagged holes out and keeps the holes left out by hand; only "reset" puts
+every hole back.
 
 Figures are rendered to PNG and placed in ``ipywidgets.Output`` widgets as display data, which
 works the same in a kernel, in Voila and in a plain Python process (tests drive the widgets by
-setting ``.value`` and calling ``.click()``).
+setting ``.value`` and calling ``.click()``). Everything shown lives in the widgets' state, so a
+notebook executed with its widget state saved (Jupyter's default, nbclient's
+``store_widget_state``) exports to HTML with the explorer's last view.
 
 Examples
 --------
@@ -17,8 +25,8 @@ Examples
 >>> cen = mh.synthetic_centroids(a, b, shots=2, noise_px=0.01, defects={7: {"sigma_px": 1.0}})
 >>> ex = HoleExplorer(None, cen, order=2)
 >>> ex.buttons[7].click()
->>> ex.selected
-7
+>>> ex.selected, ex.buttons[7].description          # hole 7 is flagged from the start
+(7, '7⚑')
 """
 
 from __future__ import annotations
@@ -40,7 +48,7 @@ def _png(fig) -> bytes:
     import matplotlib.pyplot as plt
 
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=80)
+    fig.savefig(buf, format="png", dpi=100)
     plt.close(fig)
     return buf.getvalue()
 
@@ -65,13 +73,13 @@ def _text_color(rgb) -> str:
 
 
 class HoleExplorer:
-    """Explore the holes of a multi-hole mask: defect map, spot stamps, residuals, live statistics.
+    """Explore the holes of a multi-hole mask: defect map, spot close-ups, residuals, statistics.
 
     Parameters
     ----------
     cube : xarray.Dataset or None
-        Frame cube (contract ``frames/1``) of ``centroids``; gives the spot stamps (None: no
-        stamps).
+        Frame cube (contract ``frames/1``) of ``centroids``; gives the spot close-ups (None: no
+        close-ups).
     centroids : xarray.Dataset
         Centroid table on (pose, shot, hole), the experiment whose statistics are shown
         (usually the test experiment III).
@@ -82,32 +90,40 @@ class HoleExplorer:
         Training centroid table (experiment I) for the calibrations and the defect metrics.
     metrics : xarray.Dataset, optional
         Defect metrics (:func:`sunlab.multihole.defect_metrics`); default computed from
-        ``train`` (or ``centroids``) and the strategy.
+        ``train`` (or ``centroids``) and the strategy. Pass metrics computed with the training
+        frames (``cube=``) to include the edge roughness that finds burred holes.
     order : int
         Polynomial order when the strategy is fitted here.
     metric : str, optional
         Metric colouring the map first (default ``scatter`` when present).
     pose, shot : int
-        First pose and shot of the stamp.
+        First pose and shot of the close-up.
     half : int
-        Half-size of the stamp, px.
+        Half-size of the close-up, px.
+    kappa : float
+        Rejection threshold of :func:`sunlab.multihole.reject_bad_holes`.
 
     Attributes
     ----------
     buttons : list of ipywidgets.Button
-        One per hole, in a 10 x 10 ``grid`` (GridBox); ``click()`` selects the hole.
+        One per hole, in a 10 x 10 ``grid`` (GridBox); ``click()`` selects the hole. The label is
+        the hole number, with ⚑ when flagged, or ✕ and the number when left out of the average.
     metric : ipywidgets.Dropdown
         The metric colouring the map.
     include : ipywidgets.ToggleButton
         Whether the selected hole is in the average.
     reject, include_all : ipywidgets.Button
-        Apply the automatic bad-hole rejection / put every hole back.
+        Leave the flagged holes out (manual exclusions stay) / reset: every hole back in.
     pose, shot : ipywidgets.IntSlider
-        Frame of the stamp.
-    stamp_out, residual_out : ipywidgets.Output
-        The selected hole's stamp and residual map (PNG display data).
-    info, stats_html : ipywidgets.HTML
-        The selected hole's metrics; the global statistics table.
+        Frame of the close-up.
+    colorbar_out, stamp_out, residual_out : ipywidgets.Output
+        The colour bar of the map, the selected hole's close-up and its residual maps (PNG).
+    legend, info, stats_html : ipywidgets.HTML
+        Flagged and injected holes; the selected hole's metrics; the global statistics table.
+    flagged : numpy.ndarray of bool
+        Holes flagged by the automatic rejection.
+    injected : dict of int to str
+        Holes the simulator gave defects, with their kinds (empty for real data).
     included : numpy.ndarray of bool
         Holes in the average.
     stats : dict
@@ -119,7 +135,7 @@ class HoleExplorer:
 
     def __init__(self, cube, centroids: xr.Dataset, *, strategy=None, train=None, metrics=None,
                  order: int = 5, metric: str | None = None, pose: int = 0, shot: int = 0,
-                 half: int = 30):
+                 half: int = 30, kappa: float = 5.0):
         import ipywidgets as w
 
         if "hole" not in centroids.dims:
@@ -134,7 +150,8 @@ class HoleExplorer:
         self.strategy = strategy or mh.PerHoleAverage(order=order).fit(base)
         self.metrics = metrics if metrics is not None else mh.defect_metrics(
             base, strategy=self.strategy)
-        self.flagged = mh.reject_bad_holes(self.metrics).values
+        self.flagged = mh.reject_bad_holes(self.metrics, kappa=kappa).values
+        self.injected = _injected(centroids if "hole_defect" in centroids.coords else base)
         self.estimates = self.strategy.predict_holes(centroids)
         self._i, self._j, nr, nc = mh.hole_grid(centroids)
         n_h = centroids.sizes["hole"]
@@ -152,7 +169,7 @@ class HoleExplorer:
         self.metric = w.Dropdown(options=names, value=metric, description="colour by")
         self.buttons = []
         for h in range(n_h):
-            b = w.Button(description=str(h), layout=w.Layout(width="42px", height="30px",
+            b = w.Button(description=str(h), layout=w.Layout(width="46px", height="30px",
                                                              padding="0px"))
             b.hole = h
             b.on_click(lambda btn: self.select(btn.hole))
@@ -160,37 +177,44 @@ class HoleExplorer:
         order_ = np.lexsort((self._j, self._i))  # row-major placement on the grid
         self.grid = w.GridBox(
             [self.buttons[h] for h in order_],
-            layout=w.Layout(grid_template_columns=f"repeat({nc}, 44px)", grid_gap="2px",
-                            width=f"{46 * nc}px", overflow="visible"),
+            layout=w.Layout(grid_template_columns=f"repeat({nc}, 48px)", grid_gap="2px",
+                            width=f"{50 * nc}px", overflow="visible"),
         )
-        self.colorbar = w.HTML()
+        self.colorbar_out = w.Output(layout=w.Layout(width=f"{50 * nc}px"))
+        self.legend = w.HTML(layout=w.Layout(width=f"{50 * nc}px"))
         self.include = w.ToggleButton(value=True, description="in the average",
                                       icon="check", tooltip="toggle the selected hole")
-        self.reject = w.Button(description="reject flagged holes", button_style="warning")
-        self.include_all = w.Button(description="include all holes")
+        self.reject = w.Button(description="reject flagged holes", button_style="warning",
+                               tooltip="leave the flagged holes out; holes left out by hand "
+                                       "stay out")
+        self.include_all = w.Button(description="reset: include all",
+                                    tooltip="put every hole back into the average")
         n_p, n_s = centroids.sizes["pose"], centroids.sizes["shot"]
         self.pose = w.IntSlider(value=int(pose), min=0, max=n_p - 1, description="pose")
         self.shot = w.IntSlider(value=int(shot), min=0, max=n_s - 1, description="shot")
-        self.stamp_out = w.Output(layout=w.Layout(min_height="260px"))
-        self.residual_out = w.Output(layout=w.Layout(min_height="260px"))
+        self.stamp_out = w.Output(layout=w.Layout(width="330px", min_height="300px"))
+        self.residual_out = w.Output(layout=w.Layout(width="560px", min_height="300px"))
         self.info = w.HTML()
         self.stats_html = w.HTML()
 
         self.metric.observe(lambda ch: self._paint(), names="value")
         self.include.observe(self._on_include, names="value")
-        self.reject.on_click(lambda _: self.set_included(~self.flagged))
+        self.reject.on_click(lambda _: self.set_included(self.included & ~self.flagged))
         self.include_all.on_click(lambda _: self.set_included(np.ones(n_h, bool)))
         self.pose.observe(lambda ch: self._show_stamp(), names="value")
         self.shot.observe(lambda ch: self._show_stamp(), names="value")
 
-        left = w.VBox([self.metric, self.grid, self.colorbar,
+        left = w.VBox([self.metric, self.grid, self.colorbar_out, self.legend,
                        w.HBox([self.reject, self.include_all])],
-                      layout=w.Layout(min_width=f"{46 * nc + 20}px", flex="0 0 auto"))
-        right = w.VBox([w.HBox([self.include, self.info]), self.pose, self.shot,
-                        w.HBox([self.stamp_out, self.residual_out])],
+                      layout=w.Layout(width=f"{50 * nc + 20}px", flex="0 0 auto"))
+        right = w.VBox([w.HBox([self.include, self.pose, self.shot]),
+                        w.HBox([self.stamp_out, self.residual_out]), self.info],
                        layout=w.Layout(flex="1 1 auto"))
         self.ui = w.VBox([w.HTML("<b>Holes of the mask</b>: click a hole; colour = defect "
-                                 "metric; ✕ = left out of the average"),
+                                 "metric; ⚑ = flagged by the automatic rejection; "
+                                 "✕ = left out of the average"
+                                 + ("; <u>underlined</u> = defect injected by the simulator"
+                                    if self.injected else "")),
                           w.HBox([left, right]), self.stats_html])
         self._paint()
         self.select(self.selected)
@@ -201,7 +225,7 @@ class HoleExplorer:
 
     # ---------------------------------------------------------------------- state changes
     def select(self, hole: int) -> None:
-        """Select a hole: show its stamp, metrics and residual map."""
+        """Select a hole: show its close-up, residual maps and metrics."""
         hole = int(hole)
         if not 0 <= hole < len(self.buttons):
             raise ConfigurationError(f"hole: found {hole}, expected 0 .. {len(self.buttons) - 1}")
@@ -209,8 +233,7 @@ class HoleExplorer:
         self.include.unobserve(self._on_include, names="value")
         self.include.value = bool(self.included[hole])
         self.include.observe(self._on_include, names="value")
-        for h, b in enumerate(self.buttons):
-            b.layout.border = "3px solid #d62728" if h == hole else ""
+        self._borders()
         self._show_info()
         self._show_stamp()
         self._show_residuals()
@@ -235,14 +258,21 @@ class HoleExplorer:
         self.set_included(inc)
 
     # ---------------------------------------------------------------------- drawing
+    def _borders(self) -> None:
+        for h, b in enumerate(self.buttons):
+            if h == self.selected:
+                b.layout.border = "3px solid #d62728"
+            elif self.flagged[h]:
+                b.layout.border = "3px solid #ff7f0e"
+            else:
+                b.layout.border = ""
+
     def _paint(self) -> None:
         import matplotlib as mpl
 
-        v = np.asarray(self.metrics[self.metric.value].values, dtype=float)
-        finite = v[np.isfinite(v)]
-        lo, hi = (np.percentile(finite, [2, 98]) if finite.size else (0.0, 1.0))
-        if hi <= lo:
-            hi = lo + 1e-12
+        name = self.metric.value
+        v = np.asarray(self.metrics[name].values, dtype=float)
+        lo, hi = mh.metric_scale(v)
         cmap = mpl.colormaps["viridis"]
         for h, b in enumerate(self.buttons):
             if np.isfinite(v[h]):
@@ -252,22 +282,57 @@ class HoleExplorer:
             else:
                 b.style.button_color = "#bbbbbb"
                 b.style.text_color = "black"
-            b.description = str(h) if self.included[h] else "✕"
-            b.tooltip = f"hole {h}: {self.metric.value} = {v[h]:.3g}"
-        self.colorbar.value = (
-            f"<small>{html.escape(self.metric.value)}: dark {lo:.3g} → yellow {hi:.3g}; "
-            f"flagged: {np.flatnonzero(self.flagged).tolist()}</small>"
-        )
+            label = str(h) + ("⚑" if self.flagged[h] else "")
+            b.description = label if self.included[h] else f"✕{h}"
+            b.style.font_weight = "bold" if h in self.injected else ""
+            b.style.text_decoration = "underline" if h in self.injected else ""
+            notes = [f"hole {h}: {name} = {v[h]:.3g}"]
+            if self.flagged[h]:
+                notes.append("flagged")
+            if h in self.injected:
+                notes.append(f"injected: {self.injected[h]}")
+            b.tooltip = "; ".join(notes)
+        self._borders()
+        self._show_colorbar(name, lo, hi)
+        flagged = set(np.flatnonzero(self.flagged).tolist())
+        parts = [f"flagged ⚑: {sorted(flagged)}",
+                 f"left out ✕: {np.flatnonzero(~self.included).tolist()}"]
+        if self.injected:
+            inj = set(self.injected)
+            parts.append("injected (simulation): " + ", ".join(
+                f"{h} {k}" for h, k in sorted(self.injected.items())))
+            parts.append(f"caught {sorted(inj & flagged)}, missed {sorted(inj - flagged)}, "
+                         f"flagged good holes {sorted(flagged - inj)}")
+        self.legend.value = "<small>" + "<br>".join(html.escape(p) for p in parts) + "</small>"
+
+    def _show_colorbar(self, name, lo, hi) -> None:
+        import matplotlib as mpl
+        import matplotlib.pyplot as plt
+
+        fig = plt.figure(figsize=(4.9, 0.75))
+        ax = fig.add_axes((0.04, 0.55, 0.92, 0.3))
+        fig.colorbar(mpl.cm.ScalarMappable(mpl.colors.Normalize(lo, hi), "viridis"), cax=ax,
+                     orientation="horizontal", extend="both")
+        units = self.metrics[name].attrs.get("units", "")
+        ax.set_title(f"{name}{', ' + units if units else ''} (same scale as the buttons)",
+                     fontsize=9)
+        ax.tick_params(labelsize=8)
+        figure_output(self.colorbar_out, fig, f"colour bar of {name}")
 
     def _show_info(self) -> None:
         h = self.selected
+        z = mh.robust_z(self.metrics)
         rows = "".join(
-            f"<tr><td>{html.escape(k)}</td><td>{float(self.metrics[k][h]):.4g}</td></tr>"
+            f"<tr><td>{html.escape(k)}</td><td>{float(self.metrics[k][h]):.4g}</td>"
+            f"<td>{float(z[k][h]):+.1f}</td></tr>"
             for k in self.metrics.data_vars
         )
-        flag = " <b style='color:#d62728'>flagged</b>" if self.flagged[h] else ""
-        self.info.value = (f"<b>hole {h}</b> (row {self._i[h]}, column {self._j[h]}){flag}"
-                           f"<table>{rows}</table>")
+        flag = " <b style='color:#ff7f0e'>⚑ flagged</b>" if self.flagged[h] else ""
+        inj = (f" <u>injected defect (simulation): {html.escape(self.injected[h])}</u>"
+               if h in self.injected else "")
+        self.info.value = (f"<b>hole {h}</b> (row {self._i[h]}, column {self._j[h]}){flag}{inj}"
+                           "<table><tr><th>metric</th><th>value</th><th>robust z</th></tr>"
+                           f"{rows}</table>")
 
     def _frame(self, p, s):
         key = (p, s)
@@ -280,8 +345,7 @@ class HoleExplorer:
         import matplotlib.pyplot as plt
 
         h, p, s = self.selected, int(self.pose.value), int(self.shot.value)
-        fig, ax = plt.subplots(figsize=(3.2, 3.0))
-        fig.subplots_adjust(left=0.2, right=0.97, bottom=0.15, top=0.9)
+        fig, ax = plt.subplots(figsize=(3.3, 3.0))
         x = float(self.centroids["x"].values[p, s, h])
         y = float(self.centroids["y"].values[p, s, h])
         if self.cube is None:
@@ -296,10 +360,12 @@ class HoleExplorer:
             ax.plot(x, y, "+", color="cyan", ms=10)
         a = float(self.centroids["alpha"].values[p])
         b = float(self.centroids["beta"].values[p])
-        ax.set_title(f"hole {h}, pose {p} (α={a:.2f}°, β={b:.2f}°), shot {s}", fontsize=8)
-        ax.set_xlabel("x, px")
-        ax.set_ylabel("y, px")
-        figure_output(self.stamp_out, fig, f"stamp of hole {h}")
+        ax.set_title(f"hole {h}, pose {p} (α={a:.1f}°, β={b:.1f}°), shot {s}", fontsize=9)
+        ax.set_xlabel("x, px", fontsize=9)
+        ax.set_ylabel("y, px", fontsize=9)
+        ax.tick_params(labelsize=8)
+        fig.subplots_adjust(left=0.2, right=0.97, bottom=0.15, top=0.9)
+        figure_output(self.stamp_out, fig, f"close-up of hole {h}")
 
     def _combined(self):
         return self.strategy.combine(self.estimates, holes=self.included)
@@ -309,19 +375,21 @@ class HoleExplorer:
 
         h = self.selected
         comb = self._combined()
-        fig, axes = plt.subplots(1, 2, figsize=(6.0, 2.8), sharey=True)
+        fig, axes = plt.subplots(1, 2, figsize=(5.6, 3.0), sharey=True, layout="constrained")
         a_cmd = self.estimates["alpha_cmd"].values
         b_cmd = self.estimates["beta_cmd"].values
         for ax, name in zip(axes, ("alpha", "beta"), strict=True):
-            r = (self.estimates[name].isel(hole=h) - comb[name]).mean("shot").values
+            r = (self.estimates[name].isel(hole=h) - comb[name]).mean("shot").values * 1e3
             lim = np.nanmax(np.abs(r)) if np.isfinite(r).any() else 1.0
-            sc = ax.scatter(a_cmd, b_cmd, c=r, cmap="coolwarm", vmin=-lim, vmax=lim, s=18)
-            fig.colorbar(sc, ax=ax, shrink=0.8)
-            ax.set_title(f"{name}: hole {h} − average, deg", fontsize=8)
-            ax.set_xlabel("α, deg")
-        axes[0].set_ylabel("β, deg")
-        fig.subplots_adjust(left=0.1, right=0.97, bottom=0.17, top=0.9, wspace=0.15)
-        figure_output(self.residual_out, fig, f"residual map of hole {h}")
+            sc = ax.scatter(a_cmd, b_cmd, c=r, cmap="coolwarm", vmin=-lim, vmax=lim, s=22)
+            cb = fig.colorbar(sc, ax=ax, shrink=0.85, location="bottom", pad=0.02)
+            cb.ax.tick_params(labelsize=8)
+            cb.set_label("mdeg", fontsize=8)
+            ax.set_title(f"{'α' if name == 'alpha' else 'β'}: hole {h} − average", fontsize=9)
+            ax.set_xlabel("α, deg", fontsize=8)
+            ax.tick_params(labelsize=8)
+        axes[0].set_ylabel("β, deg", fontsize=8)
+        figure_output(self.residual_out, fig, f"residual maps of hole {h}")
 
     def _update_stats(self) -> None:
         h = self.selected
@@ -337,10 +405,22 @@ class HoleExplorer:
         for a in ("alpha", "beta"):
             for k in ("mu", "sigma", "M", "sigma_M"):
                 cells = "".join(
-                    f"<td>{s[a][k]:.5f}</td>" if s is not None else "<td>–</td>" for _, s in cols
+                    f"<td>{s[a][k]:.5f}</td>" if s is not None and np.isfinite(s[a][k])
+                    else "<td>–</td>" for _, s in cols
                 )
                 body += f"<tr><td>{a}</td><td>{k}</td>{cells}</tr>"
         self.stats_html.value = (
             "<b>Global statistics (deg), per-hole calibration then average</b>"
             f"<table><tr><th>angle</th><th>stat</th>{head}</tr>{body}</table>"
         )
+
+
+def _injected(cen: xr.Dataset) -> dict[int, str]:
+    """Holes that the simulator gave defects (``hole_defect`` bit flags), with their kinds."""
+    if "hole_defect" not in cen.coords:
+        return {}
+    from .sim.mask import DEFECT_FLAGS
+
+    flags = np.asarray(cen["hole_defect"].values, dtype=int)
+    return {int(h): "+".join(k for k, bit in DEFECT_FLAGS.items() if flags[h] & bit) or "defect"
+            for h in np.flatnonzero(flags)}

@@ -53,6 +53,37 @@ def test_layout_and_flags(explorer):
     assert len(ex.buttons) == 100 and len(ex.grid.children) == 100
     assert np.flatnonzero(ex.flagged).tolist() == sorted(BAD)
     assert ex.grid.layout.grid_template_columns.startswith("repeat(10")
+    # flagged holes are marked on the map from the start, before any rejection
+    assert ex.included.all()
+    marked = [h for h, b in enumerate(ex.buttons) if b.description.endswith("⚑")]
+    assert marked == sorted(BAD)
+    assert ex.buttons[33].layout.border == "3px solid #ff7f0e"
+    assert "flagged ⚑: [7, 33]" in ex.legend.value
+    # no simulated truth in this table: nothing claims to be injected
+    assert ex.injected == {} and "injected" not in ex.legend.value
+    # close-up and residual maps side by side, below the controls
+    right = ex.ui.children[1].children[1]
+    assert right.children[1].children == (ex.stamp_out, ex.residual_out)
+
+
+def test_one_colour_scale_for_buttons_and_bar(explorer):
+    import matplotlib as mpl
+
+    ex = explorer
+    ex.metric.value = "flux_deficit"
+    v = ex.metrics["flux_deficit"].values
+    lo, hi = mh.metric_scale(v)
+    cmap = mpl.colormaps["viridis"]
+    for h in (0, 33, 50):
+        want = mpl.colors.to_hex(cmap(np.clip((v[h] - lo) / (hi - lo), 0, 1)))
+        assert ex.buttons[h].style.button_color == want
+    assert _png(ex.colorbar_out)[:4] == b"\x89PNG"
+    # the metric map of sunlab.multihole draws with the same limits
+    fig = mh.plot_metric_map(ex.metrics, "flux_deficit")
+    assert fig.axes[0].images[0].get_clim() == pytest.approx((lo, hi))
+    import matplotlib.pyplot as plt
+
+    plt.close(fig)
 
 
 def test_click_selects_and_redraws(explorer):
@@ -98,17 +129,42 @@ def test_toggling_holes_changes_the_statistics(explorer):
     assert base == pytest.approx(ex.stats["all"]["alpha"]["mu"])
     ex.buttons[7].click()
     ex.include.value = False
-    assert not ex.included[7] and ex.buttons[7].description == "✕"
+    assert not ex.included[7] and ex.buttons[7].description == "✕7"
     out7 = ex.stats["included"]["alpha"]["mu"]
     assert out7 < base  # the noisy hole spoiled the average
     assert "average of 99 included holes" in ex.stats_html.value
     ex.include.value = True
     assert ex.stats["included"]["alpha"]["mu"] == pytest.approx(base)
+    # a hole left out by hand stays out when the flagged holes are rejected
+    ex.buttons[50].click()
+    ex.include.value = False
     ex.reject.click()
-    assert ex.included.sum() == 98 and not ex.included[33]
+    assert np.flatnonzero(~ex.included).tolist() == [7, 33, 50]
+    assert ex.buttons[50].description == "✕50" and ex.buttons[33].description == "✕33"
     assert ex.stats["included"]["alpha"]["mu"] < base
+    assert "left out ✕: [7, 33, 50]" in ex.legend.value
+    # only the reset puts every hole back
     ex.include_all.click()
     assert ex.included.all()
+    assert ex.buttons[33].description == "33⚑"
+
+
+def test_injected_defects_are_shown_beside_the_flags():
+    train = mh.synthetic_centroids(A, B, shots=2, noise_px=0.01, hole_sigma_px=0.03,
+                                   defects=BAD, seed=1)
+    # simulated truth as the bench writes it: hole 7 dust (1), hole 60 burred (4), a burr that
+    # this centroid-level table cannot show, so it is injected but not flagged
+    flags = np.zeros(100, np.int64)
+    flags[7], flags[60] = 1, 4
+    train = train.assign_coords(hole_defect=("hole", flags))
+    ex = HoleExplorer(None, train, order=2)
+    assert ex.injected == {7: "dust", 60: "burred"}
+    assert ex.buttons[60].style.text_decoration == "underline"
+    assert ex.buttons[5].style.text_decoration == ""
+    assert "caught [7], missed [60], flagged good holes [33]" in ex.legend.value
+    ex.buttons[60].click()
+    assert "injected defect (simulation): burred" in ex.info.value
+    assert "underlined" in ex.ui.children[0].value
 
 
 def test_bad_arguments(explorer):
