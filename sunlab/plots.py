@@ -276,13 +276,16 @@ def draw_rectangles(ax, boxes, *, colors=None, tol: float = 0.02, legend: bool =
     span_a = (hi_a - lo_a) or 1.0
     span_b = (hi_b - lo_b) or 1.0
     groups: list[list[int]] = []
+
+    def distance(b, r):  # largest side difference, in fractions of the axis spans
+        return max(abs(b[1] - r[1]) / span_a, abs(b[2] - r[2]) / span_a,
+                   abs(b[3] - r[3]) / span_b, abs(b[4] - r[4]) / span_b)
+
     for k, b in enumerate(boxes):
-        for g in groups:
-            r = boxes[g[0]]
-            if (abs(b[1] - r[1]) <= tol * span_a and abs(b[2] - r[2]) <= tol * span_a
-                    and abs(b[3] - r[3]) <= tol * span_b and abs(b[4] - r[4]) <= tol * span_b):
-                g.append(k)
-                break
+        # join the group whose first rectangle is nearest, if it is within tol
+        near = min(groups, key=lambda g: distance(b, boxes[g[0]]), default=None)
+        if near is not None and distance(b, boxes[near[0]]) <= tol:
+            near.append(k)
         else:
             groups.append([k])
     styles = ["-", "--", ":", "-."]

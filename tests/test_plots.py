@@ -100,3 +100,16 @@ def test_tags_of_nearby_rectangles_do_not_overlap():
     boxes = [t.get_window_extent() for t in ax.texts]
     assert [t.get_text() for t in ax.texts] == ["1", "2", "3"]
     assert not boxes[0].overlaps(boxes[1]), (boxes[0], boxes[1])
+
+
+def test_a_rectangle_joins_the_nearest_coinciding_group():
+    """Fig. 15: 'averaging + rejection' lies on 'averaging', a little off 'geometric centre'."""
+    from sunlab.plots import draw_rectangles, new_figure
+
+    ax = new_figure().subplots()
+    # the 100-hole rectangles of a quick `sunlab reproduce --table 5` run (deg)
+    groups = draw_rectangles(ax, [("centre", -0.0045, 0.01474, -0.02829, 0.0718),
+                                  ("averaging", -0.0048, 0.01532, -0.0259, 0.07152),
+                                  ("1 hole", -0.0154, 0.03653, -0.01654, 0.04792),
+                                  ("averaging + rejection", -0.00504, 0.01548, -0.02653, 0.07192)])
+    assert groups == [[0], [1, 3], [2]]
