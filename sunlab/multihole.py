@@ -955,6 +955,11 @@ class PerHoleAverage:
             n_poses = int(np.isfinite(table["x"].values).any(axis=1).sum())
             # a hole seen at too few poses cannot carry its own calibration: it is left out
             self.calibrations_.append(_fit_model(factory, table) if n_poses >= need else None)
+        if all(c is None for c in self.calibrations_):
+            raise ConfigurationError(
+                f"centroids: no hole was seen at {need} or more training poses, the fewest for "
+                f"its own calibration ({n_coef} coefficients x poses_per_coef = "
+                f"{self.poses_per_coef}); use more calibration poses or a lower order")
         est = self.predict_holes(cen)
         dev2 = 0.0
         for name in ("alpha", "beta"):

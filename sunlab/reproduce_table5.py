@@ -68,9 +68,25 @@ def mounting_offset_px(one_hole) -> tuple[float, float]:
             float(np.nanmedian(one_hole["y"].values - y0)))
 
 
+def _findings(ours) -> dict:
+    """The ratios behind the paper's Table 5 findings, from our columns (deg / deg).
+
+    ``alpha_gain``: 1-hole alpha mu over each 100-hole column's (the paper: about 2);
+    ``beta_loss``: each 100-hole column's beta mu over the 1-hole beta mu (the paper: above 1).
+    """
+    one = COLUMNS[2]
+    return {
+        "alpha_gain": {k: float(ours.loc[("alpha", "mu"), one] / ours.loc[("alpha", "mu"), k])
+                       for k in (COLUMNS[0], COLUMNS[1], REJECTION_COLUMN)},
+        "beta_loss": {k: float(ours.loc[("beta", "mu"), k] / ours.loc[("beta", "mu"), one])
+                      for k in (COLUMNS[0], COLUMNS[1], REJECTION_COLUMN)},
+    }
+
+
 def reproduce_table5(quick: bool = True, seed: int = 0, out: Path | str | None = None,
                      progress: bool = True, *, order: int = 5,
-                     method: str = "projection") -> dict:
+                     method: str = "projection", address: str | None = None,
+                     scheduler: str = "threads", workers: int | None = None) -> dict:
     """Table 5 and Figs. 13-15, simulated, with the paper's values beside ours.
 
     Parameters
@@ -95,13 +111,21 @@ def reproduce_table5(quick: bool = True, seed: int = 0, out: Path | str | None =
         whole frame), so there each spot gets its own tight window
         (:func:`sunlab.centroid.locate_spots`, ``locate``'s fallback); ``"fit"`` or ``"tight"``
         apply to both masks.
+    address : str, optional
+        A ``dask.distributed`` scheduler address (workers started separately).
+    scheduler, workers
+        Local scheduler without ``address`` and its threads or processes
+        (:func:`sunlab.centroid.compute`).
 
     Returns
     -------
     dict
         ``table`` (pandas.DataFrame: our value and the paper's per column, deg), ``ours`` (our
         four columns), ``bad_holes`` (rejected), ``injected`` (holes the bench gave defects),
-        ``budget`` (common vs hole-specific error), ``runtime_s``, ``sizes`` and ``files``.
+        ``budget`` (common vs hole-specific error), ``findings`` (the ratios of the paper's
+        findings, :func:`_findings`), ``runtime_s``, ``sizes``, ``files`` and ``data`` (the
+        lazy frame cubes, centroid tables and per-hole calibrations, for figures and
+        :class:`sunlab.widgets.HoleExplorer`; not written).
     """
     import matplotlib.pyplot as plt
     import pandas as pd
@@ -114,14 +138,16 @@ def reproduce_table5(quick: bool = True, seed: int = 0, out: Path | str | None =
     bench_m = sim.Bench.paper_multi_hole()
     bench_1 = sim.Bench.paper_single_hole()
 
+    where = {"scheduler": scheduler, "address": address, "num_workers": workers}
+
     def run(plan, bench, meth, offset=(0.0, 0.0)):
         cube = sim.simulate(plan, bench, seed=seed)
         if "hole_x_cf" not in cube.coords:
-            return cube, centroid.locate(cube, meth, progress=progress)
+            return cube, centroid.locate(cube, meth, progress=progress, **where)
         design = {k: cube[k] for k in ("hole_x_cf", "hole_y_cf")}
         moved = cube.assign_coords(hole_x_cf=cube["hole_x_cf"] + offset[0],
                                    hole_y_cf=cube["hole_y_cf"] + offset[1])
-        cen = centroid.locate(moved, meth, progress=progress)
+        cen = centroid.locate(moved, meth, progress=progress, **where)
         return cube, cen.assign_coords(**design)
 
     _, one_tr = run(train_plan, bench_1, method)
@@ -140,7 +166,8 @@ def reproduce_table5(quick: bool = True, seed: int = 0, out: Path | str | None =
 
     s1 = mh.GeometricCentre(order=order).fit(cen_tr)
     s2 = mh.PerHoleAverage(order=order).fit(cen_tr)
-    metrics = mh.defect_metrics(cen_tr, strategy=s2)
+    # with the training frames: the spot-shape metrics and the edge roughness that finds burrs
+    metrics = mh.defect_metrics(cen_tr, strategy=s2, cube=cube_tr)
     bad = mh.reject_bad_holes(metrics).values
     s2r = mh.PerHoleAverage(order=order, holes=~bad, weighting="inverse_variance", clip=4.0,
                             calibrations_=s2.calibrations_, variance_=s2.variance_)
@@ -167,7 +194,11 @@ def reproduce_table5(quick: bool = True, seed: int = 0, out: Path | str | None =
         "centroid_status": status,
         "sizes": {"train_poses": len(train_plan), "test_poses": len(test_plan),
                   "shots": train_plan.shots, "holes": int(cen_tr.sizes["hole"])},
+        "findings": _findings(ours),
         "files": [],
+        # what the figures and the hole explorer need (lazy cubes, not written to disk)
+        "data": {"cube_train": cube_tr, "centroids_train": cen_tr, "cube_test": cube_te,
+                 "centroids_test": cen_te, "strategy": s2, "one_hole_test": one_te},
     }
     if out is not None:
         out = Path(out)
@@ -198,7 +229,7 @@ def reproduce_table5(quick: bool = True, seed: int = 0, out: Path | str | None =
                                                 table[c].items()} for c in table.columns},
                "bad_holes": result["bad_holes"], "injected": injected, "budget": budget,
                "sizes": result["sizes"], "runtime_s": result["runtime_s"], "quick": quick,
-               "centroid_status": status,
+               "centroid_status": status, "findings": result["findings"],
                "seed": seed, "order": order, "centroid_method": method}
         (out / "table5.json").write_text(json.dumps(doc, indent=2))
         result["files"].append(str(out / "table5.json"))

@@ -393,3 +393,16 @@ def test_edge_roughness_flags_burred_holes_and_no_good_one():
     # the moment metrics do not see the burr of hole 85
     zz = mh.robust_z(m)
     assert max(float(zz[k][85]) for k in ("flux_deficit", "size_deficit", "asymmetry")) < 3
+
+
+def test_per_hole_calibration_needs_poses_per_coefficient():
+    # a cubic has 10 coefficients: a hole needs 15 poses (1.5 per coefficient) of its own
+    a, b = np.repeat(np.linspace(-8, 2, 4), 4), np.tile(np.linspace(-2, 8, 4), 4)
+    cen = mh.synthetic_centroids(a, b, shots=1, defects={3: {"missing": 0.5}}, seed=2)
+    s2 = mh.PerHoleAverage(order=3).fit(cen)
+    seen = mh.usable(cen).values[:, 0, 3].sum()
+    assert seen < 15 and s2.calibrations_[3] is None
+    assert sum(c is not None for c in s2.calibrations_) == 99
+    assert np.isnan(s2.predict_holes(cen).alpha.values[..., 3]).all()
+    with pytest.raises(mh.ConfigurationError, match="training poses"):
+        mh.PerHoleAverage(order=4).fit(cen)  # 15 coefficients: 23 poses needed, 16 given
