@@ -70,6 +70,7 @@ __all__ = [
     "Diagnosis",
     "diagnose",
     "fault_bench",
+    "candidate_table",
     "JointCorrection",
     "fit_correction",
 ]
@@ -486,6 +487,75 @@ def fault_bench(bench, kind: str, size_deg: float, *, period_deg: float = 1.6):
     out = base.replace(**{f"platform__{field_}": float(size_deg)})
     if kind == "gear":
         out = out.replace(platform__beta_gear_period_deg=float(period_deg))
+    return out
+
+
+def candidate_table(sizes: dict, *, bench=None, seed: int = 0, shots: int = 1,
+                    experiment_plans: dict | None = None,
+                    methods=("polynomial", "linear interp.", "cubic interp.")) -> pd.DataFrame:
+    """Which candidate explains the paper's beta statistics: Table 4's beta cells per fault.
+
+    For each fault and size the bench carries that fault alone (:func:`fault_bench`; for
+    ``"homing"`` the size is the test run's offset relative to the calibration run, a
+    ``beta_offset_deg`` of the test run), the surrogate centroids
+    (:func:`sunlab.sim.identify.surrogate_centroids`) of experiments I, II and III are
+    calibrated by each method as ``sunlab reproduce`` does, and the beta mu and sigma on III are
+    set beside the paper's; ``score`` is the RMS of log(ours / paper) over those cells.
+
+    Parameters
+    ----------
+    sizes : dict
+        ``kind -> size_deg``, e.g. sizes that match the paper's polynomial beta mu.
+    experiment_plans : dict, optional
+        Plans ``{"I", "II", "III"}``; default Table 3's with ``shots`` frames per pose.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per candidate: ``size_deg``, ``<method> mu``, ``<method> sigma``, ``score``.
+
+    Examples
+    --------
+    >>> from sunlab import plans
+    >>> small = {"I": plans.grid(-17, 2, 6, -2, 17, 1, shots=1, name="I", scan="serpentine"),
+    ...          "II": plans.grid(-16.25, 1.75, 6, -1.75, 16.25, 1.5, shots=1, name="II",
+    ...                           scan="serpentine"),
+    ...          "III": plans.grid(-16.5, 1.5, 6, -1.5, 16.5, 1, shots=1, name="III",
+    ...                            scan="serpentine")}
+    >>> t = candidate_table({"backlash": 0.017}, experiment_plans=small,
+    ...                     methods=("polynomial",))
+    >>> list(t.columns), bool(0.01 < t.loc["backlash", "polynomial mu"] < 0.03)
+    (['size_deg', 'polynomial mu', 'polynomial sigma', 'score'], True)
+    """
+    from . import plans, stats
+    from .reproduce import table4_methods
+    from .sim import Bench
+    from .sim.identify import surrogate_centroids
+
+    bench = Bench.paper_single_hole() if bench is None else bench
+    exps = experiment_plans or {n: plans.experiment(n, shots=shots) for n in ("I", "II", "III")}
+    paper = stats.paper_table4()
+    fits = table4_methods(neural=False, seed=seed)
+    rows = {}
+    for kind, size in sizes.items():
+        if kind == "homing":
+            b = fault_bench(bench, "homing", 0.0)
+            b_test = b.replace(platform__beta_offset_deg=float(size))
+        else:
+            b = b_test = fault_bench(bench, kind, size)
+        cen = {n: surrogate_centroids(b_test if n == "III" else b, p, seed)
+               for n, p in exps.items()}
+        row, logs = {"size_deg": float(size)}, []
+        for m in methods:
+            loc = stats.local_errors(fits[m](cen["I"], cen["II"]).predict(cen["III"]))
+            g = stats.global_stats({m: loc})[m]
+            for st in ("mu", "sigma"):
+                row[f"{m} {st}"] = float(g[("beta", st)])
+                logs.append(math.log(row[f"{m} {st}"] / float(paper.loc[("beta", st), m])))
+        row["score"] = float(np.sqrt(np.mean(np.square(logs))))
+        rows[kind] = row
+    out = pd.DataFrame.from_dict(rows, orient="index")
+    out.index.name = "candidate"
     return out
 
 
