@@ -37,6 +37,7 @@ Examples
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import math
 from collections.abc import Callable
@@ -64,6 +65,8 @@ __all__ = [
     "locate_spots",
     "locate",
     "compute",
+    "local_cluster",
+    "SCHEDULERS",
 ]
 
 #: Full scale of the paper's 10-bit ADC (Ibis4), DN: a pixel at or above it is saturated.
@@ -1266,8 +1269,8 @@ def locate(
     multi : bool, optional
         Multi-hole cube (default: the cube has a ``hole`` dimension with ``hole_i``, ``hole_j``).
     scheduler : str
-        Dask scheduler when no address is given: ``"threads"``, ``"processes"`` or
-        ``"synchronous"``.
+        Dask scheduler when no address is given: ``"threads"``, ``"processes"``,
+        ``"synchronous"`` or ``"cluster"`` (a local cluster of processes; see :func:`compute`).
     address : str, optional
         Address of a ``dask.distributed`` scheduler, e.g. ``"tcp://10.0.0.5:8786"``.
     num_workers : int, optional
@@ -1408,6 +1411,10 @@ def locate(
     return cen
 
 
+#: Local schedulers of :func:`compute`.
+SCHEDULERS = ("threads", "processes", "synchronous", "cluster")
+
+
 def compute(*objs, scheduler: str = "threads", address: str | None = None,
             num_workers: int | None = None, progress: bool = True) -> tuple:
     """Compute lazy results (e.g. of ``locate(..., compute=False)``) in one pass of Dask.
@@ -1418,13 +1425,18 @@ def compute(*objs, scheduler: str = "threads", address: str | None = None,
     Parameters
     ----------
     *objs : dask collections (xarray objects with Dask data, Dask arrays)
-    scheduler : str
-        Local Dask scheduler when no address is given (``"threads"``, ``"processes"``,
-        ``"synchronous"``).
+    scheduler : {"threads", "processes", "synchronous", "cluster"}
+        Local Dask scheduler when no address is given. ``"cluster"``: a
+        ``dask.distributed.LocalCluster`` of ``num_workers`` single-threaded worker processes,
+        started for this call and closed after it (the GIL does not limit it, as it limits
+        threads on rendering; it costs a few seconds to start). Its workers run without
+        ``MALLOC_TRIM_THRESHOLD_``, which distributed sets by default and which makes every
+        frame-sized allocation a fresh ``mmap`` (about 1.6x the CPU per rendered frame).
     address : str, optional
-        Address of a ``dask.distributed`` scheduler.
+        Address of a ``dask.distributed`` scheduler (its workers started separately); the
+        results are identical to a local run.
     num_workers : int, optional
-        Threads or processes of a local scheduler.
+        Threads or processes of a local scheduler (default: the CPU count).
     progress : bool
         Show a progress bar.
 
@@ -1442,15 +1454,20 @@ def compute(*objs, scheduler: str = "threads", address: str | None = None,
     """
     import dask
 
+    if scheduler not in SCHEDULERS:
+        raise ConfigurationError(
+            f"scheduler: found {scheduler!r}; expected one of {SCHEDULERS}. Fix: 'threads' "
+            "(default), or 'cluster' for CPU-bound rendering on several cores."
+        )
+    if num_workers is not None and (not isinstance(num_workers, int | np.integer)
+                                    or num_workers < 1):
+        raise ConfigurationError(
+            f"num_workers: found {num_workers!r}; expected a positive integer or None."
+        )
     if address is not None:
-        from distributed import Client
-        from distributed import progress as dprogress
-
-        with Client(address) as client:
-            futs = client.compute(list(objs))
-            if show_progress(progress):
-                dprogress(futs)
-            return tuple(client.gather(futs))
+        return _distributed(objs, address, progress)
+    if scheduler == "cluster":
+        return _local_cluster(objs, num_workers, progress)
     kw = {"scheduler": scheduler}
     if num_workers:
         kw["num_workers"] = int(num_workers)
@@ -1460,6 +1477,54 @@ def compute(*objs, scheduler: str = "threads", address: str | None = None,
         with ProgressBar(minimum=1.0):
             return dask.compute(*objs, **kw)
     return dask.compute(*objs, **kw)
+
+
+def _distributed(objs, address_or_cluster, progress) -> tuple:
+    from distributed import Client
+    from distributed import progress as dprogress
+
+    with Client(address_or_cluster) as client:
+        futs = client.compute(list(objs))
+        if show_progress(progress):
+            dprogress(futs)
+        return tuple(client.gather(futs))
+
+
+def _local_cluster(objs, num_workers, progress) -> tuple:
+    """:func:`compute` on a LocalCluster of single-threaded processes made for the call."""
+    with local_cluster(num_workers) as cluster:
+        return _distributed(objs, cluster, progress)
+
+
+@contextlib.contextmanager
+def local_cluster(workers: int | None = None):
+    """A ``dask.distributed.LocalCluster`` of ``workers`` single-threaded processes (default:
+    the CPU count), closed on exit; its workers run without ``MALLOC_TRIM_THRESHOLD_`` (see
+    :func:`compute`). Pass ``cluster.scheduler_address`` as ``address`` to share it between
+    several computations.
+
+    Examples
+    --------
+    >>> import dask.array as da
+    >>> with local_cluster(1) as cluster:
+    ...     (total,) = compute(da.ones(4, chunks=2).sum(), address=cluster.scheduler_address,
+    ...                        progress=False)
+    >>> int(total)
+    4
+    """
+    import os
+
+    import dask
+    from distributed import LocalCluster
+
+    n = int(workers) if workers else (os.cpu_count() or 1)
+    env = dict(dask.config.get("distributed.nanny.pre-spawn-environ", {}))
+    env.pop("MALLOC_TRIM_THRESHOLD_", None)
+    with dask.config.set({"distributed.nanny.pre-spawn-environ": env}), LocalCluster(
+        n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
+        silence_logs=40,
+    ) as cluster:
+        yield cluster
 
 
 def _compute(res, scheduler, address, num_workers, progress):

@@ -138,6 +138,8 @@ def simulate_and_locate(
     address: str | None = None,
     step: int | None = None,
     shots: int | None = None,
+    scheduler: str = "threads",
+    workers: int | None = None,
 ) -> dict[str, xr.Dataset]:
     """Simulate experiments I, II, III and centroid every frame; centroid tables by experiment.
 
@@ -157,7 +159,14 @@ def simulate_and_locate(
     progress : bool
         Show a progress bar per experiment.
     address : str, optional
-        A ``dask.distributed`` scheduler address; default Dask's threads.
+        A ``dask.distributed`` scheduler address (workers started separately, e.g. by ``dask
+        worker``); default a local scheduler.
+    scheduler : str
+        Local scheduler without ``address`` (:data:`sunlab.centroid.SCHEDULERS`): ``"threads"``
+        (default) or ``"cluster"`` (a local cluster of ``workers`` processes; docs/scaling.md).
+    workers : int, optional
+        Threads or processes of the local scheduler (default: the CPU count). The centroids
+        do not depend on the scheduler or on where a frame is rendered.
 
     Returns
     -------
@@ -183,7 +192,8 @@ def simulate_and_locate(
     if progress:
         n_frames = sum(c.sizes["pose"] * c.sizes["shot"] for c in lazy.values())
         print(f"rendering and centroiding {n_frames} frames ({method})", flush=True)
-    done = centroid.compute(*lazy.values(), address=address, progress=progress)
+    done = centroid.compute(*lazy.values(), address=address, progress=progress,
+                            scheduler=scheduler, num_workers=workers)
     return dict(zip(lazy, done, strict=True))
 
 
@@ -317,6 +327,8 @@ def reproduce_table4(
     bench=None,
     step: int | None = None,
     shots: int | None = None,
+    scheduler: str = "threads",
+    workers: int | None = None,
 ) -> Table4Result:
     """Reproduce Table 4 (one hole, experiment III) on the virtual bench.
 
@@ -341,6 +353,8 @@ def reproduce_table4(
         Default :meth:`sunlab.sim.Bench.paper_single_hole`.
     step, shots : int, optional
         Keep every ``step``-th pose and take ``shots`` frames per pose (override ``quick``).
+    scheduler, workers
+        Local scheduler and its threads or processes (:func:`simulate_and_locate`).
 
     Returns
     -------
@@ -363,7 +377,7 @@ def reproduce_table4(
     t0 = time.perf_counter()
     cens = simulate_and_locate(
         bench, seed=seed, quick=quick, method=method, progress=progress, address=address,
-        step=step, shots=shots,
+        step=step, shots=shots, scheduler=scheduler, workers=workers,
     )
     timings["simulate_and_centroid"] = time.perf_counter() - t0
     train, val, test = (usable_table(cens[k]) for k in ("I", "II", "III"))
