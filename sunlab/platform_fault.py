@@ -500,7 +500,9 @@ def candidate_table(sizes: dict, *, bench=None, seed: int = 0, shots: int = 1,
     ``beta_offset_deg`` of the test run), the surrogate centroids
     (:func:`sunlab.sim.identify.surrogate_centroids`) of experiments I, II and III are
     calibrated by each method as ``sunlab reproduce`` does, and the beta mu and sigma on III are
-    set beside the paper's; ``score`` is the RMS of log(ours / paper) over those cells.
+    set beside the paper's; ``score`` is the RMS of log(ours / paper) over those cells, and
+    ``shape_excess`` the mean sigma / mu of the polynomial and linear columns less the paper's
+    (0.47 and 0.48: the shape criterion of :func:`paper_shape`).
 
     Parameters
     ----------
@@ -512,7 +514,8 @@ def candidate_table(sizes: dict, *, bench=None, seed: int = 0, shots: int = 1,
     Returns
     -------
     pandas.DataFrame
-        One row per candidate: ``size_deg``, ``<method> mu``, ``<method> sigma``, ``score``.
+        One row per candidate: ``size_deg``, ``<method> mu``, ``<method> sigma``, ``score``,
+        ``shape_excess``.
 
     Examples
     --------
@@ -525,7 +528,7 @@ def candidate_table(sizes: dict, *, bench=None, seed: int = 0, shots: int = 1,
     >>> t = candidate_table({"backlash": 0.017}, experiment_plans=small,
     ...                     methods=("polynomial",))
     >>> list(t.columns), bool(0.01 < t.loc["backlash", "polynomial mu"] < 0.03)
-    (['size_deg', 'polynomial mu', 'polynomial sigma', 'score'], True)
+    (['size_deg', 'polynomial mu', 'polynomial sigma', 'score', 'shape_excess'], True)
     """
     from . import plans, stats
     from .reproduce import table4_methods
@@ -553,6 +556,14 @@ def candidate_table(sizes: dict, *, bench=None, seed: int = 0, shots: int = 1,
                 row[f"{m} {st}"] = float(g[("beta", st)])
                 logs.append(math.log(row[f"{m} {st}"] / float(paper.loc[("beta", st), m])))
         row["score"] = float(np.sqrt(np.mean(np.square(logs))))
+        shape = [row[f"{m} sigma"] / row[f"{m} mu"] for m in methods
+                 if m in ("polynomial", "linear interp.")]
+        paper_shape_ = [float(paper.loc[("beta", "sigma"), m] / paper.loc[("beta", "mu"), m])
+                        for m in methods if m in ("polynomial", "linear interp.")]
+        # the shape criterion: mean sigma / mu of the polynomial and linear columns, less the
+        # paper's (0.47, 0.48); 0 matches the paper's bimodal shape
+        row["shape_excess"] = (float(np.mean(shape) - np.mean(paper_shape_)) if shape
+                               else float("nan"))
         rows[kind] = row
     out = pd.DataFrame.from_dict(rows, orient="index")
     out.index.name = "candidate"
