@@ -180,7 +180,7 @@ class HoleExplorer:
             layout=w.Layout(grid_template_columns=f"repeat({nc}, 48px)", grid_gap="2px",
                             width=f"{50 * nc}px", overflow="visible"),
         )
-        self.colorbar_out = w.Output(layout=w.Layout(width=f"{50 * nc}px"))
+        self.colorbar_out = w.Output(layout=w.Layout(width=f"{50 * nc}px", margin="8px 0 0 0"))
         self.legend = w.HTML(layout=w.Layout(width=f"{50 * nc}px"))
         self.include = w.ToggleButton(value=True, description="in the average",
                                       icon="check", tooltip="toggle the selected hole")
@@ -196,6 +196,10 @@ class HoleExplorer:
         self.residual_out = w.Output(layout=w.Layout(width="560px", min_height="300px"))
         self.info = w.HTML()
         self.stats_html = w.HTML()
+        for widget, css in ((self.stamp_out, "sunlab-closeup"),
+                            (self.residual_out, "sunlab-residuals"),
+                            (self.colorbar_out, "sunlab-colorbar"), (self.info, "sunlab-info")):
+            widget.add_class(css)  # stable handles for browser tests and styling
 
         self.metric.observe(lambda ch: self._paint(), names="value")
         self.include.observe(self._on_include, names="value")
@@ -235,6 +239,12 @@ class HoleExplorer:
         self.include.observe(self._on_include, names="value")
         self._borders()
         self._show_info()
+        # a hole off the detector at the current frame: go to the nearest pose that shows it
+        seen = np.flatnonzero(np.isfinite(self.centroids["x"].values[:, int(self.shot.value),
+                                                                       hole]))
+        if seen.size and int(self.pose.value) not in seen:
+            with self.pose.hold_trait_notifications():
+                self.pose.value = int(seen[np.argmin(np.abs(seen - int(self.pose.value)))])
         self._show_stamp()
         self._show_residuals()
         self._update_stats()
@@ -309,8 +319,8 @@ class HoleExplorer:
         import matplotlib as mpl
         import matplotlib.pyplot as plt
 
-        fig = plt.figure(figsize=(4.9, 0.75))
-        ax = fig.add_axes((0.04, 0.55, 0.92, 0.3))
+        fig = plt.figure(figsize=(4.9, 1.0))
+        ax = fig.add_axes((0.05, 0.42, 0.9, 0.25))
         fig.colorbar(mpl.cm.ScalarMappable(mpl.colors.Normalize(lo, hi), "viridis"), cax=ax,
                      orientation="horizontal", extend="both")
         units = self.metrics[name].attrs.get("units", "")
