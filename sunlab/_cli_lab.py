@@ -561,6 +561,7 @@ def _copy_histogram(src, ax) -> None:
                edgecolor=patch.get_edgecolor())
     for line in src.lines:
         ax.plot(*line.get_data(), color=line.get_color(), label=line.get_label())
+    ax.set_ylim(src.get_ylim())  # the source's headroom keeps the legend clear of the bars
     ax.set_title(src.get_title())
     ax.set_xlabel(src.get_xlabel())
     ax.set_ylabel(src.get_ylabel())

@@ -372,7 +372,7 @@ def surrogate_table5(bench_multi, bench_single, seed: int = 0, *, step: int = 1,
     --------
     >>> from sunlab.sim import Bench
     >>> t = surrogate_table5(Bench.paper_multi_hole(), Bench.paper_single_hole(), step=4,
-    ...                      shots=2)
+    ...                      shots=2, order=3)   # 25 calibration poses: a low order
     >>> list(t.columns)
     ['100 holes: geometric centre', '100 holes: averaging', '1 hole']
     """
@@ -476,8 +476,9 @@ def interpolation_gap(bench, distances_mm, *, seed: int = 0, shots: int = 2,
     Returns
     -------
     pandas.DataFrame
-        Index ``F_mm``; columns ``polynomial``, ``linear``, ``gap`` (alpha mu, deg) and
-        ``spot_px`` (spot diameter).
+        Index ``F_mm``; columns ``polynomial``, ``linear``, ``gap`` (alpha mu, deg),
+        ``spot_px`` (spot diameter) and ``nodes_off_frame`` (calibration poses whose spot left
+        the detector at that F: no table node, and no test error where the test spot left too).
 
     Examples
     --------
@@ -503,15 +504,21 @@ def interpolation_gap(bench, distances_mm, *, seed: int = 0, shots: int = 2,
         te = surrogate_centroids(b, exps["III"], seed)
         poly = stats.local_errors(Polynomial(order).fit(tr).predict(te))
         xm, ym = tr.x.mean("shot").values, tr.y.mean("shot").values
+        # at a long F some spots leave the frame (NaN centroids): they are no table nodes
+        node = np.isfinite(xm) & np.isfinite(ym)
+        xm, ym = xm[node], ym[node]
         lo = np.array([xm.min(), ym.min()])
         span = np.array([np.ptp(xm), np.ptp(ym)])
         interp = LinearNDInterpolator((np.column_stack([xm, ym]) - lo) / span,
-                                      tr["alpha"].values)
+                                      tr["alpha"].values[node])
         pts = (np.column_stack([te.x.values.ravel(), te.y.values.ravel()]) - lo) / span
         est = interp(pts).reshape(te.x.shape)
-        lin = np.nanmean(np.abs(est - te["alpha"].values[:, None]), axis=1)
+        err = np.abs(est - te["alpha"].values[:, None])
+        seen = np.isfinite(err).any(axis=1)  # test poses whose spot stayed on the detector
+        lin = np.nanmean(err[seen], axis=1)
         p_mu = float(stats.global_stats({"p": poly}).loc[("alpha", "mu"), "p"])
-        l_mu = float(np.nanmean(lin))
+        l_mu = float(np.mean(lin))
         rows[float(f)] = {"polynomial": p_mu, "linear": l_mu, "gap": l_mu - p_mu,
-                          "spot_px": spot_diameter_px(b)}
+                          "spot_px": spot_diameter_px(b),
+                          "nodes_off_frame": int((~node).sum())}
     return pd.DataFrame.from_dict(rows, orient="index").rename_axis("F_mm")
