@@ -370,11 +370,11 @@ class HoleExplorer:
             ax.plot(x, y, "+", color="cyan", ms=10)
         a = float(self.centroids["alpha"].values[p])
         b = float(self.centroids["beta"].values[p])
-        ax.set_title(f"hole {h}, pose {p} (α={a:.1f}°, β={b:.1f}°), shot {s}", fontsize=9)
+        ax.set_title(f"hole {h}, pose {p}, shot {s}\n(α = {a:.1f}°, β = {b:.1f}°)", fontsize=9)
         ax.set_xlabel("x, px", fontsize=9)
         ax.set_ylabel("y, px", fontsize=9)
         ax.tick_params(labelsize=8)
-        fig.subplots_adjust(left=0.2, right=0.97, bottom=0.15, top=0.9)
+        fig.subplots_adjust(left=0.2, right=0.97, bottom=0.15, top=0.86)
         figure_output(self.stamp_out, fig, f"close-up of hole {h}")
 
     def _combined(self):
