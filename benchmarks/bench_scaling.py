@@ -1,0 +1,106 @@
+"""Rendering and centroiding Table 4's frames on threads and on a local cluster of processes.
+
+Prints the floor u of issue 16 (best of 5 of drawing one 1024 x 1280 frame of float32 standard
+normals with numpy) and ``np.copy`` of a frame, the time of one rendered frame, then the wall
+time of :func:`sunlab.reproduce.simulate_and_locate` (thinned plans, 8 shots) on 1 and 2
+threads and on a :func:`sunlab.centroid.local_cluster` of 1 and 2 worker processes, with the
+speed-up from 1 to 2 workers and each worker's peak memory (RSS). The machine's load average
+is printed beside, as the timings depend on it.
+
+    python benchmarks/bench_scaling.py [--step 3]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import time
+
+import numpy as np
+
+
+def floor_u() -> float:
+    rng = np.random.default_rng()
+    best = np.inf
+    for _ in range(5):
+        t = time.perf_counter()
+        rng.standard_normal((1024, 1280), dtype=np.float32)
+        best = min(best, time.perf_counter() - t)
+    return best
+
+
+def _rss_mb() -> float:
+    import resource
+
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
+def main(argv=None):
+    from sunlab import centroid, sim
+    from sunlab.reproduce import experiment_plans, simulate_and_locate
+
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--step", type=int, default=3, help="keep every step-th angle per axis")
+    args = ap.parse_args(argv)
+
+    bench = sim.Bench.paper_single_hole()
+    frame = sim.render_frame(bench, -5.0, 5.0, seed=0)
+    best = np.inf
+    for i in range(10):
+        t = time.perf_counter()
+        sim.render_frame(bench, -5.0, 5.0, seed=0, pose=i)
+        best = min(best, time.perf_counter() - t)
+    cp = min(_timed(np.copy, frame) for _ in range(10))
+    u = floor_u()
+    n = sum(len(p) * p.shots for p in experiment_plans(step=args.step).values())
+    print(f"load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} CPUs")
+    print(f"u (float32 standard normals, one frame) {u * 1e3:.2f} ms; np.copy of a frame "
+          f"{cp * 1e3:.3f} ms; render_frame {best * 1e3:.2f} ms = {best / u:.2f} u")
+    print(f"simulate_and_locate: {n} frames (step {args.step}, 8 shots)")
+    ref = None
+    walls = {}
+    for sched in ("threads", "cluster"):
+        for workers in (1, 2):
+            t = time.perf_counter()
+            c0 = time.process_time()
+            if sched == "cluster":
+                with centroid.local_cluster(workers) as cluster:
+                    from distributed import Client
+
+                    with Client(cluster) as client:
+                        w0 = client.run(time.process_time)
+                        got = simulate_and_locate(step=args.step, progress=False,
+                                                  address=cluster.scheduler_address)
+                        w1 = client.run(time.process_time)
+                        mem = client.run(_rss_mb)
+                cpu = sum(w1[k] - w0[k] for k in w0)
+                mem_txt = "peak RSS per worker " + ", ".join(f"{v:.0f}" for v in mem.values())
+                mem_txt += " MB"
+            else:
+                got = simulate_and_locate(step=args.step, progress=False, scheduler=sched,
+                                          workers=workers)
+                cpu = time.process_time() - c0
+                mem_txt = f"peak RSS of this process {_rss_mb():.0f} MB"
+            wall = time.perf_counter() - t
+            walls[(sched, workers)] = wall
+            xy = np.concatenate([np.r_[c.x.values.ravel(), c.y.values.ravel()]
+                                 for c in got.values()])
+            same = ref is None or np.array_equal(xy, ref, equal_nan=True)
+            ref = xy if ref is None else ref
+            who = "workers" if sched == "cluster" else "process"
+            print(f"  {sched:8s} x {workers}: {wall:6.2f} s wall = {wall / n * 1e3:5.2f} ms/frame "
+                  f"= {wall / n / u:4.2f} u; CPU of the {who} {cpu / n * 1e3:5.2f} ms/frame; "
+                  f"{mem_txt}; centroids identical: {same}", flush=True)
+        print(f"  {sched}: speed-up 1 -> 2 workers "
+              f"{walls[(sched, 1)] / walls[(sched, 2)]:.2f}x")
+    print(f"load average {os.getloadavg()[0]:.2f} at the end")
+
+
+def _timed(fn, *args):
+    t = time.perf_counter()
+    fn(*args)
+    return time.perf_counter() - t
+
+
+if __name__ == "__main__":
+    main()
