@@ -52,8 +52,11 @@ def test_cube_frames_are_deterministic_per_seed_pose_shot(cube):
     # the cube's truth is platform_pose and its frame render_frame, of its key
     key = cube.attrs["sim_key"]
     bench = Bench.paper_single_hole()
+    # the true angles depend on the motion history: the inner axis's approach direction at the
+    # pose and the run (experiment) whose homing the pose shares
     assert platform_pose(
-        bench, float(cube.alpha[2]), float(cube.beta[2]), seed=key, pose=2, shot=3
+        bench, float(cube.alpha[2]), float(cube.beta[2]), seed=key, pose=2, shot=3,
+        approach=int(cube.beta_approach[2]), run=cube.attrs["experiment"],
     ) == (float(cube.true_alpha[2, 3]), float(cube.true_beta[2, 3]))
     same = render_frame(
         Bench.paper_single_hole(),

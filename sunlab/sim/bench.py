@@ -6,8 +6,10 @@ Error budget of the presets, as identified from the paper's tables by :mod:`sunl
 * per shot, about 0.0007 deg: platform jitter 0.0005 deg RMS per axis
   (:class:`~sunlab.sim.Platform`) plus photon, dark and read noise on the centroid;
 * per pose, shared by all holes of a frame: the platform's positioning error, uniform within
-  +-0.008 deg on alpha; on beta a settling offset of +-0.017 deg (its side drawn per pose) plus
-  a uniform +-0.007 deg, a bimodal error; the inner-axis wobble and non-orthogonality; the
+  +-0.008 deg on alpha; on beta a backlash of 0.017 deg whose sign follows the direction the
+  inner axis approached the pose from (the serpentine scan reverses it every row;
+  :mod:`sunlab.platform_fault`) plus a uniform +-0.007 deg, a bimodal error; the inner-axis
+  wobble and non-orthogonality; the
   mounting alpha0 = 1.864 deg, beta0 = 0.415 deg (a rotation of the sensor on the platform) and
   the mask height error dF = 0.094 mm (the paper's fitted values), the mask's tilt and offset;
   for the 100-hole mask also +-12 um of play along y, a new mounting error at every pose (the
