@@ -206,7 +206,9 @@ def _add_centroid(sub) -> None:
                    help="A = threshold, B = projection (default), tight window, disk fit")
     p.add_argument("--out", required=True, help="output centroid table (.nc or .zarr)")
     p.add_argument("--scheduler", default="threads",
-                   choices=["threads", "processes", "synchronous"], help="local Dask scheduler")
+                   choices=["threads", "processes", "synchronous", "cluster"],
+                   help="local Dask scheduler ('cluster': a local dask.distributed cluster of "
+                   "single-threaded processes; docs/scaling.md)")
     p.add_argument("--address", default=None, help="dask.distributed scheduler address")
     p.add_argument("--workers", type=_POSITIVE, default=None,
                    help="local threads or processes")
@@ -404,7 +406,14 @@ def _add_reproduce(sub) -> None:
                    "algorithm B; on 100-hole frames each spot gets a tight window)")
     p.add_argument("--no-neural", action="store_true", help="leave out the neural networks")
     p.add_argument("--out", default="results", help="output folder (default results/)")
-    p.add_argument("--address", default=None, help="dask.distributed scheduler address")
+    p.add_argument("--address", default=None,
+                   help="dask.distributed scheduler address (Tables 4 and 5; docs/scaling.md)")
+    p.add_argument("--scheduler", default="threads",
+                   choices=["threads", "processes", "synchronous", "cluster"],
+                   help="local Dask scheduler when no --address is given (default threads; "
+                   "'cluster': a local cluster of single-threaded processes)")
+    p.add_argument("--workers", type=_POSITIVE, default=None,
+                   help="local threads or processes (default: one per core)")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     p.set_defaults(func=_run_reproduce)
 
@@ -427,7 +436,8 @@ def _run_reproduce(args) -> int:
 
         res = reproduce_table4(
             quick=args.quick, seed=args.seed, method=args.method, neural=not args.no_neural,
-            out=args.out, progress=progress, address=args.address,
+            out=args.out, progress=progress, address=args.address, scheduler=args.scheduler,
+            workers=args.workers,
         )
         print()
         print(format_table(res))
@@ -436,7 +446,8 @@ def _run_reproduce(args) -> int:
         from .reproduce_table5 import reproduce_table5
 
         res5 = reproduce_table5(quick=args.quick, seed=args.seed, out=Path(args.out),
-                                progress=progress, method=args.method)
+                                progress=progress, method=args.method, address=args.address,
+                                scheduler=args.scheduler, workers=args.workers)
         print("\nTable 5 - polynomial calibration, 100 holes vs one hole (deg); ours = sunlab "
               "virtual bench, paper = the 2005 preprint")
         print(res5["table"].round(4).to_string())
