@@ -157,6 +157,9 @@ def _quadrature(n_r: int = 8, n_phi: int = 16):
 def spot_geometry(bench, alpha_true, beta_true, play_mm=(0.0, 0.0)) -> SpotGeometry:
     """Ray positions, projections and the sun-disk kernel for true platform angles (deg).
 
+    A frame and its true centroid need the same geometry: the last few thousand results are
+    kept (keyed by the bench, which is immutable, and the angles), their arrays read-only.
+
     Examples
     --------
     >>> from sunlab.sim import Bench
@@ -172,6 +175,23 @@ def spot_geometry(bench, alpha_true, beta_true, play_mm=(0.0, 0.0)) -> SpotGeome
             f"alpha_true, beta_true: found ({a!r}, {b!r}) deg; expected |angle| < 90 deg (the sun "
             "in front of the mask). Fix: pass platform angles in degrees."
         )
+    play = (float(play_mm[0]), float(play_mm[1]))
+    try:
+        return _spot_geometry_cached(bench, a, b, play)
+    except TypeError:  # a bench holding something unhashable: no cache
+        return _spot_geometry(bench, a, b, play)
+
+
+@functools.lru_cache(maxsize=4096)
+def _spot_geometry_cached(bench, a, b, play_mm) -> SpotGeometry:
+    g = _spot_geometry(bench, a, b, play_mm)
+    for v in vars(g).values():
+        if isinstance(v, np.ndarray):
+            v.setflags(write=False)
+    return g
+
+
+def _spot_geometry(bench, a, b, play_mm) -> SpotGeometry:
     det: Detector = bench.detector
     mask = bench.mask
     src = bench.source
