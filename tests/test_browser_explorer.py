@@ -257,30 +257,15 @@ def test_burred_holes_of_the_paper_bench_are_flagged_in_chromium(tmp_path):
     assert len(np.unique(full.reshape(-1, 3), axis=0)) > 100
 
 
-def test_exported_html_of_notebook_06_keeps_the_explorer_state(tmp_path):
+def test_exported_html_of_notebook_06_keeps_the_explorer_state(tmp_path, executed_notebook):
     # an HTML export shows widgets from the widget state saved in the notebook; the state must
     # hold the explorer's last view: its map labels, flags and the close-up image
     import json
     import re
 
-    nbformat = pytest.importorskip("nbformat")
-    nbclient = pytest.importorskip("nbclient")
     nbconvert = pytest.importorskip("nbconvert")
     root = Path(__file__).parents[1]
-    nb = nbformat.read(root / "notebooks" / "06-multi-hole-mask.ipynb", as_version=4)
-    old = {k: os.environ.get(k) for k in ("SUNLAB_QUICK", "MPLBACKEND")}
-    os.environ["SUNLAB_QUICK"] = "1"
-    os.environ.pop("MPLBACKEND", None)
-    try:
-        nbclient.NotebookClient(nb, timeout=900, kernel_name="python3", store_widget_state=True,
-                                resources={"metadata": {"path": str(root / "notebooks")}}
-                                ).execute()
-    finally:
-        for k, v in old.items():
-            if v is None:
-                os.environ.pop(k, None)
-            else:
-                os.environ[k] = v
+    nb = executed_notebook(root / "notebooks" / "06-multi-hole-mask.ipynb")
     body, _ = nbconvert.HTMLExporter().from_notebook_node(nb)
     (tmp_path / "06.html").write_text(body)
     m = re.search(r'<script type="application/vnd.jupyter.widget-state\+json">(.*?)</script>',

@@ -2,7 +2,8 @@
 reader sees when they run.
 
 ``test_executed_notebook_shows_what_a_reader_expects`` executes every notebook in quick mode
-(``SUNLAB_QUICK=1``, one kernel per notebook, nbclient) and checks its outputs: at least one
+(``SUNLAB_QUICK=1``, one kernel per notebook, nbclient; the ``executed_notebook`` fixture of
+conftest.py, shared with the HTML-export test) and checks its outputs: at least one
 figure, a PNG from every cell that makes a figure, and none of the noise that hides results (a
 ``<Figure size ...>`` text instead of the figure, ``Text(...)`` or ``np.float64(...)`` reprs,
 Dask or tqdm progress bars, ``<... object at 0x...>`` reprs). This is how ``make test`` runs
@@ -10,7 +11,6 @@ the notebooks.
 """
 
 import json
-import os
 import re
 from pathlib import Path
 
@@ -18,9 +18,6 @@ import pytest
 
 NOTEBOOK_DIR = Path(__file__).parents[1] / "notebooks"
 NOTEBOOKS = sorted(NOTEBOOK_DIR.glob("*.ipynb"))
-
-#: per-cell limit; the slowest quick-mode cell (06's Table 5) takes about a minute on 2 cores
-CELL_TIMEOUT_S = 900
 
 #: a cell whose code calls one of these makes a figure and must show it as image/png
 MAKES_FIGURE = re.compile(
@@ -84,31 +81,6 @@ def _texts(output) -> list[str]:
     return [data[k] for k in shown if k in data]
 
 
-def execute(path: Path):
-    """Execute a notebook in quick mode in a fresh kernel; return the executed notebook."""
-    nbformat = pytest.importorskip("nbformat")
-    nbclient = pytest.importorskip("nbclient")
-    nb = nbformat.read(path, as_version=4)
-    # quick mode; and the kernel's own inline backend, not the Agg that conftest sets for tests
-    env = {"SUNLAB_QUICK": "1", "MPLBACKEND": None}
-    old = {k: os.environ.get(k) for k in env}
-    for k, v in env.items():
-        if v is None:
-            os.environ.pop(k, None)
-        else:
-            os.environ[k] = v
-    try:
-        nbclient.NotebookClient(nb, timeout=CELL_TIMEOUT_S, kernel_name="python3",
-                                resources={"metadata": {"path": str(NOTEBOOK_DIR)}}).execute()
-    finally:
-        for k, v in old.items():
-            if v is None:
-                os.environ.pop(k, None)
-            else:
-                os.environ[k] = v
-    return nb
-
-
 def reader_problems(nb) -> list[str]:
     """What a reader of the executed notebook would stumble on (empty when nothing)."""
     problems = []
@@ -161,7 +133,7 @@ def test_reader_problems_are_caught():
 
 @pytest.mark.slow
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.name)
-def test_executed_notebook_shows_what_a_reader_expects(path):
-    nb = execute(path)
+def test_executed_notebook_shows_what_a_reader_expects(path, executed_notebook):
+    nb = executed_notebook(path)
     problems = reader_problems(nb)
     assert not problems, f"{path.name}:\n" + "\n".join(problems)
