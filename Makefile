@@ -12,7 +12,7 @@ venv: $(STAMP)
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[dev,bench,distributed,browser]'
+	$(BIN)/python -m pip install --quiet -e '.[dev,benchmarks,distributed,browser]'
 	touch $(STAMP)
 
 install: $(STAMP)

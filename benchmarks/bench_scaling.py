@@ -3,7 +3,7 @@
 Prints the floor u of issue 16 (best of 5 of drawing one 1024 x 1280 frame of float32 standard
 normals with numpy) and ``np.copy`` of a frame, the time of one rendered frame, then the wall
 time of :func:`sunlab.reproduce.simulate_and_locate` (thinned plans, 8 shots) on 1 and 2
-threads and on a :func:`sunlab.centroid.local_cluster` of 1 and 2 worker processes, with the
+threads and on a :func:`sunlab.parallel.local_cluster` of 1 and 2 worker processes, with the
 speed-up from 1 to 2 workers and each worker's peak memory (RSS). The machine's load average
 is printed beside, as the timings depend on it.
 
@@ -36,7 +36,7 @@ def _rss_mb() -> float:
 
 
 def main(argv=None):
-    from sunlab import centroid, sim
+    from sunlab import parallel, sim
     from sunlab.reproduce import experiment_plans, simulate_and_locate
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -64,7 +64,7 @@ def main(argv=None):
             t = time.perf_counter()
             c0 = time.process_time()
             if sched == "cluster":
-                with centroid.local_cluster(workers) as cluster:
+                with parallel.local_cluster(workers) as cluster:
                     from distributed import Client
 
                     with Client(cluster) as client:

@@ -14,8 +14,8 @@ from __future__ import annotations
 
 import importlib
 
-from ._errors import ConfigurationError, SchemaError, SunlabError
-from ._options import OPTIONS, set_options, show_progress
+from .errors import ConfigurationError, SchemaError, SunlabError
+from .options import OPTIONS, set_options, show_progress
 
 __version__ = "0.1.0"
 
@@ -29,7 +29,14 @@ _SUBMODULES = {
     "calibration",
     "stats",
     "multihole",
-    "bench",
+    "hardware",
+    "parallel",
+    "platform_fault",
+    "export",
+    "reproduce",
+    "errors",
+    "options",
+    "atomic",
     "plots",
     "widgets",
     "cli",

@@ -31,7 +31,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from ._errors import SchemaError
+from .errors import SchemaError
 
 __all__ = [
     "CALIBRATE_OPTIONS",
@@ -370,7 +370,7 @@ def _sensor_json(folder: Path, manifest) -> dict:
 def cube_from_folder(folder, args):
     """A lazy frame cube from an image folder and the folder options of ``args``."""
     from . import io
-    from ._errors import ConfigurationError
+    from .errors import ConfigurationError
 
     folder = Path(folder)
     manifest = getattr(args, "manifest", None)
@@ -413,10 +413,10 @@ def _add_import(sub) -> None:
 
 
 def _run_import(args) -> int:
-    from . import _atomic, io
+    from . import atomic, io
 
     kind = "file" if Path(args.out).suffix.lower() in io.NETCDF_SUFFIXES else "zarr"
-    _atomic.check_target(args.out, overwrite=args.overwrite, kind=kind, flag="--overwrite")
+    atomic.check_target(args.out, overwrite=args.overwrite, kind=kind, flag="--overwrite")
     cube = cube_from_folder(args.folder, args)
     io.save_frames(cube, args.out, overwrite=args.overwrite, progress=not args.no_progress)
     print(f"{args.out}: {cube.sizes['pose']} poses x {cube.sizes['shot']} shots of "
@@ -470,14 +470,14 @@ def _run_evaluate(args) -> int:
     import numpy as np
     import pandas as pd
 
-    from . import _atomic, calibration, stats
+    from . import atomic, calibration, stats
 
     out = None if args.out is None else Path(args.out)
     names = ("evaluation.json", "errors.csv", "fig10_error_maps.png", "fig11_histograms.png")
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
         for n in names:
-            _atomic.check_target(out / n, overwrite=args.overwrite, flag="--overwrite")
+            atomic.check_target(out / n, overwrite=args.overwrite, flag="--overwrite")
     cal = calibration.load(args.calibration)
     test = open_centroid_table(args.test, "test")
     res = evaluate(cal, test)
@@ -519,7 +519,7 @@ def _run_evaluate(args) -> int:
             paper = stats.paper_table4()[want]
             doc["paper"] = {"column": want, **{f"{a}.{s}": float(paper[(a, s)])
                                                for a in ("alpha", "beta") for s in _STATS}}
-    _atomic.write_text(out / names[0], json.dumps(doc, indent=1) + "\n",
+    atomic.write_text(out / names[0], json.dumps(doc, indent=1) + "\n",
                        overwrite=args.overwrite, flag="--overwrite")
     rows = pd.DataFrame({
         "pose": test["pose"].values,
@@ -529,7 +529,7 @@ def _run_evaluate(args) -> int:
         "n_shots": local["n_shots"].sel(angle="alpha").values,
         "in_domain": est["in_domain"].all("shot").values,
     })
-    _atomic.write_text(out / names[1], rows.to_csv(index=False, float_format="%.8g"),
+    atomic.write_text(out / names[1], rows.to_csv(index=False, float_format="%.8g"),
                        overwrite=args.overwrite, flag="--overwrite")
     written = [names[0], names[1]]
     from . import plots
@@ -539,14 +539,14 @@ def _run_evaluate(args) -> int:
     except (ValueError, KeyError) as err:  # poses that do not form a grid: no map
         print(f"no Fig. 10 (error maps): the test poses do not form a grid ({err})")
     else:
-        _atomic.write_bytes(out / names[2], _figure_bytes(fig10), overwrite=args.overwrite,
+        atomic.write_bytes(out / names[2], _figure_bytes(fig10), overwrite=args.overwrite,
                             flag="--overwrite")
         written.append(names[2])
     fig11 = plots.new_figure(figsize=(9, 3.4), layout="constrained")
     for ax, a in zip(fig11.subplots(1, 2), ("alpha", "beta"), strict=True):
         h = plots.error_histogram(local, angle=a, title=f"local error of {a}")
         _copy_histogram(h.axes[0], ax)
-    _atomic.write_bytes(out / names[3], _figure_bytes(fig11), overwrite=args.overwrite,
+    atomic.write_bytes(out / names[3], _figure_bytes(fig11), overwrite=args.overwrite,
                         flag="--overwrite")
     written.append(names[3])
     print(f"wrote {', '.join(str(out / n) for n in written)}")

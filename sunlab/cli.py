@@ -21,7 +21,7 @@ import argparse
 import sys
 
 from . import _cli_lab as _lab
-from ._errors import SunlabError
+from .errors import SunlabError
 
 __all__ = ["build_parser", "main"]
 
@@ -60,11 +60,11 @@ def _check_out(path, overwrite: bool, kind: str = "file") -> None:
     """Check an output path before the work starts (folder, permissions, existing output)."""
     from pathlib import Path
 
-    from . import _atomic, io
+    from . import atomic, io
 
     if kind == "auto":
         kind = "file" if Path(path).suffix.lower() in io.NETCDF_SUFFIXES else "zarr"
-    _atomic.check_target(path, overwrite=overwrite, kind=kind, flag="--overwrite")
+    atomic.check_target(path, overwrite=overwrite, kind=kind, flag="--overwrite")
 
 
 def _add_info(sub) -> None:
@@ -131,8 +131,8 @@ def _run_acquire(args) -> int:
     from pathlib import Path
 
     from . import plans, sim
-    from ._errors import ConfigurationError
-    from .bench import FolderCamera, SimCamera, acquire, open_stage
+    from .errors import ConfigurationError
+    from .hardware import FolderCamera, SimCamera, acquire, open_stage
 
     if not args.resume:
         # The folder must exist and be writable; an existing run is the runner's to judge.
@@ -317,7 +317,7 @@ def _run_calibrate(args) -> int:
 
     from . import calibration
     from ._cli_lab import CALIBRATE_OPTIONS, open_centroid_table
-    from ._errors import ConfigurationError
+    from .errors import ConfigurationError
 
     for name, methods in CALIBRATE_OPTIONS.items():
         if getattr(args, name) not in (None, False) and args.method not in methods:

@@ -55,7 +55,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._errors import ConfigurationError
+from .errors import ConfigurationError
 
 __all__ = ["FLAGS", "FORMATS", "export", "export_c", "c_sources", "find_c_compiler", "run_c",
            "check_c"]
@@ -493,16 +493,16 @@ def export_c(cal, out, *, overwrite: bool = False) -> tuple[Path, Path]:
     See the module docstring for what each method exports and :func:`c_sources`. Existing
     files are replaced only with ``overwrite=True``.
     """
-    from . import _atomic
+    from . import atomic
 
     header, source = c_sources(cal)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     h, c = out / f"{BASENAME}.h", out / f"{BASENAME}.c"
     for path in (h, c):
-        _atomic.check_target(path, overwrite=overwrite, flag="--overwrite")
-    _atomic.write_text(h, header, overwrite=overwrite, flag="--overwrite")
-    _atomic.write_text(c, source, overwrite=overwrite, flag="--overwrite")
+        atomic.check_target(path, overwrite=overwrite, flag="--overwrite")
+    atomic.write_text(h, header, overwrite=overwrite, flag="--overwrite")
+    atomic.write_text(c, source, overwrite=overwrite, flag="--overwrite")
     return h, c
 
 

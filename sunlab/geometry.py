@@ -53,7 +53,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from ._errors import ConfigurationError
+from .errors import ConfigurationError
 
 __all__ = [
     "sun_vector",

@@ -13,7 +13,7 @@ Nothing lost, nothing silent: every chunk carries a checksum (Zarr: a CRC-32C co
 compressor; NetCDF: the HDF5 Fletcher-32 filter on the frames), so a damaged chunk fails to read
 with a :class:`sunlab.SunlabError` that names the store, the variable and the chunk; stores
 written before checksums still open. Outputs are written to a hidden temporary sibling and
-renamed into place (:mod:`sunlab._atomic`): an existing output is replaced only with
+renamed into place (:mod:`sunlab.atomic`): an existing output is replaced only with
 ``overwrite=True`` and survives a write that fails. Frames read from disk are checked against
 the store's ``bit_depth`` chunk by chunk.
 
@@ -48,8 +48,8 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from . import _atomic
-from ._errors import SchemaError, SunlabError
+from . import atomic
+from .errors import SchemaError, SunlabError
 from .schema import (
     CENTROIDS_SCHEMA,
     FRAMES_SCHEMA,
@@ -200,7 +200,7 @@ def _prepare(ds: xr.Dataset, fmt: str) -> xr.Dataset:
 
 def _check_target(path: Path, fmt: str, overwrite: bool) -> None:
     """Refuse an existing output without ``overwrite``, a missing or read-only folder: early."""
-    _atomic.check_target(path, overwrite=overwrite, kind="zarr" if fmt == "zarr" else "file")
+    atomic.check_target(path, overwrite=overwrite, kind="zarr" if fmt == "zarr" else "file")
 
 
 def _zarr_checksum_encoding(ds: xr.Dataset, encoding: dict) -> dict:
@@ -218,7 +218,7 @@ def _zarr_checksum_encoding(ds: xr.Dataset, encoding: dict) -> dict:
 
 @contextlib.contextmanager
 def _maybe_progress(progress: bool):
-    from ._options import show_progress
+    from .options import show_progress
 
     if show_progress(progress):
         from dask.diagnostics import ProgressBar
@@ -232,7 +232,7 @@ def _maybe_progress(progress: bool):
 def _write(ds: xr.Dataset, path: Path, fmt: str, encoding: dict, progress: bool,
            overwrite: bool) -> None:
     """Write to a temporary sibling, then rename it into place (the old output survives)."""
-    with _atomic.atomic_output(path, overwrite=overwrite,
+    with atomic.atomic_output(path, overwrite=overwrite,
                                kind="zarr" if fmt == "zarr" else "file") as tmp:
         if fmt == "zarr":
             job = ds.to_zarr(

@@ -41,8 +41,8 @@ import numpy as np
 import xarray as xr
 
 from . import geometry, schema
-from ._errors import ConfigurationError, SchemaError
-from ._options import show_progress
+from .errors import ConfigurationError, SchemaError
+from .options import show_progress
 
 __all__ = [
     "grid_layout",

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._errors import ConfigurationError
+from .errors import ConfigurationError
 
 __all__ = ["Plan", "experiment", "grid", "custom", "zero_check", "EXPERIMENTS", "SCANS",
            "APPROACHES", "PAPER_SCAN"]

@@ -54,7 +54,7 @@ import numpy as np
 import pandas as pd
 import xarray as xr
 
-from ._errors import ConfigurationError
+from .errors import ConfigurationError
 
 __all__ = [
     "UNIMODAL_BOUND",

@@ -27,7 +27,7 @@ import xarray as xr
 from matplotlib.figure import Figure
 from matplotlib.patches import Rectangle
 
-from ._errors import ConfigurationError
+from .errors import ConfigurationError
 from .stats import ANGLES, rectangles, unstack_poses
 
 __all__ = ["ShownFigure", "new_figure", "error_maps", "error_histogram", "error_rectangles",

@@ -36,7 +36,7 @@ import pandas as pd
 import xarray as xr
 
 from . import __version__, stats
-from ._errors import ConfigurationError
+from .errors import ConfigurationError
 
 __all__ = [
     "PAPER_OPTIMISED",
@@ -162,7 +162,7 @@ def simulate_and_locate(
         A ``dask.distributed`` scheduler address (workers started separately, e.g. by ``dask
         worker``); default a local scheduler.
     scheduler : str
-        Local scheduler without ``address`` (:data:`sunlab.centroid.SCHEDULERS`): ``"threads"``
+        Local scheduler without ``address`` (:data:`sunlab.parallel.SCHEDULERS`): ``"threads"``
         (default) or ``"cluster"`` (a local cluster of ``workers`` processes; docs/scaling.md).
     workers : int, optional
         Threads or processes of the local scheduler (default: the CPU count). The centroids
@@ -179,7 +179,7 @@ def simulate_and_locate(
     >>> {k: int(v.sizes["pose"]) for k, v in cens.items()}
     {'I': 9, 'II': 4, 'III': 9}
     """
-    from . import centroid, sim
+    from . import centroid, parallel, sim
 
     bench = sim.Bench.paper_single_hole() if bench is None else bench
     lazy = {}
@@ -192,7 +192,7 @@ def simulate_and_locate(
     if progress:
         n_frames = sum(c.sizes["pose"] * c.sizes["shot"] for c in lazy.values())
         print(f"rendering and centroiding {n_frames} frames ({method})", flush=True)
-    done = centroid.compute(*lazy.values(), address=address, progress=progress,
+    done = parallel.compute(*lazy.values(), address=address, progress=progress,
                             scheduler=scheduler, num_workers=workers)
     return dict(zip(lazy, done, strict=True))
 

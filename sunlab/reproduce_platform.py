@@ -80,7 +80,7 @@ def _centroids(bench, plan_sets: dict, *, seed, method, engine, progress):
         from .sim.identify import surrogate_centroids
 
         return {k: surrogate_centroids(bench, p, seed) for k, p in plan_sets.items()}
-    from . import centroid, sim
+    from . import centroid, parallel, sim
 
     lazy = {k: centroid.locate(sim.simulate(p, bench, seed=seed, chunks="pose"), method=method,
                                compute=False)
@@ -88,7 +88,7 @@ def _centroids(bench, plan_sets: dict, *, seed, method, engine, progress):
     if progress:
         n = sum(len(p) * p.shots for p in plan_sets.values())
         print(f"rendering and centroiding {n} frames ({method})", flush=True)
-    done = centroid.compute(*lazy.values(), progress=progress)
+    done = parallel.compute(*lazy.values(), progress=progress)
     return dict(zip(lazy, done, strict=True))
 
 
@@ -132,8 +132,8 @@ def reproduce_platform(*, quick: bool = False, seed: int = 0, method: str = "pro
     """
     from . import plans, sim, stats
     from . import platform_fault as pf
-    from ._errors import ConfigurationError
     from .calibration import Polynomial
+    from .errors import ConfigurationError
     from .reproduce import experiment_plans, usable_table
 
     if engine not in ("render", "surrogate"):

@@ -115,7 +115,7 @@ def reproduce_table5(quick: bool = True, seed: int = 0, out: Path | str | None =
         A ``dask.distributed`` scheduler address (workers started separately).
     scheduler, workers
         Local scheduler without ``address`` and its threads or processes
-        (:func:`sunlab.centroid.compute`).
+        (:func:`sunlab.parallel.compute`).
 
     Returns
     -------

@@ -35,7 +35,7 @@ from importlib import resources
 import numpy as np
 import xarray as xr
 
-from ._errors import SchemaError
+from .errors import SchemaError
 
 __all__ = [
     "FRAMES_SCHEMA",

@@ -40,7 +40,7 @@ import numpy as np
 import pandas as pd
 import xarray as xr
 
-from ._errors import ConfigurationError, SchemaError
+from .errors import ConfigurationError, SchemaError
 from .schema import STATUS, USABLE_STATUS
 
 __all__ = [

@@ -39,7 +39,7 @@ import numpy as np
 import xarray as xr
 
 from . import multihole as mh
-from ._errors import ConfigurationError
+from .errors import ConfigurationError
 
 __all__ = ["HoleExplorer", "figure_output"]
 

@@ -31,7 +31,7 @@ import numpy as np
 import pytest
 
 from sunlab import calibration, cli, geometry, io, schema
-from sunlab._errors import SchemaError, SunlabError
+from sunlab.errors import SchemaError, SunlabError
 
 NY, NX = 24, 32
 
@@ -349,12 +349,12 @@ row("CLI simulate --out missing folder",
     r"a/b.nc: the folder does not exist", cli=True)
 row("CLI acquire --out read-only folder",
     lambda c: ((c.tmp / "ro").mkdir(), _read_only(c, c.tmp / "ro"),
-               c.mp.setattr("sunlab.bench.open_stage", _no_work)),
+               c.mp.setattr("sunlab.hardware.open_stage", _no_work)),
     lambda c: c.cli("acquire", "--stage", "fake://", "--camera", "sim", "--plan", "I",
                     "--out", c.tmp / "ro" / "run.zarr", "--no-progress"),
     r"run.zarr: the folder .* not writable", cli=True)
 row("CLI acquire --out missing folder",
-    lambda c: c.mp.setattr("sunlab.bench.open_stage", _no_work),
+    lambda c: c.mp.setattr("sunlab.hardware.open_stage", _no_work),
     lambda c: c.cli("acquire", "--stage", "fake://", "--camera", "sim", "--plan", "I",
                     "--out", c.tmp / "x" / "run.zarr", "--no-progress"),
     r"x/run.zarr: the folder does not exist", cli=True)
@@ -770,7 +770,7 @@ row("OK an internal error is one line too (exit 3)", lambda c: c.copy("cube.zarr
 # --- the ESP300 driver: a lost error reply is never a success -----------------------------------
 def _esp_lost(kind: str, after: int, error: bool):
     def act(c):
-        from sunlab.bench import ESP300, FakeESP
+        from sunlab.hardware import ESP300, FakeESP
 
         fake = FakeESP(velocity_deg_s=float("inf"))
         try:

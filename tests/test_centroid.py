@@ -10,7 +10,7 @@ import pytest
 from numpy.testing import assert_allclose
 
 from sunlab import centroid as C
-from sunlab._errors import ConfigurationError, SchemaError
+from sunlab.errors import ConfigurationError, SchemaError
 from sunlab.schema import STATUS
 
 SINGLE = ["threshold", "projection", "tight", "fit"]

@@ -13,7 +13,7 @@ import pytest
 from scipy import stats
 
 from sunlab import centroid as C
-from sunlab._errors import ConfigurationError
+from sunlab.errors import ConfigurationError
 
 GAIN, READ_NOISE, BACKGROUND = 40.0, 0.875, 10.0
 

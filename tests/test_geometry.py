@@ -5,7 +5,7 @@ import pytest
 from numpy.testing import assert_allclose
 
 from sunlab import geometry
-from sunlab._errors import ConfigurationError
+from sunlab.errors import ConfigurationError
 
 F, P = 5.0, 0.007
 TRUTH = {"delta_f_mm": 0.094, "alpha0": 1.864, "beta0": 0.415}

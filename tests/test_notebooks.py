@@ -115,7 +115,7 @@ def test_reader_problems_are_caught():
         v4.new_code_cell("v", outputs=[v4.new_output(
             "execute_result", {"text/plain": "np.float64(-16.5)"})]),
         v4.new_code_cell("sunlab.set_options(progress=False)", outputs=[v4.new_output(
-            "execute_result", {"text/plain": "<sunlab._options.set_options at 0x7fef5dc92d10>"})]),
+            "execute_result", {"text/plain": "<sunlab.options.set_options at 0x7fef5dc92d10>"})]),
     ]
     found = reader_problems(v4.new_notebook(cells=cells))
     assert any("no image/png" in p for p in found)

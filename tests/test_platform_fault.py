@@ -168,7 +168,7 @@ class _Ramp:
 
 @pytest.mark.parametrize("approach", ["direct", "unidirectional"])
 def test_runner_follows_the_scan_and_overshoots(tmp_path, approach):
-    from sunlab.bench import acquire, open_run
+    from sunlab.hardware import acquire, open_run
 
     plan = plans.grid(0, 1, 1, 0, 2, 1, shots=1, scan="serpentine", approach=approach)
     stage = _Recorder()

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from sunlab import centroid
-from sunlab._errors import ConfigurationError
+from sunlab import parallel
+from sunlab.errors import ConfigurationError
 from sunlab.reproduce import simulate_and_locate
 
 
@@ -22,7 +22,7 @@ def test_two_process_cluster_gives_the_local_results(local):
     # started by `dask scheduler` + `dask worker` would be (the cluster `scheduler="cluster"`
     # makes). Frames are a function of (seed, plan, pose, shot) only, so where they are
     # rendered cannot change them: centroids bit for bit equal to the threaded run.
-    with centroid.local_cluster(2) as cluster:
+    with parallel.local_cluster(2) as cluster:
         assert len(cluster.workers) == 2
         got = _xy(simulate_and_locate(seed=3, step=7, shots=1, progress=False,
                                       address=cluster.scheduler_address))
@@ -35,6 +35,6 @@ def test_bad_scheduler_and_workers_are_refused():
     import dask.array as da
 
     with pytest.raises(ConfigurationError, match="scheduler"):
-        centroid.compute(da.ones(2), scheduler="gpu", progress=False)
+        parallel.compute(da.ones(2), scheduler="gpu", progress=False)
     with pytest.raises(ConfigurationError, match="num_workers"):
-        centroid.compute(da.ones(2), num_workers=0, progress=False)
+        parallel.compute(da.ones(2), num_workers=0, progress=False)

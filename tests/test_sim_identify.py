@@ -86,7 +86,7 @@ def test_spot_size_matches_the_roi_clue(bench):
 def test_score_names_the_problem():
     import pandas as pd
 
-    from sunlab._errors import ConfigurationError
+    from sunlab.errors import ConfigurationError
 
     with pytest.raises(ConfigurationError, match="columns"):
         identify.score(pd.DataFrame({"x": [1.0]}))

@@ -48,7 +48,7 @@ from typing import ClassVar
 import numpy as np
 import xarray as xr
 
-from .._errors import ConfigurationError, SchemaError
+from ..errors import ConfigurationError, SchemaError
 from ..schema import CALIBRATION_SCHEMA, STATUS, validate_calibration, validate_centroids
 
 __all__ = [
@@ -473,13 +473,13 @@ class Calibration:
         SunlabError
             ``path`` exists and ``overwrite`` is False, or its folder is missing or read-only.
         """
-        from .. import _atomic
+        from .. import atomic
 
-        path = _atomic.check_target(path, overwrite=overwrite)
+        path = atomic.check_target(path, overwrite=overwrite)
         doc = self.to_dict()
         validate_document(doc)
         text = json.dumps(doc, indent=1, allow_nan=False) + "\n"
-        return _atomic.write_text(path, text, overwrite=overwrite)
+        return atomic.write_text(path, text, overwrite=overwrite)
 
     def __repr__(self) -> str:
         state = "fitted" if self.is_fitted else "not fitted"

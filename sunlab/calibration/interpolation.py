@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._errors import ConfigurationError
+from ..errors import ConfigurationError
 from .base import Calibration, TrainingData
 
 __all__ = ["Interpolation"]

@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from .. import geometry
-from .._errors import ConfigurationError
+from ..errors import ConfigurationError
 from .base import Calibration, TrainingData, sensor_attrs
 
 __all__ = ["IdealModel", "OptimisedModel", "fit_optimised"]

@@ -46,7 +46,7 @@ import contextlib
 import numpy as np
 
 from .. import geometry
-from .._errors import ConfigurationError
+from ..errors import ConfigurationError
 from .base import Calibration, TrainingData, sensor_attrs
 from .model import fit_optimised
 

@@ -26,7 +26,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from .._errors import ConfigurationError
+from ..errors import ConfigurationError
 from .base import Calibration, TrainingData
 
 __all__ = ["Polynomial", "monomial_exponents", "design_matrix"]

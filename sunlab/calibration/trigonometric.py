@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._errors import ConfigurationError
+from ..errors import ConfigurationError
 from .base import Calibration, TrainingData
 from .polynomial import _scale, _scaling
 

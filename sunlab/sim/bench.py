@@ -37,7 +37,7 @@ from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
-from .._errors import ConfigurationError
+from ..errors import ConfigurationError
 from .detector import Detector
 from .mask import PAPER_DISTANCE_MM, PAPER_TRACK_CENTRE_MM, Mask
 from .platform import Platform

@@ -53,7 +53,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .._errors import ConfigurationError
+from ..errors import ConfigurationError
 
 __all__ = ["Detector", "FixedPattern", "fixed_pattern"]
 

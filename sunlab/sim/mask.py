@@ -34,7 +34,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .._errors import ConfigurationError
+from ..errors import ConfigurationError
 
 __all__ = [
     "Hole",

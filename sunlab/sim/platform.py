@@ -58,7 +58,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .._errors import ConfigurationError
+from ..errors import ConfigurationError
 
 __all__ = ["Platform", "sensor_sun_vector", "rotation_x", "rotation_y", "rotation_z"]
 

@@ -47,7 +47,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import special
 
-from .._errors import ConfigurationError
+from ..errors import ConfigurationError
 from . import _kernels
 from .detector import Detector, fixed_pattern
 from .platform import sensor_sun_vector

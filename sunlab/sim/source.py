@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._errors import ConfigurationError
+from ..errors import ConfigurationError
 
 __all__ = ["Source", "PAPER_SOURCE_DIAMETER_DEG"]
 

@@ -15,15 +15,15 @@ caller says so (``overwrite=True`` / ``--overwrite``):
 Examples
 --------
 >>> import pathlib, tempfile
->>> from sunlab import _atomic
+>>> from sunlab import atomic
 >>> path = pathlib.Path(tempfile.mkdtemp()) / "table.csv"
->>> _ = _atomic.write_text(path, "a,b\\n1,2\\n")
->>> with _atomic.atomic_output(path, overwrite=True) as tmp:
+>>> _ = atomic.write_text(path, "a,b\\n1,2\\n")
+>>> with atomic.atomic_output(path, overwrite=True) as tmp:
 ...     _ = tmp.write_text("a,b\\n3,4\\n")
 >>> path.read_text()
 'a,b\\n3,4\\n'
 >>> try:
-...     _atomic.write_text(path, "x")
+...     atomic.write_text(path, "x")
 ... except FileExistsError as err:
 ...     print(type(err).__name__)
 OutputExistsError
@@ -37,7 +37,7 @@ import shutil
 import uuid
 from pathlib import Path
 
-from ._errors import SunlabError
+from .errors import SunlabError
 
 __all__ = ["OutputExistsError", "check_target", "atomic_output", "write_text", "write_bytes"]
 

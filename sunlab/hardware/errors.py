@@ -7,7 +7,7 @@ All derive from :class:`sunlab.SunlabError`, so ``sunlab acquire`` reports them 
 
 from __future__ import annotations
 
-from .._errors import SunlabError
+from ..errors import SunlabError
 
 __all__ = [
     "BenchError",

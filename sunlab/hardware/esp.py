@@ -27,10 +27,10 @@ empty). Axis errors are coded ``axis * 100 + code`` (``104``: axis 1, positive h
 general errors are below 100. Reading an error removes it, so an error query is never retried
 blindly: a ``TB?`` reply that is lost or garbled may have carried an error, the buffer is read
 again until a clean ``0, ..., NO ERROR DETECTED`` proves it empty, and
-:class:`~sunlab.bench.ErrorReplyLost` is raised (an error may have been lost; the command is
+:class:`~sunlab.hardware.ErrorReplyLost` is raised (an error may have been lost; the command is
 not reported as a success). The controller may go silent for seconds after a limit: a query
 then gets no reply until it recovers, so every other query is retried with a growing delay
-before :class:`~sunlab.bench.StageTimeout` is raised.
+before :class:`~sunlab.hardware.StageTimeout` is raised.
 
 The transport is anything with ``write``, ``read_until``, ``reset_input_buffer`` and ``close``
 (a :class:`serial.Serial`); :func:`open_transport` opens any :func:`serial.serial_for_url` URL
@@ -41,7 +41,7 @@ Examples
 --------
 Drive the in-process fake controller (same protocol, over a pseudo-terminal):
 
->>> from sunlab.bench import ESP300, FakeESP
+>>> from sunlab.hardware import ESP300, FakeESP
 >>> fake = FakeESP(velocity_deg_s=1e4)
 >>> with ESP300(fake.serve_pty(), retry_delay_s=0.0, poll_s=0.001) as stage:
 ...     stage.move_to(12.5, -3.0)
@@ -58,8 +58,8 @@ import time
 from collections.abc import Callable, Sequence
 from typing import Protocol, runtime_checkable
 
-from .._errors import ConfigurationError
-from ._errors import (
+from ..errors import ConfigurationError
+from .errors import (
     ControllerError,
     ControllerLimitError,
     ErrorReplyLost,
@@ -84,7 +84,7 @@ __all__ = [
     "ESP300",
 ]
 
-log = logging.getLogger("sunlab.bench")
+log = logging.getLogger("sunlab.hardware")
 
 WRITE_TERMINATOR = b"\r"
 READ_TERMINATOR = b"\r\n"
@@ -361,14 +361,14 @@ class ESP300:
     A move is ``nPA`` for both axes, ``TB?`` (a refused command is reported at once), ``nMD?``
     polls until both axes are done, ``TB?`` again (a limit or following error during the move),
     the settle wait, and ``nTP?`` for the read-back. An unreadable ``TB?`` reply is never
-    read as "no error" (:class:`~sunlab.bench.ErrorReplyLost`). Position queries are
+    read as "no error" (:class:`~sunlab.hardware.ErrorReplyLost`). Position queries are
     idempotent and so are absolute moves, which makes resending them after a fault safe. After
     a timeout the input buffer is flushed before the resend so a late reply cannot be taken for
     the next one.
 
     Examples
     --------
-    >>> from sunlab.bench import FakeESP
+    >>> from sunlab.hardware import FakeESP
     >>> fake = FakeESP(velocity_deg_s=1e4)
     >>> stage = ESP300(fake.serve_pty(), retry_delay_s=0.0, poll_s=0.001)
     >>> stage.identity.startswith("ESP301")
@@ -674,7 +674,7 @@ class ESP300:
 
         Examples
         --------
-        >>> from sunlab.bench import ErrorReplyLost, FakeESP
+        >>> from sunlab.hardware import ErrorReplyLost, FakeESP
         >>> fake = FakeESP()
         >>> stage = ESP300(fake.serve_pty(), retry_delay_s=0.0, timeout=0.2)
         >>> stage.write("9PA1"); [err.code for err in stage.errors("9PA1")]
@@ -810,7 +810,7 @@ class ESP300:
     def describe(self) -> dict:
         """What the run metadata records about the stage."""
         return {
-            "driver": "sunlab.bench.ESP300",
+            "driver": "sunlab.hardware.ESP300",
             "port": self.port_name,
             "identity": self.identity,
             "axes": list(self.axes),

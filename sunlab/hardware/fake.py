@@ -1,6 +1,6 @@
 """A fake Newport ESP300/ESP301 controller: the same byte protocol, a simulated platform.
 
-:class:`FakeESP` answers the command subset that :class:`~sunlab.bench.ESP300` uses (and a few
+:class:`FakeESP` answers the command subset that :class:`~sunlab.hardware.ESP300` uses (and a few
 more) exactly as the controller does: commands end with ``CR``, query replies end with ``CR LF``,
 errors queue in a 10-deep buffer read with ``TB?``/``TE?``, axis errors are ``axis * 100 +
 code``. Axes move at a finite velocity, so ``MD?`` reads 0 until the move is over
@@ -80,7 +80,7 @@ import time
 from collections import deque
 from dataclasses import dataclass
 
-from .._errors import ConfigurationError
+from ..errors import ConfigurationError
 from .esp import decode_error
 
 __all__ = ["FAULT_KINDS", "Fault", "FakeESP", "ManualClock", "DISCONNECT"]

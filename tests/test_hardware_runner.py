@@ -20,7 +20,7 @@ import zarr
 from numpy.testing import assert_array_equal
 
 from sunlab import ConfigurationError, plans, schema, sim
-from sunlab.bench import (
+from sunlab.hardware import (
     ESP300,
     CameraError,
     ErrorReplyLost,
@@ -293,7 +293,7 @@ cfg = json.loads(sys.argv[1])
 import numpy as np
 import zarr  # noqa: F401  (imported once here, inherited by every forked run)
 from sunlab import plans, sim
-from sunlab.bench import ESP300, FakeESP, SimCamera, acquire
+from sunlab.hardware import ESP300, FakeESP, SimCamera, acquire
 
 bench = sim.Bench.paper_single_hole().replace(detector__nx=cfg["nx"], detector__ny=cfg["nx"])
 plan = plans.custom(cfg["alpha"], cfg["beta"], shots=cfg["shots"], name=cfg["name"])

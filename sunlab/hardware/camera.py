@@ -33,8 +33,8 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-from .._errors import ConfigurationError
-from ._errors import CameraError, CameraTimeout
+from ..errors import ConfigurationError
+from .errors import CameraError, CameraTimeout
 
 __all__ = ["Camera", "SimCamera", "FolderCamera", "read_image"]
 
@@ -68,7 +68,7 @@ class SimCamera:
         Seed of the frame noise and, without ``truth``, of the platform model.
     truth : callable, optional
         ``truth(pose, shot) -> (alpha_true, beta_true)`` in degrees, e.g.
-        :meth:`FakeESP.true_pose <sunlab.bench.FakeESP.true_pose>` of the controller that moves
+        :meth:`FakeESP.true_pose <sunlab.hardware.FakeESP.true_pose>` of the controller that moves
         the platform. Without it the true pose comes from :func:`sunlab.sim.platform_pose` at
         the read-back angles the runner hands to :meth:`set_index`.
     roi : (y0, y1, x0, x1), optional
@@ -193,7 +193,7 @@ class SimCamera:
 
     def describe(self) -> dict:
         """What the run metadata records about the camera."""
-        return {"camera": "sunlab.bench.SimCamera", "seed": self.seed, "roi": list(self.roi),
+        return {"camera": "sunlab.hardware.SimCamera", "seed": self.seed, "roi": list(self.roi),
                 "binning": self.binning, "shape": list(self.shape), "bit_depth": self.bit_depth,
                 "truth": "stage controller" if self.truth is not None else "read-back angles"}
 
@@ -386,6 +386,6 @@ class FolderCamera:
 
     def describe(self) -> dict:
         """What the run metadata records about the camera."""
-        return {"camera": "sunlab.bench.FolderCamera", "folder": str(self.folder),
+        return {"camera": "sunlab.hardware.FolderCamera", "folder": str(self.folder),
                 "patterns": list(self.patterns), "shape": list(self.shape),
                 "bit_depth": self.bit_depth}

@@ -1,4 +1,4 @@
-"""The bench: drive a two-axis rotation platform and a camera, and record resumable runs.
+"""The lab hardware: drive a two-axis rotation platform and a camera, and record resumable runs.
 
 - :class:`ESP300`: a Newport ESP300/ESP301 driver over pyserial (any ``serial_for_url`` URL),
   with timeouts, bounded retries, error decoding, limit checks and a settle time;
@@ -14,8 +14,8 @@ This subpackage talks to hardware; ``import sunlab`` does not import it.
 
 Examples
 --------
->>> from sunlab import bench
->>> stage = bench.open_stage("fake://?velocity=1e4", retry_delay_s=0.0, poll_s=0.001)
+>>> from sunlab import hardware
+>>> stage = hardware.open_stage("fake://?velocity=1e4", retry_delay_s=0.0, poll_s=0.001)
 >>> stage.move_to(-16.5, 2.0)
 (-16.5, 2.0)
 >>> stage.close()
@@ -23,7 +23,8 @@ Examples
 
 from __future__ import annotations
 
-from ._errors import (
+from .camera import Camera, FolderCamera, SimCamera
+from .errors import (
     BenchError,
     CameraError,
     CameraTimeout,
@@ -37,7 +38,6 @@ from ._errors import (
     StageProtocolError,
     StageTimeout,
 )
-from .camera import Camera, FolderCamera, SimCamera
 from .esp import ESP300, decode_error, open_transport
 from .fake import FakeESP, Fault
 from .runner import RunResult, acquire, open_run

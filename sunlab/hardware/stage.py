@@ -1,13 +1,14 @@
 """The stage interface the acquisition runner drives, and :func:`open_stage` for a URL.
 
-Any two-axis platform works with :func:`sunlab.bench.acquire` if it offers
+Any two-axis platform works with :func:`sunlab.hardware.acquire` if it offers
 :class:`Stage`: ``move_to(alpha, beta)`` that returns only once the platform has settled, with
-the encoder read-back, ``position()``, ``describe()`` and ``close()``. :class:`~sunlab.bench.ESP300`
-is the driver shipped; another controller is one class with these four methods.
+the encoder read-back, ``position()``, ``describe()`` and ``close()``.
+:class:`~sunlab.hardware.ESP300` is the driver shipped; another controller is one class with
+these four methods.
 
 Examples
 --------
->>> from sunlab.bench import open_stage
+>>> from sunlab.hardware import open_stage
 >>> stage = open_stage("fake://?velocity=1e4", retry_delay_s=0.0, poll_s=0.001)
 >>> stage.move_to(1.0, 2.0)
 (1.0, 2.0)
@@ -19,7 +20,7 @@ from __future__ import annotations
 from typing import Protocol, runtime_checkable
 from urllib.parse import parse_qs, urlsplit
 
-from .._errors import ConfigurationError
+from ..errors import ConfigurationError
 
 __all__ = ["Stage", "open_stage"]
 
@@ -49,7 +50,7 @@ def open_stage(url: str, *, bench=None, seed: int = 0, **driver_kwargs):
     Parameters
     ----------
     url : str
-        ``fake://`` (an in-process :class:`~sunlab.bench.FakeESP` served on a pseudo-terminal;
+        ``fake://`` (an in-process :class:`~sunlab.hardware.FakeESP` served on a pseudo-terminal;
         query options ``velocity`` in deg/s and ``transport=tcp``), ``socket://HOST:PORT``, any
         other :func:`serial.serial_for_url` URL, or a device path (``/dev/ttyUSB0``, ``COM3``).
     bench : sunlab.sim.Bench, optional
@@ -57,7 +58,7 @@ def open_stage(url: str, *, bench=None, seed: int = 0, **driver_kwargs):
     seed : int
         Seed of the fake controller's platform model.
     **driver_kwargs
-        Passed to :class:`~sunlab.bench.ESP300` (timeout, retries, settle_s, limits, ...).
+        Passed to :class:`~sunlab.hardware.ESP300` (timeout, retries, settle_s, limits, ...).
 
     Returns
     -------

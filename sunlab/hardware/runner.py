@@ -22,7 +22,7 @@ Examples
 --------
 >>> import tempfile, os
 >>> from sunlab import plans
->>> from sunlab.bench import acquire, open_run, open_stage
+>>> from sunlab.hardware import acquire, open_run, open_stage
 >>> stage = open_stage("fake://?velocity=1e4", retry_delay_s=0.0, poll_s=0.001)
 >>> class Ramp:  # a minimal camera: any object with grab, shape, dtype, bit_depth
 ...     shape, dtype, bit_depth = (4, 5), np.dtype(np.uint16), 10
@@ -55,9 +55,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .._errors import ConfigurationError
-from .._options import show_progress
-from ._errors import BenchError, CameraError
+from ..errors import ConfigurationError
+from ..options import show_progress
+from .errors import BenchError, CameraError
 
 __all__ = ["RunResult", "acquire", "open_run", "TIME_UNITS"]
 
@@ -155,7 +155,7 @@ def _camera_spec(camera) -> tuple[tuple[int, int], np.dtype, int]:
         bits = int(camera.bit_depth)
     except (AttributeError, TypeError, ValueError) as err:
         raise ConfigurationError(
-            f"camera: found {type(camera).__name__}, expected a sunlab.bench.Camera (grab(), "
+            f"camera: found {type(camera).__name__}, expected a sunlab.hardware.Camera (grab(), "
             "shape, dtype, bit_depth)"
         ) from err
     if len(shape) != 2 or min(shape) < 1 or dtype not in (np.dtype(np.uint8), np.dtype(np.uint16)):
@@ -332,9 +332,9 @@ def acquire(
     ----------
     plan : sunlab.plans.Plan
         Poses (alpha outer, beta inner, degrees) and shots per pose.
-    stage : sunlab.bench.Stage
-        The platform; ``move_to`` must return once settled (e.g. :class:`~sunlab.bench.ESP300`).
-    camera : sunlab.bench.Camera
+    stage : sunlab.hardware.Stage
+        The platform; ``move_to`` must return once settled (e.g. :class:`~sunlab.hardware.ESP300`).
+    camera : sunlab.hardware.Camera
         ``grab()``, ``shape``, ``dtype``, ``bit_depth``; optional ``set_index(pose, shot,
         alpha=, beta=)`` (called before each grab with the read-back angles) and ``attrs``
         (sensor attributes of the cube: ``pixel_pitch_mm``, ``mask_distance_mm``, ``x_cf_px``,

@@ -12,7 +12,7 @@ import pytest
 from pymeasure.instruments.newport.esp300 import ESP300 as PymeasureESP300
 from pymeasure.instruments.newport.esp300 import AxisError, GeneralError
 
-from sunlab.bench import FakeESP
+from sunlab.hardware import FakeESP
 
 # pymeasure's ESP300 mixes in SCPIUnknownMixin, which warns at every construction that it does
 # not know whether the instrument speaks SCPI (the ESP300 does not); the warning is about

@@ -13,7 +13,7 @@ import pytest
 import serial
 
 from sunlab import ConfigurationError
-from sunlab.bench import (
+from sunlab.hardware import (
     ESP300,
     ControllerError,
     ControllerLimitError,
@@ -25,7 +25,7 @@ from sunlab.bench import (
     StageProtocolError,
     StageTimeout,
 )
-from sunlab.bench.esp import decode_error, format_number
+from sunlab.hardware.esp import decode_error, format_number
 
 NO_ERROR = b"0, 451322, NO ERROR DETECTED\r\n"
 

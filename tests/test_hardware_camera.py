@@ -14,7 +14,7 @@ from numpy.testing import assert_allclose, assert_array_equal
 from PIL import Image
 
 from sunlab import ConfigurationError, sim
-from sunlab.bench import Camera, CameraError, CameraTimeout, FakeESP, FolderCamera, SimCamera
+from sunlab.hardware import Camera, CameraError, CameraTimeout, FakeESP, FolderCamera, SimCamera
 
 
 @pytest.fixture(scope="module")

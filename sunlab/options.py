@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import os
 
-from ._errors import ConfigurationError
+from .errors import ConfigurationError
 
 __all__ = ["OPTIONS", "set_options", "show_progress"]
 

@@ -8,7 +8,7 @@ import time
 
 import pytest
 
-from sunlab.bench import (
+from sunlab.hardware import (
     ESP300,
     ControllerError,
     ControllerLimitError,
@@ -19,7 +19,7 @@ from sunlab.bench import (
     StageTimeout,
     open_stage,
 )
-from sunlab.bench.fake import DISCONNECT, ManualClock
+from sunlab.hardware.fake import DISCONNECT, ManualClock
 
 FAST = {"timeout": 0.08, "retries": 3, "retry_delay_s": 0.01, "poll_s": 0.001}
 
