@@ -447,7 +447,7 @@ row("CLI calibrate on a frame cube", lambda c: c.copy("cube.zarr"),
     r"train.*(frames|sunlab_schema|centroids)", cli=True)
 row("CLI calibrate unreadable table (permission)",
     lambda c: (c.copy("cen.nc"), c.mp.setattr(
-        "sunlab.io._open_raw", lambda *a, **k: (_ for _ in ()).throw(
+        "sunlab.io.read._open_raw", lambda *a, **k: (_ for _ in ()).throw(
             PermissionError(13, "Permission denied", str(c.tmp / "cen.nc"))))),
     lambda c: c.cli("calibrate", c.tmp / "cen.nc", "--out", c.tmp / "c.json"),
     r"cen.nc: Permission denied. Fix: check the permissions", cli=True)

@@ -1,0 +1,101 @@
+"""Attribute codec: exact round trips of dataset attributes through NetCDF and Zarr.
+
+Attribute values that NetCDF or Zarr cannot hold natively (booleans, None, lists, dicts, numpy
+arrays in Zarr) are stored as JSON text or flat arrays and listed, per dataset or variable, in the
+attribute ``sunlab_attr_codec``, which the readers use to restore them; other readers see plain
+text. Numpy scalar attributes come back as the Python ``int``, ``float`` or ``bool`` of the same
+value. The writers (:mod:`sunlab.io.write`) encode, the readers (:mod:`sunlab.io.read`) decode.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping
+
+import numpy as np
+
+from ..errors import SchemaError
+
+__all__: list[str] = []
+
+_CODEC_ATTR = "sunlab_attr_codec"
+
+
+def _encode_attrs(attrs: Mapping, where: str) -> dict:
+    """Attributes ready for NetCDF and Zarr, plus the codec entry that restores them."""
+    out: dict = {}
+    codec: dict = {}
+    for key, value in attrs.items():
+        if key == _CODEC_ATTR:
+            continue
+        if isinstance(value, np.generic):
+            value = value.item()
+        big_int = isinstance(value, int) and not -(2**63) <= value < 2**63
+        if (
+            isinstance(value, bool)
+            or value is None
+            or isinstance(value, list | tuple | dict)
+            or big_int
+        ):
+            try:
+                out[key] = json.dumps(value, allow_nan=False, default=_json_default)
+            except (TypeError, ValueError) as exc:
+                raise SchemaError(
+                    f"{where}attrs[{key!r}]", _short(value), "a JSON-serialisable value",
+                    f"convert it to numbers, strings, lists or dicts before saving ({exc})",
+                ) from exc
+            codec[key] = "tuple" if isinstance(value, tuple) else "json"
+        elif isinstance(value, str | int | float):
+            out[key] = value
+        elif isinstance(value, np.ndarray) and value.dtype.kind in "iuf" and value.size > 0:
+            out[key] = value.ravel()
+            codec[key] = {"ndarray": value.dtype.str, "shape": list(value.shape)}
+        elif isinstance(value, np.ndarray) and value.dtype.kind in "iufb":
+            out[key] = json.dumps(value.tolist())
+            codec[key] = {"ndarray": value.dtype.str, "shape": list(value.shape)}
+        else:
+            raise SchemaError(
+                f"{where}attrs[{key!r}]", f"a value of type {type(value).__name__}",
+                "str, int, float, bool, None, list, tuple, dict or a numeric numpy array",
+                "convert the attribute to one of these types before saving",
+            )
+    if codec:
+        out[_CODEC_ATTR] = json.dumps(codec)
+    return out
+
+
+def _json_default(obj):
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    raise TypeError(f"{type(obj).__name__} is not JSON serialisable")
+
+
+def _decode_attrs(attrs: Mapping) -> dict:
+    """Inverse of :func:`_encode_attrs`."""
+    codec = json.loads(attrs.get(_CODEC_ATTR, "{}"))
+    out = {}
+    for key, value in attrs.items():
+        if key == _CODEC_ATTR:
+            continue
+        rule = codec.get(key)
+        if rule is None:
+            if isinstance(value, np.generic):
+                value = value.item()
+        elif rule in ("json", "tuple"):
+            value = json.loads(value)
+            if rule == "tuple":
+                value = tuple(value)
+        else:
+            if isinstance(value, str):
+                value = json.loads(value)
+            value = np.asarray(value, dtype=np.dtype(rule["ndarray"])).reshape(rule["shape"])
+        out[key] = value
+    return out
+
+
+def _short(value, limit: int = 60) -> str:
+    text = repr(value)
+    return text if len(text) <= limit else text[: limit - 4] + " ..."
+

@@ -1,0 +1,407 @@
+"""Build a frame cube from a folder of image files and a manifest CSV; the shipped example.
+
+The manifest names, per image, the commanded pose (``alpha``, ``beta``) and the shot label;
+every check names the manifest line and column, or the image, and the fix.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+from ..errors import SchemaError, SunlabError
+from ..schema import frames_dataset
+from .codec import _short
+from .images import IMAGE_SUFFIXES, _image_header, _read_checked
+
+__all__ = ["from_image_folder", "example_folder"]
+
+_REQUIRED_COLUMNS = ("file", "alpha", "beta", "shot")
+_RESERVED_COLUMNS = ("pose", "x", "y", "frames", "hole", "shot_label")
+
+
+def _manifest_table(folder: Path, manifest):
+    import pandas as pd
+
+    if isinstance(manifest, pd.DataFrame):
+        return manifest.copy(), "manifest"
+    if manifest is None:
+        path = folder / "manifest.csv"
+        if not path.exists():
+            images = [p for p in folder.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES]
+            if not images:
+                raise SchemaError(
+                    "folder", f"{folder} (no images, no manifest.csv)",
+                    f"image files ({', '.join(IMAGE_SUFFIXES)}) and a manifest CSV",
+                    "point to the folder that holds the frames, or acquire them first",
+                )
+            raise SchemaError(
+                "manifest", f"no manifest.csv in {folder} ({len(images)} images)",
+                "a CSV with columns file, alpha, beta, shot (one row per image)",
+                "write manifest.csv next to the images, or pass manifest=path",
+            )
+    else:
+        path = Path(manifest)
+        if not path.is_absolute() and not path.exists():
+            path = folder / path
+        if not path.exists():
+            raise SchemaError(
+                "manifest", str(manifest), "an existing CSV file",
+                f"give the manifest's path (absolute, or relative to {folder})",
+            )
+    try:
+        table = pd.read_csv(path, dtype={"file": str}, skipinitialspace=True, comment="#")
+    except pd.errors.EmptyDataError as exc:
+        raise SchemaError(
+            f"manifest {path.name}", "an empty file",
+            "a header line file,alpha,beta,shot and one row per image",
+            "write the manifest rows",
+        ) from exc
+    except (pd.errors.ParserError, UnicodeDecodeError) as exc:
+        raise SchemaError(
+            f"manifest {path.name}", f"unparsable CSV ({exc})", "comma-separated values",
+            "fix the CSV syntax (same number of fields on every line)",
+        ) from exc
+    table.columns = [str(c).strip() for c in table.columns]
+    return table, path.name
+
+
+def _line(i: int) -> int:
+    """CSV line number of table row i (line 1 is the header)."""
+    return int(i) + 2
+
+
+def from_image_folder(
+    folder,
+    manifest=None,
+    *,
+    bit_depth: int | None = None,
+    lazy: bool = True,
+    **frames_kwargs,
+) -> xr.Dataset:
+    """Build a frame cube from a folder of PNG or TIFF frames and a manifest CSV.
+
+    Parameters
+    ----------
+    folder : str or path-like
+        Folder holding the images (8-bit, or 16-bit for deeper ADCs; single channel).
+    manifest : str, path-like or pandas.DataFrame, optional
+        The manifest, one row per image; default ``folder/manifest.csv``. A relative path is
+        looked up relative to ``folder``. Required columns:
+
+        ``file``
+            image file name, relative to ``folder``;
+        ``alpha``, ``beta``
+            commanded platform angles, degrees;
+        ``shot``
+            integer shot label within the pose (e.g. 0 .. 7).
+
+        Poses are the unique (alpha, beta) pairs in manifest order; every pose must have the same
+        set of shot labels, ordered by value. Any other column becomes a coordinate on
+        (pose, shot) (``time`` is parsed as a date-time; numeric columns stay numeric, others
+        are text). Lines starting with ``#`` are comments.
+    bit_depth : int, optional
+        ADC bit depth. Default: 8 for 8-bit images; for 16-bit images the smallest of 8, 10,
+        12, 14, 16 bits that holds the largest DN in the folder (this reads every image once;
+        give it for dark or dim frames, whose maximum says little about the ADC).
+    lazy : bool
+        Read each image only when its frame is computed (``dask.delayed`` per image, one chunk
+        per frame); headers are still checked at once. False reads everything now.
+    **frames_kwargs
+        Passed to :func:`sunlab.schema.frames_dataset` (``pixel_pitch_mm``,
+        ``mask_distance_mm``, ``x_cf_px``, ``y_cf_px``, ``mask``, ``experiment``, ``attrs``).
+
+    Returns
+    -------
+    xarray.Dataset
+        A frame cube (contract ``frames/1``) with a ``file`` coordinate on (pose, shot), and
+        ``shot_label`` on shot when the labels are not 0 .. n_shot - 1.
+
+    Raises
+    ------
+    SchemaError
+        Naming the manifest line and column, or the image, and the fix.
+
+    Examples
+    --------
+    >>> import numpy as np, tempfile, pathlib, tifffile
+    >>> folder = pathlib.Path(tempfile.mkdtemp())
+    >>> rows = ["file,alpha,beta,shot"]
+    >>> for k, (a, b, s) in enumerate([(0, 0, 0), (0, 0, 1), (5, -2, 0), (5, -2, 1)]):
+    ...     tifffile.imwrite(folder / f"f{k}.tif", np.full((4, 6), 100 * k, np.uint16))
+    ...     rows.append(f"f{k}.tif,{a},{b},{s}")
+    >>> _ = (folder / "manifest.csv").write_text("\\n".join(rows))
+    >>> cube = from_image_folder(folder, bit_depth=10)
+    >>> dict(cube.sizes), cube.alpha.values.tolist(), int(cube.frames[1, 0, 0, 0])
+    ({'pose': 2, 'shot': 2, 'y': 4, 'x': 6}, [0.0, 5.0], 200)
+    """
+    folder = _existing_folder(folder)
+    table, mname = _manifest_table(folder, manifest)
+    _check_columns(table, mname)
+    alpha, beta, shot = _pose_columns(table, mname)
+    files, paths = _image_paths(folder, table, mname)
+    poses, labels, order = _pose_grid(alpha, beta, shot, mname)
+    shape, dtype = _common_header(paths, order)
+    bit_depth = _checked_bit_depth(bit_depth, dtype)
+    frames = _read_frames(paths, order, shape, dtype, bit_depth, lazy)
+    bit_depth = _detected_bit_depth(frames, dtype) if bit_depth is None else bit_depth
+    coords = {**_manifest_coords(table, files, order, labels, mname),
+              **dict(frames_kwargs.pop("coords", None) or {})}
+    attrs = {"source": str(folder.resolve()), **dict(frames_kwargs.pop("attrs", None) or {})}
+    return frames_dataset(frames, alpha=[a for a, _ in poses], beta=[b for _, b in poses],
+                          bit_depth=bit_depth, coords=coords, attrs=attrs, **frames_kwargs)
+
+
+def _existing_folder(folder) -> Path:
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise SchemaError(
+            "folder", str(folder), "an existing folder of images",
+            "check the path (it is relative to the current directory unless absolute)",
+        )
+    return folder
+
+
+def _check_columns(table, mname: str) -> None:
+    """The manifest has rows, the required columns and no reserved column name."""
+    if len(table) == 0:
+        raise SchemaError(
+            f"manifest {mname}", "no rows", "one row per image", "add the rows for the images"
+        )
+    for col in _REQUIRED_COLUMNS:
+        if col not in table.columns:
+            raise SchemaError(
+                f"manifest {mname} column {col!r}", f"missing (columns: {list(table.columns)})",
+                "columns file, alpha, beta, shot",
+                f"add a {col!r} column"
+                + {
+                    "file": " with the image file name of each row",
+                    "alpha": " with the commanded outer-axis angle in degrees",
+                    "beta": " with the commanded inner-axis angle in degrees",
+                    "shot": " numbering the frames of each pose 0, 1, ...",
+                }[col],
+            )
+    for col in table.columns:
+        if col in _RESERVED_COLUMNS:
+            raise SchemaError(
+                f"manifest {mname} column {col!r}", "a reserved name",
+                f"extra columns named other than {_RESERVED_COLUMNS}", "rename the column",
+            )
+
+
+def _pose_columns(table, mname: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The ``alpha``, ``beta`` (finite degrees) and ``shot`` (integer label) columns."""
+    import pandas as pd
+
+    numeric = {}
+    for col in ("alpha", "beta", "shot"):
+        values = pd.to_numeric(table[col], errors="coerce")
+        bad = np.flatnonzero(~np.isfinite(values.to_numpy(dtype=float)))
+        if bad.size:
+            i = bad[0]
+            raise SchemaError(
+                f"manifest {mname} line {_line(i)} column {col!r}", table[col].iloc[i],
+                "a finite number" + (" of degrees" if col != "shot" else ""),
+                f"correct the value ({bad.size} bad row(s), first on line {_line(i)})",
+            )
+        numeric[col] = values.to_numpy(dtype=float)
+    if np.any(numeric["shot"] != np.round(numeric["shot"])):
+        i = int(np.flatnonzero(numeric["shot"] != np.round(numeric["shot"]))[0])
+        raise SchemaError(
+            f"manifest {mname} line {_line(i)} column 'shot'", table["shot"].iloc[i],
+            "an integer shot label", "number the frames of each pose 0, 1, 2, ...",
+        )
+    return numeric["alpha"], numeric["beta"], numeric["shot"].astype(np.int64)
+
+
+def _image_paths(folder: Path, table, mname: str):
+    """The ``file`` column (stripped) and the image paths, every one an existing file."""
+    files = table["file"].astype(str).str.strip()
+    paths = [folder / f for f in files]
+    missing = [i for i, p in enumerate(paths) if not p.is_file()]
+    if missing:
+        i = missing[0]
+        raise SchemaError(
+            f"manifest {mname} line {_line(i)} column 'file'", files.iloc[i],
+            f"an image file in {folder}",
+            f"{len(missing)} listed file(s) do not exist; copy them into the folder or remove "
+            "their rows",
+        )
+    return files, paths
+
+
+def _pose_grid(alpha, beta, shot, mname: str):
+    """Poses and shots of the manifest rows.
+
+    Poses are the unique (alpha, beta) pairs in manifest order, shots the labels sorted by
+    value. Returns the poses (an ordered dict of pairs), the shot labels and ``order``, the
+    manifest row of each (pose, shot).
+    """
+    pairs = list(zip(alpha.tolist(), beta.tolist(), strict=True))
+    pose_of_pair: dict = {}
+    for pair in pairs:
+        pose_of_pair.setdefault(pair, len(pose_of_pair))
+    pose = np.array([pose_of_pair[p] for p in pairs])
+    seen: dict = {}
+    for i, key in enumerate(zip(pose.tolist(), shot.tolist(), strict=True)):
+        if key in seen:
+            raise SchemaError(
+                f"manifest {mname} line {_line(i)}",
+                f"alpha={alpha[i]:g}, beta={beta[i]:g}, shot={shot[i]} again (first on line "
+                f"{_line(seen[key])})",
+                "one row per (pose, shot)",
+                "remove the duplicate row or give it the next shot number",
+            )
+        seen[key] = i
+    labels = np.unique(shot)
+    n_pose, n_shot = len(pose_of_pair), len(labels)
+    for p, (a, b) in enumerate(pose_of_pair):
+        have = set(shot[pose == p].tolist())
+        if have != set(labels.tolist()):
+            lacking = sorted(set(labels.tolist()) - have)
+            raise SchemaError(
+                f"manifest {mname} pose alpha={a:g}, beta={b:g}", f"shots {sorted(have)}",
+                f"the same shots as every other pose: {labels.tolist()}",
+                f"add rows for shot(s) {lacking} of this pose, or drop the pose",
+            )
+    shot_index = np.searchsorted(labels, shot)
+    order = np.full((n_pose, n_shot), -1)
+    order[pose, shot_index] = np.arange(len(pairs))
+    return pose_of_pair, labels, order
+
+
+def _common_header(paths, order) -> tuple[tuple[int, ...], np.dtype]:
+    """Image headers: one size and one pixel type (uint8 or uint16) for the whole cube."""
+    headers = [_image_header(p) for p in paths]
+    shape, dtype = headers[int(order[0, 0])]
+    for i, (shp, dt) in enumerate(headers):
+        if dt not in (np.dtype(np.uint8), np.dtype(np.uint16)):
+            raise SchemaError(
+                f"image {paths[i].name}", f"pixel type {dt}", "uint8 or uint16 digital numbers",
+                "export raw DN as 8- or 16-bit unsigned integers; float or 32-bit images are "
+                "not raw frames",
+            )
+        if shp != shape or dt != dtype:
+            raise SchemaError(
+                f"image {paths[i].name} (manifest line {_line(i)})", f"shape {shp}, {dt}",
+                f"shape {shape}, {dtype} like {paths[int(order[0, 0])].name}",
+                "every frame of a cube has the same size and pixel type; remove or re-export "
+                "the odd image",
+            )
+    return shape, dtype
+
+
+def _checked_bit_depth(bit_depth, dtype: np.dtype) -> int | None:
+    """The given bit depth as an int that fits the pixel type (None stays None)."""
+    if bit_depth is None:
+        return None
+    if int(bit_depth) != bit_depth or not 1 <= bit_depth <= 8 * dtype.itemsize:
+        raise SchemaError(
+            "bit_depth", bit_depth, f"an integer 1 .. {8 * dtype.itemsize} for {dtype} images",
+            "give the ADC bit depth (Ibis4: 10)",
+        )
+    return int(bit_depth)
+
+
+def _read_frames(paths, order, shape, dtype, bit_depth, lazy: bool):
+    """The (pose, shot, y, x) frames: one ``dask.delayed`` read per image, or all read now."""
+    n_pose, n_shot = order.shape
+    if lazy:
+        import dask
+        import dask.array as da
+
+        read = dask.delayed(_read_checked, pure=True)
+        return da.stack(
+            [
+                da.stack(
+                    [
+                        da.from_delayed(
+                            read(paths[order[p, s]], shape, dtype, bit_depth), shape, dtype
+                        )
+                        for s in range(n_shot)
+                    ]
+                )
+                for p in range(n_pose)
+            ]
+        )
+    frames = np.empty((n_pose, n_shot, *shape), dtype)
+    for p in range(n_pose):
+        for s in range(n_shot):
+            frames[p, s] = _read_checked(paths[order[p, s]], shape, dtype, bit_depth)
+    return frames
+
+
+def _detected_bit_depth(frames, dtype: np.dtype) -> int:
+    """8 for 8-bit images, else the smallest of 8, 10, 12, 14, 16 bits that holds the peak DN."""
+    if dtype == np.uint8:
+        return 8
+    peak = int(frames.max()) if frames.size else 0
+    return next(b for b in (8, 10, 12, 14, 16) if peak < 2**b)
+
+
+def _manifest_coords(table, files, order, labels, mname: str) -> dict:
+    """Coordinates from the manifest: ``file``, ``shot_label`` and every extra column."""
+    import pandas as pd
+
+    n_shot = order.shape[1]
+    coords = {
+        "file": (("pose", "shot"), files.to_numpy(dtype=object)[order]),
+    }
+    if not np.array_equal(labels, np.arange(n_shot)):
+        coords["shot_label"] = ("shot", labels)
+    for col in table.columns:
+        if col in _REQUIRED_COLUMNS:
+            continue
+        raw = table[col]
+        if col == "time":
+            try:
+                values = pd.to_datetime(raw).to_numpy(dtype="datetime64[ns]")
+            except (ValueError, TypeError) as exc:
+                raise SchemaError(
+                    f"manifest {mname} column 'time'", _short(raw.tolist()),
+                    "ISO 8601 date-times, e.g. 2005-06-01T12:00:00.125",
+                    f"write the times in ISO 8601 or rename the column ({exc})",
+                ) from exc
+        else:
+            num = pd.to_numeric(raw, errors="coerce")
+            if num.notna().sum() == raw.notna().sum():
+                values = num.to_numpy()
+            else:
+                values = raw.fillna("").astype(str).to_numpy(dtype=object)
+        coords[col] = (("pose", "shot"), values[order])
+    return coords
+
+
+def example_folder(name: str = "train") -> Path:
+    """A small recording shipped with sunlab: a folder of 16-bit PNG frames, as a lab's own.
+
+    ``"train"``: a 5 x 5 grid of poses (alpha -10..-6 deg, beta 5..9 deg, 1-degree steps),
+    ``"test"``: the 4 x 4 grid between them; 2 shots per pose, frames of the virtual bench's
+    one-hole sensor cropped to the region the spot crosses. Each folder holds ``manifest.csv``
+    (file, alpha, beta, shot) and ``sensor.json`` (pixel pitch, mask distance, design centre,
+    bit depth), so ``sunlab import FOLDER --out cube.zarr`` needs no other option.
+
+    Examples
+    --------
+    >>> folder = example_folder("train")
+    >>> sorted(p.name for p in folder.glob("*.json")), (folder / "manifest.csv").exists()
+    (['sensor.json'], True)
+    >>> cube = from_image_folder(folder, mask_distance_mm=17.0, bit_depth=10)
+    >>> dict(cube.sizes)["pose"], cube.frames.dtype
+    (25, dtype('uint16'))
+    """
+    names = ("train", "test")
+    if name not in names:
+        raise SchemaError("name", name, f"one of {names}", "pass 'train' or 'test'")
+    from importlib import resources
+
+    folder = Path(str(resources.files("sunlab") / "data" / "example" / name))
+    if not (folder / "manifest.csv").is_file():
+        raise SunlabError(
+            f"example_folder: {folder} has no manifest.csv. Fix: reinstall sunlab (the package "
+            "data is missing), or regenerate it with sunlab/data/make_example.py"
+        )
+    return folder
+
