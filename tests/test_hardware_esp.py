@@ -25,7 +25,7 @@ from sunlab.hardware import (
     StageProtocolError,
     StageTimeout,
 )
-from sunlab.hardware.esp import decode_error, format_number
+from sunlab.hardware.esp_protocol import decode_error, format_number
 
 NO_ERROR = b"0, 451322, NO ERROR DETECTED\r\n"
 

@@ -2,7 +2,9 @@
 
 - :class:`ESP300`: a Newport ESP300/ESP301 driver over pyserial (any ``serial_for_url`` URL),
   with timeouts, bounded retries, error decoding, limit checks and a settle time;
-  :func:`open_stage` opens one from a URL (``fake://``, ``socket://``, a device path).
+  :func:`open_stage` opens one from a URL (``fake://``, ``socket://``, a device path). The
+  wire protocol it speaks (commands, replies, error codes, :func:`decode_error`, the byte link
+  :func:`open_transport`) is :mod:`sunlab.hardware.esp_protocol`.
 - :class:`FakeESP`: the same protocol over a pseudo-terminal or loopback TCP, backed by the
   virtual bench's platform model, with fault injection.
 - :class:`Camera`: the camera protocol; :class:`SimCamera` renders from the virtual bench,
@@ -38,7 +40,8 @@ from .errors import (
     StageProtocolError,
     StageTimeout,
 )
-from .esp import ESP300, decode_error, open_transport
+from .esp import ESP300
+from .esp_protocol import decode_error, open_transport
 from .fake import FakeESP, Fault
 from .runner import RunResult, acquire, open_run
 from .stage import Stage, open_stage

@@ -36,7 +36,7 @@ import numpy as np
 from ..errors import ConfigurationError
 from .errors import CameraError, CameraTimeout
 
-__all__ = ["Camera", "SimCamera", "FolderCamera", "read_image"]
+__all__ = ["Camera", "SimCamera", "FolderCamera"]
 
 
 @runtime_checkable
@@ -202,20 +202,26 @@ class _Unreadable(CameraError):
     """The decoder failed: a truncated file still being written, or a corrupt one."""
 
 
-def read_image(path) -> np.ndarray:
-    """Read a TIFF (tifffile) or PNG (Pillow) image file as a 2-d array.
+def _read_new_file(path) -> np.ndarray:
+    """Decode a TIFF (tifffile) or PNG (Pillow) file a camera just wrote, as a 2-d array.
+
+    Not :func:`sunlab.io.read_image`, which reads finished raw frames (uint8/uint16 only, a
+    :class:`~sunlab.SchemaError` naming the fix): here a decoder failure is
+    :class:`_Unreadable`, which :meth:`FolderCamera.grab` takes for a file still being written
+    and polls again, and any integer type is returned for :meth:`FolderCamera._check` to fit.
 
     Raises
     ------
     CameraError
-        Unknown suffix, unreadable or truncated file, or not a single 2-d frame.
+        Unknown suffix, or not a single 2-d frame; :class:`_Unreadable` for a truncated or
+        unreadable file.
 
     Examples
     --------
     >>> import tempfile, os, tifffile
     >>> path = os.path.join(tempfile.mkdtemp(), "f.tif")
     >>> tifffile.imwrite(path, np.full((2, 3), 7, np.uint16))
-    >>> read_image(path).tolist()
+    >>> _read_new_file(path).tolist()
     [[7, 7, 7], [7, 7, 7]]
     """
     path = Path(path)
@@ -349,7 +355,7 @@ class FolderCamera:
                 elif now - seen[1] < self.stable_s:
                     continue
                 try:
-                    data = read_image(path)
+                    data = _read_new_file(path)
                 except _Unreadable as err:  # still being written: try again at the next poll
                     last_error = err
                     sizes[path] = (size, now)

@@ -81,7 +81,7 @@ from collections import deque
 from dataclasses import dataclass
 
 from ..errors import ConfigurationError
-from .esp import decode_error
+from .esp_protocol import decode_error
 
 __all__ = ["FAULT_KINDS", "Fault", "FakeESP", "ManualClock", "DISCONNECT"]
 

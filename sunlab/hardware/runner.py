@@ -41,6 +41,7 @@ Examples
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import platform
@@ -312,20 +313,9 @@ def _capture_pose(stage, camera, pose, alpha, beta, shots, shape, dtype, bits,
     return frames, read, stamps
 
 
-def acquire(
-    plan,
-    stage,
-    camera,
-    out,
-    *,
-    resume: bool = False,
-    progress: bool = True,
-    stop: threading.Event | None = None,
-    fsync: bool = True,
-    attrs: dict | None = None,
-    handle_sigint: bool = True,
-    overshoot_deg: float = 0.5,
-) -> RunResult:
+def acquire(plan, stage, camera, out, *, resume: bool = False, progress: bool = True,
+            stop: threading.Event | None = None, fsync: bool = True, attrs: dict | None = None,
+            handle_sigint: bool = True, overshoot_deg: float = 0.5) -> RunResult:
     """Run a plan on the bench into a resumable Zarr store.
 
     Parameters
@@ -378,19 +368,71 @@ def acquire(
         A stage or camera fault that outlasted its retries; the store then records
         ``exit_status = 'failed'`` and the error, and the failed pose holds nothing.
     """
-    import zarr
     from tqdm.auto import tqdm
 
     alpha, beta, shots, name = _plan_arrays(plan)
     motion = _motion(plan, alpha.size)
+    overshoot = _overshoot(overshoot_deg, motion)
+    shape, dtype, bits = _camera_spec(camera)
+    store = _open_store(Path(out), resume, alpha, beta, shots, name, camera, stage, attrs, motion)
+    stop = stop if stop is not None else threading.Event()
+    with _session(store) as run, _sigint_stops(stop, handle_sigint), contextlib.closing(tqdm(
+            total=alpha.size, initial=int(store.done.sum()), unit="pose",
+            disable=not show_progress(progress), desc=f"acquire {name}".strip())) as bar:
+        for pose in motion["order"][~store.done[motion["order"]]]:
+            if stop.is_set():
+                break
+            frames, read, stamps = _capture_pose(
+                stage, camera, int(pose), alpha[pose], beta[pose], shots, shape, dtype, bits,
+                overshoot,
+            )
+            store.write_pose(int(pose), frames, read, stamps, fsync)
+            run.written += 1
+            bar.update(1)
+        run.status = "complete" if store.done.all() else "interrupted"
+    return RunResult(str(store.path), str(store.group.attrs["uid"]), run.status,
+                     int(alpha.size), int(store.done.sum()), run.written, run.error)
+
+
+def _overshoot(overshoot_deg, motion: dict) -> float:
+    """How far below each pose the inner axis goes first: 0 unless the approach is one-way."""
     overshoot = float(overshoot_deg) if motion["approach"] == "unidirectional" else 0.0
     if not (np.isfinite(overshoot) and overshoot >= 0):
         raise ConfigurationError(
             f"overshoot_deg: found {overshoot_deg!r}; expected a non-negative angle in deg "
             "(more than the inner axis's backlash). Fix: overshoot_deg=0.5."
         )
-    shape, dtype, bits = _camera_spec(camera)
-    path = Path(out)
+    return overshoot
+
+
+@dataclass
+class _Store:
+    """An open acquisition store: its arrays and which poses are flagged done."""
+
+    path: Path
+    group: object
+    arrays: dict
+    done: np.ndarray
+
+    def write_pose(self, pose: int, frames, read, stamps, fsync: bool) -> None:
+        """Write one pose's frames, read-backs and times, then (only then) its done flag."""
+        self.arrays["frames"][pose] = frames
+        self.arrays["alpha_read"][pose] = read[0]
+        self.arrays["beta_read"][pose] = read[1]
+        self.arrays["time"][pose] = stamps
+        if fsync:
+            _fsync_pose(self.path, _PER_POSE, pose)
+        self.arrays["done"][pose] = 1
+        if fsync:
+            _fsync_pose(self.path, ("done",), pose)
+        self.done[pose] = True
+
+
+def _open_store(path: Path, resume: bool, alpha, beta, shots, name, camera, stage, attrs,
+                motion) -> _Store:
+    """Create the store (allocated up front), or reopen it to resume; check it fits the run."""
+    import zarr
+
     if path.exists() and not resume:
         raise ConfigurationError(
             f"out: {str(path)!r} exists. Fix: pass resume=True (--resume) to continue that run, "
@@ -405,7 +447,22 @@ def acquire(
         group = zarr.open_group(path, mode="r+")
         _check_store(group, alpha, beta, shots, camera)
         arrays = {k: group[k] for k in ("frames", "alpha_read", "beta_read", "time", "done")}
-    done = np.asarray(arrays["done"][:], dtype=bool)
+    return _Store(path, group, arrays, np.asarray(arrays["done"][:], dtype=bool))
+
+
+@dataclass
+class _Session:
+    """This call's entry in the store's ``sessions`` and how it ends."""
+
+    status: str = "complete"
+    error: str | None = None
+    written: int = 0
+
+
+@contextlib.contextmanager
+def _session(store: _Store):
+    """Record a running session in the store; on exit, its end (status, error, poses)."""
+    group = store.group
     sessions = [dict(s, exit_status="killed") if s.get("exit_status") == "running" else s
                 for s in group.attrs.get("sessions", [])]
     session = {"start": _now(), "stop": None, "exit_status": "running", "poses": 0}
@@ -414,10 +471,33 @@ def acquire(
         "exit_status": "running",
         "sessions": [*sessions, session],
     })
+    run = _Session()
+    try:
+        yield run
+    except KeyboardInterrupt:
+        run.status = "interrupted"
+        raise
+    except BenchError as err:
+        run.status, run.error = "failed", str(err)
+        raise
+    except BaseException as err:
+        run.status, run.error = "failed", f"{type(err).__name__}: {err}"
+        raise
+    finally:
+        session.update(stop=_now(), exit_status=run.status, poses=run.written)
+        group.attrs.update({
+            "stop": session["stop"],
+            "exit_status": run.status,
+            "error": run.error,
+            "sessions": [*sessions, session],
+        })
 
-    stop = stop if stop is not None else threading.Event()
+
+@contextlib.contextmanager
+def _sigint_stops(stop: threading.Event, enabled: bool):
+    """In the main thread, the first Ctrl-C sets ``stop`` (a second one interrupts at once)."""
     previous = None
-    if handle_sigint and threading.current_thread() is threading.main_thread():
+    if enabled and threading.current_thread() is threading.main_thread():
         def on_sigint(signum, frame):
             if stop.is_set():
                 raise KeyboardInterrupt
@@ -426,56 +506,11 @@ def acquire(
                   file=sys.stderr)
 
         previous = signal.signal(signal.SIGINT, on_sigint)
-
-    written = 0
-    status, error = "complete", None
-    bar = tqdm(total=alpha.size, initial=int(done.sum()), unit="pose",
-               disable=not show_progress(progress), desc=f"acquire {name}".strip())
     try:
-        for pose in motion["order"][~done[motion["order"]]]:
-            if stop.is_set():
-                status = "interrupted"
-                break
-            frames, read, stamps = _capture_pose(
-                stage, camera, int(pose), alpha[pose], beta[pose], shots, shape, dtype, bits,
-                overshoot,
-            )
-            arrays["frames"][pose] = frames
-            arrays["alpha_read"][pose] = read[0]
-            arrays["beta_read"][pose] = read[1]
-            arrays["time"][pose] = stamps
-            if fsync:
-                _fsync_pose(path, _PER_POSE, int(pose))
-            arrays["done"][pose] = 1
-            if fsync:
-                _fsync_pose(path, ("done",), int(pose))
-            done[pose] = True
-            written += 1
-            bar.update(1)
-        else:
-            status = "complete" if done.all() else "interrupted"
-    except KeyboardInterrupt:
-        status = "interrupted"
-        raise
-    except BenchError as err:
-        status, error = "failed", str(err)
-        raise
-    except BaseException as err:
-        status, error = "failed", f"{type(err).__name__}: {err}"
-        raise
+        yield
     finally:
-        bar.close()
         if previous is not None:
             signal.signal(signal.SIGINT, previous)
-        session.update(stop=_now(), exit_status=status, poses=written)
-        group.attrs.update({
-            "stop": session["stop"],
-            "exit_status": status,
-            "error": error,
-            "sessions": [*sessions, session],
-        })
-    return RunResult(str(path), str(group.attrs["uid"]), status, int(alpha.size),
-                     int(done.sum()), written, error)
 
 
 def open_run(path, *, chunks=None):
