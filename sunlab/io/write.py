@@ -9,6 +9,7 @@ HDF5 Fletcher-32 one; attributes go through :mod:`sunlab.io.codec`.
 from __future__ import annotations
 
 import contextlib
+import os
 from pathlib import Path
 
 import numpy as np
@@ -99,7 +100,29 @@ def _write(ds: xr.Dataset, path: Path, fmt: str, encoding: dict, progress: bool,
         else:
             job = ds.to_netcdf(tmp, engine="h5netcdf", encoding=encoding, compute=False)
         with _maybe_progress(progress):
-            job.compute()
+            _compute_then_settle(job)
+
+
+def _compute_then_settle(job) -> None:
+    """Compute a delayed write; on the local threaded scheduler, return (or raise) only once
+    every chunk write already started has finished.
+
+    Dask's threaded scheduler raises the first task error at once while other threads may
+    still be writing chunks; the temporary store removed on that error would then be
+    recreated by a late write and left behind. A thread pool of our own is shut down (waiting)
+    before the error reaches :func:`sunlab.atomic.atomic_output`. Another scheduler (a
+    ``dask.distributed`` client, ``processes``) computes as configured.
+    """
+    import dask.threaded
+    from dask.base import get_scheduler
+
+    if get_scheduler(collections=[job]) is not dask.threaded.get:
+        job.compute()
+        return
+    from concurrent.futures import ThreadPoolExecutor
+
+    with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:  # exit waits
+        job.compute(scheduler="threads", pool=pool)
 
 
 def save_frames(
