@@ -31,8 +31,9 @@ the module they serve, private to the package):
 * :mod:`~sunlab.centroid.lattice` -- :func:`locate_spots` (multi-spot lattice);
 * :mod:`~sunlab.centroid.cube` -- :func:`locate` (a whole cube through Dask).
 
-Imports run one way: ``result`` <- ``moments`` <- ``estimators`` <- ``sources``, ``lattice``
-<- ``cube``; ``crlb`` stands alone.
+Imports run one way: ``result`` <- ``moments`` <- ``estimators`` <- ``sources`` and ``cube``;
+``lattice`` (which shares the estimators' private detection and disk-fit stages,
+``_detection`` and ``_diskfit``) <- ``cube``; ``crlb`` needs only ``result``.
 
 Status precedence when several apply: invalid > no_spot > ambiguous > clipped > saturated >
 repaired > ok. ``saturated`` means the spot saturates (touching clipped pixels); an isolated clipped

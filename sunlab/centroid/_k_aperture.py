@@ -310,17 +310,6 @@ def rows_moments(frame, tab, spn, r0, r1, cr, xc, yc, bkg, sat):
 
 
 @njit(cache=True, nogil=True)
-def aperture_com(frame, xc, yc, r_ap, bkg):
-    """Centre of mass of (I - bkg) over the pixels whose centres lie within ``r_ap`` of
-    (xc, yc). Returns (sum, x, y)."""
-    n = 2 * int(math.ceil(r_ap)) + 3
-    tab = np.empty((n, 4))
-    spn = np.empty((n, 2), np.int64)
-    r0, r1, cr = aperture_rows(frame, xc, yc, r_ap, 2, tab, spn)
-    return rows_com(tab, spn, r0, r1, cr, yc, bkg)
-
-
-@njit(cache=True, nogil=True)
 def aperture_moments(frame, xc, yc, r_ap, bkg, sat):
     """Moments of (I - bkg) over the pixels whose centres lie within ``r_ap`` of (xc, yc)
     (see :func:`rows_moments`)."""

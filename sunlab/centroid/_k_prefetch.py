@@ -3,6 +3,10 @@
 LLVM's prefetch intrinsic through numba's ``intrinsic`` extension: no fault, no wait, no effect
 on results; only the memory latency of a frame fresh from the camera or the disk overlaps the
 arithmetic.
+
+It pays (issue 15 asked to drop it unless it gains more than 10 %): with and without it, on one
+thread of a shared 2-core machine, best of several runs, ``locate_spots`` on a 100-hole frame
+took 1.78 vs 2.55 ms and ``tight_window`` on a paper frame 0.163 vs 0.204 ms.
 """
 
 from __future__ import annotations
