@@ -413,7 +413,7 @@ def test_locate_spots_on_a_rendered_bench_frame_matches_truth():
 def test_aperture_moments_kernel_matches_direct_sums(dtype):
     # The compiled moments sum raw intensities per row and expand about the centre; compare
     # with the textbook per-pixel central moments of (I - b).
-    from sunlab import _centroid_kernels as K
+    from sunlab.centroid import _k_aperture as K
 
     rng = np.random.default_rng(3)
     frame = rng.integers(20, 900, (120, 140)).astype(dtype)
@@ -431,8 +431,6 @@ def test_aperture_moments_kernel_matches_direct_sums(dtype):
     assert_allclose(got[3:10], mom, rtol=1e-9, atol=1e-9)
     assert got[10] == frame[sel].max() and got[11] == sel.sum()
     assert got[12] == (frame[sel] >= 880.0).sum()
-    c = K.aperture_com(frame, xc, yc, r_ap, bkg)
-    assert_allclose(c, [s, (w * xx[sel]).sum() / s, (w * yy[sel]).sum() / s], rtol=1e-12)
     m, sd, n = K.annulus_mean(frame, xc, yc, r_ap, r_ap + 6, 100.0, 800.0)
     ring = (np.hypot(xx - xc, yy - yc) > r_ap) & (np.hypot(xx - xc, yy - yc) <= r_ap + 6)
     v = frame[ring].astype(float)
@@ -442,7 +440,7 @@ def test_aperture_moments_kernel_matches_direct_sums(dtype):
 
 
 def test_metric_fields_follow_spot_metrics():
-    from sunlab import _centroid_kernels as K
+    from sunlab.centroid import _k_lattice as K
 
     assert K.METRIC_FIELDS == tuple(C.SPOT_METRICS)
 
@@ -453,7 +451,7 @@ def test_coarse_blobs_match_8_connected_labels(stride):
     # scipy.ndimage.label (8-connectivity) on the same samples.
     from scipy import ndimage
 
-    from sunlab import _centroid_kernels as K
+    from sunlab.centroid import _k_detect as K
 
     rng = np.random.default_rng(5)
     frame = rng.integers(0, 40, (203, 257)).astype(np.uint16)
@@ -496,7 +494,7 @@ def _neighbour_vectors_all_pairs(q, pitch, k):
 def test_neighbour_vectors_match_all_pairs(case):
     # The cell search must give the vectors of the O(m^2) scan, in the same order, ties
     # (exact lattice points) included.
-    from sunlab import _centroid_kernels as K
+    from sunlab.centroid import _k_lattice as K
 
     rng = np.random.default_rng(11)
     pitch = 70.0
@@ -517,7 +515,7 @@ def test_neighbour_vectors_match_all_pairs(case):
 def test_fit_lattice_affine_fit_matches_lstsq():
     # The closed-form fit (normal equations about the mean node) against numpy's SVD
     # least squares on a sheared, rotated lattice with noise and missing nodes.
-    from sunlab import _centroid_kernels as K
+    from sunlab.centroid import _k_lattice as K
 
     rng = np.random.default_rng(3)
     jj, ii = np.meshgrid(np.arange(10), np.arange(10))
@@ -538,7 +536,7 @@ def test_fit_lattice_affine_fit_matches_lstsq():
 def test_fit_lattice_nodes_on_one_line_keep_the_first_estimate():
     # Three spots on a diagonal of the grid: no affine map is defined, the fit keeps the
     # orientation estimate instead of dividing by zero.
-    from sunlab import _centroid_kernels as K
+    from sunlab.centroid import _k_lattice as K
 
     p = np.array([[100.0, 100.0], [170.0, 170.0], [240.0, 240.0]])
     ij, o, b, resid, ok = K.fit_lattice(p, np.ones(3, bool), 70.0, 0.3)
@@ -549,7 +547,7 @@ def test_fit_lattice_nodes_on_one_line_keep_the_first_estimate():
 def test_sample_stats_counts_equal_numpy_medians(top):
     # DN frames take the counting path; its median and MAD must be numpy's to the last bit
     # (even sample counts, constant frames, 16-bit values); non-integer frames take np.median.
-    from sunlab import _centroid_kernels as K
+    from sunlab.centroid import _k_detect as K
 
     rng = np.random.default_rng(top)
     for t in range(40):
@@ -575,7 +573,7 @@ def test_shifted_row_table_equals_a_fresh_one(dtype):
     # moved table, and the moments and centroid computed from it, equal a fresh pass to the
     # bit; float frames agree to rounding. Shifts up to several px, radii up and down, and an
     # aperture clipped by the frame's edge.
-    from sunlab import _centroid_kernels as K
+    from sunlab.centroid import _k_aperture as K
 
     rng = np.random.default_rng(8)
     frame = rng.integers(0, 1023, (90, 110)).astype(dtype)
@@ -598,7 +596,7 @@ def test_shifted_row_table_equals_a_fresh_one(dtype):
         got = K.rows_moments(frame, tb, sb, n0, n1, nc, xb, yb, 37.5, 1000.0)
         ref = K.rows_moments(frame, tf, sf, f0, f1, fc, xb, yb, 37.5, 1000.0)
         com = K.rows_com(tb, sb, n0, n1, nc, yb, 37.5)
-        com_ref = K.aperture_com(frame, xb, yb, rb, 37.5)
+        com_ref = K.rows_com(tf, sf, f0, f1, fc, yb, 37.5)
         if dtype is np.uint16:
             assert np.array_equal(tb[:k], tf[:k])
             assert np.array_equal(got, ref, equal_nan=True)
@@ -612,7 +610,7 @@ def test_shifted_row_table_equals_a_fresh_one(dtype):
 def test_prefetch_box_is_safe_anywhere():
     # The prefetch hints of measure_spots address only pixels inside the frame, whatever the
     # box (partly or wholly outside, NaN centre, 1-px frame), and change nothing.
-    from sunlab import _centroid_kernels as K
+    from sunlab.centroid import _k_prefetch as K
 
     for frame in (np.arange(30 * 40, dtype=np.uint16).reshape(30, 40), np.ones((1, 1))):
         before = frame.copy()
@@ -640,3 +638,15 @@ def test_isolated_hot_pixel_is_repaired_not_saturated(method):
     sat = clean.copy()
     sat[150, 199:202] = 1023
     assert func(sat).status_name == "saturated"
+
+
+@pytest.mark.parametrize("method", ["projection", "threshold"])
+def test_locate_multi_hole_cube_refuses_a_single_spot_algorithm(method):
+    # No silent substitution: algorithms A and B have no multi-spot form; the error names the
+    # method and the fix.
+    cube, _ = _small_cube()
+    cube = cube.assign_coords(hole_i=("hole", [0]), hole_j=("hole", [0]))
+    with pytest.raises(ConfigurationError, match=f"{method}.*multi-hole.*'tight'"):
+        C.locate(cube, method, progress=False)
+    cen = C.locate(cube, "tight", progress=False)
+    assert cen.attrs["method"] == "tight" and cen.sizes["hole"] == 1

@@ -1,0 +1,96 @@
+"""Spot centroids: the paper's two algorithms, estimators toward the Cramér–Rao bound, many spots.
+
+Every single-spot estimator has the same signature ``method(frame, **options)`` and returns a
+:class:`Centroid` ``(x, y, flux, window, status)``: ``x`` is the column and ``y`` the row of the
+spot centroid in pixels (centre of the first pixel = 0), ``flux`` the background-subtracted flux
+in DN, ``window`` the half-open pixel box ``(x0, x1, y0, y1)`` the estimate used, and ``status`` a
+code of :data:`sunlab.schema.STATUS`. A frame without a usable spot gives NaN and a status, never
+an exception; only a wrongly shaped argument (not 2-D) raises.
+
+Estimators (docs/paper.md sec. 3 and beyond):
+
+* :func:`threshold_window` — algorithm A, the group's earlier threshold + fixed 130 x 130 window;
+* :func:`projection_window` — algorithm B, the paper's projection-profile window;
+* :func:`tight_window` — a background-subtracted circular window fitted to the spot (fast);
+* :func:`disk_fit` — a weighted least-squares fit of an edge-blurred disk (near the CRLB);
+* :func:`crlb` — the Cramér–Rao lower bound of the centroid for a given spot, flux and noise.
+
+Moments of a spot: :func:`spot_moments`. Many spots of one frame at given positions, any
+estimator: :func:`centroid_sources`. Many spots of a multi-hole mask, found and indexed on their
+lattice: :func:`locate_spots`. A whole frame cube: :func:`locate`.
+
+Package layout (each concept in one module; the ``_k_*`` modules hold the compiled kernels of
+the module they serve, private to the package):
+
+* :mod:`~sunlab.centroid.result` -- :class:`Centroid`, frame checks and status rules;
+* :mod:`~sunlab.centroid.estimators` -- the single-spot estimators, :data:`METHODS` and the
+  algorithms' steps (:func:`border_mean`, :func:`first_hit`, :func:`projection_profiles`);
+* :mod:`~sunlab.centroid.crlb` -- the Cramér–Rao bound;
+* :mod:`~sunlab.centroid.moments` -- a spot's moments (:class:`SpotMoments`);
+* :mod:`~sunlab.centroid.sources` -- :func:`centroid_sources`;
+* :mod:`~sunlab.centroid.lattice` -- :func:`locate_spots` (multi-spot lattice);
+* :mod:`~sunlab.centroid.cube` -- :func:`locate` (a whole cube through Dask).
+
+Imports run one way: ``result`` <- ``moments`` <- ``estimators`` <- ``sources`` and ``cube``;
+``lattice`` (which shares the estimators' private detection and disk-fit stages,
+``_detection`` and ``_diskfit``) <- ``cube``; ``crlb`` needs only ``result``.
+
+Status precedence when several apply: invalid > no_spot > ambiguous > clipped > saturated >
+repaired > ok. ``saturated`` means the spot saturates (touching clipped pixels); an isolated clipped
+pixel in the window (a hot pixel) is replaced by the median of its 8 neighbours and the spot keeps
+a usable status, ``repaired`` (algorithms A and B).
+``x, y`` are NaN only for ``invalid`` and ``no_spot``; a clipped, saturated or ambiguous spot
+keeps its (possibly biased) estimate so that it can be inspected.
+
+Examples
+--------
+>>> import numpy as np
+>>> from sunlab import centroid
+>>> yy, xx = np.mgrid[0:200, 0:240]
+>>> frame = (30 + 400 * (np.hypot(xx - 120.5, yy - 90.0) < 17.5)).astype(np.uint16)
+>>> c = centroid.projection_window(frame)
+>>> round(c.x, 2), round(c.y, 2), c.status_name
+(120.5, 90.0, 'ok')
+"""
+
+from __future__ import annotations
+
+from .crlb import CRLB, crlb, disk_profile
+from .cube import locate
+from .estimators import (
+    METHODS,
+    border_mean,
+    disk_fit,
+    first_hit,
+    projection_profiles,
+    projection_window,
+    threshold_window,
+    tight_window,
+)
+from .lattice import SPOT_METRICS, Spots, locate_spots
+from .moments import SpotMoments, spot_moments
+from .result import SATURATION_10BIT, Centroid
+from .sources import centroid_sources
+
+__all__ = [
+    "Centroid",
+    "Spots",
+    "SpotMoments",
+    "SPOT_METRICS",
+    "CRLB",
+    "METHODS",
+    "SATURATION_10BIT",
+    "threshold_window",
+    "projection_window",
+    "tight_window",
+    "disk_fit",
+    "border_mean",
+    "first_hit",
+    "projection_profiles",
+    "crlb",
+    "disk_profile",
+    "spot_moments",
+    "centroid_sources",
+    "locate_spots",
+    "locate",
+]

@@ -1,0 +1,269 @@
+"""Centroid a whole frame cube: every frame (and every hole) through Dask, into ``centroids/1``.
+
+Examples
+--------
+>>> from sunlab.centroid import locate
+>>> locate.__name__
+'locate'
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .. import parallel
+from ..errors import ConfigurationError, SchemaError
+from .estimators import METHODS
+from .lattice import SPOT_METRICS, locate_spots
+
+__all__ = ["locate"]
+
+
+_FIELDS = ("x", "y", "flux", "x0", "x1", "y0", "y1", "status")
+_CARRY_ATTRS = ("pixel_pitch_mm", "mask_distance_mm", "x_cf_px", "y_cf_px", "bit_depth", "mask",
+                "experiment")
+
+
+def _single_block(frames, func, kwargs):
+    """Apply a single-spot estimator to a block (..., y, x) -> (..., 8) float64."""
+    lead = frames.shape[:-2]
+    flat = np.asarray(frames).reshape((-1,) + frames.shape[-2:])
+    out = np.empty((flat.shape[0], len(_FIELDS)))
+    for n, fr in enumerate(flat):
+        c = func(fr, **kwargs)
+        out[n] = (c.x, c.y, c.flux, *c.window, c.status)
+    return out.reshape(lead + (len(_FIELDS),))
+
+
+def _multi_block(frames, shift_x, shift_y, kwargs, design):
+    """locate_spots on a block (..., y, x) -> (..., hole, 8 + metrics) float64."""
+    lead = frames.shape[:-2]
+    flat = np.asarray(frames).reshape((-1,) + frames.shape[-2:])
+    sx = np.broadcast_to(shift_x, lead).reshape(-1)
+    sy = np.broadcast_to(shift_y, lead).reshape(-1)
+    n_holes = kwargs["holes"][0].size
+    nf = len(_FIELDS) + len(SPOT_METRICS)
+    out = np.empty((flat.shape[0], n_holes, nf))
+    for n, fr in enumerate(flat):
+        expected = None
+        if design is not None and np.isfinite(sx[n]) and np.isfinite(sy[n]):
+            expected = design + np.array([sx[n], sy[n]])
+        s = locate_spots(fr, expected=expected, **kwargs)
+        out[n, :, 0], out[n, :, 1], out[n, :, 2] = s.x, s.y, s.flux
+        out[n, :, 3:7] = s.window.T
+        out[n, :, 7] = s.status
+        for k, name in enumerate(SPOT_METRICS):
+            out[n, :, 8 + k] = s.metrics[name]
+    return out.reshape(lead + (n_holes, nf))
+
+
+def locate(
+    cube, method: str = "projection", *, multi: bool | None = None, scheduler: str = "threads",
+    address: str | None = None, num_workers: int | None = None, progress: bool = True,
+    compute: bool = True, **options,
+):
+    """Centroid every frame of a cube: a ``centroids/1`` dataset over (pose, shot[, hole]).
+
+    The frames go through :func:`xarray.apply_ufunc` with ``dask="parallelized"``, one task per
+    frame chunk, on Dask's threaded scheduler by default (the compiled kernels release the GIL,
+    so threads scale), or on a ``dask.distributed`` cluster at ``address``.
+
+    Parameters
+    ----------
+    cube : xarray.Dataset
+        A frame cube (contract ``frames/1``), NumPy- or Dask-backed.
+    method : {"threshold", "projection", "tight", "fit"}
+        Single-spot estimator (:data:`METHODS`); for a multi-hole cube the per-spot estimator of
+        :func:`locate_spots`, ``"tight"`` or ``"fit"`` (``"projection"`` and ``"threshold"`` are
+        single-spot algorithms: they raise :class:`~sunlab.errors.ConfigurationError` there).
+    multi : bool, optional
+        Multi-hole cube (default: the cube has a ``hole`` dimension with ``hole_i``, ``hole_j``).
+    scheduler : str
+        Dask scheduler when no address is given: ``"threads"``, ``"processes"``,
+        ``"synchronous"`` or ``"cluster"`` (a local cluster of processes; see
+        :func:`sunlab.parallel.compute`).
+    address : str, optional
+        Address of a ``dask.distributed`` scheduler, e.g. ``"tcp://10.0.0.5:8786"``.
+    num_workers : int, optional
+        Threads or processes of a local scheduler.
+    progress : bool
+        Show a progress bar.
+    compute : bool
+        Compute now (default); ``False`` returns the dataset with lazy Dask variables.
+    **options
+        Options of the estimator (``saturation`` defaults to ``2**bit_depth - 1`` of the cube).
+
+    Returns
+    -------
+    xarray.Dataset
+        Contract ``centroids/1``: ``x``, ``y`` (px), ``flux`` (DN), ``status``, window
+        ``x0, x1, y0, y1``, with the cube's ``alpha``, ``beta`` coordinates, its sensor
+        attributes, ground truth variables when present, and for multi-hole cubes the hole
+        coordinates and the per-spot metrics of :data:`SPOT_METRICS`.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sunlab import schema
+    >>> yy, xx = np.mgrid[0:200, 0:240]
+    >>> spot = lambda x, y: (30 + 400 * (np.hypot(xx - x, yy - y) < 15)).astype(np.uint16)
+    >>> frames = np.stack([[spot(100.5, 80.0), spot(101.5, 80.0)]])
+    >>> cube = schema.frames_dataset(frames, alpha=[0.0], beta=[0.0])
+    >>> cen = locate(cube, "projection", progress=False)
+    >>> cen.x.values.round(2).tolist(), cen.status.values.tolist()
+    ([[100.5, 101.5]], [[0, 0]])
+    """
+    from .. import schema
+
+    schema.validate_frames(cube)
+    if method not in METHODS:
+        raise ConfigurationError(f"method: found {method!r}, expected one of {sorted(METHODS)}")
+    options = dict(options)
+    options.setdefault("saturation", float(2 ** int(cube.attrs["bit_depth"]) - 1))
+    if multi is None:
+        multi = "hole" in cube.dims or ("hole_i" in cube.variables and "hole_j" in cube.variables)
+    frames = _chunked_frames(cube)
+    if multi:
+        res, dims = _apply_multi(cube, frames, method, options)
+    else:
+        res, dims = _apply_single(frames, METHODS[method], options)
+    res = res.transpose(*dims, "field")
+    if compute:
+        res = parallel.compute(res, scheduler=scheduler, address=address,
+                               num_workers=num_workers, progress=progress)[0]
+    cen = _centroid_table(cube, res, dims, method, options, multi, compute)
+    return _carry_cube_variables(cube, cen, dims, multi, compute)
+
+
+def _chunked_frames(cube):
+    """The cube's frames as a Dask array, one chunk per frame (or the cube's own pose/shot
+    chunks) and whole frames in each."""
+    import dask.array as da
+
+    frames = cube["frames"]
+    if not isinstance(frames.data, da.Array):
+        frames = frames.chunk({"pose": 1, "shot": 1})
+    return frames.chunk({"y": -1, "x": -1})
+
+
+def _apply_single(frames, func, options):
+    """Lazy (pose, shot, field) table of a single-spot estimator over every frame."""
+    import xarray as xr
+
+    res = xr.apply_ufunc(
+        _single_block, frames, kwargs={"func": func, "kwargs": options},
+        input_core_dims=[["y", "x"]], output_core_dims=[["field"]],
+        dask="parallelized", output_dtypes=[np.float64],
+        dask_gufunc_kwargs={"output_sizes": {"field": len(_FIELDS)}},
+    )
+    return res, ("pose", "shot")
+
+
+def _multi_options(cube, method, options):
+    """Options of :func:`locate_spots` for a multi-hole cube: its holes and grid shape."""
+    if method not in ("tight", "fit"):
+        raise ConfigurationError(
+            f"method: found {method!r} for a multi-hole cube (dimension 'hole'); {method!r} is a "
+            "single-spot algorithm. Fix: pass method='tight' (the tight window of every spot) or "
+            "'fit' (a disk fit of every spot), or multi=False for one spot per frame"
+        )
+    if "hole_i" not in cube.variables or "hole_j" not in cube.variables:
+        raise SchemaError("hole_i, hole_j", "missing", "grid row/column of each hole on dim "
+                          "'hole'", "simulate with a multi-hole bench or add the coordinates")
+    hi = np.asarray(cube["hole_i"].values, dtype=int)
+    hj = np.asarray(cube["hole_j"].values, dtype=int)
+    spot_opts = {k: v for k, v in options.items() if k != "method"}
+    spot_opts["method"] = method
+    spot_opts.setdefault("shape", (int(hi.max()) + 1, int(hj.max()) + 1))
+    spot_opts["holes"] = (hi, hj)
+    return spot_opts
+
+
+def _design_shift(cube):
+    """Design positions of the holes' spots (n_holes, 2) and the shift of each pose (ideal
+    centroid at the pose's angles), or None and NaN shifts when the cube has no design."""
+    import xarray as xr
+
+    if "hole_x_cf" not in cube.variables or "hole_y_cf" not in cube.variables:
+        nan = xr.full_like(cube["alpha"], np.nan)
+        return None, nan, nan
+    from ..geometry import ideal_centroid
+
+    design = np.column_stack([cube["hole_x_cf"].values, cube["hole_y_cf"].values])
+    dx, dy = ideal_centroid(cube["alpha"].values, cube["beta"].values,
+                            float(cube.attrs["mask_distance_mm"]),
+                            float(cube.attrs["pixel_pitch_mm"]), 0.0, 0.0)
+    return design, xr.DataArray(dx, dims="pose"), xr.DataArray(dy, dims="pose")
+
+
+def _apply_multi(cube, frames, method, options):
+    """Lazy (pose, shot, hole, field) table of :func:`locate_spots` over every frame."""
+    import xarray as xr
+
+    spot_opts = _multi_options(cube, method, options)
+    design, shift_x, shift_y = _design_shift(cube)
+    n_holes = spot_opts["holes"][0].size
+    res = xr.apply_ufunc(
+        _multi_block, frames, shift_x, shift_y,
+        kwargs={"kwargs": spot_opts, "design": design},
+        input_core_dims=[["y", "x"], [], []], output_core_dims=[["hole", "field"]],
+        dask="parallelized", output_dtypes=[np.float64],
+        dask_gufunc_kwargs={"output_sizes": {"hole": n_holes,
+                                             "field": len(_FIELDS) + len(SPOT_METRICS)}},
+    )
+    return res, ("pose", "shot", "hole")
+
+
+def _centroid_table(cube, res, dims, method, options, multi, computed):
+    """The ``centroids/1`` dataset of the (computed or lazy) field table ``res``."""
+    from .. import schema
+
+    data = res.data
+    extra = {}
+    if multi:
+        for k, name in enumerate(SPOT_METRICS):
+            extra[name] = (dims, data[..., 8 + k], {"long_name": SPOT_METRICS[name]})
+    attrs = {k: cube.attrs[k] for k in _CARRY_ATTRS if k in cube.attrs}
+    attrs.update({"source_schema": cube.attrs.get("sunlab_schema", ""),
+                  "options": repr({k: v for k, v in options.items() if k != "holes"})})
+    if computed:
+        return schema.centroids_dataset(
+            data[..., 0], data[..., 1], flux=data[..., 2], status=data[..., 7].astype(np.int8),
+            window=[data[..., 3 + k].astype(np.int32) for k in range(4)],
+            alpha=cube["alpha"].values, beta=cube["beta"].values, method=method, attrs=attrs,
+            extra=extra,
+        )
+    shape = tuple(res.sizes[d] for d in dims)
+    template = schema.centroids_dataset(
+        np.zeros(shape), np.zeros(shape), alpha=cube["alpha"].values,
+        beta=cube["beta"].values, method=method, attrs=attrs,
+    )
+    cen = template.copy()
+    for k, name in enumerate(_FIELDS):
+        arr = data[..., k]
+        if name == "status":
+            arr = arr.astype(np.int8)
+        elif name in ("x0", "x1", "y0", "y1"):
+            arr = arr.astype(np.int32)
+        cen[name] = (dims, arr, template[name].attrs)
+    for name, val in extra.items():
+        cen[name] = val
+    return cen
+
+
+def _carry_cube_variables(cube, cen, dims, multi, computed):
+    """Hole coordinates (multi-hole) and ground-truth variables of the cube onto ``cen``."""
+    for name in ("hole_i", "hole_j", "hole_x_cf", "hole_y_cf", "hole_defect"):
+        if multi and name in cube.variables:
+            cen = cen.assign_coords({name: ("hole", np.asarray(cube[name].values))})
+    for name in ("true_x", "true_y", "true_alpha", "true_beta", "alpha_read", "beta_read"):
+        if name in cube.variables and set(cube[name].dims) <= set(dims):
+            # the bare variable: a cube's own coordinates (e.g. alpha_read, time on an
+            # acquisition store) must not collide with the table's
+            cen[name] = cube[name].variable.transpose(*[d for d in dims if d in cube[name].dims])
+            if computed:
+                cen[name] = cen[name].compute()
+    n_pose, n_shot = cube.sizes["pose"], cube.sizes["shot"]
+    if n_pose != cen.sizes["pose"] or n_shot != cen.sizes["shot"]:  # pragma: no cover
+        raise SchemaError("centroids", dict(cen.sizes), f"pose={n_pose}, shot={n_shot}")
+    return cen
