@@ -84,3 +84,9 @@ def test_review_holes_serves_the_explorer(tables):
     res = r.residual_map(9, np.ones(100, bool))
     assert res["alpha"].shape == (25,)
     assert mh.injected_defects(test) == {}
+
+
+def test_predict_xy_names_the_fix(tables):
+    s1 = mh.GeometricCentre(order=2).fit(tables[0])
+    with pytest.raises(ConfigurationError, match=r"predict\(centroids\)"):
+        s1.predict_xy([1.0], [2.0])

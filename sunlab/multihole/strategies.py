@@ -180,6 +180,13 @@ def _record_fit(strategy, cen: xr.Dataset, ok: xr.DataArray, residuals: dict) ->
                           "validation": None}
 
 
+def _whole_frames_only(strategy):
+    raise ConfigurationError(
+        f"{type(strategy).__name__}.predict_xy: a multi-hole strategy estimates the sun direction "
+        "from all holes of a frame, not from one centroid. Fix: call predict(centroids) with a "
+        "table on (pose, shot, hole)")
+
+
 def _settings(strategy, names) -> dict:
     """The strategy's settings (``names`` plus the shared ones) for its saved parameters."""
     holes = None if strategy.holes is None else np.asarray(strategy.holes, bool).tolist()
@@ -366,6 +373,10 @@ class GeometricCentre(Calibration):
     def __post_init__(self):
         Calibration.__init__(self)
 
+    def predict_xy(self, x, y):
+        """Not defined for a multi-hole strategy: it estimates from all holes of a frame."""
+        _whole_frames_only(self)
+
     def _parameters(self) -> dict:
         return {**_settings(self, ("order", "fill", "min_holes")),
                 "A": self.A_, "M": self.M_, "calibration": self.calibration_.to_dict()}
@@ -550,6 +561,10 @@ class PerHoleAverage(Calibration):
 
     def __post_init__(self):
         Calibration.__init__(self)
+
+    def predict_xy(self, x, y):
+        """Not defined for a multi-hole strategy: it estimates from all holes of a frame."""
+        _whole_frames_only(self)
 
     def _parameters(self) -> dict:
         return {**_settings(self, ("order", "weighting", "clip", "poses_per_coef")),
