@@ -40,7 +40,7 @@ import numpy as np
 import xarray as xr
 
 from .errors import ConfigurationError
-from .multihole import HoleReview, cutout, metric_scale, review_holes, robust_z
+from .multihole import HoleReview, cutout, metric_scale, review_holes
 
 __all__ = ["HoleExplorer", "figure_output"]
 
@@ -337,7 +337,7 @@ class HoleExplorer:
 
     def _show_info(self) -> None:
         h = self.selected
-        z = robust_z(self.metrics)
+        z = self.review.z
         rows = "".join(
             f"<tr><td>{html.escape(k)}</td><td>{float(self.metrics[k][h]):.4g}</td>"
             f"<td>{float(z[k][h]):+.1f}</td></tr>"

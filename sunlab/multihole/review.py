@@ -22,7 +22,7 @@ import xarray as xr
 
 from ..errors import ConfigurationError
 from ..stats import error_summary
-from .defects import defect_metrics, reject_bad_holes
+from .defects import defect_metrics, reject_bad_holes, robust_z
 from .holes import hole_grid
 from .strategies import PerHoleAverage
 
@@ -39,6 +39,8 @@ class HoleReview:
         The fitted per-hole calibration.
     metrics : xarray.Dataset
         Defect metrics on ``hole``.
+    z : xarray.Dataset
+        Their robust z-scores (:func:`~sunlab.multihole.defects.robust_z`).
     flagged : numpy.ndarray of bool
         Holes flagged by the automatic rejection.
     injected : dict of int to str
@@ -53,6 +55,7 @@ class HoleReview:
 
     strategy: PerHoleAverage
     metrics: xr.Dataset
+    z: xr.Dataset
     flagged: np.ndarray
     injected: dict
     estimates: xr.Dataset
@@ -128,7 +131,7 @@ def review_holes(centroids: xr.Dataset, *, strategy: PerHoleAverage | None = Non
     i, j, nr, nc = hole_grid(centroids)
     n_h = centroids.sizes["hole"]
     return HoleReview(
-        strategy=strategy, metrics=metrics,
+        strategy=strategy, metrics=metrics, z=robust_z(metrics),
         flagged=reject_bad_holes(metrics, kappa=kappa).values,
         injected=injected_defects(centroids if "hole_defect" in centroids.coords else base),
         estimates=estimates, hole_i=i, hole_j=j, n_rows=nr, n_cols=nc,
