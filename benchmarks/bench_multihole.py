@@ -74,6 +74,7 @@ def defect_study(args):
     """The second study: dust that a per-hole calibration cannot absorb (or, control, can)."""
     from sunlab import centroid, plans, sim
     from sunlab import multihole as mh
+    from sunlab.stats import error_summary
 
     bench = (sim.Bench.paper_multi_hole(n_bad=0).ideal_platform()
              .replace(mask__play_x_mm=0.0, mask__play_y_mm=0.0))
@@ -92,20 +93,20 @@ def defect_study(args):
     est = s2.predict_holes(test)
     good = np.ones(100, bool)
     good[injected] = False
-    singles = [mh.global_stats(est.isel(hole=h)) for h in np.flatnonzero(good)]
+    singles = [error_summary(est.isel(hole=h)) for h in np.flatnonzero(good)]
     rows = {
         "one hole (median good hole)": {a: {k: float(np.median([s[a][k] for s in singles]))
                                             for k in singles[0][a]} for a in ("alpha", "beta")},
         "one bad hole (median)": {
-            a: {k: float(np.median([mh.global_stats(est.isel(hole=h))[a][k] for h in injected]))
+            a: {k: float(np.median([error_summary(est.isel(hole=h))[a][k] for h in injected]))
                 for k in singles[0][a]} for a in ("alpha", "beta")},
-        "average of all 100": mh.global_stats(s2.combine(est)),
-        "average, flagged left out": mh.global_stats(s2.combine(est, holes=~bad)),
-        "average, flagged out + robust": mh.global_stats(
+        "average of all 100": error_summary(s2.combine(est)),
+        "average, flagged left out": error_summary(s2.combine(est, holes=~bad)),
+        "average, flagged out + robust": error_summary(
             mh.PerHoleAverage(order=args.order, holes=~bad, weighting="inverse_variance",
                               clip=4.0, calibrations_=s2.calibrations_,
                               variance_=s2.variance_).combine(est)),
-        "average, injected left out": mh.global_stats(s2.combine(est, holes=good)),
+        "average, injected left out": error_summary(s2.combine(est, holes=good)),
     }
     flagged = np.flatnonzero(bad).tolist()
     print(f"defects: {args.defects}; frames: {train.sizes['pose'] * args.shots} (I) + "

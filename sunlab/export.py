@@ -175,10 +175,10 @@ def _optimised_call(P: _Prec, fit, x: str, y: str, a: str, b: str,
     atan2(-s_x, s_z), beta = asin(-s_y / |s|) = atan(-s_y / sqrt(s_x^2 + s_z^2)), as
     :func:`sunlab.geometry.optimised_angles`; "additive": eq. (1) at F + dF minus the offsets.
     """
-    from .geometry import _optimised_cf, mounting_matrix
+    from .geometry import hole_foot, mounting_matrix
 
     mounting = mounting or getattr(fit, "mounting", "additive")
-    x_cf, y_cf = _optimised_cf(fit.mask_distance_mm, fit.pixel_pitch_mm, fit.delta_f_mm,
+    x_cf, y_cf = hole_foot(fit.mask_distance_mm, fit.pixel_pitch_mm, fit.delta_f_mm,
                                fit.alpha0, fit.beta0, fit.x_zp, fit.y_zp, mounting)
     k = (fit.mask_distance_mm + fit.delta_f_mm) / fit.pixel_pitch_mm
     if mounting != "rotation":

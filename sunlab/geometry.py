@@ -65,8 +65,11 @@ __all__ = [
     "OptimisedFit",
     "fit_optimised_model",
     "mounting_matrix",
+    "hole_foot",
     "pinhole_centroid",
-    "synthetic_centroids",
+    "rotation_x",
+    "rotation_y",
+    "rotation_z",
 ]
 
 
@@ -175,9 +178,15 @@ def _check_mounting(mounting: str) -> None:
         )
 
 
-def _optimised_cf(mask_distance_mm, pixel_pitch_mm, delta_f_mm, alpha0, beta0, x_zp, y_zp,
-                  mounting: str = "additive"):
-    """Foot of the hole (x_cf, y_cf) that eq. (4) ties to the zero-pose centroid, px."""
+def hole_foot(mask_distance_mm, pixel_pitch_mm, delta_f_mm, alpha0, beta0, x_zp, y_zp,
+              mounting: str = "additive"):
+    """Foot of the hole (x_cf, y_cf) that eq. (4) ties to the zero-pose centroid, px.
+
+    Examples
+    --------
+    >>> [round(float(v), 6) for v in hole_foot(5.0, 0.007, 0.0, 0.0, 0.0, 640.0, 512.0)]
+    [640.0, 512.0]
+    """
     k = (mask_distance_mm + delta_f_mm) / pixel_pitch_mm
     if mounting == "rotation":
         m = mounting_matrix(alpha0, beta0)[:, 2]
@@ -234,7 +243,7 @@ def optimised_centroid(
     (600.0, 500.0)
     """
     _check_mounting(mounting)
-    x_cf, y_cf = _optimised_cf(
+    x_cf, y_cf = hole_foot(
         mask_distance_mm, pixel_pitch_mm, delta_f_mm, alpha0, beta0, x_zp, y_zp, mounting
     )
     if mounting == "rotation":
@@ -287,7 +296,7 @@ def optimised_angles(
     (-12.0, 9.0)
     """
     _check_mounting(mounting)
-    x_cf, y_cf = _optimised_cf(
+    x_cf, y_cf = hole_foot(
         mask_distance_mm, pixel_pitch_mm, delta_f_mm, alpha0, beta0, x_zp, y_zp, mounting
     )
     if mounting == "rotation":
@@ -377,22 +386,9 @@ class OptimisedFit:
         return asdict(self)
 
 
-def fit_optimised_model(
-    x,
-    y,
-    alpha,
-    beta,
-    mask_distance_mm,
-    pixel_pitch_mm,
-    x_zp=None,
-    y_zp=None,
-    *,
-    initial=(0.0, 0.0, 0.0),
-    mounting: str = "rotation",
-    blocks=None,
-    n_boot: int = 0,
-    seed: int = 0,
-) -> OptimisedFit:
+def fit_optimised_model(x, y, alpha, beta, mask_distance_mm, pixel_pitch_mm, x_zp=None,
+                        y_zp=None, *, initial=(0.0, 0.0, 0.0), mounting: str = "rotation",
+                        blocks=None, n_boot: int = 0, seed: int = 0) -> OptimisedFit:
     """Fit dF, alpha0, beta0 (and the zero-pose centroid) of the optimised model (3)-(4).
 
     Minimises
@@ -446,70 +442,37 @@ def fit_optimised_model(
     >>> round(fit.x_zp, 6), round(fit.y_zp, 6)
     (640.0, 512.0)
     """
-    from scipy.optimize import least_squares
-
     _check_mounting(mounting)
-    x, y, alpha, beta = np.broadcast_arrays(
-        *(np.asarray(v, dtype=float) for v in (x, y, alpha, beta))
-    )
-    ok = np.isfinite(x) & np.isfinite(y) & np.isfinite(alpha) & np.isfinite(beta)
-    if blocks is not None:
-        blocks = np.broadcast_to(np.asarray(blocks), x.shape)[ok]
-    x, y, alpha, beta = x[ok], y[ok], alpha[ok], beta[ok]
     free_zp = x_zp is None or y_zp is None
     n_par = 5 if free_zp else 3
-    if x.size < n_par:
-        raise ConfigurationError(
-            f"centroids: found {x.size} usable centroids, expected at least {n_par} for the "
-            "optimised model. Fix: pass a calibration table with more poses of status ok"
-        )
+    x, y, alpha, beta, blocks = _usable_points(x, y, alpha, beta, blocks, n_par)
     F, p = float(mask_distance_mm), float(pixel_pitch_mm)
     p0 = [float(v) for v in initial]
     if free_zp:
-        k = F / p
-        a = np.deg2rad(alpha)
-        p0 += [
-            float(np.median(x - k * np.tan(a))),
-            float(np.median(y - k * np.tan(np.deg2rad(beta)) / np.cos(a))),
-        ]
+        p0 += _zero_pose_start(x, y, alpha, beta, F / p)
+    fixed_zp = None if free_zp else (x_zp, y_zp)
 
     def solve(xs, ys, al, be, start):
-        def residuals(q):
-            zp = (q[3], q[4]) if free_zp else (x_zp, y_zp)
-            am, bm = optimised_angles(xs, ys, F, p, q[0], q[1], q[2], *zp, mounting=mounting)
-            return np.concatenate([am - al, bm - be])
-
-        return least_squares(
-            residuals, start, method="trf", x_scale="jac", xtol=1e-14, ftol=1e-14, gtol=1e-14,
-            max_nfev=2000,
-        )
+        return _least_squares(xs, ys, al, be, start, F, p, fixed_zp, mounting)
 
     res = solve(x, y, alpha, beta, p0)
     q = res.x
     names = ["delta_f_mm", "alpha0", "beta0", "x_zp", "y_zp"][:n_par]
     if n_boot and n_boot > 1:
-        labels = np.arange(x.size) if blocks is None else np.asarray(blocks)
-        uniq, inv = np.unique(labels, return_inverse=True)
-        members = [np.flatnonzero(inv == i) for i in range(uniq.size)]
-        rng = np.random.default_rng(seed)
-        reps = []
-        for _ in range(int(n_boot)):
-            pick = np.concatenate([members[i] for i in rng.integers(0, uniq.size, uniq.size)])
-            reps.append(solve(x[pick], y[pick], alpha[pick], beta[pick], q).x)
-        err = np.std(np.array(reps), axis=0, ddof=1)
+        err = _bootstrap_stderr(solve, x, y, alpha, beta, q, blocks, n_boot, seed)
         method = "block bootstrap"
     else:
-        dof = max(res.fun.size - n_par, 1)
-        s2 = 2.0 * res.cost / dof
-        try:
-            cov = np.linalg.inv(res.jac.T @ res.jac) * s2
-            err = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-        except np.linalg.LinAlgError:
-            err = np.full(n_par, np.nan)
+        err = _jacobian_stderr(res, n_par)
         method = "jacobian"
     zp = (float(q[3]), float(q[4])) if free_zp else (float(x_zp), float(y_zp))
-    x_cf, y_cf = _optimised_cf(F, p, q[0], q[1], q[2], *zp, mounting)
-    n = x.size
+    return _fit_result(res, zp, F, p, mounting, dict(zip(names, err, strict=True)), method)
+
+
+def _fit_result(res, zp, F, p, mounting, err: dict, method: str) -> OptimisedFit:
+    """The :class:`OptimisedFit` of a least-squares solution ``res``."""
+    q = res.x
+    x_cf, y_cf = hole_foot(F, p, q[0], q[1], q[2], *zp, mounting)
+    n = res.fun.size // 2
     return OptimisedFit(
         delta_f_mm=float(q[0]),
         alpha0=float(q[1]),
@@ -520,11 +483,11 @@ def fit_optimised_model(
         y_cf=float(y_cf),
         mask_distance_mm=F,
         pixel_pitch_mm=p,
-        stderr={k: float(v) for k, v in zip(names, err, strict=True)},
+        stderr={k: float(v) for k, v in err.items()},
         rms_alpha=float(np.sqrt(np.mean(res.fun[:n] ** 2))),
         rms_beta=float(np.sqrt(np.mean(res.fun[n:] ** 2))),
         n_points=int(n),
-        zero_pose_fitted=bool(free_zp),
+        zero_pose_fitted=len(q) == 5,
         success=bool(res.success),
         message=str(res.message),
         mounting=mounting,
@@ -532,17 +495,103 @@ def fit_optimised_model(
     )
 
 
-def _rx(t):
+def _usable_points(x, y, alpha, beta, blocks, n_par: int):
+    """The finite calibration points (and their bootstrap blocks); at least ``n_par``."""
+    x, y, alpha, beta = np.broadcast_arrays(
+        *(np.asarray(v, dtype=float) for v in (x, y, alpha, beta))
+    )
+    ok = np.isfinite(x) & np.isfinite(y) & np.isfinite(alpha) & np.isfinite(beta)
+    if blocks is not None:
+        blocks = np.broadcast_to(np.asarray(blocks), x.shape)[ok]
+    x, y, alpha, beta = x[ok], y[ok], alpha[ok], beta[ok]
+    if x.size < n_par:
+        raise ConfigurationError(
+            f"centroids: found {x.size} usable centroids, expected at least {n_par} for the "
+            "optimised model. Fix: pass a calibration table with more poses of status ok"
+        )
+    return x, y, alpha, beta, blocks
+
+
+def _zero_pose_start(x, y, alpha, beta, k: float) -> list:
+    """Starting zero-pose centroid: the median of the centroids moved back by eq. (1)."""
+    a = np.deg2rad(alpha)
+    return [
+        float(np.median(x - k * np.tan(a))),
+        float(np.median(y - k * np.tan(np.deg2rad(beta)) / np.cos(a))),
+    ]
+
+
+def _least_squares(xs, ys, al, be, start, F, p, fixed_zp, mounting):
+    """Least-squares fit of the optimised model's parameters (zero pose free if not fixed)."""
+    from scipy.optimize import least_squares
+
+    def residuals(q):
+        zp = (q[3], q[4]) if fixed_zp is None else fixed_zp
+        am, bm = optimised_angles(xs, ys, F, p, q[0], q[1], q[2], *zp, mounting=mounting)
+        return np.concatenate([am - al, bm - be])
+
+    return least_squares(
+        residuals, start, method="trf", x_scale="jac", xtol=1e-14, ftol=1e-14, gtol=1e-14,
+        max_nfev=2000,
+    )
+
+
+def _bootstrap_stderr(solve, x, y, alpha, beta, q, blocks, n_boot: int, seed: int):
+    """Standard errors from a block bootstrap: whole blocks are resampled with replacement."""
+    labels = np.arange(x.size) if blocks is None else np.asarray(blocks)
+    uniq, inv = np.unique(labels, return_inverse=True)
+    members = [np.flatnonzero(inv == i) for i in range(uniq.size)]
+    rng = np.random.default_rng(seed)
+    reps = []
+    for _ in range(int(n_boot)):
+        pick = np.concatenate([members[i] for i in rng.integers(0, uniq.size, uniq.size)])
+        reps.append(solve(x[pick], y[pick], alpha[pick], beta[pick], q).x)
+    return np.std(np.array(reps), axis=0, ddof=1)
+
+
+def _jacobian_stderr(res, n_par: int):
+    """Standard errors from the Jacobian at the solution (white residuals assumed)."""
+    dof = max(res.fun.size - n_par, 1)
+    s2 = 2.0 * res.cost / dof
+    try:
+        cov = np.linalg.inv(res.jac.T @ res.jac) * s2
+        return np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    except np.linalg.LinAlgError:
+        return np.full(n_par, np.nan)
+
+
+def rotation_x(t) -> np.ndarray:
+    """Right-handed rotation by ``t`` rad about x.
+
+    Examples
+    --------
+    >>> np.round(rotation_x(np.pi / 2) @ [0.0, 1.0, 0.0], 12).tolist()
+    [0.0, 0.0, 1.0]
+    """
     c, s = np.cos(t), np.sin(t)
     return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
 
 
-def _ry(t):
+def rotation_y(t) -> np.ndarray:
+    """Right-handed rotation by ``t`` rad about y.
+
+    Examples
+    --------
+    >>> np.round(rotation_y(np.pi / 2) @ [0.0, 0.0, 1.0], 12).tolist()
+    [1.0, 0.0, 0.0]
+    """
     c, s = np.cos(t), np.sin(t)
     return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
 
 
-def _rz(t):
+def rotation_z(t) -> np.ndarray:
+    """Right-handed rotation by ``t`` rad about z.
+
+    Examples
+    --------
+    >>> np.round(rotation_z(np.pi / 2) @ [1.0, 0.0, 0.0], 12).tolist()
+    [0.0, 1.0, 0.0]
+    """
     c, s = np.cos(t), np.sin(t)
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
@@ -573,7 +622,7 @@ def mounting_matrix(alpha0=0.0, beta0=0.0, gamma0=0.0):
     (1.864, 0.415)
     """
     a0, b0, g0 = np.deg2rad([alpha0, beta0, gamma0])
-    return _rz(g0) @ _ry(-a0) @ _rx(b0)
+    return rotation_z(g0) @ rotation_y(-a0) @ rotation_x(b0)
 
 
 def pinhole_centroid(
@@ -631,110 +680,11 @@ def pinhole_centroid(
     return x_cf - k * s[..., 0] / s[..., 2], y_cf - k * s[..., 1] / s[..., 2]
 
 
-def synthetic_centroids(
-    alpha,
-    beta,
-    shots: int = 8,
-    *,
-    mask_distance_mm: float = 5.0,
-    pixel_pitch_mm: float = 0.007,
-    x_cf: float = 639.5,
-    y_cf: float = 511.5,
-    delta_f_mm: float = 0.0,
-    mounting_deg=(0.0, 0.0, 0.0),
-    hole_offset_px=(0.0, 0.0),
-    pose_error_deg=(0.0, 0.0),
-    jitter_deg: float = 0.0,
-    noise_px: float = 0.0,
-    seed: int = 0,
-    experiment: str = "",
-):
-    """A centroid-level Monte Carlo of the bench: a ``centroids/1`` table with known truth.
+def __getattr__(name: str):
+    # the centroid-level Monte Carlo moved to sunlab.sim.synthetic_centroids (the simulator's
+    # room); this keeps ``geometry.synthetic_centroids`` working for existing callers
+    if name == "synthetic_centroids":
+        from .sim.centroids import synthetic_centroids
 
-    No frames are rendered (that is :mod:`sunlab.sim`): the true platform angles are the
-    commanded ones plus a per-pose positioning error (uniform in ``[-w, w]`` per axis, bounded
-    as docs/paper.md sec. 8 infers) and a per-shot normal jitter; :func:`pinhole_centroid` maps them
-    to the focal plane through the misaligned sensor, and a normal centroid noise is added.
-
-    Parameters
-    ----------
-    alpha, beta : array_like, shape (pose,)
-        Commanded platform angles, degrees.
-    shots : int
-        Frames per pose (the paper: 8).
-    mask_distance_mm, pixel_pitch_mm : float
-        Nominal F and pixel pitch, mm (written to the table's attributes).
-    x_cf, y_cf : float
-        Design projection of the hole, px (written to the attributes).
-    delta_f_mm : float
-        True mask-distance error, mm.
-    mounting_deg : tuple of 3 float
-        True mounting rotation ``(alpha0, beta0, gamma0)``, degrees.
-    hole_offset_px : tuple of 2 float
-        True hole position minus the design one, px.
-    pose_error_deg : tuple of 2 float
-        Half-widths of the uniform per-pose platform error on (alpha, beta), degrees.
-    jitter_deg : float
-        Standard deviation of the per-shot platform jitter, degrees.
-    noise_px : float
-        Standard deviation of the centroid noise, px.
-    seed : int
-        Seed of :func:`numpy.random.default_rng`.
-    experiment : str
-        Experiment name written to the attributes.
-
-    Returns
-    -------
-    xarray.Dataset
-        Contract ``centroids/1`` on ``(pose, shot)`` with coordinates ``alpha``, ``beta``
-        (commanded), the sensor attributes, and truth variables ``true_alpha``, ``true_beta``.
-
-    Examples
-    --------
-    >>> cen = synthetic_centroids([0.0, -5.0], [0.0, 3.0], shots=2)
-    >>> cen.x.dims, float(cen.x[0, 0])
-    (('pose', 'shot'), 639.5)
-    """
-    from .schema import centroids_dataset
-
-    alpha = np.asarray(alpha, dtype=float).ravel()
-    beta = np.asarray(beta, dtype=float).ravel()
-    if alpha.shape != beta.shape:
-        raise ConfigurationError(
-            f"alpha, beta: found shapes {alpha.shape} and {beta.shape}, expected equal lengths "
-            "(one pair per pose). Fix: pass flat arrays of the plan's poses"
-        )
-    if int(shots) < 1:
-        raise ConfigurationError(f"shots: found {shots}, expected >= 1")
-    rng = np.random.default_rng(seed)
-    n = alpha.size
-    shape = (n, int(shots))
-    wa, wb = pose_error_deg
-    true_a = alpha[:, None] + rng.uniform(-wa, wa, (n, 1)) + rng.normal(0.0, jitter_deg, shape)
-    true_b = beta[:, None] + rng.uniform(-wb, wb, (n, 1)) + rng.normal(0.0, jitter_deg, shape)
-    x, y = pinhole_centroid(
-        true_a,
-        true_b,
-        mask_distance_mm,
-        pixel_pitch_mm,
-        x_cf + hole_offset_px[0],
-        y_cf + hole_offset_px[1],
-        delta_f_mm=delta_f_mm,
-        mounting_deg=mounting_deg,
-    )
-    x = x + rng.normal(0.0, noise_px, shape)
-    y = y + rng.normal(0.0, noise_px, shape)
-    attrs = {
-        "pixel_pitch_mm": float(pixel_pitch_mm),
-        "mask_distance_mm": float(mask_distance_mm),
-        "x_cf_px": float(x_cf),
-        "y_cf_px": float(y_cf),
-        "experiment": str(experiment),
-    }
-    truth = {
-        "true_alpha": (("pose", "shot"), true_a, {"units": "deg"}),
-        "true_beta": (("pose", "shot"), true_b, {"units": "deg"}),
-    }
-    return centroids_dataset(
-        x, y, alpha=alpha, beta=beta, method="synthetic", attrs=attrs, extra=truth
-    )
+        return synthetic_centroids
+    raise AttributeError(f"module 'sunlab.geometry' has no attribute {name!r}")

@@ -21,6 +21,8 @@ Examples
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 import numpy as np
 import pandas as pd
 import xarray as xr
@@ -31,6 +33,7 @@ from .errors import ConfigurationError
 from .stats import ANGLES, rectangles, unstack_poses
 
 __all__ = ["ShownFigure", "new_figure", "error_maps", "error_histogram", "error_rectangles",
+           "fig13_frame", "fig14_bad_holes", "fig15_rectangles", "plot_metric_map",
            "draw_rectangles"]
 
 _LABELS = {"local_error": "local error", "max_error": "maximum error"}
@@ -275,19 +278,7 @@ def draw_rectangles(ax, boxes, *, colors=None, tol: float = 0.02, legend: bool =
     hi_b = max(b[4] for b in boxes)
     span_a = (hi_a - lo_a) or 1.0
     span_b = (hi_b - lo_b) or 1.0
-    groups: list[list[int]] = []
-
-    def distance(b, r):  # largest side difference, in fractions of the axis spans
-        return max(abs(b[1] - r[1]) / span_a, abs(b[2] - r[2]) / span_a,
-                   abs(b[3] - r[3]) / span_b, abs(b[4] - r[4]) / span_b)
-
-    for k, b in enumerate(boxes):
-        # join the group whose first rectangle is nearest, if it is within tol
-        near = min(groups, key=lambda g: distance(b, boxes[g[0]]), default=None)
-        if near is not None and distance(b, boxes[near[0]]) <= tol:
-            near.append(k)
-        else:
-            groups.append([k])
+    groups = _coinciding(boxes, span_a, span_b, tol)
     styles = ["-", "--", ":", "-."]
     rank = {k: n for g in groups for n, k in enumerate(g)}  # place within its group
     for k, (label, a0, a1, b0, b1) in enumerate(boxes):  # patches in the order of `boxes`
@@ -301,6 +292,38 @@ def draw_rectangles(ax, boxes, *, colors=None, tol: float = 0.02, legend: bool =
     pad_a, pad_b = 0.08 * span_a, 0.08 * span_b
     xlim = (lo_a - pad_a, hi_a + 2 * pad_a)
     ylim = (lo_b - pad_b, hi_b + 2 * pad_b)
+    _write_tags(ax, boxes, groups, colors, xlim, ylim)
+    ax.set_xlim(*xlim)
+    ax.set_ylim(*ylim)
+    ax.axhline(0.0, color="0.85", linewidth=0.8, zorder=0)
+    ax.axvline(0.0, color="0.85", linewidth=0.8, zorder=0)
+    ax.xaxis.set_major_locator(MaxNLocator(nbins=5))
+    ax.yaxis.set_major_locator(MaxNLocator(nbins=6))
+    if legend:
+        ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.13), fontsize=8, frameon=False)
+    return groups
+
+
+def _coinciding(boxes, span_a: float, span_b: float, tol: float) -> list[list[int]]:
+    """Groups of rectangles whose sides all agree within ``tol`` of the axis spans."""
+    groups: list[list[int]] = []
+
+    def distance(b, r):  # largest side difference, in fractions of the axis spans
+        return max(abs(b[1] - r[1]) / span_a, abs(b[2] - r[2]) / span_a,
+                   abs(b[3] - r[3]) / span_b, abs(b[4] - r[4]) / span_b)
+
+    for k, b in enumerate(boxes):
+        # join the group whose first rectangle is nearest, if it is within tol
+        near = min(groups, key=lambda g: distance(b, boxes[g[0]]), default=None)
+        if near is not None and distance(b, boxes[near[0]]) <= tol:
+            near.append(k)
+        else:
+            groups.append([k])
+    return groups
+
+
+def _write_tags(ax, boxes, groups, colors, xlim, ylim) -> None:
+    """One tag per group ("1 = 2") at the upper right corner of its first rectangle."""
     placed: list[tuple[float, float]] = []  # tags' corners in axes fractions
     for g in groups:
         _, a0, a1, b0, b1 = boxes[g[0]]
@@ -313,12 +336,185 @@ def draw_rectangles(ax, boxes, *, colors=None, tol: float = 0.02, legend: bool =
         placed.append((fx, fy + 0.045 * lift))
         ax.annotate(tag, (a1, b1), xytext=(2, 2 + 11 * lift), textcoords="offset points",
                     fontsize=9, color=color, fontweight="bold", ha="left", va="bottom")
-    ax.set_xlim(*xlim)
-    ax.set_ylim(*ylim)
-    ax.axhline(0.0, color="0.85", linewidth=0.8, zorder=0)
-    ax.axvline(0.0, color="0.85", linewidth=0.8, zorder=0)
-    ax.xaxis.set_major_locator(MaxNLocator(nbins=5))
-    ax.yaxis.set_major_locator(MaxNLocator(nbins=6))
-    if legend:
-        ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.13), fontsize=8, frameon=False)
-    return groups
+
+
+# --------------------------------------------------------------------------------------------
+# The multi-hole mask: Figs. 13-15 and the map of a defect metric
+# --------------------------------------------------------------------------------------------
+def fig13_frame(frame, cen_frame=None, *, ax=None, bad=None):
+    """Fig. 13: a frame of the 100-hole mask, with the centroids and bad holes marked.
+
+    Parameters
+    ----------
+    frame : array_like, shape (ny, nx)
+        One detector frame, DN.
+    cen_frame : xarray.Dataset, optional
+        The frame's centroids on ``hole`` (``cen.isel(pose=p, shot=s)``).
+    ax : matplotlib Axes, optional
+    bad : array_like of bool, optional
+        Bad holes, circled in red.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+
+    Examples
+    --------
+    >>> fig = fig13_frame(np.zeros((64, 80)))
+    >>> fig.axes[0].get_xlabel()
+    'x (column), px'
+    """
+    import matplotlib.pyplot as plt
+
+    fig = ax.figure if ax is not None else plt.figure(figsize=(7, 5.6))
+    ax = ax or fig.add_subplot()
+    im = ax.imshow(np.asarray(frame), cmap="gray", origin="upper", interpolation="nearest")
+    fig.colorbar(im, ax=ax, label="DN", shrink=0.8)
+    if cen_frame is not None:
+        ax.plot(cen_frame["x"].values, cen_frame["y"].values, "+", color="tab:orange", ms=5,
+                label="centroids")
+        if bad is not None:
+            b = np.asarray(bad, bool)
+            ax.plot(cen_frame["x"].values[b], cen_frame["y"].values[b], "o", mfc="none",
+                    color="red", ms=14, label="rejected holes")
+        ax.legend(loc="lower right", fontsize=8)
+    ax.set_xlabel("x (column), px")
+    ax.set_ylabel("y (row), px")
+    ax.set_title("100-hole mask: one frame (Fig. 13)")
+    return fig
+
+
+def fig14_bad_holes(frame, cen_frame, holes, *, reference=None, half: int = 30, metrics=None):
+    """Fig. 14: stamps of bad holes' spots beside a good one.
+
+    Parameters
+    ----------
+    frame : array_like, shape (ny, nx)
+    cen_frame : xarray.Dataset
+        Centroids of that frame on ``hole``.
+    holes : sequence of int
+        The bad holes to show.
+    reference : int, optional
+        A good hole shown first.
+    half : int
+        Stamp half-size, px.
+    metrics : xarray.Dataset, optional
+        Defect metrics, printed under each stamp.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+
+    Examples
+    --------
+    >>> from sunlab.sim import synthetic_centroids
+    >>> cen = synthetic_centroids([0.0], [0.0], shots=1, layout="grid").isel(pose=0, shot=0)
+    >>> fig = fig14_bad_holes(np.zeros((1024, 1280)), cen, [3, 4], reference=0)
+    >>> len(fig.axes)
+    3
+    """
+    import matplotlib.pyplot as plt
+
+    from .multihole.holes import cutout
+
+    show = ([reference] if reference is not None else []) + [int(h) for h in holes]
+    if not show:
+        raise ConfigurationError("holes: no hole to show; pass at least one hole index")
+    fig, axes = plt.subplots(1, len(show), figsize=(2.6 * len(show), 3.4), squeeze=False,
+                             layout="constrained")
+    frame = np.asarray(frame)
+    for ax, h in zip(axes[0], show, strict=True):
+        x, y = float(cen_frame["x"].values[h]), float(cen_frame["y"].values[h])
+        if np.isfinite(x):
+            st, (x0, y0) = cutout(frame, x, y, half)
+            ax.imshow(st, cmap="magma", origin="upper",
+                      extent=(x0 - 0.5, x0 + st.shape[1] - 0.5, y0 + st.shape[0] - 0.5, y0 - 0.5))
+            ax.plot(x, y, "+", color="cyan")
+        else:
+            ax.text(0.5, 0.5, "no spot", ha="center", transform=ax.transAxes)
+        title = f"hole {h}" + (" (good)" if h == reference else "")
+        if metrics is not None:
+            m = metrics.sel(hole=h) if "hole" in metrics.dims else metrics
+            short = {"flux_deficit": "flux deficit", "ellipticity": "ellipticity",
+                     "asymmetry": "asymmetry", "edge_roughness": "edge roughness"}
+            bits = [f"{name} {float(m[k]):.2g}" for k, name in short.items() if k in m]
+            title += "".join(("\n" if n % 2 == 0 else ", ") + b for n, b in enumerate(bits))
+        ax.set_title(title, fontsize=8)
+        ax.set_xticks([])
+        ax.set_yticks([])
+    fig.suptitle("Spots of bad holes (Fig. 14)", fontsize=10)  # constrained layout: no overlap
+    return fig
+
+
+def fig15_rectangles(table: Mapping[str, Mapping], *, ax=None):
+    """Fig. 15: the paper's rectangles [M - 3 sigma_M, M + 3 sigma_M] in alpha and beta.
+
+    Parameters
+    ----------
+    table : mapping
+        ``{label: {"alpha": {"M": .., "sigma_M": ..}, "beta": {...}}}`` in deg, e.g. the
+        ``stats`` of :func:`sunlab.multihole.gain_study` or the columns of
+        :func:`sunlab.reproduce_table5`.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+
+    Examples
+    --------
+    >>> t = {"1 hole": {"alpha": {"M": 0.0099, "sigma_M": 0.0054},
+    ...                 "beta": {"M": 0.0178, "sigma_M": 0.0080}}}
+    >>> len(fig15_rectangles(t).axes[0].patches)
+    1
+    """
+    import matplotlib.pyplot as plt
+
+    fig = ax.figure if ax is not None else plt.figure(figsize=(6, 5.8), layout="constrained")
+    ax = ax or fig.add_subplot()
+    boxes = [(label, s["alpha"]["M"] - 3 * s["alpha"]["sigma_M"],
+              s["alpha"]["M"] + 3 * s["alpha"]["sigma_M"],
+              s["beta"]["M"] - 3 * s["beta"]["sigma_M"], s["beta"]["M"] + 3 * s["beta"]["sigma_M"])
+             for label, s in table.items()]
+    # numbered rectangles, a shared tag where they coincide, the legend below the axes
+    draw_rectangles(ax, boxes)
+    ax.set_xlabel(r"$\alpha$ error, deg: $M \pm 3\sigma_M$")
+    ax.set_ylabel(r"$\beta$ error, deg: $M \pm 3\sigma_M$")
+    ax.set_title("One hole vs 100 holes (Fig. 15)")
+    return fig
+
+
+
+def plot_metric_map(metrics: xr.Dataset, name: str, *, bad=None, ax=None):
+    """The mask's holes as a map coloured by one defect metric; rejected holes crossed.
+
+    Examples
+    --------
+    >>> from sunlab.multihole import defect_metrics
+    >>> from sunlab.sim import synthetic_centroids
+    >>> cen = synthetic_centroids([0.0, 1.0], [0.0, 1.0], shots=1, layout="grid",
+    ...                           defects={7: {"flux": 0.4}})
+    >>> fig = plot_metric_map(defect_metrics(cen), "flux_deficit")
+    >>> fig.axes[0].get_title()
+    'flux_deficit'
+    """
+    import matplotlib.pyplot as plt
+
+    from .multihole import hole_grid, metric_scale
+
+    if name not in metrics:
+        raise ConfigurationError(f"name: metric {name!r} not in {list(metrics.data_vars)}")
+    i, j, nr, nc = hole_grid(metrics)
+    grid = np.full((nr, nc), np.nan)
+    grid[i, j] = metrics[name].values
+    fig = ax.figure if ax is not None else plt.figure(figsize=(4.8, 4))
+    ax = ax or fig.add_subplot()
+    lo, hi = metric_scale(metrics[name].values)
+    im = ax.imshow(grid, cmap="viridis", origin="upper", vmin=lo, vmax=hi)
+    fig.colorbar(im, ax=ax, label=metrics[name].attrs.get("units", ""), extend="both")
+    if bad is not None:
+        b = np.asarray(bad, bool)
+        ax.plot(j[b], i[b], "x", color="red", ms=12, mew=2)
+    ax.set_xlabel("hole column j")
+    ax.set_ylabel("hole row i")
+    ax.set_title(name)
+    return fig

@@ -34,6 +34,7 @@ np.float64(0.15)
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 
 import numpy as np
@@ -49,6 +50,7 @@ __all__ = [
     "shot_errors",
     "local_errors",
     "global_stats",
+    "error_summary",
     "rectangles",
     "unstack_poses",
     "paper_table4",
@@ -232,6 +234,52 @@ def global_stats(local, *, ddof: int = 1) -> pd.DataFrame:
         cols[str(name)] = _column(ds, ddof)
     index = pd.MultiIndex.from_product([ANGLES, STATS], names=["angle", "stat"])
     return pd.DataFrame(cols, index=index)
+
+
+def error_summary(est: xr.Dataset) -> dict:
+    """The paper's global statistics of one estimate as a dict per angle, plus the RMS.
+
+    Local error = mean over the shots of |error|, maximum error = max over the shots; mu and
+    sigma are the mean and (sample) standard deviation of the local errors over the poses, M and
+    sigma_M those of the maximum errors (docs/paper.md sec. 5), computed by :func:`global_stats`
+    (the table of several estimates side by side; this is one estimate's column as a dict).
+    ``rms`` is the root mean square of the per-shot errors and ``n_poses`` the number of poses
+    with at least one usable estimate. A hole never seen (no usable estimate: off the detector
+    over the whole plan, or left without a calibration) gives NaN statistics with
+    ``n_poses = 0``, not a warning.
+
+    Parameters
+    ----------
+    est : xarray.Dataset
+        Estimates ``alpha``, ``beta`` on (pose, shot) with the commanded angles ``alpha_cmd``,
+        ``beta_cmd`` as coordinates (the strategies' output), or signed errors (no ``*_cmd``).
+
+    Examples
+    --------
+    >>> e = xr.Dataset({"alpha": (("pose", "shot"), [[0.1, -0.3], [0.2, 0.2]]),
+    ...                 "beta": (("pose", "shot"), [[0.0, 0.0], [0.0, 0.0]])})
+    >>> s = error_summary(e)
+    >>> round(s["alpha"]["mu"], 6), round(s["alpha"]["M"], 6), s["alpha"]["n_poses"]
+    (0.2, 0.25, 2)
+    >>> error_summary(e * np.nan)["beta"]["n_poses"]                   # a hole never seen
+    0
+    """
+    ref = None
+    if "alpha_cmd" not in est.variables or "beta_cmd" not in est.variables:
+        ref = {"alpha": xr.DataArray(0.0), "beta": xr.DataArray(0.0)}
+    loc = local_errors(est[["alpha", "beta"]], ref)
+    table = global_stats({"m": loc})["m"]
+    err = shot_errors(est[["alpha", "beta"]], ref)
+    out = {}
+    for name in ("alpha", "beta"):
+        e = np.asarray(err[name].values, dtype=float)
+        e = e[np.isfinite(e)]
+        n_poses = int(np.isfinite(loc["local_error"].sel(angle=name).values).sum())
+        out[name] = {k: float(table.loc[(name, k)]) if n_poses else math.nan
+                     for k in STATS}
+        out[name]["rms"] = float(np.sqrt(np.mean(e**2))) if e.size else math.nan
+        out[name]["n_poses"] = n_poses
+    return out
 
 
 def rectangles(table: pd.DataFrame) -> pd.DataFrame:

@@ -19,10 +19,11 @@ notebook executed with its widget state saved (Jupyter's default, nbclient's
 
 Examples
 --------
->>> from sunlab import multihole as mh
 >>> import numpy as np
+>>> from sunlab.sim import synthetic_centroids
 >>> a = np.repeat(np.linspace(-8, 2, 5), 5); b = np.tile(np.linspace(-2, 8, 5), 5)
->>> cen = mh.synthetic_centroids(a, b, shots=2, noise_px=0.01, defects={7: {"sigma_px": 1.0}})
+>>> cen = synthetic_centroids(a, b, shots=2, layout="grid", noise_px=0.01,
+...                           defects={7: {"sigma_px": 1.0}})
 >>> ex = HoleExplorer(None, cen, order=2)
 >>> ex.buttons[7].click()
 >>> ex.selected, ex.buttons[7].description          # hole 7 is flagged from the start
@@ -38,8 +39,8 @@ import io
 import numpy as np
 import xarray as xr
 
-from . import multihole as mh
 from .errors import ConfigurationError
+from .multihole import HoleReview, cutout, metric_scale, review_holes
 
 __all__ = ["HoleExplorer", "figure_output"]
 
@@ -83,6 +84,9 @@ class HoleExplorer:
     centroids : xarray.Dataset
         Centroid table on (pose, shot, hole), the experiment whose statistics are shown
         (usually the test experiment III).
+    review : sunlab.multihole.HoleReview, optional
+        The per-hole results shown (:func:`sunlab.multihole.review_holes` of ``centroids``);
+        the explorer is a view over them. Default: reviewed here from the arguments below.
     strategy : sunlab.multihole.PerHoleAverage, optional
         Fitted per-hole calibrations. Default: fitted on ``train`` (or on ``centroids`` itself,
         in which case the statistics are training residuals).
@@ -128,47 +132,45 @@ class HoleExplorer:
         Holes in the average.
     stats : dict
         Current global statistics: ``{"included": ..., "all": ..., "hole": ...}`` as returned
-        by :func:`sunlab.multihole.global_stats`.
+        by :meth:`sunlab.multihole.HoleReview.stats` (:func:`sunlab.stats.error_summary`).
     ui : ipywidgets.VBox
         The whole explorer (displayed when the object is the last expression of a cell).
     """
 
-    def __init__(self, cube, centroids: xr.Dataset, *, strategy=None, train=None, metrics=None,
-                 order: int = 5, metric: str | None = None, pose: int = 0, shot: int = 0,
-                 half: int = 30, kappa: float = 5.0):
-        import ipywidgets as w
-
-        if "hole" not in centroids.dims:
-            raise ConfigurationError(
-                "centroids: found dims " f"{tuple(centroids.dims)}, expected (pose, shot, hole); "
-                "centroid the cube with a multi-spot method"
-            )
+    def __init__(self, cube, centroids: xr.Dataset, *, review: HoleReview | None = None,
+                 strategy=None, train=None, metrics=None, order: int = 5,
+                 metric: str | None = None, pose: int = 0, shot: int = 0, half: int = 30,
+                 kappa: float = 5.0):
+        self.review = review or review_holes(centroids, strategy=strategy, train=train,
+                                             metrics=metrics, order=order, kappa=kappa)
         self.cube = cube
         self.centroids = centroids
         self.half = int(half)
-        base = train if train is not None else centroids
-        self.strategy = strategy or mh.PerHoleAverage(order=order).fit(base)
-        self.metrics = metrics if metrics is not None else mh.defect_metrics(
-            base, strategy=self.strategy)
-        self.flagged = mh.reject_bad_holes(self.metrics, kappa=kappa).values
-        self.injected = _injected(centroids if "hole_defect" in centroids.coords else base)
-        self.estimates = self.strategy.predict_holes(centroids)
-        self._i, self._j, nr, nc = mh.hole_grid(centroids)
-        n_h = centroids.sizes["hole"]
-        self.included = np.ones(n_h, dtype=bool)
+        r = self.review
+        self.strategy, self.metrics, self.estimates = r.strategy, r.metrics, r.estimates
+        self.flagged, self.injected = r.flagged, r.injected
+        self._i, self._j = r.hole_i, r.hole_j
+        self.included = np.ones(r.n_holes, dtype=bool)
         self.selected = 0
         self._frame_cache: dict = {}
-        self._all_stats = mh.global_stats(self.strategy.combine(self.estimates,
-                                                                holes=np.ones(n_h, bool)))
-
         names = list(self.metrics.data_vars)
         if metric is None:
             metric = "scatter" if "scatter" in names else names[0]
         if metric not in names:
             raise ConfigurationError(f"metric: found {metric!r}, expected one of {names}")
+        self._build_widgets(names, metric, pose, shot)
+        self._connect()
+        self.ui = self._layout()
+        self._paint()
+        self.select(self.selected)
+
+    def _build_widgets(self, names, metric, pose, shot) -> None:
+        import ipywidgets as w
+
+        nc = self.review.n_cols
         self.metric = w.Dropdown(options=names, value=metric, description="colour by")
         self.buttons = []
-        for h in range(n_h):
+        for h in range(self.review.n_holes):
             b = w.Button(description=str(h), layout=w.Layout(width="46px", height="30px",
                                                              padding="0px"))
             b.hole = h
@@ -189,7 +191,7 @@ class HoleExplorer:
                                        "stay out")
         self.include_all = w.Button(description="reset: include all",
                                     tooltip="put every hole back into the average")
-        n_p, n_s = centroids.sizes["pose"], centroids.sizes["shot"]
+        n_p, n_s = self.centroids.sizes["pose"], self.centroids.sizes["shot"]
         self.pose = w.IntSlider(value=int(pose), min=0, max=n_p - 1, description="pose")
         self.shot = w.IntSlider(value=int(shot), min=0, max=n_s - 1, description="shot")
         self.stamp_out = w.Output(layout=w.Layout(width="330px", min_height="300px"))
@@ -201,6 +203,8 @@ class HoleExplorer:
                             (self.colorbar_out, "sunlab-colorbar"), (self.info, "sunlab-info")):
             widget.add_class(css)  # stable handles for browser tests and styling
 
+    def _connect(self) -> None:
+        n_h = self.review.n_holes
         self.metric.observe(lambda ch: self._paint(), names="value")
         self.include.observe(self._on_include, names="value")
         self.reject.on_click(lambda _: self.set_included(self.included & ~self.flagged))
@@ -208,20 +212,22 @@ class HoleExplorer:
         self.pose.observe(lambda ch: self._show_stamp(), names="value")
         self.shot.observe(lambda ch: self._show_stamp(), names="value")
 
+    def _layout(self):
+        import ipywidgets as w
+
+        nc = self.review.n_cols
         left = w.VBox([self.metric, self.grid, self.colorbar_out, self.legend,
                        w.HBox([self.reject, self.include_all])],
                       layout=w.Layout(width=f"{50 * nc + 20}px", flex="0 0 auto"))
         right = w.VBox([w.HBox([self.include, self.pose, self.shot]),
                         w.HBox([self.stamp_out, self.residual_out]), self.info],
                        layout=w.Layout(flex="1 1 auto"))
-        self.ui = w.VBox([w.HTML("<b>Holes of the mask</b>: click a hole; colour = defect "
-                                 "metric; ⚑ = flagged by the automatic rejection; "
-                                 "✕ = left out of the average"
-                                 + ("; <u>underlined</u> = defect injected by the simulator"
-                                    if self.injected else "")),
-                          w.HBox([left, right]), self.stats_html])
-        self._paint()
-        self.select(self.selected)
+        return w.VBox([w.HTML("<b>Holes of the mask</b>: click a hole; colour = defect "
+                              "metric; ⚑ = flagged by the automatic rejection; "
+                              "✕ = left out of the average"
+                              + ("; <u>underlined</u> = defect injected by the simulator"
+                                 if self.injected else "")),
+                       w.HBox([left, right]), self.stats_html])
 
     # ---------------------------------------------------------------------- display
     def _repr_mimebundle_(self, **kwargs):
@@ -282,7 +288,7 @@ class HoleExplorer:
 
         name = self.metric.value
         v = np.asarray(self.metrics[name].values, dtype=float)
-        lo, hi = mh.metric_scale(v)
+        lo, hi = metric_scale(v)
         cmap = mpl.colormaps["viridis"]
         for h, b in enumerate(self.buttons):
             if np.isfinite(v[h]):
@@ -331,7 +337,7 @@ class HoleExplorer:
 
     def _show_info(self) -> None:
         h = self.selected
-        z = mh.robust_z(self.metrics)
+        z = self.review.z
         rows = "".join(
             f"<tr><td>{html.escape(k)}</td><td>{float(self.metrics[k][h]):.4g}</td>"
             f"<td>{float(z[k][h]):+.1f}</td></tr>"
@@ -363,7 +369,7 @@ class HoleExplorer:
         elif not np.isfinite(x):
             ax.text(0.5, 0.5, "no spot in this frame", ha="center", transform=ax.transAxes)
         else:
-            st, (x0, y0) = mh._stamp(self._frame(p, s), x, y, self.half)
+            st, (x0, y0) = cutout(self._frame(p, s), x, y, self.half)
             ax.imshow(st, cmap="magma", origin="upper",
                       extent=(x0 - 0.5, x0 + st.shape[1] - 0.5, y0 + st.shape[0] - 0.5,
                               y0 - 0.5))
@@ -377,19 +383,16 @@ class HoleExplorer:
         fig.subplots_adjust(left=0.2, right=0.97, bottom=0.15, top=0.86)
         figure_output(self.stamp_out, fig, f"close-up of hole {h}")
 
-    def _combined(self):
-        return self.strategy.combine(self.estimates, holes=self.included)
-
     def _show_residuals(self) -> None:
         import matplotlib.pyplot as plt
 
         h = self.selected
-        comb = self._combined()
+        res = self.review.residual_map(h, self.included)
         fig, axes = plt.subplots(1, 2, figsize=(5.6, 3.0), sharey=True, layout="constrained")
         a_cmd = self.estimates["alpha_cmd"].values
         b_cmd = self.estimates["beta_cmd"].values
         for ax, name in zip(axes, ("alpha", "beta"), strict=True):
-            r = (self.estimates[name].isel(hole=h) - comb[name]).mean("shot").values * 1e3
+            r = res[name] * 1e3
             lim = np.nanmax(np.abs(r)) if np.isfinite(r).any() else 1.0
             sc = ax.scatter(a_cmd, b_cmd, c=r, cmap="coolwarm", vmin=-lim, vmax=lim, s=22)
             cb = fig.colorbar(sc, ax=ax, shrink=0.85, location="bottom", pad=0.02)
@@ -404,12 +407,10 @@ class HoleExplorer:
     def _update_stats(self) -> None:
         h = self.selected
         n = int(self.included.sum())
-        inc = mh.global_stats(self._combined()) if n else None
-        one = mh.global_stats(self.estimates.isel(hole=h))
-        self.stats = {"included": inc, "all": self._all_stats, "hole": one}
-        cols = [(f"average of {n} included holes", inc),
-                (f"average of all {len(self.included)} holes", self._all_stats),
-                (f"hole {h} alone", one)]
+        self.stats = self.review.stats(self.included, h)
+        cols = [(f"average of {n} included holes", self.stats["included"]),
+                (f"average of all {len(self.included)} holes", self.stats["all"]),
+                (f"hole {h} alone", self.stats["hole"])]
         head = "".join(f"<th>{html.escape(c)}</th>" for c, _ in cols)
         body = ""
         for a in ("alpha", "beta"):
@@ -423,14 +424,3 @@ class HoleExplorer:
             "<b>Global statistics (deg), per-hole calibration then average</b>"
             f"<table><tr><th>angle</th><th>stat</th>{head}</tr>{body}</table>"
         )
-
-
-def _injected(cen: xr.Dataset) -> dict[int, str]:
-    """Holes that the simulator gave defects (``hole_defect`` bit flags), with their kinds."""
-    if "hole_defect" not in cen.coords:
-        return {}
-    from .sim.mask import DEFECT_FLAGS
-
-    flags = np.asarray(cen["hole_defect"].values, dtype=int)
-    return {int(h): "+".join(k for k, bit in DEFECT_FLAGS.items() if flags[h] & bit) or "defect"
-            for h in np.flatnonzero(flags)}

@@ -25,12 +25,13 @@ ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking",
 CELL = '''\
 import numpy as np
 import dask.array as da
-from sunlab import multihole as mh, schema
+from sunlab import multihole as mh, schema, sim
 from sunlab.widgets import HoleExplorer
 
 a = np.repeat(np.linspace(-8.0, 2.0, 4), 4)
 b = np.tile(np.linspace(-2.0, 8.0, 4), 4)
-cen = mh.synthetic_centroids(a, b, shots=1, noise_px=0.01, defects={7: {"sigma_px": 1.5}})
+cen = sim.synthetic_centroids(a, b, shots=1, layout="grid", noise_px=0.01,
+                              defects={7: {"sigma_px": 1.5}})
 frame = np.zeros((1024, 1280), np.uint16)
 yy, xx = np.mgrid[:1024, :1280]
 for x, y in zip(cen.x.values[0, 0], cen.y.values[0, 0]):

@@ -103,26 +103,11 @@ def test_mounting_beta_error_is_not_additive_off_axis():
     assert abs(float(a) + 17.0) + abs(float(b)) < 1e-9
 
 
-def test_synthetic_centroids_contract_truth_and_determinism():
-    a, b = _grid(5.0)
-    kw = dict(shots=3, delta_f_mm=0.05, pose_error_deg=(0.02, 0.04), jitter_deg=1e-3,
-              noise_px=0.01, seed=7, experiment="I")
-    c1 = geometry.synthetic_centroids(a, b, **kw)
-    c2 = geometry.synthetic_centroids(a, b, **kw)
-    assert c1.x.dims == ("pose", "shot") and c1.sizes["shot"] == 3
-    assert c1.attrs["experiment"] == "I" and c1.attrs["sunlab_schema"] == "centroids/1"
-    assert_allclose(c1.x, c2.x, rtol=0, atol=0)
-    err = (c1.true_beta - c1.beta).values
-    assert np.abs(err).max() < 0.04 + 5e-3
-    # per-pose error is common to the shots of a pose, jitter is not
-    assert np.abs(err - err.mean(axis=1, keepdims=True)).max() < 6e-3
-    noise_free = geometry.synthetic_centroids(a, b, shots=1)
-    assert_allclose(noise_free.x[:, 0], geometry.ideal_centroid(a, b, F, P, 639.5, 511.5)[0],
-                    atol=1e-9)
-
-
-def test_synthetic_centroids_bad_input():
-    with pytest.raises(ConfigurationError, match="alpha, beta"):
-        geometry.synthetic_centroids([0.0, 1.0], [0.0])
-    with pytest.raises(ConfigurationError, match="shots"):
-        geometry.synthetic_centroids([0.0], [0.0], shots=0)
+def test_rotations_are_right_handed_and_orthogonal():
+    for rot in (geometry.rotation_x, geometry.rotation_y, geometry.rotation_z):
+        r = rot(0.3)
+        assert_allclose(r @ r.T, np.eye(3), atol=1e-15)
+        assert_allclose(np.linalg.det(r), 1.0)
+    assert_allclose(geometry.mounting_matrix(1.0, 2.0, 3.0),
+                    geometry.rotation_z(np.deg2rad(3.0)) @ geometry.rotation_y(np.deg2rad(-1.0))
+                    @ geometry.rotation_x(np.deg2rad(2.0)), rtol=0, atol=0)

@@ -11,7 +11,10 @@ import xarray as xr
 from numpy.testing import assert_allclose
 
 from sunlab import multihole as mh
+from sunlab.errors import ConfigurationError
 from sunlab.schema import STATUS
+from sunlab.sim import HoleLayout, Mask, synthetic_centroids
+from sunlab.stats import error_summary
 
 # A small field of view: 7 x 7 poses over the paper's test range (deg).
 A = np.repeat(np.linspace(-16.5, 1.5, 7), 7)
@@ -21,44 +24,10 @@ K_DEG_PER_PX = np.rad2deg(0.007 / 5.0)  # about 0.08 deg per pixel at F = 5 mm
 
 def table(seed, shift=0.0, **kw):
     kw.setdefault("shots", 2)
-    return mh.synthetic_centroids(A + shift, B + shift, seed=seed, **kw)
+    return synthetic_centroids(A + shift, B + shift, seed=seed, layout="grid", **kw)
 
 
 # ---------------------------------------------------------------------------- hole indexing
-@pytest.mark.parametrize("drop", [[], [0, 1, 2], list(range(0, 100, 10)), list(range(50, 100))])
-@pytest.mark.parametrize("shift", [(0.0, 0.0), (-180.0, 35.0), (20.0, 210.0)])
-def test_assign_holes_survives_missing_and_shuffled_spots(drop, shift):
-    dx, dy, _, _ = mh.grid_layout(10)
-    rng = np.random.default_rng(3)
-    keep = np.setdiff1d(np.arange(100), drop)
-    order = rng.permutation(keep)
-    x = dx[order] + shift[0] + rng.normal(0, 0.3, order.size)
-    y = dy[order] + shift[1] + rng.normal(0, 0.3, order.size)
-    # the commanded pose predicts the shift to a few pixels
-    got = mh.assign_holes(x, y, dx, dy, shift=(shift[0] + 4.0, shift[1] - 3.0))
-    assert got.tolist() == order.tolist()
-
-
-def test_assign_holes_a_lost_column_needs_the_pose_prior():
-    # the first column is off the detector: without a prior, one pitch to the left fits 90 of 90
-    # spots just as well; the commanded pose picks the right one
-    dx, dy, _, j = mh.grid_layout(10)
-    keep = np.flatnonzero(j > 0)
-    got = mh.assign_holes(dx[keep] + 5.0, dy[keep], dx, dy, shift=(0.0, 0.0))
-    assert got.tolist() == keep.tolist()
-    wrong = mh.assign_holes(dx[keep] + 5.0, dy[keep], dx, dy, shift=(71.4, 0.0))
-    assert wrong.tolist() == (keep - 1).tolist()
-
-
-def test_assign_holes_ignores_stray_spots_and_nan():
-    dx, dy, _, _ = mh.grid_layout(10)
-    x = np.concatenate([dx + 2.0, [5.0, np.nan], [dx[0] + 2.0 + 35.0]])
-    y = np.concatenate([dy - 1.0, [5.0, np.nan], [dy[0] - 1.0]])
-    got = mh.assign_holes(x, y, dx, dy)
-    assert got[:100].tolist() == list(range(100))
-    assert got[100:].tolist() == [-1, -1, -1]
-
-
 def test_hole_grid_from_coordinates_and_fallback():
     cen = table(0, shots=1)
     i, j, nr, nc = mh.hole_grid(cen)
@@ -173,8 +142,8 @@ def test_injected_defects_are_flagged_and_only_them(defective):
 
 def test_edge_clipping_is_not_a_defect():
     # a grid sitting low on the detector: its first row leaves it at the lowest beta
-    x, y, i, j = mh.grid_layout(10, centre_px=(572.0, 350.0))
-    cen = mh.synthetic_centroids(A, B, shots=1, x_cf=x, y_cf=y, hole_i=i, hole_j=j)
+    layout = HoleLayout.from_mask(Mask.grid(), centre_px=(572.0, 350.0))
+    cen = synthetic_centroids(A, B, shots=1, layout=layout)
     assert (cen.status == STATUS["clipped"]).any()
     assert not mh.reject_bad_holes(mh.defect_metrics(cen)).any()
 
@@ -183,10 +152,10 @@ def test_rejection_improves_the_statistics(defective):
     train, test, s2 = defective
     est = s2.predict_holes(test)
     bad = mh.reject_bad_holes(mh.defect_metrics(train, strategy=s2)).values
-    plain = mh.global_stats(s2.combine(est))
+    plain = error_summary(s2.combine(est))
     robust = mh.PerHoleAverage(order=4, holes=~bad, weighting="inverse_variance", clip=4.0,
                                calibrations_=s2.calibrations_, variance_=s2.variance_)
-    rej = mh.global_stats(robust.combine(est))
+    rej = error_summary(robust.combine(est))
     for angle in ("alpha", "beta"):
         assert rej[angle]["mu"] < 0.8 * plain[angle]["mu"]
         assert rej[angle]["M"] < 0.8 * plain[angle]["M"]
@@ -234,17 +203,6 @@ def test_error_budget_separates_common_and_specific():
     assert b["alpha"]["gain_limit"] < 0.5 * b["alpha"]["sqrt_n"]
 
 
-# ------------------------------------------------------------------------------ layouts
-def test_random_layout_respects_separation_and_seed():
-    x1, y1 = mh.random_layout(100, seed=4)
-    x2, y2 = mh.random_layout(100, seed=4)
-    assert_allclose(x1, x2)
-    d = np.hypot(x1[:, None] - x1, y1[:, None] - y1) + 1e9 * np.eye(100)
-    assert d.min() * 0.007 >= 0.35
-    with pytest.raises(mh.ConfigurationError, match="min_sep_mm"):
-        mh.random_layout(100, min_sep_mm=2.0)
-
-
 # ------------------------------------------------------------------------------ figures
 def test_figures(defective):
     import matplotlib.pyplot as plt
@@ -264,7 +222,7 @@ def test_figures(defective):
     assert len(figs[2].axes[0].patches) == 1
     for f in figs:
         plt.close(f)
-    with pytest.raises(mh.ConfigurationError, match="metric"):
+    with pytest.raises(ConfigurationError, match="metric"):
         mh.plot_metric_map(m, "nope")
 
 
@@ -341,16 +299,16 @@ def test_dusty_holes_are_flagged_from_the_calibration_frames(dusty_bench):
 def test_rejection_pays_only_when_the_dust_moves(dusty_bench, case):
     s2, bad, tests = dusty_bench
     est = s2.predict_holes(tests[case])
-    plain = mh.global_stats(s2.combine(est))
-    rej = mh.global_stats(s2.combine(est, holes=~bad))
-    singles = [mh.global_stats(est.isel(hole=h)) for h in np.flatnonzero(~bad)]
+    plain = error_summary(s2.combine(est))
+    rej = error_summary(s2.combine(est, holes=~bad))
+    singles = [error_summary(est.isel(hole=h)) for h in np.flatnonzero(~bad)]
     # holes without a calibration of their own (seen at too few training poses) have no
     # estimate: they report n_poses = 0 and NaN, without a warning
     seen = [s for s in singles if s["alpha"]["n_poses"] > 0]
     assert 0 < len(singles) - len(seen) <= 4
     assert all(np.isnan(s["beta"]["mu"]) for s in singles if s["beta"]["n_poses"] == 0)
     good_mu = {a: np.median([s[a]["mu"] for s in seen]) for a in ("alpha", "beta")}
-    dusty_mu = {a: np.median([mh.global_stats(est.isel(hole=h))[a]["mu"] for h in DUSTY])
+    dusty_mu = {a: np.median([error_summary(est.isel(hole=h))[a]["mu"] for h in DUSTY])
                 for a in ("alpha", "beta")}
     ratio = {a: rej[a]["mu"] / plain[a]["mu"] for a in ("alpha", "beta")}
     if case == "moved":
@@ -398,11 +356,11 @@ def test_edge_roughness_flags_burred_holes_and_no_good_one():
 def test_per_hole_calibration_needs_poses_per_coefficient():
     # a cubic has 10 coefficients: a hole needs 15 poses (1.5 per coefficient) of its own
     a, b = np.repeat(np.linspace(-8, 2, 4), 4), np.tile(np.linspace(-2, 8, 4), 4)
-    cen = mh.synthetic_centroids(a, b, shots=1, defects={3: {"missing": 0.5}}, seed=2)
+    cen = synthetic_centroids(a, b, shots=1, layout="grid", defects={3: {"missing": 0.5}}, seed=2)
     s2 = mh.PerHoleAverage(order=3).fit(cen)
     seen = mh.usable(cen).values[:, 0, 3].sum()
     assert seen < 15 and s2.calibrations_[3] is None
     assert sum(c is not None for c in s2.calibrations_) == 99
     assert np.isnan(s2.predict_holes(cen).alpha.values[..., 3]).all()
-    with pytest.raises(mh.ConfigurationError, match="training poses"):
+    with pytest.raises(ConfigurationError, match="training poses"):
         mh.PerHoleAverage(order=4).fit(cen)  # 15 coefficients: 23 poses needed, 16 given

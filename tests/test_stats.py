@@ -126,3 +126,16 @@ def test_global_stats_bad_input():
         stats.global_stats({})
     with pytest.raises(SchemaError, match="local_error"):
         stats.global_stats({"m": xr.Dataset()})
+
+
+def test_error_summary_is_one_column_of_global_stats():
+    rng = np.random.default_rng(1)
+    e = xr.Dataset({a: (("pose", "shot"), rng.normal(0, 0.01, (6, 3))) for a in ("alpha", "beta")})
+    s = stats.error_summary(e)
+    ref = {"alpha": xr.DataArray(0.0), "beta": xr.DataArray(0.0)}
+    table = stats.global_stats({"m": stats.local_errors(e, ref)})["m"]
+    for a in ("alpha", "beta"):
+        for k in stats.STATS:
+            assert s[a][k] == float(table.loc[(a, k)])
+        assert s[a]["n_poses"] == 6
+        assert s[a]["rms"] == pytest.approx(float(np.sqrt((e[a] ** 2).mean())))

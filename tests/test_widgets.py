@@ -7,6 +7,8 @@ import pytest
 
 from sunlab import multihole as mh
 from sunlab import schema
+from sunlab.errors import ConfigurationError
+from sunlab.sim import synthetic_centroids
 
 pytest.importorskip("ipywidgets")
 from sunlab.widgets import HoleExplorer, figure_output  # noqa: E402
@@ -36,9 +38,9 @@ def _cube_from(cen, half=14, shape=(1024, 1280)):
 
 @pytest.fixture(scope="module")
 def explorer():
-    train = mh.synthetic_centroids(A, B, shots=2, noise_px=0.01, hole_sigma_px=0.03,
+    train = synthetic_centroids(A, B, shots=2, layout="grid", noise_px=0.01, hole_sigma_px=0.03,
                                    defects=BAD, seed=1)
-    test = mh.synthetic_centroids(A + 0.5, B + 0.5, shots=2, noise_px=0.01,
+    test = synthetic_centroids(A + 0.5, B + 0.5, shots=2, layout="grid", noise_px=0.01,
                                   hole_sigma_px=0.03, defects=BAD, seed=2)
     return HoleExplorer(_cube_from(test), test, train=train, order=2)
 
@@ -150,7 +152,7 @@ def test_toggling_holes_changes_the_statistics(explorer):
 
 
 def test_injected_defects_are_shown_beside_the_flags():
-    train = mh.synthetic_centroids(A, B, shots=2, noise_px=0.01, hole_sigma_px=0.03,
+    train = synthetic_centroids(A, B, shots=2, layout="grid", noise_px=0.01, hole_sigma_px=0.03,
                                    defects=BAD, seed=1)
     # simulated truth as the bench writes it: hole 7 dust (1), hole 60 burred (4), a burr that
     # this centroid-level table cannot show, so it is injected but not flagged
@@ -168,9 +170,9 @@ def test_injected_defects_are_shown_beside_the_flags():
 
 
 def test_bad_arguments(explorer):
-    with pytest.raises(mh.ConfigurationError, match="hole"):
+    with pytest.raises(ConfigurationError, match="hole"):
         explorer.select(100)
-    with pytest.raises(mh.ConfigurationError, match="pose, shot, hole"):
+    with pytest.raises(ConfigurationError, match="pose, shot, hole"):
         HoleExplorer(None, explorer.centroids.isel(hole=0))
 
 

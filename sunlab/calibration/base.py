@@ -63,7 +63,8 @@ __all__ = [
     "combine",
 ]
 
-#: Registered kinds: ``kind`` of the artifact -> ``"module:Class"`` in sunlab.calibration.
+#: Registered kinds: ``kind`` of the artifact -> ``"module:Class"`` in sunlab.calibration (or a
+#: full module path: the multi-hole strategies of :mod:`sunlab.multihole.strategies`).
 KINDS: dict[str, str] = {
     "ideal": "model:IdealModel",
     "optimised": "model:OptimisedModel",
@@ -72,6 +73,8 @@ KINDS: dict[str, str] = {
     "interpolation-linear": "interpolation:Interpolation",
     "interpolation-cubic": "interpolation:Interpolation",
     "neural": "neural:NeuralNet",
+    "multihole-geometric-centre": "sunlab.multihole.strategies:GeometricCentre",
+    "multihole-per-hole-average": "sunlab.multihole.strategies:PerHoleAverage",
 }
 
 _REQUIRED = ("sunlab_schema", "kind", "sunlab_version", "parameters", "training", "domain",
@@ -521,7 +524,9 @@ class Calibration:
 
 def _class_of(kind: str) -> type[Calibration]:
     module, name = KINDS[kind].split(":")
-    return getattr(importlib.import_module(f"{__package__}.{module}"), name)
+    if "." not in module:
+        module = f"{__package__}.{module}"
+    return getattr(importlib.import_module(module), name)
 
 
 def validate_document(doc) -> dict:

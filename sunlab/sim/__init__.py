@@ -9,7 +9,8 @@ documented with its rationale where it is defined; the module docstring of
 :mod:`sunlab.sim.bench` summarises the error budget (docs/paper.md sec. 8).
 
 Main entry points: :func:`simulate` (a lazy cube of a plan), :func:`render_frame` (one frame),
-:func:`platform_pose` (true angles for commanded ones), :func:`spot_truth` (true centroids).
+:func:`platform_pose` (true angles for commanded ones), :func:`spot_truth` (true centroids);
+:func:`synthetic_centroids` (centroid tables with known truth, no frames rendered).
 
 Examples
 --------
@@ -22,6 +23,7 @@ Examples
 """
 
 from .bench import Bench, plan_key, platform_pose, simulate
+from .centroids import HoleLayout, synthetic_centroids
 from .detector import Detector, FixedPattern, fixed_pattern
 from .mask import DEFECT_FLAGS, Burred, Dust, Elliptical, Hole, Mask, Undersized
 from .platform import Platform, sensor_sun_vector
@@ -66,4 +68,6 @@ __all__ = [
     "frame_key",
     "mask_play",
     "sensor_sun_vector",
+    "HoleLayout",
+    "synthetic_centroids",
 ]

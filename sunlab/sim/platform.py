@@ -59,26 +59,9 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..errors import ConfigurationError
+from ..geometry import rotation_x, rotation_y, rotation_z
 
 __all__ = ["Platform", "sensor_sun_vector", "rotation_x", "rotation_y", "rotation_z"]
-
-
-def rotation_x(t: float) -> np.ndarray:
-    """Right-handed rotation by ``t`` rad about x."""
-    c, s = math.cos(t), math.sin(t)
-    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
-
-
-def rotation_y(t: float) -> np.ndarray:
-    """Right-handed rotation by ``t`` rad about y."""
-    c, s = math.cos(t), math.sin(t)
-    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
-
-
-def rotation_z(t: float) -> np.ndarray:
-    """Right-handed rotation by ``t`` rad about z."""
-    c, s = math.cos(t), math.sin(t)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
 @dataclass(frozen=True)

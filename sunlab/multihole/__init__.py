@@ -1,0 +1,112 @@
+"""The 100-hole mask: hole indexing, the paper's two strategies, defect metrics, bad-hole rejection.
+
+With a mask of N holes every frame holds N spots. The paper (sec. 6) tries two ways to turn them
+into one sun direction, both with polynomial calibration:
+
+1. **Geometric centre** (:class:`GeometricCentre`): the mean of the N spot centroids is calibrated
+   as if it were one spot.
+2. **Per-hole calibration, then averaging** (:class:`PerHoleAverage`): one calibration per hole,
+   and the mean of the N angle estimates.
+
+Averaging N independent errors divides the variance by N, eq. (5); errors common to all holes
+(platform pose error, mask mounting) do not average out, and "bad" holes (dust, defects) spoil the
+mean. One module per concept:
+
+===============================  ==============================================================
+:mod:`~sunlab.multihole.holes`   grid indices, usable spots, cut-outs, centroiding a free layout
+:mod:`~.strategies`              the two strategies, as :class:`sunlab.calibration.Calibration`
+                                 subclasses with save/load; combining per-hole estimates
+:mod:`~.defects`                 per-hole defect metrics, robust z-scores, bad-hole rejection
+:mod:`~.budget`                  the error budget and the gain of N holes over one
+:mod:`~.review`                  every hole's results, what the hole explorer shows
+===============================  ==============================================================
+
+Elsewhere: centroid-level synthetic tables are :func:`sunlab.sim.synthetic_centroids` (with
+``layout="grid"``), a hole layout in mm is :class:`sunlab.sim.Mask`, the global statistics of an
+estimate are :func:`sunlab.stats.error_summary`, and the figures (Figs. 13-15, the metric map) are
+in :mod:`sunlab.plots` (also importable from here).
+
+Conventions: pixel coordinates (x = column, y = row, centre of the first pixel = 0), angles in
+degrees; centroid tables follow contract ``centroids/1`` on dims ``(pose, shot, hole)`` with the
+commanded angles ``alpha``, ``beta`` as coordinates on ``pose`` and, where known, the hole's grid
+row/column ``hole_i``, ``hole_j`` and design position ``hole_x_cf``, ``hole_y_cf`` (px) on ``hole``.
+
+Examples
+--------
+>>> from sunlab import multihole as mh
+>>> from sunlab.sim import synthetic_centroids
+>>> cen = synthetic_centroids([0.0, 1.0], [0.0, 1.0], shots=2, layout="grid",
+...                           defects={7: {"flux": 0.4}})
+>>> np.flatnonzero(mh.reject_bad_holes(mh.defect_metrics(cen)).values).tolist()
+[7]
+
+References
+----------
+.. [1] docs/paper.md, sec. 6 and Table 5 (the 2005 preprint on the Naples APS sun sensor).
+"""
+
+from __future__ import annotations
+
+import numpy as np  # noqa: F401  (the examples)
+
+from .budget import error_budget, gain_study
+from .defects import (
+    DEFECT_METRICS,
+    defect_metrics,
+    edge_roughness,
+    metric_scale,
+    reject_bad_holes,
+    residual_metrics,
+    robust_z,
+    stamp_metrics,
+)
+from .holes import cutout, hole_grid, locate_layout, usable
+from .review import HoleReview, injected_defects, review_holes
+from .strategies import (
+    GeometricCentre,
+    PerHoleAverage,
+    angle_errors,
+    combine_estimates,
+    geometric_centre,
+)
+
+#: The figures live in :mod:`sunlab.plots`; importable from here too (loaded on first use).
+_FIGURES = ("fig13_frame", "fig14_bad_holes", "fig15_rectangles", "plot_metric_map")
+
+__all__ = [
+    "hole_grid",
+    "usable",
+    "cutout",
+    "locate_layout",
+    "geometric_centre",
+    "GeometricCentre",
+    "PerHoleAverage",
+    "combine_estimates",
+    "angle_errors",
+    "stamp_metrics",
+    "edge_roughness",
+    "residual_metrics",
+    "defect_metrics",
+    "robust_z",
+    "reject_bad_holes",
+    "metric_scale",
+    "DEFECT_METRICS",
+    "error_budget",
+    "gain_study",
+    "HoleReview",
+    "review_holes",
+    "injected_defects",
+    *_FIGURES,
+]
+
+
+def __getattr__(name: str):
+    if name in _FIGURES:
+        from .. import plots
+
+        return getattr(plots, name)
+    raise AttributeError(f"module 'sunlab.multihole' has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_FIGURES))

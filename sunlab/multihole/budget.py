@@ -1,0 +1,132 @@
+"""The gain of N holes over one (eq. 5) and its error budget: what averaging can and cannot do.
+
+Averaging N independent errors divides the variance by N, eq. (5); errors common to all holes
+(platform pose error, mask mounting) do not average out, and bad holes spoil the mean.
+:func:`error_budget` splits the per-hole errors into their common and hole-specific parts and
+predicts the gain; :func:`gain_study` measures it for both strategies, with and without the
+rejection of bad holes (:mod:`sunlab.multihole.defects`).
+
+References
+----------
+.. [1] docs/paper.md, sec. 6 and Table 5 (the 2005 preprint on the Naples APS sun sensor).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import xarray as xr
+
+from ..errors import ConfigurationError
+from ..stats import error_summary
+from .defects import defect_metrics, reject_bad_holes
+from .strategies import GeometricCentre, PerHoleAverage, angle_errors
+
+__all__ = ["error_budget", "gain_study"]
+
+
+def error_budget(est: xr.Dataset, holes=None) -> dict:
+    """Split the per-hole test errors into a part common to all holes and a hole-specific part.
+
+    With e_h the error of hole h's estimate in a frame, the common part is the mean over holes
+    e_bar and the specific part e_h - e_bar. For N holes with independent specific errors of
+    variance s^2 and a common error of variance c^2, one hole has variance c^2 + s^2 and the
+    average c^2 + s^2 / N, so the gain in standard deviation is at most
+    sqrt((c^2 + s^2) / (c^2 + s^2 / N)), which tends to sqrt(N) (eq. 5) only when c -> 0.
+
+    Returns
+    -------
+    dict per angle: ``single`` (RMS of one hole's error), ``common`` (RMS of the common part,
+    corrected for the specific part's leftover s/sqrt(N)), ``specific`` (RMS of the specific
+    part), ``n_holes``, ``gain_limit`` (the predicted gain) and ``sqrt_n``.
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(0)
+    >>> e = rng.normal(0, 1, (400, 1, 100)) + rng.normal(0, 0.3, (400, 1, 1))
+    >>> dims = ("pose", "shot", "hole")
+    >>> est = xr.Dataset({"alpha": (dims, e), "beta": (dims, e)},
+    ...                  coords={"alpha_cmd": ("pose", np.zeros(400)),
+    ...                          "beta_cmd": ("pose", np.zeros(400))})
+    >>> b = error_budget(est)["alpha"]
+    >>> round(b["specific"], 1), round(b["common"], 1)
+    (1.0, 0.3)
+    """
+    err = angle_errors(est)
+    out = {}
+    for name in ("alpha", "beta"):
+        e = err[name]
+        if holes is not None:
+            e = e.where(xr.DataArray(np.asarray(holes, bool), dims="hole"))
+        n = float(np.isfinite(e).sum("hole").mean())
+        mean = e.mean("hole")
+        spec = e - mean
+        s2 = float((spec**2).mean()) * n / max(n - 1, 1)
+        m2 = float((mean**2).mean())
+        c2 = max(m2 - s2 / n, 0.0)
+        single = float(np.sqrt((e**2).mean()))
+        out[name] = {"single": single, "common": math.sqrt(c2), "specific": math.sqrt(s2),
+                     "n_holes": n, "gain_limit": math.sqrt((c2 + s2) / (c2 + s2 / n)),
+                     "sqrt_n": math.sqrt(n)}
+    return out
+
+
+def gain_study(train: xr.Dataset, test: xr.Dataset, *, order: int = 5, model=None,
+               cube=None, kappa: float = 5.0, clip: float = 4.0) -> dict:
+    """How far 100 holes get toward the sqrt(N) of eq. (5), with and without bad-hole rejection.
+
+    Fits both strategies and the per-hole calibrations on ``train``; on ``test`` compares one
+    hole (every good hole alone: the median of their statistics, and the best single hole), the
+    geometric centre, the plain average, and the average after rejection with inverse-variance
+    weights and sigma clipping. Adds the error budget of :func:`error_budget`.
+
+    Returns
+    -------
+    dict with ``stats`` (strategy -> angle -> stat -> value, deg), ``gain`` (strategy -> angle
+    -> sigma and rms gain over one hole), ``budget``, ``bad`` (indices of rejected holes) and
+    ``metrics`` (the defect metrics).
+
+    Examples
+    --------
+    >>> a = np.repeat(np.linspace(-8, 2, 6), 6); b = np.tile(np.linspace(-2, 8, 6), 6)
+    >>> kw = dict(shots=2, hole_sigma_px=0.1, noise_px=0.01)
+    >>> from sunlab.sim import synthetic_centroids
+    >>> kw["layout"] = "grid"
+    >>> tr = synthetic_centroids(a, b, seed=1, **kw)
+    >>> te = synthetic_centroids(a + 0.5, b + 0.5, seed=2, **kw)
+    >>> g = gain_study(tr, te, order=4)
+    >>> bool(g["gain"]["averaging"]["alpha"]["rms"] > 5)
+    True
+    """
+    s2 = PerHoleAverage(order=order, model=model).fit(train)
+    metrics = defect_metrics(train, strategy=s2, cube=cube)
+    bad = reject_bad_holes(metrics, kappa=kappa).values
+    good = ~bad
+    s1 = GeometricCentre(order=order, model=model).fit(train)
+    s1r = GeometricCentre(order=order, model=model, holes=good).fit(train)
+    est = s2.predict_holes(test)
+    # one hole: each good hole alone
+    # (a hole never on the detector during the test, or without a calibration, has no statistics)
+    singles = [s for s in (error_summary(est.isel(hole=h)) for h in np.flatnonzero(good))
+               if s["alpha"]["n_poses"] and s["beta"]["n_poses"]]
+    if not singles:
+        raise ConfigurationError("test: no good hole has a usable estimate at any test pose")
+    stats = {
+        "one_hole_median": {a: {k: float(np.median([s[a][k] for s in singles]))
+                                for k in singles[0][a]} for a in ("alpha", "beta")},
+        "geometric_centre": error_summary(s1.predict(test)),
+        "geometric_centre_rejected": error_summary(s1r.predict(test)),
+        "averaging": error_summary(s2.combine(est)),
+        "averaging_rejected": error_summary(
+            PerHoleAverage(order=order, model=model, holes=good, weighting="inverse_variance",
+                           clip=clip, calibrations_=s2.calibrations_, variance_=s2.variance_
+                           ).combine(est)),
+    }
+    one = stats["one_hole_median"]
+    gain = {k: {a: {"sigma": one[a]["sigma"] / v[a]["sigma"], "mu": one[a]["mu"] / v[a]["mu"],
+                    "rms": one[a]["rms"] / v[a]["rms"]} for a in ("alpha", "beta")}
+            for k, v in stats.items() if k != "one_hole_median"}
+    return {"stats": stats, "gain": gain, "budget": error_budget(est, holes=good),
+            "budget_all": error_budget(est), "bad": np.flatnonzero(bad).tolist(),
+            "metrics": metrics}

@@ -1,0 +1,645 @@
+"""The paper's two strategies for a mask of N holes, as calibrations (sec. 6, Table 5).
+
+1. **Geometric centre** (:class:`GeometricCentre`): the mean of the N spot centroids is calibrated
+   as if it were one spot.
+2. **Per-hole calibration, then averaging** (:class:`PerHoleAverage`): one calibration per hole,
+   and the mean of the N angle estimates (:func:`combine_estimates`).
+
+Both are :class:`sunlab.calibration.Calibration` subclasses: ``fit`` on a training table on
+``(pose, shot, hole)``, ``predict`` an estimate on ``(pose, shot)``, ``save`` to JSON (contract
+``calibration/1``, kinds ``multihole-geometric-centre`` and ``multihole-per-hole-average``, the
+fitted per-hole or centre calibrations nested as their own documents) and
+:func:`sunlab.calibration.load` back. Both handle holes missing from some frames (off the
+detector, lost, flagged) without biasing the result: the geometric centre is solved from the
+holes present with each hole's fitted offset from the centre (so the centre does not jump when a
+hole drops out), and the average runs over the holes present after each hole's own calibration
+(each is an unbiased estimate). Averaging N independent errors divides the variance by N,
+eq. (5); errors common to all holes do not average out (:mod:`sunlab.multihole.budget`).
+
+References
+----------
+.. [1] docs/paper.md, sec. 6 and Table 5 (the 2005 preprint on the Naples APS sun sensor).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import ClassVar
+
+import numpy as np
+import xarray as xr
+
+from .. import schema
+from ..calibration import Calibration
+from ..errors import ConfigurationError, SchemaError
+from .holes import usable
+
+__all__ = [
+    "geometric_centre",
+    "GeometricCentre",
+    "PerHoleAverage",
+    "combine_estimates",
+    "angle_errors",
+]
+
+
+def geometric_centre(cen: xr.Dataset, accept: Sequence[str] = ("ok",)) -> xr.Dataset:
+    """Plain geometric centre of the spots, the paper's strategy 1: the mean of the centroids.
+
+    .. math:: x_{gc} = \\frac{1}{N}\\sum_{ij} x_c^{ij}, \\qquad
+              y_{gc} = \\frac{1}{N}\\sum_{ij} y_c^{ij}
+
+    This is the paper's definition; it jumps by (design offset of the lost hole) / N whenever a
+    hole is missing. :class:`GeometricCentre` removes that bias.
+
+    Returns
+    -------
+    xarray.Dataset
+        Contract ``centroids/1`` on (pose, shot): ``x``, ``y`` px, ``flux`` (sum), ``n_holes``.
+
+    Examples
+    --------
+    >>> from sunlab.sim import synthetic_centroids
+    >>> cen = synthetic_centroids([0.0], [0.0], shots=1, layout="grid")
+    >>> gc = geometric_centre(cen)
+    >>> round(float(gc.x[0, 0]), 6), round(float(gc.y[0, 0]), 6)
+    (572.0, 375.0)
+    """
+    ok = usable(cen, accept)
+    n = ok.sum("hole")
+    x = cen["x"].where(ok).mean("hole")
+    y = cen["y"].where(ok).mean("hole")
+    flux = cen["flux"].where(ok).sum("hole")
+    return _centre_table(cen, x.values, y.values, flux.values, n.values, "geometric_centre")
+
+
+def _centre_table(cen, x, y, flux, n, method):
+    status = np.where(n > 0, schema.STATUS["ok"], schema.STATUS["no_spot"])
+    x = np.where(n > 0, x, np.nan)
+    y = np.where(n > 0, y, np.nan)
+    attrs = {k: v for k, v in cen.attrs.items() if k not in ("sunlab_schema", "method")}
+    out = schema.centroids_dataset(
+        x, y, flux=flux, status=status, alpha=cen["alpha"].values, beta=cen["beta"].values,
+        method=method, attrs=attrs,
+        extra={"n_holes": (("pose", "shot"), np.asarray(n, dtype=np.int16))},
+    )
+    for name in ("true_alpha", "true_beta"):
+        if name in cen.variables:
+            out[name] = (("pose", "shot"), np.asarray(cen[name].values))
+    return out
+
+
+def _default_model(order: int):
+    def factory():
+        from ..calibration import Polynomial
+
+        return Polynomial(order)
+
+    return factory
+
+
+def _hole_table(cen: xr.Dataset, h: int, ok: xr.DataArray | None = None) -> xr.Dataset:
+    """The centroid table (``centroids/1``) of one hole on (pose, shot); frames that are not
+    usable get NaN and status ``no_spot``. Built directly (the parent table is valid)."""
+    x = np.asarray(cen["x"].values[..., h], dtype=float)
+    y = np.asarray(cen["y"].values[..., h], dtype=float)
+    status = np.asarray(cen["status"].values[..., h])
+    if ok is not None:
+        okh = np.asarray(ok.values[..., h], dtype=bool)
+        x = np.where(okh, x, np.nan)
+        y = np.where(okh, y, np.nan)
+        status = np.where(okh, status, np.where(status == 0, schema.STATUS["no_spot"], status))
+    dims = ("pose", "shot")
+    data = {"x": (dims, x), "y": (dims, y), "status": (dims, status.astype(np.int8))}
+    for name in ("flux", "x0", "x1", "y0", "y1"):
+        if name in cen.variables:
+            data[name] = (dims, np.asarray(cen[name].values[..., h]))
+    attrs = {k: v for k, v in cen.attrs.items() if k != "sunlab_schema"}
+    attrs["sunlab_schema"] = schema.CENTROIDS_SCHEMA
+    return xr.Dataset(
+        data,
+        coords={"pose": cen["pose"].values, "shot": cen["shot"].values,
+                "alpha": ("pose", np.asarray(cen["alpha"].values, float)),
+                "beta": ("pose", np.asarray(cen["beta"].values, float))},
+        attrs=attrs,
+    )
+
+
+def _fit_model(factory, table: xr.Dataset):
+    """Fit a calibration model on the usable frames of a (pose, shot) table."""
+    ok = np.isfinite(table["x"].values) & np.isfinite(table["y"].values)
+    if ok.sum() < 3:
+        raise ConfigurationError("too few usable frames to fit a calibration (fewer than 3)")
+    return factory().fit(table)
+
+
+def _predict_arrays(model, x, y):
+    """(alpha, beta) of a fitted calibration for centroid arrays; NaN where x or y is NaN."""
+    x = np.asarray(x, dtype=float)
+    y = np.asarray(y, dtype=float)
+    bad = ~(np.isfinite(x) & np.isfinite(y))
+    a, b = model.predict_xy(np.where(bad, np.nan, x), np.where(bad, np.nan, y))
+    a = np.asarray(a, float).reshape(x.shape)
+    b = np.asarray(b, float).reshape(x.shape)
+    return np.where(bad, np.nan, a), np.where(bad, np.nan, b)
+
+
+def _predict(model, table: xr.Dataset):
+    """Predicted (alpha, beta) arrays on (pose, shot), NaN where the table has no centroid."""
+    return _predict_arrays(model, table["x"].values, table["y"].values)
+
+
+def _error_stats(est, cmd) -> dict:
+    """Statistics of estimated - commanded (deg) over the finite estimates, as ``calibration/1``
+    writes residuals."""
+    e = np.asarray(est, dtype=float) - np.asarray(cmd, dtype=float).reshape(-1, 1)
+    e = e[np.isfinite(e)]
+    if e.size == 0:
+        return {"mean": None, "mean_abs": None, "rms": None, "std": None, "max_abs": None, "n": 0}
+    return {"mean": float(e.mean()), "mean_abs": float(np.abs(e).mean()),
+            "rms": float(np.sqrt(np.mean(e**2))), "std": float(e.std()),
+            "max_abs": float(np.abs(e).max()), "n": int(e.size)}
+
+
+def _record_fit(strategy, cen: xr.Dataset, ok: xr.DataArray, residuals: dict) -> None:
+    """The training summary, domain and residuals every fitted calibration carries."""
+    ok = np.asarray(ok.values, dtype=bool)
+    x, y = np.asarray(cen["x"].values)[ok], np.asarray(cen["y"].values)[ok]
+    a, b = np.asarray(cen["alpha"].values, float), np.asarray(cen["beta"].values, float)
+    strategy.training = {
+        "experiment": str(cen.attrs.get("experiment", "")),
+        "centroid_method": str(cen.attrs.get("method", "")),
+        "n_samples": int(ok.sum()), "n_poses": int(ok.any(axis=(1, 2)).sum()),
+        "n_shots": int(cen.sizes["shot"]), "n_holes": int(cen.sizes["hole"]),
+    }
+    strategy.domain = {k: [float(v.min()), float(v.max())] if v.size else [0.0, 0.0]
+                       for k, v in (("alpha", a), ("beta", b), ("x", x), ("y", y))}
+    strategy.residuals = {"alpha": residuals["alpha"], "beta": residuals["beta"],
+                          "validation": None}
+
+
+def _whole_frames_only(strategy):
+    raise ConfigurationError(
+        f"{type(strategy).__name__}.predict_xy: a multi-hole strategy estimates the sun direction "
+        "from all holes of a frame, not from one centroid. Fix: call predict(centroids) with a "
+        "table on (pose, shot, hole)")
+
+
+def _settings(strategy, names) -> dict:
+    """The strategy's settings (``names`` plus the shared ones) for its saved parameters."""
+    holes = None if strategy.holes is None else np.asarray(strategy.holes, bool).tolist()
+    return {**{k: getattr(strategy, k) for k in names}, "holes": holes,
+            "accept": list(strategy.accept)}
+
+
+def _restore_settings(p: dict) -> dict:
+    holes = None if p["holes"] is None else np.asarray(p["holes"], dtype=bool)
+    return {"holes": holes, "accept": tuple(str(s) for s in p["accept"])}
+
+
+def _angles_dataset(cen, a, b, dims, extra=None):
+    """Angle estimates on ``dims`` with the commanded angles (from a centroid table's
+    ``alpha``/``beta`` or an estimate's ``alpha_cmd``/``beta_cmd``) as coordinates."""
+    ca = cen["alpha_cmd"] if "alpha_cmd" in cen.coords else cen["alpha"]
+    cb = cen["beta_cmd"] if "beta_cmd" in cen.coords else cen["beta"]
+    coords = {"pose": cen["pose"].values, "shot": cen["shot"].values,
+              "alpha_cmd": ("pose", np.asarray(ca.values), {"units": "deg"}),
+              "beta_cmd": ("pose", np.asarray(cb.values), {"units": "deg"})}
+    if "hole" in dims:
+        coords["hole"] = cen["hole"].values
+        for c in ("hole_i", "hole_j", "hole_x_cf", "hole_y_cf"):
+            if c in cen.coords:
+                coords[c] = ("hole", cen[c].values)
+    data = {"alpha": (dims, a, {"units": "deg"}), "beta": (dims, b, {"units": "deg"})}
+    data.update(extra or {})
+    return xr.Dataset(data, coords=coords)
+
+
+@dataclass(repr=False)
+class GeometricCentre(Calibration):
+    """Strategy 1 of the paper: one calibration of the geometric centre of the spots.
+
+    When all holes are present the centre is the mean of the centroids, as in the paper. To stay
+    unbiased when holes are missing, each hole h is tied to the centre c by an affine map
+    :math:`\\mathbf{x}_h = \\mathbf{A}_h + \\mathbf{M}_h \\mathbf{c}` fitted on the training
+    frames (:math:`\\mathbf{M}_h \\approx I`; it absorbs a mask tilt that puts holes at
+    different heights), and the centre of a frame is the least-squares solution over the holes
+    present, normalised so that it equals the plain mean for a complete frame.
+
+    Parameters
+    ----------
+    order : int
+        Polynomial order of the calibration (ignored when ``model`` is given).
+    model : callable, optional
+        Factory returning an unfitted :class:`sunlab.calibration.Calibration`; default
+        ``sunlab.calibration.Polynomial(order)``. Not saved: a loaded strategy holds the
+        fitted calibration itself.
+    holes : array_like of bool, shape (hole,), optional
+        Holes to use (default all); e.g. ``~reject_bad_holes(metrics)``.
+    fill : bool
+        Solve the centre with the per-hole offsets (True) or take the plain mean (False, biased
+        when holes are missing).
+    min_holes : int
+        Fewest holes a frame needs for a centre.
+    accept : sequence of str
+        Status codes accepted as usable.
+
+    Examples
+    --------
+    >>> from sunlab.sim import synthetic_centroids
+    >>> cen = synthetic_centroids([0.0, -5.0, 1.0], [0.0, 3.0, 8.0], shots=1, layout="grid",
+    ...                           defects={0: {"missing": 1.0}})
+    >>> s1 = GeometricCentre(fill=True)
+    >>> c = s1.fit_centre(cen).centre(cen)   # hole 0 lost: the centre does not jump
+    >>> full = geometric_centre(synthetic_centroids([0.0, -5.0, 1.0], [0.0, 3.0, 8.0], shots=1,
+    ...                                          layout="grid"))
+    >>> bool(np.allclose(c.x, full.x, atol=1e-6) and np.allclose(c.y, full.y, atol=1e-6))
+    True
+
+    Saved and loaded like every calibration (JSON, contract ``calibration/1``):
+
+    >>> import os, tempfile
+    >>> from sunlab import calibration
+    >>> s1 = GeometricCentre(order=1).fit(cen)
+    >>> back = calibration.load(s1.save(os.path.join(tempfile.mkdtemp(), "gc.json")))
+    >>> bool(np.array_equal(back.predict(cen).alpha, s1.predict(cen).alpha, equal_nan=True))
+    True
+    """
+
+    kind: ClassVar[str] = "multihole-geometric-centre"
+    order: int = 5
+    model: Callable | None = None
+    holes: np.ndarray | None = None
+    fill: bool = True
+    min_holes: int = 3
+    accept: Sequence[str] = ("ok",)
+    A_: np.ndarray | None = field(default=None, repr=False)
+    M_: np.ndarray | None = field(default=None, repr=False)
+    calibration_: object | None = field(default=None, repr=False)
+
+    def _ok(self, cen):
+        ok = usable(cen, self.accept)
+        if self.holes is not None:
+            ok = ok & xr.DataArray(np.asarray(self.holes, dtype=bool), dims="hole")
+        return ok
+
+    def fit_centre(self, cen: xr.Dataset, n_iter: int = 4) -> GeometricCentre:
+        """Fit the per-hole maps hole -> centre on a training table (no calibration)."""
+        ok = self._ok(cen).values.reshape(-1, cen.sizes["hole"])
+        X = np.stack([cen["x"].values, cen["y"].values], -1).reshape(-1, cen.sizes["hole"], 2)
+        w = ok.astype(float)
+        n_ok = w.sum(1)
+        Xz = np.where(ok[..., None], X, 0.0)
+        n_h = X.shape[1]
+        # start: design offsets of the holes from the mask centre where known, else zero
+        if "hole_x_cf" in cen.coords and "hole_y_cf" in cen.coords:
+            d = np.column_stack([cen["hole_x_cf"].values, cen["hole_y_cf"].values]).astype(float)
+            d0 = d - d.mean(0)
+        else:
+            d0 = np.zeros((n_h, 2))
+        c = np.where(ok[..., None], X - d0, 0.0).sum(1) / np.maximum(n_ok, 1)[:, None]
+        seen = ok.any(0)
+        dev = np.where(ok[..., None], X - c[:, None], 0.0)
+        off = np.where(seen[:, None], dev.sum(0) / np.maximum(ok.sum(0), 1)[:, None], d0)
+        A = off.copy()
+        M = np.tile(np.eye(2), (n_h, 1, 1))
+        have = n_ok >= self.min_holes
+        for _ in range(n_iter):
+            D = np.column_stack([np.ones(len(c)), c])  # (F, 3)
+            D = np.where(have[:, None], D, 0.0)
+            for h in range(n_h):
+                wh = w[:, h] * have
+                if wh.sum() < 4:
+                    A[h], M[h] = off[h], np.eye(2)
+                    continue
+                G = (D * wh[:, None]).T @ D
+                R = (D * wh[:, None]).T @ Xz[:, h]
+                beta = np.linalg.lstsq(G, R, rcond=None)[0]  # (3, 2)
+                A[h] = beta[0]
+                M[h] = beta[1:].T
+            # gauge: the centre is the mean of the holes' predicted positions
+            Am, Mm = A.mean(0), M.mean(0)
+            Mi = np.linalg.inv(Mm)
+            A = A - np.einsum("hij,j->hi", M, Mi @ Am)
+            M = np.einsum("hij,jk->hik", M, Mi)
+            self.A_, self.M_ = A, M
+            c = self._solve(X, ok)
+            c = np.where(np.isfinite(c), c, 0.0)
+        self.A_, self.M_ = A, M
+        return self
+
+    def _solve(self, X, ok):
+        if not self.fill:
+            n = ok.sum(1)
+            with np.errstate(invalid="ignore", divide="ignore"):
+                c = np.where(ok[..., None], X, 0.0).sum(1) / n[:, None]
+            return np.where((n >= self.min_holes)[:, None], c, np.nan)
+        w = ok.astype(float)
+        r = np.where(ok[..., None], X - self.A_, 0.0)
+        G = np.einsum("fh,hki,hkj->fij", w, self.M_, self.M_)
+        rhs = np.einsum("fh,hki,fhk->fi", w, self.M_, r)
+        n = ok.sum(1)
+        good = n >= self.min_holes
+        G[~good] = np.eye(2)
+        c = np.linalg.solve(G, rhs[..., None])[..., 0]
+        return np.where(good[:, None], c, np.nan)
+
+    def centre(self, cen: xr.Dataset) -> xr.Dataset:
+        """The geometric centre of every frame, a centroid table on (pose, shot)."""
+        if self.A_ is None and self.fill:
+            raise ConfigurationError("GeometricCentre: call fit() or fit_centre() first")
+        n_h = cen.sizes["hole"]
+        if self.A_ is not None and self.A_.shape[0] != n_h:
+            raise SchemaError("hole", n_h, f"{self.A_.shape[0]} holes, as in the training table")
+        ok = self._ok(cen).values.reshape(-1, n_h)
+        X = np.stack([cen["x"].values, cen["y"].values], -1).reshape(-1, n_h, 2)
+        c = self._solve(X, ok).reshape(cen.sizes["pose"], cen.sizes["shot"], 2)
+        n = ok.sum(1).reshape(cen.sizes["pose"], cen.sizes["shot"])
+        n = np.where(np.isfinite(c[..., 0]), n, 0)
+        flux = cen["flux"].where(self._ok(cen)).sum("hole").values
+        return _centre_table(cen, c[..., 0], c[..., 1], flux, n, "geometric_centre")
+
+    def fit(self, cen: xr.Dataset) -> GeometricCentre:
+        """Fit the centre maps and the calibration of the centre on a training table."""
+        if self.fill:
+            self.fit_centre(cen)
+        factory = self.model or _default_model(self.order)
+        self.calibration_ = _fit_model(factory, self.centre(cen))
+        _record_fit(self, cen, self._ok(cen), self.calibration_.residuals)
+        return self
+
+    def __post_init__(self):
+        Calibration.__init__(self)
+
+    def predict_xy(self, x, y):
+        """Not defined for a multi-hole strategy: it estimates from all holes of a frame."""
+        _whole_frames_only(self)
+
+    def _parameters(self) -> dict:
+        return {**_settings(self, ("order", "fill", "min_holes")),
+                "A": self.A_, "M": self.M_, "calibration": self.calibration_.to_dict()}
+
+    @classmethod
+    def _from_parameters(cls, p: dict) -> GeometricCentre:
+        from ..calibration import from_dict
+
+        A, M = (None if p[k] is None else np.asarray(p[k], dtype=float) for k in ("A", "M"))
+        return cls(order=int(p["order"]), fill=bool(p["fill"]), min_holes=int(p["min_holes"]),
+                   **_restore_settings(p), A_=A, M_=M, calibration_=from_dict(p["calibration"]))
+
+    def predict(self, cen: xr.Dataset) -> xr.Dataset:
+        """Estimated (alpha, beta), deg, on (pose, shot), with ``n_holes`` used per frame."""
+        if self.calibration_ is None:
+            raise ConfigurationError("GeometricCentre: call fit() first")
+        gc = self.centre(cen)
+        a, b = _predict(self.calibration_, gc)
+        return _angles_dataset(cen, a, b, ("pose", "shot"),
+                               {"n_holes": (("pose", "shot"), gc["n_holes"].values)})
+
+
+# --------------------------------------------------------------------------------------------
+# Strategy 2: per-hole calibration, then the average
+# --------------------------------------------------------------------------------------------
+def combine_estimates(est, *, holes=None, weights=None, clip: float | None = None,
+                      n_iter: int = 3, dim: str = "hole"):
+    """Combine per-hole angle estimates of each frame into one: mean, weighted and/or clipped.
+
+    Parameters
+    ----------
+    est : xarray.DataArray
+        Angle estimates, deg, with a ``hole`` dimension; NaN for a hole missing in a frame.
+    holes : array_like of bool, shape (hole,), optional
+        Holes allowed in the combination.
+    weights : array_like, shape (hole,), optional
+        Non-negative weights, e.g. 1 / (hole's residual variance); default equal.
+    clip : float, optional
+        Sigma-clipping threshold: in every frame, estimates further than ``clip`` robust standard
+        deviations from the median of the kept ones are dropped, ``n_iter`` times (the scale is
+        1.4826 MAD, bounded below by the standard deviation of the survivors after the first
+        pass).
+    dim : str
+        Dimension to combine.
+
+    Returns
+    -------
+    mean, n : xarray.DataArray
+        The combined estimate and the number of holes used in each frame.
+
+    Notes
+    -----
+    Averaging N independent estimates of equal variance divides the variance by N, eq. (5):
+
+    .. math:: \\sigma^2_N = \\sigma^2 / N.
+
+    The mean over the holes present is unbiased as long as each hole's estimate is.
+
+    Examples
+    --------
+    >>> e = xr.DataArray([[1.0, 1.1, 0.9, 5.0, np.nan]], dims=("pose", "hole"))
+    >>> float(combine_estimates(e)[0][0])
+    2.0
+    >>> round(float(combine_estimates(e, clip=4.0)[0][0]), 6)
+    1.0
+    """
+    ok = np.isfinite(est)
+    if holes is not None:
+        ok = ok & xr.DataArray(np.asarray(holes, dtype=bool), dims=dim)
+    w = xr.ones_like(est) if weights is None else xr.DataArray(np.asarray(weights, float), dims=dim)
+    w = w.where(ok, 0.0)
+    if clip is not None:
+        for it in range(n_iter):
+            cur = est.where(w > 0)
+            med = cur.median(dim)
+            scale = 1.4826 * np.abs(cur - med).median(dim)
+            if it > 0:  # a few survivors can have MAD 0: their standard deviation bounds it
+                scale = np.maximum(scale, cur.std(dim))
+            keep = np.abs(est - med) <= clip * scale
+            w = w.where(keep, 0.0)
+    wsum = w.sum(dim)
+    mean = (est.fillna(0.0) * w).sum(dim) / wsum.where(wsum > 0)
+    return mean, (w > 0).sum(dim)
+
+
+@dataclass(repr=False)
+class PerHoleAverage(Calibration):
+    """Strategy 2 of the paper: a calibration per hole (f1_ij, f2_ij), then the average.
+
+    .. math:: \\alpha = \\frac{1}{N}\\sum_{ij} f_1^{ij}(x_c^{ij}, y_c^{ij}), \\qquad
+              \\beta = \\frac{1}{N}\\sum_{ij} f_2^{ij}(x_c^{ij}, y_c^{ij})
+
+    The average runs over the holes present in each frame, which is unbiased: every hole's own
+    calibration already maps its spot to the sun direction. With ``weighting="inverse_variance"``
+    each hole counts by the inverse of its hole-specific residual variance on the training set
+    (its scatter about the consensus of all holes); ``clip`` adds per-frame sigma clipping.
+
+    Parameters
+    ----------
+    order : int
+        Polynomial order of every hole's calibration.
+    model : callable, optional
+        Calibration factory, as in :class:`GeometricCentre`.
+    holes : array_like of bool, optional
+        Holes allowed in the average (the calibration is still fitted for every hole, so the
+        selection can change without refitting).
+    weighting : {"equal", "inverse_variance"}
+        How the holes are weighted.
+    clip : float, optional
+        Per-frame sigma-clipping threshold (robust standard deviations).
+    accept : sequence of str
+        Status codes accepted as usable.
+    poses_per_coef : float
+        A hole gets its own calibration only if it was seen at no fewer than this many
+        training poses per free coefficient (1.5: 15 poses for a cubic's 10). A hole seen at
+        barely as many poses as coefficients is fitted almost exactly, through its noise, and
+        swings between the poses: at F = 17 mm the corner holes leave the detector at many
+        poses, and a cubic on 11 of a 4 x 4 grid missed by up to 8 deg. Such a hole is left out
+        of the average (its estimates are NaN).
+
+    Examples
+    --------
+    >>> from sunlab.calibration import Polynomial
+    >>> from sunlab.sim import synthetic_centroids
+    >>> a = np.repeat(np.arange(-4.0, 5.0, 2.0), 5); b = np.tile(np.arange(-4.0, 5.0, 2.0), 5)
+    >>> cen = synthetic_centroids(a, b, shots=1, layout="grid", noise_px=0.01)
+    >>> s2 = PerHoleAverage(model=lambda: Polynomial(2)).fit(cen)
+    >>> err = s2.predict(cen).alpha - cen.alpha
+    >>> bool(abs(err).max() < 0.005)
+    True
+    """
+
+    kind: ClassVar[str] = "multihole-per-hole-average"
+    order: int = 5
+    model: Callable | None = None
+    holes: np.ndarray | None = None
+    weighting: str = "equal"
+    clip: float | None = None
+    accept: Sequence[str] = ("ok",)
+    poses_per_coef: float = 1.5
+    calibrations_: list | None = field(default=None, repr=False)
+    variance_: np.ndarray | None = field(default=None, repr=False)
+
+    def fit(self, cen: xr.Dataset) -> PerHoleAverage:
+        """Fit one calibration per hole on a training table; estimate each hole's variance."""
+        if self.weighting not in ("equal", "inverse_variance"):
+            raise ConfigurationError(
+                f"weighting: found {self.weighting!r}, expected 'equal' or 'inverse_variance'"
+            )
+        factory = self.model or _default_model(self.order)
+        ok = usable(cen, self.accept)
+        self.calibrations_ = []
+        probe = factory()
+        if hasattr(probe, "min_poses"):
+            n_coef = int(probe.min_poses())
+        else:
+            order = getattr(probe, "order", self.order)
+            n_coef = (order + 1) * (order + 2) // 2
+        need = max(math.ceil(self.poses_per_coef * n_coef), 3)
+        for h in range(cen.sizes["hole"]):
+            table = _hole_table(cen, h, ok)
+            n_poses = int(np.isfinite(table["x"].values).any(axis=1).sum())
+            # a hole seen at too few poses cannot carry its own calibration: it is left out
+            self.calibrations_.append(_fit_model(factory, table) if n_poses >= need else None)
+        if all(c is None for c in self.calibrations_):
+            raise ConfigurationError(
+                f"centroids: no hole was seen at {need} or more training poses, the fewest for "
+                f"its own calibration ({n_coef} coefficients x poses_per_coef = "
+                f"{self.poses_per_coef}); use more calibration poses or a lower order")
+        est = self.predict_holes(cen)
+        dev2 = 0.0
+        for name in ("alpha", "beta"):
+            cons = est[name].median("hole")
+            dev2 = dev2 + (est[name] - cons) ** 2
+        var = dev2.mean(("pose", "shot")).values / 2
+        med = np.nanmedian(var)
+        self.variance_ = np.where(np.isfinite(var), np.maximum(var, 1e-3 * med), np.inf)
+        mean = self.combine(est)
+        _record_fit(self, cen, ok, {a: _error_stats(mean[a].values, mean[f"{a}_cmd"].values)
+                                    for a in ("alpha", "beta")})
+        return self
+
+    def __post_init__(self):
+        Calibration.__init__(self)
+
+    def predict_xy(self, x, y):
+        """Not defined for a multi-hole strategy: it estimates from all holes of a frame."""
+        _whole_frames_only(self)
+
+    def _parameters(self) -> dict:
+        return {**_settings(self, ("order", "weighting", "clip", "poses_per_coef")),
+                "variance": self.variance_,
+                "calibrations": [None if c is None else c.to_dict() for c in self.calibrations_]}
+
+    @classmethod
+    def _from_parameters(cls, p: dict) -> PerHoleAverage:
+        from ..calibration import from_dict
+
+        var = np.array([np.inf if v is None else v for v in p["variance"]], dtype=float)
+        return cls(order=int(p["order"]), weighting=str(p["weighting"]), clip=p["clip"],
+                   poses_per_coef=float(p["poses_per_coef"]), **_restore_settings(p),
+                   variance_=var, calibrations_=[None if d is None else from_dict(d)
+                                                 for d in p["calibrations"]])
+
+    def predict_holes(self, cen: xr.Dataset) -> xr.Dataset:
+        """Every hole's own estimate (alpha, beta), deg, on (pose, shot, hole)."""
+        if self.calibrations_ is None:
+            raise ConfigurationError("PerHoleAverage: call fit() first")
+        n_h = cen.sizes["hole"]
+        if n_h != len(self.calibrations_):
+            raise SchemaError("hole", n_h, f"{len(self.calibrations_)} holes, as in training")
+        ok = usable(cen, self.accept).values
+        x = np.where(ok, cen["x"].values, np.nan)
+        y = np.where(ok, cen["y"].values, np.nan)
+        a = np.full(x.shape, np.nan)
+        b = np.full(x.shape, np.nan)
+        for h, cal in enumerate(self.calibrations_):
+            if cal is None:
+                continue
+            a[..., h], b[..., h] = _predict_arrays(cal, x[..., h], y[..., h])
+        return _angles_dataset(cen, a, b, ("pose", "shot", "hole"))
+
+    def weights(self) -> np.ndarray | None:
+        """The per-hole weights of the combination (None for equal weights)."""
+        if self.weighting == "equal":
+            return None
+        return 1.0 / self.variance_
+
+    def combine(self, est: xr.Dataset, holes=None) -> xr.Dataset:
+        """Combine per-hole estimates (from :meth:`predict_holes`) with this strategy's rule."""
+        holes = self.holes if holes is None else holes
+        out = {}
+        n = None
+        for name in ("alpha", "beta"):
+            m, n = combine_estimates(est[name], holes=holes, weights=self.weights(),
+                                     clip=self.clip)
+            out[name] = m.values
+        return _angles_dataset(est, out["alpha"], out["beta"], ("pose", "shot"),
+                               {"n_holes": (("pose", "shot"), n.values)})
+
+    def predict(self, cen: xr.Dataset) -> xr.Dataset:
+        """Combined estimate (alpha, beta), deg, on (pose, shot), with ``n_holes`` used."""
+        return self.combine(self.predict_holes(cen))
+
+
+def angle_errors(pred: xr.Dataset, cen: xr.Dataset | None = None) -> xr.Dataset:
+    """Estimated minus commanded angles, deg (the paper's test protocol, sec. 5).
+
+    ``pred`` carries the commanded angles as ``alpha_cmd``/``beta_cmd`` (as returned by the
+    strategies) or they come from ``cen``'s ``alpha``/``beta``.
+
+    Examples
+    --------
+    >>> p = xr.Dataset({"alpha": (("pose", "shot"), [[1.5]]), "beta": (("pose", "shot"), [[0.0]])},
+    ...                coords={"alpha_cmd": ("pose", [1.0]), "beta_cmd": ("pose", [0.5])})
+    >>> float(angle_errors(p).alpha[0, 0]), float(angle_errors(p).beta[0, 0])
+    (0.5, -0.5)
+    """
+    if cen is not None:
+        ca, cb = cen["alpha"], cen["beta"]
+    else:
+        ca, cb = pred["alpha_cmd"], pred["beta_cmd"]
+    return xr.Dataset({"alpha": pred["alpha"] - ca.values[:, None] if pred["alpha"].ndim == 2
+                       else pred["alpha"] - xr.DataArray(ca.values, dims="pose"),
+                       "beta": pred["beta"] - cb.values[:, None] if pred["beta"].ndim == 2
+                       else pred["beta"] - xr.DataArray(cb.values, dims="pose")})
