@@ -26,7 +26,8 @@ the module they serve, private to the package):
 * :mod:`~sunlab.centroid.estimators` -- the single-spot estimators, :data:`METHODS` and the
   algorithms' steps (:func:`border_mean`, :func:`first_hit`, :func:`projection_profiles`);
 * :mod:`~sunlab.centroid.crlb` -- the Cramér–Rao bound;
-* :mod:`~sunlab.centroid.moments` -- a spot's moments (:class:`SpotMoments`);
+* :mod:`~sunlab.centroid.moments` -- a spot's moments (:class:`SpotMoments`; the stamp
+  variant :func:`stamp_moments` for cut-outs of multi-hole frames);
 * :mod:`~sunlab.centroid.sources` -- :func:`centroid_sources`;
 * :mod:`~sunlab.centroid.lattice` -- :func:`locate_spots` (multi-spot lattice);
 * :mod:`~sunlab.centroid.cube` -- :func:`locate` (a whole cube through Dask).
@@ -68,7 +69,7 @@ from .estimators import (
     tight_window,
 )
 from .lattice import SPOT_METRICS, Spots, locate_spots
-from .moments import SpotMoments, spot_moments
+from .moments import SpotMoments, spot_moments, stamp_moments
 from .result import SATURATION_10BIT, Centroid
 from .sources import centroid_sources
 
@@ -90,6 +91,7 @@ __all__ = [
     "crlb",
     "disk_profile",
     "spot_moments",
+    "stamp_moments",
     "centroid_sources",
     "locate_spots",
     "locate",

@@ -19,9 +19,9 @@ from collections.abc import Sequence
 import numpy as np
 import xarray as xr
 
-from .. import schema
+from .. import centroid, schema
 from ..errors import ConfigurationError
-from .holes import _stamp_moments, cutout, usable
+from .holes import cutout, usable
 from .strategies import PerHoleAverage
 
 __all__ = [
@@ -105,7 +105,7 @@ def stamp_metrics(cube: xr.Dataset, cen: xr.Dataset, *, poses=None, shot: int = 
             if not ok[p, shot, h]:
                 continue
             st, _ = cutout(frame, cen["x"].values[p, shot, h], cen["y"].values[p, shot, h], half)
-            res[n, h] = _stamp_moments(st)
+            res[n, h] = centroid.stamp_moments(st)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
         med = np.nanmedian(res, axis=0)
@@ -209,7 +209,7 @@ def _roughness_radius(cube, cen, ok, poses, shot) -> float:
     if not np.isfinite(r_rms) and poses:
         frame = np.asarray(cube["frames"].isel(pose=poses[0], shot=shot).values)
         hs = np.flatnonzero(ok[poses[0]])[:10]
-        r_rms = float(np.nanmedian([_stamp_moments(cutout(frame, xs[poses[0], h],
+        r_rms = float(np.nanmedian([centroid.stamp_moments(cutout(frame, xs[poses[0], h],
                                                           ys[poses[0], h], 40)[0])[0]
                                     for h in hs]))
     radius_px = 2.1 * r_rms

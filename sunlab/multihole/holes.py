@@ -121,7 +121,7 @@ def locate_layout(cube: xr.Dataset, *, half: int = 38, progress: bool = False,
             c = centroid.tight_window(st, **options)
             status[p, s, h] = c.status
             if np.isfinite(c.x):
-                r, e, a = _stamp_moments(st)
+                r, e, a = centroid.stamp_moments(st)
                 res[p, s, h] = (c.x + x0, c.y + y0, c.flux, c.window[0] + x0, c.window[1] + x0,
                                 r, e, a)
     ok = status == schema.STATUS["ok"]
@@ -154,33 +154,6 @@ def usable(cen: xr.Dataset, accept: Sequence[str] = ("ok",)) -> xr.DataArray:
     """
     codes = [schema.STATUS[a] for a in accept]
     return np.isfinite(cen["x"]) & np.isfinite(cen["y"]) & cen["status"].isin(codes)
-
-
-def _stamp_moments(img):
-    """Second and third moments of a background-subtracted stamp (threshold at 10 % of peak)."""
-    img = np.asarray(img, dtype=float)
-    border = np.concatenate([img[0], img[-1], img[:, 0], img[:, -1]])
-    bg = np.median(border)
-    w = img - bg
-    peak = w.max()
-    if not np.isfinite(peak) or peak <= 0:
-        return np.nan, np.nan, np.nan
-    w = np.where(w > 0.1 * peak, w, 0.0)
-    yy, xx = np.indices(w.shape)
-    s = w.sum()
-    cx, cy = (w * xx).sum() / s, (w * yy).sum() / s
-    dx, dy = xx - cx, yy - cy
-    mxx, myy, mxy = (w * dx * dx).sum() / s, (w * dy * dy).sum() / s, (w * dx * dy).sum() / s
-    tr = mxx + myy
-    det = mxx * myy - mxy**2
-    disc = np.sqrt(max(tr**2 / 4 - det, 0.0))
-    l1, l2 = tr / 2 + disc, tr / 2 - disc
-    ell = (l1 - l2) / (l1 + l2)
-    r = np.sqrt(tr)
-    m3x = (w * dx * (dx * dx + dy * dy)).sum() / s
-    m3y = (w * dy * (dx * dx + dy * dy)).sum() / s
-    asym = np.hypot(m3x, m3y) / r**3
-    return r, ell, asym
 
 
 def cutout(frame, x, y, half: int):
