@@ -44,7 +44,7 @@ from .platform import Platform
 from .render import _entropy, _truth, mask_play, render_frame, spot_geometry
 from .source import Source
 
-__all__ = ["Bench", "platform_pose", "simulate", "plan_key"]
+__all__ = ["Bench", "platform_pose", "homing_offset", "simulate", "plan_key"]
 
 #: Identified parameters of the paper's bench (:mod:`sunlab.sim.identify`; what pins each is
 #: in its module notes): the correlated response non-uniformity (relative RMS), the per-pose
@@ -325,6 +325,26 @@ def _homing(plat: Platform, seed_key: list[int], run: str) -> float:
     tag = zlib.crc32(str(run).encode())
     u = np.random.default_rng(np.random.SeedSequence(list(seed_key) + [_TAG_HOME, tag]))
     return float(u.uniform(-1.0, 1.0)) * plat.beta_homing_deg
+
+
+def homing_offset(bench: Bench, seed, run: str) -> float:
+    """The inner axis's zero offset of one named run (one homing) on a bench, deg.
+
+    Uniform in +-``bench.platform.beta_homing_deg``, drawn from the seed and the run's name,
+    as :func:`simulate` draws it for a plan of that name (a zero-pose check taken with the run,
+    :func:`sunlab.plans.zero_check`, shares it): the bench's own value of what
+    :func:`sunlab.platform_fault.fit_correction` estimates from the zero-pose checks.
+
+    Examples
+    --------
+    >>> b = Bench.paper_single_hole()
+    >>> homing_offset(b, 0, "III") - homing_offset(b, 0, "I")
+    0.0
+    >>> h = homing_offset(b.replace(platform__beta_homing_deg=0.01), 0, "I")
+    >>> bool(abs(h) <= 0.01)
+    True
+    """
+    return _homing(bench.platform, _entropy(seed), run)
 
 
 def _jitter(plat: Platform, key: list[int], pose: int, shot: int) -> tuple[float, float]:

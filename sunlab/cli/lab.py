@@ -31,7 +31,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from .errors import SchemaError
+from ..errors import SchemaError
 
 __all__ = [
     "CALIBRATE_OPTIONS",
@@ -213,7 +213,7 @@ def centroids_from_csv(path, *, attrs: dict | None = None):
     import numpy as np
     import pandas as pd
 
-    from .schema import STATUS, centroids_dataset
+    from ..schema import STATUS, centroids_dataset
 
     path = Path(path)
     try:
@@ -296,7 +296,7 @@ def open_centroid_table(path, name: str = "table"):
     A CSV table takes its sensor attributes (pixel pitch, mask distance, x_cf, y_cf) from a
     ``sensor.json`` in its folder, if there is one.
     """
-    from . import io
+    from .. import io
 
     if Path(path).suffix.lower() in (".csv", ".txt"):
         sensor = _sensor_json(Path(path).resolve().parent, None)
@@ -369,8 +369,8 @@ def _sensor_json(folder: Path, manifest) -> dict:
 
 def cube_from_folder(folder, args):
     """A lazy frame cube from an image folder and the folder options of ``args``."""
-    from . import io
-    from .errors import ConfigurationError
+    from .. import io
+    from ..errors import ConfigurationError
 
     folder = Path(folder)
     manifest = getattr(args, "manifest", None)
@@ -413,7 +413,7 @@ def _add_import(sub) -> None:
 
 
 def _run_import(args) -> int:
-    from . import atomic, io
+    from .. import atomic, io
 
     kind = "file" if Path(args.out).suffix.lower() in io.NETCDF_SUFFIXES else "zarr"
     atomic.check_target(args.out, overwrite=args.overwrite, kind=kind, flag="--overwrite")
@@ -458,7 +458,7 @@ def _figure_bytes(fig) -> bytes:
 
 def evaluate(cal, test) -> dict:
     """Statistics of a calibration on a test table: estimate, local errors, Table-4 column."""
-    from . import stats
+    from .. import stats
 
     est = cal.predict(test)
     local = stats.local_errors(est)
@@ -470,7 +470,7 @@ def _run_evaluate(args) -> int:
     import numpy as np
     import pandas as pd
 
-    from . import atomic, calibration, stats
+    from .. import atomic, calibration, stats
 
     out = None if args.out is None else Path(args.out)
     names = ("evaluation.json", "errors.csv", "fig10_error_maps.png", "fig11_histograms.png")
@@ -484,7 +484,7 @@ def _run_evaluate(args) -> int:
     est, local, table = res["estimate"], res["local"], res["table"]
     col = table[cal.label]
     n_out = int(est.attrs["n_out_of_domain"])
-    from .schema import STATUS, USABLE_STATUS
+    from ..schema import STATUS, USABLE_STATUS
 
     n_ok = int(np.isin(test["status"].values, [STATUS[k] for k in USABLE_STATUS]).sum())
     print(f"{cal.label} on {args.test}: {test.sizes['pose']} poses x {test.sizes['shot']} shots "
@@ -532,7 +532,7 @@ def _run_evaluate(args) -> int:
     atomic.write_text(out / names[1], rows.to_csv(index=False, float_format="%.8g"),
                        overwrite=args.overwrite, flag="--overwrite")
     written = [names[0], names[1]]
-    from . import plots
+    from .. import plots
 
     try:
         fig10 = plots.error_maps(local, title=f"{cal.label}: errors on {Path(args.test).name}")
@@ -593,7 +593,7 @@ def _add_export(sub) -> None:
 
 
 def _run_export(args) -> int:
-    from . import calibration, export
+    from .. import calibration, export
 
     cal = calibration.load(args.calibration)
     files = export.export(cal, args.out, format=args.format, overwrite=args.overwrite)
