@@ -380,7 +380,7 @@ class Calibration:
 
         The same text as ``sunlab info CAL.json``.
         """
-        from .._cli_lab import calibration_summary
+        from .summary import calibration_summary
 
         return calibration_summary(self.to_dict())
 

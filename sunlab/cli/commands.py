@@ -75,7 +75,8 @@ def _add_info(sub) -> None:
 
 
 def _run_info(args) -> int:
-    from .lab import calibration_summary, read_calibration_json
+    from ..calibration.summary import calibration_summary
+    from .lab import read_calibration_json
 
     doc = read_calibration_json(args.path)  # standard library only: fast
     if doc is not None:
@@ -316,8 +317,8 @@ def _run_calibrate(args) -> int:
     import time
 
     from .. import calibration
-    from .lab import CALIBRATE_OPTIONS, open_centroid_table
     from ..errors import ConfigurationError
+    from .lab import CALIBRATE_OPTIONS, open_centroid_table
 
     for name, methods in CALIBRATE_OPTIONS.items():
         if getattr(args, name) not in (None, False) and args.method not in methods:
