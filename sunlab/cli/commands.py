@@ -129,7 +129,6 @@ def _add_acquire(sub) -> None:
 
 
 def _run_acquire(args) -> int:
-    from pathlib import Path
 
     from .. import plans, sim
     from ..errors import ConfigurationError
@@ -138,25 +137,7 @@ def _run_acquire(args) -> int:
     if not args.resume:
         # The folder must exist and be writable; an existing run is the runner's to judge.
         _check_out(args.out, overwrite=True, kind="zarr")
-    if args.plan.upper() in plans.EXPERIMENTS:
-        plan = plans.experiment(args.plan.upper(), shots=args.shots)
-    elif Path(args.plan).is_file():
-        import pandas as pd
-
-        table = pd.read_csv(args.plan)
-        missing = {"alpha", "beta"} - set(table.columns)
-        if missing:
-            raise ConfigurationError(
-                f"--plan {args.plan}: columns {sorted(table.columns)}, missing {sorted(missing)}. "
-                "Fix: a CSV with a header line 'alpha,beta' and one pose (deg) per row"
-            )
-        plan = plans.custom(table["alpha"], table["beta"], shots=args.shots,
-                            name=Path(args.plan).stem)
-    else:
-        raise ConfigurationError(
-            f"--plan: found {args.plan!r}, expected I, II, III or an existing CSV file"
-        )
-    plan = plan.subset(args.step)
+    plan = plans.read_plan(args.plan, shots=args.shots, field="--plan").subset(args.step)
     bench = (sim.Bench.paper_single_hole() if args.bench == "single"
              else sim.Bench.paper_multi_hole())
     stage = open_stage(args.stage, bench=bench, seed=args.seed, settle_s=args.settle,
