@@ -175,11 +175,15 @@ def _optimised_call(P: _Prec, fit, x: str, y: str, a: str, b: str,
     atan2(-s_x, s_z), beta = asin(-s_y / |s|) = atan(-s_y / sqrt(s_x^2 + s_z^2)), as
     :func:`sunlab.geometry.optimised_angles`; "additive": eq. (1) at F + dF minus the offsets.
     """
-    from .geometry import _optimised_cf, mounting_matrix
+    from .geometry import mounting_matrix
 
     mounting = mounting or getattr(fit, "mounting", "additive")
-    x_cf, y_cf = _optimised_cf(fit.mask_distance_mm, fit.pixel_pitch_mm, fit.delta_f_mm,
-                               fit.alpha0, fit.beta0, fit.x_zp, fit.y_zp, mounting)
+    if mounting != getattr(fit, "mounting", "additive"):
+        raise ConfigurationError(
+            f"mounting: found {mounting!r}, the fit's is {fit.mounting!r}. Fix: export the "
+            "fit with its own mounting"
+        )
+    x_cf, y_cf = fit.x_cf, fit.y_cf  # the foot of the hole, eq. (4), as fitted
     k = (fit.mask_distance_mm + fit.delta_f_mm) / fit.pixel_pitch_mm
     if mounting != "rotation":
         sensor = {"mask_distance_mm": fit.mask_distance_mm + fit.delta_f_mm,
@@ -387,7 +391,7 @@ def _load(cal):
     from .calibration import Calibration, load
 
     if isinstance(cal, Calibration):
-        cal._require_fitted()
+        cal.check_fitted()
         return cal
     return load(cal)
 

@@ -686,7 +686,6 @@ def fit_correction(train: xr.Dataset, train_motion, validation: xr.Dataset | Non
     True
     """
     from .calibration import Polynomial
-    from .calibration.polynomial import _scale, design_matrix
 
     if validation is not None:
         cal, _ = Polynomial.select_order(train, validation)
@@ -703,9 +702,7 @@ def fit_correction(train: xr.Dataset, train_motion, validation: xr.Dataset | Non
             "expected the motion record of the calibration run. Fix: pass its plan."
         )
     ok = np.isfinite(xm) & np.isfinite(ym)
-    u, v = _scale(xm[ok], cal.scaling["x"]), _scale(ym[ok], cal.scaling["y"])
-    n_b = cal.orders[1]
-    P = design_matrix(u, v, n_b)
+    P = cal.basis(xm[ok], ym[ok], "beta")
     cols = [P, d[ok, None]] if backlash else [P]
     if gear_frequency is not None:
         ph = 2 * np.pi * float(gear_frequency) * b_cmd[ok]
