@@ -266,8 +266,19 @@ def reproduce_table4(
     train, val, test = (usable_table(cens[k]) for k in ("I", "II", "III"))
     fitted, local = _fit_and_test(train, val, test, neural=neural, seed=seed,
                                   progress=progress, timings=timings)
+    result = _assemble(cens, fitted, local, bench, timings, t0, settings={
+        "seed": seed, "quick": quick, "centroid_method": method,
+        "poses": {k: int(v.sizes["pose"]) for k, v in cens.items()},
+        "shots": int(test.sizes["shot"]), "bench": "sunlab.sim.Bench.paper_single_hole()"})
+    if out is not None:
+        result.files = _write_outputs(result, Path(out))
+    return result
+
+
+def _assemble(cens, fitted, local, bench, timings, t0, settings) -> Table4Result:
+    """The statistics of every method on III, beside the paper's, and what was fitted."""
     table = stats.global_stats(local)
-    result = Table4Result(
+    return Table4Result(
         table=table,
         paper=stats.paper_table4(),
         rectangles=stats.rectangles(table),
@@ -276,16 +287,8 @@ def reproduce_table4(
         polynomial_order=tuple(int(n) for n in fitted["polynomial"].orders),
         centroid_status=centroid_status(cens),
         timings={**timings, "total": time.perf_counter() - t0},
-        settings={
-            "seed": seed, "quick": quick, "centroid_method": method,
-            "poses": {k: int(v.sizes["pose"]) for k, v in cens.items()},
-            "shots": int(test.sizes["shot"]),
-            "bench": "sunlab.sim.Bench.paper_single_hole()",
-        },
+        settings=settings,
     )
-    if out is not None:
-        result.files = _write_outputs(result, Path(out))
-    return result
 
 
 def _fit_and_test(train, val, test, *, neural, seed, progress, timings) -> tuple[dict, dict]:
