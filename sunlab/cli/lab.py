@@ -120,11 +120,35 @@ def centroids_from_csv(path, *, attrs: dict | None = None):
     ({'pose': 2, 'shot': 2}, [[0, 0], [0, 1]])
     """
     import numpy as np
-    import pandas as pd
 
     from ..schema import STATUS, centroids_dataset
 
     path = Path(path)
+    table = _read_csv_table(path)
+    num = _numeric_columns(table, path.name)
+    pairs = list(zip(num["alpha"].tolist(), num["beta"].tolist(), strict=True))
+    pose_of: dict = {}
+    for pair in pairs:
+        pose_of.setdefault(pair, len(pose_of))
+    pose = np.array([pose_of[p] for p in pairs])
+    shot = _shot_numbers(table, pose, path.name)
+    n_pose, n_shot = len(pose_of), int(shot.max()) + 1
+    x = np.full((n_pose, n_shot), np.nan)
+    y = np.full((n_pose, n_shot), np.nan)
+    status = np.full((n_pose, n_shot), STATUS["no_spot"], dtype=np.int8)
+    x[pose, shot], y[pose, shot] = num["x"], num["y"]
+    status[pose, shot] = _status_codes(table, num, path.name)
+    return centroids_dataset(
+        x, y, status=status, alpha=[a for a, _ in pose_of], beta=[b for _, b in pose_of],
+        method=str((attrs or {}).get("method", "")),
+        attrs={"source": str(path.resolve()), "experiment": path.stem, **dict(attrs or {})},
+    )
+
+
+def _read_csv_table(path: Path):
+    """The CSV as a DataFrame, with the columns alpha, beta, x, y and at least one row."""
+    import pandas as pd
+
     try:
         table = pd.read_csv(path, comment="#", skipinitialspace=True)
     except FileNotFoundError as err:
@@ -143,6 +167,15 @@ def centroids_from_csv(path, *, attrs: dict | None = None):
         )
     if len(table) == 0:
         raise SchemaError(path.name, "no rows", "one row per shot", "add the rows")
+    return table
+
+
+def _numeric_columns(table, name: str) -> dict:
+    """alpha, beta, x, y as float arrays; a value that is not a number names its line (x, y
+    may be empty: no spot)."""
+    import numpy as np
+    import pandas as pd
+
     num = {}
     for col in ("alpha", "beta", "x", "y"):
         v = pd.to_numeric(table[col], errors="coerce").to_numpy(dtype=float)
@@ -150,53 +183,53 @@ def centroids_from_csv(path, *, attrs: dict | None = None):
                              if col in ("x", "y") else ~np.isfinite(v))
         if bad.size:
             raise SchemaError(
-                f"{path.name} line {int(bad[0]) + 2} column {col!r}", table[col].iloc[bad[0]],
+                f"{name} line {int(bad[0]) + 2} column {col!r}", table[col].iloc[bad[0]],
                 "a number" + (" of degrees" if col in ("alpha", "beta") else " of pixels"),
                 f"correct the value ({bad.size} bad row(s))",
             )
         num[col] = v
-    pairs = list(zip(num["alpha"].tolist(), num["beta"].tolist(), strict=True))
-    pose_of: dict = {}
-    for pair in pairs:
-        pose_of.setdefault(pair, len(pose_of))
-    pose = np.array([pose_of[p] for p in pairs])
-    if "shot" in table.columns:
-        labels = pd.to_numeric(table["shot"], errors="coerce").to_numpy(dtype=float)
-        if not np.all(np.isfinite(labels)):
-            i = int(np.flatnonzero(~np.isfinite(labels))[0])
-            raise SchemaError(f"{path.name} line {i + 2} column 'shot'", table["shot"].iloc[i],
-                              "an integer shot label", "number the shots 0, 1, 2, ...")
-        order = pd.DataFrame({"p": pose, "s": labels}).groupby("p")["s"].rank(method="first")
-        shot = order.to_numpy(dtype=int) - 1
-        dup = pd.DataFrame({"p": pose, "s": labels}).duplicated()
-        if dup.any():
-            i = int(np.flatnonzero(dup.to_numpy())[0])
-            raise SchemaError(f"{path.name} line {i + 2}", "the same pose and shot again",
-                              "one row per (alpha, beta, shot)", "remove the duplicate row")
-    else:
-        shot = pd.Series(pose).groupby(pose).cumcount().to_numpy()
-    n_pose, n_shot = len(pose_of), int(shot.max()) + 1
-    x = np.full((n_pose, n_shot), np.nan)
-    y = np.full((n_pose, n_shot), np.nan)
-    status = np.full((n_pose, n_shot), STATUS["no_spot"], dtype=np.int8)
-    x[pose, shot], y[pose, shot] = num["x"], num["y"]
-    if "status" in table.columns:
-        codes = []
-        for i, v in enumerate(table["status"].tolist()):
-            code = STATUS.get(str(v).strip()) if not isinstance(v, int | float) else int(v)
-            if code not in STATUS.values():
-                raise SchemaError(f"{path.name} line {i + 2} column 'status'", v,
-                                  f"a status name or code of {STATUS}", "correct the value")
-            codes.append(code)
-        status[pose, shot] = codes
-    else:
-        status[pose, shot] = np.where(np.isfinite(num["x"]) & np.isfinite(num["y"]),
-                                      STATUS["ok"], STATUS["no_spot"])
-    return centroids_dataset(
-        x, y, status=status, alpha=[a for a, _ in pose_of], beta=[b for _, b in pose_of],
-        method=str((attrs or {}).get("method", "")),
-        attrs={"source": str(path.resolve()), "experiment": path.stem, **dict(attrs or {})},
-    )
+    return num
+
+
+def _shot_numbers(table, pose, name: str):
+    """Each row's shot within its pose: the rank of its ``shot`` label, or its order."""
+    import numpy as np
+    import pandas as pd
+
+    if "shot" not in table.columns:
+        return pd.Series(pose).groupby(pose).cumcount().to_numpy()
+    labels = pd.to_numeric(table["shot"], errors="coerce").to_numpy(dtype=float)
+    if not np.all(np.isfinite(labels)):
+        i = int(np.flatnonzero(~np.isfinite(labels))[0])
+        raise SchemaError(f"{name} line {i + 2} column 'shot'", table["shot"].iloc[i],
+                          "an integer shot label", "number the shots 0, 1, 2, ...")
+    order = pd.DataFrame({"p": pose, "s": labels}).groupby("p")["s"].rank(method="first")
+    dup = pd.DataFrame({"p": pose, "s": labels}).duplicated()
+    if dup.any():
+        i = int(np.flatnonzero(dup.to_numpy())[0])
+        raise SchemaError(f"{name} line {i + 2}", "the same pose and shot again",
+                          "one row per (alpha, beta, shot)", "remove the duplicate row")
+    return order.to_numpy(dtype=int) - 1
+
+
+def _status_codes(table, num: dict, name: str):
+    """Each row's status code: the ``status`` column (name or code), or ``ok`` where x and y
+    are finite and ``no_spot`` elsewhere."""
+    import numpy as np
+
+    from ..schema import STATUS
+
+    if "status" not in table.columns:
+        return np.where(np.isfinite(num["x"]) & np.isfinite(num["y"]),
+                        STATUS["ok"], STATUS["no_spot"])
+    codes = []
+    for i, v in enumerate(table["status"].tolist()):
+        code = STATUS.get(str(v).strip()) if not isinstance(v, int | float) else int(v)
+        if code not in STATUS.values():
+            raise SchemaError(f"{name} line {i + 2} column 'status'", v,
+                              f"a status name or code of {STATUS}", "correct the value")
+        codes.append(code)
+    return codes
 
 
 def open_centroid_table(path, name: str = "table"):
@@ -411,23 +444,7 @@ def _run_evaluate(args) -> int:
               "errors.csv")
     if out is None:
         return 0
-    doc = {f"{a}.{s}": (None if not np.isfinite(col[(a, s)]) else float(col[(a, s)]))
-           for a in ("alpha", "beta") for s in _STATS}
-    doc.update({
-        "units": "deg", "calibration": str(args.calibration), "label": cal.label,
-        "kind": cal.kind, "test": str(args.test), "n_poses": int(test.sizes["pose"]),
-        "n_shots": int(test.sizes["shot"]), "n_ok_shots": n_ok, "n_out_of_domain": n_out,
-        "ddof": 1,
-        "definitions": "local error = mean over the shots of a pose of |estimated - commanded|; "
-                       "maximum error = max over the shots; mu, sigma = mean, sample std of "
-                       "the local errors over poses; M, sigma_M = the same of the maximum errors",
-    })
-    if args.paper:
-        want = _PAPER_COLUMN.get(cal.kind)
-        if want:
-            paper = stats.paper_table4()[want]
-            doc["paper"] = {"column": want, **{f"{a}.{s}": float(paper[(a, s)])
-                                               for a in ("alpha", "beta") for s in _STATS}}
+    doc = _evaluation_doc(args, cal, test, col, n_ok, n_out)
     atomic.write_text(out / names[0], json.dumps(doc, indent=1) + "\n",
                        overwrite=args.overwrite, flag="--overwrite")
     rows = pd.DataFrame({
@@ -440,26 +457,56 @@ def _run_evaluate(args) -> int:
     })
     atomic.write_text(out / names[1], rows.to_csv(index=False, float_format="%.8g"),
                        overwrite=args.overwrite, flag="--overwrite")
-    written = [names[0], names[1]]
-    from .. import plots
+    written = [names[0], names[1]] + _write_evaluation_figures(args, cal, local, out, names[2:])
+    print(f"wrote {', '.join(str(out / n) for n in written)}")
+    return 0
 
+
+def _evaluation_doc(args, cal, test, col, n_ok: int, n_out: int) -> dict:
+    """``evaluation.json``: the eight statistics, what was evaluated, and the paper's column."""
+    import numpy as np
+
+    from .. import stats
+
+    doc = {f"{a}.{s}": (None if not np.isfinite(col[(a, s)]) else float(col[(a, s)]))
+           for a in ("alpha", "beta") for s in _STATS}
+    doc.update({
+        "units": "deg", "calibration": str(args.calibration), "label": cal.label,
+        "kind": cal.kind, "test": str(args.test), "n_poses": int(test.sizes["pose"]),
+        "n_shots": int(test.sizes["shot"]), "n_ok_shots": n_ok, "n_out_of_domain": n_out,
+        "ddof": 1,
+        "definitions": "local error = mean over the shots of a pose of |estimated - commanded|; "
+                       "maximum error = max over the shots; mu, sigma = mean, sample std of "
+                       "the local errors over poses; M, sigma_M = the same of the maximum errors",
+    })
+    want = _PAPER_COLUMN.get(cal.kind) if args.paper else None
+    if want:
+        paper = stats.paper_table4()[want]
+        doc["paper"] = {"column": want, **{f"{a}.{s}": float(paper[(a, s)])
+                                           for a in ("alpha", "beta") for s in _STATS}}
+    return doc
+
+
+def _write_evaluation_figures(args, cal, local, out: Path, names) -> list[str]:
+    """Fig. 10 (error maps, when the test poses form a grid) and Fig. 11 (histograms)."""
+    from .. import atomic, plots
+
+    written = []
     try:
         fig10 = plots.error_maps(local, title=f"{cal.label}: errors on {Path(args.test).name}")
     except (ValueError, KeyError) as err:  # poses that do not form a grid: no map
         print(f"no Fig. 10 (error maps): the test poses do not form a grid ({err})")
     else:
-        atomic.write_bytes(out / names[2], _figure_bytes(fig10), overwrite=args.overwrite,
+        atomic.write_bytes(out / names[0], _figure_bytes(fig10), overwrite=args.overwrite,
                             flag="--overwrite")
-        written.append(names[2])
+        written.append(names[0])
     fig11 = plots.new_figure(figsize=(9, 3.4), layout="constrained")
     for ax, a in zip(fig11.subplots(1, 2), ("alpha", "beta"), strict=True):
         h = plots.error_histogram(local, angle=a, title=f"local error of {a}")
         _copy_histogram(h.axes[0], ax)
-    atomic.write_bytes(out / names[3], _figure_bytes(fig11), overwrite=args.overwrite,
+    atomic.write_bytes(out / names[1], _figure_bytes(fig11), overwrite=args.overwrite,
                         flag="--overwrite")
-    written.append(names[3])
-    print(f"wrote {', '.join(str(out / n) for n in written)}")
-    return 0
+    return written + [names[1]]
 
 
 def _copy_histogram(src, ax) -> None:
