@@ -164,7 +164,12 @@ def reproduce_table5(quick: bool = True, seed: int = 0, out: Path | str | None =
 
     Examples
     --------
-    >>> res = reproduce_table5(step=6, shots=1, progress=False)  # doctest: +SKIP
+    The columns (a run renders 100-hole frames: minutes even thinned, so not run here):
+
+    >>> COLUMNS[2], REJECTION_COLUMN
+    ('1 hole', '100 holes: averaging + rejection')
+    >>> res = reproduce_table5(step=4, shots=1, progress=False)  # doctest: +SKIP
+    >>> res["table"].loc[("alpha", "mu")]  # doctest: +SKIP
     """
     t0 = time.perf_counter()
     plans_ = experiment_plans(("I", "III"), quick=quick, step=step, shots=shots)
