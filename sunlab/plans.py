@@ -27,8 +27,8 @@ import numpy as np
 
 from .errors import ConfigurationError
 
-__all__ = ["Plan", "experiment", "grid", "custom", "zero_check", "EXPERIMENTS", "SCANS",
-           "APPROACHES", "PAPER_SCAN"]
+__all__ = ["Plan", "experiment", "grid", "custom", "read_plan", "zero_check", "EXPERIMENTS",
+           "SCANS", "APPROACHES", "PAPER_SCAN"]
 
 #: The paper's Table 3: (alpha_min, alpha_max, alpha_step, beta_min, beta_max, beta_step), deg.
 EXPERIMENTS: dict[str, tuple[float, float, float, float, float, float]] = {
@@ -437,6 +437,60 @@ def custom(alpha, beta, shots: int = 8, name: str = "custom", scan: str = "raste
         scan,
         approach,
     )
+
+
+def read_plan(spec, shots: int = 8, *, field: str = "plan") -> Plan:
+    """A plan from its name or a CSV file: ``"I"``, ``"II"``, ``"III"`` (any case; Table 3) or
+    the path of a CSV with a header line ``alpha,beta`` and one pose (deg) per row.
+
+    Parameters
+    ----------
+    spec : str or path
+        Experiment name or CSV file (the plan is named after the file's stem).
+    shots : int
+        Frames per pose.
+    field : str
+        The name the caller gave ``spec`` (e.g. ``"--plan"`` on the command line), for the
+        messages of the errors.
+
+    Returns
+    -------
+    Plan
+
+    Raises
+    ------
+    sunlab.errors.ConfigurationError
+        Neither an experiment nor an existing file, or a CSV without ``alpha`` and ``beta``.
+
+    Examples
+    --------
+    >>> import pathlib, tempfile
+    >>> read_plan("iii").name, len(read_plan("III"))
+    ('III', 361)
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "corners.csv"
+    >>> _ = path.write_text("alpha,beta\\n-10,5\\n0,0\\n")
+    >>> p = read_plan(path, shots=2)
+    >>> p.name, p.alpha.tolist(), p.shots
+    ('corners', [-10.0, 0.0], 2)
+    """
+    from pathlib import Path
+
+    if str(spec).upper() in EXPERIMENTS:
+        return experiment(str(spec).upper(), shots=shots)
+    if not Path(spec).is_file():
+        raise ConfigurationError(
+            f"{field}: found {str(spec)!r}, expected I, II, III or an existing CSV file"
+        )
+    import pandas as pd
+
+    table = pd.read_csv(spec)
+    missing = {"alpha", "beta"} - set(table.columns)
+    if missing:
+        raise ConfigurationError(
+            f"{field} {spec}: columns {sorted(table.columns)}, missing {sorted(missing)}. "
+            "Fix: a CSV with a header line 'alpha,beta' and one pose (deg) per row"
+        )
+    return custom(table["alpha"], table["beta"], shots=shots, name=Path(spec).stem)
 
 
 def zero_check(plan: Plan, checks: int = 4, *, shots: int | None = None) -> Plan:

@@ -686,26 +686,47 @@ def fit_correction(train: xr.Dataset, train_motion, validation: xr.Dataset | Non
     True
     """
     from .calibration import Polynomial
-    from .calibration.polynomial import _scale, design_matrix
 
     if validation is not None:
         cal, _ = Polynomial.select_order(train, validation)
     else:
         cal = Polynomial(5 if order is None else order).fit(train)
-    d = (np.asarray(train_motion, dtype=float)
-         if isinstance(train_motion, np.ndarray | list | tuple)
-         else approach_of(train_motion).astype(float))
     xm, ym = _pose_means(train)
     b_cmd = np.asarray(train["beta"].values, dtype=float)
-    if d.shape != b_cmd.shape:
+    d = _approach_directions(train_motion, b_cmd.size)
+    params, extra = _joint_beta_fit(cal, xm, ym, d, b_cmd, backlash=backlash,
+                                    gear_frequency=gear_frequency)
+    if (zero_train is None) != (zero_test is None):
         raise ConfigurationError(
-            f"train_motion: found {d.size} approach directions for {b_cmd.size} poses; "
+            "zero_train, zero_test: found one of them; expected both zero-pose checks (the "
+            "calibration run's and the test run's) or neither. Fix: plans.zero_check(plan) "
+            "for each run."
+        )
+    if zero_train is not None:
+        params["beta_homing_difference_deg"] = _homing_difference(cal, zero_train, zero_test)
+    return JointCorrection(cal, params, None if gear_frequency is None else float(gear_frequency),
+                           extra)
+
+
+def _approach_directions(motion, n_poses: int) -> np.ndarray:
+    """The approach direction of each pose of the calibration run (+1 up, -1 down), checked
+    against its number of poses."""
+    d = (np.asarray(motion, dtype=float) if isinstance(motion, np.ndarray | list | tuple)
+         else approach_of(motion).astype(float))
+    if d.shape != (n_poses,):
+        raise ConfigurationError(
+            f"train_motion: found {d.size} approach directions for {n_poses} poses; "
             "expected the motion record of the calibration run. Fix: pass its plan."
         )
+    return d
+
+
+def _joint_beta_fit(cal, xm, ym, d, b_cmd, *, backlash: bool, gear_frequency):
+    """Refit beta's polynomial jointly with the backlash term (``d``: approach directions) and
+    a gear term; the polynomial's coefficients go into ``cal``. The fitted fault parameters
+    with standard errors, and the terms :class:`JointCorrection` applies."""
     ok = np.isfinite(xm) & np.isfinite(ym)
-    u, v = _scale(xm[ok], cal.scaling["x"]), _scale(ym[ok], cal.scaling["y"])
-    n_b = cal.orders[1]
-    P = design_matrix(u, v, n_b)
+    P = cal.basis(xm[ok], ym[ok], "beta")
     cols = [P, d[ok, None]] if backlash else [P]
     if gear_frequency is not None:
         ph = 2 * np.pi * float(gear_frequency) * b_cmd[ok]
@@ -730,26 +751,23 @@ def fit_correction(train: xr.Dataset, train_motion, validation: xr.Dataset | Non
         se = math.sqrt(float(g @ cov[k:k + 2, k:k + 2] @ g))
         params["beta_gear_amplitude_deg"] = {"fitted": amp, "stderr": se}
         extra.update({"sin": -s, "cos": -c})
-    if (zero_train is None) != (zero_test is None):
-        raise ConfigurationError(
-            "zero_train, zero_test: found one of them; expected both zero-pose checks (the "
-            "calibration run's and the test run's) or neither. Fix: plans.zero_check(plan) "
-            "for each run."
-        )
-    if zero_train is not None:
-        vals = []
-        for z in (zero_train, zero_test):
-            zx, zy = _pose_means(z)
-            _, bz = cal.predict_xy(zx, zy)
-            bz = bz[np.isfinite(bz)]
-            if bz.size < 2:
-                raise ConfigurationError(
-                    "zero check: found fewer than 2 usable zero-pose visits; expected several. "
-                    "Fix: plans.zero_check(plan, checks=4)."
-                )
-            vals.append(bz)
-        h = float(vals[1].mean() - vals[0].mean())
-        se = math.sqrt(vals[0].var(ddof=1) / vals[0].size + vals[1].var(ddof=1) / vals[1].size)
-        params["beta_homing_difference_deg"] = {"fitted": h, "stderr": se}
-    return JointCorrection(cal, params, None if gear_frequency is None else float(gear_frequency),
-                           extra)
+    return params, extra
+
+
+def _homing_difference(cal, zero_train, zero_test) -> dict:
+    """The test run's homing offset minus the calibration run's, from the beta ``cal`` reads
+    at the zero-pose checks of each run, with its standard error."""
+    vals = []
+    for z in (zero_train, zero_test):
+        zx, zy = _pose_means(z)
+        _, bz = cal.predict_xy(zx, zy)
+        bz = bz[np.isfinite(bz)]
+        if bz.size < 2:
+            raise ConfigurationError(
+                "zero check: found fewer than 2 usable zero-pose visits; expected several. "
+                "Fix: plans.zero_check(plan, checks=4)."
+            )
+        vals.append(bz)
+    h = float(vals[1].mean() - vals[0].mean())
+    se = math.sqrt(vals[0].var(ddof=1) / vals[0].size + vals[1].var(ddof=1) / vals[1].size)
+    return {"fitted": h, "stderr": se}

@@ -302,36 +302,32 @@ def frames_dataset(
             "stack single frames as frames[None, None] or reshape to (pose, shot, y, x)",
         )
     n_pose, n_shot, ny, nx = frames.shape
+    alpha, beta = _pose_angles(alpha, beta, n_pose)
+    all_attrs = {
+        "sunlab_schema": FRAMES_SCHEMA,
+        **_sensor_attrs(pixel_pitch_mm, mask_distance_mm,
+                        (nx - 1) / 2 if x_cf_px is None else x_cf_px,
+                        (ny - 1) / 2 if y_cf_px is None else y_cf_px, bit_depth),
+        "mask": str(mask), "experiment": str(experiment), **(attrs or {}),
+    }
+    coords = {
+        "pose": np.arange(n_pose), "shot": np.arange(n_shot),
+        "alpha": ("pose", alpha, {"units": "deg", "long_name": "commanded outer-axis angle"}),
+        "beta": ("pose", beta, {"units": "deg", "long_name": "commanded inner-axis angle"}),
+        **dict(coords or {}),
+    }
+    frames = {"frames": (("pose", "shot", "y", "x"), frames, {"units": "DN"})}
+    return validate_frames(xr.Dataset(frames, coords=coords, attrs=all_attrs))
+
+
+def _pose_angles(alpha, beta, n_pose: int) -> tuple[np.ndarray, np.ndarray]:
+    """The commanded angles as float arrays, one per pose."""
     alpha = np.asarray(alpha, dtype=float)
     beta = np.asarray(beta, dtype=float)
     for name, val in (("alpha", alpha), ("beta", beta)):
         if val.shape != (n_pose,):
             raise SchemaError(name, f"shape {val.shape}", f"shape ({n_pose},), one angle per pose")
-    all_attrs = {
-        "sunlab_schema": FRAMES_SCHEMA,
-        **_sensor_attrs(
-            pixel_pitch_mm,
-            mask_distance_mm,
-            (nx - 1) / 2 if x_cf_px is None else x_cf_px,
-            (ny - 1) / 2 if y_cf_px is None else y_cf_px,
-            bit_depth,
-        ),
-        "mask": str(mask),
-        "experiment": str(experiment),
-    }
-    all_attrs.update(attrs or {})
-    ds = xr.Dataset(
-        {"frames": (("pose", "shot", "y", "x"), frames, {"units": "DN"})},
-        coords={
-            "pose": np.arange(n_pose),
-            "shot": np.arange(n_shot),
-            "alpha": ("pose", alpha, {"units": "deg", "long_name": "commanded outer-axis angle"}),
-            "beta": ("pose", beta, {"units": "deg", "long_name": "commanded inner-axis angle"}),
-            **dict(coords or {}),
-        },
-        attrs=all_attrs,
-    )
-    return validate_frames(ds)
+    return alpha, beta
 
 
 def empty_frames(
@@ -555,6 +551,24 @@ def centroids_dataset(
     flux = np.full(x.shape, np.nan) if flux is None else np.asarray(flux, dtype=float)
     if window is None:
         window = [np.full(x.shape, -1, dtype=np.int32)] * 4
+    data = {**_centroid_variables(dims, x, y, flux, status, window), **dict(extra or {})}
+    coords = {"pose": np.arange(x.shape[0]), "shot": np.arange(x.shape[1])}
+    if x.ndim == 3:
+        coords["hole"] = np.arange(x.shape[2])
+    if alpha is not None:
+        coords["alpha"] = ("pose", np.asarray(alpha, dtype=float), {"units": "deg"})
+    if beta is not None:
+        coords["beta"] = ("pose", np.asarray(beta, dtype=float), {"units": "deg"})
+    ds = xr.Dataset(
+        data,
+        coords=coords,
+        attrs={**dict(attrs or {}), "sunlab_schema": CENTROIDS_SCHEMA, "method": str(method)},
+    )
+    return validate_centroids(ds)
+
+
+def _centroid_variables(dims, x, y, flux, status, window) -> dict:
+    """The variables of a ``centroids/1`` table, with their units and status flags."""
     data = {
         "x": (dims, x, {"units": "px", "long_name": "spot centroid column"}),
         "y": (dims, y, {"units": "px", "long_name": "spot centroid row"}),
@@ -570,20 +584,7 @@ def centroids_dataset(
     }
     for name, bound in zip(("x0", "x1", "y0", "y1"), window, strict=True):
         data[name] = (dims, np.asarray(bound, dtype=np.int32), {"units": "px"})
-    data.update(dict(extra or {}))
-    coords = {"pose": np.arange(x.shape[0]), "shot": np.arange(x.shape[1])}
-    if x.ndim == 3:
-        coords["hole"] = np.arange(x.shape[2])
-    if alpha is not None:
-        coords["alpha"] = ("pose", np.asarray(alpha, dtype=float), {"units": "deg"})
-    if beta is not None:
-        coords["beta"] = ("pose", np.asarray(beta, dtype=float), {"units": "deg"})
-    ds = xr.Dataset(
-        data,
-        coords=coords,
-        attrs={**dict(attrs or {}), "sunlab_schema": CENTROIDS_SCHEMA, "method": str(method)},
-    )
-    return validate_centroids(ds)
+    return data
 
 
 def validate_centroids(ds: xr.Dataset) -> xr.Dataset:

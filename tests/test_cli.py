@@ -33,11 +33,11 @@ def test_every_subcommand_has_a_handler():
         assert p.get_default("func") is not None, name
 
 
-def test_reproduce_passes_the_scheduler_to_both_tables(monkeypatch, tmp_path, capsys):
-    # --address, --scheduler and --workers reach Table 4 and Table 5 alike (issue 16)
+def test_reproduce_passes_the_scheduler_to_every_table(monkeypatch, tmp_path, capsys):
+    # --address, --scheduler, --workers and --method reach every table alike (issues 16, 15)
     import pandas as pd
 
-    from sunlab import reproduce, reproduce_table5
+    from sunlab import reproduce
 
     seen = {}
 
@@ -52,12 +52,21 @@ def test_reproduce_passes_the_scheduler_to_both_tables(monkeypatch, tmp_path, ca
 
     monkeypatch.setattr(reproduce, "reproduce_table4", table4)
     monkeypatch.setattr(reproduce, "format_table", lambda res: "table 4")
-    monkeypatch.setattr(reproduce_table5, "reproduce_table5", table5)
-    rc = main(["reproduce", "--table", "all", "--quick", "--address", "tcp://10.0.0.1:8786",
-               "--scheduler", "cluster", "--workers", "2", "--out", str(tmp_path)])
-    assert rc == 0
-    for k in (4, 5):
-        assert (seen[k]["address"], seen[k]["scheduler"], seen[k]["workers"]) == (
-            "tcp://10.0.0.1:8786", "cluster", 2), k
+    monkeypatch.setattr(reproduce, "reproduce_table5", table5)
+
+    def platform(**kw):
+        seen["platform"] = kw
+        return {"files": []}
+
+    monkeypatch.setattr(reproduce, "reproduce_platform", platform)
+    monkeypatch.setattr(reproduce, "format_platform", lambda res: "platform")
+    for table in ("all", "platform"):
+        rc = main(["reproduce", "--table", table, "--quick", "--address", "tcp://10.0.0.1:8786",
+                   "--scheduler", "cluster", "--workers", "2", "--method", "fit",
+                   "--out", str(tmp_path)])
+        assert rc == 0
+    for k in (4, 5, "platform"):
+        assert (seen[k]["address"], seen[k]["scheduler"], seen[k]["workers"],
+                seen[k]["method"]) == ("tcp://10.0.0.1:8786", "cluster", 2, "fit"), k
         assert seen[k]["quick"] is True
     capsys.readouterr()

@@ -15,9 +15,9 @@ import pytest
 from PIL import Image
 
 from sunlab import export, geometry, io
-from sunlab._cli_lab import calibration_summary, centroids_from_csv
-from sunlab.calibration import Interpolation, load
+from sunlab.calibration import Interpolation, calibration_summary, load
 from sunlab.cli import main
+from sunlab.cli.lab import centroids_from_csv
 
 F_MM, PITCH_MM = 5.0, 0.007  # 1 deg ~ 12.5 px
 N_PX, RADIUS_PX, SUB = 144, 8.0, 4

@@ -117,3 +117,17 @@ def test_zero_check_and_bad_motion():
         plans.experiment("I", scan="spiral")
     with pytest.raises(ConfigurationError, match="approach"):
         plans.grid(0, 1, 1, 0, 1, 1, approach="sideways")
+
+
+def test_read_plan_names_an_experiment_or_reads_a_csv(tmp_path):
+    assert plans.read_plan("ii", shots=3).name == "II"
+    path = tmp_path / "poses.csv"
+    path.write_text("alpha,beta\n-3,2\n1.5,0\n")
+    p = plans.read_plan(path, shots=2)
+    assert (p.name, p.alpha.tolist(), p.beta.tolist(), p.shots) == (
+        "poses", [-3.0, 1.5], [2.0, 0.0], 2)
+    path.write_text("a,b\n1,2\n")
+    with pytest.raises(ConfigurationError, match=r"--plan .*missing \['alpha', 'beta'\]"):
+        plans.read_plan(path, field="--plan")
+    with pytest.raises(ConfigurationError, match=r"plan: found 'IV', expected I, II, III"):
+        plans.read_plan("IV")

@@ -9,9 +9,8 @@ from sunlab import ConfigurationError, plans, stats
 from sunlab import platform_fault as pf
 from sunlab.calibration import Polynomial
 from sunlab.sim import Bench
-from sunlab.sim.bench import _homing
+from sunlab.sim.bench import homing_offset
 from sunlab.sim.identify import surrogate_centroids
-from sunlab.sim.render import _entropy
 
 SIZES = {"backlash": 0.017, "homing": 0.03, "gear": 0.02}
 SEED = 3
@@ -51,8 +50,7 @@ def test_diagnosis_names_the_one_fault(runs, kind):
     bench, tr, te = runs[kind]
     cal, test = _plans()
     if kind == "homing":  # the two runs' zeros must differ for the fault to show at all
-        key = _entropy(SEED)
-        diff = _homing(bench.platform, key, "III") - _homing(bench.platform, key, "I")
+        diff = homing_offset(bench, SEED, "III") - homing_offset(bench, SEED, "I")
         assert abs(diff) > 0.01
     est = Polynomial(5).fit(tr).predict(te)
     diag = pf.diagnose(est, test)
@@ -93,8 +91,7 @@ def test_zero_checks_measure_the_homing_difference(runs):
     zc = {n: surrogate_centroids(bench, plans.zero_check(p, 6), SEED, spot_error=False)
           for n, p in (("I", cal), ("III", test))}
     jc = pf.fit_correction(tr, cal, order=5, zero_train=zc["I"], zero_test=zc["III"])
-    key = _entropy(SEED)
-    truth = _homing(bench.platform, key, "III") - _homing(bench.platform, key, "I")
+    truth = homing_offset(bench, SEED, "III") - homing_offset(bench, SEED, "I")
     p = jc.parameters["beta_homing_difference_deg"]
     assert abs(p["fitted"] - truth) < 2.5 * p["stderr"]
     assert p["stderr"] < 0.005

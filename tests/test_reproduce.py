@@ -74,3 +74,30 @@ def test_format_prints_ours_beside_the_paper(result):
 def test_cli_arguments():
     args = build_parser().parse_args(["reproduce", "--quick", "--table", "4", "--no-neural"])
     assert args.quick and args.table == "4" and args.no_neural
+
+
+def test_quick_has_one_meaning_for_every_table():
+    from sunlab import plans
+    from sunlab.reproduce import QUICK, experiment_plans
+
+    assert QUICK == {"step": 2, "shots": 2}
+    for name, p in experiment_plans(quick=True).items():
+        ref = plans.experiment(name).thin(2).with_shots(2)
+        assert (len(p), p.shots) == (len(ref), 2)
+        assert np.array_equal(p.alpha, ref.alpha) and np.array_equal(p.beta, ref.beta)
+
+
+def test_table5_names_its_spot_method_or_raises():
+    from sunlab.errors import ConfigurationError
+    from sunlab.reproduce import spot_method
+
+    assert [spot_method(m) for m in ("projection", "threshold", "tight", "fit")] == [
+        "tight", "tight", "tight", "fit"]
+    with pytest.raises(ConfigurationError, match="method: found 'nearest'"):
+        spot_method("nearest")
+
+
+def test_centroid_status_counts_the_removed_frames(result):
+    for counts in result.centroid_status.values():
+        assert set(counts["removed"]) <= set(counts) - {"removed"}
+        assert "ok" not in counts["removed"]

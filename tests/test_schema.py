@@ -105,7 +105,7 @@ def _readme_examples():
 
 
 def test_readme_examples_follow_the_schemas(tmp_path):
-    from sunlab._cli_lab import _SENSOR_KEYS, _sensor_json
+    from sunlab.cli.lab import _SENSOR_KEYS, _sensor_json
 
     examples = _readme_examples()
     found = set()

@@ -15,7 +15,9 @@ class                     method (docs/paper.md sec. 4)                         
 :class:`NeuralNet`        one tanh hidden layer per angle, strategies 1-4 (Table 2) neural
 ========================  ========================================================  ===========
 
-Submodules load on first use; torch is imported only when a :class:`NeuralNet` is fitted.
+Submodules load on first use (``import sunlab.calibration.summary``, the text of
+``sunlab info CAL.json``, needs the standard library only); torch is imported only when a
+:class:`NeuralNet` is fitted. :func:`calibration_summary` describes a saved calibration.
 
 Examples
 --------
@@ -30,9 +32,10 @@ from __future__ import annotations
 
 import importlib
 
-from .base import KINDS, Calibration, TrainingData, combine, from_dict, load, training_data
-
 _LAZY = {
+    **dict.fromkeys(["KINDS", "Calibration", "TrainingData", "combine", "from_dict", "load",
+                     "training_data"], "base"),
+    "calibration_summary": "summary",
     "Polynomial": "polynomial",
     "Trigonometric": "trigonometric",
     "Interpolation": "interpolation",
@@ -42,6 +45,7 @@ _LAZY = {
 }
 
 __all__ = [
+    "calibration_summary",
     "Calibration",
     "TrainingData",
     "KINDS",

@@ -373,7 +373,7 @@ class Calibration:
         >>> cal.inside([cal.domain["x"][0], 1e4], [cal.domain["y"][0], 0.0]).tolist()
         [True, False]
         """
-        self._require_fitted()
+        self.check_fitted()
         x, y = np.broadcast_arrays(np.asarray(x, dtype=float), np.asarray(y, dtype=float))
         (x0, x1), (y0, y1) = self.domain["x"], self.domain["y"]
         return (x >= x0) & (x <= x1) & (y >= y0) & (y <= y1)
@@ -383,7 +383,7 @@ class Calibration:
 
         The same text as ``sunlab info CAL.json``.
         """
-        from .._cli_lab import calibration_summary
+        from .summary import calibration_summary
 
         return calibration_summary(self.to_dict())
 
@@ -393,7 +393,7 @@ class Calibration:
         NaN where x or y is not finite (and, for interpolation, outside the convex hull). No
         check of the domain: see :meth:`inside`, or :meth:`predict`, which flags extrapolation.
         """
-        self._require_fitted()
+        self.check_fitted()
         x, y = np.broadcast_arrays(np.asarray(x, dtype=float), np.asarray(y, dtype=float))
         bad = ~(np.isfinite(x) & np.isfinite(y))
         xs, ys = np.where(bad, 0.0, x), np.where(bad, 0.0, y)
@@ -453,7 +453,7 @@ class Calibration:
         """The ``calibration/1`` document (JSON-ready)."""
         from .. import __version__
 
-        self._require_fitted()
+        self.check_fitted()
         return _jsonable({
             "sunlab_schema": CALIBRATION_SCHEMA,
             "kind": self.kind,
@@ -500,12 +500,25 @@ class Calibration:
         """Further entries of ``residuals`` (interpolation: its leave-one-out errors)."""
         return {}
 
-    def _require_fitted(self) -> None:
+    def check_fitted(self) -> None:
+        """Raise :class:`sunlab.errors.ConfigurationError` unless the calibration is fitted
+        (or loaded); what :meth:`predict`, :meth:`save` and the exporters check first.
+
+        Examples
+        --------
+        >>> from sunlab.calibration import Polynomial
+        >>> Polynomial(3).check_fitted()  # doctest: +ELLIPSIS
+        Traceback (most recent call last):
+        ...
+        sunlab.errors.ConfigurationError: Polynomial: not fitted. Fix: call .fit(...) or ...
+        """
         if not self.is_fitted:
             raise ConfigurationError(
                 f"{type(self).__name__}: not fitted. Fix: call .fit(train_centroids) or "
                 "sunlab.calibration.load(path) first"
             )
+
+    _require_fitted = check_fitted  # the former private name, for subclasses written against it
 
     # --- to implement ----------------------------------------------------------------------
     def _fit(self, data: TrainingData, validation: TrainingData | None) -> None:

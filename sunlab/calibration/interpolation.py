@@ -111,7 +111,7 @@ class Interpolation(Calibration):
 
     def inside(self, x, y) -> np.ndarray:
         """True inside the convex hull of the nodes (where the interpolant is defined)."""
-        self._require_fitted()
+        self.check_fitted()
         x, y = np.broadcast_arrays(np.asarray(x, dtype=float), np.asarray(y, dtype=float))
         ok = np.isfinite(x) & np.isfinite(y)
         pts = np.column_stack([np.where(ok, x, 0.0).ravel(), np.where(ok, y, 0.0).ravel()])

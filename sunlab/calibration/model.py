@@ -22,7 +22,7 @@ from .. import geometry
 from ..errors import ConfigurationError
 from .base import Calibration, TrainingData, sensor_attrs
 
-__all__ = ["IdealModel", "OptimisedModel", "fit_optimised"]
+__all__ = ["IdealModel", "OptimisedModel", "fit_optimised", "optimised_fit_from_dict"]
 
 #: Poses within this distance of alpha = beta = 0 (deg) count as the zero pose.
 ZERO_POSE_TOL_DEG = 1e-9
@@ -178,13 +178,27 @@ class OptimisedModel(Calibration):
     @classmethod
     def _from_parameters(cls, p: dict):
         obj = cls(fit_zero_pose=p.get("fit_zero_pose"))
-        fields = geometry.OptimisedFit.__dataclass_fields__
-        # files written before the rotation mounting hold the additive form's parameters
-        defaults = {"mounting": "additive", "stderr_method": "jacobian"}
-        kw = {k: p.get(k, defaults.get(k)) for k in fields}
-        kw["stderr"] = {k: (np.nan if v is None else float(v)) for k, v in kw["stderr"].items()}
-        for k in ("delta_f_mm", "alpha0", "beta0", "x_zp", "y_zp", "x_cf", "y_cf",
-                  "mask_distance_mm", "pixel_pitch_mm"):
-            kw[k] = float(kw[k])
-        obj.result = geometry.OptimisedFit(**kw)
+        obj.result = optimised_fit_from_dict(p)
         return obj
+
+
+def optimised_fit_from_dict(p: dict) -> geometry.OptimisedFit:
+    """The fitted optimised model (3)-(4) from its dictionary
+    (:meth:`sunlab.geometry.OptimisedFit.to_dict`, as saved files hold it); files written
+    before the rotation mounting hold the additive form's parameters.
+
+    Examples
+    --------
+    >>> fit = OptimisedModel().fit(geometry.synthetic_centroids([0.0, -5, -10, 0, -5, -10],
+    ...                                                         [0.0, 0, 0, 5, 5, 5])).result
+    >>> optimised_fit_from_dict(fit.to_dict()) == fit
+    True
+    """
+    fields = geometry.OptimisedFit.__dataclass_fields__
+    defaults = {"mounting": "additive", "stderr_method": "jacobian"}
+    kw = {k: p.get(k, defaults.get(k)) for k in fields}
+    kw["stderr"] = {k: (np.nan if v is None else float(v)) for k, v in kw["stderr"].items()}
+    for k in ("delta_f_mm", "alpha0", "beta0", "x_zp", "y_zp", "x_cf", "y_cf",
+              "mask_distance_mm", "pixel_pitch_mm"):
+        kw[k] = float(kw[k])
+    return geometry.OptimisedFit(**kw)

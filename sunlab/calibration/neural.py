@@ -291,14 +291,14 @@ class NeuralNet(Calibration):
 
     @classmethod
     def _from_parameters(cls, p: dict):
-        from .model import OptimisedModel
+        from .model import optimised_fit_from_dict
 
         obj = cls(strategy=int(p["strategy"]), hidden=int(p["hidden"]), seed=int(p["seed"]),
                   max_iter=int(p["max_iter"]), patience=int(p["patience"]),
                   weight_decay=float(p["weight_decay"]))
         obj.sensor = None if p["sensor"] is None else sensor_attrs(p["sensor"], name="sensor")
         if obj.strategy == 3:
-            obj.optimised = OptimisedModel._from_parameters(p["optimised"]).result
+            obj.optimised = optimised_fit_from_dict(p["optimised"])
         obj.input_scaling = {k: np.asarray(p["input_scaling"][k], dtype=float)
                              for k in ("mean", "std")}
         obj.networks = {}

@@ -149,12 +149,28 @@ class Polynomial(Calibration):
             coef, *_ = np.linalg.lstsq(A, target, rcond=None)
             self.coefficients[angle] = coef
 
-    def _predict_xy(self, x, y):
+    def basis(self, x, y, angle: str = "beta") -> np.ndarray:
+        """The design matrix of centroids ``x``, ``y`` (px) for one angle's polynomial: the
+        monomials of the fitted calibration's scaled coordinates, so that
+        ``basis(x, y, angle) @ coefficients[angle]`` is its prediction (a joint fit such as
+        :func:`sunlab.platform_fault.fit_correction` adds its own columns beside them).
+
+        Examples
+        --------
+        >>> from sunlab import geometry
+        >>> cal = Polynomial(2).fit(geometry.synthetic_centroids([0.0, -5, -10, 0, -5, -10],
+        ...                                                      [0.0, 0, 0, 5, 5, 5]))
+        >>> cal.basis([100.0, 200.0], [50.0, 60.0], "alpha").shape
+        (2, 6)
+        """
+        self.check_fitted()
+        x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
         u, v = _scale(x, self.scaling["x"]), _scale(y, self.scaling["y"])
-        return tuple(
-            design_matrix(u, v, n) @ self.coefficients[angle]
-            for angle, n in zip(("alpha", "beta"), self.orders, strict=True)
-        )
+        return design_matrix(u, v, self.orders[("alpha", "beta").index(angle)])
+
+    def _predict_xy(self, x, y):
+        return tuple(self.basis(x, y, angle) @ self.coefficients[angle]
+                     for angle in ("alpha", "beta"))
 
     def _parameters(self) -> dict:
         return {

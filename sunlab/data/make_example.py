@@ -23,6 +23,8 @@ from PIL import Image
 
 from sunlab import plans, sim
 
+__all__ = ["write_example"]
+
 HERE = Path(__file__).resolve().parent / "example"
 SEED = 2005
 MARGIN_PX = 36  # spot radius (~26 px) + a few pixels of background
@@ -35,7 +37,8 @@ def _plans():
     }
 
 
-def main() -> None:
+def write_example() -> None:
+    """Simulate the example recording and write it under ``sunlab/data/example/``."""
     bench = sim.Bench.paper_single_hole()
     cubes = {k: sim.simulate(p, bench, seed=SEED + i) for i, (k, p) in enumerate(_plans().items())}
     tx = np.concatenate([c.true_x.values.ravel() for c in cubes.values()])
@@ -75,4 +78,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    write_example()

@@ -44,7 +44,7 @@ from .platform import Platform
 from .render import _entropy, _truth, mask_play, render_frame, spot_geometry
 from .source import Source
 
-__all__ = ["Bench", "platform_pose", "simulate", "plan_key"]
+__all__ = ["Bench", "platform_pose", "homing_offset", "simulate", "plan_key"]
 
 #: Identified parameters of the paper's bench (:mod:`sunlab.sim.identify`; what pins each is
 #: in its module notes): the correlated response non-uniformity (relative RMS), the per-pose
@@ -327,6 +327,26 @@ def _homing(plat: Platform, seed_key: list[int], run: str) -> float:
     return float(u.uniform(-1.0, 1.0)) * plat.beta_homing_deg
 
 
+def homing_offset(bench: Bench, seed, run: str) -> float:
+    """The inner axis's zero offset of one named run (one homing) on a bench, deg.
+
+    Uniform in +-``bench.platform.beta_homing_deg``, drawn from the seed and the run's name,
+    as :func:`simulate` draws it for a plan of that name (a zero-pose check taken with the run,
+    :func:`sunlab.plans.zero_check`, shares it): the bench's own value of what
+    :func:`sunlab.platform_fault.fit_correction` estimates from the zero-pose checks.
+
+    Examples
+    --------
+    >>> b = Bench.paper_single_hole()
+    >>> homing_offset(b, 0, "III") - homing_offset(b, 0, "I")
+    0.0
+    >>> h = homing_offset(b.replace(platform__beta_homing_deg=0.01), 0, "I")
+    >>> bool(abs(h) <= 0.01)
+    True
+    """
+    return _homing(bench.platform, _entropy(seed), run)
+
+
 def _jitter(plat: Platform, key: list[int], pose: int, shot: int) -> tuple[float, float]:
     if not (plat.alpha_jitter_deg or plat.beta_jitter_deg):
         return 0.0, 0.0
@@ -464,7 +484,6 @@ def simulate(plan, bench: Bench | None = None, seed=0, chunks: str = "frame"):
     >>> bool(frame.max() > 300)
     True
     """
-    import dask.array as da
     from dask.base import tokenize
 
     from .. import schema
@@ -481,10 +500,36 @@ def simulate(plan, bench: Bench | None = None, seed=0, chunks: str = "frame"):
             f"bench: found {type(bench).__name__}; expected a sunlab.sim.Bench."
         )
     key = _entropy(seed) + [plan_key(plan)]
-    n_p, n_s = len(plan), plan.shots
-    ny, nx = bench.detector.shape
     ta, tb = _platform_table(bench, plan, key)
     token = tokenize(bench.to_json(), key, ta, tb)
+    frames = _frames_array(bench, key, ta, tb, token, chunks)
+    xd, yd = bench.hole_design_px()
+    ds = schema.frames_dataset(
+        frames, plan.alpha, plan.beta, pixel_pitch_mm=bench.detector.pixel_pitch_mm,
+        mask_distance_mm=bench.mask_distance_mm, x_cf_px=float(np.mean(xd)),
+        y_cf_px=float(np.mean(yd)), bit_depth=bench.detector.bit_depth, mask=bench.mask.name,
+        experiment=plan.name, coords=_hole_coords(bench, plan),
+        attrs={
+            "source": "sunlab virtual bench",
+            "sim_seed": _entropy(seed),
+            "sim_key": list(key),
+            "sim_bench": bench.to_json(),
+            # the motion history (sunlab.platform_fault reads it back)
+            "scan_order": plan.scan,
+            "approach": plan.approach,
+            "visit_order": plan.visit_order().astype(np.int32),
+        },
+    )
+    ds = _add_truth(ds, bench, key, ta, tb, token)
+    return schema.validate_frames(ds)
+
+
+def _frames_array(bench: Bench, key, ta, tb, token: str, chunks: str):
+    """The lazy frames (pose, shot, y, x): one task per frame or per pose (:func:`simulate`)."""
+    import dask.array as da
+
+    n_p, n_s = ta.shape
+    ny, nx = bench.detector.shape
     name = "sunlab-sim-frames-" + token
     if chunks == "frame":
         dsk = {
@@ -501,18 +546,15 @@ def simulate(plan, bench: Bench | None = None, seed=0, chunks: str = "frame"):
             f"chunks: found {chunks!r}; expected 'frame' or 'pose'. Fix: chunks='frame' (one "
             "frame per chunk) or chunks='pose' (all shots of a pose per chunk)."
         )
-    frames = da.Array(dsk, name, chunks=((1,) * n_p, shot_chunks, (ny,), (nx,)), dtype=np.uint16)
-    n_h = bench.n_holes
-    tname = "sunlab-sim-truth-" + token
-    tdsk = {(tname, 0, p, 0, 0): (_truth_task, bench, ta[p], tb[p], key, p) for p in range(n_p)}
-    truth = da.Array(tdsk, tname, chunks=((4,), (1,) * n_p, (n_s,), (n_h,)), dtype=float)
-    multi = n_h > 1
-    dims = ("pose", "shot", "hole") if multi else ("pose", "shot")
-    if not multi:
-        truth = truth[..., 0]
-    xd, yd = bench.hole_design_px()
+    return da.Array(dsk, name, chunks=((1,) * n_p, shot_chunks, (ny,), (nx,)), dtype=np.uint16)
+
+
+def _hole_coords(bench: Bench, plan) -> dict:
+    """The cube's coordinates: each pose's approach direction and, for a multi-hole mask, the
+    holes' grid places, design zenith projections and defect flags."""
     coords = {}
-    if multi:
+    if bench.n_holes > 1:
+        xd, yd = bench.hole_design_px()
         coords = {
             "hole_i": ("hole", np.array([h.i for h in bench.mask.holes], dtype=np.int32)),
             "hole_j": ("hole", np.array([h.j for h in bench.mask.holes], dtype=np.int32)),
@@ -529,29 +571,21 @@ def simulate(plan, bench: Bench | None = None, seed=0, chunks: str = "frame"):
         }
     coords["beta_approach"] = ("pose", plan.beta_approach(), {
         "long_name": "direction in which the inner axis reached the pose (+1 up, -1 down)"})
-    ds = schema.frames_dataset(
-        frames,
-        plan.alpha,
-        plan.beta,
-        pixel_pitch_mm=bench.detector.pixel_pitch_mm,
-        mask_distance_mm=bench.mask_distance_mm,
-        x_cf_px=float(np.mean(xd)),
-        y_cf_px=float(np.mean(yd)),
-        bit_depth=bench.detector.bit_depth,
-        mask=bench.mask.name,
-        experiment=plan.name,
-        coords=coords,
-        attrs={
-            "source": "sunlab virtual bench",
-            "sim_seed": _entropy(seed),
-            "sim_key": list(key),
-            "sim_bench": bench.to_json(),
-            # the motion history (sunlab.platform_fault reads it back)
-            "scan_order": plan.scan,
-            "approach": plan.approach,
-            "visit_order": plan.visit_order().astype(np.int32),
-        },
-    )
+    return coords
+
+
+def _add_truth(ds, bench: Bench, key, ta, tb, token: str):
+    """The ground truth: true platform angles, and the lazy true centroids and rays."""
+    import dask.array as da
+
+    n_p, n_s = ta.shape
+    n_h = bench.n_holes
+    tname = "sunlab-sim-truth-" + token
+    tdsk = {(tname, 0, p, 0, 0): (_truth_task, bench, ta[p], tb[p], key, p) for p in range(n_p)}
+    truth = da.Array(tdsk, tname, chunks=((4,), (1,) * n_p, (n_s,), (n_h,)), dtype=float)
+    dims = ("pose", "shot", "hole") if n_h > 1 else ("pose", "shot")
+    if n_h == 1:
+        truth = truth[..., 0]
     ds["true_alpha"] = (
         ("pose", "shot"),
         ta,
@@ -566,4 +600,4 @@ def simulate(plan, bench: Bench | None = None, seed=0, chunks: str = "frame"):
     }
     for i, var in enumerate(("true_x", "true_y", "ray_x", "ray_y")):
         ds[var] = (dims, truth[i], {"units": "px", "long_name": long[var]})
-    return schema.validate_frames(ds)
+    return ds

@@ -262,7 +262,6 @@ def surrogate_centroids(bench, plan, seed=0, *, noise_px: float = 0.004,
     """
     from scipy import ndimage
 
-    from .. import schema
     from .bench import _platform_table, plan_key
     from .render import _entropy, mask_play, spot_geometry
 
@@ -289,6 +288,15 @@ def surrogate_centroids(bench, plan, seed=0, *, noise_px: float = 0.004,
     rng = np.random.default_rng(np.random.SeedSequence(key + [0x5B26]))
     x = x + rng.normal(0.0, noise_px, x.shape)
     y = y + rng.normal(0.0, noise_px, y.shape)
+    return _surrogate_table(bench, plan, x, y, clipped, ta, tb)
+
+
+def _surrogate_table(bench, plan, x, y, clipped, ta, tb):
+    """The surrogate's ``centroids/1`` table: clipped spots NaN, the true angles beside,
+    and for a multi-hole mask the holes' coordinates."""
+    from .. import schema
+
+    n_h = x.shape[-1]
     status = np.where(clipped, schema.STATUS["clipped"], schema.STATUS["ok"])
     x = np.where(clipped, np.nan, x)
     y = np.where(clipped, np.nan, y)

@@ -9,21 +9,16 @@ From a folder of images to an on-board C table::
     sunlab export cal.json --format c --out onboard/
 
 This module holds the parsers and runners of the new subcommands (registered in
-:mod:`sunlab.cli`), the reader of centroid tables given as CSV, the options shared by
-``import`` and ``centroid`` for image folders, and :func:`calibration_summary`, the text of
-``sunlab info CAL.json``. It imports only the standard library at module level, so that
-``sunlab --help`` and ``sunlab info CAL.json`` start fast.
+:mod:`sunlab.cli.commands`), the reader of centroid tables given as CSV, the options shared by
+``import`` and ``centroid`` for image folders, and :func:`read_calibration_json`, the reader
+of ``sunlab info CAL.json`` (its text: :func:`sunlab.calibration.calibration_summary`). It
+imports only the standard library at module level, so that ``sunlab --help`` and ``sunlab info
+CAL.json`` start fast.
 
 Examples
 --------
->>> doc = {"sunlab_schema": "calibration/1", "kind": "polynomial", "label": "polynomial(3)",
-...        "sunlab_version": "0.1.0", "parameters": {"order": [3, 3]},
-...        "training": {"experiment": "I", "n_poses": 400, "n_shots": 8},
-...        "domain": {"alpha": [-17, 2], "beta": [-2, 17], "x": [10, 700], "y": [5, 690]},
-...        "residuals": {"alpha": {"mean_abs": 0.007, "max_abs": 0.02},
-...                      "beta": {"mean_abs": 0.008, "max_abs": 0.03}, "validation": None}}
->>> print(calibration_summary(doc).splitlines()[0])
-calibration/1: polynomial(3) (kind 'polynomial'), order 3
+>>> sorted(CALIBRATE_OPTIONS["order"])
+['polynomial', 'trigonometric']
 """
 
 from __future__ import annotations
@@ -31,12 +26,12 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from .errors import SchemaError
+from ..errors import SchemaError
 
 __all__ = [
     "CALIBRATE_OPTIONS",
     "add_folder_options",
-    "calibration_summary",
+    "read_calibration_json",
     "centroids_from_csv",
     "is_image_folder",
     "open_centroid_table",
@@ -61,94 +56,8 @@ _PAPER_COLUMN = {"polynomial": "polynomial", "interpolation-linear": "linear int
 
 
 # --------------------------------------------------------------------------------------------
-# sunlab info CAL.json (standard library only)
+# sunlab info CAL.json (standard library only; the text: sunlab.calibration.summary)
 # --------------------------------------------------------------------------------------------
-def _num(v, fmt: str = ".5f") -> str:
-    return "n/a" if v is None else format(float(v), fmt)
-
-
-def _errors_line(res) -> str:
-    if not isinstance(res, dict):
-        return "n/a"
-    parts = []
-    for a in ("alpha", "beta"):
-        r = res.get(a) or {}
-        parts.append(f"{a} mean|e| {_num(r.get('mean_abs'))}, rms {_num(r.get('rms'))}, "
-                     f"max {_num(r.get('max_abs'))}")
-    return "; ".join(parts)
-
-
-def calibration_summary(doc: dict) -> str:
-    """A human-readable account of a ``calibration/1`` document (``sunlab info CAL.json``).
-
-    Method and size, domain of validity, training and validation errors, provenance. For an
-    interpolation the training residuals are zero by construction (an interpolant passes
-    through its nodes), so the leave-one-out error is reported in their place.
-
-    Parameters
-    ----------
-    doc : dict
-        The parsed JSON document.
-
-    Returns
-    -------
-    str
-    """
-    kind = doc.get("kind", "?")
-    p = doc.get("parameters") or {}
-    size = ""
-    if kind == "polynomial":
-        orders = p.get("order") or []
-        size = (f", order {orders[0]}" if len(set(orders)) == 1
-                else f", orders alpha {orders[0]}, beta {orders[1]}") if orders else ""
-    elif kind == "trigonometric":
-        size = f", order {p.get('order')} (period {p.get('period')})"
-    elif kind.startswith("interpolation"):
-        nodes = (p.get("nodes") or {}).get("x") or []
-        size = (f", {len(nodes)} nodes, outside the hull: "
-                f"{'nearest node' if p.get('extrapolate') == 'nearest' else 'NaN'}")
-    elif kind == "neural":
-        size = f", strategy {p.get('strategy')}, {p.get('hidden')} tanh neurons per net"
-    elif kind == "optimised":
-        size = (f", dF {_num(p.get('delta_f_mm'), '.4f')} mm, alpha0 "
-                f"{_num(p.get('alpha0'), '.4f')} deg, beta0 {_num(p.get('beta0'), '.4f')} deg")
-    elif kind == "ideal":
-        size = f", F {p.get('mask_distance_mm')} mm, pitch {p.get('pixel_pitch_mm')} mm"
-    lines = [f"{doc.get('sunlab_schema', '?')}: {doc.get('label', kind)} (kind {kind!r}){size}"]
-    d = doc.get("domain") or {}
-
-    def rng(key, unit):
-        v = d.get(key) or [None, None]
-        return f"[{_num(v[0], '.4g')}, {_num(v[1], '.4g')}] {unit}"
-
-    lines.append(f"  domain: alpha {rng('alpha', 'deg')}, beta {rng('beta', 'deg')}; "
-                 f"centroid x {rng('x', 'px')}, y {rng('y', 'px')}")
-    t = doc.get("training") or {}
-    lines.append(f"  training: experiment {t.get('experiment') or '?'!r}, {t.get('n_poses', '?')} "
-                 f"poses x {t.get('n_shots', '?')} shots ({t.get('n_ok_shots', '?')} ok), "
-                 f"centroid method {t.get('centroid_method') or '?'!r}, average "
-                 f"{t.get('average', '?')!r}")
-    res = doc.get("residuals") or {}
-    if kind.startswith("interpolation"):
-        lines.append("  training residuals: ~0 by construction (an interpolant passes through "
-                     "its nodes)")
-        loo = res.get("leave_one_out")
-        lines.append("  leave-one-out errors (deg): "
-                     + (_errors_line(loo) if loo else "n/a (fitted by an older sunlab)"))
-    else:
-        lines.append(f"  training residuals (deg): {_errors_line(res)}")
-    val = res.get("validation")
-    v = t.get("validation") or {}
-    lines.append("  validation errors (deg): " + (
-        f"{_errors_line(val)} (experiment {v.get('experiment') or '?'!r}, "
-        f"{v.get('n_poses', '?')} poses)" if val else "none (fitted without --validation)"))
-    prov = [f"sunlab {doc.get('sunlab_version', '?')}"]
-    if doc.get("created"):
-        prov.append(f"created {doc['created']}")
-    lines.append("  written by " + ", ".join(prov))
-    return "\n".join(lines)
-
-
 def read_calibration_json(path) -> dict | None:
     """The parsed document if ``path`` is a JSON file holding a calibration, else None."""
     path = Path(path)
@@ -211,11 +120,35 @@ def centroids_from_csv(path, *, attrs: dict | None = None):
     ({'pose': 2, 'shot': 2}, [[0, 0], [0, 1]])
     """
     import numpy as np
-    import pandas as pd
 
-    from .schema import STATUS, centroids_dataset
+    from ..schema import STATUS, centroids_dataset
 
     path = Path(path)
+    table = _read_csv_table(path)
+    num = _numeric_columns(table, path.name)
+    pairs = list(zip(num["alpha"].tolist(), num["beta"].tolist(), strict=True))
+    pose_of: dict = {}
+    for pair in pairs:
+        pose_of.setdefault(pair, len(pose_of))
+    pose = np.array([pose_of[p] for p in pairs])
+    shot = _shot_numbers(table, pose, path.name)
+    n_pose, n_shot = len(pose_of), int(shot.max()) + 1
+    x = np.full((n_pose, n_shot), np.nan)
+    y = np.full((n_pose, n_shot), np.nan)
+    status = np.full((n_pose, n_shot), STATUS["no_spot"], dtype=np.int8)
+    x[pose, shot], y[pose, shot] = num["x"], num["y"]
+    status[pose, shot] = _status_codes(table, num, path.name)
+    return centroids_dataset(
+        x, y, status=status, alpha=[a for a, _ in pose_of], beta=[b for _, b in pose_of],
+        method=str((attrs or {}).get("method", "")),
+        attrs={"source": str(path.resolve()), "experiment": path.stem, **dict(attrs or {})},
+    )
+
+
+def _read_csv_table(path: Path):
+    """The CSV as a DataFrame, with the columns alpha, beta, x, y and at least one row."""
+    import pandas as pd
+
     try:
         table = pd.read_csv(path, comment="#", skipinitialspace=True)
     except FileNotFoundError as err:
@@ -234,6 +167,15 @@ def centroids_from_csv(path, *, attrs: dict | None = None):
         )
     if len(table) == 0:
         raise SchemaError(path.name, "no rows", "one row per shot", "add the rows")
+    return table
+
+
+def _numeric_columns(table, name: str) -> dict:
+    """alpha, beta, x, y as float arrays; a value that is not a number names its line (x, y
+    may be empty: no spot)."""
+    import numpy as np
+    import pandas as pd
+
     num = {}
     for col in ("alpha", "beta", "x", "y"):
         v = pd.to_numeric(table[col], errors="coerce").to_numpy(dtype=float)
@@ -241,53 +183,53 @@ def centroids_from_csv(path, *, attrs: dict | None = None):
                              if col in ("x", "y") else ~np.isfinite(v))
         if bad.size:
             raise SchemaError(
-                f"{path.name} line {int(bad[0]) + 2} column {col!r}", table[col].iloc[bad[0]],
+                f"{name} line {int(bad[0]) + 2} column {col!r}", table[col].iloc[bad[0]],
                 "a number" + (" of degrees" if col in ("alpha", "beta") else " of pixels"),
                 f"correct the value ({bad.size} bad row(s))",
             )
         num[col] = v
-    pairs = list(zip(num["alpha"].tolist(), num["beta"].tolist(), strict=True))
-    pose_of: dict = {}
-    for pair in pairs:
-        pose_of.setdefault(pair, len(pose_of))
-    pose = np.array([pose_of[p] for p in pairs])
-    if "shot" in table.columns:
-        labels = pd.to_numeric(table["shot"], errors="coerce").to_numpy(dtype=float)
-        if not np.all(np.isfinite(labels)):
-            i = int(np.flatnonzero(~np.isfinite(labels))[0])
-            raise SchemaError(f"{path.name} line {i + 2} column 'shot'", table["shot"].iloc[i],
-                              "an integer shot label", "number the shots 0, 1, 2, ...")
-        order = pd.DataFrame({"p": pose, "s": labels}).groupby("p")["s"].rank(method="first")
-        shot = order.to_numpy(dtype=int) - 1
-        dup = pd.DataFrame({"p": pose, "s": labels}).duplicated()
-        if dup.any():
-            i = int(np.flatnonzero(dup.to_numpy())[0])
-            raise SchemaError(f"{path.name} line {i + 2}", "the same pose and shot again",
-                              "one row per (alpha, beta, shot)", "remove the duplicate row")
-    else:
-        shot = pd.Series(pose).groupby(pose).cumcount().to_numpy()
-    n_pose, n_shot = len(pose_of), int(shot.max()) + 1
-    x = np.full((n_pose, n_shot), np.nan)
-    y = np.full((n_pose, n_shot), np.nan)
-    status = np.full((n_pose, n_shot), STATUS["no_spot"], dtype=np.int8)
-    x[pose, shot], y[pose, shot] = num["x"], num["y"]
-    if "status" in table.columns:
-        codes = []
-        for i, v in enumerate(table["status"].tolist()):
-            code = STATUS.get(str(v).strip()) if not isinstance(v, int | float) else int(v)
-            if code not in STATUS.values():
-                raise SchemaError(f"{path.name} line {i + 2} column 'status'", v,
-                                  f"a status name or code of {STATUS}", "correct the value")
-            codes.append(code)
-        status[pose, shot] = codes
-    else:
-        status[pose, shot] = np.where(np.isfinite(num["x"]) & np.isfinite(num["y"]),
-                                      STATUS["ok"], STATUS["no_spot"])
-    return centroids_dataset(
-        x, y, status=status, alpha=[a for a, _ in pose_of], beta=[b for _, b in pose_of],
-        method=str((attrs or {}).get("method", "")),
-        attrs={"source": str(path.resolve()), "experiment": path.stem, **dict(attrs or {})},
-    )
+    return num
+
+
+def _shot_numbers(table, pose, name: str):
+    """Each row's shot within its pose: the rank of its ``shot`` label, or its order."""
+    import numpy as np
+    import pandas as pd
+
+    if "shot" not in table.columns:
+        return pd.Series(pose).groupby(pose).cumcount().to_numpy()
+    labels = pd.to_numeric(table["shot"], errors="coerce").to_numpy(dtype=float)
+    if not np.all(np.isfinite(labels)):
+        i = int(np.flatnonzero(~np.isfinite(labels))[0])
+        raise SchemaError(f"{name} line {i + 2} column 'shot'", table["shot"].iloc[i],
+                          "an integer shot label", "number the shots 0, 1, 2, ...")
+    order = pd.DataFrame({"p": pose, "s": labels}).groupby("p")["s"].rank(method="first")
+    dup = pd.DataFrame({"p": pose, "s": labels}).duplicated()
+    if dup.any():
+        i = int(np.flatnonzero(dup.to_numpy())[0])
+        raise SchemaError(f"{name} line {i + 2}", "the same pose and shot again",
+                          "one row per (alpha, beta, shot)", "remove the duplicate row")
+    return order.to_numpy(dtype=int) - 1
+
+
+def _status_codes(table, num: dict, name: str):
+    """Each row's status code: the ``status`` column (name or code), or ``ok`` where x and y
+    are finite and ``no_spot`` elsewhere."""
+    import numpy as np
+
+    from ..schema import STATUS
+
+    if "status" not in table.columns:
+        return np.where(np.isfinite(num["x"]) & np.isfinite(num["y"]),
+                        STATUS["ok"], STATUS["no_spot"])
+    codes = []
+    for i, v in enumerate(table["status"].tolist()):
+        code = STATUS.get(str(v).strip()) if not isinstance(v, int | float) else int(v)
+        if code not in STATUS.values():
+            raise SchemaError(f"{name} line {i + 2} column 'status'", v,
+                              f"a status name or code of {STATUS}", "correct the value")
+        codes.append(code)
+    return codes
 
 
 def open_centroid_table(path, name: str = "table"):
@@ -296,7 +238,7 @@ def open_centroid_table(path, name: str = "table"):
     A CSV table takes its sensor attributes (pixel pitch, mask distance, x_cf, y_cf) from a
     ``sensor.json`` in its folder, if there is one.
     """
-    from . import io
+    from .. import io
 
     if Path(path).suffix.lower() in (".csv", ".txt"):
         sensor = _sensor_json(Path(path).resolve().parent, None)
@@ -369,8 +311,8 @@ def _sensor_json(folder: Path, manifest) -> dict:
 
 def cube_from_folder(folder, args):
     """A lazy frame cube from an image folder and the folder options of ``args``."""
-    from . import io
-    from .errors import ConfigurationError
+    from .. import io
+    from ..errors import ConfigurationError
 
     folder = Path(folder)
     manifest = getattr(args, "manifest", None)
@@ -413,7 +355,7 @@ def _add_import(sub) -> None:
 
 
 def _run_import(args) -> int:
-    from . import atomic, io
+    from .. import atomic, io
 
     kind = "file" if Path(args.out).suffix.lower() in io.NETCDF_SUFFIXES else "zarr"
     atomic.check_target(args.out, overwrite=args.overwrite, kind=kind, flag="--overwrite")
@@ -458,7 +400,7 @@ def _figure_bytes(fig) -> bytes:
 
 def evaluate(cal, test) -> dict:
     """Statistics of a calibration on a test table: estimate, local errors, Table-4 column."""
-    from . import stats
+    from .. import stats
 
     est = cal.predict(test)
     local = stats.local_errors(est)
@@ -470,7 +412,7 @@ def _run_evaluate(args) -> int:
     import numpy as np
     import pandas as pd
 
-    from . import atomic, calibration, stats
+    from .. import atomic, calibration, stats
 
     out = None if args.out is None else Path(args.out)
     names = ("evaluation.json", "errors.csv", "fig10_error_maps.png", "fig11_histograms.png")
@@ -484,7 +426,7 @@ def _run_evaluate(args) -> int:
     est, local, table = res["estimate"], res["local"], res["table"]
     col = table[cal.label]
     n_out = int(est.attrs["n_out_of_domain"])
-    from .schema import STATUS, USABLE_STATUS
+    from ..schema import STATUS, USABLE_STATUS
 
     n_ok = int(np.isin(test["status"].values, [STATUS[k] for k in USABLE_STATUS]).sum())
     print(f"{cal.label} on {args.test}: {test.sizes['pose']} poses x {test.sizes['shot']} shots "
@@ -502,23 +444,7 @@ def _run_evaluate(args) -> int:
               "errors.csv")
     if out is None:
         return 0
-    doc = {f"{a}.{s}": (None if not np.isfinite(col[(a, s)]) else float(col[(a, s)]))
-           for a in ("alpha", "beta") for s in _STATS}
-    doc.update({
-        "units": "deg", "calibration": str(args.calibration), "label": cal.label,
-        "kind": cal.kind, "test": str(args.test), "n_poses": int(test.sizes["pose"]),
-        "n_shots": int(test.sizes["shot"]), "n_ok_shots": n_ok, "n_out_of_domain": n_out,
-        "ddof": 1,
-        "definitions": "local error = mean over the shots of a pose of |estimated - commanded|; "
-                       "maximum error = max over the shots; mu, sigma = mean, sample std of "
-                       "the local errors over poses; M, sigma_M = the same of the maximum errors",
-    })
-    if args.paper:
-        want = _PAPER_COLUMN.get(cal.kind)
-        if want:
-            paper = stats.paper_table4()[want]
-            doc["paper"] = {"column": want, **{f"{a}.{s}": float(paper[(a, s)])
-                                               for a in ("alpha", "beta") for s in _STATS}}
+    doc = _evaluation_doc(args, cal, test, col, n_ok, n_out)
     atomic.write_text(out / names[0], json.dumps(doc, indent=1) + "\n",
                        overwrite=args.overwrite, flag="--overwrite")
     rows = pd.DataFrame({
@@ -531,26 +457,56 @@ def _run_evaluate(args) -> int:
     })
     atomic.write_text(out / names[1], rows.to_csv(index=False, float_format="%.8g"),
                        overwrite=args.overwrite, flag="--overwrite")
-    written = [names[0], names[1]]
-    from . import plots
+    written = [names[0], names[1]] + _write_evaluation_figures(args, cal, local, out, names[2:])
+    print(f"wrote {', '.join(str(out / n) for n in written)}")
+    return 0
 
+
+def _evaluation_doc(args, cal, test, col, n_ok: int, n_out: int) -> dict:
+    """``evaluation.json``: the eight statistics, what was evaluated, and the paper's column."""
+    import numpy as np
+
+    from .. import stats
+
+    doc = {f"{a}.{s}": (None if not np.isfinite(col[(a, s)]) else float(col[(a, s)]))
+           for a in ("alpha", "beta") for s in _STATS}
+    doc.update({
+        "units": "deg", "calibration": str(args.calibration), "label": cal.label,
+        "kind": cal.kind, "test": str(args.test), "n_poses": int(test.sizes["pose"]),
+        "n_shots": int(test.sizes["shot"]), "n_ok_shots": n_ok, "n_out_of_domain": n_out,
+        "ddof": 1,
+        "definitions": "local error = mean over the shots of a pose of |estimated - commanded|; "
+                       "maximum error = max over the shots; mu, sigma = mean, sample std of "
+                       "the local errors over poses; M, sigma_M = the same of the maximum errors",
+    })
+    want = _PAPER_COLUMN.get(cal.kind) if args.paper else None
+    if want:
+        paper = stats.paper_table4()[want]
+        doc["paper"] = {"column": want, **{f"{a}.{s}": float(paper[(a, s)])
+                                           for a in ("alpha", "beta") for s in _STATS}}
+    return doc
+
+
+def _write_evaluation_figures(args, cal, local, out: Path, names) -> list[str]:
+    """Fig. 10 (error maps, when the test poses form a grid) and Fig. 11 (histograms)."""
+    from .. import atomic, plots
+
+    written = []
     try:
         fig10 = plots.error_maps(local, title=f"{cal.label}: errors on {Path(args.test).name}")
     except (ValueError, KeyError) as err:  # poses that do not form a grid: no map
         print(f"no Fig. 10 (error maps): the test poses do not form a grid ({err})")
     else:
-        atomic.write_bytes(out / names[2], _figure_bytes(fig10), overwrite=args.overwrite,
+        atomic.write_bytes(out / names[0], _figure_bytes(fig10), overwrite=args.overwrite,
                             flag="--overwrite")
-        written.append(names[2])
+        written.append(names[0])
     fig11 = plots.new_figure(figsize=(9, 3.4), layout="constrained")
     for ax, a in zip(fig11.subplots(1, 2), ("alpha", "beta"), strict=True):
         h = plots.error_histogram(local, angle=a, title=f"local error of {a}")
         _copy_histogram(h.axes[0], ax)
-    atomic.write_bytes(out / names[3], _figure_bytes(fig11), overwrite=args.overwrite,
+    atomic.write_bytes(out / names[1], _figure_bytes(fig11), overwrite=args.overwrite,
                         flag="--overwrite")
-    written.append(names[3])
-    print(f"wrote {', '.join(str(out / n) for n in written)}")
-    return 0
+    return written + [names[1]]
 
 
 def _copy_histogram(src, ax) -> None:
@@ -593,7 +549,7 @@ def _add_export(sub) -> None:
 
 
 def _run_export(args) -> int:
-    from . import calibration, export
+    from .. import calibration, export
 
     cal = calibration.load(args.calibration)
     files = export.export(cal, args.out, format=args.format, overwrite=args.overwrite)

@@ -20,8 +20,8 @@ from __future__ import annotations
 import argparse
 import sys
 
-from . import _cli_lab as _lab
-from .errors import SunlabError
+from ..errors import SunlabError
+from . import lab as _lab
 
 __all__ = ["build_parser", "main"]
 
@@ -60,7 +60,7 @@ def _check_out(path, overwrite: bool, kind: str = "file") -> None:
     """Check an output path before the work starts (folder, permissions, existing output)."""
     from pathlib import Path
 
-    from . import atomic, io
+    from .. import atomic, io
 
     if kind == "auto":
         kind = "file" if Path(path).suffix.lower() in io.NETCDF_SUFFIXES else "zarr"
@@ -75,13 +75,14 @@ def _add_info(sub) -> None:
 
 
 def _run_info(args) -> int:
-    from ._cli_lab import calibration_summary, read_calibration_json
+    from ..calibration.summary import calibration_summary
+    from .lab import read_calibration_json
 
     doc = read_calibration_json(args.path)  # standard library only: fast
     if doc is not None:
         print(calibration_summary(doc))
         return 0
-    from . import io
+    from .. import io
 
     # Describe incomplete stores (an acquisition in progress) instead of refusing them:
     # the summary names the missing chunk files.
@@ -128,34 +129,15 @@ def _add_acquire(sub) -> None:
 
 
 def _run_acquire(args) -> int:
-    from pathlib import Path
 
-    from . import plans, sim
-    from .errors import ConfigurationError
-    from .hardware import FolderCamera, SimCamera, acquire, open_stage
+    from .. import plans, sim
+    from ..errors import ConfigurationError
+    from ..hardware import FolderCamera, SimCamera, acquire, open_stage
 
     if not args.resume:
         # The folder must exist and be writable; an existing run is the runner's to judge.
         _check_out(args.out, overwrite=True, kind="zarr")
-    if args.plan.upper() in plans.EXPERIMENTS:
-        plan = plans.experiment(args.plan.upper(), shots=args.shots)
-    elif Path(args.plan).is_file():
-        import pandas as pd
-
-        table = pd.read_csv(args.plan)
-        missing = {"alpha", "beta"} - set(table.columns)
-        if missing:
-            raise ConfigurationError(
-                f"--plan {args.plan}: columns {sorted(table.columns)}, missing {sorted(missing)}. "
-                "Fix: a CSV with a header line 'alpha,beta' and one pose (deg) per row"
-            )
-        plan = plans.custom(table["alpha"], table["beta"], shots=args.shots,
-                            name=Path(args.plan).stem)
-    else:
-        raise ConfigurationError(
-            f"--plan: found {args.plan!r}, expected I, II, III or an existing CSV file"
-        )
-    plan = plan.subset(args.step)
+    plan = plans.read_plan(args.plan, shots=args.shots, field="--plan").subset(args.step)
     bench = (sim.Bench.paper_single_hole() if args.bench == "single"
              else sim.Bench.paper_multi_hole())
     stage = open_stage(args.stage, bench=bench, seed=args.seed, settle_s=args.settle,
@@ -219,10 +201,10 @@ def _add_centroid(sub) -> None:
 
 
 def _run_centroid(args) -> int:
-    from . import centroid, io
+    from .. import centroid, io
 
     _check_out(args.out, args.overwrite, kind="auto")
-    from ._cli_lab import cube_from_folder, is_image_folder
+    from .lab import cube_from_folder, is_image_folder
 
     cube = (cube_from_folder(args.cube, args) if is_image_folder(args.cube)
             else io.open_frames(args.cube))
@@ -260,7 +242,7 @@ def _add_simulate(sub) -> None:
 def _run_simulate(args) -> int:
     import dask
 
-    from . import io, plans, sim
+    from .. import io, plans, sim
 
     _check_out(args.out, args.overwrite, kind="auto")
     plan = plans.experiment(args.experiment, shots=args.shots).thin(args.subset)
@@ -315,9 +297,9 @@ def _add_calibrate(sub) -> None:
 def _run_calibrate(args) -> int:
     import time
 
-    from . import calibration
-    from ._cli_lab import CALIBRATE_OPTIONS, open_centroid_table
-    from .errors import ConfigurationError
+    from .. import calibration
+    from ..errors import ConfigurationError
+    from .lab import CALIBRATE_OPTIONS, open_centroid_table
 
     for name, methods in CALIBRATE_OPTIONS.items():
         if getattr(args, name) not in (None, False) and args.method not in methods:
@@ -398,16 +380,19 @@ def _add_reproduce(sub) -> None:
                    help="Table 4 (one hole, every method) or Table 5 (100 holes); default 4; "
                    "'platform': beyond the paper, the inner axis's fault diagnosed and removed")
     p.add_argument("--quick", action="store_true",
-                   help="small settings for both tables: every 2nd angle along each grid axis, "
-                   "2 shots per pose (minutes -> seconds)")
+                   help="quick mode, the same for every table: every 2nd angle along each grid "
+                   "axis of the experiments (Table 4: 100 + 49 + 100 poses of 930; Table 5: "
+                   "100 + 100 of 761; platform: as Table 4) and 2 shots per pose instead of 8 "
+                   "(minutes instead of an hour)")
     p.add_argument("--seed", type=int, default=0, help="seed of the virtual bench (default 0)")
     p.add_argument("--method", default="projection",
-                   help="centroid method of both tables (default projection: the paper's "
-                   "algorithm B; on 100-hole frames each spot gets a tight window)")
+                   help="centroid method of every table (default projection: the paper's "
+                   "algorithm B; on 100-hole frames each spot gets a tight window, or fit "
+                   "with --method fit)")
     p.add_argument("--no-neural", action="store_true", help="leave out the neural networks")
     p.add_argument("--out", default="results", help="output folder (default results/)")
     p.add_argument("--address", default=None,
-                   help="dask.distributed scheduler address (Tables 4 and 5; docs/scaling.md)")
+                   help="dask.distributed scheduler address (every table; docs/scaling.md)")
     p.add_argument("--scheduler", default="threads",
                    choices=["threads", "processes", "synchronous", "cluster"],
                    help="local Dask scheduler when no --address is given (default threads; "
@@ -419,35 +404,24 @@ def _add_reproduce(sub) -> None:
 
 
 def _run_reproduce(args) -> int:
-    from pathlib import Path
+    from .. import reproduce
 
-    progress = not args.no_progress
+    where = {"quick": args.quick, "seed": args.seed, "method": args.method,
+             "progress": not args.no_progress, "address": args.address,
+             "scheduler": args.scheduler, "workers": args.workers}
     if args.table == "platform":
-        from .reproduce_platform import format_platform, reproduce_platform
-
-        resp = reproduce_platform(quick=args.quick, seed=args.seed, method=args.method,
-                                  out=args.out, progress=progress)
+        resp = reproduce.reproduce_platform(out=args.out, **where)
         print()
-        print(format_platform(resp))
+        print(reproduce.format_platform(resp))
         print("\nwrote " + ", ".join(resp["files"]))
         return 0
     if args.table in ("4", "all"):
-        from .reproduce import format_table, reproduce_table4
-
-        res = reproduce_table4(
-            quick=args.quick, seed=args.seed, method=args.method, neural=not args.no_neural,
-            out=args.out, progress=progress, address=args.address, scheduler=args.scheduler,
-            workers=args.workers,
-        )
+        res = reproduce.reproduce_table4(neural=not args.no_neural, out=args.out, **where)
         print()
-        print(format_table(res))
+        print(reproduce.format_table(res))
         print("\nwrote " + ", ".join(res.files))
     if args.table in ("5", "all"):
-        from .reproduce_table5 import reproduce_table5
-
-        res5 = reproduce_table5(quick=args.quick, seed=args.seed, out=Path(args.out),
-                                progress=progress, method=args.method, address=args.address,
-                                scheduler=args.scheduler, workers=args.workers)
+        res5 = reproduce.reproduce_table5(out=args.out, **where)
         print("\nTable 5 - polynomial calibration, 100 holes vs one hole (deg); ours = sunlab "
               "virtual bench, paper = the 2005 preprint")
         print(res5["table"].round(4).to_string())
@@ -459,7 +433,7 @@ def _run_reproduce(args) -> int:
 
 
 def _add_lab(name: str):
-    """The adder of a lab subcommand (import, evaluate, export) from sunlab._cli_lab."""
+    """The adder of a lab subcommand (import, evaluate, export) from :mod:`sunlab.cli.lab`."""
     return getattr(_lab, f"_add_{name}")
 
 
@@ -472,7 +446,7 @@ _ADDERS = [
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``sunlab`` command."""
-    from . import __version__
+    from .. import __version__
 
     parser = argparse.ArgumentParser(
         prog="sunlab",
@@ -539,7 +513,3 @@ def main(argv: list[str] | None = None) -> int:
               "Fix: this is probably a bug in sunlab; run again with --debug and report the "
               "traceback", file=sys.stderr)
         return 3
-
-
-if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())

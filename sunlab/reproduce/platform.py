@@ -18,22 +18,24 @@ Called by ``sunlab reproduce --table platform``. On the identified bench
    from the motion record (and the homing offset from the zero-pose checks), with standard
    errors (:func:`sunlab.platform_fault.fit_correction`), the test run's reference corrected.
 
-Every row is Table 4's eight statistics for the polynomial on experiment III.
+Every row is Table 4's eight statistics for the polynomial on experiment III. The frames go
+through the pipeline every table shares (:mod:`sunlab.reproduce.pipeline`, one Dask pass for
+every run); quick mode is its :data:`~sunlab.reproduce.pipeline.QUICK`, as for Tables 4 and 5:
+every 2nd angle along each grid axis and 2 shots per pose.
 
 Examples
 --------
->>> from sunlab.reproduce_platform import ROWS
+>>> from sunlab.reproduce.platform import ROWS
 >>> ROWS[0]
 "polynomial (paper's protocol)"
 """
 
 from __future__ import annotations
 
-import json
 import time
 from pathlib import Path
 
-import numpy as np
+from .pipeline import experiment_plans, locate_runs, simulate_runs, usable_table, write_json
 
 __all__ = ["ROWS", "GEAR_ROW", "reproduce_platform", "format_platform", "bench_fault_values"]
 
@@ -64,43 +66,40 @@ def bench_fault_values(bench, seed, plans_by_run: dict) -> dict:
     >>> v["beta_backlash_deg"], v["beta_homing_difference_deg"]
     (0.017, 0.0)
     """
-    from .sim.bench import _homing
-    from .sim.render import _entropy
+    from ..sim.bench import homing_offset
 
-    key = _entropy(seed)
-    h = {k: _homing(bench.platform, key, p.name) for k, p in plans_by_run.items()}
+    h = {k: homing_offset(bench, seed, p.name) for k, p in plans_by_run.items()}
     return {"beta_backlash_deg": float(bench.platform.beta_backlash_deg),
             "beta_homing_difference_deg": float(h["III"] - h["I"]),
             "beta_gear_amplitude_deg": float(bench.platform.beta_gear_deg)}
 
 
-def _centroids(bench, plan_sets: dict, *, seed, method, engine, progress):
+def _centroids(bench, plan_sets: dict, *, seed, method, engine, progress, where):
     """Centroid tables for every named plan: rendered and centroided, or from the surrogate."""
     if engine == "surrogate":
-        from .sim.identify import surrogate_centroids
+        from ..sim.identify import surrogate_centroids
 
         return {k: surrogate_centroids(bench, p, seed) for k, p in plan_sets.items()}
-    from . import centroid, parallel, sim
-
-    lazy = {k: centroid.locate(sim.simulate(p, bench, seed=seed, chunks="pose"), method=method,
-                               compute=False)
-            for k, p in plan_sets.items()}
+    cubes = simulate_runs({k: (p, bench) for k, p in plan_sets.items()}, seed=seed)
     if progress:
         n = sum(len(p) * p.shots for p in plan_sets.values())
         print(f"rendering and centroiding {n} frames ({method})", flush=True)
-    done = parallel.compute(*lazy.values(), progress=progress)
-    return dict(zip(lazy, done, strict=True))
+    return locate_runs(cubes, method=method, progress=progress, **where)
 
 
 def reproduce_platform(*, quick: bool = False, seed: int = 0, method: str = "projection",
                        out: str | Path | None = "results", progress: bool = True,
-                       engine: str = "render", bench=None, checks: int = 4) -> dict:
+                       engine: str = "render", bench=None, checks: int = 4,
+                       address: str | None = None, scheduler: str = "threads",
+                       workers: int | None = None, step: int | None = None,
+                       shots: int | None = None) -> dict:
     """The platform table: the paper's protocol, the diagnosis, and each remedy.
 
     Parameters
     ----------
     quick : bool
-        :data:`sunlab.reproduce.QUICK` settings (every 2nd angle, 2 shots per pose).
+        Quick mode, the same for every table (:data:`sunlab.reproduce.pipeline.QUICK`): every
+        2nd angle along each grid axis and 2 shots per pose.
     seed : int
         Seed of the virtual bench.
     method : str
@@ -116,6 +115,11 @@ def reproduce_platform(*, quick: bool = False, seed: int = 0, method: str = "pro
         Default :meth:`sunlab.sim.Bench.paper_single_hole`.
     checks : int
         Zero-pose visits per run (:func:`sunlab.plans.zero_check`).
+    address, scheduler, workers
+        Where the frames are rendered and centroided
+        (:func:`sunlab.reproduce.pipeline.locate_runs`).
+    step, shots : int, optional
+        Keep every ``step``-th angle and take ``shots`` frames per pose (override ``quick``).
 
     Returns
     -------
@@ -130,11 +134,8 @@ def reproduce_platform(*, quick: bool = False, seed: int = 0, method: str = "pro
     >>> res["diagnosis"]["candidate"]
     'backlash'
     """
-    from . import plans, sim, stats
-    from . import platform_fault as pf
-    from .calibration import Polynomial
-    from .errors import ConfigurationError
-    from .reproduce import experiment_plans, usable_table
+    from .. import sim, stats
+    from ..errors import ConfigurationError
 
     if engine not in ("render", "surrogate"):
         raise ConfigurationError(
@@ -142,18 +143,52 @@ def reproduce_platform(*, quick: bool = False, seed: int = 0, method: str = "pro
         )
     t0 = time.perf_counter()
     bench = sim.Bench.paper_single_hole() if bench is None else bench
-    paper = experiment_plans(quick=quick)
+    paper = experiment_plans(quick=quick, step=step, shots=shots)
     uni = {k: p.with_motion(approach="unidirectional") for k, p in paper.items()}
+    sets = _plan_sets(paper, uni, checks)
+    cens = {k: usable_table(v) for k, v in _centroids(
+        bench, sets, seed=seed, method=method, engine=engine, progress=progress,
+        where={"address": address, "scheduler": scheduler, "workers": workers}).items()}
+    t_sim = time.perf_counter() - t0
+    rows, fits, diag, jc_params, from_row = _rows(cens, paper, uni)
+    table = stats.global_stats(rows)
+    parameters = _fault_parameters(jc_params, bench_fault_values(bench, seed, paper), from_row)
+    result = _platform_doc(table, parameters, diag, fits)
+    result["settings"] = {"seed": seed, "quick": quick, "engine": engine,
+                          "centroid_method": method, "scan": paper["III"].scan,
+                          "zero_checks": checks, "poses": {k: len(p) for k, p in paper.items()},
+                          "shots": paper["III"].shots,
+                          "bench": "sunlab.sim.Bench.paper_single_hole()"}
+    result["timings_s"] = {"simulate_and_centroid": round(t_sim, 2),
+                           "total": round(time.perf_counter() - t0, 2)}
+    result["files"] = []
+    if out is not None:
+        out = Path(out)
+        out.mkdir(parents=True, exist_ok=True)
+        result["files"] = [write_json(result, out / "platform.json")]
+    return result
+
+
+def _plan_sets(paper: dict, uni: dict, checks: int) -> dict:
+    """Every run: the paper's protocol and the unidirectional one, and one zero-pose check per
+    run, taken after homing (its plan is the same for both protocols)."""
+    from .. import plans
+
     sets = {}
     for tag, ps in (("paper", paper), ("uni", uni)):
         for k, p in ps.items():
             sets[f"{tag} {k}"] = p
-    # one zero-pose check per run, taken after homing (its plan is the same for both protocols)
     for k in ("I", "III"):
         sets[f"zero {k}"] = plans.zero_check(paper[k], checks)
-    cens = {k: usable_table(v) for k, v in _centroids(
-        bench, sets, seed=seed, method=method, engine=engine, progress=progress).items()}
-    t_sim = time.perf_counter() - t0
+    return sets
+
+
+def _rows(cens: dict, paper: dict, uni: dict):
+    """The local errors of every row of the table, the polynomial of each protocol, the
+    diagnosis, the joint fit whose parameters are reported and its row."""
+    from .. import platform_fault as pf
+    from .. import stats
+    from ..calibration import Polynomial
 
     local, fits = {}, {}
     for tag in ("paper", "uni"):
@@ -162,38 +197,43 @@ def reproduce_platform(*, quick: bool = False, seed: int = 0, method: str = "pro
         fits[tag] = cal
         local[tag] = stats.local_errors(cal.predict(te))
     rows = {ROWS[0]: local["paper"], ROWS[1]: local["uni"]}
+    zeros = {"zero_train": cens["zero I"], "zero_test": cens["zero III"]}
+
+    def corrected(runs, plans_, **kw):
+        jc = pf.fit_correction(cens[f"{runs} I"], plans_["I"], cens[f"{runs} II"], **kw)
+        est = jc.predict(cens[f"{runs} III"])
+        return jc, stats.local_errors(est, jc.reference(est, plans_["III"]))
+
     # (a) + zero check: the homing difference from the zero-pose checks, no backlash term
-    jc_a = pf.fit_correction(cens["uni I"], uni["I"], cens["uni II"], backlash=False,
-                             zero_train=cens["zero I"], zero_test=cens["zero III"])
-    est = jc_a.predict(cens["uni III"])
-    rows[ROWS[2]] = stats.local_errors(est, jc_a.reference(est, uni["III"]))
+    _, rows[ROWS[2]] = corrected("uni", uni, backlash=False, **zeros)
     # (b) backlash from the motion record, then with the zero-pose checks
-    jc_b = pf.fit_correction(cens["paper I"], paper["I"], cens["paper II"])
-    est = jc_b.predict(cens["paper III"])
-    rows[ROWS[3]] = stats.local_errors(est, jc_b.reference(est, paper["III"]))
-    jc_bh = pf.fit_correction(cens["paper I"], paper["I"], cens["paper II"],
-                              zero_train=cens["zero I"], zero_test=cens["zero III"])
-    est = jc_bh.predict(cens["paper III"])
-    rows[ROWS[4]] = stats.local_errors(est, jc_bh.reference(est, paper["III"]))
+    _, rows[ROWS[3]] = corrected("paper", paper)
+    jc_params, rows[ROWS[4]] = corrected("paper", paper, **zeros)
+    from_row = ROWS[4]
     diag = pf.diagnose(fits["paper"].predict(cens["paper III"]), paper["III"])
-    jc_params = jc_bh
     if diag.candidate == "gear":
         # the gear term at the frequency the periodogram found (the alias the grid sees)
         f = diag.evidence["periodogram"]["peak_frequency"]
-        jc_g = pf.fit_correction(cens["paper I"], paper["I"], cens["paper II"],
-                                 gear_frequency=f, zero_train=cens["zero I"],
-                                 zero_test=cens["zero III"])
-        est = jc_g.predict(cens["paper III"])
-        rows[GEAR_ROW] = stats.local_errors(est, jc_g.reference(est, paper["III"]))
-        jc_params = jc_g
-    table = stats.global_stats(rows)
+        jc_params, rows[GEAR_ROW] = corrected("paper", paper, gear_frequency=f, **zeros)
+        from_row = GEAR_ROW
+    return rows, fits, diag, jc_params, from_row
 
-    truth = bench_fault_values(bench, seed, paper)
+
+def _fault_parameters(jc, truth: dict, from_row: str) -> dict:
+    """The fitted fault parameters beside the bench's, with their z-scores."""
     parameters = {}
-    for name, p in jc_params.parameters.items():
+    for name, p in jc.parameters.items():
         z = (p["fitted"] - truth[name]) / p["stderr"] if p["stderr"] > 0 else float("inf")
         parameters[name] = {"fitted": p["fitted"], "stderr": p["stderr"], "bench": truth[name],
-                            "z": z, "from": ROWS[4] if jc_params is jc_bh else GEAR_ROW}
+                            "z": z, "from": from_row}
+    return parameters
+
+
+def _platform_doc(table, parameters: dict, diag, fits: dict) -> dict:
+    """The platform table's results: rows, parameters, diagnosis, the paper's shape test and
+    the must-show checks (settings, timings and files are added by the caller)."""
+    from .. import platform_fault as pf
+    from .. import stats
 
     def cells(col):
         return {f"{a}.{s}": float(table.loc[(a, s), col]) for a in stats.ANGLES
@@ -213,7 +253,7 @@ def reproduce_platform(*, quick: bool = False, seed: int = 0, method: str = "pro
         "parameters_within_2.5_stderr": all(abs(p["z"]) <= 2.5 for p in parameters.values()),
     }
     shape = pf.paper_shape()
-    result = {
+    return {
         "table": "platform",
         "source": "sunlab virtual bench (ours); the paper's own statistics for paper_shape",
         "rows": {r: cells(r) for r in names},
@@ -226,29 +266,7 @@ def reproduce_platform(*, quick: bool = False, seed: int = 0, method: str = "pro
                         for (m, a), r in shape.iterrows()},
         "must_show": must,
         "polynomial_order": {k: [int(n) for n in c.orders] for k, c in fits.items()},
-        "settings": {"seed": seed, "quick": quick, "engine": engine, "centroid_method": method,
-                     "scan": paper["III"].scan, "zero_checks": checks,
-                     "poses": {k: len(p) for k, p in paper.items()},
-                     "shots": paper["III"].shots,
-                     "bench": "sunlab.sim.Bench.paper_single_hole()"},
-        "timings_s": {"simulate_and_centroid": round(t_sim, 2),
-                      "total": round(time.perf_counter() - t0, 2)},
-        "files": [],
     }
-    if out is not None:
-        out = Path(out)
-        out.mkdir(parents=True, exist_ok=True)
-        (out / "platform.json").write_text(json.dumps(result, indent=2, default=_jsonable))
-        result["files"] = [str(out / "platform.json")]
-    return result
-
-
-def _jsonable(o):
-    if isinstance(o, np.generic):
-        return o.item()
-    if isinstance(o, np.ndarray):
-        return o.tolist()
-    raise TypeError(type(o).__name__)
 
 
 def format_platform(res: dict) -> str:

@@ -14,18 +14,20 @@ The pipeline of docs/paper.md sec. 5, end to end:
    II);
 4. apply each to experiment III, and compute the paper's statistics (:mod:`sunlab.stats`).
 
+Steps 1-2 are the shared pipeline (:mod:`sunlab.reproduce.pipeline`); quick mode is its
+:data:`~sunlab.reproduce.pipeline.QUICK` (every 2nd angle along each grid axis, 2 shots per pose).
+
 The numbers are ours, from the virtual bench, printed beside the paper's.
 
 Examples
 --------
->>> from sunlab.reproduce import table4_methods
+>>> from sunlab.reproduce.table4 import table4_methods
 >>> list(table4_methods(neural=False))[:3]
 ['ideal model (1)', 'optimised model (3)-(4)', 'linear interp.']
 """
 
 from __future__ import annotations
 
-import json
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -33,19 +35,15 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-import xarray as xr
 
-from . import __version__, stats
-from .errors import ConfigurationError
+from .. import __version__, stats
+from ..errors import ConfigurationError
+from .pipeline import centroid_status, simulate_and_locate, usable_table, write_json
 
 __all__ = [
     "PAPER_OPTIMISED",
-    "EXPERIMENTS",
-    "QUICK",
-    "experiment_plans",
     "bench_optimised_truth",
     "Table4Result",
-    "simulate_and_locate",
     "table4_methods",
     "reproduce_table4",
     "format_table",
@@ -53,11 +51,6 @@ __all__ = [
 
 #: The paper's optimised-model parameters (docs/paper.md sec. 4.1).
 PAPER_OPTIMISED = {"alpha0": 1.864, "beta0": 0.415, "delta_f_mm": 0.094}
-#: Experiments of Table 3 and their roles.
-EXPERIMENTS = {"I": "calibration", "II": "validation", "III": "test"}
-#: Quick mode, for Table 4 and Table 5 alike: every 2nd angle along each grid axis
-#: (:meth:`sunlab.plans.Plan.thin`, so maps stay maps) and 2 shots per pose.
-QUICK = {"step": 2, "shots": 2}
 
 
 @dataclass
@@ -128,91 +121,6 @@ def _num(v) -> float | None:
     return None if not np.isfinite(v) else v
 
 
-def simulate_and_locate(
-    bench=None,
-    *,
-    seed: int = 0,
-    quick: bool = False,
-    method: str = "projection",
-    progress: bool = True,
-    address: str | None = None,
-    step: int | None = None,
-    shots: int | None = None,
-    scheduler: str = "threads",
-    workers: int | None = None,
-) -> dict[str, xr.Dataset]:
-    """Simulate experiments I, II, III and centroid every frame; centroid tables by experiment.
-
-    Parameters
-    ----------
-    bench : sunlab.sim.Bench, optional
-        Default :meth:`sunlab.sim.Bench.paper_single_hole`.
-    seed : int
-        Seed of the virtual bench; each experiment mixes its plan into it.
-    quick : bool
-        :data:`QUICK` settings: every 2nd angle along each grid axis, 2 shots per pose.
-    method : str
-        Centroid method of :func:`sunlab.centroid.locate`.
-    step, shots : int, optional
-        Keep every ``step``-th angle along each grid axis (:meth:`sunlab.plans.Plan.thin`) and
-        take ``shots`` frames per pose (override ``quick``).
-    progress : bool
-        Show a progress bar per experiment.
-    address : str, optional
-        A ``dask.distributed`` scheduler address (workers started separately, e.g. by ``dask
-        worker``); default a local scheduler.
-    scheduler : str
-        Local scheduler without ``address`` (:data:`sunlab.parallel.SCHEDULERS`): ``"threads"``
-        (default) or ``"cluster"`` (a local cluster of ``workers`` processes; docs/scaling.md).
-    workers : int, optional
-        Threads or processes of the local scheduler (default: the CPU count). The centroids
-        do not depend on the scheduler or on where a frame is rendered.
-
-    Returns
-    -------
-    dict of str to xarray.Dataset
-        ``centroids/1`` tables keyed ``"I"``, ``"II"``, ``"III"``.
-
-    Examples
-    --------
-    >>> cens = simulate_and_locate(seed=1, step=7, shots=1, progress=False)
-    >>> {k: int(v.sizes["pose"]) for k, v in cens.items()}
-    {'I': 9, 'II': 4, 'III': 9}
-    """
-    from . import centroid, parallel, sim
-
-    bench = sim.Bench.paper_single_hole() if bench is None else bench
-    lazy = {}
-    for name, plan in experiment_plans(quick=quick, step=step, shots=shots).items():
-        cube = sim.simulate(plan, bench, seed=seed, chunks="pose")
-        if progress:
-            print(f"experiment {name} ({EXPERIMENTS[name]}): {len(plan)} poses x "
-                  f"{plan.shots} shots", flush=True)
-        lazy[name] = centroid.locate(cube, method=method, compute=False)
-    if progress:
-        n_frames = sum(c.sizes["pose"] * c.sizes["shot"] for c in lazy.values())
-        print(f"rendering and centroiding {n_frames} frames ({method})", flush=True)
-    done = parallel.compute(*lazy.values(), address=address, progress=progress,
-                            scheduler=scheduler, num_workers=workers)
-    return dict(zip(lazy, done, strict=True))
-
-
-def experiment_plans(names=tuple(EXPERIMENTS), *, quick: bool = False, step: int | None = None,
-                     shots: int | None = None) -> dict:
-    """The plans of Table 3 as ``sunlab reproduce`` runs them (full, quick, or thinned).
-
-    Examples
-    --------
-    >>> {k: len(p) for k, p in experiment_plans(quick=True).items()}
-    {'I': 100, 'II': 49, 'III': 100}
-    """
-    from . import plans
-
-    step = step or (QUICK["step"] if quick else 1)
-    shots = shots or (QUICK["shots"] if quick else 8)
-    return {n: plans.experiment(n).thin(step).with_shots(shots) for n in names}
-
-
 def bench_optimised_truth(bench) -> dict:
     """The bench's own values of what the optimised model (3)-(4) estimates.
 
@@ -227,22 +135,11 @@ def bench_optimised_truth(bench) -> dict:
     >>> t["alpha0"], t["beta0"], round(t["delta_f_mm"], 4)
     (1.864, 0.415, 0.0875)
     """
-    from .sim.render import spot_geometry
+    from ..sim.render import spot_geometry
 
     height = float(spot_geometry(bench, 0.0, 0.0).height_mm[0])
     return {"alpha0": float(bench.platform.alpha0_deg), "beta0": float(bench.platform.beta0_deg),
             "delta_f_mm": height - float(bench.mask_distance_mm)}
-
-
-def usable_table(cen: xr.Dataset) -> xr.Dataset:
-    """The centroid table with every usable status (:data:`sunlab.schema.USABLE_STATUS`)
-    marked ``ok``, as the calibrations select their training points by ``ok``: a ``repaired``
-    frame (a hot pixel replaced in the window) keeps its spot and is used."""
-    from .schema import STATUS, USABLE_STATUS
-
-    st = cen["status"]
-    usable = st.isin([STATUS[k] for k in USABLE_STATUS])
-    return cen.assign(status=st.where(~usable, STATUS["ok"]).astype(st.dtype))
 
 
 def table4_methods(*, neural: bool = True, hidden: int = 8, seed: int = 0) -> dict[str, Callable]:
@@ -256,7 +153,7 @@ def table4_methods(*, neural: bool = True, hidden: int = 8, seed: int = 0) -> di
     >>> sorted(table4_methods())[-1]
     'trigonometric'
     """
-    from . import calibration as cal
+    from .. import calibration as cal
 
     def poly(train, val):
         best, _ = cal.Polynomial.select_order(train, val)
@@ -300,21 +197,6 @@ def _select_on_validation(make, orders, train, validation):
     return best
 
 
-def _status_counts(cen: xr.Dataset) -> dict:
-    """Frames per centroid status; the statuses other than ``ok`` and ``repaired`` are the
-    frames removed from the calibrations and statistics."""
-    from .schema import STATUS_NAMES
-
-    codes, counts = np.unique(np.asarray(cen["status"].values), return_counts=True)
-    return {STATUS_NAMES[int(c)]: int(n) for c, n in zip(codes, counts, strict=True)}
-
-
-def _removed(counts: dict) -> dict:
-    from .schema import USABLE_STATUS
-
-    return {k: n for k, n in counts.items() if k not in USABLE_STATUS}
-
-
 def reproduce_table4(
     *,
     quick: bool = False,
@@ -335,8 +217,10 @@ def reproduce_table4(
     Parameters
     ----------
     quick : bool
-        :data:`QUICK` settings (every 2nd angle along each grid axis, 2 shots): the table's
-        pattern in a fraction of the time.
+        Quick mode, the same for every table (:data:`sunlab.reproduce.pipeline.QUICK`): every
+        2nd angle along each grid axis of experiments I, II, III (100 + 49 + 100 poses instead
+        of 930) and 2 shots per pose instead of 8: the table's pattern in a fraction of the
+        time.
     seed : int
         Seed of the virtual bench.
     method : str
@@ -370,18 +254,46 @@ def reproduce_table4(
     >>> bool(res.table.loc[("alpha", "mu"), "ideal model (1)"] > 1.0)  # mounting errors
     True
     """
-    from . import sim
+    from .. import sim
 
     bench = sim.Bench.paper_single_hole() if bench is None else bench
-    timings = {}
     t0 = time.perf_counter()
     cens = simulate_and_locate(
         bench, seed=seed, quick=quick, method=method, progress=progress, address=address,
         step=step, shots=shots, scheduler=scheduler, workers=workers,
     )
-    timings["simulate_and_centroid"] = time.perf_counter() - t0
+    timings = {"simulate_and_centroid": time.perf_counter() - t0}
     train, val, test = (usable_table(cens[k]) for k in ("I", "II", "III"))
+    fitted, local = _fit_and_test(train, val, test, neural=neural, seed=seed,
+                                  progress=progress, timings=timings)
+    result = _assemble(cens, fitted, local, bench, timings, t0, settings={
+        "seed": seed, "quick": quick, "centroid_method": method,
+        "poses": {k: int(v.sizes["pose"]) for k, v in cens.items()},
+        "shots": int(test.sizes["shot"]), "bench": "sunlab.sim.Bench.paper_single_hole()"})
+    if out is not None:
+        result.files = _write_outputs(result, Path(out))
+    return result
 
+
+def _assemble(cens, fitted, local, bench, timings, t0, settings) -> Table4Result:
+    """The statistics of every method on III, beside the paper's, and what was fitted."""
+    table = stats.global_stats(local)
+    return Table4Result(
+        table=table,
+        paper=stats.paper_table4(),
+        rectangles=stats.rectangles(table),
+        local=local,
+        optimised=_optimised_summary(fitted["optimised model (3)-(4)"].result, bench),
+        polynomial_order=tuple(int(n) for n in fitted["polynomial"].orders),
+        centroid_status=centroid_status(cens),
+        timings={**timings, "total": time.perf_counter() - t0},
+        settings=settings,
+    )
+
+
+def _fit_and_test(train, val, test, *, neural, seed, progress, timings) -> tuple[dict, dict]:
+    """Fit every method of :func:`table4_methods` on I (II for model selection) and compute
+    its local errors on III; the fit times go into ``timings``."""
     local, fitted = {}, {}
     for label, fit in table4_methods(neural=neural, seed=seed).items():
         t = time.perf_counter()
@@ -391,50 +303,32 @@ def reproduce_table4(
         local[label] = stats.local_errors(cal.predict(test))
         if progress:
             print(f"  fitted {label:<24s} in {timings[f'fit {label}']:6.2f} s", flush=True)
-    table = stats.global_stats(local)
-    poly = fitted["polynomial"]
-    opt = fitted["optimised model (3)-(4)"].result
+    return fitted, local
+
+
+def _optimised_summary(opt, bench) -> dict:
+    """The optimised model's fitted parameters beside the bench's values and the paper's."""
     truth = bench_optimised_truth(bench)
-    optimised = {
+    return {
         k: {"fitted": float(getattr(opt, k)), "stderr": _num(opt.stderr.get(k, np.nan)),
             "bench": float(truth[k]), "paper": PAPER_OPTIMISED[k],
             "stderr_method": opt.stderr_method}
         for k in PAPER_OPTIMISED
     }
-    result = Table4Result(
-        table=table,
-        paper=stats.paper_table4(),
-        rectangles=stats.rectangles(table),
-        local=local,
-        optimised=optimised,
-        polynomial_order=tuple(int(n) for n in poly.orders),
-        centroid_status={k: {**_status_counts(v), "removed": _removed(_status_counts(v))}
-                         for k, v in cens.items()},
-        timings={**timings, "total": time.perf_counter() - t0},
-        settings={
-            "seed": seed, "quick": quick, "centroid_method": method,
-            "poses": {k: int(v.sizes["pose"]) for k, v in cens.items()},
-            "shots": int(test.sizes["shot"]),
-            "bench": "sunlab.sim.Bench.paper_single_hole()",
-        },
-    )
-    if out is not None:
-        result.files = _write_outputs(result, Path(out))
-    return result
 
 
 def _write_outputs(res: Table4Result, out: Path) -> list[str]:
     import matplotlib
 
     matplotlib.use("Agg", force=False)
-    from . import plots
+    from .. import plots
 
     out.mkdir(parents=True, exist_ok=True)
     files = []
     both = stats.side_by_side(res.table, res.paper, names=("sunlab", "paper"))
     res.table.to_csv(out / "table4_sunlab.csv")
     both.to_csv(out / "table4_side_by_side.csv")
-    (out / "table4.json").write_text(json.dumps(res.to_dict(), indent=2))
+    write_json(res.to_dict(), out / "table4.json")
     files += ["table4_sunlab.csv", "table4_side_by_side.csv", "table4.json"]
     figs = {
         "fig10_error_maps_polynomial.png": plots.error_maps(

@@ -1,0 +1,288 @@
+"""The one pipeline every reproduced table shares: plans, simulate, centroid, status, JSON.
+
+Each table of :mod:`sunlab.reproduce` (Table 4, Table 5, the platform table) runs the same
+steps, and this module is the one place that does them:
+
+1. :func:`experiment_plans`: the plans of Table 3 as the table runs them. *Quick* has one
+   meaning for every table: :data:`QUICK`, every 2nd angle along each grid axis
+   (:meth:`sunlab.plans.Plan.thin`, so maps stay maps) and 2 shots per pose; ``step`` and
+   ``shots`` override it;
+2. :func:`simulate_runs` and :func:`locate_runs`: the frame cubes of the virtual bench, lazy,
+   and every frame of every run centroided in ONE pass of Dask (:func:`sunlab.parallel.compute`)
+   with the table's centroid ``method`` on the scheduler the caller chose (``address``,
+   ``scheduler``, ``workers``); :func:`simulate_and_locate` is both for experiments I-III;
+3. :func:`usable_table` and :func:`centroid_status`: which frames the calibrations use, and the
+   counts of the frames removed;
+4. :func:`write_json`: the one writer of every table's machine-readable results file.
+
+Examples
+--------
+>>> from sunlab.reproduce.pipeline import experiment_plans
+>>> {k: len(p) for k, p in experiment_plans(quick=True).items()}
+{'I': 100, 'II': 49, 'III': 100}
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+__all__ = [
+    "EXPERIMENTS",
+    "QUICK",
+    "experiment_plans",
+    "simulate_runs",
+    "locate_runs",
+    "simulate_and_locate",
+    "usable_table",
+    "centroid_status",
+    "write_json",
+]
+
+#: Experiments of Table 3 and their roles.
+EXPERIMENTS = {"I": "calibration", "II": "validation", "III": "test"}
+#: Quick mode, the same for every table: every 2nd angle along each grid axis
+#: (:meth:`sunlab.plans.Plan.thin`, so maps stay maps) and 2 shots per pose.
+QUICK = {"step": 2, "shots": 2}
+
+
+def experiment_plans(names=tuple(EXPERIMENTS), *, quick: bool = False, step: int | None = None,
+                     shots: int | None = None) -> dict:
+    """The plans of Table 3 as ``sunlab reproduce`` runs them (full, quick, or thinned).
+
+    Parameters
+    ----------
+    names : sequence of str
+        Experiments of Table 3 (``"I"``, ``"II"``, ``"III"``).
+    quick : bool
+        :data:`QUICK`: every 2nd angle along each grid axis, 2 shots per pose (full: 8 shots).
+    step, shots : int, optional
+        Keep every ``step``-th angle along each grid axis and take ``shots`` frames per pose
+        (override ``quick``).
+
+    Returns
+    -------
+    dict of str to sunlab.plans.Plan
+
+    Examples
+    --------
+    >>> {k: (len(p), p.shots) for k, p in experiment_plans(("I", "III"), step=4).items()}
+    {'I': (25, 8), 'III': (25, 8)}
+    """
+    from .. import plans
+
+    step = step or (QUICK["step"] if quick else 1)
+    shots = shots or (QUICK["shots"] if quick else 8)
+    return {n: plans.experiment(n).thin(step).with_shots(shots) for n in names}
+
+
+def simulate_runs(runs: dict, *, seed: int = 0, chunks: str = "pose") -> dict[str, xr.Dataset]:
+    """Lazy frame cubes of named runs on the virtual bench (:func:`sunlab.sim.simulate`).
+
+    Parameters
+    ----------
+    runs : dict of str to (sunlab.plans.Plan, sunlab.sim.Bench)
+        The plan of each run and the bench it runs on.
+    seed : int
+        Seed of the virtual bench; each run mixes its plan into it.
+    chunks : {"pose", "frame"}
+        Dask chunks of the cubes (the frames are identical either way).
+
+    Returns
+    -------
+    dict of str to xarray.Dataset
+
+    Examples
+    --------
+    >>> from sunlab import sim
+    >>> plans_ = experiment_plans(("III",), step=7, shots=1)
+    >>> cubes = simulate_runs({"III": (plans_["III"], sim.Bench.paper_single_hole())})
+    >>> dict(cubes["III"].frames.sizes)["pose"]
+    9
+    """
+    from .. import sim
+
+    return {k: sim.simulate(plan, bench, seed=seed, chunks=chunks)
+            for k, (plan, bench) in runs.items()}
+
+
+def locate_runs(cubes: dict, *, method: str = "projection", hole_offset=(0.0, 0.0),
+                progress: bool = True, address: str | None = None, scheduler: str = "threads",
+                workers: int | None = None) -> dict[str, xr.Dataset]:
+    """Centroid every frame of every cube in one pass of Dask; centroid tables by run.
+
+    Parameters
+    ----------
+    cubes : dict of str to xarray.Dataset
+        Frame cubes (lazy, e.g. of :func:`simulate_runs`).
+    method : str
+        Centroid method of :func:`sunlab.centroid.locate` (for a multi-hole cube, its per-spot
+        estimator: ``"tight"`` or ``"fit"``).
+    hole_offset : (float, float)
+        Multi-hole cubes: the mounting offset (px) added to the design positions
+        ``hole_x_cf``, ``hole_y_cf`` to number the spots; the tables keep the design positions.
+    progress : bool
+        Show a progress bar.
+    address : str, optional
+        A ``dask.distributed`` scheduler address (workers started separately, e.g. by ``dask
+        worker``); default a local scheduler.
+    scheduler : str
+        Local scheduler without ``address`` (:data:`sunlab.parallel.SCHEDULERS`).
+    workers : int, optional
+        Threads or processes of the local scheduler (default: the CPU count). The centroids
+        do not depend on the scheduler or on where a frame is rendered.
+
+    Returns
+    -------
+    dict of str to xarray.Dataset
+        ``centroids/1`` tables keyed as ``cubes``.
+
+    Examples
+    --------
+    >>> from sunlab import sim
+    >>> plans_ = experiment_plans(("III",), step=7, shots=1)
+    >>> cubes = simulate_runs({"III": (plans_["III"], sim.Bench.paper_single_hole())})
+    >>> cens = locate_runs(cubes, progress=False)
+    >>> int((cens["III"].status == 0).sum())
+    9
+    """
+    from .. import centroid, parallel
+
+    lazy = {}
+    for name, cube in cubes.items():
+        if "hole_x_cf" in cube.coords:
+            design = {k: cube[k] for k in ("hole_x_cf", "hole_y_cf")}
+            moved = cube.assign_coords(hole_x_cf=cube["hole_x_cf"] + hole_offset[0],
+                                       hole_y_cf=cube["hole_y_cf"] + hole_offset[1])
+            lazy[name] = centroid.locate(moved, method, compute=False).assign_coords(**design)
+        else:
+            lazy[name] = centroid.locate(cube, method, compute=False)
+    done = parallel.compute(*lazy.values(), address=address, progress=progress,
+                            scheduler=scheduler, num_workers=workers)
+    return dict(zip(lazy, done, strict=True))
+
+
+def simulate_and_locate(
+    bench=None,
+    *,
+    seed: int = 0,
+    quick: bool = False,
+    method: str = "projection",
+    progress: bool = True,
+    address: str | None = None,
+    step: int | None = None,
+    shots: int | None = None,
+    scheduler: str = "threads",
+    workers: int | None = None,
+) -> dict[str, xr.Dataset]:
+    """Simulate experiments I, II, III and centroid every frame; centroid tables by experiment.
+
+    Parameters
+    ----------
+    bench : sunlab.sim.Bench, optional
+        Default :meth:`sunlab.sim.Bench.paper_single_hole`.
+    seed : int
+        Seed of the virtual bench; each experiment mixes its plan into it.
+    quick, step, shots
+        The plans (:func:`experiment_plans`).
+    method : str
+        Centroid method of :func:`sunlab.centroid.locate`.
+    progress : bool
+        Print the experiments and show a progress bar.
+    address, scheduler, workers
+        Where the frames are rendered and centroided (:func:`locate_runs`).
+
+    Returns
+    -------
+    dict of str to xarray.Dataset
+        ``centroids/1`` tables keyed ``"I"``, ``"II"``, ``"III"``.
+
+    Examples
+    --------
+    >>> cens = simulate_and_locate(seed=1, step=7, shots=1, progress=False)
+    >>> {k: int(v.sizes["pose"]) for k, v in cens.items()}
+    {'I': 9, 'II': 4, 'III': 9}
+    """
+    from .. import sim
+
+    bench = sim.Bench.paper_single_hole() if bench is None else bench
+    plans_ = experiment_plans(quick=quick, step=step, shots=shots)
+    cubes = simulate_runs({k: (p, bench) for k, p in plans_.items()}, seed=seed)
+    if progress:
+        for name, plan in plans_.items():
+            print(f"experiment {name} ({EXPERIMENTS[name]}): {len(plan)} poses x "
+                  f"{plan.shots} shots", flush=True)
+        n_frames = sum(len(p) * p.shots for p in plans_.values())
+        print(f"rendering and centroiding {n_frames} frames ({method})", flush=True)
+    return locate_runs(cubes, method=method, progress=progress, address=address,
+                       scheduler=scheduler, workers=workers)
+
+
+def usable_table(cen: xr.Dataset) -> xr.Dataset:
+    """The centroid table with every usable status (:data:`sunlab.schema.USABLE_STATUS`)
+    marked ``ok``, as the calibrations select their training points by ``ok``: a ``repaired``
+    frame (a hot pixel replaced in the window) keeps its spot and is used.
+
+    Examples
+    --------
+    >>> from sunlab import schema
+    >>> cen = schema.centroids_dataset([[1.0, 2.0]], [[1.0, 2.0]], alpha=[0.0], beta=[0.0],
+    ...                                status=[[schema.STATUS["repaired"], 0]])
+    >>> usable_table(cen).status.values.tolist()
+    [[0, 0]]
+    """
+    from ..schema import STATUS, USABLE_STATUS
+
+    st = cen["status"]
+    usable = st.isin([STATUS[k] for k in USABLE_STATUS])
+    return cen.assign(status=st.where(~usable, STATUS["ok"]).astype(st.dtype))
+
+
+def centroid_status(cens: dict) -> dict:
+    """Frames per centroid status of each table, and under ``removed`` those the calibrations
+    and statistics leave out (every status but the usable ones).
+
+    Examples
+    --------
+    >>> from sunlab import schema
+    >>> cen = schema.centroids_dataset([[1.0, 2.0]], [[1.0, 2.0]], alpha=[0.0], beta=[0.0],
+    ...                                status=[[schema.STATUS["saturated"], 0]])
+    >>> centroid_status({"III": cen})
+    {'III': {'ok': 1, 'saturated': 1, 'removed': {'saturated': 1}}}
+    """
+    from ..schema import STATUS_NAMES, USABLE_STATUS
+
+    out = {}
+    for name, cen in cens.items():
+        codes, counts = np.unique(np.asarray(cen["status"].values), return_counts=True)
+        n = {STATUS_NAMES[int(c)]: int(k) for c, k in zip(codes, counts, strict=True)}
+        out[name] = {**n, "removed": {k: v for k, v in n.items() if k not in USABLE_STATUS}}
+    return out
+
+
+def write_json(doc: dict, path: str | Path) -> str:
+    """Write a table's results file (indented JSON; NumPy scalars and arrays as numbers).
+
+    Examples
+    --------
+    >>> import pathlib, tempfile
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "t.json"
+    >>> write_json({"mu": np.float64(0.5), "n": np.arange(2)}, path) == str(path)
+    True
+    >>> path.read_text().split()
+    ['{', '"mu":', '0.5,', '"n":', '[', '0,', '1', ']', '}']
+    """
+    path = Path(path)
+    path.write_text(json.dumps(doc, indent=2, default=_jsonable))
+    return str(path)
+
+
+def _jsonable(o):
+    if isinstance(o, np.generic):
+        return o.item()
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    raise TypeError(type(o).__name__)
