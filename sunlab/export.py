@@ -36,9 +36,9 @@ need ``sin``/``cos``, and are the paper's worst method).
 Examples
 --------
 >>> import tempfile, pathlib
->>> from sunlab import geometry
+>>> from sunlab import geometry, sim
 >>> from sunlab.calibration import Polynomial
->>> cen = geometry.synthetic_centroids([0.0, 1, 2, 0, 1, 2], [0.0, 0, 0, 1, 1, 1])
+>>> cen = sim.synthetic_centroids([0.0, 1, 2, 0, 1, 2], [0.0, 0, 0, 1, 1, 1])
 >>> out = pathlib.Path(tempfile.mkdtemp())
 >>> [p.name for p in export(Polynomial(order=1).fit(cen), out)]
 ['sunlab_calibration.h', 'sunlab_calibration.c']

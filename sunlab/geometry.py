@@ -678,13 +678,3 @@ def pinhole_centroid(
     s = sun_vector(alpha, beta) @ mounting_matrix(*mounting_deg).T
     k = (mask_distance_mm + delta_f_mm) / pixel_pitch_mm
     return x_cf - k * s[..., 0] / s[..., 2], y_cf - k * s[..., 1] / s[..., 2]
-
-
-def __getattr__(name: str):
-    # the centroid-level Monte Carlo moved to sunlab.sim.synthetic_centroids (the simulator's
-    # room); this keeps ``geometry.synthetic_centroids`` working for existing callers
-    if name == "synthetic_centroids":
-        from .sim.centroids import synthetic_centroids
-
-        return synthetic_centroids
-    raise AttributeError(f"module 'sunlab.geometry' has no attribute {name!r}")

@@ -531,7 +531,7 @@ def candidate_table(sizes: dict, *, bench=None, seed: int = 0, shots: int = 1,
     (['size_deg', 'polynomial mu', 'polynomial sigma', 'score', 'shape_excess'], True)
     """
     from . import plans, stats
-    from .reproduce import table4_methods
+    from .calibration.methods import table4_methods
     from .sim import Bench
     from .sim.identify import surrogate_centroids
 

@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from sunlab import calibration, cli, geometry, io, schema
+from sunlab import calibration, cli, io, schema, sim
 from sunlab.errors import SchemaError, SunlabError
 
 NY, NX = 24, 32
@@ -51,7 +51,7 @@ def assets(tmp_path_factory):
     io.save_frames(cube, root / "cube.zarr")
     io.save_frames(cube, root / "cube.nc")
     a, b = np.meshgrid(np.arange(-8.0, 9.0, 4), np.arange(-8.0, 9.0, 4), indexing="ij")
-    cen = geometry.synthetic_centroids(a.ravel(), b.ravel(), shots=2)
+    cen = sim.synthetic_centroids(a.ravel(), b.ravel(), shots=2)
     io.save_centroids(cen, root / "cen.zarr")
     io.save_centroids(cen, root / "cen.nc")
     cal = calibration.Polynomial(order=2).fit(cen)

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 
-from sunlab import ConfigurationError, SchemaError, calibration, geometry
+from sunlab import ConfigurationError, SchemaError, calibration, sim
 from sunlab.calibration import (
     IdealModel,
     Interpolation,
@@ -26,7 +26,7 @@ BENCH = dict(delta_f_mm=0.094, mounting_deg=(1.864, 0.415, 0.2), hole_offset_px=
 def _table(step, start=(-17.0, -2.0), stop=(2.0, 17.0), shots=2, seed=0, **kw):
     a, b = np.meshgrid(np.arange(start[0], stop[0] + 1e-9, step),
                        np.arange(start[1], stop[1] + 1e-9, step), indexing="ij")
-    return geometry.synthetic_centroids(a.ravel(), b.ravel(), shots, seed=seed,
+    return sim.synthetic_centroids(a.ravel(), b.ravel(), shots, seed=seed,
                                         **{**BENCH, **kw})
 
 

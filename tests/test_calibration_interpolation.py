@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from sunlab import ConfigurationError, geometry
+from sunlab import ConfigurationError, sim
 from sunlab.calibration import Interpolation
 from sunlab.schema import centroids_dataset
 
@@ -15,7 +15,7 @@ KW = dict(delta_f_mm=0.094, mounting_deg=(1.864, 0.415, 0.3), pose_error_deg=(0.
 @pytest.fixture(scope="module")
 def table():
     a, b = np.meshgrid(np.arange(-17.0, 3.0, 1.0), np.arange(-2.0, 18.0, 1.0), indexing="ij")
-    return geometry.synthetic_centroids(a.ravel(), b.ravel(), 4, seed=5, **KW)
+    return sim.synthetic_centroids(a.ravel(), b.ravel(), 4, seed=5, **KW)
 
 
 @pytest.mark.parametrize("method", ["linear", "cubic"])
@@ -53,7 +53,7 @@ def test_nan_outside_the_hull_unless_nearest(table, method):
 def test_between_nodes_accuracy_is_at_the_noise_level(table):
     # test poses half-way between nodes: the error is about the pose error of the nodes
     a, b = np.meshgrid(np.arange(-16.5, 1.6, 1.0), np.arange(-1.5, 16.6, 1.0), indexing="ij")
-    te = geometry.synthetic_centroids(a.ravel(), b.ravel(), 2, seed=9, **KW)
+    te = sim.synthetic_centroids(a.ravel(), b.ravel(), 2, seed=9, **KW)
     for method in ("linear", "cubic"):
         est = Interpolation(method).fit(table).predict(te)
         err = abs(est.alpha - te.true_alpha)

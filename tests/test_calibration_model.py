@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from sunlab import ConfigurationError, geometry
+from sunlab import ConfigurationError, geometry, sim
 from sunlab.calibration import IdealModel, OptimisedModel
 from sunlab.schema import centroids_dataset
 
@@ -26,7 +26,7 @@ def _grid(lo=(-17.0, -2.0), hi=(2.0, 17.0), step=1.0):
 
 def test_ideal_model_is_exact_on_ideal_centroids():
     a, b = _grid(step=3.0)
-    cen = geometry.synthetic_centroids(a, b, shots=1)
+    cen = sim.synthetic_centroids(a, b, shots=1)
     est = IdealModel().fit(cen).predict(cen)
     assert_allclose(est.alpha[:, 0], a, atol=1e-10)
     assert_allclose(est.beta[:, 0], b, atol=1e-10)
@@ -70,8 +70,8 @@ def test_optimised_model_fits_the_zero_pose_when_the_plan_lacks_it():
 def test_optimised_model_beats_ideal_on_a_distorted_bench():
     a, b = _grid(step=2.0)
     kw = dict(delta_f_mm=0.094, mounting_deg=(1.864, 0.415, 0.0), pose_error_deg=(0.01, 0.02))
-    tr = geometry.synthetic_centroids(a, b, 2, seed=1, **kw)
-    te = geometry.synthetic_centroids(a + 1, b + 1, 2, seed=2, **kw)
+    tr = sim.synthetic_centroids(a, b, 2, seed=1, **kw)
+    te = sim.synthetic_centroids(a + 1, b + 1, 2, seed=2, **kw)
     errs = {}
     for cal in (IdealModel(), OptimisedModel()):
         est = cal.fit(tr).predict(te)

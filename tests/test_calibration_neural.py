@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_array_equal
 
-from sunlab import geometry
+from sunlab import sim
 from sunlab.calibration import IdealModel, NeuralNet
 
 # realistic distortions: mask distance, mounting (incl. in-plane rotation), hole offset,
@@ -21,10 +21,10 @@ def _plan(a0, a1, b0, b1, step):
 
 @pytest.fixture(scope="module")
 def bench():
-    tr = geometry.synthetic_centroids(*_plan(-17, 2, -2, 17, 1.5), 2, seed=1, **BENCH)
-    va = geometry.synthetic_centroids(*_plan(-16.25, 1.75, -1.75, 16.25, 3.0), 2, seed=2,
+    tr = sim.synthetic_centroids(*_plan(-17, 2, -2, 17, 1.5), 2, seed=1, **BENCH)
+    va = sim.synthetic_centroids(*_plan(-16.25, 1.75, -1.75, 16.25, 3.0), 2, seed=2,
                                       **BENCH)
-    te = geometry.synthetic_centroids(*_plan(-16.5, 1.5, -1.5, 16.5, 2.0), 2, seed=3, **BENCH)
+    te = sim.synthetic_centroids(*_plan(-16.5, 1.5, -1.5, 16.5, 2.0), 2, seed=3, **BENCH)
     ideal = IdealModel().fit(tr).predict(te)
     return tr, va, te, ideal
 

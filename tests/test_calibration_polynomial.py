@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from sunlab import geometry
+from sunlab import sim
 from sunlab.calibration import Polynomial, Trigonometric
 from sunlab.calibration.polynomial import design_matrix, monomial_exponents
 from sunlab.schema import centroids_dataset
@@ -50,7 +50,7 @@ def test_high_order_is_well_conditioned():
     # order 8 on the paper's 400-pose grid: approximation error of the arctan mapping only
     # (far below the 0.01 deg the paper reaches), no loss to conditioning
     a, b = np.meshgrid(np.arange(-17.0, 3.0), np.arange(-2.0, 18.0), indexing="ij")
-    cen = geometry.synthetic_centroids(a.ravel(), b.ravel(), shots=1, delta_f_mm=0.094,
+    cen = sim.synthetic_centroids(a.ravel(), b.ravel(), shots=1, delta_f_mm=0.094,
                                        mounting_deg=(1.864, 0.415, 0.3))
     cal = Polynomial(order=8).fit(cen)
     assert cal.residuals["alpha"]["max_abs"] < 1e-6
@@ -72,7 +72,7 @@ def test_select_order_on_validation():
 def test_polynomial_smooths_noise_that_interpolation_keeps():
     a, b = np.meshgrid(np.arange(-17.0, 3.0), np.arange(-2.0, 18.0), indexing="ij")
     kw = dict(shots=2, pose_error_deg=(0.02, 0.02), delta_f_mm=0.094)
-    tr = geometry.synthetic_centroids(a.ravel(), b.ravel(), seed=1, **kw)
+    tr = sim.synthetic_centroids(a.ravel(), b.ravel(), seed=1, **kw)
     cal = Polynomial(order=4).fit(tr)
     # fit residual ~ the pose error (uniform, half-width 0.02: mean |e| = 0.01)
     assert 0.006 < cal.residuals["alpha"]["mean_abs"] < 0.014
@@ -82,8 +82,8 @@ def test_polynomial_smooths_noise_that_interpolation_keeps():
 def test_trigonometric_fits_but_worse_than_polynomial(order):
     a, b = np.meshgrid(np.arange(-17.0, 3.0), np.arange(-2.0, 18.0), indexing="ij")
     kw = dict(shots=1, delta_f_mm=0.094, mounting_deg=(1.864, 0.415, 0.0))
-    tr = geometry.synthetic_centroids(a.ravel(), b.ravel(), **kw)
-    te = geometry.synthetic_centroids(a.ravel() + 0.5, b.ravel() + 0.5, **kw)
+    tr = sim.synthetic_centroids(a.ravel(), b.ravel(), **kw)
+    te = sim.synthetic_centroids(a.ravel() + 0.5, b.ravel() + 0.5, **kw)
     trig = Trigonometric(order=order).fit(tr)
     poly = Polynomial(order=order).fit(tr)
     err = lambda c: float(abs(c.predict(te).alpha - te.alpha).max())  # noqa: E731

@@ -14,7 +14,7 @@ import pandas as pd
 import pytest
 from PIL import Image
 
-from sunlab import export, geometry, io
+from sunlab import export, geometry, io, sim
 from sunlab.calibration import Interpolation, calibration_summary, load
 from sunlab.cli import main
 from sunlab.cli.lab import centroids_from_csv
@@ -172,7 +172,7 @@ def test_cli_import_is_light():
 
 def test_info_reports_leave_one_out_for_interpolation(tmp_path):
     a, b = np.meshgrid(np.arange(-6.0, -1.0), np.arange(0.0, 5.0), indexing="ij")
-    cal = Interpolation("linear").fit(geometry.synthetic_centroids(a.ravel(), b.ravel(), 1,
+    cal = Interpolation("linear").fit(sim.synthetic_centroids(a.ravel(), b.ravel(), 1,
                                                                    seed=3))
     text = calibration_summary(cal.to_dict())
     assert "leave-one-out errors (deg): alpha mean|e|" in text
@@ -239,7 +239,7 @@ def test_example_recording_is_a_lab_folder():
 
 def test_csv_table_takes_sensor_json_beside_it(tmp_path, capsys):
     a, b = np.meshgrid([-2.0, 0.0, 2.0], [-2.0, 0.0, 2.0], indexing="ij")
-    cen = geometry.synthetic_centroids(a.ravel(), b.ravel(), 1)  # F 5 mm, centre 639.5, 511.5
+    cen = sim.synthetic_centroids(a.ravel(), b.ravel(), 1)  # F 5 mm, centre 639.5, 511.5
     csv = tmp_path / "train.csv"
     pd.DataFrame({"alpha": cen.alpha.values, "beta": cen.beta.values,
                   "x": cen.x.values[:, 0], "y": cen.y.values[:, 0]}).to_csv(csv, index=False)

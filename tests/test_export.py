@@ -12,7 +12,7 @@ import json
 import numpy as np
 import pytest
 
-from sunlab import ConfigurationError, export, geometry
+from sunlab import ConfigurationError, export, sim
 from sunlab.calibration import (
     IdealModel,
     Interpolation,
@@ -32,7 +32,7 @@ TOL_DOUBLE, TOL_FLOAT = 1e-9, 1e-5
 def _table(step=3.0, seed=1, lo=(-17.0, -2.0), hi=(2.0, 17.0)):
     a, b = np.meshgrid(np.arange(lo[0], hi[0] + 1e-9, step), np.arange(lo[1], hi[1] + 1e-9, step),
                        indexing="ij")
-    return geometry.synthetic_centroids(a.ravel(), b.ravel(), 2, seed=seed, **BENCH)
+    return sim.synthetic_centroids(a.ravel(), b.ravel(), 2, seed=seed, **BENCH)
 
 
 @pytest.fixture(scope="module")
@@ -131,7 +131,7 @@ def test_json_export_round_trips(train, tmp_path):
 def test_prediction_far_outside_the_domain_is_flagged():
     # a +-10 deg calibration asked about a spot of ~38 deg (the example)
     cal = Polynomial(order=3).fit(_table(step=2.0, lo=(-10.0, -10.0), hi=(10.0, 10.0)))
-    far = geometry.synthetic_centroids([38.0, 0.0], [0.0, 0.0], 1, **BENCH)
+    far = sim.synthetic_centroids([38.0, 0.0], [0.0, 0.0], 1, **BENCH)
     est = cal.predict(far)
     assert est["in_domain"].values[:, 0].tolist() == [False, True]
     assert est.attrs["n_out_of_domain"] == 1
@@ -144,7 +144,7 @@ def test_prediction_far_outside_the_domain_is_flagged():
 
 def test_fit_refuses_too_few_distinct_poses():
     # 6 poses, 2 distinct positions: an order-2 polynomial (6 coefficients) would "fit"
-    cen = geometry.synthetic_centroids([0.0, 0, 0, 1, 1, 1], [0.0] * 6)
+    cen = sim.synthetic_centroids([0.0, 0, 0, 1, 1, 1], [0.0] * 6)
     with pytest.raises(ConfigurationError, match=r"2 distinct poses.*needs at least 6"):
         Polynomial(order=2).fit(cen)
     with pytest.raises(ConfigurationError, match="distinct poses"):

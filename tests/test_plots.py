@@ -5,14 +5,14 @@ import pytest
 from matplotlib.figure import Figure
 from matplotlib.patches import Rectangle
 
-from sunlab import ConfigurationError, geometry, plots, stats
+from sunlab import ConfigurationError, plots, sim, stats
 from sunlab.calibration import Polynomial
 
 
 @pytest.fixture(scope="module")
 def local():
     a, b = np.meshgrid(np.arange(-4.0, 1.0), np.arange(-1.0, 3.0), indexing="ij")
-    cen = geometry.synthetic_centroids(a.ravel(), b.ravel(), 3, pose_error_deg=(0.01, 0.02),
+    cen = sim.synthetic_centroids(a.ravel(), b.ravel(), 3, pose_error_deg=(0.01, 0.02),
                                        seed=1)
     return stats.local_errors(Polynomial(order=2).fit(cen).predict(cen))
 

@@ -42,12 +42,6 @@ def test_synthetic_centroids_bad_input():
         synthetic_centroids([0.0], [0.0], shots=0)
 
 
-def test_geometry_name_still_serves_the_single_hole_table():
-    a, b = _grid(5.0)
-    assert_allclose(geometry.synthetic_centroids(a, b, 2, seed=3, noise_px=0.1).x,
-                    synthetic_centroids(a, b, 2, seed=3, noise_px=0.1).x, rtol=0, atol=0)
-
-
 def test_many_holes_follow_eq1_from_their_layout():
     lay = HoleLayout.from_mask(Mask.grid(), centre_px=(572.0, 375.0))
     assert_allclose(lay.x_cf[1] - lay.x_cf[0], 0.5 / P)

@@ -36,6 +36,7 @@ _LAZY = {
     **dict.fromkeys(["KINDS", "Calibration", "TrainingData", "combine", "from_dict", "load",
                      "training_data"], "base"),
     "calibration_summary": "summary",
+    "table4_methods": "methods",
     "Polynomial": "polynomial",
     "Trigonometric": "trigonometric",
     "Interpolation": "interpolation",

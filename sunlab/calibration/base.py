@@ -27,10 +27,10 @@ table (or null). The contract is ``data_schema/calibration-1.schema.json``.
 Examples
 --------
 >>> import numpy as np
->>> from sunlab import geometry
+>>> from sunlab import geometry, sim
 >>> from sunlab.calibration import Polynomial
 >>> a, b = np.meshgrid(np.arange(-17.0, 3.0, 2), np.arange(-2.0, 18.0, 2), indexing="ij")
->>> cen = geometry.synthetic_centroids(a.ravel(), b.ravel(), shots=2, delta_f_mm=0.1)
+>>> cen = sim.synthetic_centroids(a.ravel(), b.ravel(), shots=2, delta_f_mm=0.1)
 >>> est = Polynomial(order=5).fit(cen).predict(cen)
 >>> float(abs(est.alpha - est.alpha_cmd).max()) < 1e-3
 True
@@ -217,9 +217,9 @@ def combine(*tables: xr.Dataset) -> xr.Dataset:
 
     Examples
     --------
-    >>> from sunlab import geometry
-    >>> t = combine(geometry.synthetic_centroids([0.0], [0.0]),
-    ...             geometry.synthetic_centroids([1.0], [2.0]))
+    >>> from sunlab import geometry, sim
+    >>> t = combine(sim.synthetic_centroids([0.0], [0.0]),
+    ...             sim.synthetic_centroids([1.0], [2.0]))
     >>> t.sizes["pose"], t.beta.values.tolist()
     (2, [0.0, 2.0])
     """
@@ -366,9 +366,9 @@ class Calibration:
 
         Examples
         --------
-        >>> from sunlab import geometry
+        >>> from sunlab import geometry, sim
         >>> from sunlab.calibration import Polynomial
-        >>> cen = geometry.synthetic_centroids([0.0, 1, 2, 0, 1, 2], [0.0, 0, 0, 1, 1, 1])
+        >>> cen = sim.synthetic_centroids([0.0, 1, 2, 0, 1, 2], [0.0, 0, 0, 1, 1, 1])
         >>> cal = Polynomial(order=1).fit(cen)
         >>> cal.inside([cal.domain["x"][0], 1e4], [cal.domain["y"][0], 0.0]).tolist()
         [True, False]
@@ -712,9 +712,9 @@ def from_dict(doc: dict) -> Calibration:
 
     Examples
     --------
-    >>> from sunlab import geometry
+    >>> from sunlab import geometry, sim
     >>> from sunlab.calibration import Polynomial
-    >>> cen = geometry.synthetic_centroids([0.0, 1, 2, 0, 1, 2], [0.0, 0, 0, 1, 1, 1])
+    >>> cen = sim.synthetic_centroids([0.0, 1, 2, 0, 1, 2], [0.0, 0, 0, 1, 1, 1])
     >>> cal = from_dict(Polynomial(order=1).fit(cen).to_dict())
     >>> cal.kind
     'polynomial'
@@ -752,9 +752,9 @@ def load(path) -> Calibration:
     Examples
     --------
     >>> import tempfile, os
-    >>> from sunlab import geometry
+    >>> from sunlab import geometry, sim
     >>> from sunlab.calibration import Polynomial
-    >>> cen = geometry.synthetic_centroids([0.0, 1, 2, 0, 1, 2], [0.0, 0, 0, 1, 1, 1])
+    >>> cen = sim.synthetic_centroids([0.0, 1, 2, 0, 1, 2], [0.0, 0, 0, 1, 1, 1])
     >>> path = os.path.join(tempfile.mkdtemp(), "cal.json")
     >>> load(Polynomial(order=1).fit(cen).save(path)).label
     'polynomial(1)'

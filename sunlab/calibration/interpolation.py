@@ -20,9 +20,9 @@ interpolation), as in the paper's Table 4; ``sunlab reproduce`` prints the numbe
 Examples
 --------
 >>> import numpy as np
->>> from sunlab import geometry
+>>> from sunlab import geometry, sim
 >>> a, b = np.meshgrid(np.arange(-17.0, 3.0), np.arange(-2.0, 18.0), indexing="ij")
->>> cen = geometry.synthetic_centroids(a.ravel(), b.ravel(), shots=1)
+>>> cen = sim.synthetic_centroids(a.ravel(), b.ravel(), shots=1)
 >>> est = Interpolation("cubic").fit(cen).predict(cen)
 >>> float(abs(est.alpha - est.alpha_cmd).max()) < 1e-9
 True
@@ -138,9 +138,9 @@ class Interpolation(Calibration):
         Examples
         --------
         >>> import numpy as np
-        >>> from sunlab import geometry
+        >>> from sunlab import geometry, sim
         >>> a, b = np.meshgrid(np.arange(-6.0, 3.0), np.arange(-2.0, 7.0), indexing="ij")
-        >>> cen = geometry.synthetic_centroids(a.ravel(), b.ravel())
+        >>> cen = sim.synthetic_centroids(a.ravel(), b.ravel())
         >>> loo = Interpolation("linear").fit(cen).residuals["leave_one_out"]
         >>> 49 <= loo["alpha"]["n"] < 81, 0 < loo["alpha"]["max_abs"] < 0.05  # 7 x 7 inner nodes
         (True, True)

@@ -6,9 +6,9 @@ high-accuracy functions in every comparison. The equations are in :mod:`sunlab.g
 Examples
 --------
 >>> import numpy as np
->>> from sunlab import geometry
+>>> from sunlab import geometry, sim
 >>> a, b = np.meshgrid(np.arange(-17.0, 3.0), np.arange(-2.0, 18.0), indexing="ij")
->>> cen = geometry.synthetic_centroids(a.ravel(), b.ravel(), shots=1, delta_f_mm=0.094)
+>>> cen = sim.synthetic_centroids(a.ravel(), b.ravel(), shots=1, delta_f_mm=0.094)
 >>> opt = OptimisedModel().fit(cen)
 >>> round(opt.result.delta_f_mm, 6)
 0.094
@@ -46,8 +46,8 @@ class IdealModel(Calibration):
 
     Examples
     --------
-    >>> from sunlab import geometry
-    >>> cen = geometry.synthetic_centroids([0.0, -10.0], [0.0, 5.0])
+    >>> from sunlab import geometry, sim
+    >>> cen = sim.synthetic_centroids([0.0, -10.0], [0.0, 5.0])
     >>> est = IdealModel().fit(cen).predict(cen)
     >>> [round(float(v), 9) for v in est.alpha.isel(shot=0)]
     [0.0, -10.0]
@@ -189,7 +189,8 @@ def optimised_fit_from_dict(p: dict) -> geometry.OptimisedFit:
 
     Examples
     --------
-    >>> fit = OptimisedModel().fit(geometry.synthetic_centroids([0.0, -5, -10, 0, -5, -10],
+    >>> from sunlab import sim
+    >>> fit = OptimisedModel().fit(sim.synthetic_centroids([0.0, -5, -10, 0, -5, -10],
     ...                                                         [0.0, 0, 0, 5, 5, 5])).result
     >>> optimised_fit_from_dict(fit.to_dict()) == fit
     True

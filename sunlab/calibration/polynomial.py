@@ -12,9 +12,9 @@ paper's monomials in (x, y). The order is chosen on the validation experiment II
 Examples
 --------
 >>> import numpy as np
->>> from sunlab import geometry
+>>> from sunlab import geometry, sim
 >>> a, b = np.meshgrid(np.arange(-17.0, 3.0), np.arange(-2.0, 18.0), indexing="ij")
->>> cen = geometry.synthetic_centroids(a.ravel(), b.ravel(), shots=1, delta_f_mm=0.094,
+>>> cen = sim.synthetic_centroids(a.ravel(), b.ravel(), shots=1, delta_f_mm=0.094,
 ...                                    mounting_deg=(1.864, 0.415, 0.0))
 >>> cal = Polynomial(order=5).fit(cen)
 >>> cal.residuals["alpha"]["max_abs"] < 1e-4
@@ -157,8 +157,8 @@ class Polynomial(Calibration):
 
         Examples
         --------
-        >>> from sunlab import geometry
-        >>> cal = Polynomial(2).fit(geometry.synthetic_centroids([0.0, -5, -10, 0, -5, -10],
+        >>> from sunlab import geometry, sim
+        >>> cal = Polynomial(2).fit(sim.synthetic_centroids([0.0, -5, -10, 0, -5, -10],
         ...                                                      [0.0, 0, 0, 5, 5, 5]))
         >>> cal.basis([100.0, 200.0], [50.0, 60.0], "alpha").shape
         (2, 6)
@@ -222,12 +222,12 @@ class Polynomial(Calibration):
         Examples
         --------
         >>> import numpy as np
-        >>> from sunlab import geometry
+        >>> from sunlab import geometry, sim
         >>> g = lambda s: np.meshgrid(np.arange(-17.0, 3.0, s), np.arange(-2.0, 18.0, s))
         >>> (a, b), (va, vb) = g(2.0), g(1.5)
         >>> kw = dict(delta_f_mm=0.1, mounting_deg=(1.8, 0.4, 0.0))
-        >>> tr = geometry.synthetic_centroids(a.ravel(), b.ravel(), **kw)
-        >>> va = geometry.synthetic_centroids(va.ravel(), vb.ravel(), **kw)
+        >>> tr = sim.synthetic_centroids(a.ravel(), b.ravel(), **kw)
+        >>> va = sim.synthetic_centroids(va.ravel(), vb.ravel(), **kw)
         >>> best, scores = Polynomial.select_order(tr, va, orders=[1, 2, 3])
         >>> best.orders, list(scores.index)
         ((3, 3), [1, 2, 3])

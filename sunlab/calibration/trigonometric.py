@@ -13,9 +13,9 @@ series, which forces equal values on opposite edges and is worse still.
 Examples
 --------
 >>> import numpy as np
->>> from sunlab import geometry
+>>> from sunlab import geometry, sim
 >>> a, b = np.meshgrid(np.arange(-17.0, 3.0), np.arange(-2.0, 18.0), indexing="ij")
->>> cen = geometry.synthetic_centroids(a.ravel(), b.ravel(), shots=1)
+>>> cen = sim.synthetic_centroids(a.ravel(), b.ravel(), shots=1)
 >>> cal = Trigonometric(order=3).fit(cen)
 >>> cal.residuals["alpha"]["mean_abs"] < 0.05
 True

@@ -29,7 +29,6 @@ Examples
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -37,6 +36,7 @@ import numpy as np
 import pandas as pd
 
 from .. import __version__, stats
+from ..calibration.methods import table4_methods
 from ..errors import ConfigurationError
 from .pipeline import centroid_status, simulate_and_locate, usable_table, write_json
 
@@ -140,61 +140,6 @@ def bench_optimised_truth(bench) -> dict:
     height = float(spot_geometry(bench, 0.0, 0.0).height_mm[0])
     return {"alpha0": float(bench.platform.alpha0_deg), "beta0": float(bench.platform.beta0_deg),
             "delta_f_mm": height - float(bench.mask_distance_mm)}
-
-
-def table4_methods(*, neural: bool = True, hidden: int = 8, seed: int = 0) -> dict[str, Callable]:
-    """The calibration methods compared, as ``label: fit(train, validation) -> Calibration``.
-
-    Labels follow the paper's Table 4 where it has the method (``linear interp.``,
-    ``cubic interp.``, ``polynomial``, ``NN strategy 4``).
-
-    Examples
-    --------
-    >>> sorted(table4_methods())[-1]
-    'trigonometric'
-    """
-    from .. import calibration as cal
-
-    def poly(train, val):
-        best, _ = cal.Polynomial.select_order(train, val)
-        return best
-
-    methods: dict[str, Callable] = {
-        "ideal model (1)": lambda tr, va: cal.IdealModel().fit(tr),
-        "optimised model (3)-(4)": lambda tr, va: cal.OptimisedModel().fit(tr),
-        "linear interp.": lambda tr, va: cal.Interpolation("linear").fit(tr),
-        "cubic interp.": lambda tr, va: cal.Interpolation("cubic").fit(tr),
-        "polynomial": poly,
-        "trigonometric": lambda tr, va: _select_on_validation(cal.Trigonometric, range(1, 5),
-                                                              tr, va),
-    }
-    if neural:
-        for s in (1, 2, 3, 4):
-            methods[f"NN strategy {s}"] = (
-                lambda tr, va, s=s: cal.NeuralNet(strategy=s, hidden=hidden, seed=seed).fit(tr, va)
-            )
-    return methods
-
-
-def _select_on_validation(make, orders, train, validation):
-    """Fit ``make(order)`` for each order the training table can support; keep the one with the
-    smallest mean |error| (alpha + beta) on the validation table, as the paper picks orders."""
-    best, best_err = None, np.inf
-    for order in orders:
-        try:
-            cal = make(order).fit(train, validation)
-        except ConfigurationError:  # more coefficients than training points
-            break
-        loc = stats.local_errors(cal.predict(validation))
-        err = float(loc["local_error"].mean())
-        if err < best_err:
-            best, best_err = cal, err
-    if best is None:
-        raise ConfigurationError(
-            f"train: {train.sizes['pose']} poses support no order of {make.__name__}. "
-            "Fix: calibrate on more poses"
-        )
-    return best
 
 
 def reproduce_table4(

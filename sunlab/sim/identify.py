@@ -347,7 +347,7 @@ def surrogate_table4(bench, seed: int = 0, *, step: int = 1, shots: int = 8,
                                                        "cubic interp.")) -> pd.DataFrame:
     """Table 4 (statistics on experiment III) of the surrogate bench, one column per method.
 
-    The calibrations are the library's own (:func:`sunlab.reproduce.table4_methods`), fitted on
+    The calibrations are the library's own (:func:`sunlab.calibration.table4_methods`), fitted on
     experiment I (polynomial order chosen on II) and applied to III, as ``sunlab reproduce``
     does on rendered frames.
 
@@ -360,7 +360,7 @@ def surrogate_table4(bench, seed: int = 0, *, step: int = 1, shots: int = 8,
     True
     """
     from .. import stats
-    from ..reproduce import table4_methods
+    from ..calibration.methods import table4_methods
 
     cens = {n: surrogate_centroids(bench, p, seed, noise_px=noise_px)
             for n, p in _experiments(step, shots).items()}

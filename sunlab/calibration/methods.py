@@ -1,0 +1,81 @@
+"""The calibration methods the paper compares in its Table 4, each as one fitting recipe.
+
+A recipe is ``fit(train, validation) -> Calibration``: the ideal and optimised geometric models
+fit experiment I alone; the polynomial and trigonometric orders and the networks' early stopping
+are chosen on experiment II, as the paper does (docs/paper.md sec. 5). ``sunlab reproduce``,
+the bench identification (:mod:`sunlab.sim.identify`) and the platform study
+(:mod:`sunlab.platform_fault`) all calibrate with these recipes.
+
+Examples
+--------
+>>> from sunlab.calibration.methods import table4_methods
+>>> list(table4_methods(neural=False))[:3]
+['ideal model (1)', 'optimised model (3)-(4)', 'linear interp.']
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from ..errors import ConfigurationError
+
+__all__ = ["table4_methods"]
+
+
+def table4_methods(*, neural: bool = True, hidden: int = 8, seed: int = 0) -> dict[str, Callable]:
+    """The calibration methods compared, as ``label: fit(train, validation) -> Calibration``.
+
+    Labels follow the paper's Table 4 where it has the method (``linear interp.``,
+    ``cubic interp.``, ``polynomial``, ``NN strategy 4``).
+
+    Examples
+    --------
+    >>> sorted(table4_methods())[-1]
+    'trigonometric'
+    """
+    from .. import calibration as cal
+
+    def poly(train, val):
+        best, _ = cal.Polynomial.select_order(train, val)
+        return best
+
+    methods: dict[str, Callable] = {
+        "ideal model (1)": lambda tr, va: cal.IdealModel().fit(tr),
+        "optimised model (3)-(4)": lambda tr, va: cal.OptimisedModel().fit(tr),
+        "linear interp.": lambda tr, va: cal.Interpolation("linear").fit(tr),
+        "cubic interp.": lambda tr, va: cal.Interpolation("cubic").fit(tr),
+        "polynomial": poly,
+        "trigonometric": lambda tr, va: _select_on_validation(cal.Trigonometric, range(1, 5),
+                                                              tr, va),
+    }
+    if neural:
+        for s in (1, 2, 3, 4):
+            methods[f"NN strategy {s}"] = (
+                lambda tr, va, s=s: cal.NeuralNet(strategy=s, hidden=hidden, seed=seed).fit(tr, va)
+            )
+    return methods
+
+
+def _select_on_validation(make, orders, train, validation):
+    """Fit ``make(order)`` for each order the training table can support; keep the one with the
+    smallest mean |error| (alpha + beta) on the validation table, as the paper picks orders."""
+    from ..stats import local_errors
+
+    best, best_err = None, np.inf
+    for order in orders:
+        try:
+            cal = make(order).fit(train, validation)
+        except ConfigurationError:  # more coefficients than training points
+            break
+        loc = local_errors(cal.predict(validation))
+        err = float(loc["local_error"].mean())
+        if err < best_err:
+            best, best_err = cal, err
+    if best is None:
+        raise ConfigurationError(
+            f"train: {train.sizes['pose']} poses support no order of {make.__name__}. "
+            "Fix: calibrate on more poses"
+        )
+    return best

@@ -1,0 +1,201 @@
+"""The package's layout rules (docs/architecture.md), checked on the source with ``ast``.
+
+- no module of ``sunlab/`` over 800 lines; no function or method over 80 lines outside numba
+  kernels;
+- no public function or class defined in two modules (re-exports in ``__init__`` aside);
+- no module reaches into private names of another package or top-level module (sibling modules
+  inside one sub-package may share them); no notebook imports a private module;
+- the import direction of docs/architecture.md: the core layer never imports the layers above it.
+"""
+
+from __future__ import annotations
+
+import ast
+import collections
+import json
+import re
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGE = ROOT / "sunlab"
+MAX_MODULE_LINES = 800
+MAX_FUNCTION_LINES = 80
+
+
+def _modules() -> list[tuple[str, Path, ast.Module]]:
+    out = []
+    for path in sorted(PACKAGE.rglob("*.py")):
+        parts = list(path.relative_to(ROOT).with_suffix("").parts)
+        if parts[-1] == "__init__":
+            parts = parts[:-1]
+        out.append((".".join(parts), path, ast.parse(path.read_text(encoding="utf-8"))))
+    return out
+
+
+MODULES = _modules()
+
+
+def _room(module: str, path: Path) -> str:
+    """The unit whose modules may share private names: a sub-package, or a top-level module."""
+    package = module if path.name == "__init__.py" else module.rpartition(".")[0]
+    return module if package == "sunlab" else package
+
+
+def _is_kernel(func: ast.AST) -> bool:
+    return any(re.search(r"\b(n?jit|vectorize|guvectorize|stencil)\b", ast.unparse(d))
+               for d in func.decorator_list)
+
+
+def _absolute(module: str, path: Path, node: ast.ImportFrom) -> str:
+    if node.level == 0:
+        return node.module or ""
+    base = module.split(".") if path.name == "__init__.py" else module.split(".")[:-1]
+    base = base[: len(base) - (node.level - 1)]
+    return ".".join(base + ([node.module] if node.module else []))
+
+
+def _private(name: str) -> bool:
+    return name.startswith("_") and not name.startswith("__")
+
+
+def _target_room(target: str) -> str:
+    """The room of an imported sunlab module (or of a name inside one)."""
+    parts = target.split(".")
+    for n in range(len(parts), 0, -1):
+        candidate = ".".join(parts[:n])
+        file = ROOT.joinpath(*parts[:n])
+        if (file / "__init__.py").exists():
+            return candidate
+        if file.with_suffix(".py").exists():
+            package = ".".join(parts[: n - 1])
+            return candidate if package == "sunlab" else package
+    return target
+
+
+def test_no_module_over_800_lines():
+    long = {m: p.read_text().count("\n") for m, p, _ in MODULES}
+    assert {m: n for m, n in long.items() if n > MAX_MODULE_LINES} == {}
+
+
+def test_no_function_over_80_lines_outside_numba_kernels():
+    long = {}
+    for module, _, tree in MODULES:
+        for node in ast.walk(tree):
+            if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef) and not _is_kernel(node):
+                n = node.end_lineno - node.lineno + 1
+                if n > MAX_FUNCTION_LINES:
+                    long[f"{module}.{node.name}"] = n
+    assert long == {}
+
+
+def test_no_public_name_defined_in_two_modules():
+    where = collections.defaultdict(set)
+    for module, path, tree in MODULES:
+        if path.name == "__init__.py":
+            continue
+        for node in tree.body:
+            if isinstance(node, ast.FunctionDef | ast.ClassDef) and not _private(node.name):
+                where[node.name].add(module)
+    assert {k: sorted(v) for k, v in where.items() if len(v) > 1} == {}
+
+
+def _reach_ins() -> list[str]:
+    found = []
+    for module, path, tree in MODULES:
+        room = _room(module, path)
+        aliases = {}
+        for node in ast.walk(tree):
+            if isinstance(node, ast.ImportFrom) and (node.module or node.level):
+                base = _absolute(module, path, node)
+                if not base.startswith("sunlab"):
+                    continue
+                for alias in node.names:
+                    target = f"{base}.{alias.name}"
+                    aliases[alias.asname or alias.name] = target
+                    private = _private(alias.name) or any(map(_private, base.split(".")))
+                    if private and _target_room(base if not _private(alias.name) else target
+                                                ) != room:
+                        found.append(f"{module}: from {base} import {alias.name}")
+            elif isinstance(node, ast.Import):
+                for alias in node.names:
+                    if alias.name.startswith("sunlab") and any(map(_private,
+                                                                   alias.name.split("."))):
+                        if _target_room(alias.name) != room:
+                            found.append(f"{module}: import {alias.name}")
+        for node in ast.walk(tree):
+            if (isinstance(node, ast.Attribute) and _private(node.attr)
+                    and isinstance(node.value, ast.Name) and node.value.id in aliases):
+                target = aliases[node.value.id]
+                if (ROOT.joinpath(*target.split(".")).with_suffix(".py").exists()
+                        or (ROOT.joinpath(*target.split(".")) / "__init__.py").exists()):
+                    if _target_room(target) != room:
+                        found.append(f"{module}: {target}.{node.attr}")
+    return sorted(set(found))
+
+
+def test_no_private_reach_ins_between_rooms():
+    assert _reach_ins() == []
+
+
+@pytest.mark.parametrize("notebook", sorted((ROOT / "notebooks").glob("*.ipynb")),
+                         ids=lambda p: p.name[:2])
+def test_notebooks_use_public_names_only(notebook):
+    cells = json.loads(notebook.read_text(encoding="utf-8"))["cells"]
+    code = "\n".join("".join(c["source"]) for c in cells if c["cell_type"] == "code")
+    private = re.findall(r"sunlab(?:\.\w+)*\._\w+|from sunlab(?:\.\w+)* import [^\n]*?\b_\w+",
+                         code)
+    assert private == []
+
+
+#: The layers of docs/architecture.md, lowest first; a module may import its own layer and
+#: the layers below, never a layer above (lazy imports inside functions included).
+LAYERS = [
+    {"errors", "options", "atomic", "schema", "parallel"},
+    {"io", "geometry", "stats", "plans", "calibration", "centroid"},
+    {"sim", "multihole", "platform_fault", "export", "plots", "hardware"},
+    {"reproduce", "widgets", "cli", "data"},
+]
+
+
+def _layer(room: str) -> int | None:
+    top = room.split(".")[1] if room.count(".") else None
+    for n, names in enumerate(LAYERS):
+        if top in names:
+            return n
+    return None
+
+
+def test_imports_point_down_the_layers():
+    upward = []
+    for module, path, tree in MODULES:
+        own = _layer(module)
+        if own is None:
+            continue
+        for node in ast.walk(tree):
+            if isinstance(node, ast.ImportFrom) and (node.module or node.level):
+                base = _absolute(module, path, node)
+                targets = ([base] if base != "sunlab"
+                           else [f"sunlab.{a.name}" for a in node.names])
+            elif isinstance(node, ast.Import):
+                targets = [a.name for a in node.names]
+            else:
+                continue
+            for target in targets:
+                if target.startswith("sunlab."):
+                    layer = _layer(target)
+                    if layer is not None and layer > own:
+                        upward.append(f"{module} -> {target}")
+    assert sorted(set(upward)) == []
+
+
+def test_the_checks_can_fail(tmp_path):
+    """Each rule finds a planted violation (the checker is not vacuous)."""
+    src = "def f():\n" + "    x = 1\n" * 90 + "    return x\n"
+    tree = ast.parse(src)
+    func = tree.body[0]
+    assert func.end_lineno - func.lineno + 1 > MAX_FUNCTION_LINES and not _is_kernel(func)
+    assert _is_kernel(ast.parse("@numba.njit(cache=True)\ndef k(): pass").body[0])
+    assert _target_room("sunlab.centroid._kernels") != _room("sunlab.cli", PACKAGE / "cli.py")
+    assert _layer("sunlab.reproduce") > _layer("sunlab.centroid")
