@@ -454,7 +454,7 @@ def fig15_rectangles(table: Mapping[str, Mapping], *, ax=None):
     table : mapping
         ``{label: {"alpha": {"M": .., "sigma_M": ..}, "beta": {...}}}`` in deg, e.g. the
         ``stats`` of :func:`sunlab.multihole.gain_study` or the columns of
-        :func:`sunlab.reproduce_table5`.
+        :func:`sunlab.reproduce.reproduce_table5`.
 
     Returns
     -------

@@ -14,7 +14,7 @@ import pandas as pd
 import pytest
 from PIL import Image
 
-from sunlab import export, geometry, io, sim
+from sunlab import SchemaError, export, geometry, io, sim
 from sunlab.calibration import Interpolation, calibration_summary, load
 from sunlab.cli import main
 from sunlab.cli.lab import centroids_from_csv
@@ -146,7 +146,7 @@ def test_csv_reader_pads_and_explains(tmp_path):
     assert dict(cen.sizes) == {"pose": 3, "shot": 2}
     assert cen.status.values.tolist() == [[0, 0], [1, 1], [0, 1]]  # no spot, padding
     path.write_text("alpha,beta,col,row\n0,0,1,2\n")
-    with pytest.raises(io.SchemaError, match=r"columns \['x', 'y'\].*missing"):
+    with pytest.raises(SchemaError, match=r"columns \['x', 'y'\].*missing"):
         centroids_from_csv(path)
 
 

@@ -186,7 +186,7 @@ def test_runner_follows_the_scan_and_overshoots(tmp_path, approach):
 def test_reproduce_platform_writes_its_contract(tmp_path):
     import json
 
-    from sunlab.reproduce_platform import ROWS, reproduce_platform
+    from sunlab.reproduce import ROWS, reproduce_platform
 
     res = reproduce_platform(engine="surrogate", quick=True, out=tmp_path, progress=False)
     doc = json.loads((tmp_path / "platform.json").read_text())
