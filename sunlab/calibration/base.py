@@ -518,8 +518,6 @@ class Calibration:
                 "sunlab.calibration.load(path) first"
             )
 
-    _require_fitted = check_fitted  # the former private name, for subclasses written against it
-
     # --- to implement ----------------------------------------------------------------------
     def _fit(self, data: TrainingData, validation: TrainingData | None) -> None:
         raise NotImplementedError

@@ -183,9 +183,11 @@ def _add_centroid(sub) -> None:
     p = sub.add_parser("centroid", help="centroid every frame of a cube into a centroid table")
     p.add_argument("cube", help="a frame cube (.zarr store or .nc file), or a folder of "
                                 "PNG/TIFF frames with manifest.csv (as sunlab import)")
-    p.add_argument("--method", default="projection",
+    p.add_argument("--method", default=None,
                    choices=["threshold", "projection", "tight", "fit"],
-                   help="A = threshold, B = projection (default), tight window, disk fit")
+                   help="A = threshold, B = projection, tight window, disk fit (default: "
+                        "projection for one spot per frame, tight for a multi-hole cube, whose "
+                        "spots take tight or fit only)")
     p.add_argument("--out", required=True, help="output centroid table (.nc or .zarr)")
     p.add_argument("--scheduler", default="threads",
                    choices=["threads", "processes", "synchronous", "cluster"],
@@ -208,6 +210,9 @@ def _run_centroid(args) -> int:
 
     cube = (cube_from_folder(args.cube, args) if is_image_folder(args.cube)
             else io.open_frames(args.cube))
+    if args.method is None:
+        multi = "hole" in cube.dims or {"hole_i", "hole_j"} <= set(cube.variables)
+        args.method = "tight" if multi else "projection"
     cen = centroid.locate(cube, args.method, scheduler=args.scheduler, address=args.address,
                           num_workers=args.workers, progress=not args.no_progress)
     io.save_centroids(cen, args.out, overwrite=args.overwrite)
