@@ -60,7 +60,7 @@ from .defects import (
     robust_z,
     stamp_metrics,
 )
-from .holes import cutout, hole_grid, locate_layout, usable
+from .holes import centroid_free_layout, cutout, hole_grid, usable
 from .review import HoleReview, injected_defects, review_holes
 from .strategies import (
     GeometricCentre,
@@ -77,7 +77,7 @@ __all__ = [
     "hole_grid",
     "usable",
     "cutout",
-    "locate_layout",
+    "centroid_free_layout",
     "geometric_centre",
     "GeometricCentre",
     "PerHoleAverage",

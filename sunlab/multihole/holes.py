@@ -22,7 +22,7 @@ from .. import geometry, schema
 from ..errors import SchemaError
 from ..options import show_progress
 
-__all__ = ["hole_grid", "usable", "cutout", "locate_layout"]
+__all__ = ["hole_grid", "usable", "cutout", "centroid_free_layout"]
 
 
 def hole_grid(cen: xr.Dataset):
@@ -60,7 +60,7 @@ def hole_grid(cen: xr.Dataset):
     return np.zeros(n_h, int), np.arange(n_h), 1, n_h
 
 
-def locate_layout(cube: xr.Dataset, *, half: int = 38, progress: bool = False,
+def centroid_free_layout(cube: xr.Dataset, *, half: int = 38, progress: bool = False,
                   **options) -> xr.Dataset:
     """Centroid every hole of a free (non-grid) layout, e.g. a random mask.
 
@@ -86,7 +86,7 @@ def locate_layout(cube: xr.Dataset, *, half: int = 38, progress: bool = False,
     >>> cube = schema.frames_dataset(img.astype(np.uint16)[None, None], alpha=[0.0], beta=[0.0])
     >>> cube = cube.assign_coords(hole_x_cf=("hole", [80.0, 200.0]),
     ...                           hole_y_cf=("hole", [100.0, 90.0]))
-    >>> cen = locate_layout(cube)
+    >>> cen = centroid_free_layout(cube)
     >>> bool(np.allclose(cen.x[0, 0], [80.3, 200.0], atol=0.15)
     ...      and np.allclose(cen.y[0, 0], [100.0, 90.6], atol=0.15))
     True
@@ -110,7 +110,7 @@ def locate_layout(cube: xr.Dataset, *, half: int = 38, progress: bool = False,
     if show_progress(progress):
         from tqdm.auto import tqdm
 
-        it = tqdm(it, desc="locate_layout")
+        it = tqdm(it, desc="centroid_free_layout")
     for p, s in it:
         frame = np.asarray(cube["frames"].isel(pose=p, shot=s).values, dtype=float)
         for h in range(n_h):
