@@ -36,7 +36,7 @@ need ``sin``/``cos``, and are the paper's worst method).
 Examples
 --------
 >>> import tempfile, pathlib
->>> from sunlab import geometry, sim
+>>> from sunlab import sim
 >>> from sunlab.calibration import Polynomial
 >>> cen = sim.synthetic_centroids([0.0, 1, 2, 0, 1, 2], [0.0, 0, 0, 1, 1, 1])
 >>> out = pathlib.Path(tempfile.mkdtemp())

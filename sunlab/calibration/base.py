@@ -27,7 +27,7 @@ table (or null). The contract is ``data_schema/calibration-1.schema.json``.
 Examples
 --------
 >>> import numpy as np
->>> from sunlab import geometry, sim
+>>> from sunlab import sim
 >>> from sunlab.calibration import Polynomial
 >>> a, b = np.meshgrid(np.arange(-17.0, 3.0, 2), np.arange(-2.0, 18.0, 2), indexing="ij")
 >>> cen = sim.synthetic_centroids(a.ravel(), b.ravel(), shots=2, delta_f_mm=0.1)
@@ -217,7 +217,7 @@ def combine(*tables: xr.Dataset) -> xr.Dataset:
 
     Examples
     --------
-    >>> from sunlab import geometry, sim
+    >>> from sunlab import sim
     >>> t = combine(sim.synthetic_centroids([0.0], [0.0]),
     ...             sim.synthetic_centroids([1.0], [2.0]))
     >>> t.sizes["pose"], t.beta.values.tolist()
@@ -366,7 +366,7 @@ class Calibration:
 
         Examples
         --------
-        >>> from sunlab import geometry, sim
+        >>> from sunlab import sim
         >>> from sunlab.calibration import Polynomial
         >>> cen = sim.synthetic_centroids([0.0, 1, 2, 0, 1, 2], [0.0, 0, 0, 1, 1, 1])
         >>> cal = Polynomial(order=1).fit(cen)
@@ -710,7 +710,7 @@ def from_dict(doc: dict) -> Calibration:
 
     Examples
     --------
-    >>> from sunlab import geometry, sim
+    >>> from sunlab import sim
     >>> from sunlab.calibration import Polynomial
     >>> cen = sim.synthetic_centroids([0.0, 1, 2, 0, 1, 2], [0.0, 0, 0, 1, 1, 1])
     >>> cal = from_dict(Polynomial(order=1).fit(cen).to_dict())
@@ -750,7 +750,7 @@ def load(path) -> Calibration:
     Examples
     --------
     >>> import tempfile, os
-    >>> from sunlab import geometry, sim
+    >>> from sunlab import sim
     >>> from sunlab.calibration import Polynomial
     >>> cen = sim.synthetic_centroids([0.0, 1, 2, 0, 1, 2], [0.0, 0, 0, 1, 1, 1])
     >>> path = os.path.join(tempfile.mkdtemp(), "cal.json")

@@ -20,7 +20,7 @@ interpolation), as in the paper's Table 4; ``sunlab reproduce`` prints the numbe
 Examples
 --------
 >>> import numpy as np
->>> from sunlab import geometry, sim
+>>> from sunlab import sim
 >>> a, b = np.meshgrid(np.arange(-17.0, 3.0), np.arange(-2.0, 18.0), indexing="ij")
 >>> cen = sim.synthetic_centroids(a.ravel(), b.ravel(), shots=1)
 >>> est = Interpolation("cubic").fit(cen).predict(cen)
@@ -138,7 +138,7 @@ class Interpolation(Calibration):
         Examples
         --------
         >>> import numpy as np
-        >>> from sunlab import geometry, sim
+        >>> from sunlab import sim
         >>> a, b = np.meshgrid(np.arange(-6.0, 3.0), np.arange(-2.0, 7.0), indexing="ij")
         >>> cen = sim.synthetic_centroids(a.ravel(), b.ravel())
         >>> loo = Interpolation("linear").fit(cen).residuals["leave_one_out"]

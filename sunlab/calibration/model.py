@@ -6,7 +6,7 @@ high-accuracy functions in every comparison. The equations are in :mod:`sunlab.g
 Examples
 --------
 >>> import numpy as np
->>> from sunlab import geometry, sim
+>>> from sunlab import sim
 >>> a, b = np.meshgrid(np.arange(-17.0, 3.0), np.arange(-2.0, 18.0), indexing="ij")
 >>> cen = sim.synthetic_centroids(a.ravel(), b.ravel(), shots=1, delta_f_mm=0.094)
 >>> opt = OptimisedModel().fit(cen)
@@ -46,7 +46,7 @@ class IdealModel(Calibration):
 
     Examples
     --------
-    >>> from sunlab import geometry, sim
+    >>> from sunlab import sim
     >>> cen = sim.synthetic_centroids([0.0, -10.0], [0.0, 5.0])
     >>> est = IdealModel().fit(cen).predict(cen)
     >>> [round(float(v), 9) for v in est.alpha.isel(shot=0)]

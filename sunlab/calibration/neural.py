@@ -30,7 +30,7 @@ is plain NumPy (the weights are stored as lists in the JSON artifact).
 Examples
 --------
 >>> import numpy as np
->>> from sunlab import geometry, sim
+>>> from sunlab import sim
 >>> a, b = np.meshgrid(np.arange(-17.0, 3.0, 2), np.arange(-2.0, 18.0, 2), indexing="ij")
 >>> cen = sim.synthetic_centroids(a.ravel(), b.ravel(), shots=1, delta_f_mm=0.094,
 ...                                    mounting_deg=(1.864, 0.415, 0.0))

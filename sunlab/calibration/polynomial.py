@@ -12,7 +12,7 @@ paper's monomials in (x, y). The order is chosen on the validation experiment II
 Examples
 --------
 >>> import numpy as np
->>> from sunlab import geometry, sim
+>>> from sunlab import sim
 >>> a, b = np.meshgrid(np.arange(-17.0, 3.0), np.arange(-2.0, 18.0), indexing="ij")
 >>> cen = sim.synthetic_centroids(a.ravel(), b.ravel(), shots=1, delta_f_mm=0.094,
 ...                                    mounting_deg=(1.864, 0.415, 0.0))
@@ -157,7 +157,7 @@ class Polynomial(Calibration):
 
         Examples
         --------
-        >>> from sunlab import geometry, sim
+        >>> from sunlab import sim
         >>> cal = Polynomial(2).fit(sim.synthetic_centroids([0.0, -5, -10, 0, -5, -10],
         ...                                                      [0.0, 0, 0, 5, 5, 5]))
         >>> cal.basis([100.0, 200.0], [50.0, 60.0], "alpha").shape
@@ -222,7 +222,7 @@ class Polynomial(Calibration):
         Examples
         --------
         >>> import numpy as np
-        >>> from sunlab import geometry, sim
+        >>> from sunlab import sim
         >>> g = lambda s: np.meshgrid(np.arange(-17.0, 3.0, s), np.arange(-2.0, 18.0, s))
         >>> (a, b), (va, vb) = g(2.0), g(1.5)
         >>> kw = dict(delta_f_mm=0.1, mounting_deg=(1.8, 0.4, 0.0))

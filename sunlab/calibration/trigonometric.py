@@ -13,7 +13,7 @@ series, which forces equal values on opposite edges and is worse still.
 Examples
 --------
 >>> import numpy as np
->>> from sunlab import geometry, sim
+>>> from sunlab import sim
 >>> a, b = np.meshgrid(np.arange(-17.0, 3.0), np.arange(-2.0, 18.0), indexing="ij")
 >>> cen = sim.synthetic_centroids(a.ravel(), b.ravel(), shots=1)
 >>> cal = Trigonometric(order=3).fit(cen)

@@ -57,7 +57,7 @@ Examples
 from __future__ import annotations
 
 from .crlb import CRLB, crlb, disk_profile
-from .cube import locate
+from .cube import is_multi_hole, locate
 from .estimators import (
     METHODS,
     border_mean,
@@ -95,4 +95,5 @@ __all__ = [
     "centroid_sources",
     "locate_spots",
     "locate",
+    "is_multi_hole",
 ]

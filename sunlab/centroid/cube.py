@@ -16,7 +16,7 @@ from ..errors import ConfigurationError, SchemaError
 from .estimators import METHODS
 from .lattice import SPOT_METRICS, locate_spots
 
-__all__ = ["locate"]
+__all__ = ["locate", "is_multi_hole"]
 
 
 _FIELDS = ("x", "y", "flux", "x0", "x1", "y0", "y1", "status")
@@ -55,6 +55,25 @@ def _multi_block(frames, shift_x, shift_y, kwargs, design):
         for k, name in enumerate(SPOT_METRICS):
             out[n, :, 8 + k] = s.metrics[name]
     return out.reshape(lead + (n_holes, nf))
+
+
+def is_multi_hole(cube) -> bool:
+    """Whether a frame cube holds many spots per frame (a multi-hole mask): it has a ``hole``
+    dimension, or the grid coordinates ``hole_i`` and ``hole_j`` of its holes.
+
+    :func:`locate` centroids such a cube spot by spot on the mask's lattice.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sunlab import schema
+    >>> cube = schema.frames_dataset(np.zeros((1, 1, 8, 8), np.uint16), alpha=[0.0], beta=[0.0])
+    >>> is_multi_hole(cube)
+    False
+    >>> is_multi_hole(cube.assign_coords(hole_i=("hole", [0, 0]), hole_j=("hole", [0, 1])))
+    True
+    """
+    return "hole" in cube.dims or ("hole_i" in cube.variables and "hole_j" in cube.variables)
 
 
 def locate(
@@ -121,7 +140,7 @@ def locate(
     options = dict(options)
     options.setdefault("saturation", float(2 ** int(cube.attrs["bit_depth"]) - 1))
     if multi is None:
-        multi = "hole" in cube.dims or ("hole_i" in cube.variables and "hole_j" in cube.variables)
+        multi = is_multi_hole(cube)
     frames = _chunked_frames(cube)
     if multi:
         res, dims = _apply_multi(cube, frames, method, options)

@@ -211,8 +211,7 @@ def _run_centroid(args) -> int:
     cube = (cube_from_folder(args.cube, args) if is_image_folder(args.cube)
             else io.open_frames(args.cube))
     if args.method is None:
-        multi = "hole" in cube.dims or {"hole_i", "hole_j"} <= set(cube.variables)
-        args.method = "tight" if multi else "projection"
+        args.method = "tight" if centroid.is_multi_hole(cube) else "projection"
     cen = centroid.locate(cube, args.method, scheduler=args.scheduler, address=args.address,
                           num_workers=args.workers, progress=not args.no_progress)
     io.save_centroids(cen, args.out, overwrite=args.overwrite)

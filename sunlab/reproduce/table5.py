@@ -84,7 +84,7 @@ def mounting_offset_px(one_hole) -> tuple[float, float]:
 
     Examples
     --------
-    >>> from sunlab import geometry, sim
+    >>> from sunlab import sim
     >>> cen = sim.synthetic_centroids([0.0, -5.0], [0.0, 3.0], mask_distance_mm=17.0,
     ...                                    hole_offset_px=(80.0, 18.0))
     >>> [round(v, 6) for v in mounting_offset_px(cen)]
