@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
+from sunlab.errors import ConfigurationError
 from sunlab.geometry import ideal_centroid
 from sunlab.sim import Bench, Burred, Dust, Hole, Mask, render
 
@@ -159,3 +160,18 @@ def test_sun_behind_the_mask_gives_no_spot(ideal):
     assert not g.lit
     x, y = render.spot_truth(bench, 80.0, 0.0)
     assert np.isnan(x[0]) and np.isnan(y[0])
+
+
+def test_render_into_out_is_the_same_frame():
+    # a pose's block is rendered shot by shot in place; the frame must not depend on where it
+    # is written, and a wrong buffer names the field and the fix
+    bench = Bench.paper_single_hole()
+    new = render.render_frame(bench, 3.0, -2.0, seed=4, pose=2, shot=1)
+    block = np.zeros((2,) + bench.detector.shape, dtype=np.uint16)
+    got = render.render_frame(bench, 3.0, -2.0, seed=4, pose=2, shot=1, out=block[1])
+    assert np.shares_memory(got, block[1])
+    np.testing.assert_array_equal(block[1], new)
+    assert not block[0].any()
+    with pytest.raises(ConfigurationError, match="out: found float32"):
+        render.render_frame(bench, 3.0, -2.0, seed=4, out=np.empty(bench.detector.shape,
+                                                                    dtype=np.float32))

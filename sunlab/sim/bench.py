@@ -425,9 +425,11 @@ def _frame_task(bench, a, b, key, pose, shot):
 
 
 def _pose_task(bench, a_row, b_row, key, pose):
-    """All shots of one pose: (1, shots, ny, nx)."""
-    return np.stack([render_frame(bench, a, b, seed=key, pose=pose, shot=s)
-                     for s, (a, b) in enumerate(zip(a_row, b_row, strict=True))])[None]
+    """All shots of one pose: (1, shots, ny, nx), each rendered in place."""
+    out = np.empty((1, len(a_row)) + bench.detector.shape, dtype=np.uint16)
+    for s, (a, b) in enumerate(zip(a_row, b_row, strict=True)):
+        render_frame(bench, a, b, seed=key, pose=pose, shot=s, out=out[0, s])
+    return out
 
 
 def _truth_task(bench, a_row, b_row, key, pose):

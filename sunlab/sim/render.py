@@ -42,7 +42,8 @@ from __future__ import annotations
 
 import functools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 from scipy import special
@@ -143,6 +144,9 @@ class SpotGeometry:
     kernel_cov: np.ndarray
     limb_darkening: float
     second_moment: float
+    #: the frame's hole groups (:func:`_groups`), built once per geometry: a frame and its
+    #: true centroids share them
+    groups: list | None = field(default=None, repr=False, compare=False)
 
 
 @functools.lru_cache(maxsize=8)
@@ -210,7 +214,7 @@ def _spot_geometry(bench, a, b, play_mm) -> SpotGeometry:
             mask.true_distance_mm,
         ]
     )
-    uv = np.array([[h.x_mm, h.y_mm] for h in mask.holes], dtype=float)
+    uv = _layout(mask).uv
     q = origin[None, :] + uv @ rot[:, :2].T
     ray = (q[:, :2] - q[:, 2:3] * (s[:2] / sz)[None, :]) / p
     proj = (rot[:2, :2] - np.outer(s[:2], rot[2, :2]) / sz) / p
@@ -301,8 +305,8 @@ class _Group:
     (unit integral) and the pixel's sensitive area, ``shift_h`` the kernel's centroid (which
     scales with the hole's height) minus the sensitive area's offset."""
 
-    def __init__(self, geom: SpotGeometry, det: Detector, hole, idx):
-        self.idx = np.atleast_1d(np.asarray(idx, dtype=int))
+    def __init__(self, geom: SpotGeometry, det: Detector, ap: _Aperture):
+        self.idx = ap.idx
         self.ray = geom.ray[self.idx]
         h = geom.height_mm[self.idx]
         mu = geom.kernel_mu[None, :] * h[:, None]
@@ -317,19 +321,17 @@ class _Group:
         self.u = float(geom.limb_darkening)
         self.ax, self.ay = det.sensitive_size_px
         self.diff = float(det.diffusion_px)
-        aff = hole.affine()
-        occ = hole.occluders()
         self.cut = []
-        if aff is not None and not occ:
-            self.affine = geom.proj @ aff
+        if ap.affine is not None:
+            self.affine = geom.proj @ ap.affine
             self.area = math.pi * abs(float(np.linalg.det(self.affine)))
             self.poly = None
             r_ap = float(np.linalg.norm(self.affine, 2))
         else:
             self.affine = np.zeros((2, 2))
             self.area = 0.0
-            self.poly = hole.outline() @ geom.proj.T
-            for poly, hd in occ:
+            self.poly = ap.outline @ geom.proj.T
+            for poly, hd in ap.occluders:
                 shadow = poly @ geom.proj.T + geom.proj_w * hd
                 cx, cy = _kernels.clip_convex(
                     self.poly[:, 0].copy(),
@@ -435,10 +437,49 @@ class _Group:
             yield int(k), imgs[n], int(x0[n]), int(y0[n]), step
 
 
-def _groups(bench, geom: SpotGeometry) -> list[_Group]:
-    """Group the mask's holes by aperture design (affine holes without dust share a spectrum)."""
-    det = bench.detector
-    holes = bench.mask.holes
+class _Aperture(NamedTuple):
+    """Holes sharing one aperture design, in the mask frame (mm): ``affine`` maps the unit disk
+    onto a dust-free circle or ellipse (None otherwise); ``outline`` and ``occluders`` (dust as
+    (polygon, height)) describe any other hole."""
+
+    idx: np.ndarray
+    affine: np.ndarray | None
+    outline: np.ndarray | None
+    occluders: tuple
+
+
+class _Layout(NamedTuple):
+    uv: np.ndarray
+    apertures: tuple
+
+
+def _aperture(hole, idx) -> _Aperture:
+    aff = hole.affine()
+    occ = tuple(hole.occluders())
+    idx = np.atleast_1d(np.asarray(idx, dtype=int))
+    if aff is not None and not occ:
+        return _Aperture(idx, aff, None, ())
+    return _Aperture(idx, None, hole.outline(), occ)
+
+
+def _layout(mask) -> _Layout:
+    """The mask's hole positions (n, 2) mm and apertures grouped by design (affine holes without
+    dust share a spectrum); a mask is immutable, so this is built once per mask."""
+    try:
+        return _layout_cached(mask)
+    except TypeError:  # a mask holding something unhashable: no cache
+        return _make_layout(mask)
+
+
+@functools.lru_cache(maxsize=16)
+def _layout_cached(mask) -> _Layout:
+    lay = _make_layout(mask)
+    lay.uv.setflags(write=False)
+    return lay
+
+
+def _make_layout(mask) -> _Layout:
+    holes = mask.holes
     keyed: dict = {}
     out = []
     for k, h in enumerate(holes):
@@ -446,10 +487,19 @@ def _groups(bench, geom: SpotGeometry) -> list[_Group]:
         if aff is not None and not h.occluders():
             keyed.setdefault(tuple(np.round(aff, 12).ravel()), []).append(k)
         else:
-            out.append(_Group(geom, det, h, [k]))
+            out.append(_aperture(h, [k]))
     for idx in keyed.values():
-        out.append(_Group(geom, det, holes[idx[0]], idx))
-    return out
+        out.append(_aperture(holes[idx[0]], idx))
+    uv = np.array([[h.x_mm, h.y_mm] for h in holes], dtype=float)
+    return _Layout(uv, tuple(out))
+
+
+def _groups(bench, geom: SpotGeometry) -> list[_Group]:
+    """The frame's hole groups; built once per geometry (a frame and its truth share them)."""
+    if geom.groups is None:
+        det = bench.detector
+        geom.groups = [_Group(geom, det, ap) for ap in _layout(bench.mask).apertures]
+    return geom.groups
 
 
 def _on_detector(group: _Group, det: Detector) -> np.ndarray:
@@ -547,7 +597,7 @@ def spot_image(
     ((64, 64), 1.0)
     """
     geom = spot_geometry(bench, alpha_true, beta_true, play_mm)
-    g = _Group(geom, bench.detector, bench.mask.holes[hole], [hole])
+    g = _Group(geom, bench.detector, _aperture(bench.mask.holes[hole], [hole]))
     _, img, x0, y0, step = next(
         g.stamps(geom.q_e, size=size, oversample=int(oversample), pixel=pixel)
     )
@@ -635,7 +685,7 @@ def expected_frame(bench, alpha_true, beta_true, *, play_mm=(0.0, 0.0)):
 
 
 def render_frame(
-    bench, alpha_true, beta_true, *, seed, pose: int = 0, shot: int = 0, play_mm=None
+    bench, alpha_true, beta_true, *, seed, pose: int = 0, shot: int = 0, play_mm=None, out=None
 ) -> np.ndarray:
     """One full detector frame, uint16 (ny, nx), deterministic in (seed, pose, shot).
 
@@ -652,10 +702,13 @@ def render_frame(
         mask's offset from (seed, pose).
     play_mm : (float, float), optional
         Override the mask's per-pose offset, mm.
+    out : numpy.ndarray of uint16, shape (ny, nx), optional
+        Write the frame here (e.g. one shot of a pose's block) instead of a new array.
 
     Returns
     -------
     numpy.ndarray of uint16, shape (ny, nx)
+        ``out`` when given.
 
     Examples
     --------
@@ -673,7 +726,13 @@ def render_frame(
     fp = fixed_pattern(det)
     table = _table() if det.temporal_noise else np.empty(0, dtype=np.float32)
     state = frame_key(seed, pose, shot).generate_state(1, dtype=np.uint64)
-    out = np.empty(det.shape, dtype=np.uint16)
+    if out is None:
+        out = np.empty(det.shape, dtype=np.uint16)
+    elif out.shape != det.shape or out.dtype != np.uint16 or not out.flags.c_contiguous:
+        raise ConfigurationError(
+            f"out: found {out.dtype} {out.shape}; expected a C-contiguous uint16 array of shape "
+            f"{det.shape}. Fix: pass numpy.empty({det.shape}, dtype=numpy.uint16) or omit out."
+        )
     max_dn = float(det.max_dn)
     _kernels.adc_frame(fp.bg_mean_dn, fp.bg_sigma_dn, table, state, max_dn, out)
     read_var = float(det.read_noise_e**2) if det.temporal_noise else 0.0
