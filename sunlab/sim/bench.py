@@ -420,18 +420,6 @@ def plan_key(plan) -> int:
     return zlib.crc32(int(plan.shots).to_bytes(4, "little"), h)
 
 
-def _frame_task(bench, a, b, key, pose, shot):
-    return render_frame(bench, a, b, seed=key, pose=pose, shot=shot)[None, None]
-
-
-def _pose_task(bench, a_row, b_row, key, pose):
-    """All shots of one pose: (1, shots, ny, nx), each rendered in place."""
-    out = np.empty((1, len(a_row)) + bench.detector.shape, dtype=np.uint16)
-    for s, (a, b) in enumerate(zip(a_row, b_row, strict=True)):
-        render_frame(bench, a, b, seed=key, pose=pose, shot=s, out=out[0, s])
-    return out
-
-
 def _truth_task(bench, a_row, b_row, key, pose):
     """(4, 1, shots, holes): true x, true y, ray x, ray y of every shot of one pose."""
     n_s = len(a_row)
@@ -526,29 +514,52 @@ def simulate(plan, bench: Bench | None = None, seed=0, chunks: str = "frame"):
     return schema.validate_frames(ds)
 
 
+def _frames_block(index, bench, key, ta, tb):
+    """The frames of one block: ``index`` holds pose numbers (pose, ) for a block of whole
+    poses, or frame numbers pose * shots + shot (pose, shot) for a block of single frames;
+    returns (poses, shots, ny, nx), each frame rendered in place."""
+    n_s = ta.shape[1]
+    if index.ndim == 1:
+        grid = index[:, None] * n_s + np.arange(n_s)[None, :]
+    else:
+        grid = index
+    out = np.empty(grid.shape + bench.detector.shape, dtype=np.uint16)
+    for (i, j), k in np.ndenumerate(grid):
+        p, s = divmod(int(k), n_s)
+        render_frame(bench, ta[p, s], tb[p, s], seed=key, pose=p, shot=s, out=out[i, j])
+    return out
+
+
 def _frames_array(bench: Bench, key, ta, tb, token: str, chunks: str):
-    """The lazy frames (pose, shot, y, x): one task per frame or per pose (:func:`simulate`)."""
+    """The lazy frames (pose, shot, y, x): one task per frame or per pose (:func:`simulate`).
+
+    A blockwise map over frame numbers, so that a blockwise reduction of the frames
+    (:func:`sunlab.centroid.locate`) fuses with the rendering into one task per block: the
+    frames never leave the worker (thread or process) that renders them."""
     import dask.array as da
 
     n_p, n_s = ta.shape
     ny, nx = bench.detector.shape
-    name = "sunlab-sim-frames-" + token
     if chunks == "frame":
-        dsk = {
-            (name, p, s, 0, 0): (_frame_task, bench, ta[p, s], tb[p, s], key, p, s)
-            for p in range(n_p)
-            for s in range(n_s)
-        }
+        index = da.from_array(np.arange(n_p * n_s).reshape(n_p, n_s), chunks=1,
+                              name="sunlab-sim-index-" + token)
+        new_axis = [2, 3]
         shot_chunks = (1,) * n_s
     elif chunks == "pose":
-        dsk = {(name, p, 0, 0, 0): (_pose_task, bench, ta[p], tb[p], key, p) for p in range(n_p)}
+        index = da.from_array(np.arange(n_p), chunks=1, name="sunlab-sim-poses-" + token)
+        new_axis = [1, 2, 3]
         shot_chunks = (n_s,)
     else:
         raise ConfigurationError(
             f"chunks: found {chunks!r}; expected 'frame' or 'pose'. Fix: chunks='frame' (one "
             "frame per chunk) or chunks='pose' (all shots of a pose per chunk)."
         )
-    return da.Array(dsk, name, chunks=((1,) * n_p, shot_chunks, (ny,), (nx,)), dtype=np.uint16)
+    return da.map_blocks(
+        _frames_block, index, bench=bench, key=key, ta=ta, tb=tb, new_axis=new_axis,
+        chunks=((1,) * n_p, shot_chunks, (ny,), (nx,)), dtype=np.uint16,
+        meta=np.empty((0, 0, 0, 0), dtype=np.uint16),
+        name=f"sunlab-sim-frames-{chunks}-" + token,
+    )
 
 
 def _hole_coords(bench: Bench, plan) -> dict:
