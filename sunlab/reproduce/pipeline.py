@@ -111,7 +111,7 @@ def simulate_runs(runs: dict, *, seed: int = 0, chunks: str = "pose") -> dict[st
 
 def locate_runs(cubes: dict, *, method: str = "projection", hole_offset=(0.0, 0.0),
                 progress: bool = True, address: str | None = None, scheduler: str = "threads",
-                workers: int | None = None) -> dict[str, xr.Dataset]:
+                workers: int | None = None, truth: bool = False) -> dict[str, xr.Dataset]:
     """Centroid every frame of every cube in one pass of Dask; centroid tables by run.
 
     Parameters
@@ -134,6 +134,10 @@ def locate_runs(cubes: dict, *, method: str = "projection", hole_offset=(0.0, 0.
     workers : int, optional
         Threads or processes of the local scheduler (default: the CPU count). The centroids
         do not depend on the scheduler or on where a frame is rendered.
+    truth : bool
+        Carry the cubes' true centroids (``true_x``, ``true_y``, lazy on a simulated cube)
+        into the tables. The reproduced tables do not use them, and on the virtual bench they
+        cost a second pass over each frame's spot geometry, so they are left out by default.
 
     Returns
     -------
@@ -146,13 +150,17 @@ def locate_runs(cubes: dict, *, method: str = "projection", hole_offset=(0.0, 0.
     >>> plans_ = experiment_plans(("III",), step=7, shots=1)
     >>> cubes = simulate_runs({"III": (plans_["III"], sim.Bench.paper_single_hole())})
     >>> cens = locate_runs(cubes, progress=False)
-    >>> int((cens["III"].status == 0).sum())
-    9
+    >>> int((cens["III"].status == 0).sum()), "true_x" in cens["III"]
+    (9, False)
+    >>> bool(locate_runs(cubes, progress=False, truth=True)["III"].true_x.notnull().all())
+    True
     """
     from .. import centroid, parallel
 
     lazy = {}
     for name, cube in cubes.items():
+        if not truth:
+            cube = cube.drop_vars(["true_x", "true_y"], errors="ignore")
         if "hole_x_cf" in cube.coords:
             design = {k: cube[k] for k in ("hole_x_cf", "hole_y_cf")}
             moved = cube.assign_coords(hole_x_cf=cube["hole_x_cf"] + hole_offset[0],

@@ -58,6 +58,19 @@ def _to_dn(v, max_dn):
     return np.uint16(np.int32(w))
 
 
+@numba.njit(inline="always")
+def _to_dn32(v, top):
+    """floor(v + 0.5) clipped to 0 .. max_dn, as uint16, for v float32; ``top`` = max_dn + 0.5
+    (float32).
+
+    Bit for bit :func:`_to_dn`: below 2**23 the float32 sum v + 0.5 is exact, or (where it
+    enters the next binade) rounds to a neighbour that is never across an integer, so its floor
+    is the float64 floor; staying in float32 lets the loop run without conversions.
+    """
+    w = min(max(v + np.float32(0.5), np.float32(0.0)), top)
+    return np.uint16(np.int32(w))
+
+
 @numba.njit(nogil=True, cache=True)
 def adc_frame(mean_dn, sigma_dn, table, state, max_dn, out):
     """out = clip(rint(mean + sigma * z), 0, max_dn) over the whole frame.
@@ -67,7 +80,9 @@ def adc_frame(mean_dn, sigma_dn, table, state, max_dn, out):
     of N(0, 1)), low bits first, pixels in row-major order. ``state`` (uint64[1]) is advanced by
     one step per four pixels (rounded up); an empty ``table`` means no noise. SplitMix64 is
     counter-based (output b is a fixed function of ``state + b * golden``), so the loop takes
-    four pixels per output without carrying bits from one iteration to the next.
+    four pixels per output without carrying bits from one iteration to the next. The
+    arithmetic is float32 throughout (mean + sigma * z as the reference computes it; the
+    rounding as :func:`_to_dn32` proves exact).
     """
     ny, nx = mean_dn.shape
     n = ny * nx
@@ -81,19 +96,18 @@ def adc_frame(mean_dn, sigma_dn, table, state, max_dn, out):
     o = out.reshape(n)
     s0 = state[0]
     low = np.uint64(0xFFFF)
+    top = np.float32(max_dn + 0.5)
     n4 = n // 4
     for b in range(n4):
         r = _mix64(s0 + np.uint64(b + 1) * _GOLDEN)
         k = 4 * b
-        o[k] = _to_dn(m[k] + s[k] * table[r & low], max_dn)
-        o[k + 1] = _to_dn(m[k + 1] + s[k + 1] * table[(r >> np.uint64(16)) & low], max_dn)
-        o[k + 2] = _to_dn(m[k + 2] + s[k + 2] * table[(r >> np.uint64(32)) & low], max_dn)
-        o[k + 3] = _to_dn(m[k + 3] + s[k + 3] * table[r >> np.uint64(48)], max_dn)
+        for q in range(4):
+            o[k + q] = _to_dn32(m[k + q] + s[k + q] * table[(r >> np.uint64(16 * q)) & low], top)
     steps = n4 + (1 if n > 4 * n4 else 0)
     if n > 4 * n4:
         r = _mix64(s0 + np.uint64(steps) * _GOLDEN)
         for k in range(4 * n4, n):
-            o[k] = _to_dn(m[k] + s[k] * table[r & low], max_dn)
+            o[k] = _to_dn32(m[k] + s[k] * table[r & low], top)
             r = r >> np.uint64(16)
     state[0] = s0 + np.uint64(steps) * _GOLDEN
 
