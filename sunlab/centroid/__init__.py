@@ -30,7 +30,8 @@ the module they serve, private to the package):
   variant :func:`stamp_moments` for cut-outs of multi-hole frames);
 * :mod:`~sunlab.centroid.sources` -- :func:`centroid_sources`;
 * :mod:`~sunlab.centroid.lattice` -- :func:`locate_spots` (multi-spot lattice);
-* :mod:`~sunlab.centroid.cube` -- :func:`locate` (a whole cube through Dask).
+* :mod:`~sunlab.centroid.cube` -- :func:`locate` (a whole cube through Dask), :func:`locate_all`
+  (several cubes in one pass).
 
 Imports run one way: ``result`` <- ``moments`` <- ``estimators`` <- ``sources`` and ``cube``;
 ``lattice`` (which shares the estimators' private detection and disk-fit stages,
@@ -57,7 +58,7 @@ Examples
 from __future__ import annotations
 
 from .crlb import CRLB, crlb, disk_profile
-from .cube import is_multi_hole, locate
+from .cube import is_multi_hole, locate, locate_all
 from .estimators import (
     METHODS,
     border_mean,
@@ -95,5 +96,6 @@ __all__ = [
     "centroid_sources",
     "locate_spots",
     "locate",
+    "locate_all",
     "is_multi_hole",
 ]

@@ -9,6 +9,8 @@ Examples
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from .. import parallel
@@ -16,10 +18,11 @@ from ..errors import ConfigurationError, SchemaError
 from .estimators import METHODS
 from .lattice import SPOT_METRICS, locate_spots
 
-__all__ = ["locate", "is_multi_hole"]
+__all__ = ["locate", "locate_all", "is_multi_hole"]
 
 
 _FIELDS = ("x", "y", "flux", "x0", "x1", "y0", "y1", "status")
+_TRUTH = ("true_x", "true_y", "true_alpha", "true_beta", "alpha_read", "beta_read")
 _CARRY_ATTRS = ("pixel_pitch_mm", "mask_distance_mm", "x_cf_px", "y_cf_px", "bit_depth", "mask",
                 "experiment")
 
@@ -155,6 +158,86 @@ def locate(
     >>> cen.x.values.round(2).tolist(), cen.status.values.tolist()
     ([[100.5, 101.5]], [[0, 0]])
     """
+    if not compute:
+        lazy = _prepare(cube, method, multi, options)
+        cen = _centroid_table(cube, lazy.table, lazy.dims, method, lazy.options, lazy.multi,
+                              False)
+        return _carry_cube_variables(cube, cen, lazy.dims, lazy.multi, False)
+    return locate_all({0: cube}, method, multi=multi, scheduler=scheduler, address=address,
+                      num_workers=num_workers, progress=progress, **options)[0]
+
+
+def locate_all(
+    cubes: dict, method: str = "projection", *, multi: bool | None = None,
+    scheduler: str = "threads", address: str | None = None, num_workers: int | None = None,
+    progress: bool = True, **options,
+) -> dict:
+    """Centroid several cubes in one pass of Dask (:func:`locate` on each), e.g. the
+    experiments of a table: the workers stay busy to the end, where one cube after the other
+    would leave them idle at each tail.
+
+    Each cube costs one task per frame chunk, which returns the chunk's whole table (every
+    field, every spot); the ``centroids/1`` datasets are built from the computed tables, so a
+    cube made lazily (e.g. rendered by :func:`sunlab.sim.simulate`) is made and centroided in
+    the same task, frame by frame, and its frames never leave the worker. Lazy ground-truth
+    variables of the cubes are computed in the same pass.
+
+    Parameters
+    ----------
+    cubes : dict
+        Frame cubes (contract ``frames/1``) by name.
+    method, multi, scheduler, address, num_workers, progress, **options
+        As for :func:`locate`, the same for every cube.
+
+    Returns
+    -------
+    dict
+        ``centroids/1`` datasets keyed as ``cubes``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sunlab import schema
+    >>> yy, xx = np.mgrid[0:120, 0:160]
+    >>> spot = lambda x: (30 + 400 * (np.hypot(xx - x, yy - 60.0) < 12)).astype(np.uint16)
+    >>> cubes = {k: schema.frames_dataset(np.stack([[spot(x)]]), alpha=[0.0], beta=[0.0])
+    ...          for k, x in (("a", 70.5), ("b", 90.0))}
+    >>> cens = locate_all(cubes, progress=False)
+    >>> {k: float(c.x[0, 0].round(2)) for k, c in cens.items()}
+    {'a': 70.5, 'b': 90.0}
+    """
+    import dask.array as da
+
+    work = {k: _prepare(cube, method, multi, options) for k, cube in cubes.items()}
+    lazy = []
+    for k, w in work.items():
+        lazy.append(w.table.data)
+        lazy.extend(cubes[k][n].data for n in w.truth if isinstance(cubes[k][n].data, da.Array))
+    done = iter(parallel.compute(*lazy, scheduler=scheduler, address=address,
+                                 num_workers=num_workers, progress=progress))
+    out = {}
+    for k, w in work.items():
+        cube = cubes[k]
+        table = w.table.copy(data=next(done))
+        for n in w.truth:
+            if isinstance(cube[n].data, da.Array):
+                var = {n: cube[n].variable.copy(data=next(done))}
+                cube = cube.assign_coords(var) if n in cube.coords else cube.assign(var)
+        cen = _centroid_table(cube, table, w.dims, method, w.options, w.multi, True)
+        out[k] = _carry_cube_variables(cube, cen, w.dims, w.multi, True)
+    return out
+
+
+class _Prepared(NamedTuple):
+    table: object  # xarray.DataArray, lazy (dims, field)
+    dims: tuple
+    options: dict
+    multi: bool
+    truth: tuple  # names of the ground-truth variables carried
+
+
+def _prepare(cube, method, multi, options) -> _Prepared:
+    """Validate a cube and make its lazy table of every field of every frame (and hole)."""
     from .. import schema
 
     schema.validate_frames(cube)
@@ -169,22 +252,22 @@ def locate(
         res, dims = _apply_multi(cube, frames, method, options)
     else:
         res, dims = _apply_single(frames, METHODS[method], options)
-    res = res.transpose(*dims, "field")
-    if compute:
-        res = parallel.compute(res, scheduler=scheduler, address=address,
-                               num_workers=num_workers, progress=progress)[0]
-    cen = _centroid_table(cube, res, dims, method, options, multi, compute)
-    return _carry_cube_variables(cube, cen, dims, multi, compute)
+    truth = tuple(n for n in _TRUTH if n in cube.variables and set(cube[n].dims) <= set(dims))
+    return _Prepared(res.transpose(*dims, "field"), dims, options, multi, truth)
 
 
 def _chunked_frames(cube):
     """The cube's frames as a Dask array, one chunk per frame (or the cube's own pose/shot
-    chunks) and whole frames in each."""
+    chunks) and whole frames in each. A cube already chunked so is left as it is: a rechunk
+    layer, even a no-op one, keeps Dask from fusing the estimator with the task that makes the
+    frames (e.g. renders them), and the frames would then travel between workers."""
     import dask.array as da
 
     frames = cube["frames"]
     if not isinstance(frames.data, da.Array):
         frames = frames.chunk({"pose": 1, "shot": 1})
+    if all(len(frames.chunks[frames.dims.index(d)]) == 1 for d in ("y", "x")):
+        return frames
     return frames.chunk({"y": -1, "x": -1})
 
 
@@ -285,7 +368,7 @@ def _carry_cube_variables(cube, cen, dims, multi, computed):
     for name in ("hole_i", "hole_j", "hole_x_cf", "hole_y_cf", "hole_defect"):
         if multi and name in cube.variables:
             cen = cen.assign_coords({name: ("hole", np.asarray(cube[name].values))})
-    for name in ("true_x", "true_y", "true_alpha", "true_beta", "alpha_read", "beta_read"):
+    for name in _TRUTH:
         if name in cube.variables and set(cube[name].dims) <= set(dims):
             # the bare variable: a cube's own coordinates (e.g. alpha_read, time on an
             # acquisition store) must not collide with the table's

@@ -155,22 +155,23 @@ def locate_runs(cubes: dict, *, method: str = "projection", hole_offset=(0.0, 0.
     >>> bool(locate_runs(cubes, progress=False, truth=True)["III"].true_x.notnull().all())
     True
     """
-    from .. import centroid, parallel
+    from .. import centroid
 
-    lazy = {}
+    moved = {}
     for name, cube in cubes.items():
         if not truth:
             cube = cube.drop_vars(["true_x", "true_y"], errors="ignore")
         if "hole_x_cf" in cube.coords:
-            design = {k: cube[k] for k in ("hole_x_cf", "hole_y_cf")}
-            moved = cube.assign_coords(hole_x_cf=cube["hole_x_cf"] + hole_offset[0],
-                                       hole_y_cf=cube["hole_y_cf"] + hole_offset[1])
-            lazy[name] = centroid.locate(moved, method, compute=False).assign_coords(**design)
-        else:
-            lazy[name] = centroid.locate(cube, method, compute=False)
-    done = parallel.compute(*lazy.values(), address=address, progress=progress,
-                            scheduler=scheduler, num_workers=workers)
-    return dict(zip(lazy, done, strict=True))
+            cube = cube.assign_coords(hole_x_cf=cube["hole_x_cf"] + hole_offset[0],
+                                      hole_y_cf=cube["hole_y_cf"] + hole_offset[1])
+        moved[name] = cube
+    done = centroid.locate_all(moved, method, address=address, progress=progress,
+                               scheduler=scheduler, num_workers=workers)
+    for name, cube in cubes.items():
+        if "hole_x_cf" in cube.coords:  # the tables keep the design positions
+            done[name] = done[name].assign_coords(
+                {k: cube[k].variable for k in ("hole_x_cf", "hole_y_cf")})
+    return done
 
 
 def simulate_and_locate(
