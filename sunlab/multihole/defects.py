@@ -99,8 +99,7 @@ def stamp_metrics(cube: xr.Dataset, cen: xr.Dataset, *, poses=None, shot: int = 
     n_h = cen.sizes["hole"]
     res = np.full((len(poses), n_h, 3), np.nan)
     ok = usable(cen).values
-    for n, p in enumerate(poses):
-        frame = np.asarray(cube["frames"].isel(pose=int(p), shot=shot).values)
+    for n, (p, frame) in enumerate(_frames_of(cube, poses, shot)):
         for h in range(n_h):
             if not ok[p, shot, h]:
                 continue
@@ -222,6 +221,19 @@ def _roughness_radius(cube, cen, ok, poses, shot) -> float:
     return radius_px
 
 
+def _frames_of(cube, poses, shot, batch: int | None = None):
+    """(pose, frame) of the given poses at one shot, computed a batch at a time (two frames
+    per core: a lazy cube renders or reads them in parallel, and memory stays bounded)."""
+    import os
+
+    batch = batch or 2 * (os.cpu_count() or 1)
+    poses = [int(p) for p in poses]
+    for k in range(0, len(poses), batch):
+        part = poses[k:k + batch]
+        block = np.asarray(cube["frames"].isel(pose=part, shot=shot).values)
+        yield from zip(part, block, strict=True)
+
+
 def _harmonic_amplitudes(cube, ok, xs, ys, poses, shot, radius_px, harmonics):
     """|c_m| (hole, harmonic) of each hole's mean over ``poses`` of its unit-flux stamp minus
     the frame's median stamp (relative to its peak), on a ring of pixels; NaN for a hole never
@@ -238,8 +250,8 @@ def _harmonic_amplitudes(cube, ok, xs, ys, poses, shot, radius_px, harmonics):
     theta = np.arctan2(gy, gx)[ring]
     acc = np.zeros((n_h, ring.sum()))
     count = np.zeros(n_h)
-    for p in poses:
-        frame = np.asarray(cube["frames"].isel(pose=int(p), shot=shot).values, dtype=float)
+    for p, frame in _frames_of(cube, poses, shot):
+        frame = frame.astype(float)
         hs = np.flatnonzero(ok[p])
         stamps = np.empty((hs.size, ring.sum()))
         for n, h in enumerate(hs):
