@@ -69,4 +69,12 @@ def test_reproduce_passes_the_scheduler_to_every_table(monkeypatch, tmp_path, ca
         assert (seen[k]["address"], seen[k]["scheduler"], seen[k]["workers"],
                 seen[k]["method"]) == ("tcp://10.0.0.1:8786", "cluster", 2, "fit"), k
         assert seen[k]["quick"] is True
+    # without --scheduler: processes where there are several cores (rendering holds the GIL
+    # part of each frame), threads on one
+    monkeypatch.setattr("os.cpu_count", lambda: 2)
+    assert main(["reproduce", "--table", "4", "--quick", "--out", str(tmp_path)]) == 0
+    assert seen[4]["scheduler"] == "processes" and seen[4]["address"] is None
+    monkeypatch.setattr("os.cpu_count", lambda: 1)
+    assert main(["reproduce", "--table", "4", "--quick", "--out", str(tmp_path)]) == 0
+    assert seen[4]["scheduler"] == "threads"
     capsys.readouterr()
