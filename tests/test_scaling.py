@@ -38,3 +38,21 @@ def test_bad_scheduler_and_workers_are_refused():
         parallel.compute(da.ones(2), scheduler="gpu", progress=False)
     with pytest.raises(ConfigurationError, match="num_workers"):
         parallel.compute(da.ones(2), num_workers=0, progress=False)
+
+
+@pytest.mark.parametrize("chunks", ["pose", "frame"])
+def test_rendering_fuses_with_centroiding(chunks):
+    # every task that runs returns a table, never a block of frames: the frames are rendered
+    # and reduced in one task, so on processes or a cluster only tables cross between workers
+    from dask.callbacks import Callback
+
+    from sunlab import centroid, plans, sim
+
+    cube = sim.simulate(plans.experiment("III").thin(9).with_shots(2), seed=2, chunks=chunks)
+    sizes = []
+    with Callback(posttask=lambda key, result, *_: sizes.append(getattr(result, "nbytes", 0))):
+        cen = centroid.locate_all({"III": cube}, "projection", scheduler="synchronous",
+                                  progress=False)["III"]
+    n_frames = cube.sizes["pose"] * cube.sizes["shot"]
+    assert int(cen.x.notnull().sum()) == n_frames
+    assert sizes and max(sizes) < 1024 * 1280 * 2  # below one uint16 frame
