@@ -1,11 +1,12 @@
-"""Rendering and centroiding Table 4's frames on threads and on a local cluster of processes.
+"""Rendering and centroiding Table 4's frames on threads, on processes and on a local cluster.
 
 Prints the floor u of issue 16 (best of 5 of drawing one 1024 x 1280 frame of float32 standard
 normals with numpy) and ``np.copy`` of a frame, the time of one rendered frame, then the wall
 time of :func:`sunlab.reproduce.simulate_and_locate` (thinned plans, 8 shots) on 1 and 2
-threads and on a :func:`sunlab.parallel.local_cluster` of 1 and 2 worker processes, with the
-speed-up from 1 to 2 workers and each worker's peak memory (RSS). The machine's load average
-is printed beside, as the timings depend on it.
+threads, on Dask's processes scheduler with 1 and 2 processes (pool started for the call, as
+``sunlab reproduce`` runs it) and on a :func:`sunlab.parallel.local_cluster` of 1 and 2 worker
+processes, with the speed-up from 1 to 2 workers and each worker's peak memory (RSS). The
+machine's load average is printed beside, as the timings depend on it.
 
     python benchmarks/bench_scaling.py [--step 3]
 """
@@ -29,14 +30,16 @@ def floor_u() -> float:
     return best
 
 
-def _rss_mb() -> float:
+def _rss_mb(children: bool = False) -> float:
     import resource
 
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+    who = resource.RUSAGE_CHILDREN if children else resource.RUSAGE_SELF
+    return resource.getrusage(who).ru_maxrss / 1024.0
 
 
 def main(argv=None):
     from sunlab import parallel, sim
+    from sunlab.sim import render
     from sunlab.reproduce import experiment_plans, simulate_and_locate
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -57,10 +60,15 @@ def main(argv=None):
     print(f"u (float32 standard normals, one frame) {u * 1e3:.2f} ms; np.copy of a frame "
           f"{cp * 1e3:.3f} ms; render_frame {best * 1e3:.2f} ms = {best / u:.2f} u")
     print(f"simulate_and_locate: {n} frames (step {args.step}, 8 shots)")
+    simulate_and_locate(step=9, shots=1, progress=False)  # warm-up: caches, compiled kernels
     ref = None
     walls = {}
-    for sched in ("threads", "cluster"):
+    for sched in ("threads", "processes", "cluster"):
         for workers in (1, 2):
+            # every run renders the same frames: empty the geometry cache of this process so
+            # that no run reuses the spot geometry of the one before (worker processes start
+            # empty)
+            render._spot_geometry_cached.cache_clear()
             t = time.perf_counter()
             c0 = time.process_time()
             if sched == "cluster":
@@ -76,6 +84,14 @@ def main(argv=None):
                 cpu = sum(w1[k] - w0[k] for k in w0)
                 mem_txt = "peak RSS per worker " + ", ".join(f"{v:.0f}" for v in mem.values())
                 mem_txt += " MB"
+            elif sched == "processes":
+                k0 = os.times()
+                got = simulate_and_locate(step=args.step, progress=False, scheduler=sched,
+                                          workers=workers)
+                k1 = os.times()
+                cpu = (k1.children_user - k0.children_user) + (k1.children_system
+                                                               - k0.children_system)
+                mem_txt = f"peak RSS of a worker {_rss_mb(children=True):.0f} MB"
             else:
                 got = simulate_and_locate(step=args.step, progress=False, scheduler=sched,
                                           workers=workers)
@@ -87,7 +103,7 @@ def main(argv=None):
                                  for c in got.values()])
             same = ref is None or np.array_equal(xy, ref, equal_nan=True)
             ref = xy if ref is None else ref
-            who = "workers" if sched == "cluster" else "process"
+            who = "process" if sched == "threads" else "workers"
             print(f"  {sched:8s} x {workers}: {wall:6.2f} s wall = {wall / n * 1e3:5.2f} ms/frame "
                   f"= {wall / n / u:4.2f} u; CPU of the {who} {cpu / n * 1e3:5.2f} ms/frame; "
                   f"{mem_txt}; centroids identical: {same}", flush=True)
