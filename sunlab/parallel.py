@@ -42,7 +42,11 @@ def compute(*objs, scheduler: str = "threads", address: str | None = None,
     ----------
     *objs : dask collections (xarray objects with Dask data, Dask arrays)
     scheduler : {"threads", "processes", "synchronous", "cluster"}
-        Local Dask scheduler when no address is given. ``"cluster"``: a
+        Local Dask scheduler when no address is given. ``"processes"``: Dask's pool of
+        worker processes, started for the call (each worker imports sunlab and loads the
+        compiled kernels: about 2 s of CPU); a simulated cube's frames are rendered and
+        centroided in one task, so only tables cross processes (``sunlab reproduce`` uses
+        it on several cores). ``"cluster"``: a
         ``dask.distributed.LocalCluster`` of ``num_workers`` single-threaded worker processes,
         started for this call and closed after it (the GIL does not limit it, as it limits
         threads on rendering; it costs a few seconds to start). Its workers run without
