@@ -25,21 +25,10 @@ import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
+from bench_scaling import floor_u  # the floor u of issue 16, one definition
 
 #: (frames in the limit's formula, factor) of each table's limit: factor x (frames x u / 2).
 LIMITS = {"4": (7440, 0.4), "5": (6088, 1.6)}
-
-
-def floor_u() -> float:
-    """Best of 5: one 1024 x 1280 frame of float32 standard normals, s."""
-    rng = np.random.default_rng()
-    best = np.inf
-    for _ in range(5):
-        t = time.perf_counter()
-        rng.standard_normal((1024, 1280), dtype=np.float32)
-        best = min(best, time.perf_counter() - t)
-    return best
 
 
 def run_table(table: str, scheduler: str) -> dict:

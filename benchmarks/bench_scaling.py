@@ -39,8 +39,8 @@ def _rss_mb(children: bool = False) -> float:
 
 def main(argv=None):
     from sunlab import parallel, sim
-    from sunlab.sim import render
     from sunlab.reproduce import experiment_plans, simulate_and_locate
+    from sunlab.sim import render
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--step", type=int, default=3, help="keep every step-th angle per axis")

@@ -209,20 +209,22 @@ def locate_all(
     import dask.array as da
 
     work = {k: _prepare(cube, method, multi, options) for k, cube in cubes.items()}
+    # the ground truth still lazy (e.g. a simulated cube's true centroids), by cube
+    pending = {k: [n for n in w.truth if isinstance(cubes[k][n].data, da.Array)]
+               for k, w in work.items()}
     lazy = []
     for k, w in work.items():
         lazy.append(w.table.data)
-        lazy.extend(cubes[k][n].data for n in w.truth if isinstance(cubes[k][n].data, da.Array))
+        lazy.extend(cubes[k][n].data for n in pending[k])
     done = iter(parallel.compute(*lazy, scheduler=scheduler, address=address,
                                  num_workers=num_workers, progress=progress))
     out = {}
     for k, w in work.items():
         cube = cubes[k]
         table = w.table.copy(data=next(done))
-        for n in w.truth:
-            if isinstance(cube[n].data, da.Array):
-                var = {n: cube[n].variable.copy(data=next(done))}
-                cube = cube.assign_coords(var) if n in cube.coords else cube.assign(var)
+        for n in pending[k]:
+            var = {n: cube[n].variable.copy(data=next(done))}
+            cube = cube.assign_coords(var) if n in cube.coords else cube.assign(var)
         cen = _centroid_table(cube, table, w.dims, method, w.options, w.multi, True)
         out[k] = _carry_cube_variables(cube, cen, w.dims, w.multi, True)
     return out
