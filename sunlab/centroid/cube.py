@@ -38,14 +38,13 @@ def _single_block(frames, estimator, kwargs):
     return out.reshape(lead + (len(_FIELDS),))
 
 
-def _multi_block(frames, shift_x, shift_y, kwargs, design, block_info=None):
+def _multi_block(frames, shift_x, shift_y, kwargs, design):
     """locate_spots on a block (pose, shot, y, x) -> (pose, shot, hole, 8 + metrics) float64;
-    ``shift_x``, ``shift_y`` (pose,) of the whole cube, sliced to the block's poses."""
+    ``shift_x``, ``shift_y`` (pose,) of the block's poses."""
     lead = frames.shape[:-2]
-    p0, p1 = block_info[0]["array-location"][0]
     flat = np.asarray(frames).reshape((-1,) + frames.shape[-2:])
-    sx = np.broadcast_to(np.asarray(shift_x)[p0:p1, None], lead).reshape(-1)
-    sy = np.broadcast_to(np.asarray(shift_y)[p0:p1, None], lead).reshape(-1)
+    sx = np.broadcast_to(np.asarray(shift_x)[:, None], lead).reshape(-1)
+    sy = np.broadcast_to(np.asarray(shift_y)[:, None], lead).reshape(-1)
     n_holes = kwargs["holes"][0].size
     nf = len(_FIELDS) + len(SPOT_METRICS)
     out = np.empty((flat.shape[0], n_holes, nf))
@@ -62,25 +61,42 @@ def _multi_block(frames, shift_x, shift_y, kwargs, design, block_info=None):
     return out.reshape(lead + (n_holes, nf))
 
 
-def _map_frames(frames, block_func, sizes: dict, **kwargs):
+def _map_frames(frames, block_func, sizes: dict, per_pose: dict | None = None, **kwargs):
     """The lazy (pose, shot, *sizes) table of ``block_func`` over the frame blocks of a
-    (pose, shot, y, x) Dask-backed DataArray, one task per block.
+    (pose, shot, y, x) Dask-backed DataArray of whole frames (:func:`_chunked_frames`), one
+    task per block; ``per_pose`` arrays (pose,) reach ``block_func`` as keywords sliced to the
+    block's poses, ``kwargs`` whole.
 
-    :func:`dask.array.map_blocks` rather than ``xarray.apply_ufunc(dask="parallelized")``:
-    the latter contracts the core dimensions (y, x) through a concatenation, which copies every
-    block (a pose's 8 frames are 21 MB) once more before the estimator sees it.
+    :func:`dask.array.blockwise` without concatenation, rather than
+    ``xarray.apply_ufunc(dask="parallelized")`` or :func:`dask.array.map_blocks` with
+    ``drop_axis``: both contract the core dimensions (y, x) through
+    :func:`dask.array.core.concatenate3`, which copies every block (a pose's 8 frames are
+    21 MB) once more before the estimator sees it, even when (y, x) is a single chunk.
     """
     import dask.array as da
     import xarray as xr
 
     data = frames.transpose("pose", "shot", "y", "x").data
-    n = len(sizes)
-    table = da.map_blocks(
-        block_func, data, drop_axis=[2, 3], new_axis=list(range(2, 2 + n)),
-        chunks=data.chunks[:2] + tuple((k,) for k in sizes.values()), dtype=np.float64,
-        meta=np.empty((0,) * (2 + n)), **kwargs,
+    new = tuple(f"n{k}" for k in range(len(sizes)))
+    per_pose = per_pose or {}
+    pose_args = []
+    for v in per_pose.values():
+        pose_args += [da.from_array(np.asarray(v), chunks=(data.chunks[0],)), ("p",)]
+    table = da.blockwise(
+        _one_block, ("p", "s") + new, data, ("p", "s", "y", "x"), *pose_args,
+        block_func=block_func, names=tuple(per_pose), new_axes=dict(zip(new, sizes.values())),
+        concatenate=False, dtype=np.float64, meta=np.empty((0,) * (2 + len(sizes))), **kwargs,
     )
     return xr.DataArray(table, dims=("pose", "shot", *sizes))
+
+
+def _one_block(blocks, *pose_blocks, block_func, names, **kwargs):
+    """``block_func`` of the single frame block that :func:`dask.array.blockwise` hands over
+    without concatenation, as a list nested once per contracted axis (y, x); the per-pose
+    blocks ``pose_blocks`` become the keywords ``names``."""
+    while isinstance(blocks, list):
+        (blocks,) = blocks
+    return block_func(blocks, **dict(zip(names, pose_blocks)), **kwargs)
 
 
 def is_multi_hole(cube) -> bool:
@@ -322,8 +338,7 @@ def _apply_multi(cube, frames, method, options):
     n_holes = spot_opts["holes"][0].size
     res = _map_frames(
         frames, _multi_block, {"hole": n_holes, "field": len(_FIELDS) + len(SPOT_METRICS)},
-        shift_x=shift_x, shift_y=shift_y, kwargs=spot_opts,
-        design=design,
+        per_pose={"shift_x": shift_x, "shift_y": shift_y}, kwargs=spot_opts, design=design,
     )
     return res, ("pose", "shot", "hole")
 
