@@ -24,7 +24,7 @@ import numpy as np
 from .errors import ConfigurationError
 from .options import show_progress
 
-__all__ = ["SCHEDULERS", "compute", "local_cluster"]
+__all__ = ["SCHEDULERS", "compute", "local_cluster", "worker_pool"]
 
 
 #: Local schedulers of :func:`compute`.
@@ -32,7 +32,7 @@ SCHEDULERS = ("threads", "processes", "synchronous", "cluster")
 
 
 def compute(*objs, scheduler: str = "threads", address: str | None = None,
-            num_workers: int | None = None, progress: bool = True) -> tuple:
+            num_workers: int | None = None, progress: bool = True, pool=None) -> tuple:
     """Compute lazy results (e.g. of ``locate(..., compute=False)``) in one pass of Dask.
 
     Several cubes computed together keep every worker busy to the end, where one after the
@@ -63,6 +63,10 @@ def compute(*objs, scheduler: str = "threads", address: str | None = None,
         faster than one thread per core on 2 cores; results do not depend on it).
     progress : bool
         Show a progress bar.
+    pool : concurrent.futures.Executor, optional
+        The worker processes of the ``"processes"`` scheduler, kept for several calls
+        (:func:`worker_pool`); ignored by the other schedulers. Default: a pool started for
+        the call.
 
     Returns
     -------
@@ -93,6 +97,8 @@ def compute(*objs, scheduler: str = "threads", address: str | None = None,
     if scheduler == "cluster":
         return _local_cluster(objs, num_workers, progress)
     kw = {"scheduler": scheduler}
+    if pool is not None and scheduler == "processes":
+        kw["pool"] = pool
     if num_workers:
         kw["num_workers"] = int(num_workers)
     elif scheduler == "threads":
@@ -103,6 +109,43 @@ def compute(*objs, scheduler: str = "threads", address: str | None = None,
         with ProgressBar(minimum=1.0):
             return dask.compute(*objs, **kw)
     return dask.compute(*objs, **kw)
+
+
+@contextlib.contextmanager
+def worker_pool(scheduler: str = "threads", num_workers: int | None = None):
+    """The worker processes of Dask's ``"processes"`` scheduler, started once for several
+    :func:`compute` calls (``pool=``), each of which would start its own; shut down on exit.
+    None for the other schedulers, which need no pool.
+
+    Worker processes start by importing sunlab and loading the compiled kernels (about 2 s of
+    CPU each), and keep what they cache (a detector's fixed pattern, spot geometry) from one
+    call to the next; two calls may share the pool at once (e.g. from two threads).
+
+    Examples
+    --------
+    >>> import dask.array as da
+    >>> with worker_pool("processes", 1) as pool:
+    ...     a = compute(da.ones(4, chunks=2).sum(), scheduler="processes", pool=pool,
+    ...                 progress=False)
+    ...     b = compute(da.arange(3, chunks=1).max(), scheduler="processes", pool=pool,
+    ...                 progress=False)
+    >>> int(a[0]), int(b[0])
+    (4, 2)
+    >>> with worker_pool("threads") as pool:
+    ...     pool is None
+    True
+    """
+    if scheduler != "processes":
+        yield None
+        return
+    from concurrent.futures import ProcessPoolExecutor
+
+    from dask.multiprocessing import get_context, initialize_worker_process
+
+    n = int(num_workers) if num_workers else (os.cpu_count() or 1)
+    with ProcessPoolExecutor(n, mp_context=get_context(),
+                             initializer=initialize_worker_process) as pool:
+        yield pool
 
 
 def _distributed(objs, address_or_cluster, progress) -> tuple:

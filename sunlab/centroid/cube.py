@@ -186,7 +186,7 @@ def locate(
 def locate_all(
     cubes: dict, method: str = "projection", *, multi: bool | None = None,
     scheduler: str = "threads", address: str | None = None, num_workers: int | None = None,
-    progress: bool = True, **options,
+    progress: bool = True, pool=None, **options,
 ) -> dict:
     """Centroid several cubes in one pass of Dask (:func:`locate` on each), e.g. the
     experiments of a table: the workers stay busy to the end, where one cube after the other
@@ -204,6 +204,8 @@ def locate_all(
         Frame cubes (contract ``frames/1``) by name.
     method, multi, scheduler, address, num_workers, progress, **options
         As for :func:`locate`, the same for every cube.
+    pool : concurrent.futures.Executor, optional
+        Worker processes kept between calls (:func:`sunlab.parallel.worker_pool`).
 
     Returns
     -------
@@ -233,7 +235,7 @@ def locate_all(
         lazy.append(w.table.data)
         lazy.extend(cubes[k][n].data for n in pending[k])
     done = iter(parallel.compute(*lazy, scheduler=scheduler, address=address,
-                                 num_workers=num_workers, progress=progress))
+                                 num_workers=num_workers, progress=progress, pool=pool))
     out = {}
     for k, w in work.items():
         cube = cubes[k]

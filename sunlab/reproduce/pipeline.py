@@ -37,6 +37,7 @@ __all__ = [
     "simulate_runs",
     "locate_runs",
     "simulate_and_locate",
+    "simulate_experiments",
     "usable_table",
     "centroid_status",
     "write_json",
@@ -111,7 +112,8 @@ def simulate_runs(runs: dict, *, seed: int = 0, chunks: str = "pose") -> dict[st
 
 def locate_runs(cubes: dict, *, method: str = "projection", hole_offset=(0.0, 0.0),
                 progress: bool = True, address: str | None = None, scheduler: str = "threads",
-                workers: int | None = None, truth: bool = False) -> dict[str, xr.Dataset]:
+                workers: int | None = None, truth: bool = False,
+                pool=None) -> dict[str, xr.Dataset]:
     """Centroid every frame of every cube in one pass of Dask; centroid tables by run.
 
     Parameters
@@ -138,6 +140,8 @@ def locate_runs(cubes: dict, *, method: str = "projection", hole_offset=(0.0, 0.
         Carry the cubes' true centroids (``true_x``, ``true_y``, lazy on a simulated cube)
         into the tables. The reproduced tables do not use them, and on the virtual bench they
         cost a second pass over each frame's spot geometry, so they are left out by default.
+    pool : concurrent.futures.Executor, optional
+        Worker processes kept between calls (:func:`sunlab.parallel.worker_pool`).
 
     Returns
     -------
@@ -166,7 +170,7 @@ def locate_runs(cubes: dict, *, method: str = "projection", hole_offset=(0.0, 0.
                                       hole_y_cf=cube["hole_y_cf"] + hole_offset[1])
         moved[name] = cube
     done = centroid.locate_all(moved, method, address=address, progress=progress,
-                               scheduler=scheduler, num_workers=workers)
+                               scheduler=scheduler, num_workers=workers, pool=pool)
     for name, cube in cubes.items():
         if "hole_x_cf" in cube.coords:  # the tables keep the design positions
             done[name] = done[name].assign_coords(
@@ -215,6 +219,28 @@ def simulate_and_locate(
     >>> {k: int(v.sizes["pose"]) for k, v in cens.items()}
     {'I': 9, 'II': 4, 'III': 9}
     """
+    cubes = simulate_experiments(bench, seed=seed, quick=quick, step=step, shots=shots,
+                                 progress=progress, method=method)
+    return locate_runs(cubes, method=method, progress=progress, address=address,
+                       scheduler=scheduler, workers=workers)
+
+
+def simulate_experiments(bench=None, *, seed: int = 0, quick: bool = False,
+                         step: int | None = None, shots: int | None = None,
+                         progress: bool = True, method: str = "projection") -> dict:
+    """The lazy frame cubes of experiments I, II, III on the virtual bench; with ``progress``,
+    what they hold is printed (``method`` names the centroid method announced).
+
+    The first half of :func:`simulate_and_locate` (same parameters), for a caller that
+    centroids the experiments in several passes (Table 4 fits on I and II while III is
+    centroided).
+
+    Examples
+    --------
+    >>> cubes = simulate_experiments(step=7, shots=1, progress=False)
+    >>> {k: int(v.sizes["pose"]) for k, v in cubes.items()}
+    {'I': 9, 'II': 4, 'III': 9}
+    """
     from .. import sim
 
     bench = sim.Bench.paper_single_hole() if bench is None else bench
@@ -226,8 +252,7 @@ def simulate_and_locate(
                   f"{plan.shots} shots", flush=True)
         n_frames = sum(len(p) * p.shots for p in plans_.values())
         print(f"rendering and centroiding {n_frames} frames ({method})", flush=True)
-    return locate_runs(cubes, method=method, progress=progress, address=address,
-                       scheduler=scheduler, workers=workers)
+    return cubes
 
 
 def usable_table(cen: xr.Dataset) -> xr.Dataset:
