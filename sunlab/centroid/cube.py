@@ -78,25 +78,36 @@ def _map_frames(frames, block_func, sizes: dict, per_pose: dict | None = None, *
 
     data = frames.transpose("pose", "shot", "y", "x").data
     new = tuple(f"n{k}" for k in range(len(sizes)))
-    per_pose = per_pose or {}
-    pose_args = []
-    for v in per_pose.values():
-        pose_args += [da.from_array(np.asarray(v), chunks=(data.chunks[0],)), ("p",)]
+    extra = ()
+    if per_pose:
+        # the block's place by a BlockwiseDep: Dask fuses the estimator with the task that
+        # makes the frames (a Dask array argument, even a tiny one, would keep it from fusing)
+        from dask.layers import ArrayBlockIdDep
+
+        extra = (ArrayBlockIdDep(data.chunks[:2]), ("p", "s"))
+        starts = np.concatenate([[0], np.cumsum(data.chunks[0])])
+        kwargs["per_pose"] = ({k: np.asarray(v) for k, v in per_pose.items()}, starts)
     table = da.blockwise(
-        _one_block, ("p", "s") + new, data, ("p", "s", "y", "x"), *pose_args,
-        block_func=block_func, names=tuple(per_pose), new_axes=dict(zip(new, sizes.values())),
-        concatenate=False, dtype=np.float64, meta=np.empty((0,) * (2 + len(sizes))), **kwargs,
+        _one_block, ("p", "s") + new, data, ("p", "s", "y", "x"), *extra,
+        block_func=block_func, new_axes=dict(zip(new, sizes.values())), concatenate=False,
+        align_arrays=False, dtype=np.float64, meta=np.empty((0,) * (2 + len(sizes))),
+        **kwargs,
     )
     return xr.DataArray(table, dims=("pose", "shot", *sizes))
 
 
-def _one_block(blocks, *pose_blocks, block_func, names, **kwargs):
+def _one_block(blocks, block_id=None, *, block_func, per_pose=None, **kwargs):
     """``block_func`` of the single frame block that :func:`dask.array.blockwise` hands over
-    without concatenation, as a list nested once per contracted axis (y, x); the per-pose
-    blocks ``pose_blocks`` become the keywords ``names``."""
+    without concatenation, as a list nested once per contracted axis (y, x); ``per_pose``
+    (arrays by keyword, pose starts of the blocks) sliced to the block's poses by its
+    ``block_id``."""
     while isinstance(blocks, list):
         (blocks,) = blocks
-    return block_func(blocks, **dict(zip(names, pose_blocks)), **kwargs)
+    if per_pose is not None:
+        arrays, starts = per_pose
+        p0, p1 = starts[block_id[0]], starts[block_id[0] + 1]
+        kwargs.update({k: v[p0:p1] for k, v in arrays.items()})
+    return block_func(blocks, **kwargs)
 
 
 def is_multi_hole(cube) -> bool:
