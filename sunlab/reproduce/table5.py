@@ -30,6 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import parallel
 from ..errors import ConfigurationError
 from .pipeline import (
     centroid_status,
@@ -158,7 +159,7 @@ def reproduce_table5(quick: bool = True, seed: int = 0, out: Path | str | None =
         ``table`` (pandas.DataFrame: our value and the paper's per column, deg), ``ours`` (our
         four columns), ``bad_holes`` (rejected), ``injected`` (holes the bench gave defects),
         ``budget`` (common vs hole-specific error), ``findings`` (the ratios of the paper's
-        findings, :func:`_findings`), ``runtime_s``, ``sizes``, ``files`` and ``data`` (the
+        findings, :func:`_findings`), ``runtime_s``, ``timings_s`` (by stage), ``sizes``, ``files`` and ``data`` (the
         lazy frame cubes, centroid tables and per-hole calibrations, for figures and
         :class:`sunlab.widgets.HoleExplorer`; not written).
 
@@ -173,35 +174,45 @@ def reproduce_table5(quick: bool = True, seed: int = 0, out: Path | str | None =
     """
     t0 = time.perf_counter()
     plans_ = experiment_plans(("I", "III"), quick=quick, step=step, shots=shots)
-    cubes, cens = _simulate_and_locate(plans_, seed=seed, method=method, progress=progress,
-                                       where={"address": address, "scheduler": scheduler,
-                                              "workers": workers})
+    timings = {}
+    with parallel.worker_pool(scheduler if address is None else "threads", workers) as pool:
+        cubes, cens = _simulate_and_locate(plans_, seed=seed, method=method, progress=progress,
+                                           where={"address": address, "scheduler": scheduler,
+                                                  "workers": workers, "pool": pool},
+                                           timings=timings)
     status = centroid_status(cens)
     cens = {k: usable_table(c) for k, c in cens.items()}
+    t = time.perf_counter()
     result = _calibrate_and_compare(cens, cubes, order=order)
+    timings["calibrate, find bad holes, compare"] = time.perf_counter() - t
     result["centroid_status"] = status
     result["sizes"] = {"train_poses": len(plans_["I"]), "test_poses": len(plans_["III"]),
                        "shots": plans_["I"].shots,
                        "holes": int(cens["100 holes I"].sizes["hole"])}
     if out is not None:
+        t = time.perf_counter()
         result["files"] = _write_figures(result, Path(out))
+        timings["figures"] = time.perf_counter() - t
     result["runtime_s"] = time.perf_counter() - t0
+    result["timings_s"] = {**{k: round(v, 3) for k, v in timings.items()},
+                           "total": round(result["runtime_s"], 3)}
     if out is not None:
         doc = {"table5": {f"{c[0]} [{c[1]}]": {f"{a}.{st}": float(v) for (a, st), v in
                                                 result["table"][c].items()}
                           for c in result["table"].columns},
                **{k: result[k] for k in ("bad_holes", "injected", "budget", "sizes",
-                                         "runtime_s")},
+                                         "runtime_s", "timings_s")},
                "quick": quick, "centroid_status": status, "findings": result["findings"],
                "seed": seed, "order": order, "centroid_method": method}
         result["files"].append(write_json(doc, Path(out) / "table5.json"))
     return result
 
 
-def _simulate_and_locate(plans_: dict, *, seed, method, progress, where) -> tuple[dict, dict]:
+def _simulate_and_locate(plans_: dict, *, seed, method, progress, where,
+                         timings) -> tuple[dict, dict]:
     """The one-hole runs I and III in one pass, their mounting offset, then the 100-hole runs
     in one pass numbered with it; the frame cubes and the centroid tables, keyed ``"1 hole I"``,
-    ``"100 holes III"`` ..."""
+    ``"100 holes III"`` ...; the passes' times go into ``timings``."""
     from .. import sim
 
     one = {f"1 hole {k}": (p, sim.Bench.paper_single_hole()) for k, p in plans_.items()}
@@ -209,12 +220,16 @@ def _simulate_and_locate(plans_: dict, *, seed, method, progress, where) -> tupl
     # the passes take whole poses (one Dask task each); the cubes handed on serve single
     # frames (defect metrics, figures, the explorer), so they are chunked by frame: the same
     # frames either way
+    t = time.perf_counter()
     cens = locate_runs(simulate_runs(one, seed=seed, chunks="pose"), method=method,
                        progress=progress, **where)
+    timings["simulate_and_centroid 1 hole"] = time.perf_counter() - t
     offset = mounting_offset_px(cens["1 hole I"])
+    t = time.perf_counter()
     cens.update(locate_runs(simulate_runs(many, seed=seed, chunks="pose"),
                             method=spot_method(method), hole_offset=offset,
                             progress=progress, **where))
+    timings["simulate_and_centroid 100 holes"] = time.perf_counter() - t
     cubes = simulate_runs({**one, **many}, seed=seed, chunks="frame")
     order = ("100 holes I", "100 holes III", "1 hole I", "1 hole III")
     return cubes, {k: cens[k] for k in order}
