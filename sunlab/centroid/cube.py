@@ -136,7 +136,7 @@ def locate(
 ):
     """Centroid every frame of a cube: a ``centroids/1`` dataset over (pose, shot[, hole]).
 
-    The frames go through :func:`dask.array.map_blocks`, one task per frame chunk and no copy
+    The frames go through :func:`dask.array.blockwise`, one task per frame chunk and no copy
     of the frames, on Dask's threaded scheduler by default (the compiled kernels release the GIL,
     so threads scale), or on a ``dask.distributed`` cluster at ``address``.
 
