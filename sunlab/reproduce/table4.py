@@ -217,20 +217,8 @@ def reproduce_table4(
                                  progress=progress, method=method)
     where = {"method": method, "address": address, "scheduler": scheduler, "workers": workers}
     timings = {}
-    with parallel.worker_pool(scheduler if address is None else "threads", workers) as pool:
-        # I and II first; then the fits on them run while III is rendered and centroided
-        cens = locate_runs({k: cubes[k] for k in ("I", "II")}, progress=progress, pool=pool,
-                           **where)
-        timings["simulate_and_centroid I, II"] = time.perf_counter() - t0
-        train, val = usable_table(cens["I"]), usable_table(cens["II"])
-        with ThreadPoolExecutor(1, thread_name_prefix="sunlab-III") as ex:
-            t3 = time.perf_counter()
-            third = ex.submit(locate_runs, {"III": cubes["III"]}, progress=progress,
-                              pool=pool, **where)
-            fitted = _fit_all(train, val, neural=neural, seed=seed, timings=timings)
-            cens.update(third.result())
-            timings["simulate_and_centroid III (beside the fits)"] = time.perf_counter() - t3
-    timings["simulate_and_centroid"] = time.perf_counter() - t0
+    cens, fitted = _locate_and_fit(cubes, where, neural=neural, seed=seed, progress=progress,
+                                   timings=timings, t0=t0)
     if progress:
         for label in fitted:
             print(f"  fitted {label:<24s} in {timings[f'fit {label}']:6.2f} s", flush=True)
@@ -259,6 +247,27 @@ def _assemble(cens, fitted, local, bench, timings, t0, settings) -> Table4Result
         timings={**timings, "total": time.perf_counter() - t0},
         settings=settings,
     )
+
+
+def _locate_and_fit(cubes, where, *, neural, seed, progress, timings, t0):
+    """Centroid I and II, then fit every method on them (:func:`_fit_all`) while III is
+    rendered and centroided on the same workers from a background thread: the fits are serial,
+    and beside them the other cores stay busy. The centroid tables and the fitted methods."""
+    local = where["scheduler"] if where["address"] is None else "threads"
+    with parallel.worker_pool(local, where["workers"]) as pool:
+        cens = locate_runs({k: cubes[k] for k in ("I", "II")}, progress=progress, pool=pool,
+                           **where)
+        timings["simulate_and_centroid I, II"] = time.perf_counter() - t0
+        train, val = usable_table(cens["I"]), usable_table(cens["II"])
+        with ThreadPoolExecutor(1, thread_name_prefix="sunlab-III") as ex:
+            t3 = time.perf_counter()
+            third = ex.submit(locate_runs, {"III": cubes["III"]}, progress=progress,
+                              pool=pool, **where)
+            fitted = _fit_all(train, val, neural=neural, seed=seed, timings=timings)
+            cens.update(third.result())
+            timings["simulate_and_centroid III (beside the fits)"] = time.perf_counter() - t3
+    timings["simulate_and_centroid"] = time.perf_counter() - t0
+    return cens, fitted
 
 
 def _fit_all(train, val, *, neural, seed, timings) -> dict:

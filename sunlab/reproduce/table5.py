@@ -174,12 +174,9 @@ def reproduce_table5(quick: bool = True, seed: int = 0, out: Path | str | None =
     """
     t0 = time.perf_counter()
     plans_ = experiment_plans(("I", "III"), quick=quick, step=step, shots=shots)
-    timings = {}
-    with parallel.worker_pool(scheduler if address is None else "threads", workers) as pool:
-        cubes, cens = _simulate_and_locate(plans_, seed=seed, method=method, progress=progress,
-                                           where={"address": address, "scheduler": scheduler,
-                                                  "workers": workers, "pool": pool},
-                                           timings=timings)
+    where, timings = {"address": address, "scheduler": scheduler, "workers": workers}, {}
+    cubes, cens = _simulate_and_locate(plans_, seed=seed, method=method, progress=progress,
+                                       where=where, timings=timings)
     status = centroid_status(cens)
     cens = {k: usable_table(c) for k, c in cens.items()}
     t = time.perf_counter()
@@ -197,22 +194,30 @@ def reproduce_table5(quick: bool = True, seed: int = 0, out: Path | str | None =
     result["timings_s"] = {**{k: round(v, 3) for k, v in timings.items()},
                            "total": round(result["runtime_s"], 3)}
     if out is not None:
-        doc = {"table5": {f"{c[0]} [{c[1]}]": {f"{a}.{st}": float(v) for (a, st), v in
-                                                result["table"][c].items()}
-                          for c in result["table"].columns},
-               **{k: result[k] for k in ("bad_holes", "injected", "budget", "sizes",
-                                         "runtime_s", "timings_s")},
-               "quick": quick, "centroid_status": status, "findings": result["findings"],
-               "seed": seed, "order": order, "centroid_method": method}
-        result["files"].append(write_json(doc, Path(out) / "table5.json"))
+        settings = {"quick": quick, "seed": seed, "order": order, "centroid_method": method}
+        result["files"].append(_write_json(result, Path(out), settings))
     return result
+
+
+def _write_json(result: dict, out: Path, settings: dict) -> str:
+    """``table5.json``: the table, the bad holes, the budget, sizes, timings and settings."""
+    doc = {"table5": {f"{c[0]} [{c[1]}]": {f"{a}.{st}": float(v) for (a, st), v in
+                                            result["table"][c].items()}
+                      for c in result["table"].columns},
+           **{k: result[k] for k in ("bad_holes", "injected", "budget", "sizes", "runtime_s",
+                                     "timings_s")},
+           "quick": settings["quick"], "centroid_status": result["centroid_status"],
+           "findings": result["findings"], "seed": settings["seed"],
+           "order": settings["order"], "centroid_method": settings["centroid_method"]}
+    return write_json(doc, out / "table5.json")
 
 
 def _simulate_and_locate(plans_: dict, *, seed, method, progress, where,
                          timings) -> tuple[dict, dict]:
     """The one-hole runs I and III in one pass, their mounting offset, then the 100-hole runs
     in one pass numbered with it; the frame cubes and the centroid tables, keyed ``"1 hole I"``,
-    ``"100 holes III"`` ...; the passes' times go into ``timings``."""
+    ``"100 holes III"`` ...; the passes' times go into ``timings``. Both passes share one
+    pool of worker processes (:func:`sunlab.parallel.worker_pool`)."""
     from .. import sim
 
     one = {f"1 hole {k}": (p, sim.Bench.paper_single_hole()) for k, p in plans_.items()}
@@ -220,16 +225,18 @@ def _simulate_and_locate(plans_: dict, *, seed, method, progress, where,
     # the passes take whole poses (one Dask task each); the cubes handed on serve single
     # frames (defect metrics, figures, the explorer), so they are chunked by frame: the same
     # frames either way
-    t = time.perf_counter()
-    cens = locate_runs(simulate_runs(one, seed=seed, chunks="pose"), method=method,
-                       progress=progress, **where)
-    timings["simulate_and_centroid 1 hole"] = time.perf_counter() - t
-    offset = mounting_offset_px(cens["1 hole I"])
-    t = time.perf_counter()
-    cens.update(locate_runs(simulate_runs(many, seed=seed, chunks="pose"),
-                            method=spot_method(method), hole_offset=offset,
-                            progress=progress, **where))
-    timings["simulate_and_centroid 100 holes"] = time.perf_counter() - t
+    local = where["scheduler"] if where["address"] is None else "threads"
+    with parallel.worker_pool(local, where["workers"]) as pool:
+        t = time.perf_counter()
+        cens = locate_runs(simulate_runs(one, seed=seed, chunks="pose"), method=method,
+                           progress=progress, pool=pool, **where)
+        timings["simulate_and_centroid 1 hole"] = time.perf_counter() - t
+        offset = mounting_offset_px(cens["1 hole I"])
+        t = time.perf_counter()
+        cens.update(locate_runs(simulate_runs(many, seed=seed, chunks="pose"),
+                                method=spot_method(method), hole_offset=offset,
+                                progress=progress, pool=pool, **where))
+        timings["simulate_and_centroid 100 holes"] = time.perf_counter() - t
     cubes = simulate_runs({**one, **many}, seed=seed, chunks="frame")
     order = ("100 holes I", "100 holes III", "1 hole I", "1 hole III")
     return cubes, {k: cens[k] for k in order}
