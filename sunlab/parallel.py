@@ -112,10 +112,12 @@ def compute(*objs, scheduler: str = "threads", address: str | None = None,
 
 
 @contextlib.contextmanager
-def worker_pool(scheduler: str = "threads", num_workers: int | None = None):
+def worker_pool(scheduler: str = "threads", num_workers: int | None = None,
+                address: str | None = None):
     """The worker processes of Dask's ``"processes"`` scheduler, started once for several
     :func:`compute` calls (``pool=``), each of which would start its own; shut down on exit.
-    None for the other schedulers, which need no pool.
+    None for the other schedulers, which need no pool, and when an ``address`` is given (the
+    work then runs on that cluster's workers): the arguments of :func:`compute`.
 
     Worker processes start by importing sunlab and loading the compiled kernels (about 2 s of
     CPU each), and keep what they cache (a detector's fixed pattern, spot geometry) from one
@@ -135,7 +137,7 @@ def worker_pool(scheduler: str = "threads", num_workers: int | None = None):
     ...     pool is None
     True
     """
-    if scheduler != "processes":
+    if scheduler != "processes" or address is not None:
         yield None
         return
     from concurrent.futures import ProcessPoolExecutor

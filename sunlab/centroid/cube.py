@@ -89,9 +89,9 @@ def _map_frames(frames, block_func, sizes: dict, per_pose: dict | None = None, *
         kwargs["per_pose"] = ({k: np.asarray(v) for k, v in per_pose.items()}, starts)
     table = da.blockwise(
         _one_block, ("p", "s") + new, data, ("p", "s", "y", "x"), *extra,
-        block_func=block_func, new_axes=dict(zip(new, sizes.values())), concatenate=False,
-        align_arrays=False, dtype=np.float64, meta=np.empty((0,) * (2 + len(sizes))),
-        **kwargs,
+        block_func=block_func, new_axes=dict(zip(new, sizes.values(), strict=True)),
+        concatenate=False, align_arrays=False, dtype=np.float64,
+        meta=np.empty((0,) * (2 + len(sizes))), **kwargs,
     )
     return xr.DataArray(table, dims=("pose", "shot", *sizes))
 

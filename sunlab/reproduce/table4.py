@@ -253,8 +253,7 @@ def _locate_and_fit(cubes, where, *, neural, seed, progress, timings, t0):
     """Centroid I and II, then fit every method on them (:func:`_fit_all`) while III is
     rendered and centroided on the same workers from a background thread: the fits are serial,
     and beside them the other cores stay busy. The centroid tables and the fitted methods."""
-    local = where["scheduler"] if where["address"] is None else "threads"
-    with parallel.worker_pool(local, where["workers"]) as pool:
+    with parallel.worker_pool(where["scheduler"], where["workers"], where["address"]) as pool:
         cens = locate_runs({k: cubes[k] for k in ("I", "II")}, progress=progress, pool=pool,
                            **where)
         timings["simulate_and_centroid I, II"] = time.perf_counter() - t0

@@ -159,9 +159,9 @@ def reproduce_table5(quick: bool = True, seed: int = 0, out: Path | str | None =
         ``table`` (pandas.DataFrame: our value and the paper's per column, deg), ``ours`` (our
         four columns), ``bad_holes`` (rejected), ``injected`` (holes the bench gave defects),
         ``budget`` (common vs hole-specific error), ``findings`` (the ratios of the paper's
-        findings, :func:`_findings`), ``runtime_s``, ``timings_s`` (by stage), ``sizes``, ``files`` and ``data`` (the
-        lazy frame cubes, centroid tables and per-hole calibrations, for figures and
-        :class:`sunlab.widgets.HoleExplorer`; not written).
+        findings, :func:`_findings`), ``runtime_s``, ``timings_s`` (by stage), ``sizes``,
+        ``files`` and ``data`` (the lazy frame cubes, centroid tables and per-hole
+        calibrations, for figures and :class:`sunlab.widgets.HoleExplorer`; not written).
 
     Examples
     --------
@@ -225,8 +225,7 @@ def _simulate_and_locate(plans_: dict, *, seed, method, progress, where,
     # the passes take whole poses (one Dask task each); the cubes handed on serve single
     # frames (defect metrics, figures, the explorer), so they are chunked by frame: the same
     # frames either way
-    local = where["scheduler"] if where["address"] is None else "threads"
-    with parallel.worker_pool(local, where["workers"]) as pool:
+    with parallel.worker_pool(where["scheduler"], where["workers"], where["address"]) as pool:
         t = time.perf_counter()
         cens = locate_runs(simulate_runs(one, seed=seed, chunks="pose"), method=method,
                            progress=progress, pool=pool, **where)
