@@ -24,7 +24,7 @@ import numpy as np
 from .errors import ConfigurationError
 from .options import show_progress
 
-__all__ = ["SCHEDULERS", "compute", "local_cluster", "worker_pool"]
+__all__ = ["SCHEDULERS", "compute", "local_cluster", "single_threaded_blas", "worker_pool"]
 
 
 #: Local schedulers of :func:`compute`.
@@ -148,6 +148,24 @@ def worker_pool(scheduler: str = "threads", num_workers: int | None = None,
     with ProcessPoolExecutor(n, mp_context=get_context(),
                              initializer=initialize_worker_process) as pool:
         yield pool
+
+
+def single_threaded_blas():
+    """A context in which BLAS runs on one thread (``threadpoolctl``), for small linear algebra
+    on a busy machine: the calibration fits (L-BFGS-B on a few dozen weights, small
+    least-squares solves, a Delaunay point location) are slowed several-fold by idle BLAS
+    threads. The limit holds for the whole process while the context is open.
+
+    Examples
+    --------
+    >>> from threadpoolctl import threadpool_info
+    >>> with single_threaded_blas():
+    ...     {p["num_threads"] for p in threadpool_info() if p["user_api"] == "blas"}
+    {1}
+    """
+    from threadpoolctl import threadpool_limits
+
+    return threadpool_limits(limits=1)
 
 
 def _distributed(objs, address_or_cluster, progress) -> tuple:

@@ -41,11 +41,9 @@ True
 
 from __future__ import annotations
 
-import contextlib
-
 import numpy as np
 
-from .. import geometry
+from .. import geometry, parallel
 from ..errors import ConfigurationError
 from .base import Calibration, TrainingData, sensor_attrs
 from .model import fit_optimised
@@ -59,16 +57,6 @@ STRATEGIES = {
     3: ("angles from the optimised model (3)-(4)", "platform angles"),
     4: ("centroid (x, y)", "error of model (1)"),
 }
-
-
-def _single_threaded_blas():
-    """Limit BLAS to one thread while training: L-BFGS-B on a few dozen weights is slowed
-    several-fold by idle BLAS threads on a busy machine. A no-op without threadpoolctl."""
-    try:
-        from threadpoolctl import threadpool_limits
-    except ImportError:  # pragma: no cover - optional
-        return contextlib.nullcontext()
-    return threadpool_limits(limits=1)
 
 
 def _forward(z: np.ndarray, net: dict) -> np.ndarray:
@@ -242,7 +230,7 @@ class NeuralNet(Calibration):
                 elif state["it"] - state["best_it"] >= self.patience:
                     raise StopIteration
 
-            with _single_threaded_blas():
+            with parallel.single_threaded_blas():
                 res = minimize(loss_and_grad, theta0, jac=True, method="L-BFGS-B",
                                callback=callback,
                                options={"maxiter": self.max_iter, "maxcor": 20,

@@ -273,10 +273,8 @@ def _fit_all(train, val, *, neural, seed, timings) -> dict:
     """Fit every method of :func:`table4_methods` on I (II for model selection), BLAS on one
     thread (small problems, a busy machine: idle BLAS threads slow them several-fold); the fit
     times go into ``timings``."""
-    from threadpoolctl import threadpool_limits
-
     fitted = {}
-    with threadpool_limits(limits=1):
+    with parallel.single_threaded_blas():
         for label, fit in table4_methods(neural=neural, seed=seed).items():
             t = time.perf_counter()
             fitted[label] = fit(train, val)
