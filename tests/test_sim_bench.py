@@ -65,6 +65,7 @@ def test_cube_frames_are_deterministic_per_seed_pose_shot(cube):
         seed=key,
         pose=2,
         shot=3,
+        shape_angles=(float(cube.true_alpha[2, 0]), float(cube.true_beta[2, 0])),
     )
     assert np.array_equal(f, same)
 

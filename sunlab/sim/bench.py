@@ -41,7 +41,7 @@ from ..errors import ConfigurationError
 from .detector import Detector
 from .mask import PAPER_DISTANCE_MM, PAPER_TRACK_CENTRE_MM, Mask
 from .platform import Platform
-from .render import _entropy, _truth, mask_play, render_frame, spot_geometry
+from .render import _entropy, _truth, mask_play, render_frame, render_pose, spot_geometry
 from .source import Source
 
 __all__ = ["Bench", "platform_pose", "homing_offset", "simulate", "plan_key"]
@@ -439,7 +439,9 @@ def simulate(plan, bench: Bench | None = None, seed=0, chunks: str = "frame"):
     Frames are rendered on demand, one chunk per frame, deterministically from
     (seed, plan, pose, shot); the cube's ``sim_key`` attribute is the seed entropy actually used
     (``[seed, plan_key(plan)]``), so ``render_frame(bench, true_alpha, true_beta,
-    seed=cube.attrs["sim_key"], pose=p, shot=s)`` reproduces frame (p, s).
+    seed=cube.attrs["sim_key"], pose=p, shot=s, shape_angles=(true_alpha[p, 0],
+    true_beta[p, 0]))`` reproduces frame (p, s) (:func:`render_pose`: the shots of a pose share
+    the spots' shape).
 
     Parameters
     ----------
@@ -520,13 +522,15 @@ def _frames_block(index, bench, key, ta, tb):
     returns (poses, shots, ny, nx), each frame rendered in place."""
     n_s = ta.shape[1]
     if index.ndim == 1:
-        grid = index[:, None] * n_s + np.arange(n_s)[None, :]
-    else:
-        grid = index
-    out = np.empty(grid.shape + bench.detector.shape, dtype=np.uint16)
-    for (i, j), k in np.ndenumerate(grid):
+        out = np.empty((index.size, n_s) + bench.detector.shape, dtype=np.uint16)
+        for i, p in enumerate(index):
+            render_pose(bench, ta[p], tb[p], seed=key, pose=int(p), out=out[i])
+        return out
+    out = np.empty(index.shape + bench.detector.shape, dtype=np.uint16)
+    for (i, j), k in np.ndenumerate(index):
         p, s = divmod(int(k), n_s)
-        render_frame(bench, ta[p, s], tb[p, s], seed=key, pose=p, shot=s, out=out[i, j])
+        render_frame(bench, ta[p, s], tb[p, s], seed=key, pose=p, shot=s, out=out[i, j],
+                     shape_angles=(ta[p, 0], tb[p, 0]))
     return out
 
 

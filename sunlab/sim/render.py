@@ -61,6 +61,7 @@ __all__ = [
     "spot_image",
     "expected_frame",
     "render_frame",
+    "render_pose",
     "frame_key",
     "mask_play",
 ]
@@ -206,17 +207,8 @@ def _spot_geometry(bench, a, b, play_mm) -> SpotGeometry:
     sn = float(s @ n_m)
     lit = bool(s[2] > 1e-6 and sn > 1e-6)
     sz = s[2] if lit else 1.0
-    xr, yr = det.reference_px
-    origin = np.array(
-        [
-            xr * p + mask.offset_x_mm + play_mm[0],
-            yr * p + mask.offset_y_mm + play_mm[1],
-            mask.true_distance_mm,
-        ]
-    )
-    uv = _layout(mask).uv
-    q = origin[None, :] + uv @ rot[:, :2].T
-    ray = (q[:, :2] - q[:, 2:3] * (s[:2] / sz)[None, :]) / p
+    q = _hole_centres_mm(bench, play_mm)
+    ray = _rays(q, s, sz, p)
     proj = (rot[:2, :2] - np.outer(s[:2], rot[2, :2]) / sz) / p
     proj_w = (rot[:2, 2] - s[:2] * rot[2, 2] / sz) / p
     # Sun-disk kernel by quadrature over the source (per mm of hole height).
@@ -257,6 +249,28 @@ def _spot_geometry(bench, a, b, play_mm) -> SpotGeometry:
         limb_darkening=src.limb_darkening,
         second_moment=src.second_moment(),
     )
+
+
+def _hole_centres_mm(bench, play_mm) -> np.ndarray:
+    """Centres of the holes in the detector frame, mm (n, 3): the mask's layout placed by its
+    offset, rotation, true distance and the pose's play."""
+    det: Detector = bench.detector
+    mask = bench.mask
+    p = det.pixel_pitch_mm
+    xr, yr = det.reference_px
+    origin = np.array(
+        [
+            xr * p + mask.offset_x_mm + play_mm[0],
+            yr * p + mask.offset_y_mm + play_mm[1],
+            mask.true_distance_mm,
+        ]
+    )
+    return origin[None, :] + _layout(mask).uv @ mask.rotation_matrix()[:, :2].T
+
+
+def _rays(q, s, sz, p):
+    """The geometric ray of each hole centre q (n, 3) mm for the sun vector s: px (n, 2)."""
+    return (q[:, :2] - q[:, 2:3] * (s[:2] / sz)[None, :]) / p
 
 
 def ray_positions(bench, alpha_true, beta_true, play_mm=(0.0, 0.0)):
@@ -309,8 +323,11 @@ class _Group:
         self.idx = ap.idx
         self.ray = geom.ray[self.idx]
         h = geom.height_mm[self.idx]
-        mu = geom.kernel_mu[None, :] * h[:, None]
-        self.centre = self.ray + mu - np.asarray(det.sensitive_offset_px)[None, :]
+        # the spot's centre relative to its ray: the kernel's centroid, which scales with the
+        # hole's height, minus the sensitive area's offset
+        self.shift = geom.kernel_mu[None, :] * h[:, None] - np.asarray(
+            det.sensitive_offset_px)[None, :]
+        self.centre = self.ray + self.shift
         hbar = float(np.mean(h))
         cov = geom.kernel_cov * hbar * hbar
         if np.any(cov):
@@ -406,6 +423,18 @@ class _Group:
         Yields (k, image, x0, y0, step): image[i, j] is at x = x0 + j * step, y = y0 + i * step;
         k indexes the group's holes.
         """
+        members = np.arange(len(self.idx)) if members is None else np.asarray(members, dtype=int)
+        if members.size == 0:
+            return
+        spec = self.spectrum(size, oversample, pixel, n_alias)
+        imgs, x0, y0 = spec.images(self.ray[members], self.centre[members], q_e)
+        for n, k in enumerate(members):
+            yield int(k), imgs[n], int(x0[n]), int(y0[n]), spec.step
+
+    def spectrum(self, size=None, oversample: int = 1, pixel: bool = True, n_alias: int = 1):
+        """The group's centred spectrum on a stamp's frequency grid, folded and phased by
+        :meth:`_Spectrum.images` for any spot positions (one evaluation serves every shot of a
+        pose, :func:`_pose_stamps`)."""
         size = self.stamp_size() if size is None else int(size)
         step = 1.0 / oversample
         m = size * oversample
@@ -415,26 +444,43 @@ class _Group:
         fx = (al[:, None] + fxb[None, :]).ravel()
         fy = (al[:, None] + fyb[None, :]).ravel()
         t = self.common(fx, fy, pixel=pixel, tabulated=True)
-        na = al.size
-        members = np.arange(len(self.idx)) if members is None else np.asarray(members, dtype=int)
-        if members.size == 0:
-            return
-        x0 = np.floor(self.ray[members, 0]).astype(int) - size // 2 + 1
-        y0 = np.floor(self.ray[members, 1]).astype(int) - size // 2 + 1
-        dx = self.centre[members, 0] - x0
-        dy = self.centre[members, 1] - y0
+        t4 = np.ascontiguousarray(t.reshape(al.size, m, al.size, m // 2 + 1), dtype=np.complex128)
+        return _Spectrum(t4, al, fxb, fyb, size, m, step)
+
+
+class _Spectrum(NamedTuple):
+    """A group's spectrum on a stamp grid: t4[a, i, b, j] at fy = al[a] + fyb[i],
+    fx = al[b] + fxb[j] (cycles/px), for stamps of ``size`` px sampled every ``step`` px."""
+
+    t4: np.ndarray
+    al: np.ndarray
+    fxb: np.ndarray
+    fyb: np.ndarray
+    size: int
+    m: int
+    step: float
+
+    def images(self, ray, centre, q_e):
+        """Stamps (n, m, m) of spots centred at ``centre`` (n, 2) px, each placed round its
+        ``ray`` (n, 2): (images, x0, y0), image[n, i, j] at x = x0[n] + j step, y = y0[n] + i
+        step; ``q_e`` a scalar or one value per spot."""
+        x0 = np.floor(ray[:, 0]).astype(int) - self.size // 2 + 1
+        y0 = np.floor(ray[:, 1]).astype(int) - self.size // 2 + 1
+        dx = centre[:, 0] - x0
+        dy = centre[:, 1] - y0
         # Phase of hole n at alias (a, b) and base frequency (i, j) factorises:
         # exp(-2 pi i (al_a + fy_i) dy_n) exp(-2 pi i (al_b + fx_j) dx_n).
+        al = self.al
         wy = np.exp(-2j * np.pi * al[None, :] * dy[:, None])
         wx = np.exp(-2j * np.pi * al[None, :] * dx[:, None])
-        m2 = m // 2 + 1
-        ey = np.exp(-2j * np.pi * fyb[None, :] * dy[:, None])
-        ex = np.exp(-2j * np.pi * fxb[None, :] * dx[:, None])
-        t4 = np.ascontiguousarray(t.reshape(na, m, na, m2), dtype=np.complex128)
-        acc = _kernels.fold_phase(t4, wy, wx, ey, ex)
-        imgs = np.fft.irfft2(acc, s=(m, m), axes=(-2, -1)) * (q_e / step**2)
-        for n, k in enumerate(members):
-            yield int(k), imgs[n], int(x0[n]), int(y0[n]), step
+        ey = np.exp(-2j * np.pi * self.fyb[None, :] * dy[:, None])
+        ex = np.exp(-2j * np.pi * self.fxb[None, :] * dx[:, None])
+        acc = _kernels.fold_phase(self.t4, wy, wx, ey, ex)
+        m = self.m
+        imgs = np.fft.irfft2(acc, s=(m, m), axes=(-2, -1))
+        scale = np.broadcast_to(np.asarray(q_e, dtype=float) / self.step**2, (len(x0),))
+        imgs *= scale[:, None, None]
+        return imgs, x0, y0
 
 
 class _Aperture(NamedTuple):
@@ -606,19 +652,54 @@ def spot_image(
 
 # --------------------------------------------------------------------------- frames
 def _signal_stamps(bench, alpha_true, beta_true, play_mm):
-    geom = spot_geometry(bench, alpha_true, beta_true, play_mm)
-    out = []
-    if not geom.lit:
-        return out
+    """The expected photo-electron stamps [(image, x0, y0), ...] of one frame, exact."""
+    return _pose_stamps(bench, [alpha_true], [beta_true], play_mm, (alpha_true, beta_true))[0]
+
+
+def _pose_stamps(bench, alphas, betas, play_mm, shape_angles):
+    """The stamps of several shots of one pose, the spots' shapes evaluated once.
+
+    Every shot's spots sit at their own rays (the sun vector of the shot's true angles) with the
+    flux of their own obliquity; their shape (aperture projection, sun-disk kernel, the
+    kernel's centroid offset) is that of the angles ``shape_angles``, the pose's first shot in
+    a cube. The jitter between the shots of a pose (0.0005 deg RMS on the paper's bench)
+    changes the shape by parts in 1e5; ``tests/test_sim_render.py`` bounds the difference
+    from the exact stamps. Returns one list [(image, x0, y0), ...] per shot.
+    """
+    geom = spot_geometry(bench, shape_angles[0], shape_angles[1], play_mm)
+    if not geom.lit:  # no shared shape: each shot on its own (the sun at the mask's horizon)
+        return [
+            _pose_stamps(bench, [a], [b], play_mm, (a, b))[0] if (a, b) != tuple(shape_angles)
+            else [] for a, b in zip(alphas, betas, strict=True)
+        ]
     det = bench.detector
+    n_m = bench.mask.rotation_matrix()[:, 2]
+    q = _hole_centres_mm(bench, play_mm)
+    shots = []  # (shot, rays, q_e) of the lit shots
+    for k, (a, b) in enumerate(zip(alphas, betas, strict=True)):
+        sv = sensor_sun_vector(bench.platform, float(a), float(b))
+        if sv[2] > 1e-6 and float(sv @ n_m) > 1e-6:
+            rays = _rays(q, sv, sv[2], det.pixel_pitch_mm)
+            shots.append((k, rays, geom.q_e * (sv[2] / geom.s[2])))
+    out = [[] for _ in alphas]
     for g in _groups(bench, geom):
         r = g.radius
-        x, y = g.ray[:, 0], g.ray[:, 1]
-        vis = ~((x + r < -0.5) | (y + r < -0.5) | (x - r > det.nx - 0.5) | (y - r > det.ny - 0.5))
-        members = np.flatnonzero(vis)
-        if members.size:
-            for _, img, x0, y0, _ in g.stamps(geom.q_e, members=members):
-                out.append((img, int(x0), int(y0)))
+        who, rays, shifts, q_e = [], [], [], []
+        for k, ray_all, qk in shots:
+            x, y = ray_all[g.idx, 0], ray_all[g.idx, 1]
+            vis = ~((x + r < -0.5) | (y + r < -0.5) | (x - r > det.nx - 0.5)
+                    | (y - r > det.ny - 0.5))
+            members = np.flatnonzero(vis)
+            who += [k] * members.size
+            rays.append(ray_all[g.idx[members]])
+            shifts.append(g.shift[members])
+            q_e.append(np.full(members.size, qk))
+        if not who:
+            continue
+        ray = np.concatenate(rays)
+        imgs, x0, y0 = g.spectrum().images(ray, ray + np.concatenate(shifts), np.concatenate(q_e))
+        for n, k in enumerate(who):
+            out[k].append((imgs[n], int(x0[n]), int(y0[n])))
     return out
 
 
@@ -685,7 +766,8 @@ def expected_frame(bench, alpha_true, beta_true, *, play_mm=(0.0, 0.0)):
 
 
 def render_frame(
-    bench, alpha_true, beta_true, *, seed, pose: int = 0, shot: int = 0, play_mm=None, out=None
+    bench, alpha_true, beta_true, *, seed, pose: int = 0, shot: int = 0, play_mm=None, out=None,
+    shape_angles=None,
 ) -> np.ndarray:
     """One full detector frame, uint16 (ny, nx), deterministic in (seed, pose, shot).
 
@@ -704,6 +786,12 @@ def render_frame(
         Override the mask's per-pose offset, mm.
     out : numpy.ndarray of uint16, shape (ny, nx), optional
         Write the frame here (e.g. one shot of a pose's block) instead of a new array.
+    shape_angles : (float, float), optional
+        True angles (deg) at which the spot's *shape* is evaluated; its position and flux are
+        always those of ``alpha_true``, ``beta_true`` (the default, exact). A simulated cube
+        renders every shot of a pose with the shape of the pose's first shot
+        (:func:`render_pose`), so frame (p, s) of a cube is ``render_frame(..., pose=p,
+        shot=s, shape_angles=(true_alpha[p, 0], true_beta[p, 0]))``.
 
     Returns
     -------
@@ -720,12 +808,6 @@ def render_frame(
     ('uint16', (1024, 1280), True)
     """
     det = bench.detector
-    if play_mm is None:
-        play_mm = mask_play(bench, seed, pose)
-    stamps = _signal_stamps(bench, alpha_true, beta_true, play_mm)
-    fp = fixed_pattern(det)
-    table = _table() if det.temporal_noise else np.empty(0, dtype=np.float32)
-    state = frame_key(seed, pose, shot).generate_state(1, dtype=np.uint64)
     if out is None:
         out = np.empty(det.shape, dtype=np.uint16)
     elif out.shape != det.shape or out.dtype != np.uint16 or not out.flags.c_contiguous:
@@ -733,6 +815,71 @@ def render_frame(
             f"out: found {out.dtype} {out.shape}; expected a C-contiguous uint16 array of shape "
             f"{det.shape}. Fix: pass numpy.empty({det.shape}, dtype=numpy.uint16) or omit out."
         )
+    if play_mm is None:
+        play_mm = mask_play(bench, seed, pose)
+    ref = (alpha_true, beta_true) if shape_angles is None else shape_angles
+    stamps = _pose_stamps(bench, [alpha_true], [beta_true], play_mm, ref)[0]
+    _expose(bench, stamps, seed, pose, shot, out)
+    return out
+
+
+def render_pose(bench, alpha_true, beta_true, *, seed, pose: int = 0, out=None) -> np.ndarray:
+    """Every shot of one pose, uint16 (shots, ny, nx): the frames of a simulated cube.
+
+    Shot s is ``render_frame(bench, alpha_true[s], beta_true[s], seed=seed, pose=pose, shot=s,
+    shape_angles=(alpha_true[0], beta_true[0]))``: the spots' shape is evaluated once for the
+    pose (their positions and fluxes per shot), which makes a multi-hole pose several times
+    cheaper to render than its shots one by one.
+
+    Parameters
+    ----------
+    bench : Bench
+    alpha_true, beta_true : array_like, shape (shots,)
+        True platform angles of each shot, deg.
+    seed : int or sequence of int
+    pose : int
+    out : numpy.ndarray of uint16, shape (shots, ny, nx), optional
+
+    Examples
+    --------
+    >>> from sunlab.sim import Bench
+    >>> bench = Bench.paper_single_hole()
+    >>> frames = render_pose(bench, [-5.0, -5.0004], [5.0, 5.0003], seed=1, pose=0)
+    >>> one = render_frame(bench, -5.0004, 5.0003, seed=1, pose=0, shot=1,
+    ...                    shape_angles=(-5.0, 5.0))
+    >>> frames.shape, bool((frames[1] == one).all())
+    ((2, 1024, 1280), True)
+    """
+    det = bench.detector
+    a = np.atleast_1d(np.asarray(alpha_true, dtype=float))
+    b = np.atleast_1d(np.asarray(beta_true, dtype=float))
+    if a.shape != b.shape or a.ndim != 1:
+        raise ConfigurationError(
+            f"alpha_true, beta_true: found shapes {a.shape} and {b.shape}; expected two 1-D "
+            "arrays of the same length (one angle per shot)."
+        )
+    shape = (a.size,) + det.shape
+    if out is None:
+        out = np.empty(shape, dtype=np.uint16)
+    elif out.shape != shape or out.dtype != np.uint16 or not out.flags.c_contiguous:
+        raise ConfigurationError(
+            f"out: found {out.dtype} {out.shape}; expected a C-contiguous uint16 array of shape "
+            f"{shape}. Fix: pass numpy.empty({shape}, dtype=numpy.uint16) or omit out."
+        )
+    play_mm = mask_play(bench, seed, pose)
+    per_shot = _pose_stamps(bench, a, b, play_mm, (a[0], b[0]))
+    for k, stamps in enumerate(per_shot):
+        _expose(bench, stamps, seed, pose, k, out[k])
+    return out
+
+
+def _expose(bench, stamps, seed, pose, shot, out):
+    """The ADC of a frame: the dark frame's noise and rounding everywhere, then the pixels that
+    hold spot signal (``stamps``) recomputed with their photon noise."""
+    det = bench.detector
+    fp = fixed_pattern(det)
+    table = _table() if det.temporal_noise else np.empty(0, dtype=np.float32)
+    state = frame_key(seed, pose, shot).generate_state(1, dtype=np.uint64)
     max_dn = float(det.max_dn)
     _kernels.adc_frame(fp.bg_mean_dn, fp.bg_sigma_dn, table, state, max_dn, out)
     read_var = float(det.read_noise_e**2) if det.temporal_noise else 0.0
@@ -752,4 +899,3 @@ def render_frame(
             max_dn,
             out,
         )
-    return out
