@@ -68,6 +68,8 @@ __all__ = [
 
 _TAG_FRAME = 0xF7A3E
 _TAG_PLAY = 0x91A7
+#: spots folded and transformed together (:meth:`_Spectrum.images`)
+_SPOTS_PER_FFT = 8
 _STAMP_SIZES = (32, 40, 48, 56, 64, 80, 96, 128, 160, 192, 256, 320, 384, 512, 768, 1024)
 
 
@@ -443,8 +445,8 @@ class _Group:
         al = np.arange(-n_alias, n_alias + 1) * oversample
         fx = (al[:, None] + fxb[None, :]).ravel()
         fy = (al[:, None] + fyb[None, :]).ravel()
-        t = self.common(fx, fy, pixel=pixel, tabulated=True)
-        t4 = np.ascontiguousarray(t.reshape(al.size, m, al.size, m // 2 + 1), dtype=np.complex128)
+        t = self.common(fx, fy, pixel=pixel, tabulated=True)  # real for an affine aperture
+        t4 = np.ascontiguousarray(t.reshape(al.size, m, al.size, m // 2 + 1))
         return _Spectrum(t4, al, fxb, fyb, size, m, step)
 
 
@@ -475,11 +477,16 @@ class _Spectrum(NamedTuple):
         wx = np.exp(-2j * np.pi * al[None, :] * dx[:, None])
         ey = np.exp(-2j * np.pi * self.fyb[None, :] * dy[:, None])
         ex = np.exp(-2j * np.pi * self.fxb[None, :] * dx[:, None])
-        acc = _kernels.fold_phase(self.t4, wy, wx, ey, ex)
+        fold = _kernels.fold_phase_real if self.t4.dtype == np.float64 else _kernels.fold_phase
         m = self.m
-        imgs = np.fft.irfft2(acc, s=(m, m), axes=(-2, -1))
         scale = np.broadcast_to(np.asarray(q_e, dtype=float) / self.step**2, (len(x0),))
-        imgs *= scale[:, None, None]
+        imgs = np.empty((len(x0), m, m))
+        # a few spots at a time, so that the folded spectra and their images stay in cache
+        for c in range(0, len(x0), _SPOTS_PER_FFT):
+            sl = slice(c, c + _SPOTS_PER_FFT)
+            acc = fold(self.t4, wy[sl], wx[sl], ey[sl], ex[sl])
+            imgs[sl] = np.fft.irfft2(acc, s=(m, m), axes=(-2, -1))
+            imgs[sl] *= scale[sl, None, None]
         return imgs, x0, y0
 
 
