@@ -216,3 +216,24 @@ def test_render_pose_is_render_frame_with_the_pose_shape():
     assert np.abs(diff).max() <= 1 and np.count_nonzero(diff) < 100  # rounding flips only
     with pytest.raises(ConfigurationError, match="alpha_true, beta_true: found shapes"):
         render.render_pose(bench, a, b[:2], seed=3)
+
+
+def test_signal_map_is_the_full_frame_sum_over_each_stamp():
+    # overlapping stamps are summed over their connected bounding box only; every region must
+    # equal the full-frame sum of all stamps over it, clipped to the detector, in stamp order
+    from sunlab.sim.detector import Detector
+
+    det = Detector(nx=200, ny=150)
+    rng = np.random.default_rng(1)
+    for _ in range(100):
+        stamps = [(rng.normal(size=(s, s)), int(rng.integers(-30, 200)),
+                   int(rng.integers(-30, 150))) for s in rng.integers(5, 40, rng.integers(1, 12))]
+        full = np.zeros(det.shape)
+        kept = [c for c in (render._clip_region(i, x, y, det) for i, x, y in stamps) if c]
+        for p, x, y in kept:
+            full[y : y + p.shape[0], x : x + p.shape[1]] += p
+        got = render._signal_map(stamps, det)
+        assert [(x, y) for _, x, y in got] == [(x, y) for _, x, y in kept]
+        for (p, x, y), (q, _, _) in zip(got, kept, strict=True):
+            assert p.shape == q.shape
+            np.testing.assert_array_equal(p, full[y : y + p.shape[0], x : x + p.shape[1]])

@@ -133,34 +133,43 @@ def adc_region(
 
     Mean electrons = gain * signal + dark; variance = mean + read noise^2 (photon and dark shot
     noise in the Gaussian limit); saturation at the full well; rounding and clipping to the ADC.
-    Noise as in :func:`adc_frame`, continuing the same stream.
+    Noise as in :func:`adc_frame`, continuing the same stream: the region's pixels, row-major,
+    take four deviates per SplitMix64 output, and the state advances one step per four pixels
+    (rounded up). The deviates are drawn first (the counter-based words need no carried state),
+    then the pixels are computed along rows.
     """
     ny, nx = signal_e.shape
+    n = ny * nx
     noisy = table.shape[0] > 0
-    r = np.uint64(0)
-    left = 0
+    z = np.zeros(n if noisy else 0, dtype=np.float32)
+    if noisy:
+        s0 = state[0]
+        low = np.uint64(0xFFFF)
+        n4 = n // 4
+        for b in range(n4):
+            r = _mix64(s0 + np.uint64(b + 1) * _GOLDEN)
+            for q in range(4):
+                z[4 * b + q] = table[(r >> np.uint64(16 * q)) & low]
+        steps = n4
+        if n > 4 * n4:
+            steps += 1
+            r = _mix64(s0 + np.uint64(steps) * _GOLDEN)
+            for k in range(4 * n4, n):
+                z[k] = table[r & low]
+                r = r >> np.uint64(16)
+        state[0] = s0 + np.uint64(steps) * _GOLDEN
     for i in range(ny):
+        yy = y0 + i
         for j in range(nx):
-            yy = y0 + i
             xx = x0 + j
             e = gain[yy, xx] * signal_e[i, j] + dark_e[yy, xx]
             if e < 0.0:
                 e = 0.0
             if noisy:
-                if left == 0:
-                    r = _splitmix64(state)
-                    left = 4
-                e += math.sqrt(e + read_var_e) * table[r & np.uint64(0xFFFF)]
-                r = r >> np.uint64(16)
-                left -= 1
+                e += math.sqrt(e + read_var_e) * z[i * nx + j]
             if e > full_well_e:
                 e = full_well_e
-            v = math.floor(offset_dn[yy, xx] + e * inv_gain + 0.5)
-            if v < 0.0:
-                v = 0.0
-            elif v > max_dn:
-                v = max_dn
-            out[yy, xx] = np.uint16(v)
+            out[yy, xx] = _to_dn(offset_dn[yy, xx] + e * inv_gain, max_dn)
 
 
 def normal_table() -> np.ndarray:

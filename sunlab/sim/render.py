@@ -720,22 +720,36 @@ def _clip_region(img, x0, y0, det: Detector):
 
 
 def _signal_map(stamps, det: Detector):
-    """Accumulate stamps into (regions, full-frame signal) handling overlaps."""
-    regions = []
-    sig = None
-    for img, x0, y0 in stamps:
-        c = _clip_region(img, x0, y0, det)
-        if c is None:
+    """The regions [(signal, xa, ya), ...] of the stamps clipped to the detector, in their order;
+    where stamps overlap, each region holds the sum of all stamps over it."""
+    regions = [c for c in (_clip_region(img, x0, y0, det) for img, x0, y0 in stamps)
+               if c is not None]
+    if len(regions) < 2:
+        return regions
+    box = np.array([(xa, ya, xa + p.shape[1], ya + p.shape[0]) for p, xa, ya in regions])
+    meet = ((box[:, None, 0] < box[None, :, 2]) & (box[None, :, 0] < box[:, None, 2])
+            & (box[:, None, 1] < box[None, :, 3]) & (box[None, :, 1] < box[:, None, 3]))
+    if np.count_nonzero(meet) == len(regions):  # each meets only itself
+        return regions
+    from scipy.sparse.csgraph import connected_components
+
+    _, label = connected_components(meet, directed=False)
+    out = list(regions)
+    for c in np.unique(label):
+        members = np.flatnonzero(label == c)
+        if members.size == 1:
             continue
-        regions.append(c)
-    if len(regions) > 1:
-        sig = np.zeros(det.shape, dtype=np.float64)
-        for part, xa, ya in regions:
-            sig[ya : ya + part.shape[0], xa : xa + part.shape[1]] += part
-        regions = [
-            (sig[ya : ya + p.shape[0], xa : xa + p.shape[1]], xa, ya) for p, xa, ya in regions
-        ]
-    return regions
+        xa, ya = box[members, 0].min(), box[members, 1].min()
+        sig = np.zeros((box[members, 3].max() - ya, box[members, 2].max() - xa))
+        views = []
+        for k in members:  # summed in the stamps' order
+            p, x, y = regions[k]
+            v = sig[y - ya : y - ya + p.shape[0], x - xa : x - xa + p.shape[1]]
+            v += p
+            views.append((k, v, x, y))
+        for k, v, x, y in views:
+            out[k] = (v, x, y)
+    return out
 
 
 @functools.lru_cache(maxsize=1)
