@@ -61,12 +61,19 @@ def timings(repeat: int = 20) -> None:
     s100 = _time(
         lambda i: sim.render_frame(multi, -7.0, 6.0, seed=0, pose=0, shot=i), max(3, repeat // 4)
     )
+    # a cube's pose: 8 shots with the paper's jitter, sharing the spots' shape (per frame)
+    jit = 0.0005 * np.random.default_rng(1).standard_normal((2, 8))
+    p1 = _time(lambda i: sim.render_pose(single, -7.0 + jit[0], 6.0 + jit[1], seed=i), repeat // 4)
+    p100 = _time(lambda i: sim.render_pose(multi, -7.0 + jit[0], 6.0 + jit[1], seed=i), 3)
+    p1, p100 = (tuple(v / 8 for v in t) for t in (p1, p100))
     print("virtual bench: ms per full 1280 x 1024 frame, one core (median / best)")
     print(f"{'':34s}{'wall':>16s}{'cpu':>16s}{'cpu / noise':>14s}")
     for name, t in (
         ("numpy float32 Gaussian noise frame", noise),
         ("render_frame, 1 hole", s1),
         ("render_frame, 100 holes", s100),
+        ("render_pose / 8 shots, 1 hole", p1),
+        ("render_pose / 8 shots, 100 holes", p100),
     ):
         print(f"{name:34s}{t[0]:8.1f} /{t[1]:6.1f}{t[2]:8.1f} /{t[3]:6.1f}{t[2] / noise[2]:14.2f}")
     verdict = "meets" if s1[3] <= 15.0 else "misses"
@@ -75,7 +82,7 @@ def timings(repeat: int = 20) -> None:
 
 def budget(n: int = 120) -> None:
     from sunlab import sim
-    from sunlab.sim import render
+    from sunlab.sim import frame as simframe
 
     def run(bench):
         rng = np.random.default_rng(1)
@@ -84,7 +91,7 @@ def budget(n: int = 120) -> None:
         for _ in range(n):
             a, be = rng.uniform(-16.5, 1.5), rng.uniform(-1.5, 16.5)
             tx, ty = sim.spot_truth(b, a, be)
-            mean, _ = render.expected_frame(b, a, be)
+            mean, _ = simframe.expected_frame(b, a, be)
             x0, y0 = int(round(tx[0])) - 30, int(round(ty[0])) - 30
             w = mean[y0 : y0 + 61, x0 : x0 + 61].astype(float)
             edge = np.concatenate(

@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from sunlab import ConfigurationError
-from sunlab.sim import Bench, Detector, Hole, fixed_pattern, render
+from sunlab.sim import Bench, Detector, Hole, fixed_pattern
+from sunlab.sim import frame as simframe
 
 
 @pytest.fixture(scope="module")
@@ -22,9 +23,9 @@ def small():
 def test_pixel_mean_and_variance_follow_the_model(small):
     n = 400
     frames = np.stack(
-        [render.render_frame(small, 0.0, 0.0, seed=11, pose=0, shot=s) for s in range(n)]
+        [simframe.render_frame(small, 0.0, 0.0, seed=11, pose=0, shot=s) for s in range(n)]
     ).astype(float)
-    mean, var = render.expected_frame(small, 0.0, 0.0)
+    mean, var = simframe.expected_frame(small, 0.0, 0.0)
     ok = mean < small.detector.max_dn - 10  # away from saturation
     m = frames.mean(axis=0)
     v = frames.var(axis=0, ddof=1)
@@ -68,18 +69,19 @@ def test_correlated_prnu_has_its_correlation_length():
 
 def test_noise_free_frames_are_the_rounded_expectation(small):
     b = small.noise_free()
-    f = render.render_frame(b, -0.5, 0.3, seed=0)
-    mean, var = render.expected_frame(b, -0.5, 0.3)
+    f = simframe.render_frame(b, -0.5, 0.3, seed=0)
+    mean, var = simframe.expected_frame(b, -0.5, 0.3)
     assert np.all(var == 0)
     assert np.array_equal(f, np.clip(np.floor(mean + 0.5), 0, 1023).astype(np.uint16))
 
 
 def test_saturation_and_quantisation(small):
     bright = small.replace(source__fluence_photons_per_um2=5000.0)
-    f = render.render_frame(bright, 0.0, 0.0, seed=1)
+    f = simframe.render_frame(bright, 0.0, 0.0, seed=1)
     assert f.dtype == np.uint16 and f.max() == 1023
     assert np.sum(f == 1023) > 300  # the whole plateau clips
-    dark = render.render_frame(small.replace(source__fluence_photons_per_um2=0.0), 0.0, 0.0, seed=1)
+    dark = simframe.render_frame(small.replace(source__fluence_photons_per_um2=0.0), 0.0, 0.0,
+                                 seed=1)
     assert 30 < np.median(dark) < 60  # background of a few tens of DN
 
 

@@ -9,6 +9,7 @@ from numpy.testing import assert_allclose
 from sunlab.errors import ConfigurationError
 from sunlab.geometry import ideal_centroid
 from sunlab.sim import Bench, Burred, Dust, Hole, Mask, render
+from sunlab.sim import frame as simframe
 
 P = 0.007  # pixel pitch, mm
 F = 5.0  # nominal mask distance, mm
@@ -42,9 +43,9 @@ def test_rendered_spot_centroid_matches_eq1(ideal, alpha, beta):
     # A high-SNR frame (shot, dark and read noise on; fixed patterns off, so the background is
     # known): its background-subtracted centroid sits at F (tan a, tan b / cos a) within 0.01 px.
     bench = ideal.replace(detector__fixed_pattern=False)
-    frame = render.render_frame(bench, alpha, beta, seed=5, pose=1, shot=2)
+    frame = simframe.render_frame(bench, alpha, beta, seed=5, pose=1, shot=2)
     xi, yi = ideal_centroid(alpha, beta, F, P, 639.5, 511.5)
-    mean_bg, _ = render.expected_frame(
+    mean_bg, _ = simframe.expected_frame(
         bench.replace(source__fluence_photons_per_um2=0.0), alpha, beta
     )
     xc, yc = _window_centroid(frame, xi, yi, mean_bg)
@@ -166,14 +167,14 @@ def test_render_into_out_is_the_same_frame():
     # a pose's block is rendered shot by shot in place; the frame must not depend on where it
     # is written, and a wrong buffer names the field and the fix
     bench = Bench.paper_single_hole()
-    new = render.render_frame(bench, 3.0, -2.0, seed=4, pose=2, shot=1)
+    new = simframe.render_frame(bench, 3.0, -2.0, seed=4, pose=2, shot=1)
     block = np.zeros((2,) + bench.detector.shape, dtype=np.uint16)
-    got = render.render_frame(bench, 3.0, -2.0, seed=4, pose=2, shot=1, out=block[1])
+    got = simframe.render_frame(bench, 3.0, -2.0, seed=4, pose=2, shot=1, out=block[1])
     assert np.shares_memory(got, block[1])
     np.testing.assert_array_equal(block[1], new)
     assert not block[0].any()
     with pytest.raises(ConfigurationError, match="out: found float32"):
-        render.render_frame(bench, 3.0, -2.0, seed=4, out=np.empty(bench.detector.shape,
+        simframe.render_frame(bench, 3.0, -2.0, seed=4, out=np.empty(bench.detector.shape,
                                                                     dtype=np.float32))
 
 
@@ -187,8 +188,8 @@ def test_pose_shared_shape_is_within_its_bound(bench):
     # centroids by under 1e-4 px, far below one photo-electron and the 0.001 px of the truth.
     d = 0.002
     for a, b in [(-12.0, 7.3), (9.0, -11.0), (0.3, 0.2)]:
-        exact = render._signal_stamps(bench, a + d, b - d, (0.0, 0.0))
-        shared = render._pose_stamps(bench, [a, a + d], [b, b - d], (0.0, 0.0), (a, b))
+        exact = simframe._signal_stamps(bench, a + d, b - d, (0.0, 0.0))
+        shared = simframe._pose_stamps(bench, [a, a + d], [b, b - d], (0.0, 0.0), (a, b))
         assert [(x, y) for _, x, y in shared[1]] == [(x, y) for _, x, y in exact]
         for (i1, _, _), (i2, _, _) in zip(exact, shared[1], strict=True):
             assert np.abs(i1 - i2).max() < 1e-4 * i1.max()
@@ -198,7 +199,7 @@ def test_pose_shared_shape_is_within_its_bound(bench):
             assert np.abs(c1 - c2).max() < 1e-4
             assert abs(i2.sum() / i1.sum() - 1) < 1e-5
         # the first shot is the exact frame's: its shape is its own
-        for (i1, x1, y1), (i0, x0, y0) in zip(render._signal_stamps(bench, a, b, (0.0, 0.0)),
+        for (i1, x1, y1), (i0, x0, y0) in zip(simframe._signal_stamps(bench, a, b, (0.0, 0.0)),
                                               shared[0], strict=True):
             assert (x1, y1) == (x0, y0) and np.array_equal(i1, i0)
 
@@ -206,16 +207,16 @@ def test_pose_shared_shape_is_within_its_bound(bench):
 def test_render_pose_is_render_frame_with_the_pose_shape():
     bench = Bench.paper_multi_hole()
     a, b = np.array([-5.0, -5.0007, -4.9996]), np.array([5.0, 5.0002, 4.9991])
-    frames = render.render_pose(bench, a, b, seed=3, pose=4)
+    frames = simframe.render_pose(bench, a, b, seed=3, pose=4)
     for s in range(3):
-        one = render.render_frame(bench, a[s], b[s], seed=3, pose=4, shot=s,
+        one = simframe.render_frame(bench, a[s], b[s], seed=3, pose=4, shot=s,
                                   shape_angles=(a[0], b[0]))
         np.testing.assert_array_equal(frames[s], one)
-    exact = render.render_frame(bench, a[1], b[1], seed=3, pose=4, shot=1)
+    exact = simframe.render_frame(bench, a[1], b[1], seed=3, pose=4, shot=1)
     diff = frames[1].astype(int) - exact
     assert np.abs(diff).max() <= 1 and np.count_nonzero(diff) < 100  # rounding flips only
     with pytest.raises(ConfigurationError, match="alpha_true, beta_true: found shapes"):
-        render.render_pose(bench, a, b[:2], seed=3)
+        simframe.render_pose(bench, a, b[:2], seed=3)
 
 
 def test_signal_map_is_the_full_frame_sum_over_each_stamp():
@@ -229,10 +230,10 @@ def test_signal_map_is_the_full_frame_sum_over_each_stamp():
         stamps = [(rng.normal(size=(s, s)), int(rng.integers(-30, 200)),
                    int(rng.integers(-30, 150))) for s in rng.integers(5, 40, rng.integers(1, 12))]
         full = np.zeros(det.shape)
-        kept = [c for c in (render._clip_region(i, x, y, det) for i, x, y in stamps) if c]
+        kept = [c for c in (simframe._clip_region(i, x, y, det) for i, x, y in stamps) if c]
         for p, x, y in kept:
             full[y : y + p.shape[0], x : x + p.shape[1]] += p
-        got = render._signal_map(stamps, det)
+        got = simframe._signal_map(stamps, det)
         assert [(x, y) for _, x, y in got] == [(x, y) for _, x, y in kept]
         for (p, x, y), (q, _, _) in zip(got, kept, strict=True):
             assert p.shape == q.shape

@@ -97,6 +97,14 @@ def profiles(frame):
     return col, row
 
 
+@njit(cache=True, nogil=True)
+def robust_level(p):
+    """Median of a profile and 1.4826 x its median absolute deviation (numpy.median's values,
+    without its Python-level overhead: two of them per profile, two profiles per frame)."""
+    med = np.median(p)
+    return med, 1.4826 * np.median(np.abs(p - med))
+
+
 @njit(cache=True, nogil=True, fastmath=_FM)
 def com_box(frame, r0, r1, c0, c1, bkg):
     """Centre of mass of (I - bkg) over frame[r0:r1, c0:c1]; returns (sum, x, y, max I)."""

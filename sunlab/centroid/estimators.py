@@ -177,8 +177,8 @@ def _roi_centroid(arr, roi, roi_border, saturation, clipped, ambiguous) -> Centr
 # Algorithm B
 # ------------------------------------------------------------------------------------------------
 def _robust_level(p: np.ndarray) -> tuple[float, float]:
-    med = float(np.median(p))
-    return med, 1.4826 * float(np.median(np.abs(p - med)))
+    med, noise = _k_windows.robust_level(p)
+    return float(med), float(noise)
 
 
 def _zones(p, base, sigma, nsigma, edge_sigma, min_width):

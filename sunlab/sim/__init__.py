@@ -25,16 +25,14 @@ Examples
 from .bench import Bench, plan_key, platform_pose, simulate
 from .centroids import HoleLayout, synthetic_centroids
 from .detector import Detector, FixedPattern, fixed_pattern
+from .frame import expected_frame, render_frame, render_pose
 from .mask import DEFECT_FLAGS, Burred, Dust, Elliptical, Hole, Mask, Undersized
 from .platform import Platform, sensor_sun_vector
 from .render import (
     SpotGeometry,
-    expected_frame,
     frame_key,
     mask_play,
     ray_positions,
-    render_frame,
-    render_pose,
     spot_geometry,
     spot_image,
     spot_truth,

@@ -39,9 +39,10 @@ import numpy as np
 
 from ..errors import ConfigurationError
 from .detector import Detector
+from .frame import render_frame, render_pose
 from .mask import PAPER_DISTANCE_MM, PAPER_TRACK_CENTRE_MM, Mask
 from .platform import Platform
-from .render import _entropy, _truth, mask_play, render_frame, render_pose, spot_geometry
+from .render import _entropy, _truth, mask_play, spot_geometry
 from .source import Source
 
 __all__ = ["Bench", "platform_pose", "homing_offset", "simulate", "plan_key"]
@@ -438,10 +439,8 @@ def simulate(plan, bench: Bench | None = None, seed=0, chunks: str = "frame"):
 
     Frames are rendered on demand, one chunk per frame, deterministically from
     (seed, plan, pose, shot); the cube's ``sim_key`` attribute is the seed entropy actually used
-    (``[seed, plan_key(plan)]``), so ``render_frame(bench, true_alpha, true_beta,
-    seed=cube.attrs["sim_key"], pose=p, shot=s, shape_angles=(true_alpha[p, 0],
-    true_beta[p, 0]))`` reproduces frame (p, s) (:func:`render_pose`: the shots of a pose share
-    the spots' shape).
+    (``[seed, plan_key(plan)]``): ``render_pose(bench, true_alpha[p], true_beta[p],
+    seed=cube.attrs["sim_key"], pose=p)`` reproduces the frames of pose p.
 
     Parameters
     ----------

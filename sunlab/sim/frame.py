@@ -1,0 +1,299 @@
+"""Frames: the expected spot stamps of a frame exposed on the detector, with its noise and ADC.
+
+A frame is the sensor's dark frame (bias, column pattern, dark signal and its non-uniformity,
+read and dark shot noise, rounding: :mod:`sunlab.sim.detector`) with the pixels under the spots
+recomputed from their expected photo-electrons (:mod:`sunlab.sim.render`) times the pixels'
+response, with photon noise, saturation at the full well and the ADC's rounding and clipping.
+Every frame is deterministic in (seed, pose, shot): its noise is a counter-based stream keyed by
+:func:`sunlab.sim.render.frame_key`.
+
+The shots of one pose share the spots' shape (:func:`render_pose`): the aperture's projection
+and the sun-disk kernel are evaluated once per pose, at its first shot, and each shot places the
+spots at its own rays with its own flux. The platform's jitter between shots (0.0005 deg RMS)
+changes the shape by parts in 1e5, below one photo-electron (``tests/test_sim_render.py``).
+
+Examples
+--------
+>>> from sunlab.sim import Bench
+>>> f = render_frame(Bench.paper_single_hole(), -5.0, 5.0, seed=1)
+>>> f.dtype.name, f.shape
+('uint16', (1024, 1280))
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+
+from ..errors import ConfigurationError
+from . import _kernels
+from .detector import Detector, fixed_pattern
+from .platform import sensor_sun_vector
+from .render import _groups, _hole_centres_mm, _rays, frame_key, mask_play, spot_geometry
+
+__all__ = ["render_frame", "render_pose", "expected_frame"]
+
+
+def _signal_stamps(bench, alpha_true, beta_true, play_mm):
+    """The expected photo-electron stamps [(image, x0, y0), ...] of one frame, exact."""
+    return _pose_stamps(bench, [alpha_true], [beta_true], play_mm, (alpha_true, beta_true))[0]
+
+
+def _pose_stamps(bench, alphas, betas, play_mm, shape_angles):
+    """The stamps of several shots of one pose, the spots' shapes evaluated once.
+
+    Every shot's spots sit at their own rays (the sun vector of the shot's true angles) with the
+    flux of their own obliquity; their shape (aperture projection, sun-disk kernel, the
+    kernel's centroid offset) is that of the angles ``shape_angles``, the pose's first shot in
+    a cube. The jitter between the shots of a pose (0.0005 deg RMS on the paper's bench)
+    changes the shape by parts in 1e5; ``tests/test_sim_render.py`` bounds the difference
+    from the exact stamps. Returns one list [(image, x0, y0), ...] per shot.
+    """
+    geom = spot_geometry(bench, shape_angles[0], shape_angles[1], play_mm)
+    if not geom.lit:  # no shared shape: each shot on its own (the sun at the mask's horizon)
+        return [
+            _pose_stamps(bench, [a], [b], play_mm, (a, b))[0] if (a, b) != tuple(shape_angles)
+            else [] for a, b in zip(alphas, betas, strict=True)
+        ]
+    det = bench.detector
+    n_m = bench.mask.rotation_matrix()[:, 2]
+    q = _hole_centres_mm(bench, play_mm)
+    shots = []  # (shot, rays, q_e) of the lit shots
+    for k, (a, b) in enumerate(zip(alphas, betas, strict=True)):
+        sv = sensor_sun_vector(bench.platform, float(a), float(b))
+        if sv[2] > 1e-6 and float(sv @ n_m) > 1e-6:
+            rays = _rays(q, sv, sv[2], det.pixel_pitch_mm)
+            shots.append((k, rays, geom.q_e * (sv[2] / geom.s[2])))
+    out = [[] for _ in alphas]
+    for g in _groups(bench, geom):
+        r = g.radius
+        who, rays, shifts, q_e = [], [], [], []
+        for k, ray_all, qk in shots:
+            x, y = ray_all[g.idx, 0], ray_all[g.idx, 1]
+            vis = ~((x + r < -0.5) | (y + r < -0.5) | (x - r > det.nx - 0.5)
+                    | (y - r > det.ny - 0.5))
+            members = np.flatnonzero(vis)
+            who += [k] * members.size
+            rays.append(ray_all[g.idx[members]])
+            shifts.append(g.shift[members])
+            q_e.append(np.full(members.size, qk))
+        if not who:
+            continue
+        ray = np.concatenate(rays)
+        imgs, x0, y0 = g.spectrum().images(ray, ray + np.concatenate(shifts), np.concatenate(q_e))
+        for n, k in enumerate(who):
+            out[k].append((imgs[n], int(x0[n]), int(y0[n])))
+    return out
+
+
+def _clip_region(img, x0, y0, det: Detector):
+    n_y, n_x = img.shape
+    xa, ya = max(x0, 0), max(y0, 0)
+    xb, yb = min(x0 + n_x, det.nx), min(y0 + n_y, det.ny)
+    if xa >= xb or ya >= yb:
+        return None
+    return img[ya - y0 : yb - y0, xa - x0 : xb - x0], xa, ya
+
+
+def _signal_map(stamps, det: Detector):
+    """The regions [(signal, xa, ya), ...] of the stamps clipped to the detector, in their order;
+    where stamps overlap, each region holds the sum of all stamps over it."""
+    regions = [c for c in (_clip_region(img, x0, y0, det) for img, x0, y0 in stamps)
+               if c is not None]
+    if len(regions) < 2:
+        return regions
+    box = np.array([(xa, ya, xa + p.shape[1], ya + p.shape[0]) for p, xa, ya in regions])
+    meet = ((box[:, None, 0] < box[None, :, 2]) & (box[None, :, 0] < box[:, None, 2])
+            & (box[:, None, 1] < box[None, :, 3]) & (box[None, :, 1] < box[:, None, 3]))
+    if np.count_nonzero(meet) == len(regions):  # each meets only itself
+        return regions
+    from scipy.sparse.csgraph import connected_components
+
+    _, label = connected_components(meet, directed=False)
+    out = list(regions)
+    for c in np.unique(label):
+        members = np.flatnonzero(label == c)
+        if members.size == 1:
+            continue
+        xa, ya = box[members, 0].min(), box[members, 1].min()
+        sig = np.zeros((box[members, 3].max() - ya, box[members, 2].max() - xa))
+        views = []
+        for k in members:  # summed in the stamps' order
+            p, x, y = regions[k]
+            v = sig[y - ya : y - ya + p.shape[0], x - xa : x - xa + p.shape[1]]
+            v += p
+            views.append((k, v, x, y))
+        for k, v, x, y in views:
+            out[k] = (v, x, y)
+    return out
+
+
+@functools.lru_cache(maxsize=1)
+def _table():
+    t = _kernels.normal_table()
+    t.setflags(write=False)
+    return t
+
+
+def expected_frame(bench, alpha_true, beta_true, *, play_mm=(0.0, 0.0)):
+    """The model's mean (DN, before rounding) and variance (DN^2) of every pixel of a frame.
+
+    The mean is bias + column pattern + (dark + PRNU x signal) / gain; the variance is
+    (dark + PRNU x signal + read noise^2) / gain^2 (without the 1/12 DN^2 of rounding and without
+    clipping). For testing the noise model and for teaching.
+
+    Examples
+    --------
+    >>> from sunlab.sim import Bench
+    >>> mean, var = expected_frame(Bench.paper_single_hole(), 0.0, 0.0)
+    >>> mean.shape, bool(mean.max() > 300)
+    ((1024, 1280), True)
+    """
+    det = bench.detector
+    fp = fixed_pattern(det)
+    g = det.gain_e_per_dn
+    e = fp.dark_e.astype(np.float64).copy()
+    for part, xa, ya in _signal_map(_signal_stamps(bench, alpha_true, beta_true, play_mm), det):
+        sl = (slice(ya, ya + part.shape[0]), slice(xa, xa + part.shape[1]))
+        e[sl] = fp.dark_e[sl] + fp.gain[sl] * part
+    e = np.clip(e, 0, None)
+    mean = fp.offset_dn + e / g
+    var = (e + det.read_noise_e**2) / g**2 if det.temporal_noise else np.zeros_like(mean)
+    return mean, var
+
+
+def render_frame(
+    bench, alpha_true, beta_true, *, seed, pose: int = 0, shot: int = 0, play_mm=None, out=None,
+    shape_angles=None,
+) -> np.ndarray:
+    """One full detector frame, uint16 (ny, nx), deterministic in (seed, pose, shot).
+
+    Parameters
+    ----------
+    bench : Bench
+        The virtual bench.
+    alpha_true, beta_true : float
+        True platform angles (see :func:`sunlab.sim.platform_pose`), deg.
+    seed : int or sequence of int
+        Seed of the experiment.
+    pose, shot : int
+        Indices of the frame: the noise stream is derived from (seed, pose, shot); a loosely held
+        mask's offset from (seed, pose).
+    play_mm : (float, float), optional
+        Override the mask's per-pose offset, mm.
+    out : numpy.ndarray of uint16, shape (ny, nx), optional
+        Write the frame here (e.g. one shot of a pose's block) instead of a new array.
+    shape_angles : (float, float), optional
+        True angles (deg) at which the spot's *shape* is evaluated; its position and flux are
+        always those of ``alpha_true``, ``beta_true`` (the default, exact). A simulated cube
+        renders every shot of a pose with the shape of the pose's first shot
+        (:func:`render_pose`), so frame (p, s) of a cube is ``render_frame(..., pose=p,
+        shot=s, shape_angles=(true_alpha[p, 0], true_beta[p, 0]))``.
+
+    Returns
+    -------
+    numpy.ndarray of uint16, shape (ny, nx)
+        ``out`` when given.
+
+    Examples
+    --------
+    >>> from sunlab.sim import Bench
+    >>> bench = Bench.paper_single_hole()
+    >>> f1 = render_frame(bench, -5.0, 5.0, seed=1, pose=0, shot=0)
+    >>> f2 = render_frame(bench, -5.0, 5.0, seed=1, pose=0, shot=0)
+    >>> f1.dtype.name, f1.shape, bool((f1 == f2).all())
+    ('uint16', (1024, 1280), True)
+    """
+    det = bench.detector
+    if out is None:
+        out = np.empty(det.shape, dtype=np.uint16)
+    elif out.shape != det.shape or out.dtype != np.uint16 or not out.flags.c_contiguous:
+        raise ConfigurationError(
+            f"out: found {out.dtype} {out.shape}; expected a C-contiguous uint16 array of shape "
+            f"{det.shape}. Fix: pass numpy.empty({det.shape}, dtype=numpy.uint16) or omit out."
+        )
+    if play_mm is None:
+        play_mm = mask_play(bench, seed, pose)
+    ref = (alpha_true, beta_true) if shape_angles is None else shape_angles
+    stamps = _pose_stamps(bench, [alpha_true], [beta_true], play_mm, ref)[0]
+    _expose(bench, stamps, seed, pose, shot, out)
+    return out
+
+
+def render_pose(bench, alpha_true, beta_true, *, seed, pose: int = 0, out=None) -> np.ndarray:
+    """Every shot of one pose, uint16 (shots, ny, nx): the frames of a simulated cube.
+
+    Shot s is ``render_frame(bench, alpha_true[s], beta_true[s], seed=seed, pose=pose, shot=s,
+    shape_angles=(alpha_true[0], beta_true[0]))``: the spots' shape is evaluated once for the
+    pose (their positions and fluxes per shot), which makes a multi-hole pose several times
+    cheaper to render than its shots one by one.
+
+    Parameters
+    ----------
+    bench : Bench
+    alpha_true, beta_true : array_like, shape (shots,)
+        True platform angles of each shot, deg.
+    seed : int or sequence of int
+    pose : int
+    out : numpy.ndarray of uint16, shape (shots, ny, nx), optional
+
+    Examples
+    --------
+    >>> from sunlab.sim import Bench
+    >>> bench = Bench.paper_single_hole()
+    >>> frames = render_pose(bench, [-5.0, -5.0004], [5.0, 5.0003], seed=1, pose=0)
+    >>> one = render_frame(bench, -5.0004, 5.0003, seed=1, pose=0, shot=1,
+    ...                    shape_angles=(-5.0, 5.0))
+    >>> frames.shape, bool((frames[1] == one).all())
+    ((2, 1024, 1280), True)
+    """
+    det = bench.detector
+    a = np.atleast_1d(np.asarray(alpha_true, dtype=float))
+    b = np.atleast_1d(np.asarray(beta_true, dtype=float))
+    if a.shape != b.shape or a.ndim != 1:
+        raise ConfigurationError(
+            f"alpha_true, beta_true: found shapes {a.shape} and {b.shape}; expected two 1-D "
+            "arrays of the same length (one angle per shot)."
+        )
+    shape = (a.size,) + det.shape
+    if out is None:
+        out = np.empty(shape, dtype=np.uint16)
+    elif out.shape != shape or out.dtype != np.uint16 or not out.flags.c_contiguous:
+        raise ConfigurationError(
+            f"out: found {out.dtype} {out.shape}; expected a C-contiguous uint16 array of shape "
+            f"{shape}. Fix: pass numpy.empty({shape}, dtype=numpy.uint16) or omit out."
+        )
+    play_mm = mask_play(bench, seed, pose)
+    per_shot = _pose_stamps(bench, a, b, play_mm, (a[0], b[0]))
+    for k, stamps in enumerate(per_shot):
+        _expose(bench, stamps, seed, pose, k, out[k])
+    return out
+
+
+def _expose(bench, stamps, seed, pose, shot, out):
+    """The ADC of a frame: the dark frame's noise and rounding everywhere, then the pixels that
+    hold spot signal (``stamps``) recomputed with their photon noise."""
+    det = bench.detector
+    fp = fixed_pattern(det)
+    table = _table() if det.temporal_noise else np.empty(0, dtype=np.float32)
+    state = frame_key(seed, pose, shot).generate_state(1, dtype=np.uint64)
+    max_dn = float(det.max_dn)
+    _kernels.adc_frame(fp.bg_mean_dn, fp.bg_sigma_dn, table, state, max_dn, out)
+    read_var = float(det.read_noise_e**2) if det.temporal_noise else 0.0
+    for part, xa, ya in _signal_map(stamps, det):
+        _kernels.adc_region(
+            ya,
+            xa,
+            np.ascontiguousarray(part, dtype=np.float64),
+            fp.gain,
+            fp.dark_e,
+            fp.offset_dn,
+            table,
+            state,
+            read_var,
+            1.0 / det.gain_e_per_dn,
+            float(det.full_well_e),
+            max_dn,
+            out,
+        )
