@@ -433,7 +433,7 @@ class _Group:
     def spectrum(self, size=None, oversample: int = 1, pixel: bool = True, n_alias: int = 1):
         """The group's centred spectrum on a stamp's frequency grid, folded and phased by
         :meth:`_Spectrum.images` for any spot positions (one evaluation serves every shot of a
-        pose, :func:`_pose_stamps`)."""
+        pose, :func:`sunlab.sim.frame.render_pose`)."""
         size = self.stamp_size() if size is None else int(size)
         step = 1.0 / oversample
         m = size * oversample
