@@ -9,6 +9,7 @@ import math
 
 import numba
 import numpy as np
+from numba.extending import overload
 
 __all__ = [
     "adc_frame",
@@ -18,7 +19,6 @@ __all__ = [
     "clip_convex",
     "real_spectrum",
     "fold_phase",
-    "fold_phase_real",
     "disk_ft_table",
     "real_spectrum_tabulated",
 ]
@@ -379,8 +379,9 @@ def fold_phase(t4, wy, wx, ey, ex):
 
     acc[n, i, j] = ey[n, i] ex[n, j] sum_a wy[n, a] sum_b t4[a, i, b, j] wx[n, b]
 
-    ``t4`` complex (a polygon's spectrum; a real one goes to :func:`fold_phase_real`). The
-    loops run along j, the contiguous axis of ``t4``.
+    ``t4`` complex (a polygon's spectrum) or real (an affine aperture's: compiled apart, half
+    the arithmetic, the same sums term by term, a real t times w being what the complex
+    product computes for t + 0i). The loops run along j, the contiguous axis of ``t4``.
     """
     na, m, _, m2 = t4.shape
     n = wy.shape[0]
@@ -397,47 +398,40 @@ def fold_phase(t4, wy, wx, ey, ex):
                 rr[:] = 0.0
                 ri[:] = 0.0
                 for b in range(na):
-                    wr = wx[q, b].real
-                    wi = wx[q, b].imag
-                    for j in range(m2):
-                        tr = t4[a, i, b, j].real
-                        ti = t4[a, i, b, j].imag
-                        rr[j] += tr * wr - ti * wi
-                        ri[j] += tr * wi + ti * wr
+                    _accumulate_row(t4, a, i, b, wx[q, b], rr, ri)
                 _rotate_add(rr, ri, wy[q, a], sr, si)
             _phase_out(sr, si, ey[q, i], ex[q], acc[q, i])
     return acc
 
 
-@numba.njit(nogil=True, cache=True)
-def fold_phase_real(t4, wy, wx, ey, ex):
-    """:func:`fold_phase` of a real ``t4`` (an affine aperture's spectrum): half the arithmetic,
-    the same sums term by term (a real t times w is what the complex product computes for
-    t + 0i)."""
-    na, m, _, m2 = t4.shape
-    n = wy.shape[0]
-    acc = np.empty((n, m, m2), dtype=np.complex128)
-    rr = np.empty(m2)
-    ri = np.empty(m2)
-    sr = np.empty(m2)
-    si = np.empty(m2)
-    for q in range(n):
-        for i in range(m):
-            sr[:] = 0.0
-            si[:] = 0.0
-            for a in range(na):
-                rr[:] = 0.0
-                ri[:] = 0.0
-                for b in range(na):
-                    wr = wx[q, b].real
-                    wi = wx[q, b].imag
-                    for j in range(m2):
-                        t = t4[a, i, b, j]
-                        rr[j] += t * wr
-                        ri[j] += t * wi
-                _rotate_add(rr, ri, wy[q, a], sr, si)
-            _phase_out(sr, si, ey[q, i], ex[q], acc[q, i])
-    return acc
+def _accumulate_row(t4, a, i, b, w, rr, ri):
+    """(rr + i ri) += t4[a, i, b, :] w, for a real or complex ``t4``."""
+
+
+@overload(_accumulate_row, inline="always")
+def _accumulate_row_impl(t4, a, i, b, w, rr, ri):
+    if isinstance(t4.dtype, numba.types.Complex):
+
+        def impl_complex(t4, a, i, b, w, rr, ri):
+            wr = w.real
+            wi = w.imag
+            for j in range(rr.shape[0]):
+                tr = t4[a, i, b, j].real
+                ti = t4[a, i, b, j].imag
+                rr[j] += tr * wr - ti * wi
+                ri[j] += tr * wi + ti * wr
+
+        return impl_complex
+
+    def impl_real(t4, a, i, b, w, rr, ri):
+        wr = w.real
+        wi = w.imag
+        for j in range(rr.shape[0]):
+            t = t4[a, i, b, j]
+            rr[j] += t * wr
+            ri[j] += t * wi
+
+    return impl_real
 
 
 @numba.njit(inline="always")

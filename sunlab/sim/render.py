@@ -474,14 +474,13 @@ class _Spectrum(NamedTuple):
         wx = np.exp(-2j * np.pi * al[None, :] * dx[:, None])
         ey = np.exp(-2j * np.pi * self.fyb[None, :] * dy[:, None])
         ex = np.exp(-2j * np.pi * self.fxb[None, :] * dx[:, None])
-        fold = _kernels.fold_phase_real if self.t4.dtype == np.float64 else _kernels.fold_phase
         m = self.m
         scale = np.broadcast_to(np.asarray(q_e, dtype=float) / self.step**2, (len(x0),))
         imgs = np.empty((len(x0), m, m))
         # a few spots at a time, so that the folded spectra and their images stay in cache
         for c in range(0, len(x0), _SPOTS_PER_FFT):
             sl = slice(c, c + _SPOTS_PER_FFT)
-            acc = fold(self.t4, wy[sl], wx[sl], ey[sl], ex[sl])
+            acc = _kernels.fold_phase(self.t4, wy[sl], wx[sl], ey[sl], ex[sl])
             imgs[sl] = np.fft.irfft2(acc, s=(m, m), axes=(-2, -1))
             imgs[sl] *= scale[sl, None, None]
         return imgs, x0, y0
