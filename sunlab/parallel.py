@@ -142,12 +142,36 @@ def worker_pool(scheduler: str = "threads", num_workers: int | None = None,
         return
     from concurrent.futures import ProcessPoolExecutor
 
-    from dask.multiprocessing import get_context, initialize_worker_process
+    from dask.multiprocessing import initialize_worker_process
 
     n = int(num_workers) if num_workers else (os.cpu_count() or 1)
-    with ProcessPoolExecutor(n, mp_context=get_context(),
+    with ProcessPoolExecutor(n, mp_context=_warm_context(),
                              initializer=initialize_worker_process) as pool:
         yield pool
+
+
+#: The module the fork server imports before it forks a worker (:func:`worker_pool`).
+PRELOAD = "sunlab._worker_preload"
+
+
+def _warm_context():
+    """The start method of :func:`worker_pool`'s processes: forked from a fork server that has
+    imported sunlab and loaded the compiled kernels once (:mod:`sunlab._worker_preload`), so a
+    worker starts at once; the server is started here, and warms up while the caller goes on.
+    Where there is no fork server (Windows), Dask's own context (spawn: each worker imports
+    everything itself)."""
+    import multiprocessing
+
+    if "forkserver" not in multiprocessing.get_all_start_methods():
+        from dask.multiprocessing import get_context
+
+        return get_context()
+    ctx = multiprocessing.get_context("forkserver")
+    ctx.set_forkserver_preload([PRELOAD])
+    from multiprocessing import forkserver
+
+    forkserver.ensure_running()
+    return ctx
 
 
 def single_threaded_blas():

@@ -213,12 +213,13 @@ def reproduce_table4(
 
     bench = sim.Bench.paper_single_hole() if bench is None else bench
     t0 = time.perf_counter()
-    cubes = simulate_experiments(bench, seed=seed, quick=quick, step=step, shots=shots,
-                                 progress=progress, method=method)
     where = {"method": method, "address": address, "scheduler": scheduler, "workers": workers}
     timings = {}
-    cens, fitted = _locate_and_fit(cubes, where, neural=neural, seed=seed, progress=progress,
-                                   timings=timings, t0=t0)
+    with parallel.worker_pool(scheduler, workers, address) as pool:  # warms up meanwhile
+        cubes = simulate_experiments(bench, seed=seed, quick=quick, step=step, shots=shots,
+                                     progress=progress, method=method)
+        cens, fitted = _locate_and_fit(cubes, where, pool, neural=neural, seed=seed,
+                                       progress=progress, timings=timings, t0=t0)
     if progress:
         for label in fitted:
             print(f"  fitted {label:<24s} in {timings[f'fit {label}']:6.2f} s", flush=True)
@@ -249,22 +250,22 @@ def _assemble(cens, fitted, local, bench, timings, t0, settings) -> Table4Result
     )
 
 
-def _locate_and_fit(cubes, where, *, neural, seed, progress, timings, t0):
+def _locate_and_fit(cubes, where, pool, *, neural, seed, progress, timings, t0):
     """Centroid I and II, then fit every method on them (:func:`_fit_all`) while III is
-    rendered and centroided on the same workers from a background thread: the fits are serial,
-    and beside them the other cores stay busy. The centroid tables and the fitted methods."""
-    with parallel.worker_pool(where["scheduler"], where["workers"], where["address"]) as pool:
-        cens = locate_runs({k: cubes[k] for k in ("I", "II")}, progress=progress, pool=pool,
-                           **where)
-        timings["simulate_and_centroid I, II"] = time.perf_counter() - t0
-        train, val = usable_table(cens["I"]), usable_table(cens["II"])
-        with ThreadPoolExecutor(1, thread_name_prefix="sunlab-III") as ex:
-            t3 = time.perf_counter()
-            third = ex.submit(locate_runs, {"III": cubes["III"]}, progress=progress,
-                              pool=pool, **where)
-            fitted = _fit_all(train, val, neural=neural, seed=seed, timings=timings)
-            cens.update(third.result())
-            timings["simulate_and_centroid III (beside the fits)"] = time.perf_counter() - t3
+    rendered and centroided on the same workers (``pool``, :func:`sunlab.parallel.worker_pool`)
+    from a background thread: the fits are serial, and beside them the other cores stay busy.
+    The centroid tables and the fitted methods."""
+    cens = locate_runs({k: cubes[k] for k in ("I", "II")}, progress=progress, pool=pool,
+                       **where)
+    timings["simulate_and_centroid I, II"] = time.perf_counter() - t0
+    train, val = usable_table(cens["I"]), usable_table(cens["II"])
+    with ThreadPoolExecutor(1, thread_name_prefix="sunlab-III") as ex:
+        t3 = time.perf_counter()
+        third = ex.submit(locate_runs, {"III": cubes["III"]}, progress=progress,
+                          pool=pool, **where)
+        fitted = _fit_all(train, val, neural=neural, seed=seed, timings=timings)
+        cens.update(third.result())
+        timings["simulate_and_centroid III (beside the fits)"] = time.perf_counter() - t3
     timings["simulate_and_centroid"] = time.perf_counter() - t0
     return cens, fitted
 
