@@ -26,6 +26,7 @@ Examples
 from __future__ import annotations
 
 import time
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -175,13 +176,10 @@ def reproduce_table5(quick: bool = True, seed: int = 0, out: Path | str | None =
     t0 = time.perf_counter()
     plans_ = experiment_plans(("I", "III"), quick=quick, step=step, shots=shots)
     where, timings = {"address": address, "scheduler": scheduler, "workers": workers}, {}
-    cubes, cens = _simulate_and_locate(plans_, seed=seed, method=method, progress=progress,
-                                       where=where, timings=timings)
-    status = centroid_status(cens)
-    cens = {k: usable_table(c) for k, c in cens.items()}
-    t = time.perf_counter()
-    result = _calibrate_and_compare(cens, cubes, order=order)
-    timings["calibrate, find bad holes, compare"] = time.perf_counter() - t
+    with parallel.worker_pool(scheduler, workers, address) as pool:  # warms up meanwhile
+        result, cens, status = _simulate_locate_calibrate(
+            plans_, seed=seed, method=method, progress=progress, where=where, pool=pool,
+            timings=timings, order=order)
     result["centroid_status"] = status
     result["sizes"] = {"train_poses": len(plans_["I"]), "test_poses": len(plans_["III"]),
                        "shots": plans_["I"].shots,
@@ -212,56 +210,90 @@ def _write_json(result: dict, out: Path, settings: dict) -> str:
     return write_json(doc, out / "table5.json")
 
 
-def _simulate_and_locate(plans_: dict, *, seed, method, progress, where,
-                         timings) -> tuple[dict, dict]:
-    """The one-hole runs I and III in one pass, their mounting offset, then the 100-hole runs
-    in one pass numbered with it; the frame cubes and the centroid tables, keyed ``"1 hole I"``,
-    ``"100 holes III"`` ...; the passes' times go into ``timings``. Both passes share one
-    pool of worker processes (:func:`sunlab.parallel.worker_pool`)."""
+def _simulate_locate_calibrate(plans_: dict, *, seed, method, progress, where, pool, timings,
+                               order) -> tuple[dict, dict]:
+    """Every pass of the table on one pool of workers (:func:`sunlab.parallel.worker_pool`):
+    the one-hole runs I and III, whose spot gives the mounting offset that numbers the 100
+    spots; the 100-hole run I; then the 100-hole run III on the workers from a background
+    thread while the calibrations are fitted on I (:func:`_calibrate`, serial; the frames its
+    defect metrics sample are rendered by the same workers); last the comparison on III. The
+    result of :func:`_compare`, the centroid tables (keyed ``"1 hole I"``, ``"100 holes
+    III"`` ...) and their :func:`centroid_status`; the stages' times go into ``timings``."""
     from .. import sim
 
     one = {f"1 hole {k}": (p, sim.Bench.paper_single_hole()) for k, p in plans_.items()}
     many = {f"100 holes {k}": (p, sim.Bench.paper_multi_hole()) for k, p in plans_.items()}
+    t = time.perf_counter()
+    cens = locate_runs(simulate_runs(one, seed=seed, chunks="pose"), method=method,
+                       progress=progress, pool=pool, **where)
+    timings["simulate_and_centroid 1 hole"] = time.perf_counter() - t
     # the passes take whole poses (one Dask task each); the cubes handed on serve single
     # frames (defect metrics, figures, the explorer), so they are chunked by frame: the same
     # frames either way
-    with parallel.worker_pool(where["scheduler"], where["workers"], where["address"]) as pool:
-        t = time.perf_counter()
-        cens = locate_runs(simulate_runs(one, seed=seed, chunks="pose"), method=method,
-                           progress=progress, pool=pool, **where)
-        timings["simulate_and_centroid 1 hole"] = time.perf_counter() - t
-        offset = mounting_offset_px(cens["1 hole I"])
-        t = time.perf_counter()
-        cens.update(locate_runs(simulate_runs(many, seed=seed, chunks="pose"),
-                                method=spot_method(method), hole_offset=offset,
-                                progress=progress, pool=pool, **where))
-        timings["simulate_and_centroid 100 holes"] = time.perf_counter() - t
     cubes = simulate_runs({**one, **many}, seed=seed, chunks="frame")
-    order = ("100 holes I", "100 holes III", "1 hole I", "1 hole III")
-    return cubes, {k: cens[k] for k in order}
+    kw = {"method": spot_method(method), "hole_offset": mounting_offset_px(cens["1 hole I"]),
+          "progress": progress, "pool": pool, **where}
+    t = time.perf_counter()
+    cens.update(locate_runs(simulate_runs({"100 holes I": many["100 holes I"]}, seed=seed,
+                                          chunks="pose"), **kw))
+    timings["simulate_and_centroid 100 holes I"] = time.perf_counter() - t
+    status = centroid_status(cens)
+    cens = {k: usable_table(c) for k, c in cens.items()}
+    with ThreadPoolExecutor(1, thread_name_prefix="sunlab-100-III") as ex:
+        t = time.perf_counter()
+        third = ex.submit(locate_runs, simulate_runs({"100 holes III": many["100 holes III"]},
+                                                    seed=seed, chunks="pose"), **kw)
+        fitted = _calibrate(cens["100 holes I"], cubes["100 holes I"], order=order, pool=pool)
+        timings["calibrate, find bad holes (beside 100 holes III)"] = time.perf_counter() - t
+        test = third.result()
+        timings["simulate_and_centroid 100 holes III"] = time.perf_counter() - t
+    status.update(centroid_status(test))
+    cens["100 holes III"] = usable_table(test["100 holes III"])
+    t = time.perf_counter()
+    result = _compare(fitted, cens, cubes, order=order)
+    timings["compare"] = time.perf_counter() - t
+    names = ("100 holes I", "100 holes III", "1 hole I", "1 hole III")
+    return result, {k: cens[k] for k in names}, {k: status[k] for k in names}
 
 
-def _calibrate_and_compare(cens: dict, cubes: dict, *, order: int) -> dict:
-    """The strategies of :mod:`sunlab.multihole` fitted on I and applied to III beside the one
-    hole's polynomial; bad holes found from the training frames; the statistics."""
+def _calibrate(cen_tr, cube_tr, *, order: int, pool=None) -> dict:
+    """The strategies of :mod:`sunlab.multihole` fitted on I, and the bad holes found from
+    the training frames (spot-shape metrics and the edge roughness that finds burrs; the
+    frames they sample are rendered on ``pool``'s worker processes when given)."""
+    import contextlib
+
+    import dask
+
+    from .. import multihole as mh
+
+    s1 = mh.GeometricCentre(order=order).fit(cen_tr)
+    s2 = mh.PerHoleAverage(order=order).fit(cen_tr)
+    on_pool = (dask.config.set(scheduler="processes", pool=pool) if pool is not None
+               else contextlib.nullcontext())
+    with on_pool:
+        metrics = mh.defect_metrics(cen_tr, strategy=s2, cube=cube_tr)
+    bad = mh.reject_bad_holes(metrics).values
+    s2r = mh.PerHoleAverage(order=order, holes=~bad, weighting="inverse_variance", clip=4.0,
+                            calibrations_=s2.calibrations_, variance_=s2.variance_)
+    return {"geometric centre": s1, "averaging": s2, "rejection": s2r, "metrics": metrics,
+            "bad": bad}
+
+
+def _compare(fitted: dict, cens: dict, cubes: dict, *, order: int) -> dict:
+    """The fitted strategies applied to III beside the one hole's polynomial; the statistics,
+    the bad holes, the error budget and what the figures need."""
     from .. import multihole as mh
     from .. import stats
     from ..calibration import Polynomial
 
     cen_tr, cen_te = cens["100 holes I"], cens["100 holes III"]
-    s1 = mh.GeometricCentre(order=order).fit(cen_tr)
-    s2 = mh.PerHoleAverage(order=order).fit(cen_tr)
-    # with the training frames: the spot-shape metrics and the edge roughness that finds burrs
-    metrics = mh.defect_metrics(cen_tr, strategy=s2, cube=cubes["100 holes I"])
-    bad = mh.reject_bad_holes(metrics).values
-    s2r = mh.PerHoleAverage(order=order, holes=~bad, weighting="inverse_variance", clip=4.0,
-                            calibrations_=s2.calibrations_, variance_=s2.variance_)
+    s2, bad, metrics = fitted["averaging"], fitted["bad"], fitted["metrics"]
     est = s2.predict_holes(cen_te)
     preds = {
-        COLUMNS[0]: s1.predict(cen_te),
+        COLUMNS[0]: fitted["geometric centre"].predict(cen_te),
         COLUMNS[1]: s2.combine(est),
         COLUMNS[2]: Polynomial(order).fit(cens["1 hole I"]).predict(cens["1 hole III"]),
-        REJECTION_COLUMN: s2r.combine(est),
+        REJECTION_COLUMN: fitted["rejection"].combine(est),
     }
     ours = stats.global_stats({k: stats.local_errors(v) for k, v in preds.items()})
     table = stats.side_by_side(ours[list(COLUMNS)], stats.paper_table5())
