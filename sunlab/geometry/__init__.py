@@ -53,7 +53,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from .errors import ConfigurationError
+from ..errors import ConfigurationError
 
 __all__ = [
     "sun_vector",
@@ -419,7 +419,7 @@ def fit_optimised_model(x, y, alpha, beta, mask_distance_mm, pixel_pitch_mm, x_z
         pixel pattern under the spot), different blocks are taken as independent.
     n_boot : int
         Bootstrap replicas; 0 (default) gives the Jacobian standard errors, which assume
-        white residuals.
+        white residuals. Replicas start at the full-data solution (analytic Jacobian).
     seed : int
         Seed of the bootstrap's resampling.
 
@@ -442,6 +442,8 @@ def fit_optimised_model(x, y, alpha, beta, mask_distance_mm, pixel_pitch_mm, x_z
     >>> round(fit.x_zp, 6), round(fit.y_zp, 6)
     (640.0, 512.0)
     """
+    from ._solve import _bootstrap_stderr, _jacobian_stderr, _least_squares
+
     _check_mounting(mounting)
     free_zp = x_zp is None or y_zp is None
     n_par = 5 if free_zp else 3
@@ -452,18 +454,16 @@ def fit_optimised_model(x, y, alpha, beta, mask_distance_mm, pixel_pitch_mm, x_z
         p0 += _zero_pose_start(x, y, alpha, beta, F / p)
     fixed_zp = None if free_zp else (x_zp, y_zp)
 
-    def solve(xs, ys, al, be, start):
-        return _least_squares(xs, ys, al, be, start, F, p, fixed_zp, mounting)
+    def solve(xs, ys, al, be, start, weights=None):
+        return _least_squares(xs, ys, al, be, start, F, p, fixed_zp, mounting, weights)
 
-    res = solve(x, y, alpha, beta, p0)
+    res = _least_squares(x, y, alpha, beta, p0, F, p, fixed_zp, mounting, analytic=False)
     q = res.x
     names = ["delta_f_mm", "alpha0", "beta0", "x_zp", "y_zp"][:n_par]
-    if n_boot and n_boot > 1:
-        err = _bootstrap_stderr(solve, x, y, alpha, beta, q, blocks, n_boot, seed)
-        method = "block bootstrap"
-    else:
-        err = _jacobian_stderr(res, n_par)
-        method = "jacobian"
+    boot = bool(n_boot and n_boot > 1)
+    err = (_bootstrap_stderr(solve, x, y, alpha, beta, q, blocks, n_boot, seed) if boot
+           else _jacobian_stderr(res, n_par))
+    method = "block bootstrap" if boot else "jacobian"
     zp = (float(q[3]), float(q[4])) if free_zp else (float(x_zp), float(y_zp))
     return _fit_result(res, zp, F, p, mounting, dict(zip(names, err, strict=True)), method)
 
@@ -519,45 +519,6 @@ def _zero_pose_start(x, y, alpha, beta, k: float) -> list:
         float(np.median(x - k * np.tan(a))),
         float(np.median(y - k * np.tan(np.deg2rad(beta)) / np.cos(a))),
     ]
-
-
-def _least_squares(xs, ys, al, be, start, F, p, fixed_zp, mounting):
-    """Least-squares fit of the optimised model's parameters (zero pose free if not fixed)."""
-    from scipy.optimize import least_squares
-
-    def residuals(q):
-        zp = (q[3], q[4]) if fixed_zp is None else fixed_zp
-        am, bm = optimised_angles(xs, ys, F, p, q[0], q[1], q[2], *zp, mounting=mounting)
-        return np.concatenate([am - al, bm - be])
-
-    return least_squares(
-        residuals, start, method="trf", x_scale="jac", xtol=1e-14, ftol=1e-14, gtol=1e-14,
-        max_nfev=2000,
-    )
-
-
-def _bootstrap_stderr(solve, x, y, alpha, beta, q, blocks, n_boot: int, seed: int):
-    """Standard errors from a block bootstrap: whole blocks are resampled with replacement."""
-    labels = np.arange(x.size) if blocks is None else np.asarray(blocks)
-    uniq, inv = np.unique(labels, return_inverse=True)
-    members = [np.flatnonzero(inv == i) for i in range(uniq.size)]
-    rng = np.random.default_rng(seed)
-    reps = []
-    for _ in range(int(n_boot)):
-        pick = np.concatenate([members[i] for i in rng.integers(0, uniq.size, uniq.size)])
-        reps.append(solve(x[pick], y[pick], alpha[pick], beta[pick], q).x)
-    return np.std(np.array(reps), axis=0, ddof=1)
-
-
-def _jacobian_stderr(res, n_par: int):
-    """Standard errors from the Jacobian at the solution (white residuals assumed)."""
-    dof = max(res.fun.size - n_par, 1)
-    s2 = 2.0 * res.cost / dof
-    try:
-        cov = np.linalg.inv(res.jac.T @ res.jac) * s2
-        return np.sqrt(np.clip(np.diag(cov), 0.0, None))
-    except np.linalg.LinAlgError:
-        return np.full(n_par, np.nan)
 
 
 def rotation_x(t) -> np.ndarray:
