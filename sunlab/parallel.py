@@ -24,7 +24,8 @@ import numpy as np
 from .errors import ConfigurationError
 from .options import show_progress
 
-__all__ = ["SCHEDULERS", "compute", "local_cluster", "single_threaded_blas", "worker_pool"]
+__all__ = ["SCHEDULERS", "compute", "local_cluster", "single_threaded_blas", "start_workers",
+           "worker_pool"]
 
 
 #: Local schedulers of :func:`compute`.
@@ -152,6 +153,21 @@ def worker_pool(scheduler: str = "threads", num_workers: int | None = None,
 
 #: The module the fork server imports before it forks a worker (:func:`worker_pool`).
 PRELOAD = "sunlab._worker_preload"
+
+
+def start_workers(scheduler: str = "threads", address: str | None = None) -> None:
+    """Start warming up :func:`worker_pool`'s workers now, when it will give a pool (the
+    ``"processes"`` scheduler and no ``address``): the fork server they are forked from
+    imports sunlab and loads the compiled kernels (about 2-3 s of CPU) on another core while
+    the caller goes on, e.g. with its own imports. Nothing for the other schedulers; calling it
+    twice, or before :func:`worker_pool`, changes nothing else.
+
+    Examples
+    --------
+    >>> start_workers("threads")  # no pool, nothing to start
+    """
+    if scheduler == "processes" and address is None:
+        _warm_context()
 
 
 def _warm_context():

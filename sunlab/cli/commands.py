@@ -431,11 +431,15 @@ def _reproduce_scheduler(scheduler: str | None) -> str:
 
 
 def _run_reproduce(args) -> int:
+    from .. import parallel
+
+    scheduler = _reproduce_scheduler(args.scheduler)
+    parallel.start_workers(scheduler, args.address)  # they warm up while this process imports
     from .. import reproduce
 
     where = {"quick": args.quick, "seed": args.seed, "method": args.method,
              "progress": not args.no_progress, "address": args.address,
-             "scheduler": _reproduce_scheduler(args.scheduler), "workers": args.workers}
+             "scheduler": scheduler, "workers": args.workers}
     if args.table == "platform":
         resp = reproduce.reproduce_platform(out=args.out, **where)
         print()
