@@ -78,3 +78,21 @@ def test_reproduce_passes_the_scheduler_to_every_table(monkeypatch, tmp_path, ca
     assert main(["reproduce", "--table", "4", "--quick", "--out", str(tmp_path)]) == 0
     assert seen[4]["scheduler"] == "threads"
     capsys.readouterr()
+
+
+def test_console_script_exits_with_the_status_after_the_exit_handlers(tmp_path):
+    # run() ends the process without the interpreter's teardown, but only after the exit
+    # handlers ran and the output was flushed to a pipe
+    import subprocess
+    import sys
+
+    code = ("import atexit, sys\n"
+            "atexit.register(lambda: print('handler ran', flush=False))\n"
+            f"sys.argv = ['sunlab', 'info', {str(tmp_path / 'missing.zarr')!r}]\n"
+            "print('x' * 100000, end='')\n"
+            "from sunlab.cli import run\n"
+            "run()\n")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert proc.returncode == 1
+    assert proc.stdout.startswith("x" * 100000) and proc.stdout.endswith("handler ran\n")
+    assert "missing.zarr" in proc.stderr and "Traceback" not in proc.stderr

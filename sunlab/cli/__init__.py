@@ -14,6 +14,6 @@ Examples
 True
 """
 
-from .commands import build_parser, main
+from .commands import build_parser, main, run
 
-__all__ = ["build_parser", "main"]
+__all__ = ["build_parser", "main", "run"]

@@ -8,11 +8,9 @@ Examples
 0
 """
 
-import sys
-
-from .commands import main
+from .commands import run
 
 __all__: list[str] = []
 
 if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())
+    run()

@@ -332,7 +332,7 @@ def _write_outputs(res: Table4Result, out: Path) -> list[str]:
             title="Fig. 11: alpha local error, polynomial (virtual bench)"),
         "fig12_rectangles.png": plots.error_rectangles(
             res.table[[c for c in res.table.columns if not c.startswith("ideal")]],
-            title="Fig. 12: [M - 3 sigma_M, M + 3 sigma_M], experiment III (virtual bench)"),
+            title="Fig. 12: [M - 3 sigma_M, M + 3 sigma_M],\nexperiment III (virtual bench)"),
     }
     for name, fig in figs.items():
         fig.savefig(out / name, dpi=110)  # constrained layout: no tight bbox (a second draw)
