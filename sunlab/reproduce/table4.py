@@ -255,8 +255,9 @@ def _locate_and_fit(cubes, where, pool, *, neural, seed, progress, timings, t0):
     rendered and centroided on the same workers (``pool``, :func:`sunlab.parallel.worker_pool`)
     from a background thread: the fits are serial, and beside them the other cores stay busy.
     The centroid tables and the fitted methods."""
-    if neural:  # torch's import (about 1.7 s) runs while this thread waits for I and II
-        _import_meanwhile("torch")
+    # imports the fits and figures need later (torch about 1.7 s, matplotlib 0.4 s) run while
+    # this thread waits for I and II
+    _import_meanwhile("sunlab.plots", *(["torch"] if neural else []))
     cens = locate_runs({k: cubes[k] for k in ("I", "II")}, progress=progress, pool=pool,
                        **where)
     timings["simulate_and_centroid I, II"] = time.perf_counter() - t0
@@ -272,19 +273,21 @@ def _locate_and_fit(cubes, where, pool, *, neural, seed, progress, timings, t0):
     return cens, fitted
 
 
-def _import_meanwhile(name: str) -> None:
-    """Import module ``name`` in a background thread (the fits import it later, and then find it
-    imported or wait for the import to finish); a failed import is left for them to report."""
+def _import_meanwhile(*names: str) -> None:
+    """Import modules ``names`` in a background thread (the code that needs them imports them
+    later, and then finds them imported or waits for the import to finish); a failed import is
+    left for that code to report."""
     import importlib
     import threading
 
     def run():
-        try:
-            importlib.import_module(name)
-        except ImportError:
-            pass
+        for name in names:
+            try:
+                importlib.import_module(name)
+            except ImportError:
+                pass
 
-    threading.Thread(target=run, name=f"sunlab-import-{name}", daemon=True).start()
+    threading.Thread(target=run, name="sunlab-imports", daemon=True).start()
 
 
 def _fit_all(train, val, *, neural, seed, timings) -> dict:
