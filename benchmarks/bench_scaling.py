@@ -3,10 +3,11 @@
 Prints the floor u of issue 16 (best of 5 of drawing one 1024 x 1280 frame of float32 standard
 normals with numpy) and ``np.copy`` of a frame, the time of one rendered frame, then the wall
 time of :func:`sunlab.reproduce.simulate_and_locate` (thinned plans, 8 shots) on 1 and 2
-threads, on Dask's processes scheduler with 1 and 2 processes (pool started for the call, as
-``sunlab reproduce`` runs it) and on a :func:`sunlab.parallel.local_cluster` of 1 and 2 worker
-processes, with the speed-up from 1 to 2 workers and each worker's peak memory (RSS). The
-machine's load average is printed beside, as the timings depend on it.
+threads, on Dask's processes scheduler with 1 and 2 processes (sunlab's pool, its workers
+forked warm from a fork server, as ``sunlab reproduce`` runs it) and on a
+:func:`sunlab.parallel.local_cluster` of 1 and 2 worker processes, with the speed-up from 1 to
+2 workers and each worker's peak memory (RSS). The machine's load average is printed beside,
+as the timings depend on it.
 
     python benchmarks/bench_scaling.py [--step 3]
 """
@@ -30,16 +31,16 @@ def floor_u() -> float:
     return best
 
 
-def _rss_mb(children: bool = False) -> float:
+def _rss_mb() -> float:
     import resource
 
-    who = resource.RUSAGE_CHILDREN if children else resource.RUSAGE_SELF
-    return resource.getrusage(who).ru_maxrss / 1024.0
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
 def main(argv=None):
     from sunlab import parallel, sim
     from sunlab.reproduce import experiment_plans, simulate_and_locate
+    from sunlab.reproduce.pipeline import locate_runs, simulate_experiments
     from sunlab.sim import render
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -85,13 +86,15 @@ def main(argv=None):
                 mem_txt = "peak RSS per worker " + ", ".join(f"{v:.0f}" for v in mem.values())
                 mem_txt += " MB"
             elif sched == "processes":
-                k0 = os.times()
-                got = simulate_and_locate(step=args.step, progress=False, scheduler=sched,
-                                          workers=workers)
-                k1 = os.times()
-                cpu = (k1.children_user - k0.children_user) + (k1.children_system
-                                                               - k0.children_system)
-                mem_txt = f"peak RSS of a worker {_rss_mb(children=True):.0f} MB"
+                # as sunlab reproduce runs it: one pool, its workers forked warm from the fork
+                # server (parallel.worker_pool), whose children they are: their CPU and memory
+                # are read from /proc before the pool closes
+                with parallel.worker_pool(sched, workers) as pool:
+                    cubes = simulate_experiments(step=args.step, progress=False)
+                    got = locate_runs(cubes, progress=False, scheduler=sched, workers=workers,
+                                      pool=pool)
+                    cpu, rss = _pool_usage()
+                mem_txt = f"peak RSS per worker {rss} MB"
             else:
                 got = simulate_and_locate(step=args.step, progress=False, scheduler=sched,
                                           workers=workers)
@@ -110,6 +113,29 @@ def main(argv=None):
         print(f"  {sched}: speed-up 1 -> 2 workers "
               f"{walls[(sched, 1)] / walls[(sched, 2)]:.2f}x")
     print(f"load average {os.getloadavg()[0]:.2f} at the end")
+
+
+def _pool_usage() -> tuple[float, str]:
+    """CPU seconds and peak RSS (MB, each) of the running workers of sunlab's process pool:
+    the children of the fork server (Linux /proc)."""
+    from multiprocessing import forkserver
+
+    server = forkserver._forkserver._forkserver_pid
+    tick = os.sysconf("SC_CLK_TCK")
+    cpu, rss = 0.0, []
+    for pid in filter(str.isdigit, os.listdir("/proc")):
+        try:
+            stat = open(f"/proc/{pid}/stat").read()
+            status = open(f"/proc/{pid}/status").read()
+        except OSError:
+            continue
+        fields = stat[stat.rindex(")") + 2:].split()
+        if int(fields[1]) != server:
+            continue
+        cpu += (int(fields[11]) + int(fields[12])) / tick
+        rss += [int(line.split()[1]) / 1024 for line in status.splitlines()
+                if line.startswith("VmHWM")]
+    return cpu, ", ".join(f"{v:.0f}" for v in rss)
 
 
 def _timed(fn, *args):
