@@ -62,6 +62,11 @@ def main(argv=None):
           f"{cp * 1e3:.3f} ms; render_frame {best * 1e3:.2f} ms = {best / u:.2f} u")
     print(f"simulate_and_locate: {n} frames (step {args.step}, 8 shots)")
     simulate_and_locate(step=9, shots=1, progress=False)  # warm-up: caches, compiled kernels
+    t = time.perf_counter()  # the process pool's fork server, once per process (a reproduce)
+    with parallel.worker_pool("processes", 1) as pool:
+        pool.submit(int).result()
+    print(f"fork server of the process pool ready in {time.perf_counter() - t:.2f} s (once per "
+          "process, in parallel with the caller's own start in sunlab reproduce)")
     ref = None
     walls = {}
     for sched in ("threads", "processes", "cluster"):
