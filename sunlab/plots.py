@@ -423,11 +423,19 @@ def fig14_bad_holes(frame, cen_frame, holes, *, reference=None, half: int = 30, 
     fig, axes = plt.subplots(1, len(show), figsize=(2.6 * len(show), 3.4), squeeze=False,
                              layout="constrained")
     frame = np.asarray(frame)
-    for ax, h in zip(axes[0], show, strict=True):
+    stamps = {}
+    for h in show:
         x, y = float(cen_frame["x"].values[h]), float(cen_frame["y"].values[h])
         if np.isfinite(x):
-            st, (x0, y0) = cutout(frame, x, y, half)
-            ax.imshow(st, cmap="magma", origin="upper",
+            stamps[h] = (*cutout(frame, x, y, half), x, y)
+    # one colour scale for every panel, so that a flux deficit shows; its top is a high
+    # percentile, not the maximum, so that a hot pixel does not darken the spots
+    top = max((np.percentile(st, 99.5) for st, *_ in stamps.values()), default=1.0)
+    bottom = min((np.percentile(st, 1.0) for st, *_ in stamps.values()), default=0.0)
+    for ax, h in zip(axes[0], show, strict=True):
+        if h in stamps:
+            st, (x0, y0), x, y = stamps[h]
+            ax.imshow(st, cmap="magma", origin="upper", vmin=bottom, vmax=top,
                       extent=(x0 - 0.5, x0 + st.shape[1] - 0.5, y0 + st.shape[0] - 0.5, y0 - 0.5))
             ax.plot(x, y, "+", color="cyan")
         else:

@@ -331,13 +331,16 @@ def _write_figures(result: dict, out: Path) -> list[str]:
     metrics, ours = result["metrics"], result["ours"]
     metrics.to_dataframe().to_csv(out / "hole_metrics.csv")
     bad = np.isin(np.arange(metrics.sizes["hole"]), result["bad_holes"])
-    frame = result["data"]["cube_test"]["frames"].isel(pose=0, shot=0).values
-    cf = result["data"]["centroids_test"].isel(pose=0, shot=0)
+    show = (result["bad_holes"] or result["injected"])[:5]
+    cen, frames = result["data"]["centroids_test"], result["data"]["cube_test"]["frames"]
+    p13 = int(np.argmax(mh.usable(cen).values[:, 0, :].sum(axis=1)))  # the most spots whole
+    p14, ref = _fig14_pose(cen, show, bad)
     figs = {
-        "fig13.png": mh.fig13_frame(frame, cf, bad=bad),
-        "fig14.png": mh.fig14_bad_holes(
-            frame, cf, (result["bad_holes"] or result["injected"])[:5],
-            reference=int(np.flatnonzero(~bad)[0]), metrics=metrics),
+        "fig13.png": mh.fig13_frame(frames.isel(pose=p13, shot=0).values,
+                                    cen.isel(pose=p13, shot=0), bad=bad),
+        "fig14.png": mh.fig14_bad_holes(frames.isel(pose=p14, shot=0).values,
+                                        cen.isel(pose=p14, shot=0), show, reference=ref,
+                                        metrics=metrics),
         "fig15.png": mh.fig15_rectangles(
             {k: {a: {"M": float(ours.loc[(a, "M"), k]),
                      "sigma_M": float(ours.loc[(a, "sigma_M"), k])} for a in ("alpha", "beta")}
@@ -349,3 +352,24 @@ def _write_figures(result: dict, out: Path) -> list[str]:
         plt.close(fig)
         files.append(str(out / name))
     return files + [str(out / "table5.csv"), str(out / "hole_metrics.csv")]
+
+
+def _fig14_pose(cen, holes, bad) -> tuple[int, int]:
+    """The pose whose first shot shows the most of ``holes`` whole on the detector (the
+    mask's spots do not all fit on it at any one pose), and a good hole seen whole there as the
+    reference of Fig. 14.
+
+    Examples
+    --------
+    >>> from sunlab import schema
+    >>> st = np.zeros((3, 1, 4), int); st[0, 0, 2] = st[2, 0, 0] = schema.STATUS["no_spot"]
+    >>> cen = schema.centroids_dataset(np.ones((3, 1, 4)), np.ones((3, 1, 4)), status=st)
+    >>> _fig14_pose(cen, [2, 3], np.array([False, False, True, True]))
+    (1, 0)
+    """
+    from .. import multihole as mh
+
+    seen = mh.usable(cen).values[:, 0, :]  # (pose, hole)
+    p = int(np.argmax(seen[:, list(holes)].sum(axis=1))) if len(holes) else 0
+    good = np.flatnonzero(~np.asarray(bad) & seen[p])
+    return p, int(good[0] if good.size else np.flatnonzero(~np.asarray(bad))[0])
