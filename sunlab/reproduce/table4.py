@@ -255,9 +255,10 @@ def _locate_and_fit(cubes, where, pool, *, neural, seed, progress, timings, t0):
     rendered and centroided on the same workers (``pool``, :func:`sunlab.parallel.worker_pool`)
     from a background thread: the fits are serial, and beside them the other cores stay busy.
     The centroid tables and the fitted methods."""
-    # imports the fits and figures need later (torch about 1.7 s, matplotlib 0.4 s) run while
-    # this thread waits for I and II
-    _import_meanwhile("sunlab.plots", *(["torch"] if neural else []))
+    # imports the fits and figures need later run while this thread waits for I and II: torch
+    # (about 1.7 s), the configuration its use_deterministic_algorithms imports (torch's
+    # compiler, 0.9 s) and matplotlib (0.4 s)
+    _import_meanwhile("sunlab.plots", *(["torch", "torch._inductor.config"] if neural else []))
     cens = locate_runs({k: cubes[k] for k in ("I", "II")}, progress=progress, pool=pool,
                        **where)
     timings["simulate_and_centroid I, II"] = time.perf_counter() - t0
