@@ -43,10 +43,10 @@ def compute(*objs, scheduler: str = "threads", address: str | None = None,
     ----------
     *objs : dask collections (xarray objects with Dask data, Dask arrays)
     scheduler : {"threads", "processes", "synchronous", "cluster"}
-        Local Dask scheduler when no address is given. ``"processes"``: Dask's pool of
-        worker processes, started for the call (each worker imports sunlab and loads the
-        compiled kernels: about 2 s of CPU); a simulated cube's frames are rendered and
-        centroided in one task, so only tables cross processes (``sunlab reproduce`` uses
+        Local Dask scheduler when no address is given. ``"processes"``: Dask's processes
+        scheduler on the worker processes of :func:`worker_pool` (``pool``, or a pool started
+        for the call), forked warm from a fork server; a simulated cube's frames are rendered
+        and centroided in one task, so only tables cross processes (``sunlab reproduce`` uses
         it on several cores). ``"cluster"``: a
         ``dask.distributed.LocalCluster`` of ``num_workers`` single-threaded worker processes,
         started for this call and closed after it (the GIL does not limit it, as it limits
@@ -97,6 +97,10 @@ def compute(*objs, scheduler: str = "threads", address: str | None = None,
         return _distributed(objs, address, progress)
     if scheduler == "cluster":
         return _local_cluster(objs, num_workers, progress)
+    if scheduler == "processes" and pool is None:
+        with worker_pool(scheduler, num_workers) as own:
+            return compute(*objs, scheduler=scheduler, num_workers=num_workers,
+                           progress=progress, pool=own)
     kw = {"scheduler": scheduler}
     if pool is not None and scheduler == "processes":
         kw["pool"] = pool
@@ -120,9 +124,11 @@ def worker_pool(scheduler: str = "threads", num_workers: int | None = None,
     None for the other schedulers, which need no pool, and when an ``address`` is given (the
     work then runs on that cluster's workers): the arguments of :func:`compute`.
 
-    Worker processes start by importing sunlab and loading the compiled kernels (about 2 s of
-    CPU each), and keep what they cache (a detector's fixed pattern, spot geometry) from one
-    call to the next; two calls may share the pool at once (e.g. from two threads).
+    The workers are forked from a fork server that has imported sunlab, run every compiled
+    kernel once and built the default detector's fixed pattern (:mod:`sunlab._worker_preload`),
+    so each starts at once instead of spending about 2 s of CPU on it; they keep what they
+    cache (spot geometry, another detector's fixed pattern) from one call to the next; two
+    calls may share the pool at once (e.g. from two threads).
 
     Examples
     --------
