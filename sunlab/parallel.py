@@ -43,11 +43,9 @@ def compute(*objs, scheduler: str = "threads", address: str | None = None,
     ----------
     *objs : dask collections (xarray objects with Dask data, Dask arrays)
     scheduler : {"threads", "processes", "synchronous", "cluster"}
-        Local Dask scheduler when no address is given. ``"processes"``: Dask's processes
-        scheduler on the worker processes of :func:`worker_pool` (``pool``, or a pool started
-        for the call), forked warm from a fork server; a simulated cube's frames are rendered
-        and centroided in one task, so only tables cross processes (``sunlab reproduce`` uses
-        it on several cores). ``"cluster"``: a
+        Local Dask scheduler when no address is given. ``"processes"``: on the warm workers
+        of :func:`worker_pool` (``pool``, or one started for the call); only tables cross
+        processes (``sunlab reproduce`` uses it on several cores). ``"cluster"``: a
         ``dask.distributed.LocalCluster`` of ``num_workers`` single-threaded worker processes,
         started for this call and closed after it (the GIL does not limit it, as it limits
         threads on rendering; it costs a few seconds to start). Its workers run without

@@ -10,9 +10,10 @@ Columns: the paper's three (geometric centre, averaging, 1 hole), each beside ou
 extra column: the average after automatic bad-hole rejection with inverse-variance weights and
 sigma clipping.
 
-The frames go through the pipeline the other tables share (:mod:`sunlab.reproduce.pipeline`):
-one Dask pass for the one-hole runs (whose spot gives the mounting offset that numbers the 100
-spots), one for the 100-hole runs. Quick mode is the pipeline's
+The frames go through the pipeline the other tables share (:mod:`sunlab.reproduce.pipeline`),
+all passes on one pool of workers: one Dask pass for the one-hole runs (whose spot gives the
+mounting offset that numbers the 100 spots), one for the 100-hole run I, then the 100-hole run
+III while the calibrations are fitted on I. Quick mode is the pipeline's
 :data:`~sunlab.reproduce.pipeline.QUICK`, as for Table 4: every 2nd angle along each grid axis
 (experiments I and III: 100 + 100 poses instead of 400 + 361) and 2 shots per pose instead of 8.
 
@@ -211,14 +212,14 @@ def _write_json(result: dict, out: Path, settings: dict) -> str:
 
 
 def _simulate_locate_calibrate(plans_: dict, *, seed, method, progress, where, pool, timings,
-                               order) -> tuple[dict, dict]:
+                               order) -> tuple[dict, dict, dict]:
     """Every pass of the table on one pool of workers (:func:`sunlab.parallel.worker_pool`):
     the one-hole runs I and III, whose spot gives the mounting offset that numbers the 100
     spots; the 100-hole run I; then the 100-hole run III on the workers from a background
     thread while the calibrations are fitted on I (:func:`_calibrate`, serial, in this
-    process); last the comparison on III. The
-    result of :func:`_compare`, the centroid tables (keyed ``"1 hole I"``, ``"100 holes
-    III"`` ...) and their :func:`centroid_status`; the stages' times go into ``timings``."""
+    process); last the comparison on III. The result of :func:`_compare`, the centroid
+    tables (keyed ``"1 hole I"``, ``"100 holes III"`` ...) and their
+    :func:`centroid_status`; the stages' times go into ``timings``."""
     from .. import sim
 
     one = {f"1 hole {k}": (p, sim.Bench.paper_single_hole()) for k, p in plans_.items()}
