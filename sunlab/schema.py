@@ -29,6 +29,7 @@ from __future__ import annotations
 import functools
 import json
 import math
+import threading
 from collections.abc import Mapping, Sequence
 from importlib import resources
 
@@ -145,6 +146,10 @@ def json_schema(contract: str) -> dict:
     return json.loads(_schema_text(contract))
 
 
+#: Held while jsonschema is imported (:func:`_import_jsonschema`).
+_IMPORT_LOCK = threading.Lock()
+
+
 @functools.cache
 def _validator(contract: str):
     return _import_jsonschema().Draft202012Validator(json_schema(contract))
@@ -163,16 +168,17 @@ def _import_jsonschema():
     """
     import sys
 
-    if "jsonschema" in sys.modules or "rfc3987_syntax" in sys.modules:
-        import jsonschema
+    with _IMPORT_LOCK:  # one thread hides the package, imports and shows it again
+        if "jsonschema" in sys.modules or "rfc3987_syntax" in sys.modules:
+            import jsonschema
 
+            return jsonschema
+        sys.modules["rfc3987_syntax"] = None  # importing it raises ImportError: jsonschema skips
+        try:
+            import jsonschema
+        finally:
+            del sys.modules["rfc3987_syntax"]
         return jsonschema
-    sys.modules["rfc3987_syntax"] = None  # importing it raises ImportError: jsonschema skips it
-    try:
-        import jsonschema
-    finally:
-        del sys.modules["rfc3987_syntax"]
-    return jsonschema
 
 
 def _jsonable(obj):
