@@ -223,10 +223,9 @@ def _roughness_radius(cube, cen, ok, poses, shot) -> float:
 
 def _frames_of(cube, poses, shot, batch: int = 32):
     """(pose, frame) of the given poses at one shot, computed ``batch`` frames at a time: a
-    lazy cube renders or reads a batch in parallel, one request to its scheduler (a request
-    waits behind the work already queued there, e.g. another run rendered by the same worker
-    processes in Table 5, so few large requests beat many small ones), and memory stays
-    bounded (32 full frames are 84 MB)."""
+    lazy cube renders or reads a batch in parallel, in one request to its scheduler (each
+    request pays the scheduler's start and, on a shared scheduler, waits behind the work
+    already queued there), and memory stays bounded (32 full frames are 84 MB)."""
     poses = [int(p) for p in poses]
     for k in range(0, len(poses), batch):
         part = poses[k:k + batch]
