@@ -24,11 +24,14 @@ from ..errors import ConfigurationError
 __all__ = ["table4_methods"]
 
 
-def table4_methods(*, neural: bool = True, hidden: int = 8, seed: int = 0) -> dict[str, Callable]:
+def table4_methods(*, neural: bool = True, hidden: int = 8, seed: int = 0,
+                   reference: str = "design") -> dict[str, Callable]:
     """The calibration methods compared, as ``label: fit(train, validation) -> Calibration``.
 
     Labels follow the paper's Table 4 where it has the method (``linear interp.``,
-    ``cubic interp.``, ``polynomial``, ``NN strategy 4``).
+    ``cubic interp.``, ``polynomial``, ``NN strategy 4``). ``reference`` is where model (1) of
+    the networks of strategies 2 and 4 is zeroed (:class:`sunlab.calibration.NeuralNet`):
+    ``"zero_pose"`` re-zeroes it on each run's zero-pose centroid (the tables must carry it).
 
     Examples
     --------
@@ -53,7 +56,8 @@ def table4_methods(*, neural: bool = True, hidden: int = 8, seed: int = 0) -> di
     if neural:
         for s in (1, 2, 3, 4):
             methods[f"NN strategy {s}"] = (
-                lambda tr, va, s=s: cal.NeuralNet(strategy=s, hidden=hidden, seed=seed).fit(tr, va)
+                lambda tr, va, s=s: cal.NeuralNet(strategy=s, hidden=hidden, seed=seed,
+                                                reference=reference).fit(tr, va)
             )
     return methods
 

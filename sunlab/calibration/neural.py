@@ -84,6 +84,13 @@ class NeuralNet(Calibration):
         L2 penalty on the weights (standardised units); 0 by default.
     average : {"pose", "shot"}
         Train on pose-mean centroids (default) or on every ok shot.
+    reference : {"design", "zero_pose"}
+        Where model (1) of strategies 2 and 4 puts (x_cf, y_cf): the design projection of the
+        hole (the table's ``x_cf_px``, ``y_cf_px``, fixed at the fit), or the zero-pose
+        centroid measured with each run (the table's ``zero_pose_x_px``, ``zero_pose_y_px``,
+        read at the fit from the training run and at every prediction from the run predicted):
+        the sensor re-zeroed on each run's zero-pose frames. That removes an offset of a whole
+        run (the inner axis's homing) and adds the zero-pose frames' own error as a constant.
 
     Attributes
     ----------
@@ -101,8 +108,13 @@ class NeuralNet(Calibration):
 
     def __init__(self, strategy: int = 4, hidden: int = 8, seed: int = 0, *,
                  max_iter: int = 3000, patience: int = 200, weight_decay: float = 0.0,
-                 average: str = "pose"):
+                 average: str = "pose", reference: str = "design"):
         super().__init__()
+        if reference not in ("design", "zero_pose"):
+            raise ConfigurationError(
+                f"reference: found {reference!r}, expected 'design' or 'zero_pose'"
+            )
+        self.reference = reference
         if strategy not in STRATEGIES:
             raise ConfigurationError(
                 f"strategy: found {strategy!r}, expected one of {sorted(STRATEGIES)} (Table 2)"
@@ -153,8 +165,32 @@ class NeuralNet(Calibration):
         return 4 * self.hidden + 1
 
     # --- training ----------------------------------------------------------------------------
+    def _zeroed(self, attrs) -> dict:
+        """The sensor with model (1) referenced to the run's zero pose (``reference``)."""
+        try:
+            x0, y0 = float(attrs["zero_pose_x_px"]), float(attrs["zero_pose_y_px"])
+        except (KeyError, TypeError, ValueError):
+            raise ConfigurationError(
+                "centroids: reference='zero_pose' needs the run's zero-pose centroid in the "
+                "table's attributes zero_pose_x_px and zero_pose_y_px (px). Fix: measure the "
+                "zero pose with the run (sunlab.plans.zero_check) or use reference='design'."
+            ) from None
+        return dict(self.sensor, x_cf_px=x0, y_cf_px=y0)
+
+    def predict(self, centroids):
+        if self.reference != "zero_pose" or self.strategy not in (2, 4):
+            return super().predict(centroids)
+        fitted = self.sensor
+        self.sensor = self._zeroed(centroids.attrs)
+        try:
+            return super().predict(centroids)
+        finally:
+            self.sensor = fitted
+
     def _fit(self, data: TrainingData, validation: TrainingData | None) -> None:
         self.sensor = sensor_attrs(data.attrs) if self.strategy != 1 else None
+        if self.reference == "zero_pose" and self.strategy in (2, 4):
+            self.sensor = self._zeroed(data.attrs)
         self.optimised = fit_optimised(data, self.sensor) if self.strategy == 3 else None
         X = self._inputs(data.x, data.y)
         T = self._targets(data)
@@ -268,6 +304,7 @@ class NeuralNet(Calibration):
             "max_iter": self.max_iter,
             "patience": self.patience,
             "weight_decay": self.weight_decay,
+            "reference": self.reference,
             "activation": "tanh hidden layer, linear output",
             "sensor": self.sensor,
             "optimised": None if self.optimised is None else self.optimised.to_dict(),
@@ -283,7 +320,8 @@ class NeuralNet(Calibration):
 
         obj = cls(strategy=int(p["strategy"]), hidden=int(p["hidden"]), seed=int(p["seed"]),
                   max_iter=int(p["max_iter"]), patience=int(p["patience"]),
-                  weight_decay=float(p["weight_decay"]))
+                  weight_decay=float(p["weight_decay"]),
+                  reference=str(p.get("reference", "design")))
         obj.sensor = None if p["sensor"] is None else sensor_attrs(p["sensor"], name="sensor")
         if obj.strategy == 3:
             obj.optimised = optimised_fit_from_dict(p["optimised"])

@@ -39,6 +39,7 @@ __all__ = [
     "simulate_and_locate",
     "simulate_experiments",
     "usable_table",
+    "zero_poses",
     "centroid_status",
     "write_json",
 ]
@@ -253,6 +254,40 @@ def simulate_experiments(bench=None, *, seed: int = 0, quick: bool = False,
         n_frames = sum(len(p) * p.shots for p in plans_.values())
         print(f"rendering and centroiding {n_frames} frames ({method})", flush=True)
     return cubes
+
+
+def zero_poses(bench, plans_: dict, *, seed: int = 0, method: str = "projection") -> dict:
+    """The zero-pose centroid measured with each run, px: one zero-pose check per run.
+
+    Each run's check (:func:`sunlab.plans.zero_check`, one visit with the run's shots) is
+    rendered on the bench with the run's homing and its own per-pose platform error, and
+    centroided with the table's method; the mean over its shots is the run's zero-pose
+    centroid, what a network re-zeroed on each run reads (``reference="zero_pose"`` of
+    :class:`sunlab.calibration.NeuralNet`).
+
+    Returns
+    -------
+    dict of str to dict
+        Per run: ``zero_pose_x_px`` and ``zero_pose_y_px``, to put in its table's attributes.
+
+    Examples
+    --------
+    >>> from sunlab import sim
+    >>> z = zero_poses(sim.Bench.paper_single_hole(), experiment_plans(("I",), step=7, shots=2))
+    >>> sorted(z["I"])
+    ['zero_pose_x_px', 'zero_pose_y_px']
+    """
+    from .. import centroid, plans, sim
+
+    cubes = {k: sim.simulate(plans.zero_check(p, 1), bench, seed=seed)
+             for k, p in plans_.items()}
+    cens = centroid.locate_all(cubes, method, scheduler="synchronous", progress=False)
+    out = {}
+    for k, cen in cens.items():
+        ok = usable_table(cen)["status"].values == 0
+        out[k] = {"zero_pose_x_px": float(np.mean(cen.x.values[ok])),
+                  "zero_pose_y_px": float(np.mean(cen.y.values[ok]))}
+    return out
 
 
 def usable_table(cen: xr.Dataset) -> xr.Dataset:

@@ -296,9 +296,14 @@ def format_platform(res: dict) -> str:
     lines.append("Paper's sigma/mu (bound 1/sqrt(3) = 0.577): " + ", ".join(
         f"{k} {v['ratio']:.2f}" for k, v in ps.items()))
     m = res["must_show"]
-    lines.append(f"Best remedy: {m['best_remedy']}: beta mu {m['best_beta_mu']:.4f} "
-                 f"(<= {m['limit_alpha']:.4f} and <= {m['limit_beta']:.4f}: "
-                 f"{m['beta_mu_within_1.3x_polynomial_alpha_mu']} and "
-                 f"{m['beta_mu_within_0.6x_polynomial_beta_mu']}); parameters within 2.5 s.e.: "
-                 f"{m['parameters_within_2.5_stderr']}")
+    def yes(flag) -> str:
+        return "yes" if flag else "no"
+
+    lines.append(f"Best remedy: {m['best_remedy']}: beta mu {m['best_beta_mu']:.4f}")
+    lines.append(f"  beta mu at most 1.3 x the polynomial's alpha mu ({m['limit_alpha']:.4f}): "
+                 f"{yes(m['beta_mu_within_1.3x_polynomial_alpha_mu'])}")
+    lines.append(f"  beta mu at most 0.6 x the polynomial's beta mu ({m['limit_beta']:.4f}): "
+                 f"{yes(m['beta_mu_within_0.6x_polynomial_beta_mu'])}")
+    lines.append("  every fitted fault parameter within 2.5 s.e. of the bench's value: "
+                 f"{yes(m['parameters_within_2.5_stderr'])}")
     return "\n".join(lines)

@@ -56,6 +56,10 @@ PAPER_BETA_POSE_DEG = 0.007
 PAPER_BETA_BACKLASH_DEG = 0.017
 PAPER_MASK_PLAY_MM = 0.012
 
+#: The place of each experiment of Table 3 in the session (docs/paper.md sec. 5 runs them in
+#: this order): a run named otherwise is taken at the session's start.
+RUN_ORDER = {"I": 0, "II": 1, "III": 2}
+
 _TAG_POSE = 0x905E
 _TAG_SHOT = 0x5407
 _TAG_HOME = 0x803E
@@ -318,14 +322,16 @@ def _pose_error(plat: Platform, key: list[int], pose: int, approach: int = 1,
 
 
 def _homing(plat: Platform, seed_key: list[int], run: str) -> float:
-    """The inner axis's zero offset of one run (one homing), deg: uniform in
-    +-``beta_homing_deg``, drawn from the seed and the run's name (a zero-pose check taken
-    with the run, :func:`sunlab.plans.zero_check`, shares it)."""
+    """The inner axis's zero offset of one run, deg: its place in the session times the
+    thermal drift per run (:data:`RUN_ORDER`, ``beta_drift_deg``) plus a homing offset uniform
+    in +-``beta_homing_deg``, drawn from the seed and the run's name (a zero-pose check taken
+    with the run, :func:`sunlab.plans.zero_check`, shares both)."""
+    drift = plat.beta_drift_deg * RUN_ORDER.get(str(run), 0)
     if not plat.beta_homing_deg:
-        return 0.0
+        return drift
     tag = zlib.crc32(str(run).encode())
     u = np.random.default_rng(np.random.SeedSequence(list(seed_key) + [_TAG_HOME, tag]))
-    return float(u.uniform(-1.0, 1.0)) * plat.beta_homing_deg
+    return drift + float(u.uniform(-1.0, 1.0)) * plat.beta_homing_deg
 
 
 def homing_offset(bench: Bench, seed, run: str) -> float:

@@ -105,6 +105,12 @@ class Detector:
         Mean extra dark signal of a hot pixel (exponentially distributed), electrons.
     diffusion_px : float
         RMS lateral charge diffusion (Gaussian blur of the signal), px. Default 0: not modelled.
+    lid_thickness_mm : float
+        Thickness of the glass lid over the die, mm (0: a lid-less part). The IBIS4-1300 ships
+        with a Schott D263 lid (datasheet, docs/paper.md sec. 10); a plane-parallel plate shifts
+        an oblique ray toward the hole's foot (:func:`sunlab.sim.render.ray_positions`).
+    lid_index : float
+        Refractive index of the lid (Schott D263: 1.523 at 587.6 nm).
     temporal_noise : bool
         Shot and read noise on (False: frames are the rounded expectation).
     fixed_pattern : bool
@@ -134,6 +140,8 @@ class Detector:
     hot_pixel_fraction: float = 2e-4
     hot_pixel_dark_e: float = 8000.0
     diffusion_px: float = 0.0
+    lid_thickness_mm: float = 0.0
+    lid_index: float = 1.523
     temporal_noise: bool = True
     fixed_pattern: bool = True
     pattern_seed: int = 1
@@ -177,10 +185,16 @@ class Detector:
             "hot_pixel_fraction",
             "hot_pixel_dark_e",
             "diffusion_px",
+            "lid_thickness_mm",
         ):
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0):
                 raise ConfigurationError(f"detector.{name}: found {v!r}; expected a value >= 0.")
+        if not (math.isfinite(self.lid_index) and self.lid_index >= 1.0):
+            raise ConfigurationError(
+                f"detector.lid_index: found {self.lid_index!r}; expected a refractive index >= 1 "
+                "(Schott D263: 1.523)."
+            )
         if self.prnu_correlation_px <= 0:
             raise ConfigurationError(
                 f"detector.prnu_correlation_px: found {self.prnu_correlation_px!r}; "

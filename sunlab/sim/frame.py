@@ -63,7 +63,7 @@ def _pose_stamps(bench, alphas, betas, play_mm, shape_angles):
     for k, (a, b) in enumerate(zip(alphas, betas, strict=True)):
         sv = sensor_sun_vector(bench.platform, float(a), float(b))
         if sv[2] > 1e-6 and float(sv @ n_m) > 1e-6:
-            shots.append((k, _rays(q, sv, sv[2], det.pixel_pitch_mm),
+            shots.append((k, _rays(q, sv, sv[2], det),
                           geom.q_e * (sv[2] / geom.s[2])))  # the flux's cosine factor, per shot
     out = [[] for _ in alphas]
     for g in _groups(bench, geom):

@@ -96,6 +96,11 @@ class Platform:
         Half-width of the inner axis's homing (zero) offset, deg: drawn uniformly once per run
         (each time the stage is homed), the same for every pose of the run; a calibration
         absorbs its own run's offset, so a test run is off by the difference of the two.
+    beta_drift_deg : float
+        Thermal drift of the inner axis's zero per run, deg: a run's zero is off by its place
+        in the session (:data:`sunlab.sim.bench.RUN_ORDER`: I 0, II 1, III 2) times this, as
+        the lamp and the stage warm up between experiments I and III; like the homing offset
+        it is constant within a run, and a zero-pose check taken with the run shares it.
     beta_gear_deg, beta_gear_period_deg, beta_gear_phase_deg : float
         Periodic gear error of the inner axis: amplitude, period in beta and phase, deg
         (a worm's eccentricity repeats once per worm turn). With a period under two grid steps
@@ -119,6 +124,7 @@ class Platform:
     beta_jitter_deg: float = 0.0005
     beta_backlash_deg: float = 0.0
     beta_homing_deg: float = 0.0
+    beta_drift_deg: float = 0.0
     beta_gear_deg: float = 0.0
     beta_gear_period_deg: float = 1.6
     beta_gear_phase_deg: float = 0.0

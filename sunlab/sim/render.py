@@ -207,7 +207,7 @@ def _spot_geometry(bench, a, b, play_mm) -> SpotGeometry:
     lit = bool(s[2] > 1e-6 and sn > 1e-6)
     sz = s[2] if lit else 1.0
     q = _hole_centres_mm(bench, play_mm)
-    ray = _rays(q, s, sz, p)
+    ray = _rays(q, s, sz, det)
     proj = (rot[:2, :2] - np.outer(s[:2], rot[2, :2]) / sz) / p
     proj_w = (rot[:2, 2] - s[:2] * rot[2, 2] / sz) / p
     # Sun-disk kernel by quadrature over the source (per mm of hole height).
@@ -267,9 +267,23 @@ def _hole_centres_mm(bench, play_mm) -> np.ndarray:
     return origin[None, :] + _layout(mask).uv @ mask.rotation_matrix()[:, :2].T
 
 
-def _rays(q, s, sz, p):
-    """The geometric ray of each hole centre q (n, 3) mm for the sun vector s: px (n, 2)."""
-    return (q[:, :2] - q[:, 2:3] * (s[:2] / sz)[None, :]) / p
+def _rays(q, s, sz, det):
+    """The geometric ray of each hole centre q (n, 3) mm for the sun vector s: px (n, 2).
+
+    Through the detector's glass lid (thickness t, index n, :class:`~sunlab.sim.Detector`) the
+    ray travels at the refracted angle, sin(theta') = sin(theta) / n, so it lands closer to the
+    hole's foot by t (tan(theta) - tan(theta')) along the sun's azimuth (Snell's law for a
+    plane-parallel plate; docs/paper.md sec. 10).
+    """
+    ray = q[:, :2] - q[:, 2:3] * (s[:2] / sz)[None, :]
+    t = det.lid_thickness_mm
+    if t > 0:
+        r = math.hypot(float(s[0]), float(s[1]))
+        if r > 0:
+            sin_t = r / math.sqrt(r * r + float(sz) ** 2)
+            tan_in = sin_t / math.sqrt(det.lid_index**2 - sin_t**2)
+            ray = ray + t * (r / float(sz) - tan_in) * (s[:2] / r)[None, :]
+    return ray / det.pixel_pitch_mm
 
 
 def ray_positions(bench, alpha_true, beta_true, play_mm=(0.0, 0.0)):
