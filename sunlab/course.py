@@ -47,6 +47,7 @@ __all__ = [
     "QUICK_CELL",
     "default_notebook_dir",
     "find_exercises",
+    "grade_notebook",
     "replace_solution",
     "solution_hint",
     "student_notebook",
@@ -106,6 +107,16 @@ def _nbformat():
             "nbformat: not installed; the course reads and writes notebooks with it. "
             "Fix: pip install nbformat (it comes with Jupyter)") from None
     return nbformat
+
+
+def _nbclient():
+    try:
+        import nbclient
+    except ImportError:  # pragma: no cover - nbclient comes with Jupyter
+        raise ConfigurationError(
+            "nbclient: not installed; grading executes the notebook with it. "
+            "Fix: pip install nbclient ipykernel (they come with Jupyter)") from None
+    return nbclient
 
 
 def default_notebook_dir() -> Path:
@@ -298,3 +309,65 @@ def write_course(out, *, notebooks=None, quick: bool = True, overwrite: bool = F
             written[edition].append(atomic.write_text(folder / name, text, overwrite=overwrite,
                                                       flag="--overwrite"))
     return written
+
+
+def _error_of(cell):
+    return next((o for o in cell.get("outputs", []) if o.get("output_type") == "error"), None)
+
+
+def grade_notebook(path, *, timeout: float = 900.0) -> list[dict]:
+    """Execute a student's notebook top to bottom and grade every check cell.
+
+    The notebook runs in a fresh kernel in its own folder, going on past errors (an
+    unanswered exercise must not hide the others); each ``# Check NN.k`` cell then says
+    how its exercise went.
+
+    Parameters
+    ----------
+    path : str or path-like
+        A notebook of the student edition, with the student's answers.
+    timeout : float
+        Limit per cell, s.
+
+    Returns
+    -------
+    list of dict
+        One per check cell, in order: ``exercise`` (``"NN.k"``), ``result`` (``"pass"``,
+        ``"wrong"``: the check's assertion failed, ``"not answered"``: the stub still raises
+        or a name the exercise defines is missing, ``"error"``: anything else) and ``message``
+        (the check's message or the error, '' on a pass).
+
+    Raises
+    ------
+    ConfigurationError
+        The notebook holds no check cell.
+    """
+    nbf, nbclient = _nbformat(), _nbclient()
+    path = Path(path)
+    nb = nbf.read(path, as_version=4)
+    cells = [(i, c) for i, c in enumerate(nb.cells) if c.cell_type == "code"]
+    checks = [(i, _CHECK.match(c.source).group(1)) for i, c in cells if _CHECK.match(c.source)]
+    if not checks:
+        raise ConfigurationError(
+            f"{path}: no '# Check NN.k' cell. Fix: give a notebook of the course (sunlab "
+            "course --out DIR writes them)")
+    first = {i: c.source.split("\n", 1)[0] for i, c in cells}
+    answers = {_EXERCISE.match(first[i]).group(1): c for i, c in cells
+               if _EXERCISE.match(first[i])}
+    nbclient.NotebookClient(nb, timeout=timeout, kernel_name="python3", allow_errors=True,
+                            resources={"metadata": {"path": str(path.parent)}}).execute()
+    rows = []
+    for i, number in checks:
+        err, stub = _error_of(nb.cells[i]), _error_of(answers.get(number, {}))
+        if err is None:
+            result, message = "pass", ""
+        elif stub is not None and stub["ename"] == "NotImplementedError":
+            result, message = "not answered", stub["evalue"]
+        elif err["ename"] == "AssertionError":
+            result, message = "wrong", err["evalue"]
+        elif err["ename"] == "NameError":
+            result, message = "not answered", err["evalue"]
+        else:
+            result, message = "error", f"{err['ename']}: {err['evalue']}"
+        rows.append({"exercise": number, "result": result, "message": message})
+    return rows

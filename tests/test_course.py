@@ -208,6 +208,29 @@ def test_course_without_notebooks_names_the_folder_and_the_fix(tmp_path):
     assert str(tmp_path) in res.stderr and "Fix:" in res.stderr and "Traceback" not in res.stderr
 
 
+def test_grade_tells_a_pass_a_wrong_answer_and_an_unanswered_exercise(tmp_path):
+    """``sunlab course --grade``: a student's notebook executed, each check reported."""
+    v4 = nbformat.v4
+
+    def exercise(n, answer, check):
+        return [v4.new_code_cell(f"# Exercise 07.{n}: t\n# Hint: h\n{answer}"),
+                v4.new_code_cell(f"# Check 07.{n}\n{check}")]
+
+    stub = "raise NotImplementedError('Exercise 07.3: yours')"
+    cells = (exercise(1, "x = 2", "assert x == 2, 'x is two'")
+             + exercise(2, "y = 3", "assert y == 2, 'y is two: count again'")
+             + exercise(3, stub, "assert z == 2, 'z is two'"))
+    path = tmp_path / "07-student.ipynb"
+    nbformat.write(v4.new_notebook(cells=cells), path)
+    res = _sunlab("course", "--grade", str(path))
+    assert res.returncode == 0, res.stderr
+    lines = res.stdout.splitlines()
+    assert lines[0] == f"{path}: 1 of 3 checks pass"
+    assert re.match(r"\s+07\.1\s+pass$", lines[1]), lines
+    assert re.match(r"\s+07\.2\s+wrong\s+y is two: count again$", lines[2]), lines
+    assert re.match(r"\s+07\.3\s+not answered\s+Exercise 07.3: yours$", lines[3]), lines
+
+
 # ------------------------------------------------------------------ executed editions
 
 def _client(nb):

@@ -465,11 +465,15 @@ def _run_reproduce(args) -> int:
 
 def _add_course(sub) -> None:
     p = sub.add_parser(
-        "course", help="write the course's student and teacher editions of the notebooks",
-        description="Write DIR/student (each exercise's answer replaced by a stub that raises "
-        "NotImplementedError with a hint) and DIR/teacher (answers kept, nbgrader metadata on "
-        "the solution and check cells). docs/course.md is the syllabus.")
-    p.add_argument("--out", required=True, metavar="DIR", help="folder of the two editions")
+        "course", help="write the course's student and teacher editions, or grade a notebook",
+        description="--out DIR writes DIR/student (each exercise's answer replaced by a stub "
+        "that raises NotImplementedError with a hint) and DIR/teacher (answers kept, nbgrader "
+        "metadata on the solution and check cells). --grade runs students' notebooks and "
+        "reports each check. docs/course.md is the syllabus.")
+    what = p.add_mutually_exclusive_group(required=True)
+    what.add_argument("--out", metavar="DIR", help="folder of the two editions")
+    what.add_argument("--grade", nargs="+", metavar="NOTEBOOK",
+                      help="students' notebooks to execute and grade, check by check")
     p.add_argument("--notebooks", default=None, metavar="DIR",
                    help="folder of the numbered notebooks (default: the checkout's notebooks/)")
     p.add_argument("--full", action="store_true",
@@ -479,8 +483,16 @@ def _add_course(sub) -> None:
 
 
 def _run_course(args) -> int:
-    from ..course import write_course
+    from ..course import grade_notebook, write_course
 
+    if args.grade:
+        for path in args.grade:
+            rows = grade_notebook(path)
+            passed = sum(r["result"] == "pass" for r in rows)
+            print(f"{path}: {passed} of {len(rows)} checks pass")
+            for r in rows:
+                print(f"  {r['exercise']}  {r['result']:12s}  {r['message'][:160]}".rstrip())
+        return 0
     res = write_course(args.out, notebooks=args.notebooks, quick=not args.full,
                        overwrite=args.overwrite)
     books = {ex.notebook for ex in res["exercises"]}
