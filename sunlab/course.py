@@ -239,6 +239,9 @@ def _edition(nb, name: str, *, student: bool, quick: bool):
         chk.metadata["nbgrader"] = {"grade": True, "solution": False, "locked": True,
                                     "points": 1, "grade_id": f"{tag}-check",
                                     "schema_version": 3}
+        if student:  # Jupyter keeps a student from editing or deleting a check
+            chk.metadata.update(editable=False, deletable=False)
+            sol.metadata["deletable"] = False
     if quick:
         nbf = _nbformat()
         first = next((i for i, c in enumerate(out.cells) if c.cell_type == "code"),

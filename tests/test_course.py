@@ -187,6 +187,7 @@ def test_python_m_sunlab_course_writes_both_editions(tmp_path):
     assert f"{n_ex} exercises in {len(WITH_EXERCISES)} notebooks" in res.stdout
     for name in BOOKS:
         student = (tmp_path / "class" / "student" / name).read_text()
+        student_nb = nbformat.reads(student, as_version=4)
         teacher = nbformat.read(tmp_path / "class" / "teacher" / name, as_version=4)
         assert "BEGIN SOLUTION" not in student and "END SOLUTION" not in student, name
         for ex in EXERCISES[name]:
@@ -196,6 +197,8 @@ def test_python_m_sunlab_course_writes_both_editions(tmp_path):
             assert sol.metadata["nbgrader"]["solution"] is True
             assert teacher.cells[ex.check_cell + 1].metadata["nbgrader"]["grade"] is True
             assert f"Exercise {ex.number}" in student and "raise NotImplementedError" in student
+            locked = student_nb.cells[ex.check_cell + 1].metadata
+            assert locked["editable"] is False and locked["nbgrader"]["locked"] is True
         first_code = next(c for c in teacher.cells if c.cell_type == "code")
         assert first_code.source == course.QUICK_CELL, name
     again = _sunlab("course", "--out", str(tmp_path / "class"))
