@@ -109,6 +109,19 @@ def _nbformat():
     return nbformat
 
 
+def _read(nbf, path: Path):
+    """A notebook read with nbformat; a file that is not one gives a clear error."""
+    try:
+        return nbf.read(path, as_version=4)
+    except OSError:
+        raise
+    except Exception as err:  # NotJSONError, a schema ValidationError, a missing key ...
+        raise ConfigurationError(
+            f"{path}: not a Jupyter notebook ({type(err).__name__}: "
+            f"{' '.join(str(err).split())[:200]}). Fix: give an .ipynb file saved by Jupyter"
+        ) from None
+
+
 def _nbclient():
     try:
         import nbclient
@@ -301,7 +314,7 @@ def write_course(out, *, notebooks=None, quick: bool = True, overwrite: bool = F
             f"notebooks: no numbered notebook (NN-title.ipynb) in {src}. Fix: give the "
             "notebooks folder of a sunlab checkout")
     out = Path(out)
-    books = {p.name: nbf.read(p, as_version=4) for p in paths}
+    books = {p.name: _read(nbf, p) for p in paths}
     exercises = [ex for name, nb in books.items() for ex in find_exercises(nb, name)]
     written = {"student": [], "teacher": [], "exercises": exercises}
     for edition, make in (("teacher", teacher_notebook), ("student", student_notebook)):
@@ -347,7 +360,7 @@ def grade_notebook(path, *, timeout: float = 900.0) -> list[dict]:
     """
     nbf, nbclient = _nbformat(), _nbclient()
     path = Path(path)
-    nb = nbf.read(path, as_version=4)
+    nb = _read(nbf, path)
     cells = [(i, c) for i, c in enumerate(nb.cells) if c.cell_type == "code"]
     checks = [(i, _CHECK.match(c.source).group(1)) for i, c in cells if _CHECK.match(c.source)]
     if not checks:

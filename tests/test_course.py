@@ -234,6 +234,14 @@ def test_grade_tells_a_pass_a_wrong_answer_and_an_unanswered_exercise(tmp_path):
     assert re.match(r"\s+07\.3\s+not answered\s+Exercise 07.3: yours$", lines[3]), lines
 
 
+def test_grading_a_file_that_is_not_a_notebook_says_so(tmp_path):
+    bad = tmp_path / "03-answers.ipynb"
+    bad.write_text("my answers: 42")
+    res = _sunlab("course", "--grade", str(bad))
+    assert res.returncode == 1 and "Traceback" not in res.stderr
+    assert f"{bad}: not a Jupyter notebook" in res.stderr and "Fix:" in res.stderr
+
+
 # ------------------------------------------------------------------ executed editions
 
 def _client(nb):
