@@ -14,6 +14,8 @@ kept, nbgrader metadata added, so it is also an nbgrader source notebook) and th
 edition** (each solution replaced by a stub that raises :class:`NotImplementedError` with the
 hint; no marker left). By default both start with a cell that selects the small settings
 (``SUNLAB_QUICK=1``), so that each notebook runs in a few minutes on a laptop.
+:func:`grade_notebook` executes a student's notebook and reports each check (``pass``,
+``wrong``, ``not answered``, ``error``), for a teacher who does not use nbgrader.
 
 The notebooks are read with nbformat from the ``notebooks/`` folder of a sunlab checkout (the
 package's parent folder); a sunlab installed from a wheel carries no notebooks, and then the
