@@ -155,7 +155,7 @@ LAYERS = [
     {"errors", "options", "atomic", "schema", "parallel"},
     {"io", "geometry", "stats", "plans", "calibration", "centroid"},
     {"sim", "multihole", "platform_fault", "export", "plots", "hardware"},
-    {"reproduce", "widgets", "cli", "data"},
+    {"reproduce", "widgets", "cli", "data", "course"},
 ]
 
 

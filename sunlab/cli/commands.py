@@ -463,6 +463,45 @@ def _run_reproduce(args) -> int:
     return 0
 
 
+def _add_course(sub) -> None:
+    p = sub.add_parser(
+        "course", help="write the course's student and teacher editions, or grade a notebook",
+        description="--out DIR writes DIR/student (each exercise's answer replaced by a stub "
+        "that raises NotImplementedError with a hint) and DIR/teacher (answers kept, nbgrader "
+        "metadata on the solution and check cells). --grade runs students' notebooks and "
+        "reports each check. docs/course.md is the syllabus.")
+    what = p.add_mutually_exclusive_group(required=True)
+    what.add_argument("--out", metavar="DIR", help="folder of the two editions")
+    what.add_argument("--grade", nargs="+", metavar="NOTEBOOK",
+                      help="students' notebooks to execute and grade, check by check")
+    p.add_argument("--notebooks", default=None, metavar="DIR",
+                   help="folder of the numbered notebooks (default: the checkout's notebooks/)")
+    p.add_argument("--full", action="store_true",
+                   help="leave out the first cell that selects the small settings")
+    p.add_argument("--overwrite", action="store_true", help="replace editions written before")
+    p.set_defaults(func=_run_course)
+
+
+def _run_course(args) -> int:
+    from ..course import grade_notebook, write_course
+
+    if args.grade:
+        for path in args.grade:
+            rows = grade_notebook(path)
+            passed = sum(r["result"] == "pass" for r in rows)
+            print(f"{path}: {passed} of {len(rows)} checks pass")
+            for r in rows:
+                print(f"  {r['exercise']}  {r['result']:12s}  {r['message'][:160]}".rstrip())
+        return 0
+    res = write_course(args.out, notebooks=args.notebooks, quick=not args.full,
+                       overwrite=args.overwrite)
+    books = {ex.notebook for ex in res["exercises"]}
+    print(f"{len(res['exercises'])} exercises in {len(books)} notebooks; wrote "
+          f"{len(res['student'])} student notebooks to {res['student'][0].parent} and "
+          f"{len(res['teacher'])} teacher notebooks to {res['teacher'][0].parent}")
+    return 0
+
+
 def _add_lab(name: str):
     """The adder of a lab subcommand (import, evaluate, export) from :mod:`sunlab.cli.lab`."""
     return getattr(_lab, f"_add_{name}")
@@ -471,7 +510,7 @@ def _add_lab(name: str):
 # One adder per subcommand, in the order `sunlab --help` lists them.
 _ADDERS = [
     _add_reproduce, _add_simulate, _add_lab("import"), _add_centroid, _add_calibrate,
-    _add_lab("evaluate"), _add_lab("export"), _add_acquire, _add_info,
+    _add_lab("evaluate"), _add_lab("export"), _add_acquire, _add_info, _add_course,
 ]
 
 
