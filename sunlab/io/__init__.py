@@ -11,6 +11,8 @@ One module per concept, every public name re-exported here:
 * :mod:`sunlab.io.sensor` -- :func:`read_sensor_json`, the checked ``sensor.json`` of a folder;
 * :mod:`sunlab.io.calframes` -- master dark, bias and flat frames
   (:func:`with_calibration_frames`) and the lazy correction (:func:`corrected_frames`);
+* :mod:`sunlab.io.lab` -- :func:`import_folder`: a lab's folder, sensor.json and calibration
+  frames as one cube (``sunlab import``);
 * :mod:`sunlab.io.describe` -- :func:`summary`.
 
 Two on-disk formats hold the same datasets (contracts ``frames/1`` and ``centroids/1`` of
@@ -66,6 +68,7 @@ from .calframes import (
 from .describe import summary
 from .folder import example_folder, from_image_folder
 from .images import IMAGE_SUFFIXES, read_image
+from .lab import import_folder
 from .read import open_centroids, open_dataset, open_frames
 from .sensor import SENSOR_FIELDS, find_sensor_json, read_sensor_json
 from .write import NETCDF_SUFFIXES, save_centroids, save_frames
@@ -93,4 +96,5 @@ __all__ = [
     "corrected_frames",
     "corrected_saturation",
     "has_calibration_frames",
+    "import_folder",
 ]
