@@ -26,9 +26,9 @@ from .result import (
     _NO_SPOT,
     _OK,
     _SATURATED,
-    SATURATION_10BIT,
     _all_zero,
     _check_positive,
+    _full_scale,
     _prepare,
 )
 
@@ -122,7 +122,7 @@ def locate_spots(
     frame, *, shape: tuple[int, int] = (10, 10), pitch: float = 0.5 / 0.007, holes=None,
     expected=None, method: str = "tight", max_residual: float = 0.3, stride: int = 8,
     nsigma: float = 5.0, min_contrast: float = 5.0, min_samples: int = 3, margin: float = 5.0,
-    annulus: float = 6.0, n_iter: int = 2, saturation: float = SATURATION_10BIT,
+    annulus: float = 6.0, n_iter: int = 2, saturation: float | None = None,
 ) -> Spots:
     """Find, centroid and index every spot of a multi-hole frame (the 10 x 10 mask).
 
@@ -187,7 +187,8 @@ def locate_spots(
     _check_positive("pitch", pitch, "give the hole pitch on the detector in px")
     hi, hj, lut = _hole_table(shape, holes)
     opts = _SpotOptions(int(stride), float(nsigma), float(min_contrast), int(min_samples),
-                        float(margin), float(annulus), int(n_iter), float(saturation),
+                        float(margin), float(annulus), int(n_iter),
+                        _full_scale(frame, saturation),
                         float(pitch), float(max_residual))
     exp = (np.empty((0, 2)) if expected is None else
            np.ascontiguousarray(np.asarray(expected, dtype=float).reshape(hi.size, 2)))

@@ -189,6 +189,9 @@ def _add_centroid(sub) -> None:
                         "projection for one spot per frame, tight for a multi-hole cube, whose "
                         "spots take tight or fit only)")
     p.add_argument("--out", required=True, help="output centroid table (.nc or .zarr)")
+    p.add_argument("--background", default=None, choices=["ring", "plane"],
+                   help="tight window: the background fitted around each spot, a constant "
+                        "(ring, default) or a plane (for a background that slopes or drifts)")
     p.add_argument("--scheduler", default="threads",
                    choices=["threads", "processes", "synchronous", "cluster"],
                    help="local Dask scheduler ('cluster': a local dask.distributed cluster of "
@@ -204,6 +207,7 @@ def _add_centroid(sub) -> None:
 
 def _run_centroid(args) -> int:
     from .. import centroid, io
+    from ..errors import ConfigurationError
 
     _check_out(args.out, args.overwrite, kind="auto")
     from .lab import cube_from_folder, is_image_folder
@@ -211,9 +215,16 @@ def _run_centroid(args) -> int:
     cube = (cube_from_folder(args.cube, args) if is_image_folder(args.cube)
             else io.open_frames(args.cube))
     if args.method is None:
-        args.method = "tight" if centroid.is_multi_hole(cube) else "projection"
+        args.method = "tight" if args.background or centroid.is_multi_hole(cube) else "projection"
+    extra = {}
+    if args.background is not None:
+        if args.method != "tight" or centroid.is_multi_hole(cube):
+            raise ConfigurationError(
+                f"--background: applies to the single-spot tight window, not --method "
+                f"{args.method}. Fix: pass --method tight, or drop --background")
+        extra["background"] = args.background
     cen = centroid.locate(cube, args.method, scheduler=args.scheduler, address=args.address,
-                          num_workers=args.workers, progress=not args.no_progress)
+                          num_workers=args.workers, progress=not args.no_progress, **extra)
     io.save_centroids(cen, args.out, overwrite=args.overwrite)
     ok = int((cen.status.values == 0).sum())
     print(f"{args.out}: {cen.status.size} centroids ({ok} ok) by method {args.method!r}")

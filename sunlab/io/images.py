@@ -176,7 +176,8 @@ def _shift_left_aligned(frame: np.ndarray, path: Path, bit_depth: int | None) ->
     low = frame & np.asarray((1 << shift) - 1, frame.dtype)
     if shift and frame.size and low.any():
         raise SchemaError(
-            f"image {path.name}", f"values not multiples of {2**shift} (e.g. {int(frame[low > 0][0])})",
+            f"image {path.name}",
+            f"values not multiples of {2**shift} (e.g. {int(frame[low > 0][0])})",
             f"{bit_depth}-bit data left-aligned in {word} bits (low {shift} bits zero)",
             "check bit_depth, or drop left_aligned if the camera writes right-aligned DN",
         )
