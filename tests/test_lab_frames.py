@@ -96,7 +96,8 @@ def _recording(root, name, poses, bits, left, kind, rng):
         frames = [_store(_expose(light, bits, dark, response, rng), bits, left)
                   for _ in range(SHOTS)]
         if kind == "tiff":  # one stack per pose, the shots as pages
-            tifffile.imwrite(folder / f"pose{p:03d}.tif", np.stack(frames))
+            tifffile.imwrite(folder / f"pose{p:03d}.tif", np.stack(frames),
+                             photometric="minisblack")
             rows += [f"pose{p:03d}.tif,{a},{b},{s},{s}" for s in range(SHOTS)]
         else:
             for s, frame in enumerate(frames):
@@ -119,7 +120,7 @@ def _calibration_frames(root, bits, left, kind, rng):
         frames = [_store(_expose(np.full((NY, NX), light), bits, dark, response, rng), bits,
                          left) for _ in range(N_CAL)]
         if kind == "tiff":
-            tifffile.imwrite(folder / f"{what}.tif", np.stack(frames))
+            tifffile.imwrite(folder / f"{what}.tif", np.stack(frames), photometric="minisblack")
         else:
             for k, frame in enumerate(frames):
                 _write_png(folder / f"{what}{k}.png", frame)

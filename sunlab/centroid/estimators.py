@@ -362,9 +362,8 @@ def tight_window(
        uniform-disk radius ``sqrt(2 (m_xx + m_yy))`` plus ``margin`` px, which holds the whole
        spot and few background pixels.
 
-    An isolated pixel at full scale in the window (a hot pixel: its 8 neighbours below full
-    scale) is replaced by the median of its neighbours and the status says ``repaired``, as in
-    algorithm B; touching clipped pixels mean the spot saturates (``saturated``).
+    An isolated pixel at full scale in the window (a hot pixel) is replaced by the median of its
+    8 neighbours (status ``repaired``, as in algorithm B); touching clipped pixels: ``saturated``.
 
     Every pixel of the window counts (no threshold), so the estimate has no sub-pixel bias for
     a symmetric spot; noise comes from the spot's own photon noise and the few background pixels
@@ -393,7 +392,7 @@ def tight_window(
         the frame's integer type (255 for uint8, 65535 for uint16; none for float frames);
         pass ``2**bit_depth - 1`` for an ADC narrower than its word (``locate`` does).
     background : {"ring", "plane"}
-        Background model fitted to the ring: a constant (compiled, fastest) or a plane.
+        Model fitted to the ring: a constant (compiled, fastest) or a plane.
 
     Returns
     -------
@@ -418,11 +417,6 @@ def tight_window(
     arr, usable = _prepare(frame)
     if not usable:
         return _fail(_INVALID)
-    if background not in ("ring", "plane"):
-        raise ConfigurationError(
-            f"background: found {background!r}, expected 'ring' (a constant fitted to the ring "
-            "around the spot) or 'plane' (a plane, for a sloping background)"
-        )
     res = _tight(arr, stride, nsigma, min_contrast, min_samples, margin, annulus, n_iter,
                  ambiguity_ratio, saturation, background)
     return res[0]
@@ -431,6 +425,11 @@ def tight_window(
 def _tight(arr, stride, nsigma, min_contrast, min_samples, margin, annulus, n_iter,
            ambiguity_ratio, saturation, background="ring"):
     """Tight window on a prepared frame; returns (Centroid, its SpotMoments or None)."""
+    if background not in ("ring", "plane"):
+        raise ConfigurationError(
+            f"background: found {background!r}, expected 'ring' (a constant fitted to the ring "
+            "around the spot) or 'plane' (a plane, for a sloping background)"
+        )
     det = _detect(arr, stride, nsigma, min_contrast, min_samples)
     if det.count.size == 0:
         return _fail(_INVALID if det.sample_max == 0 and _all_zero(arr) else _NO_SPOT), None

@@ -187,8 +187,7 @@ def locate_spots(
     _check_positive("pitch", pitch, "give the hole pitch on the detector in px")
     hi, hj, lut = _hole_table(shape, holes)
     opts = _SpotOptions(int(stride), float(nsigma), float(min_contrast), int(min_samples),
-                        float(margin), float(annulus), int(n_iter),
-                        _full_scale(frame, saturation),
+                        float(margin), float(annulus), int(n_iter), _full_scale(frame, saturation),
                         float(pitch), float(max_residual))
     exp = (np.empty((0, 2)) if expected is None else
            np.ascontiguousarray(np.asarray(expected, dtype=float).reshape(hi.size, 2)))

@@ -380,6 +380,10 @@ def _run_calibrate(args) -> int:
           f"{elapsed:.2f} s; {line}")
     if res.get("validation"):
         print("  validation residuals (deg): " + fmt(res["validation"]))
+    from ..calibration.plausibility import implausible
+
+    for finding in implausible(cal):
+        print(f"warning: implausible fit: {finding}")
     return 0
 
 

@@ -427,6 +427,10 @@ def _run_evaluate(args) -> int:
         keep = [want] if want in paper.columns else list(paper.columns)
         shown = pd.concat([shown, paper[keep].add_suffix(" (paper)")], axis=1)
     print(shown.to_string(float_format=lambda v: f"{v:.5f}"))
+    from ..calibration.plausibility import implausible
+
+    for finding in implausible(cal, test_mu={a: col[(a, "mu")] for a in ("alpha", "beta")}):
+        print(f"warning: implausible: {finding}")
     if n_out:
         print(f"warning: {n_out} centroid(s) outside the calibrated domain (extrapolated"
               f"{' or NaN' if cal.kind.startswith('interpolation') else ''}); see in_domain in "

@@ -89,38 +89,27 @@ def from_image_folder(
     folder : str or path-like
         Folder holding the images (8-bit, or 16-bit for deeper ADCs; single channel).
     manifest : str, path-like or pandas.DataFrame, optional
-        The manifest, one row per image; default ``folder/manifest.csv``. A relative path is
-        looked up relative to ``folder``. Required columns:
-
-        ``file``
-            image file name, relative to ``folder``;
-        ``alpha``, ``beta``
-            commanded platform angles, degrees;
-        ``shot``
-            integer shot label within the pose (e.g. 0 .. 7).
-
-        Optional ``page``: the frame (0-based) of a multi-page TIFF stack that the row names,
-        e.g. one stack per pose with its shots as pages. Each image (file, page) belongs to one
-        row only, and file names stay inside ``folder`` (no ``..``, no absolute paths).
-
+        The manifest, one row per image; default ``folder/manifest.csv`` (a relative path is
+        relative to ``folder``). Required columns: ``file`` (image name relative to
+        ``folder``), ``alpha``, ``beta`` (commanded platform angles, deg), ``shot`` (integer
+        label within the pose, e.g. 0 .. 7). Optional ``page``: the frame (0-based) of a
+        multi-page TIFF (a stack per pose, shots as pages). One row per image (file, page);
+        files inside ``folder`` only.
         Poses are the unique (alpha, beta) pairs in manifest order; every pose must have the same
         set of shot labels, ordered by value. Any other column becomes a coordinate on
-        (pose, shot) (``time`` is parsed as a date-time; numeric columns stay numeric, others
-        are text). Lines starting with ``#`` are comments.
+        (pose, shot) (``time`` parsed as a date-time). Lines starting with ``#`` are comments.
     bit_depth : int, optional
         ADC bit depth. Default: 8 for 8-bit images; for 16-bit images the smallest of 8, 10,
         12, 14, 16 bits that holds the largest DN in the folder (this reads every image once;
         give it for dark or dim frames, whose maximum says little about the ADC).
     left_aligned : bool
-        The camera writes ``bit_depth``-bit DN in the top bits of a 16-bit word (most
-        machine-vision cameras at 12 bits): every frame is shifted right by ``16 - bit_depth`` on
-        read (:func:`~sunlab.io.read_image`). Needs ``bit_depth``.
+        DN in the top bits of the 16-bit word (12-bit machine-vision cameras): shifted right
+        by ``16 - bit_depth`` on read (:func:`~sunlab.io.read_image`). Needs ``bit_depth``.
     lazy : bool
         Read each image only when its frame is computed (``dask.delayed`` per image, one chunk
         per frame); headers are still checked at once. False reads everything now.
     **frames_kwargs
-        Passed to :func:`sunlab.schema.frames_dataset` (``pixel_pitch_mm``,
-        ``mask_distance_mm``, ``x_cf_px``, ``y_cf_px``, ``mask``, ``experiment``, ``attrs``).
+        Passed to :func:`sunlab.schema.frames_dataset` (``pixel_pitch_mm``, ``attrs``, ...).
 
     Returns
     -------
@@ -154,14 +143,8 @@ def from_image_folder(
     pages = _page_column(table, files, mname)
     poses, labels, order = _pose_grid(alpha, beta, shot, mname)
     shape, dtype = _common_header(paths, order, pages, mname)
-    bit_depth = _checked_bit_depth(bit_depth, dtype)
-    if left_aligned and bit_depth is None:
-        raise SchemaError(
-            "bit_depth", None, "the ADC's bit depth for left-aligned frames",
-            "give bit_depth (sensor.json \"bit_depth\", or --bit-depth) with left_aligned",
-        )
-    frames = _read_frames(paths, order, shape, dtype, (bit_depth, pages, bool(left_aligned)),
-                          lazy)
+    bit_depth = _checked_bit_depth(bit_depth, dtype, left_aligned)
+    frames = _read_frames(paths, order, shape, dtype, (bit_depth, pages, left_aligned), lazy)
     bit_depth = _detected_bit_depth(frames, dtype) if bit_depth is None else bit_depth
     coords = {**_manifest_coords(table, files, order, labels, mname),
               **dict(frames_kwargs.pop("coords", None) or {})}
@@ -365,8 +348,14 @@ def _common_header(paths, order, pages, mname: str) -> tuple[tuple[int, ...], np
     return shape, dtype
 
 
-def _checked_bit_depth(bit_depth, dtype: np.dtype) -> int | None:
-    """The given bit depth as an int that fits the pixel type (None stays None)."""
+def _checked_bit_depth(bit_depth, dtype: np.dtype, left_aligned=False) -> int | None:
+    """The given bit depth as an int that fits the pixel type (None stays None, unless the
+    frames are left-aligned: their shift needs it)."""
+    if bit_depth is None and left_aligned:
+        raise SchemaError(
+            "bit_depth", None, "the ADC's bit depth for left-aligned frames",
+            "give bit_depth (sensor.json \"bit_depth\", or --bit-depth) with left_aligned",
+        )
     if bit_depth is None:
         return None
     if int(bit_depth) != bit_depth or not 1 <= bit_depth <= 8 * dtype.itemsize:
