@@ -101,8 +101,12 @@ def _add_acquire(sub) -> None:
     p.add_argument("--stage", required=True, metavar="URL",
                    help="fake:// (in-process fake ESP301), socket://HOST:PORT, or a serial device "
                    "path (/dev/ttyUSB0, COM3) of a Newport ESP300/ESP301")
-    p.add_argument("--camera", required=True, metavar="sim|folder:PATH",
-                   help="'sim' (virtual bench) or 'folder:PATH' (a camera that writes image files)")
+    p.add_argument("--camera", required=True, metavar="sim|folder:PATH|module:Class|NAME",
+                   help="'sim' (virtual bench), 'folder:PATH' (a camera that writes image "
+                        "files), a camera class of your own as module:Class, or a name "
+                        "registered in the entry point group sunlab.cameras (docs/hardware.md)")
+    p.add_argument("--camera-option", action="append", default=[], metavar="KEY=VALUE",
+                   help="argument of your camera class (repeat; VALUE read as JSON if it parses)")
     p.add_argument("--plan", required=True,
                    help="experiment I, II or III, or a CSV file with columns alpha,beta (deg)")
     p.add_argument("--out", required=True, help="the run's Zarr store (a directory)")
@@ -167,9 +171,10 @@ def _run_acquire(args) -> int:
             camera = FolderCamera(args.camera[len("folder:"):], shape=shape,
                                   bit_depth=args.bit_depth, timeout_s=args.frame_timeout)
         else:
-            raise ConfigurationError(
-                f"--camera: found {args.camera!r}, expected 'sim' or 'folder:PATH'"
-            )
+            from ..hardware import open_camera
+            from ..hardware.cameras import parse_camera_options
+
+            camera = open_camera(args.camera, **parse_camera_options(args.camera_option))
         result = acquire(plan, stage, camera, args.out, resume=args.resume,
                          progress=not args.no_progress)
     finally:

@@ -93,10 +93,13 @@ class PymeasureStage:
         """Read the controller's error buffer (``TE?``); raise the first error it holds."""
         errors = self.esp.errors
         if errors:
-            err = errors[0]
-            code = int(getattr(err, "code", 0) or 0)
-            axis = code // 100 if code >= 100 else None
-            raise ControllerError(code, str(err), axis=axis, command=command)
+            err = errors[0]  # pymeasure's AxisError (axis, error) or GeneralError (code)
+            if hasattr(err, "axis"):
+                axis, code = int(err.axis), int(err.axis) * 100 + int(err.error)
+            else:
+                axis, code = None, int(getattr(err, "code", 0) or 0)
+            raise ControllerError(code, str(getattr(err, "message", err)), axis=axis,
+                                  command=command)
 
     def move_to(self, alpha: float, beta: float) -> tuple[float, float]:
         """Move alpha and beta, wait for the stop and the settle time, return the read-back
