@@ -684,3 +684,28 @@ def test_plane_background_takes_out_a_ramp_that_the_ring_mean_leaves():
     assert_allclose((plane.x, plane.y), (200.3, 150.6), atol=0.01)
     with pytest.raises(ConfigurationError, match="background.*'plane'"):
         C.tight_window(frame, background="quadric")
+
+
+def test_one_hot_pixel_does_not_drop_a_spot_of_a_multi_hole_frame():
+    # A 3 x 4 mask, a hot pixel at the 10-bit full scale inside the window of spot (1, 1):
+    # repaired (the median of its neighbours), the spot measured as on the clean frame, every
+    # other spot untouched; touching clipped pixels still mean saturation.
+    yy, xx = np.mgrid[0:400, 0:500]
+    clean = np.full((400, 500), 30.0)
+    for i in range(3):
+        for j in range(4):
+            clean += 400 * (np.hypot(xx - 100.5 - 80 * j, yy - 90 - 80 * i) < 15)
+    clean = clean.astype(np.uint16)
+    ref = C.locate_spots(clean, shape=(3, 4), pitch=80, saturation=1023)
+    hot = clean.copy()
+    hot[175, 186] = 1023  # inside spot (1, 1) at (180.5, 170)
+    got = C.locate_spots(hot, shape=(3, 4), pitch=80, saturation=1023)
+    assert got.status[5] == STATUS["repaired"]
+    assert np.all(np.delete(got.status, 5) == STATUS["ok"])
+    # the repair pass fits the ring's constant by clipped least squares, the compiled pass by
+    # a sigma-clipped mean: equal to 1e-6 px on a flat background
+    assert_allclose((got.x[5], got.y[5]), (ref.x[5], ref.y[5]), atol=1e-6)
+    sat = clean.copy()
+    sat[170, 179:182] = 1023
+    assert C.locate_spots(sat, shape=(3, 4), pitch=80, saturation=1023).status[5] == \
+        STATUS["saturated"]

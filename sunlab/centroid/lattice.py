@@ -18,6 +18,7 @@ from ..errors import ConfigurationError
 from . import _k_aperture, _k_lattice
 from ._detection import _background_band, _detect, _first_radius
 from ._diskfit import _fit_from
+from ._local import _local_centroid
 from .moments import SpotMoments
 from .result import (
     _AMBIGUOUS,
@@ -25,6 +26,7 @@ from .result import (
     _INVALID,
     _NO_SPOT,
     _OK,
+    _REPAIRED,
     _SATURATED,
     _all_zero,
     _check_positive,
@@ -249,7 +251,23 @@ def _locate_tight(frame, opts: _SpotOptions, lut, exp, has_exp, n_holes):
         n_holes=n_holes, no_spot=_NO_SPOT, ambiguous=_AMBIGUOUS)
     if n_detected == 0 and sample_max == 0 and _all_zero(arr):
         status[:] = _INVALID
+    _repair_hot_spots(arr, vals, window, status, opts)
     return vals, window, status, unassigned, lattice
+
+
+def _repair_hot_spots(arr, vals, window, status, opts: _SpotOptions) -> None:
+    """Spots flagged ``saturated`` for isolated pixels at full scale (hot pixels) in their
+    window: those pixels replaced by the median of their neighbours and x, y, flux measured
+    again (the tight window's repair, :func:`tight_window`), status ``repaired``; a spot with
+    touching clipped pixels stays ``saturated``. The metrics keep the compiled values."""
+    for k in np.flatnonzero(status == _SATURATED):
+        x0, x1 = int(window[0, k]), int(window[1, k])
+        flux, x, y, n_hot, saturated = _local_centroid(
+            arr, float(vals[0, k]), float(vals[1, k]), 0.5 * (x1 - x0 - 1), opts.annulus,
+            opts.n_iter, opts.saturation, False)
+        if n_hot and not saturated and flux > 0:
+            vals[0, k], vals[1, k], vals[2, k] = x, y, flux
+            status[k] = _REPAIRED
 
 
 def _locate_fit(frame, opts: _SpotOptions, lut, exp, has_exp, n_holes):
