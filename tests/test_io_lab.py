@@ -195,3 +195,15 @@ def test_implausible_fits_are_flagged_by_calibrate_and_evaluate(tmp_path, capsys
     assert main(["calibrate", str(csv), "--method", "polynomial", "--order", "2", "--out",
                  str(poly)]) == 0
     assert "warning: implausible" not in capsys.readouterr().out
+
+
+def test_bias_alone_is_subtracted_and_a_dark_takes_its_place(tmp_path):
+    raw = np.full((1, 1, 4, 4), 300, np.uint16)
+    cube = schema.frames_dataset(raw, alpha=[0.0], beta=[0.0])
+    only_bias = io.with_calibration_frames(cube, bias=np.full((3, 4, 4), 40))
+    assert float(io.corrected_frames(only_bias)[0, 0, 0, 0]) == 260.0
+    both = io.with_calibration_frames(cube, bias=np.full((3, 4, 4), 40),
+                                      dark=np.full((3, 4, 4), 70))
+    # a dark taken at the frames' exposure holds the bias: subtracted once, not twice
+    assert float(io.corrected_frames(both)[0, 0, 0, 0]) == 230.0
+    assert sorted(both.attrs["calibration_frames"]) == ["bias", "dark"]
