@@ -149,10 +149,12 @@ def _slow_write(path, data: bytes, pieces: int = 4, pause: float = 0.04) -> thre
 def test_folder_camera_waits_for_a_complete_new_file(tmp_path):
     tifffile.imwrite(tmp_path / "old.tif", np.zeros((8, 10), np.uint16))  # there before: ignored
     frame = np.arange(80, dtype=np.uint16).reshape(8, 10) * 12
-    cam = FolderCamera(tmp_path, shape=(8, 10), stable_s=0.02, poll_s=0.005, timeout_s=5.0)
-    writer = _slow_write(tmp_path / "new.tif", _tiff_bytes(frame))
+    writers = []  # the camera starts writing, slowly, when triggered
+    cam = FolderCamera(tmp_path, shape=(8, 10), stable_s=0.02, poll_s=0.005, timeout_s=5.0,
+                       trigger=lambda: writers.append(_slow_write(tmp_path / "new.tif",
+                                                                  _tiff_bytes(frame))))
     got = cam.grab()
-    writer.join()
+    writers[0].join()
     assert_array_equal(got, frame)
     assert cam.last_file.name == "new.tif"
 
@@ -179,8 +181,9 @@ def test_folder_camera_takes_the_first_file_of_a_free_running_writer(tmp_path):
     def writer():
         k = 0
         while not stop.is_set():
+            # written under a hidden name, then renamed: the file appears whole
             tifffile.imwrite(tmp_path / f".tmp{k}.tif", np.full((2, 2), k, np.uint16))
-            (tmp_path / f".tmp{k}.tif").rename(tmp_path / f"f{k:04d}.tif")  # atomic appearance
+            (tmp_path / f".tmp{k}.tif").rename(tmp_path / f"f{k:04d}.tif")
             written.append(k)
             k += 1
             time.sleep(0.02)

@@ -342,7 +342,8 @@ class FolderCamera:
     decodes completely. The runner calls :meth:`grab` only once the pose is reached and
     settled, so a frame written during the move is never taken, even from a camera that runs
     free and writes files all the time; such a camera may still have started exposing its first
-    new file before the trigger: ``skip=1`` drops it and takes the next.
+    new file before the trigger: ``skip=1`` drops it and takes the next. Hidden files (a name
+    starting with ``.``, as writers name a file in progress before renaming it) are ignored.
 
     Parameters
     ----------
@@ -452,7 +453,8 @@ class FolderCamera:
         return self._next_file(self.dark_trigger)
 
     def _listing(self) -> list[Path]:
-        files = {p for pattern in self.patterns for p in self.folder.glob(pattern) if p.is_file()}
+        files = {p for pattern in self.patterns for p in self.folder.glob(pattern)
+                 if p.is_file() and not p.name.startswith(".")}  # hidden: a write in progress
         return sorted(files, key=lambda p: (p.stat().st_mtime_ns, p.name))
 
     def grab(self) -> np.ndarray:
