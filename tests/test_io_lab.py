@@ -207,3 +207,16 @@ def test_bias_alone_is_subtracted_and_a_dark_takes_its_place(tmp_path):
     # a dark taken at the frames' exposure holds the bias: subtracted once, not twice
     assert float(io.corrected_frames(both)[0, 0, 0, 0]) == 230.0
     assert sorted(both.attrs["calibration_frames"]) == ["bias", "dark"]
+
+
+def test_a_stack_file_or_a_folder_of_stacks_and_images_are_calibration_frames(tmp_path):
+    stack = np.arange(3 * 4 * 5, dtype=np.uint16).reshape(3, 4, 5)
+    tifffile.imwrite(tmp_path / "dark.tif", stack, photometric="minisblack")
+    assert np.array_equal(io.read_stack(tmp_path / "dark.tif"), stack)
+    folder = tmp_path / "darks"
+    folder.mkdir()
+    tifffile.imwrite(folder / "a.tif", stack, photometric="minisblack")
+    Image.fromarray(stack[0]).save(folder / "b.png")
+    assert io.read_stack(folder).shape == (4, 4, 5)  # 3 pages + 1 image
+    with pytest.raises(SchemaError, match="an existing folder or TIFF stack"):
+        io.read_stack(tmp_path / "missing")
