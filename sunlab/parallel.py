@@ -22,7 +22,7 @@ import os
 import numpy as np
 
 from .errors import ConfigurationError
-from .options import show_progress
+from .options import dask_progress, show_progress
 
 __all__ = ["SCHEDULERS", "compute", "local_cluster", "single_threaded_blas", "start_workers",
            "worker_pool"]
@@ -106,12 +106,8 @@ def compute(*objs, scheduler: str = "threads", address: str | None = None,
         kw["num_workers"] = int(num_workers)
     elif scheduler == "threads":
         kw["num_workers"] = 2 * (os.cpu_count() or 1)
-    if show_progress(progress):
-        from dask.diagnostics import ProgressBar
-
-        with ProgressBar(minimum=1.0):
-            return dask.compute(*objs, **kw)
-    return dask.compute(*objs, **kw)
+    with dask_progress(progress, "sunlab"):  # a bar in a terminal, plain lines in a log
+        return dask.compute(*objs, **kw)
 
 
 @contextlib.contextmanager

@@ -253,19 +253,20 @@ def _check_json_schema(instance, contract: str, field_of, fix: str | None = None
 
 
 def _sensor_attrs(
-    pixel_pitch_mm: float,
-    mask_distance_mm: float,
+    pixel_pitch_mm: float | None,
+    mask_distance_mm: float | None,
     x_cf_px: float,
     y_cf_px: float,
     bit_depth: int,
 ) -> dict:
-    return {
-        "pixel_pitch_mm": float(pixel_pitch_mm),
-        "mask_distance_mm": float(mask_distance_mm),
+    attrs = {
+        "pixel_pitch_mm": None if pixel_pitch_mm is None else float(pixel_pitch_mm),
+        "mask_distance_mm": None if mask_distance_mm is None else float(mask_distance_mm),
         "x_cf_px": float(x_cf_px),
         "y_cf_px": float(y_cf_px),
         "bit_depth": int(bit_depth),
     }
+    return {k: v for k, v in attrs.items() if v is not None}  # geometry not said: left out
 
 
 def frames_dataset(
@@ -273,8 +274,8 @@ def frames_dataset(
     alpha: Sequence[float],
     beta: Sequence[float],
     *,
-    pixel_pitch_mm: float = IBIS4["pixel_pitch_mm"],
-    mask_distance_mm: float = 5.0,
+    pixel_pitch_mm: float | None = IBIS4["pixel_pitch_mm"],
+    mask_distance_mm: float | None = 5.0,
     x_cf_px: float | None = None,
     y_cf_px: float | None = None,
     bit_depth: int = IBIS4["bit_depth"],
@@ -291,10 +292,10 @@ def frames_dataset(
         Raw frames in digital numbers (DN). NumPy or Dask arrays.
     alpha, beta : sequence of float, length pose
         Commanded platform angles of each pose, degrees (outer axis alpha, inner axis beta).
-    pixel_pitch_mm : float
-        Pixel pitch, mm.
-    mask_distance_mm : float
-        Nominal mask-to-focal-plane distance F, mm.
+    pixel_pitch_mm : float or None
+        Pixel pitch, mm; None leaves it out (not known: the methods that need it ask).
+    mask_distance_mm : float or None
+        Nominal mask-to-focal-plane distance F, mm; None leaves it out, as the pitch.
     x_cf_px, y_cf_px : float, optional
         Design projection of the hole centre (the spot centroid with the sun at zenith), px.
         Default: the centre of the detector.
@@ -501,6 +502,8 @@ def validate_frames(ds: xr.Dataset) -> xr.Dataset:
     for name, meaning in _SENSOR_ATTRS.items():
         value = ds.attrs.get(name)
         fix = f"set cube.attrs[{name!r}] (frames_dataset takes it as a keyword)"
+        if value is None and name in ("pixel_pitch_mm", "mask_distance_mm"):
+            continue  # not said (a lab's frames): the methods that need it ask for it
         if value is None:
             raise SchemaError(f"attrs[{name!r}]", None, meaning, fix)
         if isinstance(value, bool | np.bool_ | str) or not np.isscalar(value):

@@ -122,14 +122,14 @@ def test_two_spots_are_ambiguous(method):
 def test_saturated(method):
     frame = _spots.frame([(640.3, 500.7)], peak=1500.0, edge=EDGE, seed=3)
     assert frame.max() == 1023
-    c = C.METHODS[method](frame)
+    c = C.METHODS[method](frame, saturation=1023)  # the 10-bit ADC's full scale, declared
     assert c.status == STATUS["saturated"]
     assert math.hypot(c.x - 640.3, c.y - 500.7) < 1.5
 
 
 def test_fit_ignores_saturated_pixels():
     frame = _spots.frame([(640.3, 500.7)], peak=1500.0, edge=EDGE, seed=3)
-    c = C.disk_fit(frame)
+    c = C.disk_fit(frame, saturation=1023)
     assert_allclose([c.x, c.y], [640.3, 500.7], atol=0.03)
 
 
@@ -620,7 +620,7 @@ def test_prefetch_box_is_safe_anywhere():
         assert np.array_equal(frame, before)
 
 
-@pytest.mark.parametrize("method", ["projection", "threshold"])
+@pytest.mark.parametrize("method", ["projection", "threshold", "tight"])
 def test_isolated_hot_pixel_is_repaired_not_saturated(method):
     # A hot pixel clipped at full scale inside the window (the paper bench's row 508, column
     # 471 kind) is not spot saturation: it is replaced by the median of its neighbours, the
@@ -628,16 +628,31 @@ def test_isolated_hot_pixel_is_repaired_not_saturated(method):
     # clipped pixels are the spot saturating.
     yy, xx = np.mgrid[0:300, 0:400]
     clean = (30 + 400 * (np.hypot(xx - 200.3, yy - 150.6) < 25)).astype(np.uint16)
-    func = C.METHODS[method]
+    def func(frame):
+        return C.METHODS[method](frame, saturation=1023)
+
     ref = func(clean)
     hot = clean.copy()
     hot[162, 214] = 1023
     c = func(hot)
     assert c.status_name == "repaired" and c.ok
-    assert_allclose((c.x, c.y), (ref.x, ref.y), atol=1e-9)
+    # the tight window's ring is a sigma-clipped mean in the compiled pass and a clipped
+    # least-squares constant in the repair pass: equal to 1e-6 px on this flat background
+    assert_allclose((c.x, c.y), (ref.x, ref.y), atol=1e-9 if method != "tight" else 1e-6)
     sat = clean.copy()
     sat[150, 199:202] = 1023
     assert func(sat).status_name == "saturated"
+
+
+@pytest.mark.parametrize("method", SINGLE)
+def test_saturation_comes_from_the_declared_depth_not_a_hidden_1023(method):
+    # A 16-bit camera's spot peaks at 3000 DN: nothing is clipped at its full scale (65535),
+    # so the default (the frame type's full scale) says ok; declared as a 10-bit full scale
+    # the same frame saturates.
+    frame = (_spots.frame([(640.3, 500.7)], edge=EDGE, seed=3).astype(np.uint16) * 4)
+    assert 1023 < frame.max() < 65535
+    assert C.METHODS[method](frame).status_name == "ok"
+    assert C.METHODS[method](frame, saturation=1023).status_name == "saturated"
 
 
 @pytest.mark.parametrize("method", ["projection", "threshold"])
@@ -650,3 +665,47 @@ def test_locate_multi_hole_cube_refuses_a_single_spot_algorithm(method):
         C.locate(cube, method, progress=False)
     cen = C.locate(cube, "tight", progress=False)
     assert cen.attrs["method"] == "tight" and cen.sizes["hole"] == 1
+
+
+def test_plane_background_takes_out_a_ramp_that_the_ring_mean_leaves():
+    # A dark-offset ramp of 1.7 DN/px in x and 0.5 DN/px in y (250 DN across 150 px, a 10-bit
+    # APS without dark subtraction) under a 17.5 px spot of 1500 DN: the ring's mean leaves
+    # the slope in the window and moves the centroid by g pi r^4 / 4 / flux (about 0.25 px
+    # here, r the 22.5 px window); a plane fitted to the ring takes it out exactly for a
+    # noise-free frame.
+    yy, xx = np.mgrid[0:300, 0:400]
+    spot = _spots.frame([(200.3, 150.6)], peak=1500.0, noise=False, background=0.0,
+                        shape=(300, 400), bit_depth=16)
+    frame = spot + 60.0 + 1.7 * xx + 0.5 * yy
+    ring = C.tight_window(frame)
+    plane = C.tight_window(frame, background="plane")
+    assert math.hypot(ring.x - 200.3, ring.y - 150.6) > 0.15
+    assert plane.status_name == "ok"
+    assert_allclose((plane.x, plane.y), (200.3, 150.6), atol=0.01)
+    with pytest.raises(ConfigurationError, match="background.*'plane'"):
+        C.tight_window(frame, background="quadric")
+
+
+def test_one_hot_pixel_does_not_drop_a_spot_of_a_multi_hole_frame():
+    # A 3 x 4 mask, a hot pixel at the 10-bit full scale inside the window of spot (1, 1):
+    # repaired (the median of its neighbours), the spot measured as on the clean frame, every
+    # other spot untouched; touching clipped pixels still mean saturation.
+    yy, xx = np.mgrid[0:400, 0:500]
+    clean = np.full((400, 500), 30.0)
+    for i in range(3):
+        for j in range(4):
+            clean += 400 * (np.hypot(xx - 100.5 - 80 * j, yy - 90 - 80 * i) < 15)
+    clean = clean.astype(np.uint16)
+    ref = C.locate_spots(clean, shape=(3, 4), pitch=80, saturation=1023)
+    hot = clean.copy()
+    hot[175, 186] = 1023  # inside spot (1, 1) at (180.5, 170)
+    got = C.locate_spots(hot, shape=(3, 4), pitch=80, saturation=1023)
+    assert got.status[5] == STATUS["repaired"]
+    assert np.all(np.delete(got.status, 5) == STATUS["ok"])
+    # the repair pass fits the ring's constant by clipped least squares, the compiled pass by
+    # a sigma-clipped mean: equal to 1e-6 px on a flat background
+    assert_allclose((got.x[5], got.y[5]), (ref.x[5], ref.y[5]), atol=1e-6)
+    sat = clean.copy()
+    sat[170, 179:182] = 1023
+    assert C.locate_spots(sat, shape=(3, 4), pitch=80, saturation=1023).status[5] == \
+        STATUS["saturated"]

@@ -59,7 +59,8 @@ def _spots(prof, half, flux, n, seed):
 
 
 def _rms(frames, truth, **kw):
-    got = np.array([(c.x, c.y) for c in (C.disk_fit(f, **kw) for f in frames)])
+    # the frames are 10-bit: their full scale is declared, as locate does from the cube
+    got = np.array([(c.x, c.y) for c in (C.disk_fit(f, saturation=1023, **kw) for f in frames)])
     return float(np.sqrt(np.mean((got - truth) ** 2)))
 
 

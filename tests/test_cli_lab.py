@@ -84,7 +84,7 @@ def test_import_reads_the_foreign_folder(lab):
     assert cube.frames.dtype == np.uint16
     assert cube.attrs["bit_depth"] == 10  # from the images: max DN < 1024
     assert cube.attrs["mask_distance_mm"] == F_MM
-    assert cube.attrs["pixel_pitch_mm"] == PITCH_MM  # the default
+    assert "pixel_pitch_mm" not in cube.attrs  # not said, so not guessed
 
 
 def test_evaluation_holds_the_papers_statistics(lab):
@@ -197,7 +197,9 @@ def test_calibrate_refuses_options_of_other_methods(lab, tmp_path, capsys):
     assert "--hidden: does not apply to --method polynomial" in capsys.readouterr().err
 
 
-def test_import_needs_the_mask_distance(lab, tmp_path, capsys):
+def test_import_asks_for_no_geometry_and_the_geometric_models_name_sensor_json(
+    lab, tmp_path, capsys
+):
     folder = tmp_path / "frames"
     folder.mkdir()
     src = lab["cube"].parent / "train_frames"
@@ -207,10 +209,15 @@ def test_import_needs_the_mask_distance(lab, tmp_path, capsys):
         (folder / name).write_bytes((src / name).read_bytes())
     (folder / "manifest.csv").write_text("\n".join(lines) + "\n")
     out = str(tmp_path / "c.zarr")
-    assert main(["import", str(folder), "--out", out, "--no-progress"]) == 1
-    assert "--mask-distance-mm: not given" in capsys.readouterr().err
-    (folder / "sensor.json").write_text(json.dumps({"mask_distance_mm": 5.0, "bit_depth": 12}))
     assert main(["import", str(folder), "--out", out, "--no-progress"]) == 0
+    assert "F = not given mm, pitch not given mm" in capsys.readouterr().out
+    table = str(tmp_path / "c.nc")
+    assert main(["centroid", out, "--out", table, "--no-progress"]) == 0
+    cal = str(tmp_path / "ideal.json")
+    assert main(["calibrate", table, "--method", "ideal", "--out", cal]) == 1
+    assert "sensor.json" in capsys.readouterr().err
+    (folder / "sensor.json").write_text(json.dumps({"mask_distance_mm": 5.0, "bit_depth": 12}))
+    assert main(["import", str(folder), "--out", out, "--no-progress", "--overwrite"]) == 0
     cube = io.open_frames(out)
     assert cube.attrs["mask_distance_mm"] == 5.0 and cube.attrs["bit_depth"] == 12
 

@@ -149,24 +149,61 @@ def _slow_write(path, data: bytes, pieces: int = 4, pause: float = 0.04) -> thre
 def test_folder_camera_waits_for_a_complete_new_file(tmp_path):
     tifffile.imwrite(tmp_path / "old.tif", np.zeros((8, 10), np.uint16))  # there before: ignored
     frame = np.arange(80, dtype=np.uint16).reshape(8, 10) * 12
-    cam = FolderCamera(tmp_path, shape=(8, 10), stable_s=0.02, poll_s=0.005, timeout_s=5.0)
-    writer = _slow_write(tmp_path / "new.tif", _tiff_bytes(frame))
+    writers = []  # the camera starts writing, slowly, when triggered
+    cam = FolderCamera(tmp_path, shape=(8, 10), stable_s=0.02, poll_s=0.005, timeout_s=5.0,
+                       trigger=lambda: writers.append(_slow_write(tmp_path / "new.tif",
+                                                                  _tiff_bytes(frame))))
     got = cam.grab()
-    writer.join()
+    writers[0].join()
     assert_array_equal(got, frame)
     assert cam.last_file.name == "new.tif"
 
 
-def test_folder_camera_reads_png_and_returns_files_in_order(tmp_path):
+def test_folder_camera_reads_png_written_after_the_trigger_only(tmp_path):
     frames = [np.full((4, 6), 100 * (i + 1), np.uint16) for i in range(3)]
-    cam = FolderCamera(tmp_path, shape=(4, 6), stable_s=0.0, poll_s=0.005, timeout_s=2.0)
-    for i, frame in enumerate(frames):
-        Image.fromarray(frame).save(tmp_path / f"f{i}.png")
-        time.sleep(0.01)  # distinct modification times
-    got = [cam.grab() for _ in frames]
-    for a, b in zip(got, frames, strict=True):
-        assert_array_equal(a, b)
-        assert a.dtype == np.uint16
+    cam = FolderCamera(tmp_path, shape=(4, 6), stable_s=0.0, poll_s=0.005, timeout_s=2.0,
+                       trigger=lambda: Image.fromarray(frames[2]).save(tmp_path / "f2.png"))
+    for i in (0, 1):  # written before the grab (during the move): never taken
+        Image.fromarray(frames[i]).save(tmp_path / f"f{i}.png")
+    got = cam.grab()
+    assert_array_equal(got, frames[2])
+    assert got.dtype == np.uint16 and cam.last_file.name == "f2.png"
+
+
+def test_folder_camera_takes_the_first_file_of_a_free_running_writer(tmp_path):
+    # A camera that runs free writes a frame every 20 ms whatever the stage does; the grab
+    # (called once the pose is settled) takes the first file written after it starts, never
+    # one written before, and skip=1 drops that first file (its exposure may have begun before
+    # the grab) for the next.
+    stop = threading.Event()
+    written = []
+
+    def writer():
+        k = 0
+        while not stop.is_set():
+            # written under a hidden name, then renamed: the file appears whole
+            tifffile.imwrite(tmp_path / f".tmp{k}.tif", np.full((2, 2), k, np.uint16))
+            (tmp_path / f".tmp{k}.tif").rename(tmp_path / f"f{k:04d}.tif")
+            written.append(k)
+            k += 1
+            time.sleep(0.02)
+
+    thread = threading.Thread(target=writer, daemon=True)
+    thread.start()
+    try:
+        for skip in (0, 1):
+            cam = FolderCamera(tmp_path, shape=(2, 2), stable_s=0.0, poll_s=0.002,
+                               timeout_s=2.0, skip=skip)
+            time.sleep(0.1)  # the writer goes on while the stage moves and settles
+            before = written[-1]  # the last file written before the grab starts
+            value = int(cam.grab()[0, 0])
+            first_after = before + 1
+            # never a file written before the grab; the grab's own snapshot may see a file or
+            # two more that the writer wrote meanwhile (a loaded machine)
+            assert first_after + skip <= value <= first_after + skip + 3
+    finally:
+        stop.set()
+        thread.join()
 
 
 def test_folder_camera_trigger_is_fired_per_grab(tmp_path):
@@ -181,9 +218,10 @@ def test_folder_camera_trigger_is_fired_per_grab(tmp_path):
 
 
 def test_folder_camera_times_out_with_a_clear_error(tmp_path):
-    (tmp_path / "broken.tif").write_bytes(b"II*\x00")  # appears later, never completes
-    cam = FolderCamera(tmp_path, shape=(2, 2), timeout_s=0.2, poll_s=0.01, stable_s=0.0)
-    (tmp_path / "late.tif").write_bytes(b"II*\x00\x08")
+    (tmp_path / "broken.tif").write_bytes(b"II*\x00")  # there before: ignored
+    cam = FolderCamera(tmp_path, shape=(2, 2), timeout_s=0.2, poll_s=0.01, stable_s=0.0,
+                       trigger=lambda: (tmp_path / "late.tif").write_bytes(b"II*\x00\x08"))
+    # late.tif appears after the trigger and never completes
     t0 = time.monotonic()
     with pytest.raises(CameraTimeout, match="within 0.2 s.*last read error") as info:
         cam.grab()
@@ -195,8 +233,8 @@ def test_folder_camera_times_out_with_a_clear_error(tmp_path):
                                           (np.zeros((2, 2), np.float32), "do not fit"),
                                           (np.zeros((2, 2, 3), np.uint8), "one grey frame")])
 def test_folder_camera_rejects_wrong_frames(tmp_path, frame, match):
-    cam = FolderCamera(tmp_path, shape=(2, 2), stable_s=0.0, timeout_s=1.0)
-    tifffile.imwrite(tmp_path / "x.tif", frame)
+    cam = FolderCamera(tmp_path, shape=(2, 2), stable_s=0.0, timeout_s=1.0,
+                       trigger=lambda: tifffile.imwrite(tmp_path / "x.tif", frame))
     with pytest.raises(CameraError, match=match):
         cam.grab()
 

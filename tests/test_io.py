@@ -106,14 +106,15 @@ def test_uint8_round_trip(tmp_path, name):
         xr.testing.assert_identical(back.load(), cube)
 
 
-def test_lazy_cube_writes_with_progress_bar(tmp_path, capsys):
+def test_lazy_cube_writes_with_progress_on(tmp_path, capsys):
     cube = schema.empty_frames(NP, NS, alpha=[0, 1], beta=[0, 0], ny=NY, nx=NX)
     cube["frames"] = cube.frames + np.uint16(3)
     cube["true_x"] = cube.alpha.chunk(pose=1) + xr.zeros_like(cube.shot, dtype=float)
     assert cube.true_x.dims == ("pose", "shot") and cube.true_x.chunks is not None
     io.save_frames(cube, tmp_path / "lazy.zarr", progress=True)
-    out = capsys.readouterr().out
-    assert "100%" in out and "Completed" in out
+    said = capsys.readouterr()
+    # not a terminal: plain lines only, and none for a write shorter than a second
+    assert "\r" not in said.out + said.err
     back = io.open_frames(tmp_path / "lazy.zarr")
     assert int(back.frames.min()) == int(back.frames.max()) == 3
     # One chunk file per frame on disk.

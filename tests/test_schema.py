@@ -105,16 +105,16 @@ def _readme_examples():
 
 
 def test_readme_examples_follow_the_schemas(tmp_path):
-    from sunlab.cli.lab import _SENSOR_KEYS, _sensor_json
+    from sunlab.io import SENSOR_FIELDS, read_sensor_json
 
     examples = _readme_examples()
     found = set()
     for doc in examples:
         if "sunlab_schema" not in doc and "sunlab_schema" not in doc.get("attrs", {}):
             # not a contract: the sensor.json of an image folder, read as `sunlab import` does
-            assert set(doc) - {"attrs"} <= set(_SENSOR_KEYS), doc
+            assert set(doc) <= set(SENSOR_FIELDS), doc
             (tmp_path / "sensor.json").write_text(json.dumps(doc))
-            assert _sensor_json(tmp_path, None) == doc
+            assert read_sensor_json(tmp_path / "sensor.json") == doc
             found.add("sensor.json")
             continue
         contract = doc.get("sunlab_schema") or doc["attrs"]["sunlab_schema"]

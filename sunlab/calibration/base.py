@@ -204,7 +204,9 @@ def sensor_attrs(attrs: dict, *, name: str = "train") -> dict:
         if value is None or not np.isfinite(float(value)):
             raise SchemaError(
                 f"{name}.attrs[{key!r}]", value, "the sensor attribute of the frame cube",
-                "carry the cube's attrs into the centroid table, or pass the value explicitly",
+                f"a geometric model needs it: write {key} in the frames' sensor.json (or pass "
+                "it to sunlab import) and import and centroid again, or pass the value "
+                "explicitly; the polynomial and interpolation methods do not need it",
             )
         out[key] = float(value)
     return out

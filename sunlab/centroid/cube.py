@@ -15,6 +15,7 @@ import numpy as np
 
 from .. import parallel
 from ..errors import ConfigurationError, SchemaError
+from ..io.calframes import corrected_frames, corrected_saturation, has_calibration_frames
 from .estimators import METHODS
 from .lattice import SPOT_METRICS, locate_spots
 
@@ -136,6 +137,10 @@ def locate(
 ):
     """Centroid every frame of a cube: a ``centroids/1`` dataset over (pose, shot[, hole]).
 
+    A cube that holds master dark, bias or flat frames
+    (:func:`sunlab.io.with_calibration_frames`) is corrected frame by frame, lazily, before the
+    estimator sees it (:func:`sunlab.io.corrected_frames`).
+
     The frames go through :func:`dask.array.blockwise`, one task per frame chunk and no copy
     of the frames, on Dask's threaded scheduler by default (the compiled kernels release the GIL,
     so threads scale), or on a ``dask.distributed`` cluster at ``address``.
@@ -163,7 +168,8 @@ def locate(
     compute : bool
         Compute now (default); ``False`` returns the dataset with lazy Dask variables.
     **options
-        Options of the estimator (``saturation`` defaults to ``2**bit_depth - 1`` of the cube).
+        Options of the estimator (``saturation`` defaults to ``2**bit_depth - 1`` of the cube,
+        the level of :func:`sunlab.io.corrected_saturation` for a corrected cube).
 
     Returns
     -------
@@ -245,6 +251,8 @@ def locate_all(
     for k, w in work.items():
         lazy.append(w.table.data)
         lazy.extend(cubes[k][n].data for n in pending[k])
+    if progress and scheduler in ("threads", "synchronous") and address is None:
+        _announce_compile()
     done = iter(parallel.compute(*lazy, scheduler=scheduler, address=address,
                                  num_workers=num_workers, progress=progress, pool=pool))
     out = {}
@@ -257,6 +265,14 @@ def locate_all(
         cen = _centroid_table(cube, table, w.dims, method, w.options, w.multi, True)
         out[k] = _carry_cube_variables(cube, cen, w.dims, w.multi, True)
     return out
+
+
+def _announce_compile() -> None:
+    """Say on stderr, once, that the centroid kernels compile now (a first run's pause)."""
+    from ..options import announce_compile
+    from . import _k_aperture, _k_detect, _k_diskfit, _k_lattice, _k_windows
+
+    announce_compile([_k_aperture, _k_detect, _k_diskfit, _k_lattice, _k_windows], "centroid")
 
 
 class _Prepared(NamedTuple):
@@ -275,10 +291,14 @@ def _prepare(cube, method, multi, options) -> _Prepared:
     if method not in METHODS:
         raise ConfigurationError(f"method: found {method!r}, expected one of {sorted(METHODS)}")
     options = dict(options)
-    options.setdefault("saturation", float(2 ** int(cube.attrs["bit_depth"]) - 1))
+    corrected = has_calibration_frames(cube)
+    options.setdefault("saturation", corrected_saturation(cube) if corrected
+                       else float(2 ** int(cube.attrs["bit_depth"]) - 1))
     if multi is None:
         multi = is_multi_hole(cube)
     frames = _chunked_frames(cube)
+    if corrected:  # dark, bias and flat applied in the task that centroids each frame
+        frames = corrected_frames(cube.assign(frames=frames))
     if multi:
         res, dims = _apply_multi(cube, frames, method, options)
     else:

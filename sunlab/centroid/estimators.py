@@ -25,16 +25,17 @@ from ..errors import ConfigurationError
 from . import _k_aperture, _k_windows
 from ._detection import _aperture_window, _background_band, _detect, _first_radius
 from ._diskfit import _fit_from
+from ._local import _local_centroid
 from .moments import SpotMoments
 from .result import (
     _INVALID,
     _NO_SPOT,
     _OK,
     _REPAIRED,
-    SATURATION_10BIT,
     Centroid,
     _all_zero,
     _fail,
+    _full_scale,
     _prepare,
     _repair_hot,
     _status,
@@ -51,7 +52,7 @@ __all__ = [
 # ------------------------------------------------------------------------------------------------
 def threshold_window(
     frame, *, border: int = 2, factor: float = 3.0, test_size: int = 5, test_count: int = 18,
-    roi_size: int = 130, roi_border: int = 2, saturation: float = SATURATION_10BIT,
+    roi_size: int = 130, roi_border: int = 2, saturation: float | None = None,
     check_ambiguous: bool = True,
 ) -> Centroid:
     """Algorithm A: threshold, first-hit test window, fixed ROI, centre of mass (paper sec. 3).
@@ -122,6 +123,7 @@ def threshold_window(
     >>> round(c.x, 3), round(c.y, 3), c.status_name
     (200.5, 150.0, 'ok')
     """
+    saturation = _full_scale(frame, saturation)
     arr, usable = _prepare(frame)
     if not usable:
         return _fail(_INVALID)
@@ -218,7 +220,7 @@ def _zones(p, base, sigma, nsigma, edge_sigma, min_width):
 def projection_window(
     frame, *, nsigma: float = 5.0, edge_sigma: float = 1.0, margin: int = 3, min_width: int = 3,
     subtract_background: bool = True, ambiguity_ratio: float = 0.1,
-    saturation: float = SATURATION_10BIT,
+    saturation: float | None = None,
 ) -> Centroid:
     """Algorithm B: window from the row and column projection profiles (the paper's method).
 
@@ -256,8 +258,10 @@ def projection_window(
         Subtract the profile-derived background before the centre of mass.
     ambiguity_ratio : float
         A second zone with at least this fraction of the main zone's excess flags ``ambiguous``.
-    saturation : float
-        Full-scale value, DN.
+    saturation : float, optional
+        Full-scale value, DN: a pixel at or above it is clipped. Default: the full scale of
+        the frame's integer type (255 for uint8, 65535 for uint16; none for float frames);
+        pass ``2**bit_depth - 1`` for an ADC narrower than its word (``locate`` does).
 
     Returns
     -------
@@ -282,6 +286,7 @@ def projection_window(
     >>> round(c.x, 3), round(c.y, 3), c.window
     (200.5, 150.0, (181, 221, 130, 171))
     """
+    saturation = _full_scale(frame, saturation)
     arr, usable = _prepare(frame)
     if not usable:
         return _fail(_INVALID)
@@ -338,7 +343,7 @@ def _brightest_window(arr, zx, zy, margin, bkg):
 def tight_window(
     frame, *, stride: int = 8, nsigma: float = 5.0, min_contrast: float = 5.0,
     min_samples: int = 3, margin: float = 5.0, annulus: float = 6.0, n_iter: int = 2,
-    ambiguity_ratio: float = 0.1, saturation: float = SATURATION_10BIT,
+    ambiguity_ratio: float = 0.1, saturation: float | None = None, background: str = "ring",
 ) -> Centroid:
     """Background-subtracted centre of mass in a circular window fitted to the spot (fast).
 
@@ -349,11 +354,16 @@ def tight_window(
        group is the spot; another with at least ``ambiguity_ratio`` of its flux flags
        ``ambiguous``.
     2. Local background: sigma-clipped mean of an ``annulus`` px wide ring just outside the
-       window.
+       window, or (``background="plane"``) a plane fitted to that ring by least squares, for a
+       background that slopes or drifts between frames (an uncorrected dark-offset ramp: a
+       constant leaves the slope in the window and moves the centroid toward its bright side).
     3. Window: a circle about the detection, re-centred on the centre of mass of
        ``I - background`` (``n_iter`` passes); its radius becomes the spot's equivalent
        uniform-disk radius ``sqrt(2 (m_xx + m_yy))`` plus ``margin`` px, which holds the whole
        spot and few background pixels.
+
+    An isolated pixel at full scale in the window (a hot pixel) is replaced by the median of its
+    8 neighbours (status ``repaired``, as in algorithm B); touching clipped pixels: ``saturated``.
 
     Every pixel of the window counts (no threshold), so the estimate has no sub-pixel bias for
     a symmetric spot; noise comes from the spot's own photon noise and the few background pixels
@@ -377,8 +387,12 @@ def tight_window(
         Centre-of-mass passes that re-centre the window.
     ambiguity_ratio : float
         A second spot with at least this fraction of the flux flags ``ambiguous``.
-    saturation : float
-        Full-scale value, DN.
+    saturation : float, optional
+        Full-scale value, DN: a pixel at or above it is clipped. Default: the full scale of
+        the frame's integer type (255 for uint8, 65535 for uint16; none for float frames);
+        pass ``2**bit_depth - 1`` for an ADC narrower than its word (``locate`` does).
+    background : {"ring", "plane"}
+        Model fitted to the ring: a constant (compiled, fastest) or a plane.
 
     Returns
     -------
@@ -399,17 +413,23 @@ def tight_window(
     >>> round(c.x, 3), round(c.y, 3), c.status_name
     (200.5, 150.0, 'ok')
     """
+    saturation = _full_scale(frame, saturation)
     arr, usable = _prepare(frame)
     if not usable:
         return _fail(_INVALID)
     res = _tight(arr, stride, nsigma, min_contrast, min_samples, margin, annulus, n_iter,
-                 ambiguity_ratio, saturation)
+                 ambiguity_ratio, saturation, background)
     return res[0]
 
 
 def _tight(arr, stride, nsigma, min_contrast, min_samples, margin, annulus, n_iter,
-           ambiguity_ratio, saturation):
+           ambiguity_ratio, saturation, background="ring"):
     """Tight window on a prepared frame; returns (Centroid, its SpotMoments or None)."""
+    if background not in ("ring", "plane"):
+        raise ConfigurationError(
+            f"background: found {background!r}, expected 'ring' (a constant fitted to the ring "
+            "around the spot) or 'plane' (a plane, for a sloping background)"
+        )
     det = _detect(arr, stride, nsigma, min_contrast, min_samples)
     if det.count.size == 0:
         return _fail(_INVALID if det.sample_max == 0 and _all_zero(arr) else _NO_SPOT), None
@@ -424,10 +444,21 @@ def _tight(arr, stride, nsigma, min_contrast, min_samples, margin, annulus, n_it
     if not m.flux > 0:
         return _fail(_NO_SPOT), None
     ny, nx = arr.shape
-    x, y, r_ap = float(m.x), float(m.y), float(m.r_ap)
+    x, y, r_ap, flux = float(m.x), float(m.y), float(m.r_ap), float(m.flux)
+    n_hot, saturated = 0, m.nsat > 0
+    if background == "plane" or saturated:  # the NumPy pass: plane, hot pixels repaired
+        local = _local_centroid(arr, x, y, r_ap, annulus, n_iter, saturation,
+                                background == "plane")
+        if not local[3] and local[4] and background != "plane":
+            local = (flux, x, y, 0, True)  # the spot saturates: the compiled values stand
+        flux, x, y, n_hot, saturated = local
+        if not flux > 0:
+            return _fail(_NO_SPOT), None
     window, clipped = _aperture_window(x, y, r_ap, nx, ny)
-    status = _status(clipped=clipped, saturated=m.nsat > 0, ambiguous=ambiguous)
-    return Centroid(x, y, float(m.flux), window, status), m
+    status = _status(clipped=clipped, saturated=saturated, ambiguous=ambiguous)
+    if status == _OK and n_hot:
+        status = _REPAIRED
+    return Centroid(x, y, flux, window, status), m
 
 
 # ------------------------------------------------------------------------------------------------
@@ -435,7 +466,7 @@ def _tight(arr, stride, nsigma, min_contrast, min_samples, margin, annulus, n_it
 # ------------------------------------------------------------------------------------------------
 def disk_fit(
     frame, *, edge: float = 1.5, max_iter: int = 30, reweight: bool = True,
-    saturation: float = SATURATION_10BIT, profile: str = "spline", **detect,
+    saturation: float | None = None, profile: str = "spline", **detect,
 ) -> Centroid:
     """Weighted least-squares fit of the spot's centre and radial profile (at the Cramér–Rao bound).
 
@@ -479,8 +510,10 @@ def disk_fit(
         Levenberg–Marquardt iterations per fit.
     reweight : bool
         Do the second, noise-weighted fit.
-    saturation : float
-        Full-scale value, DN.
+    saturation : float, optional
+        Full-scale value, DN: a pixel at or above it is clipped. Default: the full scale of
+        the frame's integer type (255 for uint8, 65535 for uint16; none for float frames);
+        pass ``2**bit_depth - 1`` for an ADC narrower than its word (``locate`` does).
     profile : {"spline", "erfc"}
         Radial profile of the final fit (see above).
     **detect
@@ -503,6 +536,7 @@ def disk_fit(
     >>> round(c.x, 2), round(c.y, 2), c.status_name
     (200.5, 150.0, 'ok')
     """
+    saturation = _full_scale(frame, saturation)
     arr, usable = _prepare(frame)
     if not usable:
         return _fail(_INVALID)

@@ -18,6 +18,7 @@ from ..errors import ConfigurationError
 from . import _k_aperture, _k_lattice
 from ._detection import _background_band, _detect, _first_radius
 from ._diskfit import _fit_from
+from ._local import _local_centroid
 from .moments import SpotMoments
 from .result import (
     _AMBIGUOUS,
@@ -25,10 +26,11 @@ from .result import (
     _INVALID,
     _NO_SPOT,
     _OK,
+    _REPAIRED,
     _SATURATED,
-    SATURATION_10BIT,
     _all_zero,
     _check_positive,
+    _full_scale,
     _prepare,
 )
 
@@ -122,7 +124,7 @@ def locate_spots(
     frame, *, shape: tuple[int, int] = (10, 10), pitch: float = 0.5 / 0.007, holes=None,
     expected=None, method: str = "tight", max_residual: float = 0.3, stride: int = 8,
     nsigma: float = 5.0, min_contrast: float = 5.0, min_samples: int = 3, margin: float = 5.0,
-    annulus: float = 6.0, n_iter: int = 2, saturation: float = SATURATION_10BIT,
+    annulus: float = 6.0, n_iter: int = 2, saturation: float | None = None,
 ) -> Spots:
     """Find, centroid and index every spot of a multi-hole frame (the 10 x 10 mask).
 
@@ -187,7 +189,7 @@ def locate_spots(
     _check_positive("pitch", pitch, "give the hole pitch on the detector in px")
     hi, hj, lut = _hole_table(shape, holes)
     opts = _SpotOptions(int(stride), float(nsigma), float(min_contrast), int(min_samples),
-                        float(margin), float(annulus), int(n_iter), float(saturation),
+                        float(margin), float(annulus), int(n_iter), _full_scale(frame, saturation),
                         float(pitch), float(max_residual))
     exp = (np.empty((0, 2)) if expected is None else
            np.ascontiguousarray(np.asarray(expected, dtype=float).reshape(hi.size, 2)))
@@ -249,7 +251,23 @@ def _locate_tight(frame, opts: _SpotOptions, lut, exp, has_exp, n_holes):
         n_holes=n_holes, no_spot=_NO_SPOT, ambiguous=_AMBIGUOUS)
     if n_detected == 0 and sample_max == 0 and _all_zero(arr):
         status[:] = _INVALID
+    _repair_hot_spots(arr, vals, window, status, opts)
     return vals, window, status, unassigned, lattice
+
+
+def _repair_hot_spots(arr, vals, window, status, opts: _SpotOptions) -> None:
+    """Spots flagged ``saturated`` for isolated pixels at full scale (hot pixels) in their
+    window: those pixels replaced by the median of their neighbours and x, y, flux measured
+    again (the tight window's repair, :func:`tight_window`), status ``repaired``; a spot with
+    touching clipped pixels stays ``saturated``. The metrics keep the compiled values."""
+    for k in np.flatnonzero(status == _SATURATED):
+        x0, x1 = int(window[0, k]), int(window[1, k])
+        flux, x, y, n_hot, saturated = _local_centroid(
+            arr, float(vals[0, k]), float(vals[1, k]), 0.5 * (x1 - x0 - 1), opts.annulus,
+            opts.n_iter, opts.saturation, False)
+        if n_hot and not saturated and flux > 0:
+            vals[0, k], vals[1, k], vals[2, k] = x, y, flux
+            status[k] = _REPAIRED
 
 
 def _locate_fit(frame, opts: _SpotOptions, lut, exp, has_exp, n_holes):

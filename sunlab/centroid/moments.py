@@ -26,7 +26,7 @@ from typing import NamedTuple
 import numpy as np
 
 from . import _k_aperture
-from .result import SATURATION_10BIT, _prepare
+from .result import _full_scale, _prepare
 
 __all__ = ["SpotMoments", "spot_moments", "stamp_moments"]
 
@@ -99,7 +99,7 @@ def spot_moments(
     *,
     annulus: float = 6.0,
     band: tuple[float, float] = (-math.inf, math.inf),
-    saturation: float = SATURATION_10BIT,
+    saturation: float | None = None,
 ) -> SpotMoments:
     """Moments of the spot about ``(x, y)`` in a circular aperture of ``radius`` px.
 
@@ -122,8 +122,9 @@ def spot_moments(
         Width of the background ring, px.
     band : (float, float)
         Pixel values accepted in the background ring, DN.
-    saturation : float
-        Full-scale value, DN (counts ``nsat``).
+    saturation : float, optional
+        Full-scale value, DN (counts ``nsat``); default the frame type's full scale (as
+        :func:`~sunlab.centroid.tight_window`).
 
     Returns
     -------
@@ -139,6 +140,7 @@ def spot_moments(
     >>> round(m.flux), int(m.npix), round(m.mxx, 1), round(m.myy, 1)
     (279200, 1517, 56.6, 54.4)
     """
+    saturation = _full_scale(frame, saturation)
     arr, _ = _prepare(frame)
     x, y, r = float(x), float(y), float(radius)
     lo, hi = (float(v) for v in band)

@@ -92,6 +92,19 @@ def _prepare(frame) -> tuple[np.ndarray, bool]:
     return arr, usable
 
 
+def _full_scale(frame, saturation) -> float:
+    """The saturation level: ``saturation`` when given, else the full scale of the frame's
+    unsigned integer type (255, 65535), else infinity (float frames have no full scale)."""
+    if saturation is not None:
+        return float(saturation)
+    dtype = getattr(frame, "dtype", None)
+    if dtype is None:
+        dtype = np.asarray(frame).dtype
+    if dtype.kind == "u" and dtype.itemsize <= 2:
+        return float(np.iinfo(dtype).max)
+    return math.inf
+
+
 def _all_zero(arr: np.ndarray) -> bool:
     return not arr.any()
 

@@ -101,8 +101,12 @@ def _add_acquire(sub) -> None:
     p.add_argument("--stage", required=True, metavar="URL",
                    help="fake:// (in-process fake ESP301), socket://HOST:PORT, or a serial device "
                    "path (/dev/ttyUSB0, COM3) of a Newport ESP300/ESP301")
-    p.add_argument("--camera", required=True, metavar="sim|folder:PATH",
-                   help="'sim' (virtual bench) or 'folder:PATH' (a camera that writes image files)")
+    p.add_argument("--camera", required=True, metavar="sim|folder:PATH|module:Class|NAME",
+                   help="'sim' (virtual bench), 'folder:PATH' (a camera that writes image "
+                        "files), a camera class of your own as module:Class, or a name "
+                        "registered in the entry point group sunlab.cameras (docs/hardware.md)")
+    p.add_argument("--camera-option", action="append", default=[], metavar="KEY=VALUE",
+                   help="argument of your camera class (repeat; VALUE read as JSON if it parses)")
     p.add_argument("--plan", required=True,
                    help="experiment I, II or III, or a CSV file with columns alpha,beta (deg)")
     p.add_argument("--out", required=True, help="the run's Zarr store (a directory)")
@@ -167,9 +171,10 @@ def _run_acquire(args) -> int:
             camera = FolderCamera(args.camera[len("folder:"):], shape=shape,
                                   bit_depth=args.bit_depth, timeout_s=args.frame_timeout)
         else:
-            raise ConfigurationError(
-                f"--camera: found {args.camera!r}, expected 'sim' or 'folder:PATH'"
-            )
+            from ..hardware import open_camera
+            from ..hardware.cameras import parse_camera_options
+
+            camera = open_camera(args.camera, **parse_camera_options(args.camera_option))
         result = acquire(plan, stage, camera, args.out, resume=args.resume,
                          progress=not args.no_progress)
     finally:
@@ -189,6 +194,9 @@ def _add_centroid(sub) -> None:
                         "projection for one spot per frame, tight for a multi-hole cube, whose "
                         "spots take tight or fit only)")
     p.add_argument("--out", required=True, help="output centroid table (.nc or .zarr)")
+    p.add_argument("--background", default=None, choices=["ring", "plane"],
+                   help="tight window: the background fitted around each spot, a constant "
+                        "(ring, default) or a plane (for a background that slopes or drifts)")
     p.add_argument("--scheduler", default="threads",
                    choices=["threads", "processes", "synchronous", "cluster"],
                    help="local Dask scheduler ('cluster': a local dask.distributed cluster of "
@@ -204,6 +212,7 @@ def _add_centroid(sub) -> None:
 
 def _run_centroid(args) -> int:
     from .. import centroid, io
+    from ..errors import ConfigurationError
 
     _check_out(args.out, args.overwrite, kind="auto")
     from .lab import cube_from_folder, is_image_folder
@@ -211,9 +220,16 @@ def _run_centroid(args) -> int:
     cube = (cube_from_folder(args.cube, args) if is_image_folder(args.cube)
             else io.open_frames(args.cube))
     if args.method is None:
-        args.method = "tight" if centroid.is_multi_hole(cube) else "projection"
+        args.method = "tight" if args.background or centroid.is_multi_hole(cube) else "projection"
+    extra = {}
+    if args.background is not None:
+        if args.method != "tight" or centroid.is_multi_hole(cube):
+            raise ConfigurationError(
+                f"--background: applies to the single-spot tight window, not --method "
+                f"{args.method}. Fix: pass --method tight, or drop --background")
+        extra["background"] = args.background
     cen = centroid.locate(cube, args.method, scheduler=args.scheduler, address=args.address,
-                          num_workers=args.workers, progress=not args.no_progress)
+                          num_workers=args.workers, progress=not args.no_progress, **extra)
     io.save_centroids(cen, args.out, overwrite=args.overwrite)
     ok = int((cen.status.values == 0).sum())
     print(f"{args.out}: {cen.status.size} centroids ({ok} ok) by method {args.method!r}")
@@ -369,6 +385,10 @@ def _run_calibrate(args) -> int:
           f"{elapsed:.2f} s; {line}")
     if res.get("validation"):
         print("  validation residuals (deg): " + fmt(res["validation"]))
+    from ..calibration.plausibility import implausible
+
+    for finding in implausible(cal):
+        print(f"warning: implausible fit: {finding}")
     return 0
 
 

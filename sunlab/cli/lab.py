@@ -2,7 +2,7 @@
 
 From a folder of images to an on-board C table::
 
-    sunlab import FOLDER --out cube.zarr --mask-distance-mm 5
+    sunlab import FOLDER --out cube.zarr --dark DARK --flat FLAT   # sensor.json beside
     sunlab centroid cube.zarr --out train.nc        # or: sunlab centroid FOLDER --out ...
     sunlab calibrate train.nc --method polynomial --order 3 --out cal.json
     sunlab evaluate cal.json test.nc --out evaluation/ --paper
@@ -273,67 +273,49 @@ def add_folder_options(p) -> None:
                    help="manifest CSV with columns file, alpha, beta, shot (default "
                         "FOLDER/manifest.csv)")
     g.add_argument("--pixel-pitch-mm", type=float, default=None,
-                   help="pixel pitch, mm (default: sensor.json, else 0.007)")
+                   help="pixel pitch, mm (default: sensor.json; never guessed: the geometric "
+                        "models ask for it)")
     g.add_argument("--mask-distance-mm", type=float, default=None,
-                   help="nominal mask-to-focal-plane distance F, mm (required unless the "
-                        "manifest's folder holds sensor.json with mask_distance_mm)")
+                   help="nominal mask-to-focal-plane distance F, mm (default: sensor.json; "
+                        "only the geometric models need it)")
     g.add_argument("--bit-depth", type=int, default=None,
-                   help="ADC bit depth (default: sensor.json, else from the images)")
+                   help="ADC bit depth, 8-16; sets the saturation level (default: sensor.json, "
+                        "else from the images)")
+    g.add_argument("--left-aligned", action="store_true", default=None,
+                   help="the camera writes its DN in the top bits of the 16-bit word (e.g. 12-bit "
+                        "data x 16); shifted down on read (default: sensor.json)")
     g.add_argument("--experiment", dest="folder_experiment", default=None,
                    help="experiment name stored in the cube (default: the folder name)")
-
-
-_SENSOR_KEYS = ("pixel_pitch_mm", "mask_distance_mm", "x_cf_px", "y_cf_px", "bit_depth", "mask",
-                "experiment")
+    g.add_argument("--dark", default=None, metavar="DARK",
+                   help="dark frames (a folder of images or a TIFF stack): their median is "
+                        "subtracted from every frame before centroiding")
+    g.add_argument("--flat", default=None, metavar="FLAT",
+                   help="flat frames (folder or stack): the median of the dark-subtracted flats, "
+                        "normalised to 1, divides every frame")
+    g.add_argument("--bias", default=None, metavar="BIAS",
+                   help="bias frames (folder or stack): subtracted when no dark is given")
 
 
 def _sensor_json(folder: Path, manifest) -> dict:
-    where = Path(manifest).resolve().parent if manifest else folder
-    path = where / "sensor.json"
-    if not path.exists() and manifest:
-        path = folder / "sensor.json"
-    if not path.exists():
-        return {}
-    try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
-    except (json.JSONDecodeError, UnicodeDecodeError) as err:
-        raise SchemaError(str(path), f"invalid JSON ({err})",
-                          f"an object with keys among {list(_SENSOR_KEYS)}",
-                          "fix the JSON syntax") from err
-    if not isinstance(doc, dict):
-        raise SchemaError(str(path), type(doc).__name__, "a JSON object", "fix the file")
-    unknown = sorted(set(doc) - set(_SENSOR_KEYS) - {"comment", "attrs"})
-    if unknown:
-        raise SchemaError(f"{path.name} keys {unknown}", "unknown",
-                          f"keys among {list(_SENSOR_KEYS)}", "remove or rename them")
-    return doc
+    """The checked sensor.json of a folder (:func:`sunlab.io.read_sensor_json`), or {}."""
+    from ..io.sensor import find_sensor_json, read_sensor_json
+
+    path = find_sensor_json(folder, manifest)
+    return {} if path is None else read_sensor_json(path)
 
 
 def cube_from_folder(folder, args):
-    """A lazy frame cube from an image folder and the folder options of ``args``."""
+    """A lazy frame cube from an image folder and the folder options of ``args``
+    (:func:`sunlab.io.import_folder`)."""
     from .. import io
-    from ..errors import ConfigurationError
 
-    folder = Path(folder)
-    manifest = getattr(args, "manifest", None)
-    sensor = _sensor_json(folder, manifest)
-    kw = {k: sensor[k] for k in ("x_cf_px", "y_cf_px", "mask") if k in sensor}
-    kw["attrs"] = dict(sensor.get("attrs") or {})
-    pitch = args.pixel_pitch_mm if args.pixel_pitch_mm is not None else sensor.get(
-        "pixel_pitch_mm", 0.007)
-    distance = (args.mask_distance_mm if args.mask_distance_mm is not None
-                else sensor.get("mask_distance_mm"))
-    if distance is None:
-        raise ConfigurationError(
-            "--mask-distance-mm: not given, and no sensor.json with mask_distance_mm next to the "
-            f"manifest in {folder}. Fix: pass --mask-distance-mm F (the nominal "
-            "mask-to-focal-plane distance, mm), or write sensor.json with it"
-        )
-    bit_depth = args.bit_depth if args.bit_depth is not None else sensor.get("bit_depth")
-    experiment = (getattr(args, "folder_experiment", None) or sensor.get("experiment")
-                  or folder.resolve().name)
-    return io.from_image_folder(folder, manifest, bit_depth=bit_depth, pixel_pitch_mm=pitch,
-                                mask_distance_mm=distance, experiment=experiment, **kw)
+    return io.import_folder(
+        folder, getattr(args, "manifest", None), dark=getattr(args, "dark", None),
+        flat=getattr(args, "flat", None), bias=getattr(args, "bias", None),
+        pixel_pitch_mm=args.pixel_pitch_mm, mask_distance_mm=args.mask_distance_mm,
+        bit_depth=args.bit_depth, left_aligned=getattr(args, "left_aligned", None),
+        experiment=getattr(args, "folder_experiment", None),
+    )
 
 
 # --------------------------------------------------------------------------------------------
@@ -344,7 +326,9 @@ def _add_import(sub) -> None:
         "import", help="import a folder of PNG/TIFF frames + manifest.csv into a frame cube",
         description="Read FOLDER/manifest.csv (columns file, alpha, beta, shot; one row per "
         "image) and the PNG or TIFF frames it lists into a frame cube (contract frames/1). "
-        "Sensor constants come from the options, else FOLDER/sensor.json.",
+        "Sensor constants come from the options, else FOLDER/sensor.json; dark, bias and flat "
+        "frames (--dark, --bias, --flat) are combined into masters stored with the cube and "
+        "applied before centroiding.",
     )
     p.add_argument("folder", help="folder of images with manifest.csv (and sensor.json)")
     p.add_argument("--out", required=True, help="output cube (.zarr store or .nc file)")
@@ -361,9 +345,14 @@ def _run_import(args) -> int:
     atomic.check_target(args.out, overwrite=args.overwrite, kind=kind, flag="--overwrite")
     cube = cube_from_folder(args.folder, args)
     io.save_frames(cube, args.out, overwrite=args.overwrite, progress=not args.no_progress)
+    said = {k: cube.attrs.get(k, "not given") for k in ("mask_distance_mm", "pixel_pitch_mm")}
+    masters = ", ".join(f"master {k} of {v['n_frames']}"
+                        for k, v in (cube.attrs.get("calibration_frames") or {}).items())
     print(f"{args.out}: {cube.sizes['pose']} poses x {cube.sizes['shot']} shots of "
-          f"{cube.sizes['y']} x {cube.sizes['x']} px ({cube.attrs['bit_depth']}-bit), "
-          f"F = {cube.attrs['mask_distance_mm']} mm, pitch {cube.attrs['pixel_pitch_mm']} mm")
+          f"{cube.sizes['y']} x {cube.sizes['x']} px ({cube.attrs['bit_depth']}-bit"
+          f"{', left-aligned' if cube.attrs.get('left_aligned') else ''}), "
+          f"F = {said['mask_distance_mm']} mm, pitch {said['pixel_pitch_mm']} mm"
+          + (f"; {masters}" if masters else ""))
     return 0
 
 
@@ -438,6 +427,10 @@ def _run_evaluate(args) -> int:
         keep = [want] if want in paper.columns else list(paper.columns)
         shown = pd.concat([shown, paper[keep].add_suffix(" (paper)")], axis=1)
     print(shown.to_string(float_format=lambda v: f"{v:.5f}"))
+    from ..calibration.plausibility import implausible
+
+    for finding in implausible(cal, test_mu={a: col[(a, "mu")] for a in ("alpha", "beta")}):
+        print(f"warning: implausible: {finding}")
     if n_out:
         print(f"warning: {n_out} centroid(s) outside the calibrated domain (extrapolated"
               f"{' or NaN' if cal.kind.startswith('interpolation') else ''}); see in_domain in "

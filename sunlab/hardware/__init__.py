@@ -7,8 +7,11 @@
   :func:`open_transport`) is :mod:`sunlab.hardware.esp_protocol`.
 - :class:`FakeESP`: the same protocol over a pseudo-terminal or loopback TCP, backed by the
   virtual bench's platform model, with fault injection.
-- :class:`Camera`: the camera protocol; :class:`SimCamera` renders from the virtual bench,
-  :class:`FolderCamera` picks up the image files a real camera writes.
+- :class:`Camera`: the camera protocol (:class:`ControlledCamera` adds exposure, ROI and dark
+  frames); :class:`SimCamera` renders from the virtual bench, :class:`FolderCamera` picks up
+  the image files a real camera writes; a lab's own class is opened by :func:`open_camera`
+  (``module:Class`` or the entry point group ``sunlab.cameras``).
+- :class:`PymeasureStage`: an ESP300 driven through PyMeasure's own driver (VISA).
 - :func:`acquire`: plan -> move -> settle -> N shots -> a pre-allocated Zarr store, one pose at a
   time, resumable after a crash or Ctrl-C.
 
@@ -25,7 +28,8 @@ Examples
 
 from __future__ import annotations
 
-from .camera import Camera, FolderCamera, SimCamera
+from .camera import Camera, ControlledCamera, FolderCamera, SimCamera, capture_darks
+from .cameras import ENTRY_POINT_GROUP, available_cameras, camera_class, open_camera
 from .errors import (
     BenchError,
     CameraError,
@@ -43,6 +47,7 @@ from .errors import (
 from .esp import ESP300
 from .esp_protocol import decode_error, open_transport
 from .fake import FakeESP, Fault
+from .pymeasure_stage import PymeasureStage
 from .runner import RunResult, acquire, open_run
 from .stage import Stage, open_stage
 
@@ -60,8 +65,15 @@ __all__ = [
     "StageProtocolError",
     "StageTimeout",
     "Camera",
+    "ControlledCamera",
     "FolderCamera",
     "SimCamera",
+    "capture_darks",
+    "ENTRY_POINT_GROUP",
+    "available_cameras",
+    "camera_class",
+    "open_camera",
+    "PymeasureStage",
     "ESP300",
     "decode_error",
     "open_transport",

@@ -4,7 +4,13 @@ A camera is anything with ``grab() -> ndarray`` (one frame, ``shape``, ``dtype``
 ``bit_depth``. Two optional members are used when present: ``set_index(pose, shot, alpha=,
 beta=)``, called by the runner before each grab with the stage's read-back angles, and ``attrs``,
 the sensor attributes of the frame cube (``pixel_pitch_mm``, ``mask_distance_mm``, ``x_cf_px``,
-``y_cf_px``, ``mask``).
+``y_cf_px``, ``mask``). A camera that a lab controls from sunlab also offers
+:class:`ControlledCamera`: ``exposure_s`` and ``set_exposure(seconds)``, ``roi`` and
+``set_roi((y0, y1, x0, x1))``, and ``grab_dark()`` (a frame with the light blocked: a shutter
+closed, the lamp off), which :func:`capture_darks` stacks into the dark frames of
+:func:`sunlab.io.with_calibration_frames`. A lab's own camera class is found by
+``sunlab acquire --camera mypkg:MyCamera`` or through the entry point group ``sunlab.cameras``
+(:mod:`sunlab.hardware.cameras`; docs/hardware.md shows how to wrap a camera SDK).
 
 - :class:`SimCamera` renders frames from the virtual bench (:func:`sunlab.sim.render_frame`) at
   the platform's true pose, deterministic in (seed, pose, shot); a region of interest and
@@ -36,7 +42,7 @@ import numpy as np
 from ..errors import ConfigurationError
 from .errors import CameraError, CameraTimeout
 
-__all__ = ["Camera", "SimCamera", "FolderCamera"]
+__all__ = ["Camera", "ControlledCamera", "SimCamera", "FolderCamera", "capture_darks"]
 
 
 @runtime_checkable
@@ -50,6 +56,51 @@ class Camera(Protocol):
     def grab(self) -> np.ndarray:
         """Take one frame, shape ``shape``, type ``dtype``, values below ``2**bit_depth``."""
         ...
+
+
+@runtime_checkable
+class ControlledCamera(Camera, Protocol):
+    """A :class:`Camera` whose exposure, region of interest and dark frames sunlab can set."""
+
+    exposure_s: float | None
+    roi: tuple[int, int, int, int]
+
+    def set_exposure(self, seconds: float) -> None:
+        """Set the exposure (integration) time, s."""
+        ...
+
+    def set_roi(self, roi: Sequence[int]) -> None:
+        """Read only rows ``y0:y1`` and columns ``x0:x1`` of the sensor; ``shape`` follows."""
+        ...
+
+    def grab_dark(self) -> np.ndarray:
+        """Take one frame with the light blocked (shutter closed, source off), as ``grab``."""
+        ...
+
+
+def capture_darks(camera, n: int = 16) -> np.ndarray:
+    """``n`` dark frames of a camera, stacked (n, ny, nx): the ``dark`` of
+    :func:`sunlab.io.with_calibration_frames` (whose median is the master dark).
+
+    Raises
+    ------
+    CameraError
+        The camera has no ``grab_dark``.
+
+    Examples
+    --------
+    >>> cam = SimCamera(roi=(100, 132, 900, 964))
+    >>> darks = capture_darks(cam, 3)
+    >>> darks.shape, bool(darks.mean() < 100)
+    ((3, 32, 64), True)
+    """
+    if not callable(getattr(camera, "grab_dark", None)):
+        raise CameraError(
+            f"camera: {type(camera).__name__} cannot take dark frames (no grab_dark). Fix: "
+            "give the camera a grab_dark() (close the shutter or switch the source off, then "
+            "grab), or take the dark frames by hand into a folder for sunlab import --dark"
+        )
+    return np.stack([np.asarray(camera.grab_dark()) for _ in range(int(n))])
 
 
 def _bin(frame: np.ndarray, b: int) -> np.ndarray:
@@ -111,19 +162,11 @@ class SimCamera:
         self.bench = sim.Bench.paper_single_hole() if bench is None else bench
         self.seed = int(seed)
         self.truth = truth
-        ny, nx = (int(n) for n in self.bench.detector.shape)
-        y0, y1, x0, x1 = (0, ny, 0, nx) if roi is None else (int(v) for v in roi)
-        if not (0 <= y0 < y1 <= ny and 0 <= x0 < x1 <= nx):
-            raise ConfigurationError(
-                f"roi: found {tuple(roi)}, expected (y0, y1, x0, x1) with 0 <= y0 < y1 <= {ny} "
-                f"and 0 <= x0 < x1 <= {nx}"
-            )
         b = int(binning)
-        if b < 1 or (y1 - y0) % b or (x1 - x0) % b:
-            raise ConfigurationError(
-                f"binning: found {binning!r} for a {y1 - y0} x {x1 - x0} roi, expected a "
-                "positive divisor of both sides"
-            )
+        if b < 1:
+            raise ConfigurationError(f"binning: found {binning!r}, expected a positive integer")
+        self.binning = b
+        self.set_roi(roi)
         base_bits = int(self.bench.detector.bit_depth)
         bits = base_bits + math.ceil(2 * math.log2(b))
         if bits > 16:
@@ -131,14 +174,56 @@ class SimCamera:
                 f"binning: {b} x {b} sums of {base_bits}-bit pixels need {bits} bits, expected "
                 "<= 16 (uint16). Fix: bin less"
             )
-        self.roi = (y0, y1, x0, x1)
-        self.binning = b
-        self.shape = ((y1 - y0) // b, (x1 - x0) // b)
         self.dtype = np.dtype(np.uint16)
         self.bit_depth = bits
+        self.exposure_s = None  # the virtual bench's exposure is its detector model's
         self.pose, self.shot = 0, 0
         self.alpha, self.beta = 0.0, 0.0
         self.last_truth: tuple[float, float] | None = None
+        self._n_dark = 0
+
+    def set_roi(self, roi: Sequence[int] | None) -> None:
+        """Read rows ``y0:y1`` and columns ``x0:x1`` (half-open) of the detector (None: all);
+        ``shape`` follows (binned)."""
+        ny, nx = (int(n) for n in self.bench.detector.shape)
+        y0, y1, x0, x1 = (0, ny, 0, nx) if roi is None else (int(v) for v in roi)
+        if not (0 <= y0 < y1 <= ny and 0 <= x0 < x1 <= nx):
+            raise ConfigurationError(
+                f"roi: found {tuple(roi)}, expected (y0, y1, x0, x1) with 0 <= y0 < y1 <= {ny} "
+                f"and 0 <= x0 < x1 <= {nx}"
+            )
+        b = self.binning
+        if (y1 - y0) % b or (x1 - x0) % b:
+            raise ConfigurationError(
+                f"binning: found {b!r} for a {y1 - y0} x {x1 - x0} roi, expected a "
+                "positive divisor of both sides"
+            )
+        self.roi = (y0, y1, x0, x1)
+        self.shape = ((y1 - y0) // b, (x1 - x0) // b)
+
+    def set_exposure(self, seconds: float) -> None:
+        """Refused: the virtual bench's signal and noise are set by its detector model."""
+        raise ConfigurationError(
+            f"set_exposure({seconds!r}): the sim camera's exposure is its detector model's. Fix: "
+            "change the bench's detector (sunlab.sim.Detector: qe, gain, dark signal) instead"
+        )
+
+    def grab_dark(self) -> np.ndarray:
+        """A dark frame: the detector with the sun far outside the field (its bias, dark
+        signal, fixed pattern, hot pixels and noise), a new noise draw per call."""
+        from ..sim import render_frame
+
+        self._n_dark += 1
+        full = render_frame(self.bench, 80.0, 80.0, seed=self.seed, pose=10**6,
+                            shot=self._n_dark)
+        return self._crop(full)
+
+    def _crop(self, full) -> np.ndarray:
+        y0, y1, x0, x1 = self.roi
+        frame = np.asarray(full)[y0:y1, x0:x1]
+        if self.binning > 1:
+            frame = _bin(frame, self.binning)
+        return frame.astype(self.dtype, copy=False)
 
     def set_index(self, pose: int, shot: int, *, alpha: float | None = None,
                   beta: float | None = None) -> None:
@@ -167,11 +252,7 @@ class SimCamera:
         a, b = self.true_pose()
         self.last_truth = (a, b)
         full = render_frame(self.bench, a, b, seed=self.seed, pose=self.pose, shot=self.shot)
-        y0, y1, x0, x1 = self.roi
-        frame = np.asarray(full)[y0:y1, x0:x1]
-        if self.binning > 1:
-            frame = _bin(frame, self.binning)
-        return frame.astype(self.dtype, copy=False)
+        return self._crop(full)
 
     @property
     def attrs(self) -> dict:
@@ -255,9 +336,14 @@ def _read_new_file(path) -> np.ndarray:
 class FolderCamera:
     """A real camera whose acquisition software writes one image file per frame.
 
-    :meth:`grab` optionally fires ``trigger()`` (e.g. a software trigger of the camera SDK),
-    then waits for a file that was not in the folder before, whose size has stopped changing
-    for ``stable_s`` and which decodes completely, and returns it.
+    :meth:`grab` notes the files already in the folder, optionally fires ``trigger()`` (e.g. a
+    software trigger of the camera SDK), then takes the **first file written after that
+    moment**: the oldest new file, once its size has stopped changing for ``stable_s`` and it
+    decodes completely. The runner calls :meth:`grab` only once the pose is reached and
+    settled, so a frame written during the move is never taken, even from a camera that runs
+    free and writes files all the time; such a camera may still have started exposing its first
+    new file before the trigger: ``skip=1`` drops it and takes the next. Hidden files (a name
+    starting with ``.``, as writers name a file in progress before renaming it) are ignored.
 
     Parameters
     ----------
@@ -279,6 +365,14 @@ class FolderCamera:
         How long a file's size must stay unchanged before it is read, s.
     trigger : callable, optional
         Called at the start of each :meth:`grab`.
+    skip : int
+        New files dropped after the trigger before one is taken (a free-running camera: 1).
+    dark_trigger : callable, optional
+        Called by :meth:`grab_dark` instead of ``trigger``: block the light (close a shutter,
+        switch the source off) and trigger a frame.
+    exposure : callable, optional
+        ``exposure(seconds)`` sets the camera's exposure (the SDK call); without it
+        :meth:`set_exposure` says to set it in the camera software.
 
     Examples
     --------
@@ -303,6 +397,9 @@ class FolderCamera:
         poll_s: float = 0.02,
         stable_s: float = 0.05,
         trigger: Callable[[], object] | None = None,
+        skip: int = 0,
+        dark_trigger: Callable[[], object] | None = None,
+        exposure: Callable[[float], object] | None = None,
     ):
         self.folder = Path(folder)
         if not self.folder.is_dir():
@@ -318,11 +415,46 @@ class FolderCamera:
         self.poll_s = float(poll_s)
         self.stable_s = float(stable_s)
         self.trigger = trigger
+        self.skip = int(skip)
+        self.dark_trigger = dark_trigger
+        self.exposure = exposure
+        self.exposure_s: float | None = None
+        self.roi = (0, self.shape[0], 0, self.shape[1])
         self._seen = set(self._listing())
         self.last_file: Path | None = None
 
+    def set_exposure(self, seconds: float) -> None:
+        """Set the exposure through the ``exposure`` callable (the camera SDK's call)."""
+        if self.exposure is None:
+            raise CameraError(
+                "camera: this folder camera has no exposure control. Fix: set the exposure in "
+                "the camera software, or pass FolderCamera(exposure=sdk_call)"
+            )
+        self.exposure(float(seconds))
+        self.exposure_s = float(seconds)
+
+    def set_roi(self, roi: Sequence[int]) -> None:
+        """Expect frames of the ROI ``(y0, y1, x0, x1)`` (set the same ROI in the camera
+        software: the files it writes are the ROI)."""
+        y0, y1, x0, x1 = (int(v) for v in roi)
+        if not (0 <= y0 < y1 and 0 <= x0 < x1):
+            raise ConfigurationError(
+                f"roi: found {tuple(roi)}, expected 0 <= y0 < y1, 0 <= x0 < x1")
+        self.roi = (y0, y1, x0, x1)
+        self.shape = (y1 - y0, x1 - x0)
+
+    def grab_dark(self) -> np.ndarray:
+        """A dark frame: ``dark_trigger()`` blocks the light and triggers, then as :meth:`grab`."""
+        if self.dark_trigger is None:
+            raise CameraError(
+                "camera: no dark_trigger. Fix: pass FolderCamera(dark_trigger=...) that closes "
+                "the shutter (or switches the source off) and triggers a frame"
+            )
+        return self._next_file(self.dark_trigger)
+
     def _listing(self) -> list[Path]:
-        files = {p for pattern in self.patterns for p in self.folder.glob(pattern) if p.is_file()}
+        files = {p for pattern in self.patterns for p in self.folder.glob(pattern)
+                 if p.is_file() and not p.name.startswith(".")}  # hidden: a write in progress
         return sorted(files, key=lambda p: (p.stat().st_mtime_ns, p.name))
 
     def grab(self) -> np.ndarray:
@@ -335,14 +467,21 @@ class FolderCamera:
         CameraError
             The file holds a frame of another shape or a type that does not fit ``dtype``.
         """
-        if self.trigger is not None:
-            self.trigger()
+        return self._next_file(self.trigger)
+
+    def _next_file(self, trigger) -> np.ndarray:
+        """Fire ``trigger``, then read the first complete file written after it (``skip``
+        dropped)."""
+        self._seen = set(self._listing())  # whatever is there now was written before
+        if trigger is not None:
+            trigger()
         t_end = time.monotonic() + self.timeout_s
         sizes: dict[Path, tuple[int, float]] = {}
         last_error: _Unreadable | None = None
+        to_skip = self.skip
         while True:
             now = time.monotonic()
-            for path in (p for p in self._listing() if p not in self._seen):
+            for path in [p for p in self._listing() if p not in self._seen][:1]:  # the oldest
                 try:
                     size = path.stat().st_size
                 except FileNotFoundError:
@@ -361,6 +500,9 @@ class FolderCamera:
                     sizes[path] = (size, now)
                     continue
                 self._seen.add(path)
+                if to_skip:
+                    to_skip -= 1
+                    continue
                 self.last_file = path
                 return self._check(data, path)
             if now > t_end:

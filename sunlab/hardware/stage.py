@@ -52,7 +52,9 @@ def open_stage(url: str, *, bench=None, seed: int = 0, **driver_kwargs):
     url : str
         ``fake://`` (an in-process :class:`~sunlab.hardware.FakeESP` served on a pseudo-terminal;
         query options ``velocity`` in deg/s and ``transport=tcp``), ``socket://HOST:PORT``, any
-        other :func:`serial.serial_for_url` URL, or a device path (``/dev/ttyUSB0``, ``COM3``).
+        other :func:`serial.serial_for_url` URL, a device path (``/dev/ttyUSB0``, ``COM3``), or
+        ``pymeasure:RESOURCE`` (a VISA resource driven through PyMeasure's ESP300 driver,
+        :class:`~sunlab.hardware.PymeasureStage`; of ``driver_kwargs`` it takes ``settle_s``).
     bench : sunlab.sim.Bench, optional
         Platform model of the fake controller (``fake://`` only).
     seed : int
@@ -73,6 +75,11 @@ def open_stage(url: str, *, bench=None, seed: int = 0, **driver_kwargs):
             f"stage: found {url!r}, expected 'fake://', 'socket://HOST:PORT' or a serial device "
             "path"
         )
+    if url.startswith("pymeasure:"):  # a VISA resource through PyMeasure's ESP300 driver
+        from .pymeasure_stage import PymeasureStage
+
+        keep = {k: v for k, v in driver_kwargs.items() if k in ("settle_s", "limits", "axes")}
+        return PymeasureStage(url[len("pymeasure:"):], **keep)
     if not url.startswith("fake://"):
         return ESP300(url, **driver_kwargs)
     from .fake import FakeESP

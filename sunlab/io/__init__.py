@@ -8,6 +8,11 @@ One module per concept, every public name re-exported here:
 * :mod:`sunlab.io.codec` -- exact round trips of attributes;
 * :mod:`sunlab.io.images` -- :func:`read_image`, one PNG or TIFF frame;
 * :mod:`sunlab.io.folder` -- :func:`from_image_folder`, :func:`example_folder`;
+* :mod:`sunlab.io.sensor` -- :func:`read_sensor_json`, the checked ``sensor.json`` of a folder;
+* :mod:`sunlab.io.calframes` -- master dark, bias and flat frames
+  (:func:`with_calibration_frames`) and the lazy correction (:func:`corrected_frames`);
+* :mod:`sunlab.io.lab` -- :func:`import_folder`: a lab's folder, sensor.json and calibration
+  frames as one cube (``sunlab import``);
 * :mod:`sunlab.io.describe` -- :func:`summary`.
 
 Two on-disk formats hold the same datasets (contracts ``frames/1`` and ``centroids/1`` of
@@ -50,10 +55,22 @@ True
 
 from __future__ import annotations
 
+from .calframes import (
+    MASTER_NAMES,
+    corrected_frames,
+    corrected_saturation,
+    has_calibration_frames,
+    master_flat,
+    master_frame,
+    read_stack,
+    with_calibration_frames,
+)
 from .describe import summary
 from .folder import example_folder, from_image_folder
 from .images import IMAGE_SUFFIXES, read_image
+from .lab import import_folder
 from .read import open_centroids, open_dataset, open_frames
+from .sensor import SENSOR_FIELDS, find_sensor_json, read_sensor_json
 from .write import NETCDF_SUFFIXES, save_centroids, save_frames
 
 __all__ = [
@@ -68,4 +85,16 @@ __all__ = [
     "example_folder",
     "read_image",
     "summary",
+    "SENSOR_FIELDS",
+    "read_sensor_json",
+    "find_sensor_json",
+    "MASTER_NAMES",
+    "read_stack",
+    "master_frame",
+    "master_flat",
+    "with_calibration_frames",
+    "corrected_frames",
+    "corrected_saturation",
+    "has_calibration_frames",
+    "import_folder",
 ]

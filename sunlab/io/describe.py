@@ -106,12 +106,18 @@ def _frames_lines(ds: xr.Dataset) -> list[str]:
         lines.append(f"  alpha: {_range(ds['alpha'].values, 'deg')}")
         lines.append(f"  beta:  {_range(ds['beta'].values, 'deg')}")
     a = ds.attrs
+    said = {k: f"{a[k]} mm" if k in a else "not given" for k in ("pixel_pitch_mm",
+                                                                  "mask_distance_mm")}
     lines.append(
-        f"  sensor: pixel pitch {a.get('pixel_pitch_mm')} mm, mask distance F "
-        f"{a.get('mask_distance_mm')} mm, x_cf {a.get('x_cf_px')} px, "
-        f"y_cf {a.get('y_cf_px')} px"
+        f"  sensor: pixel pitch {said['pixel_pitch_mm']}, mask distance F "
+        f"{said['mask_distance_mm']}, x_cf {a.get('x_cf_px')} px, "
+        f"y_cf {a.get('y_cf_px')} px" + (", left-aligned on read" if a.get("left_aligned")
+                                         else "")
     )
     lines.append(f"  mask: {a.get('mask')!r}, experiment: {a.get('experiment')!r}")
+    for kind, prov in (a.get("calibration_frames") or {}).items():
+        lines.append(f"  master {kind}: {prov.get('combine')} of {prov.get('n_frames')} "
+                     f"frames from {prov.get('source')} (applied before centroiding)")
     extra = _coord_lines(ds, skip=("pose", "shot", "alpha", "beta"))
     if extra:
         lines.append("  coordinates:")

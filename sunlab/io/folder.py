@@ -78,6 +78,7 @@ def from_image_folder(
     manifest=None,
     *,
     bit_depth: int | None = None,
+    left_aligned: bool = False,
     lazy: bool = True,
     **frames_kwargs,
 ) -> xr.Dataset:
@@ -88,30 +89,27 @@ def from_image_folder(
     folder : str or path-like
         Folder holding the images (8-bit, or 16-bit for deeper ADCs; single channel).
     manifest : str, path-like or pandas.DataFrame, optional
-        The manifest, one row per image; default ``folder/manifest.csv``. A relative path is
-        looked up relative to ``folder``. Required columns:
-
-        ``file``
-            image file name, relative to ``folder``;
-        ``alpha``, ``beta``
-            commanded platform angles, degrees;
-        ``shot``
-            integer shot label within the pose (e.g. 0 .. 7).
-
+        The manifest, one row per image; default ``folder/manifest.csv`` (a relative path is
+        relative to ``folder``). Required columns: ``file`` (image name relative to
+        ``folder``), ``alpha``, ``beta`` (commanded platform angles, deg), ``shot`` (integer
+        label within the pose, e.g. 0 .. 7). Optional ``page``: the frame (0-based) of a
+        multi-page TIFF (a stack per pose, shots as pages). One row per image (file, page);
+        files inside ``folder`` only.
         Poses are the unique (alpha, beta) pairs in manifest order; every pose must have the same
         set of shot labels, ordered by value. Any other column becomes a coordinate on
-        (pose, shot) (``time`` is parsed as a date-time; numeric columns stay numeric, others
-        are text). Lines starting with ``#`` are comments.
+        (pose, shot) (``time`` parsed as a date-time). Lines starting with ``#`` are comments.
     bit_depth : int, optional
         ADC bit depth. Default: 8 for 8-bit images; for 16-bit images the smallest of 8, 10,
         12, 14, 16 bits that holds the largest DN in the folder (this reads every image once;
         give it for dark or dim frames, whose maximum says little about the ADC).
+    left_aligned : bool
+        DN in the top bits of the 16-bit word (12-bit machine-vision cameras): shifted right
+        by ``16 - bit_depth`` on read (:func:`~sunlab.io.read_image`). Needs ``bit_depth``.
     lazy : bool
         Read each image only when its frame is computed (``dask.delayed`` per image, one chunk
         per frame); headers are still checked at once. False reads everything now.
     **frames_kwargs
-        Passed to :func:`sunlab.schema.frames_dataset` (``pixel_pitch_mm``,
-        ``mask_distance_mm``, ``x_cf_px``, ``y_cf_px``, ``mask``, ``experiment``, ``attrs``).
+        Passed to :func:`sunlab.schema.frames_dataset` (``pixel_pitch_mm``, ``attrs``, ...).
 
     Returns
     -------
@@ -142,14 +140,16 @@ def from_image_folder(
     _check_columns(table, mname)
     alpha, beta, shot = _pose_columns(table, mname)
     files, paths = _image_paths(folder, table, mname)
+    pages = _page_column(table, files, mname)
     poses, labels, order = _pose_grid(alpha, beta, shot, mname)
-    shape, dtype = _common_header(paths, order)
-    bit_depth = _checked_bit_depth(bit_depth, dtype)
-    frames = _read_frames(paths, order, shape, dtype, bit_depth, lazy)
+    shape, dtype = _common_header(paths, order, pages, mname)
+    bit_depth = _checked_bit_depth(bit_depth, dtype, left_aligned)
+    frames = _read_frames(paths, order, shape, dtype, (bit_depth, pages, left_aligned), lazy)
     bit_depth = _detected_bit_depth(frames, dtype) if bit_depth is None else bit_depth
     coords = {**_manifest_coords(table, files, order, labels, mname),
               **dict(frames_kwargs.pop("coords", None) or {})}
-    attrs = {"source": str(folder.resolve()), **dict(frames_kwargs.pop("attrs", None) or {})}
+    attrs = {"source": str(folder.resolve()), "left_aligned": bool(left_aligned),
+             **dict(frames_kwargs.pop("attrs", None) or {})}
     return frames_dataset(frames, alpha=[a for a, _ in poses], beta=[b for _, b in poses],
                           bit_depth=bit_depth, coords=coords, attrs=attrs, **frames_kwargs)
 
@@ -217,9 +217,21 @@ def _pose_columns(table, mname: str) -> tuple[np.ndarray, np.ndarray, np.ndarray
 
 
 def _image_paths(folder: Path, table, mname: str):
-    """The ``file`` column (stripped) and the image paths, every one an existing file."""
+    """The ``file`` column (stripped) and the image paths: every one an existing file inside
+    ``folder`` (a relative name; ``..`` that leaves the folder and absolute paths refused)."""
     files = table["file"].astype(str).str.strip()
-    paths = [folder / f for f in files]
+    root = folder.resolve()
+    paths = []
+    for i, f in enumerate(files):
+        path = (folder / f).resolve()
+        if Path(f).is_absolute() or not path.is_relative_to(root):
+            raise SchemaError(
+                f"manifest {mname} line {_line(i)} column 'file'", f,
+                f"a file name relative to {folder}, inside it",
+                "copy the image into the folder and give its name relative to the folder "
+                "(absolute paths and '..' are refused, so a cube names only its own frames)",
+            )
+        paths.append(path)
     missing = [i for i, p in enumerate(paths) if not p.is_file()]
     if missing:
         i = missing[0]
@@ -230,6 +242,39 @@ def _image_paths(folder: Path, table, mname: str):
             "their rows",
         )
     return files, paths
+
+
+def _page_column(table, files, mname: str):
+    """The ``page`` of each row (None without the column): a non-negative integer, and no
+    image (file, page) listed twice."""
+    import pandas as pd
+
+    if "page" not in table.columns:
+        pages = None
+        keys = list(files)
+    else:
+        values = pd.to_numeric(table["page"], errors="coerce").to_numpy(dtype=float)
+        bad = np.flatnonzero(~np.isfinite(values) | (values < 0) | (values != np.round(values)))
+        if bad.size:
+            i = int(bad[0])
+            raise SchemaError(
+                f"manifest {mname} line {_line(i)} column 'page'", table["page"].iloc[i],
+                "an integer page 0, 1, ... of the TIFF stack named in 'file'",
+                f"correct the value ({bad.size} bad row(s))",
+            )
+        pages = values.astype(np.int64)
+        keys = list(zip(files, pages.tolist(), strict=True))
+    first: dict = {}
+    for i, key in enumerate(keys):
+        if key in first:
+            what = f"file {key[0]!r} page {key[1]}" if pages is not None else f"file {key!r}"
+            raise SchemaError(
+                f"manifest {mname} line {_line(i)}", f"{what} again (first on line "
+                f"{_line(first[key])})", "one image per (pose, shot)",
+                "give each row its own image" + (" or page" if pages is not None else ""),
+            )
+        first[key] = i
+    return pages
 
 
 def _pose_grid(alpha, beta, shot, mname: str):
@@ -272,29 +317,45 @@ def _pose_grid(alpha, beta, shot, mname: str):
     return pose_of_pair, labels, order
 
 
-def _common_header(paths, order) -> tuple[tuple[int, ...], np.dtype]:
-    """Image headers: one size and one pixel type (uint8 or uint16) for the whole cube."""
-    headers = [_image_header(p) for p in paths]
-    shape, dtype = headers[int(order[0, 0])]
-    for i, (shp, dt) in enumerate(headers):
+def _common_header(paths, order, pages, mname: str) -> tuple[tuple[int, ...], np.dtype]:
+    """Image headers: one frame size and one pixel type (uint8 or uint16) for the whole cube,
+    and every ``page`` within its stack."""
+    headers = {}
+    for p in dict.fromkeys(paths):
+        headers[p] = _image_header(p, stack=pages is not None)
+    shape, dtype, _ = headers[paths[int(order[0, 0])]]
+    for i, path in enumerate(paths):
+        shp, dt, n_pages = headers[path]
         if dt not in (np.dtype(np.uint8), np.dtype(np.uint16)):
             raise SchemaError(
-                f"image {paths[i].name}", f"pixel type {dt}", "uint8 or uint16 digital numbers",
+                f"image {path.name}", f"pixel type {dt}", "uint8 or uint16 digital numbers",
                 "export raw DN as 8- or 16-bit unsigned integers; float or 32-bit images are "
                 "not raw frames",
             )
         if shp != shape or dt != dtype:
             raise SchemaError(
-                f"image {paths[i].name} (manifest line {_line(i)})", f"shape {shp}, {dt}",
+                f"image {path.name} (manifest line {_line(i)})", f"shape {shp}, {dt}",
                 f"shape {shape}, {dtype} like {paths[int(order[0, 0])].name}",
                 "every frame of a cube has the same size and pixel type; remove or re-export "
                 "the odd image",
             )
+        if pages is not None and pages[i] >= n_pages:
+            raise SchemaError(
+                f"manifest {mname} line {_line(i)} column 'page'", int(pages[i]),
+                f"a page 0 .. {n_pages - 1} of {path.name} ({n_pages} frames)",
+                "correct the page number (pages count from 0)",
+            )
     return shape, dtype
 
 
-def _checked_bit_depth(bit_depth, dtype: np.dtype) -> int | None:
-    """The given bit depth as an int that fits the pixel type (None stays None)."""
+def _checked_bit_depth(bit_depth, dtype: np.dtype, left_aligned=False) -> int | None:
+    """The given bit depth as an int that fits the pixel type (None stays None, unless the
+    frames are left-aligned: their shift needs it)."""
+    if bit_depth is None and left_aligned:
+        raise SchemaError(
+            "bit_depth", None, "the ADC's bit depth for left-aligned frames",
+            "give bit_depth (sensor.json \"bit_depth\", or --bit-depth) with left_aligned",
+        )
     if bit_depth is None:
         return None
     if int(bit_depth) != bit_depth or not 1 <= bit_depth <= 8 * dtype.itemsize:
@@ -305,31 +366,30 @@ def _checked_bit_depth(bit_depth, dtype: np.dtype) -> int | None:
     return int(bit_depth)
 
 
-def _read_frames(paths, order, shape, dtype, bit_depth, lazy: bool):
-    """The (pose, shot, y, x) frames: one ``dask.delayed`` read per image, or all read now."""
+def _read_frames(paths, order, shape, dtype, how, lazy: bool):
+    """The (pose, shot, y, x) frames: one ``dask.delayed`` read per image, or all read now;
+    ``how`` is (bit_depth, pages or None, left_aligned)."""
+    bit_depth, pages, left_aligned = how
     n_pose, n_shot = order.shape
+
+    def args(p, s):
+        row = order[p, s]
+        page = None if pages is None else int(pages[row])
+        return paths[row], shape, dtype, bit_depth, page, left_aligned
+
     if lazy:
         import dask
         import dask.array as da
 
         read = dask.delayed(_read_checked, pure=True)
-        return da.stack(
-            [
-                da.stack(
-                    [
-                        da.from_delayed(
-                            read(paths[order[p, s]], shape, dtype, bit_depth), shape, dtype
-                        )
-                        for s in range(n_shot)
-                    ]
-                )
-                for p in range(n_pose)
-            ]
-        )
+        return da.stack([
+            da.stack([da.from_delayed(read(*args(p, s)), shape, dtype) for s in range(n_shot)])
+            for p in range(n_pose)
+        ])
     frames = np.empty((n_pose, n_shot, *shape), dtype)
     for p in range(n_pose):
         for s in range(n_shot):
-            frames[p, s] = _read_checked(paths[order[p, s]], shape, dtype, bit_depth)
+            frames[p, s] = _read_checked(*args(p, s))
     return frames
 
 

@@ -8,7 +8,6 @@ HDF5 Fletcher-32 one; attributes go through :mod:`sunlab.io.codec`.
 
 from __future__ import annotations
 
-import contextlib
 import os
 from pathlib import Path
 
@@ -74,17 +73,11 @@ def _zarr_checksum_encoding(ds: xr.Dataset, encoding: dict) -> dict:
     return out
 
 
-@contextlib.contextmanager
 def _maybe_progress(progress: bool):
-    from ..options import show_progress
+    """A tqdm bar in a terminal or Jupyter, a few plain lines in a log (no carriage returns)."""
+    from ..options import dask_progress
 
-    if show_progress(progress):
-        from dask.diagnostics import ProgressBar
-
-        with ProgressBar():
-            yield
-    else:
-        yield
+    return dask_progress(progress, "write", minimum=1.0)
 
 
 def _write(ds: xr.Dataset, path: Path, fmt: str, encoding: dict, progress: bool,

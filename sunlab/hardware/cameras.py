@@ -1,0 +1,146 @@
+"""Which camera ``sunlab acquire --camera SPEC`` opens: built-ins, entry points, or a class.
+
+A lab's own camera is one class with the :class:`~sunlab.hardware.Camera` members (``grab``,
+``shape``, ``dtype``, ``bit_depth``; optionally exposure, ROI and dark frames,
+:class:`~sunlab.hardware.ControlledCamera`). sunlab finds it without being edited, in one of
+two ways:
+
+* by its import path: ``--camera mypkg.cameras:MyCamera`` imports ``mypkg.cameras`` and takes
+  ``MyCamera``;
+* by a name the lab's package registers in the entry point group ``sunlab.cameras``
+  (``pyproject.toml``: ``[project.entry-points."sunlab.cameras"] mycam =
+  "mypkg.cameras:MyCamera"``), then ``--camera mycam``.
+
+The class is called with the options given as ``--camera-option KEY=VALUE`` (values read as
+JSON when they parse, else as text), e.g. ``--camera-option serial=\\"21345\\"
+--camera-option exposure_s=0.002``. The built-ins are ``sim`` (:class:`SimCamera`, the
+virtual bench) and ``folder:PATH`` (:class:`FolderCamera`).
+
+Examples
+--------
+>>> cls = camera_class("sunlab.hardware:FolderCamera")
+>>> cls.__name__
+'FolderCamera'
+>>> sorted(available_cameras())[:2]
+['folder', 'sim']
+"""
+
+from __future__ import annotations
+
+import importlib
+import json
+
+from ..errors import ConfigurationError
+
+__all__ = ["ENTRY_POINT_GROUP", "available_cameras", "camera_class", "open_camera",
+           "parse_camera_options"]
+
+#: The entry point group a lab's package registers its cameras in.
+ENTRY_POINT_GROUP = "sunlab.cameras"
+
+
+def _entry_points() -> dict:
+    from importlib.metadata import entry_points
+
+    return {ep.name: ep for ep in entry_points(group=ENTRY_POINT_GROUP)}
+
+
+def available_cameras() -> dict:
+    """Camera names ``--camera`` accepts: the built-ins and every registered entry point
+    (name -> where it comes from)."""
+    found = {"sim": "sunlab.hardware:SimCamera", "folder": "sunlab.hardware:FolderCamera"}
+    found.update({name: ep.value for name, ep in _entry_points().items()})
+    return found
+
+
+def camera_class(spec: str):
+    """The camera class of ``spec``: ``module:Class``, or a name registered in the entry point
+    group ``sunlab.cameras``.
+
+    Raises
+    ------
+    ConfigurationError
+        An unknown name, a module that does not import, or a missing attribute, naming the
+        spec and the fix.
+    """
+    if ":" not in spec:
+        eps = _entry_points()
+        if spec not in eps:
+            raise ConfigurationError(
+                f"--camera: found {spec!r}, expected 'sim', 'folder:PATH', 'module:Class' or a "
+                f"registered camera ({sorted(eps) or 'none registered'}). Fix: give the class "
+                f"as mypkg.module:MyCamera, or register it in the entry point group "
+                f"{ENTRY_POINT_GROUP!r} of your package (docs/hardware.md)"
+            )
+        try:
+            return eps[spec].load()
+        except Exception as err:  # noqa: BLE001 - a broken plug-in is named, not a traceback
+            raise ConfigurationError(
+                f"--camera {spec}: the entry point {eps[spec].value!r} does not load "
+                f"({type(err).__name__}: {err}). Fix: reinstall the package that provides it"
+            ) from err
+    module, _, name = spec.partition(":")
+    try:
+        obj = importlib.import_module(module)
+    except ImportError as err:
+        raise ConfigurationError(
+            f"--camera {spec}: cannot import {module!r} ({err}). Fix: install the package that "
+            "holds the camera class, or run from its folder"
+        ) from err
+    for part in name.split("."):
+        if not hasattr(obj, part):
+            raise ConfigurationError(
+                f"--camera {spec}: {module!r} has no {name!r}. Fix: give module:Class exactly"
+            )
+        obj = getattr(obj, part)
+    return obj
+
+
+def parse_camera_options(pairs) -> dict:
+    """``KEY=VALUE`` strings as keyword arguments (values as JSON when they parse, else text).
+
+    Examples
+    --------
+    >>> parse_camera_options(["exposure_s=0.002", "serial=21A", "roi=[0, 64, 0, 64]"])
+    {'exposure_s': 0.002, 'serial': '21A', 'roi': [0, 64, 0, 64]}
+    """
+    out = {}
+    for pair in pairs or ():
+        key, sep, value = str(pair).partition("=")
+        if not sep or not key.strip().isidentifier():
+            raise ConfigurationError(
+                f"--camera-option: found {pair!r}, expected KEY=VALUE with KEY a Python name")
+        try:
+            out[key.strip()] = json.loads(value)
+        except json.JSONDecodeError:
+            out[key.strip()] = value
+    return out
+
+
+def open_camera(spec: str, **options):
+    """A camera object from ``spec`` (see the module): the class called with ``options``,
+    checked against the :class:`~sunlab.hardware.Camera` protocol.
+
+    Raises
+    ------
+    ConfigurationError
+        The spec does not name a camera class, the class refuses the options, or the object
+        lacks ``grab``, ``shape``, ``dtype`` or ``bit_depth``.
+    """
+    from .camera import Camera
+
+    cls = camera_class(spec)
+    try:
+        camera = cls(**options)
+    except TypeError as err:
+        raise ConfigurationError(
+            f"--camera {spec}: {err}. Fix: pass the camera's arguments as --camera-option "
+            "KEY=VALUE"
+        ) from err
+    if not isinstance(camera, Camera):
+        missing = [m for m in ("grab", "shape", "dtype", "bit_depth") if not hasattr(camera, m)]
+        raise ConfigurationError(
+            f"--camera {spec}: {type(camera).__name__} lacks {missing} of the Camera protocol. "
+            "Fix: give the class grab() -> ndarray, shape, dtype and bit_depth (docs/hardware.md)"
+        )
+    return camera

@@ -1,0 +1,134 @@
+"""``sensor.json``: the constants of a lab's own sensor, beside its frames, every field checked.
+
+A folder of frames (``sunlab import FOLDER``) may hold a ``sensor.json`` that says what the
+images cannot: the pixel pitch, the mask distance, the ADC's bit depth and whether its data are
+left-aligned in a 16-bit word. Nothing is guessed: a field that is absent stays absent, and the
+methods that need it (the geometric models need the pitch and the mask distance) ask for it with
+an error that names this file. Every field is checked here, with a message that names the file,
+the field and the fix; :data:`SENSOR_FIELDS` is the one table the reader, the CLI and
+``data_schema/README.md`` describe.
+
+Examples
+--------
+>>> import json, tempfile, pathlib
+>>> folder = pathlib.Path(tempfile.mkdtemp())
+>>> _ = (folder / "sensor.json").write_text(json.dumps(
+...     {"pixel_pitch_mm": 0.0055, "bit_depth": 12, "left_aligned": True}))
+>>> read_sensor_json(folder / "sensor.json")
+{'pixel_pitch_mm': 0.0055, 'bit_depth': 12, 'left_aligned': True}
+>>> _ = (folder / "sensor.json").write_text('{"bit_depth": "12"}')
+>>> try:
+...     read_sensor_json(folder / "sensor.json")
+... except Exception as err:
+...     print(err.field)
+sensor.json field 'bit_depth'
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+from ..errors import SchemaError
+
+__all__ = ["SENSOR_FIELDS", "read_sensor_json", "find_sensor_json"]
+
+#: The fields of ``sensor.json``: name -> (kind, meaning). Kinds: ``positive`` (a number > 0),
+#: ``number`` (finite), ``bits`` (an integer 8 .. 16), ``bool``, ``text``, ``object``.
+SENSOR_FIELDS = {
+    "pixel_pitch_mm": ("positive", "pixel pitch, mm (Ibis4: 0.007)"),
+    "mask_distance_mm": ("positive", "nominal mask-to-focal-plane distance F, mm"),
+    "x_cf_px": ("number", "column of the design projection of the hole centre, px"),
+    "y_cf_px": ("number", "row of the design projection of the hole centre, px"),
+    "bit_depth": ("bits", "ADC bit depth, 8 .. 16 (Ibis4: 10); sets the saturation level"),
+    "left_aligned": ("bool", "true when the camera writes its DN in the top bits of a 16-bit "
+                             "word (a 12-bit camera writing DN x 16); shifted down on read"),
+    "mask": ("text", "mask description, e.g. 'single' or 'grid10x10'"),
+    "experiment": ("text", "experiment name stored in the cube"),
+    "attrs": ("object", "extra attributes stored in the cube"),
+    "comment": ("text", "free text, ignored"),
+}
+
+_EXPECTED = {
+    "positive": "a number > 0 (JSON number, not a string)",
+    "number": "a finite number (JSON number, not a string)",
+    "bits": "an integer 8 .. 16 (JSON number)",
+    "bool": "true or false (JSON boolean)",
+    "text": "a string",
+    "object": "a JSON object",
+}
+
+
+def find_sensor_json(folder, manifest=None) -> Path | None:
+    """The ``sensor.json`` of a frame folder: beside the manifest first, then in the folder.
+
+    Returns None when there is none.
+    """
+    folder = Path(folder)
+    places = [Path(manifest).resolve().parent] if manifest is not None else []
+    places.append(folder)
+    for place in places:
+        path = place / "sensor.json"
+        if path.is_file():
+            return path
+    return None
+
+
+def read_sensor_json(path) -> dict:
+    """Read and check a ``sensor.json`` (fields: :data:`SENSOR_FIELDS`).
+
+    Parameters
+    ----------
+    path : str or path-like
+        The file.
+
+    Returns
+    -------
+    dict
+        The fields present, with their JSON values (``bit_depth`` as int).
+
+    Raises
+    ------
+    SchemaError
+        Invalid JSON, an unknown key, or a field of the wrong kind (e.g. a string where a
+        number is wanted), naming the file, the field and the fix.
+    """
+    path = Path(path)
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+    except (json.JSONDecodeError, UnicodeDecodeError) as err:
+        raise SchemaError(str(path), f"invalid JSON ({err})",
+                          f"an object with keys among {list(SENSOR_FIELDS)}",
+                          "fix the JSON syntax") from err
+    if not isinstance(doc, dict):
+        raise SchemaError(str(path), type(doc).__name__, "a JSON object {...}", "fix the file")
+    unknown = sorted(set(doc) - set(SENSOR_FIELDS))
+    if unknown:
+        raise SchemaError(f"{path.name} keys {unknown}", "unknown",
+                          f"keys among {list(SENSOR_FIELDS)}",
+                          f"remove or rename them in {path} (extra attributes go under 'attrs')")
+    return {k: _checked(path, k, v) for k, v in doc.items()}
+
+
+def _checked(path: Path, key: str, value):
+    """One field's value, checked against its kind in :data:`SENSOR_FIELDS`."""
+    kind, meaning = SENSOR_FIELDS[key]
+    is_number = isinstance(value, int | float) and not isinstance(value, bool)
+    ok = {
+        "positive": is_number and math.isfinite(value) and value > 0,
+        "number": is_number and math.isfinite(value),
+        "bits": is_number and float(value).is_integer() and 8 <= value <= 16,
+        "bool": isinstance(value, bool),
+        "text": isinstance(value, str),
+        "object": isinstance(value, dict),
+    }[kind]
+    if not ok:
+        hint = ""
+        if isinstance(value, str) and kind in ("positive", "number", "bits"):
+            hint = f"write {key}: {value.strip()} without quotes; "
+        elif isinstance(value, str) and kind == "bool":
+            hint = f"write {key}: true or false without quotes; "
+        raise SchemaError(f"{path.name} field {key!r}", value, f"{_EXPECTED[kind]}: {meaning}",
+                          f"{hint}correct it in {path}")
+    return int(value) if kind == "bits" else value

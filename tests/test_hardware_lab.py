@@ -1,0 +1,183 @@
+"""A lab's own hardware: a camera class found without editing sunlab (module:Class, the
+``sunlab.cameras`` entry point group), dark frames, and the ESP300 driven through PyMeasure's
+driver behind the Stage protocol, against the fake controller."""
+
+from __future__ import annotations
+
+import textwrap
+
+import numpy as np
+import pytest
+
+from sunlab import ConfigurationError, io, schema
+from sunlab.cli import main
+from sunlab.hardware import (
+    CameraError,
+    ControllerError,
+    FakeESP,
+    LimitError,
+    PymeasureStage,
+    SimCamera,
+    Stage,
+    available_cameras,
+    capture_darks,
+    open_camera,
+    open_stage,
+)
+
+# pymeasure's ESP300 warns at construction that it does not know whether the instrument
+# speaks SCPI (it does not); the notice is about pymeasure's class only
+pytestmark = pytest.mark.filterwarnings(
+    "ignore:It is not known whether this device support SCPI commands:FutureWarning"
+)
+
+LAB_CAMERA = '''
+import numpy as np
+
+
+class LabCamera:
+    """A lab's camera: a bright square whose place follows the frame count."""
+
+    def __init__(self, level=500, bit_depth=12):
+        self.shape, self.dtype, self.bit_depth = (24, 32), np.dtype(np.uint16), bit_depth
+        self.level, self.n = level, 0
+
+    def grab(self):
+        frame = np.full(self.shape, 20, self.dtype)
+        frame[4:8, 2 + self.n:6 + self.n] = self.level
+        self.n += 1
+        return frame
+
+
+class NotACamera:
+    pass
+'''
+
+
+@pytest.fixture
+def lab_package(tmp_path, monkeypatch):
+    """A package ``labcams`` on sys.path with a dist-info that registers ``labcam`` in the
+    ``sunlab.cameras`` entry point group, as ``pip install`` of the lab's package would."""
+    (tmp_path / "labcams.py").write_text(textwrap.dedent(LAB_CAMERA))
+    info = tmp_path / "labcams-0.1.dist-info"
+    info.mkdir()
+    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: labcams\nVersion: 0.1\n")
+    (info / "entry_points.txt").write_text(
+        "[sunlab.cameras]\nlabcam = labcams:LabCamera\nbroken = labcams:Missing\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    yield tmp_path
+
+
+def test_a_registered_camera_is_found_by_its_entry_point(lab_package):
+    assert available_cameras()["labcam"] == "labcams:LabCamera"
+    cam = open_camera("labcam", level=700)
+    assert cam.grab().max() == 700 and cam.bit_depth == 12
+
+
+def test_a_camera_class_is_found_by_its_import_path(lab_package):
+    assert type(open_camera("labcams:LabCamera")).__name__ == "LabCamera"
+
+
+@pytest.mark.parametrize("spec, words", [
+    ("nosuchcam", "register it in the entry point group 'sunlab.cameras'"),
+    ("broken", "does not load"),
+    ("labcams:Nope", "has no 'Nope'"),
+    ("nomodule_xyz:Cam", "cannot import 'nomodule_xyz'"),
+    ("labcams:NotACamera", "lacks \\['grab', 'shape', 'dtype', 'bit_depth'\\]"),
+])
+def test_a_wrong_camera_spec_says_what_and_how(lab_package, spec, words):
+    with pytest.raises(ConfigurationError, match=words):
+        open_camera(spec)
+
+
+def test_acquire_runs_a_lab_camera_without_editing_sunlab(lab_package, tmp_path, capsys):
+    plan = tmp_path / "plan.csv"
+    plan.write_text("alpha,beta\n0,0\n1,0\n")
+    out = tmp_path / "run.zarr"
+    argv = ["acquire", "--stage", "fake://?velocity=1e4", "--camera", "labcam",
+            "--camera-option", "level=900", "--plan", str(plan), "--shots", "2",
+            "--settle", "0", "--out", str(out), "--no-progress"]
+    assert main(argv) == 0
+    cube = io.open_frames(out)
+    assert cube.attrs["bit_depth"] == 12 and dict(cube.sizes)["pose"] == 2
+    # the lab camera's frames, in the order it gave them: the square moves one column a frame
+    cols = [int(np.argmax(cube.frames[p, s, 5].values == 900)) for p in range(2)
+            for s in range(2)]
+    assert cols == [2, 3, 4, 5]
+
+
+def test_dark_frames_of_a_camera_become_the_cube_master_dark():
+    cam = SimCamera(roi=(100, 132, 900, 964))
+    darks = capture_darks(cam, 4)
+    assert darks.shape == (4, 32, 64) and not np.array_equal(darks[0], darks[1])  # new noise
+    cube = schema.frames_dataset(np.stack([[cam.grab()]]), alpha=[0.0], beta=[0.0])
+    cube = io.with_calibration_frames(cube, dark=darks)
+    np.testing.assert_allclose(cube.master_dark.values, np.median(darks, axis=0))
+    with pytest.raises(CameraError, match="cannot take dark frames"):
+        capture_darks(object(), 1)
+
+
+def test_sim_camera_roi_can_be_changed():
+    cam = SimCamera()
+    cam.set_roi((0, 64, 0, 128))
+    assert cam.shape == (64, 128) and cam.grab().shape == (64, 128)
+    with pytest.raises(ConfigurationError, match="roi"):
+        cam.set_roi((0, 2000, 0, 10))
+
+
+@pytest.fixture
+def fake():
+    controller = FakeESP(velocity_deg_s=50.0)
+    yield controller
+    controller.close()
+
+
+@pytest.fixture(params=["tcp", "pty"])
+def resource(request, fake):
+    if request.param == "tcp":
+        return f"TCPIP::127.0.0.1::{fake.serve_tcp().rsplit(':', 1)[1]}::SOCKET"
+    return f"ASRL{fake.serve_pty()}::INSTR"
+
+
+def test_pymeasure_stage_is_a_stage_that_moves_waits_and_reads_back(fake, resource):
+    stage = PymeasureStage(resource, settle_s=0.0, timeout_ms=2000)
+    try:
+        assert isinstance(stage, Stage)
+        assert stage.move_to(-16.5, 2.0) == (-16.5, 2.0)
+        assert stage.position() == (-16.5, 2.0)
+        assert "1WS0" in fake.received and "2WS0" in fake.received  # waited for the stop
+        desc = stage.describe()
+        assert desc["limits"] == [[-170.0, 170.0], [-170.0, 170.0]]
+        assert desc["version"].startswith("ESP301")
+    finally:
+        stage.close()
+
+
+def test_pymeasure_stage_refuses_a_target_outside_the_travel_before_moving(fake, resource):
+    stage = PymeasureStage(resource, settle_s=0.0, limits=((-20, 5), (-5, 20)), timeout_ms=2000)
+    try:
+        n0 = len(fake.received)
+        with pytest.raises(LimitError, match="alpha = 6.0 deg is outside the travel"):
+            stage.move_to(6.0, 0.0)
+        assert fake.received[n0:] == []  # nothing was sent
+    finally:
+        stage.close()
+
+
+def test_pymeasure_stage_raises_the_controllers_error(fake, resource):
+    stage = PymeasureStage(resource, settle_s=0.0, timeout_ms=2000)
+    try:
+        fake.inject("error", "2PA", code=213)  # axis 2: motor not enabled
+        with pytest.raises(ControllerError, match="axis 2 reported error 213"):
+            stage.move_to(1.0, 1.0)
+    finally:
+        stage.close()
+
+
+def test_open_stage_opens_a_pymeasure_resource(fake):
+    port = fake.serve_tcp().rsplit(":", 1)[1]
+    stage = open_stage(f"pymeasure:TCPIP::127.0.0.1::{port}::SOCKET", settle_s=0.0)
+    try:
+        assert isinstance(stage, PymeasureStage) and stage.move_to(3.0, -1.0) == (3.0, -1.0)
+    finally:
+        stage.close()
