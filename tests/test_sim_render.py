@@ -17,8 +17,9 @@ F = 5.0  # nominal mask distance, mm
 
 def _centred(bench):
     """The bench with one 0.2 mm hole above the detector centre at exactly F = 5 mm (a short
-    sensor: 0.08 deg per px, the spot on the detector over the paper's whole test range)."""
-    return bench.ideal_platform().ideal_mask().replace(
+    sensor: 0.08 deg per px, the spot on the detector over the paper's whole test range), no
+    glass lid: the rays of eq. (1)."""
+    return bench.ideal_platform().ideal_mask().without_lid().replace(
         mask__distance_mm=F, mask__holes=(Hole(0.0, 0.0, 0.2),))
 
 
@@ -238,3 +239,21 @@ def test_signal_map_is_the_full_frame_sum_over_each_stamp():
         for (p, x, y), (q, _, _) in zip(got, kept, strict=True):
             assert p.shape == q.shape
             np.testing.assert_array_equal(p, full[y : y + p.shape[0], x : x + p.shape[1]])
+
+
+@pytest.mark.parametrize("theta_deg", [5.0, 17.0])
+def test_glass_lid_shifts_an_oblique_ray_as_snells_law_says(ideal, theta_deg):
+    # a plane-parallel plate of thickness t and index n under a ray at theta shifts it toward
+    # the hole's foot by t (tan theta - sin theta / sqrt(n^2 - sin^2 theta)): for t = 0.5 mm,
+    # n = 1.523 and 17 deg, 0.0548 mm = 7.8 px (docs/paper.md sec. 10)
+    t, n = 0.5, 1.523
+    lid = ideal.replace(detector__lid_thickness_mm=t, detector__lid_index=n)
+    foot, _ = render.ray_positions(ideal, 0.0, 0.0)
+    x0, _ = render.ray_positions(ideal, -theta_deg, 0.0)
+    x1, _ = render.ray_positions(lid, -theta_deg, 0.0)
+    th = np.radians(theta_deg)
+    expected = t * (np.tan(th) - np.sin(th) / np.sqrt(n**2 - np.sin(th) ** 2)) / 0.007
+    # the lid brings the ray closer to the hole's foot (the zenith spot) by that much
+    assert_allclose(float(abs(x0[0] - foot[0]) - abs(x1[0] - foot[0])), expected, rtol=1e-9)
+    # at zenith the lid does nothing
+    assert_allclose(render.ray_positions(lid, 0.0, 0.0)[0], foot, atol=1e-12)

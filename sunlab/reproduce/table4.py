@@ -60,6 +60,7 @@ __all__ = [
     "table4_methods",
     "reproduce_table4",
     "format_table",
+    "comparable_methods",
 ]
 
 #: Where the networks of strategies 2 and 4 zero model (1): on each run's zero-pose check.
@@ -147,18 +148,22 @@ def bench_optimised_truth(bench) -> dict:
 
     alpha0, beta0: the platform's mounting rotation; ``delta_f_mm``: the hole's true height
     above the focal plane minus the nominal F (the mask's dF plus what its tilt adds at the
-    hole's off-centre place), the distance a pinhole model sees.
+    hole's off-centre place) less what the detector's glass lid takes off a paraxial ray's
+    apparent height, the distance a pinhole model sees.
 
     Examples
     --------
     >>> from sunlab import sim
     >>> t = bench_optimised_truth(sim.Bench.paper_single_hole())
     >>> t["alpha0"], t["beta0"], round(t["delta_f_mm"], 4)
-    (1.864, 0.415, 0.0875)
+    (1.864, 0.415, 0.092)
     """
     from ..sim.render import spot_geometry
 
     height = float(spot_geometry(bench, 0.0, 0.0).height_mm[0])
+    det = bench.detector
+    # a glass lid takes t (1 - 1/n) off the height that a paraxial ray sees
+    height -= det.lid_thickness_mm * (1.0 - 1.0 / det.lid_index)
     return {"alpha0": float(bench.platform.alpha0_deg), "beta0": float(bench.platform.beta0_deg),
             "delta_f_mm": height - float(bench.mask_distance_mm)}
 
@@ -332,6 +337,24 @@ def _optimised_summary(opt, bench) -> dict:
     }
 
 
+def comparable_methods(table: pd.DataFrame, factor: float = 10.0) -> list[str]:
+    """The methods drawn in Fig. 12: those whose M is within ``factor`` of the best method's on
+    both angles (the ideal model (1) and the classical Fourier series are orders of magnitude
+    off and would hide the others' rectangles).
+
+    Examples
+    --------
+    >>> import pandas as pd
+    >>> t = pd.DataFrame({"a": [0.01, 0.02], "b": [1.0, 0.5]},
+    ...                  index=pd.MultiIndex.from_tuples([("alpha", "M"), ("beta", "M")]))
+    >>> comparable_methods(t)
+    ['a']
+    """
+    m = table.xs("M", level=1)
+    keep = (m <= factor * m.min(axis=1).to_numpy()[:, None]).all(axis=0)
+    return [c for c in table.columns if keep[c]]
+
+
 def _write_outputs(res: Table4Result, out: Path) -> list[str]:
     import matplotlib
 
@@ -352,7 +375,7 @@ def _write_outputs(res: Table4Result, out: Path) -> list[str]:
             res.local["polynomial"], angle="alpha",
             title="Fig. 11: alpha local error, polynomial (virtual bench)"),
         "fig12_rectangles.png": plots.error_rectangles(
-            res.table[[c for c in res.table.columns if not c.startswith("ideal")]],
+            res.table[comparable_methods(res.table)],
             title="Fig. 12: [M - 3 sigma_M, M + 3 sigma_M],\nexperiment III (virtual bench)"),
     }
     for name, fig in figs.items():

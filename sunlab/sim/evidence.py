@@ -18,9 +18,9 @@ hypothesis is scored in a minute; the chosen preset is then confirmed on rendere
 Examples
 --------
 >>> sorted(HYPOTHESES)[:2]
-['F17-datasheet', 'F17-landed']
+['F17-datasheet', 'F17-datasheet-play']
 >>> len(TUNING_CELLS), len(HELD_OUT_CELLS)
-(3, 53)
+(5, 51)
 """
 
 from __future__ import annotations
@@ -181,8 +181,13 @@ def hypothesis_bench(hyp: Hypothesis, multi: bool = False, platform: dict | None
     cy = float(np.mean([h.y_mm for h in base.mask.holes]))
     holes = tuple(h.__class__(h.x_mm + cx * scale, h.y_mm + cy * scale, h.diameter_mm,
                               *_rest(h)) for h in base.mask.holes)
+    # the lid takes t (1 - 1/n) off the height a paraxial ray sees: the mask's height error is
+    # set so that the optimised model still sees the paper's dF with this hypothesis's lid
+    det = base.detector
+    lid_share = (hyp.lid_thickness_mm - det.lid_thickness_mm) * (1.0 - 1.0 / det.lid_index)
     bench = base.replace(
         mask__distance_mm=hyp.mask_distance_mm, mask__holes=holes,
+        mask__delta_f_mm=base.mask.delta_f_mm + lid_share,
         detector__prnu=hyp.prnu, detector__prnu_correlated=hyp.prnu_correlated,
         detector__prnu_correlation_px=hyp.prnu_correlation_px,
         detector__lid_thickness_mm=hyp.lid_thickness_mm,

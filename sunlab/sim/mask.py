@@ -58,19 +58,21 @@ DEFECT_FLAGS = {"dust": 1, "elliptical": 2, "burred": 4, "undersized": 8}
 #: of and above the centre to keep every spot on the 1280 x 1024 detector (docs/paper.md sec. 8).
 PAPER_GRID_CENTRE_MM = (0.52, -0.78)
 
-#: Mask-to-focal-plane distance F of the paper's bench as identified from its numbers, mm
-#: (:mod:`sunlab.sim.identify`): the 130 px ROI "about 2.5 times the spot" puts the spot at
-#: about 52 px, (0.2 mm + F x 0.0091 rad) / 7 um, so F is about 17 mm, and at 17 mm the
-#: interpolation tables lose to the polynomial on alpha as in Table 4.
-PAPER_DISTANCE_MM = 17.0
+#: Mask-to-focal-plane distance F of the paper's bench, mm, chosen by the held-out evidence of
+#: :mod:`sunlab.sim.evidence` under the geometry's priors (docs/paper.md sec. 6 of our analysis,
+#: notebook 05): the sensor is "miniature" and tests -17..+17 deg as "part of the field of view"
+#: (sec. 5), which a field of +-42 x +-35 deg at 5 mm allows and +-15 deg at 17 mm does not; at
+#: 5 mm the 10 x 10 pattern stays whole on the detector over the test range (sec. 8), where at
+#: 17 mm a fifth of its spots leave the frame. The ROI clue ("130 px, about 2.5 times the
+#: spot", sec. 1) points at 17 mm instead; at 5 mm the 35 px spot fills 1/3.7 of the ROI. The
+#: held-out cells of Tables 4-5 score 5 mm and 17 mm alike once the one-hole mask's play is
+#: allowed, so the geometry decides.
+PAPER_DISTANCE_MM = 5.0
 
-#: Where the presets put the one hole (and the centre of the 100-hole grid) relative to the
-#: detector centre, mm: at F = 17 mm the spot travels about 830 x 865 px over the test range
-#: (-17..2 deg in alpha, -2..17 deg in beta, plus the mounting errors), which fits on the
-#: 1280 x 1024 detector only if the hole sits off centre so that the track is centred
-#: (computed from the ray positions at the range's corners; the paper tests "part of the field
-#: of view", the part this placement sees).
-PAPER_TRACK_CENTRE_MM = (1.73, -2.52)
+#: Where the presets put the one hole, mm from the detector centre: under the centre of the
+#: 10 x 10 grid (:data:`PAPER_GRID_CENTRE_MM`), so that the one spot's track over the test
+#: range (about 250 x 260 px at F = 5 mm) sits where the grid's central spots go.
+PAPER_TRACK_CENTRE_MM = PAPER_GRID_CENTRE_MM
 
 
 def _positive(name: str, value: float, fix: str) -> None:
@@ -334,9 +336,9 @@ class Mask:
     holes : tuple of Hole
         The holes, design positions in the mask frame (see the module notes).
     distance_mm : float
-        Nominal (design) mask-to-focal-plane distance F, mm. Default 5.0 (a generic short
-        sensor: 0.08 deg per pixel, a 35 px spot); the paper's bench, as identified by
-        :mod:`sunlab.sim.identify`, has F = :data:`PAPER_DISTANCE_MM` (17 mm, a 51 px spot).
+        Nominal (design) mask-to-focal-plane distance F, mm. Default 5.0 (0.08 deg per pixel,
+        a 35 px spot), the paper's bench as :mod:`sunlab.sim.evidence` identifies it
+        (:data:`PAPER_DISTANCE_MM`).
     delta_f_mm : float
         Error of the mask distance: the true distance is F + dF, mm (the paper fitted 0.094).
     tilt_x_deg, tilt_y_deg : float

@@ -32,10 +32,10 @@ Examples
 >>> from sunlab.sim import Bench
 >>> bench = Bench.paper_single_hole().ideal_platform().ideal_mask()
 >>> bench.mask.holes[0].x_mm, bench.mask.holes[0].y_mm    # off the detector centre, mm
-(1.73, -2.52)
+(0.52, -0.78)
 >>> x, y = spot_truth(bench, 0.0, 0.0)                     # at zenith the spot is under it
 >>> round((float(x[0]) - 639.5) * 0.007, 3), round((float(y[0]) - 511.5) * 0.007, 3)
-(1.73, -2.52)
+(0.52, -0.78)
 """
 
 from __future__ import annotations
@@ -167,10 +167,10 @@ def spot_geometry(bench, alpha_true, beta_true, play_mm=(0.0, 0.0)) -> SpotGeome
     Examples
     --------
     >>> from sunlab.sim import Bench
-    >>> b = Bench.paper_single_hole().ideal_platform().ideal_mask()
+    >>> b = Bench.paper_single_hole().ideal_platform().ideal_mask().without_lid()
     >>> g0, g = spot_geometry(b, 0.0, 0.0), spot_geometry(b, 10.0, 0.0)
-    >>> round(float(g.ray[0, 0] - g0.ray[0, 0]), 2)  # F tan(10 deg) / p, F = 17 mm, p = 7 um
-    428.22
+    >>> round(float(g.ray[0, 0] - g0.ray[0, 0]), 2)  # F tan(10 deg) / p, F = 5 mm, p = 7 um
+    125.95
     """
     a = float(alpha_true)
     b = float(beta_true)
@@ -292,10 +292,10 @@ def ray_positions(bench, alpha_true, beta_true, play_mm=(0.0, 0.0)):
     Examples
     --------
     >>> from sunlab.sim import Bench
-    >>> b = Bench.paper_single_hole().ideal_platform().ideal_mask()
+    >>> b = Bench.paper_single_hole().ideal_platform().ideal_mask().without_lid()
     >>> (_, y0), (_, y) = ray_positions(b, 0.0, 0.0), ray_positions(b, 0.0, 10.0)
-    >>> round(float(y[0] - y0[0]), 2)  # F tan(10 deg) / p, F = 17 mm, p = 7 um
-    428.22
+    >>> round(float(y[0] - y0[0]), 2)  # F tan(10 deg) / p, F = 5 mm, p = 7 um
+    125.95
     """
     g = spot_geometry(bench, alpha_true, beta_true, play_mm)
     return g.ray[:, 0].copy(), g.ray[:, 1].copy()
@@ -606,10 +606,10 @@ def spot_truth(bench, alpha_true, beta_true, *, play_mm=(0.0, 0.0)):
     --------
     >>> from sunlab.sim import Bench
     >>> from sunlab.geometry import ideal_centroid
-    >>> b = Bench.paper_single_hole().ideal_platform().ideal_mask()
+    >>> b = Bench.paper_single_hole().ideal_platform().ideal_mask().without_lid()
     >>> x_cf, y_cf = ray_positions(b, 0.0, 0.0)               # the zero-pose spot
     >>> x, y = spot_truth(b, -12.0, 7.0)
-    >>> xi, yi = ideal_centroid(-12.0, 7.0, 17.0, 0.007, x_cf[0], y_cf[0])   # eq. (1)
+    >>> xi, yi = ideal_centroid(-12.0, 7.0, 5.0, 0.007, x_cf[0], y_cf[0])    # eq. (1)
     >>> bool(abs(x[0] - xi) < 0.01 and abs(y[0] - yi) < 0.01)
     True
     """
@@ -657,7 +657,7 @@ def spot_image(
     >>> from sunlab.sim import Bench
     >>> img, x0, y0, step = spot_image(Bench.paper_single_hole(), 0.0, 0.0)
     >>> img.shape, step
-    ((64, 64), 1.0)
+    ((48, 48), 1.0)
     """
     geom = spot_geometry(bench, alpha_true, beta_true, play_mm)
     g = _Group(geom, bench.detector, _aperture(bench.mask.holes[hole], [hole]))
