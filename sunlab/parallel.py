@@ -21,6 +21,7 @@ import os
 
 import numpy as np
 
+from ._optional import require
 from .errors import ConfigurationError
 from .options import show_progress
 
@@ -122,11 +123,10 @@ def worker_pool(scheduler: str = "threads", num_workers: int | None = None,
     None for the other schedulers, which need no pool, and when an ``address`` is given (the
     work then runs on that cluster's workers): the arguments of :func:`compute`.
 
-    The workers are forked from a fork server that has imported sunlab, run every compiled
-    kernel once and built the default detector's fixed pattern (:mod:`sunlab._worker_preload`),
-    so each starts at once instead of spending about 2 s of CPU on it; they keep what they
-    cache (spot geometry, another detector's fixed pattern) from one call to the next; two
-    calls may share the pool at once (e.g. from two threads).
+    The workers are forked from a fork server that has imported the task modules (rendering and
+    centroiding: :data:`PRELOAD`), so a worker does not import them again; each loads the
+    compiled kernels it runs from Numba's disk cache on its first task. Two calls may share the
+    pool at once (e.g. from two threads).
 
     Examples
     --------
@@ -155,16 +155,23 @@ def worker_pool(scheduler: str = "threads", num_workers: int | None = None,
         yield pool
 
 
-#: The module the fork server imports before it forks a worker (:func:`worker_pool`).
-PRELOAD = "sunlab._worker_preload"
+#: The modules the fork server imports before it forks a worker (:func:`worker_pool`): imports
+#: only, no work (the kernels compile or load from Numba's cache on a worker's first task).
+PRELOAD = ("sunlab.sim", "sunlab.centroid")
 
 
 def start_workers(scheduler: str = "threads", address: str | None = None) -> None:
-    """Start warming up :func:`worker_pool`'s workers now, when it will give a pool (the
-    ``"processes"`` scheduler and no ``address``): the fork server they are forked from
-    imports sunlab and loads the compiled kernels (about 2-3 s of CPU) on another core while
-    the caller goes on, e.g. with its own imports. Nothing for the other schedulers; calling it
+    """Start :func:`worker_pool`'s fork server now, when it will give a pool (the
+    ``"processes"`` scheduler and no ``address``): it imports the task modules on another core
+    while the caller goes on with its own imports. Nothing for the other schedulers; calling it
     twice, or before :func:`worker_pool`, changes nothing else.
+
+    Parameters
+    ----------
+    scheduler : {"threads", "processes", "synchronous", "cluster"}
+        The scheduler :func:`compute` will use.
+    address : str, optional
+        A ``dask.distributed`` scheduler's address (then no local pool is started).
 
     Examples
     --------
@@ -176,10 +183,9 @@ def start_workers(scheduler: str = "threads", address: str | None = None) -> Non
 
 def _warm_context():
     """The start method of :func:`worker_pool`'s processes: forked from a fork server that has
-    imported sunlab and loaded the compiled kernels once (:mod:`sunlab._worker_preload`), so a
-    worker starts at once; the server is started here, and warms up while the caller goes on.
-    Where there is no fork server (Windows), Dask's own context (spawn: each worker imports
-    everything itself)."""
+    imported the task modules (:data:`PRELOAD`), started here so that it imports them while the
+    caller goes on. Where there is no fork server (Windows), Dask's own context (spawn: each
+    worker imports everything itself)."""
     import multiprocessing
 
     if "forkserver" not in multiprocessing.get_all_start_methods():
@@ -187,7 +193,7 @@ def _warm_context():
 
         return get_context()
     ctx = multiprocessing.get_context("forkserver")
-    ctx.set_forkserver_preload([PRELOAD])
+    ctx.set_forkserver_preload(list(PRELOAD))
     from multiprocessing import forkserver
 
     forkserver.ensure_running()
@@ -213,8 +219,8 @@ def single_threaded_blas():
 
 
 def _distributed(objs, address_or_cluster, progress) -> tuple:
-    from distributed import Client
-    from distributed import progress as dprogress
+    distributed = require("distributed", purpose="a Dask cluster (address=...)")
+    Client, dprogress = distributed.Client, distributed.progress
 
     with Client(address_or_cluster) as client:
         futs = client.compute(list(objs))
@@ -248,7 +254,8 @@ def local_cluster(workers: int | None = None):
     import os
 
     import dask
-    from distributed import LocalCluster
+
+    LocalCluster = require("distributed", purpose="a LocalCluster").LocalCluster
 
     n = int(workers) if workers else (os.cpu_count() or 1)
     env = dict(dask.config.get("distributed.nanny.pre-spawn-environ", {}))

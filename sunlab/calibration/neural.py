@@ -44,6 +44,7 @@ from __future__ import annotations
 import numpy as np
 
 from .. import geometry, parallel
+from .._optional import require
 from ..errors import ConfigurationError
 from .base import Calibration, TrainingData, sensor_attrs
 from .model import fit_optimised
@@ -154,6 +155,7 @@ class NeuralNet(Calibration):
 
     # --- training ----------------------------------------------------------------------------
     def _fit(self, data: TrainingData, validation: TrainingData | None) -> None:
+        require("torch", purpose="the neural-network calibration (NeuralNet)")  # before any work
         self.sensor = sensor_attrs(data.attrs) if self.strategy != 1 else None
         self.optimised = fit_optimised(data, self.sensor) if self.strategy == 3 else None
         X = self._inputs(data.x, data.y)
@@ -180,7 +182,7 @@ class NeuralNet(Calibration):
             self.history[angle] = hist
 
     def _train_one(self, Z, t, Zv, tv, seed):
-        import torch
+        torch = require("torch", purpose="the neural-network calibration (NeuralNet)")
         from scipy.optimize import minimize
 
         n_in, h = Z.shape[1], self.hidden
