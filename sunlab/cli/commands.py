@@ -547,25 +547,6 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def run() -> None:
-    """The ``sunlab`` console script and ``python -m sunlab.cli``: :func:`main`, then exit.
-
-    A finished command has written and closed its files; what is left when it returns is the
-    interpreter's teardown of every module and object (torch's, Dask's and the tables' own),
-    about 1.3 s after ``sunlab reproduce``. So the exit handlers run and the standard streams
-    are flushed, and the process then ends with the command's status at once
-    (:func:`os._exit`) instead of tearing down. Library code calls :func:`main`, which returns.
-    """
-    import atexit
-    import os
-
-    status = main()
-    run_exit_handlers = getattr(atexit, "_run_exitfuncs", None)
-    if run_exit_handlers is None:  # not CPython: the ordinary exit
-        sys.exit(status)
-    run_exit_handlers()
-    for stream in (sys.stdout, sys.stderr):
-        try:
-            stream.flush()
-        except (OSError, ValueError):  # a closed pipe: nothing more can be written to it
-            pass
-    os._exit(status)
+    """The ``sunlab`` console script and ``python -m sunlab.cli``: :func:`main`, then exit with
+    its status. Library code calls :func:`main`, which returns the status instead."""
+    sys.exit(main())
