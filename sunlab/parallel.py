@@ -21,8 +21,8 @@ import os
 
 import numpy as np
 
-from ._optional import require
 from .errors import ConfigurationError
+from .extras import require
 from .options import show_progress
 
 __all__ = ["SCHEDULERS", "compute", "local_cluster", "single_threaded_blas", "start_workers",

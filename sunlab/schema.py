@@ -45,6 +45,7 @@ __all__ = [
     "STATUS",
     "STATUS_NAMES",
     "USABLE_STATUS",
+    "DEFECT_FLAGS",
     "IBIS4",
     "frames_dataset",
     "empty_frames",
@@ -83,6 +84,10 @@ STATUS: dict[str, int] = {
 STATUS_NAMES: dict[int, str] = {v: k for k, v in STATUS.items()}
 #: Status codes whose centroid is usable for calibration and statistics.
 USABLE_STATUS: tuple[str, ...] = ("ok", "repaired")
+
+#: Bit flags of the ``hole_defect`` coordinate on ``hole`` of a simulated cube or centroid
+#: table: which defects the virtual bench gave each hole (0: a good hole).
+DEFECT_FLAGS: dict[str, int] = {"dust": 1, "elliptical": 2, "burred": 4, "undersized": 8}
 
 #: The paper's detector (docs/paper.md sec. 1): Ibis4, 1280 x 1024 pixels of 7 um, 10-bit ADC.
 IBIS4 = {"nx": 1280, "ny": 1024, "pixel_pitch_mm": 0.007, "bit_depth": 10}

@@ -33,6 +33,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import ConfigurationError
+from ._checks import _bad, _numbers
 from .base import Calibration, TrainingData
 
 __all__ = ["Interpolation"]
@@ -74,6 +75,11 @@ class Interpolation(Calibration):
         self.nodes: dict | None = None
         self._interp = None
         self._nearest = None
+
+    @classmethod
+    def for_kind(cls, kind: str, **options) -> Interpolation:
+        """An unfitted interpolation whose mode is the kind's suffix (``interpolation-cubic``)."""
+        return cls(kind.removeprefix("interpolation-"), **options)
 
     @property
     def label(self) -> str:
@@ -198,6 +204,19 @@ class Interpolation(Calibration):
             "extrapolate": self.extrapolate,
             "nodes": {k: np.asarray(v).tolist() for k, v in self.nodes.items()},
         }
+
+    @classmethod
+    def _check_parameters(cls, p: dict) -> None:
+        """Sizes, finiteness and ranges of a document's parameters, before any array is
+        built (:func:`sunlab.calibration.from_dict`)."""
+        nodes = p.get("nodes")
+        if not isinstance(nodes, dict) or not isinstance(nodes.get("x"), list):
+            raise _bad("nodes", type(nodes).__name__, "an object of lists x, y, alpha, beta")
+        n = len(nodes["x"])
+        if n < 3:
+            raise _bad("nodes.x", f"{n} nodes", "at least 3 nodes (one triangle)")
+        for k in ("x", "y", "alpha", "beta"):
+            _numbers(nodes.get(k), f"nodes.{k}", n)
 
     @classmethod
     def _from_parameters(cls, p: dict):

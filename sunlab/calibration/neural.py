@@ -44,8 +44,9 @@ from __future__ import annotations
 import numpy as np
 
 from .. import geometry, parallel
-from .._optional import require
 from ..errors import ConfigurationError
+from ..extras import require
+from ._checks import _bad, _count, _number, _numbers
 from .base import Calibration, TrainingData, sensor_attrs
 from .model import fit_optimised
 
@@ -278,6 +279,36 @@ class NeuralNet(Calibration):
                          for a, net in self.networks.items()},
             "history": self.history,
         }
+
+    @classmethod
+    def _check_parameters(cls, p: dict) -> None:
+        """Sizes, finiteness and ranges of a document's parameters, before any array is
+        built (:func:`sunlab.calibration.from_dict`)."""
+        h = _count(p.get("hidden"), "hidden", 1)
+        scaling = p.get("input_scaling")
+        if not isinstance(scaling, dict):
+            raise _bad("input_scaling", type(scaling).__name__, "an object {'mean', 'std'}")
+        n_in = len(scaling.get("mean") or [])
+        _numbers(scaling.get("mean"), "input_scaling.mean")
+        _numbers(scaling.get("std"), "input_scaling.std", n_in, positive=True)
+        nets = p.get("networks")
+        if not isinstance(nets, dict):
+            raise _bad("networks", type(nets).__name__, "an object {'alpha': ..., 'beta': ...}")
+        for angle in ("alpha", "beta"):
+            net = nets.get(angle)
+            if not isinstance(net, dict):
+                raise _bad(f"networks.{angle}", type(net).__name__, "an object of weights")
+            w1 = net.get("W1")
+            if not isinstance(w1, list) or len(w1) != h:
+                raise _bad(f"networks.{angle}.W1", f"{len(w1) if isinstance(w1, list) else w1}"
+                           " rows", f"{h} rows (hidden = {h})")
+            for i, row in enumerate(w1):
+                _numbers(row, f"networks.{angle}.W1[{i}]", n_in or None)
+            _numbers(net.get("b1"), f"networks.{angle}.b1", h)
+            _numbers(net.get("W2"), f"networks.{angle}.W2", h)
+            for k in ("b2", "target_mean"):
+                _number(net.get(k), f"networks.{angle}.{k}")
+            _number(net.get("target_std"), f"networks.{angle}.target_std", positive=True)
 
     @classmethod
     def _from_parameters(cls, p: dict):

@@ -218,19 +218,17 @@ def reproduce_table4(
     with parallel.worker_pool(scheduler, workers, address) as pool:  # warms up meanwhile
         cubes = simulate_experiments(bench, seed=seed, quick=quick, step=step, shots=shots,
                                      progress=progress, method=method)
-        cens, fitted = _locate_and_fit(cubes, where, pool, neural=neural, seed=seed,
-                                       progress=progress, timings=timings, t0=t0,
-                                       not_run=not_run)
+        cens, fitted = _locate_and_fit(cubes, where, pool, neural=neural, seed=seed, t0=t0,
+                                       progress=progress, timings=timings, not_run=not_run)
     if progress:
         for label in fitted:
             print(f"  fitted {label:<24s} in {timings[f'fit {label}']:6.2f} s", flush=True)
     test = usable_table(cens["III"])
     local = {label: stats.local_errors(cal.predict(test)) for label, cal in fitted.items()}
     result = _assemble(cens, fitted, local, bench, timings, t0, settings={
-        "seed": seed, "quick": quick, "centroid_method": method,
+        "seed": seed, "quick": quick, "centroid_method": method, "not_run": not_run,
         "poses": {k: int(v.sizes["pose"]) for k, v in cens.items()},
-        "shots": int(test.sizes["shot"]), "bench": "sunlab.sim.Bench.paper_single_hole()",
-        "not_run": not_run})
+        "shots": int(test.sizes["shot"]), "bench": "sunlab.sim.Bench.paper_single_hole()"})
     if out is not None:
         result.files = _write_outputs(result, Path(out))
     return result
