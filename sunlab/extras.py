@@ -23,9 +23,10 @@ True
 from __future__ import annotations
 
 import importlib
+import importlib.metadata
 import importlib.util
 
-__all__ = ["EXTRAS", "available", "require"]
+__all__ = ["EXTRAS", "available", "installed_version", "require"]
 
 #: The extra of pyproject.toml that brings each optional top-level package.
 EXTRAS: dict[str, str] = {
@@ -92,3 +93,18 @@ def available(module: str) -> bool:
         return importlib.util.find_spec(module) is not None
     except (ImportError, ValueError):
         return False
+
+
+def installed_version(distribution: str) -> str | None:
+    """The installed version of a distribution (``"pyserial"``), or None when it is absent;
+    for provenance records that name an extra's package without importing it.
+
+    Examples
+    --------
+    >>> installed_version("no-such-distribution-xyz") is None
+    True
+    """
+    try:
+        return importlib.metadata.version(distribution)
+    except importlib.metadata.PackageNotFoundError:
+        return None

@@ -155,8 +155,21 @@ class NeuralNet(Calibration):
         return 4 * self.hidden + 1
 
     # --- training ----------------------------------------------------------------------------
+    def fit(self, train, validation=None) -> NeuralNet:
+        """Fit the networks on a training table (early stopping on ``validation``); return
+        ``self``. Needs torch (the ``neural`` extra), checked before anything else.
+
+        Parameters
+        ----------
+        train : xarray.Dataset
+            ``centroids/1`` table with the commanded angles (experiment I).
+        validation : xarray.Dataset, optional
+            Table for early stopping (experiment II).
+        """
+        require("torch", purpose="the neural-network calibration (NeuralNet)")
+        return super().fit(train, validation)
+
     def _fit(self, data: TrainingData, validation: TrainingData | None) -> None:
-        require("torch", purpose="the neural-network calibration (NeuralNet)")  # before any work
         self.sensor = sensor_attrs(data.attrs) if self.strategy != 1 else None
         self.optimised = fit_optimised(data, self.sensor) if self.strategy == 3 else None
         X = self._inputs(data.x, data.y)
