@@ -352,8 +352,9 @@ def format_table(res: Table4Result) -> str:
         if c in res.paper.columns:
             lines.append(f"{'  paper':<26s}" + "".join(
                 f"{res.paper.loc[k, c]:10.4f}" for k in stats_cols))
-    for label, why in res.settings.get("not_run", {}).items():
-        lines.append(f"{label:<26s}not run: {why}")
+    not_run = res.settings.get("not_run", {})
+    lines += [f"{label:<26s}not run: its extra is not installed" for label in not_run]
+    lines += [f"  ({why})" for why in dict.fromkeys(not_run.values())]
     lines += ["", "Fig. 12: rectangle area 36 sigma_M(alpha) sigma_M(beta), deg^2 "
               "(smaller is better)"]
     paper_areas = stats.rectangles(res.paper)["area"]
