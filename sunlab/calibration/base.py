@@ -186,7 +186,9 @@ def sensor_attrs(attrs: dict, *, name: str = "train") -> dict:
         if value is None or not np.isfinite(float(value)):
             raise SchemaError(
                 f"{name}.attrs[{key!r}]", value, "the sensor attribute of the frame cube",
-                "carry the cube's attrs into the centroid table, or pass the value explicitly",
+                "carry the cube's attrs into the centroid table (a CSV table: "
+                "sunlab.io.open_centroids(path, attrs={...}), or a sensor.json beside it for "
+                "the command line), or pass the value to the model explicitly",
             )
         out[key] = float(value)
     return out
