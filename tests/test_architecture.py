@@ -225,6 +225,18 @@ def test_every_room_has_a_layer():
                   r.split(".")[1].startswith("_")) == []
 
 
+@pytest.mark.parametrize("package", ["sunlab", "sunlab.calibration"])
+def test_a_lazy_package_has_a_stub_of_exactly_its_names(package):
+    # one export mechanism: explicit imports, or lazy loading with a .pyi stub (scikit-image's)
+    import importlib
+
+    module = importlib.import_module(package)
+    stub = ast.parse(Path(module.__file__).with_suffix(".pyi").read_text(encoding="utf-8"))
+    names = {a.asname or a.name for node in stub.body if isinstance(node, ast.ImportFrom)
+             for a in node.names}
+    assert names == set(module.__all__) - {"__version__"}
+
+
 def test_calibration_registry_names_only_calibration_modules():
     from sunlab.calibration import KINDS
 
