@@ -84,6 +84,11 @@ def require(module: str, extra: str | None = None, *, purpose: str = ""):
 def available(module: str) -> bool:
     """Whether ``module`` can be imported, without importing it (an extra's package present).
 
+    Parameters
+    ----------
+    module : str
+        A top-level module name (``"torch"``).
+
     Examples
     --------
     >>> available("math"), available("no_such_package_xyz")
@@ -98,6 +103,11 @@ def available(module: str) -> bool:
 def installed_version(distribution: str) -> str | None:
     """The installed version of a distribution (``"pyserial"``), or None when it is absent;
     for provenance records that name an extra's package without importing it.
+
+    Parameters
+    ----------
+    distribution : str
+        The distribution's name on PyPI (``"pyserial"``).
 
     Examples
     --------

@@ -128,6 +128,15 @@ def worker_pool(scheduler: str = "threads", num_workers: int | None = None,
     compiled kernels it runs from Numba's disk cache on its first task. Two calls may share the
     pool at once (e.g. from two threads).
 
+    Parameters
+    ----------
+    scheduler : {"threads", "processes", "synchronous", "cluster"}
+        The scheduler of the :func:`compute` calls; only ``"processes"`` gets a pool.
+    num_workers : int, optional
+        Worker processes (default: the CPU count).
+    address : str, optional
+        A ``dask.distributed`` scheduler's address (then no pool).
+
     Examples
     --------
     >>> import dask.array as da
@@ -240,7 +249,12 @@ def local_cluster(workers: int | None = None):
     """A ``dask.distributed.LocalCluster`` of ``workers`` single-threaded processes (default:
     the CPU count), closed on exit; its workers run without ``MALLOC_TRIM_THRESHOLD_`` (see
     :func:`compute`). Pass ``cluster.scheduler_address`` as ``address`` to share it between
-    several computations.
+    several computations. Needs the ``distributed`` extra.
+
+    Parameters
+    ----------
+    workers : int, optional
+        Worker processes (default: the CPU count).
 
     Examples
     --------

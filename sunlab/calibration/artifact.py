@@ -35,6 +35,13 @@ def validate_document(doc, kinds: dict[str, str] | None = None) -> dict:
     Checks the schema tag, then the JSON Schema of ``data_schema/`` with
     :func:`sunlab.schema.validate_calibration`, then that the kind is one sunlab can load.
 
+    Parameters
+    ----------
+    doc : dict
+        The parsed document.
+    kinds : dict, optional
+        The registry its kind must be in (default :data:`sunlab.calibration.KINDS`).
+
     Raises
     ------
     SchemaError

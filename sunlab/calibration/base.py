@@ -173,7 +173,18 @@ def training_data(centroids: xr.Dataset, average: str = "pose", *, name: str = "
 def sensor_attrs(attrs: dict, *, name: str = "train") -> dict:
     """The sensor attributes a geometric model needs, read from a table's attributes.
 
-    Returns ``{"mask_distance_mm", "pixel_pitch_mm", "x_cf_px", "y_cf_px"}`` as floats.
+    Parameters
+    ----------
+    attrs : dict
+        Attributes of a centroid table (or frame cube).
+    name : str
+        The table's name in an error message.
+
+    Returns
+    -------
+    dict
+        ``{"mask_distance_mm", "pixel_pitch_mm", "x_cf_px", "y_cf_px"}`` as floats (mm, mm,
+        px, px).
 
     Examples
     --------
@@ -350,6 +361,15 @@ class Calibration:
         interpolation: the convex hull of the nodes). Outside it, estimates are
         extrapolations and :meth:`predict` flags them (``in_domain`` False).
 
+        Parameters
+        ----------
+        x, y : array_like
+            Centroids, px (x = column, y = row), broadcast together.
+
+        Returns
+        -------
+        numpy.ndarray of bool
+
         Examples
         --------
         >>> from sunlab import sim
@@ -376,6 +396,16 @@ class Calibration:
 
         NaN where x or y is not finite (and, for interpolation, outside the convex hull). No
         check of the domain: see :meth:`inside`, or :meth:`predict`, which flags extrapolation.
+
+        Parameters
+        ----------
+        x, y : array_like
+            Centroids, px (x = column, y = row), broadcast together.
+
+        Returns
+        -------
+        alpha, beta : numpy.ndarray
+            Platform angles, deg, of the broadcast shape.
         """
         self.check_fitted()
         x, y = np.broadcast_arrays(np.asarray(x, dtype=float), np.asarray(y, dtype=float))
@@ -388,6 +418,12 @@ class Calibration:
 
     def predict(self, centroids: xr.Dataset) -> xr.Dataset:
         """Estimated platform angles for every centroid of a ``centroids/1`` table.
+
+        Parameters
+        ----------
+        centroids : xarray.Dataset
+            A ``centroids/1`` table (``x``, ``y`` px, ``status``; commanded ``alpha``,
+            ``beta`` as coordinates when known).
 
         Returns
         -------
@@ -424,7 +460,18 @@ class Calibration:
         return ds
 
     def in_domain(self, centroids: xr.Dataset) -> xr.DataArray:
-        """True where a centroid lies inside the calibrated domain (:meth:`inside`)."""
+        """True where a centroid lies inside the calibrated domain (:meth:`inside`).
+
+        Parameters
+        ----------
+        centroids : xarray.Dataset
+            A ``centroids/1`` table.
+
+        Returns
+        -------
+        xarray.DataArray of bool
+            On the dims of ``x``.
+        """
         return xr.DataArray(self.inside(centroids["x"].values, centroids["y"].values),
                             dims=centroids["x"].dims, coords=centroids["x"].coords)
 
@@ -452,6 +499,17 @@ class Calibration:
 
         The file is written to a temporary sibling and renamed into place, so it is never
         half-written; an existing file is replaced only with ``overwrite=True``.
+
+        Parameters
+        ----------
+        path : str or path-like
+            The JSON file to write.
+        overwrite : bool
+            Replace an existing file.
+
+        Returns
+        -------
+        pathlib.Path
 
         Raises
         ------
@@ -518,6 +576,14 @@ class Calibration:
 
     @classmethod
     def for_kind(cls, kind: str, **options) -> Calibration:
-        """An unfitted calibration of registered ``kind`` with ``options`` (its constructor's
-        keywords); :class:`Interpolation` takes its mode from the kind."""
+        """An unfitted calibration of registered ``kind`` with ``options``.
+
+        Parameters
+        ----------
+        kind : str
+            A kind of :data:`sunlab.calibration.KINDS` served by this class.
+        **options
+            Keywords of the class's constructor (:class:`Interpolation` takes its mode from
+            the kind).
+        """
         return cls(**options)

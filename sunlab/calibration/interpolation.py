@@ -78,7 +78,15 @@ class Interpolation(Calibration):
 
     @classmethod
     def for_kind(cls, kind: str, **options) -> Interpolation:
-        """An unfitted interpolation whose mode is the kind's suffix (``interpolation-cubic``)."""
+        """An unfitted interpolation whose mode is the kind's suffix.
+
+        Parameters
+        ----------
+        kind : {"interpolation-linear", "interpolation-cubic"}
+            The registered kind.
+        **options
+            ``extrapolate``.
+        """
         return cls(kind.removeprefix("interpolation-"), **options)
 
     @property

@@ -30,6 +30,15 @@ def table4_methods(*, neural: bool = True, hidden: int = 8, seed: int = 0) -> di
     Labels follow the paper's Table 4 where it has the method (``linear interp.``,
     ``cubic interp.``, ``polynomial``, ``NN strategy 4``).
 
+    Parameters
+    ----------
+    neural : bool
+        Include the four neural-network strategies of Table 2 (the ``neural`` extra).
+    hidden : int
+        Hidden tanh neurons of each network.
+    seed : int
+        Seed of the networks' initial weights.
+
     Examples
     --------
     >>> sorted(table4_methods())[-1]
