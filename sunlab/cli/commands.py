@@ -345,8 +345,9 @@ def _run_calibrate(args) -> int:
 
     options = _method_options(args)
     _check_out(args.out, args.overwrite)
-    train = open_centroid_table(args.train)
-    val = None if args.validation is None else open_centroid_table(args.validation)
+    train = open_centroid_table(args.train, "train")
+    val = None if args.validation is None else open_centroid_table(args.validation,
+                                                                   "validation")
     t0 = time.perf_counter()
     if options.get("order") == "auto":
         if args.method != "polynomial":

@@ -75,10 +75,11 @@ def read_calibration_json(path) -> dict | None:
 # --------------------------------------------------------------------------------------------
 # Centroid tables as CSV
 # --------------------------------------------------------------------------------------------
-def open_centroid_table(path):
+def open_centroid_table(path, name: str = "table"):
     """A centroid table from NetCDF, Zarr or CSV (columns alpha, beta, x, y):
     :func:`sunlab.io.open_centroids`, with a CSV table's sensor attributes (pixel pitch, mask
-    distance, x_cf, y_cf) taken from a ``sensor.json`` in its folder, if there is one."""
+    distance, x_cf, y_cf) taken from a ``sensor.json`` in its folder, if there is one. An error
+    about the file as a whole names the argument (``name``: train, validation, test)."""
     from .. import io
 
     attrs = None
@@ -86,7 +87,12 @@ def open_centroid_table(path):
         sensor = _sensor_json(Path(path).resolve().parent, None)
         keys = ("pixel_pitch_mm", "mask_distance_mm", "x_cf_px", "y_cf_px")
         attrs = {k: sensor[k] for k in keys if k in sensor}
-    return io.open_centroids(path, attrs=attrs)
+    try:
+        return io.open_centroids(path, attrs=attrs)
+    except SchemaError as err:
+        if err.field != str(path):
+            raise
+        raise SchemaError(f"{name} {path}", err.found, err.expected, err.fix) from err
 
 
 # --------------------------------------------------------------------------------------------
@@ -246,7 +252,7 @@ def _run_evaluate(args) -> int:
         for n in names:
             atomic.check_target(out / n, overwrite=args.overwrite, flag="--overwrite")
     cal = calibration.load(args.calibration)
-    test = open_centroid_table(args.test)
+    test = open_centroid_table(args.test, "test")
     table, est, local = stats.evaluate(cal, test, return_errors=True)
     col = table[cal.label]
     n_out = int(est.attrs["n_out_of_domain"])
