@@ -17,9 +17,16 @@ Examples
 from __future__ import annotations
 
 import contextlib
+import multiprocessing
 import os
+from concurrent.futures import ProcessPoolExecutor
+from multiprocessing import forkserver
 
+import dask
 import numpy as np
+from dask.diagnostics import ProgressBar
+from dask.multiprocessing import get_context, initialize_worker_process
+from threadpoolctl import threadpool_limits
 
 from .errors import ConfigurationError
 from .extras import require
@@ -80,8 +87,6 @@ def compute(*objs, scheduler: str = "threads", address: str | None = None,
     >>> int(a), int(b)
     (4, 2)
     """
-    import dask
-
     if scheduler not in SCHEDULERS:
         raise ConfigurationError(
             f"scheduler: found {scheduler!r}; expected one of {SCHEDULERS}. Fix: 'threads' "
@@ -108,8 +113,6 @@ def compute(*objs, scheduler: str = "threads", address: str | None = None,
     elif scheduler == "threads":
         kw["num_workers"] = 2 * (os.cpu_count() or 1)
     if show_progress(progress):
-        from dask.diagnostics import ProgressBar
-
         with ProgressBar(minimum=1.0):
             return dask.compute(*objs, **kw)
     return dask.compute(*objs, **kw)
@@ -154,10 +157,6 @@ def worker_pool(scheduler: str = "threads", num_workers: int | None = None,
     if scheduler != "processes" or address is not None:
         yield None
         return
-    from concurrent.futures import ProcessPoolExecutor
-
-    from dask.multiprocessing import initialize_worker_process
-
     n = int(num_workers) if num_workers else (os.cpu_count() or 1)
     with ProcessPoolExecutor(n, mp_context=_warm_context(),
                              initializer=initialize_worker_process) as pool:
@@ -195,16 +194,10 @@ def _warm_context():
     imported the task modules (:data:`PRELOAD`), started here so that it imports them while the
     caller goes on. Where there is no fork server (Windows), Dask's own context (spawn: each
     worker imports everything itself)."""
-    import multiprocessing
-
     if "forkserver" not in multiprocessing.get_all_start_methods():
-        from dask.multiprocessing import get_context
-
         return get_context()
     ctx = multiprocessing.get_context("forkserver")
     ctx.set_forkserver_preload(list(PRELOAD))
-    from multiprocessing import forkserver
-
     forkserver.ensure_running()
     return ctx
 
@@ -222,8 +215,6 @@ def single_threaded_blas():
     ...     {p["num_threads"] for p in threadpool_info() if p["user_api"] == "blas"}
     {1}
     """
-    from threadpoolctl import threadpool_limits
-
     return threadpool_limits(limits=1)
 
 
@@ -265,10 +256,6 @@ def local_cluster(workers: int | None = None):
     >>> int(total)
     4
     """
-    import os
-
-    import dask
-
     LocalCluster = require("distributed", purpose="a LocalCluster").LocalCluster
 
     n = int(workers) if workers else (os.cpu_count() or 1)

@@ -31,10 +31,16 @@ True
 from __future__ import annotations
 
 import numpy as np
+from scipy.interpolate import (
+    CloughTocher2DInterpolator,
+    LinearNDInterpolator,
+    NearestNDInterpolator,
+)
+from scipy.spatial import Delaunay, QhullError, cKDTree
 
 from ..errors import ConfigurationError
 from ._checks import _bad, _numbers
-from .base import Calibration, TrainingData
+from .base import Calibration, TrainingData, _err_summary
 
 __all__ = ["Interpolation"]
 
@@ -96,8 +102,6 @@ class Interpolation(Calibration):
     def _build(self) -> None:
         from scipy.interpolate import (
             CloughTocher2DInterpolator,
-            LinearNDInterpolator,
-            NearestNDInterpolator,
         )
 
         pts = np.column_stack([self.nodes["x"], self.nodes["y"]])
@@ -159,10 +163,7 @@ class Interpolation(Calibration):
         >>> 49 <= loo["alpha"]["n"] < 81, 0 < loo["alpha"]["max_abs"] < 0.05  # 7 x 7 inner nodes
         (True, True)
         """
-        from scipy.interpolate import CloughTocher2DInterpolator
-        from scipy.spatial import Delaunay, QhullError, cKDTree
 
-        from .base import _err_summary
 
         pts = np.column_stack([self.nodes["x"], self.nodes["y"]])
         vals = np.column_stack([self.nodes["alpha"], self.nodes["beta"]])

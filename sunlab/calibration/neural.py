@@ -42,13 +42,14 @@ True
 from __future__ import annotations
 
 import numpy as np
+from scipy.optimize import minimize
 
 from .. import geometry, parallel
 from ..errors import ConfigurationError
 from ..extras import require
 from ._checks import _bad, _count, _number, _numbers
 from .base import Calibration, TrainingData, sensor_attrs
-from .model import fit_optimised
+from .model import fit_optimised, optimised_fit_from_dict
 
 __all__ = ["NeuralNet", "STRATEGIES"]
 
@@ -197,7 +198,6 @@ class NeuralNet(Calibration):
 
     def _train_one(self, Z, t, Zv, tv, seed):
         torch = require("torch", purpose="the neural-network calibration (NeuralNet)")
-        from scipy.optimize import minimize
 
         n_in, h = Z.shape[1], self.hidden
         sizes = [h * n_in, h, h, 1]
@@ -325,8 +325,6 @@ class NeuralNet(Calibration):
 
     @classmethod
     def _from_parameters(cls, p: dict):
-        from .model import optimised_fit_from_dict
-
         obj = cls(strategy=int(p["strategy"]), hidden=int(p["hidden"]), seed=int(p["seed"]),
                   max_iter=int(p["max_iter"]), patience=int(p["patience"]),
                   weight_decay=float(p["weight_decay"]))

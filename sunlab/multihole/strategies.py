@@ -37,7 +37,7 @@ import numpy as np
 import xarray as xr
 
 from .. import schema
-from ..calibration import Calibration, from_dict, load
+from ..calibration import Calibration, Polynomial, from_dict, load
 from ..errors import ConfigurationError, SchemaError
 from .holes import usable
 
@@ -147,8 +147,6 @@ def _centre_table(cen, x, y, flux, n, method):
 
 def _default_model(order: int):
     def factory():
-        from ..calibration import Polynomial
-
         return Polynomial(order)
 
     return factory
