@@ -9,7 +9,8 @@ From a folder of images to an on-board C table::
     sunlab export cal.json --format c --out onboard/
 
 This module holds the parsers and runners of the new subcommands (registered in
-:mod:`sunlab.cli.commands`), the reader of centroid tables given as CSV, the options shared by
+:mod:`sunlab.cli.commands`), the opening of centroid tables (:func:`sunlab.io.open_centroids`
+with a CSV table's ``sensor.json``), the options shared by
 ``import`` and ``centroid`` for image folders, and :func:`read_calibration_json`, the reader
 of ``sunlab info CAL.json`` (its text: :func:`sunlab.calibration.calibration_summary`). It
 imports only the standard library at module level, so that ``sunlab --help`` and ``sunlab info
