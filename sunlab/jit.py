@@ -4,7 +4,8 @@ Every kernel is compiled with ``cache=True``: the first run on a machine compile
 seconds for all of them) and writes the machine code beside the module (``__pycache__``);
 later processes load it in milliseconds. A user who sees the first run stall deserves to know
 why, so :func:`announce_first_compile` prints one line on stderr when a process starts to
-compile its first kernel, and nothing when the kernels come from the cache.
+compile its first kernel, and nothing when the kernels come from the cache. It is once per
+process: the workers of a pool that compile at the same time each print it.
 
 Examples
 --------
