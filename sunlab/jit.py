@@ -7,6 +7,12 @@ why, so :func:`announce_first_compile` prints one line on stderr when a process 
 compile its first kernel, and nothing when the kernels come from the cache. It is once per
 process: the workers of a pool that compile at the same time each print it.
 
+The off switch is Numba's own: ``NUMBA_DISABLE_JIT=1`` in the environment before sunlab is
+imported runs every kernel as plain Python and numpy, the readable reference of the compiled
+code (slow: for checking and debugging). The centroid kernels agree with their compiled selves
+to rounding (``tests/test_jit.py``); the virtual bench's noise stream does not yet run
+uncompiled (its 64-bit wrap-around arithmetic overflows numpy scalars).
+
 Examples
 --------
 >>> announce_first_compile()   # registers the notice once; a second call does nothing
