@@ -8,11 +8,11 @@ STAMP  := $(VENV)/.installed
 
 venv: $(STAMP)
 
-# torch==2.13.0 (pinned in pyproject.toml) is the CPU wheel; see docs/environment.md for CUDA.
+# `all` brings every extra (neural: torch==2.13.0, the CPU wheel; see docs/environment.md for CUDA).
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[dev,benchmarks,distributed,browser]'
+	$(BIN)/python -m pip install --quiet -e '.[all,dev,benchmarks,browser]'
 	touch $(STAMP)
 
 install: $(STAMP)

@@ -1,7 +1,8 @@
 """sunlab: reproduce, teach and extend the laboratory calibration of a pinhole APS sun sensor.
 
 Submodules are loaded on first use so that ``import sunlab`` stays light (no torch, no serial
-ports, no widgets until asked for).
+ports, no widgets until asked for); ``__init__.pyi`` lists them for IDEs and type checkers. The
+optional parts are extras of ``pip install "sunlab[...]"`` (:mod:`sunlab.extras`).
 
 Examples
 --------
@@ -36,6 +37,8 @@ _SUBMODULES = {
     "reproduce",
     "errors",
     "options",
+    "extras",
+    "jit",
     "atomic",
     "plots",
     "widgets",

@@ -17,11 +17,18 @@ Examples
 from __future__ import annotations
 
 import contextlib
+import multiprocessing
 import os
+from concurrent.futures import ProcessPoolExecutor
+from multiprocessing import forkserver
 
+import dask
 import numpy as np
+from dask.multiprocessing import get_context, initialize_worker_process
+from threadpoolctl import threadpool_limits
 
 from .errors import ConfigurationError
+from .extras import require
 from .options import dask_progress, show_progress
 
 __all__ = ["SCHEDULERS", "compute", "local_cluster", "single_threaded_blas", "start_workers",
@@ -79,8 +86,6 @@ def compute(*objs, scheduler: str = "threads", address: str | None = None,
     >>> int(a), int(b)
     (4, 2)
     """
-    import dask
-
     if scheduler not in SCHEDULERS:
         raise ConfigurationError(
             f"scheduler: found {scheduler!r}; expected one of {SCHEDULERS}. Fix: 'threads' "
@@ -118,11 +123,19 @@ def worker_pool(scheduler: str = "threads", num_workers: int | None = None,
     None for the other schedulers, which need no pool, and when an ``address`` is given (the
     work then runs on that cluster's workers): the arguments of :func:`compute`.
 
-    The workers are forked from a fork server that has imported sunlab, run every compiled
-    kernel once and built the default detector's fixed pattern (:mod:`sunlab._worker_preload`),
-    so each starts at once instead of spending about 2 s of CPU on it; they keep what they
-    cache (spot geometry, another detector's fixed pattern) from one call to the next; two
-    calls may share the pool at once (e.g. from two threads).
+    The workers are forked from a fork server that has imported the task modules (rendering and
+    centroiding: :data:`PRELOAD`), so a worker does not import them again; each loads the
+    compiled kernels it runs from Numba's disk cache on its first task. Two calls may share the
+    pool at once (e.g. from two threads).
+
+    Parameters
+    ----------
+    scheduler : {"threads", "processes", "synchronous", "cluster"}
+        The scheduler of the :func:`compute` calls; only ``"processes"`` gets a pool.
+    num_workers : int, optional
+        Worker processes (default: the CPU count).
+    address : str, optional
+        A ``dask.distributed`` scheduler's address (then no pool).
 
     Examples
     --------
@@ -141,26 +154,29 @@ def worker_pool(scheduler: str = "threads", num_workers: int | None = None,
     if scheduler != "processes" or address is not None:
         yield None
         return
-    from concurrent.futures import ProcessPoolExecutor
-
-    from dask.multiprocessing import initialize_worker_process
-
     n = int(num_workers) if num_workers else (os.cpu_count() or 1)
     with ProcessPoolExecutor(n, mp_context=_warm_context(),
                              initializer=initialize_worker_process) as pool:
         yield pool
 
 
-#: The module the fork server imports before it forks a worker (:func:`worker_pool`).
-PRELOAD = "sunlab._worker_preload"
+#: The modules the fork server imports before it forks a worker (:func:`worker_pool`): imports
+#: only, no work (the kernels compile or load from Numba's cache on a worker's first task).
+PRELOAD = ("sunlab.sim", "sunlab.centroid")
 
 
 def start_workers(scheduler: str = "threads", address: str | None = None) -> None:
-    """Start warming up :func:`worker_pool`'s workers now, when it will give a pool (the
-    ``"processes"`` scheduler and no ``address``): the fork server they are forked from
-    imports sunlab and loads the compiled kernels (about 2-3 s of CPU) on another core while
-    the caller goes on, e.g. with its own imports. Nothing for the other schedulers; calling it
+    """Start :func:`worker_pool`'s fork server now, when it will give a pool (the
+    ``"processes"`` scheduler and no ``address``): it imports the task modules on another core
+    while the caller goes on with its own imports. Nothing for the other schedulers; calling it
     twice, or before :func:`worker_pool`, changes nothing else.
+
+    Parameters
+    ----------
+    scheduler : {"threads", "processes", "synchronous", "cluster"}
+        The scheduler :func:`compute` will use.
+    address : str, optional
+        A ``dask.distributed`` scheduler's address (then no local pool is started).
 
     Examples
     --------
@@ -172,20 +188,13 @@ def start_workers(scheduler: str = "threads", address: str | None = None) -> Non
 
 def _warm_context():
     """The start method of :func:`worker_pool`'s processes: forked from a fork server that has
-    imported sunlab and loaded the compiled kernels once (:mod:`sunlab._worker_preload`), so a
-    worker starts at once; the server is started here, and warms up while the caller goes on.
-    Where there is no fork server (Windows), Dask's own context (spawn: each worker imports
-    everything itself)."""
-    import multiprocessing
-
+    imported the task modules (:data:`PRELOAD`), started here so that it imports them while the
+    caller goes on. Where there is no fork server (Windows), Dask's own context (spawn: each
+    worker imports everything itself)."""
     if "forkserver" not in multiprocessing.get_all_start_methods():
-        from dask.multiprocessing import get_context
-
         return get_context()
     ctx = multiprocessing.get_context("forkserver")
-    ctx.set_forkserver_preload([PRELOAD])
-    from multiprocessing import forkserver
-
+    ctx.set_forkserver_preload(list(PRELOAD))
     forkserver.ensure_running()
     return ctx
 
@@ -203,14 +212,12 @@ def single_threaded_blas():
     ...     {p["num_threads"] for p in threadpool_info() if p["user_api"] == "blas"}
     {1}
     """
-    from threadpoolctl import threadpool_limits
-
     return threadpool_limits(limits=1)
 
 
 def _distributed(objs, address_or_cluster, progress) -> tuple:
-    from distributed import Client
-    from distributed import progress as dprogress
+    distributed = require("distributed", purpose="a Dask cluster (address=...)")
+    Client, dprogress = distributed.Client, distributed.progress
 
     with Client(address_or_cluster) as client:
         futs = client.compute(list(objs))
@@ -230,7 +237,12 @@ def local_cluster(workers: int | None = None):
     """A ``dask.distributed.LocalCluster`` of ``workers`` single-threaded processes (default:
     the CPU count), closed on exit; its workers run without ``MALLOC_TRIM_THRESHOLD_`` (see
     :func:`compute`). Pass ``cluster.scheduler_address`` as ``address`` to share it between
-    several computations.
+    several computations. Needs the ``distributed`` extra.
+
+    Parameters
+    ----------
+    workers : int, optional
+        Worker processes (default: the CPU count).
 
     Examples
     --------
@@ -241,10 +253,7 @@ def local_cluster(workers: int | None = None):
     >>> int(total)
     4
     """
-    import os
-
-    import dask
-    from distributed import LocalCluster
+    LocalCluster = require("distributed", purpose="a LocalCluster").LocalCluster
 
     n = int(workers) if workers else (os.cpu_count() or 1)
     env = dict(dask.config.get("distributed.nanny.pre-spawn-environ", {}))

@@ -29,7 +29,6 @@ from __future__ import annotations
 import functools
 import json
 import math
-import threading
 from collections.abc import Mapping, Sequence
 from importlib import resources
 
@@ -46,6 +45,7 @@ __all__ = [
     "STATUS",
     "STATUS_NAMES",
     "USABLE_STATUS",
+    "DEFECT_FLAGS",
     "IBIS4",
     "frames_dataset",
     "empty_frames",
@@ -84,6 +84,10 @@ STATUS: dict[str, int] = {
 STATUS_NAMES: dict[int, str] = {v: k for k, v in STATUS.items()}
 #: Status codes whose centroid is usable for calibration and statistics.
 USABLE_STATUS: tuple[str, ...] = ("ok", "repaired")
+
+#: Bit flags of the ``hole_defect`` coordinate on ``hole`` of a simulated cube or centroid
+#: table: which defects the virtual bench gave each hole (0: a good hole).
+DEFECT_FLAGS: dict[str, int] = {"dust": 1, "elliptical": 2, "burred": 4, "undersized": 8}
 
 #: The paper's detector (docs/paper.md sec. 1): Ibis4, 1280 x 1024 pixels of 7 um, 10-bit ADC.
 IBIS4 = {"nx": 1280, "ny": 1024, "pixel_pitch_mm": 0.007, "bit_depth": 10}
@@ -130,7 +134,7 @@ def schema_file(contract: str):
     return resources.files("sunlab").joinpath("schemas", name)
 
 
-@functools.cache
+@functools.lru_cache(maxsize=len(SCHEMA_FILES))
 def _schema_text(contract: str) -> str:
     return schema_file(contract).read_text(encoding="utf-8")
 
@@ -146,39 +150,11 @@ def json_schema(contract: str) -> dict:
     return json.loads(_schema_text(contract))
 
 
-#: Held while jsonschema is imported (:func:`_import_jsonschema`).
-_IMPORT_LOCK = threading.Lock()
-
-
-@functools.cache
+@functools.lru_cache(maxsize=len(SCHEMA_FILES))
 def _validator(contract: str):
-    return _import_jsonschema().Draft202012Validator(json_schema(contract))
+    import jsonschema
 
-
-def _import_jsonschema():
-    """jsonschema, imported without the optional back end of its ``iri`` format check.
-
-    sunlab validates structure, never string formats (no ``format_checker``). When the optional
-    package ``rfc3987_syntax`` is installed (Jupyter brings it), ``import jsonschema`` imports
-    it to register the ``iri`` checks, and it compiles 38 grammars at import: about 1.2 s of
-    CPU in every process that validates a cube, against 0.1 s without it. So when jsonschema is
-    not imported yet, it is imported with that one package hidden; the only effect is that
-    jsonschema's ``FormatChecker`` in this process does not check the ``iri`` formats, which
-    sunlab's contracts do not use. The package itself stays importable.
-    """
-    import sys
-
-    with _IMPORT_LOCK:  # one thread hides the package, imports and shows it again
-        if "jsonschema" in sys.modules or "rfc3987_syntax" in sys.modules:
-            import jsonschema
-
-            return jsonschema
-        sys.modules["rfc3987_syntax"] = None  # importing it raises ImportError: jsonschema skips
-        try:
-            import jsonschema
-        finally:
-            del sys.modules["rfc3987_syntax"]
-        return jsonschema
+    return jsonschema.Draft202012Validator(json_schema(contract))
 
 
 def _jsonable(obj):
@@ -230,7 +206,8 @@ def _json_field(path: Sequence) -> str:
 
 def _check_json_schema(instance, contract: str, field_of, fix: str | None = None) -> None:
     """Validate ``instance`` against the contract's JSON Schema; raise the most relevant error."""
-    best_match = _import_jsonschema().exceptions.best_match
+    from jsonschema.exceptions import best_match
+
     error = best_match(_validator(contract).iter_errors(instance))
     if error is None:
         return

@@ -50,6 +50,7 @@ __all__ = [
     "shot_errors",
     "local_errors",
     "global_stats",
+    "evaluate",
     "error_summary",
     "rectangles",
     "unstack_poses",
@@ -234,6 +235,51 @@ def global_stats(local, *, ddof: int = 1) -> pd.DataFrame:
         cols[str(name)] = _column(ds, ddof)
     index = pd.MultiIndex.from_product([ANGLES, STATS], names=["angle", "stat"])
     return pd.DataFrame(cols, index=index)
+
+
+def evaluate(calibration, table: xr.Dataset, *, ddof: int = 1, return_errors: bool = False):
+    """The paper's global statistics of a calibration on a test table (Table 4's column).
+
+    The calibration estimates the angles of every centroid of ``table``; each is compared with
+    the table's commanded angles: per pose the local error (mean over the ok shots) and the
+    maximum error (:func:`local_errors`, eq. (6)), then mu, sigma, M, sigma_M per angle
+    (:func:`global_stats`).
+
+    Parameters
+    ----------
+    calibration : sunlab.calibration.Calibration
+        A fitted (or loaded) calibration.
+    table : xarray.Dataset
+        ``centroids/1`` test table on (pose, shot) with the commanded angles ``alpha``,
+        ``beta`` (deg) as coordinates (experiment III in the paper).
+    ddof : int
+        Delta degrees of freedom of the standard deviations.
+    return_errors : bool
+        Also return the estimate (``calibration.predict(table)``) and the per-pose errors.
+
+    Returns
+    -------
+    pandas.DataFrame
+        Index ``(angle, stat)`` as :func:`paper_table4`; one column, the calibration's label;
+        degrees. With ``return_errors``: ``(table, estimate, local)``.
+
+    Examples
+    --------
+    >>> from sunlab import sim
+    >>> from sunlab.calibration import Polynomial
+    >>> a, b = np.meshgrid(np.arange(-4.0, 5.0), np.arange(-4.0, 5.0), indexing="ij")
+    >>> train = sim.synthetic_centroids(a.ravel(), b.ravel(), shots=2, noise_px=0.02, seed=1)
+    >>> test = sim.synthetic_centroids(a.ravel(), b.ravel(), shots=2, noise_px=0.02, seed=2)
+    >>> res = evaluate(Polynomial(order=3).fit(train), test)
+    >>> res.index.equals(paper_table4().index), list(res.columns)
+    (True, ['polynomial(3)'])
+    >>> bool(res.loc[("alpha", "mu")].iloc[0] < 0.01)
+    True
+    """
+    estimate = calibration.predict(table)
+    local = local_errors(estimate)
+    frame = global_stats({calibration.label: local}, ddof=ddof)
+    return (frame, estimate, local) if return_errors else frame
 
 
 def error_summary(est: xr.Dataset) -> dict:

@@ -40,6 +40,7 @@ import numpy as np
 import xarray as xr
 
 from .errors import ConfigurationError
+from .extras import require
 from .multihole import HoleReview, cutout, metric_scale, review_holes
 
 __all__ = ["HoleExplorer", "figure_output"]
@@ -165,8 +166,7 @@ class HoleExplorer:
         self.select(self.selected)
 
     def _build_widgets(self, names, metric, pose, shot) -> None:
-        import ipywidgets as w
-
+        w = require("ipywidgets", purpose="the hole explorer")
         nc = self.review.n_cols
         self.metric = w.Dropdown(options=names, value=metric, description="colour by")
         self.buttons = []
@@ -213,8 +213,7 @@ class HoleExplorer:
         self.shot.observe(lambda ch: self._show_stamp(), names="value")
 
     def _layout(self):
-        import ipywidgets as w
-
+        w = require("ipywidgets", purpose="the hole explorer")
         nc = self.review.n_cols
         left = w.VBox([self.metric, self.grid, self.colorbar_out, self.legend,
                        w.HBox([self.reject, self.include_all])],

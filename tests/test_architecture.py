@@ -152,7 +152,7 @@ def test_notebooks_use_public_names_only(notebook):
 #: The layers of docs/architecture.md, lowest first; a module may import its own layer and
 #: the layers below, never a layer above (lazy imports inside functions included).
 LAYERS = [
-    {"errors", "options", "atomic", "schema", "parallel"},
+    {"errors", "options", "extras", "jit", "atomic", "schema", "parallel"},
     {"io", "geometry", "stats", "plans", "calibration", "centroid"},
     {"sim", "multihole", "platform_fault", "export", "plots", "hardware"},
     {"reproduce", "widgets", "cli", "data", "course"},
@@ -167,26 +167,92 @@ def _layer(room: str) -> int | None:
     return None
 
 
+def _imports(module: str, path: Path, tree: ast.Module) -> list[str]:
+    """Every sunlab module or name ``module`` imports, at module level or inside a function,
+    and every ``"sunlab.x.y:Name"`` string of a registry (an import by name)."""
+    out = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom) and (node.module or node.level):
+            base = _absolute(module, path, node)
+            out += [base] if base != "sunlab" else [f"sunlab.{a.name}" for a in node.names]
+        elif isinstance(node, ast.Import):
+            out += [a.name for a in node.names]
+        elif isinstance(node, ast.Constant) and isinstance(node.value, str):
+            out += re.findall(r"^(sunlab(?:\.\w+)+):\w+$", node.value)
+    return [t for t in out if t.startswith("sunlab.")]
+
+
+def _room_graph() -> dict[str, set[str]]:
+    """Room -> the other rooms it imports (top-level rooms: ``sunlab.sim``, ``sunlab.stats``)."""
+    graph = collections.defaultdict(set)
+    for module, path, tree in MODULES:
+        own = ".".join(module.split(".")[:2])
+        for target in _imports(module, path, tree):
+            room = ".".join(target.split(".")[:2])
+            if room != own:
+                graph[own].add(room)
+    return graph
+
+
+def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """The import cycles between rooms (each as a path that returns to its start)."""
+    found, state = [], {}
+
+    def visit(node, stack):
+        state[node] = "open"
+        for nxt in sorted(graph.get(node, ())):
+            if state.get(nxt) == "open":
+                found.append(stack[stack.index(nxt):] + [nxt])
+            elif nxt not in state:
+                visit(nxt, [*stack, nxt])
+        state[node] = "done"
+
+    for node in sorted(graph):
+        if node not in state:
+            visit(node, [node])
+    return found
+
+
+def test_no_import_cycles_between_rooms():
+    # e.g. sim <-> multihole, multihole <-> plots: a room's modules may import each other, two
+    # rooms may not import each other (lazy imports and registry strings count)
+    assert _cycles(_room_graph()) == []
+
+
+def test_every_room_has_a_layer():
+    rooms = {".".join(m.split(".")[:2]) for m, _, _ in MODULES if m.count(".")}
+    assert sorted(r for r in rooms if _layer(r) is None and not
+                  r.split(".")[1].startswith("_")) == []
+
+
+@pytest.mark.parametrize("package", ["sunlab", "sunlab.calibration"])
+def test_a_lazy_package_has_a_stub_of_exactly_its_names(package):
+    # one export mechanism: explicit imports, or lazy loading with a .pyi stub (scikit-image's)
+    import importlib
+
+    module = importlib.import_module(package)
+    stub = ast.parse(Path(module.__file__).with_suffix(".pyi").read_text(encoding="utf-8"))
+    names = {a.asname or a.name for node in stub.body if isinstance(node, ast.ImportFrom)
+             for a in node.names}
+    assert names == set(module.__all__) - {"__version__"}
+
+
+def test_calibration_registry_names_only_calibration_modules():
+    from sunlab.calibration import KINDS
+
+    assert all("." not in target.partition(":")[0] for target in KINDS.values())
+
+
 def test_imports_point_down_the_layers():
     upward = []
     for module, path, tree in MODULES:
         own = _layer(module)
         if own is None:
             continue
-        for node in ast.walk(tree):
-            if isinstance(node, ast.ImportFrom) and (node.module or node.level):
-                base = _absolute(module, path, node)
-                targets = ([base] if base != "sunlab"
-                           else [f"sunlab.{a.name}" for a in node.names])
-            elif isinstance(node, ast.Import):
-                targets = [a.name for a in node.names]
-            else:
-                continue
-            for target in targets:
-                if target.startswith("sunlab."):
-                    layer = _layer(target)
-                    if layer is not None and layer > own:
-                        upward.append(f"{module} -> {target}")
+        for target in _imports(module, path, tree):
+            layer = _layer(target)
+            if layer is not None and layer > own:
+                upward.append(f"{module} -> {target}")
     assert sorted(set(upward)) == []
 
 
@@ -199,3 +265,8 @@ def test_the_checks_can_fail(tmp_path):
     assert _is_kernel(ast.parse("@numba.njit(cache=True)\ndef k(): pass").body[0])
     assert _target_room("sunlab.centroid._kernels") != _room("sunlab.cli", PACKAGE / "cli.py")
     assert _layer("sunlab.reproduce") > _layer("sunlab.centroid")
+    assert _cycles({"sunlab.a": {"sunlab.b"}, "sunlab.b": {"sunlab.a"}}) == [
+        ["sunlab.a", "sunlab.b", "sunlab.a"]]
+    tree = ast.parse('KINDS = {"x": "sunlab.multihole.strategies:GeometricCentre"}')
+    assert _imports("sunlab.calibration.base", PACKAGE / "calibration" / "base.py", tree) == [
+        "sunlab.multihole.strategies"]

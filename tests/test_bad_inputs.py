@@ -684,7 +684,7 @@ row("calibration path is a folder", lambda c: (c.tmp / "cal.json").mkdir(), _loa
 row("calibration path missing", nothing, _load,
     r"path: found '.*cal.json', expected an existing calibration", exc=SchemaError)
 row("calibration file of 65 MB", lambda c: os.truncate(
-    c.copy("cal.json"), calibration.base.MAX_FILE_BYTES + 1), _load,
+    c.copy("cal.json"), calibration.artifact.MAX_FILE_BYTES + 1), _load,
     r"cal.json: found '67108865 bytes', expected a calibration JSON file of at most",
     exc=SchemaError)
 row("calibration a list", lambda c: (c.tmp / "cal.json").write_text("[1, 2]"), _load,

@@ -607,19 +607,6 @@ def test_shifted_row_table_equals_a_fresh_one(dtype):
             assert_allclose(com, com_ref, rtol=1e-12)
 
 
-def test_prefetch_box_is_safe_anywhere():
-    # The prefetch hints of measure_spots address only pixels inside the frame, whatever the
-    # box (partly or wholly outside, NaN centre, 1-px frame), and change nothing.
-    from sunlab.centroid import _k_prefetch as K
-
-    for frame in (np.arange(30 * 40, dtype=np.uint16).reshape(30, 40), np.ones((1, 1))):
-        before = frame.copy()
-        for xc, yc, r in [(5.0, 5.0, 3.0), (-50.0, 10.0, 20.0), (39.9, 29.9, 100.0),
-                          (1e6, -1e6, 5.0), (np.nan, 3.0, 4.0), (10.0, 10.0, 0.0)]:
-            K.prefetch_box(frame, xc, yc, r)
-        assert np.array_equal(frame, before)
-
-
 @pytest.mark.parametrize("method", ["projection", "threshold", "tight"])
 def test_isolated_hot_pixel_is_repaired_not_saturated(method):
     # A hot pixel clipped at full scale inside the window (the paper bench's row 508, column

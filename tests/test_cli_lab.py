@@ -17,7 +17,7 @@ from PIL import Image
 from sunlab import SchemaError, export, geometry, io, sim
 from sunlab.calibration import Interpolation, calibration_summary, load
 from sunlab.cli import main
-from sunlab.cli.lab import centroids_from_csv
+from sunlab.io import centroids_from_csv
 
 F_MM, PITCH_MM = 5.0, 0.007  # 1 deg ~ 12.5 px
 N_PX, RADIUS_PX, SUB = 144, 8.0, 4

@@ -225,7 +225,8 @@ def test_folder_camera_times_out_with_a_clear_error(tmp_path):
     t0 = time.monotonic()
     with pytest.raises(CameraTimeout, match="within 0.2 s.*last read error") as info:
         cam.grab()
-    assert 0.2 <= time.monotonic() - t0 < 2.0
+    assert time.monotonic() - t0 >= 0.2  # it waited its timeout (no upper bound: a busy
+    # machine may take longer, and a test must not depend on wall-clock speed)
     assert str(tmp_path) in str(info.value)
 
 

@@ -11,6 +11,7 @@ import xarray as xr
 from numpy.testing import assert_allclose
 
 from sunlab import multihole as mh
+from sunlab import plots
 from sunlab.errors import ConfigurationError
 from sunlab.schema import STATUS
 from sunlab.sim import HoleLayout, Mask, synthetic_centroids
@@ -212,18 +213,18 @@ def test_figures(defective):
     frame = np.zeros((1024, 1280))
     cf = train.isel(pose=3, shot=0)
     figs = [
-        mh.fig13_frame(frame, cf, bad=mh.reject_bad_holes(m).values),
-        mh.fig14_bad_holes(frame, cf, [12, 47], reference=0, metrics=m),
-        mh.fig15_rectangles({"a": {"alpha": {"M": 0.01, "sigma_M": 0.005},
+        plots.fig13_frame(frame, cf, bad=mh.reject_bad_holes(m).values),
+        plots.fig14_bad_holes(frame, cf, [12, 47], reference=0, metrics=m),
+        plots.fig15_rectangles({"a": {"alpha": {"M": 0.01, "sigma_M": 0.005},
                                    "beta": {"M": 0.02, "sigma_M": 0.008}}}),
-        mh.plot_metric_map(m, "scatter", bad=mh.reject_bad_holes(m).values),
+        plots.plot_metric_map(m, "scatter", bad=mh.reject_bad_holes(m).values),
     ]
     assert len(figs[1].axes) == 3
     assert len(figs[2].axes[0].patches) == 1
     for f in figs:
         plt.close(f)
     with pytest.raises(ConfigurationError, match="metric"):
-        mh.plot_metric_map(m, "nope")
+        plots.plot_metric_map(m, "nope")
 
 
 # ------------------------------------------------------------- on the virtual bench (frames)

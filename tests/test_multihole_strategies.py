@@ -7,7 +7,7 @@ import pytest
 
 from sunlab import calibration
 from sunlab import multihole as mh
-from sunlab.errors import ConfigurationError
+from sunlab.errors import ConfigurationError, SchemaError
 from sunlab.sim import synthetic_centroids
 
 A = np.repeat(np.linspace(-8.0, 2.0, 5), 5)
@@ -41,7 +41,7 @@ def test_save_load_round_trip_is_exact(tables, tmp_path, make):
     path = fitted.save(tmp_path / "strategy.json")
     doc = json.loads(path.read_text())
     assert doc["kind"] == fitted.kind and doc["training"]["n_holes"] == 100
-    back = calibration.load(path)
+    back = mh.load_strategy(path)
     assert type(back) is type(fitted)
     _same(back.predict(test), fitted.predict(test))
     if isinstance(fitted, mh.PerHoleAverage):
@@ -55,7 +55,7 @@ def test_a_hole_without_calibration_survives_the_round_trip(tmp_path):
     cen = synthetic_centroids(a, b, shots=1, layout="grid", defects={3: {"missing": 0.5}}, seed=2)
     s2 = mh.PerHoleAverage(order=3).fit(cen)
     assert s2.calibrations_[3] is None and not np.isfinite(s2.variance_[3])
-    back = calibration.load(s2.save(tmp_path / "s2.json"))
+    back = mh.load_strategy(s2.save(tmp_path / "s2.json"))
     assert back.calibrations_[3] is None and np.isinf(back.variance_[3])
     _same(back.predict(cen), s2.predict(cen))
 
@@ -86,7 +86,43 @@ def test_review_holes_serves_the_explorer(tables):
     assert mh.injected_defects(test) == {}
 
 
-def test_predict_xy_names_the_fix(tables):
+@pytest.mark.parametrize("make", [
+    lambda: mh.GeometricCentre(order=2),
+    lambda: mh.GeometricCentre(order=2, fill=False),
+    lambda: mh.PerHoleAverage(order=2, weighting="inverse_variance", clip=4.0),
+])
+def test_predict_xy_on_hole_arrays_equals_predict(tables, make):
+    # the protocol's predict_xy: centroid arrays whose last axis is the hole give, frame by
+    # frame, the estimate predict gives from the table (missing holes as NaN)
+    train, test = tables
+    s = make().fit(train)
+    ok = mh.usable(test).values
+    x = np.where(ok, test.x.values, np.nan)
+    y = np.where(ok, test.y.values, np.nan)
+    a, b = s.predict_xy(x, y)
+    est = s.predict(test)
+    assert a.shape == est.alpha.shape
+    np.testing.assert_allclose(a, est.alpha.values, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(b, est.beta.values, rtol=0, atol=1e-12)
+
+
+def test_predict_xy_needs_the_hole_axis(tables):
     s1 = mh.GeometricCentre(order=2).fit(tables[0])
-    with pytest.raises(ConfigurationError, match=r"predict\(centroids\)"):
-        s1.predict_xy([1.0], [2.0])
+    with pytest.raises(ConfigurationError, match="last axis is the hole"):
+        s1.predict_xy(1.0, 2.0)
+
+
+def test_fit_with_validation_records_its_residuals(tables):
+    train, val = tables
+    s2 = mh.PerHoleAverage(order=2).fit(train, val)
+    assert s2.residuals["validation"]["alpha"]["n"] > 0
+    assert s2.residuals["validation"]["alpha"]["rms"] < 0.01  # 0.01 px noise: ~1e-3 deg
+
+
+def test_strategies_have_their_own_registry(tables, tmp_path):
+    # calibration.load knows only single-hole methods and says where a strategy loads
+    path = mh.GeometricCentre(order=2).fit(tables[0]).save(tmp_path / "gc.json")
+    with pytest.raises(SchemaError, match="sunlab.multihole.load_strategy"):
+        calibration.load(path)
+    assert set(mh.STRATEGY_KINDS).isdisjoint(calibration.KINDS)
+    assert type(mh.load_strategy(path)) is mh.GeometricCentre

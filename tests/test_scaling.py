@@ -62,16 +62,11 @@ def test_rendering_fuses_with_centroiding(chunks, holes):
     assert sizes and max(sizes) < 1024 * 1280 * 2  # below one uint16 frame
 
 
-def _preloaded_before_the_task() -> bool:
-    """In a worker: whether the fork server's warm-up module was there before this task."""
-    import sys
-
-    return "sunlab._worker_preload" in sys.modules and sys.modules[
-        "sunlab._worker_preload"].warmed_up()
-
-
-def test_worker_pool_workers_are_forked_warm():
-    # the workers of sunlab's own pool come from a fork server that imported sunlab and ran
-    # every kernel once: nothing is left for their first task to import or load
+def test_worker_pool_workers_are_forked_with_the_task_modules():
+    # the workers of sunlab's own pool come from a fork server that imported the task modules
+    # (imports only: nothing runs at import), so their first task imports nothing more. The
+    # probe is a builtin (eval), so unpickling it in the worker imports nothing of sunlab.
+    probe = f"all(m in __import__('sys').modules for m in {list(parallel.PRELOAD)!r})"
     with parallel.worker_pool("processes", 1) as pool:
-        assert pool.submit(_preloaded_before_the_task).result(timeout=120) is True
+        assert pool.submit(eval, probe).result(timeout=120) is True
+

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from sunlab import multihole as mh
-from sunlab import schema
+from sunlab import plots, schema
 from sunlab.errors import ConfigurationError
 from sunlab.sim import synthetic_centroids
 
@@ -81,7 +81,7 @@ def test_one_colour_scale_for_buttons_and_bar(explorer):
         assert ex.buttons[h].style.button_color == want
     assert _png(ex.colorbar_out)[:4] == b"\x89PNG"
     # the metric map of sunlab.multihole draws with the same limits
-    fig = mh.plot_metric_map(ex.metrics, "flux_deficit")
+    fig = plots.plot_metric_map(ex.metrics, "flux_deficit")
     assert fig.axes[0].images[0].get_clim() == pytest.approx((lo, hi))
     import matplotlib.pyplot as plt
 

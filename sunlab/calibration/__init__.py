@@ -1,7 +1,9 @@
 """Calibration functions: from a spot centroid (x, y) to platform angles (alpha, beta).
 
 Every method shares one interface (:class:`Calibration`): ``fit(train, validation=None)``,
-``predict(centroids)``, ``save(path)``; :func:`load` restores any saved calibration.
+``predict(centroids)``, ``predict_xy(x, y)``, ``to_dict()`` / :func:`from_dict`, ``save(path)``
+/ :func:`load`. Each is registered once in :data:`KINDS` (:mod:`sunlab.calibration.registry`),
+and :func:`fit` builds and fits one by its kind: ``fit(table, "polynomial", order=3)``.
 
 ========================  ========================================================  ===========
 class                     method (docs/paper.md sec. 4)                                  kind
@@ -15,9 +17,9 @@ class                     method (docs/paper.md sec. 4)                         
 :class:`NeuralNet`        one tanh hidden layer per angle, strategies 1-4 (Table 2) neural
 ========================  ========================================================  ===========
 
-Submodules load on first use (``import sunlab.calibration.summary``, the text of
-``sunlab info CAL.json``, needs the standard library only); torch is imported only when a
-:class:`NeuralNet` is fitted. :func:`calibration_summary` describes a saved calibration.
+Submodules load on first use; torch (the ``neural`` extra) is imported only when a
+:class:`NeuralNet` is fitted, and its absence is an ImportError naming the extra.
+:func:`calibration_summary` describes a saved calibration.
 
 Examples
 --------
@@ -33,8 +35,9 @@ from __future__ import annotations
 import importlib
 
 _LAZY = {
-    **dict.fromkeys(["KINDS", "Calibration", "TrainingData", "combine", "from_dict", "load",
-                     "training_data"], "base"),
+    **dict.fromkeys(["KINDS", "ALIASES", "fit", "method_class"], "registry"),
+    **dict.fromkeys(["from_dict", "load"], "artifact"),
+    **dict.fromkeys(["Calibration", "TrainingData", "combine", "training_data"], "base"),
     "calibration_summary": "summary",
     "table4_methods": "methods",
     "Polynomial": "polynomial",
@@ -45,17 +48,7 @@ _LAZY = {
     "OptimisedModel": "model",
 }
 
-__all__ = [
-    "calibration_summary",
-    "Calibration",
-    "TrainingData",
-    "KINDS",
-    "load",
-    "from_dict",
-    "combine",
-    "training_data",
-    *_LAZY,
-]
+__all__ = list(_LAZY)
 
 
 def __getattr__(name: str):

@@ -38,7 +38,6 @@ True
 
 from __future__ import annotations
 
-import importlib
 import json
 import math
 from dataclasses import dataclass
@@ -48,37 +47,20 @@ from typing import ClassVar
 import numpy as np
 import xarray as xr
 
+from .. import __version__, atomic
 from ..errors import ConfigurationError, SchemaError
-from ..schema import CALIBRATION_SCHEMA, STATUS, validate_calibration, validate_centroids
+from ..schema import CALIBRATION_SCHEMA, STATUS, validate_centroids
+from .artifact import validate_document
+from .summary import calibration_summary
 
 __all__ = [
     "Calibration",
     "TrainingData",
-    "KINDS",
-    "load",
-    "from_dict",
-    "validate_document",
     "training_data",
     "sensor_attrs",
     "combine",
 ]
 
-#: Registered kinds: ``kind`` of the artifact -> ``"module:Class"`` in sunlab.calibration (or a
-#: full module path: the multi-hole strategies of :mod:`sunlab.multihole.strategies`).
-KINDS: dict[str, str] = {
-    "ideal": "model:IdealModel",
-    "optimised": "model:OptimisedModel",
-    "polynomial": "polynomial:Polynomial",
-    "trigonometric": "trigonometric:Trigonometric",
-    "interpolation-linear": "interpolation:Interpolation",
-    "interpolation-cubic": "interpolation:Interpolation",
-    "neural": "neural:NeuralNet",
-    "multihole-geometric-centre": "sunlab.multihole.strategies:GeometricCentre",
-    "multihole-per-hole-average": "sunlab.multihole.strategies:PerHoleAverage",
-}
-
-_REQUIRED = ("sunlab_schema", "kind", "sunlab_version", "parameters", "training", "domain",
-             "residuals")
 _SENSOR = ("mask_distance_mm", "pixel_pitch_mm", "x_cf_px", "y_cf_px")
 _AVERAGES = ("pose", "shot")
 
@@ -191,7 +173,18 @@ def training_data(centroids: xr.Dataset, average: str = "pose", *, name: str = "
 def sensor_attrs(attrs: dict, *, name: str = "train") -> dict:
     """The sensor attributes a geometric model needs, read from a table's attributes.
 
-    Returns ``{"mask_distance_mm", "pixel_pitch_mm", "x_cf_px", "y_cf_px"}`` as floats.
+    Parameters
+    ----------
+    attrs : dict
+        Attributes of a centroid table (or frame cube).
+    name : str
+        The table's name in an error message.
+
+    Returns
+    -------
+    dict
+        ``{"mask_distance_mm", "pixel_pitch_mm", "x_cf_px", "y_cf_px"}`` as floats (mm, mm,
+        px, px).
 
     Examples
     --------
@@ -205,8 +198,10 @@ def sensor_attrs(attrs: dict, *, name: str = "train") -> dict:
             raise SchemaError(
                 f"{name}.attrs[{key!r}]", value, "the sensor attribute of the frame cube",
                 f"a geometric model needs it: write {key} in the frames' sensor.json (or pass "
-                "it to sunlab import) and import and centroid again, or pass the value "
-                "explicitly; the polynomial and interpolation methods do not need it",
+                "it to sunlab import), carry the cube's attrs into the centroid table (a CSV "
+                "table: sunlab.io.open_centroids(path, attrs={...}), or a sensor.json beside "
+                "it for the command line), or pass the value to the model explicitly; the "
+                "polynomial and interpolation methods do not need it",
             )
         out[key] = float(value)
     return out
@@ -277,6 +272,8 @@ class Calibration:
 
     #: The ``kind`` written to the artifact.
     kind: ClassVar[str] = ""
+    #: The registry the artifact's kind is looked up in (None: :data:`KINDS`).
+    kinds: ClassVar[dict[str, str] | None] = None
     #: How training points are formed: ``"pose"`` (pose means) or ``"shot"``.
     average: str = "pose"
 
@@ -366,6 +363,15 @@ class Calibration:
         interpolation: the convex hull of the nodes). Outside it, estimates are
         extrapolations and :meth:`predict` flags them (``in_domain`` False).
 
+        Parameters
+        ----------
+        x, y : array_like
+            Centroids, px (x = column, y = row), broadcast together.
+
+        Returns
+        -------
+        numpy.ndarray of bool
+
         Examples
         --------
         >>> from sunlab import sim
@@ -385,8 +391,6 @@ class Calibration:
 
         The same text as ``sunlab info CAL.json``.
         """
-        from .summary import calibration_summary
-
         return calibration_summary(self.to_dict())
 
     def predict_xy(self, x, y):
@@ -394,6 +398,16 @@ class Calibration:
 
         NaN where x or y is not finite (and, for interpolation, outside the convex hull). No
         check of the domain: see :meth:`inside`, or :meth:`predict`, which flags extrapolation.
+
+        Parameters
+        ----------
+        x, y : array_like
+            Centroids, px (x = column, y = row), broadcast together.
+
+        Returns
+        -------
+        alpha, beta : numpy.ndarray
+            Platform angles, deg, of the broadcast shape.
         """
         self.check_fitted()
         x, y = np.broadcast_arrays(np.asarray(x, dtype=float), np.asarray(y, dtype=float))
@@ -406,6 +420,12 @@ class Calibration:
 
     def predict(self, centroids: xr.Dataset) -> xr.Dataset:
         """Estimated platform angles for every centroid of a ``centroids/1`` table.
+
+        Parameters
+        ----------
+        centroids : xarray.Dataset
+            A ``centroids/1`` table (``x``, ``y`` px, ``status``; commanded ``alpha``,
+            ``beta`` as coordinates when known).
 
         Returns
         -------
@@ -442,7 +462,18 @@ class Calibration:
         return ds
 
     def in_domain(self, centroids: xr.Dataset) -> xr.DataArray:
-        """True where a centroid lies inside the calibrated domain (:meth:`inside`)."""
+        """True where a centroid lies inside the calibrated domain (:meth:`inside`).
+
+        Parameters
+        ----------
+        centroids : xarray.Dataset
+            A ``centroids/1`` table.
+
+        Returns
+        -------
+        xarray.DataArray of bool
+            On the dims of ``x``.
+        """
         return xr.DataArray(self.inside(centroids["x"].values, centroids["y"].values),
                             dims=centroids["x"].dims, coords=centroids["x"].coords)
 
@@ -453,8 +484,6 @@ class Calibration:
 
     def to_dict(self) -> dict:
         """The ``calibration/1`` document (JSON-ready)."""
-        from .. import __version__
-
         self.check_fitted()
         return _jsonable({
             "sunlab_schema": CALIBRATION_SCHEMA,
@@ -473,16 +502,25 @@ class Calibration:
         The file is written to a temporary sibling and renamed into place, so it is never
         half-written; an existing file is replaced only with ``overwrite=True``.
 
+        Parameters
+        ----------
+        path : str or path-like
+            The JSON file to write.
+        overwrite : bool
+            Replace an existing file.
+
+        Returns
+        -------
+        pathlib.Path
+
         Raises
         ------
         SunlabError
             ``path`` exists and ``overwrite`` is False, or its folder is missing or read-only.
         """
-        from .. import atomic
-
         path = atomic.check_target(path, overwrite=overwrite)
         doc = self.to_dict()
-        validate_document(doc)
+        validate_document(doc, self.kinds)
         text = json.dumps(doc, indent=1, allow_nan=False) + "\n"
         return atomic.write_text(path, text, overwrite=overwrite)
 
@@ -534,257 +572,20 @@ class Calibration:
     def _from_parameters(cls, parameters: dict):
         raise NotImplementedError
 
+    @classmethod
+    def _check_parameters(cls, parameters: dict) -> None:
+        """Check a document's parameters before :meth:`_from_parameters` builds arrays."""
 
-def _class_of(kind: str) -> type[Calibration]:
-    module, name = KINDS[kind].split(":")
-    if "." not in module:
-        module = f"{__package__}.{module}"
-    return getattr(importlib.import_module(module), name)
+    @classmethod
+    def for_kind(cls, kind: str, **options) -> Calibration:
+        """An unfitted calibration of registered ``kind`` with ``options``.
 
-
-def validate_document(doc) -> dict:
-    """Check a ``calibration/1`` document; return it unchanged.
-
-    Checks the schema tag, then the JSON Schema of ``data_schema/`` with
-    :func:`sunlab.schema.validate_calibration`, then that the kind is one sunlab can load.
-
-    Raises
-    ------
-    SchemaError
-        Naming the field, the value found, what is expected and the fix.
-
-    Examples
-    --------
-    >>> try:
-    ...     validate_document({"sunlab_schema": "calibration/0", "kind": "polynomial"})
-    ... except SchemaError as err:
-    ...     print(err.field)
-    sunlab_schema
-    """
-    if not isinstance(doc, dict):
-        raise SchemaError("calibration document", type(doc).__name__, "a JSON object",
-                          "pass a file written by Calibration.save")
-    found = doc.get("sunlab_schema")
-    if found != CALIBRATION_SCHEMA:
-        raise SchemaError(
-            "sunlab_schema", found, repr(CALIBRATION_SCHEMA),
-            "this file was not written by Calibration.save of this sunlab version; re-fit the "
-            "calibration (sunlab calibrate) or convert it with the version that wrote it",
-        )
-    missing = [k for k in _REQUIRED if k not in doc]
-    if missing:
-        raise SchemaError(", ".join(missing), "missing", f"the keys {list(_REQUIRED)}",
-                          "the file is truncated or edited; re-fit the calibration")
-    validate_calibration(doc)
-    kind = doc.get("kind")
-    if kind not in KINDS:
-        raise SchemaError("kind", kind, f"one of {sorted(KINDS)}",
-                          "the file is corrupt or from a newer sunlab; re-fit the calibration")
-    return doc
-
-
-#: Largest calibration file :func:`load` reads (bytes); the biggest real one is a few MB.
-MAX_FILE_BYTES = 64 * 2**20
-
-
-def _bad(field: str, found, expected: str, fix: str = "the file is corrupt or edited by hand; "
-         "re-fit the calibration with `sunlab calibrate`") -> SchemaError:
-    return SchemaError(f"parameters.{field}", found, expected, fix)
-
-
-def _numbers(value, field: str, length: int | None = None, *, positive: bool = False) -> list:
-    """A flat list of finite numbers (checked without building an array)."""
-    if not isinstance(value, list):
-        raise _bad(field, type(value).__name__, "a list of numbers")
-    if length is not None and len(value) != length:
-        raise _bad(field, f"{len(value)} values", f"{length} values")
-    for i, v in enumerate(value):
-        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v) \
-                or (positive and not v > 0):
-            raise _bad(f"{field}[{i}]", v, "a finite positive number" if positive
-                       else "a finite number")
-    return value
-
-
-def _number(value, field: str, *, positive: bool = False) -> float:
-    """One finite number."""
-    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value) \
-            or (positive and not value > 0):
-        raise _bad(field, value, "a finite positive number" if positive else "a finite number")
-    return value
-
-
-def _count(value, field: str, low: int = 0) -> int:
-    if isinstance(value, bool) or not isinstance(value, int) or value < low:
-        raise _bad(field, value, f"an integer >= {low}")
-    return value
-
-
-def _scaling_ok(p: dict) -> None:
-    scaling = p.get("scaling")
-    if not isinstance(scaling, dict):
-        raise _bad("scaling", type(scaling).__name__, "an object {'x': [lo, hi], 'y': [lo, hi]}")
-    for axis in ("x", "y"):
-        lo, hi = _numbers(scaling.get(axis), f"scaling.{axis}", 2)
-        if not hi > lo:
-            raise _bad(f"scaling.{axis}", [lo, hi], "[lo, hi] with hi > lo (a range of "
-                       "centroids, px)", "a zero or negative range divides by zero in predict; "
-                       "re-fit the calibration on poses that move the spot along both axes")
-
-
-def _coefficients_ok(p: dict, counts: dict) -> None:
-    coef = p.get("coefficients")
-    if not isinstance(coef, dict):
-        raise _bad("coefficients", type(coef).__name__, "an object {'alpha': [...], 'beta': [...]}")
-    for angle, n in counts.items():
-        _numbers(coef.get(angle), f"coefficients.{angle}", n)
-
-
-def _check_parameters(kind: str, p) -> None:
-    """Sizes, finiteness and ranges of a document's parameters, before anything is allocated.
-
-    Array sizes implied by an order or a hidden-layer width are computed from the numbers, so
-    a corrupt order (say 20000) cannot build gigabytes of monomials before it is refused.
-    """
-    if not isinstance(p, dict):
-        raise _bad("", type(p).__name__, "an object")
-    if kind == "polynomial":
-        order = p.get("order")
-        orders = [order] if not isinstance(order, list) else order
-        if len(orders) not in (1, 2):
-            raise _bad("order", order, "an integer or [order_alpha, order_beta]")
-        orders = [_count(n, "order") for n in orders] * (3 - len(orders))
-        _scaling_ok(p)
-        _coefficients_ok(p, {a: (n + 1) * (n + 2) // 2
-                             for a, n in zip(("alpha", "beta"), orders[:2], strict=True)})
-    elif kind == "trigonometric":
-        n = _count(p.get("order"), "order")
-        _number(p.get("period"), "period", positive=True)
-        _scaling_ok(p)
-        _coefficients_ok(p, {"alpha": (2 * n + 1) ** 2, "beta": (2 * n + 1) ** 2})
-    elif kind.startswith("interpolation"):
-        nodes = p.get("nodes")
-        if not isinstance(nodes, dict) or not isinstance(nodes.get("x"), list):
-            raise _bad("nodes", type(nodes).__name__, "an object of lists x, y, alpha, beta")
-        n = len(nodes["x"])
-        if n < 3:
-            raise _bad("nodes.x", f"{n} nodes", "at least 3 nodes (one triangle)")
-        for k in ("x", "y", "alpha", "beta"):
-            _numbers(nodes.get(k), f"nodes.{k}", n)
-    elif kind == "neural":
-        h = _count(p.get("hidden"), "hidden", 1)
-        scaling = p.get("input_scaling")
-        if not isinstance(scaling, dict):
-            raise _bad("input_scaling", type(scaling).__name__, "an object {'mean', 'std'}")
-        n_in = len(scaling.get("mean") or [])
-        _numbers(scaling.get("mean"), "input_scaling.mean")
-        _numbers(scaling.get("std"), "input_scaling.std", n_in, positive=True)
-        nets = p.get("networks")
-        if not isinstance(nets, dict):
-            raise _bad("networks", type(nets).__name__, "an object {'alpha': ..., 'beta': ...}")
-        for angle in ("alpha", "beta"):
-            net = nets.get(angle)
-            if not isinstance(net, dict):
-                raise _bad(f"networks.{angle}", type(net).__name__, "an object of weights")
-            w1 = net.get("W1")
-            if not isinstance(w1, list) or len(w1) != h:
-                raise _bad(f"networks.{angle}.W1", f"{len(w1) if isinstance(w1, list) else w1}"
-                           " rows", f"{h} rows (hidden = {h})")
-            for i, row in enumerate(w1):
-                _numbers(row, f"networks.{angle}.W1[{i}]", n_in or None)
-            _numbers(net.get("b1"), f"networks.{angle}.b1", h)
-            _numbers(net.get("W2"), f"networks.{angle}.W2", h)
-            for k in ("b2", "target_mean"):
-                _number(net.get(k), f"networks.{angle}.{k}")
-            _number(net.get("target_std"), f"networks.{angle}.target_std", positive=True)
-    elif kind == "ideal":
-        for k in _SENSOR:
-            _number(p.get(k), k, positive=k in ("mask_distance_mm", "pixel_pitch_mm"))
-    elif kind == "optimised":
-        for k in ("delta_f_mm", "alpha0", "beta0", "x_zp", "y_zp", "x_cf", "y_cf"):
-            _number(p.get(k), k)
-        for k in ("mask_distance_mm", "pixel_pitch_mm"):
-            _number(p.get(k), k, positive=True)
-
-
-def from_dict(doc: dict) -> Calibration:
-    """Rebuild a fitted calibration from its ``calibration/1`` document.
-
-    Examples
-    --------
-    >>> from sunlab import sim
-    >>> from sunlab.calibration import Polynomial
-    >>> cen = sim.synthetic_centroids([0.0, 1, 2, 0, 1, 2], [0.0, 0, 0, 1, 1, 1])
-    >>> cal = from_dict(Polynomial(order=1).fit(cen).to_dict())
-    >>> cal.kind
-    'polynomial'
-    """
-    validate_document(doc)
-    _check_parameters(doc["kind"], doc["parameters"])
-    cls = _class_of(doc["kind"])
-    try:
-        obj = cls._from_parameters(doc["parameters"])
-    except SchemaError:
-        raise
-    except (KeyError, TypeError, ValueError, IndexError, AttributeError) as err:
-        raise SchemaError(
-            f"parameters (kind {doc['kind']!r})", f"{type(err).__name__}: {err}",
-            f"the parameters a {cls.__name__} writes", "the file is corrupt; re-fit it",
-        ) from err
-    obj.training = dict(doc["training"] or {})
-    obj.domain = doc["domain"]
-    obj.residuals = doc["residuals"]
-    return obj
-
-
-def load(path) -> Calibration:
-    """Load a calibration written by :meth:`Calibration.save`.
-
-    Sizes are checked before any array is built (the file itself at most
-    :data:`MAX_FILE_BYTES`; an order or a layer width must match its coefficient lists), and
-    non-finite numbers or degenerate scalings (a zero range) are refused, naming the field.
-
-    Raises
-    ------
-    SchemaError
-        If the file is not valid JSON, not ``calibration/1``, or its parameters are corrupt.
-
-    Examples
-    --------
-    >>> import tempfile, os
-    >>> from sunlab import sim
-    >>> from sunlab.calibration import Polynomial
-    >>> cen = sim.synthetic_centroids([0.0, 1, 2, 0, 1, 2], [0.0, 0, 0, 1, 1, 1])
-    >>> path = os.path.join(tempfile.mkdtemp(), "cal.json")
-    >>> load(Polynomial(order=1).fit(cen).save(path)).label
-    'polynomial(1)'
-    """
-    path = Path(path)
-    try:
-        size = path.stat().st_size
-        if path.is_dir():
-            raise IsADirectoryError(f"{path} is a directory")
-        if size > MAX_FILE_BYTES:
-            raise SchemaError(
-                str(path), f"{size} bytes", f"a calibration JSON file of at most "
-                f"{MAX_FILE_BYTES} bytes", "this is not a calibration written by sunlab (or it "
-                "is corrupt); re-fit the calibration with `sunlab calibrate`")
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError as err:
-        raise SchemaError("path", str(path), "an existing calibration JSON file",
-                          "check the path, or fit one with `sunlab calibrate`") from err
-    except UnicodeDecodeError as err:
-        raise SchemaError(str(path), f"not UTF-8 text ({err})", "a calibration/1 JSON document",
-                          "the file is corrupt or not a calibration; re-fit it") from err
-    except OSError as err:
-        raise SchemaError("path", f"{path} ({type(err).__name__}: {err.strerror or err})",
-                          "a readable calibration JSON file",
-                          "check the path and its permissions") from err
-    try:
-        doc = json.loads(text)
-    except ValueError as err:  # JSONDecodeError, and integers of more than 4300 digits
-        raise SchemaError(
-            str(path), f"invalid JSON ({err})", "a calibration/1 JSON document",
-            "the file is corrupt or truncated; re-fit the calibration with `sunlab calibrate`",
-        ) from err
-    return from_dict(doc)
+        Parameters
+        ----------
+        kind : str
+            A kind of :data:`sunlab.calibration.KINDS` served by this class.
+        **options
+            Keywords of the class's constructor (:class:`Interpolation` takes its mode from
+            the kind).
+        """
+        return cls(**options)

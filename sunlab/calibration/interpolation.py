@@ -31,9 +31,16 @@ True
 from __future__ import annotations
 
 import numpy as np
+from scipy.interpolate import (
+    CloughTocher2DInterpolator,
+    LinearNDInterpolator,
+    NearestNDInterpolator,
+)
+from scipy.spatial import Delaunay, QhullError, cKDTree
 
 from ..errors import ConfigurationError
-from .base import Calibration, TrainingData
+from ._checks import _bad, _numbers
+from .base import Calibration, TrainingData, _err_summary
 
 __all__ = ["Interpolation"]
 
@@ -75,6 +82,19 @@ class Interpolation(Calibration):
         self._interp = None
         self._nearest = None
 
+    @classmethod
+    def for_kind(cls, kind: str, **options) -> Interpolation:
+        """An unfitted interpolation whose mode is the kind's suffix.
+
+        Parameters
+        ----------
+        kind : {"interpolation-linear", "interpolation-cubic"}
+            The registered kind.
+        **options
+            ``extrapolate``.
+        """
+        return cls(kind.removeprefix("interpolation-"), **options)
+
     @property
     def label(self) -> str:
         return f"{self.method} interp."
@@ -82,8 +102,6 @@ class Interpolation(Calibration):
     def _build(self) -> None:
         from scipy.interpolate import (
             CloughTocher2DInterpolator,
-            LinearNDInterpolator,
-            NearestNDInterpolator,
         )
 
         pts = np.column_stack([self.nodes["x"], self.nodes["y"]])
@@ -145,10 +163,7 @@ class Interpolation(Calibration):
         >>> 49 <= loo["alpha"]["n"] < 81, 0 < loo["alpha"]["max_abs"] < 0.05  # 7 x 7 inner nodes
         (True, True)
         """
-        from scipy.interpolate import CloughTocher2DInterpolator
-        from scipy.spatial import Delaunay, QhullError, cKDTree
 
-        from .base import _err_summary
 
         pts = np.column_stack([self.nodes["x"], self.nodes["y"]])
         vals = np.column_stack([self.nodes["alpha"], self.nodes["beta"]])
@@ -198,6 +213,19 @@ class Interpolation(Calibration):
             "extrapolate": self.extrapolate,
             "nodes": {k: np.asarray(v).tolist() for k, v in self.nodes.items()},
         }
+
+    @classmethod
+    def _check_parameters(cls, p: dict) -> None:
+        """Sizes, finiteness and ranges of a document's parameters, before any array is
+        built (:func:`sunlab.calibration.from_dict`)."""
+        nodes = p.get("nodes")
+        if not isinstance(nodes, dict) or not isinstance(nodes.get("x"), list):
+            raise _bad("nodes", type(nodes).__name__, "an object of lists x, y, alpha, beta")
+        n = len(nodes["x"])
+        if n < 3:
+            raise _bad("nodes.x", f"{n} nodes", "at least 3 nodes (one triangle)")
+        for k in ("x", "y", "alpha", "beta"):
+            _numbers(nodes.get(k), f"nodes.{k}", n)
 
     @classmethod
     def _from_parameters(cls, p: dict):

@@ -20,6 +20,12 @@ from collections.abc import Callable
 import numpy as np
 
 from ..errors import ConfigurationError
+from ..stats import local_errors
+from .interpolation import Interpolation
+from .model import IdealModel, OptimisedModel
+from .neural import NeuralNet
+from .polynomial import Polynomial
+from .trigonometric import Trigonometric
 
 __all__ = ["table4_methods", "TRIGONOMETRIC_PERIOD"]
 
@@ -39,25 +45,32 @@ def table4_methods(*, neural: bool = True, hidden: int = 8, seed: int = 0,
     the networks of strategies 2 and 4 is zeroed (:class:`sunlab.calibration.NeuralNet`):
     ``"zero_pose"`` re-zeroes it on each run's zero-pose centroid (the tables must carry it).
 
+    Parameters
+    ----------
+    neural : bool
+        Include the four neural-network strategies of Table 2 (the ``neural`` extra).
+    hidden : int
+        Hidden tanh neurons of each network.
+    seed : int
+        Seed of the networks' initial weights.
+
     Examples
     --------
     >>> sorted(table4_methods())[-1]
     'trigonometric'
     """
-    from .. import calibration as cal
-
     def trigonometric(order):
-        return cal.Trigonometric(order, period=TRIGONOMETRIC_PERIOD)
+        return Trigonometric(order, period=TRIGONOMETRIC_PERIOD)
 
     def poly(train, val):
-        best, _ = cal.Polynomial.select_order(train, val)
+        best, _ = Polynomial.select_order(train, val)
         return best
 
     methods: dict[str, Callable] = {
-        "ideal model (1)": lambda tr, va: cal.IdealModel().fit(tr),
-        "optimised model (3)-(4)": lambda tr, va: cal.OptimisedModel().fit(tr),
-        "linear interp.": lambda tr, va: cal.Interpolation("linear").fit(tr),
-        "cubic interp.": lambda tr, va: cal.Interpolation("cubic").fit(tr),
+        "ideal model (1)": lambda tr, va: IdealModel().fit(tr),
+        "optimised model (3)-(4)": lambda tr, va: OptimisedModel().fit(tr),
+        "linear interp.": lambda tr, va: Interpolation("linear").fit(tr),
+        "cubic interp.": lambda tr, va: Interpolation("cubic").fit(tr),
         "polynomial": poly,
         # the classical Fourier series of the calibration domain (one period across it); the
         # paper gives no expansion, and its "much worse" is what the series' periodicity does
@@ -68,8 +81,8 @@ def table4_methods(*, neural: bool = True, hidden: int = 8, seed: int = 0,
     if neural:
         for s in (1, 2, 3, 4):
             methods[f"NN strategy {s}"] = (
-                lambda tr, va, s=s: cal.NeuralNet(strategy=s, hidden=hidden, seed=seed,
-                                                reference=reference).fit(tr, va)
+                lambda tr, va, s=s: NeuralNet(strategy=s, hidden=hidden, seed=seed,
+                                              reference=reference).fit(tr, va)
             )
     return methods
 
@@ -77,8 +90,6 @@ def table4_methods(*, neural: bool = True, hidden: int = 8, seed: int = 0,
 def _select_on_validation(make, orders, train, validation):
     """Fit ``make(order)`` for each order the training table can support; keep the one with the
     smallest mean |error| (alpha + beta) on the validation table, as the paper picks orders."""
-    from ..stats import local_errors
-
     best, best_err = None, np.inf
     for order in orders:
         try:

@@ -20,7 +20,8 @@ import numpy as np
 
 from .. import geometry
 from ..errors import ConfigurationError
-from .base import Calibration, TrainingData, sensor_attrs
+from ._checks import _number
+from .base import _SENSOR, Calibration, TrainingData, sensor_attrs
 
 __all__ = ["IdealModel", "OptimisedModel", "fit_optimised", "optimised_fit_from_dict"]
 
@@ -76,6 +77,13 @@ class IdealModel(Calibration):
 
     def _parameters(self) -> dict:
         return dict(self.sensor)
+
+    @classmethod
+    def _check_parameters(cls, p: dict) -> None:
+        """Sizes, finiteness and ranges of a document's parameters, before any array is
+        built (:func:`sunlab.calibration.from_dict`)."""
+        for k in _SENSOR:
+            _number(p.get(k), k, positive=k in ("mask_distance_mm", "pixel_pitch_mm"))
 
     @classmethod
     def _from_parameters(cls, p: dict):
@@ -174,6 +182,15 @@ class OptimisedModel(Calibration):
 
     def _parameters(self) -> dict:
         return {"fit_zero_pose": self.fit_zero_pose, **self.result.to_dict()}
+
+    @classmethod
+    def _check_parameters(cls, p: dict) -> None:
+        """Sizes, finiteness and ranges of a document's parameters, before any array is
+        built (:func:`sunlab.calibration.from_dict`)."""
+        for k in ("delta_f_mm", "alpha0", "beta0", "x_zp", "y_zp", "x_cf", "y_cf"):
+            _number(p.get(k), k)
+        for k in ("mask_distance_mm", "pixel_pitch_mm"):
+            _number(p.get(k), k, positive=True)
 
     @classmethod
     def _from_parameters(cls, p: dict):

@@ -42,11 +42,14 @@ True
 from __future__ import annotations
 
 import numpy as np
+from scipy.optimize import minimize
 
 from .. import geometry, parallel
 from ..errors import ConfigurationError
+from ..extras import require
+from ._checks import _bad, _count, _number, _numbers
 from .base import Calibration, TrainingData, sensor_attrs
-from .model import fit_optimised
+from .model import fit_optimised, optimised_fit_from_dict
 
 __all__ = ["NeuralNet", "STRATEGIES"]
 
@@ -187,6 +190,20 @@ class NeuralNet(Calibration):
         finally:
             self.sensor = fitted
 
+    def fit(self, train, validation=None) -> NeuralNet:
+        """Fit the networks on a training table (early stopping on ``validation``); return
+        ``self``. Needs torch (the ``neural`` extra), checked before anything else.
+
+        Parameters
+        ----------
+        train : xarray.Dataset
+            ``centroids/1`` table with the commanded angles (experiment I).
+        validation : xarray.Dataset, optional
+            Table for early stopping (experiment II).
+        """
+        require("torch", purpose="the neural-network calibration (NeuralNet)")
+        return super().fit(train, validation)
+
     def _fit(self, data: TrainingData, validation: TrainingData | None) -> None:
         self.sensor = sensor_attrs(data.attrs) if self.strategy != 1 else None
         if self.reference == "zero_pose" and self.strategy in (2, 4):
@@ -216,8 +233,7 @@ class NeuralNet(Calibration):
             self.history[angle] = hist
 
     def _train_one(self, Z, t, Zv, tv, seed):
-        import torch
-        from scipy.optimize import minimize
+        torch = require("torch", purpose="the neural-network calibration (NeuralNet)")
 
         n_in, h = Z.shape[1], self.hidden
         sizes = [h * n_in, h, h, 1]
@@ -315,9 +331,37 @@ class NeuralNet(Calibration):
         }
 
     @classmethod
-    def _from_parameters(cls, p: dict):
-        from .model import optimised_fit_from_dict
+    def _check_parameters(cls, p: dict) -> None:
+        """Sizes, finiteness and ranges of a document's parameters, before any array is
+        built (:func:`sunlab.calibration.from_dict`)."""
+        h = _count(p.get("hidden"), "hidden", 1)
+        scaling = p.get("input_scaling")
+        if not isinstance(scaling, dict):
+            raise _bad("input_scaling", type(scaling).__name__, "an object {'mean', 'std'}")
+        n_in = len(scaling.get("mean") or [])
+        _numbers(scaling.get("mean"), "input_scaling.mean")
+        _numbers(scaling.get("std"), "input_scaling.std", n_in, positive=True)
+        nets = p.get("networks")
+        if not isinstance(nets, dict):
+            raise _bad("networks", type(nets).__name__, "an object {'alpha': ..., 'beta': ...}")
+        for angle in ("alpha", "beta"):
+            net = nets.get(angle)
+            if not isinstance(net, dict):
+                raise _bad(f"networks.{angle}", type(net).__name__, "an object of weights")
+            w1 = net.get("W1")
+            if not isinstance(w1, list) or len(w1) != h:
+                raise _bad(f"networks.{angle}.W1", f"{len(w1) if isinstance(w1, list) else w1}"
+                           " rows", f"{h} rows (hidden = {h})")
+            for i, row in enumerate(w1):
+                _numbers(row, f"networks.{angle}.W1[{i}]", n_in or None)
+            _numbers(net.get("b1"), f"networks.{angle}.b1", h)
+            _numbers(net.get("W2"), f"networks.{angle}.W2", h)
+            for k in ("b2", "target_mean"):
+                _number(net.get(k), f"networks.{angle}.{k}")
+            _number(net.get("target_std"), f"networks.{angle}.target_std", positive=True)
 
+    @classmethod
+    def _from_parameters(cls, p: dict):
         obj = cls(strategy=int(p["strategy"]), hidden=int(p["hidden"]), seed=int(p["seed"]),
                   max_iter=int(p["max_iter"]), patience=int(p["patience"]),
                   weight_decay=float(p["weight_decay"]),

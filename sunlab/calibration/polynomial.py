@@ -27,6 +27,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import ConfigurationError
+from ._checks import _bad, _coefficients_ok, _count, _scaling_ok
 from .base import Calibration, TrainingData
 
 __all__ = ["Polynomial", "monomial_exponents", "design_matrix"]
@@ -180,6 +181,19 @@ class Polynomial(Calibration):
             "scaling": self.scaling,
             "coefficients": {a: np.asarray(c).tolist() for a, c in self.coefficients.items()},
         }
+
+    @classmethod
+    def _check_parameters(cls, p: dict) -> None:
+        """Sizes, finiteness and ranges of a document's parameters, before any array is
+        built (:func:`sunlab.calibration.from_dict`)."""
+        order = p.get("order")
+        orders = [order] if not isinstance(order, list) else order
+        if len(orders) not in (1, 2):
+            raise _bad("order", order, "an integer or [order_alpha, order_beta]")
+        orders = [_count(n, "order") for n in orders] * (3 - len(orders))
+        _scaling_ok(p)
+        _coefficients_ok(p, {a: (n + 1) * (n + 2) // 2
+                             for a, n in zip(("alpha", "beta"), orders[:2], strict=True)})
 
     @classmethod
     def _from_parameters(cls, p: dict):

@@ -105,7 +105,7 @@ def calibration_summary(doc: dict) -> str:
     v = t.get("validation") or {}
     lines.append("  validation errors (deg): " + (
         f"{_errors_line(val)} (experiment {v.get('experiment') or '?'!r}, "
-        f"{v.get('n_poses', '?')} poses)" if val else "none (fitted without --validation)"))
+        f"{v.get('n_poses', '?')} poses)" if val else "none (fitted without a validation table)"))
     prov = [f"sunlab {doc.get('sunlab_version', '?')}"]
     if doc.get("created"):
         prov.append(f"created {doc['created']}")

@@ -26,6 +26,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import ConfigurationError
+from ._checks import _coefficients_ok, _count, _number, _scaling_ok
 from .base import Calibration, TrainingData
 from .polynomial import _scale, _scaling
 
@@ -118,6 +119,15 @@ class Trigonometric(Calibration):
             "scaling": self.scaling,
             "coefficients": {a: np.asarray(c).tolist() for a, c in self.coefficients.items()},
         }
+
+    @classmethod
+    def _check_parameters(cls, p: dict) -> None:
+        """Sizes, finiteness and ranges of a document's parameters, before any array is
+        built (:func:`sunlab.calibration.from_dict`)."""
+        n = _count(p.get("order"), "order")
+        _number(p.get("period"), "period", positive=True)
+        _scaling_ok(p)
+        _coefficients_ok(p, {"alpha": (2 * n + 1) ** 2, "beta": (2 * n + 1) ** 2})
 
     @classmethod
     def _from_parameters(cls, p: dict):

@@ -13,7 +13,6 @@ import numpy as np
 from numba import njit
 
 from ._k_flags import _FM, _U
-from ._k_prefetch import prefetch_box
 
 __all__: list[str] = []
 
@@ -415,20 +414,11 @@ def measure_spots(frame, xs, ys, r0s, margin, annulus, lo, hi, n_iter, sat):
     sa = np.empty((nt, 2), np.int64)
     tb = np.empty((nt, 4))
     sb = np.empty((nt, 2), np.int64)
-    if n > 0:
-        prefetch_box(frame, xs[0], ys[0], r0s[0] + 1.0 + annulus)
     for k in range(n):
         xc = xs[k]
         yc = ys[k]
         r_ap = r0s[k]
-        # the next spot's pixels, a third before each of this spot's passes
-        nxt = min(k + 1, n - 1)
-        rn = r0s[nxt] + 1.0 + annulus
-        if k + 1 < n:
-            prefetch_box(frame, xs[nxt], ys[nxt], rn, 0, 3)
         bkg, bsd, nb = annulus_mean(frame, xc, yc, r_ap + 1.0, r_ap + 1.0 + annulus, lo, hi)
-        if k + 1 < n:
-            prefetch_box(frame, xs[nxt], ys[nxt], rn, 1, 3)
         if nb == 0:
             continue
         # One pass over the pixels of the first aperture; the re-centred apertures are its
@@ -445,8 +435,6 @@ def measure_spots(frame, xs, ys, r0s, margin, annulus, lo, hi, n_iter, sat):
             r0, r1, cr = shift_rows(frame, ta, sa, r0, r1, cr, xc, yc, r_ap, 4, tb, sb)
             ta, tb = tb, ta
             sa, sb = sb, sa
-        if k + 1 < n:
-            prefetch_box(frame, xs[nxt], ys[nxt], rn, 2, 3)
         if not good:
             continue
         m = rows_moments(frame, ta, sa, r0, r1, cr, xc, yc, bkg, sat)

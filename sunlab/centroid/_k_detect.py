@@ -11,8 +11,6 @@ import math
 import numpy as np
 from numba import njit
 
-from ._k_prefetch import _prefetch_row
-
 __all__: list[str] = []
 
 
@@ -58,8 +56,6 @@ def sample_stats(frame, stride):
     integral = True
     for i in range(gy):
         row = frame[off + i * stride]
-        if i + 1 < gy:
-            _prefetch_row(frame[off + (i + 1) * stride], off, stride * gx)
         for j in range(gx):
             v = float(row[off + j * stride])
             buf[k] = v
@@ -105,8 +101,6 @@ def coarse_blobs(frame, stride, thr, bkg):
     nab = 0
     for i in range(gy):
         row = frame[off + i * stride]
-        if i + 1 < gy:  # the next sampled row's lines, while this one is compared
-            _prefetch_row(frame[off + (i + 1) * stride], off, stride * gx)
         base = (i + 1) * gw + 1
         for j in range(gx):
             a = row[off + j * stride] > thr

@@ -2,8 +2,12 @@
 
 * :mod:`sunlab.cli.commands`: the parser and the subcommands that run the library
   (``reproduce``, ``simulate``, ``centroid``, ``calibrate``, ``acquire``, ``info``);
-* :mod:`sunlab.cli.lab`: the lab's own bench (``import``, ``evaluate``, ``export``) and the
-  readers they share (centroid tables given as CSV, image folders).
+* :mod:`sunlab.cli.lab`: the lab's own bench (``import``, ``evaluate``, ``export``) and what
+  they share (a CSV table's ``sensor.json``, image folders).
+
+Every verb wraps one library function (``calibrate``: :func:`sunlab.calibration.fit`,
+``evaluate``: :func:`sunlab.stats.evaluate`, tables: :func:`sunlab.io.open_centroids`); the
+methods offered are read from the registry :data:`sunlab.calibration.KINDS`.
 
 ``python -m sunlab.cli`` runs the same command line.
 

@@ -20,6 +20,7 @@ from __future__ import annotations
 import argparse
 import sys
 
+from ..calibration.registry import ALIASES, KINDS
 from ..errors import SunlabError
 from . import lab as _lab
 
@@ -290,13 +291,13 @@ def _add_calibrate(sub) -> None:
     p.add_argument("train", help="training centroid table (experiment I; .nc, .zarr, or .csv "
                                  "with columns alpha, beta, x, y[, shot])")
     p.add_argument("--method", default="polynomial",
-                   choices=["polynomial", "trigonometric", "linear", "cubic", "neural", "ideal",
-                            "optimised"],
+                   choices=[*KINDS, *ALIASES],
                    help="calibration function (docs/paper.md sec. 4); default polynomial")
     # None defaults: an option given to a method it does not apply to is refused
     p.add_argument("--order", default=None,
                    help="polynomial / trigonometric order, or 'auto' to pick the polynomial "
-                        "order on --validation (default 5)")
+                        "order on --validation (default: the method's, polynomial 5, "
+                        "trigonometric 4)")
     p.add_argument("--strategy", type=int, default=None, choices=[1, 2, 3, 4],
                    help="neural-network strategy of Table 2 (default 4)")
     p.add_argument("--hidden", type=_POSITIVE, default=None,
@@ -314,60 +315,67 @@ def _add_calibrate(sub) -> None:
     p.set_defaults(func=_run_calibrate)
 
 
+#: ``sunlab calibrate`` flags that set a keyword of the method's class (``--max-iter``:
+#: ``max_iter``); each applies to the methods whose class takes that keyword.
+_METHOD_FLAGS = ("order", "strategy", "hidden", "seed", "max_iter", "extrapolate")
+
+
+def _method_options(args) -> dict:
+    """The keywords of ``--method``'s class given on the command line; a flag its class does
+    not take is refused, naming the methods it applies to (read from the registry)."""
+    import inspect
+
+    from ..calibration import KINDS, method_class
+    from ..errors import ConfigurationError
+
+    def takes(method, name):
+        return name in inspect.signature(method_class(method).__init__).parameters
+
+    options = {}
+    for name in _METHOD_FLAGS:
+        value = getattr(args, name)
+        if value in (None, False):
+            continue
+        if not takes(args.method, name):
+            flag = "--" + name.replace("_", "-")
+            methods = [k for k in KINDS if takes(k, name)]
+            raise ConfigurationError(
+                f"{flag}: does not apply to --method {args.method} (only to "
+                f"{', '.join(methods)}). Fix: leave {flag} out, or choose one of those methods")
+        options[name] = "nearest" if name == "extrapolate" else value
+    if options.get("order") not in (None, "auto"):
+        try:
+            options["order"] = int(options["order"])
+        except ValueError:
+            raise ConfigurationError(
+                f"--order: found {args.order!r}, expected an integer or 'auto'") from None
+    return options
+
+
 def _run_calibrate(args) -> int:
     import time
 
     from .. import calibration
     from ..errors import ConfigurationError
-    from .lab import CALIBRATE_OPTIONS, open_centroid_table
+    from .lab import open_centroid_table
 
-    for name, methods in CALIBRATE_OPTIONS.items():
-        if getattr(args, name) not in (None, False) and args.method not in methods:
-            flag = "--" + name.replace("_", "-")
-            raise ConfigurationError(
-                f"{flag}: does not apply to --method {args.method} (only to "
-                f"{', '.join(methods)}). Fix: leave {flag} out, or choose one of those methods")
-    args.order = "5" if args.order is None else args.order
-    args.strategy = 4 if args.strategy is None else args.strategy
-    args.hidden = 8 if args.hidden is None else args.hidden
-    args.seed = 0 if args.seed is None else args.seed
-    args.max_iter = 3000 if args.max_iter is None else args.max_iter
+    options = _method_options(args)
     _check_out(args.out, args.overwrite)
     train = open_centroid_table(args.train, "train")
     val = None if args.validation is None else open_centroid_table(args.validation,
                                                                    "validation")
-    order = None
-    if args.order != "auto":
-        try:
-            order = int(args.order)
-        except ValueError:
-            raise ConfigurationError(
-                f"--order: found {args.order!r}, expected an integer or 'auto'") from None
     t0 = time.perf_counter()
-    if args.method == "polynomial" and order is None:
+    if options.get("order") == "auto":
+        if args.method != "polynomial":
+            raise ConfigurationError(
+                f"--order: 'auto' applies to --method polynomial, not {args.method!r}")
         if val is None:
             raise ConfigurationError(
                 "--order: found 'auto' without --validation. Fix: pass --validation VAL.nc")
         cal, scores = calibration.Polynomial.select_order(train, val)
         print(scores.to_string(float_format=lambda v: f"{v:.5f}"))
     else:
-        if order is None:
-            raise ConfigurationError(
-                f"--order: 'auto' applies to --method polynomial, not {args.method!r}")
-        cal = {
-            "polynomial": lambda: calibration.Polynomial(order=order),
-            "trigonometric": lambda: calibration.Trigonometric(order=order),
-            "linear": lambda: calibration.Interpolation(
-                "linear", extrapolate="nearest" if args.extrapolate else None),
-            "cubic": lambda: calibration.Interpolation(
-                "cubic", extrapolate="nearest" if args.extrapolate else None),
-            "neural": lambda: calibration.NeuralNet(strategy=args.strategy,
-                                                    hidden=args.hidden, seed=args.seed,
-                                                    max_iter=args.max_iter),
-            "ideal": lambda: calibration.IdealModel(),
-            "optimised": lambda: calibration.OptimisedModel(),
-        }[args.method]()
-        cal.fit(train, val)
+        cal = calibration.fit(train, args.method, val, **options)
     elapsed = time.perf_counter() - t0
     cal.save(args.out, overwrite=args.overwrite)
     res = cal.residuals
@@ -606,25 +614,6 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def run() -> None:
-    """The ``sunlab`` console script and ``python -m sunlab.cli``: :func:`main`, then exit.
-
-    A finished command has written and closed its files; what is left when it returns is the
-    interpreter's teardown of every module and object (torch's, Dask's and the tables' own),
-    about 1.3 s after ``sunlab reproduce``. So the exit handlers run and the standard streams
-    are flushed, and the process then ends with the command's status at once
-    (:func:`os._exit`) instead of tearing down. Library code calls :func:`main`, which returns.
-    """
-    import atexit
-    import os
-
-    status = main()
-    run_exit_handlers = getattr(atexit, "_run_exitfuncs", None)
-    if run_exit_handlers is None:  # not CPython: the ordinary exit
-        sys.exit(status)
-    run_exit_handlers()
-    for stream in (sys.stdout, sys.stderr):
-        try:
-            stream.flush()
-        except (OSError, ValueError):  # a closed pipe: nothing more can be written to it
-            pass
-    os._exit(status)
+    """The ``sunlab`` console script and ``python -m sunlab.cli``: :func:`main`, then exit with
+    its status. Library code calls :func:`main`, which returns the status instead."""
+    sys.exit(main())

@@ -9,7 +9,8 @@ From a folder of images to an on-board C table::
     sunlab export cal.json --format c --out onboard/
 
 This module holds the parsers and runners of the new subcommands (registered in
-:mod:`sunlab.cli.commands`), the reader of centroid tables given as CSV, the options shared by
+:mod:`sunlab.cli.commands`), the opening of centroid tables (:func:`sunlab.io.open_centroids`
+with a CSV table's ``sensor.json``), the options shared by
 ``import`` and ``centroid`` for image folders, and :func:`read_calibration_json`, the reader
 of ``sunlab info CAL.json`` (its text: :func:`sunlab.calibration.calibration_summary`). It
 imports only the standard library at module level, so that ``sunlab --help`` and ``sunlab info
@@ -17,8 +18,9 @@ CAL.json`` start fast.
 
 Examples
 --------
->>> sorted(CALIBRATE_OPTIONS["order"])
-['polynomial', 'trigonometric']
+>>> import tempfile
+>>> is_image_folder(tempfile.mkdtemp())
+False
 """
 
 from __future__ import annotations
@@ -29,26 +31,12 @@ from pathlib import Path
 from ..errors import SchemaError
 
 __all__ = [
-    "CALIBRATE_OPTIONS",
     "add_folder_options",
     "read_calibration_json",
-    "centroids_from_csv",
     "is_image_folder",
     "open_centroid_table",
     "cube_from_folder",
 ]
-
-#: Options of ``sunlab calibrate`` that apply only to some methods: option -> methods.
-CALIBRATE_OPTIONS = {
-    "order": ("polynomial", "trigonometric"),
-    "validation": ("polynomial", "trigonometric", "neural", "linear", "cubic", "ideal",
-                   "optimised"),
-    "strategy": ("neural",),
-    "hidden": ("neural",),
-    "seed": ("neural",),
-    "max_iter": ("neural",),
-    "extrapolate": ("linear", "cubic"),
-}
 
 _STATS = ("mu", "sigma", "M", "sigma_M")
 _PAPER_COLUMN = {"polynomial": "polynomial", "interpolation-linear": "linear interp.",
@@ -88,170 +76,24 @@ def read_calibration_json(path) -> dict | None:
 # --------------------------------------------------------------------------------------------
 # Centroid tables as CSV
 # --------------------------------------------------------------------------------------------
-def centroids_from_csv(path, *, attrs: dict | None = None):
-    """Read a centroid table written by another tool: CSV with columns alpha, beta, x, y.
-
-    One row per shot: ``alpha``, ``beta`` (commanded angles, deg), ``x``, ``y`` (centroid, px,
-    x = column, y = row, centre of the first pixel = 0; empty or NaN where no spot). Optional
-    columns: ``shot`` (label within the pose; default the order of the rows of a pose) and
-    ``status`` (a code or name of :data:`sunlab.schema.STATUS`; default ``ok`` where x and y are
-    finite). Poses are the distinct (alpha, beta) pairs in file order; poses with fewer shots
-    are padded with NaN (status ``no_spot``). Lines starting with ``#`` are comments.
-
-    Parameters
-    ----------
-    path : str or path-like
-        The CSV file.
-    attrs : dict, optional
-        Attributes of the table (sensor: ``mask_distance_mm``, ``pixel_pitch_mm``, ...).
-
-    Returns
-    -------
-    xarray.Dataset
-        A ``centroids/1`` table on (pose, shot).
-
-    Examples
-    --------
-    >>> import tempfile, pathlib
-    >>> path = pathlib.Path(tempfile.mkdtemp()) / "c.csv"
-    >>> _ = path.write_text("alpha,beta,x,y\\n0,0,10.5,20.25\\n0,0,10.7,20.0\\n1,0,30.0,20.0\\n")
-    >>> cen = centroids_from_csv(path)
-    >>> dict(cen.sizes), cen.status.values.tolist()
-    ({'pose': 2, 'shot': 2}, [[0, 0], [0, 1]])
-    """
-    import numpy as np
-
-    from ..schema import STATUS, centroids_dataset
-
-    path = Path(path)
-    table = _read_csv_table(path)
-    num = _numeric_columns(table, path.name)
-    pairs = list(zip(num["alpha"].tolist(), num["beta"].tolist(), strict=True))
-    pose_of: dict = {}
-    for pair in pairs:
-        pose_of.setdefault(pair, len(pose_of))
-    pose = np.array([pose_of[p] for p in pairs])
-    shot = _shot_numbers(table, pose, path.name)
-    n_pose, n_shot = len(pose_of), int(shot.max()) + 1
-    x = np.full((n_pose, n_shot), np.nan)
-    y = np.full((n_pose, n_shot), np.nan)
-    status = np.full((n_pose, n_shot), STATUS["no_spot"], dtype=np.int8)
-    x[pose, shot], y[pose, shot] = num["x"], num["y"]
-    status[pose, shot] = _status_codes(table, num, path.name)
-    return centroids_dataset(
-        x, y, status=status, alpha=[a for a, _ in pose_of], beta=[b for _, b in pose_of],
-        method=str((attrs or {}).get("method", "")),
-        attrs={"source": str(path.resolve()), "experiment": path.stem, **dict(attrs or {})},
-    )
-
-
-def _read_csv_table(path: Path):
-    """The CSV as a DataFrame, with the columns alpha, beta, x, y and at least one row."""
-    import pandas as pd
-
-    try:
-        table = pd.read_csv(path, comment="#", skipinitialspace=True)
-    except FileNotFoundError as err:
-        raise SchemaError("path", str(path), "an existing CSV file", "check the path") from err
-    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as err:
-        raise SchemaError(str(path), f"unreadable CSV ({err})",
-                          "a header line alpha,beta,x,y and one row per shot",
-                          "fix the CSV syntax") from err
-    table.columns = [str(c).strip() for c in table.columns]
-    missing = [c for c in ("alpha", "beta", "x", "y") if c not in table.columns]
-    if missing:
-        raise SchemaError(
-            f"{path.name} columns {missing}", f"missing (columns: {list(table.columns)})",
-            "columns alpha, beta (deg), x, y (px); shot and status optional",
-            "rename the columns (x = centroid column, y = centroid row, in pixels)",
-        )
-    if len(table) == 0:
-        raise SchemaError(path.name, "no rows", "one row per shot", "add the rows")
-    return table
-
-
-def _numeric_columns(table, name: str) -> dict:
-    """alpha, beta, x, y as float arrays; a value that is not a number names its line (x, y
-    may be empty: no spot)."""
-    import numpy as np
-    import pandas as pd
-
-    num = {}
-    for col in ("alpha", "beta", "x", "y"):
-        v = pd.to_numeric(table[col], errors="coerce").to_numpy(dtype=float)
-        bad = np.flatnonzero(np.isnan(v) & table[col].notna().to_numpy()
-                             if col in ("x", "y") else ~np.isfinite(v))
-        if bad.size:
-            raise SchemaError(
-                f"{name} line {int(bad[0]) + 2} column {col!r}", table[col].iloc[bad[0]],
-                "a number" + (" of degrees" if col in ("alpha", "beta") else " of pixels"),
-                f"correct the value ({bad.size} bad row(s))",
-            )
-        num[col] = v
-    return num
-
-
-def _shot_numbers(table, pose, name: str):
-    """Each row's shot within its pose: the rank of its ``shot`` label, or its order."""
-    import numpy as np
-    import pandas as pd
-
-    if "shot" not in table.columns:
-        return pd.Series(pose).groupby(pose).cumcount().to_numpy()
-    labels = pd.to_numeric(table["shot"], errors="coerce").to_numpy(dtype=float)
-    if not np.all(np.isfinite(labels)):
-        i = int(np.flatnonzero(~np.isfinite(labels))[0])
-        raise SchemaError(f"{name} line {i + 2} column 'shot'", table["shot"].iloc[i],
-                          "an integer shot label", "number the shots 0, 1, 2, ...")
-    order = pd.DataFrame({"p": pose, "s": labels}).groupby("p")["s"].rank(method="first")
-    dup = pd.DataFrame({"p": pose, "s": labels}).duplicated()
-    if dup.any():
-        i = int(np.flatnonzero(dup.to_numpy())[0])
-        raise SchemaError(f"{name} line {i + 2}", "the same pose and shot again",
-                          "one row per (alpha, beta, shot)", "remove the duplicate row")
-    return order.to_numpy(dtype=int) - 1
-
-
-def _status_codes(table, num: dict, name: str):
-    """Each row's status code: the ``status`` column (name or code), or ``ok`` where x and y
-    are finite and ``no_spot`` elsewhere."""
-    import numpy as np
-
-    from ..schema import STATUS
-
-    if "status" not in table.columns:
-        return np.where(np.isfinite(num["x"]) & np.isfinite(num["y"]),
-                        STATUS["ok"], STATUS["no_spot"])
-    codes = []
-    for i, v in enumerate(table["status"].tolist()):
-        code = STATUS.get(str(v).strip()) if not isinstance(v, int | float) else int(v)
-        if code not in STATUS.values():
-            raise SchemaError(f"{name} line {i + 2} column 'status'", v,
-                              f"a status name or code of {STATUS}", "correct the value")
-        codes.append(code)
-    return codes
-
-
 def open_centroid_table(path, name: str = "table"):
-    """A centroid table from NetCDF, Zarr or CSV (columns alpha, beta, x, y).
-
-    A CSV table takes its sensor attributes (pixel pitch, mask distance, x_cf, y_cf) from a
-    ``sensor.json`` in its folder, if there is one.
-    """
+    """A centroid table from NetCDF, Zarr or CSV (columns alpha, beta, x, y):
+    :func:`sunlab.io.open_centroids`, with a CSV table's sensor attributes (pixel pitch, mask
+    distance, x_cf, y_cf) taken from a ``sensor.json`` in its folder, if there is one. An error
+    about the file as a whole names the argument (``name``: train, validation, test)."""
     from .. import io
 
-    if Path(path).suffix.lower() in (".csv", ".txt"):
+    attrs = None
+    if Path(path).suffix.lower() in io.CSV_SUFFIXES:
         sensor = _sensor_json(Path(path).resolve().parent, None)
         keys = ("pixel_pitch_mm", "mask_distance_mm", "x_cf_px", "y_cf_px")
-        return centroids_from_csv(path, attrs={k: sensor[k] for k in keys if k in sensor})
-    ds = io.open_dataset(path)
-    if ds.attrs.get("sunlab_schema") != "centroids/1":
-        raise SchemaError(
-            f"{name} {path}", f"a {ds.attrs.get('sunlab_schema')!r} dataset",
-            "a centroid table (centroids/1, or a CSV with columns alpha, beta, x, y)",
-            f"centroid the frames first: sunlab centroid {path} --out table.nc",
-        )
-    return ds
+        attrs = {k: sensor[k] for k in keys if k in sensor}
+    try:
+        return io.open_centroids(path, attrs=attrs)
+    except SchemaError as err:
+        if err.field != str(path):
+            raise
+        raise SchemaError(f"{name} {path}", err.found, err.expected, err.fix) from err
 
 
 # --------------------------------------------------------------------------------------------
@@ -387,16 +229,6 @@ def _figure_bytes(fig) -> bytes:
     return buf.getvalue()
 
 
-def evaluate(cal, test) -> dict:
-    """Statistics of a calibration on a test table: estimate, local errors, Table-4 column."""
-    from .. import stats
-
-    est = cal.predict(test)
-    local = stats.local_errors(est)
-    table = stats.global_stats({cal.label: local})
-    return {"estimate": est, "local": local, "table": table}
-
-
 def _run_evaluate(args) -> int:
     import numpy as np
     import pandas as pd
@@ -411,8 +243,7 @@ def _run_evaluate(args) -> int:
             atomic.check_target(out / n, overwrite=args.overwrite, flag="--overwrite")
     cal = calibration.load(args.calibration)
     test = open_centroid_table(args.test, "test")
-    res = evaluate(cal, test)
-    est, local, table = res["estimate"], res["local"], res["table"]
+    table, est, local = stats.evaluate(cal, test, return_errors=True)
     col = table[cal.label]
     n_out = int(est.attrs["n_out_of_domain"])
     from ..schema import STATUS, USABLE_STATUS

@@ -45,6 +45,7 @@ import math
 import re
 from typing import Protocol, runtime_checkable
 
+from ..extras import require
 from .errors import StageDisconnected
 
 __all__ = [
@@ -199,8 +200,7 @@ def open_transport(url: str, *, baudrate: int = 19200, timeout: float = 1.0, rts
     b'1TP?\\r'
     >>> port.close()
     """
-    import serial
-
+    serial = require("serial", purpose="a serial stage (ESP300/301)")
     try:
         return serial.serial_for_url(
             url, baudrate=baudrate, timeout=timeout, write_timeout=timeout, rtscts=rtscts

@@ -57,6 +57,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ConfigurationError
+from ..extras import installed_version
 from ..options import show_progress
 from .errors import BenchError, CameraError
 
@@ -102,7 +103,6 @@ def _now() -> str:
 
 
 def _versions() -> dict:
-    import serial
     import xarray
     import zarr
 
@@ -114,7 +114,7 @@ def _versions() -> dict:
         "numpy": np.__version__,
         "xarray": xarray.__version__,
         "zarr": zarr.__version__,
-        "pyserial": serial.VERSION,
+        "pyserial": installed_version("pyserial"),
     }
 
 

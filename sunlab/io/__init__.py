@@ -4,6 +4,7 @@ One module per concept, every public name re-exported here:
 
 * :mod:`sunlab.io.write` -- :func:`save_frames`, :func:`save_centroids` (Zarr or NetCDF4);
 * :mod:`sunlab.io.read` -- :func:`open_frames`, :func:`open_centroids`, :func:`open_dataset`;
+* :mod:`sunlab.io.csvtable` -- :func:`centroids_from_csv`, centroid tables of other tools;
 * :mod:`sunlab.io.chunks` -- a damaged, missing or out-of-range chunk names itself;
 * :mod:`sunlab.io.codec` -- exact round trips of attributes;
 * :mod:`sunlab.io.images` -- :func:`read_image`, one PNG or TIFF frame;
@@ -65,6 +66,7 @@ from .calframes import (
     read_stack,
     with_calibration_frames,
 )
+from .csvtable import CSV_SUFFIXES, centroids_from_csv
 from .describe import summary
 from .folder import example_folder, from_image_folder
 from .images import IMAGE_SUFFIXES, read_image
@@ -74,12 +76,14 @@ from .sensor import SENSOR_FIELDS, find_sensor_json, read_sensor_json
 from .write import NETCDF_SUFFIXES, save_centroids, save_frames
 
 __all__ = [
+    "CSV_SUFFIXES",
     "IMAGE_SUFFIXES",
     "NETCDF_SUFFIXES",
     "save_frames",
     "open_frames",
     "save_centroids",
     "open_centroids",
+    "centroids_from_csv",
     "open_dataset",
     "from_image_folder",
     "example_folder",

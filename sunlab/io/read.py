@@ -17,6 +17,7 @@ from ..errors import SchemaError, SunlabError
 from ..schema import CENTROIDS_SCHEMA, FRAMES_SCHEMA, validate_centroids, validate_frames
 from .chunks import _check_chunks, _checked_lazy
 from .codec import _CODEC_ATTR, _decode_attrs
+from .csvtable import CSV_SUFFIXES, centroids_from_csv
 
 __all__ = ["open_frames", "open_centroids", "open_dataset"]
 
@@ -153,15 +154,64 @@ def open_frames(path, *, format: str | None = None, check_chunks: bool = True) -
 
 
 def open_centroids(
-    path, *, format: str | None = None, lazy: bool = False, check_chunks: bool = True
+    path, *, format: str | None = None, lazy: bool = False, check_chunks: bool = True,
+    attrs: dict | None = None,
 ) -> xr.Dataset:
-    """Open and validate a centroid table; loaded into memory unless ``lazy``.
+    """Open and validate a centroid table: Zarr, NetCDF4 or CSV; loaded unless ``lazy``.
+
+    Parameters
+    ----------
+    path : str or path-like
+        A Zarr store or NetCDF4 file written by :func:`~sunlab.io.save_centroids`, or a CSV
+        file (suffix ``.csv`` or ``.txt``) with the columns ``alpha, beta, x, y[, shot]``
+        (commanded angles in deg, centroid in px; :func:`~sunlab.io.centroids_from_csv`).
+    format : {"zarr", "netcdf", "csv"}, optional
+        Default: from the path (a directory is Zarr, a ``.csv``/``.txt`` file CSV, any other
+        file NetCDF4, checked by its signature).
+    lazy : bool
+        Zarr and NetCDF: keep the variables Dask-backed instead of loading them.
+    check_chunks : bool
+        Zarr only: check that every chunk file exists.
+    attrs : dict, optional
+        CSV only: attributes of the table, e.g. the sensor's ``pixel_pitch_mm``,
+        ``mask_distance_mm``, ``x_cf_px``, ``y_cf_px`` (a geometric model needs them).
+
+    Returns
+    -------
+    xarray.Dataset
+        A ``centroids/1`` table on (pose, shot) or (pose, shot, hole).
+
+    Raises
+    ------
+    SunlabError
+        The path is missing, truncated or corrupt.
+    SchemaError
+        The file is not a centroid table (a frame cube: centroid it first), or a CSV value or
+        column is wrong (the message names the line and the column).
 
     Examples
     --------
-    See :func:`~sunlab.io.save_centroids`.
+    >>> import tempfile, pathlib
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "c.csv"
+    >>> _ = path.write_text("alpha,beta,x,y\\n0,0,10.5,20.25\\n1,0,30.0,20.0\\n")
+    >>> dict(open_centroids(path).sizes)
+    {'pose': 2, 'shot': 1}
     """
-    ds = _finish(_open_raw(path, format), validate_centroids, check_chunks)
+    if format == "csv" or (format is None and Path(path).suffix.lower() in CSV_SUFFIXES):
+        return centroids_from_csv(path, attrs=attrs)
+    if attrs is not None:
+        raise SunlabError(
+            f"{path}: attrs= applies to CSV tables only. Fix: leave attrs out (a Zarr or NetCDF "
+            "table carries its own attributes)")
+    ds = _open_raw(path, format)
+    found = ds.attrs.get("sunlab_schema")
+    if found == FRAMES_SCHEMA:
+        ds.close()
+        raise SchemaError(
+            f"{path}", "a frame cube (frames/1)", "a centroid table (centroids/1)",
+            f"centroid the frames first: sunlab.centroid.locate(cube) or `sunlab centroid {path} "
+            "--out table.nc`")
+    ds = _finish(ds, validate_centroids, check_chunks)
     if not lazy:
         loaded = ds.load()
         ds.close()

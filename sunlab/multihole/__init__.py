@@ -15,7 +15,8 @@ mean. One module per concept:
 ===============================  ==============================================================
 :mod:`~sunlab.multihole.holes`   grid indices, usable spots, cut-outs, centroiding a free layout
 :mod:`~.strategies`              the two strategies, as :class:`sunlab.calibration.Calibration`
-                                 subclasses with save/load; combining per-hole estimates
+                                 subclasses in their own registry (:data:`STRATEGY_KINDS`,
+                                 :func:`load_strategy`); combining per-hole estimates
 :mod:`~.defects`                 per-hole defect metrics, robust z-scores, bad-hole rejection
 :mod:`~.budget`                  the error budget and the gain of N holes over one
 :mod:`~.review`                  every hole's results, what the hole explorer shows
@@ -24,7 +25,7 @@ mean. One module per concept:
 Elsewhere: centroid-level synthetic tables are :func:`sunlab.sim.synthetic_centroids` (with
 ``layout="grid"``), a hole layout in mm is :class:`sunlab.sim.Mask`, the global statistics of an
 estimate are :func:`sunlab.stats.error_summary`, and the figures (Figs. 13-15, the metric map) are
-in :mod:`sunlab.plots` (also importable from here).
+in :mod:`sunlab.plots`.
 
 Conventions: pixel coordinates (x = column, y = row, centre of the first pixel = 0), angles in
 degrees; centroid tables follow contract ``centroids/1`` on dims ``(pose, shot, hole)`` with the
@@ -63,15 +64,15 @@ from .defects import (
 from .holes import centroid_free_layout, cutout, hole_grid, usable
 from .review import HoleReview, injected_defects, review_holes
 from .strategies import (
+    STRATEGY_KINDS,
     GeometricCentre,
     PerHoleAverage,
     angle_errors,
     combine_estimates,
     geometric_centre,
+    load_strategy,
+    strategy_from_dict,
 )
-
-#: The figures live in :mod:`sunlab.plots`; importable from here too (loaded on first use).
-_FIGURES = ("fig13_frame", "fig14_bad_holes", "fig15_rectangles", "plot_metric_map")
 
 __all__ = [
     "hole_grid",
@@ -81,6 +82,9 @@ __all__ = [
     "geometric_centre",
     "GeometricCentre",
     "PerHoleAverage",
+    "STRATEGY_KINDS",
+    "load_strategy",
+    "strategy_from_dict",
     "combine_estimates",
     "angle_errors",
     "stamp_metrics",
@@ -96,17 +100,4 @@ __all__ = [
     "HoleReview",
     "review_holes",
     "injected_defects",
-    *_FIGURES,
 ]
-
-
-def __getattr__(name: str):
-    if name in _FIGURES:
-        from .. import plots
-
-        return getattr(plots, name)
-    raise AttributeError(f"module 'sunlab.multihole' has no attribute {name!r}")
-
-
-def __dir__():
-    return sorted(set(globals()) | set(_FIGURES))

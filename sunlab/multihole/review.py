@@ -21,6 +21,7 @@ import numpy as np
 import xarray as xr
 
 from ..errors import ConfigurationError
+from ..schema import DEFECT_FLAGS
 from ..stats import error_summary
 from .defects import defect_metrics, reject_bad_holes, robust_z
 from .holes import hole_grid
@@ -150,8 +151,6 @@ def injected_defects(cen: xr.Dataset) -> dict[int, str]:
     """
     if "hole_defect" not in cen.coords:
         return {}
-    from ..sim.mask import DEFECT_FLAGS
-
     flags = np.asarray(cen["hole_defect"].values, dtype=int)
     return {int(h): "+".join(k for k, bit in DEFECT_FLAGS.items() if flags[h] & bit) or "defect"
             for h in np.flatnonzero(flags)}

@@ -5,16 +5,21 @@
 2. **Per-hole calibration, then averaging** (:class:`PerHoleAverage`): one calibration per hole,
    and the mean of the N angle estimates (:func:`combine_estimates`).
 
-Both are :class:`sunlab.calibration.Calibration` subclasses: ``fit`` on a training table on
-``(pose, shot, hole)``, ``predict`` an estimate on ``(pose, shot)``, ``save`` to JSON (contract
+Both honour the protocol of :class:`sunlab.calibration.Calibration`: ``fit(train,
+validation=None)`` on tables on ``(pose, shot, hole)``, ``predict`` an estimate on
+``(pose, shot)``, ``predict_xy(x, y)`` on centroid arrays whose last axis is the hole,
+``to_dict`` / :func:`strategy_from_dict` and ``save`` / :func:`load_strategy` (contract
 ``calibration/1``, kinds ``multihole-geometric-centre`` and ``multihole-per-hole-average``, the
-fitted per-hole or centre calibrations nested as their own documents) and
-:func:`sunlab.calibration.load` back. Both handle holes missing from some frames (off the
-detector, lost, flagged) without biasing the result: the geometric centre is solved from the
-holes present with each hole's fitted offset from the centre (so the centre does not jump when a
-hole drops out), and the average runs over the holes present after each hole's own calibration
-(each is an unbiased estimate). Averaging N independent errors divides the variance by N,
-eq. (5); errors common to all holes do not average out (:mod:`sunlab.multihole.budget`).
+fitted per-hole or centre calibrations nested as their own documents). They calibrate a whole
+mask, not one spot, so they are registered in their own table, :data:`STRATEGY_KINDS`, beside
+the single-hole methods of :data:`sunlab.calibration.KINDS`.
+
+Both handle holes missing from some frames (off the detector, lost, flagged) without biasing
+the result: the geometric centre is solved from the holes present with each hole's fitted
+offset from the centre (so the centre does not jump when a hole drops out), and the average
+runs over the holes present after each hole's own calibration (each is an unbiased estimate).
+Averaging N independent errors divides the variance by N, eq. (5); errors common to all holes
+do not average out (:mod:`sunlab.multihole.budget`).
 
 References
 ----------
@@ -32,17 +37,66 @@ import numpy as np
 import xarray as xr
 
 from .. import schema
-from ..calibration import Calibration
+from ..calibration import Calibration, Polynomial, from_dict, load
 from ..errors import ConfigurationError, SchemaError
 from .holes import usable
 
 __all__ = [
+    "STRATEGY_KINDS",
+    "load_strategy",
+    "strategy_from_dict",
     "geometric_centre",
     "GeometricCentre",
     "PerHoleAverage",
     "combine_estimates",
     "angle_errors",
 ]
+
+
+#: The multi-hole strategies, registered once: ``kind`` of the artifact -> ``"module:Class"``
+#: (the registry of :func:`load_strategy`, as :data:`sunlab.calibration.KINDS` is of
+#: :func:`sunlab.calibration.load`).
+STRATEGY_KINDS: dict[str, str] = {
+    "multihole-geometric-centre": "sunlab.multihole.strategies:GeometricCentre",
+    "multihole-per-hole-average": "sunlab.multihole.strategies:PerHoleAverage",
+}
+
+
+def load_strategy(path) -> Calibration:
+    """Load a multi-hole strategy saved with ``save`` (:func:`sunlab.calibration.load` with
+    the registry :data:`STRATEGY_KINDS`).
+
+    Parameters
+    ----------
+    path : str or path-like
+        The JSON file (contract ``calibration/1``).
+
+    Returns
+    -------
+    GeometricCentre or PerHoleAverage
+
+    Raises
+    ------
+    SchemaError
+        The file is missing, corrupt, or not a multi-hole strategy (the message names the
+        field and the fix).
+    """
+    return load(path, kinds=STRATEGY_KINDS)
+
+
+def strategy_from_dict(doc: dict) -> Calibration:
+    """Rebuild a multi-hole strategy from its ``calibration/1`` document (``to_dict``).
+
+    Parameters
+    ----------
+    doc : dict
+        The document.
+
+    Returns
+    -------
+    GeometricCentre or PerHoleAverage
+    """
+    return from_dict(doc, kinds=STRATEGY_KINDS)
 
 
 def geometric_centre(cen: xr.Dataset, accept: Sequence[str] = ("ok",)) -> xr.Dataset:
@@ -93,8 +147,6 @@ def _centre_table(cen, x, y, flux, n, method):
 
 def _default_model(order: int):
     def factory():
-        from ..calibration import Polynomial
-
         return Polynomial(order)
 
     return factory
@@ -180,11 +232,24 @@ def _record_fit(strategy, cen: xr.Dataset, ok: xr.DataArray, residuals: dict) ->
                           "validation": None}
 
 
-def _whole_frames_only(strategy):
-    raise ConfigurationError(
-        f"{type(strategy).__name__}.predict_xy: a multi-hole strategy estimates the sun direction "
-        "from all holes of a frame, not from one centroid. Fix: call predict(centroids) with a "
-        "table on (pose, shot, hole)")
+def _validation_residuals(strategy, validation: xr.Dataset | None) -> None:
+    """The validation residuals of a fitted strategy: its estimate of every frame of the
+    validation table against the commanded angles (deg)."""
+    if validation is not None:
+        est = strategy.predict(validation)
+        strategy.residuals["validation"] = {
+            a: _error_stats(est[a].values, est[f"{a}_cmd"].values) for a in ("alpha", "beta")}
+
+
+def _frames(x, y):
+    """Centroid arrays (..., hole) as (frames, hole, 2), their usable mask and leading shape."""
+    x, y = np.broadcast_arrays(np.asarray(x, dtype=float), np.asarray(y, dtype=float))
+    if x.ndim < 1:
+        raise ConfigurationError(
+            "x, y: found scalars; a multi-hole strategy needs every hole's centroid of a frame "
+            "(arrays whose last axis is the hole)")
+    X = np.stack([x, y], -1).reshape(-1, x.shape[-1], 2)
+    return X, np.isfinite(X).all(-1), x.shape[:-1]
 
 
 def _settings(strategy, names) -> dict:
@@ -261,14 +326,14 @@ class GeometricCentre(Calibration):
     Saved and loaded like every calibration (JSON, contract ``calibration/1``):
 
     >>> import os, tempfile
-    >>> from sunlab import calibration
     >>> s1 = GeometricCentre(order=1).fit(cen)
-    >>> back = calibration.load(s1.save(os.path.join(tempfile.mkdtemp(), "gc.json")))
+    >>> back = load_strategy(s1.save(os.path.join(tempfile.mkdtemp(), "gc.json")))
     >>> bool(np.array_equal(back.predict(cen).alpha, s1.predict(cen).alpha, equal_nan=True))
     True
     """
 
     kind: ClassVar[str] = "multihole-geometric-centre"
+    kinds: ClassVar[dict[str, str]] = STRATEGY_KINDS
     order: int = 5
     model: Callable | None = None
     holes: np.ndarray | None = None
@@ -361,21 +426,49 @@ class GeometricCentre(Calibration):
         flux = cen["flux"].where(self._ok(cen)).sum("hole").values
         return _centre_table(cen, c[..., 0], c[..., 1], flux, n, "geometric_centre")
 
-    def fit(self, cen: xr.Dataset) -> GeometricCentre:
-        """Fit the centre maps and the calibration of the centre on a training table."""
+    def fit(self, cen: xr.Dataset, validation: xr.Dataset | None = None) -> GeometricCentre:
+        """Fit the centre maps and the calibration of the centre on a training table.
+
+        Parameters
+        ----------
+        cen : xarray.Dataset
+            Training table on (pose, shot, hole) with the commanded angles (experiment I).
+        validation : xarray.Dataset, optional
+            A validation table (experiment II): the artifact's validation residuals.
+        """
         if self.fill:
             self.fit_centre(cen)
         factory = self.model or _default_model(self.order)
         self.calibration_ = _fit_model(factory, self.centre(cen))
         _record_fit(self, cen, self._ok(cen), self.calibration_.residuals)
+        _validation_residuals(self, validation)
         return self
 
     def __post_init__(self):
         Calibration.__init__(self)
 
     def predict_xy(self, x, y):
-        """Not defined for a multi-hole strategy: it estimates from all holes of a frame."""
-        _whole_frames_only(self)
+        """Angles (alpha, beta), deg, of frames given as centroid arrays ``x``, ``y`` (px)
+        whose last axis is the hole (NaN: hole missing); shape: the leading axes.
+
+        Examples
+        --------
+        >>> from sunlab.sim import synthetic_centroids
+        >>> cen = synthetic_centroids([0.0, -5.0, 1.0, 3.0], [0.0, 3.0, 8.0, -2.0], shots=1,
+        ...                           layout="grid")
+        >>> s1 = GeometricCentre(order=1).fit(cen)
+        >>> a, b = s1.predict_xy(cen.x.values, cen.y.values)
+        >>> bool(np.allclose(a, s1.predict(cen).alpha.values))
+        True
+        """
+        if self.calibration_ is None:
+            raise ConfigurationError("GeometricCentre: call fit() first")
+        X, ok, shape = _frames(x, y)
+        if self.holes is not None:
+            ok = ok & np.asarray(self.holes, dtype=bool)
+        c = self._solve(np.where(ok[..., None], X, 0.0), ok)
+        a, b = _predict_arrays(self.calibration_, c[:, 0], c[:, 1])
+        return a.reshape(shape), b.reshape(shape)
 
     def _parameters(self) -> dict:
         return {**_settings(self, ("order", "fill", "min_holes")),
@@ -383,8 +476,6 @@ class GeometricCentre(Calibration):
 
     @classmethod
     def _from_parameters(cls, p: dict) -> GeometricCentre:
-        from ..calibration import from_dict
-
         A, M = (None if p[k] is None else np.asarray(p[k], dtype=float) for k in ("A", "M"))
         return cls(order=int(p["order"]), fill=bool(p["fill"]), min_holes=int(p["min_holes"]),
                    **_restore_settings(p), A_=A, M_=M, calibration_=from_dict(p["calibration"]))
@@ -510,6 +601,7 @@ class PerHoleAverage(Calibration):
     """
 
     kind: ClassVar[str] = "multihole-per-hole-average"
+    kinds: ClassVar[dict[str, str]] = STRATEGY_KINDS
     order: int = 5
     model: Callable | None = None
     holes: np.ndarray | None = None
@@ -520,8 +612,16 @@ class PerHoleAverage(Calibration):
     calibrations_: list | None = field(default=None, repr=False)
     variance_: np.ndarray | None = field(default=None, repr=False)
 
-    def fit(self, cen: xr.Dataset) -> PerHoleAverage:
-        """Fit one calibration per hole on a training table; estimate each hole's variance."""
+    def fit(self, cen: xr.Dataset, validation: xr.Dataset | None = None) -> PerHoleAverage:
+        """Fit one calibration per hole on a training table; estimate each hole's variance.
+
+        Parameters
+        ----------
+        cen : xarray.Dataset
+            Training table on (pose, shot, hole) with the commanded angles (experiment I).
+        validation : xarray.Dataset, optional
+            A validation table (experiment II): the artifact's validation residuals.
+        """
         if self.weighting not in ("equal", "inverse_variance"):
             raise ConfigurationError(
                 f"weighting: found {self.weighting!r}, expected 'equal' or 'inverse_variance'"
@@ -557,14 +657,44 @@ class PerHoleAverage(Calibration):
         mean = self.combine(est)
         _record_fit(self, cen, ok, {a: _error_stats(mean[a].values, mean[f"{a}_cmd"].values)
                                     for a in ("alpha", "beta")})
+        _validation_residuals(self, validation)
         return self
 
     def __post_init__(self):
         Calibration.__init__(self)
 
     def predict_xy(self, x, y):
-        """Not defined for a multi-hole strategy: it estimates from all holes of a frame."""
-        _whole_frames_only(self)
+        """Angles (alpha, beta), deg, of frames given as centroid arrays ``x``, ``y`` (px)
+        whose last axis is the hole (NaN: hole missing): every hole's own estimate, combined
+        by this strategy's rule; shape: the leading axes.
+
+        Examples
+        --------
+        >>> from sunlab.calibration import Polynomial
+        >>> from sunlab.sim import synthetic_centroids
+        >>> a = np.repeat(np.arange(-4.0, 5.0, 2.0), 5); b = np.tile(np.arange(-4.0, 5.0, 2.0), 5)
+        >>> cen = synthetic_centroids(a, b, shots=1, layout="grid", noise_px=0.01)
+        >>> s2 = PerHoleAverage(model=lambda: Polynomial(2)).fit(cen)
+        >>> alpha, _ = s2.predict_xy(cen.x.values, cen.y.values)
+        >>> bool(np.allclose(alpha, s2.predict(cen).alpha.values))
+        True
+        """
+        if self.calibrations_ is None:
+            raise ConfigurationError("PerHoleAverage: call fit() first")
+        X, ok, shape = _frames(x, y)
+        if X.shape[1] != len(self.calibrations_):
+            raise SchemaError("hole", X.shape[1], f"{len(self.calibrations_)} holes (the last "
+                              "axis of x, y), as in training")
+        est = np.full(X.shape, np.nan)
+        for h, cal in enumerate(self.calibrations_):
+            if cal is not None:
+                est[:, h, 0], est[:, h, 1] = _predict_arrays(cal, X[:, h, 0], X[:, h, 1])
+        out = []
+        for k in range(2):
+            m, _ = combine_estimates(xr.DataArray(est[..., k], dims=("frame", "hole")),
+                                     holes=self.holes, weights=self.weights(), clip=self.clip)
+            out.append(m.values.reshape(shape))
+        return out[0], out[1]
 
     def _parameters(self) -> dict:
         return {**_settings(self, ("order", "weighting", "clip", "poses_per_coef")),
@@ -573,8 +703,6 @@ class PerHoleAverage(Calibration):
 
     @classmethod
     def _from_parameters(cls, p: dict) -> PerHoleAverage:
-        from ..calibration import from_dict
-
         var = np.array([np.inf if v is None else v for v in p["variance"]], dtype=float)
         return cls(order=int(p["order"]), weighting=str(p["weighting"]), clip=p["clip"],
                    poses_per_coef=float(p["poses_per_coef"]), **_restore_settings(p),

@@ -230,22 +230,23 @@ def reproduce_table4(
     bench = sim.Bench.paper_single_hole() if bench is None else bench
     t0 = time.perf_counter()
     where = {"method": method, "address": address, "scheduler": scheduler, "workers": workers}
-    timings = {}
+    timings, not_run = {}, {}
     with parallel.worker_pool(scheduler, workers, address) as pool:  # warms up meanwhile
         cubes = simulate_experiments(bench, seed=seed, quick=quick, step=step, shots=shots,
                                      progress=progress, method=method)
         # each run's zero-pose check, which the networks re-zero on (NN_REFERENCE)
         zero = zero_poses(bench, experiment_plans(quick=quick, step=step, shots=shots),
                           seed=seed, method=method)
-        cens, fitted = _locate_and_fit(cubes, where, pool, neural=neural, seed=seed,
-                                       progress=progress, timings=timings, t0=t0, zero=zero)
+        cens, fitted = _locate_and_fit(cubes, where, pool, neural=neural, seed=seed, t0=t0,
+                                       progress=progress, timings=timings, not_run=not_run,
+                                       zero=zero)
     if progress:
         for label in fitted:
             print(f"  fitted {label:<24s} in {timings[f'fit {label}']:6.2f} s", flush=True)
     test = usable_table(cens["III"])
     local = {label: stats.local_errors(cal.predict(test)) for label, cal in fitted.items()}
     result = _assemble(cens, fitted, local, bench, timings, t0, settings={
-        "seed": seed, "quick": quick, "centroid_method": method,
+        "seed": seed, "quick": quick, "centroid_method": method, "not_run": not_run,
         "poses": {k: int(v.sizes["pose"]) for k, v in cens.items()},
         "shots": int(test.sizes["shot"]), "bench": json.loads(bench.to_json()),
         "network_reference": NN_REFERENCE})
@@ -270,15 +271,12 @@ def _assemble(cens, fitted, local, bench, timings, t0, settings) -> Table4Result
     )
 
 
-def _locate_and_fit(cubes, where, pool, *, neural, seed, progress, timings, t0, zero):
+def _locate_and_fit(cubes, where, pool, *, neural, seed, progress, timings, t0, not_run,
+                    zero):
     """Centroid I and II, then fit every method on them (:func:`_fit_all`) while III is
     rendered and centroided on the same workers (``pool``, :func:`sunlab.parallel.worker_pool`)
     from a background thread: the fits are serial, and beside them the other cores stay busy.
     The centroid tables and the fitted methods."""
-    # imports the fits and figures need later run while this thread waits for I and II: torch
-    # (about 1.7 s), the configuration its use_deterministic_algorithms imports (torch's
-    # compiler, 0.9 s) and matplotlib (0.4 s)
-    _import_meanwhile("sunlab.plots", *(["torch", "torch._inductor.config"] if neural else []))
     cens = locate_runs({k: cubes[k] for k in ("I", "II")}, progress=progress, pool=pool,
                        **where)
     cens = {k: v.assign_attrs(zero[k]) for k, v in cens.items()}
@@ -288,40 +286,29 @@ def _locate_and_fit(cubes, where, pool, *, neural, seed, progress, timings, t0, 
         t3 = time.perf_counter()
         third = ex.submit(locate_runs, {"III": cubes["III"]}, progress=progress,
                           pool=pool, **where)
-        fitted = _fit_all(train, val, neural=neural, seed=seed, timings=timings)
+        fitted = _fit_all(train, val, neural=neural, seed=seed, timings=timings,
+                          not_run=not_run)
         cens.update({k: v.assign_attrs(zero[k]) for k, v in third.result().items()})
         timings["simulate_and_centroid III (beside the fits)"] = time.perf_counter() - t3
     timings["simulate_and_centroid"] = time.perf_counter() - t0
     return cens, fitted
 
 
-def _import_meanwhile(*names: str) -> None:
-    """Import modules ``names`` in a background thread (the code that needs them imports them
-    later, and then finds them imported or waits for the import to finish); a failed import is
-    left for that code to report."""
-    import importlib
-    import threading
-
-    def run():
-        for name in names:
-            try:
-                importlib.import_module(name)
-            except ImportError:
-                pass
-
-    threading.Thread(target=run, name="sunlab-imports", daemon=True).start()
-
-
-def _fit_all(train, val, *, neural, seed, timings) -> dict:
+def _fit_all(train, val, *, neural, seed, timings, not_run) -> dict:
     """Fit every method of :func:`table4_methods` on I (II for model selection), BLAS on one
     thread (small problems, a busy machine: idle BLAS threads slow them several-fold); the fit
-    times go into ``timings``."""
+    times go into ``timings``, and a method whose extra is not installed into ``not_run``
+    (label: the ImportError's message, which names the extra)."""
     fitted = {}
     with parallel.single_threaded_blas():
         for label, fit in table4_methods(neural=neural, seed=seed,
                                          reference=NN_REFERENCE).items():
             t = time.perf_counter()
-            fitted[label] = fit(train, val)
+            try:
+                fitted[label] = fit(train, val)
+            except ImportError as err:  # a method of an extra that is not installed
+                not_run[label] = str(err)
+                continue
             timings[f"fit {label}"] = time.perf_counter() - t
     return fitted
 
@@ -407,6 +394,9 @@ def format_table(res: Table4Result) -> str:
         if c in res.paper.columns:
             lines.append(f"{'  paper':<26s}" + "".join(
                 f"{res.paper.loc[k, c]:10.4f}" for k in stats_cols))
+    not_run = res.settings.get("not_run", {})
+    lines += [f"{label:<26s}not run: its extra is not installed" for label in not_run]
+    lines += [f"  ({why})" for why in dict.fromkeys(not_run.values())]
     lines += ["", "Fig. 12: rectangle area 36 sigma_M(alpha) sigma_M(beta), deg^2 "
               "(smaller is better)"]
     paper_areas = stats.rectangles(res.paper)["area"]

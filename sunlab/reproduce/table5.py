@@ -345,6 +345,7 @@ def _write_figures(result: dict, out: Path) -> list[str]:
     import matplotlib.pyplot as plt
 
     from .. import multihole as mh
+    from .. import plots
 
     out.mkdir(parents=True, exist_ok=True)
     result["table"].to_csv(out / "table5.csv")
@@ -356,12 +357,12 @@ def _write_figures(result: dict, out: Path) -> list[str]:
     p13 = int(np.argmax(mh.usable(cen).values[:, 0, :].sum(axis=1)))  # the most spots whole
     p14, ref = _fig14_pose(cen, show, bad)
     figs = {
-        "fig13.png": mh.fig13_frame(frames.isel(pose=p13, shot=0).values,
-                                    cen.isel(pose=p13, shot=0), bad=bad),
-        "fig14.png": mh.fig14_bad_holes(frames.isel(pose=p14, shot=0).values,
-                                        cen.isel(pose=p14, shot=0), show, reference=ref,
-                                        metrics=metrics),
-        "fig15.png": mh.fig15_rectangles(
+        "fig13.png": plots.fig13_frame(frames.isel(pose=p13, shot=0).values,
+                                       cen.isel(pose=p13, shot=0), bad=bad),
+        "fig14.png": plots.fig14_bad_holes(frames.isel(pose=p14, shot=0).values,
+                                           cen.isel(pose=p14, shot=0), show, reference=ref,
+                                           metrics=metrics),
+        "fig15.png": plots.fig15_rectangles(
             {k: {a: {"M": float(ours.loc[(a, "M"), k]),
                      "sigma_M": float(ours.loc[(a, "sigma_M"), k])} for a in ("alpha", "beta")}
              for k in ours.columns}),

@@ -134,13 +134,13 @@ def _spot_profile(bench) -> np.ndarray:
 
 
 @functools.lru_cache(maxsize=8)
-def _maps(bench_json: str):
+def _maps(key: _ByJson):
     from scipy.signal import fftconvolve
 
     from .bench import Bench
     from .detector import fixed_pattern
 
-    bench = _bench_from_json(bench_json)
+    bench = key.bench
     assert isinstance(bench, Bench)
     s = _spot_profile(bench)
     m = s.shape[0]
@@ -161,11 +161,19 @@ def _maps(bench_json: str):
     return dx.astype(np.float32), dy.astype(np.float32)
 
 
-_BENCHES: dict[str, object] = {}
+class _ByJson:
+    """A bench as the key of :func:`_maps`'s bounded cache: equal when their JSON is equal."""
 
+    __slots__ = ("bench", "text")
 
-def _bench_from_json(key: str):
-    return _BENCHES[key]
+    def __init__(self, bench):
+        self.bench, self.text = bench, bench.to_json()
+
+    def __hash__(self) -> int:
+        return hash(self.text)
+
+    def __eq__(self, other) -> bool:
+        return isinstance(other, _ByJson) and other.text == self.text
 
 
 def spot_error_maps(bench):
@@ -190,9 +198,7 @@ def spot_error_maps(bench):
     >>> bool(0.02 < float(np.std(dx[200:800, 200:1000])) < 0.1)  # 2.97 % PRNU, 2 px
     True
     """
-    key = bench.to_json()
-    _BENCHES[key] = bench
-    return _maps(key)
+    return _maps(_ByJson(bench))
 
 
 def centroid_noise_px(bench, *, frames: int = 6, method: str = "projection", seed: int = 0):

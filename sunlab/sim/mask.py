@@ -35,6 +35,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..errors import ConfigurationError
+from ..schema import DEFECT_FLAGS
 
 __all__ = [
     "Hole",
@@ -49,8 +50,6 @@ __all__ = [
     "PAPER_DISTANCE_MM",
 ]
 
-#: Bit flags of the ``hole_defect`` coordinate of a simulated cube.
-DEFECT_FLAGS = {"dust": 1, "elliptical": 2, "burred": 4, "undersized": 8}
 
 #: Centre of the paper-like 10 x 10 grid relative to the detector centre, mm (our choice): the
 #: spots sweep -16.5..1.5 deg in alpha and -1.5..16.5 deg in beta (plus the 1.864 / 0.415 deg

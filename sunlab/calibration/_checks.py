@@ -1,0 +1,67 @@
+"""Checks of a ``calibration/1`` document's parameters, shared by the calibration classes.
+
+Each class checks its own parameters (``_check_parameters``) with these helpers before it
+builds any array, so that a corrupt file is refused with a :class:`sunlab.SchemaError` naming
+the field, and a corrupt size (an order of 20000) cannot allocate gigabytes first.
+"""
+
+from __future__ import annotations
+
+import math
+
+from ..errors import SchemaError
+
+__all__: list[str] = []
+
+
+def _bad(field: str, found, expected: str, fix: str = "the file is corrupt or edited by hand; "
+         "re-fit the calibration with `sunlab calibrate`") -> SchemaError:
+    return SchemaError(f"parameters.{field}", found, expected, fix)
+
+
+def _numbers(value, field: str, length: int | None = None, *, positive: bool = False) -> list:
+    """A flat list of finite numbers (checked without building an array)."""
+    if not isinstance(value, list):
+        raise _bad(field, type(value).__name__, "a list of numbers")
+    if length is not None and len(value) != length:
+        raise _bad(field, f"{len(value)} values", f"{length} values")
+    for i, v in enumerate(value):
+        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v) \
+                or (positive and not v > 0):
+            raise _bad(f"{field}[{i}]", v, "a finite positive number" if positive
+                       else "a finite number")
+    return value
+
+
+def _number(value, field: str, *, positive: bool = False) -> float:
+    """One finite number."""
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value) \
+            or (positive and not value > 0):
+        raise _bad(field, value, "a finite positive number" if positive else "a finite number")
+    return value
+
+
+def _count(value, field: str, low: int = 0) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or value < low:
+        raise _bad(field, value, f"an integer >= {low}")
+    return value
+
+
+def _scaling_ok(p: dict) -> None:
+    scaling = p.get("scaling")
+    if not isinstance(scaling, dict):
+        raise _bad("scaling", type(scaling).__name__, "an object {'x': [lo, hi], 'y': [lo, hi]}")
+    for axis in ("x", "y"):
+        lo, hi = _numbers(scaling.get(axis), f"scaling.{axis}", 2)
+        if not hi > lo:
+            raise _bad(f"scaling.{axis}", [lo, hi], "[lo, hi] with hi > lo (a range of "
+                       "centroids, px)", "a zero or negative range divides by zero in predict; "
+                       "re-fit the calibration on poses that move the spot along both axes")
+
+
+def _coefficients_ok(p: dict, counts: dict) -> None:
+    coef = p.get("coefficients")
+    if not isinstance(coef, dict):
+        raise _bad("coefficients", type(coef).__name__, "an object {'alpha': [...], 'beta': [...]}")
+    for angle, n in counts.items():
+        _numbers(coef.get(angle), f"coefficients.{angle}", n)

@@ -1,0 +1,180 @@
+"""The ``calibration/1`` artifact read back: check a document, rebuild its calibration.
+
+:func:`load` reads a JSON file written by :meth:`sunlab.calibration.Calibration.save`,
+:func:`validate_document` checks it against the contract, and :func:`from_dict` rebuilds the
+fitted calibration through the registry (:data:`sunlab.calibration.KINDS`), after the class has
+checked its own parameters: sizes before any array is built, finite numbers, sane ranges.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from ..errors import SchemaError
+from ..schema import CALIBRATION_SCHEMA, validate_calibration
+from ._checks import _bad
+from .registry import KINDS, _class_of
+
+if TYPE_CHECKING:
+    from .base import Calibration
+
+__all__ = ["MAX_FILE_BYTES", "from_dict", "load", "validate_document"]
+
+_REQUIRED = ("sunlab_schema", "kind", "sunlab_version", "parameters", "training", "domain",
+             "residuals")
+
+#: Largest calibration file :func:`load` reads (bytes); the biggest real one is a few MB.
+MAX_FILE_BYTES = 64 * 2**20
+
+
+def validate_document(doc, kinds: dict[str, str] | None = None) -> dict:
+    """Check a ``calibration/1`` document; return it unchanged.
+
+    Checks the schema tag, then the JSON Schema of ``data_schema/`` with
+    :func:`sunlab.schema.validate_calibration`, then that the kind is one sunlab can load.
+
+    Parameters
+    ----------
+    doc : dict
+        The parsed document.
+    kinds : dict, optional
+        The registry its kind must be in (default :data:`sunlab.calibration.KINDS`).
+
+    Raises
+    ------
+    SchemaError
+        Naming the field, the value found, what is expected and the fix.
+
+    Examples
+    --------
+    >>> try:
+    ...     validate_document({"sunlab_schema": "calibration/0", "kind": "polynomial"})
+    ... except SchemaError as err:
+    ...     print(err.field)
+    sunlab_schema
+    """
+    if not isinstance(doc, dict):
+        raise SchemaError("calibration document", type(doc).__name__, "a JSON object",
+                          "pass a file written by Calibration.save")
+    found = doc.get("sunlab_schema")
+    if found != CALIBRATION_SCHEMA:
+        raise SchemaError(
+            "sunlab_schema", found, repr(CALIBRATION_SCHEMA),
+            "this file was not written by Calibration.save of this sunlab version; re-fit the "
+            "calibration (sunlab calibrate) or convert it with the version that wrote it",
+        )
+    missing = [k for k in _REQUIRED if k not in doc]
+    if missing:
+        raise SchemaError(", ".join(missing), "missing", f"the keys {list(_REQUIRED)}",
+                          "the file is truncated or edited; re-fit the calibration")
+    validate_calibration(doc)
+    kind = doc.get("kind")
+    registry = KINDS if kinds is None else kinds
+    if kind not in registry:
+        fix = ("a multi-hole strategy: load it with sunlab.multihole.load_strategy"
+               if str(kind).startswith("multihole-") and kinds is None
+               else "the file is corrupt or from a newer sunlab; re-fit the calibration")
+        raise SchemaError("kind", kind, f"one of {sorted(registry)}", fix)
+    return doc
+
+
+def from_dict(doc: dict, *, kinds: dict[str, str] | None = None) -> Calibration:
+    """Rebuild a fitted calibration from its ``calibration/1`` document.
+
+    Parameters
+    ----------
+    doc : dict
+        The document (:meth:`Calibration.to_dict`, or a parsed JSON file).
+    kinds : dict, optional
+        The registry to look the kind up in (default :data:`KINDS`; the multi-hole strategies
+        pass theirs).
+
+    Examples
+    --------
+    >>> from sunlab import sim
+    >>> from sunlab.calibration import Polynomial
+    >>> cen = sim.synthetic_centroids([0.0, 1, 2, 0, 1, 2], [0.0, 0, 0, 1, 1, 1])
+    >>> cal = from_dict(Polynomial(order=1).fit(cen).to_dict())
+    >>> cal.kind
+    'polynomial'
+    """
+    validate_document(doc, kinds)
+    if not isinstance(doc["parameters"], dict):
+        raise _bad("", type(doc["parameters"]).__name__, "an object")
+    cls = _class_of(doc["kind"], kinds)
+    cls._check_parameters(doc["parameters"])
+    try:
+        obj = cls._from_parameters(doc["parameters"])
+    except SchemaError:
+        raise
+    except (KeyError, TypeError, ValueError, IndexError, AttributeError) as err:
+        raise SchemaError(
+            f"parameters (kind {doc['kind']!r})", f"{type(err).__name__}: {err}",
+            f"the parameters a {cls.__name__} writes", "the file is corrupt; re-fit it",
+        ) from err
+    obj.training = dict(doc["training"] or {})
+    obj.domain = doc["domain"]
+    obj.residuals = doc["residuals"]
+    return obj
+
+
+def load(path, *, kinds: dict[str, str] | None = None) -> Calibration:
+    """Load a calibration written by :meth:`Calibration.save`.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The JSON file.
+    kinds : dict, optional
+        The registry of :func:`from_dict` (default :data:`KINDS`).
+
+    Sizes are checked before any array is built (the file itself at most
+    :data:`MAX_FILE_BYTES`; an order or a layer width must match its coefficient lists), and
+    non-finite numbers or degenerate scalings (a zero range) are refused, naming the field.
+
+    Raises
+    ------
+    SchemaError
+        If the file is not valid JSON, not ``calibration/1``, or its parameters are corrupt.
+
+    Examples
+    --------
+    >>> import tempfile, os
+    >>> from sunlab import sim
+    >>> from sunlab.calibration import Polynomial
+    >>> cen = sim.synthetic_centroids([0.0, 1, 2, 0, 1, 2], [0.0, 0, 0, 1, 1, 1])
+    >>> path = os.path.join(tempfile.mkdtemp(), "cal.json")
+    >>> load(Polynomial(order=1).fit(cen).save(path)).label
+    'polynomial(1)'
+    """
+    path = Path(path)
+    try:
+        size = path.stat().st_size
+        if path.is_dir():
+            raise IsADirectoryError(f"{path} is a directory")
+        if size > MAX_FILE_BYTES:
+            raise SchemaError(
+                str(path), f"{size} bytes", f"a calibration JSON file of at most "
+                f"{MAX_FILE_BYTES} bytes", "this is not a calibration written by sunlab (or it "
+                "is corrupt); re-fit the calibration with `sunlab calibrate`")
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError as err:
+        raise SchemaError("path", str(path), "an existing calibration JSON file",
+                          "check the path, or fit one with `sunlab calibrate`") from err
+    except UnicodeDecodeError as err:
+        raise SchemaError(str(path), f"not UTF-8 text ({err})", "a calibration/1 JSON document",
+                          "the file is corrupt or not a calibration; re-fit it") from err
+    except OSError as err:
+        raise SchemaError("path", f"{path} ({type(err).__name__}: {err.strerror or err})",
+                          "a readable calibration JSON file",
+                          "check the path and its permissions") from err
+    try:
+        doc = json.loads(text)
+    except ValueError as err:  # JSONDecodeError, and integers of more than 4300 digits
+        raise SchemaError(
+            str(path), f"invalid JSON ({err})", "a calibration/1 JSON document",
+            "the file is corrupt or truncated; re-fit the calibration with `sunlab calibrate`",
+        ) from err
+    return from_dict(doc, kinds=kinds)

@@ -1,0 +1,120 @@
+"""Optional dependencies: the extras of ``pip install "sunlab[...]"`` and the error that names them.
+
+The core of sunlab (``pip install sunlab``) reads, centroids, calibrates and evaluates with numpy,
+scipy, pandas, xarray, Dask and numba. A few parts need a package that only they use; each is an
+extra of pyproject.toml, and importing it through :func:`require` turns a missing package into an
+ImportError that says which extra brings it.
+
+=============  =============  ====================================================
+extra          package        what needs it
+=============  =============  ====================================================
+neural         torch          :class:`sunlab.calibration.NeuralNet` (Table 2)
+hardware       serial         the ESP300/301 stage driver (:mod:`sunlab.hardware`)
+widgets        ipywidgets     :class:`sunlab.widgets.HoleExplorer`
+distributed    distributed    ``sunlab.parallel.compute(address=...)``, ``local_cluster``
+=============  =============  ====================================================
+
+Examples
+--------
+>>> require("math", "neural").pi > 3
+True
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.metadata
+import importlib.util
+
+__all__ = ["EXTRAS", "available", "installed_version", "require"]
+
+#: The extra of pyproject.toml that brings each optional top-level package.
+EXTRAS: dict[str, str] = {
+    "torch": "neural",
+    "serial": "hardware",
+    "ipywidgets": "widgets",
+    "distributed": "distributed",
+}
+
+
+def require(module: str, extra: str | None = None, *, purpose: str = ""):
+    """Import ``module``, or raise an ImportError naming the extra that installs it.
+
+    Parameters
+    ----------
+    module : str
+        The module to import (``"torch"``, ``"serial"``, ``"distributed"``, ...).
+    extra : str, optional
+        The extra of ``sunlab`` that brings it (default: :data:`EXTRAS` of the top-level
+        package).
+    purpose : str, optional
+        What needs it, for the message (e.g. ``"the neural-network calibration"``).
+
+    Returns
+    -------
+    module
+        The imported module.
+
+    Raises
+    ------
+    ImportError
+        ``module`` (or a package it needs) is not installed; the message says
+        ``pip install "sunlab[EXTRA]"``. The original error is chained.
+
+    Examples
+    --------
+    >>> try:
+    ...     require("no_such_package_xyz", "neural")
+    ... except ImportError as err:
+    ...     print(str(err).split(";")[1].strip())
+    install it with: pip install "sunlab[neural]" (or "sunlab[all]")
+    """
+    extra = extra or EXTRAS.get(module.partition(".")[0], "all")
+    try:
+        return importlib.import_module(module)
+    except ImportError as err:
+        what = f" for {purpose}" if purpose else ""
+        raise ImportError(
+            f"sunlab needs the optional package {module.partition('.')[0]!r}{what}, which is "
+            f"not installed; install it with: pip install \"sunlab[{extra}]\" (or "
+            f"\"sunlab[all]\")"
+        ) from err
+
+
+def available(module: str) -> bool:
+    """Whether ``module`` can be imported, without importing it (an extra's package present).
+
+    Parameters
+    ----------
+    module : str
+        A top-level module name (``"torch"``).
+
+    Examples
+    --------
+    >>> available("math"), available("no_such_package_xyz")
+    (True, False)
+    """
+    try:
+        return importlib.util.find_spec(module) is not None
+    except (ImportError, ValueError):
+        return False
+
+
+def installed_version(distribution: str) -> str | None:
+    """The installed version of a distribution (``"pyserial"``), or None when it is absent;
+    for provenance records that name an extra's package without importing it.
+
+    Parameters
+    ----------
+    distribution : str
+        The distribution's name on PyPI (``"pyserial"``).
+
+    Examples
+    --------
+    >>> installed_version("no-such-distribution-xyz") is None
+    True
+    """
+    try:
+        return importlib.metadata.version(distribution)
+    except importlib.metadata.PackageNotFoundError:
+        return None
