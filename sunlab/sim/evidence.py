@@ -45,6 +45,7 @@ __all__ = [
     "fit_platform",
     "predicted_cells",
     "evidence_table",
+    "load_table",
 ]
 
 #: The largest total (white plus correlated) pixel response non-uniformity a hypothesis may
@@ -97,10 +98,10 @@ class Hypothesis:
     lid_thickness_mm : float
         The D263 glass lid over the die (0: none).
     single_mask_play : bool
-        Whether the one-hole mask sits with play of its own in its holder (a new offset at every
-        pose, as the 100-hole mask's; its size is fitted on Table 4's polynomial alpha mu). If
-        not, the one hole's alpha error beyond the platform's must come from the hole-specific
-        errors that the 100-hole average removes.
+        Whether the one-hole mask sits with play of its own in its holder along x (a new offset
+        at every pose, as the 100-hole mask's along y; its size is fitted on Table 4's
+        polynomial alpha mu). If not, the one hole's alpha error beyond the platform's must
+        come from the hole-specific errors that the 100-hole average removes.
     source : str
         Where F and the detector's numbers come from.
     """
@@ -198,8 +199,10 @@ def hypothesis_bench(hyp: Hypothesis, multi: bool = False, platform: dict | None
         if multi:
             changes["mask__play_y_mm"] = platform.get("play_y_mm", 0.0)
         else:
+            # along x, the axis whose error pins it (an isotropic play would also add its
+            # +-0.015 deg to every beta and blur beta's offset shape)
             changes["mask__play_x_mm"] = platform.get("single_play_mm", 0.0)
-            changes["mask__play_y_mm"] = platform.get("single_play_mm", 0.0)
+            changes["mask__play_y_mm"] = 0.0
         bench = bench.replace(**changes)
     return bench
 
@@ -390,3 +393,53 @@ def evidence_table(names=None, *, seed: int = 0, step: int = 1, shots: int = 8,
                       "table5_alpha_ratio": ratio,
                       **{k: v for k, v in platform.items() if k != "tuning_cells"}}
     return pd.DataFrame.from_dict(rows, orient="index").rename_axis("hypothesis")
+
+
+def load_table(path=None) -> pd.DataFrame:
+    """The evidence table shipped with sunlab (``sunlab/data/evidence.csv``, written by
+    ``python -m sunlab.sim.evidence --seeds 0 1 --out sunlab/data/evidence.csv``), or the one
+    at ``path``: one row per hypothesis and seed, the columns of :func:`evidence_table`.
+
+    Examples
+    --------
+    >>> t = load_table()
+    >>> t.index.names, sorted(set(t.index.get_level_values("seed")))
+    (FrozenList(['hypothesis', 'seed']), [0, 1])
+    """
+    from importlib import resources
+
+    src = resources.files("sunlab") / "data" / "evidence.csv" if path is None else path
+    with resources.as_file(src) if path is None else _nullcontext(path) as p:
+        return pd.read_csv(p, index_col=["hypothesis", "seed"])
+
+
+def _nullcontext(value):
+    import contextlib
+
+    return contextlib.nullcontext(value)
+
+
+def main(argv=None) -> int:
+    """``python -m sunlab.sim.evidence [--seeds 0 1] [--out FILE]``: the evidence table of
+    every hypothesis on each seed (CSV, one row per hypothesis and seed), printed and written.
+    """
+    import argparse
+
+    parser = argparse.ArgumentParser(prog="python -m sunlab.sim.evidence",
+                                     description=main.__doc__.split(":")[0])
+    parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1])
+    parser.add_argument("--hypotheses", nargs="+", default=list(HYPOTHESES),
+                        choices=list(HYPOTHESES))
+    parser.add_argument("--out", default=None, help="CSV file to write")
+    args = parser.parse_args(argv)
+    tables = [evidence_table(args.hypotheses, seed=s).assign(seed=s) for s in args.seeds]
+    table = pd.concat(tables).set_index("seed", append=True)
+    with pd.option_context("display.width", 200, "display.max_columns", 30):
+        print(table.round(4).to_string())
+    if args.out:
+        table.to_csv(args.out)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
