@@ -476,12 +476,12 @@ class Calibration:
         SunlabError
             ``path`` exists and ``overwrite`` is False, or its folder is missing or read-only.
         """
-        from .. import atomic
+        from .. import atomic, integrity
 
         path = atomic.check_target(path, overwrite=overwrite)
         doc = self.to_dict()
         validate_document(doc)
-        text = json.dumps(doc, indent=1, allow_nan=False) + "\n"
+        text = json.dumps(integrity.seal_document(doc), indent=1, allow_nan=False) + "\n"
         return atomic.write_text(path, text, overwrite=overwrite)
 
     def __repr__(self) -> str:
@@ -780,9 +780,14 @@ def load(path) -> Calibration:
                           "check the path and its permissions") from err
     try:
         doc = json.loads(text)
-    except ValueError as err:  # JSONDecodeError, and integers of more than 4300 digits
+    except (ValueError, RecursionError) as err:  # and integers of more than 4300 digits
         raise SchemaError(
             str(path), f"invalid JSON ({err})", "a calibration/1 JSON document",
             "the file is corrupt or truncated; re-fit the calibration with `sunlab calibrate`",
         ) from err
-    return from_dict(doc)
+    from .. import integrity  # a depth limit; the fields; the checksum Calibration.save wrote
+
+    integrity.check_depth(doc, path)
+    cal = from_dict(doc)
+    integrity.verify_document(doc, path)
+    return cal

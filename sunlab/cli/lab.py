@@ -67,13 +67,13 @@ def read_calibration_json(path) -> dict | None:
         head = fh.read(1).lstrip()
         if head not in (b"{", b""):
             return None
-    try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
-    except (json.JSONDecodeError, UnicodeDecodeError) as err:
-        raise SchemaError(
-            str(path), f"invalid JSON ({err})", "a calibration/1 JSON document",
-            "the file is corrupt or truncated; re-fit the calibration with `sunlab calibrate`",
-        ) from err
+    from .. import integrity  # standard library only
+
+    doc = integrity.read_json(
+        path, max_bytes=integrity.MAX_DOCUMENT_BYTES, what="a calibration/1 JSON document",
+        fix="the file is corrupt, truncated or not a calibration; re-fit the calibration with "
+            "`sunlab calibrate`")
+    doc = integrity.verify_document(doc, path)
     if not isinstance(doc, dict) or "sunlab_schema" not in doc:
         raise SchemaError(
             f"{path}: sunlab_schema", "missing", "a calibration/1 JSON document",
@@ -294,12 +294,10 @@ def _sensor_json(folder: Path, manifest) -> dict:
         path = folder / "sensor.json"
     if not path.exists():
         return {}
-    try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
-    except (json.JSONDecodeError, UnicodeDecodeError) as err:
-        raise SchemaError(str(path), f"invalid JSON ({err})",
-                          f"an object with keys among {list(_SENSOR_KEYS)}",
-                          "fix the JSON syntax") from err
+    from .. import integrity
+
+    doc = integrity.read_json(path, max_bytes=2**20, what="a sensor.json object with keys "
+                              f"among {list(_SENSOR_KEYS)}", fix="fix the JSON syntax")
     if not isinstance(doc, dict):
         raise SchemaError(str(path), type(doc).__name__, "a JSON object", "fix the file")
     unknown = sorted(set(doc) - set(_SENSOR_KEYS) - {"comment", "attrs"})

@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
+from .. import integrity
 from ..errors import SchemaError, SunlabError
 from ..schema import CENTROIDS_SCHEMA, FRAMES_SCHEMA, validate_centroids, validate_frames
 from .chunks import _check_chunks, _checked_lazy
@@ -75,6 +76,7 @@ def _open_raw(path, format: str | None = None) -> xr.Dataset:
                 f"{path}: not a Zarr store (no zarr.json in it). Fix: give the store's top "
                 "directory, or copy the store again if its metadata is missing"
             )
+        integrity.verify_zarr(path)  # metadata (shapes, data types, codecs) as written
         try:
             ds = xr.open_zarr(path, consolidated=False, chunks=None)
         except Exception as exc:  # noqa: BLE001 - turned into a message naming the file
@@ -88,6 +90,18 @@ def _open_raw(path, format: str | None = None) -> xr.Dataset:
                 "the file is probably truncated or corrupt (an interrupted copy or write); copy "
                 "it again from its source or re-create it with sunlab.io.save_frames"
             ) from exc
+        try:
+            integrity.verify_netcdf(ds, path)  # every value but the frames' (Fletcher-32)
+        except SunlabError:
+            ds.close()
+            raise
+        except Exception as exc:  # noqa: BLE001 - a damaged variable: name the file
+            ds.close()
+            raise SunlabError(
+                f"{path}: a variable cannot be read ({type(exc).__name__}: {exc}). Fix: the "
+                "file is corrupt; copy it again from its source or re-create it"
+            ) from exc
+    ds.attrs.pop(integrity.ATTR, None)
     try:
         for name in list(ds.variables):
             var = ds.variables[name]
