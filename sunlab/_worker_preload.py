@@ -20,6 +20,8 @@ True
 
 from __future__ import annotations
 
+import sys
+
 __all__ = ["warm_up", "warmed_up"]
 
 _DONE = False
@@ -57,7 +59,41 @@ def warmed_up() -> bool:
     return _DONE
 
 
-try:  # a failed warm-up must never stop the fork server: the workers then warm up themselves
-    warm_up()
-except Exception:  # noqa: BLE001
-    pass
+def _warm_up_quietly() -> None:
+    """:func:`warm_up`, with Ctrl-C ignored meanwhile: the fork server imports this module
+    before it ignores SIGINT itself, and Ctrl-C reaches the whole process group, so it would
+    print a traceback here; the main process stops the workers."""
+    import signal
+    import threading
+
+    previous = None
+    if threading.current_thread() is threading.main_thread():
+        previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:  # a failed warm-up must never stop the fork server: the workers warm up themselves
+        warm_up()
+    except Exception:  # noqa: BLE001
+        pass
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGINT, previous)
+
+
+def _quiet_when_orphaned(kind, value, tb) -> None:
+    """The fork server's excepthook, which its workers inherit: only an error that stops a
+    worker from starting reaches it (a task's error goes back to the pool), and a worker that
+    cannot read its start-up data because the main process is stopping (Ctrl-C: the pool's
+    pipes and semaphores are gone) ends without a traceback; the main process reports."""
+    import os
+
+    if issubclass(kind, OSError | EOFError) and os.getpid() != _SERVER_PID:
+        return
+    sys.__excepthook__(kind, value, tb)
+
+
+if "multiprocessing.forkserver" in sys.modules and sys.argv[:1] == ["-c"]:  # the fork server
+    import os
+
+    _SERVER_PID = os.getpid()
+    sys.excepthook = _quiet_when_orphaned
+
+_warm_up_quietly()

@@ -147,12 +147,23 @@ def worker_pool(scheduler: str = "threads", num_workers: int | None = None,
         return
     from concurrent.futures import ProcessPoolExecutor
 
+    n = int(num_workers) if num_workers else (os.cpu_count() or 1)
+    pool = ProcessPoolExecutor(n, mp_context=_warm_context(), initializer=_init_worker)
+    try:
+        yield pool
+    finally:  # on Ctrl-C too: queued tasks are dropped, running ones end, workers stop
+        pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _init_worker() -> None:
+    """Start a pool worker: Dask's set-up, and Ctrl-C left to the parent, which stops the
+    workers (a worker interrupted itself would print a traceback)."""
+    import signal
+
     from dask.multiprocessing import initialize_worker_process
 
-    n = int(num_workers) if num_workers else (os.cpu_count() or 1)
-    with ProcessPoolExecutor(n, mp_context=_warm_context(),
-                             initializer=initialize_worker_process) as pool:
-        yield pool
+    initialize_worker_process()
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 #: The module the fork server imports before it forks a worker (:func:`worker_pool`).

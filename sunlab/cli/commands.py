@@ -18,7 +18,10 @@ Examples
 from __future__ import annotations
 
 import argparse
+import contextlib
+import signal
 import sys
+import threading
 
 from ..errors import SunlabError
 from . import lab as _lab
@@ -510,12 +513,39 @@ def _one_line(err: BaseException) -> str:
     return " ".join(text.split())
 
 
+class _Terminated(KeyboardInterrupt):
+    """SIGTERM, raised in the main thread like Ctrl-C so that every ``finally`` (temporary
+    outputs removed, workers stopped, an acquisition's record closed) runs."""
+
+
+@contextlib.contextmanager
+def _signals_interrupt():
+    """While a command runs (main thread only): SIGTERM raises :class:`_Terminated` and SIGINT
+    :class:`KeyboardInterrupt` (whatever handler the caller had), both restored after."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def on_term(signum, frame):
+        raise _Terminated
+
+    previous = {sig: signal.signal(sig, handler) for sig, handler in
+                ((signal.SIGTERM, on_term), (signal.SIGINT, signal.default_int_handler))}
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``sunlab`` console script; returns the exit status.
 
     Exit status 0 on success, 1 for an error in the inputs, files or settings (one line on
     stderr naming the thing and the fix), 2 for a bad command line, 3 for an unexpected internal
-    error, 130 when interrupted. ``--debug`` re-raises the error with its traceback.
+    error, 130 when interrupted by Ctrl-C (SIGINT) and 143 by SIGTERM: one line, no traceback,
+    temporary outputs removed and workers stopped. ``--debug`` re-raises the error with its
+    traceback.
     """
     argv = list(sys.argv[1:] if argv is None else argv)
     debug = "--debug" in argv
@@ -526,12 +556,14 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 2
     try:
-        return int(args.func(args) or 0)
-    except KeyboardInterrupt:
+        with _signals_interrupt():
+            return int(args.func(args) or 0)
+    except KeyboardInterrupt as err:
         if debug:
             raise
-        print(f"sunlab {args.command}: interrupted", file=sys.stderr)
-        return 130
+        name = "SIGTERM" if isinstance(err, _Terminated) else "Ctrl-C (SIGINT)"
+        print(f"sunlab {args.command}: interrupted by {name}", file=sys.stderr)
+        return 143 if isinstance(err, _Terminated) else 130
     except (SunlabError, OSError) as err:
         if debug:
             raise
