@@ -270,26 +270,43 @@ def _write_root(path: Path, doc: dict) -> None:
     os.replace(tmp, meta)
 
 
-def seal_zarr(path) -> str:
+def seal_zarr(path, group=None) -> str:
     """Write the digest of a Zarr v3 store's metadata into its root attributes; return it.
 
     Call it when the store is complete: any later change of its metadata (attributes
     included) makes :func:`verify_zarr` refuse it until it is sealed again. A Zarr v2 store
     (no ``zarr.json``) is left as it is.
+
+    Parameters
+    ----------
+    path : path-like
+        The store.
+    group : zarr.Group, optional
+        The store's root group if the caller holds it open: the digest is then written through
+        it (an open group writes its whole cached metadata back on its next change, which
+        would undo an edit of the file behind its back).
     """
     path = Path(path)
     if not (path / "zarr.json").is_file():
         return ""
     digest = zarr_digest(path)
+    if group is not None:
+        group.attrs[ATTR] = _stamp(digest)
+        return digest
     doc = json.loads((path / "zarr.json").read_text(encoding="utf-8"))
     doc.setdefault("attributes", {})[ATTR] = _stamp(digest)
     _write_root(path, doc)
     return digest
 
 
-def unseal_zarr(path) -> None:
-    """Remove a store's digest before it is changed in place (an acquisition run resumed)."""
+def unseal_zarr(path, group=None) -> None:
+    """Remove a store's digest before it is changed in place (an acquisition run resumed);
+    ``group`` as in :func:`seal_zarr`."""
     path = Path(path)
+    if group is not None:
+        if ATTR in group.attrs:
+            del group.attrs[ATTR]
+        return
     meta = path / "zarr.json"
     if not meta.is_file():
         return

@@ -134,8 +134,7 @@ def _add_acquire(sub) -> None:
 def _run_acquire(args) -> int:
 
     from .. import plans, sim
-    from ..errors import ConfigurationError
-    from ..hardware import FolderCamera, SimCamera, acquire, open_stage
+    from ..hardware.runner import run_lock
 
     if not args.resume:
         # The folder must exist and be writable; an existing run is the runner's to judge.
@@ -143,6 +142,14 @@ def _run_acquire(args) -> int:
     plan = plans.read_plan(args.plan, shots=args.shots, field="--plan").subset(args.step)
     bench = (sim.Bench.paper_single_hole() if args.bench == "single"
              else sim.Bench.paper_multi_hole())
+    with run_lock(args.out):  # before the stage is opened: one session per run
+        return _acquire_locked(args, plan, bench)
+
+
+def _acquire_locked(args, plan, bench) -> int:
+    from ..errors import ConfigurationError
+    from ..hardware import FolderCamera, SimCamera, acquire, open_stage
+
     stage = open_stage(args.stage, bench=bench, seed=args.seed, settle_s=args.settle,
                        baudrate=args.baudrate, timeout=args.timeout)
     try:
