@@ -230,6 +230,17 @@ def _named(err: OSError, path: Path) -> BaseException:
                        "the folder, its free space and its permissions")
 
 
+def _renamed(err: OSError, tmp: Path, path: Path) -> BaseException:
+    """An OS error of a write into ``tmp``, naming the output ``path`` the user asked for: a
+    full disk or an error without a file name becomes a SunlabError, one naming the temporary
+    output names ``path`` instead (same type)."""
+    if err.filename is None or err.errno in _DISK_FULL:
+        return _named(err, path)
+    if str(tmp) in str(err.filename):
+        err.filename = str(path)
+    return err
+
+
 def _swap(tmp: Path, path: Path) -> None:
     """Move ``tmp`` to ``path``; an existing ``path`` survives any failure of the move."""
     if tmp.is_dir() and (path.exists() or path.is_symlink()):
@@ -277,9 +288,7 @@ def atomic_output(path, *, overwrite: bool = False, kind: str = "file",
         try:
             yield tmp
         except OSError as err:
-            if err.filename is None or err.errno in _DISK_FULL:
-                raise _named(err, path) from err
-            raise
+            raise _renamed(err, tmp, path) from err.__cause__
         if not (tmp.exists() or tmp.is_symlink()):
             raise SunlabError(f"{path}: nothing was written. Fix: this is a bug in the writer")
         # Checked again: another process may have created the output meanwhile.
@@ -382,14 +391,15 @@ def atomic_files(folder, names, *, overwrite: bool = False, flag: str = "overwri
     folder = check_folder(folder, names, overwrite=overwrite, flag=flag)
     # beside a missing folder (renamed into place), inside an existing one (the same disk)
     staging = temporary_name(folder / _STAGING if folder.is_dir() else folder)
-    staging.mkdir()
+    try:
+        staging.mkdir()
+    except OSError as err:
+        raise _named(err, folder) from err
     try:
         try:
             yield staging
         except OSError as err:
-            if err.filename is None or err.errno in _DISK_FULL:
-                raise _named(err, folder) from err
-            raise
+            raise _renamed(err, staging, folder) from err.__cause__
         unknown = sorted(p.name for p in staging.iterdir() if p.name not in names)
         if unknown:
             raise SunlabError(f"{folder}: unexpected outputs {unknown}. Fix: this is a bug in "

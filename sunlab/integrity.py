@@ -199,8 +199,8 @@ def read_json(path, *, max_bytes: int, what: str = "a JSON document", fix: str =
     path = Path(path)
     fix = fix or f"give {what}"
     try:
-        if path.is_dir():
-            raise SunlabError(f"{path}: is a folder, expected {what}. Fix: {fix}")
+        if path.exists() and not path.is_file():  # a folder, a FIFO, a device
+            raise SunlabError(f"{path}: not a regular file, expected {what}. Fix: {fix}")
         size = path.stat().st_size
         if size > max_bytes:
             raise SunlabError(f"{path}: {size} bytes, more than the {max_bytes} bytes of "
@@ -209,9 +209,9 @@ def read_json(path, *, max_bytes: int, what: str = "a JSON document", fix: str =
             raw = fh.read(max_bytes + 1)
     except FileNotFoundError:
         raise SunlabError(f"{path}: no such file. Fix: check the path") from None
-    except PermissionError:
-        raise SunlabError(f"{path}: not readable (permission denied). Fix: check the file's "
-                          "permissions") from None
+    except OSError as err:
+        raise SunlabError(f"{path}: cannot be read ({err.strerror or err}). Fix: check the "
+                          "file and its permissions") from None
     if len(raw) > max_bytes:  # grew while being read (a device or a pipe)
         raise SunlabError(f"{path}: more than the {max_bytes} bytes of {what}. Fix: {fix}")
     try:

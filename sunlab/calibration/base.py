@@ -760,8 +760,8 @@ def load(path) -> Calibration:
     path = Path(path)
     try:
         size = path.stat().st_size
-        if path.is_dir():
-            raise IsADirectoryError(f"{path} is a directory")
+        if not path.is_file():  # a folder; a FIFO or a device would block or never end
+            raise IsADirectoryError(f"{path} is not a regular file")
         if size > MAX_FILE_BYTES:
             raise SchemaError(
                 str(path), f"{size} bytes", f"a calibration JSON file of at most "

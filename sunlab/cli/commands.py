@@ -29,19 +29,21 @@ from . import lab as _lab
 __all__ = ["build_parser", "main", "run"]
 
 
-def _count(low: int):
-    """An argparse type: an integer >= ``low`` (the message names the value and the bound)."""
+def _count(low: int, high: int | None = None):
+    """An argparse type: an integer >= ``low`` (and <= ``high``); the message names the value
+    and the bounds."""
 
     def parse(text: str) -> int:
         try:
             value = int(text)
         except ValueError:
             raise argparse.ArgumentTypeError(f"found {text!r}, expected an integer") from None
-        if value < low:
-            raise argparse.ArgumentTypeError(f"found {value}, expected an integer >= {low}")
+        if value < low or (high is not None and value > high):
+            bounds = f">= {low}" if high is None else f">= {low} and <= {high}"
+            raise argparse.ArgumentTypeError(f"found {value}, expected an integer {bounds}")
         return value
 
-    parse.__name__ = f"integer >= {low}"
+    parse.__name__ = f"integer >= {low}" if high is None else f"integer {low}..{high}"
     return parse
 
 
@@ -57,6 +59,11 @@ def _seconds(text: str) -> float:
 
 
 _POSITIVE = _count(1)
+#: Seeds: what numpy, Dask and torch all take.
+_SEED = _count(0, 2**32 - 1)
+#: Frames per pose, threads or processes: bounded so a typo cannot exhaust the machine.
+_SHOTS = _count(1, 10_000)
+_WORKERS = _count(1, 1024)
 
 
 def _check_out(path, overwrite: bool, kind: str = "file") -> None:
@@ -110,11 +117,11 @@ def _add_acquire(sub) -> None:
                    help="experiment I, II or III, or a CSV file with columns alpha,beta (deg)")
     p.add_argument("--out", required=True, help="the run's Zarr store (a directory)")
     p.add_argument("--resume", action="store_true", help="continue an existing run in --out")
-    p.add_argument("--shots", type=_POSITIVE, default=8, help="frames per pose (default 8)")
+    p.add_argument("--shots", type=_SHOTS, default=8, help="frames per pose (default 8)")
     p.add_argument("--step", type=_POSITIVE, default=1,
                    help="keep every STEP-th pose (quick runs)")
     p.add_argument("--settle", type=_seconds, default=0.5, help="settle time after a move, s")
-    p.add_argument("--seed", type=int, default=0, help="seed of the virtual bench (sim, fake)")
+    p.add_argument("--seed", type=_SEED, default=0, help="seed of the virtual bench (sim, fake)")
     p.add_argument("--bench", choices=("single", "multi"), default="single",
                    help="virtual bench preset for the sim camera and fake stage")
     p.add_argument("--binning", type=_POSITIVE, default=1, help="sim camera pixel binning")
@@ -172,8 +179,9 @@ def _acquire_locked(args, plan, bench) -> int:
                 shape = tuple(int(v) for v in args.shape.lower().split("x"))
             except ValueError:
                 shape = ()
-            if len(shape) != 2:
-                raise ConfigurationError(f"--shape: found {args.shape!r}, expected NYxNX")
+            if len(shape) != 2 or not all(1 <= n <= 16384 for n in shape):
+                raise ConfigurationError(
+                    f"--shape: found {args.shape!r}, expected NYxNX, each from 1 to 16384 px")
             camera = FolderCamera(args.camera[len("folder:"):], shape=shape,
                                   bit_depth=args.bit_depth, timeout_s=args.frame_timeout)
         else:
@@ -204,7 +212,7 @@ def _add_centroid(sub) -> None:
                    help="local Dask scheduler ('cluster': a local dask.distributed cluster of "
                    "single-threaded processes; docs/scaling.md)")
     p.add_argument("--address", default=None, help="dask.distributed scheduler address")
-    p.add_argument("--workers", type=_POSITIVE, default=None,
+    p.add_argument("--workers", type=_WORKERS, default=None,
                    help="local threads or processes")
     p.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output")
@@ -237,8 +245,8 @@ def _add_simulate(sub) -> None:
     p.add_argument("--mask", default="single", choices=["single", "multi", "random"],
                    help="one 0.2 mm hole, the 10 x 10 grid, or 50 random holes")
     p.add_argument("--out", required=True, help="output cube (.zarr store or .nc file)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the experiment (default 0)")
-    p.add_argument("--shots", type=_POSITIVE, default=8, help="frames per pose (default 8)")
+    p.add_argument("--seed", type=_SEED, default=0, help="seed of the experiment (default 0)")
+    p.add_argument("--shots", type=_SHOTS, default=8, help="frames per pose (default 8)")
     p.add_argument("--subset", type=_POSITIVE, default=1, metavar="STEP",
                    help="keep every STEP-th angle along each grid axis (about 1/STEP^2 of "
                         "the poses; maps stay maps), for quick runs")
@@ -246,7 +254,7 @@ def _add_simulate(sub) -> None:
     p.add_argument("--ideal-platform", action="store_true", help="true angles = commanded")
     p.add_argument("--chunks", default="frame", choices=["frame", "pose"],
                    help="store one frame or one pose per chunk")
-    p.add_argument("--workers", type=_POSITIVE, default=None,
+    p.add_argument("--workers", type=_WORKERS, default=None,
                    help="threads rendering in parallel")
     p.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output")
@@ -295,7 +303,7 @@ def _add_calibrate(sub) -> None:
                    help="neural-network strategy of Table 2 (default 4)")
     p.add_argument("--hidden", type=_POSITIVE, default=None,
                    help="hidden tanh neurons (default 8)")
-    p.add_argument("--seed", type=int, default=None, help="seed of the network weights "
+    p.add_argument("--seed", type=_SEED, default=None, help="seed of the network weights "
                                                           "(default 0)")
     p.add_argument("--max-iter", type=_POSITIVE, default=None,
                    help="most L-BFGS iterations per network (default 3000)")
@@ -398,7 +406,7 @@ def _add_reproduce(sub) -> None:
                    "axis of the experiments (Table 4: 100 + 49 + 100 poses of 930; Table 5: "
                    "100 + 100 of 761; platform: as Table 4) and 2 shots per pose instead of 8 "
                    "(about 1/16 of the frames)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the virtual bench (default 0)")
+    p.add_argument("--seed", type=_SEED, default=0, help="seed of the virtual bench (default 0)")
     p.add_argument("--method", default="projection",
                    help="centroid method of every table (default projection: the paper's "
                    "algorithm B; on 100-hole frames each spot gets a tight window, or fit "
@@ -413,7 +421,7 @@ def _add_reproduce(sub) -> None:
                    "on a machine with several cores, as rendering holds the GIL part of each "
                    "frame; threads on one core; 'cluster': a local cluster of single-threaded "
                    "processes)")
-    p.add_argument("--workers", type=_POSITIVE, default=None,
+    p.add_argument("--workers", type=_WORKERS, default=None,
                    help="local threads or processes (default: one per core)")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     p.set_defaults(func=_run_reproduce)
@@ -575,6 +583,13 @@ def main(argv: list[str] | None = None) -> int:
         if debug:
             raise
         print(f"sunlab {args.command}: error: {_one_line(err)}", file=sys.stderr)
+        return 1
+    except MemoryError as err:  # a size the user asked for, not a bug
+        if debug:
+            raise
+        print(f"sunlab {args.command}: error: not enough memory ({_one_line(err)}). Fix: ask "
+              "for less (a smaller frame shape or region, fewer poses or shots) or run on a "
+              "machine with more memory", file=sys.stderr)
         return 1
     except Exception as err:  # noqa: BLE001 - never a traceback without --debug
         if debug:

@@ -49,12 +49,21 @@ def _open_raw(path, format: str | None = None) -> xr.Dataset:
             f"{path}: no such file or directory. Fix: give the path of a .zarr store or a .nc "
             "file written by sunlab.io (or sunlab simulate)"
         )
+    if not (path.is_dir() or path.is_file()):  # a FIFO or a device would block or never end
+        raise SunlabError(
+            f"{path}: not a regular file or folder. Fix: give the path of a .zarr store or a .nc "
+            "file written by sunlab.io"
+        )
     if format is None:
         if path.is_dir():
             format = "zarr"
         else:
-            with open(path, "rb") as fh:
-                head = fh.read(8)
+            try:
+                with open(path, "rb") as fh:
+                    head = fh.read(8)
+            except OSError as err:
+                raise SunlabError(f"{path}: cannot be read ({err.strerror or err}). Fix: check "
+                                  "the file and its permissions") from err
             if head == _HDF5_SIGNATURE:
                 format = "netcdf"
             elif head[:3] == b"CDF":
