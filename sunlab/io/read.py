@@ -41,6 +41,28 @@ def _fail_zarr(path: Path, exc: Exception):
     ) from exc
 
 
+def _sniff(path: Path) -> str:
+    """``"netcdf"`` for a NetCDF4/HDF5 file (by its signature); otherwise a SunlabError."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(8)
+    except OSError as err:
+        raise SunlabError(f"{path}: cannot be read ({err.strerror or err}). Fix: check the file "
+                          "and its permissions") from err
+    if head == _HDF5_SIGNATURE:
+        return "netcdf"
+    if head[:3] == b"CDF":
+        raise SunlabError(
+            f"{path}: a NetCDF3 (classic) file; sunlab reads NetCDF4/HDF5. Fix: convert it with "
+            "`nccopy -k nc4 in.nc out.nc`"
+        )
+    raise SunlabError(
+        f"{path}: neither a Zarr store (a directory) nor a NetCDF4/HDF5 file (first bytes "
+        f"{head!r}). Fix: the file may be truncated or of another type; copy it again from its "
+        "source"
+    )
+
+
 def _open_raw(path, format: str | None = None) -> xr.Dataset:
     """Open a store or file lazily, decode sunlab attributes; no validation."""
     path = Path(path)
@@ -55,28 +77,7 @@ def _open_raw(path, format: str | None = None) -> xr.Dataset:
             "file written by sunlab.io"
         )
     if format is None:
-        if path.is_dir():
-            format = "zarr"
-        else:
-            try:
-                with open(path, "rb") as fh:
-                    head = fh.read(8)
-            except OSError as err:
-                raise SunlabError(f"{path}: cannot be read ({err.strerror or err}). Fix: check "
-                                  "the file and its permissions") from err
-            if head == _HDF5_SIGNATURE:
-                format = "netcdf"
-            elif head[:3] == b"CDF":
-                raise SunlabError(
-                    f"{path}: a NetCDF3 (classic) file; sunlab reads NetCDF4/HDF5. Fix: convert "
-                    "it with `nccopy -k nc4 in.nc out.nc`"
-                )
-            else:
-                raise SunlabError(
-                    f"{path}: neither a Zarr store (a directory) nor a NetCDF4/HDF5 file "
-                    f"(first bytes {head!r}). Fix: the file may be truncated or of another type; "
-                    "copy it again from its source"
-                )
+        format = "zarr" if path.is_dir() else _sniff(path)
     if format == "zarr":
         if not path.is_dir() or not (
             (path / "zarr.json").exists() or (path / ".zgroup").exists()
