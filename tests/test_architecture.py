@@ -153,7 +153,7 @@ def test_notebooks_use_public_names_only(notebook):
 #: the layers below, never a layer above (lazy imports inside functions included).
 LAYERS = [
     {"errors", "options", "atomic", "integrity", "schema", "parallel"},
-    {"io", "geometry", "stats", "plans", "calibration", "centroid"},
+    {"io", "geometry", "stats", "plans", "calibration", "centroid", "screening"},
     {"sim", "multihole", "platform_fault", "export", "plots", "hardware"},
     {"reproduce", "widgets", "cli", "data"},
 ]

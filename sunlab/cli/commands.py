@@ -312,8 +312,43 @@ def _add_calibrate(sub) -> None:
     p.add_argument("--validation", default=None,
                    help="validation centroid table (experiment II): early stopping, order")
     p.add_argument("--out", required=True, help="output calibration (.json)")
+    p.add_argument("--outlier-mads", type=_mads, default=10.0, metavar="N",
+                   help="exclude shots whose centroid lies more than N median absolute "
+                        "deviations from a robust fit of the table (sunlab.screening; default "
+                        "10; 0: keep every shot); the excluded lines are named")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output")
     p.set_defaults(func=_run_calibrate)
+
+
+def _mads(text: str) -> float:
+    """An argparse type: a number of MADs above 3, or 0 (no screening)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"found {text!r}, expected a number") from None
+    if not (value == 0 or 3 < value < float("inf")):
+        raise argparse.ArgumentTypeError(f"found {text!r}, expected 0 (off) or a number of "
+                                         "MADs above 3")
+    return value
+
+
+def _screen(table, path, name: str, n_mad: float):
+    """``table`` with its outliers excluded (:func:`sunlab.screening.screen_outliers`); each
+    one named on stdout, by its line for a CSV table."""
+    from ..screening import screen_outliers
+    from .lab import csv_line_of
+
+    if not n_mad:
+        return table
+    screened, found = screen_outliers(table, n_mad)
+    for o in found:
+        line = csv_line_of(path, o) if str(path).lower().endswith((".csv", ".txt")) else None
+        where = (f"line {line}" if line else f"pose {o['pose']} shot {o['shot']}"
+                 + (f" hole {o['hole']}" if "hole" in o else ""))
+        print(f"{path} {where} ({name}): excluded as an outlier: alpha {o['alpha']:g}, beta "
+              f"{o['beta']:g} deg, x {o['x']:.6g}, y {o['y']:.6g} px, {o['residual_px']:.3g} px "
+              f"= {o['mads']:.3g} MADs from a robust fit (threshold {n_mad:g}; --outlier-mads)")
+    return screened
 
 
 def _run_calibrate(args) -> int:
@@ -335,9 +370,11 @@ def _run_calibrate(args) -> int:
     args.seed = 0 if args.seed is None else args.seed
     args.max_iter = 3000 if args.max_iter is None else args.max_iter
     _check_out(args.out, args.overwrite)
-    train = open_centroid_table(args.train, "train")
-    val = None if args.validation is None else open_centroid_table(args.validation,
-                                                                   "validation")
+    train = _screen(open_centroid_table(args.train, "train"), args.train, "train",
+                    args.outlier_mads)
+    val = None if args.validation is None else _screen(
+        open_centroid_table(args.validation, "validation"), args.validation, "validation",
+        args.outlier_mads)
     order = None
     if args.order != "auto":
         try:
