@@ -52,8 +52,7 @@ from pathlib import Path
 from .errors import SunlabError
 
 __all__ = ["OutputExistsError", "check_target", "atomic_output", "atomic_files", "check_folder",
-           "write_text",
-           "write_bytes", "temporary_name", "remove_stale"]
+           "signals_held", "write_text", "write_bytes", "temporary_name", "remove_stale"]
 
 
 class OutputExistsError(SunlabError, FileExistsError):
@@ -200,8 +199,10 @@ def _remove(path: Path) -> None:
 
 
 @contextlib.contextmanager
-def _signals_held():
-    """Hold SIGINT and SIGTERM back for a few renames (delivered when the block ends)."""
+def signals_held():
+    """Hold SIGINT and SIGTERM back while the block runs (they are delivered when it ends):
+    for a few renames, or a step whose writes run on another thread that an interrupt of this
+    one would not stop (they would recreate a temporary output after its removal)."""
     held = {signal.SIGINT, signal.SIGTERM}
     try:
         old = signal.pthread_sigmask(signal.SIG_BLOCK, held)
@@ -297,7 +298,7 @@ def atomic_output(path, *, overwrite: bool = False, kind: str = "file",
                 f"{path}: was created while sunlab was writing it. Fix: pass {flag} to replace "
                 "it, or choose a new path"
             )
-        with _signals_held():
+        with signals_held():
             _swap(tmp, path)
     finally:
         if tmp.exists() or tmp.is_symlink():
@@ -404,7 +405,7 @@ def atomic_files(folder, names, *, overwrite: bool = False, flag: str = "overwri
         if unknown:
             raise SunlabError(f"{folder}: unexpected outputs {unknown}. Fix: this is a bug in "
                               "the writer")
-        with _signals_held():
+        with signals_held():
             if not folder.exists():
                 os.rename(staging, folder)
             else:

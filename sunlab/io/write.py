@@ -93,13 +93,15 @@ def _write(ds: xr.Dataset, path: Path, fmt: str, encoding: dict, progress: bool,
     """Write to a temporary sibling, then rename it into place (the old output survives)."""
     with atomic.atomic_output(path, overwrite=overwrite,
                                kind="zarr" if fmt == "zarr" else "file") as tmp:
-        if fmt == "zarr":
-            job = ds.to_zarr(
-                tmp, mode="w-", zarr_format=3, consolidated=False, write_empty_chunks=True,
-                encoding=_zarr_checksum_encoding(ds, encoding), compute=False,
-            )
-        else:
-            job = ds.to_netcdf(tmp, engine="h5netcdf", encoding=encoding, compute=False)
+        # the metadata are written on zarr's own I/O thread: Ctrl-C waits until they are
+        with atomic.signals_held():
+            if fmt == "zarr":
+                job = ds.to_zarr(
+                    tmp, mode="w-", zarr_format=3, consolidated=False, write_empty_chunks=True,
+                    encoding=_zarr_checksum_encoding(ds, encoding), compute=False,
+                )
+            else:
+                job = ds.to_netcdf(tmp, engine="h5netcdf", encoding=encoding, compute=False)
         with _maybe_progress(progress):
             _compute_then_settle(job)
         # the digest of what was written, checked by every read (sunlab.integrity)
