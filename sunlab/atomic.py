@@ -220,7 +220,9 @@ _DISK_FULL = {errno.ENOSPC, errno.EFBIG, getattr(errno, "EDQUOT", errno.ENOSPC)}
 
 def _named(err: OSError, path: Path) -> BaseException:
     """An OS error of a write, as a SunlabError naming the output (a full disk says so)."""
-    what = err.strerror or str(err) or type(err).__name__
+    # the system's own words: a library's text may name the temporary file instead
+    what = (os.strerror(err.errno) if isinstance(err.errno, int)
+            else err.strerror or str(err) or type(err).__name__)
     if err.errno in _DISK_FULL:
         return SunlabError(
             f"{path}: {what} while writing it (errno {errno.errorcode.get(err.errno, '?')}); "

@@ -571,9 +571,10 @@ class _Terminated(KeyboardInterrupt):
 
 
 @contextlib.contextmanager
-def _signals_interrupt():
+def _signals_interrupt(quiet: bool = True):
     """While a command runs (main thread only): SIGTERM raises :class:`_Terminated` and SIGINT
-    :class:`KeyboardInterrupt` (whatever handler the caller had), both restored after."""
+    :class:`KeyboardInterrupt` (whatever handler the caller had), both restored after; with
+    ``quiet``, errors that extensions print from destructors are logged instead."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -583,11 +584,31 @@ def _signals_interrupt():
 
     previous = {sig: signal.signal(sig, handler) for sig, handler in
                 ((signal.SIGTERM, on_term), (signal.SIGINT, signal.default_int_handler))}
+    hooks = sys.unraisablehook, sys.excepthook
+    if quiet:
+        sys.unraisablehook, sys.excepthook = _unraisable, _printed
     try:
         yield
     finally:
+        sys.unraisablehook, sys.excepthook = hooks
         for sig, handler in previous.items():
             signal.signal(sig, handler)
+
+
+def _unraisable(info) -> None:
+    """Errors Python cannot raise (a destructor's, e.g. h5py closing a file on a full disk)
+    follow the error that the command reports: logged, not printed as tracebacks."""
+    import logging
+
+    logging.getLogger("sunlab").debug("ignored in %r: %s", info.object, info.exc_value)
+
+
+def _printed(kind, value, tb) -> None:
+    """What an extension prints while a command runs (Cython's destructors print their
+    errors through ``sys.excepthook``): logged, as :func:`_unraisable`."""
+    import logging
+
+    logging.getLogger("sunlab").debug("ignored: %s: %s", kind.__name__, value)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -608,7 +629,7 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 2
     try:
-        with _signals_interrupt():
+        with _signals_interrupt(quiet=not debug):
             return int(args.func(args) or 0)
     except KeyboardInterrupt as err:
         if debug:
