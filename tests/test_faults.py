@@ -134,6 +134,15 @@ def test_a_full_disk_during_export_overwrite_keeps_the_old_pair_and_names_the_fi
     assert sorted(p.name for p in tmp_path.iterdir()) == ["new.json", "old.json", "onboard"]
 
 
+@pytest.mark.parametrize("out", ["s.zarr", "s.nc"])
+def test_a_full_disk_during_simulate_names_the_output_and_leaves_nothing(tmp_path, out):
+    code, _, err = _run("simulate", "--experiment", "I", "--subset", "10", "--shots", "1",
+                        "--out", out, "--no-progress", cwd=tmp_path, limit_bytes=20_000)
+    line = _one_line(err)
+    assert code == 1 and line.startswith(f"sunlab simulate: error: {out}: File too large")
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_a_failed_evaluate_leaves_no_folder_and_no_file(tmp_path, grid):
     cal = Polynomial(order=2).fit(grid).save(tmp_path / "cal.json")
     io.save_centroids(grid, tmp_path / "test.nc")

@@ -428,8 +428,10 @@ def _lock_path(out) -> Path:
 
 def _read_lock(lock: Path) -> dict:
     try:
+        if lock.stat().st_size > 4096:  # not a lock sunlab wrote
+            return {}
         info = json.loads(lock.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, ValueError):
+    except (OSError, UnicodeDecodeError, ValueError, RecursionError):
         return {}
     return info if isinstance(info, dict) else {}
 

@@ -121,7 +121,7 @@ def _open_raw(path, format: str | None = None) -> xr.Dataset:
         for var in ds.variables.values():
             var.attrs = _decode_attrs(var.attrs)
         ds.attrs = _decode_attrs(ds.attrs)
-    except (ValueError, TypeError, KeyError) as exc:
+    except (ValueError, TypeError, KeyError, RecursionError) as exc:  # deep JSON too
         ds.close()
         raise SunlabError(
             f"{path}: unreadable attribute {_CODEC_ATTR!r} ({exc}). Fix: the metadata was edited "
