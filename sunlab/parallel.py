@@ -266,6 +266,8 @@ def local_cluster(workers: int | None = None):
     env.pop("MALLOC_TRIM_THRESHOLD_", None)
     with dask.config.set({"distributed.nanny.pre-spawn-environ": env}), LocalCluster(
         n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
-        silence_logs=40,
+        # CRITICAL: a task's error reaches the caller as an exception; a worker that outlives
+        # the scheduler at Ctrl-C is not an error to print. Ctrl-C is the main process's.
+        silence_logs=50, preload=["sunlab._cluster_preload"],
     ) as cluster:
         yield cluster

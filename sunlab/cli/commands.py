@@ -584,13 +584,20 @@ def _signals_interrupt(quiet: bool = True):
 
     previous = {sig: signal.signal(sig, handler) for sig, handler in
                 ((signal.SIGTERM, on_term), (signal.SIGINT, signal.default_int_handler))}
+    import logging
+
     hooks = sys.unraisablehook, sys.excepthook
+    # an interrupted dask.distributed client leaves tasks whose errors asyncio logs
+    loop_log = logging.getLogger("asyncio")
+    was_disabled = loop_log.disabled
     if quiet:
         sys.unraisablehook, sys.excepthook = _unraisable, _printed
+        loop_log.disabled = True
     try:
         yield
     finally:
         sys.unraisablehook, sys.excepthook = hooks
+        loop_log.disabled = was_disabled
         for sig, handler in previous.items():
             signal.signal(sig, handler)
 
