@@ -688,8 +688,11 @@ def open_run(path, *, chunks=None):
 
     from .. import schema
 
+    from .. import integrity
+
     path = Path(path)
     if not path.exists():
         raise ConfigurationError(f"path: {str(path)!r} does not exist, expected a run store")
+    integrity.verify_zarr(path)  # sealed when its last session ended
     ds = xr.open_zarr(path, consolidated=False, chunks={} if chunks is None else chunks)
     return schema.validate_frames(ds)
