@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import os
 import signal
 import sys
 import threading
@@ -574,16 +575,28 @@ class _Terminated(KeyboardInterrupt):
 def _signals_interrupt(quiet: bool = True):
     """While a command runs (main thread only): SIGTERM raises :class:`_Terminated` and SIGINT
     :class:`KeyboardInterrupt` (whatever handler the caller had), both restored after; with
-    ``quiet``, errors that extensions print from destructors are logged instead."""
+    ``quiet``, errors that extensions print from destructors are logged instead.
+
+    Yields the list of signals received. A signal that arrives while the main thread is
+    importing a module is raised once the import is over (the signal is sent again 50 ms
+    later): an exception inside an import can leave the import locks of other threads held
+    (a deadlock), and a library's bare ``except:`` around an import would swallow it. The
+    caller also treats a command that returns after a signal as interrupted."""
+    received: list[int] = []
     if threading.current_thread() is not threading.main_thread():
-        yield
+        yield received
         return
 
-    def on_term(signum, frame):
-        raise _Terminated
+    def on_signal(signum, frame):
+        received.append(signum)
+        if _importing(frame):
+            timer = threading.Timer(0.05, os.kill, (os.getpid(), signum))
+            timer.daemon = True
+            timer.start()
+            return
+        raise _Terminated if signum == signal.SIGTERM else KeyboardInterrupt
 
-    previous = {sig: signal.signal(sig, handler) for sig, handler in
-                ((signal.SIGTERM, on_term), (signal.SIGINT, signal.default_int_handler))}
+    previous = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGTERM, signal.SIGINT)}
     import logging
 
     hooks = sys.unraisablehook, sys.excepthook
@@ -594,12 +607,21 @@ def _signals_interrupt(quiet: bool = True):
         sys.unraisablehook, sys.excepthook = _unraisable, _printed
         loop_log.disabled = True
     try:
-        yield
+        yield received
     finally:
         sys.unraisablehook, sys.excepthook = hooks
         loop_log.disabled = was_disabled
         for sig, handler in previous.items():
             signal.signal(sig, handler)
+
+
+def _importing(frame) -> bool:
+    """Whether ``frame`` or one of its callers runs Python's import machinery."""
+    while frame is not None:
+        if frame.f_code.co_filename.startswith("<frozen importlib"):
+            return True
+        frame = frame.f_back
+    return False
 
 
 def _unraisable(info) -> None:
@@ -636,8 +658,12 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 2
     try:
-        with _signals_interrupt(quiet=not debug):
-            return int(args.func(args) or 0)
+        with _signals_interrupt(quiet=not debug) as received:
+            status = int(args.func(args) or 0)
+        if not received:
+            return status
+        # the command returned although a signal came: a library swallowed the interrupt
+        raise _Terminated if received[0] == signal.SIGTERM else KeyboardInterrupt
     except KeyboardInterrupt as err:
         if debug:
             raise

@@ -686,9 +686,7 @@ def open_run(path, *, chunks=None):
     """
     import xarray as xr
 
-    from .. import schema
-
-    from .. import integrity
+    from .. import integrity, schema
 
     path = Path(path)
     if not path.exists():
