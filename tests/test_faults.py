@@ -223,6 +223,42 @@ def test_a_signal_during_simulate_ends_in_one_line_and_leaves_nothing(tmp_path, 
     assert sorted(p.name for p in tmp_path.iterdir()) == ["keep.txt"]
 
 
+def test_an_interrupt_a_library_swallows_still_ends_the_command(monkeypatch, capsys):
+    from sunlab.cli import commands
+
+    def swallowing(args):
+        try:
+            os.kill(os.getpid(), signal.SIGINT)  # Ctrl-C, for real
+            time.sleep(5)
+        except BaseException:  # noqa: BLE001 - a library's bare except
+            pass
+        return 0
+
+    monkeypatch.setattr(commands, "_run_info", swallowing)
+    assert main(["info", "x"]) == 130
+    assert capsys.readouterr().err.strip() == "sunlab info: interrupted by Ctrl-C (SIGINT)"
+
+
+def test_an_interrupt_during_an_import_waits_for_the_import(tmp_path, monkeypatch, capsys):
+    from sunlab.cli import commands
+
+    (tmp_path / "slow_import_29.py").write_text(
+        "import os, signal, time\nos.kill(os.getpid(), signal.SIGINT)\ntime.sleep(0.3)\n"
+        "DONE = True\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+
+    def importing(args):
+        import slow_import_29  # noqa: F401
+
+        time.sleep(5)  # the interrupt, delivered again after the import, lands here
+        return 0
+
+    monkeypatch.setattr(commands, "_run_info", importing)
+    assert main(["info", "x"]) == 130
+    assert sys.modules["slow_import_29"].DONE  # the import ran to its end
+    assert "interrupted" in capsys.readouterr().err
+
+
 # -- 4. one writer per acquisition run -------------------------------------------------------
 def test_a_second_session_is_refused_naming_the_holder(tmp_path):
     out = tmp_path / "run.zarr"
