@@ -95,7 +95,7 @@ def open_stage(url: str, *, bench=None, seed: int = 0, **driver_kwargs):
         return ESP300(url, **driver_kwargs)
     from .fake import FakeESP
 
-    query = parse_qs(urlsplit(url).query)
+    query = parse_qs(urlsplit(url).query, keep_blank_values=True)  # "velocity=" is an error
     options = {k: v[-1] for k, v in query.items()}
     unknown = set(options) - {"velocity", "transport"}
     if unknown:
