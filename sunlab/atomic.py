@@ -52,7 +52,8 @@ from pathlib import Path
 from .errors import SunlabError
 
 __all__ = ["OutputExistsError", "check_target", "atomic_output", "atomic_files", "check_folder",
-           "signals_held", "write_text", "write_bytes", "temporary_name", "remove_stale"]
+           "signals_held", "write_text", "write_bytes", "temporary_name", "remove_stale",
+           "process_alive"]
 
 
 class OutputExistsError(SunlabError, FileExistsError):
@@ -77,8 +78,17 @@ def temporary_name(path, what: str = "tmp") -> Path:
     return path.with_name(f".{path.name}.{what}-{os.getpid()}-{uuid.uuid4().hex[:8]}")
 
 
-def _alive(pid: int) -> bool:
-    if pid == os.getpid():
+def process_alive(pid) -> bool:
+    """Whether process ``pid`` runs on this host (this process, or another user's, counts; a
+    value that is not a positive integer is never taken for a dead process).
+
+    Examples
+    --------
+    >>> import os
+    >>> process_alive(os.getpid())
+    True
+    """
+    if not isinstance(pid, int) or pid <= 0 or pid == os.getpid():
         return True
     try:
         os.kill(pid, 0)
@@ -114,7 +124,7 @@ def remove_stale(path) -> list[Path]:
         return cleared
     for entry in entries:
         match = pattern.fullmatch(entry.name)
-        if match is None or _alive(int(match.group(2))):
+        if match is None or process_alive(int(match.group(2))):
             continue
         stale = Path(entry.path)
         if match.group(1) == "old" and not (path.exists() or path.is_symlink()):

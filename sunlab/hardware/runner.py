@@ -436,18 +436,6 @@ def _read_lock(lock: Path) -> dict:
     return info if isinstance(info, dict) else {}
 
 
-def _alive(pid) -> bool:
-    if not isinstance(pid, int) or pid <= 0:
-        return True  # unreadable: never taken for dead
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
-
-
 def _publish(lock: Path, me: dict) -> bool:
     """Create ``lock`` holding ``me``, complete, in one step; False if it exists."""
     from .. import atomic
@@ -474,13 +462,15 @@ def _publish(lock: Path, me: dict) -> bool:
 def _take_lock(lock: Path, out: Path) -> None:
     import socket
 
+    from .. import atomic
+
     me = {"pid": os.getpid(), "host": socket.gethostname(), "start": _now()}
     for _ in range(5):
         if _publish(lock, me):
             return
         holder = _read_lock(lock)
         pid, host = holder.get("pid"), holder.get("host")
-        if host == me["host"] and isinstance(pid, int) and not _alive(pid):
+        if host == me["host"] and isinstance(pid, int) and not atomic.process_alive(pid):
             stale = lock.with_name(f"{lock.name}.stale-{os.getpid()}")
             try:
                 os.replace(lock, stale)  # only one of two sessions taking over gets it
