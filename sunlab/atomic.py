@@ -10,7 +10,16 @@ caller says so (``overwrite=True`` / ``--overwrite``):
   Zarr store) and moves it into place when the block ends without error. A file replaces the old
   one with :func:`os.replace`; a directory is swapped by renaming the old one aside, renaming the
   new one in and only then deleting the old one, so the old output survives any failure;
+* :func:`atomic_files` does the same for several files of one folder (``export``'s header and
+  source, ``evaluate``'s tables and figures): they are written into a temporary sibling folder
+  and moved into place together, so a failure leaves all the old files or all the new ones;
 * :func:`write_text` and :func:`write_bytes` do both for small files (JSON, CSV).
+
+Temporary names carry the writer's process id (``.NAME.tmp-PID-XXXXXXXX``, an old output set
+aside ``.NAME.old-PID-XXXXXXXX``): a later write of the same output removes the leftovers of a
+writer that was killed (its process is gone), and puts back an old output that such a writer had
+set aside but not yet replaced. The moves into place run with SIGINT and SIGTERM held back, so
+Ctrl-C cannot split them. A full disk (or a file-size limit) is reported naming the output.
 
 Examples
 --------
@@ -32,14 +41,19 @@ OutputExistsError
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
+import re
 import shutil
+import signal
 import uuid
 from pathlib import Path
 
 from .errors import SunlabError
 
-__all__ = ["OutputExistsError", "check_target", "atomic_output", "write_text", "write_bytes"]
+__all__ = ["OutputExistsError", "check_target", "atomic_output", "atomic_files", "check_folder",
+           "signals_held", "write_text", "write_bytes", "temporary_name", "remove_stale",
+           "process_alive"]
 
 
 class OutputExistsError(SunlabError, FileExistsError):
@@ -49,6 +63,78 @@ class OutputExistsError(SunlabError, FileExistsError):
 def _is_zarr_store(path: Path) -> bool:
     return (path / "zarr.json").exists() or (path / ".zgroup").exists() or (
         path / ".zarray").exists()
+
+
+def temporary_name(path, what: str = "tmp") -> Path:
+    """A hidden sibling of ``path`` for this process: ``.NAME.<what>-PID-XXXXXXXX``.
+
+    Examples
+    --------
+    >>> import os
+    >>> temporary_name("/data/cube.zarr").name.startswith(f".cube.zarr.tmp-{os.getpid()}-")
+    True
+    """
+    path = Path(path)
+    return path.with_name(f".{path.name}.{what}-{os.getpid()}-{uuid.uuid4().hex[:8]}")
+
+
+def process_alive(pid) -> bool:
+    """Whether process ``pid`` runs on this host (this process, or another user's, counts; a
+    value that is not a positive integer is never taken for a dead process).
+
+    Examples
+    --------
+    >>> import os
+    >>> process_alive(os.getpid())
+    True
+    """
+    if not isinstance(pid, int) or pid <= 0 or pid == os.getpid():
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's process
+        return True
+    return True
+
+
+def remove_stale(path) -> list[Path]:
+    """Clear what a killed writer of ``path`` left beside it; return what was cleared.
+
+    Temporary outputs (``.NAME.tmp-PID-*``) of a process that no longer runs are removed; an
+    old output it had set aside (``.NAME.old-PID-*``) is put back where ``path`` is missing,
+    and removed otherwise. Leftovers of running processes are not touched.
+
+    Examples
+    --------
+    >>> import pathlib, tempfile
+    >>> folder = pathlib.Path(tempfile.mkdtemp())
+    >>> _ = (folder / ".c.json.tmp-999999999-0123abcd").write_text("half")
+    >>> [p.name for p in remove_stale(folder / "c.json")]
+    ['.c.json.tmp-999999999-0123abcd']
+    """
+    path = Path(path)
+    parent = path.parent if str(path.parent) else Path(".")
+    pattern = re.compile(rf"\.{re.escape(path.name)}\.(tmp|old)-(\d+)-[0-9a-f]{{8}}")
+    cleared = []
+    try:
+        entries = sorted(os.scandir(parent), key=lambda e: e.name)
+    except OSError:
+        return cleared
+    for entry in entries:
+        match = pattern.fullmatch(entry.name)
+        if match is None or process_alive(int(match.group(2))):
+            continue
+        stale = Path(entry.path)
+        if match.group(1) == "old" and not (path.exists() or path.is_symlink()):
+            with contextlib.suppress(OSError):
+                os.replace(stale, path)
+                cleared.append(stale)
+                continue
+        _remove(stale)
+        cleared.append(stale)
+    return cleared
 
 
 def check_target(path, *, overwrite: bool = False, kind: str = "file", flag: str = "overwrite=True"
@@ -99,6 +185,7 @@ def check_target(path, *, overwrite: bool = False, kind: str = "file", flag: str
             f"{path}: the folder {parent} is not writable. Fix: choose an output path in a "
             "folder you can write to, or change the folder's permissions"
         )
+    remove_stale(path)
     if path.exists() or path.is_symlink():
         if not overwrite:
             raise OutputExistsError(
@@ -121,10 +208,56 @@ def _remove(path: Path) -> None:
             path.unlink()
 
 
+@contextlib.contextmanager
+def signals_held():
+    """Hold SIGINT and SIGTERM back while the block runs (they are delivered when it ends):
+    for a few renames, or a step whose writes run on another thread that an interrupt of this
+    one would not stop (they would recreate a temporary output after its removal)."""
+    held = {signal.SIGINT, signal.SIGTERM}
+    try:
+        old = signal.pthread_sigmask(signal.SIG_BLOCK, held)
+    except (AttributeError, OSError, ValueError):  # no POSIX signal masks (Windows)
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
+_DISK_FULL = {errno.ENOSPC, errno.EFBIG, getattr(errno, "EDQUOT", errno.ENOSPC)}
+
+
+def _named(err: OSError, path: Path) -> BaseException:
+    """An OS error of a write, as a SunlabError naming the output (a full disk says so)."""
+    # the system's own words: a library's text may name the temporary file instead
+    what = (os.strerror(err.errno) if isinstance(err.errno, int)
+            else err.strerror or str(err) or type(err).__name__)
+    if err.errno in _DISK_FULL:
+        return SunlabError(
+            f"{path}: {what} while writing it (errno {errno.errorcode.get(err.errno, '?')}); "
+            "nothing was changed there. Fix: free disk space (or raise the file-size or quota "
+            "limit), or write to another disk"
+        )
+    return SunlabError(f"{path}: {what} while writing it; nothing was changed there. Fix: check "
+                       "the folder, its free space and its permissions")
+
+
+def _renamed(err: OSError, tmp: Path, path: Path) -> BaseException:
+    """An OS error of a write into ``tmp``, naming the output ``path`` the user asked for: a
+    full disk or an error without a file name becomes a SunlabError, one naming the temporary
+    output names ``path`` instead (same type)."""
+    if err.filename is None or err.errno in _DISK_FULL:
+        return _named(err, path)
+    if str(tmp) in str(err.filename):
+        err.filename = str(path)
+    return err
+
+
 def _swap(tmp: Path, path: Path) -> None:
     """Move ``tmp`` to ``path``; an existing ``path`` survives any failure of the move."""
     if tmp.is_dir() and (path.exists() or path.is_symlink()):
-        aside = path.with_name(f".{path.name}.old-{uuid.uuid4().hex[:8]}")
+        aside = temporary_name(path, "old")
         os.replace(path, aside)
         try:
             os.replace(tmp, path)
@@ -141,7 +274,7 @@ def atomic_output(path, *, overwrite: bool = False, kind: str = "file",
                   flag: str = "overwrite=True"):
     """Yield a temporary sibling of ``path`` to write; move it into place on success.
 
-    The temporary name is hidden (``.NAME.tmp-XXXXXXXX``) and in the same folder, so the final
+    The temporary name is hidden (``.NAME.tmp-PID-XXXXXXXX``) and in the same folder, so the final
     rename is atomic. On any error (or Ctrl-C) the temporary output is removed and an existing
     output at ``path`` is left as it was.
 
@@ -163,9 +296,12 @@ def atomic_output(path, *, overwrite: bool = False, kind: str = "file",
     ['zarr.json']
     """
     path = check_target(path, overwrite=overwrite, kind=kind, flag=flag)
-    tmp = path.with_name(f".{path.name}.tmp-{uuid.uuid4().hex[:8]}")
+    tmp = temporary_name(path)
     try:
-        yield tmp
+        try:
+            yield tmp
+        except OSError as err:
+            raise _renamed(err, tmp, path) from err.__cause__
         if not (tmp.exists() or tmp.is_symlink()):
             raise SunlabError(f"{path}: nothing was written. Fix: this is a bug in the writer")
         # Checked again: another process may have created the output meanwhile.
@@ -174,10 +310,121 @@ def atomic_output(path, *, overwrite: bool = False, kind: str = "file",
                 f"{path}: was created while sunlab was writing it. Fix: pass {flag} to replace "
                 "it, or choose a new path"
             )
-        _swap(tmp, path)
+        with signals_held():
+            _swap(tmp, path)
     finally:
         if tmp.exists() or tmp.is_symlink():
             _remove(tmp)
+
+
+#: Name of the staging folder that :func:`atomic_files` makes inside an existing folder.
+_STAGING = "sunlab-output"
+
+
+def check_folder(folder, names, *, overwrite: bool = False, flag: str = "overwrite=True"
+                 ) -> Path:
+    """The checks of :func:`atomic_files`, to run before any work (nothing is created): the
+    folder can be made or is a folder, and no listed file exists unless ``overwrite``."""
+    folder = Path(folder)
+    if folder.is_dir():
+        remove_stale(folder / _STAGING)
+        for name in names:
+            check_target(folder / name, overwrite=overwrite, flag=flag)
+    elif folder.exists() or folder.is_symlink():
+        raise SunlabError(f"{folder}: exists and is not a folder. Fix: choose another output "
+                          "folder")
+    else:  # the parent must exist and be writable; leftovers of a killed writer go
+        check_target(folder, flag=flag)
+    return folder
+
+
+def _move_in(staging: Path, folder: Path, overwrite: bool, flag: str) -> None:
+    """Move every file of ``staging`` into ``folder``; on a failure, undo the moves made."""
+    aside = staging / ".old"
+    aside.mkdir()
+    done: list[tuple[Path, Path | None]] = []
+    try:
+        for new in sorted(p for p in staging.iterdir() if p != aside):
+            target = folder / new.name
+            old = None
+            if target.exists() or target.is_symlink():
+                if not overwrite:
+                    raise OutputExistsError(
+                        f"{target}: was created while sunlab was writing it. Fix: pass {flag} "
+                        "to replace it, or choose a new folder")
+                old = aside / new.name
+                os.replace(target, old)
+            done.append((target, old))
+            os.replace(new, target)
+    except BaseException:
+        for target, old in reversed(done):
+            with contextlib.suppress(OSError):
+                if old is not None:
+                    os.replace(old, target)
+                elif target.exists():
+                    target.unlink()
+        raise
+
+
+@contextlib.contextmanager
+def atomic_files(folder, names, *, overwrite: bool = False, flag: str = "overwrite=True"):
+    """Yield a temporary folder to write the files ``names`` in; move them into ``folder``
+    together when the block ends without error.
+
+    Everything is checked before the block runs (the parent folder is writable, no listed file
+    exists unless ``overwrite``), and ``folder`` is not created until the files are complete:
+    a missing ``folder`` is the temporary folder renamed (one atomic step); in an existing one
+    the old files are set aside, the new ones moved in, and the old ones deleted, with SIGINT
+    and SIGTERM held back, and the moves undone if one fails. On any error before that nothing
+    in ``folder`` changes. Files of ``folder`` that are not written are left alone.
+
+    Parameters
+    ----------
+    folder : str or path-like
+        The output folder (created if missing).
+    names : iterable of str
+        The files that may be written (checked for existence first); the block may leave some
+        out.
+    overwrite : bool
+        Whether existing files of ``names`` may be replaced.
+    flag : str
+        How the user asks to overwrite, for the messages.
+
+    Examples
+    --------
+    >>> import pathlib, tempfile
+    >>> out = pathlib.Path(tempfile.mkdtemp()) / "onboard"
+    >>> with atomic_files(out, ["a.h", "a.c"]) as tmp:
+    ...     _ = (tmp / "a.h").write_text("int f(void);")
+    ...     _ = (tmp / "a.c").write_text("int f(void) { return 0; }")
+    >>> sorted(p.name for p in out.iterdir())
+    ['a.c', 'a.h']
+    """
+    names = list(names)
+    folder = check_folder(folder, names, overwrite=overwrite, flag=flag)
+    # beside a missing folder (renamed into place), inside an existing one (the same disk)
+    staging = temporary_name(folder / _STAGING if folder.is_dir() else folder)
+    try:
+        staging.mkdir()
+    except OSError as err:
+        raise _named(err, folder) from err
+    try:
+        try:
+            yield staging
+        except OSError as err:
+            raise _renamed(err, staging, folder) from err.__cause__
+        unknown = sorted(p.name for p in staging.iterdir() if p.name not in names)
+        if unknown:
+            raise SunlabError(f"{folder}: unexpected outputs {unknown}. Fix: this is a bug in "
+                              "the writer")
+        with signals_held():
+            if not folder.exists():
+                os.rename(staging, folder)
+            else:
+                _move_in(staging, folder, overwrite, flag)
+    finally:
+        if staging.exists():
+            _remove(staging)
 
 
 def write_bytes(path, data: bytes, *, overwrite: bool = False, flag: str = "overwrite=True"

@@ -453,6 +453,22 @@ int sunlab_calibration_evalf(float x_px, float y_px, float *alpha_deg, float *be
     return header, _c_source(cal, about)
 
 
+def _comment(text, limit: int = 200) -> str:
+    """``text`` made safe inside a C block comment: printable ASCII but the backslash, no
+    comment delimiter, no trigraph, at most ``limit`` characters (strings read from a file must
+    never close the comment and become code).
+
+    Examples
+    --------
+    >>> _comment("I */ int evil(void) { return 1; } /* ??/")
+    'I * / int evil(void) { return 1; } / * ? ?/'
+    """
+    text = "".join(ch if " " <= ch <= "~" and ch != "\\" else "?" for ch in str(text))
+    while "*/" in text or "/*" in text or "??" in text:
+        text = text.replace("*/", "* /").replace("/*", "/ *").replace("??", "? ?")
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
 def _about(cal) -> str:
     """The comment lines that describe the calibration: method, training, domain."""
     (x0, x1), (y0, y1) = cal.domain["x"], cal.domain["y"]
@@ -460,9 +476,9 @@ def _about(cal) -> str:
               if cal.kind.startswith("interpolation") else
               f"x in [{x0:.6g}, {x1:.6g}] px, y in [{y0:.6g}, {y1:.6g}] px")
     training = cal.training or {}
-    about = (f" * Calibration: {cal.label} (kind {cal.kind!r}), fitted on "
-             f"{training.get('n_poses', '?')} poses of experiment "
-             f"{training.get('experiment') or '?'!r}.\n"
+    about = (f" * Calibration: {_comment(cal.label)} (kind {_comment(repr(cal.kind))}), fitted "
+             f"on {_comment(training.get('n_poses', '?'))} poses of experiment "
+             f"{_comment(repr(training.get('experiment') or '?'))}.\n"
              f" * Domain: {domain}\n"
              f" *   (alpha in [{cal.domain['alpha'][0]:.6g}, {cal.domain['alpha'][1]:.6g}] deg, "
              f"beta in [{cal.domain['beta'][0]:.6g}, {cal.domain['beta'][1]:.6g}] deg).\n")
@@ -511,12 +527,12 @@ def export_c(cal, out, *, overwrite: bool = False) -> tuple[Path, Path]:
 
     header, source = c_sources(cal)
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
     h, c = out / f"{BASENAME}.h", out / f"{BASENAME}.c"
-    for path in (h, c):
-        atomic.check_target(path, overwrite=overwrite, flag="--overwrite")
-    atomic.write_text(h, header, overwrite=overwrite, flag="--overwrite")
-    atomic.write_text(c, source, overwrite=overwrite, flag="--overwrite")
+    # both files or neither: a header never lands beside another export's source
+    with atomic.atomic_files(out, [h.name, c.name], overwrite=overwrite,
+                             flag="--overwrite") as tmp:
+        (tmp / h.name).write_text(header, encoding="utf-8")
+        (tmp / c.name).write_text(source, encoding="utf-8")
     return h, c
 
 
@@ -544,9 +560,12 @@ def export(cal, out, format: str = "c", *, overwrite: bool = False) -> list[Path
     cal = _load(cal)
     if format == "c":
         return list(export_c(cal, out, overwrite=overwrite))
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    return [cal.save(out / f"{BASENAME}.json", overwrite=overwrite)]
+    from . import atomic
+
+    name = f"{BASENAME}.json"
+    with atomic.atomic_files(out, [name], overwrite=overwrite, flag="--overwrite") as tmp:
+        cal.save(tmp / name)
+    return [Path(out) / name]
 
 
 def find_c_compiler() -> str | None:
@@ -601,11 +620,23 @@ def run_c(folder, x, y, *, cc: str | None = None, timeout: float = 60.0) -> dict
             "cc: no C compiler found on the PATH (cc, gcc, clang). Fix: install one "
             "(e.g. apt-get install gcc) or compile the exported files on the target"
         )
+    import tempfile
+
     folder = Path(folder)
-    (folder / "sunlab_driver.c").write_text(_DRIVER, encoding="utf-8")
-    exe = folder / "sunlab_driver"
-    cmd = [cc, "-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-pedantic", "-o", str(exe),
-           str(folder / "sunlab_driver.c"), str(folder / f"{BASENAME}.c"), "-lm"]
+    # the driver (with its main()) and the executable are built in a folder of their own,
+    # never among the deliverables
+    build = Path(tempfile.mkdtemp(prefix="sunlab-check-"))
+    try:
+        return _compile_and_run(cc, folder, build, x, y, timeout)
+    finally:
+        shutil.rmtree(build, ignore_errors=True)
+
+
+def _compile_and_run(cc: str, folder: Path, build: Path, x, y, timeout: float) -> dict:
+    (build / "sunlab_driver.c").write_text(_DRIVER, encoding="utf-8")
+    exe = build / "sunlab_driver"
+    cmd = [cc, "-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-pedantic", "-I", str(folder),
+           "-o", str(exe), str(build / "sunlab_driver.c"), str(folder / f"{BASENAME}.c"), "-lm"]
     done = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, check=False)
     if done.returncode:
         raise ConfigurationError(f"{' '.join(cmd)} failed:\n{done.stderr}")

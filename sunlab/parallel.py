@@ -155,9 +155,20 @@ def worker_pool(scheduler: str = "threads", num_workers: int | None = None,
         yield None
         return
     n = int(num_workers) if num_workers else (os.cpu_count() or 1)
-    with ProcessPoolExecutor(n, mp_context=_warm_context(),
-                             initializer=initialize_worker_process) as pool:
+    pool = ProcessPoolExecutor(n, mp_context=_warm_context(), initializer=_init_worker)
+    try:
         yield pool
+    finally:  # on Ctrl-C too: queued tasks are dropped, running ones end, workers stop
+        pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _init_worker() -> None:
+    """Start a pool worker: Dask's set-up, and Ctrl-C left to the parent, which stops the
+    workers (a worker interrupted itself would print a traceback)."""
+    import signal
+
+    initialize_worker_process()
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 #: The modules the fork server imports before it forks a worker (:func:`worker_pool`): imports
@@ -260,6 +271,8 @@ def local_cluster(workers: int | None = None):
     env.pop("MALLOC_TRIM_THRESHOLD_", None)
     with dask.config.set({"distributed.nanny.pre-spawn-environ": env}), LocalCluster(
         n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
-        silence_logs=40,
+        # CRITICAL: a task's error reaches the caller as an exception; a worker that outlives
+        # the scheduler at Ctrl-C is not an error to print. Ctrl-C is the main process's.
+        silence_logs=50, preload=["sunlab._cluster_preload"],
     ) as cluster:
         yield cluster

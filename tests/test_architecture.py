@@ -152,8 +152,8 @@ def test_notebooks_use_public_names_only(notebook):
 #: The layers of docs/architecture.md, lowest first; a module may import its own layer and
 #: the layers below, never a layer above (lazy imports inside functions included).
 LAYERS = [
-    {"errors", "options", "extras", "jit", "atomic", "schema", "parallel"},
-    {"io", "geometry", "stats", "plans", "calibration", "centroid"},
+    {"errors", "options", "extras", "jit", "atomic", "integrity", "schema", "parallel"},
+    {"io", "geometry", "stats", "plans", "calibration", "centroid", "screening"},
     {"sim", "multihole", "platform_fault", "export", "plots", "hardware"},
     {"reproduce", "widgets", "cli", "data", "course"},
 ]

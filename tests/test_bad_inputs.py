@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from sunlab import calibration, cli, io, schema, sim
+from sunlab import calibration, cli, integrity, io, schema, sim
 from sunlab.errors import SchemaError, SunlabError
 
 NY, NX = 24, 32
@@ -728,10 +728,13 @@ row("frames bit_depth 0", nothing,
 
 
 def _lying_store(c):
-    """A store of 12-bit frames whose attrs claim 10 bits (edited metadata)."""
+    """A store of 12-bit frames whose attrs claim 10 bits (edited metadata, and no checksum:
+    as another tool would write it; with sunlab's checksum the edit is refused at once, see
+    tests/test_faults.py)."""
     cube = schema.frames_dataset(_frames(peak=3936), alpha=[0.0, 1.0], beta=[0.0, 0.0],
                                  bit_depth=12)
     io.save_frames(cube, c.tmp / "lie.zarr")
+    integrity.unseal_zarr(c.tmp / "lie.zarr")
     _edit_json(c.tmp / "lie.zarr" / "zarr.json", _set("attributes", "bit_depth", 10))
 
 

@@ -28,6 +28,9 @@ from sunlab.hardware import (
 from sunlab.hardware.esp_protocol import decode_error, format_number
 
 NO_ERROR = b"0, 451322, NO ERROR DETECTED\r\n"
+#: The marker query the driver sends to get back in step after a lost reply, and its answer.
+SYNC = b"VE?\r"
+IDENTITY = b"ESP301 Version 3.0.0 (fake)\r\n"
 
 
 class ProtocolTransport:
@@ -35,7 +38,8 @@ class ProtocolTransport:
 
     ``pairs`` is a list of ``(sent, reply)``: ``sent`` the bytes the driver must write next,
     ``reply`` the bytes then readable (None: silence, a read times out; an exception instance:
-    the link breaks on the read).
+    the link breaks on the read). The driver's ``VE?`` resynchronisation after a lost or
+    garbled reply is answered without a script entry, and counted in ``syncs``.
     """
 
     def __init__(self, pairs):
@@ -44,8 +48,14 @@ class ProtocolTransport:
         self.pending = b""
         self.broken: Exception | None = None
         self.flushes = 0
+        self.syncs = 0
 
     def write(self, data: bytes) -> int:
+        if data == SYNC and (self.index >= len(self.pairs) or self.pairs[self.index][0] != SYNC):
+            # the driver's resynchronisation after a lost reply: answered, not scripted
+            self.syncs += 1
+            self.pending += IDENTITY
+            return len(data)
         assert self.index < len(self.pairs), f"unexpected write {data!r} after the last exchange"
         sent, reply = self.pairs[self.index]
         assert data == sent, f"exchange {self.index}: driver sent {data!r}, expected {sent!r}"
@@ -330,7 +340,9 @@ def test_error_replies_lost_in_a_row_are_counted_and_flushed():
     with pytest.raises(ErrorReplyLost, match="2 replies") as info:
         connected(stage).move_to(1, 2)
     assert (info.value.lost, [e.code for e in info.value.errors]) == (2, [213])
-    assert transport.flushes == 2 and transport.index == len(transport.pairs)
+    # flushed before each query and at each retry, and back in step after each lost reply
+    assert transport.flushes == 4 + 2 and transport.syncs == 2
+    assert transport.index == len(transport.pairs)
 
 
 def test_error_replies_lost_past_the_retries_never_read_empty():

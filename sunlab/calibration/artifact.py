@@ -12,6 +12,7 @@ import json
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from .. import integrity
 from ..errors import SchemaError
 from ..schema import CALIBRATION_SCHEMA, validate_calibration
 from ._checks import _bad
@@ -152,8 +153,8 @@ def load(path, *, kinds: dict[str, str] | None = None) -> Calibration:
     path = Path(path)
     try:
         size = path.stat().st_size
-        if path.is_dir():
-            raise IsADirectoryError(f"{path} is a directory")
+        if not path.is_file():  # a folder; a FIFO or a device would block or never end
+            raise IsADirectoryError(f"{path} is not a regular file")
         if size > MAX_FILE_BYTES:
             raise SchemaError(
                 str(path), f"{size} bytes", f"a calibration JSON file of at most "
@@ -172,9 +173,13 @@ def load(path, *, kinds: dict[str, str] | None = None) -> Calibration:
                           "check the path and its permissions") from err
     try:
         doc = json.loads(text)
-    except ValueError as err:  # JSONDecodeError, and integers of more than 4300 digits
+    except (ValueError, RecursionError) as err:  # and integers of more than 4300 digits
         raise SchemaError(
             str(path), f"invalid JSON ({err})", "a calibration/1 JSON document",
             "the file is corrupt or truncated; re-fit the calibration with `sunlab calibrate`",
         ) from err
-    return from_dict(doc, kinds=kinds)
+    # a depth limit; the fields; the checksum Calibration.save wrote
+    integrity.check_depth(doc, path)
+    cal = from_dict(doc, kinds=kinds)
+    integrity.verify_document(doc, path)
+    return cal

@@ -47,7 +47,7 @@ from typing import ClassVar
 import numpy as np
 import xarray as xr
 
-from .. import __version__, atomic
+from .. import __version__, atomic, integrity
 from ..errors import ConfigurationError, SchemaError
 from ..schema import CALIBRATION_SCHEMA, STATUS, validate_centroids
 from .artifact import validate_document
@@ -521,7 +521,7 @@ class Calibration:
         path = atomic.check_target(path, overwrite=overwrite)
         doc = self.to_dict()
         validate_document(doc, self.kinds)
-        text = json.dumps(doc, indent=1, allow_nan=False) + "\n"
+        text = json.dumps(integrity.seal_document(doc), indent=1, allow_nan=False) + "\n"
         return atomic.write_text(path, text, overwrite=overwrite)
 
     def __repr__(self) -> str:

@@ -18,7 +18,11 @@ Examples
 from __future__ import annotations
 
 import argparse
+import contextlib
+import os
+import signal
 import sys
+import threading
 
 from ..calibration.registry import ALIASES, KINDS
 from ..errors import SunlabError
@@ -27,19 +31,21 @@ from . import lab as _lab
 __all__ = ["build_parser", "main", "run"]
 
 
-def _count(low: int):
-    """An argparse type: an integer >= ``low`` (the message names the value and the bound)."""
+def _count(low: int, high: int | None = None):
+    """An argparse type: an integer >= ``low`` (and <= ``high``); the message names the value
+    and the bounds."""
 
     def parse(text: str) -> int:
         try:
             value = int(text)
         except ValueError:
             raise argparse.ArgumentTypeError(f"found {text!r}, expected an integer") from None
-        if value < low:
-            raise argparse.ArgumentTypeError(f"found {value}, expected an integer >= {low}")
+        if value < low or (high is not None and value > high):
+            bounds = f">= {low}" if high is None else f">= {low} and <= {high}"
+            raise argparse.ArgumentTypeError(f"found {value}, expected an integer {bounds}")
         return value
 
-    parse.__name__ = f"integer >= {low}"
+    parse.__name__ = f"integer >= {low}" if high is None else f"integer {low}..{high}"
     return parse
 
 
@@ -55,6 +61,11 @@ def _seconds(text: str) -> float:
 
 
 _POSITIVE = _count(1)
+#: Seeds: what numpy, Dask and torch all take.
+_SEED = _count(0, 2**32 - 1)
+#: Frames per pose, threads or processes: bounded so a typo cannot exhaust the machine.
+_SHOTS = _count(1, 10_000)
+_WORKERS = _count(1, 1024)
 
 
 def _check_out(path, overwrite: bool, kind: str = "file") -> None:
@@ -112,11 +123,11 @@ def _add_acquire(sub) -> None:
                    help="experiment I, II or III, or a CSV file with columns alpha,beta (deg)")
     p.add_argument("--out", required=True, help="the run's Zarr store (a directory)")
     p.add_argument("--resume", action="store_true", help="continue an existing run in --out")
-    p.add_argument("--shots", type=_POSITIVE, default=8, help="frames per pose (default 8)")
+    p.add_argument("--shots", type=_SHOTS, default=8, help="frames per pose (default 8)")
     p.add_argument("--step", type=_POSITIVE, default=1,
                    help="keep every STEP-th pose (quick runs)")
     p.add_argument("--settle", type=_seconds, default=0.5, help="settle time after a move, s")
-    p.add_argument("--seed", type=int, default=0, help="seed of the virtual bench (sim, fake)")
+    p.add_argument("--seed", type=_SEED, default=0, help="seed of the virtual bench (sim, fake)")
     p.add_argument("--bench", choices=("single", "multi"), default="single",
                    help="virtual bench preset for the sim camera and fake stage")
     p.add_argument("--binning", type=_POSITIVE, default=1, help="sim camera pixel binning")
@@ -136,8 +147,7 @@ def _add_acquire(sub) -> None:
 def _run_acquire(args) -> int:
 
     from .. import plans, sim
-    from ..errors import ConfigurationError
-    from ..hardware import FolderCamera, SimCamera, acquire, open_stage
+    from ..hardware.runner import run_lock
 
     if not args.resume:
         # The folder must exist and be writable; an existing run is the runner's to judge.
@@ -145,6 +155,14 @@ def _run_acquire(args) -> int:
     plan = plans.read_plan(args.plan, shots=args.shots, field="--plan").subset(args.step)
     bench = (sim.Bench.paper_single_hole() if args.bench == "single"
              else sim.Bench.paper_multi_hole())
+    with run_lock(args.out):  # before the stage is opened: one session per run
+        return _acquire_locked(args, plan, bench)
+
+
+def _acquire_locked(args, plan, bench) -> int:
+    from ..errors import ConfigurationError
+    from ..hardware import FolderCamera, SimCamera, acquire, open_stage
+
     stage = open_stage(args.stage, bench=bench, seed=args.seed, settle_s=args.settle,
                        baudrate=args.baudrate, timeout=args.timeout)
     try:
@@ -167,8 +185,9 @@ def _run_acquire(args) -> int:
                 shape = tuple(int(v) for v in args.shape.lower().split("x"))
             except ValueError:
                 shape = ()
-            if len(shape) != 2:
-                raise ConfigurationError(f"--shape: found {args.shape!r}, expected NYxNX")
+            if len(shape) != 2 or not all(1 <= n <= 16384 for n in shape):
+                raise ConfigurationError(
+                    f"--shape: found {args.shape!r}, expected NYxNX, each from 1 to 16384 px")
             camera = FolderCamera(args.camera[len("folder:"):], shape=shape,
                                   bit_depth=args.bit_depth, timeout_s=args.frame_timeout)
         else:
@@ -203,7 +222,7 @@ def _add_centroid(sub) -> None:
                    help="local Dask scheduler ('cluster': a local dask.distributed cluster of "
                    "single-threaded processes; docs/scaling.md)")
     p.add_argument("--address", default=None, help="dask.distributed scheduler address")
-    p.add_argument("--workers", type=_POSITIVE, default=None,
+    p.add_argument("--workers", type=_WORKERS, default=None,
                    help="local threads or processes")
     p.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output")
@@ -244,8 +263,8 @@ def _add_simulate(sub) -> None:
     p.add_argument("--mask", default="single", choices=["single", "multi", "random"],
                    help="one 0.2 mm hole, the 10 x 10 grid, or 50 random holes")
     p.add_argument("--out", required=True, help="output cube (.zarr store or .nc file)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the experiment (default 0)")
-    p.add_argument("--shots", type=_POSITIVE, default=8, help="frames per pose (default 8)")
+    p.add_argument("--seed", type=_SEED, default=0, help="seed of the experiment (default 0)")
+    p.add_argument("--shots", type=_SHOTS, default=8, help="frames per pose (default 8)")
     p.add_argument("--subset", type=_POSITIVE, default=1, metavar="STEP",
                    help="keep every STEP-th angle along each grid axis (about 1/STEP^2 of "
                         "the poses; maps stay maps), for quick runs")
@@ -253,7 +272,7 @@ def _add_simulate(sub) -> None:
     p.add_argument("--ideal-platform", action="store_true", help="true angles = commanded")
     p.add_argument("--chunks", default="frame", choices=["frame", "pose"],
                    help="store one frame or one pose per chunk")
-    p.add_argument("--workers", type=_POSITIVE, default=None,
+    p.add_argument("--workers", type=_WORKERS, default=None,
                    help="threads rendering in parallel")
     p.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output")
@@ -302,7 +321,7 @@ def _add_calibrate(sub) -> None:
                    help="neural-network strategy of Table 2 (default 4)")
     p.add_argument("--hidden", type=_POSITIVE, default=None,
                    help="hidden tanh neurons (default 8)")
-    p.add_argument("--seed", type=int, default=None, help="seed of the network weights "
+    p.add_argument("--seed", type=_SEED, default=None, help="seed of the network weights "
                                                           "(default 0)")
     p.add_argument("--max-iter", type=_POSITIVE, default=None,
                    help="most L-BFGS iterations per network (default 3000)")
@@ -311,6 +330,10 @@ def _add_calibrate(sub) -> None:
     p.add_argument("--validation", default=None,
                    help="validation centroid table (experiment II): early stopping, order")
     p.add_argument("--out", required=True, help="output calibration (.json)")
+    p.add_argument("--outlier-mads", type=_mads, default=10.0, metavar="N",
+                   help="exclude shots whose centroid lies more than N median absolute "
+                        "deviations from a robust fit of the table (sunlab.screening; default "
+                        "10; 0: keep every shot); the excluded lines are named")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output")
     p.set_defaults(func=_run_calibrate)
 
@@ -352,6 +375,37 @@ def _method_options(args) -> dict:
     return options
 
 
+def _mads(text: str) -> float:
+    """An argparse type: a number of MADs above 3, or 0 (no screening)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"found {text!r}, expected a number") from None
+    if not (value == 0 or 3 < value < float("inf")):
+        raise argparse.ArgumentTypeError(f"found {text!r}, expected 0 (off) or a number of "
+                                         "MADs above 3")
+    return value
+
+
+def _screen(table, path, name: str, n_mad: float):
+    """``table`` with its outliers excluded (:func:`sunlab.screening.screen_outliers`); each
+    one named on stdout, by its line for a CSV table."""
+    from ..io.csvtable import csv_line_of
+    from ..screening import screen_outliers
+
+    if not n_mad:
+        return table
+    screened, found = screen_outliers(table, n_mad)
+    for o in found:
+        line = csv_line_of(path, o) if str(path).lower().endswith((".csv", ".txt")) else None
+        where = (f"line {line}" if line else f"pose {o['pose']} shot {o['shot']}"
+                 + (f" hole {o['hole']}" if "hole" in o else ""))
+        print(f"{path} {where} ({name}): excluded as an outlier: alpha {o['alpha']:g}, beta "
+              f"{o['beta']:g} deg, x {o['x']:.6g}, y {o['y']:.6g} px, {o['residual_px']:.3g} px "
+              f"= {o['mads']:.3g} MADs from a robust fit (threshold {n_mad:g}; --outlier-mads)")
+    return screened
+
+
 def _run_calibrate(args) -> int:
     import time
 
@@ -361,9 +415,11 @@ def _run_calibrate(args) -> int:
 
     options = _method_options(args)
     _check_out(args.out, args.overwrite)
-    train = open_centroid_table(args.train, "train")
-    val = None if args.validation is None else open_centroid_table(args.validation,
-                                                                   "validation")
+    train = _screen(open_centroid_table(args.train, "train"), args.train, "train",
+                    args.outlier_mads)
+    val = None if args.validation is None else _screen(
+        open_centroid_table(args.validation, "validation"), args.validation, "validation",
+        args.outlier_mads)
     t0 = time.perf_counter()
     if options.get("order") == "auto":
         if args.method != "polynomial":
@@ -416,7 +472,7 @@ def _add_reproduce(sub) -> None:
                    "axis of the experiments (Table 4: 100 + 49 + 100 poses of 930; Table 5: "
                    "100 + 100 of 761; platform: as Table 4) and 2 shots per pose instead of 8 "
                    "(about 1/16 of the frames)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the virtual bench (default 0)")
+    p.add_argument("--seed", type=_SEED, default=0, help="seed of the virtual bench (default 0)")
     p.add_argument("--method", default="projection",
                    help="centroid method of every table (default projection: the paper's "
                    "algorithm B; on 100-hole frames each spot gets a tight window, or fit "
@@ -431,7 +487,7 @@ def _add_reproduce(sub) -> None:
                    "on a machine with several cores, as rendering holds the GIL part of each "
                    "frame; threads on one core; 'cluster': a local cluster of single-threaded "
                    "processes)")
-    p.add_argument("--workers", type=_POSITIVE, default=None,
+    p.add_argument("--workers", type=_WORKERS, default=None,
                    help="local threads or processes (default: one per core)")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     p.set_defaults(func=_run_reproduce)
@@ -577,12 +633,88 @@ def _one_line(err: BaseException) -> str:
     return " ".join(text.split())
 
 
+class _Terminated(KeyboardInterrupt):
+    """SIGTERM, raised in the main thread like Ctrl-C so that every ``finally`` (temporary
+    outputs removed, workers stopped, an acquisition's record closed) runs."""
+
+
+@contextlib.contextmanager
+def _signals_interrupt(quiet: bool = True):
+    """While a command runs (main thread only): SIGTERM raises :class:`_Terminated` and SIGINT
+    :class:`KeyboardInterrupt` (whatever handler the caller had), both restored after; with
+    ``quiet``, errors that extensions print from destructors are logged instead.
+
+    Yields the list of signals received. A signal that arrives while the main thread is
+    importing a module is raised once the import is over (the signal is sent again 50 ms
+    later): an exception inside an import can leave the import locks of other threads held
+    (a deadlock), and a library's bare ``except:`` around an import would swallow it. The
+    caller also treats a command that returns after a signal as interrupted."""
+    received: list[int] = []
+    if threading.current_thread() is not threading.main_thread():
+        yield received
+        return
+
+    def on_signal(signum, frame):
+        received.append(signum)
+        if _importing(frame):
+            timer = threading.Timer(0.05, os.kill, (os.getpid(), signum))
+            timer.daemon = True
+            timer.start()
+            return
+        raise _Terminated if signum == signal.SIGTERM else KeyboardInterrupt
+
+    previous = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGTERM, signal.SIGINT)}
+    import logging
+
+    hooks = sys.unraisablehook, sys.excepthook
+    # an interrupted dask.distributed client leaves tasks whose errors asyncio logs
+    loop_log = logging.getLogger("asyncio")
+    was_disabled = loop_log.disabled
+    if quiet:
+        sys.unraisablehook, sys.excepthook = _unraisable, _printed
+        loop_log.disabled = True
+    try:
+        yield received
+    finally:
+        sys.unraisablehook, sys.excepthook = hooks
+        loop_log.disabled = was_disabled
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+
+
+def _importing(frame) -> bool:
+    """Whether ``frame`` or one of its callers runs Python's import machinery."""
+    while frame is not None:
+        if frame.f_code.co_filename.startswith("<frozen importlib"):
+            return True
+        frame = frame.f_back
+    return False
+
+
+def _unraisable(info) -> None:
+    """Errors Python cannot raise (a destructor's, e.g. h5py closing a file on a full disk)
+    follow the error that the command reports: logged, not printed as tracebacks."""
+    import logging
+
+    logging.getLogger("sunlab").debug("ignored in %r: %s", info.object, info.exc_value)
+
+
+def _printed(kind, value, tb) -> None:
+    """What an extension prints while a command runs (Cython's destructors print their
+    errors through ``sys.excepthook``): logged, as :func:`_unraisable`."""
+    import logging
+
+    logging.getLogger("sunlab").debug("ignored: %s: %s", kind.__name__, value)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``sunlab`` console script; returns the exit status.
 
     Exit status 0 on success, 1 for an error in the inputs, files or settings (one line on
     stderr naming the thing and the fix), 2 for a bad command line, 3 for an unexpected internal
-    error, 130 when interrupted. ``--debug`` re-raises the error with its traceback.
+    error, 130 when interrupted by Ctrl-C (SIGINT) and 143 by SIGTERM: one line, no traceback,
+    temporary outputs removed and workers stopped. ``--debug`` re-raises the error with its
+    traceback.
     """
     argv = list(sys.argv[1:] if argv is None else argv)
     debug = "--debug" in argv
@@ -593,16 +725,29 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 2
     try:
-        return int(args.func(args) or 0)
-    except KeyboardInterrupt:
+        with _signals_interrupt(quiet=not debug) as received:
+            status = int(args.func(args) or 0)
+        if not received:
+            return status
+        # the command returned although a signal came: a library swallowed the interrupt
+        raise _Terminated if received[0] == signal.SIGTERM else KeyboardInterrupt
+    except KeyboardInterrupt as err:
         if debug:
             raise
-        print(f"sunlab {args.command}: interrupted", file=sys.stderr)
-        return 130
+        name = "SIGTERM" if isinstance(err, _Terminated) else "Ctrl-C (SIGINT)"
+        print(f"sunlab {args.command}: interrupted by {name}", file=sys.stderr)
+        return 143 if isinstance(err, _Terminated) else 130
     except (SunlabError, OSError) as err:
         if debug:
             raise
         print(f"sunlab {args.command}: error: {_one_line(err)}", file=sys.stderr)
+        return 1
+    except MemoryError as err:  # a size the user asked for, not a bug
+        if debug:
+            raise
+        print(f"sunlab {args.command}: error: not enough memory ({_one_line(err)}). Fix: ask "
+              "for less (a smaller frame shape or region, fewer poses or shots) or run on a "
+              "machine with more memory", file=sys.stderr)
         return 1
     except Exception as err:  # noqa: BLE001 - never a traceback without --debug
         if debug:

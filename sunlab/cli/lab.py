@@ -51,17 +51,21 @@ def read_calibration_json(path) -> dict | None:
     path = Path(path)
     if not path.is_file():
         return None
-    with open(path, "rb") as fh:
-        head = fh.read(1).lstrip()
-        if head not in (b"{", b""):
-            return None
     try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
-    except (json.JSONDecodeError, UnicodeDecodeError) as err:
-        raise SchemaError(
-            str(path), f"invalid JSON ({err})", "a calibration/1 JSON document",
-            "the file is corrupt or truncated; re-fit the calibration with `sunlab calibrate`",
-        ) from err
+        with open(path, "rb") as fh:
+            head = fh.read(1).lstrip()
+    except OSError as err:
+        raise SchemaError(str(path), f"unreadable ({err.strerror or err})", "a readable file",
+                          "check the file and its permissions") from err
+    if head != b"{":  # an empty file is no JSON either: the cube readers describe it
+        return None
+    from .. import integrity  # standard library only
+
+    doc = integrity.read_json(
+        path, max_bytes=integrity.MAX_DOCUMENT_BYTES, what="a calibration/1 JSON document",
+        fix="the file is corrupt, truncated or not a calibration; re-fit the calibration with "
+            "`sunlab calibrate`")
+    doc = integrity.verify_document(doc, path)
     if not isinstance(doc, dict) or "sunlab_schema" not in doc:
         raise SchemaError(
             f"{path}: sunlab_schema", "missing", "a calibration/1 JSON document",
@@ -237,10 +241,8 @@ def _run_evaluate(args) -> int:
 
     out = None if args.out is None else Path(args.out)
     names = ("evaluation.json", "errors.csv", "fig10_error_maps.png", "fig11_histograms.png")
-    if out is not None:
-        out.mkdir(parents=True, exist_ok=True)
-        for n in names:
-            atomic.check_target(out / n, overwrite=args.overwrite, flag="--overwrite")
+    if out is not None:  # checked now, made only once every file is written
+        atomic.check_folder(out, names, overwrite=args.overwrite, flag="--overwrite")
     cal = calibration.load(args.calibration)
     test = open_centroid_table(args.test, "test")
     table, est, local = stats.evaluate(cal, test, return_errors=True)
@@ -269,8 +271,6 @@ def _run_evaluate(args) -> int:
     if out is None:
         return 0
     doc = _evaluation_doc(args, cal, test, col, n_ok, n_out)
-    atomic.write_text(out / names[0], json.dumps(doc, indent=1) + "\n",
-                       overwrite=args.overwrite, flag="--overwrite")
     rows = pd.DataFrame({
         "pose": test["pose"].values,
         "alpha_cmd": test["alpha"].values, "beta_cmd": test["beta"].values,
@@ -279,9 +279,13 @@ def _run_evaluate(args) -> int:
         "n_shots": local["n_shots"].sel(angle="alpha").values,
         "in_domain": est["in_domain"].all("shot").values,
     })
-    atomic.write_text(out / names[1], rows.to_csv(index=False, float_format="%.8g"),
-                       overwrite=args.overwrite, flag="--overwrite")
-    written = [names[0], names[1]] + _write_evaluation_figures(args, cal, local, out, names[2:])
+    # every file or none (sunlab.atomic.atomic_files)
+    with atomic.atomic_files(out, names, overwrite=args.overwrite, flag="--overwrite") as tmp:
+        (tmp / names[0]).write_text(json.dumps(doc, indent=1) + "\n", encoding="utf-8")
+        (tmp / names[1]).write_text(rows.to_csv(index=False, float_format="%.8g"),
+                                    encoding="utf-8")
+        written = [names[0], names[1]] + _write_evaluation_figures(args, cal, local, tmp,
+                                                                   names[2:])
     print(f"wrote {', '.join(str(out / n) for n in written)}")
     return 0
 
@@ -313,7 +317,7 @@ def _evaluation_doc(args, cal, test, col, n_ok: int, n_out: int) -> dict:
 
 def _write_evaluation_figures(args, cal, local, out: Path, names) -> list[str]:
     """Fig. 10 (error maps, when the test poses form a grid) and Fig. 11 (histograms)."""
-    from .. import atomic, plots
+    from .. import plots
 
     written = []
     try:
@@ -321,15 +325,13 @@ def _write_evaluation_figures(args, cal, local, out: Path, names) -> list[str]:
     except (ValueError, KeyError) as err:  # poses that do not form a grid: no map
         print(f"no Fig. 10 (error maps): the test poses do not form a grid ({err})")
     else:
-        atomic.write_bytes(out / names[0], _figure_bytes(fig10), overwrite=args.overwrite,
-                            flag="--overwrite")
+        (out / names[0]).write_bytes(_figure_bytes(fig10))
         written.append(names[0])
     fig11 = plots.new_figure(figsize=(9, 3.4), layout="constrained")
     for ax, a in zip(fig11.subplots(1, 2), ("alpha", "beta"), strict=True):
         h = plots.error_histogram(local, angle=a, title=f"local error of {a}")
         _copy_histogram(h.axes[0], ax)
-    atomic.write_bytes(out / names[1], _figure_bytes(fig11), overwrite=args.overwrite,
-                        flag="--overwrite")
+    (out / names[1]).write_bytes(_figure_bytes(fig11))
     return written + [names[1]]
 
 

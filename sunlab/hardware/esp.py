@@ -121,8 +121,10 @@ class ESP300:
     the settle wait, and ``nTP?`` for the read-back. An unreadable ``TB?`` reply is never
     read as "no error" (:class:`~sunlab.hardware.ErrorReplyLost`). Position queries are
     idempotent and so are absolute moves, which makes resending them after a fault safe. After
-    a timeout the input buffer is flushed before the resend so a late reply cannot be taken for
-    the next one.
+    a timeout the input buffer is flushed before the resend, and every query starts by dropping
+    what the link holds; after a lost or garbled reply the next query first sends ``VE?`` and
+    drops every line up to its reply, so a reply that arrives after its timeout is never taken
+    for the answer to a later query (replies are matched to queries, not read one late).
 
     Examples
     --------
@@ -195,6 +197,7 @@ class ESP300:
         self.limits: dict[str, tuple[float, float]] = {}
         self.stale_errors: list[ControllerError] = []
         self.reconnects = 0
+        self._out_of_step = False  # a reply was lost: resynchronise before the next query
         if connect:
             try:
                 self.connect()
@@ -231,15 +234,49 @@ class ESP300:
     def _once(self, command: str, parse: Callable[[str], object] | None):
         """Send ``command`` once; with ``parse``, read and parse its reply (no retry).
 
+        A query first drops whatever the link holds (:meth:`_sync`), so a reply is only ever
+        read as the answer to the query just sent; a reply that does not come, or does not
+        have the shape ``parse`` wants, marks the link out of step for the next query.
+
         Raises _NoReply, _Garbled, or the link's own exception."""
+        if parse is not None:
+            self._sync()
         self._send(command)
         if parse is None:
             return None
-        raw = self._readline()
         try:
-            return parse(raw[: -len(READ_TERMINATOR)].decode("ascii"))
-        except (UnicodeDecodeError, ValueError) as err:
-            raise _Garbled(raw) from err
+            raw = self._readline()
+            try:
+                return parse(raw[: -len(READ_TERMINATOR)].decode("ascii"))
+            except (UnicodeDecodeError, ValueError) as err:
+                raise _Garbled(raw) from err
+        except BaseException:
+            self._out_of_step = True  # its reply may still come: never take it for the next
+            raise
+
+    def _sync(self) -> None:
+        """Before a query: drop the bytes already received; after a lost or garbled reply,
+        also send ``VE?`` and read and drop every line up to its reply (the controller answers
+        in order, so a late reply to an earlier query comes before it), waiting up to five
+        read timeouts for it.
+
+        Raises _NoReply when the marker's reply does not come (the link stays out of step)."""
+        self._port.reset_input_buffer()
+        if not self._out_of_step:
+            return
+        self._send("VE?")
+        deadline = time.monotonic() + 5 * self.timeout
+        while time.monotonic() < deadline:
+            raw = self._port.read_until(READ_TERMINATOR, 256)
+            text = raw[: -len(READ_TERMINATOR)] if raw.endswith(READ_TERMINATOR) else b""
+            if text and (text.decode("ascii", "replace") == self.identity
+                         or text.startswith(b"ESP")):
+                self._out_of_step = False
+                log.info("stage: link back in step after a lost reply")
+                return
+            if raw:
+                log.info("stage: dropped a late or stray reply %r", raw)
+        raise _NoReply
 
     def _fault(self, command: str, err: BaseException, attempt: int, expected: str) -> StageError:
         """The driver's error for one failed attempt of ``command`` (attempt counts from 1)."""

@@ -54,6 +54,8 @@ kind            effect on the next ``count`` commands that contain ``match``
 ``silent``      after the command, nothing is executed or answered for ``silent_s`` seconds
 ``stuck``       a ``PA`` move stops half-way and never reports motion done (until ``ST``)
 ``disconnect``  the link is closed (the TCP server then accepts a new connection)
+``late``        the reply is sent ``silent_s`` seconds late (after the driver's timeout); later
+                commands wait behind it, as on a busy controller (served links only)
 ==============  ==============================================================================
 
 Examples
@@ -85,7 +87,7 @@ from .esp_protocol import decode_error
 
 __all__ = ["FAULT_KINDS", "Fault", "FakeESP", "ManualClock", "DISCONNECT"]
 
-FAULT_KINDS = ("timeout", "garble", "error", "silent", "stuck", "disconnect")
+FAULT_KINDS = ("timeout", "garble", "error", "silent", "stuck", "disconnect", "late")
 
 #: Returned by :meth:`FakeESP.handle` when the link must be closed.
 DISCONNECT = object()
@@ -159,7 +161,9 @@ class _Axis:
             return self.target
         if now <= self.t0:  # a move that starts after a WS wait has not started yet
             return self.start
-        return self.start + (self.target - self.start) * (now - self.t0) / (self.t1 - self.t0)
+        # between start and target whatever the velocity (a tiny or rounded move time)
+        fraction = min(max((now - self.t0) / (self.t1 - self.t0), 0.0), 1.0)
+        return self.start + (self.target - self.start) * fraction
 
     def done(self, now: float) -> bool:
         return not self.stuck and now >= self.t1
@@ -254,6 +258,7 @@ class FakeESP:
         self._clock = time.monotonic if clock is None else clock
         self._t_boot = self._clock()
         self._stop = threading.Event()
+        self._late_s = 0.0
         self._threads: list[threading.Thread] = []
         self._closers: list = []
         self.received: list[str] = []
@@ -318,6 +323,8 @@ class FakeESP:
                         reply = bytes(b | 0x80 for b in reply.encode("ascii")).decode("latin-1")
                     elif fault.kind == "silent":
                         self._silent_until = now + fault.silent_s
+                    elif fault.kind == "late":
+                        self._late_s = fault.silent_s
                     elif fault.kind == "error":
                         self._errors.append(fault.code)
                         axis = fault.code // 100
@@ -479,6 +486,9 @@ class FakeESP:
             reply = self.handle(line)
             if reply is DISCONNECT:
                 return buf, False
+            late, self._late_s = self._late_s, 0.0
+            if late and reply:  # a slow controller: this reply, and what follows, comes late
+                self._stop.wait(late)
             if reply:
                 write(reply)
         return buf, True

@@ -13,6 +13,12 @@ either complete and flagged, or unflagged; restarting with ``resume=True`` conti
 unflagged pose and rewrites it whole. The store itself is created in a temporary directory and
 renamed into place, so a half-created store is never mistaken for a run.
 
+One session writes a run at a time: :func:`run_lock` takes ``OUT.lock`` (the process id, host
+and start time of the session) before the stage moves; a second session on the same run is
+refused, naming the holder, and a lock left by a session that died on this host is taken over
+with a message. The store's metadata are sealed with a checksum (:mod:`sunlab.integrity`) when a
+session ends and unsealed when the next one starts.
+
 Run metadata live in the store's attributes: ``uid``, ``plan``, ``versions``, ``start``,
 ``stop``, ``exit_status`` (``running``, ``complete``, ``interrupted``, ``failed``), ``error``,
 ``stage``, ``camera`` and ``sessions`` (one entry per start or resume; a session that was killed
@@ -61,7 +67,7 @@ from ..extras import installed_version
 from ..options import show_progress
 from .errors import BenchError, CameraError
 
-__all__ = ["RunResult", "acquire", "open_run", "TIME_UNITS"]
+__all__ = ["RunResult", "acquire", "open_run", "run_lock", "RunLockedError", "TIME_UNITS"]
 
 #: Units of the ``time`` coordinate (CF): float seconds since the Unix epoch, UTC.
 TIME_UNITS = "seconds since 1970-01-01T00:00:00+00:00"
@@ -202,7 +208,9 @@ def _create_store(path: Path, alpha, beta, shots, name, camera, stage, attrs,
             "long_name": "direction in which the inner axis reached the pose (+1 up, -1 down)"})
     cube = schema.empty_frames(n, shots, alpha, beta, ny=ny, nx=nx, dtype=dtype,
                                experiment=name, coords=coords, **sensor)
-    tmp = path.with_name(f".{path.name}.{uuid.uuid4().hex[:8]}.tmp")
+    from .. import atomic
+
+    tmp = atomic.temporary_name(path)  # a later run removes it if this one is killed
     # time is stored as float seconds since the epoch (NaN until taken), decoded to datetime64
     encoding = {v: {"_FillValue": np.nan} for v in ("alpha_read", "beta_read")}
     encoding["time"] = {"units": TIME_UNITS, "calendar": "proleptic_gregorian",
@@ -368,13 +376,24 @@ def acquire(plan, stage, camera, out, *, resume: bool = False, progress: bool = 
         A stage or camera fault that outlasted its retries; the store then records
         ``exit_status = 'failed'`` and the error, and the failed pose holds nothing.
     """
-    from tqdm.auto import tqdm
-
     alpha, beta, shots, name = _plan_arrays(plan)
     motion = _motion(plan, alpha.size)
     overshoot = _overshoot(overshoot_deg, motion)
     shape, dtype, bits = _camera_spec(camera)
-    store = _open_store(Path(out), resume, alpha, beta, shots, name, camera, stage, attrs, motion)
+    with run_lock(out):
+        store = _open_store(Path(out), resume, alpha, beta, shots, name, camera, stage, attrs,
+                            motion)
+        return _run_poses(store, plan, stage, camera, motion, overshoot, stop, handle_sigint,
+                          progress, fsync)
+
+
+def _run_poses(store, plan, stage, camera, motion, overshoot, stop, handle_sigint, progress,
+               fsync) -> RunResult:
+    """The poses of :func:`acquire` not yet done, in visit order, one session."""
+    from tqdm.auto import tqdm
+
+    alpha, beta, shots, name = _plan_arrays(plan)
+    shape, dtype, bits = _camera_spec(camera)
     stop = stop if stop is not None else threading.Event()
     with _session(store) as run, _sigint_stops(stop, handle_sigint), contextlib.closing(tqdm(
             total=alpha.size, initial=int(store.done.sum()), unit="pose",
@@ -392,6 +411,125 @@ def acquire(plan, stage, camera, out, *, resume: bool = False, progress: bool = 
         run.status = "complete" if store.done.all() else "interrupted"
     return RunResult(str(store.path), str(store.group.attrs["uid"]), run.status,
                      int(alpha.size), int(store.done.sum()), run.written, run.error)
+
+
+class RunLockedError(ConfigurationError):
+    """Another session holds the acquisition run (its lock file names it)."""
+
+
+#: Locks this process holds: lock path -> depth (the CLI takes it, then :func:`acquire`).
+_HELD: dict[str, int] = {}
+
+
+def _lock_path(out) -> Path:
+    out = Path(out)
+    return out.with_name(out.name + ".lock")
+
+
+def _read_lock(lock: Path) -> dict:
+    try:
+        if lock.stat().st_size > 4096:  # not a lock sunlab wrote
+            return {}
+        info = json.loads(lock.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError, RecursionError):
+        return {}
+    return info if isinstance(info, dict) else {}
+
+
+def _publish(lock: Path, me: dict) -> bool:
+    """Create ``lock`` holding ``me``, complete, in one step; False if it exists."""
+    from .. import atomic
+
+    tmp = atomic.temporary_name(lock)
+    tmp.write_text(json.dumps(me), encoding="utf-8")
+    try:
+        os.link(tmp, lock)  # fails if the lock exists; readers never see it half-written
+        return True
+    except FileExistsError:
+        return False
+    except OSError:  # a file system without hard links
+        try:
+            fd = os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
+        except FileExistsError:
+            return False
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            fh.write(json.dumps(me))
+        return True
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
+def _take_lock(lock: Path, out: Path) -> None:
+    import socket
+
+    from .. import atomic
+
+    me = {"pid": os.getpid(), "host": socket.gethostname(), "start": _now()}
+    for _ in range(5):
+        if _publish(lock, me):
+            return
+        holder = _read_lock(lock)
+        pid, host = holder.get("pid"), holder.get("host")
+        if host == me["host"] and isinstance(pid, int) and not atomic.process_alive(pid):
+            stale = lock.with_name(f"{lock.name}.stale-{os.getpid()}")
+            try:
+                os.replace(lock, stale)  # only one of two sessions taking over gets it
+            except FileNotFoundError:
+                continue
+            stale.unlink(missing_ok=True)
+            print(f"sunlab acquire: {out}: took over the lock of a session that is no longer "
+                  f"running (pid {pid} on {host}, started {holder.get('start')})",
+                  file=sys.stderr)
+            continue
+        raise RunLockedError(
+            f"out: {out} is being written by another session (pid {pid} on {host}, started "
+            f"{holder.get('start')}; lock file {lock}). Fix: wait for that session to finish or "
+            f"stop it (Ctrl-C); if it is no longer running, delete {lock}"
+        )
+    raise RunLockedError(f"out: {out}: could not take the lock {lock} (other sessions keep "
+                         "taking it). Fix: run one session at a time")
+
+
+@contextlib.contextmanager
+def run_lock(out):
+    """Hold the lock of the acquisition run ``out`` (one writing session at a time).
+
+    The lock is the file ``OUT.lock`` beside the store, created in one step and holding the
+    process id, host and start time of the session; it is removed when the block ends. A
+    lock held by a live process (or by another host) raises :class:`RunLockedError`, naming
+    it; a lock whose process no longer runs on this host is taken over with a message on
+    stderr. The same process may nest the lock (the ``sunlab acquire`` command takes it before
+    it opens the stage, :func:`acquire` again).
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> out = pathlib.Path(tempfile.mkdtemp()) / "run.zarr"
+    >>> with run_lock(out) as lock:
+    ...     print(lock.name, lock.exists())
+    run.zarr.lock True
+    >>> lock.exists()
+    False
+    """
+    lock = _lock_path(out)
+    key = str(lock.resolve())
+    if _HELD.get(key):
+        _HELD[key] += 1
+        try:
+            yield lock
+        finally:
+            _HELD[key] -= 1
+        return
+    if not lock.parent.is_dir():
+        lock.parent.mkdir(parents=True, exist_ok=True)
+    _take_lock(lock, Path(out))
+    _HELD[key] = 1
+    try:
+        yield lock
+    finally:
+        del _HELD[key]
+        if _read_lock(lock).get("pid") == os.getpid():
+            lock.unlink(missing_ok=True)
 
 
 def _overshoot(overshoot_deg, motion: dict) -> float:
@@ -433,6 +571,9 @@ def _open_store(path: Path, resume: bool, alpha, beta, shots, name, camera, stag
     """Create the store (allocated up front), or reopen it to resume; check it fits the run."""
     import zarr
 
+    from .. import atomic
+
+    atomic.remove_stale(path)
     if path.exists() and not resume:
         raise ConfigurationError(
             f"out: {str(path)!r} exists. Fix: pass resume=True (--resume) to continue that run, "
@@ -462,7 +603,10 @@ class _Session:
 @contextlib.contextmanager
 def _session(store: _Store):
     """Record a running session in the store; on exit, its end (status, error, poses)."""
+    from .. import integrity
+
     group = store.group
+    integrity.unseal_zarr(store.path, group)  # the metadata change while the session runs
     sessions = [dict(s, exit_status="killed") if s.get("exit_status") == "running" else s
                 for s in group.attrs.get("sessions", [])]
     session = {"start": _now(), "stop": None, "exit_status": "running", "poses": 0}
@@ -491,6 +635,7 @@ def _session(store: _Store):
             "error": run.error,
             "sessions": [*sessions, session],
         })
+        integrity.seal_zarr(store.path, group)
 
 
 @contextlib.contextmanager
@@ -531,10 +676,11 @@ def open_run(path, *, chunks=None):
     """
     import xarray as xr
 
-    from .. import schema
+    from .. import integrity, schema
 
     path = Path(path)
     if not path.exists():
         raise ConfigurationError(f"path: {str(path)!r} does not exist, expected a run store")
+    integrity.verify_zarr(path)  # sealed when its last session ended
     ds = xr.open_zarr(path, consolidated=False, chunks={} if chunks is None else chunks)
     return schema.validate_frames(ds)

@@ -44,6 +44,24 @@ class Stage(Protocol):
     def close(self) -> None: ...
 
 
+def _velocity(url: str, options: dict) -> float:
+    """The ``velocity`` option of a ``fake://`` URL: a positive number of deg/s, or ``inf``."""
+    import math
+
+    text = options.get("velocity", "200")
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (value > 0 and (math.isfinite(value) or text.strip().lower() in ("inf", "infinity"))
+            and (math.isinf(value) or 1e-3 <= value <= 1e9)):
+        raise ConfigurationError(
+            f"stage {url!r}: velocity={text!r}, expected a number of deg/s from 0.001 to 1e9 "
+            "(or inf: instant moves). Fix: e.g. fake://?velocity=200"
+        )
+    return value
+
+
 def open_stage(url: str, *, bench=None, seed: int = 0, **driver_kwargs):
     """Open an ESP300/301 stage from a URL.
 
@@ -84,7 +102,7 @@ def open_stage(url: str, *, bench=None, seed: int = 0, **driver_kwargs):
         return ESP300(url, **driver_kwargs)
     from .fake import FakeESP
 
-    query = parse_qs(urlsplit(url).query)
+    query = parse_qs(urlsplit(url).query, keep_blank_values=True)  # "velocity=" is an error
     options = {k: v[-1] for k, v in query.items()}
     unknown = set(options) - {"velocity", "transport"}
     if unknown:
@@ -92,7 +110,7 @@ def open_stage(url: str, *, bench=None, seed: int = 0, **driver_kwargs):
             f"stage {url!r}: unknown options {sorted(unknown)}, expected 'velocity' (deg/s) "
             "and 'transport' (pty or tcp)"
         )
-    fake = FakeESP(bench=bench, seed=seed, velocity_deg_s=float(options.get("velocity", 200.0)))
+    fake = FakeESP(bench=bench, seed=seed, velocity_deg_s=_velocity(url, options))
     transport = options.get("transport", "pty")
     if transport not in ("pty", "tcp"):
         raise ConfigurationError(f"stage {url!r}: transport={transport!r}, expected pty or tcp")

@@ -16,7 +16,7 @@ import pandas as pd
 from ..errors import SchemaError
 from ..schema import STATUS, centroids_dataset
 
-__all__ = ["CSV_SUFFIXES", "centroids_from_csv"]
+__all__ = ["CSV_SUFFIXES", "centroids_from_csv", "csv_line_of"]
 
 #: File suffixes read as CSV centroid tables.
 CSV_SUFFIXES = (".csv", ".txt")
@@ -73,6 +73,25 @@ def centroids_from_csv(path, *, attrs: dict | None = None):
         method=str((attrs or {}).get("method", "")),
         attrs={"source": str(path.resolve()), "experiment": path.stem, **dict(attrs or {})},
     )
+
+
+def csv_line_of(path, shot: dict) -> int | None:
+    """The line number (1-based) of the CSV row holding ``shot`` (its ``alpha``, ``beta``,
+    ``x``, ``y``), or None: how an excluded shot is named (:mod:`sunlab.screening`)."""
+    import numpy as np
+
+    table = _read_csv_table(Path(path))
+    num = _numeric_columns(table, Path(path).name)
+    hit = np.ones(len(table), dtype=bool)
+    for key in ("alpha", "beta", "x", "y"):
+        hit &= num[key] == shot[key]
+    if not hit.any():
+        return None
+    # the data lines: what pandas reads (blank lines and '#' comments skipped), after the header
+    with open(path, encoding="utf-8", errors="replace") as fh:
+        lines = [n for n, text in enumerate(fh, 1) if text.split("#", 1)[0].strip()]
+    row = int(np.flatnonzero(hit)[0]) + 1
+    return lines[row] if row < len(lines) else None
 
 
 def _read_csv_table(path: Path):

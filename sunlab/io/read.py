@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
+from .. import integrity
 from ..errors import SchemaError, SunlabError
 from ..schema import CENTROIDS_SCHEMA, FRAMES_SCHEMA, validate_centroids, validate_frames
 from .chunks import _check_chunks, _checked_lazy
@@ -41,6 +42,28 @@ def _fail_zarr(path: Path, exc: Exception):
     ) from exc
 
 
+def _sniff(path: Path) -> str:
+    """``"netcdf"`` for a NetCDF4/HDF5 file (by its signature); otherwise a SunlabError."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(8)
+    except OSError as err:
+        raise SunlabError(f"{path}: cannot be read ({err.strerror or err}). Fix: check the file "
+                          "and its permissions") from err
+    if head == _HDF5_SIGNATURE:
+        return "netcdf"
+    if head[:3] == b"CDF":
+        raise SunlabError(
+            f"{path}: a NetCDF3 (classic) file; sunlab reads NetCDF4/HDF5. Fix: convert it with "
+            "`nccopy -k nc4 in.nc out.nc`"
+        )
+    raise SunlabError(
+        f"{path}: neither a Zarr store (a directory) nor a NetCDF4/HDF5 file (first bytes "
+        f"{head!r}). Fix: the file may be truncated or of another type; copy it again from its "
+        "source"
+    )
+
+
 def _open_raw(path, format: str | None = None) -> xr.Dataset:
     """Open a store or file lazily, decode sunlab attributes; no validation."""
     path = Path(path)
@@ -49,25 +72,13 @@ def _open_raw(path, format: str | None = None) -> xr.Dataset:
             f"{path}: no such file or directory. Fix: give the path of a .zarr store or a .nc "
             "file written by sunlab.io (or sunlab simulate)"
         )
+    if not (path.is_dir() or path.is_file()):  # a FIFO or a device would block or never end
+        raise SunlabError(
+            f"{path}: not a regular file or folder. Fix: give the path of a .zarr store or a .nc "
+            "file written by sunlab.io"
+        )
     if format is None:
-        if path.is_dir():
-            format = "zarr"
-        else:
-            with open(path, "rb") as fh:
-                head = fh.read(8)
-            if head == _HDF5_SIGNATURE:
-                format = "netcdf"
-            elif head[:3] == b"CDF":
-                raise SunlabError(
-                    f"{path}: a NetCDF3 (classic) file; sunlab reads NetCDF4/HDF5. Fix: convert "
-                    "it with `nccopy -k nc4 in.nc out.nc`"
-                )
-            else:
-                raise SunlabError(
-                    f"{path}: neither a Zarr store (a directory) nor a NetCDF4/HDF5 file "
-                    f"(first bytes {head!r}). Fix: the file may be truncated or of another type; "
-                    "copy it again from its source"
-                )
+        format = "zarr" if path.is_dir() else _sniff(path)
     if format == "zarr":
         if not path.is_dir() or not (
             (path / "zarr.json").exists() or (path / ".zgroup").exists()
@@ -76,6 +87,7 @@ def _open_raw(path, format: str | None = None) -> xr.Dataset:
                 f"{path}: not a Zarr store (no zarr.json in it). Fix: give the store's top "
                 "directory, or copy the store again if its metadata is missing"
             )
+        integrity.verify_zarr(path)  # metadata (shapes, data types, codecs) as written
         try:
             ds = xr.open_zarr(path, consolidated=False, chunks=None)
         except Exception as exc:  # noqa: BLE001 - turned into a message naming the file
@@ -89,6 +101,18 @@ def _open_raw(path, format: str | None = None) -> xr.Dataset:
                 "the file is probably truncated or corrupt (an interrupted copy or write); copy "
                 "it again from its source or re-create it with sunlab.io.save_frames"
             ) from exc
+        try:
+            integrity.verify_netcdf(ds, path)  # every value but the frames' (Fletcher-32)
+        except SunlabError:
+            ds.close()
+            raise
+        except Exception as exc:  # noqa: BLE001 - a damaged variable: name the file
+            ds.close()
+            raise SunlabError(
+                f"{path}: a variable cannot be read ({type(exc).__name__}: {exc}). Fix: the "
+                "file is corrupt; copy it again from its source or re-create it"
+            ) from exc
+    ds.attrs.pop(integrity.ATTR, None)
     try:
         for name in list(ds.variables):
             var = ds.variables[name]
@@ -98,7 +122,7 @@ def _open_raw(path, format: str | None = None) -> xr.Dataset:
         for var in ds.variables.values():
             var.attrs = _decode_attrs(var.attrs)
         ds.attrs = _decode_attrs(ds.attrs)
-    except (ValueError, TypeError, KeyError) as exc:
+    except (ValueError, TypeError, KeyError, RecursionError) as exc:  # deep JSON too
         ds.close()
         raise SunlabError(
             f"{path}: unreadable attribute {_CODEC_ATTR!r} ({exc}). Fix: the metadata was edited "

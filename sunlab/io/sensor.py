@@ -26,10 +26,10 @@ sensor.json field 'bit_depth'
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 
+from .. import integrity
 from ..errors import SchemaError
 
 __all__ = ["SENSOR_FIELDS", "read_sensor_json", "find_sensor_json"]
@@ -95,12 +95,10 @@ def read_sensor_json(path) -> dict:
         number is wanted), naming the file, the field and the fix.
     """
     path = Path(path)
-    try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
-    except (json.JSONDecodeError, UnicodeDecodeError) as err:
-        raise SchemaError(str(path), f"invalid JSON ({err})",
-                          f"an object with keys among {list(SENSOR_FIELDS)}",
-                          "fix the JSON syntax") from err
+    # a size and a nesting-depth limit: a sensor.json is a few hundred bytes
+    doc = integrity.read_json(path, max_bytes=2**20,
+                              what=f"a sensor.json object with keys among {list(SENSOR_FIELDS)}",
+                              fix="fix the JSON syntax")
     if not isinstance(doc, dict):
         raise SchemaError(str(path), type(doc).__name__, "a JSON object {...}", "fix the file")
     unknown = sorted(set(doc) - set(SENSOR_FIELDS))

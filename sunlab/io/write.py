@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from .. import atomic
+from .. import atomic, integrity
 from ..errors import SchemaError
 from ..schema import validate_centroids, validate_frames
 from .chunks import _checked_dn
@@ -51,7 +51,8 @@ def _prepare(ds: xr.Dataset, fmt: str) -> xr.Dataset:
     for name, var in ds.variables.items():
         var.encoding = {}
         var.attrs = _encode_attrs(var.attrs, where=f"{name}.")
-    ds.attrs = _encode_attrs(ds.attrs, where="")
+    ds.attrs = _encode_attrs({k: v for k, v in ds.attrs.items() if k != integrity.ATTR},
+                             where="")
     return ds
 
 
@@ -85,15 +86,19 @@ def _write(ds: xr.Dataset, path: Path, fmt: str, encoding: dict, progress: bool,
     """Write to a temporary sibling, then rename it into place (the old output survives)."""
     with atomic.atomic_output(path, overwrite=overwrite,
                                kind="zarr" if fmt == "zarr" else "file") as tmp:
-        if fmt == "zarr":
-            job = ds.to_zarr(
-                tmp, mode="w-", zarr_format=3, consolidated=False, write_empty_chunks=True,
-                encoding=_zarr_checksum_encoding(ds, encoding), compute=False,
-            )
-        else:
-            job = ds.to_netcdf(tmp, engine="h5netcdf", encoding=encoding, compute=False)
+        # the metadata are written on zarr's own I/O thread: Ctrl-C waits until they are
+        with atomic.signals_held():
+            if fmt == "zarr":
+                job = ds.to_zarr(
+                    tmp, mode="w-", zarr_format=3, consolidated=False, write_empty_chunks=True,
+                    encoding=_zarr_checksum_encoding(ds, encoding), compute=False,
+                )
+            else:
+                job = ds.to_netcdf(tmp, engine="h5netcdf", encoding=encoding, compute=False)
         with _maybe_progress(progress):
             _compute_then_settle(job)
+        # the digest of what was written, checked by every read (sunlab.integrity)
+        (integrity.seal_zarr if fmt == "zarr" else integrity.seal_netcdf)(tmp)
 
 
 def _compute_then_settle(job) -> None:

@@ -346,15 +346,10 @@ def _write_outputs(res: Table4Result, out: Path) -> list[str]:
     import matplotlib
 
     matplotlib.use("Agg", force=False)
-    from .. import plots
+    from .. import atomic, plots
 
-    out.mkdir(parents=True, exist_ok=True)
-    files = []
     both = stats.side_by_side(res.table, res.paper, names=("sunlab", "paper"))
-    res.table.to_csv(out / "table4_sunlab.csv")
-    both.to_csv(out / "table4_side_by_side.csv")
-    write_json(res.to_dict(), out / "table4.json")
-    files += ["table4_sunlab.csv", "table4_side_by_side.csv", "table4.json"]
+    files = ["table4_sunlab.csv", "table4_side_by_side.csv", "table4.json"]
     figs = {
         "fig10_error_maps_polynomial.png": plots.error_maps(
             res.local["polynomial"], title="Fig. 10: local errors, polynomial (virtual bench)"),
@@ -365,9 +360,15 @@ def _write_outputs(res: Table4Result, out: Path) -> list[str]:
             res.table[comparable_methods(res.table)],
             title="Fig. 12: [M - 3 sigma_M, M + 3 sigma_M],\nexperiment III (virtual bench)"),
     }
-    for name, fig in figs.items():
-        fig.savefig(out / name, dpi=110)  # constrained layout: no tight bbox (a second draw)
-        files.append(name)
+    files += list(figs)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    # every file or none: an interrupted run leaves the previous results (sunlab.atomic)
+    with atomic.atomic_files(out, files, overwrite=True, flag="") as tmp:
+        res.table.to_csv(tmp / files[0])
+        both.to_csv(tmp / files[1])
+        write_json(res.to_dict(), tmp / files[2])
+        for name, fig in figs.items():
+            fig.savefig(tmp / name, dpi=110)  # constrained layout: no tight bbox (a 2nd draw)
     return [str(out / f) for f in files]
 
 

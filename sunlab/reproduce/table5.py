@@ -344,13 +344,10 @@ def _write_figures(result: dict, out: Path) -> list[str]:
     """``table5.csv``, ``hole_metrics.csv`` and Figs. 13-15 under ``out``; the paths."""
     import matplotlib.pyplot as plt
 
+    from .. import atomic, plots
     from .. import multihole as mh
-    from .. import plots
 
-    out.mkdir(parents=True, exist_ok=True)
-    result["table"].to_csv(out / "table5.csv")
     metrics, ours = result["metrics"], result["ours"]
-    metrics.to_dataframe().to_csv(out / "hole_metrics.csv")
     bad = np.isin(np.arange(metrics.sizes["hole"]), result["bad_holes"])
     show = (result["bad_holes"] or result["injected"])[:5]
     cen, frames = result["data"]["centroids_test"], result["data"]["cube_test"]["frames"]
@@ -367,12 +364,16 @@ def _write_figures(result: dict, out: Path) -> list[str]:
                      "sigma_M": float(ours.loc[(a, "sigma_M"), k])} for a in ("alpha", "beta")}
              for k in ours.columns}),
     }
-    files = []
-    for name, fig in figs.items():
-        fig.savefig(out / name, dpi=110)
-        plt.close(fig)
-        files.append(str(out / name))
-    return files + [str(out / "table5.csv"), str(out / "hole_metrics.csv")]
+    names = [*figs, "table5.csv", "hole_metrics.csv"]
+    out.parent.mkdir(parents=True, exist_ok=True)
+    # every file or none: an interrupted run leaves the previous results (sunlab.atomic)
+    with atomic.atomic_files(out, names, overwrite=True, flag="") as tmp:
+        for name, fig in figs.items():
+            fig.savefig(tmp / name, dpi=110)
+            plt.close(fig)
+        result["table"].to_csv(tmp / "table5.csv")
+        metrics.to_dataframe().to_csv(tmp / "hole_metrics.csv")
+    return [str(out / name) for name in names]
 
 
 def _fig14_pose(cen, holes, bad) -> tuple[int, int]:
