@@ -20,10 +20,11 @@ from sunlab.hardware import Camera, CameraError, CameraTimeout, FakeESP, FolderC
 @pytest.fixture(scope="module")
 def small_bench():
     """The paper's single-hole bench on a 128 x 128 detector, the hole above its centre at
-    F = 5 mm (a 35 px spot that stays on the small detector over +-1 deg)."""
+    F = 5 mm (a 35 px spot that stays on the small detector over +-1 deg), the mask held
+    still (no play: the spot is where spot_truth puts it)."""
     return sim.Bench.paper_single_hole().replace(
         detector__nx=128, detector__ny=128, mask__distance_mm=5.0,
-        mask__holes=(sim.Hole(0.0, 0.0, 0.2),))
+        mask__holes=(sim.Hole(0.0, 0.0, 0.2),), mask__play_x_mm=0.0, mask__play_y_mm=0.0)
 
 
 def _centroid(frame: np.ndarray, background: float) -> tuple[float, float]:

@@ -303,10 +303,11 @@ def test_rejection_pays_only_when_the_dust_moves(dusty_bench, case):
     plain = error_summary(s2.combine(est))
     rej = error_summary(s2.combine(est, holes=~bad))
     singles = [error_summary(est.isel(hole=h)) for h in np.flatnonzero(~bad)]
-    # holes without a calibration of their own (seen at too few training poses) have no
-    # estimate: they report n_poses = 0 and NaN, without a warning
+    # holes without a calibration of their own (seen at too few training poses: none at the
+    # presets' F = 5 mm, where every spot stays on the detector) have no estimate: they
+    # report n_poses = 0 and NaN, without a warning
     seen = [s for s in singles if s["alpha"]["n_poses"] > 0]
-    assert 0 < len(singles) - len(seen) <= 4
+    assert 0 <= len(singles) - len(seen) <= 4
     assert all(np.isnan(s["beta"]["mu"]) for s in singles if s["beta"]["n_poses"] == 0)
     good_mu = {a: np.median([s[a]["mu"] for s in seen]) for a in ("alpha", "beta")}
     dusty_mu = {a: np.median([error_summary(est.isel(hole=h))[a]["mu"] for h in DUSTY])

@@ -137,8 +137,8 @@ class SimCamera:
     Examples
     --------
     >>> from sunlab.sim import Bench
-    >>> # a 128 px ROI (rows 105-233, columns 904-1032) round the zero-pose spot, binned 2 x 2
-    >>> cam = SimCamera(Bench.paper_single_hole(), roi=(105, 233, 904, 1032), binning=2)
+    >>> # a 128 px ROI (rows 339-467, columns 668-796) round the zero-pose spot, binned 2 x 2
+    >>> cam = SimCamera(Bench.paper_single_hole(), roi=(339, 467, 668, 796), binning=2)
     >>> cam.shape, cam.bit_depth
     ((64, 64), 12)
     >>> cam.set_index(0, 0, alpha=0.0, beta=0.0)

@@ -131,7 +131,7 @@ def edge_roughness(cube: xr.Dataset, cen: xr.Dataset, *, shot: int = 0, max_fram
     their RMS: about 1 for a typical hole, several for a burred one.
 
     Only low harmonics carry the burr: the spot is the hole convolved with the image of the
-    Sun's disk (0.27 mm across at F = 17 mm, wider than the 0.2 mm hole), which smooths a rim
+    Sun's disk (0.045 mm across at F = 5 mm, 0.15 mm at 17 mm), which smooths a rim
     ripple of harmonic k (wavelength 2 pi r0 / k, 0.1 mm at k = 6) away; higher harmonics add
     mostly pixel-response noise. On the paper bench (quick plan of experiment I, 100 poses) the
     burred holes 37 and 85 score robust z 7.8 and 13.4 with harmonics 2-6 over 100 frames, the

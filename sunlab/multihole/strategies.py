@@ -584,8 +584,8 @@ class PerHoleAverage(Calibration):
         A hole gets its own calibration only if it was seen at no fewer than this many
         training poses per free coefficient (1.5: 15 poses for a cubic's 10). A hole seen at
         barely as many poses as coefficients is fitted almost exactly, through its noise, and
-        swings between the poses: at F = 17 mm the corner holes leave the detector at many
-        poses, and a cubic on 11 of a 4 x 4 grid missed by up to 8 deg. Such a hole is left out
+        swings between the poses: at a long F (17 mm) the corner holes leave the detector at
+        many poses, and a cubic on 11 of a 4 x 4 grid missed by up to 8 deg. Such a hole is left out
         of the average (its estimates are NaN).
 
     Examples

@@ -156,7 +156,7 @@ def bench_optimised_truth(bench) -> dict:
     >>> from sunlab import sim
     >>> t = bench_optimised_truth(sim.Bench.paper_single_hole())
     >>> t["alpha0"], t["beta0"], round(t["delta_f_mm"], 4)
-    (1.864, 0.415, 0.092)
+    (1.274, 0.294, 0.092)
     """
     from ..sim.render import spot_geometry
 
@@ -234,25 +234,26 @@ def reproduce_table4(
     with parallel.worker_pool(scheduler, workers, address) as pool:  # warms up meanwhile
         cubes = simulate_experiments(bench, seed=seed, quick=quick, step=step, shots=shots,
                                      progress=progress, method=method)
-        # each run's zero-pose check, which the networks re-zero on (NN_REFERENCE)
         zero = zero_poses(bench, experiment_plans(quick=quick, step=step, shots=shots),
-                          seed=seed, method=method)
+                          seed=seed, method=method)  # the runs' zero poses (NN_REFERENCE)
         cens, fitted = _locate_and_fit(cubes, where, pool, neural=neural, seed=seed, t0=t0,
                                        progress=progress, timings=timings, not_run=not_run,
                                        zero=zero)
-    if progress:
-        for label in fitted:
-            print(f"  fitted {label:<24s} in {timings[f'fit {label}']:6.2f} s", flush=True)
     test = usable_table(cens["III"])
     local = {label: stats.local_errors(cal.predict(test)) for label, cal in fitted.items()}
     result = _assemble(cens, fitted, local, bench, timings, t0, settings={
         "seed": seed, "quick": quick, "centroid_method": method, "not_run": not_run,
-        "poses": {k: int(v.sizes["pose"]) for k, v in cens.items()},
-        "shots": int(test.sizes["shot"]), "bench": json.loads(bench.to_json()),
-        "network_reference": NN_REFERENCE})
+        **_run_settings(cens, test, bench)})
     if out is not None:
         result.files = _write_outputs(result, Path(out))
     return result
+
+
+def _run_settings(cens, test, bench) -> dict:
+    """What table4.json records of the runs: their sizes, the bench used, the networks' zero."""
+    return {"poses": {k: int(v.sizes["pose"]) for k, v in cens.items()},
+            "shots": int(test.sizes["shot"]), "bench": json.loads(bench.to_json()),
+            "network_reference": NN_REFERENCE}
 
 
 def _assemble(cens, fitted, local, bench, timings, t0, settings) -> Table4Result:
@@ -291,6 +292,9 @@ def _locate_and_fit(cubes, where, pool, *, neural, seed, progress, timings, t0, 
         cens.update({k: v.assign_attrs(zero[k]) for k, v in third.result().items()})
         timings["simulate_and_centroid III (beside the fits)"] = time.perf_counter() - t3
     timings["simulate_and_centroid"] = time.perf_counter() - t0
+    if progress:
+        for label in fitted:
+            print(f"  fitted {label:<24s} in {timings[f'fit {label}']:6.2f} s", flush=True)
     return cens, fitted
 
 

@@ -79,9 +79,10 @@ def spot_method(method: str) -> str:
 def mounting_offset_px(one_hole) -> tuple[float, float]:
     """Where the one-hole spot falls relative to its design track, px (median over poses).
 
-    At F = 17 mm the sensor's mounting on the platform (alpha0 = 1.864 deg) moves every spot by
-    about 80 px, more than half the 71 px hole pitch of the 100-hole mask, so design positions
-    alone would give spots to the wrong holes. The mounting is the platform's, common to both
+    The sensor's mounting on the platform (alpha0, beta0) moves every spot off its design
+    place, by about 80 px at F = 17 mm, more than half the 71 px hole pitch of the 100-hole mask
+    (16 px at the presets' F = 5 mm), so design positions alone can give spots to the wrong
+    holes. The mounting is the platform's, common to both
     masks: the offset measured with the one hole (calibrated first, as in the paper) is the
     prior that :func:`sunlab.centroid.locate` needs to number the 100 spots.
 
@@ -184,11 +185,9 @@ def reproduce_table5(quick: bool = True, seed: int = 0, out: Path | str | None =
         result, cens, status = _simulate_locate_calibrate(
             plans_, seed=seed, method=method, progress=progress, where=where, pool=pool,
             timings=timings, order=order)
-    order = result["order"]
     result["centroid_status"] = status
     result["sizes"] = {"train_poses": len(plans_["I"]), "test_poses": len(plans_["III"]),
-                       "shots": plans_["I"].shots,
-                       "holes": int(cens["100 holes I"].sizes["hole"])}
+                       "shots": plans_["I"].shots, "holes": int(cens["100 holes I"].sizes["hole"])}
     if out is not None:
         t = time.perf_counter()
         result["files"] = _write_figures(result, Path(out))
@@ -197,8 +196,8 @@ def reproduce_table5(quick: bool = True, seed: int = 0, out: Path | str | None =
     result["timings_s"] = {**{k: round(v, 3) for k, v in timings.items()},
                            "total": round(result["runtime_s"], 3)}
     if out is not None:
-        settings = {"quick": quick, "seed": seed, "order": order, "centroid_method": method}
-        result["files"].append(_write_json(result, Path(out), settings))
+        result["files"].append(_write_json(result, Path(out), {
+            "quick": quick, "seed": seed, "order": result["order"], "centroid_method": method}))
     return result
 
 

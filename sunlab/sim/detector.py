@@ -25,15 +25,16 @@ Defaults and their rationale (our choices where the paper is silent, docs/paper.
 * dark signal 400 e- (10 DN) per frame with 15 % DSNU, bias 32 DN, column FPN 0.5 DN RMS: a
   background of a few tens of DN, as the task asks for an uncooled APS in a dark room.
 * hot pixels: 2e-4 of the array with an exponential dark signal of mean 8000 e-.
-* PRNU: 1 % white plus 4 % spatially correlated (white noise smoothed by a Gaussian of 6 px).
-  The correlated part is what turns pixel response into the paper's *hole-specific* error:
-  docs/paper.md sec. 8 infers that a single hole carries a pose-dependent error of about 0.008 deg
-  (about 0.1 px at F = 5 mm) that 100-hole averaging removes. A white 1 % PRNU moves a 35 px
-  spot's centroid by only about 0.003 px; a response that varies over a few pixels by a few per
-  cent (cover-glass contamination, implant and microlens non-uniformity of a low-cost sensor)
-  moves it by about 0.1 px RMS per axis (measured: ``python benchmarks/bench_sim.py`` prints it),
-  a fixed function of where the spot falls that a smooth calibration cannot follow. Set
-  ``prnu_correlated=0`` for an ideal sensor.
+* PRNU: 1 % white plus 4 % spatially correlated (white noise smoothed by a Gaussian of 6 px) by
+  default, a generic low-cost sensor; the paper's preset (:meth:`sunlab.sim.Bench.
+  paper_single_hole`) uses what the IBIS4-1300 datasheet allows, 1 % white plus 2.8 % over 2 px,
+  2.97 % RMS in all (docs/paper.md sec. 10). A white PRNU of RMS s moves a uniform disk's centroid
+  by about 0.28 s px per axis whatever its radius (0.003 px at 1 %); a correlated pattern moves it
+  more, a fixed function of where the spot falls (:func:`sunlab.sim.identify.spot_error_maps`:
+  about 0.04 px RMS for the preset under its 35 px spot). Set ``prnu_correlated=0`` for an ideal
+  sensor.
+* glass lid: none by default (``lid_thickness_mm=0``); the preset has the IBIS4-1300's 0.5 mm
+  D263 lid, which refracts every oblique ray toward the hole's foot (Snell's law).
 
 Examples
 --------

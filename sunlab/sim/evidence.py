@@ -419,14 +419,14 @@ def _nullcontext(value):
     return contextlib.nullcontext(value)
 
 
-def main(argv=None) -> int:
+def _main(argv=None) -> int:
     """``python -m sunlab.sim.evidence [--seeds 0 1] [--out FILE]``: the evidence table of
     every hypothesis on each seed (CSV, one row per hypothesis and seed), printed and written.
     """
     import argparse
 
     parser = argparse.ArgumentParser(prog="python -m sunlab.sim.evidence",
-                                     description=main.__doc__.split(":")[0])
+                                     description=_main.__doc__.split(":")[0])
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1])
     parser.add_argument("--hypotheses", nargs="+", default=list(HYPOTHESES),
                         choices=list(HYPOTHESES))
@@ -442,4 +442,4 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    raise SystemExit(_main())

@@ -93,11 +93,12 @@ PAPER_TARGETS: dict = _targets()
 #: (see :func:`score` and the notebook 05 section on identification).
 TARGET_CELLS: dict[str, str] = {
     "alpha.mu / alpha.M of polynomial, linear, cubic":
-        "F (via the interpolation-minus-polynomial gap) and alpha's per-pose error",
+        "alpha's per-pose error and how learnable the spot-specific error is (the "
+        "interpolation-minus-polynomial gap)",
     "beta.mu / beta.M of polynomial, linear, cubic": "beta's per-pose error (size and offset)",
     "alpha.sigma / alpha.mu": "the shape of alpha's per-pose error (uniform: 0.58)",
     "M - mu": "the per-shot jitter",
-    "Table 5 alpha mu, 1 hole / geometric centre": "the spot-specific error (PRNU)",
+    "Table 5 alpha mu, 1 hole / geometric centre": "the one-hole mask's play (and the PRNU)",
     "Table 5 beta mu, 100 holes vs 1 hole": "the 100-hole mask's play",
 }
 
@@ -477,13 +478,14 @@ def interpolation_gap(bench, distances_mm, *, seed: int = 0, shots: int = 2,
                       order: int = 5) -> pd.DataFrame:
     """Alpha mu of linear interpolation minus the polynomial's, on the surrogate, against F.
 
-    The evidence for F (notebook 05): a spot-specific error that varies smoothly over a grid
-    step is learned by a 1-degree interpolation table, which then beats the polynomial
-    (negative gap, a short F); when a grid step moves the spot by several of the pattern's
-    correlation lengths the table only copies noisy nodes and loses (positive gap, as the
-    paper's 0.0100 - 0.0089 = +0.0011 deg). For each F the one hole is kept on the same part of
-    the detector (its offset scaled with F) and the experiments of Table 3 are run on the full
-    grids. The interpolant is :class:`scipy.interpolate.LinearNDInterpolator` on pose-mean
+    How learnable a spot-specific error is: one that varies smoothly over a grid step is
+    learned by a 1-degree interpolation table, which then beats the polynomial (negative gap);
+    when a grid step moves the spot by several of the pattern's correlation lengths the table
+    only copies noisy nodes and loses (positive gap, as the paper's 0.0100 - 0.0089 = +0.0011
+    deg). F sets the grid step in pixels, the pattern its correlation length; the held-out
+    comparison of :mod:`sunlab.sim.evidence` weighs this with the rest. For each F the one
+    hole is kept on the same part of the detector (its offset scaled with F) and the
+    experiments of Table 3 are run on the full grids. The interpolant is :class:`scipy.interpolate.LinearNDInterpolator` on pose-mean
     centroids rescaled to the unit square (what :class:`sunlab.calibration.Interpolation`
     builds, without its leave-one-out bookkeeping); the polynomial is
     :class:`sunlab.calibration.Polynomial` of the given order.
