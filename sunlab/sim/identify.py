@@ -478,17 +478,17 @@ def interpolation_gap(bench, distances_mm, *, seed: int = 0, shots: int = 2,
                       order: int = 5) -> pd.DataFrame:
     """Alpha mu of linear interpolation minus the polynomial's, on the surrogate, against F.
 
-    How learnable a spot-specific error is: one that varies smoothly over a grid step is
-    learned by a 1-degree interpolation table, which then beats the polynomial (negative gap);
-    when a grid step moves the spot by several of the pattern's correlation lengths the table
-    only copies noisy nodes and loses (positive gap, as the paper's 0.0100 - 0.0089 = +0.0011
-    deg). F sets the grid step in pixels, the pattern its correlation length; the held-out
-    comparison of :mod:`sunlab.sim.evidence` weighs this with the rest. For each F the one
-    hole is kept on the same part of the detector (its offset scaled with F) and the
-    experiments of Table 3 are run on the full grids. The interpolant is :class:`scipy.interpolate.LinearNDInterpolator` on pose-mean
-    centroids rescaled to the unit square (what :class:`sunlab.calibration.Interpolation`
-    builds, without its leave-one-out bookkeeping); the polynomial is
-    :class:`sunlab.calibration.Polynomial` of the given order.
+    How learnable a spot-specific error is: one that varies smoothly over a grid step is learned
+    by a 1-degree interpolation table, which then beats the polynomial (negative gap); when a
+    grid step moves the spot by several of the pattern's correlation lengths the table only
+    copies noisy nodes and loses (positive gap, as the paper's 0.0100 - 0.0089 = +0.0011 deg). F
+    sets the grid step in pixels, the pattern its correlation length; the held-out comparison of
+    :mod:`sunlab.sim.evidence` weighs this with the rest. For each F the one hole is kept on the
+    same part of the detector (its offset scaled with F) and the experiments of Table 3 are run
+    on the full grids. The interpolant is :class:`scipy.interpolate.LinearNDInterpolator` on
+    pose-mean centroids rescaled to the unit square (what
+    :class:`sunlab.calibration.Interpolation` builds, without its leave-one-out bookkeeping);
+    the polynomial is :class:`sunlab.calibration.Polynomial` of the given order.
 
     Returns
     -------
