@@ -39,7 +39,8 @@ __all__ = [
     "simulate_and_locate",
     "simulate_experiments",
     "usable_table",
-    "zero_poses",
+    "zero_pose_cubes",
+    "zero_pose_attrs",
     "centroid_status",
     "write_json",
 ]
@@ -256,37 +257,45 @@ def simulate_experiments(bench=None, *, seed: int = 0, quick: bool = False,
     return cubes
 
 
-def zero_poses(bench, plans_: dict, *, seed: int = 0, method: str = "projection") -> dict:
-    """The zero-pose centroid measured with each run, px: one zero-pose check per run.
-
-    Each run's check (:func:`sunlab.plans.zero_check`, one visit with the run's shots) is
-    rendered on the bench with the run's homing and its own per-pose platform error, and
-    centroided with the table's method; the mean over its shots is the run's zero-pose
-    centroid, what a network re-zeroed on each run reads (``reference="zero_pose"`` of
-    :class:`sunlab.calibration.NeuralNet`).
-
-    Returns
-    -------
-    dict of str to dict
-        Per run: ``zero_pose_x_px`` and ``zero_pose_y_px``, to put in its table's attributes.
+def zero_pose_cubes(bench, plans_: dict, *, seed: int = 0) -> dict:
+    """The lazy cubes of each run's zero-pose check (:func:`sunlab.plans.zero_check`, one
+    visit with the run's shots), keyed ``"zero I"`` ...: rendered on the bench with the run's
+    homing and drift and a per-pose platform error of their own, to be centroided in the same
+    pass as the runs (:func:`locate_runs`) and read by :func:`zero_pose_attrs`.
 
     Examples
     --------
     >>> from sunlab import sim
-    >>> z = zero_poses(sim.Bench.paper_single_hole(), experiment_plans(("I",), step=7, shots=2))
-    >>> sorted(z["I"])
-    ['zero_pose_x_px', 'zero_pose_y_px']
+    >>> z = zero_pose_cubes(sim.Bench.paper_single_hole(), experiment_plans(("I",), shots=2))
+    >>> list(z), dict(z["zero I"].frames.sizes)["shot"]
+    (['zero I'], 2)
     """
-    from .. import centroid, plans, sim
+    from .. import plans
 
-    cubes = {k: sim.simulate(plans.zero_check(p, 1), bench, seed=seed)
-             for k, p in plans_.items()}
-    cens = centroid.locate_all(cubes, method, scheduler="synchronous", progress=False)
+    return simulate_runs({f"zero {k}": (plans.zero_check(p, 1), bench)
+                          for k, p in plans_.items()}, seed=seed)
+
+
+def zero_pose_attrs(cens: dict) -> dict:
+    """Each run's zero-pose centroid, px, from the centroided checks of
+    :func:`zero_pose_cubes` (keyed ``"zero I"`` ...): the mean over the usable shots, as the
+    attributes ``zero_pose_x_px``, ``zero_pose_y_px`` that a network re-zeroed on each run's
+    zero pose reads (``reference="zero_pose"`` of :class:`sunlab.calibration.NeuralNet`).
+
+    Examples
+    --------
+    >>> from sunlab import schema
+    >>> cen = schema.centroids_dataset([[10.0, 12.0]], [[5.0, 5.0]], alpha=[0.0], beta=[0.0])
+    >>> zero_pose_attrs({"zero I": cen})
+    {'I': {'zero_pose_x_px': 11.0, 'zero_pose_y_px': 5.0}}
+    """
     out = {}
-    for k, cen in cens.items():
+    for key, cen in cens.items():
+        if not key.startswith("zero "):
+            continue
         ok = usable_table(cen)["status"].values == 0
-        out[k] = {"zero_pose_x_px": float(np.mean(cen.x.values[ok])),
-                  "zero_pose_y_px": float(np.mean(cen.y.values[ok]))}
+        out[key[len("zero "):]] = {"zero_pose_x_px": float(np.mean(cen.x.values[ok])),
+                                   "zero_pose_y_px": float(np.mean(cen.y.values[ok]))}
     return out
 
 

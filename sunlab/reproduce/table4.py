@@ -50,7 +50,8 @@ from .pipeline import (
     simulate_experiments,
     usable_table,
     write_json,
-    zero_poses,
+    zero_pose_attrs,
+    zero_pose_cubes,
 )
 
 __all__ = [
@@ -234,11 +235,10 @@ def reproduce_table4(
     with parallel.worker_pool(scheduler, workers, address) as pool:  # warms up meanwhile
         cubes = simulate_experiments(bench, seed=seed, quick=quick, step=step, shots=shots,
                                      progress=progress, method=method)
-        zero = zero_poses(bench, experiment_plans(quick=quick, step=step, shots=shots),
-                          seed=seed, method=method)  # the runs' zero poses (NN_REFERENCE)
+        cubes.update(zero_pose_cubes(bench, experiment_plans(quick=quick, step=step,
+                                                             shots=shots), seed=seed))
         cens, fitted = _locate_and_fit(cubes, where, pool, neural=neural, seed=seed, t0=t0,
-                                       progress=progress, timings=timings, not_run=not_run,
-                                       zero=zero)
+                                       progress=progress, timings=timings, not_run=not_run)
     test = usable_table(cens["III"])
     local = {label: stats.local_errors(cal.predict(test)) for label, cal in fitted.items()}
     result = _assemble(cens, fitted, local, bench, timings, t0, settings={
@@ -272,15 +272,16 @@ def _assemble(cens, fitted, local, bench, timings, t0, settings) -> Table4Result
     )
 
 
-def _locate_and_fit(cubes, where, pool, *, neural, seed, progress, timings, t0, not_run,
-                    zero):
+def _locate_and_fit(cubes, where, pool, *, neural, seed, progress, timings, t0, not_run):
     """Centroid I and II, then fit every method on them (:func:`_fit_all`) while III is
     rendered and centroided on the same workers (``pool``, :func:`sunlab.parallel.worker_pool`)
     from a background thread: the fits are serial, and beside them the other cores stay busy.
     The centroid tables and the fitted methods."""
-    cens = locate_runs({k: cubes[k] for k in ("I", "II")}, progress=progress, pool=pool,
-                       **where)
-    cens = {k: v.assign_attrs(zero[k]) for k, v in cens.items()}
+    # I, II and every run's zero-pose check (which the networks re-zero on, NN_REFERENCE)
+    cens = locate_runs({k: c for k, c in cubes.items() if k != "III"}, progress=progress,
+                       pool=pool, **where)
+    zero = zero_pose_attrs(cens)
+    cens = {k: cens[k].assign_attrs(zero[k]) for k in ("I", "II")}
     timings["simulate_and_centroid I, II"] = time.perf_counter() - t0
     train, val = usable_table(cens["I"]), usable_table(cens["II"])
     with ThreadPoolExecutor(1, thread_name_prefix="sunlab-III") as ex:
