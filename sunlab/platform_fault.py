@@ -528,7 +528,7 @@ def candidate_table(sizes: dict, *, bench=None, seed: int = 0, shots: int = 1,
     ...                            scan="serpentine")}
     >>> t = candidate_table({"backlash": 0.017}, experiment_plans=small,
     ...                     methods=("polynomial",))
-    >>> list(t.columns), bool(0.01 < t.loc["backlash", "polynomial mu"] < 0.03)
+    >>> list(t.columns), bool(0.005 < t.loc["backlash", "polynomial mu"] < 0.03)
     (['size_deg', 'polynomial mu', 'polynomial sigma', 'score', 'shape_excess'], True)
     """
     from . import plans, stats
