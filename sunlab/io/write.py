@@ -86,29 +86,22 @@ def _write(ds: xr.Dataset, path: Path, fmt: str, encoding: dict, progress: bool,
     """Write to a temporary sibling, then rename it into place (the old output survives)."""
     with atomic.atomic_output(path, overwrite=overwrite,
                                kind="zarr" if fmt == "zarr" else "file") as tmp:
-        try:
-            # the metadata are written on zarr's own I/O thread: Ctrl-C waits until they are
-            with atomic.signals_held():
-                if fmt == "zarr":
-                    job = ds.to_zarr(
-                        tmp, mode="w-", zarr_format=3, consolidated=False,
-                        write_empty_chunks=True, encoding=_zarr_checksum_encoding(ds, encoding),
-                        compute=False,
-                    )
-                elif ds.nbytes <= NETCDF_IN_MEMORY_MAX:
-                    job = None
-                else:
-                    job = ds.to_netcdf(tmp, engine="h5netcdf", encoding=encoding,
-                                       compute=False)
-            with _maybe_progress(progress):
-                if job is None:  # built in memory, then written as plain bytes
-                    _write_bytes(tmp, ds.to_netcdf(engine="h5netcdf", encoding=encoding))
-                else:
-                    _compute_then_settle(job)
-        except BaseException:
-            if fmt != "zarr":
-                _close_cached_file(tmp)
-            raise
+        # the metadata are written on zarr's own I/O thread: Ctrl-C waits until they are
+        with atomic.signals_held():
+            if fmt == "zarr":
+                job = ds.to_zarr(
+                    tmp, mode="w-", zarr_format=3, consolidated=False, write_empty_chunks=True,
+                    encoding=_zarr_checksum_encoding(ds, encoding), compute=False,
+                )
+            elif ds.nbytes <= NETCDF_IN_MEMORY_MAX:
+                job = None
+            else:
+                job = ds.to_netcdf(tmp, engine="h5netcdf", encoding=encoding, compute=False)
+        with _maybe_progress(progress):
+            if job is None:  # built in memory, then written as plain bytes
+                _write_bytes(tmp, ds.to_netcdf(engine="h5netcdf", encoding=encoding))
+            else:
+                _compute_then_settle(job)
         # the digest of what was written, checked by every read (sunlab.integrity)
         (integrity.seal_zarr if fmt == "zarr" else integrity.seal_netcdf)(tmp)
 
@@ -117,7 +110,8 @@ def _write(ds: xr.Dataset, path: Path, fmt: str, encoding: dict, progress: bool,
 #: bytes: a write that fails there (a full disk) is an OSError like any other, where HDF5
 #: writing to a file that stopped growing can leave its library in a state that crashes the
 #: interpreter at exit. Larger ones (frame cubes; Zarr is the format for those) go straight
-#: to the temporary file.
+#: to the temporary file, where a full disk can still end in that crash after the error is
+#: reported.
 NETCDF_IN_MEMORY_MAX = 1 << 30
 
 
@@ -127,31 +121,6 @@ def _write_bytes(path, data) -> None:
         fh.write(data)
         fh.flush()
         os.fsync(fh.fileno())
-
-
-def _close_cached_file(path) -> None:
-    """Release the NetCDF file a failed delayed write left open, without the flush that
-    h5netcdf's close (or its ``__del__`` at the interpreter's exit) would run on it: after a
-    failed write (a full disk) HDF5 cannot take that flush, and at exit it crashed the process
-    after the error had been reported. The file is removed by the caller."""
-    import gc
-
-    from xarray.backends.file_manager import FILE_CACHE
-
-    target = os.path.abspath(str(path))
-    for key, handle in list(FILE_CACHE.items()):
-        if os.path.abspath(str(getattr(handle, "filename", ""))) == target:
-            FILE_CACHE.pop(key, None)
-    for obj in gc.get_objects():
-        if type(obj).__name__ == "File" and type(obj).__module__ == "h5netcdf.core" \
-                and os.path.abspath(str(getattr(obj, "_filename", ""))) == target:
-            raw = obj.__dict__.get("_File__h5file")
-            obj._closed = True  # no flush from close() or __del__
-            if raw is not None:
-                try:
-                    raw.close()
-                except Exception:  # a broken file: it is about to be removed
-                    pass
 
 
 def _compute_then_settle(job) -> None:

@@ -162,9 +162,7 @@ def bench_optimised_truth(bench) -> dict:
     from ..sim.render import spot_geometry
 
     height = float(spot_geometry(bench, 0.0, 0.0).height_mm[0])
-    det = bench.detector
-    # a glass lid takes t (1 - 1/n) off the height that a paraxial ray sees
-    height -= det.lid_thickness_mm * (1.0 - 1.0 / det.lid_index)
+    height -= bench.detector.lid_height_loss_mm  # what a glass lid takes off a paraxial ray
     return {"alpha0": float(bench.platform.alpha0_deg), "beta0": float(bench.platform.beta0_deg),
             "delta_f_mm": height - float(bench.mask_distance_mm)}
 

@@ -90,7 +90,7 @@ PAPER_ALPHA0_DEG = 1.274
 PAPER_BETA0_DEG = 0.294
 #: The mask's height error as the paper's optimised model sees it (sec. 4.1: dF = 0.094 mm)
 #: plus what the lid takes off the apparent height of a paraxial ray, t (1 - 1/n).
-PAPER_DELTA_F_MM = 0.094 + PAPER_LID_MM * (1.0 - 1.0 / 1.523)
+PAPER_DELTA_F_MM = 0.094 + Detector(lid_thickness_mm=PAPER_LID_MM).lid_height_loss_mm
 
 #: The place of each experiment of Table 3 in the session (docs/paper.md sec. 5 runs them in
 #: this order): a run named otherwise is taken at the session's start.

@@ -215,6 +215,13 @@ class Detector:
         return (int(self.ny), int(self.nx))
 
     @property
+    def lid_height_loss_mm(self) -> float:
+        """What the glass lid takes off the height a paraxial ray sees, mm: t (1 - 1/n) (a
+        plane-parallel plate; 0 without a lid), the part of its shift that a pinhole model's F
+        absorbs."""
+        return self.lid_thickness_mm * (1.0 - 1.0 / self.lid_index)
+
+    @property
     def max_dn(self) -> int:
         """Full scale of the ADC, DN."""
         return (1 << int(self.bit_depth)) - 1

@@ -44,6 +44,7 @@ __all__ = [
     "hypothesis_bench",
     "fit_platform",
     "predicted_cells",
+    "surrogate_runs",
     "evidence_table",
     "load_table",
 ]
@@ -185,7 +186,8 @@ def hypothesis_bench(hyp: Hypothesis, multi: bool = False, platform: dict | None
     # the lid takes t (1 - 1/n) off the height a paraxial ray sees: the mask's height error is
     # set so that the optimised model still sees the paper's dF with this hypothesis's lid
     det = base.detector
-    lid_share = (hyp.lid_thickness_mm - det.lid_thickness_mm) * (1.0 - 1.0 / det.lid_index)
+    lid_share = (det.replace(lid_thickness_mm=hyp.lid_thickness_mm).lid_height_loss_mm
+                 - det.lid_height_loss_mm)
     bench = base.replace(
         mask__distance_mm=hyp.mask_distance_mm, mask__holes=holes,
         mask__delta_f_mm=base.mask.delta_f_mm + lid_share,
@@ -225,7 +227,7 @@ def _tuning_cells(hyp: Hypothesis, platform: dict, seed: int, step: int, shots: 
 
     single = hypothesis_bench(hyp, platform=platform)
     multi = hypothesis_bench(hyp, multi=True, platform=platform)
-    cens = _single_hole_runs(single, seed, step, shots)
+    cens = surrogate_runs(single, seed, step, shots)
     fits = table4_methods(seed=seed, reference="zero_pose")
     poly = fits["polynomial"](cens["I"], cens["II"])
     nn4 = fits["NN strategy 4"](cens["I"], cens["II"])
@@ -243,9 +245,24 @@ def _tuning_cells(hyp: Hypothesis, platform: dict, seed: int, step: int, shots: 
             FITTED["single_play_mm"]: float(t4.loc[("alpha", "mu"), "p"])}
 
 
-def _single_hole_runs(bench, seed: int, step: int, shots: int) -> dict:
+def surrogate_runs(bench, seed: int = 0, step: int = 1, shots: int = 8) -> dict:
     """Surrogate centroid tables of experiments I-III, each with its run's zero-pose centroid
-    in its attributes (what a network re-zeroed on the zero pose reads)."""
+    in its attributes (what a network re-zeroed on the zero pose reads).
+
+    Parameters
+    ----------
+    bench : sunlab.sim.Bench
+    seed : int
+        Seed of the experiments (:func:`sunlab.sim.simulate`'s).
+    step, shots : int
+        Every ``step``-th angle along each grid axis, ``shots`` frames per pose (``sunlab
+        reproduce``'s quick mode is step 2, shots 2).
+
+    Returns
+    -------
+    dict of str to xarray.Dataset
+        ``centroids/1`` tables keyed ``"I"``, ``"II"``, ``"III"``.
+    """
     from .. import plans
 
     out = {}
@@ -326,26 +343,22 @@ def predicted_cells(hyp: Hypothesis, platform: dict | None = None, *, seed: int 
     from ..calibration.methods import table4_methods
 
     single = hypothesis_bench(hyp, platform=platform)
-    cens = _single_hole_runs(single, seed, step, shots)
+    cens = surrogate_runs(single, seed, step, shots)
     fits = table4_methods(seed=seed, reference="zero_pose")
-    local = {m: stats.local_errors(fits[m](cens["I"], cens["II"]).predict(cens["III"]))
-             for m in stats.paper_table4().columns}
-    t4 = stats.global_stats(local)
+    fitted = {m: fits[m](cens["I"], cens["II"]) for m in stats.paper_table4().columns}
+    t4 = stats.global_stats({m: stats.local_errors(c.predict(cens["III"]))
+                             for m, c in fitted.items()})
+    # Table 5's calibrations take the order Table 4's polynomial chose on II (the larger of
+    # its two), as sunlab reproduce --table 5 does
     t5 = surrogate_table5(hypothesis_bench(hyp, multi=True, platform=platform), single, seed,
                           step=table5_step, shots=shots,
-                          order=int(local_order(fits, cens)))
+                          order=int(max(fitted["polynomial"].orders)))
     out = {}
     for name, table in (("table4", t4), ("table5", t5)):
         for col in table.columns:
             for (angle, stat), v in table[col].items():
                 out[(name, col, angle, stat)] = float(v)
     return out
-
-
-def local_order(fits, cens) -> int:
-    """The polynomial order Table 4's recipe picks on experiment II, which Table 5's
-    calibrations use too (the larger of its two), so that both tables select it the same way."""
-    return int(max(fits["polynomial"](cens["I"], cens["II"]).orders))
 
 
 def _score(pred: dict, paper: dict, cells) -> tuple[float, int]:
@@ -408,15 +421,10 @@ def load_table(path=None) -> pd.DataFrame:
     """
     from importlib import resources
 
-    src = resources.files("sunlab") / "data" / "evidence.csv" if path is None else path
-    with resources.as_file(src) if path is None else _nullcontext(path) as p:
-        return pd.read_csv(p, index_col=["hypothesis", "seed"])
-
-
-def _nullcontext(value):
-    import contextlib
-
-    return contextlib.nullcontext(value)
+    if path is not None:
+        return pd.read_csv(path, index_col=["hypothesis", "seed"])
+    with resources.as_file(resources.files("sunlab") / "data" / "evidence.csv") as shipped:
+        return pd.read_csv(shipped, index_col=["hypothesis", "seed"])
 
 
 def _main(argv=None) -> int:
