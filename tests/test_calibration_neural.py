@@ -70,3 +70,34 @@ def test_strategy_4_learns_the_error_of_model_1(bench):
     assert -2.5 < net.networks["alpha"]["target_mean"] < -1.2
     learned = net.predict(te).alpha - ideal.alpha
     assert float(abs(learned).mean()) > 1.0
+
+
+def test_zero_pose_reference_rezeroes_model_1_on_each_runs_zero_pose(bench):
+    # reference="zero_pose": model (1) of strategy 4 is referenced to the zero-pose centroid in
+    # the table's attributes, read at the fit from the training run and at each prediction
+    # from the run predicted. A test run whose zero pose reads 2 px further along x is read
+    # as every pose shifted by that much: both angles move by model (1)'s change (beta
+    # through eq. (1)'s cos(alpha)), the network's learned correction staying put.
+    from sunlab import calibration, geometry
+    from sunlab.errors import ConfigurationError
+
+    tr, va, te, _ = bench
+    z = {"zero_pose_x_px": float(tr.attrs["x_cf_px"]),
+         "zero_pose_y_px": float(tr.attrs["y_cf_px"])}
+    net = NeuralNet(strategy=4, hidden=6, max_iter=200, patience=100, reference="zero_pose")
+    net.fit(tr.assign_attrs(z), va.assign_attrs(z))
+    same = net.predict(te.assign_attrs(z))
+    moved = net.predict(te.assign_attrs(z, zero_pose_x_px=z["zero_pose_x_px"] + 2.0))
+    s = net.sensor
+    x, y = te.x.values, te.y.values
+    a0, b0 = geometry.ideal_angles(x, y, s["mask_distance_mm"], s["pixel_pitch_mm"],
+                                   z["zero_pose_x_px"], z["zero_pose_y_px"])
+    a1, b1 = geometry.ideal_angles(x, y, s["mask_distance_mm"], s["pixel_pitch_mm"],
+                                   z["zero_pose_x_px"] + 2.0, z["zero_pose_y_px"])
+    np.testing.assert_allclose(moved.alpha.values - same.alpha.values, a1 - a0, atol=1e-9)
+    np.testing.assert_allclose(moved.beta.values - same.beta.values, b1 - b0, atol=1e-9)
+    assert float(np.nanmean(np.abs(a1 - a0))) > 0.1  # 2 px is a visible shift
+    # the artifact keeps the option; a table without the zero pose is refused, saying why
+    assert calibration.from_dict(net.to_dict()).reference == "zero_pose"
+    with pytest.raises(ConfigurationError, match="zero_pose_x_px"):
+        net.predict(te)
