@@ -480,9 +480,11 @@ def fault_bench(bench, kind: str, size_deg: float, *, period_deg: float = 1.6):
     """
     if kind not in FAULTS:
         raise ConfigurationError(f"kind: found {kind!r}; expected one of {tuple(FAULTS)}.")
-    # the thermal drift of the zero between runs is a run offset like the homing's: out too
+    # the thermal drift of the zero between runs and its shift at a new homing between the
+    # sessions are run offsets like the homing's: out too
     base = bench.replace(platform__beta_backlash_deg=0.0, platform__beta_homing_deg=0.0,
-                         platform__beta_drift_deg=0.0, platform__beta_gear_deg=0.0)
+                         platform__beta_drift_deg=0.0, platform__beta_rehoming_deg=0.0,
+                         platform__beta_gear_deg=0.0)
     field_ = {"backlash": "beta_backlash_deg", "homing": "beta_homing_deg",
               "gear": "beta_gear_deg"}[kind]
     out = base.replace(**{f"platform__{field_}": float(size_deg)})

@@ -31,7 +31,7 @@ def test_calibrated_methods_reach_hundredths_of_a_degree(result):
     assert t.loc[("alpha", "mu"), "ideal model (1)"] > 1.0
     assert t.loc[("alpha", "mu"), "polynomial"] < 0.02
     assert t.loc[("beta", "mu"), "polynomial"] < 0.04
-    # beta is worse than alpha (the inner axis's backlash), as in the paper, for the global
+    # beta is worse than alpha (the inner axis's zero shift between I and III), as in the paper, for the global
     # models; on this 6-degree grid the interpolation tables' own error (a node every 250 px)
     # dominates and the comparison is the full run's (results/table4.json, issue 11)
     for col in ("polynomial", "optimised model (3)-(4)"):
@@ -40,14 +40,20 @@ def test_calibrated_methods_reach_hundredths_of_a_degree(result):
     assert (t.xs("M", level="stat") >= t.xs("mu", level="stat") - 1e-12).all().all()
 
 
-def test_optimised_model_finds_the_bench_within_its_standard_errors(result):
-    # The model applies the mounting as the bench does (a rotation), so the fit estimates the
-    # bench's own numbers; on this thinned run (16 calibration poses, 2 shots) the block-bootstrap
-    # standard errors are large, and each parameter lies within 3 of them of the bench's value.
-    for name in ("alpha0", "beta0", "delta_f_mm"):
+def test_optimised_model_returns_the_papers_mounting_within_its_standard_errors(result):
+    # The preset's mounting (alpha0, beta0) was identified so that the optimised model, which
+    # folds the lid's distortion and the boresight rotation into its three parameters, returns
+    # the paper's fitted values (sec. 4.1); dF is the mask's true height error, which the model
+    # sees directly. On this thinned run (16 calibration poses, 2 shots) the block-bootstrap
+    # standard errors are large; each parameter lies within 3 of them of its target.
+    targets = {"alpha0": "paper", "beta0": "paper", "delta_f_mm": "bench"}
+    for name, target in targets.items():
         opt = result.optimised[name]
         assert opt["stderr_method"] == "block bootstrap"
-        assert 0 < opt["stderr"] and abs(opt["fitted"] - opt["bench"]) < 3 * opt["stderr"], name
+        assert 0 < opt["stderr"] and abs(opt["fitted"] - opt[target]) < 3 * opt["stderr"], name
+    # the bench's own alpha0 is not what the model returns: the lid and gamma0 move it
+    opt = result.optimised["alpha0"]
+    assert abs(opt["fitted"] - opt["bench"]) > 0.3
     # dF is identified by the scale of the spot motion: to a few hundredths of a mm (0.2 % of F)
     assert result.optimised["delta_f_mm"]["stderr"] < 0.04
     assert result.optimised["delta_f_mm"]["paper"] == 0.094

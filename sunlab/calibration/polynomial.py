@@ -28,7 +28,7 @@ import pandas as pd
 
 from ..errors import ConfigurationError
 from ._checks import _bad, _coefficients_ok, _count, _scaling_ok
-from .base import Calibration, TrainingData
+from .base import Calibration, TrainingData, combine
 
 __all__ = ["Polynomial", "monomial_exponents", "design_matrix"]
 
@@ -209,7 +209,7 @@ class Polynomial(Calibration):
 
     @classmethod
     def select_order(cls, train, validation, orders=range(1, 9), *, metric: str = "mean_abs",
-                     per_angle: bool = False, average: str = "pose"):
+                     per_angle: bool = False, average: str = "pose", refit: bool = False):
         """Pick the order on a validation table (experiment II), as the paper does.
 
         Parameters
@@ -224,11 +224,16 @@ class Polynomial(Calibration):
             Choose the order of each angle separately; otherwise minimise the sum over both.
         average : {"pose", "shot"}
             Passed to the constructor.
+        refit : bool
+            Refit the chosen order on ``train`` and ``validation`` together (the paper, sec.
+            5: experiment II "may also be added to I for the polynomial"): the order is still
+            chosen on II alone, by fits on I.
 
         Returns
         -------
         best : Polynomial
-            Fitted on ``train`` (with ``validation`` recorded) at the chosen order.
+            Fitted on ``train`` (with ``validation`` recorded), or on both with ``refit``, at
+            the chosen order.
         scores : pandas.DataFrame
             Validation errors (deg) per candidate order: columns ``alpha_mean_abs`` ...
             ``beta_max_abs``.
@@ -267,5 +272,8 @@ class Polynomial(Calibration):
         else:
             n = int((scores[f"alpha_{metric}"] + scores[f"beta_{metric}"]).idxmin())
             chosen = (n, n)
-        best = cls(order=chosen, average=average).fit(train, validation)
+        if refit:
+            best = cls(order=chosen, average=average).fit(combine(train, validation))
+        else:
+            best = cls(order=chosen, average=average).fit(train, validation)
         return best, scores

@@ -295,11 +295,13 @@ def _one_hole_polynomial(cens: dict, order: int | None):
     on the one hole's II as Table 4 chooses it (the larger of its orders for the 100-hole
     strategies, which take one order), unless ``order`` is given."""
     from ..calibration import Polynomial
+    from ..calibration.methods import POLYNOMIAL_REFIT
 
     train = usable_table(cens["1 hole I"])
     if order is not None:
         return Polynomial(order).fit(train), int(order)
-    best, _ = Polynomial.select_order(train, usable_table(cens["1 hole II"]))
+    best, _ = Polynomial.select_order(train, usable_table(cens["1 hole II"]),
+                                      refit=POLYNOMIAL_REFIT)
     return best, int(max(best.orders))
 
 

@@ -101,6 +101,11 @@ class Platform:
         in the session (:data:`sunlab.sim.bench.RUN_ORDER`: I 0, II 1, III 2) times this, as
         the lamp and the stage warm up between experiments I and III; like the homing offset
         it is constant within a run, and a zero-pose check taken with the run shares it.
+    beta_rehoming_deg : float
+        Shift of the inner axis's zero between the session of experiment I and the session of
+        II and III, deg (:data:`sunlab.sim.bench.SESSION`: I 0, II 1, III 1): the stage homed
+        again between them lands its zero elsewhere by its homing repeatability. Constant
+        within a run and shared by the run's zero-pose check, like the drift.
     beta_gear_deg, beta_gear_period_deg, beta_gear_phase_deg : float
         Periodic gear error of the inner axis: amplitude, period in beta and phase, deg
         (a worm's eccentricity repeats once per worm turn). With a period under two grid steps
@@ -125,6 +130,7 @@ class Platform:
     beta_backlash_deg: float = 0.0
     beta_homing_deg: float = 0.0
     beta_drift_deg: float = 0.0
+    beta_rehoming_deg: float = 0.0
     beta_gear_deg: float = 0.0
     beta_gear_period_deg: float = 1.6
     beta_gear_phase_deg: float = 0.0
