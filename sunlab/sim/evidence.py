@@ -59,14 +59,17 @@ PRNU_PRIOR_MAX = 0.03
 #: per-pose alpha error and its beta mu the 100-hole mask's play; Table 4's polynomial beta mu
 #: is mostly the inner axis's zero shift between experiment I and experiment III (an offset no
 #: calibration on I removes) and its beta sigma the per-pose beta error about that offset; its
-#: alpha mu is the one-hole mask's play over the platform's alpha error (docs/paper.md sec.
-#: 8-9).
+#: alpha mu is the one-hole mask's play over the platform's alpha error; linear interpolation's
+#: beta sigma is the inner axis's periodic gear error, which interpolation between I's nodes
+#: amplifies and a polynomial only sees once (docs/paper.md sec. 8-10; for hypotheses without
+#: a gear error it is scored in sample all the same).
 TUNING_CELLS = (
     ("table5", "100 holes: geometric centre", "alpha", "mu"),
     ("table5", "100 holes: geometric centre", "beta", "mu"),
     ("table4", "polynomial", "beta", "mu"),
     ("table4", "polynomial", "beta", "sigma"),
     ("table4", "polynomial", "alpha", "mu"),
+    ("table4", "linear interp.", "beta", "sigma"),
 )
 
 
@@ -109,6 +112,10 @@ class Hypothesis:
         III 2 times ``Platform.beta_drift_deg``) or one shift when the stage is homed again
         between the session of I and that of II and III (``Platform.beta_rehoming_deg``).
         Its size is fitted on Table 4's polynomial beta mu.
+    gear_period_deg : float
+        Period in beta of the inner axis's periodic gear error (``Platform.beta_gear_deg``, a
+        worm's eccentricity repeating once per worm turn), deg; 0 for none. Its amplitude is
+        fitted on Table 4's linear-interpolation beta sigma.
     source : str
         Where F and the detector's numbers come from.
     """
@@ -121,6 +128,7 @@ class Hypothesis:
     lid_thickness_mm: float
     single_mask_play: bool
     zero_shift: str
+    gear_period_deg: float
     source: str
 
     @property
@@ -141,6 +149,11 @@ _SHORT_F = ("F of a few mm: a miniature sensor whose field covers the test range
             "detector (sec. 8)")
 _LID = "the IBIS4-1300's D263 glass lid, 0.5 mm (docs/paper.md sec. 10)"
 _PLAY = "the one-hole mask held with play, as the 100-hole mask is"
+#: The gear error's period, deg: one turn of the worm of a 225-tooth wheel (the default of
+#: ``Platform.beta_gear_period_deg``); under two grid steps, so a 1-degree grid sees it aliased.
+GEAR_PERIOD_DEG = 1.6
+_GEAR = (f"a periodic gear error of the inner axis with a {GEAR_PERIOD_DEG} deg period (a "
+         "225-tooth worm wheel)")
 _REHOMED = ("the inner axis's zero shifted once, by a new homing between the session of "
             "experiment I and that of II and III, instead of a drift per run")
 
@@ -165,10 +178,13 @@ def _hypotheses():
     ]
     rows.append(("F5-short-lid-play-rehomed", 5.0, 0.028, 2.0, 0.5, True,
                  f"as F5-short-lid-play; {_REHOMED}"))
-    rows.append(("F17-datasheet-play-rehomed", 17.0, 0.028, 6.0, 0.0, True,
-                 f"as F17-datasheet-play; {_REHOMED}"))
+    rows.append(("F5-short-lid-play-rehomed-gear", 5.0, 0.028, 2.0, 0.5, True,
+                 f"as F5-short-lid-play; {_REHOMED}; {_GEAR}"))
+    rows.append(("F17-datasheet-play-rehomed-gear", 17.0, 0.028, 6.0, 0.0, True,
+                 f"as F17-datasheet-play; {_REHOMED}; {_GEAR}"))
     return {r[0]: Hypothesis(r[0], r[1], 0.01, r[2], r[3], r[4], r[5],
-                             "rehoming" if r[0].endswith("-rehomed") else "drift", r[6])
+                             "rehoming" if "-rehomed" in r[0] else "drift",
+                             GEAR_PERIOD_DEG if r[0].endswith("-gear") else 0.0, r[6])
             for r in rows}
 
 
@@ -216,7 +232,10 @@ def hypothesis_bench(hyp: Hypothesis, multi: bool = False, platform: dict | None
         # one shape of platform error for every hypothesis: uniform per-pose errors and the
         # zero shift of the hypothesis, no backlash
         shift = platform.get("beta_zero_shift_deg", 0.0)
-        changes.update(platform__beta_backlash_deg=0.0,
+        changes.update(platform__beta_gear_deg=(platform.get("beta_gear_deg", 0.0)
+                                                if hyp.gear_period_deg else 0.0),
+                       platform__beta_gear_period_deg=hyp.gear_period_deg or GEAR_PERIOD_DEG,
+                       platform__beta_backlash_deg=0.0,
                        platform__beta_drift_deg=shift if hyp.zero_shift == "drift" else 0.0,
                        platform__beta_rehoming_deg=shift if hyp.zero_shift == "rehoming"
                        else 0.0)
@@ -238,6 +257,7 @@ FITTED = {
     "beta_zero_shift_deg": ("table4", "polynomial", "beta", "mu"),
     "beta_pose_error_deg": ("table4", "polynomial", "beta", "sigma"),
     "single_play_mm": ("table4", "polynomial", "alpha", "mu"),
+    "beta_gear_deg": ("table4", "linear interp.", "beta", "sigma"),
 }
 
 
@@ -250,8 +270,11 @@ def _tuning_cells(hyp: Hypothesis, platform: dict, seed: int, step: int, shots: 
     single = hypothesis_bench(hyp, platform=platform)
     multi = hypothesis_bench(hyp, multi=True, platform=platform)
     cens = surrogate_runs(single, seed, step, shots)
-    poly = table4_methods(neural=False)["polynomial"](cens["I"], cens["II"])
-    t4 = stats.global_stats({"p": stats.local_errors(poly.predict(cens["III"]))})
+    fits = table4_methods(neural=False)
+    poly = fits["polynomial"](cens["I"], cens["II"])
+    lin = fits["linear interp."](cens["I"], cens["II"])
+    t4 = stats.global_stats({"p": stats.local_errors(poly.predict(cens["III"])),
+                             "l": stats.local_errors(lin.predict(cens["III"]))})
     exps = _experiments(step, shots)
     tr = surrogate_centroids(multi, exps["I"], seed)
     te = surrogate_centroids(multi, exps["III"], seed)
@@ -261,7 +284,8 @@ def _tuning_cells(hyp: Hypothesis, platform: dict, seed: int, step: int, shots: 
             FITTED["play_y_mm"]: float(t5.loc[("beta", "mu"), "g"]),
             FITTED["beta_zero_shift_deg"]: float(t4.loc[("beta", "mu"), "p"]),
             FITTED["beta_pose_error_deg"]: float(t4.loc[("beta", "sigma"), "p"]),
-            FITTED["single_play_mm"]: float(t4.loc[("alpha", "mu"), "p"])}
+            FITTED["single_play_mm"]: float(t4.loc[("alpha", "mu"), "p"]),
+            FITTED["beta_gear_deg"]: float(t4.loc[("beta", "sigma"), "l"])}
 
 
 def surrogate_runs(bench, seed: int = 0, step: int = 1, shots: int = 8) -> dict:
@@ -319,6 +343,8 @@ def fit_platform(hyp: Hypothesis, *, seed: int = 0, iterations: int = 5, step: i
     }
     if hyp.single_mask_play:
         platform["single_play_mm"] = 0.0002 * hyp.mask_distance_mm
+    if hyp.gear_period_deg:
+        platform["beta_gear_deg"] = b1.platform.beta_gear_deg or 0.005
     cells = {}
     for _ in range(iterations):
         cells = _tuning_cells(hyp, platform, seed, step, shots)
@@ -330,8 +356,10 @@ def fit_platform(hyp: Hypothesis, *, seed: int = 0, iterations: int = 5, step: i
 def _update(name: str, value: float, ratio: float) -> float:
     """One step of the fit: a parameter rescaled by its cell's paper-over-ours ratio. The
     one-hole mask's play adds to the platform's alpha error roughly in quadrature, so its cell
-    grows more slowly than in proportion and its step is the ratio to the power 1.5."""
-    return value * (ratio**1.5 if name == "single_play_mm" else ratio)
+    grows more slowly than in proportion and its step is the ratio to the power 1.5; the gear
+    error adds to interpolation's spread in quadrature too, its step the ratio squared."""
+    power = {"single_play_mm": 1.5, "beta_gear_deg": 2.0}.get(name, 1.0)
+    return value * ratio**power
 
 
 def _paper_cells() -> dict:
