@@ -71,11 +71,11 @@ PAPER_LID_MM = 0.5
 #: the mean of its fits on seeds 0 and 1, rounded; the tuning cell of each in
 #: :data:`sunlab.sim.evidence.FITTED`): the per-pose platform errors (half-width, deg), the
 #: inner axis's backlash (deg), its thermal drift per run (deg) and the masks' play (mm).
-PAPER_ALPHA_POSE_DEG = 0.0078
-PAPER_BETA_POSE_DEG = 0.0042
-PAPER_BETA_REHOMING_DEG = 0.0243
-PAPER_BETA_GEAR_DEG = 0.0098
-PAPER_MASK_PLAY_MM = 0.0043
+PAPER_ALPHA_POSE_DEG = 0.0079
+PAPER_BETA_POSE_DEG = 0.0029
+PAPER_BETA_REHOMING_DEG = 0.0239
+PAPER_BETA_GEAR_DEG = 0.0100
+PAPER_MASK_PLAY_MM = 0.0042
 PAPER_SINGLE_PLAY_MM = 0.00142
 #: The sensor's mounting on the platform, deg. A rotation about the boresight (a mounting
 #: tolerance of 2 mrad) that the paper's three-parameter model leaves out: the paper finds its
