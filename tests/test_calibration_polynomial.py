@@ -69,6 +69,20 @@ def test_select_order_on_validation():
     assert per.orders == (3, 3)
 
 
+def test_select_order_refit_fits_the_chosen_order_on_both_tables():
+    # the order is still chosen on II by fits on I; refit=True then fits it on I + II: with a
+    # constant 0.02 deg offset in II's angles the refitted map moves toward II in proportion
+    # to II's share of the poses, the plain fit not at all
+    train = _known_poly_table()
+    val = _known_poly_table().pipe(lambda t: t.assign_coords(beta=t.beta + 0.02))
+    plain, _ = Polynomial.select_order(train, val, orders=[1, 2, 3, 4])
+    both, _ = Polynomial.select_order(train, val, orders=[1, 2, 3, 4], refit=True)
+    assert plain.orders == both.orders
+    shift = float((both.predict(train).beta - plain.predict(train).beta).mean())
+    assert shift == pytest.approx(0.02 * 150 / 300, abs=1e-6)
+    assert both.training["n_poses"] == 300 and plain.training["n_poses"] == 150
+
+
 def test_polynomial_smooths_noise_that_interpolation_keeps():
     a, b = np.meshgrid(np.arange(-17.0, 3.0), np.arange(-2.0, 18.0), indexing="ij")
     kw = dict(shots=2, pose_error_deg=(0.02, 0.02), delta_f_mm=0.094)

@@ -101,6 +101,18 @@ def test_ideal_platform_truth_equals_commanded():
     assert np.array_equal(c.true_alpha.values, np.repeat(c.alpha.values[:, None], 2, axis=1))
 
 
+def test_rehoming_shifts_the_inner_axis_zero_of_runs_ii_and_iii_and_their_zero_checks():
+    # experiment I in one session, II and III in the next: the shift is in the true beta of
+    # every pose of II and III and of their zero-pose checks, and in nothing of I or of alpha
+    bench = Bench().ideal_platform().replace(platform__beta_rehoming_deg=0.02)
+    for run, shift in (("I", 0.0), ("II", 0.02), ("III", 0.02)):
+        plan = plans.experiment(run, shots=1).subset(3)
+        for p in (plan, plans.zero_check(plan, 1)):
+            c = simulate(p, bench, seed=0)
+            assert np.allclose(c.true_beta.values - c.beta.values[:, None], shift), run
+            assert np.allclose(c.true_alpha.values - c.alpha.values[:, None], 0.0), run
+
+
 def test_multi_hole_cube_has_hole_coordinates_and_its_spots_where_the_detector_is():
     bench = Bench.paper_multi_hole()
     c = simulate(plans.custom([-16.5, 1.5], [16.5, -1.5], shots=1), bench, seed=2)

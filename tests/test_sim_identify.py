@@ -102,3 +102,27 @@ def test_score_names_the_problem():
 
     with pytest.raises(ConfigurationError, match="columns"):
         identify.score(pd.DataFrame({"x": [1.0]}))
+
+
+def test_linear_interpolation_is_left_with_138_percent_of_an_aliased_gear_error(bench):
+    # A gear error of period 1.6 deg on the inner axis, sampled at whole degrees (I) and half
+    # degrees (III): a polynomial cannot follow it and is left with about all of it; linear
+    # interpolation predicts cos(pi / 1.6) = -0.38 times it at III's poses and is left with
+    # 1.38 times it (docs/paper.md sec. 10).
+    from sunlab.calibration.methods import table4_methods
+
+    geared = bench.ideal_platform().replace(mask__play_x_mm=0.0, mask__play_y_mm=0.0,
+                                            platform__beta_gear_deg=0.01,
+                                            platform__beta_gear_period_deg=1.6)
+    exps = {k: plans.experiment(k, shots=1) for k in ("I", "II", "III")}
+    cen = {k: identify.surrogate_centroids(geared, p, 0, spot_error=False, noise_px=0.0)
+           for k, p in exps.items()}
+    fits = table4_methods(neural=False)
+    err = {m: fits[m](cen["I"], cen["II"]).predict(cen["III"]) for m in
+           ("polynomial", "linear interp.")}
+    rms = {m: float(np.sqrt(((e.beta - cen["III"].beta) ** 2).mean())) for m, e in err.items()}
+    true = 0.01 * np.sqrt(0.5)  # the gear error's own RMS at III's poses
+    assert rms["linear interp."] / true == pytest.approx(1.38, abs=0.06)
+    # the polynomial, refitted on I + II, follows a little of the aliased pattern the wrong way
+    assert 0.95 < rms["polynomial"] / true < 1.2
+    assert rms["linear interp."] > 1.2 * rms["polynomial"]
