@@ -2,8 +2,9 @@
 
 :mod:`sunlab.sim.identify` fits a bench to the paper's tables; this module asks the referee's
 question instead: of several physically different benches, which one predicts the numbers it
-was *not* fitted on? Each hypothesis (:data:`HYPOTHESES`) fixes the mask height F and the
-source of the spot-specific error from a datasheet or from physics, never from the paper's
+was *not* fitted on? Each hypothesis (:data:`HYPOTHESES`) fixes the mask height F, the
+source of the spot-specific error, how the inner axis's zero moves between runs and whether
+its gear has a periodic error, from a datasheet or from physics, never from the paper's
 tables; the only parameters fitted to the paper are the platform's, shared by every
 hypothesis and pinned by :data:`TUNING_CELLS`; every other published cell of Tables 4 and 5 is
 held out (:data:`HELD_OUT_CELLS`). A hypothesis that needs a parameter outside its prior (a
@@ -20,7 +21,7 @@ Examples
 >>> sorted(HYPOTHESES)[:2]
 ['F17-datasheet', 'F17-datasheet-play']
 >>> len(TUNING_CELLS), len(HELD_OUT_CELLS)
-(5, 51)
+(6, 50)
 """
 
 from __future__ import annotations
