@@ -31,9 +31,9 @@ def test_calibrated_methods_reach_hundredths_of_a_degree(result):
     assert t.loc[("alpha", "mu"), "ideal model (1)"] > 1.0
     assert t.loc[("alpha", "mu"), "polynomial"] < 0.02
     assert t.loc[("beta", "mu"), "polynomial"] < 0.04
-    # beta is worse than alpha (the inner axis's zero shift between I and III), as in the paper, for the global
-    # models; on this 6-degree grid the interpolation tables' own error (a node every 250 px)
-    # dominates and the comparison is the full run's (results/table4.json, issue 11)
+    # beta is worse than alpha (the inner axis's zero shift between I and III), as in the
+    # paper, for the global models; on this 6-degree grid the interpolation tables' own error
+    # (a node every 250 px) dominates and the comparison is the full run's (results/table4.json)
     for col in ("polynomial", "optimised model (3)-(4)"):
         assert t.loc[("beta", "mu"), col] > t.loc[("alpha", "mu"), col], col
     # M >= mu by construction
