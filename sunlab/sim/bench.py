@@ -9,17 +9,18 @@ where it is defined). Error budget:
   0.0005 deg RMS per axis plus photon, dark and read noise on the centroid;
 * per pose, shared by every hole of a frame: the platform's positioning error, uniform within
   +-``PAPER_ALPHA_POSE_DEG`` on alpha (pinned by Table 5's geometric-centre alpha mu, where
-  hole-specific errors average away) and +-``PAPER_BETA_POSE_DEG`` on beta (bounded from above
-  by Table 4's polynomial beta sigma); the inner axis's periodic gear error of ``PAPER_BETA_GEAR_DEG``
-  with a 1.6 deg period (a 225-tooth worm wheel; pinned by linear interpolation's beta sigma):
-  the 1-degree grids see it aliased, a polynomial cannot follow it, and linear interpolation
-  between I's nodes at whole degrees predicts at III's half degrees cos(pi / 1.6) = -0.38
-  times the error there and is left with 1.38 times it, the polynomial with about 1.1 times
-  (tests/test_sim_identify.py): why the paper's interpolation tables lose more to the
-  polynomial on beta than on alpha; the inner-axis wobble and non-orthogonality; the sensor's
-  mounting (a rotation about the boresight the paper's model leaves out, and alpha0, beta0 set
-  so that the optimised model returns the paper's fitted 1.864 and 0.415 deg, sec. 4.1); the
-  mask's tilt and offset;
+  hole-specific errors average away) and +-``PAPER_BETA_POSE_DEG`` on beta (bounded from
+  above by Table 4's polynomial beta sigma); the inner axis's periodic gear error of
+  ``PAPER_BETA_GEAR_DEG`` with a 1.6 deg period (a 225-tooth worm wheel; pinned by linear
+  interpolation's beta sigma): the 1-degree grids see it aliased, a polynomial cannot follow
+  it, and linear interpolation between I's nodes at whole degrees predicts at III's half
+  degrees cos(pi / 1.6) = -0.38 times the error there and is left with 1.38 times it, the
+  polynomial with about 1.1 times (tests/test_sim_identify.py): why the paper's interpolation
+  tables scatter wider on beta than its polynomial (on the surrogate, linear interpolation's
+  beta sigma is 0.0031 deg without the gear error and 0.0112 with it, the paper's 0.0112); the
+  inner-axis wobble and non-orthogonality; the sensor's mounting (a rotation about the
+  boresight the paper's model leaves out, and alpha0, beta0 set so that the optimised model
+  returns the paper's fitted 1.864 and 0.415 deg, sec. 4.1); the mask's tilt and offset;
 * per session: the stage homed again between the session of experiment I and that of II and
   III, its inner axis's zero shifted by ``PAPER_BETA_REHOMING_DEG`` (pinned by Table 4's
   polynomial beta mu): an offset of II and III that no calibration on I removes, the beta
