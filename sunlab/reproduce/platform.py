@@ -10,7 +10,9 @@ lab whose stage has one would run them):
 1. the paper's protocol: experiments I, II, III of Table 3 scanned as the paper's were,
    polynomial calibration (order chosen on II), statistics on III; plus a zero-pose check
    (:func:`sunlab.plans.zero_check`) before runs I and III, which the paper's statistics leave
-   out;
+   out. Every row fits on I alone, so that the remedies compare like with like; Table 4's
+   polynomial is refitted on I + II (:data:`sunlab.calibration.methods.POLYNOMIAL_REFIT`) and
+   takes part of the zero shift from II, so its beta mu is below this table's first row;
 2. the diagnosis (:func:`sunlab.platform_fault.diagnose`) of the polynomial's test errors with
    the run's motion record, beside the shape test applied to the paper's published statistics
    (:func:`sunlab.platform_fault.paper_shape`);
