@@ -189,7 +189,7 @@ def _hypotheses():
             for r in rows}
 
 
-#: The hypotheses compared (notebook 05 and docs/paper.md sec. 6 show their scores).
+#: The hypotheses compared (notebook 05 and docs/paper.md sec. 10 show their scores).
 HYPOTHESES: dict[str, Hypothesis] = _hypotheses()
 
 
