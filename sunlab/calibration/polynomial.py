@@ -272,8 +272,5 @@ class Polynomial(Calibration):
         else:
             n = int((scores[f"alpha_{metric}"] + scores[f"beta_{metric}"]).idxmin())
             chosen = (n, n)
-        if refit:
-            best = cls(order=chosen, average=average).fit(combine(train, validation))
-        else:
-            best = cls(order=chosen, average=average).fit(train, validation)
-        return best, scores
+        fit_on = (combine(train, validation), None) if refit else (train, validation)
+        return cls(order=chosen, average=average).fit(*fit_on), scores

@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pandas as pd
@@ -177,17 +177,19 @@ def _hypotheses():
         ("F3.5-lid-play", 3.5, 0.028, 3.0, 0.5, True,
          f"a shorter mask height still (a 100 x 90 deg field); {_DATASHEET}; {_LID}; {_PLAY}"),
     ]
-    rows.append(("F5-short-lid-play-rehomed", 5.0, 0.028, 2.0, 0.5, True,
-                 f"as F5-short-lid-play; {_REHOMED}"))
-    rows.append(("F5-short-lid-play-rehomed-gear", 5.0, 0.028, 2.0, 0.5, True,
-                 f"as F5-short-lid-play; {_REHOMED}; {_GEAR}"))
-    rows.append(("F17-datasheet-play-rehomed-gear", 17.0, 0.028, 6.0, 0.0, True,
-                 f"as F17-datasheet-play; {_REHOMED}; {_GEAR}"))
-    return {r[0]: Hypothesis(r[0], r[1], 0.01, r[2], r[3], r[4], r[5],
-                             "rehoming" if "-rehomed" in r[0] else "drift",
-                             GEAR_PERIOD_DEG if r[0].endswith("-gear") else 0.0, r[6])
+    hyps = {r[0]: Hypothesis(r[0], r[1], 0.01, r[2], r[3], r[4], r[5], "drift", 0.0, r[6])
             for r in rows}
-
+    # the platform's variants: each one of the above with the zero shift or the gear changed
+    rehomed, gear = {"zero_shift": "rehoming"}, {"gear_period_deg": GEAR_PERIOD_DEG}
+    for name, base, changes, text in (
+        ("F5-short-lid-play-rehomed", "F5-short-lid-play", rehomed, _REHOMED),
+        ("F5-short-lid-play-rehomed-gear", "F5-short-lid-play", rehomed | gear,
+         f"{_REHOMED}; {_GEAR}"),
+        ("F17-datasheet-play-rehomed-gear", "F17-datasheet-play", rehomed | gear,
+         f"{_REHOMED}; {_GEAR}"),
+    ):
+        hyps[name] = replace(hyps[base], name=name, source=f"as {base}; {text}", **changes)
+    return hyps
 
 #: The hypotheses compared (notebook 05 and docs/paper.md sec. 10 show their scores).
 HYPOTHESES: dict[str, Hypothesis] = _hypotheses()
