@@ -101,3 +101,26 @@ def test_zero_pose_reference_rezeroes_model_1_on_each_runs_zero_pose(bench):
     assert calibration.from_dict(net.to_dict()).reference == "zero_pose"
     with pytest.raises(ConfigurationError, match="zero_pose_x_px"):
         net.predict(te)
+
+
+def test_table4_rezeroes_the_strategy_4_network_and_keeps_strategy_2s_model_1(bench):
+    # Table 4's networks (table4_methods, reference="zero_pose"): strategy 4's estimate is
+    # model (1) plus a learned correction, re-zeroed on the test run's zero pose; strategy 2's
+    # model (1) is a fixed change of input variables, kept as fitted. A test run whose zero
+    # pose reads 2 px further along x moves NN 4's alpha by model (1)'s change and leaves
+    # NN 2's estimates where they were.
+    from sunlab.calibration.methods import table4_methods
+
+    tr, va, te, _ = bench
+    z = {"zero_pose_x_px": float(tr.attrs["x_cf_px"]),
+         "zero_pose_y_px": float(tr.attrs["y_cf_px"])}
+    fits = table4_methods(hidden=4, reference="zero_pose")
+    moved = te.assign_attrs(z, zero_pose_x_px=z["zero_pose_x_px"] + 2.0)
+    shift = {}
+    for s in (2, 4):
+        net = fits[f"NN strategy {s}"](tr.assign_attrs(z), va.assign_attrs(z))
+        shift[s] = float(np.nanmean(np.abs(net.predict(moved).alpha.values
+                                           - net.predict(te.assign_attrs(z)).alpha.values)))
+        assert net.reference == ("zero_pose" if s == 4 else "design")
+    assert shift[4] > 0.1  # 2 px at this F is over a tenth of a degree
+    assert shift[2] == 0.0

@@ -64,7 +64,8 @@ __all__ = [
     "comparable_methods",
 ]
 
-#: Where the networks of strategies 2 and 4 zero model (1): on each run's zero-pose check.
+#: Where the strategy-4 network zeroes model (1): on each run's zero-pose check (strategy 2
+#: keeps model (1) as fitted, :func:`sunlab.calibration.methods.table4_methods`).
 #: Model (1) puts (x_cf, y_cf) at the zero-orientation centroid (docs/paper.md sec. 4.1), which
 #: a bench measures with each run; a strategy-4 network that adds its learned correction to
 #: model (1) re-zeroed on the test run's zero pose carries that one pose's platform error as a
@@ -275,7 +276,8 @@ def _locate_and_fit(cubes, where, pool, *, neural, seed, progress, timings, t0, 
     rendered and centroided on the same workers (``pool``, :func:`sunlab.parallel.worker_pool`)
     from a background thread: the fits are serial, and beside them the other cores stay busy.
     The centroid tables and the fitted methods."""
-    # I, II and every run's zero-pose check (which the networks re-zero on, NN_REFERENCE)
+    # I, II and every run's zero-pose check (which the strategy-4 network re-zeroes on,
+    # NN_REFERENCE)
     cens = locate_runs({k: c for k, c in cubes.items() if k != "III"}, progress=progress,
                        pool=pool, **where)
     zero = zero_pose_attrs(cens)
