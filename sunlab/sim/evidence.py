@@ -119,6 +119,9 @@ class Hypothesis:
         fitted on Table 4's linear-interpolation beta sigma.
     source : str
         Where F and the detector's numbers come from.
+    play_at_stops : bool
+        Where the masks settle in their play at each pose (``Mask.play_at_stops``): anywhere
+        within it (uniform), or against one of its two stops.
     """
 
     name: str
@@ -131,6 +134,7 @@ class Hypothesis:
     zero_shift: str
     gear_period_deg: float
     source: str
+    play_at_stops: bool = False
 
     @property
     def prnu_total(self) -> float:
@@ -155,6 +159,8 @@ _PLAY = "the one-hole mask held with play, as the 100-hole mask is"
 GEAR_PERIOD_DEG = 1.6
 _GEAR = (f"a periodic gear error of the inner axis with a {GEAR_PERIOD_DEG} deg period (a "
          "225-tooth worm wheel)")
+_STOPS = ("each mask settles against one of the two stops of its play at every pose (a loose "
+          "plate pushed by the platform's move until a wall holds it), not anywhere within it")
 _REHOMED = ("the inner axis's zero shifted once, by a new homing between the session of "
             "experiment I and that of II and III, instead of a drift per run")
 
@@ -179,7 +185,7 @@ def _hypotheses():
     ]
     hyps = {r[0]: Hypothesis(r[0], r[1], 0.01, r[2], r[3], r[4], r[5], "drift", 0.0, r[6])
             for r in rows}
-    # the platform's variants: each one of the above with the zero shift or the gear changed
+    # the variants: each one of the above with the zero shift, the gear or the masks' play changed
     rehomed, gear = {"zero_shift": "rehoming"}, {"gear_period_deg": GEAR_PERIOD_DEG}
     for name, base, changes, text in (
         ("F5-short-lid-play-rehomed", "F5-short-lid-play", rehomed, _REHOMED),
@@ -187,6 +193,8 @@ def _hypotheses():
          f"{_REHOMED}; {_GEAR}"),
         ("F17-datasheet-play-rehomed-gear", "F17-datasheet-play", rehomed | gear,
          f"{_REHOMED}; {_GEAR}"),
+        ("F5-short-lid-play-rehomed-gear-stops", "F5-short-lid-play", rehomed | gear
+         | {"play_at_stops": True}, f"{_REHOMED}; {_GEAR}; {_STOPS}"),
     ):
         hyps[name] = replace(hyps[base], name=name, source=f"as {base}; {text}", **changes)
     return hyps
@@ -242,6 +250,7 @@ def hypothesis_bench(hyp: Hypothesis, multi: bool = False, platform: dict | None
                        platform__beta_drift_deg=shift if hyp.zero_shift == "drift" else 0.0,
                        platform__beta_rehoming_deg=shift if hyp.zero_shift == "rehoming"
                        else 0.0)
+        changes["mask__play_at_stops"] = hyp.play_at_stops
         if multi:
             changes["mask__play_y_mm"] = platform.get("play_y_mm", 0.0)
         else:
