@@ -44,6 +44,7 @@ __all__ = [
     "FITTED",
     "hypothesis_bench",
     "fit_platform",
+    "chosen_hypothesis",
     "predicted_cells",
     "surrogate_runs",
     "evidence_table",
@@ -486,6 +487,39 @@ def load_table(path=None) -> pd.DataFrame:
         return pd.read_csv(path, index_col=["hypothesis", "seed"])
     with resources.as_file(resources.files("sunlab") / "data" / "evidence.csv") as shipped:
         return pd.read_csv(shipped, index_col=["hypothesis", "seed"])
+
+
+def chosen_hypothesis(table: pd.DataFrame) -> str:
+    """The hypothesis the held-out evidence picks, by a rule fixed before looking at which wins.
+
+    Among the hypotheses within the prior (``within_prior``), those whose held-out RMS log,
+    averaged over the seeds, lies within one standard error (over the seeds) of the best are
+    equally well supported: the seed alone moves a hypothesis's score by more than their
+    differences. Among those, the one with the most held-out cells within 1.25x of the
+    paper's (averaged over the seeds) is chosen; a tie there goes to the lower RMS.
+
+    Parameters
+    ----------
+    table : pandas.DataFrame
+        One row per hypothesis and seed (:func:`load_table`).
+
+    Returns
+    -------
+    str
+        The hypothesis's name.
+
+    Examples
+    --------
+    >>> chosen_hypothesis(load_table())
+    'F5-short-lid-play-rehomed-gear-stops'
+    """
+    t = table[table["within_prior"].astype(bool)]
+    g = t.groupby(level="hypothesis")
+    rms, n_in = g["held_out_rms_log"].mean(), g["held_out_within_1.25"].mean()
+    sem = g["held_out_rms_log"].std(ddof=1) / np.sqrt(g["held_out_rms_log"].count())
+    best = rms.idxmin()
+    close = rms[rms <= rms[best] + sem[best]].index
+    return str(max(close, key=lambda h: (n_in[h], -rms[h])))
 
 
 def _main(argv=None) -> int:
