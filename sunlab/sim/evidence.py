@@ -472,14 +472,14 @@ def evidence_table(names=None, *, seed: int = 0, step: int = 1, shots: int = 8,
 
 def load_table(path=None) -> pd.DataFrame:
     """The evidence table shipped with sunlab (``sunlab/data/evidence.csv``, written by
-    ``python -m sunlab.sim.evidence --seeds 0 1 --out sunlab/data/evidence.csv``), or the one
+    ``python -m sunlab.sim.evidence --seeds 0 1 2 3 --out sunlab/data/evidence.csv``), or the one
     at ``path``: one row per hypothesis and seed, the columns of :func:`evidence_table`.
 
     Examples
     --------
     >>> t = load_table()
     >>> t.index.names, sorted(set(t.index.get_level_values("seed")))
-    (FrozenList(['hypothesis', 'seed']), [0, 1])
+    (FrozenList(['hypothesis', 'seed']), [0, 1, 2, 3])
     """
     from importlib import resources
 
@@ -523,14 +523,14 @@ def chosen_hypothesis(table: pd.DataFrame) -> str:
 
 
 def _main(argv=None) -> int:
-    """``python -m sunlab.sim.evidence [--seeds 0 1] [--out FILE]``: the evidence table of
+    """``python -m sunlab.sim.evidence [--seeds 0 1 2 3] [--out FILE]``: the evidence table of
     every hypothesis on each seed (CSV, one row per hypothesis and seed), printed and written.
     """
     import argparse
 
     parser = argparse.ArgumentParser(prog="python -m sunlab.sim.evidence",
                                      description=_main.__doc__.split(":")[0])
-    parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1])
+    parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2, 3])
     parser.add_argument("--hypotheses", nargs="+", default=list(HYPOTHESES),
                         choices=list(HYPOTHESES))
     parser.add_argument("--out", default=None, help="CSV file to write")
