@@ -16,8 +16,9 @@ where it is defined). Error budget:
   it, and linear interpolation between I's nodes at whole degrees predicts at III's half
   degrees cos(pi / 1.6) = -0.38 times the error there and is left with 1.38 times it, the
   polynomial with about 1.1 times (tests/test_sim_identify.py): why the paper's interpolation
-  tables scatter wider on beta than its polynomial (on the surrogate, linear interpolation's
-  beta sigma is 0.0031 deg without the gear error and 0.0112 with it, the paper's 0.0112); the
+  tables scatter wider on beta than its polynomial (on the surrogate, seed 0, Table 3's grids,
+  2 frames: linear interpolation's beta sigma is 0.0030 deg without the gear error and 0.0111
+  with it, the paper's 0.0112); the
   inner-axis wobble and non-orthogonality; the sensor's mounting (a rotation about the
   boresight the paper's model leaves out, and alpha0, beta0 set so that the optimised model
   returns the paper's fitted 1.864 and 0.415 deg, sec. 4.1); the mask's tilt and offset;
@@ -35,7 +36,8 @@ where it is defined). Error budget:
   one of the two stops of its play (``Mask.play_at_stops``), the side drawn per pose. The
   one hole's extra play is what makes 100 holes about 2x better on alpha; settling at the
   stops rather than anywhere within the play makes the one hole's alpha error closer to
-  uniform (sigma / mu about 0.6, the paper's 0.60);
+  uniform (the polynomial's alpha sigma / mu 0.59-0.65 on rendered seeds 0-3, docs/paper.md
+  sec. 10; the paper's 0.60);
 * hole specific (about 0.04 px RMS per axis, 0.003 deg): the pixel response under the 35 px
   spot, 1 % white PRNU plus a 2.8 % pattern correlated over 2 px (2.97 % RMS in all, the most
   the IBIS4-1300 datasheet allows), fill factor, DSNU and hot pixels;

@@ -200,6 +200,7 @@ def _hypotheses():
         hyps[name] = replace(hyps[base], name=name, source=f"as {base}; {text}", **changes)
     return hyps
 
+
 #: The hypotheses compared (notebook 05 and docs/paper.md sec. 10 show their scores).
 HYPOTHESES: dict[str, Hypothesis] = _hypotheses()
 
@@ -214,8 +215,8 @@ def hypothesis_bench(hyp: Hypothesis, multi: bool = False, platform: dict | None
     Examples
     --------
     >>> b = hypothesis_bench(HYPOTHESES["F5-datasheet"])
-    >>> b.mask_distance_mm, b.detector.prnu_correlated
-    (5.0, 0.028)
+    >>> b.mask_distance_mm, b.detector.prnu_correlated, b.mask.play_at_stops
+    (5.0, 0.028, False)
     """
     from .bench import Bench
 
@@ -237,6 +238,7 @@ def hypothesis_bench(hyp: Hypothesis, multi: bool = False, platform: dict | None
         detector__prnu=hyp.prnu, detector__prnu_correlated=hyp.prnu_correlated,
         detector__prnu_correlation_px=hyp.prnu_correlation_px,
         detector__lid_thickness_mm=hyp.lid_thickness_mm,
+        mask__play_at_stops=hyp.play_at_stops,
     )
     if platform:
         changes = {f"platform__{k}": v for k, v in platform.items()
@@ -251,7 +253,6 @@ def hypothesis_bench(hyp: Hypothesis, multi: bool = False, platform: dict | None
                        platform__beta_drift_deg=shift if hyp.zero_shift == "drift" else 0.0,
                        platform__beta_rehoming_deg=shift if hyp.zero_shift == "rehoming"
                        else 0.0)
-        changes["mask__play_at_stops"] = hyp.play_at_stops
         if multi:
             changes["mask__play_y_mm"] = platform.get("play_y_mm", 0.0)
         else:
