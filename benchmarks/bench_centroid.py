@@ -30,6 +30,7 @@ import numpy as np  # noqa: E402
 
 from sunlab import centroid as C  # noqa: E402
 from sunlab import plans, sim  # noqa: E402
+from sunlab.sim.render import mask_play  # noqa: E402
 
 
 def frames_from_bench(bench, n, seed=0):
@@ -39,7 +40,8 @@ def frames_from_bench(bench, n, seed=0):
     for k, p in enumerate(idx):
         a, b = sim.platform_pose(bench, plan.alpha[p], plan.beta[p], seed=seed, pose=k, shot=0)
         out.append(sim.render_frame(bench, a, b, seed=seed, pose=k, shot=0))
-        tx, ty = sim.spot_truth(bench, a, b)
+        # the renderer's truth: the spot of this pose, with the mask where its play put it
+        tx, ty = sim.spot_truth(bench, a, b, play_mm=mask_play(bench, seed, k))
         truth.append((float(tx[0]), float(ty[0])))
     return out, np.array(truth)
 
@@ -201,7 +203,7 @@ def bench_multi(rep, n_frames=10):
     for k, p in enumerate(idx):
         a, b = sim.platform_pose(multi, plan.alpha[p], plan.beta[p], seed=0, pose=k, shot=0)
         frames.append(sim.render_frame(multi, a, b, seed=0, pose=k, shot=0))
-        truth.append(sim.spot_truth(multi, a, b))
+        truth.append(sim.spot_truth(multi, a, b, play_mm=mask_play(multi, 0, k)))
     # Where each hole's spot should be, to pick the lattice's integer offset when the spots do
     # not span the whole grid (the outer columns leave the detector at large alpha): here the
     # truth rounded to 5 px; the pipeline predicts it from the mask design and the pose.

@@ -70,11 +70,30 @@ def test_outputs_written(result):
     assert np.isfinite(doc["timings_s"]["total"])
 
 
+def test_json_records_the_identified_bench_and_each_published_cells_interval(result):
+    from sunlab.studies import identification
+
+    doc = json.loads(Path(next(p for p in result.files if p.endswith(".json"))).read_text())
+    assert doc["settings"]["hypothesis"] == identification.identified_hypothesis()
+    det = doc["settings"]["bench"]["detector"]
+    assert det["read_noise_e"] == 20.0 and det["fill_factor"] == 0.6  # the datasheet's
+    # every published cell, keyed as the `ours` rows it bounds; the interval is the
+    # identified bench's, the same whatever this run's seed
+    paper = stats.paper_table4()
+    assert set(doc["interval90"]) == set(paper.columns) <= set(doc["ours"])
+    for col, cells in doc["interval90"].items():
+        assert set(cells) == {f"{a}.{s}" for a, s in paper.index}
+        assert all(0 < lo < hi for lo, hi in cells.values())
+    assert doc["interval90"] == identification.interval90("table4")
+
+
 def test_format_prints_ours_beside_the_paper(result):
     text = format_table(result)
     assert "paper" in text and "polynomial" in text
     assert f"{result.paper.loc[('beta', 'mu'), 'polynomial']:.4f}" in text
     assert f"{result.table.loc[('beta', 'mu'), 'polynomial']:.4f}" in text
+    lo, hi = result.settings["interval90"]["polynomial"]["beta.mu"]
+    assert f"{lo:.4f}-{hi:.4f}".replace("0.", ".") in text and "our 90 % interval" in text
 
 
 def test_cli_arguments():

@@ -138,9 +138,9 @@ def test_identified_bench_gives_betas_offset_shape_and_the_tables_beta_gap(bench
     # sigma 0.0112 against 0.0080).
     from sunlab import stats
     from sunlab.calibration.methods import table4_methods
-    from sunlab.sim import evidence
+    from sunlab.studies.identification import surrogate_runs
 
-    cen = evidence.surrogate_runs(bench, seed=0, step=1, shots=2)
+    cen = surrogate_runs(bench, seed=0, step=1, shots=2)
     rec = table4_methods(neural=False)
     t = stats.global_stats({m: stats.local_errors(rec[m](cen["I"], cen["II"]).predict(cen["III"]))
                             for m in ("polynomial", "linear interp.")})

@@ -136,7 +136,9 @@ class Table4Result:
             "polynomial_order": [int(n) for n in self.polynomial_order],
             "centroid_status": self.centroid_status,
             "timings_s": {k: round(float(v), 3) for k, v in self.timings.items()},
-            "settings": self.settings,
+            "settings": {k: v for k, v in self.settings.items() if k != "interval90"},
+            **({"interval90": self.settings["interval90"]} if "interval90" in self.settings
+               else {}),
         }
 
 
@@ -227,6 +229,7 @@ def reproduce_table4(
     """
     from .. import sim
 
+    identified = bench is None
     bench = sim.Bench.paper_single_hole() if bench is None else bench
     t0 = time.perf_counter()
     where = {"method": method, "address": address, "scheduler": scheduler, "workers": workers}
@@ -242,7 +245,7 @@ def reproduce_table4(
     local = {label: stats.local_errors(cal.predict(test)) for label, cal in fitted.items()}
     result = _assemble(cens, fitted, local, bench, timings, t0, settings={
         "seed": seed, "quick": quick, "centroid_method": method, "not_run": not_run,
-        **_run_settings(cens, test, bench)})
+        **_run_settings(cens, test, bench), **_identification(identified, "table4")})
     if out is not None:
         result.files = _write_outputs(result, Path(out))
     return result
@@ -253,6 +256,17 @@ def _run_settings(cens, test, bench) -> dict:
     return {"poses": {k: int(v.sizes["pose"]) for k, v in cens.items()},
             "shots": int(test.sizes["shot"]), "bench": json.loads(bench.to_json()),
             "network_reference": NN_REFERENCE}
+
+
+def _identification(identified: bool, table: str) -> dict:
+    """The bench's hypothesis and, for the identified bench, each published cell's 90 %
+    predictive interval (docs/identification.md), as the run's JSON records them."""
+    if not identified:
+        return {"hypothesis": "custom bench (not identified)"}
+    from ..studies import identification
+
+    return {"hypothesis": identification.identified_hypothesis(),
+            "interval90": identification.interval90(table)}
 
 
 def _assemble(cens, fitted, local, bench, timings, t0, settings) -> Table4Result:
@@ -377,6 +391,11 @@ def _write_outputs(res: Table4Result, out: Path) -> list[str]:
     return [str(out / f) for f in files]
 
 
+def _span(lo: float, hi: float) -> str:
+    """An interval in 11 characters: ``.0071-.0118`` (deg, below 1)."""
+    return f"{lo:.4f}-{hi:.4f}".replace("0.", ".")
+
+
 def format_table(res: Table4Result) -> str:
     """Table 4 as text: each of our values beside the paper's, then the optimised model.
 
@@ -390,16 +409,26 @@ def format_table(res: Table4Result) -> str:
         raise ConfigurationError(f"res: found {type(res).__name__}; expected a Table4Result")
     lines = [
         "Table 4 - global statistics on experiment III, one hole (deg)",
-        "ours = sunlab virtual bench (simulated frames); paper = the 2005 preprint",
+        "paper = the 2005 preprint; ours = sunlab virtual bench (simulated frames); our 90 % "
+        "interval = the identified bench's predictive interval (docs/identification.md)",
         "",
     ]
     stats_cols = [(a, st) for a in stats.ANGLES for st in stats.STATS]
-    lines.append(f"{'method':<26s}" + "".join(f"{a[0] + ' ' + st:>10s}" for a, st in stats_cols))
+    lines.append(f"{'method':<26s}" + "".join(f"{a[0] + ' ' + st:>12s}" for a, st in stats_cols))
+    iv = res.settings.get("interval90", {})
     for c in res.table.columns:
-        lines.append(f"{c:<26s}" + "".join(f"{res.table.loc[k, c]:10.4f}" for k in stats_cols))
         if c in res.paper.columns:
-            lines.append(f"{'  paper':<26s}" + "".join(
-                f"{res.paper.loc[k, c]:10.4f}" for k in stats_cols))
+            lines.append(f"{c:<26s}" + "".join(
+                f"{res.paper.loc[k, c]:12.4f}" for k in stats_cols) + "   paper")
+            lines.append(f"{'':<26s}" + "".join(
+                f"{res.table.loc[k, c]:12.4f}" for k in stats_cols) + "   ours")
+            if c in iv:
+                lines.append(f"{'':<26s}" + "".join(
+                    f"{_span(*iv[c][f'{a}.{st}']):>12s}" for a, st in stats_cols)
+                    + "   our 90 % interval")
+        else:
+            lines.append(f"{c:<26s}" + "".join(
+                f"{res.table.loc[k, c]:12.4f}" for k in stats_cols) + "   ours")
     not_run = res.settings.get("not_run", {})
     lines += [f"{label:<26s}not run: its extra is not installed" for label in not_run]
     lines += [f"  ({why})" for why in dict.fromkeys(not_run.values())]

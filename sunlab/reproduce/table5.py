@@ -186,6 +186,7 @@ def reproduce_table5(quick: bool = True, seed: int = 0, out: Path | str | None =
             plans_, seed=seed, method=method, progress=progress, where=where, pool=pool,
             timings=timings, order=order)
     result["centroid_status"] = status
+    result.update(_identification())
     result["sizes"] = {"train_poses": len(plans_["I"]), "test_poses": len(plans_["III"]),
                        "shots": plans_["I"].shots, "holes": int(cens["100 holes I"].sizes["hole"])}
     if out is not None:
@@ -210,8 +211,56 @@ def _write_json(result: dict, out: Path, settings: dict) -> str:
                                      "timings_s")},
            "quick": settings["quick"], "centroid_status": result["centroid_status"],
            "findings": result["findings"], "seed": settings["seed"],
-           "order": settings["order"], "centroid_method": settings["centroid_method"]}
+           "order": settings["order"], "centroid_method": settings["centroid_method"],
+           "settings": {"hypothesis": result["hypothesis"]},
+           "interval90": result["interval90"]}
     return write_json(doc, out / "table5.json")
+
+
+def _identification() -> dict:
+    """The presets' hypothesis and each published cell's 90 % predictive interval
+    (docs/identification.md), keyed as table5.json's ``[sunlab]`` rows."""
+    from ..studies import identification
+
+    return {"hypothesis": identification.identified_hypothesis(),
+            "interval90": identification.interval90("table5")}
+
+
+def format_table5(result: dict) -> str:
+    """Table 5 as text: each published cell as paper / ours / our 90 % interval.
+
+    Parameters
+    ----------
+    result : dict
+        :func:`reproduce_table5`'s result.
+
+    Returns
+    -------
+    str
+    """
+    from .. import stats
+    from .table4 import _span
+
+    keys = [(a, st) for a in stats.ANGLES for st in stats.STATS]
+    lines = ["Table 5 - polynomial calibration, 100 holes vs one hole (deg)",
+             "paper = the 2005 preprint; ours = sunlab virtual bench (simulated frames); our 90 % "
+             "interval = the identified bench's predictive interval (docs/identification.md)",
+             "", f"{'column':<34s}" + "".join(f"{a[0] + ' ' + st:>12s}" for a, st in keys)]
+    table, iv = result["table"], result.get("interval90", {})
+    for col in (*COLUMNS, REJECTION_COLUMN):
+        if (col, "paper") in table.columns:
+            lines.append(f"{col:<34s}" + "".join(
+                f"{table.loc[k, (col, 'paper')]:12.4f}" for k in keys) + "   paper")
+            lines.append(f"{'':<34s}" + "".join(
+                f"{table.loc[k, (col, 'sunlab')]:12.4f}" for k in keys) + "   ours")
+        else:
+            lines.append(f"{col:<34s}" + "".join(
+                f"{table.loc[k, (col, 'sunlab')]:12.4f}" for k in keys) + "   ours")
+        cell = iv.get(f"{col} [sunlab]")
+        if cell:
+            lines.append(f"{'':<34s}" + "".join(
+                f"{_span(*cell[f'{a}.{st}']):>12s}" for a, st in keys) + "   our 90 % interval")
+    return "\n".join(lines)
 
 
 def _simulate_locate_calibrate(plans_: dict, *, seed, method, progress, where, pool, timings,

@@ -190,7 +190,6 @@ class Bench:
             offset_x_mm=0.012,
             offset_y_mm=-0.008,
             play_x_mm=PAPER_SINGLE_PLAY_MM,
-            play_at_stops=True,
         )
         return cls(Source(), mask, cls._paper_detector(), cls._paper_platform())
 
@@ -250,7 +249,6 @@ class Bench:
             offset_x_mm=-0.01,
             offset_y_mm=0.015,
             play_y_mm=PAPER_MASK_PLAY_MM,
-            play_at_stops=True,
             size_mm=(12.0, 12.0),
         )
         if n_bad:

@@ -17,11 +17,12 @@ Signal chain of one pixel (electrons e-, digital numbers DN):
 Defaults and their rationale (our choices where the paper is silent, docs/paper.md sec. 1, 8):
 
 * 1280 x 1024 pixels of 7 um, 10 bits: the paper's Ibis4.
-* fill factor 0.5 x QE 0.7 = 0.35: the paper gives only the product FF x QE = 35 %; we split it so
-  that the sensitive area (a centred 4.95 um square in a 7 um pixel) is clearly smaller than the
-  pitch, which makes the sampled centroid depend (slightly) on where the spot falls.
-* 40 e-/DN, full well 62 500 e- (ADC range 41 000 e-), read noise 35 e- (0.9 DN): typical of a
-  3-transistor APS of that generation; the ADC saturates before the pixel.
+* fill factor 60 % (IBIS4-1300 datasheet) x QE 0.583 = 0.35: the paper gives the product FF x QE =
+  35 % (sec. 1), so QE is that product over the datasheet's fill factor; the sensitive area (a
+  centred 5.42 um square in a 7 um pixel) is smaller than the pitch, which makes the sampled
+  centroid depend (slightly) on where the spot falls.
+* read noise 20 e- (IBIS4-1300 datasheet); 40 e-/DN and full well 62 500 e- (ADC range 41 000 e-):
+  typical of a 3-transistor APS of that generation; the ADC saturates before the pixel.
 * dark signal 400 e- (10 DN) per frame with 15 % DSNU, bias 32 DN, column FPN 0.5 DN RMS: a
   background of a few tens of DN, as the task asks for an uncooled APS in a dark room.
 * hot pixels: 2e-4 of the array with an exponential dark signal of mean 8000 e-.
@@ -124,13 +125,13 @@ class Detector:
     ny: int = 1024
     pixel_pitch_mm: float = 0.007
     bit_depth: int = 10
-    fill_factor: float = 0.5
+    fill_factor: float = 0.6
     sensitive_aspect: float = 1.0
     sensitive_offset_px: tuple[float, float] = (0.0, 0.0)
-    qe: float = 0.7
+    qe: float = 0.35 / 0.6
     gain_e_per_dn: float = 40.0
     full_well_e: float = 62500.0
-    read_noise_e: float = 35.0
+    read_noise_e: float = 20.0
     dark_signal_e: float = 400.0
     dsnu: float = 0.15
     column_fpn_dn: float = 0.5

@@ -7,8 +7,7 @@ design projection with the sun at zenith is pixel (x_ref + x_mm / p, y_ref + y_m
 plane sits at height ``distance_mm + delta_f_mm`` above the focal plane; it may be tilted
 (``tilt_x_deg`` about x, ``tilt_y_deg`` about y), rotated in its plane (``rotation_deg``) about its
 origin and offset (``offset_x_mm, offset_y_mm``). ``play_x_mm, play_y_mm`` model a loosely held
-mask: at every pose it sits at a new offset within +-play, uniformly distributed, or, with
-``play_at_stops``, against one of the two stops of its slot (+-play, the side drawn per pose).
+mask: at every pose it sits at a new offset within +-play, uniformly distributed.
 
 Defects (per hole, any combination):
 
@@ -350,12 +349,6 @@ class Mask:
     play_x_mm, play_y_mm : float
         Half-width of a per-pose extra offset: a mask held with play that settles differently
         at each platform pose, mm (common to all holes).
-    play_at_stops : bool
-        Where in its play the mask settles: False, anywhere (uniform within +-play); True,
-        against one of the two stops of its slot (+-play, the side drawn per pose), as a loose
-        plate does when each move of the platform pushes it until a wall holds it. The error
-        this gives a pose is then always the full play, and the pose errors of the angle it
-        moves are bimodal.
     size_mm : tuple of float
         Width (x) and height (y) of the mask plate, mm; every hole must lie on it.
     name : str
@@ -372,7 +365,6 @@ class Mask:
     offset_y_mm: float = 0.0
     play_x_mm: float = 0.0
     play_y_mm: float = 0.0
-    play_at_stops: bool = False
     size_mm: tuple[float, float] = (11.0, 9.0)
     name: str = "custom"
 
@@ -409,11 +401,6 @@ class Mask:
                 raise ConfigurationError(
                     f"mask.{name}: found {v!r}; expected a half-width >= 0 mm."
                 )
-        if not isinstance(self.play_at_stops, (bool, np.bool_)):
-            raise ConfigurationError(
-                f"mask.play_at_stops: found {self.play_at_stops!r}; expected True (the mask "
-                "settles against a stop of its play) or False (anywhere within it)."
-            )
         w, h = self.size_mm
         for k, hole in enumerate(self.holes):
             r = hole.max_radius_mm()

@@ -30,19 +30,19 @@ where the inner axis u leans by the non-orthogonality epsilon toward the outer a
 fixed rotation in front is the sensor's mounting on the platform (alpha0, beta0, gamma0). For
 alpha0 = beta0 = 0 and epsilon = 0 this is :func:`sunlab.geometry.sun_vector`.
 
-Default error budget (our reading of docs/paper.md sec. 8; the rationale of each number):
+Defaults: a generic, imperfect platform for experiments (``Platform()``), not the paper's. The
+paper's preset (:meth:`sunlab.sim.Bench.paper_single_hole`) sets every error term from the
+identification of docs/identification.md and turns off what no source gives (wobble,
+non-orthogonality). The defaults:
 
 * mounting alpha0 = 1.864 deg, beta0 = 0.415 deg: the paper's fitted values (sec. 4.1).
-* per-pose error, uniform in +-0.008 deg (alpha) and +-0.028 deg (beta): the paper's common-mode
-  error. With 100 holes, where hole-specific errors average out, mu(alpha) = 0.0041 deg, the mean
-  absolute value of U(-0.008, 0.008); beta's larger range reproduces mu(beta) of about 0.017 deg
-  with one hole ("beta is always worse: the platform's second axis").
-* inner-axis wobble 0.006 deg with a 10 deg period: a systematic part of the beta error that a
-  learning method (NN strategy 4) can follow better than a low-order polynomial.
-* non-orthogonality 0.02 deg, encoder offsets and scale errors 0: indistinguishable from mounting
-  errors and F over the test range; available for experiments.
-* jitter 0.0005 deg RMS per shot on each axis: with the centroid noise this gives the paper's
-  per-shot scatter of about 0.0007 deg (M - mu = 0.001 deg, docs/paper.md sec. 8).
+* per-pose error, uniform in +-0.008 deg (alpha) and +-0.028 deg (beta): the size of the
+  paper's common-mode error (the mean absolute value of U(-0.008, 0.008) is Table 5's 100-hole
+  alpha mu, 0.004 deg).
+* inner-axis wobble 0.006 deg with a 10 deg period and non-orthogonality 0.02 deg: examples of
+  a systematic, learnable error (no source gives either for the paper's stage).
+* jitter 0.0005 deg RMS per shot on each axis: with the centroid noise, the paper's per-shot
+  scatter (M - mu of about 0.001 deg, docs/paper.md sec. 5).
 
 Examples
 --------

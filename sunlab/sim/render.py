@@ -97,15 +97,12 @@ def frame_key(seed, pose: int, shot: int) -> np.random.SeedSequence:
 
 
 def mask_play(bench, seed, pose: int) -> tuple[float, float]:
-    """Per-pose offset of a loosely held mask, mm: uniform within +-play, or at one of the two
-    stops, +-play, with ``Mask.play_at_stops`` (0 without play)."""
+    """Per-pose offset of a loosely held mask, mm: uniform within +-play (0 without play)."""
     m = bench.mask
     if m.play_x_mm == 0 and m.play_y_mm == 0:
         return (0.0, 0.0)
     rng = np.random.default_rng(np.random.SeedSequence(_entropy(seed) + [_TAG_PLAY, int(pose)]))
     u = rng.uniform(-1.0, 1.0, 2)
-    if m.play_at_stops:  # the same draw decides the side: the uniform case's sign
-        u = np.sign(u)
     return (float(u[0] * m.play_x_mm), float(u[1] * m.play_y_mm))
 
 

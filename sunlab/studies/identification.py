@@ -1,0 +1,722 @@
+"""Identification of the virtual bench from the paper's tables, under a fixed protocol.
+
+The paper publishes statistics, not its bench. This study asks which physically different bench
+(a *hypothesis*) predicts the published numbers it was *not* fitted on, under the protocol of
+``sunlab/data/protocol.json`` (prose: docs/identification.md), which was committed before any of
+its scores:
+
+* every hypothesis is fitted on Table 4's polynomial and linear-interpolation columns (its
+  fitted parameters, each pinned by one cell) and predicts the rest: Table 4's cubic
+  interpolation and NN strategy 4, and Table 5's two 100-hole columns;
+* parameters the fit side cannot pin (the pixel response, the 100-hole mask's play, how the
+  one hole's alpha error divides between platform and mask, the gear's period) are nuisances,
+  drawn from their priors once per seed; the fit follows each draw, so the spread of a
+  prediction over the seeds is its spread over noise *and* parameters;
+* the score of a hypothesis on a seed is the held-out log predictive density
+  (:func:`score_table`), the rule (:func:`chosen_hypothesis`) is the one-standard-error rule,
+  and each published cell gets a 90 % predictive interval (:func:`intervals`).
+
+The predictions come from the centroid-level surrogate of :mod:`sunlab.sim.identify` (geometry,
+platform table and pixel-response maps, no frames rendered); ``sunlab identify --validate``
+compares it with full renders on the confirmation seeds.
+
+Examples
+--------
+>>> p = load_protocol()
+>>> sorted(p["hypotheses"]), p["confirmation_seeds"][:2]
+(['F17', 'F17-gear', 'F5', 'F5-gear'], [1000, 1001])
+>>> len(scored_quantities(p)["fit"]), len(scored_quantities(p)["held_out"])
+(12, 24)
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Callable, Iterable
+from dataclasses import replace
+from importlib import resources
+
+import numpy as np
+import pandas as pd
+
+from ..errors import ConfigurationError
+
+__all__ = [
+    "load_protocol",
+    "scored_quantities",
+    "draw_nuisances",
+    "hypothesis_bench",
+    "surrogate_runs",
+    "fit_hypothesis",
+    "predict_cells",
+    "run_hypothesis",
+    "score_table",
+    "chosen_hypothesis",
+    "intervals",
+    "load_evidence",
+    "load_intervals",
+    "Z90",
+    "identified_hypothesis",
+    "interval90",
+    "regenerate",
+    "ABLATIONS",
+    "ablation",
+]
+
+#: The standard normal quantile of 95 %: a central 90 % interval is mean +- Z90 sd.
+Z90 = 1.6448536269514722
+
+#: The ratio of FF x QE the paper gives (sec. 1: 35 %) to the datasheet's fill factor.
+_PAPER_FF_QE = 0.35
+
+
+def load_protocol(path=None) -> dict:
+    """The identification protocol (``sunlab/data/protocol.json``, or the file at ``path``).
+
+    Returns
+    -------
+    dict
+        ``hypotheses`` (name -> ``F_mm``, ``gear``, ``parameters``), ``priors``, ``cells``,
+        ``score``, ``rule``, ``confirmation_seeds``, ``history``.
+    """
+    if path is not None:
+        text = open(path, encoding="utf-8").read()
+    else:
+        text = (resources.files("sunlab") / "data" / "protocol.json").read_text("utf-8")
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as err:
+        raise ConfigurationError(
+            f"{path or 'sunlab/data/protocol.json'}: not JSON ({err}). Fix: restore the file "
+            "from git; a change of protocol is a new dated entry, never an edit."
+        ) from None
+
+
+# ----------------------------------------------------------------------------- cells
+def _paper_cells() -> dict[tuple, float]:
+    from .. import stats
+
+    out = {}
+    for name, table in (("table4", stats.paper_table4()), ("table5", stats.paper_table5())):
+        for col in table.columns:
+            for (angle, stat), v in table[col].items():
+                out[(name, col, angle, stat)] = float(v)
+    return out
+
+
+def _quantity(cells: dict, table: str, col: str, angle: str, stat: str) -> float:
+    """A scored quantity from a dict of cells: mu, sigma, or M - mu."""
+    if stat == "M-mu":
+        return cells[(table, col, angle, "M")] - cells[(table, col, angle, "mu")]
+    return cells[(table, col, angle, stat)]
+
+
+def scored_quantities(protocol: dict) -> dict[str, list[tuple]]:
+    """The fit-side and held-out quantities ``(table, column, angle, stat)`` of the protocol.
+
+    Returns
+    -------
+    dict
+        ``"fit"`` and ``"held_out"``, lists of 4-tuples; ``stat`` is ``mu``, ``sigma`` or
+        ``M-mu``.
+    """
+    stats_ = protocol["cells"]["scored_stats"]
+    out = {}
+    for side in ("fit", "held_out"):
+        out[side] = [(table, col, angle, stat)
+                     for table, cols in protocol["cells"][side].items()
+                     for col in cols for angle in ("alpha", "beta") for stat in stats_]
+    return out
+
+
+# ----------------------------------------------------------------------------- priors
+def _draw(prior: dict, rng: np.random.Generator) -> float:
+    lo, hi = float(prior["low"]), float(prior["high"])
+    u = rng.uniform()
+    if prior["kind"] == "uniform":
+        return lo + u * (hi - lo)
+    if prior["kind"] == "log-uniform":
+        return math.exp(math.log(lo) + u * (math.log(hi) - math.log(lo)))
+    raise ConfigurationError(
+        f"protocol prior kind {prior['kind']!r}; expected 'uniform' or 'log-uniform'.")
+
+
+def _median(prior: dict) -> float:
+    lo, hi = float(prior["low"]), float(prior["high"])
+    return 0.5 * (lo + hi) if prior["kind"] == "uniform" else math.sqrt(lo * hi)
+
+
+def draw_nuisances(protocol: dict, seed: int | None) -> dict[str, float]:
+    """One draw of every nuisance parameter from its prior (``seed=None``: the prior medians).
+
+    The same seed gives the same draw to every hypothesis (a paired comparison); the priors
+    are drawn in the sorted order of their names.
+
+    Examples
+    --------
+    >>> p = load_protocol()
+    >>> d = draw_nuisances(p, 1000)
+    >>> 0.005 <= d["prnu_total"] <= 0.03, draw_nuisances(p, 1000) == d
+    (True, True)
+    >>> round(draw_nuisances(p, None)["alpha_platform_share"], 2)
+    0.5
+    """
+    priors = protocol["priors"]
+    if seed is None:
+        return {k: _median(priors[k]) for k in sorted(priors)}
+    rng = np.random.default_rng(np.random.SeedSequence([int(seed), 0x1DE17]))
+    return {k: _draw(priors[k], rng) for k in sorted(priors)}
+
+
+# ----------------------------------------------------------------------------- benches
+def hypothesis_bench(protocol: dict, name: str, nuisances: dict, fitted: dict, *,
+                     multi: bool = False):
+    """The paper's bench under one hypothesis, its nuisance draw and its fitted parameters.
+
+    The geometry (hole place relative to the spot's track, mask tilt and offset, mounting,
+    dF as the optimised model sees it) is the presets'; everything the protocol names is set
+    here, so the bench does not depend on the identified presets.
+
+    Parameters
+    ----------
+    protocol : dict
+        :func:`load_protocol`.
+    name : str
+        A hypothesis of the protocol.
+    nuisances : dict
+        :func:`draw_nuisances`.
+    fitted : dict
+        ``alpha_total_deg``, ``beta_zero_shift_deg``, ``beta_pose_error_deg`` and, for a
+        hypothesis with a gear error, ``beta_gear_deg`` (deg).
+    multi : bool
+        The 100-hole mask instead of the one hole.
+
+    Returns
+    -------
+    sunlab.sim.Bench
+    """
+    from ..sim import Bench
+    from ..sim.mask import PAPER_DISTANCE_MM
+
+    try:
+        hyp = protocol["hypotheses"][name]
+    except KeyError:
+        raise ConfigurationError(
+            f"hypothesis {name!r}: not in the protocol; expected one of "
+            f"{sorted(protocol['hypotheses'])}.") from None
+    base = Bench.paper_multi_hole() if multi else Bench.paper_single_hole()
+    f_mm = float(hyp["F_mm"])
+    # the pattern's centre follows the spot's track (scales with F); its 0.5 mm pitch does not
+    scale = f_mm / PAPER_DISTANCE_MM - 1.0
+    cx = float(np.mean([h.x_mm for h in base.mask.holes]))
+    cy = float(np.mean([h.y_mm for h in base.mask.holes]))
+    holes = tuple(replace(h, x_mm=h.x_mm + cx * scale, y_mm=h.y_mm + cy * scale)
+                  for h in base.mask.holes)
+    prnu_part = nuisances["prnu_total"] / math.sqrt(2.0)
+    share = nuisances["alpha_platform_share"]
+    alpha_total = fitted["alpha_total_deg"]
+    single_play_deg = math.sqrt(max(1.0 - share**2, 0.0)) * alpha_total
+    gear = bool(hyp["gear"])
+    changes = dict(
+        mask__distance_mm=f_mm, mask__holes=holes,
+        detector__prnu=prnu_part, detector__prnu_correlated=prnu_part,
+        detector__prnu_correlation_px=nuisances["prnu_correlation_px"],
+        platform__alpha_pose_error_deg=share * alpha_total,
+        platform__beta_pose_error_deg=fitted["beta_pose_error_deg"],
+        platform__beta_rehoming_deg=fitted["beta_zero_shift_deg"],
+        platform__beta_drift_deg=0.0, platform__beta_backlash_deg=0.0,
+        platform__beta_wobble_deg=0.0, platform__nonorthogonality_deg=0.0,
+        platform__beta_gear_deg=fitted.get("beta_gear_deg", 0.0) if gear else 0.0,
+        platform__beta_gear_period_deg=(nuisances["gear_period_deg"] if gear
+                                        else base.platform.beta_gear_period_deg),
+    )
+    bench = base.replace(**changes)
+    if multi:
+        bench = bench.replace(mask__play_x_mm=0.0, mask__play_y_mm=nuisances["multi_play_mm"])
+    else:
+        play_mm = math.tan(math.radians(single_play_deg)) * bench.mask.true_distance_mm
+        bench = bench.replace(mask__play_x_mm=play_mm, mask__play_y_mm=0.0)
+    return bench
+
+
+# ----------------------------------------------------------------------------- surrogate
+def _experiments(step: int, shots: int) -> dict:
+    from .. import plans
+
+    return {n: plans.experiment(n).thin(step).with_shots(shots) for n in ("I", "II", "III")}
+
+
+def surrogate_runs(bench, seed: int = 0, step: int = 1, shots: int = 8,
+                   noise_px: float = 0.004) -> dict:
+    """Surrogate centroid tables of experiments I-III, each with its run's zero-pose centroid
+    in its attributes (what a network re-zeroed on the zero pose reads).
+
+    Parameters
+    ----------
+    bench : sunlab.sim.Bench
+    seed : int
+        Seed of the experiments (:func:`sunlab.sim.simulate`'s).
+    step, shots : int
+        Every ``step``-th angle along each grid axis, ``shots`` frames per pose.
+    noise_px : float
+        Per-shot centroid noise, px RMS per axis.
+
+    Returns
+    -------
+    dict of str to xarray.Dataset
+        ``centroids/1`` tables keyed ``"I"``, ``"II"``, ``"III"``.
+    """
+    from .. import plans
+    from ..sim.identify import surrogate_centroids
+
+    out = {}
+    for name, plan in _experiments(step, shots).items():
+        cen = surrogate_centroids(bench, plan, seed, noise_px=noise_px)
+        zero = surrogate_centroids(bench, plans.zero_check(plan, 1), seed, noise_px=noise_px)
+        out[name] = cen.assign_attrs(zero_pose_x_px=float(zero.x.mean()),
+                                     zero_pose_y_px=float(zero.y.mean()))
+    return out
+
+
+def _noise_px(bench) -> float:
+    from ..sim.identify import centroid_noise_px
+
+    return centroid_noise_px(bench, frames=6)
+
+
+#: The rescaling power of each fitted parameter (its cell grows about as the parameter to
+#: 1 / power: the one-hole's alpha mu adds the pixel response in quadrature, the linear
+#: interpolation's beta sigma adds the gear error to the rest in quadrature).
+_POWER = {"alpha_total_deg": 1.5, "beta_zero_shift_deg": 1.0, "beta_pose_error_deg": 1.0,
+          "beta_gear_deg": 2.0}
+
+
+def fit_hypothesis(protocol: dict, name: str, nuisances: dict, *, seed: int,
+                   iterations: int | None = None, noise_px: float | None = None) -> dict:
+    """The fitted parameters of one hypothesis on its pinning cells (Table 4, surrogate).
+
+    Each fitted parameter starts at its pinning cell's paper value (deg) and is rescaled by
+    that cell's paper / predicted ratio to the power of :data:`_POWER`, each step's factor and
+    the parameter bounded as the protocol's ``fit`` says, ``iterations`` times (the
+    protocol's 4 by default).
+
+    Returns
+    -------
+    dict
+        The fitted parameters (deg) and ``"pinning"``, the pinning cells' last predictions.
+    """
+    from .. import stats
+    from ..calibration.methods import table4_methods
+
+    pins = {k: tuple(v) for k, v in protocol["cells"]["pinning"].items()}
+    if not protocol["hypotheses"][name]["gear"]:
+        pins.pop("beta_gear_deg")
+    paper = _paper_cells()
+    setting = protocol["fit"]["surrogate"]
+    iterations = iterations or int(protocol["fit"].get("iterations", 4))
+    fitted = {k: paper[cell] for k, cell in pins.items()}
+    step_bounds = protocol["fit"]["step_bounds"]
+    bounds = protocol["fit"]["parameter_bounds_deg"]
+    if noise_px is None:
+        noise_px = _noise_px(hypothesis_bench(protocol, name, nuisances, fitted))
+    fits = table4_methods(neural=False)
+    cells: dict = {}
+    for _ in range(iterations):
+        bench = hypothesis_bench(protocol, name, nuisances, fitted)
+        cens = surrogate_runs(bench, seed, setting["step"], setting["shots"], noise_px)
+        cols = {"polynomial": fits["polynomial"](cens["I"], cens["II"]),
+                "linear interp.": fits["linear interp."](cens["I"], cens["II"])}
+        t4 = stats.global_stats({m: stats.local_errors(c.predict(cens["III"]))
+                                 for m, c in cols.items()})
+        cells = {cell: float(t4.loc[(cell[2], cell[3]), cell[1]]) for cell in pins.values()}
+        fitted = {k: float(np.clip(v * np.clip((paper[pins[k]] / cells[pins[k]]) ** _POWER[k],
+                                                   *step_bounds), *bounds))
+                  for k, v in fitted.items()}
+    return {**fitted, "pinning": cells, "noise_px": noise_px}
+
+
+def predict_cells(protocol: dict, name: str, nuisances: dict, fitted: dict, *, seed: int,
+                  noise_px: float) -> dict[tuple, float]:
+    """Every published cell of Tables 4 and 5 as one fitted hypothesis predicts it.
+
+    Table 4's four columns (the paper's recipes, NN strategy 4 re-zeroed on each run's zero
+    pose) and Table 5's three (the 100-hole calibrations take the order Table 4's polynomial
+    chose, as ``sunlab reproduce --table 5`` does).
+    """
+    single = hypothesis_bench(protocol, name, nuisances, fitted)
+    multi = hypothesis_bench(protocol, name, nuisances, fitted, multi=True)
+    return _predict_benches(protocol, single, multi, seed, noise_px)
+
+
+def _predict_benches(protocol: dict, single, multi, seed: int, noise_px: float) -> dict:
+    """Every published cell from a one-hole and a 100-hole bench (the protocol's settings)."""
+    from .. import stats
+    from ..calibration.methods import table4_methods
+    from ..sim.identify import surrogate_table5
+
+    setting = protocol["fit"]["predict"]
+    cens = surrogate_runs(single, seed, setting["step"], setting["shots"], noise_px)
+    fits = table4_methods(seed=seed, reference="zero_pose")
+    fitted_cal = {m: fits[m](cens["I"], cens["II"]) for m in stats.paper_table4().columns}
+    t4 = stats.global_stats({m: stats.local_errors(c.predict(cens["III"]))
+                             for m, c in fitted_cal.items()})
+    t5 = surrogate_table5(multi, single, seed, step=setting["table5_step"],
+                          shots=setting["shots"], order=int(max(fitted_cal["polynomial"].orders)),
+                          one_hole=fitted_cal["polynomial"], noise_px=noise_px)
+    out = {}
+    for tname, table in (("table4", t4), ("table5", t5)):
+        for col in table.columns:
+            for (angle, stat), v in table[col].items():
+                out[(tname, col, angle, stat)] = float(v)
+    return out
+
+
+def run_hypothesis(protocol: dict, name: str, seed: int) -> pd.DataFrame:
+    """One hypothesis on one seed: draw, fit, predict; a long table of every cell.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per published cell: ``hypothesis``, ``seed``, ``table``, ``column``,
+        ``angle``, ``stat``, ``value`` (deg), plus the draw and the fit as columns.
+    """
+    nuis = draw_nuisances(protocol, seed)
+    fit = fit_hypothesis(protocol, name, nuis, seed=seed)
+    fitted = {k: v for k, v in fit.items() if k not in ("pinning", "noise_px")}
+    cells = predict_cells(protocol, name, nuis, fitted, seed=seed, noise_px=fit["noise_px"])
+    rows = [{"hypothesis": name, "seed": int(seed), "table": t, "column": c, "angle": a,
+             "stat": s, "value": v} for (t, c, a, s), v in cells.items()]
+    extra = {**nuis, **fitted, "noise_px": fit["noise_px"]}
+    return pd.DataFrame(rows).assign(**extra)
+
+
+# ----------------------------------------------------------------------------- scoring
+def _long_to_quantities(cells: pd.DataFrame, quantities) -> pd.DataFrame:
+    """(hypothesis, seed) x quantity table of log predictions."""
+    out = {}
+    for (h, s), g in cells.groupby(["hypothesis", "seed"]):
+        d = {(r.table, r.column, r.angle, r.stat): r.value for r in g.itertuples()}
+        out[(h, s)] = {q: math.log(max(_quantity(d, *q), 1e-9)) for q in quantities}
+    df = pd.DataFrame.from_dict(out, orient="index")
+    df.index.names = ["hypothesis", "seed"]
+    return df
+
+
+def score_table(cells: pd.DataFrame, protocol: dict) -> pd.DataFrame:
+    """The evidence table: each hypothesis's held-out score on each seed.
+
+    Parameters
+    ----------
+    cells : pandas.DataFrame
+        The rows of :func:`run_hypothesis` for every hypothesis and seed.
+    protocol : dict
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per hypothesis and seed: ``hypothesis``, ``seed``, ``parameters``, ``score``
+        (held-out log predictive density, nats, higher is better), ``tau`` (the model's
+        discrepancy, log units), ``held_out_rms_log``, ``held_out_within_1.25``, and the
+        nuisance draw and fitted parameters.
+    """
+    q = scored_quantities(protocol)
+    paper = _paper_cells()
+    log_paper = {side: np.array([math.log(_quantity(paper, *x)) for x in q[side]])
+                 for side in q}
+    fit_side = _long_to_quantities(cells, q["fit"])
+    held = _long_to_quantities(cells, q["held_out"])
+    extra_cols = [c for c in cells.columns if c not in
+                  ("hypothesis", "seed", "table", "column", "angle", "stat", "value")]
+    extras = cells.groupby(["hypothesis", "seed"])[extra_cols].first()
+    rows = []
+    for h in held.index.get_level_values("hypothesis").unique():
+        hyp = protocol["hypotheses"][h]
+        k = 4 if hyp["gear"] else 3
+        ff = fit_side.loc[h].to_numpy()
+        hh = held.loc[h].to_numpy()
+        tau2 = float(np.mean(np.sum((ff - log_paper["fit"]) ** 2, axis=1))) / (ff.shape[1] - k)
+        sd2 = hh.std(axis=0, ddof=1) ** 2 if hh.shape[0] > 1 else np.zeros(hh.shape[1])
+        var = sd2 + tau2
+        for i, seed in enumerate(held.loc[h].index):
+            r = log_paper["held_out"] - hh[i]
+            ll = float(np.sum(-0.5 * r**2 / var - 0.5 * np.log(2 * math.pi * var)))
+            rows.append({"hypothesis": h, "seed": int(seed),
+                         "parameters": int(hyp["parameters"]), "score": ll,
+                         "tau": math.sqrt(tau2),
+                         "held_out_rms_log": float(np.sqrt(np.mean(r**2))),
+                         "held_out_within_1.25": int(np.sum(np.abs(r) <= math.log(1.25))),
+                         **extras.loc[(h, seed)].to_dict()})
+    return pd.DataFrame(rows)
+
+
+def chosen_hypothesis(evidence: pd.DataFrame, protocol: dict | None = None) -> str:
+    """The hypothesis the protocol's one-standard-error rule picks from an evidence table.
+
+    The best is the highest mean score over seeds; every hypothesis whose mean lies within
+    one standard error (the best's, over its seeds) of it is eligible; the eligible one with
+    the fewest parameters is chosen, a tie going to the higher mean.
+
+    Examples
+    --------
+    >>> t = pd.DataFrame({"hypothesis": ["a", "a", "b", "b"], "seed": [0, 1, 0, 1],
+    ...                   "parameters": [3, 3, 5, 5], "score": [1.0, 3.0, 2.5, 2.9]})
+    >>> chosen_hypothesis(t)     # b is best (2.7), a (2.0) is within one s.e. (1.0): simpler
+    'a'
+    """
+    g = evidence.groupby("hypothesis")
+    mean = g["score"].mean()
+    n = g["score"].count()
+    se = (g["score"].std(ddof=1) / np.sqrt(n)).fillna(0.0)
+    params = g["parameters"].first()
+    best = mean.idxmax()
+    eligible = mean[mean >= mean[best] - se[best]].index
+    return str(min(eligible, key=lambda h: (params[h], -mean[h])))
+
+
+def intervals(cells: pd.DataFrame, evidence: pd.DataFrame, names: Iterable[str] | None = None,
+              level: float = 0.90) -> pd.DataFrame:
+    """Each published cell's predictive mean, interval and z under the given hypotheses.
+
+    Returns
+    -------
+    pandas.DataFrame
+        Columns ``hypothesis``, ``table``, ``column``, ``angle``, ``stat``, ``paper``,
+        ``mean`` (exp of the mean log prediction), ``lo``, ``hi`` (the central ``level``
+        interval, log-normal with sd = sqrt(seed spread^2 + tau^2)), ``z`` (the paper's log
+        value in predictive sds from the mean), ``inside``.
+    """
+    from scipy.stats import norm
+
+    zq = float(norm.ppf(0.5 + level / 2.0))
+    paper = _paper_cells()
+    tau = evidence.groupby("hypothesis")["tau"].first()
+    names = list(names) if names is not None else sorted(tau.index)
+    rows = []
+    for h in names:
+        g = cells[cells["hypothesis"] == h]
+        for (t, c, a, s), v in g.groupby(["table", "column", "angle", "stat"])["value"]:
+            lv = np.log(np.maximum(v.to_numpy(), 1e-9))
+            m = float(lv.mean())
+            sd = math.sqrt(float(lv.std(ddof=1)) ** 2 + float(tau[h]) ** 2)
+            p = paper[(t, c, a, s)]
+            z = (math.log(p) - m) / sd
+            rows.append({"hypothesis": h, "table": t, "column": c, "angle": a, "stat": s,
+                         "paper": p, "mean": math.exp(m), "lo": math.exp(m - zq * sd),
+                         "hi": math.exp(m + zq * sd), "z": z, "inside": abs(z) <= zq})
+    return pd.DataFrame(rows)
+
+
+# ----------------------------------------------------------------------------- shipped
+def _data(name: str) -> pd.DataFrame:
+    with resources.as_file(resources.files("sunlab") / "data" / name) as path:
+        if not path.exists():
+            raise ConfigurationError(
+                f"sunlab/data/{name}: missing. Fix: run `sunlab identify --out sunlab/data`.")
+        return pd.read_csv(path)
+
+
+def load_evidence(path=None) -> pd.DataFrame:
+    """The shipped evidence table (``sunlab/data/evidence.csv``) or the one at ``path``.
+
+    Examples
+    --------
+    >>> t = load_evidence()
+    >>> {"hypothesis", "seed", "score"} <= set(t.columns)
+    True
+    """
+    return pd.read_csv(path) if path is not None else _data("evidence.csv")
+
+
+def load_intervals(path=None) -> pd.DataFrame:
+    """The shipped predictive intervals (``sunlab/data/intervals.csv``) or those at ``path``."""
+    return pd.read_csv(path) if path is not None else _data("intervals.csv")
+
+
+def run(protocol: dict, names=None, seeds=None, *, jobs: int = 1,
+        progress: Callable | None = None) -> pd.DataFrame:
+    """Every (hypothesis, seed) of the protocol: the long table of predicted cells.
+
+    ``jobs`` > 1 runs them in that many processes (each builds its own surrogate maps).
+    """
+    names = list(names or protocol["hypotheses"])
+    seeds = list(seeds if seeds is not None else protocol["confirmation_seeds"])
+    tasks = [(h, s) for h in names for s in seeds]
+    out = []
+    if jobs <= 1:
+        for h, s in tasks:
+            if progress:
+                progress(f"{h} seed {s}")
+            out.append(run_hypothesis(protocol, h, s))
+    else:
+        from concurrent.futures import ProcessPoolExecutor, as_completed
+
+        with ProcessPoolExecutor(jobs) as pool:
+            futs = {pool.submit(run_hypothesis, protocol, h, s): (h, s) for h, s in tasks}
+            for f in as_completed(futs):
+                if progress:
+                    progress("{} seed {}".format(*futs[f]))
+                out.append(f.result())
+    return pd.concat(out, ignore_index=True)
+
+
+def regenerate(out_dir, *, names=None, seeds=None, jobs: int = 2, overwrite: bool = False,
+               progress: Callable | None = None) -> dict:
+    """Run the whole protocol and write its evidence into ``out_dir``.
+
+    Writes ``evidence_cells.csv`` (every predicted cell of every hypothesis and seed),
+    ``evidence.csv`` (:func:`score_table`) and ``intervals.csv`` (:func:`intervals` for
+    every hypothesis), each all-or-nothing.
+
+    Returns
+    -------
+    dict
+        ``chosen`` (the rule's pick) and the three tables.
+    """
+    from pathlib import Path
+
+    from ..atomic import atomic_files, check_folder
+
+    files = ("evidence_cells.csv", "evidence.csv", "intervals.csv")
+    check_folder(out_dir, files, overwrite=overwrite, flag="--overwrite")
+    protocol = load_protocol()
+    cells = run(protocol, names, seeds, jobs=jobs, progress=progress)
+    cells = cells.sort_values(["hypothesis", "seed", "table", "column", "angle", "stat"])
+    evidence = score_table(cells, protocol).sort_values(["hypothesis", "seed"])
+    chosen = chosen_hypothesis(evidence, protocol)
+    ints = intervals(cells, evidence)
+    with atomic_files(out_dir, files, overwrite=overwrite, flag="--overwrite") as staging:
+        for name, table in zip(files, (cells, evidence, ints), strict=True):
+            table.to_csv(Path(staging) / name, index=False)
+    return {"chosen": chosen, "cells": cells, "evidence": evidence, "intervals": ints}
+
+
+def identified_hypothesis() -> str:
+    """The hypothesis the protocol's rule picks from the shipped evidence (the presets' one).
+
+    Examples
+    --------
+    >>> identified_hypothesis() in load_protocol()["hypotheses"]
+    True
+    """
+    return chosen_hypothesis(load_evidence(), load_protocol())
+
+
+def interval90(table: str) -> dict[str, dict[str, list[float]]]:
+    """The identified bench's 90 % predictive interval of every published cell of a table.
+
+    Read from the shipped ``sunlab/data/intervals.csv`` for :func:`identified_hypothesis`: the
+    spread over the confirmation seeds (noise, nuisance draws and fits) and the model's
+    discrepancy, not a function of any one run's seed.
+
+    Parameters
+    ----------
+    table : {"table4", "table5"}
+
+    Returns
+    -------
+    dict
+        ``{column: {"angle.stat": [lo, hi]}}`` (deg), keyed as ``table4.json``'s ``ours``
+        rows; Table 5's columns carry its JSON's `` [sunlab]`` suffix.
+
+    Examples
+    --------
+    >>> iv = interval90("table4")
+    >>> lo, hi = iv["polynomial"]["alpha.mu"]
+    >>> 0 < lo < hi
+    True
+    """
+    if table not in ("table4", "table5"):
+        raise ConfigurationError(f"table: found {table!r}; expected 'table4' or 'table5'.")
+    ints = load_intervals()
+    ints = ints[(ints["hypothesis"] == identified_hypothesis()) & (ints["table"] == table)]
+    out: dict = {}
+    for r in ints.itertuples():
+        key = r.column if table == "table4" else f"{r.column} [sunlab]"
+        out.setdefault(key, {})[f"{r.angle}.{r.stat}"] = [float(r.lo), float(r.hi)]
+    return out
+
+
+#: Each component of the identified bench and how :func:`ablation` turns it off.
+ABLATIONS = {
+    "glass lid": {"detector__lid_thickness_mm": 0.0},
+    "pixel response (PRNU)": {"detector__prnu": 0.0, "detector__prnu_correlated": 0.0},
+    "one-hole mask's play": {"mask__play_x_mm": 0.0},
+    "100-hole mask's play": {"mask__play_y_mm": 0.0},
+    "gear error": {"platform__beta_gear_deg": 0.0},
+    "rehoming (a drift per run instead)": "drift",
+    "boresight rotation gamma0": {"platform__gamma0_deg": 0.0},
+}
+
+
+def ablation(name: str | None = None, seeds=(1000,), evidence: pd.DataFrame | None = None,
+             cells: pd.DataFrame | None = None, *, jobs: int = 1) -> pd.DataFrame:
+    """The held-out score of the identified bench with each component turned off.
+
+    The bench is the hypothesis's with its seed's nuisance draw and fit (no refit: what the
+    component contributes to the predictions), each :data:`ABLATIONS` entry applied in turn,
+    scored like :func:`score_table` with the hypothesis's own spread and tau.
+
+    Parameters
+    ----------
+    name : str, optional
+        The hypothesis (default :func:`identified_hypothesis`).
+    seeds : iterable of int
+        Confirmation seeds.
+    evidence, cells : pandas.DataFrame, optional
+        The evidence and its cells (default the shipped ones).
+    jobs : int
+        Processes that predict the ablated benches side by side.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per component and seed: ``component``, ``seed``, ``score`` and
+        ``held_out_rms_log``; the component ``none`` is the full bench.
+    """
+    protocol = load_protocol()
+    evidence = load_evidence() if evidence is None else evidence
+    cells = _data("evidence_cells.csv") if cells is None else cells
+    name = name or chosen_hypothesis(evidence, protocol)
+    q = scored_quantities(protocol)["held_out"]
+    paper = _paper_cells()
+    log_paper = np.array([math.log(_quantity(paper, *x)) for x in q])
+    held = _long_to_quantities(cells[cells["hypothesis"] == name], q).loc[name]
+    sd2 = held.to_numpy().std(axis=0, ddof=1) ** 2
+    tau = float(evidence.loc[evidence["hypothesis"] == name, "tau"].iloc[0])
+    var = sd2 + tau**2
+    tasks = []
+    for seed in seeds:
+        rec = evidence[(evidence["hypothesis"] == name) & (evidence["seed"] == seed)].iloc[0]
+        nuis = {k: float(rec[k]) for k in protocol["priors"]}
+        fitted = {k: float(rec[k]) for k in protocol["cells"]["pinning"]
+                  if k in rec and pd.notna(rec[k])}
+        tasks += [(comp, int(seed), (protocol, name, nuis, fitted, int(seed),
+                                     float(rec["noise_px"]), change))
+                  for comp, change in {"none": {}, **ABLATIONS}.items()]
+    if jobs > 1:
+        from concurrent.futures import ProcessPoolExecutor
+
+        with ProcessPoolExecutor(jobs) as pool:
+            preds = list(pool.map(_ablated_cells, *zip(*(t[2] for t in tasks), strict=True)))
+    else:
+        preds = [_ablated_cells(*t[2]) for t in tasks]
+    rows = []
+    for (comp, seed, _), pred in zip(tasks, preds, strict=True):
+        lp = np.array([math.log(max(_quantity(pred, *x), 1e-9)) for x in q])
+        r = log_paper - lp
+        rows.append({"component": comp, "seed": seed,
+                     "score": float(np.sum(-0.5 * r**2 / var - 0.5 * np.log(2 * math.pi * var))),
+                     "held_out_rms_log": float(np.sqrt(np.mean(r**2)))})
+    return pd.DataFrame(rows)
+
+
+def _ablated_cells(protocol, name, nuis, fitted, seed, noise_px, change) -> dict:
+    """:func:`predict_cells` with one component of both benches turned off."""
+    single = hypothesis_bench(protocol, name, nuis, fitted)
+    multi = hypothesis_bench(protocol, name, nuis, fitted, multi=True)
+    if change == "drift":
+        shift = single.platform.beta_rehoming_deg
+        change = {"platform__beta_rehoming_deg": 0.0, "platform__beta_drift_deg": shift / 2}
+    return _predict_benches(protocol, single.replace(**change), multi.replace(**change), seed,
+                            noise_px)

@@ -1,0 +1,168 @@
+"""The identification study: its protocol, score, rule and intervals (docs/identification.md)."""
+
+import math
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from sunlab import stats
+from sunlab.studies import identification as idn
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="module")
+def protocol():
+    return idn.load_protocol()
+
+
+def test_protocol_counts_every_parameter_and_switch(protocol):
+    # F (a discrete choice) + the fitted parameters + the nuisances; a gear adds its switch,
+    # its fitted amplitude and its period's nuisance
+    fitted = [k for k in protocol["cells"]["pinning"] if k != "beta_gear_deg"]
+    nuisances = [k for k in protocol["priors"] if k != "gear_period_deg"]
+    for name, hyp in protocol["hypotheses"].items():
+        expected = 1 + len(fitted) + len(nuisances) + (3 if hyp["gear"] else 0)
+        assert hyp["parameters"] == expected, name
+
+
+def test_scored_quantities_drop_the_duplicated_cells(protocol):
+    q = idn.scored_quantities(protocol)
+    every = q["fit"] + q["held_out"]
+    assert len(set(every)) == len(every) == 36
+    assert not any(stat == "sigma_M" or stat == "M" for *_, stat in every)
+    assert not any(col == "1 hole" for _, col, *_ in every)
+    # the fit never sees a held-out column
+    assert not {c for _, c, *_ in q["fit"]} & {c for _, c, *_ in q["held_out"]}
+
+
+def test_nuisance_draws_lie_in_their_priors_and_are_shared_by_hypotheses(protocol):
+    draws = [idn.draw_nuisances(protocol, s) for s in range(200)]
+    for k, prior in protocol["priors"].items():
+        v = np.array([d[k] for d in draws])
+        assert (v >= prior["low"]).all() and (v <= prior["high"]).all(), k
+        # 200 uniform quantiles: both halves of the prior are visited
+        mid = idn._median(prior)
+        assert 60 < (v < mid).sum() < 140, k
+    assert idn.draw_nuisances(protocol, 7) == idn.draw_nuisances(protocol, 7)
+
+
+def test_hypothesis_bench_is_the_datasheet_detector_and_the_protocols_switches(protocol):
+    nuis = idn.draw_nuisances(protocol, None)
+    fitted = {"alpha_total_deg": 0.01, "beta_zero_shift_deg": 0.02,
+              "beta_pose_error_deg": 0.003, "beta_gear_deg": 0.01}
+    b5 = idn.hypothesis_bench(protocol, "F5", nuis, fitted)
+    b17g = idn.hypothesis_bench(protocol, "F17-gear", nuis, fitted)
+    for b in (b5, b17g):
+        assert b.detector.read_noise_e == 20.0 and b.detector.fill_factor == 0.6
+        assert b.detector.fill_factor * b.detector.qe == pytest.approx(0.35)
+        assert b.platform.beta_wobble_deg == 0 and b.platform.nonorthogonality_deg == 0
+        # the one hole's alpha error: platform and play in quadrature make alpha_total
+        play_deg = math.degrees(math.atan(b.mask.play_x_mm / b.mask.true_distance_mm))
+        assert math.hypot(b.platform.alpha_pose_error_deg, play_deg) == pytest.approx(0.01)
+    assert b5.mask_distance_mm == 5.0 and b17g.mask_distance_mm == 17.0
+    assert b5.platform.beta_gear_deg == 0 and b17g.platform.beta_gear_deg == 0.01
+    assert b17g.platform.beta_gear_period_deg == nuis["gear_period_deg"]
+    many = idn.hypothesis_bench(protocol, "F5", nuis, fitted, multi=True)
+    assert many.mask.play_y_mm == nuis["multi_play_mm"] and many.n_holes == 100
+
+
+def _cells(values: dict) -> pd.DataFrame:
+    """A long table of predictions, every published cell, from {(h, seed): scale}."""
+    paper = idn._paper_cells()
+    rows = []
+    for (h, seed), scale in values.items():
+        rows += [{"hypothesis": h, "seed": seed, "table": t, "column": c, "angle": a,
+                  "stat": s, "value": v * scale} for (t, c, a, s), v in paper.items()]
+    return pd.DataFrame(rows)
+
+
+def test_score_is_the_held_out_log_density_and_falls_with_the_miss(protocol):
+    # predictions off by a seed-dependent factor: the better-centred hypothesis scores higher;
+    # with every prediction exact but one seed off, tau and the spread follow from the formula
+    cells = _cells({("F5", 0): 1.0, ("F5", 1): 1.1, ("F17", 0): 1.5, ("F17", 1): 1.7})
+    ev = idn.score_table(cells, protocol)
+    mean = ev.groupby("hypothesis")["score"].mean()
+    assert mean["F5"] > mean["F17"]
+    f5 = ev[ev.hypothesis == "F5"].set_index("seed")
+    # tau^2: the fit side's 12 log residuals, 0 on seed 0 and log 1.1 on seed 1 (M - mu and
+    # every other quantity scale alike), over 12 - 3 degrees of freedom
+    tau2 = 0.5 * 12 * math.log(1.1) ** 2 / 9
+    assert f5["tau"].iloc[0] == pytest.approx(math.sqrt(tau2))
+    sd2 = np.var([0.0, math.log(1.1)], ddof=1)
+    var = sd2 + tau2
+    n = len(idn.scored_quantities(protocol)["held_out"])
+    assert f5.loc[0, "score"] == pytest.approx(-0.5 * n * math.log(2 * math.pi * var))
+    assert f5.loc[1, "score"] == pytest.approx(
+        n * (-0.5 * math.log(1.1) ** 2 / var - 0.5 * math.log(2 * math.pi * var)))
+
+
+def test_rule_takes_the_simplest_within_one_standard_error_of_the_best():
+    ev = pd.DataFrame({"hypothesis": ["big"] * 3 + ["small"] * 3 + ["bad"] * 3,
+                       "seed": [0, 1, 2] * 3, "parameters": [11] * 3 + [8] * 3 + [5] * 3,
+                       "score": [10.0, 12.0, 14.0, 9.0, 11.0, 12.5, 0.0, 1.0, 2.0]})
+    # best: big, 12 +- 2 / sqrt(3) = 1.15; small's 10.83 is within it, bad's 1.0 is not
+    assert idn.chosen_hypothesis(ev) == "small"
+    ev.loc[ev.hypothesis == "small", "score"] -= 1.0
+    assert idn.chosen_hypothesis(ev) == "big"
+
+
+def test_the_shipped_choice_is_the_rule_applied_by_hand_to_the_shipped_evidence(protocol):
+    ev = idn.load_evidence()
+    assert {"hypothesis", "seed", "score"} <= set(ev.columns)
+    assert sorted(set(ev.seed)) == protocol["confirmation_seeds"]
+    g = ev.groupby("hypothesis")["score"]
+    mean, se = g.mean(), g.std(ddof=1) / np.sqrt(g.count())
+    best = mean.idxmax()
+    eligible = [h for h in mean.index if mean[h] >= mean[best] - se[best]]
+    fewest = min(protocol["hypotheses"][h]["parameters"] for h in eligible)
+    picks = [h for h in eligible if protocol["hypotheses"][h]["parameters"] == fewest]
+    assert idn.identified_hypothesis() == max(picks, key=lambda h: mean[h])
+
+
+def test_every_published_cell_has_a_90_percent_interval():
+    n4 = sum(len(v) for v in idn.interval90("table4").values())
+    n5 = sum(len(v) for v in idn.interval90("table5").values())
+    assert (n4, n5) == (stats.paper_table4().size, stats.paper_table5().size)
+    for table in ("table4", "table5"):
+        for col, cells in idn.interval90(table).items():
+            for key, (lo, hi) in cells.items():
+                assert 0 < lo < hi, (col, key)
+    assert set(idn.interval90("table5")) == {f"{c} [sunlab]"
+                                             for c in stats.paper_table5().columns}
+
+
+def test_intervals_follow_the_log_normal_formula():
+    cells = _cells({("F5", 0): 1.0, ("F5", 1): 1.2})
+    ev = pd.DataFrame({"hypothesis": ["F5"], "tau": [0.1]})
+    iv = idn.intervals(cells, ev).set_index(["table", "column", "angle", "stat"])
+    row = iv.loc[("table4", "polynomial", "alpha", "mu")]
+    m = 0.5 * math.log(1.2)
+    sd = math.hypot(np.std([0, math.log(1.2)], ddof=1), 0.1)
+    assert row["mean"] == pytest.approx(0.0089 * math.exp(m))
+    assert row["hi"] == pytest.approx(0.0089 * math.exp(m + idn.Z90 * sd))
+    assert row["lo"] == pytest.approx(0.0089 * math.exp(m - idn.Z90 * sd))
+    assert bool(row["inside"])
+
+
+@pytest.mark.skipif(shutil.which("git") is None or not (ROOT / ".git").exists(),
+                    reason="needs the git history of a checkout")
+def test_the_protocol_was_committed_before_the_evidence_it_rules():
+    # the last change of the protocol is a strict ancestor of the last change of the evidence
+    def last(path):
+        out = subprocess.run(["git", "log", "-1", "--format=%H", "--", path], cwd=ROOT,
+                             capture_output=True, text=True, check=True).stdout.strip()
+        return out or None
+
+    shallow = subprocess.run(["git", "rev-parse", "--is-shallow-repository"], cwd=ROOT,
+                             capture_output=True, text=True).stdout.strip()
+    protocol, evidence = last("sunlab/data/protocol.json"), last("sunlab/data/evidence.csv")
+    if shallow == "true" or protocol is None or evidence is None:
+        pytest.skip("a shallow clone without the history of the two files")
+    assert protocol != evidence
+    older = subprocess.run(["git", "merge-base", "--is-ancestor", protocol, evidence], cwd=ROOT)
+    assert older.returncode == 0
