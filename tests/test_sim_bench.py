@@ -176,26 +176,30 @@ def test_bad_configuration_raises(call, field):
         call()
 
 
-def test_presets_are_the_chosen_hypothesis_with_its_mean_fits():
-    # the presets' identified numbers are the mean over the seeds of the fits of the hypothesis
-    # that sunlab.sim.evidence.chosen_hypothesis picks from the shipped evidence table (rounded
-    # to 2 significant figures, hence 5 %), and the masks settle as that hypothesis says
-    from sunlab.sim import bench as bm
-    from sunlab.sim import evidence
+def test_presets_are_the_identified_hypothesis_with_its_mean_fits_and_median_nuisances():
+    # the presets are the hypothesis the protocol's rule picks from the shipped evidence, with
+    # each fitted parameter the mean of its fits over the confirmation seeds and each nuisance
+    # at its prior median (docs/identification.md), to three significant figures (0.5 %)
+    from sunlab.studies import identification as idn
 
-    table = evidence.load_table()
-    name = evidence.chosen_hypothesis(table)
-    hyp = evidence.HYPOTHESES[name]
-    fits = table.xs(name, level="hypothesis").mean(numeric_only=True)
-    one, many = Bench.paper_single_hole(), Bench.paper_multi_hole()
-    for preset, key in ((bm.PAPER_ALPHA_POSE_DEG, "alpha_pose_error_deg"),
-                        (bm.PAPER_BETA_REHOMING_DEG, "beta_zero_shift_deg"),
-                        (bm.PAPER_BETA_GEAR_DEG, "beta_gear_deg"),
-                        (bm.PAPER_MASK_PLAY_MM, "play_y_mm"),
-                        (bm.PAPER_SINGLE_PLAY_MM, "single_play_mm")):
-        assert preset == pytest.approx(fits[key], rel=0.05), key
-    # the beta per-pose error is pinned only from above (the fit keeps lowering it)
-    assert 0 < bm.PAPER_BETA_POSE_DEG <= fits["beta_pose_error_deg"]
-    assert one.mask_distance_mm == hyp.mask_distance_mm
-    assert one.mask.play_at_stops is many.mask.play_at_stops is hyp.play_at_stops
-    assert one.platform.beta_rehoming_deg > 0 and hyp.zero_shift == "rehoming"
+    protocol = idn.load_protocol()
+    name = idn.identified_hypothesis()
+    ev = idn.load_evidence()
+    fits = ev[ev["hypothesis"] == name][list(protocol["cells"]["pinning"])].mean()
+    fitted = {k: float(v) for k, v in fits.items() if np.isfinite(v)}
+    med = idn.draw_nuisances(protocol, None)
+    for multi in (False, True):
+        want = idn.hypothesis_bench(protocol, name, med, fitted, multi=multi)
+        got = Bench.paper_multi_hole() if multi else Bench.paper_single_hole()
+        assert got.mask_distance_mm == want.mask_distance_mm
+        for part, fields in (("platform", ("alpha_pose_error_deg", "beta_pose_error_deg",
+                                           "beta_rehoming_deg", "beta_gear_deg",
+                                           "beta_gear_period_deg", "beta_wobble_deg",
+                                           "nonorthogonality_deg", "beta_drift_deg",
+                                           "beta_backlash_deg")),
+                             ("mask", ("play_x_mm", "play_y_mm")),
+                             ("detector", ("prnu", "prnu_correlated", "prnu_correlation_px",
+                                           "read_noise_e", "fill_factor", "lid_thickness_mm"))):
+            for f in fields:
+                assert getattr(getattr(got, part), f) == pytest.approx(
+                    getattr(getattr(want, part), f), rel=5e-3, abs=1e-12), (multi, part, f)

@@ -104,8 +104,8 @@ def test_score_is_the_held_out_log_density_and_falls_with_the_miss(protocol):
 def test_rule_takes_the_simplest_within_one_standard_error_of_the_best():
     ev = pd.DataFrame({"hypothesis": ["big"] * 3 + ["small"] * 3 + ["bad"] * 3,
                        "seed": [0, 1, 2] * 3, "parameters": [11] * 3 + [8] * 3 + [5] * 3,
-                       "score": [10.0, 12.0, 14.0, 9.0, 11.0, 12.5, 0.0, 1.0, 2.0]})
-    # best: big, 12 +- 2 / sqrt(3) = 1.15; small's 10.83 is within it, bad's 1.0 is not
+                       "score": [10.0, 12.0, 14.0, 9.5, 11.0, 12.5, 0.0, 1.0, 2.0]})
+    # best: big, 12 +- 2 / sqrt(3) = 1.15; small's 11.0 is within it, bad's 1.0 is not
     assert idn.chosen_hypothesis(ev) == "small"
     ev.loc[ev.hypothesis == "small", "score"] -= 1.0
     assert idn.chosen_hypothesis(ev) == "big"

@@ -1,50 +1,33 @@
 """The virtual bench: source + mask + detector + platform, presets, and lazy simulated cubes.
 
 Every parameter of the presets has a source: the paper (section), a datasheet, physics, or the
-held-out identification of :mod:`sunlab.sim.evidence` (its hypothesis
-``F5-short-lid-play-rehomed-gear-stops``; the tuning cells that pin each fitted number are named
-where it is defined). Error budget:
+identification of docs/identification.md (a protocol fixed before its scores; its rule picks the
+hypothesis ``F5-gear``, :mod:`sunlab.studies.identification`), where a parameter is either
+fitted on a named cell of Table 4 or a nuisance at its prior median. Error budget:
 
-* per shot (about 0.0005 deg, the paper's M - mu of about 0.001 deg): platform jitter of
-  0.0005 deg RMS per axis plus photon, dark and read noise on the centroid;
+* per shot (the paper's M - mu of about 0.001 deg): platform jitter of 0.0005 deg RMS per axis
+  plus photon, dark and read noise on the centroid;
 * per pose, shared by every hole of a frame: the platform's positioning error, uniform within
-  +-``PAPER_ALPHA_POSE_DEG`` on alpha (pinned by Table 5's geometric-centre alpha mu, where
-  hole-specific errors average away) and +-``PAPER_BETA_POSE_DEG`` on beta (bounded from
-  above by Table 4's polynomial beta sigma); the inner axis's periodic gear error of
-  ``PAPER_BETA_GEAR_DEG`` with a 1.6 deg period (a 225-tooth worm wheel; pinned by linear
-  interpolation's beta sigma): the 1-degree grids see it aliased, a polynomial cannot follow
-  it, and linear interpolation between I's nodes at whole degrees predicts at III's half
-  degrees cos(pi / 1.6) = -0.38 times the error there and is left with 1.38 times it, the
-  polynomial with about 1.1 times (tests/test_sim_identify.py): why the paper's interpolation
-  tables scatter wider on beta than its polynomial (on the surrogate, seed 0, Table 3's grids,
-  2 frames: linear interpolation's beta sigma is 0.0030 deg without the gear error and 0.0111
-  with it, the paper's 0.0112); the
-  inner-axis wobble and non-orthogonality; the sensor's mounting (a rotation about the
-  boresight the paper's model leaves out, and alpha0, beta0 set so that the optimised model
-  returns the paper's fitted 1.864 and 0.415 deg, sec. 4.1); the mask's tilt and offset;
+  +-``PAPER_ALPHA_POSE_DEG`` on alpha and +-``PAPER_BETA_POSE_DEG`` on beta; the inner axis's
+  periodic gear error of ``PAPER_BETA_GEAR_DEG`` with a ``PAPER_BETA_GEAR_PERIOD_DEG`` period
+  (one worm turn; the amplitude pinned by linear interpolation's beta sigma, the period a
+  nuisance): the 1-degree grids see it aliased and neither a polynomial nor an interpolation
+  table follows it; the sensor's mounting (a rotation about the boresight the paper's model
+  leaves out, a choice whose ablation docs/paper.md sec. 10 reports, and alpha0, beta0 set so
+  that the optimised model returns the paper's fitted 1.864 and 0.415 deg, sec. 4.1); the
+  mask's tilt and offset. No wobble and no non-orthogonality: no source gives either;
 * per session: the stage homed again between the session of experiment I and that of II and
   III, its inner axis's zero shifted by ``PAPER_BETA_REHOMING_DEG`` (pinned by Table 4's
-  polynomial beta mu): an offset of II and III that no calibration on I removes, the beta
-  error's offset shape (sigma / mu 0.47, below the 0.577 of any symmetric unimodal error), the
-  polynomial's beta better than the interpolations' (it is refitted on I + II and so takes
-  part of the shift, :data:`sunlab.calibration.methods.POLYNOMIAL_REFIT`) and what a network
-  re-zeroed on each run's zero pose sheds;
+  polynomial beta mu): an offset of II and III that no calibration on I removes;
 * per mask: the one-hole mask sits in its holder with play of +-``PAPER_SINGLE_PLAY_MM`` along
-  x (pinned by Table 4's polynomial alpha mu), the 100-hole mask with
-  +-``PAPER_MASK_PLAY_MM`` along y (pinned by Table 5's geometric-centre beta mu; the paper
-  blames "the new mask's mounting" for its worse beta): at every pose each settles against
-  one of the two stops of its play (``Mask.play_at_stops``), the side drawn per pose. The
-  one hole's extra play is what makes 100 holes about 2x better on alpha; settling at the
-  stops rather than anywhere within the play makes the one hole's alpha error closer to
-  uniform (the polynomial's alpha sigma / mu 0.59-0.65 on rendered seeds 0-3, docs/paper.md
-  sec. 10; the paper's 0.60);
-* hole specific (about 0.04 px RMS per axis, 0.003 deg): the pixel response under the 35 px
-  spot, 1 % white PRNU plus a 2.8 % pattern correlated over 2 px (2.97 % RMS in all, the most
-  the IBIS4-1300 datasheet allows), fill factor, DSNU and hot pixels;
-* optics: the mask at F = 5 mm (:data:`~sunlab.sim.mask.PAPER_DISTANCE_MM`) and the
-  detector's 0.5 mm D263 glass lid, whose refraction bends oblique rays by up to 8 px at
-  17 deg, non-linearly in angle: a distortion the optimised model's three parameters cannot
-  follow and a polynomial can.
+  x, the 100-hole mask with +-``PAPER_MASK_PLAY_MM`` along y (the paper blames "the new mask's
+  mounting" for its worse beta), anywhere within the play at each pose;
+* hole specific: the pixel response under the 35 px spot (PRNU a nuisance, 0.87 % white plus
+  0.87 % correlated over 2.8 px at its prior median), fill factor, DSNU and hot pixels;
+* optics: the mask at F = 5 mm (:data:`~sunlab.sim.mask.PAPER_DISTANCE_MM`; the evidence does
+  not tell 5 from 17 mm, docs/paper.md sec. 10) and the detector's 0.5 mm D263 glass lid,
+  whose refraction bends oblique rays by up to 8 px at 17 deg, non-linearly in angle: a
+  distortion the optimised model's three parameters cannot follow and a polynomial can.
 
 Examples
 --------
@@ -73,29 +56,37 @@ from .source import Source
 
 __all__ = ["Bench", "platform_pose", "homing_offset", "simulate", "plan_key"]
 
-#: The detector's pixel response (IBIS4-1300 datasheet, docs/paper.md sec. 10: 2.97 % RMS in
-#: all, within the 3 % of a clean APS): white PRNU and a pattern correlated over 2 px.
-PAPER_PRNU = 0.01
-PAPER_PRNU_CORRELATED = 0.028
-PAPER_PRNU_CORRELATION_PX = 2.0
+#: The presets are the hypothesis that the identification protocol's rule picks
+#: (docs/identification.md, ``sunlab/data/protocol.json``; :func:`sunlab.studies.
+#: identification.identified_hypothesis`, here ``F5-gear``), each fitted parameter the mean of
+#: its fits over the protocol's confirmation seeds (``sunlab/data/evidence.csv``) and each
+#: nuisance its prior median, to three significant figures.
+#:
+#: The detector's pixel response, a nuisance (prior 0.5-3 % RMS, log-uniform; median 1.22 %),
+#: white and correlated parts equal, the correlation length's median (1-8 px, log-uniform).
+PAPER_PRNU = 0.00866
+PAPER_PRNU_CORRELATED = 0.00866
+PAPER_PRNU_CORRELATION_PX = 2.83
 #: The IBIS4-1300's D263 glass lid over the die, mm (datasheet: monochrome parts ship with it;
 #: its thickness is our choice within the 0.4-0.7 mm of cover glasses of that generation).
 PAPER_LID_MM = 0.5
-#: Identified by :func:`sunlab.sim.evidence.fit_platform` (hypothesis
-#: ``F5-short-lid-play-rehomed-gear-stops``, the mean of its fits on seeds 0-3 recorded in
-#: ``sunlab/data/evidence.csv``, rounded; the tuning cell of each in
-#: :data:`sunlab.sim.evidence.FITTED`): the per-pose platform errors (half-width, deg), the
-#: inner axis's zero shift between the sessions (deg) and its gear error's amplitude (deg), and
-#: the masks' play (mm; each mask settles at a stop of its play, ``Mask.play_at_stops``). The
-#: beta per-pose error is pinned only from above: the gear error and the shift already give
-#: the polynomial's beta sigma, and the fit keeps lowering it; the others vary by under 6 %
-#: between the seeds.
-PAPER_ALPHA_POSE_DEG = 0.0078
-PAPER_BETA_POSE_DEG = 0.0005
-PAPER_BETA_REHOMING_DEG = 0.0243
-PAPER_BETA_GEAR_DEG = 0.0104
-PAPER_MASK_PLAY_MM = 0.0025
-PAPER_SINGLE_PLAY_MM = 0.00078
+#: Identified (Table 4's pinning cells, protocol ``cells.pinning``): the one hole's alpha
+#: per-pose error alpha_total = 0.0177 deg (polynomial alpha mu), split by the nuisance
+#: ``alpha_platform_share`` at its median 0.5 into the platform's uniform +-0.00883 deg and
+#: the one-hole mask's play along x (the rest in quadrature, 0.0153 deg at F' = 5.27 mm:
+#: +-1.41 um); beta's per-pose error (polynomial beta sigma), the inner axis's zero shift
+#: between the session of I and that of II-III (polynomial beta mu) and its gear error's
+#: amplitude (linear interpolation's beta sigma), deg. The 100-hole mask's play along y is
+#: a nuisance at its prior median (0.5-10 um, log-uniform): Table 4 never sees that mask.
+PAPER_ALPHA_POSE_DEG = 0.00883
+PAPER_SINGLE_PLAY_MM = 0.00141
+PAPER_BETA_POSE_DEG = 0.00459
+PAPER_BETA_REHOMING_DEG = 0.0214
+PAPER_BETA_GEAR_DEG = 0.0180
+PAPER_MASK_PLAY_MM = 0.00224
+#: The gear error's period, deg: a nuisance at its prior median (1-4 deg, one worm turn of a
+#: catalogue worm-driven stage, log-uniform).
+PAPER_BETA_GEAR_PERIOD_DEG = 2.0
 #: The sensor's mounting on the platform, deg. A rotation about the boresight (a mounting
 #: tolerance of 2 mrad) that the paper's three-parameter model leaves out: the paper finds its
 #: calibration functions better than the optimised model, which asks for an error of this
@@ -175,8 +166,8 @@ class Bench:
         with the height error :data:`PAPER_DELTA_F_MM`, placed at
         :data:`~sunlab.sim.mask.PAPER_TRACK_CENTRE_MM`, tilted by 0.25 / -0.15 deg about x / y
         and offset by (12, -8) um ("the mask plane is not parallel to the focal plane", sec.
-        4.1; our choice of size), held with play :data:`PAPER_SINGLE_PLAY_MM` along x, settling
-        at one of its stops at each pose; the detector of
+        4.1; our choice of size), held with play :data:`PAPER_SINGLE_PLAY_MM` along x (anywhere
+        within it at each pose); the detector of
         :meth:`_paper_detector`; the platform of :meth:`_paper_platform`. The module notes say
         where each number comes from.
         """
@@ -195,8 +186,8 @@ class Bench:
 
     @staticmethod
     def _paper_detector() -> Detector:
-        """The IBIS4-1300 as its datasheet gives it: 2.97 % RMS response non-uniformity (1 %
-        white, 2.8 % correlated over 2 px) and the D263 lid (module notes)."""
+        """The IBIS4-1300 as its datasheet gives it (read noise, fill factor, the D263 lid; the
+        :class:`Detector` defaults) with the identified pixel response (module notes)."""
         return Detector(prnu=PAPER_PRNU, prnu_correlated=PAPER_PRNU_CORRELATED,
                         prnu_correlation_px=PAPER_PRNU_CORRELATION_PX,
                         lid_thickness_mm=PAPER_LID_MM)
@@ -206,9 +197,10 @@ class Bench:
         """The identified platform: per-pose errors, zero shift, gear error, jitter, mounting.
 
         alpha: uniform per-pose error within +-``PAPER_ALPHA_POSE_DEG``; beta: a uniform
-        +-``PAPER_BETA_POSE_DEG``, a periodic gear error of ``PAPER_BETA_GEAR_DEG`` (1.6 deg
-        period) and a shift of its zero of ``PAPER_BETA_REHOMING_DEG`` between the session of
-        experiment I and that of II and III; :mod:`sunlab.platform_fault` diagnoses and removes
+        +-``PAPER_BETA_POSE_DEG``, a periodic gear error of ``PAPER_BETA_GEAR_DEG`` (period
+        ``PAPER_BETA_GEAR_PERIOD_DEG``) and a shift of its zero of ``PAPER_BETA_REHOMING_DEG``
+        between the session of experiment I and that of II and III; no wobble, no
+        non-orthogonality; :mod:`sunlab.platform_fault` diagnoses and removes
         such faults. No backlash: the identification needs none.
         """
         return Platform(
@@ -219,6 +211,10 @@ class Bench:
             beta_pose_error_deg=PAPER_BETA_POSE_DEG,
             beta_rehoming_deg=PAPER_BETA_REHOMING_DEG,
             beta_gear_deg=PAPER_BETA_GEAR_DEG,
+            beta_gear_period_deg=PAPER_BETA_GEAR_PERIOD_DEG,
+            # no source gives the stage a wobble or a non-orthogonality: off
+            beta_wobble_deg=0.0,
+            nonorthogonality_deg=0.0,
         )
 
     @classmethod
@@ -230,8 +226,7 @@ class Bench:
         housing, the same lid), dF 0.06 mm plus the lid's share (our choice, as the one-hole
         mask's), tilt 0.2 / 0.3 deg, in-plane rotation 0.4 deg (our choices); all 100 spots
         stay on the detector over the test range. The mask is held with play of
-        +-``PAPER_MASK_PLAY_MM`` along y and settles at one of its stops at every pose, a new
-        mounting error each time. ``n_bad`` holes
+        +-``PAPER_MASK_PLAY_MM`` along y, a new mounting error at every pose. ``n_bad`` holes
         carry random defects (dust standing above the mask, burrs, elliptical or undersized
         holes: the "bad holes" of Fig. 14).
         """

@@ -57,15 +57,13 @@ __all__ = [
 #: of and above the centre to keep every spot on the 1280 x 1024 detector (docs/paper.md sec. 8).
 PAPER_GRID_CENTRE_MM = (0.52, -0.78)
 
-#: Mask-to-focal-plane distance F of the paper's bench, mm, chosen by the held-out evidence of
-#: :mod:`sunlab.sim.evidence` under the geometry's priors (docs/paper.md sec. 6 of our analysis,
-#: notebook 05): the sensor is "miniature" and tests -17..+17 deg as "part of the field of view"
-#: (sec. 5), which a field of +-42 x +-35 deg at 5 mm allows and +-15 deg at 17 mm does not; at
-#: 5 mm the 10 x 10 pattern stays whole on the detector over the test range (sec. 8), where at
-#: 17 mm a fifth of its spots leave the frame. The ROI clue ("130 px, about 2.5 times the
-#: spot", sec. 1) points at 17 mm instead; at 5 mm the 35 px spot fills 1/3.7 of the ROI. The
-#: held-out cells of Tables 4-5 score 5 mm and 17 mm alike once the one-hole mask's play is
-#: allowed, so the geometry decides.
+#: Mask-to-focal-plane distance F of the paper's bench, mm: the hypothesis the identification
+#: protocol's rule picks (docs/identification.md; ``F5-gear``). F is *not identified* by the
+#: evidence: F17-gear scores within one standard error of F5-gear, the rule takes the better
+#: mean of two hypotheses of the same size. The primary clues split: the ROI sentence ("130 px,
+#: about 2.5 times the spot", sec. 1) gives 3.67 at 5 mm and 2.55 at 17 mm; at 5 mm the
+#: 10 x 10 pattern stays whole on the detector over the test range, at 17 mm part of it leaves
+#: the frame (docs/paper.md sec. 10 shows the arithmetic).
 PAPER_DISTANCE_MM = 5.0
 
 #: Where the presets put the one hole, mm from the detector centre: under the centre of the

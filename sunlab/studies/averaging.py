@@ -12,7 +12,7 @@ centroid-level surrogate (:mod:`sunlab.sim.identify`) of an identified hypothesi
   domain, and the average changes membership from pose to pose;
 * **weighting**: each hole counted by the inverse of its own scatter (a flux-like weighting:
   the holes whose spots scatter most count least) instead of equally;
-* **the order**: every per-hole polynomial at a higher order than the geometric centre's
+* **the order**: every per-hole polynomial one order higher than the geometric centre's
   (each hole's fit on 400 poses has the same freedom as the one of the mean spot, but sees its
   own noise and pixel-response pattern, which a higher order follows on I and misses on III).
 
@@ -40,7 +40,7 @@ MECHANISMS = {
     "spots leave the frame": {"F_mm": 17.0, "weighting": "equal", "extra_order": 0},
     "inverse-variance weighting": {"F_mm": 5.0, "weighting": "inverse_variance",
                                    "extra_order": 0},
-    "higher per-hole order": {"F_mm": 5.0, "weighting": "equal", "extra_order": 2},
+    "higher per-hole order": {"F_mm": 5.0, "weighting": "equal", "extra_order": 1},
 }
 
 
