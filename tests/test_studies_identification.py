@@ -166,3 +166,13 @@ def test_the_protocol_was_committed_before_the_evidence_it_rules():
     assert protocol != evidence
     older = subprocess.run(["git", "merge-base", "--is-ancestor", protocol, evidence], cwd=ROOT)
     assert older.returncode == 0
+
+
+def test_identify_command_refuses_an_unknown_hypothesis_in_one_line(tmp_path):
+    import sys
+
+    out = subprocess.run([sys.executable, "-m", "sunlab", "identify", "--out", str(tmp_path),
+                          "--hypotheses", "F9"], capture_output=True, text=True)
+    assert out.returncode in (1, 2)
+    assert "F9" in out.stderr and "Traceback" not in out.stderr
+    assert list(tmp_path.iterdir()) == []

@@ -49,6 +49,7 @@ __all__ = [
     "hypothesis_bench",
     "surrogate_runs",
     "fit_hypothesis",
+    "run_protocol",
     "predict_cells",
     "run_hypothesis",
     "score_table",
@@ -533,7 +534,7 @@ def load_intervals(path=None) -> pd.DataFrame:
     return pd.read_csv(path) if path is not None else _data("intervals.csv")
 
 
-def run(protocol: dict, names=None, seeds=None, *, jobs: int = 1,
+def run_protocol(protocol: dict, names=None, seeds=None, *, jobs: int = 1,
         progress: Callable | None = None) -> pd.DataFrame:
     """Every (hypothesis, seed) of the protocol: the long table of predicted cells.
 
@@ -580,7 +581,7 @@ def regenerate(out_dir, *, names=None, seeds=None, jobs: int = 2, overwrite: boo
     files = ("evidence_cells.csv", "evidence.csv", "intervals.csv")
     check_folder(out_dir, files, overwrite=overwrite, flag="--overwrite")
     protocol = load_protocol()
-    cells = run(protocol, names, seeds, jobs=jobs, progress=progress)
+    cells = run_protocol(protocol, names, seeds, jobs=jobs, progress=progress)
     cells = cells.sort_values(["hypothesis", "seed", "table", "column", "angle", "stat"])
     evidence = score_table(cells, protocol).sort_values(["hypothesis", "seed"])
     chosen = chosen_hypothesis(evidence, protocol)
