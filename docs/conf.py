@@ -62,6 +62,9 @@ nb_execution_raise_on_error = True  # a failing cell stops the build
 nb_execution_show_tb = True
 nb_execution_in_temp = False  # cells run in notebooks/, as a reader runs them
 nb_merge_streams = True
+# widgets are drawn from their saved state as static HTML (_ext/sunlab_widgets.py), so no page
+# loads ipywidgets' JavaScript from a CDN
+nb_ipywidgets_js = {}
 if nb_execution_mode != "off":
     os.environ["SUNLAB_QUICK"] = "1"  # the small settings, as in `make test`
     # the kernel's own inline backend: with MPLBACKEND=Agg figures would show as text

@@ -103,3 +103,34 @@ def test_a_reference_resolves_only_to_an_object_that_exists():
     assert found is not None and found[0] is sunlab.multihole.robust_z
     assert docs.locate("sunlab.multihole.defects.robust_zz") is None
     assert docs.locate("numpy.mean") is None  # another project's names are not sunlab's
+
+
+def test_a_widget_is_drawn_from_its_saved_state():
+    pytest.importorskip("myst_nb", reason="the docs extra: pip install -e '.[docs]'")
+    pytest.importorskip("ipywidgets", reason="the widgets extra")
+    import numpy as np
+    from ipywidgets.embed import dependency_state
+
+    from sunlab.sim import synthetic_centroids
+    from sunlab.widgets import HoleExplorer
+
+    sys.path.insert(0, str(DOCS / "_ext"))
+    try:
+        import sunlab_widgets
+    finally:
+        sys.path.remove(str(DOCS / "_ext"))
+    a = np.repeat(np.linspace(-8, 2, 5), 5)
+    b = np.tile(np.linspace(-2, 8, 5), 5)
+    cen = synthetic_centroids(a, b, shots=2, layout="grid", noise_px=0.01,
+                              defects={7: {"sigma_px": 1.0}})
+    explorer = HoleExplorer(None, cen, order=2)
+    explorer.buttons[7].click()
+    page = sunlab_widgets.widget_html(dependency_state(explorer.ui), explorer.ui.model_id)
+    # one button per hole with its colour on the metric's scale, the flagged hole marked
+    assert page.count("<button") >= 100
+    colour = explorer.buttons[3].style.button_color
+    assert f"background: {colour}" in page
+    assert ">7⚑</button>" in page
+    # the Output widgets' figures (close-up, residual maps) as images, the statistics as HTML
+    assert page.count('<img src="data:image/png;base64,') >= 2
+    assert explorer.stats_html.value in page

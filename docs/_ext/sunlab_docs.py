@@ -439,6 +439,9 @@ def drop_missing_optional_pages(app, docname, source) -> None:
 
 
 def setup(app):
+    import sunlab_widgets
+
+    sunlab_widgets.install()
     app.connect("source-read", drop_missing_optional_pages)
     app.connect("autodoc-skip-member", skip_foreign_member)
     app.connect("config-inited", generate_api)
