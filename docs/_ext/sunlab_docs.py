@@ -424,17 +424,16 @@ def skip_foreign_member(app, what, name, obj, skip, options):
     return None
 
 
-OPTIONAL_PAGES = ("identification",)
+#: pages listed in a toctree (the page that lists them: the pages) that other work adds
+OPTIONAL_PAGES = {"study": ("identification",)}
 
 
 def drop_missing_optional_pages(app, docname, source) -> None:
-    """``source-read``: the index's toctree lists pages that other work adds
-    (:data:`OPTIONAL_PAGES`); until such a page exists its line is left out, with a note."""
-    if docname != app.config.root_doc:
-        return
-    for page in OPTIONAL_PAGES:
+    """``source-read``: until a page of :data:`OPTIONAL_PAGES` exists, its toctree line is
+    left out, with a note, so the build does not break on it."""
+    for page in OPTIONAL_PAGES.get(docname, ()):
         if not Path(app.srcdir, f"{page}.md").exists():
-            logger.info("docs/%s.md does not exist yet: left out of the index", page)
+            logger.info("docs/%s.md does not exist yet: left out of %s", page, docname)
             source[0] = re.sub(rf"^{page}\n", "", source[0], flags=re.M)
 
 
