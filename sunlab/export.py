@@ -663,7 +663,8 @@ def check_c(cal, folder, n: int = 1000, *, seed: int = 0, cc: str | None = None)
     -------
     dict
         ``max_error_double``, ``max_error_float`` (deg, over the points where Python gives a
-        finite angle), ``flags_agree`` (the C flag is 0 exactly where :meth:`inside` is True,
+        finite angle), ``flags_agree`` (the C flag is 0 exactly where
+        :meth:`~sunlab.calibration.Calibration.inside` is True,
         for both precisions), ``nan_agree`` (NaN where Python gives NaN), ``n``,
         ``n_outside``, ``compiler``.
     """

@@ -18,7 +18,7 @@ not a symmetric unimodal one; they differ in how their sign depends on the motio
 The tests, each on the signed beta errors of a test run (estimate minus commanded angle, mean
 over the shots of each pose):
 
-1. **shape**: for any symmetric unimodal error X, sigma / mu of |X| is at least
+1. **shape**: for any symmetric unimodal error X, sigma / mu of ``|X|`` is at least
    :data:`UNIMODAL_BOUND` = 1/sqrt(3) (uniform is the minimum; normal gives 0.76); below it the
    error is bimodal or offset (:func:`shape_test`; applied to the paper's own tables by
    :func:`paper_shape`);
@@ -75,7 +75,7 @@ __all__ = [
     "fit_correction",
 ]
 
-#: sigma / mu of |X| for X uniform: the least any symmetric unimodal error can give.
+#: sigma / mu of ``|X|`` for X uniform: the least any symmetric unimodal error can give.
 UNIMODAL_BOUND = 1.0 / math.sqrt(3.0)
 #: The candidate faults of the inner axis, and the sign pattern of each.
 FAULTS = {

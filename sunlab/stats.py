@@ -285,7 +285,7 @@ def evaluate(calibration, table: xr.Dataset, *, ddof: int = 1, return_errors: bo
 def error_summary(est: xr.Dataset) -> dict:
     """The paper's global statistics of one estimate as a dict per angle, plus the RMS.
 
-    Local error = mean over the shots of |error|, maximum error = max over the shots; mu and
+    Local error = mean over the shots of ``|error|``, maximum error = max over the shots; mu and
     sigma are the mean and (sample) standard deviation of the local errors over the poses, M and
     sigma_M those of the maximum errors (docs/paper.md sec. 5), computed by :func:`global_stats`
     (the table of several estimates side by side; this is one estimate's column as a dict).

@@ -5,9 +5,9 @@ Every method shares one interface (:class:`Calibration`): ``fit(train, validatio
 / :func:`load`. Each is registered once in :data:`KINDS` (:mod:`sunlab.calibration.registry`),
 and :func:`fit` builds and fits one by its kind: ``fit(table, "polynomial", order=3)``.
 
-========================  ========================================================  ===========
+========================  ========================================================= ===========
 class                     method (docs/paper.md sec. 4)                                  kind
-========================  ========================================================  ===========
+========================  ========================================================= ===========
 :class:`IdealModel`       ideal geometric model, eq. (1); nothing fitted            ideal
 :class:`OptimisedModel`   optimised model, eqs. (3)-(4): dF, alpha0, beta0          optimised
 :class:`Polynomial`       polynomial of total degree n in (x, y), one per angle     polynomial
@@ -15,7 +15,7 @@ class                     method (docs/paper.md sec. 4)                         
 :class:`Interpolation`    linear / cubic interpolation of the calibration table     interpolation-
                                                                                     linear / -cubic
 :class:`NeuralNet`        one tanh hidden layer per angle, strategies 1-4 (Table 2) neural
-========================  ========================================================  ===========
+========================  ========================================================= ===========
 
 Submodules load on first use; torch (the ``neural`` extra) is imported only when a
 :class:`NeuralNet` is fitted, and its absence is an ImportError naming the extra.

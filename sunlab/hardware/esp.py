@@ -101,7 +101,7 @@ class ESP300:
         ``{"alpha": (low, high), "beta": (low, high)}`` in degrees, intersected with the
         controller's software limits read at :meth:`connect`.
     tolerance_deg : float
-        Largest accepted |read-back - target| after a move, degrees.
+        Largest accepted ``|read-back - target|`` after a move, degrees.
     move_retries : int
         Extra moves when the read-back is off target (a motion command the controller lost
         while busy: commands have no reply, so only the read-back reveals it).

@@ -58,7 +58,7 @@ def stamp_metrics(cube: xr.Dataset, cen: xr.Dataset, *, poses=None, shot: int = 
     A stamp of ``2 * half + 1`` px is cut around each centroid in a few frames, the background
     (median of the stamp border) subtracted and pixels under 10 % of the peak zeroed; the
     moments give the RMS radius r, the ellipticity (l1 - l2) / (l1 + l2) of the second-moment
-    matrix and the asymmetry |m3| / r^3 from the third moments (zero for a round or
+    matrix and the asymmetry ``|m3| / r^3`` from the third moments (zero for a round or
     elliptical spot; a hole partly covered by dust gives a lopsided spot). Medians over the
     frames are returned.
 
@@ -126,7 +126,7 @@ def edge_roughness(cube: xr.Dataset, cen: xr.Dataset, *, shot: int = 0, max_fram
     are resampled on a common grid centred on their centroids (cubic spline) and normalised to
     unit flux; the per-frame median stamp of all holes is subtracted; the residuals are averaged
     over the frames per hole (the hole's persistent shape residual). Its angular Fourier
-    amplitudes |c_m| for m in ``harmonics`` (m = 0 is flux or size, m = 1 a centroid shift;
+    amplitudes ``|c_m|`` for m in ``harmonics`` (m = 0 is flux or size, m = 1 a centroid shift;
     m >= 2 an out-of-round edge) are divided by their median over the holes, and the metric is
     their RMS: about 1 for a typical hole, several for a burred one.
 

@@ -142,8 +142,9 @@ def reproduce_table5(quick: bool = True, seed: int = 0, out: Path | str | None =
         Show progress bars.
     order : int, optional
         Polynomial order of every calibration. Default: chosen on experiment II of the one-hole
-        mask by the rule of Table 4's polynomial (:meth:`sunlab.calibration.Polynomial.
-        select_order`, the paper's procedure): the one-hole column is that very calibration,
+        mask by the rule of Table 4's polynomial
+        (:meth:`sunlab.calibration.Polynomial.select_order`, the paper's procedure): the one-hole
+        column is that very calibration,
         and the 100-hole strategies take the larger of its two orders.
     method : str
         Centroid method of every frame (:func:`sunlab.centroid.locate`), the same as Table 4's
@@ -165,7 +166,7 @@ def reproduce_table5(quick: bool = True, seed: int = 0, out: Path | str | None =
         ``table`` (pandas.DataFrame: our value and the paper's per column, deg), ``ours`` (our
         four columns), ``bad_holes`` (rejected), ``injected`` (holes the bench gave defects),
         ``budget`` (common vs hole-specific error), ``findings`` (the ratios of the paper's
-        findings, :func:`_findings`), ``runtime_s``, ``timings_s`` (by stage), ``sizes``,
+        findings, ``_findings``), ``runtime_s``, ``timings_s`` (by stage), ``sizes``,
         ``files`` and ``data`` (the lazy frame cubes, centroid tables and per-hole
         calibrations, for figures and :class:`sunlab.widgets.HoleExplorer`; not written).
 
