@@ -125,12 +125,27 @@ def pooled(net, batch: dict, st: dict):
     return out.index_add(0, batch["frame"], w[:, None] * phi), pos
 
 
-def _batch(data: dict, frames: np.ndarray, offsets, device) -> dict:
-    """The elements of ``frames`` (indices into ``data``'s frames), cropped at ``offsets``
-    (E, 2) px within the stored padding, as tensors on ``device``."""
+def _elements(data: dict, frames: np.ndarray, rng=None, most: int | None = None):
+    """The element indices of ``frames`` and the position of each one's frame in ``frames``;
+    with ``rng``, at most ``most`` spots of each frame drawn at random (training's spot
+    dropout: a frame's set changes from epoch to epoch, as spots come and go at the field's
+    edge, and an epoch costs ``most`` windows a frame, not a hundred)."""
+    sel, remap = [], []
+    for k, f in enumerate(frames):
+        idx = np.arange(data["start"][f], data["start"][f + 1])
+        if rng is not None and most is not None and idx.size > most:
+            idx = np.sort(rng.choice(idx, most, replace=False))
+        sel.append(idx)
+        remap.append(np.full(idx.size, k))
+    return np.concatenate(sel), np.concatenate(remap)
+
+
+def _batch(data: dict, frames: np.ndarray, offsets, device, elements=None) -> dict:
+    """The elements of ``frames`` (indices into ``data``'s frames; ``elements``: a chosen
+    subset, :func:`_elements`), cropped at ``offsets`` (E, 2) px within the stored padding,
+    as tensors on ``device``."""
     torch = _torch()
-    sel = np.concatenate([np.arange(data["start"][f], data["start"][f + 1]) for f in frames])
-    remap = np.repeat(np.arange(frames.size), np.diff(data["start"])[frames])
+    sel, remap = _elements(data, frames) if elements is None else elements
     n, pad = data["window"], data["pad"]
     ox, oy = offsets[:, 0], offsets[:, 1]
     rows = oy[:, None] + np.arange(n)[None, :]
@@ -178,7 +193,8 @@ def _loss(phi, coef, target):
 def train(net, data: dict, val: dict | None, st: dict, opts: dict) -> dict:
     """Adam on the convolutions and the attention, the head re-solved by least squares after
     every epoch; early stopping on ``val`` (the best epoch's weights kept). Returns the
-    history (epochs, best epoch, losses, seconds)."""
+    history (epochs, best epoch, losses, wall-clock seconds and the process's CPU seconds,
+    all threads: on a shared machine the wall clock counts the others' work too)."""
     torch = _torch()
     device = torch.device(opts["device"])
     net.to(device)
@@ -186,7 +202,7 @@ def train(net, data: dict, val: dict | None, st: dict, opts: dict) -> dict:
     params = [p for name, p in net.named_parameters()
               if st["multi"] or not name.startswith("att")]
     optim = torch.optim.Adam(params, lr=opts["lr"])
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     phi, _ = forward_all(net, data, st, device)
     st["coef"] = solve_head(phi, data["target"])
     best = {"score": _score(net, val or data, st, device), "epoch": 0,
@@ -199,8 +215,9 @@ def train(net, data: dict, val: dict | None, st: dict, opts: dict) -> dict:
         phis, seen, total = [], [], 0.0
         for lo in range(0, order.size, opts["batch"]):
             frames = np.sort(order[lo:lo + opts["batch"]])
-            n_el = int(np.diff(data["start"])[frames].sum())
-            b = _batch(data, frames, rng.integers(0, 2 * data["pad"] + 1, (n_el, 2)), device)
+            els = _elements(data, frames, rng, opts.get("spots"))
+            b = _batch(data, frames, rng.integers(0, 2 * data["pad"] + 1, (els[0].size, 2)),
+                       device, els)
             phi_b, _ = pooled(net, b, st)
             loss = _loss(phi_b, coef_t, target[frames])
             optim.zero_grad()
@@ -225,7 +242,8 @@ def train(net, data: dict, val: dict | None, st: dict, opts: dict) -> dict:
     st["coef"] = solve_head(phi, data["target"])
     return {"epochs": len(hist["train_loss"]), "best_epoch": best["epoch"],
             "train_loss": hist["train_loss"], "val_loss": hist["val_loss"],
-            "loss_unit_deg": LOSS_SCALE_DEG, "seconds": time.perf_counter() - t0}
+            "loss_unit_deg": LOSS_SCALE_DEG, "seconds": time.perf_counter() - t0,
+            "cpu_seconds": time.process_time() - c0}
 
 
 def _snapshot(net) -> dict:

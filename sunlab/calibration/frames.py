@@ -202,7 +202,7 @@ class FrameNet(Calibration):
     epochs, patience : int
         Most epochs; epochs without a better validation loss before stopping.
     batch : int, optional
-        Frames per mini-batch (default 32 for one hole, 4 for a mask of many).
+        Frames per mini-batch (default 32 for one hole, 8 for a mask of many).
     lr : float
         Adam's learning rate.
     seed : int
@@ -214,6 +214,9 @@ class FrameNet(Calibration):
     hole_offset : (float, float)
         Many holes: the mounting's offset of the spots from their design places, px, used to
         number them (:func:`detect_spots`).
+    spots : int
+        Many holes: spots of each frame drawn at random for each training step (spot dropout;
+        prediction uses every spot).
 
     Attributes
     ----------
@@ -233,11 +236,12 @@ class FrameNet(Calibration):
     def __init__(self, window: int = 44, pad: int = 3, channels: int = 6, order: int = 5, *,
                  epochs: int = 40, patience: int = 6, batch: int | None = None,
                  lr: float = 3e-3, seed: int = 0, threads: int = 2, device: str = "cpu",
-                 hole_offset=(0.0, 0.0)):
+                 hole_offset=(0.0, 0.0), spots: int = 16):
         super().__init__()
         for name, v, low in (("window", window, 8), ("pad", pad, 0), ("channels", channels, 1),
                              ("order", order, 1), ("epochs", epochs, 0),
-                             ("patience", patience, 1), ("threads", threads, 1)):
+                             ("patience", patience, 1), ("threads", threads, 1),
+                             ("spots", spots, 1)):
             if isinstance(v, bool) or int(v) != v or v < low:
                 raise ConfigurationError(f"{name}: found {v!r}, expected an integer >= {low}")
         if batch is not None and (int(batch) != batch or batch < 1):
@@ -251,6 +255,7 @@ class FrameNet(Calibration):
         self.batch = None if batch is None else int(batch)
         self.lr, self.seed, self.threads, self.device = float(lr), int(seed), int(threads), device
         self.hole_offset = (float(hole_offset[0]), float(hole_offset[1]))
+        self.spots = int(spots)
         self.multi: bool | None = None
         self.scaling: dict | None = None
         self.arrays: dict | None = None
@@ -338,7 +343,8 @@ class FrameNet(Calibration):
             st = self._state()
             opts = {"device": self.device, "seed": self.seed, "lr": self.lr,
                     "epochs": self.epochs, "patience": self.patience,
-                    "batch": self.batch or (4 if self.multi else 32)}
+                    "batch": self.batch or (8 if self.multi else 32),
+                    "spots": self.spots}
             self.history = T.train(net, data, val, st, opts)
         finally:
             torch.set_num_threads(threads)
@@ -450,7 +456,7 @@ class FrameNet(Calibration):
             "hole_offset_px": list(self.hole_offset),
             "settings": {"epochs": self.epochs, "patience": self.patience,
                          "batch": self.batch, "lr": self.lr, "seed": self.seed,
-                         "threads": self.threads},
+                         "threads": self.threads, "spots": self.spots},
             "scaling": {k: np.asarray(v, dtype=float).tolist() for k, v in self.scaling.items()},
             "network": {k: np.asarray(v).tolist() for k, v in self.arrays.items()},
             "head": np.asarray(self.coef).tolist(),
@@ -497,7 +503,8 @@ class FrameNet(Calibration):
         s = p["settings"]
         obj = cls(window=p["window"], pad=p["pad"], channels=p["channels"], order=p["order"],
                   epochs=s["epochs"], patience=s["patience"], batch=s["batch"], lr=s["lr"],
-                  seed=s["seed"], threads=s["threads"], hole_offset=p["hole_offset_px"])
+                  seed=s["seed"], threads=s["threads"], hole_offset=p["hole_offset_px"],
+                  spots=s.get("spots", 16))
         obj.multi = bool(p["multi"])
         obj.scaling = {k: np.asarray(v, dtype=float) for k, v in p["scaling"].items()}
         obj.arrays = {k: np.asarray(v, dtype=float) for k, v in p["network"].items()}
