@@ -492,6 +492,9 @@ def _add_reproduce(sub) -> None:
     p.add_argument("--workers", type=_WORKERS, default=None,
                    help="local threads or processes (default: one per core)")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
+    p.add_argument("--benches", nargs="+", default=None, metavar="BENCH",
+                   help="--table learned: the benches to run (default all; "
+                   "sunlab.reproduce.learned.BENCHES)")
     p.set_defaults(func=_run_reproduce)
 
 
@@ -555,7 +558,8 @@ def _run_learned(args) -> int:
     from ..reproduce.learned import records_table, reproduce_learned
 
     res = reproduce_learned(out=args.out, quick=args.quick, seed=args.seed,
-                            progress=not args.no_progress, threads=args.workers or 2)
+                            progress=not args.no_progress, threads=args.workers or 2,
+                            benches=args.benches)
     print("\nmu (deg) on experiment III, unseen seeds; sunlab virtual bench")
     print(records_table(res["records"], "mu").round(5).to_string())
     print("\nwrote " + ", ".join(res["files"]))
