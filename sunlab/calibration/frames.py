@@ -362,6 +362,7 @@ class FrameNet(Calibration):
 
         pred, pos = self._predict_data(data)
         self.training = {**summary(train, data), "n_samples": int(data["n_frames"]),
+                         "n_ok_shots": int(data["n_frames"]), "average": "shot",
                          "centroid_method": "learned from frames",
                          "validation": None if val is None else summary(validation, val)}
         t = data["target"]
