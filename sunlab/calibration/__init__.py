@@ -17,6 +17,10 @@ class                     method (docs/paper.md sec. 4)                         
 :class:`NeuralNet`        one tanh hidden layer per angle, strategies 1-4 (Table 2) neural
 ========================  ========================================================= ===========
 
+Beyond the paper, :class:`FrameNet` learns the angles from the frames themselves (a CNN on each
+spot's window, a set network for many holes; kind ``learned-frames``, registered in
+:data:`FRAME_KINDS` since it is fitted on frame cubes, not centroid tables).
+
 Submodules load on first use; torch (the ``neural`` extra) is imported only when a
 :class:`NeuralNet` is fitted, and its absence is an ImportError naming the extra.
 :func:`calibration_summary` describes a saved calibration.
@@ -35,7 +39,7 @@ from __future__ import annotations
 import importlib
 
 _LAZY = {
-    **dict.fromkeys(["KINDS", "ALIASES", "fit", "method_class"], "registry"),
+    **dict.fromkeys(["KINDS", "FRAME_KINDS", "ALIASES", "fit", "method_class"], "registry"),
     **dict.fromkeys(["from_dict", "load"], "artifact"),
     **dict.fromkeys(["Calibration", "TrainingData", "combine", "training_data"], "base"),
     "calibration_summary": "summary",
@@ -44,6 +48,7 @@ _LAZY = {
     "Trigonometric": "trigonometric",
     "Interpolation": "interpolation",
     "NeuralNet": "neural",
+    "FrameNet": "frames",
     "IdealModel": "model",
     "OptimisedModel": "model",
 }

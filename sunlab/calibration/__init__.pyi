@@ -7,6 +7,7 @@ from .base import Calibration as Calibration
 from .base import TrainingData as TrainingData
 from .base import combine as combine
 from .base import training_data as training_data
+from .frames import FrameNet as FrameNet
 from .interpolation import Interpolation as Interpolation
 from .methods import table4_methods as table4_methods
 from .model import IdealModel as IdealModel
@@ -14,6 +15,7 @@ from .model import OptimisedModel as OptimisedModel
 from .neural import NeuralNet as NeuralNet
 from .polynomial import Polynomial as Polynomial
 from .registry import ALIASES as ALIASES
+from .registry import FRAME_KINDS as FRAME_KINDS
 from .registry import KINDS as KINDS
 from .registry import fit as fit
 from .registry import method_class as method_class

@@ -16,7 +16,7 @@ from .. import integrity
 from ..errors import SchemaError
 from ..schema import CALIBRATION_SCHEMA, validate_calibration
 from ._checks import _bad
-from .registry import KINDS, _class_of
+from .registry import FRAME_KINDS, KINDS, _class_of
 
 if TYPE_CHECKING:
     from .base import Calibration
@@ -41,7 +41,8 @@ def validate_document(doc, kinds: dict[str, str] | None = None) -> dict:
     doc : dict
         The parsed document.
     kinds : dict, optional
-        The registry its kind must be in (default :data:`sunlab.calibration.KINDS`).
+        The registry its kind must be in (default :data:`sunlab.calibration.KINDS` and
+        :data:`~sunlab.calibration.registry.FRAME_KINDS`).
 
     Raises
     ------
@@ -72,13 +73,18 @@ def validate_document(doc, kinds: dict[str, str] | None = None) -> dict:
                           "the file is truncated or edited; re-fit the calibration")
     validate_calibration(doc)
     kind = doc.get("kind")
-    registry = KINDS if kinds is None else kinds
+    registry = _registry(kinds)
     if kind not in registry:
         fix = ("a multi-hole strategy: load it with sunlab.multihole.load_strategy"
                if str(kind).startswith("multihole-") and kinds is None
                else "the file is corrupt or from a newer sunlab; re-fit the calibration")
         raise SchemaError("kind", kind, f"one of {sorted(registry)}", fix)
     return doc
+
+
+def _registry(kinds: dict[str, str] | None) -> dict[str, str]:
+    """The table a document's kind is looked up in: ``kinds``, or every single-hole kind."""
+    return {**KINDS, **FRAME_KINDS} if kinds is None else kinds
 
 
 def from_dict(doc: dict, *, kinds: dict[str, str] | None = None) -> Calibration:
@@ -104,7 +110,7 @@ def from_dict(doc: dict, *, kinds: dict[str, str] | None = None) -> Calibration:
     validate_document(doc, kinds)
     if not isinstance(doc["parameters"], dict):
         raise _bad("", type(doc["parameters"]).__name__, "an object")
-    cls = _class_of(doc["kind"], kinds)
+    cls = _class_of(doc["kind"], _registry(kinds))
     cls._check_parameters(doc["parameters"])
     try:
         obj = cls._from_parameters(doc["parameters"])

@@ -24,7 +24,7 @@ if TYPE_CHECKING:
 
     from .base import Calibration
 
-__all__ = ["KINDS", "ALIASES", "fit", "method_class"]
+__all__ = ["KINDS", "FRAME_KINDS", "ALIASES", "fit", "method_class"]
 
 #: The calibration methods, registered once: ``kind`` of the artifact -> ``"module:Class"`` in
 #: :mod:`sunlab.calibration`. The library (:func:`fit`, :func:`load`), the command line
@@ -39,6 +39,14 @@ KINDS: dict[str, str] = {
     "interpolation-linear": "interpolation:Interpolation",
     "interpolation-cubic": "interpolation:Interpolation",
     "neural": "neural:NeuralNet",
+}
+
+#: The calibrations learned from frames rather than fitted on a centroid table: ``kind`` ->
+#: ``"module:Class"``. They are fitted on frame cubes (``FrameNet.fit(train_cube, ...)``), so
+#: :func:`fit` and ``sunlab calibrate`` (centroid tables) do not offer them;
+#: :func:`sunlab.calibration.load` reads them through this table.
+FRAME_KINDS: dict[str, str] = {
+    "learned-frames": "frames:FrameNet",
 }
 
 #: Short names accepted by :func:`fit` (and ``sunlab calibrate --method``) for a kind.

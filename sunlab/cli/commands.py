@@ -465,9 +465,11 @@ def _add_reproduce(sub) -> None:
         "every calibration method and print the paper's table with our value beside each of its "
         "values; write figures and a machine-readable results file.",
     )
-    p.add_argument("--table", choices=["4", "5", "all", "platform"], default="4",
+    p.add_argument("--table", choices=["4", "5", "all", "platform", "learned"], default="4",
                    help="Table 4 (one hole, every method) or Table 5 (100 holes); default 4; "
-                   "'platform': beyond the paper, the inner axis's fault diagnosed and removed")
+                   "'platform': beyond the paper, the inner axis's fault diagnosed and removed; "
+                   "'learned': beyond the paper, a calibration learned from the frames beside "
+                   "the classical one on several benches (learned.json, models/, learned.png)")
     p.add_argument("--quick", action="store_true",
                    help="quick mode, the same for every table: every 2nd angle along each grid "
                    "axis of the experiments (Table 4: 100 + 49 + 100 poses of 930; Table 5: "
@@ -491,6 +493,9 @@ def _add_reproduce(sub) -> None:
     p.add_argument("--workers", type=_WORKERS, default=None,
                    help="local threads or processes (default: one per core)")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
+    p.add_argument("--benches", nargs="+", default=None, metavar="BENCH",
+                   help="--table learned: the benches to run (default all; "
+                   "sunlab.reproduce.learned.BENCHES)")
     p.set_defaults(func=_run_reproduce)
 
 
@@ -516,6 +521,8 @@ def _reproduce_scheduler(scheduler: str | None) -> str:
 
 
 def _run_reproduce(args) -> int:
+    if args.table == "learned":  # torch on its own threads: no Dask worker pool
+        return _run_learned(args)
     from .. import parallel
 
     scheduler = _reproduce_scheduler(args.scheduler)
@@ -544,6 +551,18 @@ def _run_reproduce(args) -> int:
             f"{k}: " + (", ".join(f"{n} {s}" for s, n in v["removed"].items()) or "none")
             for k, v in res5["centroid_status"].items()))
         print(f"\n{res5['runtime_s']:.0f} s; wrote " + ", ".join(map(str, res5["files"])))
+    return 0
+
+
+def _run_learned(args) -> int:
+    from ..reproduce.learned import records_table, reproduce_learned
+
+    res = reproduce_learned(out=args.out, quick=args.quick, seed=args.seed,
+                            progress=not args.no_progress, threads=args.workers or 2,
+                            benches=args.benches)
+    print("\nmu (deg) on experiment III, unseen seeds; sunlab virtual bench")
+    print(records_table(res["records"], "mu").round(5).to_string())
+    print("\nwrote " + ", ".join(res["files"]))
     return 0
 
 

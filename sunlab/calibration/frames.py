@@ -1,0 +1,528 @@
+"""A calibration learned from the frames: spot windows in, platform angles out (torch).
+
+Beyond the paper. Table 4's methods map a *centroid* to the angles; :class:`FrameNet` maps the
+*pixels* around each detected spot, with the window's place on the detector, to the angles,
+trained end to end on experiment I's frames against the commanded angles and stopped on
+experiment II's, as Table 4's networks are.
+
+The network (our design; its reasons):
+
+1. **Detection** gives each spot's window: the integer pixel nearest the library's centroid
+   (:func:`sunlab.centroid.locate`: algorithm B for one hole; the lattice locator for a mask of
+   many holes, which also numbers the spots). Only that integer place is used: the sub-pixel
+   position comes from the network.
+2. **A small CNN on each window** (``window`` x ``window`` px; 5 x 5 then 3 x 3 convolutions of
+   ``channels`` maps, tanh) ends in one map ``z`` that weights the window's pixels: the spot's
+   place is the centre of ``relu(I) exp(z)``, a learned centre of light (a spatial soft-argmax,
+   as in numerical coordinate regression with CNNs). A dense layer that regresses coordinates
+   from a window must learn translation from examples, and experiment I's 3,200 frames are far
+   too few to teach it to a hundredth of a pixel; the weighted centre is translation-equivariant
+   by construction, so what the net learns is which pixels to trust (the blurred edge, a hot
+   pixel, the shadow of dust). Its last layer starts at zero: the untrained net is the plain
+   centre of light of the window, and training can only move away from it where the frames
+   say so. Training crops each window anywhere within ``+-pad`` px of the detected place (the
+   target does not change), which teaches the equivariance the architecture already has.
+3. **A head from the spot's place to the angles**: the monomials of total degree ``order`` of
+   the spot's displacement from its hole's design place (standardised), like Table 4's
+   polynomial, whose coefficients are re-solved by least squares in float64 after every epoch
+   (not by gradient steps: a thousandth of a degree over a 34-degree field is 3e-5 of the
+   range, beyond what Adam's steps in float32 resolve).
+4. **Many holes: a set network** (deep sets with attention pooling). Every spot of a frame
+   goes through the same CNN; an attention MLP scores each spot from what the CNN saw (its
+   features under the pixel weights, its spread and light) and its hole's design place; the
+   frame's regressors are the softmax-weighted mean of its spots' (the head adds terms linear
+   in the hole's place: a tilted mask puts its holes at different heights). The pooling does
+   not depend on the order or the number of spots: holes missing at the field's edge or a
+   dropped bad hole change the set, not the network. Not a downsampled frame: a 0.01 deg
+   sensor needs the spots at full resolution, and 100 windows of 44 x 44 px are 15 % of the
+   frame's pixels. The attention's output starts at zero (the plain mean of the spots).
+
+Training: Adam (learning rate ``lr``) on the convolutions and the attention, mini-batches of
+whole frames, loss the mean squared angle error (alpha and beta, in units of 0.01 deg),
+float32 convolutions and a float64 head; after every epoch the head is re-solved and the loss
+on experiment II's frames (centred windows) decides: the best epoch is kept, and ``patience``
+epochs without improvement stop the fit. CPU by default (``threads`` torch threads),
+``device="cuda"`` where a GPU exists. The weights travel as lists in the JSON artifact
+(``calibration/1``, no pickle); predicting needs torch too.
+
+Examples
+--------
+>>> FrameNet(channels=4).label
+'learned (frames)'
+"""
+
+from __future__ import annotations
+
+import time
+from concurrent.futures import ThreadPoolExecutor
+
+import numpy as np
+import xarray as xr
+
+from ..errors import ConfigurationError, SchemaError
+from ..extras import require
+from ..schema import STATUS, USABLE_STATUS
+from . import _frames_torch as T
+from ._checks import _bad, _count, _number, _numbers
+from .base import Calibration, _err_summary
+
+__all__ = ["FrameNet", "detect_spots", "spot_windows"]
+
+_USABLE = [STATUS[k] for k in USABLE_STATUS]
+
+
+def detect_spots(cube: xr.Dataset, hole_offset=(0.0, 0.0), *, progress: bool = False,
+                 workers: int | None = None) -> xr.Dataset:
+    """The spots of every frame, by the library's locator: algorithm B for one hole, the
+    lattice locator (``"tight"``) for many, its spots numbered with the design places moved by
+    ``hole_offset`` (px; the sensor's mounting, :func:`sunlab.reproduce.mounting_offset_px`).
+
+    Parameters
+    ----------
+    cube : xarray.Dataset
+        A ``frames/1`` cube, as ``sunlab simulate`` or ``sunlab import`` writes it.
+    hole_offset : (float, float)
+        Many holes: offset of the spots from their design places, px (x, y).
+    progress : bool
+        Show a progress bar.
+    workers : int, optional
+        Threads of the locator.
+
+    Returns
+    -------
+    xarray.Dataset
+        The ``centroids/1`` table (design places kept).
+    """
+    from .. import centroid
+
+    cube = cube.drop_vars(["true_x", "true_y"], errors="ignore")
+    if not centroid.is_multi_hole(cube):
+        return centroid.locate(cube, "projection", progress=progress, num_workers=workers)
+    moved = cube.assign_coords(hole_x_cf=cube["hole_x_cf"] + float(hole_offset[0]),
+                               hole_y_cf=cube["hole_y_cf"] + float(hole_offset[1]))
+    cen = centroid.locate(moved, "tight", progress=progress, num_workers=workers)
+    return cen.assign_coords({k: cube[k].variable for k in ("hole_x_cf", "hole_y_cf")})
+
+
+def _crop(frames: np.ndarray, x, y, ok, size: int, half: int):
+    """Windows of ``size`` px about the integer place nearest (x, y) of every usable spot of
+    one pose (``frames``: shot, y, x): background (median of the 2-px border) subtracted,
+    scaled by the spot's plateau (median of the pixels above half the peak)."""
+    ny, nx = frames.shape[-2:]
+    out = []
+    for s, h in zip(*np.nonzero(ok), strict=True):
+        x0, y0 = int(round(x[s, h])) - half, int(round(y[s, h])) - half
+        if x0 < 0 or y0 < 0 or x0 + size > nx or y0 + size > ny:
+            continue  # a window across the frame's edge: the spot leaves the set
+        w = frames[s, y0:y0 + size, x0:x0 + size].astype(np.float32)
+        ring = np.concatenate([w[:2].ravel(), w[-2:].ravel(), w[2:-2, :2].ravel(),
+                               w[2:-2, -2:].ravel()])
+        w -= np.median(ring)
+        peak = w.max()
+        plateau = np.median(w[w > 0.5 * peak]) if peak > 0 else 0.0
+        if not plateau > 0:
+            continue
+        out.append((s, h, x0, y0, w / plateau))
+    return out
+
+
+def spot_windows(cube: xr.Dataset, detections: xr.Dataset, *, window: int = 44, pad: int = 3,
+                 threads: int = 2) -> dict:
+    """The spot windows of every frame of ``cube`` at the places ``detections`` found.
+
+    Parameters
+    ----------
+    cube : xarray.Dataset
+        ``frames/1`` cube (lazy or in memory); frames are read one pose at a time.
+    detections : xarray.Dataset
+        Its ``centroids/1`` table (:func:`detect_spots`); spots of a usable status are kept.
+    window, pad : int
+        Window side and the margin stored around it for training crops, px.
+    threads : int
+        Poses read and cropped at once.
+
+    Returns
+    -------
+    dict
+        ``win`` (E, window + 2 pad, same) float32, ``corner`` (E, 2) px of the window's first
+        pixel (x, y) at crop offset 0, ``hole`` (E, 2) design place px (0 for one hole),
+        ``hole_index`` (E,), ``pose``, ``shot`` (F,) of the frames with a spot, ``start``
+        (F + 1,) their first element, ``target`` (F, 2) commanded angles deg, and sizes.
+    """
+    multi = "hole" in detections["x"].dims
+    x, y = (np.asarray(detections[v].values, dtype=float) for v in ("x", "y"))
+    ok = np.isin(detections["status"].values, _USABLE) & np.isfinite(x) & np.isfinite(y)
+    if not multi:
+        x, y, ok = x[..., None], y[..., None], ok[..., None]
+    size, half = window + 2 * pad, window // 2 + pad
+    frames = cube["frames"]
+
+    def one(p):
+        return _crop(np.asarray(frames.isel(pose=p).values), x[p], y[p], ok[p], size, half)
+
+    with ThreadPoolExecutor(max(1, int(threads))) as ex:
+        per_pose = list(ex.map(one, range(x.shape[0])))
+    holes = (np.column_stack([cube["hole_x_cf"].values, cube["hole_y_cf"].values]) if multi
+             else np.zeros((1, 2)))
+    els = [(p, s, h, x0, y0, w) for p, items in enumerate(per_pose) for s, h, x0, y0, w in items]
+    els.sort(key=lambda e: (e[0], e[1], e[2]))
+    key = np.array([(e[0], e[1]) for e in els], dtype=int).reshape(-1, 2)
+    first = np.flatnonzero(np.r_[True, np.any(key[1:] != key[:-1], axis=1)]) if len(els) else \
+        np.zeros(0, int)
+    alpha, beta = cube["alpha"].values, cube["beta"].values
+    pose, shot = key[first, 0], key[first, 1]
+    return {"win": np.stack([e[5] for e in els]) if els else np.zeros((0, size, size), "f4"),
+            "corner": np.array([(e[3], e[4]) for e in els], dtype=float).reshape(-1, 2),
+            "hole": holes[[e[2] for e in els]].reshape(-1, 2),
+            "hole_index": np.array([e[2] for e in els], dtype=int),
+            "pose": pose, "shot": shot, "start": np.r_[first, len(els)].astype(int),
+            "target": np.column_stack([alpha[pose], beta[pose]]).astype(float),
+            "n_frames": int(first.size), "window": int(window), "pad": int(pad),
+            "multi": multi, "shape": (x.shape[0], x.shape[1])}
+
+
+def _with_hole_uv(data: dict, scaling: dict) -> dict:
+    hole_uv = (data["hole"] - scaling["hole_mean"]) / scaling["hole_std"]
+    return {**data, "hole_uv": hole_uv if data["multi"] else np.zeros_like(hole_uv)}
+
+
+class FrameNet(Calibration):
+    """A calibration learned from the frames (module docstring): one hole or a set of spots.
+
+    Parameters
+    ----------
+    window : int
+        Side of each spot's window, px (the one-hole spot is about 35 px across).
+    pad : int
+        Training crops move the window by up to ``pad`` px about the detected place.
+    channels : int
+        Feature maps of the two convolutions.
+    order : int
+        Total degree of the head's monomials of the spot's displacement.
+    epochs, patience : int
+        Most epochs; epochs without a better validation loss before stopping.
+    batch : int, optional
+        Frames per mini-batch (default 32 for one hole, 8 for a mask of many).
+    lr : float
+        Adam's learning rate.
+    seed : int
+        Seed of the initial weights, the batches and the crops.
+    threads : int
+        torch threads (and poses cropped at once).
+    device : {"cpu", "cuda"}
+        Where torch trains and predicts.
+    hole_offset : (float, float)
+        Many holes: the mounting's offset of the spots from their design places, px, used to
+        number them (:func:`detect_spots`).
+    spots : int
+        Many holes: spots of each frame drawn at random for each training step (spot dropout;
+        prediction uses every spot).
+
+    Attributes
+    ----------
+    history : dict
+        Epochs run, the epoch kept, losses per epoch (units of 0.01 deg squared), seconds.
+    timings : dict
+        Seconds of the last fit or prediction by stage (detection, windows, network).
+
+    Examples
+    --------
+    >>> FrameNet(order=3).min_poses()
+    10
+    """
+
+    kind = "learned-frames"
+
+    def __init__(self, window: int = 44, pad: int = 3, channels: int = 6, order: int = 5, *,
+                 epochs: int = 40, patience: int = 6, batch: int | None = None,
+                 lr: float = 3e-3, seed: int = 0, threads: int = 2, device: str = "cpu",
+                 hole_offset=(0.0, 0.0), spots: int = 16):
+        super().__init__()
+        for name, v, low in (("window", window, 8), ("pad", pad, 0), ("channels", channels, 1),
+                             ("order", order, 1), ("epochs", epochs, 0),
+                             ("patience", patience, 1), ("threads", threads, 1),
+                             ("spots", spots, 1)):
+            if isinstance(v, bool) or int(v) != v or v < low:
+                raise ConfigurationError(f"{name}: found {v!r}, expected an integer >= {low}")
+        if batch is not None and (int(batch) != batch or batch < 1):
+            raise ConfigurationError(f"batch: found {batch!r}, expected a positive integer")
+        if not (np.isfinite(lr) and lr > 0):
+            raise ConfigurationError(f"lr: found {lr!r}, expected a positive learning rate")
+        if device not in ("cpu", "cuda"):
+            raise ConfigurationError(f"device: found {device!r}, expected 'cpu' or 'cuda'")
+        self.window, self.pad, self.channels = int(window), int(pad), int(channels)
+        self.order, self.epochs, self.patience = int(order), int(epochs), int(patience)
+        self.batch = None if batch is None else int(batch)
+        self.lr, self.seed, self.threads, self.device = float(lr), int(seed), int(threads), device
+        self.hole_offset = (float(hole_offset[0]), float(hole_offset[1]))
+        self.spots = int(spots)
+        self.multi: bool | None = None
+        self.scaling: dict | None = None
+        self.arrays: dict | None = None
+        self.coef: np.ndarray | None = None
+        self.history: dict | None = None
+        self.timings: dict = {}
+
+    @property
+    def label(self) -> str:
+        return "learned (frames)"
+
+    def min_poses(self) -> int:
+        return (self.order + 1) * (self.order + 2) // 2
+
+    # --- data --------------------------------------------------------------------------------
+    def _data(self, cube, detections, name: str) -> dict:
+        if not isinstance(cube, xr.Dataset) or "frames" not in cube:
+            raise SchemaError(name, type(cube).__name__, "a frames/1 cube (sunlab simulate, "
+                              "sunlab import, or sunlab.io.open_frames)",
+                              "pass the frames, not a centroid table")
+        t = time.perf_counter()
+        if detections is None:
+            detections = detect_spots(cube, self.hole_offset, workers=self.threads)
+        self.timings[f"{name} detection"] = time.perf_counter() - t
+        t = time.perf_counter()
+        data = spot_windows(cube, detections, window=self.window, pad=self.pad,
+                            threads=self.threads)
+        self.timings[f"{name} windows"] = time.perf_counter() - t
+        if data["n_frames"] == 0:
+            raise SchemaError(f"{name}.frames", "no usable spot in any frame",
+                              "frames with a spot inside the detector",
+                              "check the cube (sunlab info) and its detection")
+        return data
+
+    def _scaling(self, data: dict) -> dict:
+        d = data["corner"] + data["window"] / 2 + data["pad"] - data["hole"]
+        hole = data["hole"]
+        std = d.std(axis=0)
+        if not np.all(std > 0):
+            raise ConfigurationError(
+                "train: the spots do not move along both axes. Fix: train on a grid of poses "
+                "(experiment I)")
+        hstd = hole.std(axis=0)
+        return {"d_mean": d.mean(axis=0), "d_std": std, "hole_mean": hole.mean(axis=0),
+                "hole_std": np.where(hstd > 0, hstd, 1.0)}
+
+    def _state(self) -> dict:
+        return {**self.scaling, "order": self.order, "multi": self.multi}
+
+    # --- fit ---------------------------------------------------------------------------------
+    def fit(self, train: xr.Dataset, validation: xr.Dataset | None = None, *,
+            detections: xr.Dataset | None = None, val_detections: xr.Dataset | None = None):
+        """Train on the frames of ``train`` (experiment I), stopping on ``validation`` (II).
+
+        Parameters
+        ----------
+        train, validation : xarray.Dataset
+            ``frames/1`` cubes with the commanded angles ``alpha``, ``beta`` on ``pose``.
+        detections, val_detections : xarray.Dataset, optional
+            Their spots (:func:`detect_spots`), when already located.
+
+        Returns
+        -------
+        FrameNet
+            ``self``, fitted.
+        """
+        torch = require("torch", purpose="the calibration learned from frames (FrameNet)")
+        T.check_device(self.device)
+        self.timings = {}
+        data = self._data(train, detections, "train")
+        self.multi = bool(data["multi"])
+        distinct = len({(a, b) for a, b in data["target"].tolist()})
+        if distinct < self.min_poses():
+            raise ConfigurationError(
+                f"train: {distinct} distinct poses, but a head of order {self.order} needs at "
+                f"least {self.min_poses()}. Fix: train on more poses or lower order")
+        self.scaling = self._scaling(data)
+        data = _with_hole_uv(data, self.scaling)
+        val = None if validation is None else _with_hole_uv(
+            self._data(validation, val_detections, "validation"), self.scaling)
+        threads = torch.get_num_threads()
+        torch.set_num_threads(self.threads)
+        try:
+            net = T.build(self.channels, T.n_features(self.channels), self.seed)
+            st = self._state()
+            opts = {"device": self.device, "seed": self.seed, "lr": self.lr,
+                    "epochs": self.epochs, "patience": self.patience,
+                    "batch": self.batch or (8 if self.multi else 32),
+                    "spots": self.spots}
+            self.history = T.train(net, data, val, st, opts)
+        finally:
+            torch.set_num_threads(threads)
+        self.timings["train network"] = self.history["seconds"]
+        self.arrays, self.coef = T.to_arrays(net), np.asarray(st["coef"], dtype=float)
+        self._record(train, validation, data, val)
+        return self
+
+    def _record(self, train, validation, data: dict, val: dict | None) -> None:
+        """The artifact's training summary, domain and residuals (per-shot errors, deg)."""
+        def summary(cube, d):
+            return {"experiment": str(cube.attrs.get("experiment", "")),
+                    "n_frames": int(d["n_frames"]), "n_spots": int(d["corner"].shape[0]),
+                    "n_poses": int(np.unique(d["pose"]).size), "n_shots": int(d["shape"][1])}
+
+        pred, pos = self._predict_data(data)
+        self.training = {**summary(train, data), "n_samples": int(data["n_frames"]),
+                         "n_ok_shots": int(data["n_frames"]), "average": "shot",
+                         "centroid_method": "learned from frames",
+                         "validation": None if val is None else summary(validation, val)}
+        t = data["target"]
+        self.domain = {"alpha": [float(t[:, 0].min()), float(t[:, 0].max())],
+                       "beta": [float(t[:, 1].min()), float(t[:, 1].max())],
+                       "x": [float(pos[:, 0].min()), float(pos[:, 0].max())],
+                       "y": [float(pos[:, 1].min()), float(pos[:, 1].max())]}
+        res = {a: _err_summary(pred[:, k], t[:, k]) for k, a in enumerate(("alpha", "beta"))}
+        if val is not None:
+            pv, _ = self._predict_data(val)
+            res["validation"] = {a: _err_summary(pv[:, k], val["target"][:, k])
+                                 for k, a in enumerate(("alpha", "beta"))}
+        else:
+            res["validation"] = None
+        self.residuals = res
+
+    # --- predict -----------------------------------------------------------------------------
+    def _predict_data(self, data: dict):
+        torch = require("torch", purpose="the calibration learned from frames (FrameNet)")
+        threads = torch.get_num_threads()
+        torch.set_num_threads(self.threads)
+        try:
+            net = T.from_arrays(self.arrays, self.channels, self.device)
+            phi, pos = T.forward_all(net, data, self._state(), torch.device(self.device))
+        finally:
+            torch.set_num_threads(threads)
+        return phi @ self.coef, pos
+
+    def predict_frames(self, cube: xr.Dataset, *, detections: xr.Dataset | None = None
+                       ) -> xr.Dataset:
+        """Estimated platform angles of every frame of ``cube``.
+
+        Parameters
+        ----------
+        cube : xarray.Dataset
+            A ``frames/1`` cube, as ``sunlab simulate`` or ``sunlab import`` writes it (a
+            mask of the kind trained on).
+        detections : xarray.Dataset, optional
+            Its spots (:func:`detect_spots`), when already located.
+
+        Returns
+        -------
+        xarray.Dataset
+            ``alpha``, ``beta`` (deg) on (pose, shot), NaN for a frame without a usable spot;
+            ``status`` (``ok``, or ``no_spot``), ``n_spots``; coordinates ``alpha_cmd``,
+            ``beta_cmd`` (the commanded angles): what :func:`sunlab.stats.local_errors` reads.
+            Attribute ``timings`` (str) gives the seconds of each stage.
+        """
+        self.check_fitted()
+        self.timings = {}
+        multi = "hole_x_cf" in cube.coords and "hole" in cube.dims
+        if multi != self.multi:
+            raise SchemaError("cube", f"a {'multi' if multi else 'one'}-hole cube",
+                              f"a {'multi' if self.multi else 'one'}-hole cube, as trained",
+                              "predict with a model trained on frames of this mask")
+        data = _with_hole_uv(self._data(cube, detections, "cube"), self.scaling)
+        t = time.perf_counter()
+        pred, _ = self._predict_data(data)
+        self.timings["cube network"] = time.perf_counter() - t
+        shape = data["shape"]
+        out = np.full(shape + (2,), np.nan)
+        out[data["pose"], data["shot"]] = pred
+        n = np.zeros(shape, dtype=np.int32)
+        n[data["pose"], data["shot"]] = np.diff(data["start"])
+        status = np.where(n > 0, STATUS["ok"], STATUS["no_spot"]).astype(np.int8)
+        dims = ("pose", "shot")
+        return xr.Dataset(
+            {"alpha": (dims, out[..., 0], {"units": "deg", "long_name": "estimated alpha"}),
+             "beta": (dims, out[..., 1], {"units": "deg", "long_name": "estimated beta"}),
+             "status": (dims, status), "n_spots": (dims, n)},
+            coords={"pose": cube["pose"].values, "shot": cube["shot"].values,
+                    "alpha_cmd": ("pose", cube["alpha"].values, {"units": "deg"}),
+                    "beta_cmd": ("pose", cube["beta"].values, {"units": "deg"})},
+            attrs={"calibration": self.kind, "label": self.label,
+                   "experiment": str(cube.attrs.get("experiment", "")),
+                   "timings": repr({k: round(v, 3) for k, v in self.timings.items()})})
+
+    def predict(self, cube: xr.Dataset) -> xr.Dataset:
+        """:meth:`predict_frames`: a frame calibration reads frames, not centroids."""
+        return self.predict_frames(cube)
+
+    def predict_xy(self, x, y):
+        raise ConfigurationError(
+            "FrameNet: learned from frames, it has no map from a centroid (x, y). Fix: call "
+            "predict_frames(cube) with the frames")
+
+    # --- artifact ----------------------------------------------------------------------------
+    def _parameters(self) -> dict:
+        return {
+            "window": self.window, "pad": self.pad, "channels": self.channels,
+            "order": self.order, "multi": self.multi,
+            "hole_offset_px": list(self.hole_offset),
+            "settings": {"epochs": self.epochs, "patience": self.patience,
+                         "batch": self.batch, "lr": self.lr, "seed": self.seed,
+                         "threads": self.threads, "spots": self.spots},
+            "scaling": {k: np.asarray(v, dtype=float).tolist() for k, v in self.scaling.items()},
+            "network": {k: np.asarray(v).tolist() for k, v in self.arrays.items()},
+            "head": np.asarray(self.coef).tolist(),
+            "history": self.history,
+            "design": "CNN pixel weights (learned centre of light) + least-squares polynomial "
+                      "head" + ("; attention pooling over the spots" if self.multi else ""),
+        }
+
+    @classmethod
+    def _check_parameters(cls, p: dict) -> None:
+        for key in ("window", "pad", "channels", "order"):
+            _count(p.get(key), key, 0 if key == "pad" else 1)
+        if p["window"] > 512 or p["channels"] > 64 or p["order"] > 12:
+            raise _bad("window/channels/order", [p["window"], p["channels"], p["order"]],
+                       "at most 512 px, 64 channels, order 12")
+        if not isinstance(p.get("multi"), bool):
+            raise _bad("multi", p.get("multi"), "true or false")
+        _numbers(p.get("hole_offset_px"), "hole_offset_px", 2)
+        scaling = p.get("scaling")
+        if not isinstance(scaling, dict):
+            raise _bad("scaling", type(scaling).__name__, "an object of four pairs")
+        for key in ("d_mean", "d_std", "hole_mean", "hole_std"):
+            _numbers(scaling.get(key), f"scaling.{key}", 2, positive=key.endswith("std"))
+        n_terms = (p["order"] + 1) * (p["order"] + 2) // 2 + (6 if p["multi"] else 0)
+        head = p.get("head")
+        if not isinstance(head, list) or len(head) != n_terms:
+            raise _bad("head", f"{len(head) if isinstance(head, list) else head} rows",
+                       f"{n_terms} rows (order {p['order']})")
+        for i, row in enumerate(head):
+            _numbers(row, f"head[{i}]", 2)
+        net = p.get("network")
+        if not isinstance(net, dict):
+            raise _bad("network", type(net).__name__, "an object of weight arrays")
+        for k, v in net.items():
+            flat = np.asarray(v, dtype=object).ravel().tolist() if isinstance(v, list) else v
+            _numbers(flat if isinstance(flat, list) else [flat], f"network.{k}")
+        settings = p.get("settings")
+        if not isinstance(settings, dict):
+            raise _bad("settings", type(settings).__name__, "an object")
+        _number(settings.get("lr"), "settings.lr", positive=True)
+
+    @classmethod
+    def _from_parameters(cls, p: dict):
+        s = p["settings"]
+        obj = cls(window=p["window"], pad=p["pad"], channels=p["channels"], order=p["order"],
+                  epochs=s["epochs"], patience=s["patience"], batch=s["batch"], lr=s["lr"],
+                  seed=s["seed"], threads=s["threads"], hole_offset=p["hole_offset_px"],
+                  spots=s.get("spots", 16))
+        obj.multi = bool(p["multi"])
+        obj.scaling = {k: np.asarray(v, dtype=float) for k, v in p["scaling"].items()}
+        obj.arrays = {k: np.asarray(v, dtype=float) for k, v in p["network"].items()}
+        shapes = _shapes(obj.channels)
+        for k, shape in shapes.items():
+            if k not in obj.arrays or obj.arrays[k].shape != shape:
+                raise _bad(f"network.{k}", None if k not in obj.arrays else
+                           list(obj.arrays[k].shape), f"shape {list(shape)}")
+        obj.coef = np.asarray(p["head"], dtype=float)
+        obj.history = p.get("history")
+        return obj
+
+
+def _shapes(c: int) -> dict:
+    """The shape of each weight array of a network of ``c`` channels (no torch needed)."""
+    nf = T.n_features(c)
+    h = T.ATTENTION_HIDDEN
+    return {"conv1.weight": (c, 1, 5, 5), "conv1.bias": (c,), "conv2.weight": (c, c, 3, 3),
+            "conv2.bias": (c,), "conv3.weight": (1, c, 1, 1), "conv3.bias": (1,),
+            "att1.weight": (h, nf), "att1.bias": (h,), "att2.weight": (1, h), "att2.bias": (1,)}

@@ -1,0 +1,405 @@
+"""Beyond the paper: a calibration learned from the frames, measured against the classical one.
+
+``sunlab reproduce --table learned`` runs, on each bench of :data:`BENCHES`, the protocol of
+Table 4: experiments I (train), II (stop) and III (test) rendered with three seeds of the
+bench's own, so the test frames are never seen in training. On each:
+
+* ``learned``: :class:`sunlab.calibration.FrameNet` trained on I's frames, stopped on II's;
+* one hole: ``polynomial``, Table 4's recipe on algorithm B's centroids (order chosen on II,
+  refitted on I + II) and ``polynomial (I only)``, the same order fitted on I alone (the
+  learned route sees II only to stop: that is the like-for-like comparison); on the
+  good-platform bench also ``disk fit + polynomial`` (the estimator that reaches the
+  Cramér-Rao bound, :func:`sunlab.centroid.disk_fit`) and ``CRLB floor``: the mean |error| an
+  unbiased centroid at the Cramér-Rao bound of the bench's spot would give, through the
+  polynomial's local slope (:func:`crlb_floor`);
+* 100 holes: ``geometric centre`` (:class:`sunlab.multihole.GeometricCentre`, order 5, the
+  spots numbered with the one-hole paper bench's mounting offset, as Table 5 does).
+
+Each bench's model is saved as ``models/<bench>.json`` (``calibration/1``, loadable by
+:func:`sunlab.calibration.load`); ``learned.json`` holds the records ``{bench, method, angle,
+stat, value}``: mu, sigma, M, sigma_M per angle (deg), and per method the seconds of training
+(``train_s``, wall clock, angle null; for the learned route also ``train_cpu_s``, the CPU
+seconds of every thread, which a shared machine does not inflate) and of inference per frame
+(``infer_s_per_frame``, wall clock: detection,
+windows and network for the learned route; detection, which is the centroid, and the
+polynomial for the classical one); ``learned.png`` draws the mu's.
+
+The 100-hole benches take at most :data:`MULTI_SHOTS` shots per pose (100 windows a frame) and
+:data:`MULTI_EPOCHS` epochs.
+
+Examples
+--------
+>>> list(BENCHES)[:3]
+['paper', 'good-platform', '100-holes-edge']
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import ConfigurationError
+from .pipeline import experiment_plans, locate_runs, usable_table, write_json
+
+__all__ = ["BENCHES", "MULTI_SHOTS", "bench", "bench_seeds", "crlb_floor", "learned_figure",
+           "records_table", "reproduce_learned"]
+
+#: The benches, in the order they run: name -> what it is (the factory is :func:`bench`).
+BENCHES = {
+    "paper": "the identified one-hole bench (sunlab.sim.Bench.paper_single_hole)",
+    "good-platform": "the paper bench with the platform ideal and the mask's play off: the "
+                     "sensor's own limit",
+    "100-holes-edge": "the 100-hole bench with its holes placed 1.2 mm further along y, so "
+                      "that up to two rows of spots leave the field at the end of the range",
+    "100-holes": "the identified 100-hole bench (paper_multi_hole, its 6 bad holes)",
+    "prnu-x3": "the paper bench with three times its pixel response non-uniformity",
+    "hot-pixels": "the paper bench with 50 times its hot pixels",
+    "dust": "the paper bench's hole partly shadowed by a dust grain standing above the mask",
+}
+#: Most shots per pose on the 100-hole benches (each frame is 100 windows in memory).
+MULTI_SHOTS = 2
+#: Most epochs on the 100-hole benches (an epoch there costs 16 windows a training frame and
+#: every window of the validation frames: about 8 one-hole epochs).
+MULTI_EPOCHS = 12
+#: Runs whose frames take less memory than this are rendered once and kept, bytes.
+IN_MEMORY_BYTES = 2 * 2**30
+#: How far the 100-hole-edge bench's holes are placed from the preset's along y, mm.
+EDGE_SHIFT_MM = 1.2
+
+
+def bench(name: str):
+    """The virtual bench called ``name`` (:data:`BENCHES`), built from the library's presets.
+
+    Examples
+    --------
+    >>> b = bench("prnu-x3")
+    >>> from sunlab import sim
+    >>> round(b.detector.prnu / sim.Bench.paper_single_hole().detector.prnu, 6)
+    3.0
+    """
+    from .. import sim
+
+    one = sim.Bench.paper_single_hole()
+    if name == "paper":
+        return one
+    if name == "good-platform":
+        return one.ideal_platform().replace(mask__play_x_mm=0.0)
+    if name == "prnu-x3":
+        return one.replace(detector__prnu=3 * one.detector.prnu,
+                           detector__prnu_correlated=3 * one.detector.prnu_correlated)
+    if name == "hot-pixels":
+        return one.replace(detector__hot_pixel_fraction=50 * one.detector.hot_pixel_fraction)
+    if name == "dust":
+        r = one.mask.holes[0].diameter_mm / 2
+        return one.replace(mask=one.mask.with_defects({0: sim.Dust(0.75 * r, 0.0, 0.6 * r,
+                                                                   0.04)}))
+    many = sim.Bench.paper_multi_hole()
+    if name == "100-holes":
+        return many
+    if name == "100-holes-edge":  # the holes' design places move: the cube knows them
+        return many.replace(mask__holes=tuple(
+            dataclasses.replace(h, y_mm=h.y_mm + EDGE_SHIFT_MM) for h in many.mask.holes))
+    raise ConfigurationError(f"bench: found {name!r}, expected one of {sorted(BENCHES)}")
+
+
+def bench_seeds(name: str, seed: int = 0) -> dict:
+    """The seeds of experiments I, II, III on bench ``name``: three of its own, none shared
+    with another experiment or bench.
+
+    Examples
+    --------
+    >>> bench_seeds("paper"), bench_seeds("good-platform", seed=1)
+    ({'I': 101, 'II': 102, 'III': 103}, {'I': 1211, 'II': 1212, 'III': 1213})
+    """
+    k = list(BENCHES).index(name)
+    base = 1000 * int(seed) + 100 * (k + 1) + 10 * (k > 0)
+    return {"I": base + 1, "II": base + 2, "III": base + 3}
+
+
+def crlb_floor(bench_, cen_test, calibration) -> dict:
+    """The mean |error| per angle (deg) of an unbiased centroid at the Cramér-Rao bound.
+
+    The bound (:func:`sunlab.centroid.crlb`) of the bench's spot: a disk of the hole's radius
+    whose edge the sun's disk blurs, the median flux of the test spots (DN), the dark signal and
+    the read noise of the detector, its gain; the centroid's scatter becomes the angles'
+    through the calibration's local slope (finite differences, 0.01 px) at every test pose,
+    and a Gaussian error of standard deviation s has a mean |error| of s sqrt(2 / pi). The
+    floor leaves out everything the bound does not see: the pixel response's fixed pattern,
+    jitter, the platform.
+    """
+    from .. import centroid
+
+    det, src, mask = bench_.detector, bench_.source, bench_.mask
+    radius = mask.holes[0].diameter_mm / 2 / det.pixel_pitch_mm
+    edge = bench_.mask_distance_mm * math.tan(math.radians(src.diameter_deg / 2))
+    edge /= det.pixel_pitch_mm
+    ok = cen_test["status"].values == 0
+    flux = float(np.median(cen_test["flux"].values[ok]))
+    bound = centroid.crlb(flux, det.dark_signal_e / det.gain_e_per_dn,
+                          det.read_noise_e / det.gain_e_per_dn, gain=det.gain_e_per_dn,
+                          radius=radius, edge=edge)
+    x = np.nanmean(np.where(ok, cen_test["x"].values, np.nan), axis=1)
+    y = np.nanmean(np.where(ok, cen_test["y"].values, np.nan), axis=1)
+    h = 0.01
+    a0, b0 = calibration.predict_xy(x, y)
+    ax, bx = calibration.predict_xy(x + h, y)
+    ay, by = calibration.predict_xy(x, y + h)
+    out = {"sigma_px": [bound.sigma_x, bound.sigma_y], "flux_dn": flux}
+    for name, dx, dy in (("alpha", (ax - a0) / h, (ay - a0) / h),
+                         ("beta", (bx - b0) / h, (by - b0) / h)):
+        s = np.hypot(dx * bound.sigma_x, dy * bound.sigma_y)
+        out[name] = float(np.nanmean(s) * math.sqrt(2 / math.pi))
+    return out
+
+
+def reproduce_learned(*, quick: bool = False, seed: int = 0, out: str | Path | None = "results",
+                      progress: bool = True, step: int | None = None, shots: int | None = None,
+                      benches=None, epochs: int = 40, threads: int = 2, device: str = "cpu",
+                      **_ignored) -> dict:
+    """Train, test and compare the learned route on every bench (module docstring).
+
+    Parameters
+    ----------
+    quick, step, shots
+        The plans, as every table (:func:`sunlab.reproduce.experiment_plans`); the 100-hole
+        benches take at most :data:`MULTI_SHOTS` shots.
+    seed : int
+        Base of every bench's seeds (:func:`bench_seeds`).
+    out : path, optional
+        Folder of ``learned.json``, ``learned.png`` and ``models/<bench>.json``.
+    progress : bool
+        Print each stage.
+    benches : sequence of str, optional
+        Names of :data:`BENCHES` (default all).
+    epochs, threads, device
+        Of :class:`sunlab.calibration.FrameNet`.
+
+    Returns
+    -------
+    dict
+        ``records`` (the list written), ``tables`` (per bench, a DataFrame of the statistics
+        by method), ``floors`` (the CRLB floors), ``models`` (the fitted nets), ``files``.
+    """
+    names = list(BENCHES) if benches is None else list(benches)
+    for name in names:
+        bench(name)  # an unknown name is refused before anything runs
+    plans_ = experiment_plans(quick=quick, step=step, shots=shots)
+    thin = experiment_plans(quick=quick, step=step, shots=min(MULTI_SHOTS, plans_["I"].shots))
+    offset = _mounting_offset(seed) if any(bench(n).n_holes > 1 for n in names) else (0, 0)
+    opts = {"epochs": epochs, "threads": threads, "device": device, "seed": seed}
+    result = {"records": [], "tables": {}, "floors": {}, "models": {}, "files": []}
+    settings = {"quick": quick, "step": step, "shots": shots, "seed": seed, "epochs": epochs,
+                "multi_epochs": min(epochs, MULTI_EPOCHS), "threads": threads,
+                "device": device, "plans": {k: [len(p), p.shots] for k, p in plans_.items()},
+                "multi_plans": {k: [len(p), p.shots] for k, p in thin.items()},
+                "seeds": {n: bench_seeds(n, seed) for n in names}}
+    for name in names:
+        t = time.perf_counter()
+        multi = bench(name).n_holes > 1
+        res = _run_bench(name, thin if multi else plans_, seed,
+                         {**opts, "epochs": settings["multi_epochs"]} if multi else opts, offset)
+        if progress:
+            print(f"{name}: {time.perf_counter() - t:.0f} s\n"
+                  f"{res['table'].round(5).to_string()}", flush=True)
+        result["records"] += res["records"]
+        result["tables"][name] = res["table"]
+        result["models"][name] = res["model"]
+        if "floor" in res:
+            result["floors"][name] = res["floor"]
+        if out is not None:  # after every bench: a long run interrupted keeps what it did
+            result["files"] = _write(result, Path(out), settings)
+    return result
+
+
+def _mounting_offset(seed: int) -> tuple[float, float]:
+    """Where the one-hole spot falls off its design track, px, from a thinned experiment I on
+    the paper bench: the prior that numbers the 100 spots (as Table 5 does)."""
+    from .. import sim
+    from .table5 import mounting_offset_px
+
+    plan = experiment_plans(("I",), step=4, shots=1)["I"]
+    cen = locate_runs({"I": (sim.simulate(plan, sim.Bench.paper_single_hole(),
+                                          seed=bench_seeds("paper", seed)["I"]))},
+                      progress=False)["I"]
+    return mounting_offset_px(usable_table(cen))
+
+
+def _run_bench(name: str, plans_: dict, seed: int, opts: dict, offset) -> dict:
+    """One bench: render, detect, train and test both routes; records and the table."""
+    from .. import sim, stats
+    from ..calibration import FrameNet
+    from ..calibration.frames import detect_spots
+
+    b, seeds = bench(name), bench_seeds(name, seed)
+    multi = b.n_holes > 1
+    off = offset if multi else (0.0, 0.0)
+    cubes = {k: sim.simulate(p, b, seed=seeds[k]) for k, p in plans_.items()}
+    if sum(c["frames"].nbytes for c in cubes.values()) < IN_MEMORY_BYTES:
+        # rendered once: the detection, the windows and the disk fit read them again
+        cubes = {k: c.load() for k, c in cubes.items()}
+    det, secs = {}, {}
+    for k, cube in cubes.items():
+        t = time.perf_counter()
+        det[k] = detect_spots(cube, off, workers=opts["threads"])
+        secs[f"detect {k}"] = time.perf_counter() - t
+    tables = {k: usable_table(c) for k, c in det.items()}
+    n_test = int(cubes["III"].sizes["pose"] * cubes["III"].sizes["shot"])
+    net = FrameNet(epochs=opts["epochs"], threads=opts["threads"], device=opts["device"],
+                   seed=opts["seed"], hole_offset=off).fit(
+        cubes["I"], cubes["II"], detections=det["I"], val_detections=det["II"])
+    train_s = net.timings["train network"]
+    est = net.predict_frames(cubes["III"], detections=det["III"])
+    local = {"learned": stats.local_errors(est)}
+    timing = {"learned": (train_s, (secs["detect III"] + net.timings["cube windows"]
+                                    + net.timings["cube network"]) / n_test,
+                          net.history["cpu_seconds"])}
+    classical = _classical(multi, tables, cubes, b, opts)
+    for method, (cal, fit_s, test_table, det_s) in classical.items():
+        t = time.perf_counter()
+        local[method] = stats.local_errors(cal.predict(test_table))
+        timing[method] = (fit_s, ((secs["detect III"] if det_s is None else det_s)
+                                  + time.perf_counter() - t) / n_test)
+    table = stats.global_stats(local)
+    res = {"table": table, "model": net, "records": _records(name, table, timing)}
+    if not multi:
+        floor = crlb_floor(b, tables["III"], classical["polynomial"][0])
+        res["floor"] = floor
+        res["records"] += [{"bench": name, "method": "CRLB floor", "angle": a, "stat": "mu",
+                            "value": floor[a]} for a in ("alpha", "beta")]
+    return res
+
+
+def _classical(multi: bool, tables: dict, cubes: dict, bench_, opts) -> dict:
+    """The classical routes: method -> (calibration, fit seconds, test table, detection
+    seconds of the test run or None when it is the learned route's detection)."""
+    from ..calibration import Polynomial
+
+    out = {}
+    if multi:
+        from ..multihole import GeometricCentre
+
+        t = time.perf_counter()
+        gc = GeometricCentre(order=5).fit(tables["I"])
+        return {"geometric centre": (gc, time.perf_counter() - t, tables["III"], None)}
+    t = time.perf_counter()
+    poly, _ = Polynomial.select_order(tables["I"], tables["II"], refit=True)
+    out["polynomial"] = (poly, time.perf_counter() - t, tables["III"], None)
+    t = time.perf_counter()
+    poly1, _ = Polynomial.select_order(tables["I"], tables["II"], refit=False)
+    out["polynomial (I only)"] = (poly1, time.perf_counter() - t, tables["III"], None)
+    if bench_.platform.alpha_pose_error_deg == 0 and bench_.mask.play_x_mm == 0:
+        t = time.perf_counter()
+        fit = {k: usable_table(c) for k, c in locate_runs(
+            cubes, method="fit", progress=False, workers=opts["threads"]).items()}
+        det_s = (time.perf_counter() - t) * cubes["III"].sizes["pose"] / sum(
+            c.sizes["pose"] for c in cubes.values())
+        t = time.perf_counter()
+        pfit, _ = Polynomial.select_order(fit["I"], fit["II"], refit=True)
+        out["disk fit + polynomial"] = (pfit, time.perf_counter() - t, fit["III"], det_s)
+    return out
+
+
+def _records(name: str, table, timing: dict) -> list[dict]:
+    recs = [{"bench": name, "method": str(m), "angle": a, "stat": s, "value": _num(v)}
+            for m in table.columns for (a, s), v in table[m].items()]
+    for m, (train_s, infer_s, *cpu) in timing.items():
+        recs += [{"bench": name, "method": m, "angle": None, "stat": "train_s",
+                  "value": _num(train_s)},
+                 *[{"bench": name, "method": m, "angle": None, "stat": "train_cpu_s",
+                    "value": _num(c)} for c in cpu],
+                 {"bench": name, "method": m, "angle": None, "stat": "infer_s_per_frame",
+                  "value": _num(infer_s)}]
+    return recs
+
+
+def _num(v):
+    v = float(v)
+    return v if math.isfinite(v) else None
+
+
+def _write(result: dict, out: Path, settings: dict) -> list[str]:
+    """``learned.json`` (the records), ``learned_settings.json``, ``learned.png`` and
+    ``models/<bench>.json``; the paths."""
+    import matplotlib.pyplot as plt
+
+    (out / "models").mkdir(parents=True, exist_ok=True)
+    files = [str(m.save(out / "models" / f"{n}.json", overwrite=True))
+             for n, m in result["models"].items()]
+    files.append(write_json(result["records"], out / "learned.json"))
+    doc = {**settings, "floors": result["floors"],
+           "histories": {n: m.history for n, m in result["models"].items()}}
+    files.append(write_json(json.loads(json.dumps(doc, default=float)),
+                            out / "learned_settings.json"))
+    fig = learned_figure(result["records"])
+    fig.savefig(out / "learned.png", dpi=110)
+    plt.close(fig)
+    files.append(str(out / "learned.png"))
+    return files
+
+
+def records_table(records, stat: str = "mu"):
+    """The records of one statistic as a table: rows (bench, angle), columns the methods.
+
+    Examples
+    --------
+    >>> recs = [{"bench": "paper", "method": "learned", "angle": "alpha", "stat": "mu",
+    ...          "value": 0.01}, {"bench": "paper", "method": "polynomial", "angle": "alpha",
+    ...          "stat": "mu", "value": 0.012}]
+    >>> records_table(recs).loc[("paper", "alpha")].tolist()
+    [0.01, 0.012]
+    """
+    import pandas as pd
+
+    df = pd.DataFrame([r for r in records if r["stat"] == stat])
+    if df.empty:
+        raise ConfigurationError(f"stat: found {stat!r}, not among the records' stats")
+    order = list(dict.fromkeys(df["bench"]))
+    cols = list(dict.fromkeys(df["method"]))
+    if df["angle"].isna().all():
+        table = df.pivot(index="bench", columns="method", values="value")
+        return table.reindex(index=order, columns=cols)
+    table = df.pivot_table(index=["bench", "angle"], columns="method", values="value",
+                           sort=False)
+    return table.reindex(columns=cols)
+
+
+def learned_figure(records):
+    """mu of alpha and beta per bench, every method side by side (log scale, deg); the CRLB
+    floor where computed as a black tick.
+
+    Parameters
+    ----------
+    records : list of dict
+        The records of :func:`reproduce_learned` (``learned.json``).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    import matplotlib.pyplot as plt
+
+    mu = records_table(records, "mu")
+    methods = [m for m in mu.columns if m != "CRLB floor"]
+    benches = list(dict.fromkeys(mu.index.get_level_values(0)))
+    fig, axes = plt.subplots(1, 2, figsize=(12, 4.2), layout="constrained", sharey=True)
+    width = 0.8 / len(methods)
+    xs = np.arange(len(benches))
+    for ax, angle in zip(axes, ("alpha", "beta"), strict=True):
+        for k, m in enumerate(methods):
+            vals = [mu[m].get((b, angle), np.nan) for b in benches]
+            ax.bar(xs - 0.4 + (k + 0.5) * width, vals, width, label=m)
+        if "CRLB floor" in mu.columns:
+            floor = [mu["CRLB floor"].get((b, angle), np.nan) for b in benches]
+            ax.scatter(xs, floor, marker="_", s=600, color="k", zorder=3, label="CRLB floor")
+        ax.set_yscale("log")
+        ax.set_xticks(xs, benches, rotation=30, ha="right")
+        ax.set_title(f"{angle}: mu on experiment III (unseen seeds)")
+        ax.grid(axis="y", which="both", alpha=0.3)
+    axes[0].set_ylabel("mu, deg")
+    axes[1].legend(loc="upper left", bbox_to_anchor=(1.01, 1), frameon=False)
+    return fig

@@ -1,0 +1,95 @@
+"""Tests of sunlab.reproduce.learned: the benches, their seeds, the records, the files, and a
+saved model applied to a cube written by ``sunlab simulate``.
+
+One tiny run (good-platform bench, every 4th angle, one shot, one epoch) serves every test of
+the files; the accuracy of a real run is ``sunlab reproduce --table learned``'s to measure.
+"""
+
+import json
+
+import numpy as np
+import pytest
+
+from sunlab import calibration, io, sim, stats
+from sunlab.cli import build_parser, main
+from sunlab.errors import ConfigurationError
+from sunlab.reproduce.learned import (
+    BENCHES,
+    bench,
+    bench_seeds,
+    learned_figure,
+    records_table,
+    reproduce_learned,
+)
+
+pytest.importorskip("torch")
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("learned")
+    res = reproduce_learned(benches=["good-platform"], step=4, shots=1, epochs=1, out=out,
+                            progress=False)
+    return res, out
+
+
+def test_every_bench_builds_and_the_stress_is_what_its_name_says():
+    one = sim.Bench.paper_single_hole()
+    assert bench("paper") == one
+    good = bench("good-platform")
+    assert good.platform.alpha_pose_error_deg == 0 and good.mask.play_x_mm == 0
+    assert bench("hot-pixels").detector.hot_pixel_fraction == 50 * one.detector.hot_pixel_fraction
+    assert bench("dust").mask.holes[0].defect_flags != 0
+    assert bench("100-holes").n_holes == 100
+    edge = [h.y_mm for h in bench("100-holes-edge").mask.holes]
+    preset = [h.y_mm for h in sim.Bench.paper_multi_hole().mask.holes]
+    np.testing.assert_allclose(np.subtract(edge, preset), 1.2)
+    with pytest.raises(ConfigurationError, match="bench"):
+        bench("perfect")
+
+
+def test_no_seed_is_shared_between_experiments_or_benches():
+    seeds = [s for name in BENCHES for s in bench_seeds(name).values()]
+    seeds += [s for name in BENCHES for s in bench_seeds(name, seed=1).values()]
+    assert len(seeds) == len(set(seeds))
+
+
+def test_the_records_hold_every_statistic_of_every_method(run):
+    res, out = run
+    recs = json.loads((out / "learned.json").read_text())
+    assert recs == json.loads(json.dumps(res["records"]))
+    assert all(set(r) == {"bench", "method", "angle", "stat", "value"} for r in recs)
+    methods = {r["method"] for r in recs}
+    assert {"learned", "polynomial", "polynomial (I only)", "disk fit + polynomial",
+            "CRLB floor"} <= methods
+    mu = records_table(recs, "mu")
+    assert np.isfinite(mu.loc[("good-platform", "alpha"), "learned"])
+    # the floor is below what any method reaches on the sensor's own bench
+    assert (mu.loc["good-platform", "CRLB floor"] < mu.loc["good-platform", "polynomial"]).all()
+    train = records_table(recs, "train_s")
+    assert train.loc["good-platform", "learned"] > 0
+
+
+def test_each_model_is_saved_and_loads_through_the_registry(run, tmp_path):
+    res, out = run
+    cal = calibration.load(out / "models" / "good-platform.json")
+    assert cal.kind == "learned-frames"
+    # the loaded model reads a cube as `sunlab simulate` writes it
+    cube_path = tmp_path / "iii.zarr"
+    assert main(["simulate", "--experiment", "III", "--mask", "single", "--seed", "77",
+                 "--subset", "6", "--shots", "1", "--ideal-platform", "--out", str(cube_path),
+                 "--no-progress"]) == 0
+    est = cal.predict_frames(io.open_frames(cube_path))
+    table = stats.global_stats(stats.local_errors(est))
+    assert np.isfinite(table.values).all()
+
+
+def test_the_figure_draws_each_angle(run):
+    fig = learned_figure(run[0]["records"])
+    assert [ax.get_title().split(":")[0] for ax in fig.axes] == ["alpha", "beta"]
+    assert (run[1] / "learned.png").stat().st_size > 10_000
+
+
+def test_the_command_line_offers_the_table():
+    args = build_parser().parse_args(["reproduce", "--table", "learned", "--quick"])
+    assert args.table == "learned" and args.quick
