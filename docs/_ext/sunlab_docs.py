@@ -35,6 +35,7 @@ GROUPS: OrderedDict[str, tuple[str, ...]] = OrderedDict(
         ("Statistics", ("stats",)),
         ("Multi-hole mask", ("multihole",)),
         ("Platform fault", ("platform_fault",)),
+        ("Identification of the bench", ("studies",)),
         ("Hardware", ("hardware",)),
         ("Reproduction", ("reproduce",)),
         ("Export", ("export",)),
