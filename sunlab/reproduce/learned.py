@@ -9,7 +9,7 @@ bench's own, so the test frames are never seen in training. On each:
   refitted on I + II) and ``polynomial (I only)``, the same order fitted on I alone (the
   learned route sees II only to stop: that is the like-for-like comparison); on the
   good-platform bench also ``disk fit + polynomial`` (the estimator that reaches the
-  Cramér-Rao bound, :func:`sunlab.centroid.disk_fit`) and ``CRLB floor``: the mean |error| an
+  Cramér-Rao bound, :func:`sunlab.centroid.disk_fit`) and ``CRLB floor``: the mean ``|error|`` an
   unbiased centroid at the Cramér-Rao bound of the bench's spot would give, through the
   polynomial's local slope (:func:`crlb_floor`);
 * 100 holes: ``geometric centre`` (:class:`sunlab.multihole.GeometricCentre`, order 5, the
@@ -122,13 +122,13 @@ def bench_seeds(name: str, seed: int = 0) -> dict:
 
 
 def crlb_floor(bench_, cen_test, calibration) -> dict:
-    """The mean |error| per angle (deg) of an unbiased centroid at the Cramér-Rao bound.
+    """The mean ``|error|`` per angle (deg) of an unbiased centroid at the Cramér-Rao bound.
 
     The bound (:func:`sunlab.centroid.crlb`) of the bench's spot: a disk of the hole's radius
     whose edge the sun's disk blurs, the median flux of the test spots (DN), the dark signal and
     the read noise of the detector, its gain; the centroid's scatter becomes the angles'
     through the calibration's local slope (finite differences, 0.01 px) at every test pose,
-    and a Gaussian error of standard deviation s has a mean |error| of s sqrt(2 / pi). The
+    and a Gaussian error of standard deviation s has a mean ``|error|`` of s sqrt(2 / pi). The
     floor leaves out everything the bound does not see: the pixel response's fixed pattern,
     jitter, the platform.
     """

@@ -110,7 +110,7 @@ def spot_diameter_px(bench) -> float:
     is d + F' theta across (the umbra shrinks and the penumbra grows with F'). The paper's
     algorithm A takes a 130 px ROI that is "about 2.5 times the spot" (docs/paper.md sec. 1),
     which would put the spot at about 52 px and F at about 17 mm; the presets' F = 5 mm
-    (:mod:`sunlab.sim.evidence`) gives a 35 px spot, 1/3.7 of the ROI.
+    (:mod:`sunlab.studies.identification`) gives a 35 px spot, 1/3.7 of the ROI.
 
     Examples
     --------
@@ -489,7 +489,7 @@ def interpolation_gap(bench, distances_mm, *, seed: int = 0, shots: int = 2,
     grid step moves the spot by several of the pattern's correlation lengths the table only
     copies noisy nodes and loses (positive gap, as the paper's 0.0100 - 0.0089 = +0.0011 deg). F
     sets the grid step in pixels, the pattern its correlation length; the held-out comparison of
-    :mod:`sunlab.sim.evidence` weighs this with the rest. For each F the one hole is kept on the
+    :mod:`sunlab.studies.identification` weighs this with the rest. For each F the one hole is kept on the
     same part of the detector (its offset scaled with F) and the experiments of Table 3 are run
     on the full grids. The interpolant is :class:`scipy.interpolate.LinearNDInterpolator` on
     pose-mean centroids rescaled to the unit square (what

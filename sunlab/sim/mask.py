@@ -334,7 +334,7 @@ class Mask:
         The holes, design positions in the mask frame (see the module notes).
     distance_mm : float
         Nominal (design) mask-to-focal-plane distance F, mm. Default 5.0 (0.08 deg per pixel,
-        a 35 px spot), the paper's bench as :mod:`sunlab.sim.evidence` identifies it
+        a 35 px spot), the paper's bench as the identification of docs/identification.md picks it
         (:data:`PAPER_DISTANCE_MM`).
     delta_f_mm : float
         Error of the mask distance: the true distance is F + dF, mm (the paper fitted 0.094).
