@@ -199,6 +199,13 @@ def _run_import(args) -> int:
           f"{', left-aligned' if cube.attrs.get('left_aligned') else ''}), "
           f"F = {said['mask_distance_mm']} mm, pitch {said['pixel_pitch_mm']} mm"
           + (f"; {masters}" if masters else ""))
+    flat = (cube.attrs.get("calibration_frames") or {}).get("flat") or {}
+    if flat.get("clipped_pixels"):
+        row, col = flat["first_clipped"]
+        print(f"warning: {flat['clipped_pixels']} pixel(s) of the flats at full scale (first at "
+              f"row {row}, column {col}): their response is unknown, so they read as saturated "
+              "(a spot on one is flagged, or repaired when isolated). Fix: expose the flats "
+              "shorter")
     return 0
 
 
