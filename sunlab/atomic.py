@@ -18,8 +18,8 @@ caller says so (``overwrite=True`` / ``--overwrite``):
 Temporary names carry the writer's process id (``.NAME.tmp-PID-XXXXXXXX``, an old output set
 aside ``.NAME.old-PID-XXXXXXXX``): a later write of the same output removes the leftovers of a
 writer that was killed (its process is gone), and puts back an old output that such a writer had
-set aside but not yet replaced. The moves into place run with SIGINT and SIGTERM held back, so
-Ctrl-C cannot split them. A full disk (or a file-size limit) is reported naming the output.
+set aside but not yet replaced. The moves into place run with SIGINT, SIGTERM and SIGHUP held
+back, so Ctrl-C (or a closed terminal) cannot split them. A full disk (or a file-size limit) is reported naming the output.
 
 Examples
 --------
@@ -210,10 +210,11 @@ def _remove(path: Path) -> None:
 
 @contextlib.contextmanager
 def signals_held():
-    """Hold SIGINT and SIGTERM back while the block runs (they are delivered when it ends):
+    """Hold SIGINT, SIGTERM and SIGHUP back while the block runs (delivered when it ends):
     for a few renames, or a step whose writes run on another thread that an interrupt of this
     one would not stop (they would recreate a temporary output after its removal)."""
-    held = {signal.SIGINT, signal.SIGTERM}
+    held = {signal.SIGINT, signal.SIGTERM} | (
+        {signal.SIGHUP} if hasattr(signal, "SIGHUP") else set())
     try:
         old = signal.pthread_sigmask(signal.SIG_BLOCK, held)
     except (AttributeError, OSError, ValueError):  # no POSIX signal masks (Windows)

@@ -638,6 +638,25 @@ class _Terminated(KeyboardInterrupt):
     outputs removed, workers stopped, an acquisition's record closed) runs."""
 
 
+class _HungUp(_Terminated):
+    """SIGHUP (the terminal or the SSH session closed): cleaned up as SIGTERM is."""
+
+
+#: The signals that end a command cleanly: name, the exception raised, the exit status.
+_ENDING = {signal.SIGTERM: ("SIGTERM", _Terminated, 143),
+           signal.SIGINT: ("Ctrl-C (SIGINT)", KeyboardInterrupt, 130)}
+if hasattr(signal, "SIGHUP"):
+    _ENDING[signal.SIGHUP] = ("SIGHUP", _HungUp, 129)
+
+
+def _ended_by(err: KeyboardInterrupt) -> tuple[str, int]:
+    """The name of the signal behind ``err`` and the exit status (128 + its number)."""
+    for name, kind, status in sorted(_ENDING.values(), key=lambda v: -v[2]):
+        if type(err) is kind:
+            return name, status
+    return _ENDING[signal.SIGINT][0], 130
+
+
 @contextlib.contextmanager
 def _signals_interrupt(quiet: bool = True):
     """While a command runs (main thread only): SIGTERM raises :class:`_Terminated` and SIGINT
@@ -661,9 +680,9 @@ def _signals_interrupt(quiet: bool = True):
             timer.daemon = True
             timer.start()
             return
-        raise _Terminated if signum == signal.SIGTERM else KeyboardInterrupt
+        raise _ENDING.get(signum, _ENDING[signal.SIGINT])[1]
 
-    previous = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGTERM, signal.SIGINT)}
+    previous = {sig: signal.signal(sig, on_signal) for sig in _ENDING}
     import logging
 
     hooks = sys.unraisablehook, sys.excepthook
@@ -712,9 +731,9 @@ def main(argv: list[str] | None = None) -> int:
 
     Exit status 0 on success, 1 for an error in the inputs, files or settings (one line on
     stderr naming the thing and the fix), 2 for a bad command line, 3 for an unexpected internal
-    error, 130 when interrupted by Ctrl-C (SIGINT) and 143 by SIGTERM: one line, no traceback,
-    temporary outputs removed and workers stopped. ``--debug`` re-raises the error with its
-    traceback.
+    error, 130 when interrupted by Ctrl-C (SIGINT), 143 by SIGTERM and 129 by SIGHUP: one line,
+    no traceback, temporary outputs removed and workers stopped. ``--debug`` re-raises the
+    error with its traceback.
     """
     argv = list(sys.argv[1:] if argv is None else argv)
     debug = "--debug" in argv
@@ -730,13 +749,14 @@ def main(argv: list[str] | None = None) -> int:
         if not received:
             return status
         # the command returned although a signal came: a library swallowed the interrupt
-        raise _Terminated if received[0] == signal.SIGTERM else KeyboardInterrupt
+        raise _ENDING.get(received[0], _ENDING[signal.SIGINT])[1]
     except KeyboardInterrupt as err:
         if debug:
             raise
-        name = "SIGTERM" if isinstance(err, _Terminated) else "Ctrl-C (SIGINT)"
-        print(f"sunlab {args.command}: interrupted by {name}", file=sys.stderr)
-        return 143 if isinstance(err, _Terminated) else 130
+        name, status = _ended_by(err)
+        with contextlib.suppress(OSError):  # the terminal may be gone (SIGHUP)
+            print(f"sunlab {args.command}: interrupted by {name}", file=sys.stderr)
+        return status
     except (SunlabError, OSError) as err:
         if debug:
             raise
