@@ -186,18 +186,42 @@ def check_target(path, *, overwrite: bool = False, kind: str = "file", flag: str
             "folder you can write to, or change the folder's permissions"
         )
     remove_stale(path)
+    special = _special_file(path)
+    if special:
+        raise SunlabError(
+            f"{path}: is {special}, not a regular file; sunlab never replaces one (a reader "
+            "may hold it open). Fix: choose a path for a new file"
+        )
+    if path.is_dir() and not path.is_symlink() and not (kind == "zarr" and _is_zarr_store(path)):
+        if kind == "zarr":
+            raise SunlabError(
+                f"{path}: is a directory, not a Zarr store; sunlab will not delete it. Fix: "
+                "choose another path")
+        raise SunlabError(
+            f"{path}: is a directory, expected a file; sunlab will not delete it. Fix: give a "
+            f"file path (e.g. {path / 'out'}{path.suffix or ''})")
     if path.exists() or path.is_symlink():
         if not overwrite:
             raise OutputExistsError(
                 f"{path}: already exists. Fix: pass {flag} to replace it, or choose a new path"
             )
-        if path.is_dir() and not (kind == "zarr" and _is_zarr_store(path)):
-            what = "not a Zarr store" if kind == "zarr" else "a directory"
-            raise SunlabError(
-                f"{path}: is a directory, {what}; sunlab will not delete it. Fix: choose "
-                "another path"
-            )
     return path
+
+
+def _special_file(path: Path) -> str | None:
+    """What ``path`` is when it is neither a regular file, a folder nor a symbolic link (a
+    named pipe, a socket, a device), else None. A link is judged by what it points to."""
+    import stat
+
+    try:
+        mode = os.stat(path).st_mode
+    except OSError:  # missing, or a dangling link: nothing that a write could reach
+        return None
+    for test, name in ((stat.S_ISFIFO, "a named pipe (FIFO)"), (stat.S_ISSOCK, "a socket"),
+                       (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device")):
+        if test(mode):
+            return name
+    return None
 
 
 def _remove(path: Path) -> None:
