@@ -92,14 +92,30 @@ def _run_info(args) -> int:
 
     doc = read_calibration_json(args.path)  # standard library only: fast
     if doc is not None:
-        print(calibration_summary(doc))
+        print(_printable(calibration_summary(doc), keep="\n"))
         return 0
     from .. import io
 
     # Describe incomplete stores (an acquisition in progress) instead of refusing them:
-    # the summary names the missing chunk files.
-    print(io.summary(io.open_dataset(args.path, check_chunks=False)))
+    # the summary names the missing chunk files. Names and attributes come from the file:
+    # a terminal escape sequence in them is shown escaped, not run.
+    print(_printable(io.summary(io.open_dataset(args.path, check_chunks=False)), keep="\n"))
     return 0
+
+
+def _printable(text: str, keep: str = "") -> str:
+    r"""``text`` with every control character but those in ``keep`` escaped (ESC as ``\x1b``):
+    what a file holds is shown to a terminal, never run by it.
+
+    Examples
+    --------
+    >>> _printable("mask \x1b[2J 100 holes")
+    'mask \\x1b[2J 100 holes'
+    """
+    if text.isprintable():
+        return text
+    return "".join(c if c.isprintable() or c in keep
+                   else c.encode("unicode_escape").decode("ascii") for c in text)
 
 
 def _add_acquire(sub) -> None:
@@ -630,7 +646,7 @@ def _one_line(err: BaseException) -> str:
         text = f"{where}: {what}. Fix: {fix}" if where else f"{what}. Fix: {fix}"
     else:
         text = str(err) or type(err).__name__
-    return " ".join(text.split())
+    return _printable(" ".join(text.split()))
 
 
 class _Terminated(KeyboardInterrupt):
@@ -746,6 +762,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         with _signals_interrupt(quiet=not debug) as received:
             status = int(args.func(args) or 0)
+            sys.stdout.flush()  # a closed pipe is reported here, not at the interpreter's exit
         if not received:
             return status
         # the command returned although a signal came: a library swallowed the interrupt
@@ -757,6 +774,19 @@ def main(argv: list[str] | None = None) -> int:
         with contextlib.suppress(OSError):  # the terminal may be gone (SIGHUP)
             print(f"sunlab {args.command}: interrupted by {name}", file=sys.stderr)
         return status
+    except BrokenPipeError as err:  # the reader of stdout went away (`sunlab info X | head`)
+        if debug:
+            raise
+        global _PIPE_CLOSED
+        _PIPE_CLOSED = True
+        if err.filename is not None:  # a pipe the command opened itself
+            print(f"sunlab {args.command}: error: {_one_line(err)}", file=sys.stderr)
+            return 1
+        with contextlib.suppress(OSError):
+            print(f"sunlab {args.command}: error: the output pipe was closed before the "
+                  "command finished (its reader stopped). Fix: read the whole output, or "
+                  "redirect it to a file", file=sys.stderr)
+        return 1
     except (SunlabError, OSError) as err:
         if debug:
             raise
@@ -778,7 +808,23 @@ def main(argv: list[str] | None = None) -> int:
         return 3
 
 
+#: Set when a command met a closed stdout pipe: :func:`run` then silences stdout.
+_PIPE_CLOSED = False
+
+
+def _quiet_stdout() -> None:
+    """Point stdout at the null device, so that the interpreter's last flush of a closed pipe
+    cannot print a second error (Python's documented remedy for SIGPIPE)."""
+    with contextlib.suppress(OSError, ValueError, AttributeError):
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+
+
 def run() -> None:
     """The ``sunlab`` console script and ``python -m sunlab.cli``: :func:`main`, then exit with
     its status. Library code calls :func:`main`, which returns the status instead."""
-    sys.exit(main())
+    status = main()
+    if _PIPE_CLOSED:
+        _quiet_stdout()
+    sys.exit(status)
