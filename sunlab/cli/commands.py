@@ -465,6 +465,10 @@ def _run_calibrate(args) -> int:
           f"{elapsed:.2f} s; {line}")
     if res.get("validation"):
         print("  validation residuals (deg): " + fmt(res["validation"]))
+    if cal.training.get("n_repaired_shots"):
+        print(f"  {cal.training['n_repaired_shots']} of the {cal.training['n_ok_shots']} shots "
+              "used are 'repaired' (an isolated hot pixel in the centroid window, replaced by "
+              "the median of its neighbours): kept, as their spot is intact")
     from ..calibration.plausibility import implausible
 
     for finding in implausible(cal):
