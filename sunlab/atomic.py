@@ -19,7 +19,8 @@ Temporary names carry the writer's process id (``.NAME.tmp-PID-XXXXXXXX``, an ol
 aside ``.NAME.old-PID-XXXXXXXX``): a later write of the same output removes the leftovers of a
 writer that was killed (its process is gone), and puts back an old output that such a writer had
 set aside but not yet replaced. The moves into place run with SIGINT, SIGTERM and SIGHUP held
-back, so Ctrl-C (or a closed terminal) cannot split them. A full disk (or a file-size limit) is reported naming the output.
+back, so Ctrl-C (or a closed terminal) cannot split them. A full disk (or a file-size limit)
+is reported naming the output.
 
 Examples
 --------

@@ -457,7 +457,8 @@ def test_a_lock_that_is_a_directory_is_named_as_one(tmp_path):
 
     (tmp_path / "run.zarr.lock").mkdir()
     with pytest.raises(RunLockedError, match=r"run.zarr.lock is a directory, not a lock file "
-                                             r"that sunlab writes"), run_lock(tmp_path / "run.zarr"):
+                                             r"that sunlab writes"), \
+            run_lock(tmp_path / "run.zarr"):
         pass
     assert (tmp_path / "run.zarr.lock").is_dir()
 

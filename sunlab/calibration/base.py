@@ -7,8 +7,9 @@ A calibration maps a spot centroid ``(x, y)`` (px) to platform angles ``(alpha, 
 - ``fit(train, validation=None)`` on ``centroids/1`` tables with the commanded angles as
   coordinates ``alpha``, ``beta`` on ``pose``. Only usable shots (status ``ok``, or
   ``repaired``: an isolated hot pixel replaced in the window, counted in the artifact's
-  ``training["n_repaired_shots"]``) with finite x, y are used. By default (``average="pose"``) each pose contributes the mean centroid of its ok shots,
-  so every pose weighs the same whatever number of shots survived; ``average="shot"`` fits every
+  ``training["n_repaired_shots"]``) with finite x, y are used. By default
+  (``average="pose"``) each pose contributes the mean centroid of its ok shots, so every pose
+  weighs the same whatever number of shots survived; ``average="shot"`` fits every
   ok shot instead (least squares on shots equals least squares on pose means weighted by the
   number of ok shots). Interpolation always uses pose means (its nodes must be unique).
 - ``predict(centroids)`` returns an ``xarray.Dataset`` with the estimates ``alpha``, ``beta``

@@ -22,11 +22,11 @@ import contextlib
 import os
 import signal
 import sys
-import threading
 
-from ..calibration.registry import ALIASES, KINDS
+from ..calibration.registry import ALIASES, KINDS, OUTLIER_MADS
 from ..errors import SunlabError
 from . import lab as _lab
+from ._signals import _ENDING, _ended_by, _signals_interrupt
 
 __all__ = ["build_parser", "main", "run"]
 
@@ -346,10 +346,11 @@ def _add_calibrate(sub) -> None:
     p.add_argument("--validation", default=None,
                    help="validation centroid table (experiment II): early stopping, order")
     p.add_argument("--out", required=True, help="output calibration (.json)")
-    p.add_argument("--outlier-mads", type=_mads, default=10.0, metavar="N",
+    p.add_argument("--outlier-mads", type=_mads, default=OUTLIER_MADS, metavar="N",
                    help="exclude shots whose centroid lies more than N median absolute "
                         "deviations from a robust fit of the table (sunlab.screening; default "
-                        "10; 0: keep every shot); the excluded lines are named")
+                        f"{OUTLIER_MADS:g}, as sunlab.calibration.fit; 0: keep every shot); the "
+                        "excluded lines are named")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output")
     p.set_defaults(func=_run_calibrate)
 
@@ -403,15 +404,11 @@ def _mads(text: str) -> float:
     return value
 
 
-def _screen(table, path, name: str, n_mad: float):
-    """``table`` with its outliers excluded (:func:`sunlab.screening.screen_outliers`); each
-    one named on stdout, by its line for a CSV table."""
+def _print_excluded(found, path, name: str, n_mad: float) -> None:
+    """Name each shot the library's screening excluded (``training["excluded"]``), by its
+    line for a CSV table."""
     from ..io.csvtable import csv_line_of
-    from ..screening import screen_outliers
 
-    if not n_mad:
-        return table
-    screened, found = screen_outliers(table, n_mad)
     for o in found:
         line = csv_line_of(path, o) if str(path).lower().endswith((".csv", ".txt")) else None
         where = (f"line {line}" if line else f"pose {o['pose']} shot {o['shot']}"
@@ -419,7 +416,6 @@ def _screen(table, path, name: str, n_mad: float):
         print(f"{path} {where} ({name}): excluded as an outlier: alpha {o['alpha']:g}, beta "
               f"{o['beta']:g} deg, x {o['x']:.6g}, y {o['y']:.6g} px, {o['residual_px']:.3g} px "
               f"= {o['mads']:.3g} MADs from a robust fit (threshold {n_mad:g}; --outlier-mads)")
-    return screened
 
 
 def _run_calibrate(args) -> int:
@@ -431,24 +427,25 @@ def _run_calibrate(args) -> int:
 
     options = _method_options(args)
     _check_out(args.out, args.overwrite)
-    train = _screen(open_centroid_table(args.train, "train"), args.train, "train",
-                    args.outlier_mads)
-    val = None if args.validation is None else _screen(
-        open_centroid_table(args.validation, "validation"), args.validation, "validation",
-        args.outlier_mads)
+    train = open_centroid_table(args.train, "train")
+    val = None if args.validation is None else open_centroid_table(args.validation,
+                                                                   "validation")
+    if options.get("order") == "auto" and val is None:
+        raise ConfigurationError(
+            "--order: found 'auto' without --validation. Fix: pass --validation VAL.nc")
     t0 = time.perf_counter()
-    if options.get("order") == "auto":
-        if args.method != "polynomial":
-            raise ConfigurationError(
-                f"--order: 'auto' applies to --method polynomial, not {args.method!r}")
-        if val is None:
-            raise ConfigurationError(
-                "--order: found 'auto' without --validation. Fix: pass --validation VAL.nc")
-        cal, scores = calibration.Polynomial.select_order(train, val)
-        print(scores.to_string(float_format=lambda v: f"{v:.5f}"))
-    else:
-        cal = calibration.fit(train, args.method, val, **options)
+    try:  # the library decides: screening, order 'auto' (sunlab.calibration.fit)
+        cal = calibration.fit(train, args.method, val, outlier_mads=args.outlier_mads,
+                              **options)
+    except ConfigurationError as err:
+        raise ConfigurationError(f"--{err}" if str(err).startswith("order:") else str(err)
+                                 ) from err
     elapsed = time.perf_counter() - t0
+    _print_excluded(cal.training.get("excluded", []), args.train, "train", args.outlier_mads)
+    _print_excluded(cal.training.get("validation_excluded", []), args.validation,
+                    "validation", args.outlier_mads)
+    if getattr(cal, "order_scores", None) is not None:
+        print(cal.order_scores.to_string(float_format=lambda v: f"{v:.5f}"))
     cal.save(args.out, overwrite=args.overwrite)
     res = cal.residuals
 
@@ -651,99 +648,6 @@ def _one_line(err: BaseException) -> str:
     else:
         text = str(err) or type(err).__name__
     return _printable(" ".join(text.split()))
-
-
-class _Terminated(KeyboardInterrupt):
-    """SIGTERM, raised in the main thread like Ctrl-C so that every ``finally`` (temporary
-    outputs removed, workers stopped, an acquisition's record closed) runs."""
-
-
-class _HungUp(_Terminated):
-    """SIGHUP (the terminal or the SSH session closed): cleaned up as SIGTERM is."""
-
-
-#: The signals that end a command cleanly: name, the exception raised, the exit status.
-_ENDING = {signal.SIGTERM: ("SIGTERM", _Terminated, 143),
-           signal.SIGINT: ("Ctrl-C (SIGINT)", KeyboardInterrupt, 130)}
-if hasattr(signal, "SIGHUP"):
-    _ENDING[signal.SIGHUP] = ("SIGHUP", _HungUp, 129)
-
-
-def _ended_by(err: KeyboardInterrupt) -> tuple[str, int]:
-    """The name of the signal behind ``err`` and the exit status (128 + its number)."""
-    for name, kind, status in sorted(_ENDING.values(), key=lambda v: -v[2]):
-        if type(err) is kind:
-            return name, status
-    return _ENDING[signal.SIGINT][0], 130
-
-
-@contextlib.contextmanager
-def _signals_interrupt(quiet: bool = True):
-    """While a command runs (main thread only): SIGTERM raises :class:`_Terminated` and SIGINT
-    :class:`KeyboardInterrupt` (whatever handler the caller had), both restored after; with
-    ``quiet``, errors that extensions print from destructors are logged instead.
-
-    Yields the list of signals received. A signal that arrives while the main thread is
-    importing a module is raised once the import is over (the signal is sent again 50 ms
-    later): an exception inside an import can leave the import locks of other threads held
-    (a deadlock), and a library's bare ``except:`` around an import would swallow it. The
-    caller also treats a command that returns after a signal as interrupted."""
-    received: list[int] = []
-    if threading.current_thread() is not threading.main_thread():
-        yield received
-        return
-
-    def on_signal(signum, frame):
-        received.append(signum)
-        if _importing(frame):
-            timer = threading.Timer(0.05, os.kill, (os.getpid(), signum))
-            timer.daemon = True
-            timer.start()
-            return
-        raise _ENDING.get(signum, _ENDING[signal.SIGINT])[1]
-
-    previous = {sig: signal.signal(sig, on_signal) for sig in _ENDING}
-    import logging
-
-    hooks = sys.unraisablehook, sys.excepthook
-    # an interrupted dask.distributed client leaves tasks whose errors asyncio logs
-    loop_log = logging.getLogger("asyncio")
-    was_disabled = loop_log.disabled
-    if quiet:
-        sys.unraisablehook, sys.excepthook = _unraisable, _printed
-        loop_log.disabled = True
-    try:
-        yield received
-    finally:
-        sys.unraisablehook, sys.excepthook = hooks
-        loop_log.disabled = was_disabled
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
-
-
-def _importing(frame) -> bool:
-    """Whether ``frame`` or one of its callers runs Python's import machinery."""
-    while frame is not None:
-        if frame.f_code.co_filename.startswith("<frozen importlib"):
-            return True
-        frame = frame.f_back
-    return False
-
-
-def _unraisable(info) -> None:
-    """Errors Python cannot raise (a destructor's, e.g. h5py closing a file on a full disk)
-    follow the error that the command reports: logged, not printed as tracebacks."""
-    import logging
-
-    logging.getLogger("sunlab").debug("ignored in %r: %s", info.object, info.exc_value)
-
-
-def _printed(kind, value, tb) -> None:
-    """What an extension prints while a command runs (Cython's destructors print their
-    errors through ``sys.excepthook``): logged, as :func:`_unraisable`."""
-    import logging
-
-    logging.getLogger("sunlab").debug("ignored: %s: %s", kind.__name__, value)
 
 
 def main(argv: list[str] | None = None) -> int:

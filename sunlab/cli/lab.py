@@ -82,18 +82,12 @@ def read_calibration_json(path) -> dict | None:
 # --------------------------------------------------------------------------------------------
 def open_centroid_table(path, name: str = "table"):
     """A centroid table from NetCDF, Zarr or CSV (columns alpha, beta, x, y):
-    :func:`sunlab.io.open_centroids`, with a CSV table's sensor attributes (pixel pitch, mask
-    distance, x_cf, y_cf) taken from a ``sensor.json`` in its folder, if there is one. An error
+    :func:`sunlab.io.open_centroids` (which reads a CSV table's ``sensor.json``); an error
     about the file as a whole names the argument (``name``: train, validation, test)."""
     from .. import io
 
-    attrs = None
-    if Path(path).suffix.lower() in io.CSV_SUFFIXES:
-        sensor = _sensor_json(Path(path).resolve().parent, None)
-        keys = ("pixel_pitch_mm", "mask_distance_mm", "x_cf_px", "y_cf_px")
-        attrs = {k: sensor[k] for k in keys if k in sensor}
     try:
-        return io.open_centroids(path, attrs=attrs)
+        return io.open_centroids(path)  # a CSV table's sensor.json is read by the library
     except SchemaError as err:
         if err.field != str(path):
             raise
@@ -140,14 +134,6 @@ def add_folder_options(p) -> None:
                         "normalised to 1, divides every frame")
     g.add_argument("--bias", default=None, metavar="BIAS",
                    help="bias frames (folder or stack): subtracted when no dark is given")
-
-
-def _sensor_json(folder: Path, manifest) -> dict:
-    """The checked sensor.json of a folder (:func:`sunlab.io.read_sensor_json`), or {}."""
-    from ..io.sensor import find_sensor_json, read_sensor_json
-
-    path = find_sensor_json(folder, manifest)
-    return {} if path is None else read_sensor_json(path)
 
 
 def cube_from_folder(folder, args):

@@ -41,6 +41,49 @@ def _printable(name: str) -> str:
     return name if name.isprintable() else name.encode("unicode_escape").decode("ascii")
 
 
+def _read_text(path: Path, name: str) -> str:
+    """The file's text (UTF-8, a BOM dropped), at most :data:`MAX_CSV_BYTES`."""
+    try:
+        if path.stat().st_size > MAX_CSV_BYTES:
+            raise SchemaError(name, f"{path.stat().st_size} bytes",
+                              f"a table of at most {MAX_CSV_BYTES} bytes", "split the table")
+        return path.read_text(encoding="utf-8-sig")
+    except FileNotFoundError as err:
+        raise SchemaError("path", str(path), "an existing CSV file", "check the path") from err
+    except IsADirectoryError as err:
+        raise SchemaError("path", f"{path} (a folder)", "a CSV file", "give the file") from err
+    except UnicodeDecodeError as err:
+        raise SchemaError(name, f"not UTF-8 text ({err.reason} at byte {err.start})",
+                          "a UTF-8 CSV file", "save the table as UTF-8 CSV") from err
+
+
+def _checked_header(header: list, name: str, head_line: int) -> list:
+    """The header's column names, trailing empty ones dropped; a semicolon-separated table, an
+    empty, duplicated or unprintable name refused naming the line."""
+    while header and not header[-1]:  # trailing commas on the header
+        header = header[:-1]
+    if len(header) == 1 and ";" in header[0]:
+        raise SchemaError(f"{name} line {head_line}", "fields separated by ';'",
+                          "comma-separated values with '.' decimals",
+                          "save the table as CSV with ',' between fields and '.' as the "
+                          "decimal mark")
+    seen: dict = {}
+    for k, col in enumerate(header):
+        if not col:
+            raise SchemaError(f"{name} line {head_line}", f"no name for column {k + 1}",
+                              "a name for every column", "name the column or remove it")
+        if not col.isprintable():
+            raise SchemaError(f"{name} line {head_line} column {k + 1}", _printable(col),
+                              "a column name of printable characters",
+                              "rename the column (control characters such as ESC are refused)")
+        if col in seen:
+            raise SchemaError(f"{name} line {head_line}", f"column {col!r} twice (columns "
+                              f"{seen[col] + 1} and {k + 1})", "each column name once",
+                              "rename or remove one of them")
+        seen[col] = k
+    return header
+
+
 def read_csv_table(path, what: str = "table"):
     """A CSV file as a table of text, each field stripped, every row checked against the header.
 
@@ -83,18 +126,7 @@ def read_csv_table(path, what: str = "table"):
 
     path = Path(path)
     name = f"{what} {path.name}" if what else path.name
-    try:
-        if path.stat().st_size > MAX_CSV_BYTES:
-            raise SchemaError(name, f"{path.stat().st_size} bytes",
-                              f"a table of at most {MAX_CSV_BYTES} bytes", "split the table")
-        text = path.read_text(encoding="utf-8-sig")
-    except FileNotFoundError as err:
-        raise SchemaError("path", str(path), "an existing CSV file", "check the path") from err
-    except IsADirectoryError as err:
-        raise SchemaError("path", f"{path} (a folder)", "a CSV file", "give the file") from err
-    except UnicodeDecodeError as err:
-        raise SchemaError(name, f"not UTF-8 text ({err.reason} at byte {err.start})",
-                          "a UTF-8 CSV file", "save the table as UTF-8 CSV") from err
+    text = _read_text(path, name)
     records = []
     for number, raw in enumerate(text.splitlines(), 1):
         body = _uncommented(raw)
@@ -105,27 +137,7 @@ def read_csv_table(path, what: str = "table"):
         raise SchemaError(name, "an empty file", "a header line and one row per line",
                           "write the header and the rows")
     (head_line, header), rows = records[0], records[1:]
-    while header and not header[-1]:  # trailing commas on the header
-        header = header[:-1]
-    if len(header) == 1 and ";" in header[0]:
-        raise SchemaError(f"{name} line {head_line}", "fields separated by ';'",
-                          "comma-separated values with '.' decimals",
-                          "save the table as CSV with ',' between fields and '.' as the "
-                          "decimal mark")
-    seen: dict = {}
-    for k, col in enumerate(header):
-        if not col:
-            raise SchemaError(f"{name} line {head_line}", f"no name for column {k + 1}",
-                              "a name for every column", "name the column or remove it")
-        if not col.isprintable():
-            raise SchemaError(f"{name} line {head_line} column {k + 1}", _printable(col),
-                              "a column name of printable characters",
-                              "rename the column (control characters such as ESC are refused)")
-        if col in seen:
-            raise SchemaError(f"{name} line {head_line}", f"column {col!r} twice (columns "
-                              f"{seen[col] + 1} and {k + 1})", "each column name once",
-                              "rename or remove one of them")
-        seen[col] = k
+    header = _checked_header(header, name, head_line)
     n = len(header)
     data, lines = [], []
     for number, fields in rows:
