@@ -255,8 +255,8 @@ def _run_centroid(args) -> int:
 
     cube = (cube_from_folder(args.cube, args) if is_image_folder(args.cube)
             else io.open_frames(args.cube))
-    if args.method is None:
-        args.method = "tight" if args.background or centroid.is_multi_hole(cube) else "projection"
+    if args.method is None:  # the library's choice (sunlab.centroid.default_method)
+        args.method = centroid.default_method(cube, args.background)
     extra = {}
     if args.background is not None:
         if args.method != "tight" or centroid.is_multi_hole(cube):

@@ -39,8 +39,6 @@ __all__ = [
 ]
 
 _STATS = ("mu", "sigma", "M", "sigma_M")
-_PAPER_COLUMN = {"polynomial": "polynomial", "interpolation-linear": "linear interp.",
-                 "interpolation-cubic": "cubic interp.", "neural": "NN strategy 4"}
 
 
 # --------------------------------------------------------------------------------------------
@@ -249,7 +247,7 @@ def _run_evaluate(args) -> int:
     shown = table.rename(columns={cal.label: f"{cal.label} (sunlab)"})
     if args.paper:
         paper = stats.paper_table4()
-        want = _PAPER_COLUMN.get(cal.kind)
+        want = stats.PAPER_COLUMNS.get(cal.kind)
         keep = [want] if want in paper.columns else list(paper.columns)
         shown = pd.concat([shown, paper[keep].add_suffix(" (paper)")], axis=1)
     print(shown.to_string(float_format=lambda v: f"{v:.5f}"))
@@ -300,7 +298,7 @@ def _evaluation_doc(args, cal, test, col, n_ok: int, n_out: int) -> dict:
                        "maximum error = max over the shots; mu, sigma = mean, sample std of "
                        "the local errors over poses; M, sigma_M = the same of the maximum errors",
     })
-    want = _PAPER_COLUMN.get(cal.kind) if args.paper else None
+    want = stats.PAPER_COLUMNS.get(cal.kind) if args.paper else None
     if want:
         paper = stats.paper_table4()[want]
         doc["paper"] = {"column": want, **{f"{a}.{s}": float(paper[(a, s)])

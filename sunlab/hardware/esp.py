@@ -70,6 +70,12 @@ class _Garbled(Exception):
         self.raw = raw
 
 
+#: Time a query's retries may spend beyond their read timeouts, s: the back-off waits, or at
+#: least this much for a resynchronisation to read a late reply (issue 37: a dead controller is
+#: declared within the tries times the timeout plus about 1.5 s).
+_SLACK_S = 1.5
+
+
 class ESP300:
     """A two-axis rotation platform on a Newport ESP300 or ESP301 controller.
 
@@ -325,7 +331,7 @@ class ESP300:
         # A dead controller is declared within (retries + 1) read timeouts plus the back-off
         # waits, however its silence or its noise falls across the attempts (issue 37).
         delays = [self.retry_delay_s * 2 ** (k - 1) for k in range(1, self.retries + 1)]
-        end = self._clock() + (self.retries + 1) * self.timeout + sum(delays)
+        end = self._clock() + (self.retries + 1) * self.timeout + max(sum(delays), _SLACK_S)
         try:
             for attempt in range(self.retries + 1):
                 # a resynchronisation leaves the back-off waits of the later retries their time
