@@ -18,8 +18,9 @@ caller says so (``overwrite=True`` / ``--overwrite``):
 Temporary names carry the writer's process id (``.NAME.tmp-PID-XXXXXXXX``, an old output set
 aside ``.NAME.old-PID-XXXXXXXX``): a later write of the same output removes the leftovers of a
 writer that was killed (its process is gone), and puts back an old output that such a writer had
-set aside but not yet replaced. The moves into place run with SIGINT and SIGTERM held back, so
-Ctrl-C cannot split them. A full disk (or a file-size limit) is reported naming the output.
+set aside but not yet replaced. The moves into place run with SIGINT, SIGTERM and SIGHUP held
+back, so Ctrl-C (or a closed terminal) cannot split them. A full disk (or a file-size limit)
+is reported naming the output.
 
 Examples
 --------
@@ -186,18 +187,42 @@ def check_target(path, *, overwrite: bool = False, kind: str = "file", flag: str
             "folder you can write to, or change the folder's permissions"
         )
     remove_stale(path)
+    special = _special_file(path)
+    if special:
+        raise SunlabError(
+            f"{path}: is {special}, not a regular file; sunlab never replaces one (a reader "
+            "may hold it open). Fix: choose a path for a new file"
+        )
+    if path.is_dir() and not path.is_symlink() and not (kind == "zarr" and _is_zarr_store(path)):
+        if kind == "zarr":
+            raise SunlabError(
+                f"{path}: is a directory, not a Zarr store; sunlab will not delete it. Fix: "
+                "choose another path")
+        raise SunlabError(
+            f"{path}: is a directory, expected a file; sunlab will not delete it. Fix: give a "
+            f"file path (e.g. {path / 'out'}{path.suffix or ''})")
     if path.exists() or path.is_symlink():
         if not overwrite:
             raise OutputExistsError(
                 f"{path}: already exists. Fix: pass {flag} to replace it, or choose a new path"
             )
-        if path.is_dir() and not (kind == "zarr" and _is_zarr_store(path)):
-            what = "not a Zarr store" if kind == "zarr" else "a directory"
-            raise SunlabError(
-                f"{path}: is a directory, {what}; sunlab will not delete it. Fix: choose "
-                "another path"
-            )
     return path
+
+
+def _special_file(path: Path) -> str | None:
+    """What ``path`` is when it is neither a regular file, a folder nor a symbolic link (a
+    named pipe, a socket, a device), else None. A link is judged by what it points to."""
+    import stat
+
+    try:
+        mode = os.stat(path).st_mode
+    except OSError:  # missing, or a dangling link: nothing that a write could reach
+        return None
+    for test, name in ((stat.S_ISFIFO, "a named pipe (FIFO)"), (stat.S_ISSOCK, "a socket"),
+                       (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device")):
+        if test(mode):
+            return name
+    return None
 
 
 def _remove(path: Path) -> None:
@@ -210,10 +235,11 @@ def _remove(path: Path) -> None:
 
 @contextlib.contextmanager
 def signals_held():
-    """Hold SIGINT and SIGTERM back while the block runs (they are delivered when it ends):
+    """Hold SIGINT, SIGTERM and SIGHUP back while the block runs (delivered when it ends):
     for a few renames, or a step whose writes run on another thread that an interrupt of this
     one would not stop (they would recreate a temporary output after its removal)."""
-    held = {signal.SIGINT, signal.SIGTERM}
+    held = {signal.SIGINT, signal.SIGTERM} | (
+        {signal.SIGHUP} if hasattr(signal, "SIGHUP") else set())
     try:
         old = signal.pthread_sigmask(signal.SIG_BLOCK, held)
     except (AttributeError, OSError, ValueError):  # no POSIX signal masks (Windows)

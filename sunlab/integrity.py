@@ -150,6 +150,24 @@ def check_depth(doc, source) -> None:
     if _depth(doc) > MAX_JSON_DEPTH:
         raise SunlabError(f"{source}: JSON nested more than {MAX_JSON_DEPTH} levels deep. Fix: "
                           "give a document written by sunlab")
+    _check_integers(doc, source, "give a document written by sunlab")
+
+
+def _check_integers(doc, source, fix: str) -> None:
+    """Refuse an integer no double can hold (JSON allows 4,300 digits): every number sunlab
+    reads is a double in the end, and ``float()`` of such an integer raises OverflowError
+    deep inside a reader."""
+    stack = [(doc, "")]
+    while stack:
+        obj, where = stack.pop()
+        if isinstance(obj, dict):
+            stack.extend((v, f"{where}.{k}" if where else str(k)) for k, v in obj.items())
+        elif isinstance(obj, list):
+            stack.extend((v, f"{where}[{i}]") for i, v in enumerate(obj))
+        elif isinstance(obj, int) and not isinstance(obj, bool) and obj.bit_length() > 1023:
+            raise SunlabError(
+                f"{source}: {where or 'value'}: found an integer of {len(str(abs(obj)))} "
+                "digits, expected a number a double can hold (below 1.8e308). Fix: " + fix)
 
 
 def _depth(doc) -> int:
@@ -227,6 +245,7 @@ def read_json(path, *, max_bytes: int, what: str = "a JSON document", fix: str =
     if _depth(doc) > MAX_JSON_DEPTH:
         raise SunlabError(f"{path}: JSON nested more than {MAX_JSON_DEPTH} levels deep, "
                           f"expected {what}. Fix: {fix}")
+    _check_integers(doc, path, fix)
     return doc
 
 

@@ -47,6 +47,7 @@ from .schema import STATUS, USABLE_STATUS
 __all__ = [
     "ANGLES",
     "STATS",
+    "PAPER_COLUMNS",
     "shot_errors",
     "local_errors",
     "global_stats",
@@ -404,6 +405,11 @@ def _table(data: dict, columns: list[str], source: str) -> pd.DataFrame:
     df.attrs["source"] = source
     df.attrs["units"] = "deg"
     return df
+
+
+#: The paper's Table 4 column of each calibration kind it reports (:func:`paper_table4`).
+PAPER_COLUMNS = {"polynomial": "polynomial", "interpolation-linear": "linear interp.",
+                 "interpolation-cubic": "cubic interp.", "neural": "NN strategy 4"}
 
 
 def paper_table4() -> pd.DataFrame:

@@ -225,3 +225,42 @@ def test_cli_calibrate_bad_order(tables, tmp_path, capsys):
     rc = main(["calibrate", str(tmp_path / "I.nc"), "--order", "auto", "--out",
                str(tmp_path / "c.json")])
     assert rc == 1 and "--validation" in capsys.readouterr().err
+
+
+def test_a_hot_pixel_repaired_in_the_window_keeps_the_shot_in_the_calibration(tmp_path, capsys):
+    # Issue 37: one hot pixel at full scale inside the centroid window of 20 of 25 poses. The
+    # estimator repairs it (status 'repaired', centroid as on the clean frame); the calibration
+    # keeps those shots, counts them and says so, instead of dropping most of its poses.
+    import _spots
+
+    from sunlab import centroid, cli, io, schema
+    from sunlab.calibration import Polynomial
+
+    grid = [(a, b) for a in (-8.0, -4.0, 0.0, 4.0, 8.0) for b in (-8.0, -4.0, 0.0, 4.0, 8.0)]
+    clean, hot = [], []
+    for k, (a, b) in enumerate(grid):
+        x, y = 200.3 + 9.0 * a, 150.6 + 8.0 * b
+        f = np.round(_spots.frame([(x, y)], noise=False, shape=(300, 400))).astype(np.uint16)
+        clean.append(f)
+        f = f.copy()
+        if k < 20:
+            f[int(y) + 4, int(x) - 3] = 1023  # inside the spot, 10-bit full scale
+        hot.append(f)
+    alpha, beta = [a for a, _ in grid], [b for _, b in grid]
+    cen = {}
+    for name, frames in (("clean", clean), ("hot", hot)):
+        cube = schema.frames_dataset(np.stack(frames)[:, None], alpha=alpha, beta=beta,
+                                     bit_depth=10)
+        cen[name] = centroid.locate(cube, progress=False)
+    status = cen["hot"]["status"].values[:, 0]
+    assert (status[:20] == schema.STATUS["repaired"]).all() and (status[20:] == 0).all()
+    assert np.abs(cen["hot"]["x"] - cen["clean"]["x"]).max() < 0.1  # px: the spot is intact
+    cal = Polynomial(order=1).fit(cen["hot"])
+    assert cal.training["n_poses"] == 25 and cal.training["n_repaired_shots"] == 20
+    ref = Polynomial(order=1).fit(cen["clean"])
+    est, want = cal.predict_xy(200.0, 150.0), ref.predict_xy(200.0, 150.0)
+    np.testing.assert_allclose(est, want, atol=0.1 / 8.0)  # 0.1 px at >= 8 px/deg
+    io.save_centroids(cen["hot"], tmp_path / "train.nc")
+    assert cli.main(["calibrate", str(tmp_path / "train.nc"), "--method", "polynomial",
+                     "--order", "1", "--out", str(tmp_path / "cal.json")]) == 0
+    assert "20 of the 25 shots used are 'repaired'" in capsys.readouterr().out

@@ -112,3 +112,70 @@ def test_open_centroids_refuses_a_frame_cube(tmp_path):
     io.save_frames(cube, tmp_path / "cube.zarr")
     with pytest.raises(SchemaError, match="centroid the frames first"):
         io.open_centroids(tmp_path / "cube.zarr")
+
+
+# -- one path: the library does what the command line does (issue 36) ---------------------------
+def _lab_csv(folder, table, bad_line: int):
+    """``table`` as a lab's CSV, one row moved 40 px off (screening removes it), and a
+    ``sensor.json`` beside it."""
+    rows = ["alpha,beta,x,y,shot"]
+    for p in range(table.sizes["pose"]):
+        for s in range(table.sizes["shot"]):
+            x = float(table.x.values[p, s]) + (40.0 if len(rows) + 1 == bad_line else 0.0)
+            rows.append(f"{float(table.alpha.values[p])!r},{float(table.beta.values[p])!r},"
+                        f"{x!r},{float(table.y.values[p, s])!r},{s}")
+    path = folder / "train.csv"
+    path.write_text("\n".join(rows) + "\n")
+    (folder / "sensor.json").write_text(json.dumps({
+        "pixel_pitch_mm": 0.007, "mask_distance_mm": 5.0, "x_cf_px": 640.0, "y_cf_px": 512.0}))
+    return path
+
+
+def test_calibrate_and_the_library_give_identical_coefficients(tmp_path, capsys):
+    from sunlab import screening
+    from sunlab.calibration import registry
+    from sunlab.cli import main
+
+    path = _lab_csv(tmp_path, _table(1), bad_line=17)
+    assert main(["calibrate", str(path), "--method", "polynomial", "--order", "3", "--out",
+                 str(tmp_path / "cal.json")]) == 0
+    assert f"{path} line 17 (train): excluded as an outlier" in capsys.readouterr().out
+    cli_cal = calibration.load(tmp_path / "cal.json")
+    table = io.open_centroids(path)
+    assert table.attrs["mask_distance_mm"] == 5.0  # the sensor.json beside the CSV
+    lib_cal = calibration.fit(table, "polynomial", order=3)
+    for angle in ("alpha", "beta"):
+        np.testing.assert_array_equal(cli_cal.coefficients[angle],
+                                      lib_cal.coefficients[angle])  # bit for bit
+    assert [o["pose"] for o in lib_cal.training["excluded"]] == [7]
+    assert cli_cal.training["excluded"] == lib_cal.training["excluded"]
+    assert registry.OUTLIER_MADS == screening.N_MAD  # one default, library and CLI
+    # and screening is what made them equal to each other, not to an unscreened fit
+    raw = calibration.fit(table, "polynomial", order=3, outlier_mads=0)
+    assert not np.array_equal(raw.coefficients["alpha"], lib_cal.coefficients["alpha"])
+
+
+def test_order_auto_is_the_librarys(tmp_path):
+    cal = calibration.fit(_table(1), "polynomial", _table(2), order="auto")
+    best, scores = calibration.Polynomial.select_order(_table(1), _table(2))
+    assert cal.orders == best.orders and cal.order_scores.equals(scores)
+    with pytest.raises(ConfigurationError, match="without a validation table"):
+        calibration.fit(_table(1), "polynomial", order="auto")
+    with pytest.raises(ConfigurationError, match="applies to method 'polynomial'"):
+        calibration.fit(_table(1), "trigonometric", _table(2), order="auto")
+
+
+def test_evaluate_and_the_library_give_identical_statistics(tmp_path):
+    from sunlab.cli import main
+
+    cal = calibration.fit(_table(1), "polynomial", order=3)
+    cal.save(tmp_path / "cal.json")
+    io.save_centroids(_table(3), tmp_path / "test.nc")
+    assert main(["evaluate", str(tmp_path / "cal.json"), str(tmp_path / "test.nc"), "--out",
+                 str(tmp_path / "ev")]) == 0
+    written = json.loads((tmp_path / "ev" / "evaluation.json").read_text())
+    table = stats.evaluate(calibration.load(tmp_path / "cal.json"),
+                           io.open_centroids(tmp_path / "test.nc"))[cal.label]
+    for a in ("alpha", "beta"):
+        for s in ("mu", "sigma", "M", "sigma_M"):
+            assert written[f"{a}.{s}"] == float(table[(a, s)])  # bit for bit

@@ -434,3 +434,48 @@ def test_bad_driver_settings_are_configuration_errors(kwargs):
 def test_an_unopenable_port_is_a_clear_error(tmp_path):
     with pytest.raises(StageDisconnected, match="cannot open"):
         ESP300(str(tmp_path / "no-such-tty"), timeout=0.1)
+
+
+# -- a dead controller is declared in bounded time (issue 37) -----------------------------------
+class _DeadLink:
+    """A link on a virtual clock: ``silent`` never answers (each read waits one timeout),
+    otherwise a flood of binary noise arrives at 19200 baud (a read returns 256 bytes in the
+    time they take on the wire). ``sleep`` advances the same clock."""
+
+    def __init__(self, timeout: float, silent: bool):
+        self.now, self.timeout, self.silent = 0.0, timeout, silent
+
+    def clock(self) -> float:
+        return self.now
+
+    def sleep(self, seconds: float) -> None:
+        self.now += seconds
+
+    def write(self, data: bytes) -> int:
+        return len(data)
+
+    def read_until(self, expected: bytes = b"\n", size: int | None = None) -> bytes:
+        if self.silent:
+            self.now += self.timeout
+            return b""
+        self.now += 256 * 10 / 19200
+        return bytes(range(128, 256)) * 2
+
+    def reset_input_buffer(self) -> None:
+        pass
+
+    def close(self) -> None:
+        pass
+
+
+@pytest.mark.parametrize("silent", [True, False], ids=["silent", "flood"])
+def test_a_dead_controller_is_declared_within_tries_times_timeout_plus_the_backoff(silent):
+    timeout, retries, delay = 0.25, 3, 0.2
+    link = _DeadLink(timeout, silent)
+    stage = ESP300(link, connect=False, timeout=timeout, retries=retries, retry_delay_s=delay,
+                   sleep=link.sleep, clock=link.clock)
+    with pytest.raises(StageTimeout if silent else (StageTimeout, StageProtocolError)):
+        stage.position()
+    # the issue's bound: tries x timeout + about 1.5 s (the back-off waits, 0.2 + 0.4 + 0.8 s,
+    # or the driver's 1.5 s of slack for a late reply, whichever is longer)
+    assert link.now <= (retries + 1) * timeout + 1.5 + 1e-9

@@ -450,3 +450,24 @@ def test_cli_acquire_with_the_fake_stage(tmp_path, capsys):
     assert main(["acquire", "--stage", "fake://", "--camera", "webcam", "--plan", "I",
                  "--out", str(tmp_path / "x.zarr")]) == 1
     assert "folder:PATH" in capsys.readouterr().err
+
+
+def test_a_lock_that_is_a_directory_is_named_as_one(tmp_path):
+    from sunlab.hardware.runner import RunLockedError, run_lock
+
+    (tmp_path / "run.zarr.lock").mkdir()
+    with pytest.raises(RunLockedError, match=r"run.zarr.lock is a directory, not a lock file "
+                                             r"that sunlab writes"), \
+            run_lock(tmp_path / "run.zarr"):
+        pass
+    assert (tmp_path / "run.zarr.lock").is_dir()
+
+
+def test_a_lock_without_a_session_is_named_not_reported_as_pid_none(tmp_path):
+    from sunlab.hardware.runner import RunLockedError, run_lock
+
+    (tmp_path / "run.zarr.lock").write_text("garbage")
+    with pytest.raises(RunLockedError, match=r"holds no session") as info, \
+            run_lock(tmp_path / "run.zarr"):
+        pass
+    assert "pid None" not in str(info.value)

@@ -19,6 +19,17 @@ def _bad(field: str, found, expected: str, fix: str = "the file is corrupt or ed
     return SchemaError(f"parameters.{field}", found, expected, fix)
 
 
+def _finite(v) -> bool:
+    """A JSON number that is finite as a double (an integer of 400 digits is not: ``float()``
+    of it overflows)."""
+    if isinstance(v, bool) or not isinstance(v, int | float):
+        return False
+    try:
+        return math.isfinite(float(v))
+    except OverflowError:
+        return False
+
+
 def _numbers(value, field: str, length: int | None = None, *, positive: bool = False) -> list:
     """A flat list of finite numbers (checked without building an array)."""
     if not isinstance(value, list):
@@ -26,8 +37,7 @@ def _numbers(value, field: str, length: int | None = None, *, positive: bool = F
     if length is not None and len(value) != length:
         raise _bad(field, f"{len(value)} values", f"{length} values")
     for i, v in enumerate(value):
-        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v) \
-                or (positive and not v > 0):
+        if not _finite(v) or (positive and not v > 0):
             raise _bad(f"{field}[{i}]", v, "a finite positive number" if positive
                        else "a finite number")
     return value
@@ -35,8 +45,7 @@ def _numbers(value, field: str, length: int | None = None, *, positive: bool = F
 
 def _number(value, field: str, *, positive: bool = False) -> float:
     """One finite number."""
-    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value) \
-            or (positive and not value > 0):
+    if not _finite(value) or (positive and not value > 0):
         raise _bad(field, value, "a finite positive number" if positive else "a finite number")
     return value
 

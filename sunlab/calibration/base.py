@@ -5,9 +5,11 @@ A calibration maps a spot centroid ``(x, y)`` (px) to platform angles ``(alpha, 
 :mod:`sunlab.calibration` is a :class:`Calibration` with the same three verbs:
 
 - ``fit(train, validation=None)`` on ``centroids/1`` tables with the commanded angles as
-  coordinates ``alpha``, ``beta`` on ``pose``. Only shots of status ``ok`` with finite x, y are
-  used. By default (``average="pose"``) each pose contributes the mean centroid of its ok shots,
-  so every pose weighs the same whatever number of shots survived; ``average="shot"`` fits every
+  coordinates ``alpha``, ``beta`` on ``pose``. Only usable shots (status ``ok``, or
+  ``repaired``: an isolated hot pixel replaced in the window, counted in the artifact's
+  ``training["n_repaired_shots"]``) with finite x, y are used. By default
+  (``average="pose"``) each pose contributes the mean centroid of its ok shots, so every pose
+  weighs the same whatever number of shots survived; ``average="shot"`` fits every
   ok shot instead (least squares on shots equals least squares on pose means weighted by the
   number of ok shots). Interpolation always uses pose means (its nodes must be unique).
 - ``predict(centroids)`` returns an ``xarray.Dataset`` with the estimates ``alpha``, ``beta``
@@ -49,7 +51,7 @@ import xarray as xr
 
 from .. import __version__, atomic, integrity
 from ..errors import ConfigurationError, SchemaError
-from ..schema import CALIBRATION_SCHEMA, STATUS, validate_centroids
+from ..schema import CALIBRATION_SCHEMA, STATUS, USABLE_STATUS, validate_centroids
 from .artifact import validate_document
 from .summary import calibration_summary
 
@@ -78,9 +80,11 @@ class TrainingData:
     n_poses : int
         Poses with at least one ok shot.
     n_shots : int
-        Ok shots used.
+        Usable shots used (status ``ok`` or ``repaired``).
     attrs : dict
         Attributes of the centroid table (sensor, experiment, centroid method).
+    n_repaired : int
+        Of them, shots of status ``repaired`` (a hot pixel replaced in the window).
     """
 
     x: np.ndarray
@@ -90,12 +94,37 @@ class TrainingData:
     n_poses: int
     n_shots: int
     attrs: dict
+    n_repaired: int = 0
 
 
 def _ok_mask(ds: xr.Dataset) -> np.ndarray:
+    """The usable shots: status ``ok`` or ``repaired`` (an isolated hot pixel replaced in the
+    window, the spot itself intact: :data:`sunlab.schema.USABLE_STATUS`) and finite x, y."""
     x = np.asarray(ds["x"].values, dtype=float)
     y = np.asarray(ds["y"].values, dtype=float)
-    return (np.asarray(ds["status"].values) == STATUS["ok"]) & np.isfinite(x) & np.isfinite(y)
+    usable = np.isin(np.asarray(ds["status"].values), [STATUS[k] for k in USABLE_STATUS])
+    return usable & np.isfinite(x) & np.isfinite(y)
+
+
+#: Largest commanded angle a training table may hold, deg (as :data:`sunlab.plans.MAX_ANGLE_DEG`:
+#: beyond 90 deg the sun is behind the mask).
+_MAX_ANGLE_DEG = 90.0
+
+
+def _check_angles(centroids: xr.Dataset, name: str) -> None:
+    """Refuse commanded angles no sensor can see (one typo of 1e6 deg would bend the fit on
+    every pose), naming the pose."""
+    for c in ("alpha", "beta"):
+        v = np.asarray(centroids[c].values, dtype=float)
+        bad = np.flatnonzero(~(np.abs(v) < _MAX_ANGLE_DEG))
+        if bad.size:
+            raise SchemaError(
+                f"{name}.{c}[pose={int(bad[0])}]", float(v[bad[0]]),
+                f"a finite commanded angle within (-{_MAX_ANGLE_DEG:g}, {_MAX_ANGLE_DEG:g}) deg "
+                "(the sun in front of the mask)",
+                f"correct or drop the pose(s) ({bad.size} such pose(s)), e.g. "
+                f"table.drop_isel(pose={int(bad[0])})",
+            )
 
 
 def training_data(centroids: xr.Dataset, average: str = "pose", *, name: str = "train"):
@@ -145,6 +174,7 @@ def training_data(centroids: xr.Dataset, average: str = "pose", *, name: str = "
                 f"{name}.coords[{c!r}]", "missing", "commanded angles on 'pose', degrees",
                 "keep the cube's alpha/beta coordinates when building the centroid table",
             )
+    _check_angles(centroids, name)
     ok = _ok_mask(centroids)
     x = np.where(ok, centroids["x"].values, 0.0)
     y = np.where(ok, centroids["y"].values, 0.0)
@@ -161,12 +191,14 @@ def training_data(centroids: xr.Dataset, average: str = "pose", *, name: str = "
         a = np.broadcast_to(alpha[:, None], ok.shape)[ok]
         b = np.broadcast_to(beta[:, None], ok.shape)[ok]
     if xs.size == 0:
-        raise SchemaError(f"{name}.status", "no shot of status ok",
+        raise SchemaError(f"{name}.status", "no shot of status ok or repaired",
                           "at least one usable centroid", "check the centroiding step")
     return TrainingData(
         x=np.asarray(xs, dtype=float), y=np.asarray(ys, dtype=float),
         alpha=np.asarray(a, dtype=float), beta=np.asarray(b, dtype=float),
         n_poses=int(keep.sum()), n_shots=int(ok.sum()), attrs=dict(centroids.attrs),
+        n_repaired=int((ok & (np.asarray(centroids["status"].values)
+                              == STATUS["repaired"])).sum()),
     )
 
 
@@ -312,6 +344,7 @@ class Calibration:
             "n_poses": data.n_poses,
             "n_shots": int(train.sizes["shot"]),
             "n_ok_shots": data.n_shots,
+            "n_repaired_shots": data.n_repaired,
             "average": self.average,
             "validation": None if val is None else {
                 "experiment": str(val.attrs.get("experiment", "")),

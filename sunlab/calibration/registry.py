@@ -24,7 +24,13 @@ if TYPE_CHECKING:
 
     from .base import Calibration
 
-__all__ = ["KINDS", "FRAME_KINDS", "ALIASES", "fit", "method_class"]
+__all__ = ["KINDS", "FRAME_KINDS", "ALIASES", "OUTLIER_MADS", "fit", "method_class"]
+
+#: Default outlier screening of :func:`fit` (and ``sunlab calibrate --outlier-mads``): shots
+#: beyond this many MADs of a robust fit are excluded. The value of
+#: :data:`sunlab.screening.N_MAD`, kept here so that the command line shows it without
+#: importing numpy (a test checks that the two agree).
+OUTLIER_MADS = 10.0
 
 #: The calibration methods, registered once: ``kind`` of the artifact -> ``"module:Class"`` in
 #: :mod:`sunlab.calibration`. The library (:func:`fit`, :func:`load`), the command line
@@ -92,8 +98,8 @@ def _class_of(kind: str, kinds: dict[str, str] | None = None) -> type[Calibratio
     return getattr(importlib.import_module(module), name)
 
 
-def fit(table: xr.Dataset, method: str, validation: xr.Dataset | None = None,
-        **options) -> Calibration:
+def fit(table: xr.Dataset, method: str, validation: xr.Dataset | None = None, *,
+        outlier_mads: float | None = OUTLIER_MADS, **options) -> Calibration:
     """Fit the calibration ``method`` on a centroid table: the one entry point of the registry.
 
     Parameters
@@ -106,11 +112,21 @@ def fit(table: xr.Dataset, method: str, validation: xr.Dataset | None = None,
         ``"interpolation-linear"``, ``"interpolation-cubic"``, ``"neural"``, ``"ideal"``,
         ``"optimised"``) or an alias of :data:`ALIASES` (``"linear"``, ``"cubic"``).
     validation : xarray.Dataset, optional
-        Validation table (experiment II): early stopping of the networks, the validation
-        residuals of the artifact.
+        Validation table (experiment II): early stopping of the networks, the order of
+        ``order="auto"``, the validation residuals of the artifact.
+    outlier_mads : float or None
+        Screen both tables first (:func:`sunlab.screening.screen_outliers`): shots whose
+        centroid lies more than this many MADs from a robust fit are excluded (default
+        :data:`OUTLIER_MADS`, as ``sunlab calibrate``); 0 or None keeps every shot. The
+        excluded shots are listed in ``training["excluded"]`` (and
+        ``training["validation_excluded"]``): pose, shot, angles (deg), centroid (px) and their
+        distance in px and MADs.
     **options
         Keywords of the method's class, e.g. ``order=3`` for :class:`Polynomial`,
-        ``strategy=4, hidden=8`` for :class:`NeuralNet`.
+        ``strategy=4, hidden=8`` for :class:`NeuralNet`. ``order="auto"`` (polynomial only,
+        with ``validation``): the order the validation table prefers
+        (:meth:`Polynomial.select_order`); its scores are the calibration's
+        ``order_scores``.
 
     Returns
     -------
@@ -137,10 +153,45 @@ def fit(table: xr.Dataset, method: str, validation: xr.Dataset | None = None,
     """
     kind = ALIASES.get(method, method)
     cls = _class_of(kind)
-    try:
-        cal = cls.for_kind(kind, **options)
-    except TypeError as err:  # an option the class does not take
-        raise ConfigurationError(
-            f"{method}: {err}. Fix: pass only the keywords of {cls.__name__} "
-            f"(help(sunlab.calibration.{cls.__name__}))") from err
-    return cal.fit(table, validation)
+    table, excluded = _screened(table, outlier_mads)
+    if validation is not None:
+        validation, val_excluded = _screened(validation, outlier_mads)
+    if options.get("order") == "auto":
+        cal = _auto_order(kind, table, validation, options)
+    else:
+        try:
+            cal = cls.for_kind(kind, **options)
+        except TypeError as err:  # an option the class does not take
+            raise ConfigurationError(
+                f"{method}: {err}. Fix: pass only the keywords of {cls.__name__} "
+                f"(help(sunlab.calibration.{cls.__name__}))") from err
+        cal.fit(table, validation)
+    if outlier_mads:
+        cal.training["outlier_mads"] = float(outlier_mads)
+        cal.training["excluded"] = excluded
+        if validation is not None:
+            cal.training["validation_excluded"] = val_excluded
+    return cal
+
+
+def _screened(table, n_mad):
+    """``table`` with its outliers flagged ``invalid``, and their list (nothing when off)."""
+    if not n_mad:
+        return table, []
+    from ..screening import screen_outliers
+
+    return screen_outliers(table, n_mad)
+
+
+def _auto_order(kind: str, table, validation, options: dict):
+    """``order="auto"``: the polynomial whose order the validation table prefers."""
+    if kind != "polynomial":
+        raise ConfigurationError(f"order: 'auto' applies to method 'polynomial', not {kind!r}. "
+                                 "Fix: give an integer order")
+    if validation is None:
+        raise ConfigurationError("order: found 'auto' without a validation table. Fix: pass "
+                                 "validation= (experiment II), or an integer order")
+    rest = {k: v for k, v in options.items() if k != "order"}
+    cal, scores = _class_of(kind).select_order(table, validation, **rest)
+    cal.order_scores = scores
+    return cal

@@ -59,7 +59,7 @@ from __future__ import annotations
 
 from ..jit import announce_first_compile
 from .crlb import CRLB, crlb, disk_profile
-from .cube import is_multi_hole, locate, locate_all
+from .cube import default_method, is_multi_hole, locate, locate_all
 from .estimators import (
     METHODS,
     border_mean,
@@ -101,4 +101,5 @@ __all__ = [
     "locate",
     "locate_all",
     "is_multi_hole",
+    "default_method",
 ]

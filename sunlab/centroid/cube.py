@@ -19,7 +19,7 @@ from ..io.calframes import corrected_frames, corrected_saturation, has_calibrati
 from .estimators import METHODS
 from .lattice import SPOT_METRICS, locate_spots
 
-__all__ = ["locate", "locate_all", "is_multi_hole"]
+__all__ = ["locate", "locate_all", "is_multi_hole", "default_method"]
 
 
 _FIELDS = ("x", "y", "flux", "x0", "x1", "y0", "y1", "status")
@@ -128,6 +128,35 @@ def is_multi_hole(cube) -> bool:
     True
     """
     return "hole" in cube.dims or ("hole_i" in cube.variables and "hole_j" in cube.variables)
+
+
+def default_method(cube, background: str | None = None) -> str:
+    """The estimator a cube is centroided with when none is named (``sunlab centroid``):
+    algorithm B, ``"projection"``, for one spot per frame; ``"tight"`` for a multi-hole cube
+    (its spots take ``"tight"`` or ``"fit"`` only) or when a ``background`` model is asked for
+    (an option of the tight window).
+
+    Parameters
+    ----------
+    cube : xarray.Dataset
+        A frame cube (contract ``frames/1``).
+    background : {"ring", "plane"}, optional
+        The tight window's background, if one is asked for.
+
+    Returns
+    -------
+    str
+        A key of :data:`METHODS`.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sunlab import schema
+    >>> default_method(schema.frames_dataset(np.zeros((1, 1, 8, 8), np.uint16), alpha=[0.0],
+    ...                                      beta=[0.0]))
+    'projection'
+    """
+    return "tight" if background is not None or is_multi_hole(cube) else "projection"
 
 
 def locate(

@@ -22,12 +22,12 @@ import contextlib
 import os
 import signal
 import sys
-import threading
 
-from ..calibration.registry import ALIASES, KINDS
+from ..calibration.registry import ALIASES, KINDS, OUTLIER_MADS
 from ..errors import SunlabError
 from . import lab as _lab
 from . import study as _study
+from ._signals import _ENDING, _ended_by, _signals_interrupt
 
 __all__ = ["build_parser", "main", "run"]
 
@@ -93,14 +93,30 @@ def _run_info(args) -> int:
 
     doc = read_calibration_json(args.path)  # standard library only: fast
     if doc is not None:
-        print(calibration_summary(doc))
+        print(_printable(calibration_summary(doc), keep="\n"))
         return 0
     from .. import io
 
     # Describe incomplete stores (an acquisition in progress) instead of refusing them:
-    # the summary names the missing chunk files.
-    print(io.summary(io.open_dataset(args.path, check_chunks=False)))
+    # the summary names the missing chunk files. Names and attributes come from the file:
+    # a terminal escape sequence in them is shown escaped, not run.
+    print(_printable(io.summary(io.open_dataset(args.path, check_chunks=False)), keep="\n"))
     return 0
+
+
+def _printable(text: str, keep: str = "") -> str:
+    r"""``text`` with every control character but those in ``keep`` escaped (ESC as ``\x1b``):
+    what a file holds is shown to a terminal, never run by it.
+
+    Examples
+    --------
+    >>> _printable("mask \x1b[2J 100 holes")
+    'mask \\x1b[2J 100 holes'
+    """
+    if text.isprintable():
+        return text
+    return "".join(c if c.isprintable() or c in keep
+                   else c.encode("unicode_escape").decode("ascii") for c in text)
 
 
 def _add_acquire(sub) -> None:
@@ -240,8 +256,8 @@ def _run_centroid(args) -> int:
 
     cube = (cube_from_folder(args.cube, args) if is_image_folder(args.cube)
             else io.open_frames(args.cube))
-    if args.method is None:
-        args.method = "tight" if args.background or centroid.is_multi_hole(cube) else "projection"
+    if args.method is None:  # the library's choice (sunlab.centroid.default_method)
+        args.method = centroid.default_method(cube, args.background)
     extra = {}
     if args.background is not None:
         if args.method != "tight" or centroid.is_multi_hole(cube):
@@ -331,10 +347,11 @@ def _add_calibrate(sub) -> None:
     p.add_argument("--validation", default=None,
                    help="validation centroid table (experiment II): early stopping, order")
     p.add_argument("--out", required=True, help="output calibration (.json)")
-    p.add_argument("--outlier-mads", type=_mads, default=10.0, metavar="N",
+    p.add_argument("--outlier-mads", type=_mads, default=OUTLIER_MADS, metavar="N",
                    help="exclude shots whose centroid lies more than N median absolute "
                         "deviations from a robust fit of the table (sunlab.screening; default "
-                        "10; 0: keep every shot); the excluded lines are named")
+                        f"{OUTLIER_MADS:g}, as sunlab.calibration.fit; 0: keep every shot); the "
+                        "excluded lines are named")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output")
     p.set_defaults(func=_run_calibrate)
 
@@ -388,15 +405,11 @@ def _mads(text: str) -> float:
     return value
 
 
-def _screen(table, path, name: str, n_mad: float):
-    """``table`` with its outliers excluded (:func:`sunlab.screening.screen_outliers`); each
-    one named on stdout, by its line for a CSV table."""
+def _print_excluded(found, path, name: str, n_mad: float) -> None:
+    """Name each shot the library's screening excluded (``training["excluded"]``), by its
+    line for a CSV table."""
     from ..io.csvtable import csv_line_of
-    from ..screening import screen_outliers
 
-    if not n_mad:
-        return table
-    screened, found = screen_outliers(table, n_mad)
     for o in found:
         line = csv_line_of(path, o) if str(path).lower().endswith((".csv", ".txt")) else None
         where = (f"line {line}" if line else f"pose {o['pose']} shot {o['shot']}"
@@ -404,7 +417,6 @@ def _screen(table, path, name: str, n_mad: float):
         print(f"{path} {where} ({name}): excluded as an outlier: alpha {o['alpha']:g}, beta "
               f"{o['beta']:g} deg, x {o['x']:.6g}, y {o['y']:.6g} px, {o['residual_px']:.3g} px "
               f"= {o['mads']:.3g} MADs from a robust fit (threshold {n_mad:g}; --outlier-mads)")
-    return screened
 
 
 def _run_calibrate(args) -> int:
@@ -416,24 +428,25 @@ def _run_calibrate(args) -> int:
 
     options = _method_options(args)
     _check_out(args.out, args.overwrite)
-    train = _screen(open_centroid_table(args.train, "train"), args.train, "train",
-                    args.outlier_mads)
-    val = None if args.validation is None else _screen(
-        open_centroid_table(args.validation, "validation"), args.validation, "validation",
-        args.outlier_mads)
+    train = open_centroid_table(args.train, "train")
+    val = None if args.validation is None else open_centroid_table(args.validation,
+                                                                   "validation")
+    if options.get("order") == "auto" and val is None:
+        raise ConfigurationError(
+            "--order: found 'auto' without --validation. Fix: pass --validation VAL.nc")
     t0 = time.perf_counter()
-    if options.get("order") == "auto":
-        if args.method != "polynomial":
-            raise ConfigurationError(
-                f"--order: 'auto' applies to --method polynomial, not {args.method!r}")
-        if val is None:
-            raise ConfigurationError(
-                "--order: found 'auto' without --validation. Fix: pass --validation VAL.nc")
-        cal, scores = calibration.Polynomial.select_order(train, val)
-        print(scores.to_string(float_format=lambda v: f"{v:.5f}"))
-    else:
-        cal = calibration.fit(train, args.method, val, **options)
+    try:  # the library decides: screening, order 'auto' (sunlab.calibration.fit)
+        cal = calibration.fit(train, args.method, val, outlier_mads=args.outlier_mads,
+                              **options)
+    except ConfigurationError as err:
+        raise ConfigurationError(f"--{err}" if str(err).startswith("order:") else str(err)
+                                 ) from err
     elapsed = time.perf_counter() - t0
+    _print_excluded(cal.training.get("excluded", []), args.train, "train", args.outlier_mads)
+    _print_excluded(cal.training.get("validation_excluded", []), args.validation,
+                    "validation", args.outlier_mads)
+    if getattr(cal, "order_scores", None) is not None:
+        print(cal.order_scores.to_string(float_format=lambda v: f"{v:.5f}"))
     cal.save(args.out, overwrite=args.overwrite)
     res = cal.residuals
 
@@ -450,6 +463,10 @@ def _run_calibrate(args) -> int:
           f"{elapsed:.2f} s; {line}")
     if res.get("validation"):
         print("  validation residuals (deg): " + fmt(res["validation"]))
+    if cal.training.get("n_repaired_shots"):
+        print(f"  {cal.training['n_repaired_shots']} of the {cal.training['n_ok_shots']} shots "
+              "used are 'repaired' (an isolated hot pixel in the centroid window, replaced by "
+              "the median of its neighbours): kept, as their spot is intact")
     from ..calibration.plausibility import implausible
 
     for finding in implausible(cal):
@@ -650,81 +667,7 @@ def _one_line(err: BaseException) -> str:
         text = f"{where}: {what}. Fix: {fix}" if where else f"{what}. Fix: {fix}"
     else:
         text = str(err) or type(err).__name__
-    return " ".join(text.split())
-
-
-class _Terminated(KeyboardInterrupt):
-    """SIGTERM, raised in the main thread like Ctrl-C so that every ``finally`` (temporary
-    outputs removed, workers stopped, an acquisition's record closed) runs."""
-
-
-@contextlib.contextmanager
-def _signals_interrupt(quiet: bool = True):
-    """While a command runs (main thread only): SIGTERM raises :class:`_Terminated` and SIGINT
-    :class:`KeyboardInterrupt` (whatever handler the caller had), both restored after; with
-    ``quiet``, errors that extensions print from destructors are logged instead.
-
-    Yields the list of signals received. A signal that arrives while the main thread is
-    importing a module is raised once the import is over (the signal is sent again 50 ms
-    later): an exception inside an import can leave the import locks of other threads held
-    (a deadlock), and a library's bare ``except:`` around an import would swallow it. The
-    caller also treats a command that returns after a signal as interrupted."""
-    received: list[int] = []
-    if threading.current_thread() is not threading.main_thread():
-        yield received
-        return
-
-    def on_signal(signum, frame):
-        received.append(signum)
-        if _importing(frame):
-            timer = threading.Timer(0.05, os.kill, (os.getpid(), signum))
-            timer.daemon = True
-            timer.start()
-            return
-        raise _Terminated if signum == signal.SIGTERM else KeyboardInterrupt
-
-    previous = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGTERM, signal.SIGINT)}
-    import logging
-
-    hooks = sys.unraisablehook, sys.excepthook
-    # an interrupted dask.distributed client leaves tasks whose errors asyncio logs
-    loop_log = logging.getLogger("asyncio")
-    was_disabled = loop_log.disabled
-    if quiet:
-        sys.unraisablehook, sys.excepthook = _unraisable, _printed
-        loop_log.disabled = True
-    try:
-        yield received
-    finally:
-        sys.unraisablehook, sys.excepthook = hooks
-        loop_log.disabled = was_disabled
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
-
-
-def _importing(frame) -> bool:
-    """Whether ``frame`` or one of its callers runs Python's import machinery."""
-    while frame is not None:
-        if frame.f_code.co_filename.startswith("<frozen importlib"):
-            return True
-        frame = frame.f_back
-    return False
-
-
-def _unraisable(info) -> None:
-    """Errors Python cannot raise (a destructor's, e.g. h5py closing a file on a full disk)
-    follow the error that the command reports: logged, not printed as tracebacks."""
-    import logging
-
-    logging.getLogger("sunlab").debug("ignored in %r: %s", info.object, info.exc_value)
-
-
-def _printed(kind, value, tb) -> None:
-    """What an extension prints while a command runs (Cython's destructors print their
-    errors through ``sys.excepthook``): logged, as :func:`_unraisable`."""
-    import logging
-
-    logging.getLogger("sunlab").debug("ignored: %s: %s", kind.__name__, value)
+    return _printable(" ".join(text.split()))
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -732,9 +675,9 @@ def main(argv: list[str] | None = None) -> int:
 
     Exit status 0 on success, 1 for an error in the inputs, files or settings (one line on
     stderr naming the thing and the fix), 2 for a bad command line, 3 for an unexpected internal
-    error, 130 when interrupted by Ctrl-C (SIGINT) and 143 by SIGTERM: one line, no traceback,
-    temporary outputs removed and workers stopped. ``--debug`` re-raises the error with its
-    traceback.
+    error, 130 when interrupted by Ctrl-C (SIGINT), 143 by SIGTERM and 129 by SIGHUP: one line,
+    no traceback, temporary outputs removed and workers stopped. ``--debug`` re-raises the
+    error with its traceback.
     """
     argv = list(sys.argv[1:] if argv is None else argv)
     debug = "--debug" in argv
@@ -747,16 +690,31 @@ def main(argv: list[str] | None = None) -> int:
     try:
         with _signals_interrupt(quiet=not debug) as received:
             status = int(args.func(args) or 0)
+            sys.stdout.flush()  # a closed pipe is reported here, not at the interpreter's exit
         if not received:
             return status
         # the command returned although a signal came: a library swallowed the interrupt
-        raise _Terminated if received[0] == signal.SIGTERM else KeyboardInterrupt
+        raise _ENDING.get(received[0], _ENDING[signal.SIGINT])[1]
     except KeyboardInterrupt as err:
         if debug:
             raise
-        name = "SIGTERM" if isinstance(err, _Terminated) else "Ctrl-C (SIGINT)"
-        print(f"sunlab {args.command}: interrupted by {name}", file=sys.stderr)
-        return 143 if isinstance(err, _Terminated) else 130
+        name, status = _ended_by(err)
+        with contextlib.suppress(OSError):  # the terminal may be gone (SIGHUP)
+            print(f"sunlab {args.command}: interrupted by {name}", file=sys.stderr)
+        return status
+    except BrokenPipeError as err:  # the reader of stdout went away (`sunlab info X | head`)
+        if debug:
+            raise
+        global _PIPE_CLOSED
+        _PIPE_CLOSED = True
+        if err.filename is not None:  # a pipe the command opened itself
+            print(f"sunlab {args.command}: error: {_one_line(err)}", file=sys.stderr)
+            return 1
+        with contextlib.suppress(OSError):
+            print(f"sunlab {args.command}: error: the output pipe was closed before the "
+                  "command finished (its reader stopped). Fix: read the whole output, or "
+                  "redirect it to a file", file=sys.stderr)
+        return 1
     except (SunlabError, OSError) as err:
         if debug:
             raise
@@ -778,7 +736,23 @@ def main(argv: list[str] | None = None) -> int:
         return 3
 
 
+#: Set when a command met a closed stdout pipe: :func:`run` then silences stdout.
+_PIPE_CLOSED = False
+
+
+def _quiet_stdout() -> None:
+    """Point stdout at the null device, so that the interpreter's last flush of a closed pipe
+    cannot print a second error (Python's documented remedy for SIGPIPE)."""
+    with contextlib.suppress(OSError, ValueError, AttributeError):
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+
+
 def run() -> None:
     """The ``sunlab`` console script and ``python -m sunlab.cli``: :func:`main`, then exit with
     its status. Library code calls :func:`main`, which returns the status instead."""
-    sys.exit(main())
+    status = main()
+    if _PIPE_CLOSED:
+        _quiet_stdout()
+    sys.exit(status)

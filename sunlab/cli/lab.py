@@ -39,8 +39,6 @@ __all__ = [
 ]
 
 _STATS = ("mu", "sigma", "M", "sigma_M")
-_PAPER_COLUMN = {"polynomial": "polynomial", "interpolation-linear": "linear interp.",
-                 "interpolation-cubic": "cubic interp.", "neural": "NN strategy 4"}
 
 
 # --------------------------------------------------------------------------------------------
@@ -82,18 +80,12 @@ def read_calibration_json(path) -> dict | None:
 # --------------------------------------------------------------------------------------------
 def open_centroid_table(path, name: str = "table"):
     """A centroid table from NetCDF, Zarr or CSV (columns alpha, beta, x, y):
-    :func:`sunlab.io.open_centroids`, with a CSV table's sensor attributes (pixel pitch, mask
-    distance, x_cf, y_cf) taken from a ``sensor.json`` in its folder, if there is one. An error
+    :func:`sunlab.io.open_centroids` (which reads a CSV table's ``sensor.json``); an error
     about the file as a whole names the argument (``name``: train, validation, test)."""
     from .. import io
 
-    attrs = None
-    if Path(path).suffix.lower() in io.CSV_SUFFIXES:
-        sensor = _sensor_json(Path(path).resolve().parent, None)
-        keys = ("pixel_pitch_mm", "mask_distance_mm", "x_cf_px", "y_cf_px")
-        attrs = {k: sensor[k] for k in keys if k in sensor}
     try:
-        return io.open_centroids(path, attrs=attrs)
+        return io.open_centroids(path)  # a CSV table's sensor.json is read by the library
     except SchemaError as err:
         if err.field != str(path):
             raise
@@ -140,14 +132,6 @@ def add_folder_options(p) -> None:
                         "normalised to 1, divides every frame")
     g.add_argument("--bias", default=None, metavar="BIAS",
                    help="bias frames (folder or stack): subtracted when no dark is given")
-
-
-def _sensor_json(folder: Path, manifest) -> dict:
-    """The checked sensor.json of a folder (:func:`sunlab.io.read_sensor_json`), or {}."""
-    from ..io.sensor import find_sensor_json, read_sensor_json
-
-    path = find_sensor_json(folder, manifest)
-    return {} if path is None else read_sensor_json(path)
 
 
 def cube_from_folder(folder, args):
@@ -199,6 +183,13 @@ def _run_import(args) -> int:
           f"{', left-aligned' if cube.attrs.get('left_aligned') else ''}), "
           f"F = {said['mask_distance_mm']} mm, pitch {said['pixel_pitch_mm']} mm"
           + (f"; {masters}" if masters else ""))
+    flat = (cube.attrs.get("calibration_frames") or {}).get("flat") or {}
+    if flat.get("clipped_pixels"):
+        row, col = flat["first_clipped"]
+        print(f"warning: {flat['clipped_pixels']} pixel(s) of the flats at full scale (first at "
+              f"row {row}, column {col}): their response is unknown, so they read as saturated "
+              "(a spot on one is flagged, or repaired when isolated). Fix: expose the flats "
+              "shorter")
     return 0
 
 
@@ -256,7 +247,7 @@ def _run_evaluate(args) -> int:
     shown = table.rename(columns={cal.label: f"{cal.label} (sunlab)"})
     if args.paper:
         paper = stats.paper_table4()
-        want = _PAPER_COLUMN.get(cal.kind)
+        want = stats.PAPER_COLUMNS.get(cal.kind)
         keep = [want] if want in paper.columns else list(paper.columns)
         shown = pd.concat([shown, paper[keep].add_suffix(" (paper)")], axis=1)
     print(shown.to_string(float_format=lambda v: f"{v:.5f}"))
@@ -307,7 +298,7 @@ def _evaluation_doc(args, cal, test, col, n_ok: int, n_out: int) -> dict:
                        "maximum error = max over the shots; mu, sigma = mean, sample std of "
                        "the local errors over poses; M, sigma_M = the same of the maximum errors",
     })
-    want = _PAPER_COLUMN.get(cal.kind) if args.paper else None
+    want = stats.PAPER_COLUMNS.get(cal.kind) if args.paper else None
     if want:
         paper = stats.paper_table4()[want]
         doc["paper"] = {"column": want, **{f"{a}.{s}": float(paper[(a, s)])

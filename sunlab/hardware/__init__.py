@@ -49,7 +49,7 @@ from .esp_protocol import decode_error, open_transport
 from .fake import FakeESP, Fault
 from .pymeasure_stage import PymeasureStage
 from .runner import RunResult, acquire, open_run
-from .stage import Stage, open_stage
+from .stage import Stage, available_stages, open_stage
 
 __all__ = [
     "BenchError",
@@ -83,5 +83,6 @@ __all__ = [
     "acquire",
     "open_run",
     "Stage",
+    "available_stages",
     "open_stage",
 ]

@@ -45,12 +45,28 @@ def _entry_points() -> dict:
     return {ep.name: ep for ep in entry_points(group=ENTRY_POINT_GROUP)}
 
 
+#: The cameras sunlab brings (name -> class); ``folder`` is opened as ``folder:PATH``.
+_BUILTIN = {"sim": "sunlab.hardware:SimCamera", "folder": "sunlab.hardware:FolderCamera"}
+
+
 def available_cameras() -> dict:
     """Camera names ``--camera`` accepts: the built-ins and every registered entry point
-    (name -> where it comes from)."""
-    found = {"sim": "sunlab.hardware:SimCamera", "folder": "sunlab.hardware:FolderCamera"}
-    found.update({name: ep.value for name, ep in _entry_points().items()})
+    (name -> where it comes from); each loads with :func:`camera_class`."""
+    found = dict(_BUILTIN)
+    found.update({name: ep.value for name, ep in _entry_points().items()
+                  if name not in _BUILTIN})
     return found
+
+
+def _plugin_failed(spec: str, what: str, err: BaseException) -> ConfigurationError:
+    """A lab's camera code that raised: named with its error, never a traceback (a camera
+    that is not plugged in is the commonest fault at a bench)."""
+    text = " ".join(str(err).split()) or type(err).__name__
+    return ConfigurationError(
+        f"--camera {spec}: {what} ({type(err).__name__}: {text}). Fix: check that the camera "
+        "is connected and powered, its driver installed and its options (--camera-option); "
+        "run with --debug for the plug-in's traceback"
+    )
 
 
 def camera_class(spec: str):
@@ -60,10 +76,17 @@ def camera_class(spec: str):
     Raises
     ------
     ConfigurationError
-        An unknown name, a module that does not import, or a missing attribute, naming the
-        spec and the fix.
+        An unknown name, a module that does not import or raises on import, or a missing
+        attribute, naming the spec and the fix.
+
+    Examples
+    --------
+    >>> camera_class("sim").__name__
+    'SimCamera'
     """
-    if ":" not in spec:
+    if spec in _BUILTIN:
+        spec = _BUILTIN[spec]
+    elif ":" not in spec:
         eps = _entry_points()
         if spec not in eps:
             raise ConfigurationError(
@@ -74,11 +97,9 @@ def camera_class(spec: str):
             )
         try:
             return eps[spec].load()
-        except Exception as err:  # noqa: BLE001 - a broken plug-in is named, not a traceback
-            raise ConfigurationError(
-                f"--camera {spec}: the entry point {eps[spec].value!r} does not load "
-                f"({type(err).__name__}: {err}). Fix: reinstall the package that provides it"
-            ) from err
+        except (Exception, SystemExit) as err:  # noqa: BLE001 - a broken plug-in is named
+            raise _plugin_failed(spec, f"the entry point {eps[spec].value!r} does not load",
+                                 err) from err
     module, _, name = spec.partition(":")
     try:
         obj = importlib.import_module(module)
@@ -87,6 +108,8 @@ def camera_class(spec: str):
             f"--camera {spec}: cannot import {module!r} ({err}). Fix: install the package that "
             "holds the camera class, or run from its folder"
         ) from err
+    except (Exception, SystemExit) as err:  # noqa: BLE001 - the module raised on import
+        raise _plugin_failed(spec, f"importing {module!r} failed", err) from err
     for part in name.split("."):
         if not hasattr(obj, part):
             raise ConfigurationError(
@@ -130,6 +153,10 @@ def open_camera(spec: str, **options):
     from .camera import Camera
 
     cls = camera_class(spec)
+    if not callable(cls):
+        raise ConfigurationError(
+            f"--camera {spec}: found a {type(cls).__name__}, expected a camera class. Fix: give "
+            "module:Class of the class itself")
     try:
         camera = cls(**options)
     except TypeError as err:
@@ -137,6 +164,9 @@ def open_camera(spec: str, **options):
             f"--camera {spec}: {err}. Fix: pass the camera's arguments as --camera-option "
             "KEY=VALUE"
         ) from err
+    except (Exception, SystemExit) as err:  # noqa: BLE001 - the camera refused to open
+        raise _plugin_failed(spec, f"{getattr(cls, '__name__', cls)!s} did not open",
+                             err) from err
     if not isinstance(camera, Camera):
         missing = [m for m in ("grab", "shape", "dtype", "bit_depth") if not hasattr(camera, m)]
         raise ConfigurationError(

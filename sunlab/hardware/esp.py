@@ -70,6 +70,12 @@ class _Garbled(Exception):
         self.raw = raw
 
 
+#: Time a query's retries may spend beyond their read timeouts, s: the back-off waits, or at
+#: least this much for a resynchronisation to read a late reply (issue 37: a dead controller is
+#: declared within the tries times the timeout plus about 1.5 s).
+_SLACK_S = 1.5
+
+
 class ESP300:
     """A two-axis rotation platform on a Newport ESP300 or ESP301 controller.
 
@@ -113,6 +119,9 @@ class ESP300:
         Hardware flow control, used when ``port`` is a path or URL.
     connect : bool
         Run the :meth:`connect` handshake at once.
+    sleep, clock : callable
+        The waits (:func:`time.sleep`) and the clock of the resynchronisation's deadline
+        (:func:`time.monotonic`), replaceable to test the driver's timing.
 
     Notes
     -----
@@ -157,6 +166,7 @@ class ESP300:
         rtscts: bool = False,
         connect: bool = True,
         sleep: Callable[[float], None] = time.sleep,
+        clock: Callable[[], float] = time.monotonic,
     ):
         axes = tuple(int(a) for a in axes)
         if len(axes) != 2 or len(set(axes)) != 2 or min(axes) < 1:
@@ -186,6 +196,7 @@ class ESP300:
         self._baudrate = int(baudrate)
         self._rtscts = bool(rtscts)
         self._sleep = sleep
+        self._clock = clock
         if isinstance(port, str):
             self.url: str | None = port
             self._port = open_transport(port, baudrate=baudrate, timeout=timeout, rtscts=rtscts)
@@ -198,6 +209,7 @@ class ESP300:
         self.stale_errors: list[ControllerError] = []
         self.reconnects = 0
         self._out_of_step = False  # a reply was lost: resynchronise before the next query
+        self._deadline: float | None = None  # of the query being retried (_exchange)
         if connect:
             try:
                 self.connect()
@@ -246,6 +258,10 @@ class ESP300:
             return None
         try:
             raw = self._readline()
+            for _ in range(4):  # a marker sent twice by _sync is answered twice: drop it
+                if command == "VE?" or not self._is_identity(raw):
+                    break
+                raw = self._readline()
             try:
                 return parse(raw[: -len(READ_TERMINATOR)].decode("ascii"))
             except (UnicodeDecodeError, ValueError) as err:
@@ -257,26 +273,40 @@ class ESP300:
     def _sync(self) -> None:
         """Before a query: drop the bytes already received; after a lost or garbled reply,
         also send ``VE?`` and read and drop every line up to its reply (the controller answers
-        in order, so a late reply to an earlier query comes before it), waiting up to five
-        read timeouts for it.
+        in order, so a late reply to an earlier query comes before it). A read timeout of
+        silence means the marker (or its reply) was lost too: it is sent again. The wait lasts
+        up to five read timeouts, and never into the time that the query's remaining retries
+        need (:meth:`_exchange`), so that a dead controller, silent or flooding the line with
+        noise, is declared within ``(retries + 1) * timeout`` plus the back-off waits.
 
         Raises _NoReply when the marker's reply does not come (the link stays out of step)."""
         self._port.reset_input_buffer()
         if not self._out_of_step:
             return
-        self._send("VE?")
-        deadline = time.monotonic() + 5 * self.timeout
-        while time.monotonic() < deadline:
+        deadline = self._clock() + 5 * self.timeout
+        if self._deadline is not None:
+            deadline = min(deadline, self._deadline)
+        ask = True
+        while self._clock() + self.timeout <= deadline + 1e-9:  # no read may end past it
+            if ask:
+                self._send("VE?")
+                ask = False
             raw = self._port.read_until(READ_TERMINATOR, 256)
-            text = raw[: -len(READ_TERMINATOR)] if raw.endswith(READ_TERMINATOR) else b""
-            if text and (text.decode("ascii", "replace") == self.identity
-                         or text.startswith(b"ESP")):
+            if self._is_identity(raw):
                 self._out_of_step = False
                 log.info("stage: link back in step after a lost reply")
                 return
             if raw:
                 log.info("stage: dropped a late or stray reply %r", raw)
+            else:
+                ask = True
         raise _NoReply
+
+    def _is_identity(self, raw: bytes) -> bool:
+        """Whether a line read is the controller's reply to ``VE?`` (the marker)."""
+        text = raw[: -len(READ_TERMINATOR)] if raw.endswith(READ_TERMINATOR) else b""
+        return bool(text) and (text.decode("ascii", "replace") == self.identity
+                               or text.startswith(b"ESP"))
 
     def _fault(self, command: str, err: BaseException, attempt: int, expected: str) -> StageError:
         """The driver's error for one failed attempt of ``command`` (attempt counts from 1)."""
@@ -298,18 +328,29 @@ class ESP300:
         import serial
 
         last: Exception | None = None
-        for attempt in range(self.retries + 1):
-            try:
-                if attempt:
-                    self._backoff(attempt)
-                return self._once(command, parse)
-            except (_NoReply, _Garbled) as err:
-                last = self._fault(command, err, attempt + 1, expected)
-            except (serial.SerialException, OSError) as err:
-                last = self._fault(command, err, attempt + 1, expected)
-                if attempt == self.retries:
-                    break
-                self._reopen(str(err))
+        # A dead controller is declared within (retries + 1) read timeouts plus the back-off
+        # waits, however its silence or its noise falls across the attempts (issue 37).
+        delays = [self.retry_delay_s * 2 ** (k - 1) for k in range(1, self.retries + 1)]
+        end = self._clock() + (self.retries + 1) * self.timeout + max(sum(delays), _SLACK_S)
+        try:
+            for attempt in range(self.retries + 1):
+                # a resynchronisation leaves the back-off waits of the later retries their time
+                self._deadline = end - sum(delays[attempt:])
+                try:
+                    if attempt:
+                        self._backoff(attempt)
+                    return self._once(command, parse)
+                except (_NoReply, _Garbled) as err:
+                    last = self._fault(command, err, attempt + 1, expected)
+                except (serial.SerialException, OSError) as err:
+                    last = self._fault(command, err, attempt + 1, expected)
+                    if attempt == self.retries:
+                        break
+                    t0 = self._clock()
+                    self._reopen(str(err))
+                    end += self._clock() - t0  # a new link: the reconnection is not waiting
+        finally:
+            self._deadline = None
         assert last is not None
         raise last
 

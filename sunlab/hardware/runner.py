@@ -468,8 +468,18 @@ def _take_lock(lock: Path, out: Path) -> None:
     for _ in range(5):
         if _publish(lock, me):
             return
+        if not lock.is_file() and (lock.exists() or lock.is_symlink()):
+            kind = "a directory" if lock.is_dir() else "not a regular file"
+            raise RunLockedError(
+                f"out: {out}: the lock path {lock} is {kind}, not a lock file that sunlab "
+                f"writes. Fix: remove or rename {lock} (no session of sunlab made it)")
         holder = _read_lock(lock)
         pid, host = holder.get("pid"), holder.get("host")
+        if not holder:
+            raise RunLockedError(
+                f"out: {out}: the lock file {lock} holds no session (unreadable, empty or "
+                "not written by sunlab). Fix: if no acquisition runs into this store, delete "
+                f"{lock}")
         if host == me["host"] and isinstance(pid, int) and not atomic.process_alive(pid):
             stale = lock.with_name(f"{lock.name}.stale-{os.getpid()}")
             try:

@@ -22,7 +22,7 @@ from urllib.parse import parse_qs, urlsplit
 
 from ..errors import ConfigurationError
 
-__all__ = ["Stage", "open_stage"]
+__all__ = ["ENTRY_POINT_GROUP", "Stage", "available_stages", "open_stage"]
 
 
 @runtime_checkable
@@ -62,17 +62,70 @@ def _velocity(url: str, options: dict) -> float:
     return value
 
 
+#: The entry point group a lab's package registers its stages in: name -> a callable
+#: ``open(url, **options)`` returning a :class:`Stage`; ``--stage NAME:REST`` opens it.
+ENTRY_POINT_GROUP = "sunlab.stages"
+
+#: The stages sunlab brings, by URL scheme: ``fake://`` and ``pymeasure:RESOURCE``. Any other
+#: URL or device path goes to the ESP300/301 serial driver.
+_BUILTIN = {"fake": "sunlab.hardware.stage:_open_fake",
+            "pymeasure": "sunlab.hardware.stage:_open_pymeasure"}
+
+
+def _entry_points() -> dict:
+    from importlib.metadata import entry_points
+
+    return {ep.name: ep for ep in entry_points(group=ENTRY_POINT_GROUP)}
+
+
+def available_stages() -> dict:
+    """URL schemes ``--stage`` opens: the built-ins and every registered entry point of
+    :data:`ENTRY_POINT_GROUP` (scheme -> where it comes from); any other URL or a device path
+    is an ESP300/301 on a serial link.
+
+    Examples
+    --------
+    >>> sorted(available_stages())[:2]
+    ['fake', 'pymeasure']
+    """
+    found = dict(_BUILTIN)
+    found.update({n: ep.value for n, ep in _entry_points().items() if n not in _BUILTIN})
+    return found
+
+
+def _opener(url: str):
+    """The registered opener of ``url``'s scheme, or None (the serial driver)."""
+    import importlib
+
+    scheme = url.partition(":")[0] if ":" in url else ""
+    if scheme in _BUILTIN:
+        module, _, name = _BUILTIN[scheme].partition(":")
+        return getattr(importlib.import_module(module), name)
+    eps = _entry_points() if scheme and len(scheme) > 1 else {}  # "C:" is a drive
+    if scheme not in eps:
+        return None
+    try:
+        return eps[scheme].load()
+    except (Exception, SystemExit) as err:  # noqa: BLE001 - a broken plug-in is named
+        raise ConfigurationError(
+            f"stage {url!r}: the entry point {eps[scheme].value!r} does not load "
+            f"({type(err).__name__}: {err}). Fix: reinstall the package that provides it"
+        ) from err
+
+
 def open_stage(url: str, *, bench=None, seed: int = 0, **driver_kwargs):
-    """Open an ESP300/301 stage from a URL.
+    """Open a stage from a URL, through the registry of stages.
 
     Parameters
     ----------
     url : str
         ``fake://`` (an in-process :class:`~sunlab.hardware.FakeESP` served on a pseudo-terminal;
         query options ``velocity`` in deg/s and ``transport=tcp``), ``socket://HOST:PORT``, any
-        other :func:`serial.serial_for_url` URL, a device path (``/dev/ttyUSB0``, ``COM3``), or
+        other :func:`serial.serial_for_url` URL, a device path (``/dev/ttyUSB0``, ``COM3``),
         ``pymeasure:RESOURCE`` (a VISA resource driven through PyMeasure's ESP300 driver,
-        :class:`~sunlab.hardware.PymeasureStage`; of ``driver_kwargs`` it takes ``settle_s``).
+        :class:`~sunlab.hardware.PymeasureStage`; of ``driver_kwargs`` it takes ``settle_s``),
+        or ``NAME:...`` of a stage registered in the entry point group ``sunlab.stages``
+        (:func:`available_stages`), called as ``open(url, bench=, seed=, **driver_kwargs)``.
     bench : sunlab.sim.Bench, optional
         Platform model of the fake controller (``fake://`` only).
     seed : int
@@ -82,9 +135,9 @@ def open_stage(url: str, *, bench=None, seed: int = 0, **driver_kwargs):
 
     Returns
     -------
-    ESP300
-        The connected driver; for ``fake://`` its ``fake`` attribute is the controller, and
-        closing the driver also stops the controller.
+    Stage
+        The connected stage; for ``fake://`` an ESP300 whose ``fake`` attribute is the
+        controller (closing the driver also stops the controller).
     """
     from .esp import ESP300
 
@@ -93,13 +146,38 @@ def open_stage(url: str, *, bench=None, seed: int = 0, **driver_kwargs):
             f"stage: found {url!r}, expected 'fake://', 'socket://HOST:PORT' or a serial device "
             "path"
         )
-    if url.startswith("pymeasure:"):  # a VISA resource through PyMeasure's ESP300 driver
-        from .pymeasure_stage import PymeasureStage
-
-        keep = {k: v for k, v in driver_kwargs.items() if k in ("settle_s", "limits", "axes")}
-        return PymeasureStage(url[len("pymeasure:"):], **keep)
-    if not url.startswith("fake://"):
+    opener = _opener(url)
+    if opener is None:
         return ESP300(url, **driver_kwargs)
+    if opener in (_open_fake, _open_pymeasure):
+        return opener(url, bench=bench, seed=seed, **driver_kwargs)
+    try:
+        stage = opener(url, bench=bench, seed=seed, **driver_kwargs)
+    except (Exception, SystemExit) as err:  # noqa: BLE001 - the lab's stage did not open
+        raise ConfigurationError(
+            f"stage {url!r}: {getattr(opener, '__name__', opener)} did not open "
+            f"({type(err).__name__}: {' '.join(str(err).split())}). Fix: check that the "
+            "controller is connected and powered, and its options") from err
+    if not isinstance(stage, Stage):
+        missing = [m for m in ("move_to", "position", "describe", "close")
+                   if not hasattr(stage, m)]
+        raise ConfigurationError(
+            f"stage {url!r}: {type(stage).__name__} lacks {missing} of the Stage protocol. "
+            "Fix: give the class move_to, position, describe and close")
+    return stage
+
+
+def _open_pymeasure(url: str, *, bench=None, seed: int = 0, **driver_kwargs):
+    """``pymeasure:RESOURCE``: a VISA resource through PyMeasure's ESP300 driver."""
+    from .pymeasure_stage import PymeasureStage
+
+    keep = {k: v for k, v in driver_kwargs.items() if k in ("settle_s", "limits", "axes")}
+    return PymeasureStage(url[len("pymeasure:"):], **keep)
+
+
+def _open_fake(url: str, *, bench=None, seed: int = 0, **driver_kwargs):
+    """``fake://``: an in-process fake controller on a pseudo-terminal (or TCP)."""
+    from .esp import ESP300
     from .fake import FakeESP
 
     query = parse_qs(urlsplit(url).query, keep_blank_values=True)  # "velocity=" is an error

@@ -24,6 +24,9 @@ cube carries what it needs. :func:`sunlab.centroid.locate` applies the correctio
 lazily, in the task that centroids each frame, whenever a cube holds masters; the raw frames
 stay the raw DN of the contract ``frames/1``.
 
+A pixel clipped at full scale in the flats has no known response: its master flat is NaN and
+its corrected value reads as saturated (see :func:`with_calibration_frames`).
+
 Saturation survives the correction: a raw pixel at full scale (``2**bit_depth - 1``) becomes
 exactly :func:`corrected_saturation`, a level above any corrected value of an unsaturated pixel,
 and the estimators are given that level, so they flag (or repair, for an isolated hot pixel)
@@ -115,12 +118,30 @@ def _as_stack(frames, what: str, bit_depth, left_aligned) -> tuple[np.ndarray, s
     if isinstance(frames, str | Path):
         return read_stack(frames, bit_depth=bit_depth, left_aligned=left_aligned), str(
             Path(frames).resolve())
-    arr = np.asarray(frames)
+    try:
+        arr = np.asarray(frames)
+    except ValueError as err:  # ragged nested lists
+        raise SchemaError(what, f"not an array ({err})", "frames (n, y, x) or one (y, x)",
+                          "stack frames of one size along a first axis") from err
     if arr.ndim == 2:
         arr = arr[None]
     if arr.ndim != 3 or arr.shape[0] == 0:
         raise SchemaError(what, f"an array of shape {arr.shape}", "frames (n, y, x) or one (y, x)",
                           "stack the calibration frames along a first axis")
+    if arr.dtype.kind not in "uif":
+        raise SchemaError(what, f"an array of {arr.dtype}", "numbers (DN)",
+                          "pass the frames as an integer or float array")
+    if arr.dtype.kind == "f" and not np.isfinite(arr).all():
+        # a NaN or inf pixel propagates through the median into every corrected frame, and
+        # then into every centroid window that holds it (all shots invalid, no reason given)
+        bad = ~np.isfinite(arr)
+        n, y, x = np.argwhere(bad)[0]
+        raise SchemaError(
+            what, f"{int(bad.sum())} value(s) that are not finite (first {arr[n, y, x]} at "
+                  f"frame {n}, row {y}, column {x})", "finite DN in every pixel",
+            "replace the NaN/inf pixels (e.g. by the median of their neighbours) or take the "
+            "frames again",
+        )
     return arr, "array"
 
 
@@ -169,6 +190,14 @@ def master_flat(frames, offset=None, *, bit_depth: int | None = None, left_align
     [[0.909, 1.0, 1.091]]
     """
     stack, _ = _as_stack(frames, "flat", bit_depth, left_aligned)
+    if offset is not None:
+        offset = _as_stack(offset, "flat offset (dark or bias)", None, False)[0][0]
+        if offset.shape != stack.shape[1:]:
+            raise SchemaError(
+                "flat offset (dark or bias)", f"a master of shape {offset.shape}",
+                f"the flats' frame shape {stack.shape[1:]}",
+                "take the dark (or bias) with the camera's settings of the flats",
+            )
     flat = np.median(stack.astype(np.float64) - (0.0 if offset is None else
                                                  np.asarray(offset, np.float64)), axis=0)
     level = float(np.median(flat))
@@ -211,40 +240,90 @@ def with_calibration_frames(
     Raises
     ------
     SchemaError
-        A master of another frame size than the cube's, a path that is not frames, a flat with
-        dead pixels.
+        Frames of another size or (8- vs 16-bit) pixel type than the cube's, values that are
+        not finite, a path that is not frames, a flat with dead pixels, flats clipped at full
+        scale in more than 1 % of the pixels.
+
+    Notes
+    -----
+    A pixel that reached full scale in any flat frame has an unknown response: its master flat
+    is NaN, :func:`corrected_frames` reads it as saturated (the estimators flag the spot, or
+    repair an isolated pixel: status ``repaired``), and the provenance of the flat counts them
+    (``clipped_pixels``, ``first_clipped`` [row, column]).
     """
     if dark is None and flat is None and bias is None:
         return cube
     bits = int(cube.attrs["bit_depth"])
     left = bool(cube.attrs.get("left_aligned", False)) if left_aligned is None else left_aligned
-    shape = (cube.sizes["y"], cube.sizes["x"])
     masters, prov = {}, dict(cube.attrs.get("calibration_frames") or {})
     for kind, given in (("bias", bias), ("dark", dark)):
         if given is not None:
-            stack, src = _as_stack(given, kind, bits, left)
+            stack, src = _checked_stack(cube, given, kind, bits, left)
             masters[kind] = np.median(stack, axis=0).astype(np.float32)
             prov[kind] = {"source": src, "n_frames": int(stack.shape[0]), "combine": "median"}
     if flat is not None:
-        stack, src = _as_stack(flat, "flat", bits, left)
+        stack, src = _checked_stack(cube, flat, "flat", bits, left)
         offset = masters.get("dark", masters.get("bias"))
         masters["flat"] = master_flat(stack, offset)
         prov["flat"] = {"source": src, "n_frames": int(stack.shape[0]),
                         "combine": "median of (flat - " + ("dark" if "dark" in masters else
                                                             "bias" if "bias" in masters else
-                                                            "nothing") + "), normalised to 1"}
-    for kind, master in masters.items():
-        if master.shape != shape:
-            raise SchemaError(
-                f"master {kind}", f"frames of shape {master.shape}", f"the cube's {shape}",
-                f"take the {kind} frames with the camera's settings (size, ROI, binning) of "
-                "the cube",
-            )
+                                                            "nothing") + "), normalised to 1",
+                        **_flag_clipped_flat(stack, masters["flat"], bits, src)}
     units = {"dark": "DN", "bias": "DN", "flat": "1"}
     out = cube.assign({MASTER_NAMES[k]: (("y", "x"), m, {"units": units[k]})
                        for k, m in masters.items()})
     out.attrs["calibration_frames"] = prov
     return out
+
+
+def _checked_stack(cube, given, kind: str, bits: int, left: bool):
+    """The frames of one kind of calibration frames, checked against the cube before they are
+    combined: the frame size, and for integer frames the pixel type (8-bit darks read as the
+    DN of 10-bit frames would be subtracted at a quarter of their level)."""
+    stack, src = _as_stack(given, kind, bits, left)
+    shape = (cube.sizes["y"], cube.sizes["x"])
+    if stack.shape[1:] != shape:
+        raise SchemaError(
+            f"{kind} frames {src}", f"frames of shape {stack.shape[1:]}", f"the cube's {shape}",
+            f"take the {kind} frames with the camera's settings (size, ROI, binning) of "
+            "the cube",
+        )
+    own = np.dtype(cube["frames"].dtype)
+    types = (np.dtype(np.uint8), np.dtype(np.uint16))
+    if stack.dtype in types and own in types and stack.dtype != own:
+        raise SchemaError(
+            f"{kind} frames {src}", f"pixel type {stack.dtype}",
+            f"{own} like the cube's frames ({bits}-bit DN)",
+            f"take the {kind} frames with the camera's settings (bit depth, pixel format) of "
+            "the frames, or convert them to the frames' DN scale before the import",
+        )
+    return stack, src
+
+
+#: Above this fraction of clipped pixels a master flat is refused rather than flagged.
+_MAX_CLIPPED_FLAT = 0.01
+
+
+def _flag_clipped_flat(stack, flat, bits: int, src: str) -> dict:
+    """Mark the pixels of a master flat whose flats reached full scale: their response is
+    unknown (the ADC cut it), so ``flat`` is set to NaN there (in place) and
+    :func:`corrected_frames` reads them as saturated, which the estimators flag (or repair, if
+    isolated). Returns the provenance entry; a flat mostly clipped is refused."""
+    clipped = (np.asarray(stack) >= 2**bits - 1).any(axis=0)
+    n = int(clipped.sum())
+    if n == 0:
+        return {"clipped_pixels": 0}
+    if n > _MAX_CLIPPED_FLAT * clipped.size:
+        y, x = np.argwhere(clipped)[0]
+        raise SchemaError(
+            f"flat frames {src}", f"{n} of {clipped.size} pixels at full scale "
+                                  f"({2**bits - 1} DN; first at row {y}, column {x})",
+            "flats below full scale", "expose the flats shorter (about half of full scale)",
+        )
+    flat[clipped] = np.nan
+    y, x = np.argwhere(clipped)[0]
+    return {"clipped_pixels": n, "first_clipped": [int(y), int(x)]}
 
 
 def has_calibration_frames(cube) -> bool:
@@ -259,8 +338,8 @@ def corrected_saturation(cube) -> float:
     estimators, given this level as ``saturation``, see exactly the pixels the ADC clipped.
     """
     full = float(2 ** int(cube.attrs["bit_depth"]) - 1)
-    if MASTER_NAMES["flat"] in cube.variables:
-        return 2.0 * full / float(cube[MASTER_NAMES["flat"]].min())
+    if MASTER_NAMES["flat"] in cube.variables:  # NaN: a pixel clipped in the flats
+        return 2.0 * full / float(np.nanmin(cube[MASTER_NAMES["flat"]].values))
     return 2.0 * full
 
 
@@ -283,6 +362,9 @@ def _correct_block(block, offset, flat, full, level):
         out -= offset
     if flat is not None:
         out /= flat
+        unknown = ~np.isfinite(flat)  # clipped in the flats: read as saturated
+        if unknown.any():
+            out[..., unknown] = level
     out[raw >= full] = level
     return out
 

@@ -16,10 +16,147 @@ import pandas as pd
 from ..errors import SchemaError
 from ..schema import STATUS, centroids_dataset
 
-__all__ = ["CSV_SUFFIXES", "centroids_from_csv", "csv_line_of"]
+__all__ = ["CSV_SUFFIXES", "centroids_from_csv", "csv_line_of", "read_csv_table"]
 
 #: File suffixes read as CSV centroid tables.
 CSV_SUFFIXES = (".csv", ".txt")
+
+#: Largest CSV table read (bytes): a million shots is about 40 MB.
+MAX_CSV_BYTES = 512 * 2**20
+
+
+def _uncommented(text: str) -> str:
+    """A line up to its first ``#`` outside double quotes (the rest is a comment)."""
+    quoted = False
+    for i, ch in enumerate(text):
+        if ch == '"':
+            quoted = not quoted
+        elif ch == "#" and not quoted:
+            return text[:i]
+    return text
+
+
+def _printable(name: str) -> str:
+    """A column name for a message: control characters (a terminal's ESC) escaped."""
+    return name if name.isprintable() else name.encode("unicode_escape").decode("ascii")
+
+
+def _read_text(path: Path, name: str) -> str:
+    """The file's text (UTF-8, a BOM dropped), at most :data:`MAX_CSV_BYTES`."""
+    try:
+        if path.stat().st_size > MAX_CSV_BYTES:
+            raise SchemaError(name, f"{path.stat().st_size} bytes",
+                              f"a table of at most {MAX_CSV_BYTES} bytes", "split the table")
+        return path.read_text(encoding="utf-8-sig")
+    except FileNotFoundError as err:
+        raise SchemaError("path", str(path), "an existing CSV file", "check the path") from err
+    except IsADirectoryError as err:
+        raise SchemaError("path", f"{path} (a folder)", "a CSV file", "give the file") from err
+    except UnicodeDecodeError as err:
+        raise SchemaError(name, f"not UTF-8 text ({err.reason} at byte {err.start})",
+                          "a UTF-8 CSV file", "save the table as UTF-8 CSV") from err
+
+
+def _checked_header(header: list, name: str, head_line: int) -> list:
+    """The header's column names, trailing empty ones dropped; a semicolon-separated table, an
+    empty, duplicated or unprintable name refused naming the line."""
+    while header and not header[-1]:  # trailing commas on the header
+        header = header[:-1]
+    if len(header) == 1 and ";" in header[0]:
+        raise SchemaError(f"{name} line {head_line}", "fields separated by ';'",
+                          "comma-separated values with '.' decimals",
+                          "save the table as CSV with ',' between fields and '.' as the "
+                          "decimal mark")
+    seen: dict = {}
+    for k, col in enumerate(header):
+        if not col:
+            raise SchemaError(f"{name} line {head_line}", f"no name for column {k + 1}",
+                              "a name for every column", "name the column or remove it")
+        if not col.isprintable():
+            raise SchemaError(f"{name} line {head_line} column {k + 1}", _printable(col),
+                              "a column name of printable characters",
+                              "rename the column (control characters such as ESC are refused)")
+        if col in seen:
+            raise SchemaError(f"{name} line {head_line}", f"column {col!r} twice (columns "
+                              f"{seen[col] + 1} and {k + 1})", "each column name once",
+                              "rename or remove one of them")
+        seen[col] = k
+    return header
+
+
+def read_csv_table(path, what: str = "table"):
+    """A CSV file as a table of text, each field stripped, every row checked against the header.
+
+    Foreign tables fail loudly instead of being read with shifted columns: a row with more
+    fields than the header (comma decimals, ``512,5``, or a text holding a comma) names its
+    line; a header with a duplicated or empty column name, or a column name holding control
+    characters, is refused. Trailing commas (empty fields after the last column, on the header
+    or on any row) are accepted and dropped. Lines starting with ``#`` and blank lines are
+    skipped; ``#`` outside quotes starts a comment.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The CSV file (UTF-8).
+    what : str
+        What the file is, for the messages (``"manifest"``, ``"table"``, ``"plan"``).
+
+    Returns
+    -------
+    pandas.DataFrame
+        One column of text per header column (empty fields: NaN); ``attrs["lines"]`` holds the
+        file's line number (1-based) of each row.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "t.csv"
+    >>> _ = path.write_text("alpha,beta,x,y,\\n# a comment\\n0,0,512.5,300,\\n")
+    >>> t = read_csv_table(path)
+    >>> list(t.columns), t["x"].tolist(), t.attrs["lines"]
+    (['alpha', 'beta', 'x', 'y'], ['512.5'], [3])
+    >>> _ = path.write_text("alpha,beta,x,y\\n0,0,512,5,300,25\\n")
+    >>> try:
+    ...     read_csv_table(path)
+    ... except SchemaError as err:
+    ...     print(err.field, "|", err.found)
+    table t.csv line 2 | 6 fields
+    """
+    import csv
+
+    path = Path(path)
+    name = f"{what} {path.name}" if what else path.name
+    text = _read_text(path, name)
+    records = []
+    for number, raw in enumerate(text.splitlines(), 1):
+        body = _uncommented(raw)
+        if body.strip():
+            fields = next(csv.reader([body]))
+            records.append((number, [f.strip() for f in fields]))
+    if not records:
+        raise SchemaError(name, "an empty file", "a header line and one row per line",
+                          "write the header and the rows")
+    (head_line, header), rows = records[0], records[1:]
+    header = _checked_header(header, name, head_line)
+    n = len(header)
+    data, lines = [], []
+    for number, fields in rows:
+        if len(fields) > n:
+            if any(fields[n:]):
+                raise SchemaError(
+                    f"{name} line {number}", f"{len(fields)} fields",
+                    f"the header's {n} ({', '.join(header)})",
+                    "write decimals with '.', not ',' (512.5, not 512,5), quote a text that "
+                    "holds a comma, or remove the extra fields",
+                )
+            fields = fields[:n]
+        data.append([f if f else None for f in fields] + [None] * (n - len(fields)))
+        lines.append(number)
+    import pandas as pd
+
+    table = pd.DataFrame(data, columns=header, dtype=object)
+    table.attrs["lines"] = lines
+    return table
 
 
 def centroids_from_csv(path, *, attrs: dict | None = None):
@@ -78,8 +215,6 @@ def centroids_from_csv(path, *, attrs: dict | None = None):
 def csv_line_of(path, shot: dict) -> int | None:
     """The line number (1-based) of the CSV row holding ``shot`` (its ``alpha``, ``beta``,
     ``x``, ``y``), or None: how an excluded shot is named (:mod:`sunlab.screening`)."""
-    import numpy as np
-
     table = _read_csv_table(Path(path))
     num = _numeric_columns(table, Path(path).name)
     hit = np.ones(len(table), dtype=bool)
@@ -87,24 +222,12 @@ def csv_line_of(path, shot: dict) -> int | None:
         hit &= num[key] == shot[key]
     if not hit.any():
         return None
-    # the data lines: what pandas reads (blank lines and '#' comments skipped), after the header
-    with open(path, encoding="utf-8", errors="replace") as fh:
-        lines = [n for n, text in enumerate(fh, 1) if text.split("#", 1)[0].strip()]
-    row = int(np.flatnonzero(hit)[0]) + 1
-    return lines[row] if row < len(lines) else None
+    return table.attrs["lines"][int(np.flatnonzero(hit)[0])]
 
 
 def _read_csv_table(path: Path):
     """The CSV as a DataFrame, with the columns alpha, beta, x, y and at least one row."""
-    try:
-        table = pd.read_csv(path, comment="#", skipinitialspace=True)
-    except FileNotFoundError as err:
-        raise SchemaError("path", str(path), "an existing CSV file", "check the path") from err
-    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as err:
-        raise SchemaError(str(path), f"unreadable CSV ({err})",
-                          "a header line alpha,beta,x,y and one row per shot",
-                          "fix the CSV syntax") from err
-    table.columns = [str(c).strip() for c in table.columns]
+    table = read_csv_table(path, "")
     missing = [c for c in ("alpha", "beta", "x", "y") if c not in table.columns]
     if missing:
         raise SchemaError(
@@ -117,6 +240,12 @@ def _read_csv_table(path: Path):
     return table
 
 
+def _line(table, i) -> int:
+    """The file's line number of row ``i`` (:func:`read_csv_table`), else the row + 2."""
+    lines = table.attrs.get("lines")
+    return int(lines[int(i)]) if lines is not None else int(i) + 2
+
+
 def _numeric_columns(table, name: str) -> dict:
     """alpha, beta, x, y as float arrays; a value that is not a number names its line (x, y
     may be empty: no spot)."""
@@ -127,12 +256,29 @@ def _numeric_columns(table, name: str) -> dict:
                              if col in ("x", "y") else ~np.isfinite(v))
         if bad.size:
             raise SchemaError(
-                f"{name} line {int(bad[0]) + 2} column {col!r}", table[col].iloc[bad[0]],
+                f"{name} line {_line(table, bad[0])} column {col!r}", table[col].iloc[bad[0]],
                 "a number" + (" of degrees" if col in ("alpha", "beta") else " of pixels"),
                 f"correct the value ({bad.size} bad row(s))",
             )
+        if col in ("alpha", "beta"):
+            _check_angles(table, v, name, col)
         num[col] = v
     return num
+
+
+def _check_angles(table, values, name: str, col: str) -> None:
+    """Refuse a commanded angle no pinhole sensor can see (|angle| >= 90 deg: the sun behind
+    the mask): one typo in a training table would otherwise bend the whole calibration."""
+    from ..plans import MAX_ANGLE_DEG
+
+    bad = np.flatnonzero(np.abs(values) >= MAX_ANGLE_DEG)
+    if bad.size:
+        raise SchemaError(
+            f"{name} line {_line(table, bad[0])} column {col!r}", table[col].iloc[bad[0]],
+            f"a commanded angle within (-{MAX_ANGLE_DEG:g}, {MAX_ANGLE_DEG:g}) deg (the sun in "
+            "front of the mask; the paper's platform spans a few tens of degrees)",
+            f"correct the value, or remove the row ({bad.size} such row(s))",
+        )
 
 
 def _shot_numbers(table, pose, name: str):
@@ -142,13 +288,13 @@ def _shot_numbers(table, pose, name: str):
     labels = pd.to_numeric(table["shot"], errors="coerce").to_numpy(dtype=float)
     if not np.all(np.isfinite(labels)):
         i = int(np.flatnonzero(~np.isfinite(labels))[0])
-        raise SchemaError(f"{name} line {i + 2} column 'shot'", table["shot"].iloc[i],
+        raise SchemaError(f"{name} line {_line(table, i)} column 'shot'", table["shot"].iloc[i],
                           "an integer shot label", "number the shots 0, 1, 2, ...")
     order = pd.DataFrame({"p": pose, "s": labels}).groupby("p")["s"].rank(method="first")
     dup = pd.DataFrame({"p": pose, "s": labels}).duplicated()
     if dup.any():
         i = int(np.flatnonzero(dup.to_numpy())[0])
-        raise SchemaError(f"{name} line {i + 2}", "the same pose and shot again",
+        raise SchemaError(f"{name} line {_line(table, i)}", "the same pose and shot again",
                           "one row per (alpha, beta, shot)", "remove the duplicate row")
     return order.to_numpy(dtype=int) - 1
 
@@ -161,9 +307,10 @@ def _status_codes(table, num: dict, name: str):
                         STATUS["ok"], STATUS["no_spot"])
     codes = []
     for i, v in enumerate(table["status"].tolist()):
-        code = STATUS.get(str(v).strip()) if not isinstance(v, int | float) else int(v)
+        text = str(v).strip()
+        code = int(text) if text.isdigit() else STATUS.get(text)
         if code not in STATUS.values():
-            raise SchemaError(f"{name} line {i + 2} column 'status'", v,
+            raise SchemaError(f"{name} line {_line(table, i)} column 'status'", v,
                               f"a status name or code of {STATUS}", "correct the value")
         codes.append(code)
     return codes

@@ -14,6 +14,7 @@ import xarray as xr
 from ..errors import SchemaError, SunlabError
 from ..schema import frames_dataset
 from .codec import _short
+from .csvtable import read_csv_table
 from .images import IMAGE_SUFFIXES, _image_header, _read_checked
 
 __all__ = ["from_image_folder", "example_folder"]
@@ -51,20 +52,8 @@ def _manifest_table(folder: Path, manifest):
                 "manifest", str(manifest), "an existing CSV file",
                 f"give the manifest's path (absolute, or relative to {folder})",
             )
-    try:
-        table = pd.read_csv(path, dtype={"file": str}, skipinitialspace=True, comment="#")
-    except pd.errors.EmptyDataError as exc:
-        raise SchemaError(
-            f"manifest {path.name}", "an empty file",
-            "a header line file,alpha,beta,shot and one row per image",
-            "write the manifest rows",
-        ) from exc
-    except (pd.errors.ParserError, UnicodeDecodeError) as exc:
-        raise SchemaError(
-            f"manifest {path.name}", f"unparsable CSV ({exc})", "comma-separated values",
-            "fix the CSV syntax (same number of fields on every line)",
-        ) from exc
-    table.columns = [str(c).strip() for c in table.columns]
+    # every row checked against the header: comma decimals, duplicated columns, ESC in names
+    table = read_csv_table(path, "manifest")
     return table, path.name
 
 
@@ -189,6 +178,24 @@ def _check_columns(table, mname: str) -> None:
                 f"manifest {mname} column {col!r}", "a reserved name",
                 f"extra columns named other than {_RESERVED_COLUMNS}", "rename the column",
             )
+        if col not in _REQUIRED_COLUMNS and not _storable_name(col):
+            # an extra column becomes a variable of the store: Zarr and NetCDF name nodes by
+            # path, so '..', '../../x' or 'a/b' would name another place (or be refused deep
+            # inside the writer)
+            raise SchemaError(
+                f"manifest {mname} column {col!r}", "a name that cannot name a variable",
+                "letters, digits, spaces and _ - . ( ) , not starting with '.' or '__', no "
+                "'/' or '\\', at most 100 characters",
+                "rename the column (e.g. exposure_ms)",
+            )
+
+
+def _storable_name(name: str) -> bool:
+    """Whether a manifest column can name a variable of a Zarr store and a NetCDF file."""
+    import re
+
+    return (0 < len(name) <= 100 and not name.startswith((".", "__"))
+            and re.fullmatch(r"[A-Za-z0-9_][A-Za-z0-9_ .()\-]*", name) is not None)
 
 
 def _pose_columns(table, mname: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -207,6 +214,17 @@ def _pose_columns(table, mname: str) -> tuple[np.ndarray, np.ndarray, np.ndarray
                 f"correct the value ({bad.size} bad row(s), first on line {_line(i)})",
             )
         numeric[col] = values.to_numpy(dtype=float)
+    from ..plans import MAX_ANGLE_DEG
+
+    for col in ("alpha", "beta"):
+        bad = np.flatnonzero(np.abs(numeric[col]) >= MAX_ANGLE_DEG)
+        if bad.size:
+            i = bad[0]
+            raise SchemaError(
+                f"manifest {mname} line {_line(i)} column {col!r}", table[col].iloc[i],
+                f"a commanded angle within (-{MAX_ANGLE_DEG:g}, {MAX_ANGLE_DEG:g}) deg (the sun "
+                "in front of the mask)", f"correct the value ({bad.size} such row(s))",
+            )
     if np.any(numeric["shot"] != np.round(numeric["shot"])):
         i = int(np.flatnonzero(numeric["shot"] != np.round(numeric["shot"]))[0])
         raise SchemaError(
@@ -219,12 +237,20 @@ def _pose_columns(table, mname: str) -> tuple[np.ndarray, np.ndarray, np.ndarray
 def _image_paths(folder: Path, table, mname: str):
     """The ``file`` column (stripped) and the image paths: every one an existing file inside
     ``folder`` (a relative name; ``..`` that leaves the folder and absolute paths refused)."""
-    files = table["file"].astype(str).str.strip()
+    files = table["file"].fillna("").astype(str).str.strip()
     root = folder.resolve()
     paths = []
     for i, f in enumerate(files):
-        path = (folder / f).resolve()
-        if Path(f).is_absolute() or not path.is_relative_to(root):
+        try:
+            path = (folder / f).resolve()
+        except (RuntimeError, OSError) as err:  # a symlink loop (RuntimeError before 3.13)
+            raise SchemaError(
+                f"manifest {mname} line {_line(i)} column 'file'", f,
+                f"an image file in {folder}",
+                f"the path cannot be resolved ({type(err).__name__}: {err}); replace the link "
+                "by the image itself",
+            ) from err
+        if not f or Path(f).is_absolute() or not path.is_relative_to(root):
             raise SchemaError(
                 f"manifest {mname} line {_line(i)} column 'file'", f,
                 f"a file name relative to {folder}, inside it",
@@ -232,7 +258,7 @@ def _image_paths(folder: Path, table, mname: str):
                 "(absolute paths and '..' are refused, so a cube names only its own frames)",
             )
         paths.append(path)
-    missing = [i for i, p in enumerate(paths) if not p.is_file()]
+    missing = [i for i, p in enumerate(paths) if not _is_file(p)]
     if missing:
         i = missing[0]
         raise SchemaError(
@@ -242,6 +268,18 @@ def _image_paths(folder: Path, table, mname: str):
             "their rows",
         )
     return files, paths
+
+
+def _is_file(path: Path) -> bool:
+    """``path.is_file()``, False for a path the system cannot follow (a symlink loop)."""
+    try:
+        return path.is_file()
+    except OSError:
+        return False
+
+
+#: Largest page number of a TIFF stack in a manifest (a stack of 2**31 frames is no stack).
+_MAX_PAGE = 2**31 - 1
 
 
 def _page_column(table, files, mname: str):
@@ -254,12 +292,14 @@ def _page_column(table, files, mname: str):
         keys = list(files)
     else:
         values = pd.to_numeric(table["page"], errors="coerce").to_numpy(dtype=float)
-        bad = np.flatnonzero(~np.isfinite(values) | (values < 0) | (values != np.round(values)))
+        bad = np.flatnonzero(~np.isfinite(values) | (values < 0) | (values > _MAX_PAGE)
+                             | (values != np.round(values)))
         if bad.size:
             i = int(bad[0])
             raise SchemaError(
                 f"manifest {mname} line {_line(i)} column 'page'", table["page"].iloc[i],
-                "an integer page 0, 1, ... of the TIFF stack named in 'file'",
+                f"an integer page 0, 1, ... (at most {_MAX_PAGE}) of the TIFF stack named in "
+                "'file'",
                 f"correct the value ({bad.size} bad row(s))",
             )
         pages = values.astype(np.int64)

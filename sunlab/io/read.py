@@ -177,6 +177,22 @@ def open_frames(path, *, format: str | None = None, check_chunks: bool = True) -
     return _finish(_open_raw(path, format), validate_frames, check_chunks)
 
 
+#: The sensor constants a CSV centroid table takes from the ``sensor.json`` beside it.
+CSV_SENSOR_KEYS = ("pixel_pitch_mm", "mask_distance_mm", "x_cf_px", "y_cf_px")
+
+
+def _sensor_attrs(path) -> dict | None:
+    """The sensor attributes of a CSV table from the ``sensor.json`` in its folder, or None."""
+    from .sensor import read_sensor_json
+
+    sensor_json = Path(path).resolve().parent / "sensor.json"
+    if not sensor_json.is_file():
+        return None
+    sensor = read_sensor_json(sensor_json)
+    return {**{k: sensor[k] for k in CSV_SENSOR_KEYS if k in sensor},
+            "sensor_json": str(sensor_json)}
+
+
 def open_centroids(
     path, *, format: str | None = None, lazy: bool = False, check_chunks: bool = True,
     attrs: dict | None = None,
@@ -199,6 +215,9 @@ def open_centroids(
     attrs : dict, optional
         CSV only: attributes of the table, e.g. the sensor's ``pixel_pitch_mm``,
         ``mask_distance_mm``, ``x_cf_px``, ``y_cf_px`` (a geometric model needs them).
+        Default: those of a ``sensor.json`` beside the CSV file (:func:`read_sensor_json`),
+        if there is one, recorded in ``attrs['sensor_json']``; ``sunlab calibrate`` and
+        ``sunlab evaluate`` read a CSV table the same way.
 
     Returns
     -------
@@ -222,7 +241,7 @@ def open_centroids(
     {'pose': 2, 'shot': 1}
     """
     if format == "csv" or (format is None and Path(path).suffix.lower() in CSV_SUFFIXES):
-        return centroids_from_csv(path, attrs=attrs)
+        return centroids_from_csv(path, attrs=_sensor_attrs(path) if attrs is None else attrs)
     if attrs is not None:
         raise SunlabError(
             f"{path}: attrs= applies to CSV tables only. Fix: leave attrs out (a Zarr or NetCDF "

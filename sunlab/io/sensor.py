@@ -55,7 +55,7 @@ _EXPECTED = {
     "number": "a finite number (JSON number, not a string)",
     "bits": "an integer 8 .. 16 (JSON number)",
     "bool": "true or false (JSON boolean)",
-    "text": "a string",
+    "text": "a string of printable characters",
     "object": "a JSON object",
 }
 
@@ -118,7 +118,8 @@ def _checked(path: Path, key: str, value):
         "number": is_number and math.isfinite(value),
         "bits": is_number and float(value).is_integer() and 8 <= value <= 16,
         "bool": isinstance(value, bool),
-        "text": isinstance(value, str),
+        # a control character (a terminal's ESC) in a name would reach every summary printed
+        "text": isinstance(value, str) and (value.isprintable() or key == "comment"),
         "object": isinstance(value, dict),
     }[kind]
     if not ok:
@@ -127,6 +128,10 @@ def _checked(path: Path, key: str, value):
             hint = f"write {key}: {value.strip()} without quotes; "
         elif isinstance(value, str) and kind == "bool":
             hint = f"write {key}: true or false without quotes; "
+        elif isinstance(value, str) and kind == "text":
+            hint = "remove the control characters (ESC, tabs, line breaks); "
+        if isinstance(value, str) and not value.isprintable():
+            hint = hint.replace(value.strip(), ascii(value.strip())[1:-1])
         raise SchemaError(f"{path.name} field {key!r}", value, f"{_EXPECTED[kind]}: {meaning}",
                           f"{hint}correct it in {path}")
     return int(value) if kind == "bits" else value

@@ -344,6 +344,10 @@ def centroid_status(cens: dict) -> dict:
 def write_json(doc: dict, path: str | Path) -> str:
     """Write a table's results file (indented JSON; NumPy scalars and arrays as numbers).
 
+    Written atomically (:func:`sunlab.atomic.write_text`): a temporary sibling renamed into
+    place, so a symbolic link planted at ``path`` is replaced, never written through, and a
+    named pipe or a device there is refused.
+
     Examples
     --------
     >>> import pathlib, tempfile
@@ -353,8 +357,11 @@ def write_json(doc: dict, path: str | Path) -> str:
     >>> path.read_text().split()
     ['{', '"mu":', '0.5,', '"n":', '[', '0,', '1', ']', '}']
     """
+    from .. import atomic
+
     path = Path(path)
-    path.write_text(json.dumps(doc, indent=2, default=_jsonable))
+    atomic.write_text(path, json.dumps(doc, indent=2, default=_jsonable), overwrite=True,
+                      flag="")
     return str(path)
 
 
