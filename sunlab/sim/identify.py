@@ -490,8 +490,8 @@ def interpolation_gap(bench, distances_mm, *, seed: int = 0, shots: int = 2,
     copies noisy nodes and loses (positive gap, as the paper's 0.0100 - 0.0089 = +0.0011 deg). F
     sets the grid step in pixels, the pattern its correlation length; the held-out comparison
     of :mod:`sunlab.studies.identification` weighs this with the rest. For each F the one hole
-    is kept on the same part of the detector (its offset scaled with F) and the experiments of Table 3 are run
-    on the full grids. The interpolant is :class:`scipy.interpolate.LinearNDInterpolator` on
+    is kept on the same part of the detector (its offset scaled with F) and the experiments of
+    Table 3 are run on the full grids. The interpolant is :class:`scipy.interpolate.LinearNDInterpolator` on
     pose-mean centroids rescaled to the unit square (what
     :class:`sunlab.calibration.Interpolation` builds, without its leave-one-out bookkeeping);
     the polynomial is :class:`sunlab.calibration.Polynomial` of the given order.
