@@ -491,8 +491,9 @@ def interpolation_gap(bench, distances_mm, *, seed: int = 0, shots: int = 2,
     sets the grid step in pixels, the pattern its correlation length; the held-out comparison
     of :mod:`sunlab.studies.identification` weighs this with the rest. For each F the one hole
     is kept on the same part of the detector (its offset scaled with F) and the experiments of
-    Table 3 are run on the full grids. The interpolant is :class:`scipy.interpolate.LinearNDInterpolator` on
-    pose-mean centroids rescaled to the unit square (what
+    Table 3 are run on the full grids. The interpolant is
+    :class:`scipy.interpolate.LinearNDInterpolator` on pose-mean centroids rescaled to the unit
+    square (what
     :class:`sunlab.calibration.Interpolation` builds, without its leave-one-out bookkeeping);
     the polynomial is :class:`sunlab.calibration.Polynomial` of the given order.
 
