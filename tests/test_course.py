@@ -456,10 +456,10 @@ def test_a_students_file_in_the_way_stops_the_run_before_anything_is_written(tmp
 
 @pytest.fixture(scope="module")
 def many_notebooks(tmp_path_factory):
-    """A course of 240 notebooks (copies of notebook 03), slow enough to interrupt."""
+    """A course of 150 notebooks (copies of notebook 03), slow enough to interrupt."""
     folder = tmp_path_factory.mktemp("many")
     text = (NOTEBOOK_DIR / "03-geometric-models.ipynb").read_text(encoding="utf-8")
-    for k in range(240):
+    for k in range(150):
         (folder / f"03-copy{k:03d}.ipynb").write_text(text, encoding="utf-8")
     return folder
 
@@ -484,8 +484,8 @@ def test_a_signal_while_writing_leaves_nothing_and_a_rerun_works(tmp_path, many_
     assert list(tmp_path.iterdir()) == [], [p.name for p in tmp_path.iterdir()]
     res = _sunlab("course", "--out", str(out), "--notebooks", str(many_notebooks))
     assert res.returncode == 0, res.stderr
-    assert len(list((out / "student").iterdir())) == 240
-    assert len(list((out / "teacher").iterdir())) == 240
+    assert len(list((out / "student").iterdir())) == 150
+    assert len(list((out / "teacher").iterdir())) == 150
 
 
 def test_a_killed_writers_leftovers_go_at_the_next_run(tmp_path):

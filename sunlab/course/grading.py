@@ -214,23 +214,7 @@ def grade_notebook(path, *, notebooks=None, seed: int | None = None, quick: bool
     except (ConfigurationError, OSError) as err:
         return _rows_for_unreadable(path, student, _one_line(err), exercises, written)
     answers, checks, texts = _submitted(submitted)
-
-    teacher = teacher_notebook(source, source_path.name, quick=quick)
-    shift = 1 if quick else 0
-    graded = copy.deepcopy(teacher)
-    tampered = {}
-    for ex in exercises:
-        mine = answers.get(ex.number)
-        cell = graded.cells[ex.solution_cell + shift]
-        cell.source = (mine.source if mine is not None else
-                       f"raise NotImplementedError('the cell of exercise {ex.number} is missing "
-                       "from the submission')")
-        check = checks.get(ex.number)
-        expected = strip_hidden(teacher.cells[ex.check_cell + shift].source)
-        if check is None:
-            tampered[ex.number] = "check cell deleted"
-        elif _norm(check.source) != _norm(expected):
-            tampered[ex.number] = "check cell altered"
+    graded, tampered = _graded(source, source_path.name, exercises, answers, checks, quick)
     nbclient = _nbclient()
     client = nbclient.NotebookClient(graded, timeout=timeout, kernel_name="python3",
                                      allow_errors=True,
@@ -238,12 +222,12 @@ def grade_notebook(path, *, notebooks=None, seed: int | None = None, quick: bool
     seed_value = hidden.DEFAULT_SEED if seed is None else int(seed)
     with _environment(**{hidden.SEED_VARIABLE: seed_value}):
         client.execute()
-
+    shift = 1 if quick else 0
+    head = {"student": student, "notebook": path.name}
     rows = []
     for ex in exercises:
-        answer_err = _error_of(graded.cells[ex.solution_cell + shift])
-        check_err = _error_of(graded.cells[ex.check_cell + shift])
-        result, message = _result(answer_err, check_err)
+        result, message = _result(_error_of(graded.cells[ex.solution_cell + shift]),
+                                  _error_of(graded.cells[ex.check_cell + shift]))
         points = ex.points if result == "pass" else 0
         if ex.number in tampered:
             points = 0
@@ -251,20 +235,43 @@ def grade_notebook(path, *, notebooks=None, seed: int | None = None, quick: bool
             result, message = "tampered", (
                 f"{tampered[ex.number]}: scored 0 (the teacher's check, restored and run, says "
                 f"{ran})")
-        rows.append({"student": student, "notebook": path.name, "exercise": ex.number,
-                     "points": points, "max_points": ex.points, "result": result,
-                     "message": message})
-    for w in written:
-        cell = texts.get(w.number)
-        body = cell.source.split("\n", 1)[1].strip() if cell is not None and "\n" in \
-            cell.source else ""
-        words = 0 if body in ("", WRITTEN_PROMPT) else len(body.split())
-        rows.append({"student": student, "notebook": path.name,
-                     "exercise": f"{w.number} (written)", "points": None,
-                     "max_points": w.points, "result": "written",
-                     "message": (f"graded by hand: {words} words written; the model answer is in "
-                                 "the teacher edition") if words else "not answered"})
+        rows.append({**head, "exercise": ex.number, "points": points, "max_points": ex.points,
+                     "result": result, "message": message})
+    rows += [_written_row(head, w, texts.get(w.number)) for w in written]
     return rows
+
+
+def _graded(source, name, exercises, answers, checks, quick):
+    """The teacher edition with the student's answers in it, and the exercises whose check
+    cell was altered or deleted (number -> what happened)."""
+    teacher = teacher_notebook(source, name, quick=quick)
+    shift = 1 if quick else 0
+    graded = copy.deepcopy(teacher)
+    tampered = {}
+    for ex in exercises:
+        mine = answers.get(ex.number)
+        graded.cells[ex.solution_cell + shift].source = (
+            mine.source if mine is not None else
+            f"raise NotImplementedError('the cell of exercise {ex.number} is missing from the "
+            "submission')")
+        check = checks.get(ex.number)
+        expected = strip_hidden(teacher.cells[ex.check_cell + shift].source)
+        if check is None:
+            tampered[ex.number] = "check cell deleted"
+        elif _norm(check.source) != _norm(expected):
+            tampered[ex.number] = "check cell altered"
+    return graded, tampered
+
+
+def _written_row(head, w, cell) -> dict:
+    """A written answer's row: points left to the teacher, the length of the answer said."""
+    body = cell.source.split("\n", 1)[1].strip() if cell is not None and "\n" in cell.source \
+        else ""
+    words = 0 if body in ("", WRITTEN_PROMPT) else len(body.split())
+    return {**head, "exercise": f"{w.number} (written)", "points": None,
+            "max_points": w.points, "result": "written",
+            "message": (f"graded by hand: {words} words written; the model answer is in the "
+                        "teacher edition") if words else "not answered"}
 
 
 def grade(paths, *, notebooks=None, seed: int | None = None, quick: bool = True,
