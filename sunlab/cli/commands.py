@@ -585,38 +585,72 @@ def _run_learned(args) -> int:
 
 def _add_course(sub) -> None:
     p = sub.add_parser(
-        "course", help="write the course's student and teacher editions, or grade a notebook",
+        "course", help="write the course's student and teacher editions, or grade notebooks",
         description="--out DIR writes DIR/student (each exercise's answer replaced by a stub "
-        "that raises NotImplementedError with a hint) and DIR/teacher (answers kept, nbgrader "
-        "metadata on the solution and check cells). --grade runs students' notebooks and "
-        "reports each check. docs/course.md is the syllabus.")
+        "that raises NotImplementedError with a hint; no hidden check, no model answer) and "
+        "DIR/teacher (answers kept, nbgrader metadata), all or nothing. --grade runs students' "
+        "notebooks against the teacher edition (their check cells restored, hidden checks on "
+        "fresh inputs), prints each exercise's points and, with --gradebook DIR, writes "
+        "DIR/gradebook.csv and DIR/gradebook.json; it exits 1 when a check fails. "
+        "docs/course.md is the student syllabus, docs/teacher-notes.md the teacher's.")
     what = p.add_mutually_exclusive_group(required=True)
     what.add_argument("--out", metavar="DIR", help="folder of the two editions")
     what.add_argument("--grade", nargs="+", metavar="NOTEBOOK",
-                      help="students' notebooks to execute and grade, check by check")
+                      help="students' notebooks (STUDENT/NN-title.ipynb) to run and grade")
+    p.add_argument("--gradebook", metavar="DIR", default=None,
+                   help="with --grade: write DIR/gradebook.csv and DIR/gradebook.json")
+    p.add_argument("--seed", type=int, default=None,
+                   help="with --grade: seed of the hidden checks' fresh inputs (default: drawn "
+                   "at random and printed)")
     p.add_argument("--notebooks", default=None, metavar="DIR",
                    help="folder of the numbered notebooks (default: the checkout's notebooks/)")
     p.add_argument("--full", action="store_true",
                    help="leave out the first cell that selects the small settings")
-    p.add_argument("--overwrite", action="store_true", help="replace editions written before")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace editions (or a gradebook) written before")
     p.set_defaults(func=_run_course)
 
 
 def _run_course(args) -> int:
-    from ..course import grade_notebook, write_course
+    from pathlib import Path
+
+    from .. import atomic
+    from ..course import grading, write_course
 
     if args.grade:
+        if args.gradebook is not None:  # refused before hours of grading, not after
+            atomic.check_folder(args.gradebook, grading.GRADEBOOK_FILES,
+                                overwrite=args.overwrite, flag="--overwrite")
+        seed = args.seed if args.seed is not None else int.from_bytes(os.urandom(3), "big")
+        print(f"hidden checks on fresh inputs drawn from seed {seed}")
+        rows = []
         for path in args.grade:
-            rows = grade_notebook(path)
-            passed = sum(r["result"] == "pass" for r in rows)
-            print(f"{path}: {passed} of {len(rows)} checks pass")
-            for r in rows:
-                print(f"  {r['exercise']}  {r['result']:12s}  {r['message'][:160]}".rstrip())
-        return 0
+            mine = grading.grade_notebook(path, notebooks=args.notebooks, seed=seed,
+                                          quick=not args.full)
+            rows += mine
+            t = grading.totals(mine)
+            for student, tot in t.items():
+                passed = sum(r["result"] == "pass" for r in mine)
+                checked = sum(r["points"] is not None for r in mine)
+                print(f"{student}/{Path(path).name}: {tot['points']} of {tot['max_points']} "
+                      f"points ({passed} of {checked} checks pass"
+                      + (f"; {tot['written_max_points']} points of written answers to grade "
+                         "by hand)" if tot["written_max_points"] else ")"))
+            for r in mine:
+                pts = "-" if r["points"] is None else r["points"]
+                print(f"  {r['exercise']:<14} {pts}/{r['max_points']}  {r['result']:<12} "
+                      f"{r['message']}".rstrip())
+        if args.gradebook is not None:
+            files = grading.write_gradebook(rows, args.gradebook, seed=seed,
+                                            overwrite=args.overwrite)
+            print("wrote " + ", ".join(map(str, files)))
+        failed = [r for r in rows if r["points"] is not None and r["points"] < r["max_points"]]
+        return 1 if failed else 0
     res = write_course(args.out, notebooks=args.notebooks, quick=not args.full,
                        overwrite=args.overwrite)
     books = {ex.notebook for ex in res["exercises"]}
-    print(f"{len(res['exercises'])} exercises in {len(books)} notebooks; wrote "
+    print(f"{len(res['exercises'])} exercises in {len(books)} notebooks, "
+          f"{len(res['written'])} written answers; wrote "
           f"{len(res['student'])} student notebooks to {res['student'][0].parent} and "
           f"{len(res['teacher'])} teacher notebooks to {res['teacher'][0].parent}")
     return 0

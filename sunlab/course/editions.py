@@ -1,21 +1,26 @@
-"""The course: the notebooks' exercises, and the student and teacher editions a teacher hands out.
+"""The notebooks' exercises, and the student and teacher editions a teacher hands out.
 
-An **exercise** is a pair of code cells in a numbered notebook (docs/course.md):
+An **exercise** is a pair of code cells in a numbered notebook (docs/teacher-notes.md):
 
 * a *solution cell* whose first line is ``# Exercise NN.k: title``, whose ``# Hint:`` comment
   lines say where to start, and whose answer sits between nbgrader's markers
   ``### BEGIN SOLUTION`` and ``### END SOLUTION``;
-* within the next two code cells, a *check cell* whose first line is ``# Check NN.k``: it
-  computes the reference in place (from physics or from the library) and asserts the answer
-  with a tolerance and a message that tells a student what is wrong.
+* within the next two code cells, a *check cell* whose first line is ``# Check NN.k`` (with
+  ``(N points)`` when it is worth more than one): it computes the reference in place (from
+  physics or from the library) and asserts the answer with a tolerance and a message that tells
+  a student what is wrong, then runs the exercise's hidden check between nbgrader's markers
+  ``### BEGIN HIDDEN TESTS`` and ``### END HIDDEN TESTS`` (:mod:`sunlab.course.hidden`).
+
+A **written answer** is a markdown cell whose first line is ``**Written answer NN.k** (N
+points)``; the rest of the cell is the teacher's model answer.
 
 :func:`write_course` writes two editions of every notebook: the **teacher edition** (solutions
 kept, nbgrader metadata added, so it is also an nbgrader source notebook) and the **student
 edition** (each solution replaced by a stub that raises :class:`NotImplementedError` with the
-hint; no marker left). By default both start with a cell that selects the small settings
-(``SUNLAB_QUICK=1``), so that each notebook runs in a few minutes on a laptop.
-:func:`grade_notebook` executes a student's notebook and reports each check (``pass``,
-``wrong``, ``not answered``, ``error``), for a teacher who does not use nbgrader.
+hint, each hidden-test block and each model answer left out; no marker left). By default both
+start with a cell that selects the small settings (``SUNLAB_QUICK=1``), so that each notebook
+runs in a few minutes on a laptop. Both editions are written all or nothing.
+:mod:`sunlab.course.grading` grades students' notebooks against the teacher edition.
 
 The notebooks are read with nbformat from the ``notebooks/`` folder of a sunlab checkout (the
 package's parent folder); a sunlab installed from a wheel carries no notebooks, and then the
@@ -35,23 +40,34 @@ x = None
 
 from __future__ import annotations
 
+import contextlib
 import copy
+import os
 import re
+import shutil
+import signal
+import threading
 from pathlib import Path
 from typing import NamedTuple
 
-from .errors import ConfigurationError
+from .. import atomic
+from ..errors import ConfigurationError, SunlabError
 
 __all__ = [
     "BEGIN_SOLUTION",
     "END_SOLUTION",
+    "BEGIN_HIDDEN",
+    "END_HIDDEN",
+    "WRITTEN_PROMPT",
     "Exercise",
+    "Written",
     "QUICK_CELL",
     "default_notebook_dir",
     "find_exercises",
-    "grade_notebook",
+    "find_written",
     "replace_solution",
     "solution_hint",
+    "strip_hidden",
     "student_notebook",
     "teacher_notebook",
     "write_course",
@@ -60,8 +76,15 @@ __all__ = [
 #: nbgrader's markers around the answer in a solution cell
 BEGIN_SOLUTION = "### BEGIN SOLUTION"
 END_SOLUTION = "### END SOLUTION"
+#: nbgrader's markers around the hidden part of a check cell
+BEGIN_HIDDEN = "### BEGIN HIDDEN TESTS"
+END_HIDDEN = "### END HIDDEN TESTS"
+#: what a written answer's cell holds in the student edition (nbgrader's own prompt)
+WRITTEN_PROMPT = "YOUR ANSWER HERE"
 _EXERCISE = re.compile(r"^# Exercise (\d\d\.\d+): *(.+)$")
 _CHECK = re.compile(r"^# Check (\d\d\.\d+)\b")
+_POINTS = re.compile(r"\((\d+) points?\)")
+_WRITTEN = re.compile(r"^\*\*Written answer (\d\d\.\d+)\*\*")
 _HINT = re.compile(r"^\s*# Hint: ?(.*)$")
 #: how many code cells after a solution cell its check cell may come
 CHECK_WITHIN = 2
@@ -91,6 +114,8 @@ class Exercise(NamedTuple):
         Indices of the solution cell and of its check cell in ``nb.cells``.
     hint : str
         The hint the student edition's stub raises.
+    points : int
+        What the check is worth (``(N points)`` on its first line; 1 when not said).
     """
 
     notebook: str
@@ -99,6 +124,26 @@ class Exercise(NamedTuple):
     solution_cell: int
     check_cell: int
     hint: str
+    points: int = 1
+
+    @property
+    def grade_id(self) -> str:
+        """nbgrader's id of the solution cell, ``exNN-k`` (the check's adds ``-check``)."""
+        return f"ex{self.number.replace('.', '-')}"
+
+
+class Written(NamedTuple):
+    """A written answer (graded by hand): ``number``, ``cell`` (index), ``points``."""
+
+    notebook: str
+    number: str
+    cell: int
+    points: int
+
+    @property
+    def grade_id(self) -> str:
+        """nbgrader's id of the cell, ``exNN-k-written``."""
+        return f"ex{self.number.replace('.', '-')}-written"
 
 
 def _nbformat():
@@ -142,7 +187,7 @@ def default_notebook_dir() -> Path:
     ConfigurationError
         When the package is not imported from a checkout (an installed wheel has no notebooks).
     """
-    here = Path(__file__).resolve().parents[1] / "notebooks"
+    here = Path(__file__).resolve().parents[2] / "notebooks"
     if not any(here.glob("[0-9][0-9]-*.ipynb")):
         raise ConfigurationError(
             f"notebooks: no numbered notebook in {here}; sunlab installed as a package carries "
@@ -227,9 +272,45 @@ def find_exercises(nb, name: str = "notebook") -> list[Exercise]:
             raise ConfigurationError(
                 f"{where}: exercise {m.group(1)} has no '# Check {m.group(1)}' cell within the "
                 f"next {CHECK_WITHIN} code cells. Fix: add the check cell after the answer")
+        first = nb.cells[checks[0]].source.split("\n", 1)[0]
+        points = _POINTS.search(first)
         out.append(Exercise(name, m.group(1), m.group(2).strip(), i, checks[0],
-                            solution_hint(src)))
+                            solution_hint(src), int(points.group(1)) if points else 1))
     return out
+
+
+def find_written(nb, name: str = "notebook") -> list[Written]:
+    """The written answers of a notebook: markdown cells whose first line is
+    ``**Written answer NN.k** (N points)``."""
+    out = []
+    for i, c in enumerate(nb.cells):
+        if c.cell_type != "markdown":
+            continue
+        first = c.source.split("\n", 1)[0]
+        m = _WRITTEN.match(first)
+        if m:
+            points = _POINTS.search(first)
+            out.append(Written(name, m.group(1), i, int(points.group(1)) if points else 1))
+    return out
+
+
+def strip_hidden(source: str) -> str:
+    """A check cell's source without its hidden-test block (markers included).
+
+    Examples
+    --------
+    >>> print(strip_hidden("assert x\\n### BEGIN HIDDEN TESTS\\ncheck()\\n### END HIDDEN TESTS\\n"))
+    assert x
+    """
+    lines, out, inside = source.splitlines(), [], False
+    for line in lines:
+        if line.strip() == BEGIN_HIDDEN:
+            inside = True
+        elif line.strip() == END_HIDDEN:
+            inside = False
+        elif not inside:
+            out.append(line)
+    return "\n".join(out).rstrip("\n")
 
 
 def _stub(ex: Exercise) -> str:
@@ -244,19 +325,28 @@ def _edition(nb, name: str, *, student: bool, quick: bool):
         if cell.cell_type == "code":
             cell.outputs, cell.execution_count = [], None
     for ex in find_exercises(nb, name):
-        tag = f"ex{ex.number.replace('.', '-')}"
+        tag = ex.grade_id
         sol, chk = out.cells[ex.solution_cell], out.cells[ex.check_cell]
         if student:
             sol.source = replace_solution(sol.source, _stub(ex), where=f"{name}, cell "
                                           f"{ex.solution_cell}").rstrip("\n")
+            chk.source = strip_hidden(chk.source)
         sol.metadata["nbgrader"] = {"grade": False, "solution": True, "locked": False,
                                     "grade_id": tag, "schema_version": 3}
         chk.metadata["nbgrader"] = {"grade": True, "solution": False, "locked": True,
-                                    "points": 1, "grade_id": f"{tag}-check",
+                                    "points": ex.points, "grade_id": f"{tag}-check",
                                     "schema_version": 3}
         if student:  # Jupyter keeps a student from editing or deleting a check
             chk.metadata.update(editable=False, deletable=False)
             sol.metadata["deletable"] = False
+    for w in find_written(nb, name):
+        cell = out.cells[w.cell]
+        if student:  # the model answer stays with the teacher
+            cell.source = cell.source.split("\n", 1)[0] + "\n\n" + WRITTEN_PROMPT
+            cell.metadata["deletable"] = False
+        cell.metadata["nbgrader"] = {"grade": True, "solution": True, "locked": False,
+                                     "points": w.points, "grade_id": w.grade_id,
+                                     "schema_version": 3}
     if quick:
         nbf = _nbformat()
         first = next((i for i, c in enumerate(out.cells) if c.cell_type == "code"),
@@ -274,12 +364,93 @@ def teacher_notebook(nb, name: str = "notebook", *, quick: bool = True):
 
 def student_notebook(nb, name: str = "notebook", *, quick: bool = True):
     """The student edition of a notebook: every marked answer replaced by a stub that raises
-    :class:`NotImplementedError` with the exercise's hint; no solution marker left."""
+    :class:`NotImplementedError` with the exercise's hint, every hidden-test block and model
+    answer left out; no solution marker left."""
     return _edition(nb, name, student=True, quick=quick)
 
 
+class _Hangup(KeyboardInterrupt):
+    """SIGHUP (the terminal closed) while the editions are written: stop like Ctrl-C."""
+
+
+@contextlib.contextmanager
+def _hangup_interrupts():
+    """While the block runs in the main thread, SIGHUP raises :class:`_Hangup` (its default
+    action would kill the process before the temporary folder is removed)."""
+    if threading.current_thread() is not threading.main_thread() or not hasattr(
+            signal, "SIGHUP"):
+        yield
+        return
+
+    def on_hangup(signum, frame):
+        raise _Hangup
+
+    old = signal.signal(signal.SIGHUP, on_hangup)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGHUP, old)
+
+
+@contextlib.contextmanager
+def _all_held():
+    """SIGINT, SIGTERM and SIGHUP held back for the moves into place."""
+    held = {signal.SIGINT, signal.SIGTERM} | ({signal.SIGHUP} if hasattr(signal, "SIGHUP")
+                                              else set())
+    try:
+        old = signal.pthread_sigmask(signal.SIG_BLOCK, held)
+    except (AttributeError, OSError, ValueError):  # no POSIX signal masks (Windows)
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
+def _move_editions(staging: Path, out: Path, overwrite: bool) -> None:
+    """Move the editions of ``staging`` into ``out``; undo the moves made if one fails."""
+    if not out.exists():
+        os.replace(staging, out)  # one atomic rename
+        return
+    done: list[tuple[Path, Path | None]] = []  # (target, the old file set aside or None)
+    aside = staging / ".old"
+    aside.mkdir()
+    try:
+        for edition in ("teacher", "student"):
+            (out / edition).mkdir(exist_ok=True)
+            for new in sorted((staging / edition).iterdir()):
+                target = out / edition / new.name
+                old = None
+                if target.exists() or target.is_symlink():
+                    if not overwrite:  # created by someone else since the check
+                        raise atomic.OutputExistsError(
+                            f"{target}: was created while sunlab was writing the course; "
+                            "nothing was changed. Fix: pass --overwrite to replace it, or "
+                            "choose a new folder")
+                    old = aside / f"{edition}-{new.name}"
+                    os.replace(target, old)
+                done.append((target, old))
+                os.replace(new, target)
+    except BaseException:
+        for target, old in reversed(done):
+            with contextlib.suppress(OSError):
+                if old is not None:
+                    os.replace(old, target)
+                else:
+                    target.unlink()
+        raise
+
+
 def write_course(out, *, notebooks=None, quick: bool = True, overwrite: bool = False) -> dict:
-    """Write the student and teacher editions of the course's notebooks.
+    """Write the student and teacher editions of the course's notebooks, all or nothing.
+
+    Every target is checked before anything is written: without ``overwrite``, a notebook of
+    either edition already in ``out`` (a student's work, perhaps) stops the run with nothing
+    written. Both editions are written into a temporary sibling of ``out`` and moved into place
+    together (with SIGINT, SIGTERM and SIGHUP held back for the moves); Ctrl-C, SIGTERM or
+    SIGHUP before that removes the temporary folder and leaves ``out`` as it was, and a later
+    run clears what a killed writer left (:func:`sunlab.atomic.remove_stale`).
 
     Parameters
     ----------
@@ -296,18 +467,16 @@ def write_course(out, *, notebooks=None, quick: bool = True, overwrite: bool = F
     Returns
     -------
     dict
-        ``student`` and ``teacher`` (lists of the paths written) and ``exercises`` (every
-        :class:`Exercise`, in the order of study).
+        ``student`` and ``teacher`` (lists of the paths written), ``exercises`` (every
+        :class:`Exercise`, in the order of study) and ``written`` (every :class:`Written`).
 
     Raises
     ------
     ConfigurationError
         No numbered notebook in ``notebooks``, or a malformed exercise (names the cell).
     sunlab.atomic.OutputExistsError
-        A notebook of an edition exists and ``overwrite`` is False.
+        A notebook of an edition exists and ``overwrite`` is False (nothing written).
     """
-    from . import atomic
-
     nbf = _nbformat()
     src = Path(notebooks) if notebooks is not None else default_notebook_dir()
     paths = sorted(src.glob("[0-9][0-9]-*.ipynb"))
@@ -316,76 +485,37 @@ def write_course(out, *, notebooks=None, quick: bool = True, overwrite: bool = F
             f"notebooks: no numbered notebook (NN-title.ipynb) in {src}. Fix: give the "
             "notebooks folder of a sunlab checkout")
     out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise SunlabError(f"{out}: exists and is not a folder. Fix: choose another folder")
+    atomic.remove_stale(out)  # leftovers of a killed writer
+    if not overwrite:
+        taken = [out / e / p.name for e in ("teacher", "student") for p in paths
+                 if (out / e / p.name).exists()]
+        if taken:
+            raise atomic.OutputExistsError(
+                f"{taken[0]}: exists ({len(taken)} notebook(s) of the editions are already in "
+                f"{out}); nothing was written. Fix: pass --overwrite to replace them, or "
+                "choose a new folder")
+    atomic.check_target(out if not out.exists() else out / ".sunlab-course-probe",
+                        overwrite=True)
     books = {p.name: _read(nbf, p) for p in paths}
     exercises = [ex for name, nb in books.items() for ex in find_exercises(nb, name)]
-    written = {"student": [], "teacher": [], "exercises": exercises}
-    for edition, make in (("teacher", teacher_notebook), ("student", student_notebook)):
-        folder = out / edition
-        folder.mkdir(parents=True, exist_ok=True)
-        for name, nb in books.items():
-            text = nbf.writes(make(nb, name, quick=quick)) + "\n"
-            written[edition].append(atomic.write_text(folder / name, text, overwrite=overwrite,
-                                                      flag="--overwrite"))
+    written_answers = [w for name, nb in books.items() for w in find_written(nb, name)]
+    staging = atomic.temporary_name(out)
+    written = {"student": [], "teacher": [], "exercises": exercises,
+               "written": written_answers}
+    with _hangup_interrupts():
+        try:
+            for edition, make in (("teacher", teacher_notebook), ("student", student_notebook)):
+                folder = staging / edition
+                folder.mkdir(parents=True)
+                for name, nb in books.items():
+                    (folder / name).write_text(nbf.writes(make(nb, name, quick=quick)) + "\n",
+                                               encoding="utf-8")
+                    written[edition].append(out / edition / name)
+            with _all_held():
+                _move_editions(staging, out, overwrite)
+        finally:
+            if staging.exists():
+                shutil.rmtree(staging, ignore_errors=True)
     return written
-
-
-def _error_of(cell):
-    return next((o for o in cell.get("outputs", []) if o.get("output_type") == "error"), None)
-
-
-def grade_notebook(path, *, timeout: float = 900.0) -> list[dict]:
-    """Execute a student's notebook top to bottom and grade every check cell.
-
-    The notebook runs in a fresh kernel in its own folder, going on past errors (an
-    unanswered exercise must not hide the others); each ``# Check NN.k`` cell then says
-    how its exercise went.
-
-    Parameters
-    ----------
-    path : str or path-like
-        A notebook of the student edition, with the student's answers.
-    timeout : float
-        Limit per cell, s.
-
-    Returns
-    -------
-    list of dict
-        One per check cell, in order: ``exercise`` (``"NN.k"``), ``result`` (``"pass"``,
-        ``"wrong"``: the check's assertion failed, ``"not answered"``: the stub still raises
-        or a name the exercise defines is missing, ``"error"``: anything else) and ``message``
-        (the check's message or the error, '' on a pass).
-
-    Raises
-    ------
-    ConfigurationError
-        The notebook holds no check cell.
-    """
-    nbf, nbclient = _nbformat(), _nbclient()
-    path = Path(path)
-    nb = _read(nbf, path)
-    cells = [(i, c) for i, c in enumerate(nb.cells) if c.cell_type == "code"]
-    checks = [(i, _CHECK.match(c.source).group(1)) for i, c in cells if _CHECK.match(c.source)]
-    if not checks:
-        raise ConfigurationError(
-            f"{path}: no '# Check NN.k' cell. Fix: give a notebook of the course (sunlab "
-            "course --out DIR writes them)")
-    first = {i: c.source.split("\n", 1)[0] for i, c in cells}
-    answers = {_EXERCISE.match(first[i]).group(1): c for i, c in cells
-               if _EXERCISE.match(first[i])}
-    nbclient.NotebookClient(nb, timeout=timeout, kernel_name="python3", allow_errors=True,
-                            resources={"metadata": {"path": str(path.parent)}}).execute()
-    rows = []
-    for i, number in checks:
-        err, stub = _error_of(nb.cells[i]), _error_of(answers.get(number, {}))
-        if err is None:
-            result, message = "pass", ""
-        elif stub is not None and stub["ename"] == "NotImplementedError":
-            result, message = "not answered", stub["evalue"]
-        elif err["ename"] == "AssertionError":
-            result, message = "wrong", err["evalue"]
-        elif err["ename"] == "NameError":
-            result, message = "not answered", err["evalue"]
-        else:
-            result, message = "error", f"{err['ename']}: {err['evalue']}"
-        rows.append({"exercise": number, "result": result, "message": message})
-    return rows
