@@ -53,6 +53,7 @@ def test_reproduce_passes_the_scheduler_to_every_table(monkeypatch, tmp_path, ca
     monkeypatch.setattr(reproduce, "reproduce_table4", table4)
     monkeypatch.setattr(reproduce, "format_table", lambda res: "table 4")
     monkeypatch.setattr(reproduce, "reproduce_table5", table5)
+    monkeypatch.setattr(reproduce, "format_table5", lambda res: "table 5")
 
     def platform(**kw):
         seen["platform"] = kw

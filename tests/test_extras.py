@@ -44,15 +44,16 @@ def test_each_extra_brings_its_package(project):
     assert project["optional-dependencies"]["neural"] == ["torch==2.13.0"]  # the CPU wheel
     assert opt["hardware"] == ["pyserial"] and opt["widgets"] == ["ipywidgets"]
     assert opt["distributed"] == ["distributed"]
+    assert opt["course"] == ["nbgrader"]
     assert project["optional-dependencies"]["all"] == [
-        "sunlab[neural,hardware,widgets,distributed]"]
+        "sunlab[neural,hardware,widgets,distributed,course]"]
     # every extra that sunlab.extras names exists in pyproject.toml
     assert set(extras.EXTRAS.values()) <= set(opt)
 
 
 def test_make_installs_every_extra():
     makefile = (ROOT / "Makefile").read_text(encoding="utf-8")
-    assert "-e '.[all,dev,benchmarks,browser]'" in makefile
+    assert "-e '.[all,dev,benchmarks,browser,docs]'" in makefile
 
 
 @pytest.fixture

@@ -186,8 +186,7 @@ def reproduce_table5(quick: bool = True, seed: int = 0, out: Path | str | None =
         result, cens, status = _simulate_locate_calibrate(
             plans_, seed=seed, method=method, progress=progress, where=where, pool=pool,
             timings=timings, order=order)
-    result["centroid_status"] = status
-    result.update(_identification())
+    result.update(_identification(), centroid_status=status)
     result["sizes"] = {"train_poses": len(plans_["I"]), "test_poses": len(plans_["III"]),
                        "shots": plans_["I"].shots, "holes": int(cens["100 holes I"].sizes["hole"])}
     if out is not None:

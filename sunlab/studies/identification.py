@@ -461,8 +461,8 @@ def chosen_hypothesis(evidence: pd.DataFrame, protocol: dict | None = None) -> s
     Examples
     --------
     >>> t = pd.DataFrame({"hypothesis": ["a", "a", "b", "b"], "seed": [0, 1, 0, 1],
-    ...                   "parameters": [3, 3, 5, 5], "score": [1.0, 3.0, 2.5, 2.9]})
-    >>> chosen_hypothesis(t)     # b is best (2.7), a (2.0) is within one s.e. (1.0): simpler
+    ...                   "parameters": [3, 3, 5, 5], "score": [1.0, 3.0, 1.9, 3.5]})
+    >>> chosen_hypothesis(t)     # b is best (2.7 +- 0.8), a (2.0) lies within it: simpler
     'a'
     """
     g = evidence.groupby("hypothesis")
