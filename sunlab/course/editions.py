@@ -169,16 +169,6 @@ def _read(nbf, path: Path):
         ) from None
 
 
-def _nbclient():
-    try:
-        import nbclient
-    except ImportError:  # pragma: no cover - nbclient comes with Jupyter
-        raise ConfigurationError(
-            "nbclient: not installed; grading executes the notebook with it. "
-            "Fix: pip install nbclient ipykernel (they come with Jupyter)") from None
-    return nbclient
-
-
 def default_notebook_dir() -> Path:
     """The ``notebooks/`` folder of the sunlab checkout this package is imported from.
 

@@ -85,9 +85,7 @@ def mechanisms(hypothesis: str | None = None, seeds=(1000,), *, step: int = 2,
                    if v["F_mm"] == mech["F_mm"] and v["gear"] == gear)
         for seed in seeds:
             rec = evidence[(evidence["hypothesis"] == hyp) & (evidence["seed"] == seed)].iloc[0]
-            nuis = {k: float(rec[k]) for k in protocol["priors"]}
-            fitted = {k: float(rec[k]) for k in protocol["cells"]["pinning"] if k in rec
-                      and pd.notna(rec[k])}
+            nuis, fitted = idn.recorded_draw(protocol, rec)
             multi = idn.hypothesis_bench(protocol, hyp, nuis, fitted, multi=True)
             exps = idn._experiments(step, shots)
             noise = float(rec["noise_px"])

@@ -49,6 +49,7 @@ __all__ = [
     "hypothesis_bench",
     "surrogate_runs",
     "fit_hypothesis",
+    "recorded_draw",
     "run_protocol",
     "predict_cells",
     "run_hypothesis",
@@ -441,7 +442,7 @@ def score_table(cells: pd.DataFrame, protocol: dict) -> pd.DataFrame:
         var = sd2 + tau2
         for i, seed in enumerate(held.loc[h].index):
             r = log_paper["held_out"] - hh[i]
-            ll = float(np.sum(-0.5 * r**2 / var - 0.5 * np.log(2 * math.pi * var)))
+            ll = _log_density(r, var)
             rows.append({"hypothesis": h, "seed": int(seed),
                          "parameters": int(hyp["parameters"]), "score": ll,
                          "tau": math.sqrt(tau2),
@@ -650,6 +651,25 @@ ABLATIONS = {
 }
 
 
+def recorded_draw(protocol: dict, record) -> tuple[dict, dict]:
+    """The nuisance draw and the fitted parameters of one row of the evidence table.
+
+    Returns
+    -------
+    nuisances, fitted : dict
+        As :func:`draw_nuisances` and :func:`fit_hypothesis` gave them for that seed.
+    """
+    nuis = {k: float(record[k]) for k in protocol["priors"]}
+    fitted = {k: float(record[k]) for k in protocol["cells"]["pinning"]
+              if k in record and pd.notna(record[k])}
+    return nuis, fitted
+
+
+def _log_density(residual: np.ndarray, var: np.ndarray) -> float:
+    """Sum of the normal log densities of log residuals with the given variances."""
+    return float(np.sum(-0.5 * residual**2 / var - 0.5 * np.log(2 * math.pi * var)))
+
+
 def ablation(name: str | None = None, seeds=(1000,), evidence: pd.DataFrame | None = None,
              cells: pd.DataFrame | None = None, *, jobs: int = 1) -> pd.DataFrame:
     """The held-out score of the identified bench with each component turned off.
@@ -689,9 +709,7 @@ def ablation(name: str | None = None, seeds=(1000,), evidence: pd.DataFrame | No
     tasks = []
     for seed in seeds:
         rec = evidence[(evidence["hypothesis"] == name) & (evidence["seed"] == seed)].iloc[0]
-        nuis = {k: float(rec[k]) for k in protocol["priors"]}
-        fitted = {k: float(rec[k]) for k in protocol["cells"]["pinning"]
-                  if k in rec and pd.notna(rec[k])}
+        nuis, fitted = recorded_draw(protocol, rec)
         tasks += [(comp, int(seed), (protocol, name, nuis, fitted, int(seed),
                                      float(rec["noise_px"]), change))
                   for comp, change in {"none": {}, **ABLATIONS}.items()]
@@ -707,7 +725,7 @@ def ablation(name: str | None = None, seeds=(1000,), evidence: pd.DataFrame | No
         lp = np.array([math.log(max(_quantity(pred, *x), 1e-9)) for x in q])
         r = log_paper - lp
         rows.append({"component": comp, "seed": seed,
-                     "score": float(np.sum(-0.5 * r**2 / var - 0.5 * np.log(2 * math.pi * var))),
+                     "score": _log_density(r, var),
                      "held_out_rms_log": float(np.sqrt(np.mean(r**2)))})
     return pd.DataFrame(rows)
 
