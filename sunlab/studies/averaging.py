@@ -44,7 +44,7 @@ MECHANISMS = {
 }
 
 
-def mechanisms(hypothesis: str | None = None, seeds=(1000,), *, step: int = 2,
+def mechanisms(hypothesis: str | None = None, seeds=None, *, step: int = 2,
                shots: int = 2) -> pd.DataFrame:
     """The averaging / geometric-centre ratio of mu under each mechanism of :data:`MECHANISMS`.
 
@@ -55,8 +55,9 @@ def mechanisms(hypothesis: str | None = None, seeds=(1000,), *, step: int = 2,
     ----------
     hypothesis : str, optional
         A hypothesis of the protocol whose gear setting is used; F comes from the mechanism.
-    seeds : iterable of int
-        Confirmation seeds (their nuisance draws and fits come from the shipped evidence).
+    seeds : iterable of int, optional
+        Confirmation seeds (their nuisance draws and fits come from the shipped evidence);
+        default the protocol's first.
     step, shots : int
         The surrogate's grid thinning and shots per pose.
 
@@ -78,6 +79,7 @@ def mechanisms(hypothesis: str | None = None, seeds=(1000,), *, step: int = 2,
     evidence = idn.load_evidence()
     base = hypothesis or idn.identified_hypothesis()
     gear = protocol["hypotheses"][base]["gear"]
+    seeds = protocol["confirmation_seeds"][:1] if seeds is None else seeds
     rows = []
     for name, mech in MECHANISMS.items():
         # the protocol's hypothesis with this mechanism's F and the base's gear setting

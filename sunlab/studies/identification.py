@@ -24,7 +24,7 @@ Examples
 --------
 >>> p = load_protocol()
 >>> sorted(p["hypotheses"]), p["confirmation_seeds"][:2]
-(['F17', 'F17-gear', 'F5', 'F5-gear'], [1000, 1001])
+(['F17', 'F17-gear', 'F5', 'F5-gear'], [2000, 2001])
 >>> len(scored_quantities(p)["fit"]), len(scored_quantities(p)["held_out"])
 (12, 24)
 """
@@ -189,8 +189,9 @@ def hypothesis_bench(protocol: dict, name: str, nuisances: dict, fitted: dict, *
     nuisances : dict
         :func:`draw_nuisances`.
     fitted : dict
-        ``alpha_total_deg``, ``beta_zero_shift_deg``, ``beta_pose_error_deg`` and, for a
-        hypothesis with a gear error, ``beta_gear_deg`` (deg).
+        ``alpha_total_deg``, ``beta_zero_shift_deg``, ``beta_pose_error_deg``,
+        ``alpha_jitter_deg``, ``beta_jitter_deg`` and, for a hypothesis with a gear error,
+        ``beta_gear_deg`` (deg).
     multi : bool
         The 100-hole mask instead of the one hole.
 
@@ -233,6 +234,10 @@ def hypothesis_bench(protocol: dict, name: str, nuisances: dict, fitted: dict, *
         platform__beta_gear_period_deg=(nuisances["gear_period_deg"] if gear
                                         else base.platform.beta_gear_period_deg),
     )
+    # per-shot jitter: fitted from protocol version 3 on (earlier fits leave the presets')
+    for axis in ("alpha", "beta"):
+        if f"{axis}_jitter_deg" in fitted:
+            changes[f"platform__{axis}_jitter_deg"] = fitted[f"{axis}_jitter_deg"]
     bench = base.replace(**changes)
     if multi:
         bench = bench.replace(mask__play_x_mm=0.0, mask__play_y_mm=nuisances["multi_play_mm"])
@@ -289,9 +294,10 @@ def _noise_px(bench) -> float:
 
 #: The rescaling power of each fitted parameter (its cell grows about as the parameter to
 #: 1 / power: the one-hole's alpha mu adds the pixel response in quadrature, the linear
-#: interpolation's beta sigma adds the gear error to the rest in quadrature).
+#: interpolation's beta sigma adds the gear error to the rest in quadrature; M - mu grows
+#: linearly with the jitter, 1.4 x jitter over a floor of the centroid noise).
 _POWER = {"alpha_total_deg": 1.5, "beta_zero_shift_deg": 1.0, "beta_pose_error_deg": 1.0,
-          "beta_gear_deg": 2.0}
+          "beta_gear_deg": 2.0, "alpha_jitter_deg": 1.0, "beta_jitter_deg": 1.0}
 
 
 def fit_hypothesis(protocol: dict, name: str, nuisances: dict, *, seed: int,
@@ -317,7 +323,8 @@ def fit_hypothesis(protocol: dict, name: str, nuisances: dict, *, seed: int,
     paper = _paper_cells()
     setting = protocol["fit"]["surrogate"]
     iterations = iterations or int(protocol["fit"].get("iterations", 4))
-    fitted = {k: paper[cell] for k, cell in pins.items()}
+    target = {k: _quantity(paper, *cell) for k, cell in pins.items()}
+    fitted = dict(target)
     step_bounds = protocol["fit"]["step_bounds"]
     bounds = protocol["fit"]["parameter_bounds_deg"]
     if noise_px is None:
@@ -331,8 +338,10 @@ def fit_hypothesis(protocol: dict, name: str, nuisances: dict, *, seed: int,
                 "linear interp.": fits["linear interp."](cens["I"], cens["II"])}
         t4 = stats.global_stats({m: stats.local_errors(c.predict(cens["III"]))
                                  for m, c in cols.items()})
-        cells = {cell: float(t4.loc[(cell[2], cell[3]), cell[1]]) for cell in pins.values()}
-        fitted = {k: float(np.clip(v * np.clip((paper[pins[k]] / cells[pins[k]]) ** _POWER[k],
+        table = {("table4", col, a, st): float(v) for col in t4.columns
+                 for (a, st), v in t4[col].items()}
+        cells = {cell: _quantity(table, *cell) for cell in pins.values()}
+        fitted = {k: float(np.clip(v * np.clip((target[k] / cells[pins[k]]) ** _POWER[k],
                                                    *step_bounds), *bounds))
                   for k, v in fitted.items()}
     return {**fitted, "pinning": cells, "noise_px": noise_px}
@@ -434,7 +443,7 @@ def score_table(cells: pd.DataFrame, protocol: dict) -> pd.DataFrame:
     rows = []
     for h in held.index.get_level_values("hypothesis").unique():
         hyp = protocol["hypotheses"][h]
-        k = 4 if hyp["gear"] else 3
+        k = len(protocol["cells"]["pinning"]) - (0 if hyp["gear"] else 1)
         ff = fit_side.loc[h].to_numpy()
         hh = held.loc[h].to_numpy()
         tau2 = float(np.mean(np.sum((ff - log_paper["fit"]) ** 2, axis=1))) / (ff.shape[1] - k)
@@ -670,7 +679,7 @@ def _log_density(residual: np.ndarray, var: np.ndarray) -> float:
     return float(np.sum(-0.5 * residual**2 / var - 0.5 * np.log(2 * math.pi * var)))
 
 
-def ablation(name: str | None = None, seeds=(1000,), evidence: pd.DataFrame | None = None,
+def ablation(name: str | None = None, seeds=None, evidence: pd.DataFrame | None = None,
              cells: pd.DataFrame | None = None, *, jobs: int = 1) -> pd.DataFrame:
     """The held-out score of the identified bench with each component turned off.
 
@@ -682,8 +691,8 @@ def ablation(name: str | None = None, seeds=(1000,), evidence: pd.DataFrame | No
     ----------
     name : str, optional
         The hypothesis (default :func:`identified_hypothesis`).
-    seeds : iterable of int
-        Confirmation seeds.
+    seeds : iterable of int, optional
+        Confirmation seeds (default the protocol's first).
     evidence, cells : pandas.DataFrame, optional
         The evidence and its cells (default the shipped ones).
     jobs : int
@@ -699,6 +708,7 @@ def ablation(name: str | None = None, seeds=(1000,), evidence: pd.DataFrame | No
     evidence = load_evidence() if evidence is None else evidence
     cells = _data("evidence_cells.csv") if cells is None else cells
     name = name or chosen_hypothesis(evidence, protocol)
+    seeds = protocol["confirmation_seeds"][:1] if seeds is None else seeds
     q = scored_quantities(protocol)["held_out"]
     paper = _paper_cells()
     log_paper = np.array([math.log(_quantity(paper, *x)) for x in q])
