@@ -44,6 +44,11 @@ def validate_document(doc, kinds: dict[str, str] | None = None) -> dict:
         The registry its kind must be in (default :data:`sunlab.calibration.KINDS` and
         :data:`~sunlab.calibration.registry.FRAME_KINDS`).
 
+    Returns
+    -------
+    dict
+        ``doc`` itself, unchanged, once every check has passed.
+
     Raises
     ------
     SchemaError
@@ -98,6 +103,12 @@ def from_dict(doc: dict, *, kinds: dict[str, str] | None = None) -> Calibration:
         The registry to look the kind up in (default :data:`KINDS`; the multi-hole strategies
         pass theirs).
 
+    Returns
+    -------
+    Calibration
+        A fitted instance of the kind's class, with the document's ``training``, ``domain`` and
+        ``residuals``; it predicts as the calibration that wrote the document did.
+
     Examples
     --------
     >>> from sunlab import sim
@@ -130,6 +141,10 @@ def from_dict(doc: dict, *, kinds: dict[str, str] | None = None) -> Calibration:
 def load(path, *, kinds: dict[str, str] | None = None) -> Calibration:
     """Load a calibration written by :meth:`Calibration.save`.
 
+    Sizes are checked before any array is built (the file itself at most
+    :data:`MAX_FILE_BYTES`; an order or a layer width must match its coefficient lists), and
+    non-finite numbers or degenerate scalings (a zero range) are refused, naming the field.
+
     Parameters
     ----------
     path : str or path-like
@@ -137,9 +152,11 @@ def load(path, *, kinds: dict[str, str] | None = None) -> Calibration:
     kinds : dict, optional
         The registry of :func:`from_dict` (default :data:`KINDS`).
 
-    Sizes are checked before any array is built (the file itself at most
-    :data:`MAX_FILE_BYTES`; an order or a layer width must match its coefficient lists), and
-    non-finite numbers or degenerate scalings (a zero range) are refused, naming the field.
+    Returns
+    -------
+    Calibration
+        The fitted calibration (:func:`from_dict`), returned once the file's checksum
+        (:meth:`Calibration.save` writes one; a file without it is read as is) matches.
 
     Raises
     ------

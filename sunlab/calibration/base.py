@@ -244,6 +244,18 @@ def combine(*tables: xr.Dataset) -> xr.Dataset:
 
     The attributes of the first table are kept and ``pose`` is renumbered.
 
+    Parameters
+    ----------
+    *tables : xarray.Dataset
+        ``centroids/1`` tables with the same dims of ``x`` (e.g. all on ``(pose, shot)``), at
+        least one.
+
+    Returns
+    -------
+    xarray.Dataset
+        One ``centroids/1`` table whose poses are those of ``tables`` in order, ``pose``
+        renumbered 0 .. N - 1 and the first table's attributes.
+
     Examples
     --------
     >>> from sunlab import sim
@@ -331,6 +343,11 @@ class Calibration:
         validation : xarray.Dataset, optional
             A second table (experiment II): early stopping of networks, order selection of
             polynomials, and the validation residuals of the artifact.
+
+        Returns
+        -------
+        Calibration
+            ``self``, fitted: ``training``, ``domain`` (deg, px) and ``residuals`` (deg) filled in.
         """
         data = training_data(train, self.average, name="train")
         self._check_poses(data)
@@ -370,6 +387,12 @@ class Calibration:
         One per free coefficient of a linear model (a polynomial of order n has
         (n + 1)(n + 2) / 2 per angle), one per weight of a network; fewer poses would be fitted
         exactly whatever the data, with meaningless zero residuals.
+
+        Returns
+        -------
+        int
+            The smallest number of distinct ``(alpha, beta)`` poses :meth:`fit` accepts; 1 for
+            the base class.
 
         Examples
         --------
@@ -423,6 +446,12 @@ class Calibration:
         """A human-readable account of the calibration: method, size, domain, errors, origin.
 
         The same text as ``sunlab info CAL.json``.
+
+        Returns
+        -------
+        str
+            Several lines of text (:func:`sunlab.calibration.summary.calibration_summary` of
+            :meth:`to_dict`).
         """
         return calibration_summary(self.to_dict())
 
@@ -516,7 +545,15 @@ class Calibration:
         return self.kind
 
     def to_dict(self) -> dict:
-        """The ``calibration/1`` document (JSON-ready)."""
+        """The ``calibration/1`` document (JSON-ready).
+
+        Returns
+        -------
+        dict
+            ``sunlab_schema``, ``kind``, ``sunlab_version``, ``label``, ``parameters``,
+            ``training``, ``domain`` (deg, px) and ``residuals`` (deg), in plain Python types
+            (NaN and inf as None), as :meth:`save` writes them.
+        """
         self.check_fitted()
         return _jsonable({
             "sunlab_schema": CALIBRATION_SCHEMA,
@@ -620,5 +657,10 @@ class Calibration:
         **options
             Keywords of the class's constructor (:class:`Interpolation` takes its mode from
             the kind).
+
+        Returns
+        -------
+        Calibration
+            A new, unfitted instance of ``cls``.
         """
         return cls(**options)

@@ -268,6 +268,13 @@ class FrameNet(Calibration):
         return "learned (frames)"
 
     def min_poses(self) -> int:
+        """Fewest distinct training poses: one per coefficient of the head's polynomial.
+
+        Returns
+        -------
+        int
+            ``(order + 1)(order + 2) / 2``, the monomials of total degree ``order`` per angle.
+        """
         return (self.order + 1) * (self.order + 2) // 2
 
     # --- data --------------------------------------------------------------------------------
@@ -441,10 +448,36 @@ class FrameNet(Calibration):
                    "timings": repr({k: round(v, 3) for k, v in self.timings.items()})})
 
     def predict(self, cube: xr.Dataset) -> xr.Dataset:
-        """:meth:`predict_frames`: a frame calibration reads frames, not centroids."""
+        """:meth:`predict_frames`: a frame calibration reads frames, not centroids.
+
+        Parameters
+        ----------
+        cube : xarray.Dataset
+            A ``frames/1`` cube, as ``sunlab simulate`` or ``sunlab import`` writes it, of the kind
+            of mask (one hole or many) the network was trained on.
+
+        Returns
+        -------
+        xarray.Dataset
+            As :meth:`predict_frames`: ``alpha``, ``beta`` (deg) on ``(pose, shot)``, NaN for a
+            frame without a usable spot; ``status``, ``n_spots``; coordinates ``alpha_cmd``,
+            ``beta_cmd`` (deg).
+        """
         return self.predict_frames(cube)
 
     def predict_xy(self, x, y):
+        """Not available: a frame calibration has no map from a centroid.
+
+        Parameters
+        ----------
+        x, y : array_like
+            Centroids, px (refused).
+
+        Raises
+        ------
+        ConfigurationError
+            Always; the message names :meth:`predict_frames`.
+        """
         raise ConfigurationError(
             "FrameNet: learned from frames, it has no map from a centroid (x, y). Fix: call "
             "predict_frames(cube) with the frames")

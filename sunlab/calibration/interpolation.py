@@ -92,6 +92,11 @@ class Interpolation(Calibration):
             The registered kind.
         **options
             ``extrapolate``.
+
+        Returns
+        -------
+        Interpolation
+            Unfitted, ``method`` ``"linear"`` or ``"cubic"``.
         """
         return cls(kind.removeprefix("interpolation-"), **options)
 
@@ -121,6 +126,13 @@ class Interpolation(Calibration):
         self._nearest = NearestNDInterpolator(pts, vals, rescale=True)
 
     def min_poses(self) -> int:
+        """Fewest distinct training poses: three nodes make one Delaunay triangle.
+
+        Returns
+        -------
+        int
+            3.
+        """
         return 3  # one triangle
 
     def _fit(self, data: TrainingData, validation) -> None:
@@ -128,7 +140,18 @@ class Interpolation(Calibration):
         self._build()
 
     def inside(self, x, y) -> np.ndarray:
-        """True inside the convex hull of the nodes (where the interpolant is defined)."""
+        """True inside the convex hull of the nodes (where the interpolant is defined).
+
+        Parameters
+        ----------
+        x, y : array_like
+            Centroids, px (x = column, y = row), broadcast together.
+
+        Returns
+        -------
+        numpy.ndarray of bool
+            Of the broadcast shape; False where x or y is not finite.
+        """
         self.check_fitted()
         x, y = np.broadcast_arrays(np.asarray(x, dtype=float), np.asarray(y, dtype=float))
         ok = np.isfinite(x) & np.isfinite(y)
@@ -147,6 +170,12 @@ class Interpolation(Calibration):
         only around it, so for linear interpolation this equals the global leave-one-out;
         cubic gradients are estimated from the neighbourhood. Nodes outside the hull of their
         neighbours (the rim of the table) are left out of the statistics.
+
+        Parameters
+        ----------
+        neighbours : int
+            Nearest other nodes each left-out node is interpolated from (default 24: the two
+            rings of a square grid around it).
 
         Returns
         -------

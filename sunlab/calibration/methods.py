@@ -67,6 +67,18 @@ def table4_methods(*, neural: bool = True, hidden: int = 8, seed: int = 0,
         Hidden tanh neurons of each network.
     seed : int
         Seed of the networks' initial weights.
+    reference : {"design", "zero_pose"}
+        Where model (1) of NN strategy 4 is zeroed (above); strategies 1-3 use ``"design"``.
+
+    Returns
+    -------
+    dict of str to callable
+        Label to ``fit(train, validation) -> Calibration``: ``ideal model (1)``, ``optimised
+        model (3)-(4)``, ``linear interp.``, ``cubic interp.``, ``polynomial`` (order chosen on
+        ``validation``, refitted on both tables when :data:`POLYNOMIAL_REFIT`),
+        ``trigonometric`` (order 1-4 chosen on ``validation``, period
+        :data:`TRIGONOMETRIC_PERIOD`) and, with ``neural``, ``NN strategy 1`` .. ``4``; the
+        tables are ``centroids/1`` with commanded angles (experiments I and II).
 
     Examples
     --------

@@ -104,6 +104,35 @@ def fit_optimised(data: TrainingData, sensor: dict, fit_zero_pose: bool | None =
     shares its platform error, and neighbouring poses share the pixel pattern under the spot,
     so the residuals are correlated within a block and the Jacobian's white-noise errors are
     too small.
+
+    Parameters
+    ----------
+    data : TrainingData
+        Training points: centroids ``x``, ``y`` (px) and commanded ``alpha``, ``beta`` (deg)
+        (:func:`sunlab.calibration.base.training_data`).
+    sensor : dict
+        ``mask_distance_mm`` (nominal F, mm) and ``pixel_pitch_mm`` (p, mm), as
+        :func:`sunlab.calibration.base.sensor_attrs` returns them.
+    fit_zero_pose : bool or None
+        Fit the zero-pose centroid (True), measure it at alpha = beta = 0 (False), or measure
+        it only when that pose exists (None).
+    n_boot : int
+        Block-bootstrap replicas for the standard errors; 0 or 1: Jacobian errors.
+    block_deg : float
+        Side of the bootstrap's blocks of poses, deg.
+    seed : int
+        Seed of the bootstrap's resampling.
+
+    Returns
+    -------
+    sunlab.geometry.OptimisedFit
+        dF (mm), alpha0, beta0 (deg), the zero-pose centroid and the foot of the hole (px) of
+        eqs. (3)-(4), their standard errors and the RMS residuals (deg).
+
+    Raises
+    ------
+    ConfigurationError
+        ``fit_zero_pose`` is False and no training point lies at alpha = beta = 0.
     """
     zero = (np.abs(data.alpha) <= ZERO_POSE_TOL_DEG) & (np.abs(data.beta) <= ZERO_POSE_TOL_DEG)
     free = (not zero.any()) if fit_zero_pose is None else bool(fit_zero_pose)
@@ -171,6 +200,14 @@ class OptimisedModel(Calibration):
         return "optimised model (3)-(4)"
 
     def min_poses(self) -> int:
+        """Fewest distinct training poses: two equations per pose for dF, alpha0, beta0 and the
+        zero-pose centroid (five unknowns).
+
+        Returns
+        -------
+        int
+            3.
+        """
         return 3  # dF, alpha0, beta0 (+ the zero pose): two equations per pose
 
     def _fit(self, data: TrainingData, validation) -> None:
@@ -203,6 +240,18 @@ def optimised_fit_from_dict(p: dict) -> geometry.OptimisedFit:
     """The fitted optimised model (3)-(4) from its dictionary
     (:meth:`sunlab.geometry.OptimisedFit.to_dict`, as saved files hold it); files written
     before the rotation mounting hold the additive form's parameters.
+
+    Parameters
+    ----------
+    p : dict
+        The fit's fields (:class:`sunlab.geometry.OptimisedFit`); ``mounting`` defaults to
+        ``"additive"`` and ``stderr_method`` to ``"jacobian"`` when absent, a standard error
+        of None reads as NaN.
+
+    Returns
+    -------
+    sunlab.geometry.OptimisedFit
+        The fit, its lengths in mm, angles in deg and centroids in px as saved.
 
     Examples
     --------

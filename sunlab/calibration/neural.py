@@ -164,6 +164,14 @@ class NeuralNet(Calibration):
         return np.column_stack([d.alpha, d.beta])
 
     def min_poses(self) -> int:
+        """Fewest distinct training poses: one per weight of one network.
+
+        Returns
+        -------
+        int
+            ``4 * hidden + 1``: ``2 hidden`` input weights, ``hidden`` hidden biases, ``hidden``
+            output weights and one output bias.
+        """
         # weights of one net: hidden x 2 inputs, hidden biases, hidden outputs, output bias
         return 4 * self.hidden + 1
 
@@ -181,6 +189,24 @@ class NeuralNet(Calibration):
         return dict(self.sensor, x_cf_px=x0, y_cf_px=y0)
 
     def predict(self, centroids):
+        """Estimated platform angles for every centroid of a ``centroids/1`` table.
+
+        As :meth:`Calibration.predict`; with ``reference="zero_pose"`` (strategies 2 and 4)
+        model (1) is first re-zeroed on the zero-pose centroid of the table's own run.
+
+        Parameters
+        ----------
+        centroids : xarray.Dataset
+            A ``centroids/1`` table (``x``, ``y`` px, ``status``; commanded ``alpha``, ``beta``
+            as coordinates when known); with ``reference="zero_pose"``, attributes
+            ``zero_pose_x_px``, ``zero_pose_y_px`` (px).
+
+        Returns
+        -------
+        xarray.Dataset
+            ``alpha``, ``beta`` (deg) on the dims of ``x``, ``status``, ``in_domain`` and the
+            commanded ``alpha_cmd``, ``beta_cmd`` (deg), as :meth:`Calibration.predict`.
+        """
         if self.reference != "zero_pose" or self.strategy not in (2, 4):
             return super().predict(centroids)
         fitted = self.sensor
@@ -200,6 +226,12 @@ class NeuralNet(Calibration):
             ``centroids/1`` table with the commanded angles (experiment I).
         validation : xarray.Dataset, optional
             Table for early stopping (experiment II).
+
+        Returns
+        -------
+        NeuralNet
+            ``self``, fitted: the networks, their ``history``, ``training``, ``domain`` and
+            ``residuals`` (deg).
         """
         require("torch", purpose="the neural-network calibration (NeuralNet)")
         return super().fit(train, validation)

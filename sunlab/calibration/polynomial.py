@@ -36,6 +36,17 @@ __all__ = ["Polynomial", "monomial_exponents", "design_matrix"]
 def monomial_exponents(order: int) -> list[tuple[int, int]]:
     """Exponents ``(k - l, l)`` of the monomials :math:`u^{k-l} v^l` in the paper's order.
 
+    Parameters
+    ----------
+    order : int
+        Total degree n of the polynomial.
+
+    Returns
+    -------
+    list of (int, int)
+        ``(n + 1)(n + 2) / 2`` pairs ``(k - l, l)`` for k = 0 .. n, l = 0 .. k: the powers
+        of u and v of each coefficient :math:`a_{kl}`.
+
     Examples
     --------
     >>> monomial_exponents(2)
@@ -46,6 +57,21 @@ def monomial_exponents(order: int) -> list[tuple[int, int]]:
 
 def design_matrix(u, v, order: int) -> np.ndarray:
     """Matrix of the monomials :math:`u^{k-l} v^l`, shape ``(len(u), (n + 1)(n + 2) / 2)``.
+
+    Parameters
+    ----------
+    u, v : array_like
+        Scaled centroid coordinates (in [-1, 1] over the training domain, module docstring),
+        broadcast together.
+    order : int
+        Total degree n.
+
+    Returns
+    -------
+    numpy.ndarray
+        The broadcast shape of u and v plus a last axis of ``(n + 1)(n + 2) / 2`` columns,
+        in the order of :func:`monomial_exponents`; ``design_matrix(u, v, n) @ a`` is the
+        polynomial f(u, v) of docs/paper.md sec. 4.2.
 
     Examples
     --------
@@ -133,6 +159,13 @@ class Polynomial(Calibration):
         return f"polynomial({na})" if na == nb else f"polynomial({na},{nb})"
 
     def min_poses(self) -> int:
+        """Fewest distinct training poses: one per coefficient of the larger polynomial.
+
+        Returns
+        -------
+        int
+            ``(n + 1)(n + 2) / 2`` for the larger order n of ``(n_alpha, n_beta)``.
+        """
         return max(len(monomial_exponents(n)) for n in self.orders)
 
     def _fit(self, data: TrainingData, validation) -> None:
@@ -155,6 +188,18 @@ class Polynomial(Calibration):
         monomials of the fitted calibration's scaled coordinates, so that
         ``basis(x, y, angle) @ coefficients[angle]`` is its prediction (a joint fit such as
         :func:`sunlab.platform_fault.fit_correction` adds its own columns beside them).
+
+        Parameters
+        ----------
+        x, y : array_like
+            Centroids, px (x = column, y = row), same shape.
+        angle : {"alpha", "beta"}
+            Whose order (and scaling) to use.
+
+        Returns
+        -------
+        numpy.ndarray
+            Shape ``x.shape + ((n + 1)(n + 2) / 2,)`` for that angle's order n.
 
         Examples
         --------

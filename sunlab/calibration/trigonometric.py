@@ -36,6 +36,20 @@ __all__ = ["Trigonometric", "fourier_basis"]
 def fourier_basis(u, order: int, period: float = 4.0) -> np.ndarray:
     """1-D Fourier basis ``[1, cos(w u), sin(w u), ..., cos(n w u), sin(n w u)]``, w = 2 pi / P.
 
+    Parameters
+    ----------
+    u : array_like
+        Scaled centroid coordinate (the training domain is [-1, 1]).
+    order : int
+        Highest harmonic n.
+    period : float
+        Period P, in scaled units.
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape ``u.shape + (2n + 1,)``.
+
     Examples
     --------
     >>> fourier_basis(np.array([0.0]), 2).tolist()
@@ -91,6 +105,13 @@ class Trigonometric(Calibration):
         return (bu[:, :, None] * bv[:, None, :]).reshape(len(bu), -1)
 
     def min_poses(self) -> int:
+        """Fewest distinct training poses: one per coefficient of the 2-D series.
+
+        Returns
+        -------
+        int
+            ``(2n + 1)**2``, the tensor product of two 1-D bases of order n.
+        """
         return (2 * self.order + 1) ** 2
 
     def _fit(self, data: TrainingData, validation) -> None:
