@@ -42,6 +42,21 @@ def disk_profile(dx, dy, radius: float = 17.5, edge: float = 3.25):
 
     ``edge = 0`` is a hard edge.
 
+    Parameters
+    ----------
+    dx, dy : array_like
+        Offset from the spot's centre along x (columns) and y (rows), px; broadcast together.
+    radius : float
+        Radius of the spot (the hole's image before the source's blur), px.
+    edge : float
+        Radius rho of the source disk's image, px; 0 for a hard edge.
+
+    Returns
+    -------
+    numpy.ndarray
+        Brightness relative to the spot's flat top, 0 .. 1, of the broadcast shape: 1 inside
+        ``radius - edge``, 0 beyond ``radius + edge``, 0.5 at ``radius`` (edge > 0).
+
     Examples
     --------
     >>> [float(disk_profile(r, 0.0)) for r in (0.0, 17.5, 30.0)]

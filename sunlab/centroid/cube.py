@@ -117,6 +117,16 @@ def is_multi_hole(cube) -> bool:
 
     :func:`locate` centroids such a cube spot by spot on the mask's lattice.
 
+    Parameters
+    ----------
+    cube : xarray.Dataset
+        A ``frames/1`` cube.
+
+    Returns
+    -------
+    bool
+        True for a multi-hole cube.
+
     Examples
     --------
     >>> import numpy as np

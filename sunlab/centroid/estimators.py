@@ -577,6 +577,18 @@ def border_mean(frame, width: int = 2) -> float:
     Step 1 of algorithm A (:func:`threshold_window`): ``I_m``, whose multiple is the noise
     threshold.
 
+    Parameters
+    ----------
+    frame : array_like, shape (rows, columns)
+        One detector frame, DN.
+    width : int
+        Rows and columns taken from each edge, px (2 in the paper).
+
+    Returns
+    -------
+    float
+        The mean, DN.
+
     Examples
     --------
     >>> import numpy as np
@@ -598,6 +610,22 @@ def first_hit(frame, threshold: float, *, test_size: int = 5,
     columns, the first pixel above ``threshold`` of whose ``test_size`` x ``test_size``
     neighbourhood at least ``test_count`` pixels are above it. ``(-1, -1)`` when none.
 
+    Parameters
+    ----------
+    frame : array_like, shape (rows, columns)
+        One detector frame, DN.
+    threshold : float
+        Noise threshold T, DN (``3 I_m`` in the paper, :func:`border_mean`).
+    test_size : int
+        Side of the test window centred on the candidate pixel, px (5 in the paper).
+    test_count : int
+        Pixels of the test window that must exceed ``threshold`` (18 of 25 in the paper).
+
+    Returns
+    -------
+    (int, int)
+        Row and column of the first qualifying pixel, px; ``(-1, -1)`` when none qualifies.
+
     Examples
     --------
     >>> import numpy as np
@@ -617,6 +645,18 @@ def projection_profiles(frame) -> tuple[np.ndarray, np.ndarray]:
     """Column profile ``P_x`` (sum of each column) and row profile ``P_y`` (sum of each row).
 
     Step 1 of algorithm B (:func:`projection_window`), in one compiled pass over the frame.
+
+    Parameters
+    ----------
+    frame : array_like, shape (rows, columns)
+        One detector frame, DN.
+
+    Returns
+    -------
+    P_x : numpy.ndarray, shape (columns,)
+        Sum of each column, DN.
+    P_y : numpy.ndarray, shape (rows,)
+        Sum of each row, DN.
 
     Examples
     --------

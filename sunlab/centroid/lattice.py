@@ -87,7 +87,15 @@ class Spots(NamedTuple):
     lattice: np.ndarray
 
     def to_dataframe(self):
-        """The spots as a pandas DataFrame, one row per hole."""
+        """The spots as a pandas DataFrame, one row per hole.
+
+        Returns
+        -------
+        pandas.DataFrame
+            Index ``hole`` (0 .. n_holes - 1); columns ``i``, ``j`` (grid row and column), ``x``,
+            ``y`` (centroid, px), ``flux`` (DN), ``status``, the window ``x0``, ``x1``, ``y0``,
+            ``y1`` (px) and one column per metric of :data:`SPOT_METRICS`.
+        """
         import pandas as pd
 
         cols = {"i": self.i, "j": self.j, "x": self.x, "y": self.y, "flux": self.flux,
