@@ -155,6 +155,11 @@ def master_frame(frames, *, bit_depth: int | None = None, left_aligned: bool = F
     bit_depth, left_aligned
         As for :func:`~sunlab.io.read_image`, when ``frames`` is a path.
 
+    Returns
+    -------
+    numpy.ndarray of float32, shape (y, x)
+        The median over the frames of each pixel, DN.
+
     Examples
     --------
     >>> master_frame([[[1, 5]], [[3, 5]], [[100, 6]]]).tolist()
@@ -327,7 +332,18 @@ def _flag_clipped_flat(stack, flat, bits: int, src: str) -> dict:
 
 
 def has_calibration_frames(cube) -> bool:
-    """Whether a cube holds any master frame (:data:`MASTER_NAMES`)."""
+    """Whether a cube holds any master frame (:data:`MASTER_NAMES`).
+
+    Parameters
+    ----------
+    cube : xarray.Dataset
+        A frame cube (contract ``frames/1``).
+
+    Returns
+    -------
+    bool
+        True when it has a ``master_dark``, ``master_bias`` or ``master_flat`` variable.
+    """
     return any(name in cube.variables for name in MASTER_NAMES.values())
 
 
@@ -336,6 +352,18 @@ def corrected_saturation(cube) -> float:
 
     ``2 * full / min(flat)``: above ``(full - D) / F`` for every unsaturated pixel, so the
     estimators, given this level as ``saturation``, see exactly the pixels the ADC clipped.
+
+    Parameters
+    ----------
+    cube : xarray.Dataset
+        A frame cube with attribute ``bit_depth`` and, optionally, masters from
+        :func:`with_calibration_frames`.
+
+    Returns
+    -------
+    float
+        ``2 (2**bit_depth - 1) / min(F)`` DN, F the master flat (the smallest finite value);
+        ``2 (2**bit_depth - 1)`` without a flat.
     """
     full = float(2 ** int(cube.attrs["bit_depth"]) - 1)
     if MASTER_NAMES["flat"] in cube.variables:  # NaN: a pixel clipped in the flats

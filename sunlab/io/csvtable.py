@@ -214,7 +214,22 @@ def centroids_from_csv(path, *, attrs: dict | None = None):
 
 def csv_line_of(path, shot: dict) -> int | None:
     """The line number (1-based) of the CSV row holding ``shot`` (its ``alpha``, ``beta``,
-    ``x``, ``y``), or None: how an excluded shot is named (:mod:`sunlab.screening`)."""
+    ``x``, ``y``), or None: how an excluded shot is named (:mod:`sunlab.screening`).
+
+    Parameters
+    ----------
+    path : str or path-like
+        The CSV centroid table.
+    shot : dict
+        ``alpha``, ``beta`` (deg) and ``x``, ``y`` (px) of the shot, compared for exact
+        equality with the numbers of each row.
+
+    Returns
+    -------
+    int or None
+        The 1-based line of the file (comment and blank lines counted) of the first matching
+        row; None when no row matches.
+    """
     table = _read_csv_table(Path(path))
     num = _numeric_columns(table, Path(path).name)
     hit = np.ones(len(table), dtype=bool)

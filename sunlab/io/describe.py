@@ -50,6 +50,22 @@ def summary(ds: xr.Dataset) -> str:
     (an acquisition in progress, an interrupted copy) gets an ``INCOMPLETE`` line per array.
     Only coordinates are read; the frames stay lazy.
 
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A frame cube (``frames/1``) or a centroid table (``centroids/1``), as
+        :func:`sunlab.io.open_dataset` returns it.
+
+    Returns
+    -------
+    str
+        Several lines, the first naming the kind and the contract; as ``sunlab info`` prints.
+
+    Raises
+    ------
+    SchemaError
+        ``attrs['sunlab_schema']`` names neither contract.
+
     Examples
     --------
     >>> import numpy as np

@@ -483,6 +483,16 @@ def example_folder(name: str = "train") -> Path:
     (file, alpha, beta, shot) and ``sensor.json`` (pixel pitch, mask distance, design centre,
     bit depth), so ``sunlab import FOLDER --out cube.zarr`` needs no other option.
 
+    Parameters
+    ----------
+    name : {"train", "test"}
+        Which recording.
+
+    Returns
+    -------
+    pathlib.Path
+        The folder inside the installed package (read it, do not write to it).
+
     Examples
     --------
     >>> folder = example_folder("train")

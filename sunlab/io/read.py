@@ -267,6 +267,28 @@ def open_dataset(path, *, format: str | None = None, check_chunks: bool = True) 
 
     Frame cubes open lazily (see :func:`open_frames`), centroid tables are loaded.
 
+    Parameters
+    ----------
+    path : str or path-like
+        A Zarr store or a NetCDF4 file written by :mod:`sunlab.io`.
+    format : {"zarr", "netcdf"}, optional
+        Default: a directory is Zarr, a file is NetCDF4 (checked by its signature).
+    check_chunks : bool
+        Zarr only: check that every chunk file exists (see :func:`open_frames`).
+
+    Returns
+    -------
+    xarray.Dataset
+        A validated ``frames/1`` cube (lazy; close it to release a NetCDF file) or a
+        ``centroids/1`` table (in memory, the file closed).
+
+    Raises
+    ------
+    SunlabError
+        The path is missing, truncated or corrupt (the message names the file and the fix).
+    SchemaError
+        ``attrs['sunlab_schema']`` names neither contract, or the dataset breaks its contract.
+
     Examples
     --------
     >>> import numpy as np, tempfile, pathlib

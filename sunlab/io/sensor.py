@@ -64,6 +64,18 @@ def find_sensor_json(folder, manifest=None) -> Path | None:
     """The ``sensor.json`` of a frame folder: beside the manifest first, then in the folder.
 
     Returns None when there is none.
+
+    Parameters
+    ----------
+    folder : str or path-like
+        The folder of frames.
+    manifest : str or path-like, optional
+        The manifest CSV, when it lies elsewhere; its folder is searched first.
+
+    Returns
+    -------
+    pathlib.Path or None
+        The first ``sensor.json`` found, or None.
     """
     folder = Path(folder)
     places = [Path(manifest).resolve().parent] if manifest is not None else []

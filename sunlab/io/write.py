@@ -265,6 +265,26 @@ def save_centroids(
 ) -> None:
     """Save a centroid table (contract ``centroids/1``) as Zarr (default) or NetCDF4 (``.nc``).
 
+    Parameters
+    ----------
+    centroids : xarray.Dataset
+        A centroid table (:func:`sunlab.schema.centroids_dataset`, or what
+        :func:`sunlab.centroid.locate` returns), validated first.
+    path : str or path-like
+        Target. A suffix in :data:`NETCDF_SUFFIXES` (``.nc``) selects NetCDF4; anything else is
+        a Zarr directory store.
+    format : {"zarr", "netcdf"}, optional
+        Overrides the choice made from the suffix.
+    overwrite : bool
+        Replace an existing store or file at ``path``; otherwise an existing path is an error.
+
+    Raises
+    ------
+    SchemaError
+        The table breaks the contract.
+    SunlabError
+        ``path`` exists and ``overwrite`` is False, or its folder is missing or read-only.
+
     Examples
     --------
     >>> import numpy as np, tempfile, pathlib
