@@ -69,6 +69,20 @@ def _is_zarr_store(path: Path) -> bool:
 def temporary_name(path, what: str = "tmp") -> Path:
     """A hidden sibling of ``path`` for this process: ``.NAME.<what>-PID-XXXXXXXX``.
 
+    Parameters
+    ----------
+    path : str or path-like
+        The output.
+    what : str
+        The kind of sibling: ``"tmp"`` (an output being written) or ``"old"`` (an output set
+        aside).
+
+    Returns
+    -------
+    pathlib.Path
+        In ``path``'s folder, ending in this process's id and 8 random hexadecimal digits, so
+        that :func:`remove_stale` can tell whose it is.
+
     Examples
     --------
     >>> import os
@@ -82,6 +96,16 @@ def temporary_name(path, what: str = "tmp") -> Path:
 def process_alive(pid) -> bool:
     """Whether process ``pid`` runs on this host (this process, or another user's, counts; a
     value that is not a positive integer is never taken for a dead process).
+
+    Parameters
+    ----------
+    pid : object
+        A process id (an int read from a temporary name).
+
+    Returns
+    -------
+    bool
+        False only for a positive int that names no running process.
 
     Examples
     --------
@@ -106,6 +130,16 @@ def remove_stale(path) -> list[Path]:
     Temporary outputs (``.NAME.tmp-PID-*``) of a process that no longer runs are removed; an
     old output it had set aside (``.NAME.old-PID-*``) is put back where ``path`` is missing,
     and removed otherwise. Leftovers of running processes are not touched.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The output whose folder is searched.
+
+    Returns
+    -------
+    list of pathlib.Path
+        The leftovers removed or put back, in name order.
 
     Examples
     --------
@@ -153,6 +187,11 @@ def check_target(path, *, overwrite: bool = False, kind: str = "file", flag: str
         if it is a Zarr store (sunlab never deletes any other folder).
     flag : str
         How the user asks to overwrite, for the message (``"--overwrite"`` on the command line).
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``, with the leftovers of a killed writer of it cleared (:func:`remove_stale`).
 
     Raises
     ------
@@ -350,7 +389,31 @@ _STAGING = "sunlab-output"
 def check_folder(folder, names, *, overwrite: bool = False, flag: str = "overwrite=True"
                  ) -> Path:
     """The checks of :func:`atomic_files`, to run before any work (nothing is created): the
-    folder can be made or is a folder, and no listed file exists unless ``overwrite``."""
+    folder can be made or is a folder, and no listed file exists unless ``overwrite``.
+
+    Parameters
+    ----------
+    folder : str or path-like
+        The output folder.
+    names : iterable of str
+        The files that may be written in it.
+    overwrite : bool
+        Whether existing files of ``names`` may be replaced.
+    flag : str
+        How the user asks to overwrite, for the messages.
+
+    Returns
+    -------
+    pathlib.Path
+        ``folder``.
+
+    Raises
+    ------
+    OutputExistsError
+        A listed file exists and ``overwrite`` is False.
+    SunlabError
+        ``folder`` exists and is not a folder, or its parent is missing or not writable.
+    """
     folder = Path(folder)
     if folder.is_dir():
         remove_stale(folder / _STAGING)
@@ -457,6 +520,20 @@ def write_bytes(path, data: bytes, *, overwrite: bool = False, flag: str = "over
                 ) -> Path:
     """Write ``data`` to ``path`` atomically (temporary sibling, fsync, rename); return the path.
 
+    Parameters
+    ----------
+    path : str or path-like
+        The output file.
+    data : bytes
+        Its content.
+    overwrite, flag
+        As in :func:`check_target`.
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+
     Examples
     --------
     >>> import pathlib, tempfile
@@ -475,6 +552,22 @@ def write_bytes(path, data: bytes, *, overwrite: bool = False, flag: str = "over
 def write_text(path, text: str, *, overwrite: bool = False, flag: str = "overwrite=True",
                encoding: str = "utf-8") -> Path:
     """Write ``text`` to ``path`` atomically; return the path. See :func:`write_bytes`.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The output file.
+    text : str
+        Its content.
+    overwrite, flag
+        As in :func:`check_target`.
+    encoding : str
+        Text encoding of the file.
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
 
     Examples
     --------

@@ -522,6 +522,29 @@ def export_c(cal, out, *, overwrite: bool = False) -> tuple[Path, Path]:
 
     See the module docstring for what each method exports and :func:`c_sources`. Existing
     files are replaced only with ``overwrite=True``.
+
+    Parameters
+    ----------
+    cal : sunlab.calibration.Calibration or path-like
+        A fitted calibration, or the path of its JSON file.
+    out : str or path-like
+        The output folder (created if missing); both files are moved in together.
+    overwrite : bool
+        Replace existing files of the same names.
+
+    Returns
+    -------
+    header : pathlib.Path
+        ``out/sunlab_calibration.h``.
+    source : pathlib.Path
+        ``out/sunlab_calibration.c``.
+
+    Raises
+    ------
+    ConfigurationError
+        For a method that is not exported (:func:`c_sources`).
+    OutputExistsError
+        A file exists and ``overwrite`` is False (checked before anything is written).
     """
     from . import atomic
 
@@ -569,7 +592,13 @@ def export(cal, out, format: str = "c", *, overwrite: bool = False) -> list[Path
 
 
 def find_c_compiler() -> str | None:
-    """The system C compiler (``cc``, ``gcc`` or ``clang`` on the PATH), or None."""
+    """The system C compiler (``cc``, ``gcc`` or ``clang`` on the PATH), or None.
+
+    Returns
+    -------
+    str or None
+        The full path of the first of ``cc``, ``gcc``, ``clang`` found; None when none is.
+    """
     for name in ("cc", "gcc", "clang"):
         path = shutil.which(name)
         if path:
@@ -658,6 +687,19 @@ def check_c(cal, folder, n: int = 1000, *, seed: int = 0, cc: str | None = None)
     ``domain['y']``) widened by 10 % on each side, so that some fall outside the domain; the
     float function is compared with Python at the float-rounded centroids (the rounding of the
     input is the caller's, not the export's).
+
+    Parameters
+    ----------
+    cal : sunlab.calibration.Calibration or path-like
+        The fitted calibration that was exported, or the path of its JSON file.
+    folder : str or path-like
+        The folder :func:`export_c` wrote.
+    n : int
+        Number of test centroids.
+    seed : int
+        Seed of the points' draw.
+    cc : str, optional
+        The compiler; default :func:`find_c_compiler`.
 
     Returns
     -------

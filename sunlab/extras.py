@@ -89,6 +89,11 @@ def available(module: str) -> bool:
     module : str
         A top-level module name (``"torch"``).
 
+    Returns
+    -------
+    bool
+        True when the import system finds the module.
+
     Examples
     --------
     >>> available("math"), available("no_such_package_xyz")
@@ -108,6 +113,11 @@ def installed_version(distribution: str) -> str | None:
     ----------
     distribution : str
         The distribution's name on PyPI (``"pyserial"``).
+
+    Returns
+    -------
+    str or None
+        The version string of the distribution's metadata (``"3.5"``), or None.
 
     Examples
     --------

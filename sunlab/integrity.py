@@ -112,13 +112,36 @@ def _stamped(value, source) -> str | None:
 
 # -- JSON documents -----------------------------------------------------------------------------
 def document_digest(doc: dict) -> str:
-    """SHA-256 (hex) of a JSON document's canonical text, without its :data:`ATTR` key."""
+    """SHA-256 (hex) of a JSON document's canonical text, without its :data:`ATTR` key.
+
+    Parameters
+    ----------
+    doc : dict
+        A JSON-able document (numpy scalars and arrays allowed).
+
+    Returns
+    -------
+    str
+        64 hexadecimal digits: SHA-256 of the document as JSON with sorted keys, no blanks,
+        ASCII.
+    """
     body = {k: v for k, v in doc.items() if k != ATTR}
     return hashlib.sha256(_canonical(body)).hexdigest()
 
 
 def seal_document(doc: dict) -> dict:
-    """A copy of ``doc`` with its digest under :data:`ATTR` (see :func:`verify_document`)."""
+    """A copy of ``doc`` with its digest under :data:`ATTR` (see :func:`verify_document`).
+
+    Parameters
+    ----------
+    doc : dict
+        A JSON-able document; a digest already under :data:`ATTR` is replaced.
+
+    Returns
+    -------
+    dict
+        A new dict: ``doc``'s keys and ``ATTR: {"algorithm": "sha256", "digest": ...}``.
+    """
     return {**{k: v for k, v in doc.items() if k != ATTR}, ATTR: _stamp(document_digest(doc))}
 
 
@@ -126,6 +149,18 @@ def verify_document(doc, source) -> dict:
     """Check the digest of a document read from ``source``; return it without :data:`ATTR`.
 
     A document without the key is returned as it is (not written by this sunlab).
+
+    Parameters
+    ----------
+    doc : dict
+        A parsed JSON document.
+    source : str or path-like
+        Where it was read from, for the messages.
+
+    Returns
+    -------
+    dict
+        A copy of ``doc`` without :data:`ATTR` (``doc`` itself when it has no digest).
 
     Raises
     ------
@@ -146,7 +181,22 @@ def verify_document(doc, source) -> dict:
 
 def check_depth(doc, source) -> None:
     """Refuse a parsed JSON document nested deeper than :data:`MAX_JSON_DEPTH` levels (before
-    a recursive reader, such as a JSON Schema validator, meets it), naming ``source``."""
+    a recursive reader, such as a JSON Schema validator, meets it), naming ``source``.
+
+    Also refuses an integer no double can hold (more than 1023 bits).
+
+    Parameters
+    ----------
+    doc : object
+        A parsed JSON document (dicts, lists, numbers, strings).
+    source : str or path-like
+        Where it was read from, for the messages.
+
+    Raises
+    ------
+    SunlabError
+        Nested too deep, or an integer too large, naming ``source``.
+    """
     if _depth(doc) > MAX_JSON_DEPTH:
         raise SunlabError(f"{source}: JSON nested more than {MAX_JSON_DEPTH} levels deep. Fix: "
                           "give a document written by sunlab")
@@ -197,6 +247,11 @@ def read_json(path, *, max_bytes: int, what: str = "a JSON document", fix: str =
         What the file should be, for the message.
     fix : str
         How to mend a bad file, for the message.
+
+    Returns
+    -------
+    object
+        The parsed document (a dict for every file sunlab writes).
 
     Raises
     ------
@@ -268,7 +323,18 @@ def _zarr_documents(root: Path) -> list[tuple[str, dict]]:
 
 def zarr_digest(path) -> str:
     """SHA-256 (hex) of a Zarr v3 store's metadata: every ``zarr.json`` of the root group and
-    its arrays, the root's :data:`ATTR` attribute left out."""
+    its arrays, the root's :data:`ATTR` attribute left out.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The store's root folder.
+
+    Returns
+    -------
+    str
+        64 hexadecimal digits.
+    """
     h = hashlib.sha256()
     for name, doc in _zarr_documents(Path(path)):
         if not name and isinstance(doc.get("attributes"), dict):
@@ -304,6 +370,11 @@ def seal_zarr(path, group=None) -> str:
         The store's root group if the caller holds it open: the digest is then written through
         it (an open group writes its whole cached metadata back on its next change, which
         would undo an edit of the file behind its back).
+
+    Returns
+    -------
+    str
+        The digest written (64 hexadecimal digits); ``""`` for a Zarr v2 store, left unsealed.
     """
     path = Path(path)
     if not (path / "zarr.json").is_file():
@@ -320,7 +391,15 @@ def seal_zarr(path, group=None) -> str:
 
 def unseal_zarr(path, group=None) -> None:
     """Remove a store's digest before it is changed in place (an acquisition run resumed);
-    ``group`` as in :func:`seal_zarr`."""
+    ``group`` as in :func:`seal_zarr`.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The store's root folder.
+    group : zarr.Group, optional
+        The store's root group, if the caller holds it open.
+    """
     path = Path(path)
     if group is not None:
         if ATTR in group.attrs:
@@ -339,6 +418,11 @@ def verify_zarr(path) -> None:
     """Check a Zarr store's metadata against the digest in its root attributes.
 
     A store without a digest (another tool, an acquisition in progress) passes.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The store's root folder.
 
     Raises
     ------
@@ -363,7 +447,20 @@ def verify_zarr(path) -> None:
 def netcdf_digest(ds, skip_data=("frames",)) -> str:
     """SHA-256 (hex) of a dataset as opened from NetCDF: every variable's name, dimensions,
     shape, data type, attributes and values (except the values of ``skip_data``, whose chunks
-    carry their own checksum), and the global attributes but :data:`ATTR`."""
+    carry their own checksum), and the global attributes but :data:`ATTR`.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        The dataset as opened from the file (names, dims, dtypes and attributes as stored).
+    skip_data : tuple of str
+        Variables whose values are left out (their dims, shape, dtype and attributes count).
+
+    Returns
+    -------
+    str
+        64 hexadecimal digits.
+    """
     import numpy as np
 
     h = hashlib.sha256()
@@ -390,7 +487,18 @@ def _open_netcdf(path):
 
 
 def seal_netcdf(path) -> str:
-    """Write the digest of a NetCDF4 file (:func:`netcdf_digest`) as its global attribute."""
+    """Write the digest of a NetCDF4 file (:func:`netcdf_digest`) as its global attribute.
+
+    Parameters
+    ----------
+    path : str or path-like
+        A complete NetCDF4 file, opened for writing once its digest is computed.
+
+    Returns
+    -------
+    str
+        The digest written (64 hexadecimal digits).
+    """
     import h5netcdf
 
     with _open_netcdf(path) as ds:
@@ -402,6 +510,15 @@ def seal_netcdf(path) -> str:
 
 def verify_netcdf(ds, source) -> None:
     """Check a dataset opened from the NetCDF file ``source`` against its digest attribute.
+
+    A dataset without the attribute (another tool, an older sunlab) passes.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        The dataset opened from the file.
+    source : str or path-like
+        The file, for the message.
 
     Raises
     ------

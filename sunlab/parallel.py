@@ -216,6 +216,11 @@ def single_threaded_blas():
     least-squares solves, a Delaunay point location) are slowed several-fold by idle BLAS
     threads. The limit holds for the whole process while the context is open.
 
+    Returns
+    -------
+    threadpoolctl.threadpool_limits
+        The context manager; the previous limits come back when it exits.
+
     Examples
     --------
     >>> from threadpoolctl import threadpool_info

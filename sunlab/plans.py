@@ -182,6 +182,16 @@ class Plan:
     def subset(self, step: int) -> Plan:
         """Every ``step``-th pose, for quick runs (``step=1`` returns an equal plan).
 
+        Parameters
+        ----------
+        step : int
+            Keep poses 0, step, 2 step, ... (a positive integer).
+
+        Returns
+        -------
+        Plan
+            Same name, shots and motion; ``ceil(len / step)`` poses.
+
         Examples
         --------
         >>> len(experiment("I").subset(10))
@@ -201,6 +211,17 @@ class Plan:
         ``step``-th alpha and every ``step``-th beta (about ``len / step**2`` poses) and maps
         stay maps; any other plan keeps every ``step``-th pose (as :meth:`subset`). Quick runs
         of the notebooks and the command line use this.
+
+        Parameters
+        ----------
+        step : int
+            Keep every ``step``-th angle of each axis (a positive integer).
+
+        Returns
+        -------
+        Plan
+            Same name, shots and motion; ``ceil(n_alpha / step) * ceil(n_beta / step)`` poses for a
+            full grid, ``ceil(len / step)`` otherwise.
 
         Examples
         --------
@@ -224,11 +245,34 @@ class Plan:
         return self[index]
 
     def with_shots(self, shots: int) -> Plan:
-        """The same poses with another number of shots per pose."""
+        """The same poses with another number of shots per pose.
+
+        Parameters
+        ----------
+        shots : int
+            Frames per pose (a positive integer).
+
+        Returns
+        -------
+        Plan
+            A new plan; this one is unchanged.
+        """
         return Plan(self.name, self.alpha, self.beta, shots, self.scan, self.approach)
 
     def with_motion(self, scan: str | None = None, approach: str | None = None) -> Plan:
         """The same poses visited in another order or approached another way.
+
+        Parameters
+        ----------
+        scan : {"raster", "serpentine", "random"}, optional
+            Visit order (:data:`SCANS`); default this plan's.
+        approach : {"direct", "unidirectional"}, optional
+            How the inner axis reaches each pose (:data:`APPROACHES`); default this plan's.
+
+        Returns
+        -------
+        Plan
+            A new plan with the same poses and shots.
 
         Examples
         --------
@@ -246,6 +290,11 @@ class Plan:
         ``"serpentine"`` reverses every other run of equal outer angle alpha (for a grid: every
         other row), ``"random"`` is a permutation seeded by the plan's name and poses, so a
         plan always replays the same way.
+
+        Returns
+        -------
+        numpy.ndarray of int, shape (pose,)
+            A permutation of ``0 .. len - 1``: the k-th pose visited is ``plan[order[k]]``.
 
         Examples
         --------
@@ -278,6 +327,16 @@ class Plan:
         gear stays on the same flank). With ``approach="unidirectional"`` every pose is reached
         upward (an overshoot below the target, then the return).
 
+        Parameters
+        ----------
+        home_deg : float
+            Inner-axis angle beta at which the stage starts, deg.
+
+        Returns
+        -------
+        numpy.ndarray of int8, shape (pose,)
+            +1 or -1 per pose, in the plan's (not the visit's) order.
+
         Examples
         --------
         >>> g = grid(0, 1, 1, 0, 2, 1, shots=1, scan="serpentine")
@@ -300,6 +359,13 @@ class Plan:
 
     def unstack_shape(self) -> tuple[int, int] | None:
         """(n_alpha, n_beta) if the plan is a full alpha-outer grid, else None.
+
+        Returns
+        -------
+        (int, int) or None
+            The numbers of distinct alpha and beta when the poses are exactly every
+            (alpha, beta) pair, alpha ascending in the outer loop and beta ascending in the
+            inner one; None for any other plan.
 
         Examples
         --------
@@ -423,6 +489,24 @@ def custom(alpha, beta, shots: int = 8, name: str = "custom", scan: str = "raste
            approach: str = "direct") -> Plan:
     """A plan from explicit lists of commanded angles (degrees), one (alpha, beta) per pose.
 
+    Parameters
+    ----------
+    alpha, beta : array_like of float
+        Commanded outer- and inner-axis angles, deg, one each per pose (same length).
+    shots : int
+        Frames per pose (the paper: 8).
+    name : str
+        Name of the plan (the cube's ``experiment`` attribute).
+    scan : {"raster", "serpentine", "random"}
+        Visit order (:data:`SCANS`).
+    approach : {"direct", "unidirectional"}
+        How the inner axis reaches each pose (:data:`APPROACHES`).
+
+    Returns
+    -------
+    Plan
+        The poses in the order given.
+
     Examples
     --------
     >>> p = custom([0.0, -5.0], [0.0, 3.0], shots=1)
@@ -510,6 +594,12 @@ def zero_check(plan: Plan, checks: int = 4, *, shots: int | None = None) -> Plan
         Visits of the zero pose.
     shots : int, optional
         Frames per visit; default the run's.
+
+    Returns
+    -------
+    Plan
+        ``checks`` poses at alpha = beta = 0, ``plan``'s name, raster scan, unidirectional
+        approach.
 
     Examples
     --------

@@ -70,6 +70,16 @@ def new_figure(**kwargs) -> ShownFigure:
     The one place where sunlab's figure functions make a figure: no pyplot state, no GUI, shown
     as a PNG when a notebook cell returns it.
 
+    Parameters
+    ----------
+    **kwargs
+        Passed to :class:`matplotlib.figure.Figure` (``figsize`` in inches, ``layout``, ...).
+
+    Returns
+    -------
+    ShownFigure
+        An empty figure, not registered with pyplot.
+
     Examples
     --------
     >>> fig = new_figure(figsize=(3, 2), layout="constrained")
@@ -494,6 +504,26 @@ def fig15_rectangles(table: Mapping[str, Mapping], *, ax=None):
 
 def plot_metric_map(metrics: xr.Dataset, name: str, *, bad=None, ax=None):
     """The mask's holes as a map coloured by one defect metric; rejected holes crossed.
+
+    Parameters
+    ----------
+    metrics : xarray.Dataset
+        Defect metrics on ``hole`` (:func:`sunlab.multihole.defect_metrics`); the holes'
+        grid places come from ``hole_i``, ``hole_j`` (a square row-major grid without them).
+    name : str
+        The metric to colour by (a variable of ``metrics``); the colour scale spans its 2nd to
+        98th percentile over the holes (:func:`sunlab.multihole.metric_scale`).
+    bad : array_like of bool, optional
+        One per hole: True draws a red cross on the hole (e.g.
+        :func:`sunlab.multihole.reject_bad_holes`).
+    ax : matplotlib.axes.Axes, optional
+        Where to draw; default a new 4.8 x 4 inch figure.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure holding the map (``ax``'s when given), titled ``name``, with a colour bar in
+        the metric's units.
 
     Examples
     --------

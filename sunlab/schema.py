@@ -103,7 +103,23 @@ _SENSOR_ATTRS = {
 
 
 def status_name(code: int) -> str:
-    """Name of a centroid status code, e.g. ``status_name(1) == 'no_spot'``."""
+    """Name of a centroid status code, e.g. ``status_name(1) == 'no_spot'``.
+
+    Parameters
+    ----------
+    code : int
+        A code of :data:`STATUS` (0 .. 6).
+
+    Returns
+    -------
+    str
+        Its name (``"ok"``, ``"no_spot"``, ...).
+
+    Raises
+    ------
+    KeyError
+        ``code`` is not a status code.
+    """
     return STATUS_NAMES[int(code)]
 
 
@@ -141,6 +157,16 @@ def _schema_text(contract: str) -> str:
 
 def json_schema(contract: str) -> dict:
     """The JSON Schema (draft 2020-12) of a contract, as a new dict.
+
+    Parameters
+    ----------
+    contract : str
+        ``"frames/1"``, ``"centroids/1"`` or ``"calibration/1"``.
+
+    Returns
+    -------
+    dict
+        The parsed schema file (:func:`schema_file`); the caller may change it.
 
     Examples
     --------
@@ -351,6 +377,25 @@ def empty_frames(
 
     Used to pre-allocate an acquisition store. Keyword arguments go to :func:`frames_dataset`.
 
+    Parameters
+    ----------
+    n_pose, n_shot : int
+        Poses and shots per pose.
+    alpha, beta : sequence of float, length n_pose
+        Commanded platform angles of each pose, deg.
+    ny, nx : int
+        Frame rows and columns, px (default the Ibis4's 1024 x 1280).
+    dtype : numpy.dtype
+        ``uint8`` or ``uint16`` DN.
+    **kwargs
+        Sensor attributes and the rest of :func:`frames_dataset`.
+
+    Returns
+    -------
+    xarray.Dataset
+        A validated ``frames/1`` cube of zeros, ``frames`` (pose, shot, y, x) a Dask array with
+        one chunk per frame (nothing is allocated until computed).
+
     Examples
     --------
     >>> cube = empty_frames(3, 8, alpha=[0, 1, 2], beta=[0, 0, 0])
@@ -439,6 +484,18 @@ def _check_dn(ds: xr.Dataset) -> None:
 
 def validate_frames(ds: xr.Dataset) -> xr.Dataset:
     """Check that ``ds`` is a frame cube of contract ``frames/1``; return it unchanged.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        The cube to check: dims, dtypes, finite angles, the sensor attributes, DN below
+        ``2**bit_depth`` (in-memory frames only: lazy ones are not read) and the JSON Schema
+        of ``frames/1``.
+
+    Returns
+    -------
+    xarray.Dataset
+        ``ds`` itself.
 
     Raises
     ------
@@ -539,6 +596,14 @@ def centroids_dataset(
     extra : mapping, optional
         Extra data variables as ``name: (dims, values[, attrs])`` (quality metrics).
 
+    Returns
+    -------
+    xarray.Dataset
+        A validated ``centroids/1`` table: ``x``, ``y`` (px), ``flux`` (DN), ``status`` (int8),
+        the window ``x0``, ``x1``, ``y0``, ``y1`` on (pose, shot[, hole]); coordinates ``pose``,
+        ``shot`` (and ``hole``) numbered from 0, ``alpha``, ``beta`` (deg) when given; the
+        ``extra`` variables.
+
     Examples
     --------
     >>> import numpy as np
@@ -597,6 +662,23 @@ def _centroid_variables(dims, x, y, flux, status, window) -> dict:
 
 def validate_centroids(ds: xr.Dataset) -> xr.Dataset:
     """Check that ``ds`` is a centroid table of contract ``centroids/1``; return it unchanged.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        The table to check: dims of ``x`` (pose, shot) or (pose, shot, hole) shared by ``y``,
+        ``flux``, ``status`` and the window, known status codes, and the JSON Schema of
+        ``centroids/1``.
+
+    Returns
+    -------
+    xarray.Dataset
+        ``ds`` itself.
+
+    Raises
+    ------
+    SchemaError
+        Naming the first field that breaks the contract, the value found and the fix.
 
     Examples
     --------

@@ -301,6 +301,12 @@ def error_summary(est: xr.Dataset) -> dict:
         Estimates ``alpha``, ``beta`` on (pose, shot) with the commanded angles ``alpha_cmd``,
         ``beta_cmd`` as coordinates (the strategies' output), or signed errors (no ``*_cmd``).
 
+    Returns
+    -------
+    dict
+        Per angle (``"alpha"``, ``"beta"``) a dict of ``mu``, ``sigma``, ``M``, ``sigma_M`` and
+        ``rms`` (deg, float) and ``n_poses`` (int).
+
     Examples
     --------
     >>> e = xr.Dataset({"alpha": (("pose", "shot"), [[0.1, -0.3], [0.2, 0.2]]),
@@ -418,6 +424,12 @@ def paper_table4() -> pd.DataFrame:
     Columns ``linear interp.``, ``cubic interp.``, ``polynomial``, ``NN strategy 4``; index
     ``(angle, stat)`` as :func:`global_stats`. Source: docs/paper.md sec. 5, Table 4.
 
+    Returns
+    -------
+    pandas.DataFrame
+        8 rows (alpha and beta by mu, sigma, M, sigma_M) by 4 methods, deg; ``attrs`` name the
+        ``source`` and the ``units``.
+
     Examples
     --------
     >>> paper_table4().loc[("beta", "mu"), "NN strategy 4"]
@@ -438,6 +450,12 @@ def paper_table5() -> pd.DataFrame:
     Columns ``100 holes: geometric centre``, ``100 holes: averaging``, ``1 hole``. Source:
     docs/paper.md sec. 6, Table 5.
 
+    Returns
+    -------
+    pandas.DataFrame
+        8 rows (alpha and beta by mu, sigma, M, sigma_M) by 3 columns, deg; ``attrs`` name the
+        ``source`` and the ``units``.
+
     Examples
     --------
     >>> paper_table5().loc[("alpha", "mu")].tolist()
@@ -456,6 +474,24 @@ def paper_table5() -> pd.DataFrame:
 def side_by_side(ours: pd.DataFrame, paper: pd.DataFrame,
                  names: tuple[str, str] = ("sunlab", "paper")) -> pd.DataFrame:
     """Put our table beside the paper's: columns ``(method, source)`` for the common methods.
+
+    Parameters
+    ----------
+    ours, paper : pandas.DataFrame
+        Tables with the index of :func:`global_stats` and one column per method (deg).
+    names : (str, str)
+        The ``source`` labels of ``ours`` and ``paper``.
+
+    Returns
+    -------
+    pandas.DataFrame
+        The methods of ``ours`` that ``paper`` has too, in ``ours``' order, each as two columns
+        ``(method, names[0])``, ``(method, names[1])``; the index aligned as pandas does.
+
+    Raises
+    ------
+    ConfigurationError
+        The tables share no method.
 
     Examples
     --------

@@ -61,6 +61,15 @@ def figure_output(out, fig, text: str = "figure") -> None:
     The figure is rendered to PNG and set as the Output's display data, so it appears as an
     ``<img>`` in JupyterLab and Voila, and can be inspected in ``out.outputs`` without a kernel.
     The figure is closed.
+
+    Parameters
+    ----------
+    out : ipywidgets.Output
+        The output area.
+    fig : matplotlib.figure.Figure
+        The figure, rendered at 100 dpi.
+    text : str
+        The plain-text form of the display data (shown where images are not).
     """
     data = base64.b64encode(_png(fig)).decode("ascii")
     out.outputs = (
@@ -234,7 +243,19 @@ class HoleExplorer:
 
     # ---------------------------------------------------------------------- state changes
     def select(self, hole: int) -> None:
-        """Select a hole: show its close-up, residual maps and metrics."""
+        """Select a hole: show its close-up, residual maps and metrics.
+
+        Parameters
+        ----------
+        hole : int
+            The hole, ``0 .. n_holes - 1``; when it has no spot at the current pose and shot the
+            close-up moves to the nearest pose that shows it.
+
+        Raises
+        ------
+        ConfigurationError
+            ``hole`` is out of range.
+        """
         hole = int(hole)
         if not 0 <= hole < len(self.buttons):
             raise ConfigurationError(f"hole: found {hole}, expected 0 .. {len(self.buttons) - 1}")
@@ -255,7 +276,18 @@ class HoleExplorer:
         self._update_stats()
 
     def set_included(self, included) -> None:
-        """Set which holes enter the average; repaint the map and update the statistics."""
+        """Set which holes enter the average; repaint the map and update the statistics.
+
+        Parameters
+        ----------
+        included : array_like of bool, shape (n_holes,)
+            True for a hole that enters the average.
+
+        Raises
+        ------
+        ConfigurationError
+            ``included`` has another shape.
+        """
         inc = np.asarray(included, dtype=bool)
         if inc.shape != self.included.shape:
             raise ConfigurationError(f"included: shape {inc.shape}, expected {self.included.shape}")
