@@ -122,6 +122,13 @@ def geometric_centre(cen: xr.Dataset, accept: Sequence[str] = ("ok",)) -> xr.Dat
     This is the paper's definition; it jumps by (design offset of the lost hole) / N whenever a
     hole is missing. :class:`GeometricCentre` removes that bias.
 
+    Parameters
+    ----------
+    cen : xarray.Dataset
+        Centroid table on (pose, shot, hole), px.
+    accept : sequence of str
+        Status names counted as usable.
+
     Returns
     -------
     xarray.Dataset
@@ -212,7 +219,20 @@ class GeometricCentre(Calibration):
         return ok
 
     def fit_centre(self, cen: xr.Dataset, n_iter: int = 4) -> GeometricCentre:
-        """Fit the per-hole maps hole -> centre on a training table (no calibration)."""
+        """Fit the per-hole maps hole -> centre on a training table (no calibration).
+
+        Parameters
+        ----------
+        cen : xarray.Dataset
+            Training table on (pose, shot, hole), px.
+        n_iter : int
+            Alternations of the map fit and the centre solve.
+
+        Returns
+        -------
+        GeometricCentre
+            ``self``, with the maps ``A_`` (hole, 2), px, and ``M_`` (hole, 2, 2) set.
+        """
         ok = self._ok(cen).values.reshape(-1, cen.sizes["hole"])
         X = np.stack([cen["x"].values, cen["y"].values], -1).reshape(-1, cen.sizes["hole"], 2)
         w = ok.astype(float)
@@ -273,7 +293,19 @@ class GeometricCentre(Calibration):
         return np.where(good[:, None], c, np.nan)
 
     def centre(self, cen: xr.Dataset) -> xr.Dataset:
-        """The geometric centre of every frame, a centroid table on (pose, shot)."""
+        """The geometric centre of every frame.
+
+        Parameters
+        ----------
+        cen : xarray.Dataset
+            Centroid table on (pose, shot, hole), px, with the holes of the training table.
+
+        Returns
+        -------
+        xarray.Dataset
+            Contract ``centroids/1`` on (pose, shot): ``x``, ``y`` px (NaN with fewer than
+            ``min_holes`` holes), ``flux`` (sum), ``n_holes``.
+        """
         if self.A_ is None and self.fill:
             raise ConfigurationError("GeometricCentre: call fit() or fit_centre() first")
         n_h = cen.sizes["hole"]
@@ -296,6 +328,11 @@ class GeometricCentre(Calibration):
             Training table on (pose, shot, hole) with the commanded angles (experiment I).
         validation : xarray.Dataset, optional
             A validation table (experiment II): the artifact's validation residuals.
+
+        Returns
+        -------
+        GeometricCentre
+            ``self``, fitted.
         """
         if self.fill:
             self.fit_centre(cen)
@@ -310,7 +347,17 @@ class GeometricCentre(Calibration):
 
     def predict_xy(self, x, y):
         """Angles (alpha, beta), deg, of frames given as centroid arrays ``x``, ``y`` (px)
-        whose last axis is the hole (NaN: hole missing); shape: the leading axes.
+        whose last axis is the hole (NaN: hole missing).
+
+        Parameters
+        ----------
+        x, y : array_like, shape (..., hole)
+            Centroids of every hole of each frame, px.
+
+        Returns
+        -------
+        alpha, beta : numpy.ndarray, shape (...)
+            Angles of the frames, deg.
 
         Examples
         --------
@@ -342,7 +389,19 @@ class GeometricCentre(Calibration):
                    **_restore_settings(p), A_=A, M_=M, calibration_=from_dict(p["calibration"]))
 
     def predict(self, cen: xr.Dataset) -> xr.Dataset:
-        """Estimated (alpha, beta), deg, on (pose, shot), with ``n_holes`` used per frame."""
+        """Estimated (alpha, beta) of every frame from the calibrated centre.
+
+        Parameters
+        ----------
+        cen : xarray.Dataset
+            Centroid table on (pose, shot, hole), px.
+
+        Returns
+        -------
+        xarray.Dataset
+            ``alpha``, ``beta`` (deg) on (pose, shot), ``n_holes`` used per frame, commanded
+            angles ``alpha_cmd``, ``beta_cmd`` as coordinates.
+        """
         if self.calibration_ is None:
             raise ConfigurationError("GeometricCentre: call fit() first")
         gc = self.centre(cen)
@@ -482,6 +541,12 @@ class PerHoleAverage(Calibration):
             Training table on (pose, shot, hole) with the commanded angles (experiment I).
         validation : xarray.Dataset, optional
             A validation table (experiment II): the artifact's validation residuals.
+
+        Returns
+        -------
+        PerHoleAverage
+            ``self``, with ``calibrations_`` (None for a hole seen too rarely) and
+            ``variance_`` (deg^2 per hole) set.
         """
         if self.weighting not in ("equal", "inverse_variance"):
             raise ConfigurationError(
@@ -527,7 +592,17 @@ class PerHoleAverage(Calibration):
     def predict_xy(self, x, y):
         """Angles (alpha, beta), deg, of frames given as centroid arrays ``x``, ``y`` (px)
         whose last axis is the hole (NaN: hole missing): every hole's own estimate, combined
-        by this strategy's rule; shape: the leading axes.
+        by this strategy's rule.
+
+        Parameters
+        ----------
+        x, y : array_like, shape (..., hole)
+            Centroids of every hole of each frame, px.
+
+        Returns
+        -------
+        alpha, beta : numpy.ndarray, shape (...)
+            Angles of the frames, deg.
 
         Examples
         --------
@@ -571,7 +646,18 @@ class PerHoleAverage(Calibration):
                                                  for d in p["calibrations"]])
 
     def predict_holes(self, cen: xr.Dataset) -> xr.Dataset:
-        """Every hole's own estimate (alpha, beta), deg, on (pose, shot, hole)."""
+        """Every hole's own estimate of every frame.
+
+        Parameters
+        ----------
+        cen : xarray.Dataset
+            Centroid table on (pose, shot, hole), px, with the holes of the training table.
+
+        Returns
+        -------
+        xarray.Dataset
+            ``alpha``, ``beta`` (deg) on (pose, shot, hole), NaN where a hole is unusable.
+        """
         if self.calibrations_ is None:
             raise ConfigurationError("PerHoleAverage: call fit() first")
         n_h = cen.sizes["hole"]
@@ -589,13 +675,32 @@ class PerHoleAverage(Calibration):
         return _angles_dataset(cen, a, b, ("pose", "shot", "hole"))
 
     def weights(self) -> np.ndarray | None:
-        """The per-hole weights of the combination (None for equal weights)."""
+        """The per-hole weights of the combination.
+
+        Returns
+        -------
+        numpy.ndarray or None
+            1 / ``variance_`` (deg^-2) per hole; None for equal weights.
+        """
         if self.weighting == "equal":
             return None
         return 1.0 / self.variance_
 
     def combine(self, est: xr.Dataset, holes=None) -> xr.Dataset:
-        """Combine per-hole estimates (from :meth:`predict_holes`) with this strategy's rule."""
+        """Combine per-hole estimates with this strategy's rule (weights, clipping).
+
+        Parameters
+        ----------
+        est : xarray.Dataset
+            Per-hole estimates from :meth:`predict_holes`, deg.
+        holes : array_like of bool, shape (hole,), optional
+            Holes in the average (default ``self.holes``).
+
+        Returns
+        -------
+        xarray.Dataset
+            ``alpha``, ``beta`` (deg) and ``n_holes`` on (pose, shot).
+        """
         holes = self.holes if holes is None else holes
         out = {}
         n = None
@@ -607,7 +712,18 @@ class PerHoleAverage(Calibration):
                                {"n_holes": (("pose", "shot"), n.values)})
 
     def predict(self, cen: xr.Dataset) -> xr.Dataset:
-        """Combined estimate (alpha, beta), deg, on (pose, shot), with ``n_holes`` used."""
+        """Combined estimate of every frame: :meth:`predict_holes`, then :meth:`combine`.
+
+        Parameters
+        ----------
+        cen : xarray.Dataset
+            Centroid table on (pose, shot, hole), px.
+
+        Returns
+        -------
+        xarray.Dataset
+            ``alpha``, ``beta`` (deg) and ``n_holes`` on (pose, shot).
+        """
         return self.combine(self.predict_holes(cen))
 
 
@@ -616,6 +732,18 @@ def angle_errors(pred: xr.Dataset, cen: xr.Dataset | None = None) -> xr.Dataset:
 
     ``pred`` carries the commanded angles as ``alpha_cmd``/``beta_cmd`` (as returned by the
     strategies) or they come from ``cen``'s ``alpha``/``beta``.
+
+    Parameters
+    ----------
+    pred : xarray.Dataset
+        Estimates ``alpha``, ``beta`` (deg) on (pose, shot) or (pose, shot, hole).
+    cen : xarray.Dataset, optional
+        Centroid table whose ``alpha``, ``beta`` are the commanded angles.
+
+    Returns
+    -------
+    xarray.Dataset
+        ``alpha``, ``beta``: estimated minus commanded, deg, on ``pred``'s dims.
 
     Examples
     --------
