@@ -1,12 +1,10 @@
 """The ``sunlab`` command line.
 
 Each subcommand has an ``_add_<name>(subparsers)`` function that declares its arguments and sets
-``func`` to a ``_run_<name>(args)`` handler; handlers import what they need lazily so that
-``sunlab --help`` stays fast.
-
-User errors (a wrong path, a read-only folder, a corrupt input, a bad argument) end in one line
-on stderr that names the thing and the fix, and a non-zero exit status; ``--debug`` (anywhere on
-the line) shows the Python traceback instead.
+``func`` to a ``_run_<name>(args)`` handler, which imports what it needs lazily (``sunlab --help``
+stays fast). A user error (a wrong path, a read-only folder, a corrupt input, a bad argument)
+ends in one line on stderr that names the thing and the fix, and a non-zero exit status
+(:func:`main`); ``--debug`` (anywhere on the line) shows the Python traceback instead.
 
 Examples
 --------
@@ -33,8 +31,7 @@ __all__ = ["build_parser", "main", "run"]
 
 
 def _count(low: int, high: int | None = None):
-    """An argparse type: an integer >= ``low`` (and <= ``high``); the message names the value
-    and the bounds."""
+    """An argparse type: an integer >= ``low`` (and <= ``high``); its message names both."""
 
     def parse(text: str) -> int:
         try:
@@ -670,7 +667,12 @@ _ADDERS = [
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """The argument parser of the ``sunlab`` command."""
+    """The argument parser of the ``sunlab`` command.
+
+    Returns
+    -------
+    argparse.ArgumentParser
+        One subcommand per command, each with ``func`` set to its ``_run_<name>`` handler."""
     from .. import __version__
 
     parser = argparse.ArgumentParser(
@@ -705,14 +707,19 @@ def _one_line(err: BaseException) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of the ``sunlab`` console script; returns the exit status.
+    """Entry point of the ``sunlab`` console script.
 
-    Exit status 0 on success, 1 for an error in the inputs, files or settings (one line on
-    stderr naming the thing and the fix), 2 for a bad command line, 3 for an unexpected internal
-    error, 130 when interrupted by Ctrl-C (SIGINT), 143 by SIGTERM and 129 by SIGHUP: one line,
-    no traceback, temporary outputs removed and workers stopped. ``--debug`` re-raises the
-    error with its traceback.
-    """
+    Parameters
+    ----------
+    argv : list of str, optional
+        Arguments after ``sunlab`` (default ``sys.argv[1:]``); ``--debug`` re-raises errors.
+
+    Returns
+    -------
+    int
+        Exit status: 0 success, 1 an error in the inputs, files or settings (one stderr line
+        naming it and the fix), 2 a bad command line, 3 an internal error, 130, 143, 129 on
+        SIGINT, SIGTERM, SIGHUP (one line, temporary outputs removed, workers stopped)."""
     argv = list(sys.argv[1:] if argv is None else argv)
     debug = "--debug" in argv
     argv = [a for a in argv if a != "--debug"]

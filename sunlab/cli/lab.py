@@ -45,7 +45,25 @@ _STATS = ("mu", "sigma", "M", "sigma_M")
 # sunlab info CAL.json (standard library only; the text: sunlab.calibration.summary)
 # --------------------------------------------------------------------------------------------
 def read_calibration_json(path) -> dict | None:
-    """The parsed document if ``path`` is a JSON file holding a calibration, else None."""
+    """The parsed document if ``path`` is a JSON file holding a calibration, else None.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The file ``sunlab info`` was given.
+
+    Returns
+    -------
+    dict or None
+        The ``calibration/1`` document, its checksum verified
+        (:func:`sunlab.integrity.verify_document`); None when ``path`` is no file or does not
+        start with ``{`` (a cube or a table, for the other readers).
+
+    Raises
+    ------
+    SchemaError
+        An unreadable file, or a JSON document that is corrupt, too large or no calibration.
+    """
     path = Path(path)
     if not path.is_file():
         return None
@@ -79,9 +97,30 @@ def read_calibration_json(path) -> dict | None:
 # Centroid tables as CSV
 # --------------------------------------------------------------------------------------------
 def open_centroid_table(path, name: str = "table"):
-    """A centroid table from NetCDF, Zarr or CSV (columns alpha, beta, x, y):
+    """A centroid table from NetCDF, Zarr or CSV (columns alpha, beta, x, y).
+
     :func:`sunlab.io.open_centroids` (which reads a CSV table's ``sensor.json``); an error
-    about the file as a whole names the argument (``name``: train, validation, test)."""
+    about the file as a whole names the argument.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The table file or store.
+    name : str
+        The argument it was given as (``train``, ``validation``, ``test``), for the message.
+
+    Returns
+    -------
+    xarray.Dataset
+        Contract ``centroids/1``: ``x``, ``y`` px on (pose, shot[, hole]) with the commanded
+        ``alpha``, ``beta`` (deg).
+
+    Raises
+    ------
+    SchemaError
+        The file cannot be read as a centroid table (the field ``NAME PATH`` when it is the
+        whole file).
+    """
     from .. import io
 
     try:
@@ -96,7 +135,19 @@ def open_centroid_table(path, name: str = "table"):
 # Image folders (sunlab import, sunlab centroid FOLDER)
 # --------------------------------------------------------------------------------------------
 def is_image_folder(path) -> bool:
-    """True for a folder of images (not a Zarr store)."""
+    """Whether ``path`` is a folder of images (not a Zarr store).
+
+    Parameters
+    ----------
+    path : str or path-like
+        The path given on the command line.
+
+    Returns
+    -------
+    bool
+        True for a directory without Zarr metadata that holds ``manifest.csv`` or a PNG or
+        TIFF file.
+    """
     path = Path(path)
     if not path.is_dir() or (path / "zarr.json").exists() or (path / ".zgroup").exists():
         return False
@@ -105,7 +156,15 @@ def is_image_folder(path) -> bool:
 
 
 def add_folder_options(p) -> None:
-    """The options of an image folder (``sunlab import``, ``sunlab centroid FOLDER``)."""
+    """Add the options of an image folder (``sunlab import``, ``sunlab centroid FOLDER``).
+
+    Parameters
+    ----------
+    p : argparse.ArgumentParser
+        The subcommand's parser; gains the group ``--manifest``, ``--pixel-pitch-mm``,
+        ``--mask-distance-mm``, ``--bit-depth``, ``--left-aligned``, ``--experiment``,
+        ``--dark``, ``--flat``, ``--bias`` (read by :func:`cube_from_folder`).
+    """
     g = p.add_argument_group("image folder (PNG/TIFF frames + manifest.csv)")
     g.add_argument("--manifest", default=None,
                    help="manifest CSV with columns file, alpha, beta, shot (default "
@@ -135,8 +194,21 @@ def add_folder_options(p) -> None:
 
 
 def cube_from_folder(folder, args):
-    """A lazy frame cube from an image folder and the folder options of ``args``
-    (:func:`sunlab.io.import_folder`)."""
+    """A lazy frame cube from an image folder and the folder options of ``args``.
+
+    Parameters
+    ----------
+    folder : str or path-like
+        Folder of PNG/TIFF frames with ``manifest.csv`` (and ``sensor.json``).
+    args : argparse.Namespace
+        The parsed command line with the options of :func:`add_folder_options`.
+
+    Returns
+    -------
+    xarray.Dataset
+        Contract ``frames/1`` on (pose, shot, y, x), DN, read lazily, with the masters of
+        the dark, flat and bias frames stored for centroiding (:func:`sunlab.io.import_folder`).
+    """
     from .. import io
 
     return io.import_folder(

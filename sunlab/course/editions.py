@@ -172,6 +172,11 @@ def _read(nbf, path: Path):
 def default_notebook_dir() -> Path:
     """The ``notebooks/`` folder of the sunlab checkout this package is imported from.
 
+    Returns
+    -------
+    pathlib.Path
+        The folder beside the ``sunlab`` package, holding ``NN-*.ipynb`` notebooks.
+
     Raises
     ------
     ConfigurationError
@@ -187,7 +192,19 @@ def default_notebook_dir() -> Path:
 
 
 def solution_hint(source: str) -> str:
-    """The hint of a solution cell: its ``# Hint:`` comment lines, joined ('' when none)."""
+    """The hint of a solution cell: its ``# Hint:`` comment lines, joined.
+
+    Parameters
+    ----------
+    source : str
+        A solution cell's source.
+
+    Returns
+    -------
+    str
+        The text of the ``# Hint:`` line and of the comment lines that follow it, before
+        ``### BEGIN SOLUTION``, joined by spaces; ``''`` when the cell has no hint.
+    """
     lines, inside = [], False
     for line in source.splitlines():
         if line.strip() == BEGIN_SOLUTION:
@@ -226,6 +243,16 @@ def replace_solution(source: str, code: str, *, where: str = "cell") -> str:
         What takes the answer's place (a stub, or a wrong answer in the tests).
     where : str
         The cell's name for the error message.
+
+    Returns
+    -------
+    str
+        The new source, ending with a newline.
+
+    Raises
+    ------
+    ConfigurationError
+        The cell does not hold exactly one BEGIN and one END marker, BEGIN first.
     """
     b, e, lines = _solution_span(source, where)
     indent = lines[b][: len(lines[b]) - len(lines[b].lstrip())]
@@ -235,6 +262,19 @@ def replace_solution(source: str, code: str, *, where: str = "cell") -> str:
 
 def find_exercises(nb, name: str = "notebook") -> list[Exercise]:
     """The exercises of a notebook, in order.
+
+    Parameters
+    ----------
+    nb : nbformat.NotebookNode
+        A course notebook (nbformat version 4).
+    name : str
+        The notebook's file name, kept in each :class:`Exercise` and named in errors.
+
+    Returns
+    -------
+    list of Exercise
+        One per solution cell (a code cell with the solution markers), with its check cell,
+        hint and points.
 
     Raises
     ------
@@ -271,7 +311,20 @@ def find_exercises(nb, name: str = "notebook") -> list[Exercise]:
 
 def find_written(nb, name: str = "notebook") -> list[Written]:
     """The written answers of a notebook: markdown cells whose first line is
-    ``**Written answer NN.k** (N points)``."""
+    ``**Written answer NN.k** (N points)``.
+
+    Parameters
+    ----------
+    nb : nbformat.NotebookNode
+        A course notebook (nbformat version 4).
+    name : str
+        The notebook's file name, kept in each :class:`Written`.
+
+    Returns
+    -------
+    list of Written
+        One per written answer, in order, with its cell index and points (1 when not said).
+    """
     out = []
     for i, c in enumerate(nb.cells):
         if c.cell_type != "markdown":
@@ -286,6 +339,17 @@ def find_written(nb, name: str = "notebook") -> list[Written]:
 
 def strip_hidden(source: str) -> str:
     """A check cell's source without its hidden-test block (markers included).
+
+    Parameters
+    ----------
+    source : str
+        A check cell's source.
+
+    Returns
+    -------
+    str
+        The source without the lines from ``### BEGIN HIDDEN TESTS`` to ``### END HIDDEN
+        TESTS``, trailing newlines removed.
 
     Examples
     --------
@@ -347,15 +411,44 @@ def _edition(nb, name: str, *, student: bool, quick: bool):
 
 def teacher_notebook(nb, name: str = "notebook", *, quick: bool = True):
     """The teacher edition of a notebook: solutions kept, outputs cleared, nbgrader metadata
-    on every solution and check cell; with ``quick``, a first code cell selecting the small
-    settings."""
+    on every solution, check and written-answer cell.
+
+    Parameters
+    ----------
+    nb : nbformat.NotebookNode
+        A course notebook (left unchanged).
+    name : str
+        Its file name, for the error messages.
+    quick : bool
+        Insert :data:`QUICK_CELL` before the first code cell (``SUNLAB_QUICK=1``).
+
+    Returns
+    -------
+    nbformat.NotebookNode
+        The teacher edition (a copy), also an nbgrader source notebook.
+    """
     return _edition(nb, name, student=False, quick=quick)
 
 
 def student_notebook(nb, name: str = "notebook", *, quick: bool = True):
     """The student edition of a notebook: every marked answer replaced by a stub that raises
     :class:`NotImplementedError` with the exercise's hint, every hidden-test block and model
-    answer left out; no solution marker left."""
+    answer left out; no solution marker left.
+
+    Parameters
+    ----------
+    nb : nbformat.NotebookNode
+        A course notebook (left unchanged).
+    name : str
+        Its file name, for the stubs' and the errors' messages.
+    quick : bool
+        Insert :data:`QUICK_CELL` before the first code cell (``SUNLAB_QUICK=1``).
+
+    Returns
+    -------
+    nbformat.NotebookNode
+        The student edition (a copy): outputs cleared, check cells locked, nbgrader metadata.
+    """
     return _edition(nb, name, student=True, quick=quick)
 
 

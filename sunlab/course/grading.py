@@ -276,7 +276,26 @@ def _written_row(head, w, cell) -> dict:
 
 def grade(paths, *, notebooks=None, seed: int | None = None, quick: bool = True,
           timeout: float = 900.0) -> list[dict]:
-    """Grade several students' notebooks (:func:`grade_notebook` for each); the rows of all."""
+    """Grade several students' notebooks (:func:`grade_notebook` for each).
+
+    Parameters
+    ----------
+    paths : iterable of str or path-like
+        The submitted notebooks, each in a folder named after its student.
+    notebooks : str or path-like, optional
+        The course's notebooks (the teacher's source); default the checkout's.
+    seed : int, optional
+        Draws the hidden checks' fresh inputs; default :data:`sunlab.course.hidden.DEFAULT_SEED`.
+    quick : bool
+        Run with the small settings (``SUNLAB_QUICK=1``).
+    timeout : float
+        Limit per cell, s.
+
+    Returns
+    -------
+    list of dict
+        The rows of :func:`grade_notebook` of every notebook, in the order of ``paths``.
+    """
     rows = []
     for path in paths:
         rows += grade_notebook(path, notebooks=notebooks, seed=seed, quick=quick,
@@ -286,7 +305,18 @@ def grade(paths, *, notebooks=None, seed: int | None = None, quick: bool = True,
 
 def totals(rows) -> dict:
     """Per student: ``points`` and ``max_points`` of the checked exercises, and
-    ``written_max_points`` (graded by hand)."""
+    ``written_max_points`` (graded by hand).
+
+    Parameters
+    ----------
+    rows : iterable of dict
+        Gradebook rows (:func:`grade`).
+
+    Returns
+    -------
+    dict of str to dict
+        Student -> ``{"points", "max_points", "written_max_points"}`` (int).
+    """
     out: dict = {}
     for r in rows:
         t = out.setdefault(r["student"], {"points": 0, "max_points": 0,
@@ -300,7 +330,18 @@ def totals(rows) -> dict:
 
 
 def csv_text(rows) -> str:
-    """The gradebook's CSV (:data:`COLUMNS`; a written answer's points are empty)."""
+    """The gradebook's CSV (:data:`COLUMNS`; a written answer's points are empty).
+
+    Parameters
+    ----------
+    rows : iterable of dict
+        Gradebook rows (:func:`grade`); keys beyond :data:`COLUMNS` are left out.
+
+    Returns
+    -------
+    str
+        The CSV text: a header line, then one line per row, ``\\n`` line ends.
+    """
     buf = io.StringIO()
     w = csv.DictWriter(buf, fieldnames=COLUMNS, extrasaction="ignore", lineterminator="\n")
     w.writeheader()

@@ -40,7 +40,14 @@ CHECKS: dict = {}
 
 
 def seed() -> int:
-    """The grader's seed (:data:`SEED_VARIABLE`), or :data:`DEFAULT_SEED`."""
+    """The grader's seed of the hidden checks' inputs.
+
+    Returns
+    -------
+    int
+        The integer in the environment variable :data:`SEED_VARIABLE`, or
+        :data:`DEFAULT_SEED` when it is unset or blank.
+    """
     text = os.environ.get(SEED_VARIABLE, "").strip()
     return int(text) if text else DEFAULT_SEED
 

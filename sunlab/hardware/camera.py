@@ -54,7 +54,14 @@ class Camera(Protocol):
     bit_depth: int
 
     def grab(self) -> np.ndarray:
-        """Take one frame, shape ``shape``, type ``dtype``, values below ``2**bit_depth``."""
+        """Take one frame.
+
+        Returns
+        -------
+        numpy.ndarray
+            One frame, shape ``shape`` (ny, nx), type ``dtype``, in DN (values below
+            ``2**bit_depth``).
+        """
         ...
 
 
@@ -66,21 +73,51 @@ class ControlledCamera(Camera, Protocol):
     roi: tuple[int, int, int, int]
 
     def set_exposure(self, seconds: float) -> None:
-        """Set the exposure (integration) time, s."""
+        """Set the exposure (integration) time.
+
+        Parameters
+        ----------
+        seconds : float
+            Exposure time, s.
+        """
         ...
 
     def set_roi(self, roi: Sequence[int]) -> None:
-        """Read only rows ``y0:y1`` and columns ``x0:x1`` of the sensor; ``shape`` follows."""
+        """Read only rows ``y0:y1`` and columns ``x0:x1`` of the sensor; ``shape`` follows.
+
+        Parameters
+        ----------
+        roi : (y0, y1, x0, x1)
+            Region of interest, half-open pixel ranges of the full sensor (rows, then columns).
+        """
         ...
 
     def grab_dark(self) -> np.ndarray:
-        """Take one frame with the light blocked (shutter closed, source off), as ``grab``."""
+        """Take one frame with the light blocked (shutter closed, source off), as ``grab``.
+
+        Returns
+        -------
+        numpy.ndarray
+            One dark frame, shape ``shape`` (ny, nx), type ``dtype``, in DN.
+        """
         ...
 
 
 def capture_darks(camera, n: int = 16) -> np.ndarray:
     """``n`` dark frames of a camera, stacked (n, ny, nx): the ``dark`` of
     :func:`sunlab.io.with_calibration_frames` (whose median is the master dark).
+
+    Parameters
+    ----------
+    camera : object
+        A camera with ``grab_dark()`` (a :class:`ControlledCamera`).
+    n : int
+        Number of dark frames to take.
+
+    Returns
+    -------
+    numpy.ndarray
+        The dark frames, shape (n, ny, nx), the camera's frame type, in DN.
 
     Raises
     ------
@@ -183,8 +220,20 @@ class SimCamera:
         self._n_dark = 0
 
     def set_roi(self, roi: Sequence[int] | None) -> None:
-        """Read rows ``y0:y1`` and columns ``x0:x1`` (half-open) of the detector (None: all);
-        ``shape`` follows (binned)."""
+        """Read rows ``y0:y1`` and columns ``x0:x1`` (half-open) of the detector; ``shape``
+        follows (binned).
+
+        Parameters
+        ----------
+        roi : (y0, y1, x0, x1) or None
+            Region of interest in unbinned detector pixels, half-open (rows, then columns);
+            None reads the whole detector. Both sides must be multiples of ``binning``.
+
+        Raises
+        ------
+        ConfigurationError
+            The ROI lies outside the detector or its sides are not multiples of ``binning``.
+        """
         ny, nx = (int(n) for n in self.bench.detector.shape)
         y0, y1, x0, x1 = (0, ny, 0, nx) if roi is None else (int(v) for v in roi)
         if not (0 <= y0 < y1 <= ny and 0 <= x0 < x1 <= nx):
@@ -202,7 +251,18 @@ class SimCamera:
         self.shape = ((y1 - y0) // b, (x1 - x0) // b)
 
     def set_exposure(self, seconds: float) -> None:
-        """Refused: the virtual bench's signal and noise are set by its detector model."""
+        """Refused: the virtual bench's signal and noise are set by its detector model.
+
+        Parameters
+        ----------
+        seconds : float
+            The exposure asked for, s (named in the error).
+
+        Raises
+        ------
+        ConfigurationError
+            Always: change the bench's :class:`sunlab.sim.Detector` instead.
+        """
         raise ConfigurationError(
             f"set_exposure({seconds!r}): the sim camera's exposure is its detector model's. Fix: "
             "change the bench's detector (sunlab.sim.Detector: qe, gain, dark signal) instead"
@@ -210,7 +270,13 @@ class SimCamera:
 
     def grab_dark(self) -> np.ndarray:
         """A dark frame: the detector with the sun far outside the field (its bias, dark
-        signal, fixed pattern, hot pixels and noise), a new noise draw per call."""
+        signal, fixed pattern, hot pixels and noise), a new noise draw per call.
+
+        Returns
+        -------
+        numpy.ndarray
+            The frame, shape ``shape`` (ROI and binning applied), uint16, in DN.
+        """
         from ..sim import render_frame
 
         self._n_dark += 1
@@ -227,7 +293,18 @@ class SimCamera:
 
     def set_index(self, pose: int, shot: int, *, alpha: float | None = None,
                   beta: float | None = None) -> None:
-        """Select the (pose, shot) of the next frame and the stage's read-back angles (deg)."""
+        """Select the (pose, shot) of the next frame and the stage's read-back angles.
+
+        Parameters
+        ----------
+        pose : int
+            Pose index of the next frame.
+        shot : int
+            Shot index within the pose.
+        alpha, beta : float, optional
+            The stage's read-back angles, degrees (None keeps the previous value); the true
+            pose is drawn round them when the camera has no ``truth``.
+        """
         self.pose, self.shot = int(pose), int(shot)
         if alpha is not None:
             self.alpha = float(alpha)
@@ -235,7 +312,14 @@ class SimCamera:
             self.beta = float(beta)
 
     def true_pose(self) -> tuple[float, float]:
-        """True platform angles (alpha, beta) of the next frame, degrees."""
+        """True platform angles of the next frame.
+
+        Returns
+        -------
+        (float, float)
+            (alpha, beta) true platform angles, degrees: ``truth(pose, shot)``, or else
+            :func:`sunlab.sim.platform_pose` round the read-back angles.
+        """
         if self.truth is not None:
             a, b = self.truth(self.pose, self.shot)
         else:
@@ -246,7 +330,14 @@ class SimCamera:
         return float(a), float(b)
 
     def grab(self) -> np.ndarray:
-        """Render the frame of the current (pose, shot) at the true pose."""
+        """Render the frame of the current (pose, shot) at the true pose.
+
+        Returns
+        -------
+        numpy.ndarray
+            The frame, shape ``shape`` (ROI and binning applied), uint16, in DN; the true
+            angles it was rendered at are kept in ``last_truth`` (degrees).
+        """
         from ..sim import render_frame
 
         a, b = self.true_pose()
@@ -273,7 +364,13 @@ class SimCamera:
         }
 
     def describe(self) -> dict:
-        """What the run metadata records about the camera."""
+        """What the run metadata records about the camera.
+
+        Returns
+        -------
+        dict
+            JSON-ready description: the camera's class name and its settings.
+        """
         return {"camera": "sunlab.hardware.SimCamera", "seed": self.seed, "roi": list(self.roi),
                 "binning": self.binning, "shape": list(self.shape), "bit_depth": self.bit_depth,
                 "truth": "stage controller" if self.truth is not None else "read-back angles"}
@@ -424,7 +521,18 @@ class FolderCamera:
         self.last_file: Path | None = None
 
     def set_exposure(self, seconds: float) -> None:
-        """Set the exposure through the ``exposure`` callable (the camera SDK's call)."""
+        """Set the exposure through the ``exposure`` callable (the camera SDK's call).
+
+        Parameters
+        ----------
+        seconds : float
+            Exposure time, s; kept in ``exposure_s``.
+
+        Raises
+        ------
+        CameraError
+            The camera was made without an ``exposure`` callable.
+        """
         if self.exposure is None:
             raise CameraError(
                 "camera: this folder camera has no exposure control. Fix: set the exposure in "
@@ -435,7 +543,14 @@ class FolderCamera:
 
     def set_roi(self, roi: Sequence[int]) -> None:
         """Expect frames of the ROI ``(y0, y1, x0, x1)`` (set the same ROI in the camera
-        software: the files it writes are the ROI)."""
+        software: the files it writes are the ROI).
+
+        Parameters
+        ----------
+        roi : (y0, y1, x0, x1)
+            Half-open pixel ranges of the sensor (rows, then columns); ``shape`` becomes
+            ``(y1 - y0, x1 - x0)``.
+        """
         y0, y1, x0, x1 = (int(v) for v in roi)
         if not (0 <= y0 < y1 and 0 <= x0 < x1):
             raise ConfigurationError(
@@ -444,7 +559,18 @@ class FolderCamera:
         self.shape = (y1 - y0, x1 - x0)
 
     def grab_dark(self) -> np.ndarray:
-        """A dark frame: ``dark_trigger()`` blocks the light and triggers, then as :meth:`grab`."""
+        """A dark frame: ``dark_trigger()`` blocks the light and triggers, then as :meth:`grab`.
+
+        Returns
+        -------
+        numpy.ndarray
+            The frame of the first new complete file, shape ``shape``, type ``dtype``, in DN.
+
+        Raises
+        ------
+        CameraError
+            The camera was made without a ``dark_trigger``.
+        """
         if self.dark_trigger is None:
             raise CameraError(
                 "camera: no dark_trigger. Fix: pass FolderCamera(dark_trigger=...) that closes "
@@ -459,6 +585,12 @@ class FolderCamera:
 
     def grab(self) -> np.ndarray:
         """Wait for the next new complete image file and return its frame.
+
+        Returns
+        -------
+        numpy.ndarray
+            The frame, shape ``shape``, type ``dtype``, in DN; its file is kept in
+            ``last_file``.
 
         Raises
         ------
@@ -533,7 +665,13 @@ class FolderCamera:
         return data
 
     def describe(self) -> dict:
-        """What the run metadata records about the camera."""
+        """What the run metadata records about the camera.
+
+        Returns
+        -------
+        dict
+            JSON-ready description: the camera's class name and its settings.
+        """
         return {"camera": "sunlab.hardware.FolderCamera", "folder": str(self.folder),
                 "patterns": list(self.patterns), "shape": list(self.shape),
                 "bit_depth": self.bit_depth}

@@ -50,8 +50,14 @@ _BUILTIN = {"sim": "sunlab.hardware:SimCamera", "folder": "sunlab.hardware:Folde
 
 
 def available_cameras() -> dict:
-    """Camera names ``--camera`` accepts: the built-ins and every registered entry point
-    (name -> where it comes from); each loads with :func:`camera_class`."""
+    """Camera names ``--camera`` accepts: the built-ins and every registered entry point.
+
+    Returns
+    -------
+    dict of str to str
+        Name -> where it comes from (``module:Class``, or the entry point's value); each
+        loads with :func:`camera_class`. A registered name never shadows a built-in.
+    """
     found = dict(_BUILTIN)
     found.update({name: ep.value for name, ep in _entry_points().items()
                   if name not in _BUILTIN})
@@ -72,6 +78,17 @@ def _plugin_failed(spec: str, what: str, err: BaseException) -> ConfigurationErr
 def camera_class(spec: str):
     """The camera class of ``spec``: ``module:Class``, or a name registered in the entry point
     group ``sunlab.cameras``.
+
+    Parameters
+    ----------
+    spec : str
+        ``sim``, ``folder`` (the built-ins), ``module:Class`` (``Class`` may be dotted) or a
+        name registered in :data:`ENTRY_POINT_GROUP`.
+
+    Returns
+    -------
+    object
+        The class (any attribute the spec names; :func:`open_camera` checks it is callable).
 
     Raises
     ------
@@ -122,6 +139,22 @@ def camera_class(spec: str):
 def parse_camera_options(pairs) -> dict:
     """``KEY=VALUE`` strings as keyword arguments (values as JSON when they parse, else text).
 
+    Parameters
+    ----------
+    pairs : iterable of str or None
+        The ``--camera-option`` values, each ``KEY=VALUE`` with ``KEY`` a Python name.
+
+    Returns
+    -------
+    dict
+        Keyword arguments for the camera class, in the order given (a repeated key keeps its
+        last value).
+
+    Raises
+    ------
+    ConfigurationError
+        A pair without ``=`` or whose key is not a Python name.
+
     Examples
     --------
     >>> parse_camera_options(["exposure_s=0.002", "serial=21A", "roi=[0, 64, 0, 64]"])
@@ -143,6 +176,19 @@ def parse_camera_options(pairs) -> dict:
 def open_camera(spec: str, **options):
     """A camera object from ``spec`` (see the module): the class called with ``options``,
     checked against the :class:`~sunlab.hardware.Camera` protocol.
+
+    Parameters
+    ----------
+    spec : str
+        The camera, as :func:`camera_class` reads it.
+    **options
+        Keyword arguments of the camera class (``--camera-option KEY=VALUE``, read by
+        :func:`parse_camera_options`).
+
+    Returns
+    -------
+    Camera
+        The open camera.
 
     Raises
     ------

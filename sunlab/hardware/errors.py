@@ -186,7 +186,22 @@ class LimitError(StageError):
 
     @classmethod
     def outside(cls, field: str, value: float, low: float, high: float) -> LimitError:
-        """The error for ``field = value`` outside ``[low, high]`` (degrees)."""
+        """The error for ``field = value`` outside ``[low, high]``.
+
+        Parameters
+        ----------
+        field : str
+            What is out of travel (an axis or a plan column, e.g. ``"alpha"``).
+        value : float
+            The asked position, degrees.
+        low, high : float
+            The travel limits, degrees.
+
+        Returns
+        -------
+        LimitError
+            The error, with ``field``, ``value``, ``low`` and ``high`` kept as attributes.
+        """
         err = cls(
             f"stage: {field} = {value!r} deg is outside the travel [{low:g}, {high:g}] deg; "
             "nothing was moved. Fix: drop the pose from the plan, or widen the limits "

@@ -368,6 +368,11 @@ class ESP300:
         expected : str
             How a valid reply looks, for the error message.
 
+        Returns
+        -------
+        object
+            ``parse`` of the reply text (``str`` with the default ``parse``).
+
         Raises
         ------
         StageTimeout, StageProtocolError, StageDisconnected
@@ -375,7 +380,22 @@ class ESP300:
         return self._exchange(command, parse, expected)
 
     def write(self, command: str) -> None:
-        """Send a command that has no reply (``1PA12.5``); a dropped link is reopened once."""
+        """Send a command that has no reply (``1PA12.5``).
+
+        A link that drops is reopened (when opened from a path or URL) and the command resent,
+        up to ``retries`` times; nothing is read back, so a lost command shows only in the
+        error buffer or the read-back.
+
+        Parameters
+        ----------
+        command : str
+            The command, without the terminator.
+
+        Raises
+        ------
+        StageDisconnected
+            The link dropped and cannot be reopened.
+        """
         self._exchange(command, None, "")
 
     def close(self) -> None:
@@ -391,6 +411,13 @@ class ESP300:
     # -- controller state ---------------------------------------------------------------------
     def connect(self) -> ESP300:
         """Handshake: identify, drain stale errors, check units, read limits, enable motors.
+
+        Returns
+        -------
+        ESP300
+            This driver, with ``identity`` (the ``VE?`` reply), ``stale_errors`` and
+            ``limits`` (alpha and beta travel in degrees, the controller's ``SL``/``SR``
+            intersected with the driver's ``limits``) set.
 
         Raises
         ------
@@ -538,7 +565,20 @@ class ESP300:
         return cls(code, message, axis, command)
 
     def check_errors(self, command: str = "") -> None:
-        """Raise the oldest error in the controller's buffer, if any (the rest are logged)."""
+        """Raise the oldest error in the controller's buffer, if any (the rest are logged).
+
+        Parameters
+        ----------
+        command : str
+            The command the errors follow, named in the messages.
+
+        Raises
+        ------
+        ControllerError
+            The oldest error read (a :class:`ControllerLimitError` for codes 4-7).
+        ErrorReplyLost
+            A ``TB?`` reply was lost or garbled (see :meth:`errors`).
+        """
         found = self.errors(command)
         if found:
             for extra in found[1:]:
@@ -546,12 +586,24 @@ class ESP300:
             raise found[0]
 
     def position(self) -> tuple[float, float]:
-        """Encoder read-back of (alpha, beta), degrees."""
+        """Encoder read-back of the two axes (``nTP?``).
+
+        Returns
+        -------
+        (float, float)
+            (alpha, beta), degrees.
+        """
         a, b = (self.query(f"{ax}TP?", _parse_float, "a number") for ax in self.axes)
         return a, b
 
     def motion_done(self) -> bool:
-        """True when both axes report motion done."""
+        """Whether both axes report motion done (``nMD?``).
+
+        Returns
+        -------
+        bool
+            True when both axes are done.
+        """
         return all(self.query(f"{ax}MD?", _parse_flag, "0 or 1") for ax in self.axes)
 
     def stop(self) -> None:
@@ -560,7 +612,18 @@ class ESP300:
             self.write(f"{ax}ST")
 
     def check_target(self, alpha: float, beta: float) -> None:
-        """Raise :class:`LimitError` if (alpha, beta) is outside the limits; sends nothing."""
+        """Raise :class:`LimitError` if (alpha, beta) is outside the limits; sends nothing.
+
+        Parameters
+        ----------
+        alpha, beta : float
+            Target angles, degrees, checked against ``limits`` (read at :meth:`connect`).
+
+        Raises
+        ------
+        LimitError
+            A target that is not a finite number, or outside its axis's travel.
+        """
         for name, value in (("alpha", alpha), ("beta", beta)):
             if not isinstance(value, int | float) or not math.isfinite(value):
                 raise LimitError(
@@ -644,7 +707,14 @@ class ESP300:
         return self.position()
 
     def describe(self) -> dict:
-        """What the run metadata records about the stage."""
+        """What the run metadata records about the stage.
+
+        Returns
+        -------
+        dict
+            JSON-ready: driver, port, controller identity, axes, ``limits_deg``, ``settle_s``
+            and ``tolerance_deg``.
+        """
         return {
             "driver": "sunlab.hardware.ESP300",
             "port": self.port_name,

@@ -160,9 +160,38 @@ _TB_RE = re.compile(r"^\s*(\d+)\s*,\s*(\d+)\s*,\s*(.*?)\s*$")
 class Transport(Protocol):
     """The byte link to a controller: what :class:`serial.Serial` offers."""
 
-    def write(self, data: bytes) -> int | None: ...
+    def write(self, data: bytes) -> int | None:
+        """Send bytes to the controller.
 
-    def read_until(self, expected: bytes = ..., size: int | None = None) -> bytes: ...
+        Parameters
+        ----------
+        data : bytes
+            One ASCII command line, ending in the terminator (``\\r``).
+
+        Returns
+        -------
+        int or None
+            The number of bytes written (None where the link does not say).
+        """
+        ...
+
+    def read_until(self, expected: bytes = ..., size: int | None = None) -> bytes:
+        """Read up to and including ``expected``, or until the link's timeout.
+
+        Parameters
+        ----------
+        expected : bytes
+            The terminator to stop at (the link's default: ``\\n``; the ESP's replies end
+            ``\\r\\n``).
+        size : int, optional
+            Stop after this many bytes.
+
+        Returns
+        -------
+        bytes
+            What was read; without ``expected`` at its end on a timeout (possibly empty).
+        """
+        ...
 
     def reset_input_buffer(self) -> None: ...
 
@@ -240,6 +269,16 @@ def decode_error(code: int) -> tuple[int | None, str]:
 
 def format_number(value: float) -> str:
     """A position as the shortest fixed-point text, to 1e-6 (the form sent after ``PA``).
+
+    Parameters
+    ----------
+    value : float
+        The position, in the axis's units (degrees for sunlab's rotation stages).
+
+    Returns
+    -------
+    str
+        Fixed-point text rounded to 6 decimals, trailing zeros dropped (``-0`` as ``0``).
 
     Examples
     --------

@@ -126,7 +126,18 @@ class ManualClock:
         return self.now
 
     def advance(self, seconds: float) -> None:
-        """Move the clock forward by ``seconds`` (>= 0)."""
+        """Move the clock forward.
+
+        Parameters
+        ----------
+        seconds : float
+            How far, s (>= 0: the clock is monotonic).
+
+        Raises
+        ------
+        ConfigurationError
+            ``seconds`` is negative or NaN.
+        """
         if not seconds >= 0:
             raise ConfigurationError(f"advance: found {seconds!r} s, expected >= 0")
         self.now += float(seconds)
@@ -269,6 +280,34 @@ class FakeESP:
         """Queue a fault for the next ``count`` commands containing ``match`` (see module doc),
         once ``after`` such commands have passed untouched.
 
+        Parameters
+        ----------
+        kind : str
+            One of :data:`FAULT_KINDS` (effects in the module docstring).
+        match : str
+            Substring a command must contain (one command of a ``;`` chain, blanks removed,
+            e.g. ``"1TP?"``); ``""`` matches every command.
+        count : int
+            How many matching commands the fault hits.
+        code : int
+            Error code queued by an ``error`` fault (``axis * 100 + code`` for an axis error,
+            e.g. 104 for axis 1's positive hardware limit).
+        silent_s : float
+            Silence of ``silent`` (and of a limit ``error``), or delay of ``late``, s.
+        after : int
+            Matching commands let through before the fault starts.
+
+        Returns
+        -------
+        Fault
+            The queued fault; its ``count`` falls as it hits (0: used up, dropped from the
+            queue).
+
+        Raises
+        ------
+        ConfigurationError
+            ``kind`` is not in :data:`FAULT_KINDS`.
+
         Examples
         --------
         >>> fake = FakeESP()
@@ -297,8 +336,20 @@ class FakeESP:
 
     # -- protocol -----------------------------------------------------------------------------
     def handle(self, line: bytes):
-        """Run one received line (without its ``CR``); return the reply bytes, None or
-        :data:`DISCONNECT`."""
+        """Run one received line as the controller does, with the injected faults.
+
+        Parameters
+        ----------
+        line : bytes
+            One command line without its ``CR``; ``;`` chains commands.
+
+        Returns
+        -------
+        bytes or None or object
+            The replies of the line's queries, each ending ``CR LF``, concatenated; None when
+            nothing is answered; :data:`DISCONNECT` when a ``disconnect`` fault closes the
+            link.
+        """
         text = line.decode("ascii", "replace").strip()
         if not text:
             return None
@@ -455,9 +506,16 @@ class FakeESP:
 
     # -- the platform -------------------------------------------------------------------------
     def position(self) -> tuple[float, float]:
-        """Commanded-frame position of (alpha, beta) axes now (not rounded), degrees.
+        """Commanded-frame position of the alpha and beta axes now (not rounded).
 
-        "Now" is the controller's time: a ``WS`` wait moves it on to the end of the wait."""
+        "Now" is the controller's time: a ``WS`` wait moves it on to the end of the wait.
+
+        Returns
+        -------
+        (float, float)
+            (alpha, beta), degrees, mid-move positions included (not rounded to
+            ``resolution_deg`` as ``TP?`` is).
+        """
         with self._lock:
             now = max(self._clock(), self._wait_until)
             return (self._axes[self.alpha_axis].position(now),
@@ -468,6 +526,18 @@ class FakeESP:
 
         Deterministic in (seed, pose, shot) for a given position; see
         :func:`sunlab.sim.platform_pose`.
+
+        Parameters
+        ----------
+        pose : int
+            Pose index (draws the per-pose platform error).
+        shot : int
+            Shot index within the pose (draws the per-shot jitter).
+
+        Returns
+        -------
+        (float, float)
+            (alpha_true, beta_true), degrees; the commanded position when there is no bench.
         """
         alpha, beta = self.position()
         if self.bench is None:
@@ -494,7 +564,14 @@ class FakeESP:
         return buf, True
 
     def serve_pty(self) -> str:
-        """Serve the protocol on a new pseudo-terminal; return the slave's path."""
+        """Serve the protocol on a new pseudo-terminal, in a background thread.
+
+        Returns
+        -------
+        str
+            The slave's device path (e.g. ``/dev/pts/5``), to open as a serial port; POSIX
+            only. :meth:`close` stops the thread and closes the terminal.
+        """
         import tty
 
         master, slave = os.openpty()
@@ -531,9 +608,20 @@ class FakeESP:
         return path
 
     def serve_tcp(self, port: int = 0) -> str:
-        """Serve the protocol on 127.0.0.1:``port`` (0: any free); return ``socket://`` URL.
+        """Serve the protocol on 127.0.0.1:``port``, in a background thread.
 
         One client at a time; after a ``disconnect`` fault the server accepts the next one.
+
+        Parameters
+        ----------
+        port : int
+            TCP port to listen on; 0 takes any free one.
+
+        Returns
+        -------
+        str
+            The ``socket://127.0.0.1:PORT`` URL (:func:`serial.serial_for_url` form) with the
+            port bound.
         """
         server = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
         server.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)

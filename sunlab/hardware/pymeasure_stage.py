@@ -102,8 +102,27 @@ class PymeasureStage:
                                   command=command)
 
     def move_to(self, alpha: float, beta: float) -> tuple[float, float]:
-        """Move alpha and beta, wait for the stop and the settle time, return the read-back
-        (alpha, beta), deg. Nothing moves when a target is outside the travel."""
+        """Move alpha and beta, wait for the stop and the settle time, return the read-back.
+
+        Nothing moves when a target is outside the travel.
+
+        Parameters
+        ----------
+        alpha, beta : float
+            Target angles of the outer and inner axis, degrees.
+
+        Returns
+        -------
+        (float, float)
+            Read-back (alpha, beta) after the settle time, degrees.
+
+        Raises
+        ------
+        LimitError
+            A target outside ``limits``.
+        ControllerError
+            The controller's error buffer (``TE?``) held an error after the move.
+        """
         for name, value, (lo, hi) in zip(("alpha", "beta"), (alpha, beta), self.limits,
                                          strict=True):
             if not lo <= float(value) <= hi:
@@ -118,7 +137,18 @@ class PymeasureStage:
         return self.position()
 
     def position(self) -> tuple[float, float]:
-        """Read-back (alpha, beta), degrees."""
+        """Read-back of the two axes.
+
+        Returns
+        -------
+        (float, float)
+            (alpha, beta), degrees.
+
+        Raises
+        ------
+        StageError
+            A position reply that is not a number.
+        """
         try:
             return float(self._axis[0].position), float(self._axis[1].position)
         except (TypeError, ValueError) as err:
@@ -126,7 +156,14 @@ class PymeasureStage:
                              f"to {self.resource}") from err
 
     def describe(self) -> dict:
-        """What the run metadata records about the stage."""
+        """What the run metadata records about the stage (asks the controller's ``VE?``).
+
+        Returns
+        -------
+        dict
+            JSON-ready: class, VISA resource, axes, limits (deg), ``settle_s`` and the
+            controller's version.
+        """
         return {"stage": "sunlab.hardware.PymeasureStage", "resource": self.resource,
                 "axes": list(self.axes), "limits": [list(v) for v in self.limits],
                 "settle_s": self.settle_s, "version": str(self.esp.ask("VE?")).strip()}

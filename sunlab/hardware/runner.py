@@ -511,6 +511,21 @@ def run_lock(out):
     stderr. The same process may nest the lock (the ``sunlab acquire`` command takes it before
     it opens the stage, :func:`acquire` again).
 
+    Parameters
+    ----------
+    out : str or path
+        The run's store (e.g. ``run.zarr``); its lock is ``OUT.lock`` beside it.
+
+    Yields
+    ------
+    pathlib.Path
+        The lock file, held until the ``with`` block ends.
+
+    Raises
+    ------
+    RunLockedError
+        Another live process (or another host) holds the lock.
+
     Examples
     --------
     >>> import tempfile, pathlib

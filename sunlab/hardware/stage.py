@@ -30,15 +30,43 @@ class Stage(Protocol):
     """A two-axis rotation platform (outer axis alpha, inner axis beta, degrees)."""
 
     def move_to(self, alpha: float, beta: float) -> tuple[float, float]:
-        """Move, wait for motion done and settle; return the read-back (alpha, beta), deg."""
+        """Move, wait for motion done and settle; return the read-back.
+
+        Parameters
+        ----------
+        alpha, beta : float
+            Target angles of the outer and inner axis, degrees.
+
+        Returns
+        -------
+        (float, float)
+            Encoder read-back (alpha, beta) once settled, degrees.
+
+        Raises
+        ------
+        LimitError
+            A target outside the travel (nothing moves).
+        """
         ...
 
     def position(self) -> tuple[float, float]:
-        """Read-back (alpha, beta), degrees."""
+        """Read the encoders.
+
+        Returns
+        -------
+        (float, float)
+            Read-back (alpha, beta), degrees.
+        """
         ...
 
     def describe(self) -> dict:
-        """JSON-able description for the run metadata."""
+        """Describe the stage for the run metadata.
+
+        Returns
+        -------
+        dict
+            JSON-ready description (driver, link, limits, settings).
+        """
         ...
 
     def close(self) -> None: ...
@@ -82,6 +110,12 @@ def available_stages() -> dict:
     """URL schemes ``--stage`` opens: the built-ins and every registered entry point of
     :data:`ENTRY_POINT_GROUP` (scheme -> where it comes from); any other URL or a device path
     is an ESP300/301 on a serial link.
+
+    Returns
+    -------
+    dict of str to str
+        Scheme -> ``module:callable`` that opens it (or the entry point's value); a
+        registered scheme never shadows a built-in.
 
     Examples
     --------

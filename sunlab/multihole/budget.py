@@ -35,11 +35,22 @@ def error_budget(est: xr.Dataset, holes=None) -> dict:
     average c^2 + s^2 / N, so the gain in standard deviation is at most
     sqrt((c^2 + s^2) / (c^2 + s^2 / N)), which tends to sqrt(N) (eq. 5) only when c -> 0.
 
+    Parameters
+    ----------
+    est : xarray.Dataset
+        Per-hole estimates ``alpha``, ``beta`` (deg) on (pose, shot, hole) with the commanded
+        angles ``alpha_cmd``, ``beta_cmd`` on ``pose``
+        (:meth:`PerHoleAverage.predict_holes <sunlab.multihole.PerHoleAverage.predict_holes>`).
+    holes : array_like of bool, shape (hole,), optional
+        Holes counted (default all); a missing estimate (NaN) is left out of its frame.
+
     Returns
     -------
-    dict per angle: ``single`` (RMS of one hole's error), ``common`` (RMS of the common part,
-    corrected for the specific part's leftover s/sqrt(N)), ``specific`` (RMS of the specific
-    part), ``n_holes``, ``gain_limit`` (the predicted gain) and ``sqrt_n``.
+    dict
+        Per angle (``"alpha"``, ``"beta"``) a dict: ``single`` (RMS of one hole's error, deg),
+        ``common`` (RMS of the common part, deg, corrected for the specific part's leftover
+        s/sqrt(N)), ``specific`` (RMS of the specific part, deg), ``n_holes`` (mean number of
+        holes per frame, N), ``gain_limit`` (the predicted gain) and ``sqrt_n``.
 
     Examples
     --------
@@ -81,18 +92,39 @@ def gain_study(train: xr.Dataset, test: xr.Dataset, *, order: int = 5, model=Non
     geometric centre, the plain average, and the average after rejection with inverse-variance
     weights and sigma clipping. Adds the error budget of :func:`error_budget`.
 
+    Parameters
+    ----------
+    train, test : xarray.Dataset
+        Training (experiment I) and test (experiment II) centroid tables on (pose, shot, hole).
+    order : int
+        Polynomial order of the calibrations (ignored when ``model`` is given).
+    model : callable, optional
+        Factory of an unfitted :class:`sunlab.calibration.Calibration`.
+    cube : xarray.Dataset, optional
+        Frame cube of ``train``, for the spot-shape metrics of :func:`defect_metrics`.
+    kappa : float
+        Rejection threshold of :func:`reject_bad_holes`, robust standard deviations.
+    clip : float
+        Per-frame sigma-clipping threshold of the rejected average, robust standard deviations.
+
     Returns
     -------
-    dict with ``stats`` (strategy -> angle -> stat -> value, deg), ``gain`` (strategy -> angle
-    -> sigma and rms gain over one hole), ``budget``, ``bad`` (indices of rejected holes) and
-    ``metrics`` (the defect metrics).
+    dict
+        ``stats`` (strategy -> angle -> :func:`sunlab.stats.error_summary` statistic, deg),
+        ``gain`` (strategy -> angle -> ``sigma``, ``mu`` and ``rms`` of one hole divided by the
+        strategy's), ``budget`` (:func:`error_budget`, good holes), ``budget_all`` (all holes),
+        ``bad`` (indices of the rejected holes) and ``metrics`` (the defect metrics).
+
+    Raises
+    ------
+    ConfigurationError
+        No good hole has a usable estimate at any test pose.
 
     Examples
     --------
     >>> a = np.repeat(np.linspace(-8, 2, 6), 6); b = np.tile(np.linspace(-2, 8, 6), 6)
-    >>> kw = dict(shots=2, hole_sigma_px=0.1, noise_px=0.01)
     >>> from sunlab.sim import synthetic_centroids
-    >>> kw["layout"] = "grid"
+    >>> kw = dict(shots=2, hole_sigma_px=0.1, noise_px=0.01, layout="grid")
     >>> tr = synthetic_centroids(a, b, seed=1, **kw)
     >>> te = synthetic_centroids(a + 0.5, b + 0.5, seed=2, **kw)
     >>> g = gain_study(tr, te, order=4)

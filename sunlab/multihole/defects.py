@@ -527,6 +527,17 @@ def robust_z(metrics: xr.Dataset) -> xr.Dataset:
     normal equivalent of the binomial tail P(K >= k | n_trials, p) at the fleet's mean rate p,
     so that one or two tail frames of a hole seen in a few frames do not make it an outlier.
 
+    Parameters
+    ----------
+    metrics : xarray.Dataset
+        Defect metrics on ``hole`` (:func:`defect_metrics`), large = bad.
+
+    Returns
+    -------
+    xarray.Dataset
+        The z-score of every metric on ``hole`` (dimensionless, positive = worse than the
+        fleet), with the metrics' coordinates.
+
     Examples
     --------
     >>> m = xr.Dataset({"outlier_fraction": ("hole", [0.0] * 9 + [2 / 30],
@@ -602,6 +613,17 @@ def metric_scale(values) -> tuple[float, float]:
     One scale for every view of a metric (:func:`plot_metric_map`, the buttons of
     :class:`sunlab.widgets.HoleExplorer`), robust to the one bad hole that would otherwise
     squeeze all good holes into one colour.
+
+    Parameters
+    ----------
+    values : array_like
+        The metric of every hole (NaN ignored), in the metric's units.
+
+    Returns
+    -------
+    (float, float)
+        (low, high), in the metric's units; (0, 1) with no finite value, and ``high`` just
+        above ``low`` when all values are equal.
 
     Examples
     --------

@@ -8,6 +8,22 @@ tables follow contract ``centroids/1`` on dims ``(pose, shot, hole)`` with the c
 References
 ----------
 .. [1] docs/paper.md, sec. 6 (the 2005 preprint on the Naples APS sun sensor).
+
+Examples
+--------
+Two holes of a free (non-grid) layout, centroided by :func:`centroid_free_layout`:
+
+>>> from sunlab import schema
+>>> yy, xx = np.mgrid[0:200, 0:300]
+>>> img = (400.0 * (np.hypot(xx - 80.3, yy - 100) < 15)
+...        + 400.0 * (np.hypot(xx - 200, yy - 90.6) < 12))
+>>> cube = schema.frames_dataset(img.astype(np.uint16)[None, None], alpha=[0.0], beta=[0.0])
+>>> cube = cube.assign_coords(hole_x_cf=("hole", [80.0, 200.0]),
+...                           hole_y_cf=("hole", [100.0, 90.0]))
+>>> cen = centroid_free_layout(cube)
+>>> bool(np.allclose(cen.x[0, 0], [80.3, 200.0], atol=0.15)
+...      and np.allclose(cen.y[0, 0], [100.0, 90.6], atol=0.15))
+True
 """
 
 from __future__ import annotations
@@ -29,12 +45,24 @@ def hole_grid(cen: xr.Dataset):
     """Grid row and column of every hole of a centroid table (or frame cube).
 
     Uses the ``hole_i`` / ``hole_j`` coordinates when present; otherwise assumes a square,
-    row-major grid.
+    row-major grid (a hole count that is no square: one row).
+
+    Parameters
+    ----------
+    cen : xarray.Dataset
+        Centroid table or frame cube with a ``hole`` dimension.
 
     Returns
     -------
     i, j : numpy.ndarray of int, shape (hole,)
+        Grid row and column of every hole (0-based).
     n_rows, n_cols : int
+        The grid's size.
+
+    Raises
+    ------
+    SchemaError
+        ``cen`` has no ``hole`` dimension.
 
     Examples
     --------
@@ -62,34 +90,33 @@ def hole_grid(cen: xr.Dataset):
 
 def centroid_free_layout(cube: xr.Dataset, *, half: int = 38, progress: bool = False,
                   **options) -> xr.Dataset:
-    """Centroid every hole of a free (non-grid) layout, e.g. a random mask.
+    """Centroid every hole of a free (non-grid) layout, e.g. a random mask, frame by frame.
 
-    Each hole's spot is looked for in a ``2 half + 1`` px cut-out about its position predicted by
-    eq. (1) from the hole's design position (``hole_x_cf``, ``hole_y_cf``) and the commanded
-    pose, and centroided by :func:`sunlab.centroid.tight_window` in that cut-out. Holes must be
-    at least ``half`` px plus a spot radius apart; the platform's mounting error must be small
-    next to ``half`` (true on a bench with a good platform). Frames are processed one by one
-    (:func:`sunlab.centroid.locate` is the parallel path for grids).
+    Each spot is centroided by :func:`sunlab.centroid.tight_window` in a cut-out about the
+    position eq. (1) predicts from the hole's design position and the commanded pose: holes
+    must be ``half`` px plus a spot radius apart, the platform's mounting error small next to
+    ``half``. (:func:`sunlab.centroid.locate` is the parallel path for grids.)
+
+    Parameters
+    ----------
+    cube : xarray.Dataset
+        Frame cube on (pose, shot) with ``hole_x_cf``, ``hole_y_cf`` (design positions, px).
+    half : int
+        Half-size of a hole's cut-out, px (``2 half + 1`` px square).
+    progress : bool
+        Draw a progress bar (where :func:`sunlab.options.show_progress` allows).
+    **options
+        Passed to ``tight_window`` (``saturation`` defaults to the cube's full scale, DN).
 
     Returns
     -------
     xarray.Dataset
-        Contract ``centroids/1`` on (pose, shot, hole) with the cube's hole coordinates and
-        ``radius``, ``ellipticity``, ``asymmetry`` from the stamp moments.
+        Contract ``centroids/1`` on (pose, shot, hole), px, with the cube's hole coordinates
+        and the stamp moments ``radius``, ``ellipticity``, ``asymmetry``.
 
     Examples
     --------
-    >>> from sunlab import schema
-    >>> yy, xx = np.mgrid[0:200, 0:300]
-    >>> img = (400.0 * (np.hypot(xx - 80.3, yy - 100) < 15)
-    ...        + 400.0 * (np.hypot(xx - 200, yy - 90.6) < 12))
-    >>> cube = schema.frames_dataset(img.astype(np.uint16)[None, None], alpha=[0.0], beta=[0.0])
-    >>> cube = cube.assign_coords(hole_x_cf=("hole", [80.0, 200.0]),
-    ...                           hole_y_cf=("hole", [100.0, 90.0]))
-    >>> cen = centroid_free_layout(cube)
-    >>> bool(np.allclose(cen.x[0, 0], [80.3, 200.0], atol=0.15)
-    ...      and np.allclose(cen.y[0, 0], [100.0, 90.6], atol=0.15))
-    True
+    :mod:`sunlab.multihole.holes` centroids two holes of a free layout.
     """
     from .. import centroid
 
@@ -143,6 +170,18 @@ def centroid_free_layout(cube: xr.Dataset, *, half: int = 38, progress: bool = F
 
 def usable(cen: xr.Dataset, accept: Sequence[str] = ("ok",)) -> xr.DataArray:
     """Boolean mask of centroids that may be used: finite x, y and an accepted status.
+
+    Parameters
+    ----------
+    cen : xarray.Dataset
+        Centroid table (contract ``centroids/1``) with ``x``, ``y``, ``status``.
+    accept : sequence of str
+        Status names (keys of :data:`sunlab.schema.STATUS`) counted as usable.
+
+    Returns
+    -------
+    xarray.DataArray of bool
+        True where the centroid may be used, on the table's dims.
 
     Examples
     --------

@@ -72,20 +72,59 @@ class HoleReview:
         return int(self.estimates.sizes["hole"])
 
     def combined(self, included) -> xr.Dataset:
-        """The strategy's average over the ``included`` holes, on (pose, shot)."""
+        """The strategy's average over the ``included`` holes, on (pose, shot).
+
+        Parameters
+        ----------
+        included : array_like of bool, shape (hole,)
+            Holes in the average.
+
+        Returns
+        -------
+        xarray.Dataset
+            Combined ``alpha``, ``beta`` (deg) on (pose, shot) with the commanded angles and
+            ``n_holes`` (:meth:`PerHoleAverage.combine
+            <sunlab.multihole.PerHoleAverage.combine>`).
+        """
         return self.strategy.combine(self.estimates, holes=np.asarray(included, dtype=bool))
 
     def stats(self, included, hole: int) -> dict:
-        """``{"included": .., "all": .., "hole": ..}``: :func:`sunlab.stats.error_summary` of
-        the average of the included holes (None when there is none), of all holes, and of
-        ``hole`` alone."""
+        """The paper's global statistics of the included holes' average, all holes and one hole.
+
+        Parameters
+        ----------
+        included : array_like of bool, shape (hole,)
+            Holes in the average.
+        hole : int
+            Index of the hole shown alone.
+
+        Returns
+        -------
+        dict
+            ``{"included": .., "all": .., "hole": ..}``: :func:`sunlab.stats.error_summary`
+            (deg) of the average of the included holes (None when there is none), of all
+            holes, and of ``hole`` alone.
+        """
         inc = error_summary(self.combined(included)) if np.any(included) else None
         return {"included": inc, "all": self.all_stats,
                 "hole": error_summary(self.estimates.isel(hole=int(hole)))}
 
     def residual_map(self, hole: int, included) -> dict:
-        """The hole's estimate minus the average of the included holes, mean over the shots,
-        per angle on ``pose`` (deg)."""
+        """The hole's estimate minus the average of the included holes, mean over the shots.
+
+        Parameters
+        ----------
+        hole : int
+            Index of the hole.
+        included : array_like of bool, shape (hole,)
+            Holes in the average.
+
+        Returns
+        -------
+        dict of str to numpy.ndarray
+            ``"alpha"``, ``"beta"``: the residual on ``pose``, deg (NaN where the hole or the
+            average has no estimate).
+        """
         comb = self.combined(included)
         return {a: (self.estimates[a].isel(hole=int(hole)) - comb[a]).mean("shot").values
                 for a in ("alpha", "beta")}
@@ -109,6 +148,17 @@ def review_holes(centroids: xr.Dataset, *, strategy: PerHoleAverage | None = Non
         Polynomial order when the calibration is fitted here.
     kappa : float
         Rejection threshold of :func:`~sunlab.multihole.defects.reject_bad_holes`.
+
+    Returns
+    -------
+    HoleReview
+        The calibration, metrics, z-scores, flags, injected defects and every hole's estimate
+        of ``centroids``.
+
+    Raises
+    ------
+    ConfigurationError
+        ``centroids`` has no ``hole`` dimension.
 
     Examples
     --------
@@ -142,6 +192,18 @@ def review_holes(centroids: xr.Dataset, *, strategy: PerHoleAverage | None = Non
 
 def injected_defects(cen: xr.Dataset) -> dict[int, str]:
     """Holes that the simulator gave defects (``hole_defect`` bit flags), with their kinds.
+
+    Parameters
+    ----------
+    cen : xarray.Dataset
+        Centroid table or frame cube, with the ``hole_defect`` coordinate on ``hole`` when
+        simulated.
+
+    Returns
+    -------
+    dict of int to str
+        Hole index -> defect kinds joined by ``+`` (names of :data:`sunlab.schema.DEFECT_FLAGS`);
+        empty without ``hole_defect``.
 
     Examples
     --------

@@ -36,9 +36,23 @@ from typing import ClassVar
 import numpy as np
 import xarray as xr
 
-from .. import schema
-from ..calibration import Calibration, Polynomial, from_dict, load
+from ..calibration import Calibration, from_dict, load
 from ..errors import ConfigurationError, SchemaError
+from ._tables import (
+    _angles_dataset,
+    _centre_table,
+    _default_model,
+    _error_stats,
+    _fit_model,
+    _frames,
+    _hole_table,
+    _predict,
+    _predict_arrays,
+    _record_fit,
+    _restore_settings,
+    _settings,
+    _validation_residuals,
+)
 from .holes import usable
 
 __all__ = [
@@ -108,6 +122,13 @@ def geometric_centre(cen: xr.Dataset, accept: Sequence[str] = ("ok",)) -> xr.Dat
     This is the paper's definition; it jumps by (design offset of the lost hole) / N whenever a
     hole is missing. :class:`GeometricCentre` removes that bias.
 
+    Parameters
+    ----------
+    cen : xarray.Dataset
+        Centroid table on (pose, shot, hole), px.
+    accept : sequence of str
+        Status names counted as usable.
+
     Returns
     -------
     xarray.Dataset
@@ -127,159 +148,6 @@ def geometric_centre(cen: xr.Dataset, accept: Sequence[str] = ("ok",)) -> xr.Dat
     y = cen["y"].where(ok).mean("hole")
     flux = cen["flux"].where(ok).sum("hole")
     return _centre_table(cen, x.values, y.values, flux.values, n.values, "geometric_centre")
-
-
-def _centre_table(cen, x, y, flux, n, method):
-    status = np.where(n > 0, schema.STATUS["ok"], schema.STATUS["no_spot"])
-    x = np.where(n > 0, x, np.nan)
-    y = np.where(n > 0, y, np.nan)
-    attrs = {k: v for k, v in cen.attrs.items() if k not in ("sunlab_schema", "method")}
-    out = schema.centroids_dataset(
-        x, y, flux=flux, status=status, alpha=cen["alpha"].values, beta=cen["beta"].values,
-        method=method, attrs=attrs,
-        extra={"n_holes": (("pose", "shot"), np.asarray(n, dtype=np.int16))},
-    )
-    for name in ("true_alpha", "true_beta"):
-        if name in cen.variables:
-            out[name] = (("pose", "shot"), np.asarray(cen[name].values))
-    return out
-
-
-def _default_model(order: int):
-    def factory():
-        return Polynomial(order)
-
-    return factory
-
-
-def _hole_table(cen: xr.Dataset, h: int, ok: xr.DataArray | None = None) -> xr.Dataset:
-    """The centroid table (``centroids/1``) of one hole on (pose, shot); frames that are not
-    usable get NaN and status ``no_spot``. Built directly (the parent table is valid)."""
-    x = np.asarray(cen["x"].values[..., h], dtype=float)
-    y = np.asarray(cen["y"].values[..., h], dtype=float)
-    status = np.asarray(cen["status"].values[..., h])
-    if ok is not None:
-        okh = np.asarray(ok.values[..., h], dtype=bool)
-        x = np.where(okh, x, np.nan)
-        y = np.where(okh, y, np.nan)
-        status = np.where(okh, status, np.where(status == 0, schema.STATUS["no_spot"], status))
-    dims = ("pose", "shot")
-    data = {"x": (dims, x), "y": (dims, y), "status": (dims, status.astype(np.int8))}
-    for name in ("flux", "x0", "x1", "y0", "y1"):
-        if name in cen.variables:
-            data[name] = (dims, np.asarray(cen[name].values[..., h]))
-    attrs = {k: v for k, v in cen.attrs.items() if k != "sunlab_schema"}
-    attrs["sunlab_schema"] = schema.CENTROIDS_SCHEMA
-    return xr.Dataset(
-        data,
-        coords={"pose": cen["pose"].values, "shot": cen["shot"].values,
-                "alpha": ("pose", np.asarray(cen["alpha"].values, float)),
-                "beta": ("pose", np.asarray(cen["beta"].values, float))},
-        attrs=attrs,
-    )
-
-
-def _fit_model(factory, table: xr.Dataset):
-    """Fit a calibration model on the usable frames of a (pose, shot) table."""
-    ok = np.isfinite(table["x"].values) & np.isfinite(table["y"].values)
-    if ok.sum() < 3:
-        raise ConfigurationError("too few usable frames to fit a calibration (fewer than 3)")
-    return factory().fit(table)
-
-
-def _predict_arrays(model, x, y):
-    """(alpha, beta) of a fitted calibration for centroid arrays; NaN where x or y is NaN."""
-    x = np.asarray(x, dtype=float)
-    y = np.asarray(y, dtype=float)
-    bad = ~(np.isfinite(x) & np.isfinite(y))
-    a, b = model.predict_xy(np.where(bad, np.nan, x), np.where(bad, np.nan, y))
-    a = np.asarray(a, float).reshape(x.shape)
-    b = np.asarray(b, float).reshape(x.shape)
-    return np.where(bad, np.nan, a), np.where(bad, np.nan, b)
-
-
-def _predict(model, table: xr.Dataset):
-    """Predicted (alpha, beta) arrays on (pose, shot), NaN where the table has no centroid."""
-    return _predict_arrays(model, table["x"].values, table["y"].values)
-
-
-def _error_stats(est, cmd) -> dict:
-    """Statistics of estimated - commanded (deg) over the finite estimates, as ``calibration/1``
-    writes residuals."""
-    e = np.asarray(est, dtype=float) - np.asarray(cmd, dtype=float).reshape(-1, 1)
-    e = e[np.isfinite(e)]
-    if e.size == 0:
-        return {"mean": None, "mean_abs": None, "rms": None, "std": None, "max_abs": None, "n": 0}
-    return {"mean": float(e.mean()), "mean_abs": float(np.abs(e).mean()),
-            "rms": float(np.sqrt(np.mean(e**2))), "std": float(e.std()),
-            "max_abs": float(np.abs(e).max()), "n": int(e.size)}
-
-
-def _record_fit(strategy, cen: xr.Dataset, ok: xr.DataArray, residuals: dict) -> None:
-    """The training summary, domain and residuals every fitted calibration carries."""
-    ok = np.asarray(ok.values, dtype=bool)
-    x, y = np.asarray(cen["x"].values)[ok], np.asarray(cen["y"].values)[ok]
-    a, b = np.asarray(cen["alpha"].values, float), np.asarray(cen["beta"].values, float)
-    strategy.training = {
-        "experiment": str(cen.attrs.get("experiment", "")),
-        "centroid_method": str(cen.attrs.get("method", "")),
-        "n_samples": int(ok.sum()), "n_poses": int(ok.any(axis=(1, 2)).sum()),
-        "n_shots": int(cen.sizes["shot"]), "n_holes": int(cen.sizes["hole"]),
-    }
-    strategy.domain = {k: [float(v.min()), float(v.max())] if v.size else [0.0, 0.0]
-                       for k, v in (("alpha", a), ("beta", b), ("x", x), ("y", y))}
-    strategy.residuals = {"alpha": residuals["alpha"], "beta": residuals["beta"],
-                          "validation": None}
-
-
-def _validation_residuals(strategy, validation: xr.Dataset | None) -> None:
-    """The validation residuals of a fitted strategy: its estimate of every frame of the
-    validation table against the commanded angles (deg)."""
-    if validation is not None:
-        est = strategy.predict(validation)
-        strategy.residuals["validation"] = {
-            a: _error_stats(est[a].values, est[f"{a}_cmd"].values) for a in ("alpha", "beta")}
-
-
-def _frames(x, y):
-    """Centroid arrays (..., hole) as (frames, hole, 2), their usable mask and leading shape."""
-    x, y = np.broadcast_arrays(np.asarray(x, dtype=float), np.asarray(y, dtype=float))
-    if x.ndim < 1:
-        raise ConfigurationError(
-            "x, y: found scalars; a multi-hole strategy needs every hole's centroid of a frame "
-            "(arrays whose last axis is the hole)")
-    X = np.stack([x, y], -1).reshape(-1, x.shape[-1], 2)
-    return X, np.isfinite(X).all(-1), x.shape[:-1]
-
-
-def _settings(strategy, names) -> dict:
-    """The strategy's settings (``names`` plus the shared ones) for its saved parameters."""
-    holes = None if strategy.holes is None else np.asarray(strategy.holes, bool).tolist()
-    return {**{k: getattr(strategy, k) for k in names}, "holes": holes,
-            "accept": list(strategy.accept)}
-
-
-def _restore_settings(p: dict) -> dict:
-    holes = None if p["holes"] is None else np.asarray(p["holes"], dtype=bool)
-    return {"holes": holes, "accept": tuple(str(s) for s in p["accept"])}
-
-
-def _angles_dataset(cen, a, b, dims, extra=None):
-    """Angle estimates on ``dims`` with the commanded angles (from a centroid table's
-    ``alpha``/``beta`` or an estimate's ``alpha_cmd``/``beta_cmd``) as coordinates."""
-    ca = cen["alpha_cmd"] if "alpha_cmd" in cen.coords else cen["alpha"]
-    cb = cen["beta_cmd"] if "beta_cmd" in cen.coords else cen["beta"]
-    coords = {"pose": cen["pose"].values, "shot": cen["shot"].values,
-              "alpha_cmd": ("pose", np.asarray(ca.values), {"units": "deg"}),
-              "beta_cmd": ("pose", np.asarray(cb.values), {"units": "deg"})}
-    if "hole" in dims:
-        coords["hole"] = cen["hole"].values
-        for c in ("hole_i", "hole_j", "hole_x_cf", "hole_y_cf"):
-            if c in cen.coords:
-                coords[c] = ("hole", cen[c].values)
-    data = {"alpha": (dims, a, {"units": "deg"}), "beta": (dims, b, {"units": "deg"})}
-    data.update(extra or {})
-    return xr.Dataset(data, coords=coords)
 
 
 @dataclass(repr=False)
@@ -351,7 +219,20 @@ class GeometricCentre(Calibration):
         return ok
 
     def fit_centre(self, cen: xr.Dataset, n_iter: int = 4) -> GeometricCentre:
-        """Fit the per-hole maps hole -> centre on a training table (no calibration)."""
+        """Fit the per-hole maps hole -> centre on a training table (no calibration).
+
+        Parameters
+        ----------
+        cen : xarray.Dataset
+            Training table on (pose, shot, hole), px.
+        n_iter : int
+            Alternations of the map fit and the centre solve.
+
+        Returns
+        -------
+        GeometricCentre
+            ``self``, with the maps ``A_`` (hole, 2), px, and ``M_`` (hole, 2, 2) set.
+        """
         ok = self._ok(cen).values.reshape(-1, cen.sizes["hole"])
         X = np.stack([cen["x"].values, cen["y"].values], -1).reshape(-1, cen.sizes["hole"], 2)
         w = ok.astype(float)
@@ -412,7 +293,19 @@ class GeometricCentre(Calibration):
         return np.where(good[:, None], c, np.nan)
 
     def centre(self, cen: xr.Dataset) -> xr.Dataset:
-        """The geometric centre of every frame, a centroid table on (pose, shot)."""
+        """The geometric centre of every frame.
+
+        Parameters
+        ----------
+        cen : xarray.Dataset
+            Centroid table on (pose, shot, hole), px, with the holes of the training table.
+
+        Returns
+        -------
+        xarray.Dataset
+            Contract ``centroids/1`` on (pose, shot): ``x``, ``y`` px (NaN with fewer than
+            ``min_holes`` holes), ``flux`` (sum), ``n_holes``.
+        """
         if self.A_ is None and self.fill:
             raise ConfigurationError("GeometricCentre: call fit() or fit_centre() first")
         n_h = cen.sizes["hole"]
@@ -435,6 +328,11 @@ class GeometricCentre(Calibration):
             Training table on (pose, shot, hole) with the commanded angles (experiment I).
         validation : xarray.Dataset, optional
             A validation table (experiment II): the artifact's validation residuals.
+
+        Returns
+        -------
+        GeometricCentre
+            ``self``, fitted.
         """
         if self.fill:
             self.fit_centre(cen)
@@ -449,7 +347,17 @@ class GeometricCentre(Calibration):
 
     def predict_xy(self, x, y):
         """Angles (alpha, beta), deg, of frames given as centroid arrays ``x``, ``y`` (px)
-        whose last axis is the hole (NaN: hole missing); shape: the leading axes.
+        whose last axis is the hole (NaN: hole missing).
+
+        Parameters
+        ----------
+        x, y : array_like, shape (..., hole)
+            Centroids of every hole of each frame, px.
+
+        Returns
+        -------
+        alpha, beta : numpy.ndarray, shape (...)
+            Angles of the frames, deg.
 
         Examples
         --------
@@ -481,7 +389,19 @@ class GeometricCentre(Calibration):
                    **_restore_settings(p), A_=A, M_=M, calibration_=from_dict(p["calibration"]))
 
     def predict(self, cen: xr.Dataset) -> xr.Dataset:
-        """Estimated (alpha, beta), deg, on (pose, shot), with ``n_holes`` used per frame."""
+        """Estimated (alpha, beta) of every frame from the calibrated centre.
+
+        Parameters
+        ----------
+        cen : xarray.Dataset
+            Centroid table on (pose, shot, hole), px.
+
+        Returns
+        -------
+        xarray.Dataset
+            ``alpha``, ``beta`` (deg) on (pose, shot), ``n_holes`` used per frame, commanded
+            angles ``alpha_cmd``, ``beta_cmd`` as coordinates.
+        """
         if self.calibration_ is None:
             raise ConfigurationError("GeometricCentre: call fit() first")
         gc = self.centre(cen)
@@ -621,6 +541,12 @@ class PerHoleAverage(Calibration):
             Training table on (pose, shot, hole) with the commanded angles (experiment I).
         validation : xarray.Dataset, optional
             A validation table (experiment II): the artifact's validation residuals.
+
+        Returns
+        -------
+        PerHoleAverage
+            ``self``, with ``calibrations_`` (None for a hole seen too rarely) and
+            ``variance_`` (deg^2 per hole) set.
         """
         if self.weighting not in ("equal", "inverse_variance"):
             raise ConfigurationError(
@@ -666,7 +592,17 @@ class PerHoleAverage(Calibration):
     def predict_xy(self, x, y):
         """Angles (alpha, beta), deg, of frames given as centroid arrays ``x``, ``y`` (px)
         whose last axis is the hole (NaN: hole missing): every hole's own estimate, combined
-        by this strategy's rule; shape: the leading axes.
+        by this strategy's rule.
+
+        Parameters
+        ----------
+        x, y : array_like, shape (..., hole)
+            Centroids of every hole of each frame, px.
+
+        Returns
+        -------
+        alpha, beta : numpy.ndarray, shape (...)
+            Angles of the frames, deg.
 
         Examples
         --------
@@ -710,7 +646,18 @@ class PerHoleAverage(Calibration):
                                                  for d in p["calibrations"]])
 
     def predict_holes(self, cen: xr.Dataset) -> xr.Dataset:
-        """Every hole's own estimate (alpha, beta), deg, on (pose, shot, hole)."""
+        """Every hole's own estimate of every frame.
+
+        Parameters
+        ----------
+        cen : xarray.Dataset
+            Centroid table on (pose, shot, hole), px, with the holes of the training table.
+
+        Returns
+        -------
+        xarray.Dataset
+            ``alpha``, ``beta`` (deg) on (pose, shot, hole), NaN where a hole is unusable.
+        """
         if self.calibrations_ is None:
             raise ConfigurationError("PerHoleAverage: call fit() first")
         n_h = cen.sizes["hole"]
@@ -728,13 +675,32 @@ class PerHoleAverage(Calibration):
         return _angles_dataset(cen, a, b, ("pose", "shot", "hole"))
 
     def weights(self) -> np.ndarray | None:
-        """The per-hole weights of the combination (None for equal weights)."""
+        """The per-hole weights of the combination.
+
+        Returns
+        -------
+        numpy.ndarray or None
+            1 / ``variance_`` (deg^-2) per hole; None for equal weights.
+        """
         if self.weighting == "equal":
             return None
         return 1.0 / self.variance_
 
     def combine(self, est: xr.Dataset, holes=None) -> xr.Dataset:
-        """Combine per-hole estimates (from :meth:`predict_holes`) with this strategy's rule."""
+        """Combine per-hole estimates with this strategy's rule (weights, clipping).
+
+        Parameters
+        ----------
+        est : xarray.Dataset
+            Per-hole estimates from :meth:`predict_holes`, deg.
+        holes : array_like of bool, shape (hole,), optional
+            Holes in the average (default ``self.holes``).
+
+        Returns
+        -------
+        xarray.Dataset
+            ``alpha``, ``beta`` (deg) and ``n_holes`` on (pose, shot).
+        """
         holes = self.holes if holes is None else holes
         out = {}
         n = None
@@ -746,7 +712,18 @@ class PerHoleAverage(Calibration):
                                {"n_holes": (("pose", "shot"), n.values)})
 
     def predict(self, cen: xr.Dataset) -> xr.Dataset:
-        """Combined estimate (alpha, beta), deg, on (pose, shot), with ``n_holes`` used."""
+        """Combined estimate of every frame: :meth:`predict_holes`, then :meth:`combine`.
+
+        Parameters
+        ----------
+        cen : xarray.Dataset
+            Centroid table on (pose, shot, hole), px.
+
+        Returns
+        -------
+        xarray.Dataset
+            ``alpha``, ``beta`` (deg) and ``n_holes`` on (pose, shot).
+        """
         return self.combine(self.predict_holes(cen))
 
 
@@ -755,6 +732,18 @@ def angle_errors(pred: xr.Dataset, cen: xr.Dataset | None = None) -> xr.Dataset:
 
     ``pred`` carries the commanded angles as ``alpha_cmd``/``beta_cmd`` (as returned by the
     strategies) or they come from ``cen``'s ``alpha``/``beta``.
+
+    Parameters
+    ----------
+    pred : xarray.Dataset
+        Estimates ``alpha``, ``beta`` (deg) on (pose, shot) or (pose, shot, hole).
+    cen : xarray.Dataset, optional
+        Centroid table whose ``alpha``, ``beta`` are the commanded angles.
+
+    Returns
+    -------
+    xarray.Dataset
+        ``alpha``, ``beta``: estimated minus commanded, deg, on ``pred``'s dims.
 
     Examples
     --------
