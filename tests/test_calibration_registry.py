@@ -161,8 +161,36 @@ def test_order_auto_is_the_librarys(tmp_path):
     assert cal.orders == best.orders and cal.order_scores.equals(scores)
     with pytest.raises(ConfigurationError, match="without a validation table"):
         calibration.fit(_table(1), "polynomial", order="auto")
-    with pytest.raises(ConfigurationError, match="applies to method 'polynomial'"):
-        calibration.fit(_table(1), "trigonometric", _table(2), order="auto")
+    with pytest.raises(ConfigurationError, match="methods that take an order"):
+        calibration.fit(_table(1), "linear", _table(2), order="auto")
+
+
+def test_order_auto_of_another_method_keeps_the_best_validation_error():
+    # the trigonometric expansion has no select_order: each order is fitted on I and scored
+    # by its mean local error on II (alpha + beta), as the paper picks its orders
+    train, val = _table(1, n=7), _table(2, n=7)
+    cal = calibration.fit(train, "trigonometric", val, order="auto", orders=(1, 2, 3),
+                          outlier_mads=None)
+    errors = {}
+    for order in (1, 2, 3):
+        fitted = calibration.Trigonometric(order).fit(train, val)
+        errors[order] = float(stats.local_errors(fitted.predict(val))["local_error"].mean())
+    assert cal.order == min(errors, key=errors.get)
+    assert cal.order_scores["mean_local_error"].to_dict() == errors
+
+
+def test_table4_recipes_are_registry_entries_fitted_by_fit():
+    from sunlab.calibration import methods, registry
+
+    train, val = _table(1, n=7), _table(2, n=7)
+    recipes = methods.table4_methods(neural=False)
+    assert list(recipes) == [k for k, (kind, _) in registry.RECIPES.items() if kind != "neural"]
+    poly = recipes["polynomial"](train, val)
+    best, _ = calibration.Polynomial.select_order(train, val, refit=registry.POLYNOMIAL_REFIT)
+    assert poly.orders == best.orders
+    assert np.array_equal(poly.coefficients["alpha"], best.coefficients["alpha"])
+    cubic = recipes["cubic interp."](train, val)
+    assert cubic.kind == "interpolation-cubic" and "outlier_mads" not in cubic.training
 
 
 def test_evaluate_and_the_library_give_identical_statistics(tmp_path):
