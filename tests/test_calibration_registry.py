@@ -207,3 +207,25 @@ def test_evaluate_and_the_library_give_identical_statistics(tmp_path):
     for a in ("alpha", "beta"):
         for s in ("mu", "sigma", "M", "sigma_M"):
             assert written[f"{a}.{s}"] == float(table[(a, s)])  # bit for bit
+
+
+def test_evaluate_writes_the_files_of_write_report(tmp_path, capsys):
+    # the command only calls the library: its folder and write_report's hold the same files,
+    # byte for byte (the JSON, the CSV and both figures, drawn once from the errors)
+    from sunlab import report
+    from sunlab.cli import main
+
+    cal_path = calibration.fit(_table(1, n=6), "polynomial", order=3).save(tmp_path / "c.json")
+    test_path = tmp_path / "test.nc"
+    io.save_centroids(_table(3, n=6), test_path)
+    assert main(["evaluate", str(cal_path), str(test_path), "--out", str(tmp_path / "cli"),
+                 "--paper"]) == 0
+    got = report.write_report(tmp_path / "lib", calibration.load(cal_path),
+                              io.open_centroids(test_path), paper=True,
+                              sources={"calibration": str(cal_path), "test": str(test_path)})
+    assert [p.name for p in got["files"]] == list(report.REPORT_FILES) and got["notes"] == []
+    assert sorted(p.name for p in (tmp_path / "cli").iterdir()) == sorted(report.REPORT_FILES)
+    for name in report.REPORT_FILES:
+        assert (tmp_path / "cli" / name).read_bytes() == (tmp_path / "lib" / name).read_bytes()
+    assert got["evaluation"]["paper"]["column"] == "polynomial"
+    assert "wrote" in capsys.readouterr().out
