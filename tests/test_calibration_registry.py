@@ -229,3 +229,41 @@ def test_evaluate_writes_the_files_of_write_report(tmp_path, capsys):
         assert (tmp_path / "cli" / name).read_bytes() == (tmp_path / "lib" / name).read_bytes()
     assert got["evaluation"]["paper"]["column"] == "polynomial"
     assert "wrote" in capsys.readouterr().out
+
+
+@pytest.fixture
+def lab_plugin(tmp_path, monkeypatch):
+    """A lab's calibration, registered in the entry point group sunlab.calibrations by a real
+    distribution on sys.path (as the multi-hole strategies are by sunlab's own)."""
+    import sys
+    import textwrap
+
+    (tmp_path / "labcal.py").write_text(textwrap.dedent("""
+        from sunlab.calibration import Polynomial
+
+        class LabPoly(Polynomial):
+            kind = "lab-poly"
+        """))
+    (tmp_path / "labcal_broken.py").write_text("raise RuntimeError('licence server down')\n")
+    info = tmp_path / "labcal-0.1.dist-info"
+    info.mkdir()
+    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: labcal\nVersion: 0.1\n")
+    (info / "entry_points.txt").write_text(
+        "[sunlab.calibrations]\nlab-poly = labcal:LabPoly\nlab-broken = labcal_broken:X\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    yield tmp_path
+    for name in ("labcal", "labcal_broken"):
+        sys.modules.pop(name, None)
+
+
+def test_a_plugin_calibration_is_fitted_saved_and_loaded_by_the_registry(lab_plugin, train):
+    assert calibration.available_kinds()["lab-poly"] == "labcal:LabPoly"
+    cal = calibration.fit(train, "lab-poly", order=2)
+    assert type(cal).__name__ == "LabPoly" and cal.kind == "lab-poly"
+    back = calibration.load(cal.save(lab_plugin / "lab.json"))
+    assert type(back) is type(cal)
+    x, y = train.x.values, train.y.values
+    for got, want in zip(back.predict_xy(x, y), cal.predict_xy(x, y), strict=True):
+        assert np.array_equal(got, want, equal_nan=True)
+    with pytest.raises(ConfigurationError, match=r"lab-broken.*RuntimeError: licence server"):
+        calibration.method_class("lab-broken")
