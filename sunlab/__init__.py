@@ -41,6 +41,7 @@ _SUBMODULES = {
     "jit",
     "atomic",
     "plots",
+    "report",
     "widgets",
     "cli",
 }

@@ -18,6 +18,7 @@ from . import parallel as parallel
 from . import plans as plans
 from . import platform_fault as platform_fault
 from . import plots as plots
+from . import report as report
 from . import reproduce as reproduce
 from . import schema as schema
 from . import sim as sim

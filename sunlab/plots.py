@@ -142,7 +142,7 @@ def error_maps(local: xr.Dataset, *, variables=("local_error", "max_error"), ang
 
 
 def error_histogram(values, *, angle: str = "alpha", variable: str = "local_error",
-                    bins="auto", title: str | None = None) -> Figure:
+                    bins="auto", title: str | None = None, ax=None) -> Figure:
     """Fig. 11: histogram of an angle's error with the normal distribution of the same mean and
     standard deviation.
 
@@ -160,11 +160,14 @@ def error_histogram(values, *, angle: str = "alpha", variable: str = "local_erro
         Histogram bins (numpy's rules).
     title : str, optional
         Axes title.
+    ax : matplotlib.axes.Axes, optional
+        Draw into this axes (one panel of a larger figure) instead of a new figure.
 
     Returns
     -------
     matplotlib.figure.Figure
-        A density histogram and the normal curve N(mu, sigma) (sample standard deviation).
+        A density histogram and the normal curve N(mu, sigma) (sample standard deviation);
+        with ``ax``, the figure that holds it.
 
     Examples
     --------
@@ -185,8 +188,8 @@ def error_histogram(values, *, angle: str = "alpha", variable: str = "local_erro
     if v.size < 2:
         raise ConfigurationError(f"values: found {v.size} finite errors, expected at least 2")
     mu, sigma = float(v.mean()), float(v.std(ddof=1))
-    fig = new_figure(figsize=(5.5, 3.8), layout="constrained")
-    ax = fig.subplots()
+    if ax is None:
+        ax = new_figure(figsize=(5.5, 3.8), layout="constrained").subplots()
     ax.hist(v, bins=bins, density=True, color="0.75", edgecolor="0.4", label=f"{v.size} values")
     if sigma > 0:
         x = np.linspace(min(v.min(), mu - 4 * sigma), max(v.max(), mu + 4 * sigma), 300)
@@ -198,7 +201,7 @@ def error_histogram(values, *, angle: str = "alpha", variable: str = "local_erro
     ax.legend(loc="upper right", fontsize="small")
     if title:
         ax.set_title(title)
-    return fig
+    return ax.figure
 
 
 def error_rectangles(table: pd.DataFrame, *, title: str | None = None,
@@ -240,7 +243,7 @@ def error_rectangles(table: pd.DataFrame, *, title: str | None = None,
     ax.set_ylabel("beta error interval (deg)")
     if title:
         ax.set_title(title)
-    return fig
+    return ax.figure
 
 
 def draw_rectangles(ax, boxes, *, colors=None, tol: float = 0.02, legend: bool = True) -> list:

@@ -154,7 +154,8 @@ def test_notebooks_use_public_names_only(notebook):
 LAYERS = [
     {"errors", "options", "extras", "jit", "atomic", "integrity", "schema", "parallel"},
     {"io", "geometry", "stats", "plans", "calibration", "centroid", "screening"},
-    {"sim", "multihole", "platform_fault", "export", "plots", "hardware", "studies"},
+    {"sim", "multihole", "platform_fault", "export", "plots", "report", "hardware",
+     "studies"},
     {"reproduce", "widgets", "cli", "data", "course"},
 ]
 

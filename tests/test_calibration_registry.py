@@ -161,8 +161,36 @@ def test_order_auto_is_the_librarys(tmp_path):
     assert cal.orders == best.orders and cal.order_scores.equals(scores)
     with pytest.raises(ConfigurationError, match="without a validation table"):
         calibration.fit(_table(1), "polynomial", order="auto")
-    with pytest.raises(ConfigurationError, match="applies to method 'polynomial'"):
-        calibration.fit(_table(1), "trigonometric", _table(2), order="auto")
+    with pytest.raises(ConfigurationError, match="methods that take an order"):
+        calibration.fit(_table(1), "linear", _table(2), order="auto")
+
+
+def test_order_auto_of_another_method_keeps_the_best_validation_error():
+    # the trigonometric expansion has no select_order: each order is fitted on I and scored
+    # by its mean local error on II (alpha + beta), as the paper picks its orders
+    train, val = _table(1, n=7), _table(2, n=7)
+    cal = calibration.fit(train, "trigonometric", val, order="auto", orders=(1, 2, 3),
+                          outlier_mads=None)
+    errors = {}
+    for order in (1, 2, 3):
+        fitted = calibration.Trigonometric(order).fit(train, val)
+        errors[order] = float(stats.local_errors(fitted.predict(val))["local_error"].mean())
+    assert cal.order == min(errors, key=errors.get)
+    assert cal.order_scores["mean_local_error"].to_dict() == errors
+
+
+def test_table4_recipes_are_registry_entries_fitted_by_fit():
+    from sunlab.calibration import methods, registry
+
+    train, val = _table(1, n=7), _table(2, n=7)
+    recipes = methods.table4_methods(neural=False)
+    assert list(recipes) == [k for k, (kind, _) in registry.RECIPES.items() if kind != "neural"]
+    poly = recipes["polynomial"](train, val)
+    best, _ = calibration.Polynomial.select_order(train, val, refit=registry.POLYNOMIAL_REFIT)
+    assert poly.orders == best.orders
+    assert np.array_equal(poly.coefficients["alpha"], best.coefficients["alpha"])
+    cubic = recipes["cubic interp."](train, val)
+    assert cubic.kind == "interpolation-cubic" and "outlier_mads" not in cubic.training
 
 
 def test_evaluate_and_the_library_give_identical_statistics(tmp_path):
@@ -179,3 +207,63 @@ def test_evaluate_and_the_library_give_identical_statistics(tmp_path):
     for a in ("alpha", "beta"):
         for s in ("mu", "sigma", "M", "sigma_M"):
             assert written[f"{a}.{s}"] == float(table[(a, s)])  # bit for bit
+
+
+def test_evaluate_writes_the_files_of_write_report(tmp_path, capsys):
+    # the command only calls the library: its folder and write_report's hold the same files,
+    # byte for byte (the JSON, the CSV and both figures, drawn once from the errors)
+    from sunlab import report
+    from sunlab.cli import main
+
+    cal_path = calibration.fit(_table(1, n=6), "polynomial", order=3).save(tmp_path / "c.json")
+    test_path = tmp_path / "test.nc"
+    io.save_centroids(_table(3, n=6), test_path)
+    assert main(["evaluate", str(cal_path), str(test_path), "--out", str(tmp_path / "cli"),
+                 "--paper"]) == 0
+    got = report.write_report(tmp_path / "lib", calibration.load(cal_path),
+                              io.open_centroids(test_path), paper=True,
+                              sources={"calibration": str(cal_path), "test": str(test_path)})
+    assert [p.name for p in got["files"]] == list(report.REPORT_FILES) and got["notes"] == []
+    assert sorted(p.name for p in (tmp_path / "cli").iterdir()) == sorted(report.REPORT_FILES)
+    for name in report.REPORT_FILES:
+        assert (tmp_path / "cli" / name).read_bytes() == (tmp_path / "lib" / name).read_bytes()
+    assert got["evaluation"]["paper"]["column"] == "polynomial"
+    assert "wrote" in capsys.readouterr().out
+
+
+@pytest.fixture
+def lab_plugin(tmp_path, monkeypatch):
+    """A lab's calibration, registered in the entry point group sunlab.calibrations by a real
+    distribution on sys.path (as the multi-hole strategies are by sunlab's own)."""
+    import sys
+    import textwrap
+
+    (tmp_path / "labcal.py").write_text(textwrap.dedent("""
+        from sunlab.calibration import Polynomial
+
+        class LabPoly(Polynomial):
+            kind = "lab-poly"
+        """))
+    (tmp_path / "labcal_broken.py").write_text("raise RuntimeError('licence server down')\n")
+    info = tmp_path / "labcal-0.1.dist-info"
+    info.mkdir()
+    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: labcal\nVersion: 0.1\n")
+    (info / "entry_points.txt").write_text(
+        "[sunlab.calibrations]\nlab-poly = labcal:LabPoly\nlab-broken = labcal_broken:X\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    yield tmp_path
+    for name in ("labcal", "labcal_broken"):
+        sys.modules.pop(name, None)
+
+
+def test_a_plugin_calibration_is_fitted_saved_and_loaded_by_the_registry(lab_plugin, train):
+    assert calibration.available_kinds()["lab-poly"] == "labcal:LabPoly"
+    cal = calibration.fit(train, "lab-poly", order=2)
+    assert type(cal).__name__ == "LabPoly" and cal.kind == "lab-poly"
+    back = calibration.load(cal.save(lab_plugin / "lab.json"))
+    assert type(back) is type(cal)
+    x, y = train.x.values, train.y.values
+    for got, want in zip(back.predict_xy(x, y), cal.predict_xy(x, y), strict=True):
+        assert np.array_equal(got, want, equal_nan=True)
+    with pytest.raises(ConfigurationError, match=r"lab-broken.*RuntimeError: licence server"):
+        calibration.method_class("lab-broken")

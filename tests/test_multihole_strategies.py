@@ -34,14 +34,16 @@ def _same(a, b):
     lambda: mh.PerHoleAverage(order=2),
     lambda: mh.PerHoleAverage(order=2, weighting="inverse_variance", clip=4.0),
 ])
-def test_save_load_round_trip_is_exact(tables, tmp_path, make):
+def test_calibration_load_reads_a_100_hole_strategy_file_and_predicts_identically(
+        tables, tmp_path, make):
+    # one registry: the file a strategy's save writes is read by calibration.load itself
     train, test = tables
     fitted = make().fit(train)
     assert isinstance(fitted, calibration.Calibration) and fitted.is_fitted
     path = fitted.save(tmp_path / "strategy.json")
     doc = json.loads(path.read_text())
     assert doc["kind"] == fitted.kind and doc["training"]["n_holes"] == 100
-    back = mh.load_strategy(path)
+    back = calibration.load(path)
     assert type(back) is type(fitted)
     _same(back.predict(test), fitted.predict(test))
     if isinstance(fitted, mh.PerHoleAverage):
@@ -55,7 +57,7 @@ def test_a_hole_without_calibration_survives_the_round_trip(tmp_path):
     cen = synthetic_centroids(a, b, shots=1, layout="grid", defects={3: {"missing": 0.5}}, seed=2)
     s2 = mh.PerHoleAverage(order=3).fit(cen)
     assert s2.calibrations_[3] is None and not np.isfinite(s2.variance_[3])
-    back = mh.load_strategy(s2.save(tmp_path / "s2.json"))
+    back = calibration.load(s2.save(tmp_path / "s2.json"))
     assert back.calibrations_[3] is None and np.isinf(back.variance_[3])
     _same(back.predict(cen), s2.predict(cen))
 
@@ -119,10 +121,20 @@ def test_fit_with_validation_records_its_residuals(tables):
     assert s2.residuals["validation"]["alpha"]["rms"] < 0.01  # 0.01 px noise: ~1e-3 deg
 
 
-def test_strategies_have_their_own_registry(tables, tmp_path):
-    # calibration.load knows only single-hole methods and says where a strategy loads
-    path = mh.GeometricCentre(order=2).fit(tables[0]).save(tmp_path / "gc.json")
-    with pytest.raises(SchemaError, match="sunlab.multihole.load_strategy"):
-        calibration.load(path)
-    assert set(mh.STRATEGY_KINDS).isdisjoint(calibration.KINDS)
-    assert type(mh.load_strategy(path)) is mh.GeometricCentre
+def test_strategies_are_entries_of_the_calibration_registry(tables):
+    # registered by entry point (multihole sits above calibration), so the registry's own
+    # doors list them and fit them
+    train, test = tables
+    kinds = calibration.available_kinds()
+    assert {"multihole-geometric-centre", "multihole-per-hole-average"} <= set(kinds)
+    assert calibration.method_class("multihole-geometric-centre") is mh.GeometricCentre
+    s2 = calibration.fit(train, "multihole-per-hole-average", order=2, outlier_mads=None)
+    assert type(s2) is mh.PerHoleAverage
+    _same(s2.predict(test), mh.PerHoleAverage(order=2).fit(train).predict(test))
+
+
+def test_an_unregistered_strategy_kind_names_the_entry_point_group(tables):
+    doc = mh.GeometricCentre(order=2).fit(tables[0]).to_dict()
+    doc["kind"] = "multihole-unknown"
+    with pytest.raises(SchemaError, match="sunlab.calibrations"):
+        calibration.from_dict(doc)

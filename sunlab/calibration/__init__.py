@@ -39,7 +39,8 @@ from __future__ import annotations
 import importlib
 
 _LAZY = {
-    **dict.fromkeys(["KINDS", "FRAME_KINDS", "ALIASES", "fit", "method_class"], "registry"),
+    **dict.fromkeys(["KINDS", "FRAME_KINDS", "ALIASES", "available_kinds", "fit",
+                     "method_class"], "registry"),
     **dict.fromkeys(["from_dict", "load"], "artifact"),
     **dict.fromkeys(["Calibration", "TrainingData", "combine", "training_data"], "base"),
     "calibration_summary": "summary",

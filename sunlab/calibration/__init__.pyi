@@ -17,6 +17,7 @@ from .polynomial import Polynomial as Polynomial
 from .registry import ALIASES as ALIASES
 from .registry import FRAME_KINDS as FRAME_KINDS
 from .registry import KINDS as KINDS
+from .registry import available_kinds as available_kinds
 from .registry import fit as fit
 from .registry import method_class as method_class
 from .summary import calibration_summary as calibration_summary

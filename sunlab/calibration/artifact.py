@@ -2,8 +2,10 @@
 
 :func:`load` reads a JSON file written by :meth:`sunlab.calibration.Calibration.save`,
 :func:`validate_document` checks it against the contract, and :func:`from_dict` rebuilds the
-fitted calibration through the registry (:data:`sunlab.calibration.KINDS`), after the class has
-checked its own parameters: sizes before any array is built, finite numbers, sane ranges.
+fitted calibration through the registry (:func:`sunlab.calibration.available_kinds`: the
+built-in methods and every kind of the entry point group ``sunlab.calibrations``, the
+multi-hole strategies among them), after the class has checked its own parameters: sizes
+before any array is built, finite numbers, sane ranges.
 """
 
 from __future__ import annotations
@@ -16,7 +18,7 @@ from .. import integrity
 from ..errors import SchemaError
 from ..schema import CALIBRATION_SCHEMA, validate_calibration
 from ._checks import _bad
-from .registry import FRAME_KINDS, KINDS, _class_of
+from .registry import ENTRY_POINT_GROUP, available_kinds, method_class
 
 if TYPE_CHECKING:
     from .base import Calibration
@@ -30,7 +32,7 @@ _REQUIRED = ("sunlab_schema", "kind", "sunlab_version", "parameters", "training"
 MAX_FILE_BYTES = 64 * 2**20
 
 
-def validate_document(doc, kinds: dict[str, str] | None = None) -> dict:
+def validate_document(doc) -> dict:
     """Check a ``calibration/1`` document; return it unchanged.
 
     Checks the schema tag, then the JSON Schema of ``data_schema/`` with
@@ -40,9 +42,11 @@ def validate_document(doc, kinds: dict[str, str] | None = None) -> dict:
     ----------
     doc : dict
         The parsed document.
-    kinds : dict, optional
-        The registry its kind must be in (default :data:`sunlab.calibration.KINDS` and
-        :data:`~sunlab.calibration.registry.FRAME_KINDS`).
+
+    Returns
+    -------
+    dict
+        ``doc`` itself, checked.
 
     Returns
     -------
@@ -78,30 +82,32 @@ def validate_document(doc, kinds: dict[str, str] | None = None) -> dict:
                           "the file is truncated or edited; re-fit the calibration")
     validate_calibration(doc)
     kind = doc.get("kind")
-    registry = _registry(kinds)
+    registry = available_kinds()
     if kind not in registry:
-        fix = ("a multi-hole strategy: load it with sunlab.multihole.load_strategy"
-               if str(kind).startswith("multihole-") and kinds is None
-               else "the file is corrupt or from a newer sunlab; re-fit the calibration")
+        fix = (f"a multi-hole strategy registers as an entry point of {ENTRY_POINT_GROUP!r}; "
+               "reinstall sunlab (pip install -e .) so that it is found"
+               if str(kind).startswith("multihole-")
+               else "the file is corrupt, from a newer sunlab, or of a plug-in that is not "
+               f"installed (entry point group {ENTRY_POINT_GROUP!r}); re-fit the calibration "
+               "or install the plug-in")
         raise SchemaError("kind", kind, f"one of {sorted(registry)}", fix)
     return doc
 
 
-def _registry(kinds: dict[str, str] | None) -> dict[str, str]:
-    """The table a document's kind is looked up in: ``kinds``, or every single-hole kind."""
-    return {**KINDS, **FRAME_KINDS} if kinds is None else kinds
-
-
-def from_dict(doc: dict, *, kinds: dict[str, str] | None = None) -> Calibration:
+def from_dict(doc: dict) -> Calibration:
     """Rebuild a fitted calibration from its ``calibration/1`` document.
 
     Parameters
     ----------
     doc : dict
-        The document (:meth:`Calibration.to_dict`, or a parsed JSON file).
-    kinds : dict, optional
-        The registry to look the kind up in (default :data:`KINDS`; the multi-hole strategies
-        pass theirs).
+        The document (:meth:`Calibration.to_dict`, or a parsed JSON file), of any kind of
+        :func:`sunlab.calibration.available_kinds`.
+
+    Returns
+    -------
+    Calibration
+        The fitted calibration of the document's kind (a multi-hole strategy's nested
+        calibrations rebuilt too).
 
     Returns
     -------
@@ -118,10 +124,10 @@ def from_dict(doc: dict, *, kinds: dict[str, str] | None = None) -> Calibration:
     >>> cal.kind
     'polynomial'
     """
-    validate_document(doc, kinds)
+    validate_document(doc)
     if not isinstance(doc["parameters"], dict):
         raise _bad("", type(doc["parameters"]).__name__, "an object")
-    cls = _class_of(doc["kind"], _registry(kinds))
+    cls = method_class(doc["kind"], frames=True)
     cls._check_parameters(doc["parameters"])
     try:
         obj = cls._from_parameters(doc["parameters"])
@@ -138,8 +144,9 @@ def from_dict(doc: dict, *, kinds: dict[str, str] | None = None) -> Calibration:
     return obj
 
 
-def load(path, *, kinds: dict[str, str] | None = None) -> Calibration:
-    """Load a calibration written by :meth:`Calibration.save`.
+def load(path) -> Calibration:
+    """Load a calibration written by :meth:`Calibration.save`: any kind of the registry, a
+    multi-hole strategy included.
 
     Sizes are checked before any array is built (the file itself at most
     :data:`MAX_FILE_BYTES`; an order or a layer width must match its coefficient lists), and
@@ -149,8 +156,13 @@ def load(path, *, kinds: dict[str, str] | None = None) -> Calibration:
     ----------
     path : str or path-like
         The JSON file.
-    kinds : dict, optional
-        The registry of :func:`from_dict` (default :data:`KINDS`).
+
+    Returns
+    -------
+    Calibration
+        The fitted calibration (``predict``, ``predict_xy``, ``save``), e.g. a
+        :class:`~sunlab.calibration.Polynomial` or a
+        :class:`~sunlab.multihole.PerHoleAverage`.
 
     Returns
     -------
@@ -203,6 +215,6 @@ def load(path, *, kinds: dict[str, str] | None = None) -> Calibration:
         ) from err
     # a depth limit; the fields; the checksum Calibration.save wrote
     integrity.check_depth(doc, path)
-    cal = from_dict(doc, kinds=kinds)
+    cal = from_dict(doc)
     integrity.verify_document(doc, path)
     return cal

@@ -316,8 +316,6 @@ class Calibration:
 
     #: The ``kind`` written to the artifact.
     kind: ClassVar[str] = ""
-    #: The registry the artifact's kind is looked up in (None: :data:`KINDS`).
-    kinds: ClassVar[dict[str, str] | None] = None
     #: How training points are formed: ``"pose"`` (pose means) or ``"shot"``.
     average: str = "pose"
 
@@ -590,7 +588,7 @@ class Calibration:
         """
         path = atomic.check_target(path, overwrite=overwrite)
         doc = self.to_dict()
-        validate_document(doc, self.kinds)
+        validate_document(doc)
         text = json.dumps(integrity.seal_document(doc), indent=1, allow_nan=False) + "\n"
         return atomic.write_text(path, text, overwrite=overwrite)
 

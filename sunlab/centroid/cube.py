@@ -16,7 +16,7 @@ import numpy as np
 from .. import parallel
 from ..errors import ConfigurationError, SchemaError
 from ..io.calframes import corrected_frames, corrected_saturation, has_calibration_frames
-from .estimators import METHODS
+from .estimators import METHODS, PER_SPOT
 from .lattice import SPOT_METRICS, locate_spots
 
 __all__ = ["locate", "locate_all", "is_multi_hole", "default_method"]
@@ -370,11 +370,12 @@ def _apply_single(frames, func, options):
 
 def _multi_options(cube, method, options):
     """Options of :func:`locate_spots` for a multi-hole cube: its holes and grid shape."""
-    if method not in ("tight", "fit"):
+    if method not in PER_SPOT.values():
         raise ConfigurationError(
             f"method: found {method!r} for a multi-hole cube (dimension 'hole'); {method!r} is a "
-            "single-spot algorithm. Fix: pass method='tight' (the tight window of every spot) or "
-            "'fit' (a disk fit of every spot), or multi=False for one spot per frame"
+            f"single-spot algorithm. Fix: pass method={PER_SPOT.get(method, 'tight')!r} (one of "
+            f"{sorted(set(PER_SPOT.values()))}: 'tight', the tight window of every spot; 'fit', "
+            "a disk fit of every spot), or multi=False for one spot per frame"
         )
     if "hole_i" not in cube.variables or "hole_j" not in cube.variables:
         raise SchemaError("hole_i, hole_j", "missing", "grid row/column of each hole on dim "

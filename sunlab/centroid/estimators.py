@@ -2,7 +2,8 @@
 
 Every estimator has the signature ``method(frame, **options)`` and returns a
 :class:`~sunlab.centroid.result.Centroid`; :data:`METHODS` names them (the ``method=`` of
-:func:`sunlab.centroid.locate`).
+:func:`sunlab.centroid.locate`), the one table of centroid methods, and :data:`PER_SPOT` says
+which of them runs on every spot of a multi-hole frame.
 
 Examples
 --------
@@ -13,6 +14,8 @@ Examples
 ['fit', 'projection', 'threshold', 'tight']
 >>> round(METHODS["tight"](frame).x, 2)
 120.5
+>>> set(PER_SPOT) == set(METHODS) and sorted(set(PER_SPOT.values()))
+['fit', 'tight']
 """
 
 from __future__ import annotations
@@ -42,7 +45,7 @@ from .result import (
 )
 
 __all__ = [
-    "METHODS", "threshold_window", "projection_window", "tight_window", "disk_fit",
+    "METHODS", "PER_SPOT", "threshold_window", "projection_window", "tight_window", "disk_fit",
     "border_mean", "first_hit", "projection_profiles",
 ]
 
@@ -675,4 +678,16 @@ METHODS: dict[str, Callable[..., Centroid]] = {
     "projection": projection_window,
     "tight": tight_window,
     "fit": disk_fit,
+}
+
+#: For each method of :data:`METHODS`, the estimator of every spot of a multi-hole frame
+#: (:func:`sunlab.centroid.locate_spots`, ``locate(..., method)`` on a cube with holes): the
+#: tight window and the disk fit measure each spot in its own window; the paper's algorithms A
+#: and B, whose threshold scan and profiles span the whole frame, cannot separate 100 spots, so
+#: they give each spot the tight window. The values are the per-spot estimators.
+PER_SPOT: dict[str, str] = {
+    "threshold": "tight",
+    "projection": "tight",
+    "tight": "tight",
+    "fit": "fit",
 }

@@ -19,6 +19,7 @@ from . import _k_aperture, _k_lattice
 from ._detection import _background_band, _detect, _first_radius
 from ._diskfit import _fit_from
 from ._local import _local_centroid
+from .estimators import PER_SPOT
 from .moments import SpotMoments
 from .result import (
     _AMBIGUOUS,
@@ -192,8 +193,8 @@ def locate_spots(
     >>> round(float(s.x[5]), 2), round(float(s.y[5]), 2), int(s.i[5]), int(s.j[5])
     (180.5, 170.0, 1, 1)
     """
-    if method not in ("tight", "fit"):
-        raise ConfigurationError(f"method: found {method!r}, expected 'tight' or 'fit'")
+    if method not in (spot := sorted(set(PER_SPOT.values()))):  # the per-spot estimators
+        raise ConfigurationError(f"method: found {method!r}, expected one of {spot}")
     _check_positive("pitch", pitch, "give the hole pitch on the detector in px")
     hi, hj, lut = _hole_table(shape, holes)
     opts = _SpotOptions(int(stride), float(nsigma), float(min_contrast), int(min_samples),

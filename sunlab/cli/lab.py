@@ -25,7 +25,6 @@ False
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 from ..errors import SchemaError
@@ -37,9 +36,6 @@ __all__ = [
     "open_centroid_table",
     "cube_from_folder",
 ]
-
-_STATS = ("mu", "sigma", "M", "sigma_M")
-
 
 # --------------------------------------------------------------------------------------------
 # sunlab info CAL.json (standard library only; the text: sunlab.calibration.summary)
@@ -288,34 +284,24 @@ def _add_evaluate(sub) -> None:
     p.set_defaults(func=_run_evaluate)
 
 
-def _figure_bytes(fig) -> bytes:
-    import io as _io
-
-    buf = _io.BytesIO()
-    fig.savefig(buf, format="png", dpi=110, facecolor="white")
-    return buf.getvalue()
-
-
 def _run_evaluate(args) -> int:
-    import numpy as np
+    """``sunlab evaluate``: :func:`sunlab.stats.evaluate` printed as the paper's Table 4, and
+    with ``--out`` the files of :func:`sunlab.report.write_report`."""
     import pandas as pd
 
-    from .. import atomic, calibration, stats
+    from .. import atomic, calibration, report, stats
 
-    out = None if args.out is None else Path(args.out)
-    names = ("evaluation.json", "errors.csv", "fig10_error_maps.png", "fig11_histograms.png")
-    if out is not None:  # checked now, made only once every file is written
-        atomic.check_folder(out, names, overwrite=args.overwrite, flag="--overwrite")
+    if args.out is not None:  # checked now, before any work; made once every file is written
+        atomic.check_folder(args.out, report.REPORT_FILES, overwrite=args.overwrite,
+                            flag="--overwrite")
     cal = calibration.load(args.calibration)
     test = open_centroid_table(args.test, "test")
-    table, est, local = stats.evaluate(cal, test, return_errors=True)
-    col = table[cal.label]
-    n_out = int(est.attrs["n_out_of_domain"])
-    from ..schema import STATUS, USABLE_STATUS
-
-    n_ok = int(np.isin(test["status"].values, [STATUS[k] for k in USABLE_STATUS]).sum())
-    print(f"{cal.label} on {args.test}: {test.sizes['pose']} poses x {test.sizes['shot']} shots "
-          f"({n_ok} ok); global statistics (deg), as the paper's Table 4:")
+    evaluation = stats.evaluate(cal, test, return_errors=True)
+    sources = {"calibration": args.calibration, "test": args.test}
+    doc = report.evaluation_document(cal, test, evaluation, paper=args.paper, sources=sources)
+    table = evaluation[0]
+    print(f"{cal.label} on {args.test}: {doc['n_poses']} poses x {doc['n_shots']} shots "
+          f"({doc['n_ok_shots']} ok); global statistics (deg), as the paper's Table 4:")
     shown = table.rename(columns={cal.label: f"{cal.label} (sunlab)"})
     if args.paper:
         paper = stats.paper_table4()
@@ -325,93 +311,21 @@ def _run_evaluate(args) -> int:
     print(shown.to_string(float_format=lambda v: f"{v:.5f}"))
     from ..calibration.plausibility import implausible
 
+    col = table[cal.label]
     for finding in implausible(cal, test_mu={a: col[(a, "mu")] for a in ("alpha", "beta")}):
         print(f"warning: implausible: {finding}")
-    if n_out:
-        print(f"warning: {n_out} centroid(s) outside the calibrated domain (extrapolated"
-              f"{' or NaN' if cal.kind.startswith('interpolation') else ''}); see in_domain in "
-              "errors.csv")
-    if out is None:
+    if doc["n_out_of_domain"]:
+        print(f"warning: {doc['n_out_of_domain']} centroid(s) outside the calibrated domain "
+              f"(extrapolated{' or NaN' if cal.kind.startswith('interpolation') else ''}); see "
+              "in_domain in errors.csv")
+    if args.out is None:
         return 0
-    doc = _evaluation_doc(args, cal, test, col, n_ok, n_out)
-    rows = pd.DataFrame({
-        "pose": test["pose"].values,
-        "alpha_cmd": test["alpha"].values, "beta_cmd": test["beta"].values,
-        **{f"{a}_{v}": local[v].sel(angle=a).values for a in ("alpha", "beta")
-           for v in ("local_error", "max_error")},
-        "n_shots": local["n_shots"].sel(angle="alpha").values,
-        "in_domain": est["in_domain"].all("shot").values,
-    })
-    # every file or none (sunlab.atomic.atomic_files)
-    with atomic.atomic_files(out, names, overwrite=args.overwrite, flag="--overwrite") as tmp:
-        (tmp / names[0]).write_text(json.dumps(doc, indent=1) + "\n", encoding="utf-8")
-        (tmp / names[1]).write_text(rows.to_csv(index=False, float_format="%.8g"),
-                                    encoding="utf-8")
-        written = [names[0], names[1]] + _write_evaluation_figures(args, cal, local, tmp,
-                                                                   names[2:])
-    print(f"wrote {', '.join(str(out / n) for n in written)}")
+    written = report.write_report(args.out, cal, test, evaluation, paper=args.paper,
+                                  sources=sources, overwrite=args.overwrite, flag="--overwrite")
+    for note in written["notes"]:
+        print(note)
+    print(f"wrote {', '.join(map(str, written['files']))}")
     return 0
-
-
-def _evaluation_doc(args, cal, test, col, n_ok: int, n_out: int) -> dict:
-    """``evaluation.json``: the eight statistics, what was evaluated, and the paper's column."""
-    import numpy as np
-
-    from .. import stats
-
-    doc = {f"{a}.{s}": (None if not np.isfinite(col[(a, s)]) else float(col[(a, s)]))
-           for a in ("alpha", "beta") for s in _STATS}
-    doc.update({
-        "units": "deg", "calibration": str(args.calibration), "label": cal.label,
-        "kind": cal.kind, "test": str(args.test), "n_poses": int(test.sizes["pose"]),
-        "n_shots": int(test.sizes["shot"]), "n_ok_shots": n_ok, "n_out_of_domain": n_out,
-        "ddof": 1,
-        "definitions": "local error = mean over the shots of a pose of |estimated - commanded|; "
-                       "maximum error = max over the shots; mu, sigma = mean, sample std of "
-                       "the local errors over poses; M, sigma_M = the same of the maximum errors",
-    })
-    want = stats.PAPER_COLUMNS.get(cal.kind) if args.paper else None
-    if want:
-        paper = stats.paper_table4()[want]
-        doc["paper"] = {"column": want, **{f"{a}.{s}": float(paper[(a, s)])
-                                           for a in ("alpha", "beta") for s in _STATS}}
-    return doc
-
-
-def _write_evaluation_figures(args, cal, local, out: Path, names) -> list[str]:
-    """Fig. 10 (error maps, when the test poses form a grid) and Fig. 11 (histograms)."""
-    from .. import plots
-
-    written = []
-    try:
-        fig10 = plots.error_maps(local, title=f"{cal.label}: errors on {Path(args.test).name}")
-    except (ValueError, KeyError) as err:  # poses that do not form a grid: no map
-        print(f"no Fig. 10 (error maps): the test poses do not form a grid ({err})")
-    else:
-        (out / names[0]).write_bytes(_figure_bytes(fig10))
-        written.append(names[0])
-    fig11 = plots.new_figure(figsize=(9, 3.4), layout="constrained")
-    for ax, a in zip(fig11.subplots(1, 2), ("alpha", "beta"), strict=True):
-        h = plots.error_histogram(local, angle=a, title=f"local error of {a}")
-        _copy_histogram(h.axes[0], ax)
-    (out / names[1]).write_bytes(_figure_bytes(fig11))
-    return written + [names[1]]
-
-
-def _copy_histogram(src, ax) -> None:
-    """Redraw a one-axes histogram figure (bars + normal curve) into ``ax``."""
-    for patch in src.patches:
-        x, w, h = patch.get_x(), patch.get_width(), patch.get_height()
-        ax.bar(x, h, width=w, align="edge", color=patch.get_facecolor(),
-               edgecolor=patch.get_edgecolor())
-    for line in src.lines:
-        ax.plot(*line.get_data(), color=line.get_color(), label=line.get_label())
-    ax.set_ylim(src.get_ylim())  # the source's headroom keeps the legend clear of the bars
-    ax.set_title(src.get_title())
-    ax.set_xlabel(src.get_xlabel())
-    ax.set_ylabel(src.get_ylabel())
-    if any(not str(line.get_label()).startswith("_") for line in src.lines):
-        ax.legend(fontsize="small")
 
 
 # --------------------------------------------------------------------------------------------

@@ -15,8 +15,9 @@ mean. One module per concept:
 ===============================  ==============================================================
 :mod:`~sunlab.multihole.holes`   grid indices, usable spots, cut-outs, centroiding a free layout
 :mod:`~.strategies`              the two strategies, as :class:`sunlab.calibration.Calibration`
-                                 subclasses in their own registry (:data:`STRATEGY_KINDS`,
-                                 :func:`load_strategy`); combining per-hole estimates
+                                 subclasses, entries of the calibration registry
+                                 (:func:`sunlab.calibration.load` reads them); combining
+                                 per-hole estimates
 :mod:`~.defects`                 per-hole defect metrics, robust z-scores, bad-hole rejection
 :mod:`~.budget`                  the error budget and the gain of N holes over one
 :mod:`~.review`                  every hole's results, what the hole explorer shows
@@ -64,14 +65,11 @@ from .defects import (
 from .holes import centroid_free_layout, cutout, hole_grid, usable
 from .review import HoleReview, injected_defects, review_holes
 from .strategies import (
-    STRATEGY_KINDS,
     GeometricCentre,
     PerHoleAverage,
     angle_errors,
     combine_estimates,
     geometric_centre,
-    load_strategy,
-    strategy_from_dict,
 )
 
 __all__ = [
@@ -82,9 +80,6 @@ __all__ = [
     "geometric_centre",
     "GeometricCentre",
     "PerHoleAverage",
-    "STRATEGY_KINDS",
-    "load_strategy",
-    "strategy_from_dict",
     "combine_estimates",
     "angle_errors",
     "stamp_metrics",

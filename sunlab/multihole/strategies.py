@@ -8,11 +8,13 @@
 Both honour the protocol of :class:`sunlab.calibration.Calibration`: ``fit(train,
 validation=None)`` on tables on ``(pose, shot, hole)``, ``predict`` an estimate on
 ``(pose, shot)``, ``predict_xy(x, y)`` on centroid arrays whose last axis is the hole,
-``to_dict`` / :func:`strategy_from_dict` and ``save`` / :func:`load_strategy` (contract
-``calibration/1``, kinds ``multihole-geometric-centre`` and ``multihole-per-hole-average``, the
-fitted per-hole or centre calibrations nested as their own documents). They calibrate a whole
-mask, not one spot, so they are registered in their own table, :data:`STRATEGY_KINDS`, beside
-the single-hole methods of :data:`sunlab.calibration.KINDS`.
+``to_dict`` / :func:`sunlab.calibration.from_dict` and ``save`` /
+:func:`sunlab.calibration.load` (contract ``calibration/1``, kinds
+``multihole-geometric-centre`` and ``multihole-per-hole-average``, the fitted per-hole or
+centre calibrations nested as their own documents). They are entries of the one calibration
+registry, registered by entry point (group ``sunlab.calibrations`` in ``pyproject.toml``, as a
+lab's plug-in would be: multihole sits above calibration), so ``sunlab.calibration.fit(table,
+"multihole-per-hole-average", order=3)`` fits one and ``sunlab.calibration.load`` reads one.
 
 Both handle holes missing from some frames (off the detector, lost, flagged) without biasing
 the result: the geometric centre is solved from the holes present with each hole's fitted
@@ -36,7 +38,7 @@ from typing import ClassVar
 import numpy as np
 import xarray as xr
 
-from ..calibration import Calibration, from_dict, load
+from ..calibration import Calibration, from_dict
 from ..errors import ConfigurationError, SchemaError
 from ._tables import (
     _angles_dataset,
@@ -56,61 +58,12 @@ from ._tables import (
 from .holes import usable
 
 __all__ = [
-    "STRATEGY_KINDS",
-    "load_strategy",
-    "strategy_from_dict",
     "geometric_centre",
     "GeometricCentre",
     "PerHoleAverage",
     "combine_estimates",
     "angle_errors",
 ]
-
-
-#: The multi-hole strategies, registered once: ``kind`` of the artifact -> ``"module:Class"``
-#: (the registry of :func:`load_strategy`, as :data:`sunlab.calibration.KINDS` is of
-#: :func:`sunlab.calibration.load`).
-STRATEGY_KINDS: dict[str, str] = {
-    "multihole-geometric-centre": "sunlab.multihole.strategies:GeometricCentre",
-    "multihole-per-hole-average": "sunlab.multihole.strategies:PerHoleAverage",
-}
-
-
-def load_strategy(path) -> Calibration:
-    """Load a multi-hole strategy saved with ``save`` (:func:`sunlab.calibration.load` with
-    the registry :data:`STRATEGY_KINDS`).
-
-    Parameters
-    ----------
-    path : str or path-like
-        The JSON file (contract ``calibration/1``).
-
-    Returns
-    -------
-    GeometricCentre or PerHoleAverage
-
-    Raises
-    ------
-    SchemaError
-        The file is missing, corrupt, or not a multi-hole strategy (the message names the
-        field and the fix).
-    """
-    return load(path, kinds=STRATEGY_KINDS)
-
-
-def strategy_from_dict(doc: dict) -> Calibration:
-    """Rebuild a multi-hole strategy from its ``calibration/1`` document (``to_dict``).
-
-    Parameters
-    ----------
-    doc : dict
-        The document.
-
-    Returns
-    -------
-    GeometricCentre or PerHoleAverage
-    """
-    return from_dict(doc, kinds=STRATEGY_KINDS)
 
 
 def geometric_centre(cen: xr.Dataset, accept: Sequence[str] = ("ok",)) -> xr.Dataset:
@@ -194,14 +147,14 @@ class GeometricCentre(Calibration):
     Saved and loaded like every calibration (JSON, contract ``calibration/1``):
 
     >>> import os, tempfile
+    >>> from sunlab import calibration
     >>> s1 = GeometricCentre(order=1).fit(cen)
-    >>> back = load_strategy(s1.save(os.path.join(tempfile.mkdtemp(), "gc.json")))
+    >>> back = calibration.load(s1.save(os.path.join(tempfile.mkdtemp(), "gc.json")))
     >>> bool(np.array_equal(back.predict(cen).alpha, s1.predict(cen).alpha, equal_nan=True))
     True
     """
 
     kind: ClassVar[str] = "multihole-geometric-centre"
-    kinds: ClassVar[dict[str, str]] = STRATEGY_KINDS
     order: int = 5
     model: Callable | None = None
     holes: np.ndarray | None = None
@@ -521,7 +474,6 @@ class PerHoleAverage(Calibration):
     """
 
     kind: ClassVar[str] = "multihole-per-hole-average"
-    kinds: ClassVar[dict[str, str]] = STRATEGY_KINDS
     order: int = 5
     model: Callable | None = None
     holes: np.ndarray | None = None

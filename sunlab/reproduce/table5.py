@@ -33,6 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import parallel
+from ..centroid.estimators import PER_SPOT
 from ..errors import ConfigurationError
 from .pipeline import (
     centroid_status,
@@ -53,7 +54,7 @@ REJECTION_COLUMN = "100 holes: averaging + rejection"
 #: The per-spot centroid estimator on the 100-hole frames for each method of the table: the
 #: single-spot algorithms (B's profiles run over the whole frame) cannot separate 100 spots, so
 #: there each spot gets its own tight window (:func:`sunlab.centroid.locate_spots`).
-SPOT_METHODS = {"projection": "tight", "threshold": "tight", "tight": "tight", "fit": "fit"}
+SPOT_METHODS = PER_SPOT
 
 
 def spot_method(method: str) -> str:
