@@ -76,5 +76,5 @@ def test_metrics_and_dataframe_carry_every_documented_metric(grid):
 
 
 def test_a_frame_without_spots_has_no_spot_in_every_hole():
-    s = locate_spots(np.full(SHAPE, 30, np.uint16), shape=(3, 4), pitch=PITCH)
+    s = locate_spots(np.full(SHAPE, 30.0), shape=(3, 4), pitch=PITCH)
     assert np.all(s.status == STATUS["no_spot"]) and np.all(np.isnan(s.x))
