@@ -49,8 +49,8 @@ def test_a_fitted_calibrations_own_summary_matches_its_saved_document():
 
 
 def test_an_interpolation_reports_its_leave_one_out_errors():
-    a, b = np.meshgrid(np.arange(-3.0, 3.1), np.arange(-3.0, 3.1))
+    a, b = np.meshgrid(np.arange(-3.0, 3.1, 2.0), np.arange(-3.0, 3.1, 2.0))
     cal = Interpolation("linear").fit(sim.synthetic_centroids(a.ravel(), b.ravel(), shots=1))
     text = calibration_summary(cal.to_dict())
-    assert "49 nodes" in text and "~0 by construction" in text
+    assert "16 nodes" in text and "~0 by construction" in text
     assert "leave-one-out errors (deg): alpha mean|e| " in text

@@ -2,6 +2,7 @@
 deterministic in the seed, each frame's spot where the returned truth says."""
 
 import csv
+import io
 
 import numpy as np
 import pytest
@@ -23,7 +24,7 @@ def test_folders_manifests_and_sensor_json(rec):
     assert rec.poses["train"].shape == (9, 2) and rec.poses["test"].shape == (4, 2)
     np.testing.assert_array_equal(np.unique(rec.poses["test"][:, 0]), [-3.0, 3.0])
     for name in ("train", "test"):
-        rows = list(csv.DictReader(open(rec.folder / name / "manifest.csv")))
+        rows = list(csv.DictReader(io.StringIO((rec.folder / name / "manifest.csv").read_text())))
         assert len(rows) == rec.truth[name].shape[0] * rec.truth[name].shape[1]
         assert all((rec.folder / name / r["file"]).is_file() for r in rows)
         sensor = read_sensor_json(rec.folder / name / "sensor.json")

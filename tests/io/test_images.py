@@ -39,7 +39,7 @@ def test_8_bit_png_stays_8_bit(tmp_path):
 def test_a_page_of_a_tiff_stack(tmp_path):
     path = tmp_path / "stack.tif"
     stack = np.stack([FRAME, FRAME + 1, FRAME + 2])
-    tifffile.imwrite(path, stack)
+    tifffile.imwrite(path, stack, photometric="minisblack")
     np.testing.assert_array_equal(read_image(path, page=2), FRAME + 2)
     with pytest.raises(SchemaError, match=r"a page 0 \.\. 2 of this stack"):
         read_image(path, page=3)

@@ -60,17 +60,13 @@ def _tables(**errors):
             synthetic_centroids(a + 0.5, b + 0.5, seed=2, **kw))
 
 
-def test_gain_study_nears_root_n_with_hole_errors_only():
-    g = gain_study(*_tables(hole_sigma_px=0.1), order=4)
-    assert g["gain"]["averaging"]["alpha"]["rms"] > 5
-    assert g["bad"] == []  # no defect was injected
-    assert set(g["stats"]) == {"one_hole_median", "geometric_centre",
-                               "geometric_centre_rejected", "averaging", "averaging_rejected"}
-
-
 def test_gain_study_gains_nothing_on_an_error_common_to_all_holes():
     # a common platform error of 0.05 deg next to ~0.008 deg of hole errors: the limit is
     # sqrt((c^2 + s^2) / (c^2 + s^2 / 100)) ~ 1.01
+    # (without it the same tables gain more than 5: gain_study's own example)
     g = gain_study(*_tables(hole_sigma_px=0.1, common_sigma_deg=0.05), order=4)
     assert g["gain"]["averaging"]["alpha"]["rms"] < 1.2
     assert g["budget"]["alpha"]["gain_limit"] < 1.2
+    assert g["bad"] == []  # no defect was injected
+    assert set(g["stats"]) == {"one_hole_median", "geometric_centre",
+                               "geometric_centre_rejected", "averaging", "averaging_rejected"}

@@ -11,6 +11,7 @@ import math
 
 import pytest
 
+from sunlab.studies import identification as idn
 from sunlab.studies.averaging import MECHANISMS, PAPER_RATIO, mechanisms
 
 
@@ -22,7 +23,9 @@ def test_paper_ratio_is_table5s():
 
 @pytest.fixture(scope="module")
 def table():
-    return mechanisms(step=4, shots=2)
+    # a seed of the shipped evidence (its draw and fit are read from it), as notebook 06 does
+    seed = int(idn.load_evidence()["seed"].min())
+    return mechanisms(seeds=(seed,), step=4, shots=2)
 
 
 def test_one_row_per_mechanism_with_finite_ratios(table):
