@@ -508,7 +508,7 @@ def real_spectrum_tabulated(fx, fy, ap, area, km, u, ax, ay, diff, use_ap, tab_a
 
     ``tab_ap`` = ``disk_ft_table(0.0)`` (the aperture's jinc) and ``tab_u`` =
     ``disk_ft_table(u)`` (the sun disk). The interpolation error, below 2e-10 of the spectrum's
-    peak on the paper's bench (``tests/test_sim_kernels.py`` measures it), is smaller than the
+    peak on the paper's bench (``tests/sim/test_kernels.py`` measures it), is smaller than the
     1e-8 of the Bessel approximation both paths share; the evaluation is 3-4x faster (no
     trigonometric call per frequency).
     """

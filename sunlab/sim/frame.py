@@ -10,7 +10,7 @@ Every frame is deterministic in (seed, pose, shot): its noise is a counter-based
 The shots of one pose share the spots' shape (:func:`render_pose`): the aperture's projection
 and the sun-disk kernel are evaluated once per pose, at its first shot, and each shot places the
 spots at its own rays with its own flux. The platform's jitter between shots (0.0005 deg RMS)
-changes the shape by parts in 1e5, below one photo-electron (``tests/test_sim_render.py``).
+changes the shape by parts in 1e5, below one photo-electron (``tests/sim/test_render.py``).
 
 Examples
 --------
@@ -47,7 +47,7 @@ def _pose_stamps(bench, alphas, betas, play_mm, shape_angles):
     flux of their own obliquity; their shape (aperture projection, sun-disk kernel, the
     kernel's centroid offset) is that of the angles ``shape_angles``, the pose's first shot in
     a cube. The jitter between the shots of a pose (0.0005 deg RMS on the paper's bench)
-    changes the shape by parts in 1e5; ``tests/test_sim_render.py`` bounds the difference
+    changes the shape by parts in 1e5; ``tests/sim/test_render.py`` bounds the difference
     from the exact stamps. Returns one list [(image, x0, y0), ...] per shot.
     """
     geom = spot_geometry(bench, shape_angles[0], shape_angles[1], play_mm)

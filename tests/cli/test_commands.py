@@ -63,7 +63,7 @@ def _sunlab(*args, **popen):
     import sys
     from pathlib import Path
 
-    root = Path(__file__).parents[1]
+    root = Path(__file__).parents[2]
     env = dict(os.environ, PYTHONPATH=str(root) + os.pathsep + os.environ.get("PYTHONPATH", ""))
     return subprocess.Popen([sys.executable, "-m", "sunlab.cli", *map(str, args)], env=env,
                             stderr=subprocess.PIPE, text=True, **popen)

@@ -12,7 +12,7 @@ import pytest
 from sunlab import stats
 from sunlab.studies import identification as idn
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture(scope="module")

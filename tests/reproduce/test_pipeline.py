@@ -1,0 +1,70 @@
+"""The shared pipeline of the reproduced tables (sunlab.reproduce.pipeline): the plans of Table 3
+as run, which frames the calibrations use, the status counts, and the results file."""
+
+import json
+
+import numpy as np
+import pytest
+
+from sunlab import plans, schema
+from sunlab.reproduce.pipeline import (
+    EXPERIMENTS,
+    QUICK,
+    centroid_status,
+    experiment_plans,
+    usable_table,
+    write_json,
+)
+
+
+def test_full_plans_are_table3s_and_quick_thins_every_grid_axis():
+    full = experiment_plans()
+    assert set(full) == set(EXPERIMENTS) == {"I", "II", "III"}
+    for name, plan in full.items():
+        assert len(plan) == len(plans.experiment(name)) and plan.shots == 8
+    quick = experiment_plans(quick=True)
+    assert {k: p.shots for k, p in quick.items()} == dict.fromkeys(EXPERIMENTS, QUICK["shots"])
+    # every 2nd angle along each axis: a 20 x 20 grid keeps 10 x 10
+    assert len(quick["I"]) == 100 and len(quick["III"]) == 100
+    a = np.unique(quick["I"].alpha)
+    assert np.allclose(np.diff(a), 2 * np.diff(np.unique(full["I"].alpha))[0])
+    # explicit step and shots override quick
+    assert {k: (len(p), p.shots) for k, p in experiment_plans(("I",), quick=True, step=4,
+                                                              shots=3).items()} == {"I": (25, 3)}
+
+
+def _table(statuses):
+    n = len(statuses)
+    return schema.centroids_dataset(np.ones((1, n)), np.ones((1, n)), alpha=[0.0], beta=[0.0],
+                                    status=[[schema.STATUS[s] for s in statuses]])
+
+
+def test_usable_statuses_become_ok_and_the_others_stay():
+    cen = _table(["ok", "repaired", "saturated", "no_spot"])
+    out = usable_table(cen)
+    names = [schema.STATUS_NAMES[int(s)] for s in out.status.values[0]]
+    usable = set(schema.USABLE_STATUS)
+    assert names == [("ok" if s in usable else s)
+                     for s in ("ok", "repaired", "saturated", "no_spot")]
+    assert out.status.dtype == cen.status.dtype
+
+
+def test_status_counts_list_what_the_calibrations_leave_out():
+    counts = centroid_status({"I": _table(["ok", "ok", "repaired", "saturated", "clipped"])})
+    assert counts["I"]["ok"] == 2 and counts["I"]["saturated"] == 1
+    removed = counts["I"]["removed"]
+    assert removed == {k: 1 for k in ("repaired", "saturated", "clipped")
+                       if k not in schema.USABLE_STATUS}
+
+
+def test_results_file_is_plain_json_and_replaces_a_planted_link(tmp_path):
+    target = tmp_path / "elsewhere.txt"
+    target.write_text("keep")
+    path = tmp_path / "table4.json"
+    path.symlink_to(target)
+    assert write_json({"mu": np.float64(0.5), "n": np.arange(3), "ok": np.bool_(True)},
+                      path) == str(path)
+    assert json.loads(path.read_text()) == {"mu": 0.5, "n": [0, 1, 2], "ok": True}
+    assert not path.is_symlink() and target.read_text() == "keep"
+    with pytest.raises(TypeError):
+        write_json({"x": object()}, tmp_path / "bad.json")

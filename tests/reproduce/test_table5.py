@@ -1,0 +1,49 @@
+"""Table 5's pieces (sunlab.reproduce.table5) that need no simulated run: the per-spot
+estimator, the mounting offset that numbers the 100 spots, and the text of the table."""
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from sunlab import sim, stats
+from sunlab.errors import ConfigurationError
+from sunlab.reproduce.table5 import (
+    COLUMNS,
+    REJECTION_COLUMN,
+    SPOT_METHODS,
+    format_table5,
+    mounting_offset_px,
+    spot_method,
+)
+
+
+def test_single_spot_algorithms_become_the_tight_window_on_100_spots():
+    assert {m: spot_method(m) for m in SPOT_METHODS} == {
+        "projection": "tight", "threshold": "tight", "tight": "tight", "fit": "fit"}
+    with pytest.raises(ConfigurationError, match="method: found 'nearest'"):
+        spot_method("nearest")
+
+
+def test_mounting_offset_is_the_median_shift_from_the_design_track():
+    a, b = np.meshgrid(np.arange(-8.0, 8.1, 4.0), np.arange(-8.0, 8.1, 4.0))
+    cen = sim.synthetic_centroids(a.ravel(), b.ravel(), shots=2, mask_distance_mm=17.0,
+                                  hole_offset_px=(80.0, 18.0))
+    assert mounting_offset_px(cen) == pytest.approx((80.0, 18.0), abs=1e-6)
+    # one wild centroid (a hot pixel taken for the spot) does not move a median
+    cen["x"][3, 1] = 5000.0
+    assert mounting_offset_px(cen)[0] == pytest.approx(80.0, abs=1e-6)
+
+
+def test_the_text_puts_each_paper_cell_above_ours():
+    keys = [(a, s) for a in stats.ANGLES for s in stats.STATS]
+    cols = {(c, "paper"): np.full(len(keys), 0.0123) for c in COLUMNS}
+    cols |= {(c, "sunlab"): np.full(len(keys), 0.0456) for c in COLUMNS}
+    cols[(REJECTION_COLUMN, "sunlab")] = np.full(len(keys), 0.0789)
+    table = pd.DataFrame(cols, index=pd.MultiIndex.from_tuples(keys))
+    lines = format_table5({"table": table}).splitlines()
+    assert lines[0].startswith("Table 5")
+    i = next(k for k, line in enumerate(lines) if line.startswith(COLUMNS[0]))
+    assert lines[i].endswith("paper") and lines[i].count("0.0123") == len(keys)
+    assert lines[i + 1].endswith("ours") and lines[i + 1].count("0.0456") == len(keys)
+    rej = next(line for line in lines if line.startswith(REJECTION_COLUMN))
+    assert rej.count("0.0789") == len(keys) and rej.endswith("ours")

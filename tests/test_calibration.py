@@ -1,0 +1,41 @@
+"""The package sunlab.calibration: every public name resolves to its module's object, fit builds
+a method by its kind, and what save writes load reads back."""
+
+import importlib
+
+import numpy as np
+import pytest
+
+import sunlab.calibration as cal
+from sunlab import sim
+
+
+def test_every_public_name_is_its_submodules_object():
+    assert cal.__all__ and set(cal.__all__) <= set(dir(cal))
+    for name in cal.__all__:
+        obj = getattr(cal, name)
+        home = getattr(obj, "__module__", None)
+        if home and home.startswith("sunlab.calibration."):
+            assert getattr(importlib.import_module(home), name) is obj, name
+    with pytest.raises(AttributeError, match="no_such_method"):
+        cal.no_such_method  # noqa: B018
+
+
+def test_fit_by_kind_equals_the_class_and_round_trips_through_a_file(tmp_path):
+    a, b = np.meshgrid(np.arange(-5.0, 5.1), np.arange(-5.0, 5.1))
+    table = sim.synthetic_centroids(a.ravel(), b.ravel(), shots=1, delta_f_mm=0.05)
+    by_kind = cal.fit(table, "polynomial", order=3)
+    direct = cal.Polynomial(order=3).fit(table)
+    assert isinstance(by_kind, cal.Polynomial)
+    x, y = np.array([600.0, 700.0]), np.array([480.0, 560.0])
+    np.testing.assert_array_equal(by_kind.predict_xy(x, y), direct.predict_xy(x, y))
+    path = tmp_path / "cal.json"
+    by_kind.save(path)
+    back = cal.load(path)
+    assert type(back) is cal.Polynomial
+    np.testing.assert_array_equal(back.predict_xy(x, y), direct.predict_xy(x, y))
+
+
+def test_every_registered_kind_names_a_calibration_class():
+    for kind in cal.KINDS:
+        assert issubclass(cal.method_class(kind), cal.Calibration), kind
