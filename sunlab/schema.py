@@ -113,12 +113,7 @@ def status_name(code: int) -> str:
     Returns
     -------
     str
-        Its name (``"ok"``, ``"no_spot"``, ...).
-
-    Raises
-    ------
-    KeyError
-        ``code`` is not a status code.
+        Its name (``"ok"``, ``"no_spot"``, ...); a KeyError for a code not in :data:`STATUS`.
     """
     return STATUS_NAMES[int(code)]
 
