@@ -7,9 +7,9 @@
   (:func:`simulate_and_locate`, :func:`multi_hole_tables`), the usable frames and the counts
   of the removed ones, and the one JSON writer;
 * :mod:`sunlab.reproduce.table4`: Table 4 (one hole, every calibration method),
-  :func:`table4` a function of the centroid tables;
+  :func:`table4_statistics` a function of the centroid tables;
 * :mod:`sunlab.reproduce.table5`: Table 5 (100 holes vs one hole) and Figs. 13-15,
-  :func:`table5` a function of the centroid tables;
+  :func:`table5_statistics` a function of the centroid tables;
 * :mod:`sunlab.reproduce.platform`: beyond the paper, the platform fault diagnosed and removed.
 
 ``sunlab reproduce --table 4|5|platform|all`` runs them (:mod:`sunlab.cli`).
@@ -46,10 +46,10 @@ from .table4 import (
     bench_optimised_truth,
     format_table,
     reproduce_table4,
-    table4,
     table4_methods,
+    table4_statistics,
 )
-from .table5 import COLUMNS, REJECTION_COLUMN, format_table5, reproduce_table5, table5
+from .table5 import COLUMNS, REJECTION_COLUMN, format_table5, reproduce_table5, table5_statistics
 
 __all__ = [
     "EXPERIMENTS",
@@ -68,7 +68,7 @@ __all__ = [
     "bench_optimised_truth",
     "table4_methods",
     "reproduce_table4",
-    "table4",
+    "table4_statistics",
     "format_table",
     "COLUMNS",
     "REJECTION_COLUMN",
@@ -76,7 +76,7 @@ __all__ = [
     "spot_method",
     "mounting_offset_px",
     "reproduce_table5",
-    "table5",
+    "table5_statistics",
     "format_table5",
     "ROWS",
     "GEAR_ROW",

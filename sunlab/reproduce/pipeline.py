@@ -20,7 +20,8 @@ steps, and this module is the one place that renders frames and centroids them:
 5. :func:`write_json`: the one writer of every table's machine-readable results file.
 
 The tables' statistics are functions of these centroid tables
-(:func:`sunlab.reproduce.table4.table4`, :func:`sunlab.reproduce.table5.table5`).
+(:func:`sunlab.reproduce.table4.table4_statistics`,
+:func:`sunlab.reproduce.table5.table5_statistics`).
 
 Examples
 --------

@@ -10,11 +10,11 @@ The pipeline of docs/paper.md sec. 5, end to end, each step once and in order:
    rendered and reduced chunk by chunk by Dask so the 7,440 frames never sit in memory at once;
    steps 1-2 are the shared pipeline
    (:func:`sunlab.reproduce.pipeline.simulate_and_locate`), which returns the centroid tables;
-3. :func:`table4`, a function of those tables: fit every calibration of sec. 4 on experiment
-   I (the ideal model (1), the optimised model (3)-(4), linear and cubic interpolation, the
-   polynomial (order chosen on experiment II), the trigonometric expansion and the four
-   neural-network strategies of Table 2, early stopping on II), apply each to experiment III,
-   and compute the paper's statistics (:mod:`sunlab.stats`).
+3. :func:`table4_statistics`, a function of those tables: fit every calibration of sec. 4
+   on experiment I (the ideal model (1), the optimised model (3)-(4), linear and cubic
+   interpolation, the polynomial (order chosen on experiment II), the trigonometric expansion
+   and the four neural-network strategies of Table 2, early stopping on II), apply each to
+   experiment III, and compute the paper's statistics (:mod:`sunlab.stats`).
 
 Quick mode is the pipeline's :data:`~sunlab.reproduce.pipeline.QUICK` (every 2nd angle along
 each grid axis, 2 shots per pose).
@@ -49,7 +49,7 @@ __all__ = [
     "Table4Result",
     "table4_methods",
     "reproduce_table4",
-    "table4",
+    "table4_statistics",
     "format_table",
     "comparable_methods",
 ]
@@ -199,8 +199,8 @@ def reproduce_table4(
 
     Three steps, one after the other: the pipeline renders and centroids experiments I, II, III
     and their zero-pose checks once (:func:`sunlab.reproduce.pipeline.simulate_and_locate`);
-    :func:`table4` fits every method on the centroid tables and computes the statistics; the
-    files are written.
+    :func:`table4_statistics` fits every method on the centroid tables and computes the
+    statistics; the files are written.
 
     Parameters
     ----------
@@ -232,7 +232,7 @@ def reproduce_table4(
     Returns
     -------
     Table4Result
-        :func:`table4`'s result, its ``settings`` led by the run's (``seed``, ``quick``,
+        :func:`table4_statistics`'s result, its ``settings`` led by the run's (``seed``, ``quick``,
         ``centroid_method``) and followed by the bench's hypothesis (and, for the identified
         bench, ``interval90``); ``files`` the paths written.
 
@@ -255,7 +255,7 @@ def reproduce_table4(
                                method=method, progress=progress, address=address,
                                scheduler=scheduler, workers=workers, zero_pose=True)
     centroided = time.perf_counter() - t0
-    result = table4(cens, bench, neural=neural, seed=seed)
+    result = table4_statistics(cens, bench, neural=neural, seed=seed)
     result.timings = {"simulate_and_centroid": centroided, **result.timings,
                       "total": time.perf_counter() - t0}
     result.settings = {"seed": seed, "quick": quick, "centroid_method": method,
@@ -269,7 +269,7 @@ def reproduce_table4(
     return result
 
 
-def table4(cens: dict, bench, *, neural: bool = True, seed: int = 0) -> Table4Result:
+def table4_statistics(cens: dict, bench, *, neural: bool = True, seed: int = 0) -> Table4Result:
     """Table 4 from the centroid tables: every method fitted on I (II for model selection),
     applied to III, and the paper's statistics (:mod:`sunlab.stats`).
 
@@ -303,7 +303,7 @@ def table4(cens: dict, bench, *, neural: bool = True, seed: int = 0) -> Table4Re
     >>> from sunlab.reproduce.pipeline import simulate_and_locate
     >>> bench = sim.Bench.paper_single_hole()
     >>> cens = simulate_and_locate(bench, step=4, shots=1, progress=False, zero_pose=True)
-    >>> res = table4(cens, bench, neural=False)
+    >>> res = table4_statistics(cens, bench, neural=False)
     >>> bool(res.table.loc[("alpha", "mu"), "polynomial"] < 0.05), res.settings["poses"]["III"]
     (True, 25)
     """

@@ -14,9 +14,10 @@ The frames go through the pipeline the other tables share
 (:func:`sunlab.reproduce.pipeline.multi_hole_tables`: rendered and centroided once, on one
 pool of workers: the one-hole runs, whose spot gives the mounting offset that numbers the 100
 spots, then the 100-hole runs I and III, and the per-hole metrics that need the frames);
-:func:`table5` is a function of the centroid tables it returns. Quick mode is the pipeline's
-:data:`~sunlab.reproduce.pipeline.QUICK`, as for Table 4: every 2nd angle along each grid axis
-(experiments I and III: 100 + 100 poses instead of 400 + 361) and 2 shots per pose instead of 8.
+:func:`table5_statistics` is a function of the centroid tables it returns. Quick mode is the
+pipeline's :data:`~sunlab.reproduce.pipeline.QUICK`, as for Table 4: every 2nd angle along each
+grid axis (experiments I and III: 100 + 100 poses instead of 400 + 361) and 2 shots per pose
+instead of 8.
 
 Examples
 --------
@@ -44,7 +45,7 @@ from .pipeline import (
     write_json,
 )
 
-__all__ = ["reproduce_table5", "table5", "format_table5", "COLUMNS", "REJECTION_COLUMN"]
+__all__ = ["reproduce_table5", "table5_statistics", "format_table5", "COLUMNS", "REJECTION_COLUMN"]
 
 #: The paper's column labels (:func:`sunlab.stats.paper_table5`).
 COLUMNS = ("100 holes: geometric centre", "100 holes: averaging", "1 hole")
@@ -133,7 +134,7 @@ def reproduce_table5(quick: bool = True, seed: int = 0, out: Path | str | None =
         scheduler=scheduler, workers=workers)
     timings = {"simulate_and_centroid": time.perf_counter() - t0}
     t = time.perf_counter()
-    result = table5(tables, hole_metrics, order=order)
+    result = table5_statistics(tables, hole_metrics, order=order)
     timings["calibrate, find bad holes, compare"] = time.perf_counter() - t
     result["data"].update(cube_train=cubes["100 holes I"], cube_test=cubes["100 holes III"])
     result.update(_identification())
@@ -150,7 +151,7 @@ def reproduce_table5(quick: bool = True, seed: int = 0, out: Path | str | None =
     return result
 
 
-def table5(tables: dict, hole_metrics, *, order: int | None = None) -> dict:
+def table5_statistics(tables: dict, hole_metrics, *, order: int | None = None) -> dict:
     """Table 5 from the centroid tables: the one hole's polynomial and every strategy of
     :mod:`sunlab.multihole` fitted on I, the bad holes found, each applied to III, and the
     paper's statistics (:mod:`sunlab.stats`) beside the paper's values.
@@ -190,7 +191,7 @@ def table5(tables: dict, hole_metrics, *, order: int | None = None) -> dict:
 
     >>> from sunlab.reproduce.pipeline import experiment_plans, multi_hole_tables
     >>> plans_ = experiment_plans(step=4, shots=1)
-    >>> res = table5(*multi_hole_tables(plans_, progress=False)[:2])  # doctest: +SKIP
+    >>> res = table5_statistics(*multi_hole_tables(plans_, progress=False)[:2])  # doctest: +SKIP
     >>> res["table"].loc[("alpha", "mu")]  # doctest: +SKIP
     """
     names = ("100 holes I", "100 holes III", "1 hole I", "1 hole III")
