@@ -63,6 +63,26 @@ def test_the_tables_statistics_name_a_missing_run():
                                              "1 hole III")}, None)
 
 
+def test_table5_adds_the_residual_metrics_as_defect_metrics_does():
+    # the pipeline measures what needs frames; Table 5 adds the fitted strategy's residual
+    # metrics: the same dataset, variables in the same order (hole_metrics.csv's columns)
+    import xarray as xr
+
+    from sunlab import multihole as mh
+    from sunlab.reproduce.table5 import _with_residual_metrics
+    from sunlab.sim import synthetic_centroids
+
+    alpha, beta = np.meshgrid(np.linspace(-20, 20, 3), np.linspace(-20, 20, 3))
+    cen = synthetic_centroids(alpha.ravel(), beta.ravel(), shots=2, layout="grid",
+                              defects={7: {"flux": 0.4}})
+    s2 = mh.PerHoleAverage(order=1).fit(cen)
+    got = _with_residual_metrics(mh.defect_metrics(cen), s2, cen)
+    want = mh.defect_metrics(cen, strategy=s2)
+    xr.testing.assert_identical(got, want)
+    assert list(got.variables) == list(want.variables)
+    assert list(got.to_dataframe().columns) == list(want.to_dataframe().columns)
+
+
 def test_no_background_thread_in_the_reproduction():
     # any overlap of work lives in sunlab.parallel; the tables run their steps in order
     folder = Path(__file__).parents[1] / "sunlab" / "reproduce"

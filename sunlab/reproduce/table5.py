@@ -282,15 +282,28 @@ def _calibrate(cen_tr, hole_metrics, *, order: int) -> dict:
 
     s1 = mh.GeometricCentre(order=order).fit(cen_tr)
     s2 = mh.PerHoleAverage(order=order).fit(cen_tr)
-    rm = mh.residual_metrics(s2.predict_holes(cen_tr))
-    metrics = hole_metrics.assign({
-        k: ("hole", rm[k].values, {**rm[k].attrs, "long_name": mh.DEFECT_METRICS[k]})
-        for k in rm.data_vars})
+    metrics = _with_residual_metrics(hole_metrics, s2, cen_tr)
     bad = mh.reject_bad_holes(metrics).values
     s2r = mh.PerHoleAverage(order=order, holes=~bad, weighting="inverse_variance", clip=4.0,
                             calibrations_=s2.calibrations_, variance_=s2.variance_)
     return {"geometric centre": s1, "averaging": s2, "rejection": s2r, "metrics": metrics,
             "bad": bad}
+
+
+def _with_residual_metrics(hole_metrics, strategy, cen):
+    """``hole_metrics`` (:func:`sunlab.multihole.defect_metrics` without a strategy) with the
+    residual metrics of the fitted ``strategy`` on ``cen`` added: the dataset that
+    ``defect_metrics(cen, strategy=strategy, ...)`` gives, variables in its order (the data,
+    then the hole coordinates: the columns of ``hole_metrics.csv``)."""
+    import xarray as xr
+
+    from .. import multihole as mh
+
+    rm = mh.residual_metrics(strategy.predict_holes(cen))
+    data = {k: hole_metrics[k].variable for k in hole_metrics.data_vars}
+    data.update({k: ("hole", rm[k].values, {**rm[k].attrs, "long_name": mh.DEFECT_METRICS[k]})
+                 for k in rm.data_vars})
+    return xr.Dataset(data, coords={k: hole_metrics[k].variable for k in hole_metrics.coords})
 
 
 def _one_hole_polynomial(cens: dict, order: int | None):
