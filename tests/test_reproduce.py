@@ -1,9 +1,11 @@
 """The Table 4 pipeline end to end on a thinned virtual bench (every 6th pose, 2 shots)."""
 
+import ast
 import json
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from sunlab import stats
@@ -12,9 +14,84 @@ from sunlab.reproduce import format_table, reproduce_table4
 
 
 @pytest.fixture(scope="module")
-def result(tmp_path_factory):
+def run(tmp_path_factory):
+    """The thinned run, and the arguments its statistics were computed from (a spy on
+    table4_statistics: the centroid tables the pipeline returned, and the bench)."""
+    import sunlab.reproduce.table4 as t4
+
+    seen, real = {}, t4.table4_statistics
+
+    def spy(cens, bench, **kw):
+        seen.update(cens=cens, bench=bench, kw=kw)
+        return real(cens, bench, **kw)
+
     out = tmp_path_factory.mktemp("results")
-    return reproduce_table4(step=6, shots=2, neural=False, out=out, progress=False, seed=3)
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(t4, "table4_statistics", spy)
+        res = reproduce_table4(step=6, shots=2, neural=False, out=out, progress=False, seed=3)
+    return res, seen
+
+
+@pytest.fixture(scope="module")
+def result(run):
+    return run[0]
+
+
+def test_table4_is_a_function_of_the_pipelines_centroid_tables(run):
+    from sunlab.reproduce import table4_statistics
+
+    res, seen = run
+    # the run computed its statistics once, from the tables the pipeline returned (I, II, III,
+    # each with its zero-pose check's centroid for the strategy-4 network) ...
+    assert sorted(seen["cens"]) == ["I", "II", "III"]
+    assert all("zero_pose_x_px" in c.attrs for c in seen["cens"].values())
+    # ... and the same tables give the same table, nothing rendered again
+    again = table4_statistics(seen["cens"], seen["bench"], **seen["kw"])
+    pd.testing.assert_frame_equal(again.table, res.table, check_exact=True)
+    assert again.polynomial_order == res.polynomial_order
+    assert again.centroid_status == res.centroid_status
+
+
+def test_the_tables_statistics_name_a_missing_run():
+    from sunlab.errors import ConfigurationError
+    from sunlab.reproduce import table4_statistics, table5_statistics
+
+    with pytest.raises(ConfigurationError, match=r"cens: found runs \['I', 'II'\]"):
+        table4_statistics({"I": None, "II": None}, None)
+    with pytest.raises(ConfigurationError, match=r"tables: missing \['100 holes III'"):
+        table5_statistics({k: None for k in ("100 holes I", "1 hole I", "1 hole II",
+                                             "1 hole III")}, None)
+
+
+def test_table5_adds_the_residual_metrics_as_defect_metrics_does():
+    # the pipeline measures what needs frames; Table 5 adds the fitted strategy's residual
+    # metrics: the same dataset, variables in the same order (hole_metrics.csv's columns)
+    import xarray as xr
+
+    from sunlab import multihole as mh
+    from sunlab.reproduce.table5 import _with_residual_metrics
+    from sunlab.sim import synthetic_centroids
+
+    alpha, beta = np.meshgrid(np.linspace(-20, 20, 3), np.linspace(-20, 20, 3))
+    cen = synthetic_centroids(alpha.ravel(), beta.ravel(), shots=2, layout="grid",
+                              defects={7: {"flux": 0.4}})
+    s2 = mh.PerHoleAverage(order=1).fit(cen)
+    got = _with_residual_metrics(mh.defect_metrics(cen), s2, cen)
+    want = mh.defect_metrics(cen, strategy=s2)
+    xr.testing.assert_identical(got, want)
+    assert list(got.variables) == list(want.variables)
+    assert list(got.to_dataframe().columns) == list(want.to_dataframe().columns)
+
+
+def test_no_background_thread_in_the_reproduction():
+    # any overlap of work lives in sunlab.parallel; the tables run their steps in order
+    folder = Path(__file__).parents[1] / "sunlab" / "reproduce"
+    for path in sorted(folder.glob("*.py")):
+        tree = ast.parse(path.read_text())
+        names = {a.name for n in ast.walk(tree) if isinstance(n, ast.Import | ast.ImportFrom)
+                 for a in n.names}
+        names |= {n.module for n in ast.walk(tree) if isinstance(n, ast.ImportFrom) and n.module}
+        assert not names & {"threading", "ThreadPoolExecutor", "concurrent.futures"}, path.name
 
 
 def test_table_layout(result):

@@ -2,11 +2,14 @@
 
 * :mod:`sunlab.reproduce.pipeline`: what every table shares: the plans of Table 3 and the one
   meaning of *quick* (:data:`QUICK`: every 2nd angle along each grid axis, 2 shots per pose),
-  simulating and centroiding every frame in one Dask pass with the table's ``method`` on the
-  caller's ``address`` / ``scheduler`` / ``workers``, the usable frames and the counts of the
-  removed ones, and the one JSON writer;
-* :mod:`sunlab.reproduce.table4`: Table 4 (one hole, every calibration method);
-* :mod:`sunlab.reproduce.table5`: Table 5 (100 holes vs one hole) and Figs. 13-15;
+  simulating and centroiding every frame once, in one Dask pass with the table's ``method`` on
+  the caller's ``address`` / ``scheduler`` / ``workers``, and returning the centroid tables
+  (:func:`simulate_and_locate`, :func:`multi_hole_tables`), the usable frames and the counts
+  of the removed ones, and the one JSON writer;
+* :mod:`sunlab.reproduce.table4`: Table 4 (one hole, every calibration method),
+  :func:`table4_statistics` a function of the centroid tables;
+* :mod:`sunlab.reproduce.table5`: Table 5 (100 holes vs one hole) and Figs. 13-15,
+  :func:`table5_statistics` a function of the centroid tables;
 * :mod:`sunlab.reproduce.platform`: beyond the paper, the platform fault diagnosed and removed.
 
 ``sunlab reproduce --table 4|5|platform|all`` runs them (:mod:`sunlab.cli`).
@@ -23,12 +26,16 @@ Examples
 from .pipeline import (
     EXPERIMENTS,
     QUICK,
+    SPOT_METHODS,
     centroid_status,
     experiment_plans,
     locate_runs,
+    mounting_offset_px,
+    multi_hole_tables,
     simulate_and_locate,
     simulate_experiments,
     simulate_runs,
+    spot_method,
     usable_table,
     write_json,
 )
@@ -40,16 +47,9 @@ from .table4 import (
     format_table,
     reproduce_table4,
     table4_methods,
+    table4_statistics,
 )
-from .table5 import (
-    COLUMNS,
-    REJECTION_COLUMN,
-    SPOT_METHODS,
-    format_table5,
-    mounting_offset_px,
-    reproduce_table5,
-    spot_method,
-)
+from .table5 import COLUMNS, REJECTION_COLUMN, format_table5, reproduce_table5, table5_statistics
 
 __all__ = [
     "EXPERIMENTS",
@@ -59,6 +59,7 @@ __all__ = [
     "locate_runs",
     "simulate_and_locate",
     "simulate_experiments",
+    "multi_hole_tables",
     "usable_table",
     "centroid_status",
     "write_json",
@@ -67,6 +68,7 @@ __all__ = [
     "bench_optimised_truth",
     "table4_methods",
     "reproduce_table4",
+    "table4_statistics",
     "format_table",
     "COLUMNS",
     "REJECTION_COLUMN",
@@ -74,6 +76,7 @@ __all__ = [
     "spot_method",
     "mounting_offset_px",
     "reproduce_table5",
+    "table5_statistics",
     "format_table5",
     "ROWS",
     "GEAR_ROW",

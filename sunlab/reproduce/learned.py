@@ -75,6 +75,17 @@ EDGE_SHIFT_MM = 1.2
 def bench(name: str):
     """The virtual bench called ``name`` (:data:`BENCHES`), built from the library's presets.
 
+    Parameters
+    ----------
+    name : str
+        A key of :data:`BENCHES`.
+
+    Returns
+    -------
+    sunlab.sim.Bench
+        The bench: :meth:`sunlab.sim.Bench.paper_single_hole` or
+        :meth:`sunlab.sim.Bench.paper_multi_hole` with the change its name describes.
+
     Examples
     --------
     >>> b = bench("prnu-x3")
@@ -111,6 +122,18 @@ def bench_seeds(name: str, seed: int = 0) -> dict:
     """The seeds of experiments I, II, III on bench ``name``: three of its own, none shared
     with another experiment or bench.
 
+    Parameters
+    ----------
+    name : str
+        A key of :data:`BENCHES`.
+    seed : int
+        The run's seed; each unit adds 1000 to every experiment's seed.
+
+    Returns
+    -------
+    dict of str to int
+        The seeds keyed ``"I"``, ``"II"``, ``"III"``.
+
     Examples
     --------
     >>> bench_seeds("paper"), bench_seeds("good-platform", seed=1)
@@ -131,6 +154,22 @@ def crlb_floor(bench_, cen_test, calibration) -> dict:
     and a Gaussian error of standard deviation s has a mean ``|error|`` of s sqrt(2 / pi). The
     floor leaves out everything the bound does not see: the pixel response's fixed pattern,
     jitter, the platform.
+
+    Parameters
+    ----------
+    bench_ : sunlab.sim.Bench
+        The bench of the test run: its hole, detector and source give the bound.
+    cen_test : xarray.Dataset
+        One-hole ``centroids/1`` table of the test run (``status``, ``flux`` in DN, ``x``,
+        ``y`` in px).
+    calibration : sunlab.calibration.Calibration
+        A fitted calibration with ``predict_xy`` (px to deg).
+
+    Returns
+    -------
+    dict
+        ``sigma_px`` (the bound's standard deviations in x and y, px), ``flux_dn`` (the median
+        test flux, DN), ``alpha`` and ``beta`` (the floor's mean ``|error|``, deg).
     """
     from .. import centroid
 
@@ -344,6 +383,20 @@ def _write(result: dict, out: Path, settings: dict) -> list[str]:
 
 def records_table(records, stat: str = "mu"):
     """The records of one statistic as a table: rows (bench, angle), columns the methods.
+
+    Parameters
+    ----------
+    records : sequence of dict
+        Records with ``bench``, ``method``, ``angle`` (None for a statistic of no angle),
+        ``stat`` and ``value`` (:func:`reproduce_learned`'s ``records``).
+    stat : str
+        The statistic kept (e.g. ``"mu"``, deg).
+
+    Returns
+    -------
+    pandas.DataFrame
+        Values indexed by (bench, angle), or by bench alone where no record has an angle;
+        benches and methods in the order first met.
 
     Examples
     --------

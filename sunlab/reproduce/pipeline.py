@@ -1,7 +1,7 @@
 """The one pipeline every reproduced table shares: plans, simulate, centroid, status, JSON.
 
 Each table of :mod:`sunlab.reproduce` (Table 4, Table 5, the platform table) runs the same
-steps, and this module is the one place that does them:
+steps, and this module is the one place that renders frames and centroids them:
 
 1. :func:`experiment_plans`: the plans of Table 3 as the table runs them. *Quick* has one
    meaning for every table: :data:`QUICK`, every 2nd angle along each grid axis
@@ -10,10 +10,18 @@ steps, and this module is the one place that does them:
 2. :func:`simulate_runs` and :func:`locate_runs`: the frame cubes of the virtual bench, lazy,
    and every frame of every run centroided in ONE pass of Dask (:func:`sunlab.parallel.compute`)
    with the table's centroid ``method`` on the scheduler the caller chose (``address``,
-   ``scheduler``, ``workers``); :func:`simulate_and_locate` is both for experiments I-III;
-3. :func:`usable_table` and :func:`centroid_status`: which frames the calibrations use, and the
+   ``scheduler``, ``workers``);
+3. the tables of each reproduced table, rendered and centroided once and returned:
+   :func:`simulate_and_locate` (experiments I-III of one hole, with their zero-pose checks for
+   Table 4) and :func:`multi_hole_tables` (Table 5: one hole, then the 100 holes numbered by the
+   one hole's :func:`mounting_offset_px`, and the per-hole metrics that need the frames);
+4. :func:`usable_table` and :func:`centroid_status`: which frames the calibrations use, and the
    counts of the frames removed;
-4. :func:`write_json`: the one writer of every table's machine-readable results file.
+5. :func:`write_json`: the one writer of every table's machine-readable results file.
+
+The tables' statistics are functions of these centroid tables
+(:func:`sunlab.reproduce.table4.table4_statistics`,
+:func:`sunlab.reproduce.table5.table5_statistics`).
 
 Examples
 --------
@@ -30,6 +38,9 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
+from ..centroid.estimators import PER_SPOT
+from ..errors import ConfigurationError
+
 __all__ = [
     "EXPERIMENTS",
     "QUICK",
@@ -38,6 +49,10 @@ __all__ = [
     "locate_runs",
     "simulate_and_locate",
     "simulate_experiments",
+    "SPOT_METHODS",
+    "spot_method",
+    "mounting_offset_px",
+    "multi_hole_tables",
     "usable_table",
     "zero_pose_cubes",
     "zero_pose_attrs",
@@ -192,8 +207,11 @@ def simulate_and_locate(
     shots: int | None = None,
     scheduler: str = "threads",
     workers: int | None = None,
+    zero_pose: bool = False,
 ) -> dict[str, xr.Dataset]:
     """Simulate experiments I, II, III and centroid every frame; centroid tables by experiment.
+
+    Every frame is rendered and centroided once, in one pass of Dask (:func:`locate_runs`).
 
     Parameters
     ----------
@@ -209,11 +227,17 @@ def simulate_and_locate(
         Print the experiments and show a progress bar.
     address, scheduler, workers
         Where the frames are rendered and centroided (:func:`locate_runs`).
+    zero_pose : bool
+        Also render and centroid each experiment's zero-pose check (:func:`zero_pose_cubes`, in
+        the same pass) and give each table its check's centroid as the attributes
+        ``zero_pose_x_px``, ``zero_pose_y_px`` (px, :func:`zero_pose_attrs`), which a network
+        re-zeroed on each run's zero pose reads (Table 4's strategy 4).
 
     Returns
     -------
     dict of str to xarray.Dataset
-        ``centroids/1`` tables keyed ``"I"``, ``"II"``, ``"III"``.
+        ``centroids/1`` tables keyed ``"I"``, ``"II"``, ``"III"``, every centroid status kept
+        (:func:`usable_table` selects).
 
     Examples
     --------
@@ -221,21 +245,43 @@ def simulate_and_locate(
     >>> {k: int(v.sizes["pose"]) for k, v in cens.items()}
     {'I': 9, 'II': 4, 'III': 9}
     """
+    from .. import sim
+
+    bench = sim.Bench.paper_single_hole() if bench is None else bench
+    plans_ = experiment_plans(quick=quick, step=step, shots=shots)
     cubes = simulate_experiments(bench, seed=seed, quick=quick, step=step, shots=shots,
                                  progress=progress, method=method)
-    return locate_runs(cubes, method=method, progress=progress, address=address,
+    if zero_pose:
+        cubes.update(zero_pose_cubes(bench, plans_, seed=seed))
+    cens = locate_runs(cubes, method=method, progress=progress, address=address,
                        scheduler=scheduler, workers=workers)
+    zero = zero_pose_attrs(cens)
+    return {k: cens[k].assign_attrs(zero.get(k, {})) for k in plans_}
 
 
 def simulate_experiments(bench=None, *, seed: int = 0, quick: bool = False,
                          step: int | None = None, shots: int | None = None,
                          progress: bool = True, method: str = "projection") -> dict:
-    """The lazy frame cubes of experiments I, II, III on the virtual bench; with ``progress``,
-    what they hold is printed (``method`` names the centroid method announced).
+    """The lazy frame cubes of experiments I, II, III on the virtual bench: the first half of
+    :func:`simulate_and_locate`, for a caller that centroids them itself.
 
-    The first half of :func:`simulate_and_locate` (same parameters), for a caller that
-    centroids the experiments in several passes (Table 4 fits on I and II while III is
-    centroided).
+    Parameters
+    ----------
+    bench : sunlab.sim.Bench, optional
+        Default :meth:`sunlab.sim.Bench.paper_single_hole`.
+    seed : int
+        Seed of the virtual bench; each experiment mixes its plan into it.
+    quick, step, shots
+        The plans (:func:`experiment_plans`).
+    progress : bool
+        Print what the experiments hold (poses x shots, frames in all).
+    method : str
+        The centroid method announced with the frame count (nothing is centroided here).
+
+    Returns
+    -------
+    dict of str to xarray.Dataset
+        Lazy ``frames/1`` cubes keyed ``"I"``, ``"II"``, ``"III"``.
 
     Examples
     --------
@@ -259,9 +305,23 @@ def simulate_experiments(bench=None, *, seed: int = 0, quick: bool = False,
 
 def zero_pose_cubes(bench, plans_: dict, *, seed: int = 0) -> dict:
     """The lazy cubes of each run's zero-pose check (:func:`sunlab.plans.zero_check`, one
-    visit with the run's shots), keyed ``"zero I"`` ...: rendered on the bench with the run's
-    homing and drift and a per-pose platform error of their own, to be centroided in the same
-    pass as the runs (:func:`locate_runs`) and read by :func:`zero_pose_attrs`.
+    visit with the run's shots): rendered on the bench with the run's homing and drift and a
+    per-pose platform error of their own, to be centroided in the same pass as the runs
+    (:func:`locate_runs`) and read by :func:`zero_pose_attrs`.
+
+    Parameters
+    ----------
+    bench : sunlab.sim.Bench
+        The bench the runs are rendered on.
+    plans_ : dict of str to sunlab.plans.Plan
+        The runs, keyed ``"I"`` ... (:func:`experiment_plans`).
+    seed : int
+        Seed of the virtual bench (the runs' seed).
+
+    Returns
+    -------
+    dict of str to xarray.Dataset
+        Lazy ``frames/1`` cubes keyed ``"zero I"`` ..., one pose each.
 
     Examples
     --------
@@ -277,10 +337,19 @@ def zero_pose_cubes(bench, plans_: dict, *, seed: int = 0) -> dict:
 
 
 def zero_pose_attrs(cens: dict) -> dict:
-    """Each run's zero-pose centroid, px, from the centroided checks of
-    :func:`zero_pose_cubes` (keyed ``"zero I"`` ...): the mean over the usable shots, as the
-    attributes ``zero_pose_x_px``, ``zero_pose_y_px`` that a network re-zeroed on each run's
-    zero pose reads (``reference="zero_pose"`` of :class:`sunlab.calibration.NeuralNet`).
+    """Each run's zero-pose centroid from the centroided checks of :func:`zero_pose_cubes`: the
+    mean over the usable shots, as the attributes that a network re-zeroed on each run's zero
+    pose reads (``reference="zero_pose"`` of :class:`sunlab.calibration.NeuralNet`).
+
+    Parameters
+    ----------
+    cens : dict of str to xarray.Dataset
+        Centroid tables; those keyed ``"zero I"`` ... are read, the others ignored.
+
+    Returns
+    -------
+    dict of str to dict
+        Per run (``"I"`` ...): ``zero_pose_x_px``, ``zero_pose_y_px`` (px).
 
     Examples
     --------
@@ -299,10 +368,165 @@ def zero_pose_attrs(cens: dict) -> dict:
     return out
 
 
+#: The per-spot centroid estimator on the 100-hole frames for each method of Table 5: the
+#: single-spot algorithms (B's profiles run over the whole frame) cannot separate 100 spots, so
+#: there each spot gets its own tight window (:func:`sunlab.centroid.locate_spots`); the
+#: centroid methods' one table (:data:`sunlab.centroid.estimators.PER_SPOT`).
+SPOT_METHODS = PER_SPOT
+
+
+def spot_method(method: str) -> str:
+    """The centroid estimator of the 100-hole frames for the table's ``method``
+    (:data:`SPOT_METHODS`); an unknown method raises, naming the choices.
+
+    Parameters
+    ----------
+    method : str
+        The table's centroid method (:func:`sunlab.centroid.locate`).
+
+    Returns
+    -------
+    str
+        The per-spot estimator of :func:`sunlab.centroid.locate_spots`.
+
+    Examples
+    --------
+    >>> spot_method("threshold")
+    'tight'
+    >>> spot_method("nearest")  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    sunlab.errors.ConfigurationError: method: found 'nearest'; expected one of [...]
+    """
+    if method not in SPOT_METHODS:
+        raise ConfigurationError(
+            f"method: found {method!r}; expected one of {sorted(SPOT_METHODS)}"
+        )
+    return SPOT_METHODS[method]
+
+
+def mounting_offset_px(one_hole) -> tuple[float, float]:
+    """Where the one-hole spot falls relative to its design track, px (median over poses).
+
+    The sensor's mounting on the platform (alpha0, beta0) moves every spot off its design
+    place, by about 80 px at F = 17 mm, more than half the 71 px hole pitch of the 100-hole mask
+    (16 px at the presets' F = 5 mm), so design positions alone can give spots to the wrong
+    holes. The mounting is the platform's, common to both masks: the offset measured with the
+    one hole (calibrated first, as in the paper) is the prior that
+    :func:`sunlab.centroid.locate` needs to number the 100 spots.
+
+    Parameters
+    ----------
+    one_hole : xarray.Dataset
+        A one-hole ``centroids/1`` table with its bench's attributes ``mask_distance_mm``,
+        ``pixel_pitch_mm``, ``x_cf_px``, ``y_cf_px``.
+
+    Returns
+    -------
+    (float, float)
+        The median of x - x0 and of y - y0 over every centroid (px), x0, y0 the ideal model's
+        (1) centroid of each pose (:func:`sunlab.geometry.ideal_centroid`).
+
+    Examples
+    --------
+    >>> from sunlab import sim
+    >>> cen = sim.synthetic_centroids([0.0, -5.0], [0.0, 3.0], mask_distance_mm=17.0,
+    ...                                    hole_offset_px=(80.0, 18.0))
+    >>> [round(v, 6) for v in mounting_offset_px(cen)]
+    [80.0, 18.0]
+    """
+    from ..geometry import ideal_centroid
+
+    a = one_hole["alpha"].values[:, None]
+    b = one_hole["beta"].values[:, None]
+    x0, y0 = ideal_centroid(a, b, float(one_hole.attrs["mask_distance_mm"]),
+                            float(one_hole.attrs["pixel_pitch_mm"]),
+                            float(one_hole.attrs["x_cf_px"]), float(one_hole.attrs["y_cf_px"]))
+    return (float(np.nanmedian(one_hole["x"].values - x0)),
+            float(np.nanmedian(one_hole["y"].values - y0)))
+
+
+def multi_hole_tables(plans_: dict, *, seed: int = 0, method: str = "projection",
+                      progress: bool = True, address: str | None = None,
+                      scheduler: str = "threads", workers: int | None = None) -> tuple:
+    """Render and centroid Table 5's runs once, one pool of workers for every pass
+    (:func:`sunlab.parallel.worker_pool`): the one-hole runs I, II, III first, whose spot gives
+    the mounting offset (:func:`mounting_offset_px`) that numbers the 100 spots; then the
+    100-hole runs I and III in one pass; last the per-hole metrics of the 100-hole run I that
+    need its frames (spot shape, edge roughness: :func:`sunlab.multihole.defect_metrics`).
+
+    Parameters
+    ----------
+    plans_ : dict of str to sunlab.plans.Plan
+        Experiments ``"I"``, ``"II"``, ``"III"`` (:func:`experiment_plans`); the 100-hole mask
+        runs I and III (the order is chosen on the one hole's II).
+    seed : int
+        Seed of the virtual bench.
+    method : str
+        Centroid method of the one-hole frames; the 100-hole frames get :func:`spot_method`'s.
+    progress : bool
+        Show progress bars.
+    address, scheduler, workers
+        Where the frames are rendered and centroided (:func:`locate_runs`).
+
+    Returns
+    -------
+    tables : dict of str to xarray.Dataset
+        ``centroids/1`` tables keyed ``"1 hole I"``, ``"1 hole II"``, ``"1 hole III"``,
+        ``"100 holes I"``, ``"100 holes III"``, every centroid status kept; the 100-hole tables
+        on (pose, shot, hole) with the design positions ``hole_x_cf``, ``hole_y_cf`` (px).
+    hole_metrics : xarray.Dataset
+        :func:`sunlab.multihole.defect_metrics` of the usable 100-hole run I with its frames
+        and no strategy (the residual metrics need a fitted calibration: Table 5 adds them).
+    cubes : dict of str to xarray.Dataset
+        The lazy frame cubes, keyed as ``tables`` and chunked by frame, for figures and
+        :class:`sunlab.widgets.HoleExplorer` (the same frames the tables were measured on).
+
+    Examples
+    --------
+    A 100-hole run renders 100 spots a frame: minutes even thinned, so not run here.
+
+    >>> tables, metrics, cubes = multi_hole_tables(
+    ...     experiment_plans(step=4, shots=1), progress=False)  # doctest: +SKIP
+    >>> sorted(tables)  # doctest: +SKIP
+    ['1 hole I', '1 hole II', '1 hole III', '100 holes I', '100 holes III']
+    """
+    from .. import multihole as mh
+    from .. import parallel, sim
+
+    one = {f"1 hole {k}": (p, sim.Bench.paper_single_hole()) for k, p in plans_.items()}
+    many = {f"100 holes {k}": (p, sim.Bench.paper_multi_hole()) for k, p in plans_.items()
+            if k != "II"}
+    where = {"progress": progress, "address": address, "scheduler": scheduler,
+             "workers": workers}
+    with parallel.worker_pool(scheduler, workers, address) as pool:
+        tables = locate_runs(simulate_runs(one, seed=seed), method=method, pool=pool, **where)
+        tables.update(locate_runs(simulate_runs(many, seed=seed), method=spot_method(method),
+                                  hole_offset=mounting_offset_px(tables["1 hole I"]),
+                                  pool=pool, **where))
+    # the passes take whole poses (one Dask task each); the cubes handed on serve single
+    # frames (the metrics sample frames, figures, the explorer), so they are chunked by frame:
+    # the same frames either way
+    cubes = simulate_runs({**one, **many}, seed=seed, chunks="frame")
+    hole_metrics = mh.defect_metrics(usable_table(tables["100 holes I"]),
+                                     cube=cubes["100 holes I"])
+    return tables, hole_metrics, cubes
+
+
 def usable_table(cen: xr.Dataset) -> xr.Dataset:
     """The centroid table with every usable status (:data:`sunlab.schema.USABLE_STATUS`)
     marked ``ok``, as the calibrations select their training points by ``ok``: a ``repaired``
     frame (a hot pixel replaced in the window) keeps its spot and is used.
+
+    Parameters
+    ----------
+    cen : xarray.Dataset
+        A ``centroids/1`` table with its ``status`` codes (:data:`sunlab.schema.STATUS`).
+
+    Returns
+    -------
+    xarray.Dataset
+        The same table, every usable status replaced by ``ok`` (0), the others kept.
 
     Examples
     --------
@@ -322,6 +546,17 @@ def usable_table(cen: xr.Dataset) -> xr.Dataset:
 def centroid_status(cens: dict) -> dict:
     """Frames per centroid status of each table, and under ``removed`` those the calibrations
     and statistics leave out (every status but the usable ones).
+
+    Parameters
+    ----------
+    cens : dict of str to xarray.Dataset
+        ``centroids/1`` tables by run, as centroided (before :func:`usable_table`).
+
+    Returns
+    -------
+    dict of str to dict
+        Per run: frames per status name (:data:`sunlab.schema.STATUS_NAMES`), and under
+        ``removed`` the counts of the statuses that are not usable.
 
     Examples
     --------
@@ -347,6 +582,18 @@ def write_json(doc: dict, path: str | Path) -> str:
     Written atomically (:func:`sunlab.atomic.write_text`): a temporary sibling renamed into
     place, so a symbolic link planted at ``path`` is replaced, never written through, and a
     named pipe or a device there is refused.
+
+    Parameters
+    ----------
+    doc : dict
+        The results; NumPy scalars and arrays are written as numbers and lists.
+    path : str or pathlib.Path
+        The file to write (replaced if it exists).
+
+    Returns
+    -------
+    str
+        ``path``.
 
     Examples
     --------

@@ -62,6 +62,21 @@ def bench_fault_values(bench, seed, plans_by_run: dict) -> dict:
     homing offset minus the calibration run's, as drawn for this seed),
     ``beta_gear_amplitude_deg``.
 
+    Parameters
+    ----------
+    bench : sunlab.sim.Bench
+        The bench the runs are rendered on.
+    seed : int
+        Seed of the virtual bench (the homing offsets are drawn from it and each run's name).
+    plans_by_run : dict of str to sunlab.plans.Plan
+        The calibration run ``"I"`` and the test run ``"III"``.
+
+    Returns
+    -------
+    dict of str to float
+        ``beta_backlash_deg``, ``beta_homing_difference_deg``, ``beta_gear_amplitude_deg``
+        (deg).
+
     Examples
     --------
     >>> from sunlab import plans, sim
@@ -275,6 +290,17 @@ def _platform_doc(table, parameters: dict, diag, fits: dict) -> dict:
 
 def format_platform(res: dict) -> str:
     """The platform table as text: rows, fitted parameters beside the bench's, the diagnosis.
+
+    Parameters
+    ----------
+    res : dict
+        :func:`reproduce_platform`'s result.
+
+    Returns
+    -------
+    str
+        The rows' eight statistics (deg), the fitted fault parameters (deg) beside the
+        bench's, the diagnosis and the paper's sigma / mu ratios, one line each.
 
     Examples
     --------

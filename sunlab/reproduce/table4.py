@@ -1,6 +1,6 @@
 """Reproduce the paper's Table 4 on the virtual bench: simulate, centroid, calibrate, compare.
 
-The pipeline of docs/paper.md sec. 5, end to end:
+The pipeline of docs/paper.md sec. 5, end to end, each step once and in order:
 
 1. simulate experiments I (calibration), II (validation) and III (test) of Table 3 on
    :meth:`sunlab.sim.Bench.paper_single_hole` (full 1280 x 1024 frames, 8 shots per pose), each
@@ -8,17 +8,16 @@ The pipeline of docs/paper.md sec. 5, end to end:
    cannot be calibrated away, which is what limits every method to about 0.01 deg);
 2. centroid every frame (:func:`sunlab.centroid.locate`, algorithm B by default), frames
    rendered and reduced chunk by chunk by Dask so the 7,440 frames never sit in memory at once;
-3. fit every calibration of sec. 4 on experiment I — the ideal model (1), the optimised model
-   (3)-(4), linear and cubic interpolation, the polynomial (order chosen on experiment II), the
-   trigonometric expansion and the four neural-network strategies of Table 2 (early stopping on
-   II);
-4. apply each to experiment III, and compute the paper's statistics (:mod:`sunlab.stats`).
+   steps 1-2 are the shared pipeline
+   (:func:`sunlab.reproduce.pipeline.simulate_and_locate`), which returns the centroid tables;
+3. :func:`table4_statistics`, a function of those tables: fit every calibration of sec. 4
+   on experiment I (the ideal model (1), the optimised model (3)-(4), linear and cubic
+   interpolation, the polynomial (order chosen on experiment II), the trigonometric expansion
+   and the four neural-network strategies of Table 2, early stopping on II), apply each to
+   experiment III, and compute the paper's statistics (:mod:`sunlab.stats`).
 
-Step 3 needs only I and II, so it runs while the workers render and centroid III: the fits
-are serial (one core), and beside them the other cores stay busy.
-
-Steps 1-2 are the shared pipeline (:mod:`sunlab.reproduce.pipeline`); quick mode is its
-:data:`~sunlab.reproduce.pipeline.QUICK` (every 2nd angle along each grid axis, 2 shots per pose).
+Quick mode is the pipeline's :data:`~sunlab.reproduce.pipeline.QUICK` (every 2nd angle along
+each grid axis, 2 shots per pose).
 
 The numbers are ours, from the virtual bench, printed beside the paper's.
 
@@ -33,7 +32,6 @@ from __future__ import annotations
 
 import json
 import time
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -43,16 +41,7 @@ import pandas as pd
 from .. import __version__, parallel, stats
 from ..calibration.methods import table4_methods
 from ..errors import ConfigurationError
-from .pipeline import (
-    centroid_status,
-    experiment_plans,
-    locate_runs,
-    simulate_experiments,
-    usable_table,
-    write_json,
-    zero_pose_attrs,
-    zero_pose_cubes,
-)
+from .pipeline import centroid_status, simulate_and_locate, usable_table, write_json
 
 __all__ = [
     "PAPER_OPTIMISED",
@@ -60,6 +49,7 @@ __all__ = [
     "Table4Result",
     "table4_methods",
     "reproduce_table4",
+    "table4_statistics",
     "format_table",
     "comparable_methods",
 ]
@@ -115,7 +105,16 @@ class Table4Result:
     files: list = field(default_factory=list)
 
     def to_dict(self) -> dict:
-        """A JSON-ready summary (no pickles): tables as nested dicts, numbers as floats."""
+        """A JSON-ready summary (no pickles): tables as nested dicts, numbers as floats.
+
+        Returns
+        -------
+        dict
+            What ``table4.json`` holds: ``ours`` and ``paper`` (method -> ``"angle.stat"`` ->
+            deg, None where not finite), ``rectangle_area_deg2``, ``optimised_model``,
+            ``polynomial_order``, ``centroid_status``, ``timings_s``, ``settings`` and, for
+            the identified bench, ``interval90``.
+        """
 
         def frame(df: pd.DataFrame) -> dict:
             return {
@@ -155,6 +154,17 @@ def bench_optimised_truth(bench) -> dict:
     hole's off-centre place) less what the detector's glass lid takes off a paraxial ray's
     apparent height, the distance a pinhole model sees.
 
+    Parameters
+    ----------
+    bench : sunlab.sim.Bench
+        A one-hole bench.
+
+    Returns
+    -------
+    dict of str to float
+        ``alpha0``, ``beta0`` (deg) and ``delta_f_mm`` (mm), the keys of
+        :data:`PAPER_OPTIMISED`.
+
     Examples
     --------
     >>> from sunlab import sim
@@ -187,6 +197,11 @@ def reproduce_table4(
 ) -> Table4Result:
     """Reproduce Table 4 (one hole, experiment III) on the virtual bench.
 
+    Three steps, one after the other: the pipeline renders and centroids experiments I, II, III
+    and their zero-pose checks once (:func:`sunlab.reproduce.pipeline.simulate_and_locate`);
+    :func:`table4_statistics` fits every method on the centroid tables and computes the
+    statistics; the files are written.
+
     Parameters
     ----------
     quick : bool
@@ -211,11 +226,15 @@ def reproduce_table4(
     step, shots : int, optional
         Keep every ``step``-th pose and take ``shots`` frames per pose (override ``quick``).
     scheduler, workers
-        Local scheduler and its threads or processes (:func:`simulate_and_locate`).
+        Local scheduler and its threads or processes
+        (:func:`~sunlab.reproduce.pipeline.simulate_and_locate`).
 
     Returns
     -------
     Table4Result
+        :func:`table4_statistics`'s result, its ``settings`` led by the run's (``seed``, ``quick``,
+        ``centroid_method``) and followed by the bench's hypothesis (and, for the identified
+        bench, ``interval90``); ``files`` the paths written.
 
     Examples
     --------
@@ -232,23 +251,84 @@ def reproduce_table4(
     identified = bench is None
     bench = sim.Bench.paper_single_hole() if bench is None else bench
     t0 = time.perf_counter()
-    where = {"method": method, "address": address, "scheduler": scheduler, "workers": workers}
-    timings, not_run = {}, {}
-    with parallel.worker_pool(scheduler, workers, address) as pool:  # warms up meanwhile
-        cubes = simulate_experiments(bench, seed=seed, quick=quick, step=step, shots=shots,
-                                     progress=progress, method=method)
-        cubes.update(zero_pose_cubes(bench, experiment_plans(quick=quick, step=step,
-                                                             shots=shots), seed=seed))
-        cens, fitted = _locate_and_fit(cubes, where, pool, neural=neural, seed=seed, t0=t0,
-                                       progress=progress, timings=timings, not_run=not_run)
-    test = usable_table(cens["III"])
-    local = {label: stats.local_errors(cal.predict(test)) for label, cal in fitted.items()}
-    result = _assemble(cens, fitted, local, bench, timings, t0, settings={
-        "seed": seed, "quick": quick, "centroid_method": method, "not_run": not_run,
-        **_run_settings(cens, test, bench), **_identification(identified, "table4")})
+    cens = simulate_and_locate(bench, seed=seed, quick=quick, step=step, shots=shots,
+                               method=method, progress=progress, address=address,
+                               scheduler=scheduler, workers=workers, zero_pose=True)
+    centroided = time.perf_counter() - t0
+    result = table4_statistics(cens, bench, neural=neural, seed=seed)
+    result.timings = {"simulate_and_centroid": centroided, **result.timings,
+                      "total": time.perf_counter() - t0}
+    result.settings = {"seed": seed, "quick": quick, "centroid_method": method,
+                       **result.settings, **_identification(identified, "table4")}
+    if progress:
+        for label in result.local:
+            print(f"  fitted {label:<24s} in {result.timings[f'fit {label}']:6.2f} s",
+                  flush=True)
     if out is not None:
         result.files = _write_outputs(result, Path(out))
     return result
+
+
+def table4_statistics(cens: dict, bench, *, neural: bool = True, seed: int = 0) -> Table4Result:
+    """Table 4 from the centroid tables: every method fitted on I (II for model selection),
+    applied to III, and the paper's statistics (:mod:`sunlab.stats`).
+
+    Nothing is rendered or centroided here: the same tables give the same table.
+
+    Parameters
+    ----------
+    cens : dict of str to xarray.Dataset
+        ``centroids/1`` tables keyed ``"I"``, ``"II"``, ``"III"`` as centroided (every status;
+        :func:`~sunlab.reproduce.pipeline.usable_table` selects here), with the zero-pose
+        attributes ``zero_pose_x_px``, ``zero_pose_y_px`` (px) that the strategy-4 network
+        reads (:func:`~sunlab.reproduce.pipeline.simulate_and_locate` with ``zero_pose``).
+    bench : sunlab.sim.Bench
+        The bench the tables were measured on: its own values of what the optimised model
+        (3)-(4) estimates (:func:`bench_optimised_truth`) and its settings, recorded.
+    neural : bool
+        Include the four neural-network strategies (torch).
+    seed : int
+        Seed of the networks' initial weights.
+
+    Returns
+    -------
+    Table4Result
+        ``timings`` holds the seconds of each fit (``"fit <method>"``); ``settings`` holds
+        ``not_run`` (methods whose extra is not installed), the runs' ``poses`` and ``shots``,
+        the ``bench`` and the networks' zero reference.
+
+    Examples
+    --------
+    >>> from sunlab import sim
+    >>> from sunlab.reproduce.pipeline import simulate_and_locate
+    >>> bench = sim.Bench.paper_single_hole()
+    >>> cens = simulate_and_locate(bench, step=4, shots=1, progress=False, zero_pose=True)
+    >>> res = table4_statistics(cens, bench, neural=False)
+    >>> bool(res.table.loc[("alpha", "mu"), "polynomial"] < 0.05), res.settings["poses"]["III"]
+    (True, 25)
+    """
+    for key in ("I", "II", "III"):
+        if key not in cens:
+            raise ConfigurationError(
+                f"cens: found runs {sorted(cens)}; expected 'I', 'II' and 'III'. Fix: the "
+                "tables of simulate_and_locate(..., zero_pose=True).")
+    timings, not_run = {}, {}
+    fitted = _fit_all(usable_table(cens["I"]), usable_table(cens["II"]), neural=neural,
+                      seed=seed, timings=timings, not_run=not_run)
+    test = usable_table(cens["III"])
+    local = {label: stats.local_errors(cal.predict(test)) for label, cal in fitted.items()}
+    table = stats.global_stats(local)
+    return Table4Result(
+        table=table,
+        paper=stats.paper_table4(),
+        rectangles=stats.rectangles(table),
+        local=local,
+        optimised=_optimised_summary(fitted["optimised model (3)-(4)"].result, bench),
+        polynomial_order=tuple(int(n) for n in fitted["polynomial"].orders),
+        centroid_status=centroid_status(cens),
+        timings=timings,
+        settings={"not_run": not_run, **_run_settings(cens, test, bench)},
+    )
 
 
 def _run_settings(cens, test, bench) -> dict:
@@ -267,50 +347,6 @@ def _identification(identified: bool, table: str) -> dict:
 
     return {"hypothesis": identification.identified_hypothesis(),
             "interval90": identification.interval90(table)}
-
-
-def _assemble(cens, fitted, local, bench, timings, t0, settings) -> Table4Result:
-    """The statistics of every method on III, beside the paper's, and what was fitted."""
-    table = stats.global_stats(local)
-    return Table4Result(
-        table=table,
-        paper=stats.paper_table4(),
-        rectangles=stats.rectangles(table),
-        local=local,
-        optimised=_optimised_summary(fitted["optimised model (3)-(4)"].result, bench),
-        polynomial_order=tuple(int(n) for n in fitted["polynomial"].orders),
-        centroid_status=centroid_status(cens),
-        timings={**timings, "total": time.perf_counter() - t0},
-        settings=settings,
-    )
-
-
-def _locate_and_fit(cubes, where, pool, *, neural, seed, progress, timings, t0, not_run):
-    """Centroid I and II, then fit every method on them (:func:`_fit_all`) while III is
-    rendered and centroided on the same workers (``pool``, :func:`sunlab.parallel.worker_pool`)
-    from a background thread: the fits are serial, and beside them the other cores stay busy.
-    The centroid tables and the fitted methods."""
-    # I, II and every run's zero-pose check (which the strategy-4 network re-zeroes on,
-    # NN_REFERENCE)
-    cens = locate_runs({k: c for k, c in cubes.items() if k != "III"}, progress=progress,
-                       pool=pool, **where)
-    zero = zero_pose_attrs(cens)
-    cens = {k: cens[k].assign_attrs(zero[k]) for k in ("I", "II")}
-    timings["simulate_and_centroid I, II"] = time.perf_counter() - t0
-    train, val = usable_table(cens["I"]), usable_table(cens["II"])
-    with ThreadPoolExecutor(1, thread_name_prefix="sunlab-III") as ex:
-        t3 = time.perf_counter()
-        third = ex.submit(locate_runs, {"III": cubes["III"]}, progress=progress,
-                          pool=pool, **where)
-        fitted = _fit_all(train, val, neural=neural, seed=seed, timings=timings,
-                          not_run=not_run)
-        cens.update({k: v.assign_attrs(zero[k]) for k, v in third.result().items()})
-        timings["simulate_and_centroid III (beside the fits)"] = time.perf_counter() - t3
-    timings["simulate_and_centroid"] = time.perf_counter() - t0
-    if progress:
-        for label in fitted:
-            print(f"  fitted {label:<24s} in {timings[f'fit {label}']:6.2f} s", flush=True)
-    return cens, fitted
 
 
 def _fit_all(train, val, *, neural, seed, timings, not_run) -> dict:
@@ -347,6 +383,19 @@ def comparable_methods(table: pd.DataFrame, factor: float = 10.0) -> list[str]:
     """The methods drawn in Fig. 12: those whose M is within ``factor`` of the best method's on
     both angles (the ideal model (1) and the classical Fourier series are orders of magnitude
     off and would hide the others' rectangles).
+
+    Parameters
+    ----------
+    table : pandas.DataFrame
+        Global statistics, index ``(angle, stat)`` with ``"M"`` among the stats, one column
+        per method (deg).
+    factor : float
+        How many times the best method's M a method's M may be, on each angle.
+
+    Returns
+    -------
+    list of str
+        The methods kept, in the table's column order.
 
     Examples
     --------
@@ -398,6 +447,18 @@ def _span(lo: float, hi: float) -> str:
 
 def format_table(res: Table4Result) -> str:
     """Table 4 as text: each of our values beside the paper's, then the optimised model.
+
+    Parameters
+    ----------
+    res : Table4Result
+        :func:`reproduce_table4`'s result.
+
+    Returns
+    -------
+    str
+        The eight statistics of each method (deg), paper and ours and our 90 % interval, the
+        rectangle areas (deg^2), the optimised model's parameters, the polynomial's orders,
+        the centroid status counts and the run's times (s), one line each.
 
     Examples
     --------
@@ -457,7 +518,7 @@ def format_table(res: Table4Result) -> str:
         f"{k}: " + (", ".join(f"{n} {s}" for s, n in v["removed"].items()) or "none")
         for k, v in res.centroid_status.items()))
     lines.append(
-        f"Time: {res.timings['simulate_and_centroid']:.1f} s simulate + centroid (the fits "
-        f"ran beside experiment III), {res.timings['total']:.1f} s in all"
+        f"Time: {res.timings['simulate_and_centroid']:.1f} s simulate + centroid, "
+        f"{res.timings['total']:.1f} s in all"
     )
     return "\n".join(lines)

@@ -10,12 +10,14 @@ Columns: the paper's three (geometric centre, averaging, 1 hole), each beside ou
 extra column: the average after automatic bad-hole rejection with inverse-variance weights and
 sigma clipping.
 
-The frames go through the pipeline the other tables share (:mod:`sunlab.reproduce.pipeline`),
-all passes on one pool of workers: one Dask pass for the one-hole runs (whose spot gives the
-mounting offset that numbers the 100 spots), one for the 100-hole run I, then the 100-hole run
-III while the calibrations are fitted on I. Quick mode is the pipeline's
-:data:`~sunlab.reproduce.pipeline.QUICK`, as for Table 4: every 2nd angle along each grid axis
-(experiments I and III: 100 + 100 poses instead of 400 + 361) and 2 shots per pose instead of 8.
+The frames go through the pipeline the other tables share
+(:func:`sunlab.reproduce.pipeline.multi_hole_tables`: rendered and centroided once, on one
+pool of workers: the one-hole runs, whose spot gives the mounting offset that numbers the 100
+spots, then the 100-hole runs I and III, and the per-hole metrics that need the frames);
+:func:`table5_statistics` is a function of the centroid tables it returns. Quick mode is the
+pipeline's :data:`~sunlab.reproduce.pipeline.QUICK`, as for Table 4: every 2nd angle along each
+grid axis (experiments I and III: 100 + 100 poses instead of 400 + 361) and 2 shots per pose
+instead of 8.
 
 Examples
 --------
@@ -27,83 +29,28 @@ Examples
 from __future__ import annotations
 
 import time
-from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
 
-from .. import parallel
-from ..centroid.estimators import PER_SPOT
 from ..errors import ConfigurationError
 from .pipeline import (
+    SPOT_METHODS,  # noqa: F401 (where Table 5's readers look for them)
     centroid_status,
     experiment_plans,
-    locate_runs,
-    simulate_runs,
+    mounting_offset_px,  # noqa: F401
+    multi_hole_tables,
+    spot_method,  # noqa: F401
     usable_table,
     write_json,
 )
 
-__all__ = ["reproduce_table5", "mounting_offset_px", "spot_method", "COLUMNS", "REJECTION_COLUMN",
-           "SPOT_METHODS"]
+__all__ = ["reproduce_table5", "table5_statistics", "format_table5", "COLUMNS", "REJECTION_COLUMN"]
 
 #: The paper's column labels (:func:`sunlab.stats.paper_table5`).
 COLUMNS = ("100 holes: geometric centre", "100 holes: averaging", "1 hole")
 #: Our extra column.
 REJECTION_COLUMN = "100 holes: averaging + rejection"
-#: The per-spot centroid estimator on the 100-hole frames for each method of the table: the
-#: single-spot algorithms (B's profiles run over the whole frame) cannot separate 100 spots, so
-#: there each spot gets its own tight window (:func:`sunlab.centroid.locate_spots`).
-SPOT_METHODS = PER_SPOT
-
-
-def spot_method(method: str) -> str:
-    """The centroid estimator of the 100-hole frames for the table's ``method``
-    (:data:`SPOT_METHODS`); an unknown method raises, naming the choices.
-
-    Examples
-    --------
-    >>> spot_method("threshold")
-    'tight'
-    >>> spot_method("nearest")  # doctest: +ELLIPSIS
-    Traceback (most recent call last):
-    ...
-    sunlab.errors.ConfigurationError: method: found 'nearest'; expected one of [...]
-    """
-    if method not in SPOT_METHODS:
-        raise ConfigurationError(
-            f"method: found {method!r}; expected one of {sorted(SPOT_METHODS)}"
-        )
-    return SPOT_METHODS[method]
-
-
-def mounting_offset_px(one_hole) -> tuple[float, float]:
-    """Where the one-hole spot falls relative to its design track, px (median over poses).
-
-    The sensor's mounting on the platform (alpha0, beta0) moves every spot off its design
-    place, by about 80 px at F = 17 mm, more than half the 71 px hole pitch of the 100-hole mask
-    (16 px at the presets' F = 5 mm), so design positions alone can give spots to the wrong
-    holes. The mounting is the platform's, common to both
-    masks: the offset measured with the one hole (calibrated first, as in the paper) is the
-    prior that :func:`sunlab.centroid.locate` needs to number the 100 spots.
-
-    Examples
-    --------
-    >>> from sunlab import sim
-    >>> cen = sim.synthetic_centroids([0.0, -5.0], [0.0, 3.0], mask_distance_mm=17.0,
-    ...                                    hole_offset_px=(80.0, 18.0))
-    >>> [round(v, 6) for v in mounting_offset_px(cen)]
-    [80.0, 18.0]
-    """
-    from ..geometry import ideal_centroid
-
-    a = one_hole["alpha"].values[:, None]
-    b = one_hole["beta"].values[:, None]
-    x0, y0 = ideal_centroid(a, b, float(one_hole.attrs["mask_distance_mm"]),
-                            float(one_hole.attrs["pixel_pitch_mm"]),
-                            float(one_hole.attrs["x_cf_px"]), float(one_hole.attrs["y_cf_px"]))
-    return (float(np.nanmedian(one_hole["x"].values - x0)),
-            float(np.nanmedian(one_hole["y"].values - y0)))
 
 
 def _findings(ours) -> dict:
@@ -182,14 +129,15 @@ def reproduce_table5(quick: bool = True, seed: int = 0, out: Path | str | None =
     """
     t0 = time.perf_counter()
     plans_ = experiment_plans(("I", "II", "III"), quick=quick, step=step, shots=shots)
-    where, timings = {"address": address, "scheduler": scheduler, "workers": workers}, {}
-    with parallel.worker_pool(scheduler, workers, address) as pool:  # warms up meanwhile
-        result, cens, status = _simulate_locate_calibrate(
-            plans_, seed=seed, method=method, progress=progress, where=where, pool=pool,
-            timings=timings, order=order)
-    result.update(_identification(), centroid_status=status)
-    result["sizes"] = {"train_poses": len(plans_["I"]), "test_poses": len(plans_["III"]),
-                       "shots": plans_["I"].shots, "holes": int(cens["100 holes I"].sizes["hole"])}
+    tables, hole_metrics, cubes = multi_hole_tables(
+        plans_, seed=seed, method=method, progress=progress, address=address,
+        scheduler=scheduler, workers=workers)
+    timings = {"simulate_and_centroid": time.perf_counter() - t0}
+    t = time.perf_counter()
+    result = table5_statistics(tables, hole_metrics, order=order)
+    timings["calibrate, find bad holes, compare"] = time.perf_counter() - t
+    result["data"].update(cube_train=cubes["100 holes I"], cube_test=cubes["100 holes III"])
+    result.update(_identification())
     if out is not None:
         t = time.perf_counter()
         result["files"] = _write_figures(result, Path(out))
@@ -200,6 +148,67 @@ def reproduce_table5(quick: bool = True, seed: int = 0, out: Path | str | None =
     if out is not None:
         result["files"].append(_write_json(result, Path(out), {
             "quick": quick, "seed": seed, "order": result["order"], "centroid_method": method}))
+    return result
+
+
+def table5_statistics(tables: dict, hole_metrics, *, order: int | None = None) -> dict:
+    """Table 5 from the centroid tables: the one hole's polynomial and every strategy of
+    :mod:`sunlab.multihole` fitted on I, the bad holes found, each applied to III, and the
+    paper's statistics (:mod:`sunlab.stats`) beside the paper's values.
+
+    Nothing is rendered or centroided here: the same tables give the same table.
+
+    Parameters
+    ----------
+    tables : dict of str to xarray.Dataset
+        ``centroids/1`` tables keyed ``"1 hole I"``, ``"1 hole II"``, ``"1 hole III"``,
+        ``"100 holes I"``, ``"100 holes III"``, as centroided (every status;
+        :func:`~sunlab.reproduce.pipeline.usable_table` selects here):
+        :func:`~sunlab.reproduce.pipeline.multi_hole_tables`.
+    hole_metrics : xarray.Dataset
+        The per-hole defect metrics of the 100-hole run I without the residual ones
+        (:func:`sunlab.multihole.defect_metrics` with its frames and no strategy); the
+        residual metrics of the averaging strategy are added here.
+    order : int, optional
+        Polynomial order of every calibration. Default: chosen on the one hole's II by the
+        rule of Table 4's polynomial (:meth:`sunlab.calibration.Polynomial.select_order`); the
+        100-hole strategies take the larger of its two orders.
+
+    Returns
+    -------
+    dict
+        ``table`` (pandas.DataFrame: our value and the paper's per column, deg), ``ours`` (our
+        four columns, deg), ``bad_holes`` (rejected), ``injected`` (holes the bench gave
+        defects), ``budget`` (common vs hole-specific error), ``metrics`` (every defect
+        metric), ``findings`` (the ratios of the paper's findings), ``order``,
+        ``centroid_status`` (:func:`~sunlab.reproduce.pipeline.centroid_status`), ``sizes``,
+        ``files`` (empty) and ``data`` (centroid tables and the averaging strategy, for figures
+        and :class:`sunlab.widgets.HoleExplorer`).
+
+    Examples
+    --------
+    Its tables come from 100-hole frames (minutes even thinned), so not run here:
+
+    >>> from sunlab.reproduce.pipeline import experiment_plans, multi_hole_tables
+    >>> plans_ = experiment_plans(step=4, shots=1)
+    >>> res = table5_statistics(*multi_hole_tables(plans_, progress=False)[:2])  # doctest: +SKIP
+    >>> res["table"].loc[("alpha", "mu")]  # doctest: +SKIP
+    """
+    names = ("100 holes I", "100 holes III", "1 hole I", "1 hole III")
+    missing = [k for k in (*names, "1 hole II") if k not in tables]
+    if missing:
+        raise ConfigurationError(
+            f"tables: missing {missing}. Fix: the tables of multi_hole_tables(...).")
+    one_hole, order = _one_hole_polynomial(tables, order)
+    cens = {k: usable_table(tables[k]) for k in names}
+    fitted = _calibrate(cens["100 holes I"], hole_metrics, order=order)
+    result = _compare(fitted, cens, one_hole=one_hole)
+    result["order"] = order
+    result["centroid_status"] = centroid_status({k: tables[k] for k in names})
+    result["sizes"] = {"train_poses": int(tables["100 holes I"].sizes["pose"]),
+                       "test_poses": int(tables["100 holes III"].sizes["pose"]),
+                       "shots": int(tables["100 holes I"].sizes["shot"]),
+                       "holes": int(tables["100 holes I"].sizes["hole"])}
     return result
 
 
@@ -264,80 +273,37 @@ def format_table5(result: dict) -> str:
     return "\n".join(lines)
 
 
-def _simulate_locate_calibrate(plans_: dict, *, seed, method, progress, where, pool, timings,
-                               order) -> tuple[dict, dict, dict]:
-    """Every pass of the table on one pool of workers (:func:`sunlab.parallel.worker_pool`):
-    the one-hole runs I and III, whose spot gives the mounting offset that numbers the 100
-    spots; the 100-hole run I; then the 100-hole run III on the workers from a background
-    thread while the calibrations are fitted on I (:func:`_calibrate`, serial, in this
-    process); last the comparison on III. The result of :func:`_compare`, the centroid
-    tables (keyed ``"1 hole I"``, ``"100 holes III"`` ...) and their
-    :func:`centroid_status`; the stages' times go into ``timings``."""
-    from .. import sim
-
-    one = {f"1 hole {k}": (p, sim.Bench.paper_single_hole()) for k, p in plans_.items()}
-    many = {f"100 holes {k}": (p, sim.Bench.paper_multi_hole()) for k, p in plans_.items()
-            if k != "II"}  # the order is chosen on the one hole's II
-    t = time.perf_counter()
-    cens = locate_runs(simulate_runs(one, seed=seed, chunks="pose"), method=method,
-                       progress=progress, pool=pool, **where)
-    timings["simulate_and_centroid 1 hole"] = time.perf_counter() - t
-    one_hole, order = _one_hole_polynomial(cens, order)
-    # the passes take whole poses (one Dask task each); the cubes handed on serve single
-    # frames (defect metrics, figures, the explorer), so they are chunked by frame: the same
-    # frames either way
-    cubes = simulate_runs({**one, **many}, seed=seed, chunks="frame")
-    kw = {"method": spot_method(method), "hole_offset": mounting_offset_px(cens["1 hole I"]),
-          "progress": progress, "pool": pool, **where}
-    t = time.perf_counter()
-    cens.update(locate_runs(simulate_runs({"100 holes I": many["100 holes I"]}, seed=seed,
-                                          chunks="pose"), **kw))
-    timings["simulate_and_centroid 100 holes I"] = time.perf_counter() - t
-    status = centroid_status(cens)
-    cens = {k: usable_table(c) for k, c in cens.items()}
-    with ThreadPoolExecutor(1, thread_name_prefix="sunlab-100-III") as ex:
-        t = time.perf_counter()
-        third = ex.submit(locate_runs, simulate_runs({"100 holes III": many["100 holes III"]},
-                                                    seed=seed, chunks="pose"), **kw)
-        fitted = _calibrate(cens["100 holes I"], cubes["100 holes I"], order=order,
-                            beside_pool=pool is not None)
-        timings["calibrate, find bad holes (beside 100 holes III)"] = time.perf_counter() - t
-        test = third.result()
-        timings["simulate_and_centroid 100 holes III"] = time.perf_counter() - t
-    status.update(centroid_status(test))
-    cens["100 holes III"] = usable_table(test["100 holes III"])
-    t = time.perf_counter()
-    result = _compare(fitted, cens, cubes, one_hole=one_hole)
-    result["order"] = order
-    timings["compare"] = time.perf_counter() - t
-    names = ("100 holes I", "100 holes III", "1 hole I", "1 hole III")
-    return result, {k: cens[k] for k in names}, {k: status[k] for k in names}
-
-
-def _calibrate(cen_tr, cube_tr, *, order: int, beside_pool: bool = False) -> dict:
+def _calibrate(cen_tr, hole_metrics, *, order: int) -> dict:
     """The strategies of :mod:`sunlab.multihole` fitted on I, and the bad holes found from
-    the training frames (spot-shape metrics and the edge roughness that finds burrs).
-
-    ``beside_pool``: a pool of worker processes is busy with another run meanwhile, so the
-    frames the metrics sample are rendered here, one after the other (a request to the busy
-    pool would wait behind its queue each time: 18 s instead of 8 in Table 5).
-    """
-    import contextlib
-
-    import dask
-
+    the training run's defect metrics (``hole_metrics``, which hold the spot-shape metrics and
+    the edge roughness that finds burrs, and the averaging strategy's residual metrics added
+    here, as :func:`sunlab.multihole.defect_metrics` adds them)."""
     from .. import multihole as mh
 
     s1 = mh.GeometricCentre(order=order).fit(cen_tr)
     s2 = mh.PerHoleAverage(order=order).fit(cen_tr)
-    here = dask.config.set(scheduler="synchronous") if beside_pool else contextlib.nullcontext()
-    with here:
-        metrics = mh.defect_metrics(cen_tr, strategy=s2, cube=cube_tr)
+    metrics = _with_residual_metrics(hole_metrics, s2, cen_tr)
     bad = mh.reject_bad_holes(metrics).values
     s2r = mh.PerHoleAverage(order=order, holes=~bad, weighting="inverse_variance", clip=4.0,
                             calibrations_=s2.calibrations_, variance_=s2.variance_)
     return {"geometric centre": s1, "averaging": s2, "rejection": s2r, "metrics": metrics,
             "bad": bad}
+
+
+def _with_residual_metrics(hole_metrics, strategy, cen):
+    """``hole_metrics`` (:func:`sunlab.multihole.defect_metrics` without a strategy) with the
+    residual metrics of the fitted ``strategy`` on ``cen`` added: the dataset that
+    ``defect_metrics(cen, strategy=strategy, ...)`` gives, variables in its order (the data,
+    then the hole coordinates: the columns of ``hole_metrics.csv``)."""
+    import xarray as xr
+
+    from .. import multihole as mh
+
+    rm = mh.residual_metrics(strategy.predict_holes(cen))
+    data = {k: hole_metrics[k].variable for k in hole_metrics.data_vars}
+    data.update({k: ("hole", rm[k].values, {**rm[k].attrs, "long_name": mh.DEFECT_METRICS[k]})
+                 for k in rm.data_vars})
+    return xr.Dataset(data, coords={k: hole_metrics[k].variable for k in hole_metrics.coords})
 
 
 def _one_hole_polynomial(cens: dict, order: int | None):
@@ -355,7 +321,7 @@ def _one_hole_polynomial(cens: dict, order: int | None):
     return best, int(max(best.orders))
 
 
-def _compare(fitted: dict, cens: dict, cubes: dict, *, one_hole) -> dict:
+def _compare(fitted: dict, cens: dict, *, one_hole) -> dict:
     """The fitted strategies applied to III beside the one hole's polynomial; the statistics,
     the bad holes, the error budget and what the figures need."""
     from .. import multihole as mh
@@ -384,9 +350,9 @@ def _compare(fitted: dict, cens: dict, cubes: dict, *, one_hole) -> dict:
         "metrics": metrics,
         "findings": _findings(ours),
         "files": [],
-        # what the figures and the hole explorer need (lazy cubes, not written to disk)
-        "data": {"cube_train": cubes["100 holes I"], "centroids_train": cen_tr,
-                 "cube_test": cubes["100 holes III"], "centroids_test": cen_te,
+        # what the figures and the hole explorer need (not written to disk); the caller adds
+        # the lazy frame cubes
+        "data": {"centroids_train": cen_tr, "centroids_test": cen_te,
                  "strategy": s2, "one_hole_test": cens["1 hole III"]},
     }
 
