@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..jit import kernel
+from .. import jit
 from ._k_flags import _FM
 
 __all__: list[str] = []
@@ -20,7 +20,7 @@ __all__: list[str] = []
 # --------------------------------------------------------------------------------------------
 # Algorithm A (threshold + fixed window)
 # --------------------------------------------------------------------------------------------
-@kernel(cache=True, nogil=True, fastmath=_FM)
+@jit.kernel(cache=True, nogil=True, fastmath=_FM)
 def ring_mean(frame, r0, r1, c0, c1, w):
     """Mean of the ``w`` outermost rows and columns of frame[r0:r1, c0:c1] (each pixel once)."""
     s = 0.0
@@ -58,7 +58,7 @@ def _ring_mean_numpy(frame, r0, r1, c0, c1, w):
     return float(box[edge].mean()) if edge.any() else np.nan
 
 
-@kernel(cache=True, nogil=True)
+@jit.kernel(cache=True, nogil=True)
 def scan_first(frame, thr, half, need, r0, r1, c0, c1, er0, er1, ec0, ec1):
     """Raster scan of frame[r0:r1, c0:c1] for the first pixel above ``thr`` whose
     (2 half + 1)^2 neighbourhood holds at least ``need`` pixels above ``thr`` (pixels outside
@@ -123,7 +123,7 @@ def _scan_first_numpy(frame, thr, half, need, r0, r1, c0, c1, er0, er1, ec0, ec1
     return int(r) + r0, int(c) + c0
 
 
-@kernel(cache=True, nogil=True, fastmath=_FM)
+@jit.kernel(cache=True, nogil=True, fastmath=_FM)
 def com_above(frame, r0, r1, c0, c1, thr):
     """Centre of mass of (I - thr) over the pixels of frame[r0:r1, c0:c1] with I > thr.
 
@@ -179,7 +179,7 @@ def _com_above_numpy(frame, r0, r1, c0, c1, thr):
 # --------------------------------------------------------------------------------------------
 # Algorithm B (projection window)
 # --------------------------------------------------------------------------------------------
-@kernel(cache=True, nogil=True, fastmath=_FM)
+@jit.kernel(cache=True, nogil=True, fastmath=_FM)
 def profiles(frame):
     """Column profile (sum over rows, length nx) and row profile (sum over columns, length ny)."""
     ny, nx = frame.shape
@@ -212,7 +212,7 @@ def _profiles_numpy(frame):
     return frame.sum(axis=0, dtype=np.float64), frame.sum(axis=1, dtype=np.float64)
 
 
-@kernel(cache=True, nogil=True)
+@jit.kernel(cache=True, nogil=True)
 def robust_level(p):
     """Median of a profile and 1.4826 x its median absolute deviation (numpy.median's values,
     without its Python-level overhead: two of them per profile, two profiles per frame)."""
@@ -238,7 +238,7 @@ def _robust_level_numpy(p):
     return float(med), 1.4826 * float(np.median(np.abs(p - med)))
 
 
-@kernel(cache=True, nogil=True, fastmath=_FM)
+@jit.kernel(cache=True, nogil=True, fastmath=_FM)
 def com_box(frame, r0, r1, c0, c1, bkg):
     """Centre of mass of (I - bkg) over frame[r0:r1, c0:c1]; returns (sum, x, y, max I)."""
     s = 0.0

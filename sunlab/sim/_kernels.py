@@ -20,7 +20,7 @@ import numba
 import numpy as np
 from numba.extending import overload
 
-from ..jit import kernel
+from .. import jit
 from ..options import OPTIONS
 
 __all__ = [
@@ -84,7 +84,7 @@ def _to_dn32(v, top):
     return np.uint16(np.int32(w))
 
 
-@kernel(nogil=True, cache=True)
+@jit.kernel(nogil=True, cache=True)
 def adc_frame(mean_dn, sigma_dn, table, state, max_dn, out):
     """out = clip(rint(mean + sigma * z), 0, max_dn) over the whole frame.
 
@@ -179,7 +179,7 @@ def _adc_frame_numpy(mean_dn, sigma_dn, table, state, max_dn, out):
     out[...] = _round_clip(mean_dn + sigma_dn * z, max_dn)  # float32, as the kernel sums
 
 
-@kernel(nogil=True, cache=True)
+@jit.kernel(nogil=True, cache=True)
 def adc_region(
     y0,
     x0,
@@ -297,7 +297,7 @@ def normal_table() -> np.ndarray:
     return ndtri((np.arange(65536) + 0.5) / 65536).astype(np.float32)
 
 
-@kernel(nogil=True, cache=True)
+@jit.kernel(nogil=True, cache=True)
 def polygon_ft(vx, vy, fx, fy):
     """Fourier transform of a polygon's indicator, F(f) = integral of exp(-2 pi i f.x) over it.
 
@@ -400,9 +400,10 @@ def _polygon_ft_numpy(vx, vy, fx, fy):
     return np.where(f2 < 1e-18, area + 0j, out)
 
 
-@kernel(cache=True)
+@jit.kernel(cache=True)
 def clip_convex(px, py, cx, cy):
-    """Sutherland-Hodgman: the part of polygon (px, py) inside the convex CCW polygon (cx, cy)."""
+    """Sutherland-Hodgman: the part of polygon (px, py) inside the convex CCW polygon (cx, cy).
+    Plain Python on lists: its reference is its own source, interpreted."""
     ox = list(px)
     oy = list(py)
     m = cx.shape[0]
@@ -433,10 +434,6 @@ def clip_convex(px, py, cx, cy):
                 ox.append(x0 + t * (x1 - x0))
                 oy.append(y0 + t * (y1 - y0))
     return np.array(ox, dtype=np.float64), np.array(oy, dtype=np.float64)
-
-
-# clip_convex is plain Python on lists already: its reference is its own source, interpreted
-# (sunlab.jit.interpreted).
 
 
 @numba.njit(inline="always")
@@ -489,7 +486,7 @@ def _disk_ft(k, u):
     return ((1.0 - u) * 0.5 * jinc + u * ld) / ((1.0 - u) * 0.5 + u / 3.0)
 
 
-@kernel(nogil=True, cache=True)
+@jit.kernel(nogil=True, cache=True)
 def real_spectrum(fx, fy, ap, area, km, u, ax, ay, diff, use_ap):
     """Real, centred spectrum on the grid fy (nfy,) x fx (nfx,): aperture x kernel x pixel.
 
@@ -526,7 +523,7 @@ def real_spectrum(fx, fy, ap, area, km, u, ax, ay, diff, use_ap):
     return out
 
 
-@kernel(nogil=True, cache=True)
+@jit.kernel(nogil=True, cache=True)
 def fold_phase(t4, wy, wx, ey, ex):
     """Fold alias bands and apply each spot's position phase.
 
@@ -691,7 +688,7 @@ TABLE_STEP = 1.0 / 64.0
 TABLE_KMAX = 256.0
 
 
-@kernel(nogil=True, cache=True)
+@jit.kernel(nogil=True, cache=True)
 def _build_table(u, h, n):
     tab = np.empty(n + 3)
     for i in range(n + 3):
@@ -749,7 +746,7 @@ def _lookup(tab, inv_h, k, u):
     ) / 6.0
 
 
-@kernel(nogil=True, cache=True)
+@jit.kernel(nogil=True, cache=True)
 def real_spectrum_tabulated(fx, fy, ap, area, km, u, ax, ay, diff, use_ap, tab_ap, tab_u):
     """:func:`real_spectrum` with the two disk transforms interpolated in tables.
 
@@ -791,20 +788,7 @@ def real_spectrum_tabulated(fx, fy, ap, area, km, u, ax, ay, diff, use_ap, tab_a
 @real_spectrum_tabulated.reference
 def _real_spectrum_tabulated_numpy(fx, fy, ap, area, km, u, ax, ay, diff, use_ap, tab_ap,
                                    tab_u):
-    """numpy reference of :func:`real_spectrum_tabulated`: the spectrum with the transforms
-    evaluated directly (:func:`_real_spectrum_numpy`), which the tables only interpolate (to
-    2e-10 of the peak).
-
-    Parameters
-    ----------
-    fx, fy, ap, area, km, u, ax, ay, diff, use_ap
-        As for :func:`real_spectrum`.
-    tab_ap, tab_u : ndarray
-        The tables of the compiled kernel (unused: the reference needs none).
-
-    Returns
-    -------
-    ndarray of float64, shape (nfy, nfx)
-        The real, centred spectrum.
-    """
+    """numpy reference of :func:`real_spectrum_tabulated`: the transforms evaluated directly
+    (:func:`_real_spectrum_numpy`; the tables ``tab_ap``, ``tab_u`` unused), which the kernel
+    interpolates to 2e-10 of the peak."""
     return _real_spectrum_numpy(fx, fy, ap, area, km, u, ax, ay, diff, use_ap)
