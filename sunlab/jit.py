@@ -193,11 +193,11 @@ class Kernel:
         """Whether a numpy reference was written for this kernel (else its source serves)."""
         return self._reference is not None
 
-    def __call__(self, *args):
+    def __call__(self, *args, **kwargs):
         if OPTIONS["kernels"] == "numpy":
-            return self.numpy(*args)
+            return self.numpy(*args, **kwargs)
         announce_first_compile()
-        return self.compiled(*args)
+        return self.compiled(*args, **kwargs)
 
     def __repr__(self) -> str:
         kind = "numpy reference" if self.has_reference else "interpreted source"
@@ -283,9 +283,9 @@ def _quiet(fn):
     zero under ``error_model="numpy"`` gives inf or NaN silently)."""
 
     @functools.wraps(fn)
-    def run(*args):
+    def run(*args, **kwargs):
         with np.errstate(all="ignore"):
-            return fn(*args)
+            return fn(*args, **kwargs)
 
     return run
 
@@ -297,7 +297,7 @@ class _Deferred:
         self.target = target
         self.fn = None
 
-    def __call__(self, *args):
+    def __call__(self, *args, **kwargs):
         if self.fn is None:
             self.fn = interpreted(self.target)
-        return self.fn(*args)
+        return self.fn(*args, **kwargs)
