@@ -1,9 +1,14 @@
-"""Package-wide options (like :func:`xarray.set_options`): today only the progress switch.
+"""Package-wide options (like :func:`xarray.set_options`): progress bars and the kernels.
 
-Long computations show a progress bar unless the caller passes ``progress=False`` *or* the
-switch is off. Notebooks turn it off once (``sunlab.set_options(progress=False)``) so that their
-saved outputs hold figures and numbers, not bars; the environment variable
-``SUNLAB_PROGRESS=0`` does the same for a whole process.
+``progress``: long computations show a progress bar unless the caller passes
+``progress=False`` *or* the switch is off. Notebooks turn it off once
+(``sunlab.set_options(progress=False)``) so that their saved outputs hold figures and numbers,
+not bars; the environment variable ``SUNLAB_PROGRESS=0`` does the same for a whole process.
+
+``kernels``: ``"numba"`` runs the compiled kernels, ``"numpy"`` their plain numpy references
+(slower, readable, and Numba compiles nothing; :mod:`sunlab.jit`). The environment variable
+``SUNLAB_KERNELS=numpy`` sets it for a whole process and the worker processes it starts, e.g.
+``SUNLAB_KERNELS=numpy sunlab reproduce --quick``.
 
 Examples
 --------
@@ -13,6 +18,9 @@ Examples
 False
 >>> sunlab.show_progress(True) == sunlab.OPTIONS["progress"]
 True
+>>> with sunlab.set_options(kernels="numpy"):
+...     sunlab.OPTIONS["kernels"]
+'numpy'
 """
 
 from __future__ import annotations
@@ -21,10 +29,29 @@ import os
 
 from .errors import ConfigurationError
 
-__all__ = ["OPTIONS", "set_options", "show_progress"]
+__all__ = ["OPTIONS", "KERNELS", "set_options", "show_progress"]
+
+#: Values of the option ``kernels``: the compiled kernels, or their numpy references.
+KERNELS = ("numba", "numpy")
+
+
+def _kernels_from_environment() -> str:
+    """The option ``kernels`` as ``SUNLAB_KERNELS`` sets it (default ``"numba"``)."""
+    value = os.environ.get("SUNLAB_KERNELS", "numba").strip().lower() or "numba"
+    if value not in KERNELS:
+        raise ConfigurationError(
+            f"environment variable SUNLAB_KERNELS: found {value!r}; expected one of {KERNELS}. "
+            "Fix: SUNLAB_KERNELS=numpy for the references, or unset it."
+        )
+    return value
+
 
 #: Current values of the options (read them; change them with :func:`set_options`).
-OPTIONS: dict[str, object] = {"progress": os.environ.get("SUNLAB_PROGRESS", "1") != "0"}
+OPTIONS: dict[str, object] = {"progress": os.environ.get("SUNLAB_PROGRESS", "1") != "0",
+                              "kernels": _kernels_from_environment()}
+
+#: The values each option accepts.
+_ALLOWED = {"progress": (True, False), "kernels": KERNELS}
 
 
 class set_options:  # noqa: N801 - used as a function, as xarray.set_options is
@@ -34,6 +61,16 @@ class set_options:  # noqa: N801 - used as a function, as xarray.set_options is
     ----------
     progress : bool
         Allow progress bars (default True, or False when ``SUNLAB_PROGRESS=0``).
+    kernels : {"numba", "numpy"}
+        Run the compiled kernels (default, or as ``SUNLAB_KERNELS`` says) or their numpy
+        references (:mod:`sunlab.jit`). It is also written to ``SUNLAB_KERNELS`` in the
+        environment, so worker processes started afterwards (Dask's ``"cluster"`` scheduler,
+        a new process pool) follow it; a pool already running keeps the value it started with.
+
+    Returns
+    -------
+    set_options
+        A context manager: the previous values come back at the end of a ``with`` block.
 
     Examples
     --------
@@ -41,6 +78,10 @@ class set_options:  # noqa: N801 - used as a function, as xarray.set_options is
     >>> OPTIONS["progress"]
     False
     >>> _ = set_options(progress=True)
+    >>> set_options(kernels="fortran")  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    sunlab.errors.ConfigurationError: set_options(kernels=...): found 'fortran'; expected one ...
     """
 
     def __init__(self, **options):
@@ -50,22 +91,45 @@ class set_options:  # noqa: N801 - used as a function, as xarray.set_options is
                 f"set_options: unknown option(s) {unknown}; expected one of {sorted(OPTIONS)}."
             )
         for name, value in options.items():
-            if not isinstance(value, bool):
+            allowed = _ALLOWED[name]
+            if not any(value is a if isinstance(a, bool) else value == a for a in allowed):
+                expected = "True or False" if name == "progress" else f"one of {allowed}"
                 raise ConfigurationError(
-                    f"set_options({name}=...): found {value!r}; expected True or False."
+                    f"set_options({name}=...): found {value!r}; expected {expected}."
                 )
         self._old = {name: OPTIONS[name] for name in options}
-        OPTIONS.update(options)
+        self._old_env = os.environ.get("SUNLAB_KERNELS")
+        _apply(options)
 
     def __enter__(self):
         return self
 
     def __exit__(self, *exc) -> None:
-        OPTIONS.update(self._old)
+        _apply(self._old)
+        if "kernels" in self._old and self._old_env is None:
+            os.environ.pop("SUNLAB_KERNELS", None)
+
+
+def _apply(options: dict) -> None:
+    """Set the options, and mirror ``kernels`` in the environment for new worker processes."""
+    OPTIONS.update(options)
+    if "kernels" in options:
+        os.environ["SUNLAB_KERNELS"] = str(options["kernels"])
 
 
 def show_progress(requested: bool) -> bool:
-    """Whether to draw a progress bar: the caller asked for one and the switch allows it."""
+    """Whether to draw a progress bar: the caller asked for one and the switch allows it.
+
+    Parameters
+    ----------
+    requested : bool
+        The caller's ``progress=`` argument.
+
+    Returns
+    -------
+    bool
+        True when ``requested`` and the option ``progress`` are both true.
+    """
     return bool(requested) and bool(OPTIONS["progress"])
 
 
@@ -126,6 +190,20 @@ def dask_progress(progress: bool, desc: str = "sunlab", minimum: float = 1.0):
     plain lines on stderr otherwise (a log file gets no carriage returns); nothing when
     :func:`show_progress` says no.
 
+    Parameters
+    ----------
+    progress : bool
+        The caller's ``progress=`` argument (see :func:`show_progress`).
+    desc : str
+        The label of the bar or lines.
+    minimum : float
+        Seconds of work before anything is shown.
+
+    Returns
+    -------
+    context manager
+        A Dask callback, or :func:`contextlib.nullcontext` when no progress is shown.
+
     Examples
     --------
     >>> import dask.array as da
@@ -142,38 +220,3 @@ def dask_progress(progress: bool, desc: str = "sunlab", minimum: float = 1.0):
 
         return TqdmCallback(desc=desc, mininterval=0.5, delay=minimum)
     return _LogLines(desc, minimum)
-
-
-_ANNOUNCED: set = set()
-
-
-def announce_compile(modules, what: str) -> bool:
-    """Say once per process, on stderr, that the numba kernels of ``modules`` compile now: the
-    first run after an install (or an edit of a kernel) pauses for tens of seconds while they
-    compile, and numba caches them on disk for every later run.
-
-    Said only when a kernel has neither been compiled in this process nor has a cache on disk;
-    returns whether it was said.
-    """
-    import sys
-
-    if what in _ANNOUNCED:
-        return False
-    uncached = []
-    for module in modules:
-        for obj in vars(module).values():
-            cache = getattr(getattr(obj, "_cache", None), "_cache_file", None)
-            if cache is None or getattr(obj, "signatures", None):
-                continue
-            try:
-                from pathlib import Path
-
-                if not Path(cache._index_path).exists():
-                    uncached.append(obj)
-            except (AttributeError, OSError, TypeError):  # another numba: say nothing
-                continue
-    _ANNOUNCED.add(what)
-    if uncached:
-        print(f"sunlab: compiling the {what} kernels once ({len(uncached)} functions, up to a "
-              "minute); numba caches them for every later run", file=sys.stderr, flush=True)
-    return bool(uncached)

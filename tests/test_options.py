@@ -1,10 +1,7 @@
-"""Progress that fits the place: plain lines in a log, a tqdm bar in a terminal or Jupyter, and
-the first compile of the kernels said once."""
-
-import types
+"""Progress that fits the place: plain lines in a log, a tqdm bar in a terminal or Jupyter (the
+first compile of the kernels is said by sunlab.jit: tests/test_jit.py)."""
 
 import dask.array as da
-import pytest
 
 from sunlab import options
 
@@ -30,22 +27,3 @@ def test_a_terminal_gets_a_tqdm_bar(monkeypatch):
 
     monkeypatch.setattr(options, "_interactive", lambda: True)
     assert isinstance(options.dask_progress(True, "x"), TqdmCallback)
-
-
-def _fake_kernel(tmp_path, cached: bool):
-    index = tmp_path / ("k.nbi" if cached else "missing.nbi")
-    if cached:
-        index.write_bytes(b"")
-    cache_file = types.SimpleNamespace(_index_path=str(index))
-    return types.SimpleNamespace(signatures=[], _cache=types.SimpleNamespace(
-        _cache_file=cache_file))
-
-
-@pytest.mark.parametrize("cached", [False, True])
-def test_the_first_compile_is_announced_once(tmp_path, capsys, monkeypatch, cached):
-    monkeypatch.setattr(options, "_ANNOUNCED", set())
-    module = types.SimpleNamespace(kernel=_fake_kernel(tmp_path, cached))
-    assert options.announce_compile([module], "test") is (not cached)
-    assert options.announce_compile([module], "test") is False  # once per process
-    err = capsys.readouterr().err
-    assert err.count("compiling the test kernels once") == (0 if cached else 1)

@@ -57,7 +57,6 @@ Examples
 
 from __future__ import annotations
 
-from ..jit import announce_first_compile
 from .crlb import CRLB, crlb, disk_profile
 from .cube import default_method, is_multi_hole, locate, locate_all
 from .estimators import (
@@ -74,8 +73,6 @@ from .lattice import SPOT_METRICS, Spots, locate_spots
 from .moments import SpotMoments, spot_moments, stamp_moments
 from .result import SATURATION_10BIT, Centroid
 from .sources import centroid_sources
-
-announce_first_compile()  # one line on stderr when a kernel compiles (a cache miss)
 
 __all__ = [
     "Centroid",

@@ -12,6 +12,7 @@ import math
 import numpy as np
 from numba import njit
 
+from .. import jit
 from ._k_flags import _FM, _U
 
 __all__: list[str] = []
@@ -137,7 +138,7 @@ def _aperture_spans(xc, yc, r_ap, ny, nx, spn):
     return r0, r1
 
 
-@njit(cache=True, nogil=True, fastmath=_FM)
+@jit.kernel(cache=True, nogil=True, fastmath=_FM)
 def aperture_rows(frame, xc, yc, r_ap, npow, tab, spn):
     """Row table of the aperture of radius ``r_ap`` about (xc, yc) (pixel centres within
     ``r_ap``; see the comment above): fills ``tab`` (rows, 4) and ``spn`` (rows, 2) and
@@ -156,7 +157,7 @@ def aperture_rows(frame, xc, yc, r_ap, npow, tab, spn):
     return r0, r1, cr
 
 
-@njit(cache=True, nogil=True, fastmath=_FM)
+@jit.kernel(cache=True, nogil=True, fastmath=_FM)
 def shift_rows(frame, tab, spn, r0, r1, cr, xc, yc, r_ap, npow, out, ospn):
     """The row table of the aperture of radius ``r_ap`` about (xc, yc) (into ``out``,
     ``ospn``) from that of a nearby aperture (``tab``, ``spn``, rows [r0, r1), centre column
@@ -198,7 +199,7 @@ def shift_rows(frame, tab, spn, r0, r1, cr, xc, yc, r_ap, npow, out, ospn):
     return n0, n1, nc
 
 
-@njit(cache=True, nogil=True, fastmath=_FM)
+@jit.kernel(cache=True, nogil=True, fastmath=_FM)
 def rows_com(tab, spn, r0, r1, cr, yc, bkg):
     """Centre of mass of (I - bkg) from a row table: (sum, x, y)."""
     rr = int(math.floor(yc + 0.5))
@@ -221,7 +222,7 @@ def rows_com(tab, spn, r0, r1, cr, yc, bkg):
     return s, np.nan, np.nan
 
 
-@njit(cache=True, nogil=True, fastmath=_FM)
+@jit.kernel(cache=True, nogil=True, fastmath=_FM)
 def rows_moments(frame, tab, spn, r0, r1, cr, xc, yc, bkg, sat):
     """Moments of (I - bkg) from a row table (4 powers) of the aperture about (xc, yc).
 
@@ -308,7 +309,7 @@ def rows_moments(frame, tab, spn, r0, r1, cr, xc, yc, bkg, sat):
     return out
 
 
-@njit(cache=True, nogil=True)
+@jit.kernel(cache=True, nogil=True)
 def aperture_moments(frame, xc, yc, r_ap, bkg, sat):
     """Moments of (I - bkg) over the pixels whose centres lie within ``r_ap`` of (xc, yc)
     (see :func:`rows_moments`)."""
@@ -345,7 +346,7 @@ def _band_sums(row, a, b, lo, hi):
     return s, s2, k
 
 
-@njit(cache=True, nogil=True, fastmath=_FM)
+@jit.kernel(cache=True, nogil=True, fastmath=_FM)
 def annulus_mean(frame, xc, yc, r_in, r_out, lo, hi):
     """Mean of the pixels of the annulus r_in < d <= r_out around (xc, yc) whose values lie in
     [lo, hi] (one pass; falls back to all annulus pixels when none does). Returns (mean, std, n).
@@ -392,7 +393,7 @@ def annulus_mean(frame, xc, yc, r_in, r_out, lo, hi):
     return m, math.sqrt(max(s2 / k - m * m, 0.0)), int(k)
 
 
-@njit(cache=True, nogil=True)
+@jit.kernel(cache=True, nogil=True)
 def measure_spots(frame, xs, ys, r0s, margin, annulus, lo, hi, n_iter, sat):
     """Tight-window measurement of spots started at (xs, ys) with first aperture radii ``r0s``.
 

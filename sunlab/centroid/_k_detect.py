@@ -11,6 +11,8 @@ import math
 import numpy as np
 from numba import njit
 
+from .. import jit
+
 __all__: list[str] = []
 
 
@@ -37,7 +39,7 @@ def _hist_median(hist, n):
     return (float(_order_stat(hist, n // 2 - 1)) + float(_order_stat(hist, n // 2))) / 2
 
 
-@njit(cache=True, nogil=True)
+@jit.kernel(cache=True, nogil=True)
 def sample_stats(frame, stride):
     """Median and MAD-based sigma (1.4826 MAD) of a strided sample of the frame, plus the
     sample maximum.
@@ -82,7 +84,7 @@ def sample_stats(frame, stride):
     return med, 1.4826 * mad, vmax
 
 
-@njit(cache=True, nogil=True)
+@jit.kernel(cache=True, nogil=True)
 def coarse_blobs(frame, stride, thr, bkg):
     """8-connected groups of strided samples above ``thr``.
 

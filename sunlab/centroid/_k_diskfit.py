@@ -12,6 +12,7 @@ import math
 import numpy as np
 from numba import njit
 
+from .. import jit
 from ._k_flags import _FM
 
 __all__: list[str] = []
@@ -70,7 +71,7 @@ def _disk_normal(frame, p, r0, r1, c0, c1, v0, vk, sat):
     return jtj, jtr, chi2
 
 
-@njit(cache=True, nogil=True)
+@jit.kernel(cache=True, nogil=True)
 def fit_disk(frame, p0, half, max_iter, v0, vk, tol, sat):
     """Levenberg-Marquardt fit of the disk model of :func:`_disk_normal` on the square cutout of
     half-size ``half`` around the start (x, y). Returns (params, covariance, chi2, n_pixels,
@@ -112,7 +113,7 @@ def fit_disk(frame, p0, half, max_iter, v0, vk, tol, sat):
     return p, cov, chi2, (r1 - r0) * (c1 - c0), it, r0, r1, c0, c1
 
 
-@njit(cache=True, nogil=True)
+@jit.kernel(cache=True, nogil=True)
 def disk_noise(frame, p, r0, r1, c0, c1, sat):
     """Noise model from the residuals of a disk fit: variance v0 on the background
     (model < b + 0.05 A) and v0 + vk A on the plateau (model > b + 0.95 A). Returns (v0, vk)."""
@@ -172,7 +173,7 @@ def _clipped_moments(frame, x, y, lo2, hi2, r0, r1, c0, c1, sat, centre, cut):
     return n, m, max(s2 / n - m * m, 0.0) * n / (n - 1)
 
 
-@njit(cache=True, nogil=True)
+@jit.kernel(cache=True, nogil=True)
 def zone_noise(frame, x, y, d_in, d_out, r0, r1, c0, c1, sat):
     """Model-free noise model of a spot: mean and variance of the cutout's pixels farther than
     ``d_out`` from (x, y) (background: v0) and nearer than ``d_in`` (plateau: v0 + vk (mean -
@@ -286,7 +287,7 @@ def _profile_normal(frame, q, d_lo, h, nint, r0, r1, c0, c1, v0, vk, b, sat):
     return jtj, jtr, chi2
 
 
-@njit(cache=True, nogil=True)
+@jit.kernel(cache=True, nogil=True)
 def fit_profile(frame, q0, d_lo, h, nint, r0, r1, c0, c1, max_iter, v0, vk, b, tol, sat):
     """Levenberg-Marquardt fit of the radial-spline model of :func:`_profile_normal` on the
     pixel box [r0, r1) x [c0, c1). A basis that no pixel reaches (a saturated plateau) keeps its
@@ -324,7 +325,7 @@ def fit_profile(frame, q0, d_lo, h, nint, r0, r1, c0, c1, max_iter, v0, vk, b, t
     return q, chi2, it
 
 
-@njit(cache=True, nogil=True)
+@jit.kernel(cache=True, nogil=True)
 def profile_noise(frame, q, d_lo, h, nint, r0, r1, c0, c1, b, sat):
     """Noise model ``var = v0 + vk max(m - b, 0)`` regressed on the squared residuals of the
     radial-spline fit ``q`` of :func:`fit_profile` (ordinary least squares of res^2 on the model
@@ -372,7 +373,7 @@ def profile_noise(frame, q, d_lo, h, nint, r0, r1, c0, c1, b, sat):
     return v0, vk, n
 
 
-@njit(cache=True, nogil=True)
+@jit.kernel(cache=True, nogil=True)
 def profile_flux(q, d_lo, h, nint, n_sub):
     """Integral over the plane of the radial-spline model of :func:`_profile_normal` above its
     outer (background) level: 2 pi int_0^d_hi (m(d) - m(d_hi)) d dd, midpoint rule with n_sub

@@ -12,6 +12,7 @@ import math
 import numpy as np
 from numba import njit
 
+from .. import jit
 from ._k_aperture import (
     BACKGROUND,
     FLUX,
@@ -38,7 +39,7 @@ __all__: list[str] = []
 # --------------------------------------------------------------------------------------------
 # Lattice of the multi-hole mask
 # --------------------------------------------------------------------------------------------
-@njit(cache=True, nogil=True)
+@jit.kernel(cache=True, nogil=True)
 def neighbour_vectors(q, pitch, k):
     """Vectors from each point of ``q`` (m, 2) to those of its ``k`` nearest points (itself
     included) that lie between 0.7 and 1.3 ``pitch`` away. Returns an (n_vectors, 2) array.
@@ -182,7 +183,7 @@ def _affine_fit(uv, q, keep):
     return origin, basis, True
 
 
-@njit(cache=True, nogil=True)
+@jit.kernel(cache=True, nogil=True)
 def fit_lattice(p, good, pitch, max_residual):
     """Affine lattice through the spots ``p`` (n, 2) marked ``good`` (see
     :func:`sunlab.centroid.locate_spots`, step 3). Returns (ij (n, 2) int, origin (2,),
@@ -281,7 +282,7 @@ def fit_lattice(p, good, pitch, max_residual):
     return ij, origin, basis, resid, True
 
 
-@njit(cache=True, nogil=True)
+@jit.kernel(cache=True, nogil=True)
 def spot_table(m, nx, ny, ok, saturated, clipped):
     """Windows and status of measured spots (rows of :func:`measure_spots`, flux > 0).
 
@@ -313,7 +314,7 @@ METRIC_FIELDS = ("peak", "background", "mxx", "myy", "mxy", "radius", "elliptici
                  "asymmetry", "lattice_residual")
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@jit.kernel(cache=True, nogil=True, error_model="numpy")
 def quality_metrics(m, resid):
     """Quality metrics of measured spots (rows of :func:`measure_spots`) and their lattice
     residuals: an (n, 9) array, columns METRIC_FIELDS (NaN where undefined)."""
@@ -337,7 +338,7 @@ def quality_metrics(m, resid):
     return out
 
 
-@njit(cache=True, nogil=True)
+@jit.kernel(cache=True, nogil=True)
 def nearest_spot_per_hole(hole, resid, n_holes):
     """Nearest spot of each hole: ``hole`` (n,) the hole of each spot (-1: none), ``resid``
     its distance from the node. Returns (spot of each hole or -1, duplicate flag per hole:
@@ -360,7 +361,7 @@ def nearest_spot_per_hole(hole, resid, n_holes):
 # --------------------------------------------------------------------------------------------
 # locate_spots (method "tight") in two compiled calls
 # --------------------------------------------------------------------------------------------
-@njit(cache=True, nogil=True)
+@jit.kernel(cache=True, nogil=True)
 def tight_spots(frame, stride, nsigma, min_contrast, min_samples, margin, annulus, n_iter, sat,
                 pitch, max_residual, ok, saturated, clipped):
     """Steps 1-3 of :func:`sunlab.centroid.locate_spots` with the tight window: detection,
@@ -427,7 +428,7 @@ def tight_spots(frame, stride, nsigma, min_contrast, min_samples, margin, annulu
     return nd, smax, m, win, st, good, ij, origin, basis, resid, on_node
 
 
-@njit(cache=True, nogil=True)
+@jit.kernel(cache=True, nogil=True)
 def fill_holes(m, win, st, ij, dj, di, on_node, resid, lut, n_holes, x, y, flux, window, status,
                metrics, ambiguous):
     """Step 4 of :func:`sunlab.centroid.locate_spots` once the grid offset (dj, di) is known:
@@ -470,7 +471,7 @@ def fill_holes(m, win, st, ij, dj, di, on_node, resid, lut, n_holes, x, y, flux,
 
 
 
-@njit(cache=True, nogil=True)
+@jit.kernel(cache=True, nogil=True)
 def grid_offset(ij, pts, ref, lut, exp, has_exp):
     """Step 4a of :func:`sunlab.centroid.locate_spots`: the offset (dj, di) that puts the
     lattice indices ``ij`` (n, 2) of the reference spots (``ref``) on the mask's grid (``lut``,
@@ -534,7 +535,7 @@ def grid_offset(ij, pts, ref, lut, exp, has_exp):
     return bj, bi
 
 
-@njit(cache=True, nogil=True)
+@jit.kernel(cache=True, nogil=True)
 def new_holes(n_holes, no_spot):
     """Per-hole outputs of :func:`sunlab.centroid.locate_spots` before any spot is assigned:
     values (3 + 9, n_holes) (rows x, y, flux, then the metrics, columns METRIC_FIELDS) all
@@ -543,7 +544,7 @@ def new_holes(n_holes, no_spot):
             np.full((4, n_holes), -1, np.int32), np.full(n_holes, no_spot, np.int8))
 
 
-@njit(cache=True, nogil=True)
+@jit.kernel(cache=True, nogil=True)
 def assign_grid(m, win, st, good, ij, origin, basis, resid, on_node, pts, lut, exp, has_exp,
                 vals, window, status, ambiguous):
     """Step 4 of :func:`sunlab.centroid.locate_spots` for measured spots (rows of
@@ -586,7 +587,7 @@ def assign_grid(m, win, st, good, ij, origin, basis, resid, on_node, pts, lut, e
     return unassigned, lattice
 
 
-@njit(cache=True, nogil=True)
+@jit.kernel(cache=True, nogil=True)
 def locate_tight(frame, stride, nsigma, min_contrast, min_samples, margin, annulus, n_iter, sat,
                  pitch, max_residual, ok, saturated, clipped, lut, exp, has_exp, n_holes,
                  no_spot, ambiguous):

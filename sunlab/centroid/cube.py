@@ -290,8 +290,6 @@ def locate_all(
     for k, w in work.items():
         lazy.append(w.table.data)
         lazy.extend(cubes[k][n].data for n in pending[k])
-    if progress and scheduler in ("threads", "synchronous") and address is None:
-        _announce_compile()
     done = iter(parallel.compute(*lazy, scheduler=scheduler, address=address,
                                  num_workers=num_workers, progress=progress, pool=pool))
     out = {}
@@ -304,14 +302,6 @@ def locate_all(
         cen = _centroid_table(cube, table, w.dims, method, w.options, w.multi, True)
         out[k] = _carry_cube_variables(cube, cen, w.dims, w.multi, True)
     return out
-
-
-def _announce_compile() -> None:
-    """Say on stderr, once, that the centroid kernels compile now (a first run's pause)."""
-    from ..options import announce_compile
-    from . import _k_aperture, _k_detect, _k_diskfit, _k_lattice, _k_windows
-
-    announce_compile([_k_aperture, _k_detect, _k_diskfit, _k_lattice, _k_windows], "centroid")
 
 
 class _Prepared(NamedTuple):

@@ -22,7 +22,6 @@ Examples
 ((1024, 1280), True)
 """
 
-from ..jit import announce_first_compile
 from .bench import Bench, plan_key, platform_pose, simulate
 from .centroids import HoleLayout, synthetic_centroids
 from .detector import Detector, FixedPattern, fixed_pattern
@@ -39,8 +38,6 @@ from .render import (
     spot_truth,
 )
 from .source import PAPER_SOURCE_DIAMETER_DEG, Source
-
-announce_first_compile()  # one line on stderr when a kernel compiles (a cache miss)
 
 __all__ = [
     "Bench",

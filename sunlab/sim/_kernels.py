@@ -1,6 +1,15 @@
-"""Numba kernels of the virtual bench: the ADC of a full frame, of a spot region, the Fourier
+"""Kernels of the virtual bench: the ADC of a full frame, of a spot region, the Fourier
 transform of a polygon, and the spot spectra (exact, or with tabulated disk transforms).
-Private: the public API is in :mod:`sunlab.sim.render`."""
+
+Each is a :class:`sunlab.jit.Kernel`: compiled by Numba, with a plain numpy reference of the
+same signature beside it (``_<name>_numpy``), which runs under
+``sunlab.set_options(kernels="numpy")``. The references of the two ADCs draw the same random
+stream and give the same frames bit for bit (vectorised SplitMix64 on uint64 arrays, whose
+arithmetic wraps modulo 2**64 as the compiled code's does); those of the spectra evaluate the
+transforms directly (:func:`scipy.special.j1`), so they agree with the compiled ones to the
+1e-8 of the compiled Bessel approximation. Private: the public API is in
+:mod:`sunlab.sim.render`.
+"""
 
 from __future__ import annotations
 
@@ -10,6 +19,9 @@ import math
 import numba
 import numpy as np
 from numba.extending import overload
+
+from .. import jit
+from ..options import OPTIONS
 
 __all__ = [
     "adc_frame",
@@ -72,7 +84,7 @@ def _to_dn32(v, top):
     return np.uint16(np.int32(w))
 
 
-@numba.njit(nogil=True, cache=True)
+@jit.kernel(nogil=True, cache=True)
 def adc_frame(mean_dn, sigma_dn, table, state, max_dn, out):
     """out = clip(rint(mean + sigma * z), 0, max_dn) over the whole frame.
 
@@ -113,7 +125,61 @@ def adc_frame(mean_dn, sigma_dn, table, state, max_dn, out):
     state[0] = s0 + np.uint64(steps) * _GOLDEN
 
 
-@numba.njit(nogil=True, cache=True)
+def _mix64_numpy(z):
+    """:func:`_mix64` on a uint64 array (array arithmetic wraps modulo 2**64, as uint64 does in
+    compiled code; numpy scalars would warn of the overflow instead)."""
+    z = (z ^ (z >> np.uint64(30))) * _M1
+    z = (z ^ (z >> np.uint64(27))) * _M2
+    return z ^ (z >> np.uint64(31))
+
+
+def _normal_deviates(table, state, n):
+    """The n deviates of the noise stream at ``state`` (uint64[1], advanced past them): word b
+    (b = 1, 2, ...) is the SplitMix64 output for the counter state + b golden, and its four
+    16-bit fields, low bits first, index ``table`` for four consecutive pixels."""
+    steps = -(-n // 4)
+    counters = state + np.arange(1, steps + 1, dtype=np.uint64) * _GOLDEN
+    fields = (_mix64_numpy(counters)[:, None] >> (np.uint64(16) * np.arange(4, dtype=np.uint64)))
+    z = table[(fields & np.uint64(0xFFFF)).ravel()[:n]]
+    state += np.array([steps], dtype=np.uint64) * _GOLDEN  # in place, wrapping
+    return z
+
+
+def _round_clip(v, max_dn):
+    """floor(v + 0.5) clipped to 0 .. max_dn, as uint16 (the sum taken in float64)."""
+    return np.clip(np.floor(np.asarray(v, dtype=np.float64) + 0.5), 0.0, max_dn).astype(np.uint16)
+
+
+@adc_frame.reference
+def _adc_frame_numpy(mean_dn, sigma_dn, table, state, max_dn, out):
+    """numpy reference of :func:`adc_frame`: the same stream, the same frame bit for bit.
+
+    Parameters
+    ----------
+    mean_dn, sigma_dn : ndarray of float32, shape (ny, nx)
+        Mean and standard deviation of every pixel (DN).
+    table : ndarray of float32, shape (65536,) or (0,)
+        The quantile table of :func:`normal_table`; empty for no noise.
+    state : ndarray of uint64, shape (1,)
+        The stream's counter, advanced one step per four pixels (rounded up).
+    max_dn : float
+        Full scale of the ADC (DN).
+    out : ndarray of uint16, shape (ny, nx)
+        Written with the frame (DN).
+
+    Returns
+    -------
+    None
+        ``out`` and ``state`` are written in place.
+    """
+    if table.shape[0] == 0:
+        out[...] = _round_clip(mean_dn, max_dn)
+        return
+    z = _normal_deviates(table, state, mean_dn.size).reshape(mean_dn.shape)
+    out[...] = _round_clip(mean_dn + sigma_dn * z, max_dn)  # float32, as the kernel sums
+
+
+@jit.kernel(nogil=True, cache=True)
 def adc_region(
     y0,
     x0,
@@ -181,6 +247,49 @@ def _adc_row(signal_e, gain, dark_e, offset_dn, z, noisy, read_var_e, inv_gain, 
         out[j] = np.uint16(np.int32(w))
 
 
+@adc_region.reference
+def _adc_region_numpy(y0, x0, signal_e, gain, dark_e, offset_dn, table, state, read_var_e,
+                      inv_gain, full_well_e, max_dn, out):
+    """numpy reference of :func:`adc_region`: the same stream, the same pixels bit for bit.
+
+    Parameters
+    ----------
+    y0, x0 : int
+        Row and column of the region's first pixel in the frame.
+    signal_e : ndarray of float64, shape (ny, nx)
+        Photo-electrons of the spot signal before PRNU.
+    gain, dark_e, offset_dn : ndarray of float32, shape of the frame
+        PRNU gain, dark electrons and offset (DN) of every pixel.
+    table : ndarray of float32, shape (65536,) or (0,)
+        The quantile table of :func:`normal_table`; empty for no noise.
+    state : ndarray of uint64, shape (1,)
+        The stream's counter, continued from the frame's.
+    read_var_e : float
+        Read-noise variance (e^2).
+    inv_gain : float
+        DN per electron.
+    full_well_e : float
+        Saturation (e).
+    max_dn : float
+        Full scale of the ADC (DN).
+    out : ndarray of uint16, shape of the frame
+        The frame; the region's pixels are rewritten.
+
+    Returns
+    -------
+    None
+        ``out`` and ``state`` are written in place.
+    """
+    ny, nx = signal_e.shape
+    box = (slice(y0, y0 + ny), slice(x0, x0 + nx))
+    e = np.maximum(gain[box] * signal_e + dark_e[box], 0.0)
+    if table.shape[0] > 0:
+        z = _normal_deviates(table, state, signal_e.size).reshape(signal_e.shape)
+        e = e + np.sqrt(e + read_var_e) * z.astype(np.float64)
+    e = np.minimum(e, full_well_e)
+    out[box] = _round_clip(offset_dn[box] + e * inv_gain, max_dn)
+
+
 def normal_table() -> np.ndarray:
     """The 65 536 midpoint quantiles of N(0, 1), float32 (variance 0.9998, tails at 4.3 sigma)."""
     from scipy.special import ndtri
@@ -188,7 +297,7 @@ def normal_table() -> np.ndarray:
     return ndtri((np.arange(65536) + 0.5) / 65536).astype(np.float32)
 
 
-@numba.njit(nogil=True, cache=True)
+@jit.kernel(nogil=True, cache=True)
 def polygon_ft(vx, vy, fx, fy):
     """Fourier transform of a polygon's indicator, F(f) = integral of exp(-2 pi i f.x) over it.
 
@@ -260,9 +369,41 @@ def polygon_ft(vx, vy, fx, fy):
     return out
 
 
-@numba.njit(cache=True)
+@polygon_ft.reference
+def _polygon_ft_numpy(vx, vy, fx, fy):
+    """numpy reference of :func:`polygon_ft`: the edge sum evaluated on the whole grid at once.
+
+    Parameters
+    ----------
+    vx, vy : ndarray of float64, shape (n,)
+        The polygon's vertices, counter-clockwise (any unit of length).
+    fx, fy : ndarray of float64
+        The grid's axes (cycles per unit length).
+
+    Returns
+    -------
+    ndarray of complex128, shape (nfy, nfx)
+        The transform; the area at f = 0.
+    """
+    gx, gy = np.meshgrid(fx, fy)
+    dx, dy = np.roll(vx, -1) - vx, np.roll(vy, -1) - vy
+    mx, my = vx + 0.5 * dx, vy + 0.5 * dy
+    area = 0.5 * np.sum(vx * np.roll(vy, -1) - np.roll(vx, -1) * vy)
+    acc = np.zeros(gx.shape, dtype=np.complex128)
+    for k in range(vx.shape[0]):
+        t = gx * dx[k] + gy * dy[k]  # f . d_k
+        phase = np.exp(-2j * np.pi * (gx * mx[k] + gy * my[k]))
+        acc += (gx * dy[k] - gy * dx[k]) * phase * np.sinc(t)
+    f2 = gx**2 + gy**2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        out = 1j * acc / (2 * np.pi * np.where(f2 < 1e-18, 1.0, f2))
+    return np.where(f2 < 1e-18, area + 0j, out)
+
+
+@jit.kernel(cache=True)
 def clip_convex(px, py, cx, cy):
-    """Sutherland-Hodgman: the part of polygon (px, py) inside the convex CCW polygon (cx, cy)."""
+    """Sutherland-Hodgman: the part of polygon (px, py) inside the convex CCW polygon (cx, cy).
+    Plain Python on lists: its reference is its own source, interpreted."""
     ox = list(px)
     oy = list(py)
     m = cx.shape[0]
@@ -345,7 +486,7 @@ def _disk_ft(k, u):
     return ((1.0 - u) * 0.5 * jinc + u * ld) / ((1.0 - u) * 0.5 + u / 3.0)
 
 
-@numba.njit(nogil=True, cache=True)
+@jit.kernel(nogil=True, cache=True)
 def real_spectrum(fx, fy, ap, area, km, u, ax, ay, diff, use_ap):
     """Real, centred spectrum on the grid fy (nfy,) x fx (nfx,): aperture x kernel x pixel.
 
@@ -382,7 +523,7 @@ def real_spectrum(fx, fy, ap, area, km, u, ax, ay, diff, use_ap):
     return out
 
 
-@numba.njit(nogil=True, cache=True)
+@jit.kernel(nogil=True, cache=True)
 def fold_phase(t4, wy, wx, ey, ex):
     """Fold alias bands and apply each spot's position phase.
 
@@ -411,6 +552,66 @@ def fold_phase(t4, wy, wx, ey, ex):
                 _rotate_add(rr, ri, wy[q, a], sr, si)
             _phase_out(sr, si, ey[q, i], ex[q], acc[q, i])
     return acc
+
+
+def _disk_ft_numpy(k, u):
+    """Normalised transform of the unit disk with linear limb darkening u, at k = 2 pi |f| r
+    (an array), with the exact Bessel function J1."""
+    from scipy.special import j1
+
+    k = np.asarray(k, dtype=np.float64)
+    small = k < 1e-4
+    ks = np.where(small, 1.0, k)
+    jinc = np.where(small, 1.0 - k * k / 8.0, 2.0 * j1(ks) / ks)
+    if u == 0.0:
+        return jinc
+    ld = np.where(k < 0.05, 1.0 / 3.0 - k * k / 30.0, (np.sin(ks) / ks - np.cos(ks)) / (ks * ks))
+    return ((1.0 - u) * 0.5 * jinc + u * ld) / ((1.0 - u) * 0.5 + u / 3.0)
+
+
+def _pixel_sinc(a, f):
+    """The pixel's rectangle of side ``a`` in frequency: a sinc(a f), area included; 1 for none."""
+    return np.ones_like(f) if a <= 0.0 else a * np.sinc(a * f)
+
+
+@real_spectrum.reference
+def _real_spectrum_numpy(fx, fy, ap, area, km, u, ax, ay, diff, use_ap):
+    """numpy reference of :func:`real_spectrum`, on the whole grid at once.
+
+    Parameters
+    ----------
+    fx, fy : ndarray of float64, shapes (nfx,) and (nfy,)
+        The grid's axes (cycles per pixel).
+    ap : ndarray, shape (2, 2)
+        The affine image of the unit disk that is the aperture (px).
+    area : float
+        The aperture's area (px^2).
+    km : ndarray, shape (2, 2)
+        The symmetric matrix that stretches the unit sun disk into the kernel (px).
+    u : float
+        Linear limb-darkening coefficient.
+    ax, ay : float
+        Sides of the pixel's sensitive rectangle (px); 0 for none.
+    diff : float
+        RMS of the Gaussian charge diffusion (px).
+    use_ap : bool
+        Whether the aperture's transform is a factor.
+
+    Returns
+    -------
+    ndarray of float64, shape (nfy, nfx)
+        The real, centred spectrum.
+    """
+    f1, f2 = np.meshgrid(fx, fy)
+    v = np.outer(_pixel_sinc(ay, fy), _pixel_sinc(ax, fx))
+    if use_ap:
+        g1, g2 = ap[0, 0] * f1 + ap[1, 0] * f2, ap[0, 1] * f1 + ap[1, 1] * f2
+        v = v * area * _disk_ft_numpy(2.0 * np.pi * np.hypot(g1, g2), 0.0)
+    h1, h2 = km[0, 0] * f1 + km[1, 0] * f2, km[0, 1] * f1 + km[1, 1] * f2
+    v = v * _disk_ft_numpy(2.0 * np.pi * np.hypot(h1, h2), u)
+    if diff > 0.0:
+        v = v * np.exp(-2.0 * (np.pi * diff) ** 2 * (f1 * f1 + f2 * f2))
+    return v
 
 
 def _accumulate_row(t4, a, i, b, w, rr, ri):
@@ -460,12 +661,34 @@ def _phase_out(sr, si, e, ex, out):
         out[j] = complex(sr[j], si[j]) * e * ex[j]
 
 
+@fold_phase.reference
+def _fold_phase_numpy(t4, wy, wx, ey, ex):
+    """numpy reference of :func:`fold_phase`: its defining sum as two tensor contractions.
+
+    Parameters
+    ----------
+    t4 : ndarray, shape (na, m, na, m2)
+        A spectrum cut into alias bands (complex, or real for an affine aperture).
+    wy, wx : ndarray of complex128, shapes (n, na)
+        Each spot's band weights along y and x.
+    ey, ex : ndarray of complex128, shapes (n, m) and (n, m2)
+        Each spot's position phases along y and x.
+
+    Returns
+    -------
+    ndarray of complex128, shape (n, m, m2)
+        acc[n, i, j] = ey[n, i] ex[n, j] sum_a wy[n, a] sum_b t4[a, i, b, j] wx[n, b].
+    """
+    folded = np.einsum("aibj,nb->naij", t4, wx)
+    return np.einsum("naij,na->nij", folded, wy) * ey[:, :, None] * ex[:, None, :]
+
+
 #: Spacing and range of the tabulated disk transforms (:func:`disk_ft_table`).
 TABLE_STEP = 1.0 / 64.0
 TABLE_KMAX = 256.0
 
 
-@numba.njit(nogil=True, cache=True)
+@jit.kernel(nogil=True, cache=True)
 def _build_table(u, h, n):
     tab = np.empty(n + 3)
     for i in range(n + 3):
@@ -473,11 +696,32 @@ def _build_table(u, h, n):
     return tab
 
 
-@functools.lru_cache(maxsize=8)
+@_build_table.reference
+def _build_table_numpy(u, h, n):
+    """numpy reference of :func:`_build_table`: the exact transform at k = (i - 1) h."""
+    return _disk_ft_numpy(np.abs(np.arange(n + 3) - 1) * h, u)
+
+
 def disk_ft_table(u: float) -> np.ndarray:
     """``_disk_ft(k, u)`` at k = (i - 1) h, i = 0 .. n + 2 (h = :data:`TABLE_STEP`, n h =
-    :data:`TABLE_KMAX`), read-only: the samples of :func:`real_spectrum_tabulated`."""
-    tab = _build_table(float(u), TABLE_STEP, int(round(TABLE_KMAX / TABLE_STEP)))
+    :data:`TABLE_KMAX`), read-only: the samples of :func:`real_spectrum_tabulated`.
+
+    Parameters
+    ----------
+    u : float
+        Linear limb-darkening coefficient (0 for the aperture's jinc).
+
+    Returns
+    -------
+    ndarray of float64, shape (n + 3,)
+        The table, built by the kernels the option ``kernels`` selects (kept per option).
+    """
+    return _disk_ft_table(float(u), OPTIONS["kernels"])
+
+
+@functools.lru_cache(maxsize=8)
+def _disk_ft_table(u: float, kernels: str) -> np.ndarray:
+    tab = _build_table(u, TABLE_STEP, int(round(TABLE_KMAX / TABLE_STEP)))
     tab.setflags(write=False)
     return tab
 
@@ -502,7 +746,7 @@ def _lookup(tab, inv_h, k, u):
     ) / 6.0
 
 
-@numba.njit(nogil=True, cache=True)
+@jit.kernel(nogil=True, cache=True)
 def real_spectrum_tabulated(fx, fy, ap, area, km, u, ax, ay, diff, use_ap, tab_ap, tab_u):
     """:func:`real_spectrum` with the two disk transforms interpolated in tables.
 
@@ -539,3 +783,12 @@ def real_spectrum_tabulated(fx, fy, ap, area, km, u, ax, ay, diff, use_ap, tab_a
                 v *= math.exp(-2.0 * (math.pi * diff) ** 2 * (f1 * f1 + f2 * f2))
             out[b, a] = v
     return out
+
+
+@real_spectrum_tabulated.reference
+def _real_spectrum_tabulated_numpy(fx, fy, ap, area, km, u, ax, ay, diff, use_ap, tab_ap,
+                                   tab_u):
+    """numpy reference of :func:`real_spectrum_tabulated`: the transforms evaluated directly
+    (:func:`_real_spectrum_numpy`; the tables ``tab_ap``, ``tab_u`` unused), which the kernel
+    interpolates to 2e-10 of the peak."""
+    return _real_spectrum_numpy(fx, fy, ap, area, km, u, ax, ay, diff, use_ap)

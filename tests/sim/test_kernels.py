@@ -1,4 +1,5 @@
-"""Kernels of the virtual bench against slow references: the noise stream and the spot spectra."""
+"""Kernels of the virtual bench against slow references and against their numpy references
+(the option kernels="numpy"): the noise stream and the spot spectra."""
 
 import numpy as np
 import pytest
@@ -107,3 +108,82 @@ def test_fold_phase_real_is_the_complex_fold_of_a_real_spectrum():
     wy, wx, ey, ex = w
     ref = np.einsum("aibj,na,nb,ni,nj->nij", t4, wy, wx, ey, ex)
     np.testing.assert_allclose(real, ref, rtol=1e-12, atol=1e-12)
+
+
+# ------------------------------------------------------------------------------------------
+# The numpy references (sunlab.set_options(kernels="numpy")) against the compiled kernels
+# ------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("noisy", [True, False])
+@pytest.mark.parametrize("shape", [(6, 8), (5, 7), (1, 3), (33, 41)])
+def test_the_adc_references_draw_the_same_stream_bit_for_bit(shape, noisy):
+    # the same frame, the same region and the same state afterwards: uint64 array arithmetic
+    # wraps as the compiled code's does, so the stream is the same, not merely alike
+    rng = np.random.default_rng(5)
+    mean = rng.uniform(-40.0, 1060.0, shape).astype(np.float32)
+    sigma = rng.uniform(0.5, 30.0, shape).astype(np.float32)
+    gain, dark, offset = (rng.uniform(lo, hi, shape).astype(np.float32)
+                          for lo, hi in ((0.9, 1.1), (0.0, 50.0), (10.0, 40.0)))
+    signal = rng.uniform(0.0, 4e4, (shape[0], max(shape[1] - 2, 1)))  # saturates some
+    table = K.normal_table() if noisy else np.empty(0, np.float32)
+    frames, states = [], []
+    for run in (lambda k: k.compiled, lambda k: k.numpy):
+        state = np.array([0xFEDCBA9876543210], dtype=np.uint64)
+        out = np.empty(shape, dtype=np.uint16)
+        run(K.adc_frame)(mean, sigma, table, state, 1023.0, out)
+        run(K.adc_region)(0, 1, signal, gain, dark, offset, table, state, 100.0, 1 / 20.0,
+                          3e4, 1023.0, out)
+        frames.append(out)
+        states.append(int(state[0]))
+    np.testing.assert_array_equal(frames[1], frames[0])
+    assert states[1] == states[0]
+
+
+def _spectrum_args(u):
+    fx, fy = np.linspace(-1.5, 1.5, 31), np.linspace(-1.2, 1.3, 27)
+    ap, km = np.array([[20.0, 1.0], [0.5, 18.0]]), np.array([[30.0, 2.0], [2.0, 29.0]])
+    return fx, fy, ap, 1000.0, km, u, 0.8, 0.7, 0.3
+
+
+@pytest.mark.parametrize("u", [0.0, 0.6])
+@pytest.mark.parametrize("use_ap", [True, False])
+def test_the_spectrum_references_agree_to_the_bessel_approximation(u, use_ap):
+    # the references use scipy's J1, the kernels Numerical Recipes' (|error| < 1e-8, a jinc
+    # 2 J1(k)/k in each of two factors): 3e-8 of the peak bounds it; the tables add 2e-10
+    args = (*_spectrum_args(u), use_ap)
+    ref = K.real_spectrum.numpy(*args)
+    peak = np.abs(ref).max()
+    assert np.abs(K.real_spectrum.compiled(*args) - ref).max() < 3e-8 * peak
+    tabs = (K.disk_ft_table(0.0), K.disk_ft_table(u))
+    assert np.abs(K.real_spectrum_tabulated.compiled(*args, *tabs) - ref).max() < 3e-8 * peak
+    np.testing.assert_array_equal(K.real_spectrum_tabulated.numpy(*args, *tabs), ref)
+    tab = K._build_table.numpy(u, K.TABLE_STEP, 4096)
+    assert np.abs(K._build_table.compiled(u, K.TABLE_STEP, 4096) - tab).max() < 3e-8
+
+
+def test_the_polygon_and_fold_references_agree_to_rounding():
+    vx, vy = np.array([0.0, 3.0, 4.0, 1.0]), np.array([0.0, 0.0, 2.0, 3.0])  # CCW
+    fx, fy = np.linspace(-1, 1, 17), np.append(np.linspace(-0.7, 0.9, 13), 0.0)
+    ref = K.polygon_ft.numpy(vx, vy, fx, fy)
+    assert ref[-1, 8] == 8.0  # at f = 0 (fx[8] = fy[-1] = 0): the shoelace area
+    np.testing.assert_allclose(K.polygon_ft.compiled(vx, vy, fx, fy), ref, rtol=0, atol=1e-13)
+    rng = np.random.default_rng(4)
+    t4 = rng.normal(size=(3, 10, 3, 6))
+    w = [np.exp(2j * np.pi * rng.uniform(size=(5, k))) for k in (3, 3, 10, 6)]
+    for t in (t4, t4 + 1j * rng.normal(size=t4.shape)):
+        np.testing.assert_allclose(K.fold_phase.compiled(t, *w), K.fold_phase.numpy(t, *w),
+                                   rtol=0, atol=1e-13)
+
+
+def test_a_frame_rendered_on_the_references_is_the_compiled_frame():
+    # the same noise stream bit for bit; the spectra differ by 1e-8 of the peak, which moves
+    # a pixel's mean across a rounding boundary with a probability of about 1e-8 per pixel
+    import sunlab
+    from sunlab import sim
+
+    bench = Bench.paper_single_hole()
+    compiled = sim.render_frame(bench, -7.0, 6.0, seed=3, pose=1, shot=0)
+    with sunlab.set_options(kernels="numpy"):
+        ref = sim.render_frame(bench, -7.0, 6.0, seed=3, pose=1, shot=0)
+    diff = ref.astype(int) - compiled.astype(int)
+    assert np.abs(diff).max() <= 1 and np.count_nonzero(diff) <= 2
+    assert compiled.max() > 3 * np.median(compiled)  # a spot, not only the dark frame

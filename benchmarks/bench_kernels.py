@@ -1,0 +1,97 @@
+"""The compiled kernels beside their numpy references: the time of each, and their ratio, measured
+in the same run.
+
+For each kernel on the paper's bench (a full 1280 x 1024 frame, one spot's spectra) and for the
+whole of one frame (render, then the paper's algorithm B), the best process CPU time of a few
+calls of the compiled kernel (``kernels="numba"``) and of its numpy reference
+(``kernels="numpy"``), after one call of each (compiling or loading from Numba's cache, and the
+fixed-pattern maps). CPU time, not wall time: on a shared machine it is the fairer figure. BLAS
+and Numba run single-threaded.
+
+Usage::
+
+    python benchmarks/bench_kernels.py            # 5 calls of each
+    python benchmarks/bench_kernels.py --repeat 20
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import time  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+
+def _best_cpu_ms(fn, repeat: int, kernels: str) -> float:
+    """Best process CPU time of ``repeat`` calls of ``fn()`` under the option ``kernels``, ms."""
+    import sunlab
+
+    with sunlab.set_options(kernels=kernels):
+        fn()  # warm-up
+        best = np.inf
+        for _ in range(repeat):
+            c0 = time.process_time()
+            fn()
+            best = min(best, time.process_time() - c0)
+    return 1e3 * best
+
+
+def _cases():
+    """(name, zero-argument callable) for each measured kernel and for one whole frame."""
+    from sunlab import centroid, sim
+    from sunlab.centroid import _k_windows
+    from sunlab.sim import _kernels as K
+    from sunlab.sim import render
+    from sunlab.sim.detector import fixed_pattern
+
+    bench = sim.Bench.paper_single_hole()
+    det = bench.detector
+    fp = fixed_pattern(det)
+    table = K.normal_table()
+    out = np.empty(det.shape, dtype=np.uint16)
+    frame = sim.render_frame(bench, -7.0, 6.0, seed=0, pose=0, shot=0)
+    group = render._groups(bench, render.spot_geometry(bench, -7.0, 6.0))[0]
+    m = group.stamp_size()
+    al = np.arange(-1, 2)
+    fx = (al[:, None] + (np.arange(m // 2 + 1) / m)[None, :]).ravel()
+    fy = (al[:, None] + np.fft.fftfreq(m)[None, :]).ravel()
+    return [
+        ("adc_frame (1280 x 1024)", lambda: K.adc_frame(
+            fp.bg_mean_dn, fp.bg_sigma_dn, table, np.array([7], np.uint64),
+            float(det.max_dn), out)),
+        (f"spectrum ({fy.size} x {fx.size})", lambda: group.common(fx, fy, tabulated=True)),
+        ("profiles (1280 x 1024)", lambda: _k_windows.profiles(frame)),
+        ("render_frame", lambda: sim.render_frame(bench, -7.0, 6.0, seed=0, pose=0, shot=1)),
+        ("projection_window", lambda: centroid.projection_window(frame)),
+    ]
+
+
+def main(repeat: int = 5) -> None:
+    """Print, per case, the compiled and reference CPU times and their ratio.
+
+    Parameters
+    ----------
+    repeat : int
+        Timed calls of each (the best is kept).
+
+    Returns
+    -------
+    None
+        The table is printed.
+    """
+    print(f"{'case':34s} {'numba ms':>10s} {'numpy ms':>10s} {'numpy/numba':>12s}")
+    for name, fn in _cases():
+        compiled = _best_cpu_ms(fn, repeat, "numba")
+        reference = _best_cpu_ms(fn, repeat, "numpy")
+        print(f"{name:34s} {compiled:10.2f} {reference:10.2f} {reference / compiled:12.1f}")
+
+
+if __name__ == "__main__":
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeat", type=int, default=5, help="timed calls of each (default 5)")
+    main(parser.parse_args().repeat)
