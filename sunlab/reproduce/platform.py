@@ -83,7 +83,7 @@ def bench_fault_values(bench, seed, plans_by_run: dict) -> dict:
     >>> v = bench_fault_values(sim.Bench.paper_single_hole(), 0,
     ...                        {"I": plans.experiment("I"), "III": plans.experiment("III")})
     >>> v["beta_backlash_deg"], round(v["beta_homing_difference_deg"], 4)  # I -> III shift
-    (0.0, 0.0214)
+    (0.0, 0.0195)
     """
     from ..sim.bench import homing_offset
 

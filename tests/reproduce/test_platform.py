@@ -7,6 +7,7 @@ import pytest
 
 from sunlab import plans, sim
 from sunlab.reproduce.platform import GEAR_ROW, ROWS, bench_fault_values, format_platform
+from sunlab.sim import bench as bench_module
 from sunlab.sim.bench import homing_offset
 
 RUNS = {"I": plans.experiment("I"), "III": plans.experiment("III")}
@@ -21,9 +22,9 @@ def test_fault_values_are_the_benchs_own():
     # the test run's homing offset less the calibration run's, as drawn for this seed
     assert v["beta_homing_difference_deg"] == pytest.approx(
         homing_offset(faulty, 4, "III") - homing_offset(faulty, 4, "I"), abs=0.0)
-    # the identified bench re-homes its inner axis by 0.0214 deg between I and III
+    # the identified bench re-homes its inner axis by PAPER_BETA_REHOMING_DEG between I and III
     assert bench_fault_values(bench, 0, RUNS)["beta_homing_difference_deg"] == pytest.approx(
-        0.0214, abs=5e-5)
+        bench_module.PAPER_BETA_REHOMING_DEG, abs=5e-5)
 
 
 def test_rows_are_the_protocol_then_the_remedies():

@@ -196,7 +196,8 @@ def test_presets_are_the_identified_hypothesis_with_its_mean_fits_and_median_nui
                                            "beta_rehoming_deg", "beta_gear_deg",
                                            "beta_gear_period_deg", "beta_wobble_deg",
                                            "nonorthogonality_deg", "beta_drift_deg",
-                                           "beta_backlash_deg")),
+                                           "beta_backlash_deg", "alpha_jitter_deg",
+                                           "beta_jitter_deg")),
                              ("mask", ("play_x_mm", "play_y_mm")),
                              ("detector", ("prnu", "prnu_correlated", "prnu_correlation_px",
                                            "read_noise_e", "fill_factor", "lid_thickness_mm"))):
