@@ -77,13 +77,13 @@ def test_residuals_and_domain_describe_the_training(tables):
 
 def test_review_holes_serves_the_explorer(tables):
     train, test = tables
-    r = mh.review_holes(test, train=train, order=2)
+    r = mh.review.review_holes(test, train=train, order=2)
     assert np.flatnonzero(r.flagged).tolist() == [4, 9]
     st = r.stats(~r.flagged, 9)
     assert st["included"]["alpha"]["mu"] < st["all"]["alpha"]["mu"]
     res = r.residual_map(9, np.ones(100, bool))
     assert res["alpha"].shape == (25,)
-    assert mh.injected_defects(test) == {}
+    assert mh.review.injected_defects(test) == {}
 
 
 @pytest.mark.parametrize("make", [
@@ -124,5 +124,5 @@ def test_strategies_have_their_own_registry(tables, tmp_path):
     path = mh.GeometricCentre(order=2).fit(tables[0]).save(tmp_path / "gc.json")
     with pytest.raises(SchemaError, match="sunlab.multihole.load_strategy"):
         calibration.load(path)
-    assert set(mh.STRATEGY_KINDS).isdisjoint(calibration.KINDS)
+    assert set(mh.strategies.STRATEGY_KINDS).isdisjoint(calibration.KINDS)
     assert type(mh.load_strategy(path)) is mh.GeometricCentre

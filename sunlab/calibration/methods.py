@@ -29,7 +29,7 @@ from .neural import NeuralNet
 from .polynomial import Polynomial
 from .trigonometric import Trigonometric
 
-__all__ = ["table4_methods", "TRIGONOMETRIC_PERIOD", "POLYNOMIAL_REFIT"]
+__all__ = ["table4_methods"]
 
 #: Whether Table 4's polynomial, its order chosen on experiment II by fits on I, is fitted
 #: again on I and II together: the paper's sec. 5 says II "may also be added to I for the

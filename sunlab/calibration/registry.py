@@ -24,7 +24,7 @@ if TYPE_CHECKING:
 
     from .base import Calibration
 
-__all__ = ["KINDS", "FRAME_KINDS", "ALIASES", "OUTLIER_MADS", "fit", "method_class"]
+__all__ = ["KINDS", "fit", "method_class"]
 
 #: Default outlier screening of :func:`fit` (and ``sunlab calibrate --outlier-mads``): shots
 #: beyond this many MADs of a robust fit are excluded. The value of

@@ -42,8 +42,14 @@ from .result import (
 )
 
 __all__ = [
-    "METHODS", "threshold_window", "projection_window", "tight_window", "disk_fit",
-    "border_mean", "first_hit", "projection_profiles",
+    "METHODS",
+    "threshold_window",
+    "projection_window",
+    "tight_window",
+    "disk_fit",
+    "border_mean",
+    "first_hit",
+    "projection_profiles",
 ]
 
 

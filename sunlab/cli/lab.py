@@ -30,13 +30,7 @@ from pathlib import Path
 
 from ..errors import SchemaError
 
-__all__ = [
-    "add_folder_options",
-    "read_calibration_json",
-    "is_image_folder",
-    "open_centroid_table",
-    "cube_from_folder",
-]
+__all__ = []
 
 _STATS = ("mu", "sigma", "M", "sigma_M")
 

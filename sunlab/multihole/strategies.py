@@ -41,16 +41,7 @@ from ..calibration import Calibration, Polynomial, from_dict, load
 from ..errors import ConfigurationError, SchemaError
 from .holes import usable
 
-__all__ = [
-    "STRATEGY_KINDS",
-    "load_strategy",
-    "strategy_from_dict",
-    "geometric_centre",
-    "GeometricCentre",
-    "PerHoleAverage",
-    "combine_estimates",
-    "angle_errors",
-]
+__all__ = ["load_strategy", "GeometricCentre", "PerHoleAverage"]
 
 
 #: The multi-hole strategies, registered once: ``kind`` of the artifact -> ``"module:Class"``

@@ -20,64 +20,6 @@ Examples
 {'I': 100, 'II': 49, 'III': 100}
 """
 
-from .pipeline import (
-    EXPERIMENTS,
-    QUICK,
-    centroid_status,
-    experiment_plans,
-    locate_runs,
-    simulate_and_locate,
-    simulate_experiments,
-    simulate_runs,
-    usable_table,
-    write_json,
-)
-from .platform import GEAR_ROW, ROWS, bench_fault_values, format_platform, reproduce_platform
-from .table4 import (
-    PAPER_OPTIMISED,
-    Table4Result,
-    bench_optimised_truth,
-    format_table,
-    reproduce_table4,
-    table4_methods,
-)
-from .table5 import (
-    COLUMNS,
-    REJECTION_COLUMN,
-    SPOT_METHODS,
-    format_table5,
-    mounting_offset_px,
-    reproduce_table5,
-    spot_method,
-)
+import lazy_loader as _lazy
 
-__all__ = [
-    "EXPERIMENTS",
-    "QUICK",
-    "experiment_plans",
-    "simulate_runs",
-    "locate_runs",
-    "simulate_and_locate",
-    "simulate_experiments",
-    "usable_table",
-    "centroid_status",
-    "write_json",
-    "PAPER_OPTIMISED",
-    "Table4Result",
-    "bench_optimised_truth",
-    "table4_methods",
-    "reproduce_table4",
-    "format_table",
-    "COLUMNS",
-    "REJECTION_COLUMN",
-    "SPOT_METHODS",
-    "spot_method",
-    "mounting_offset_px",
-    "reproduce_table5",
-    "format_table5",
-    "ROWS",
-    "GEAR_ROW",
-    "bench_fault_values",
-    "reproduce_platform",
-    "format_platform",
-]
+__getattr__, __dir__, __all__ = _lazy.attach_stub(__name__, __file__)

@@ -30,20 +30,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-__all__ = [
-    "EXPERIMENTS",
-    "QUICK",
-    "experiment_plans",
-    "simulate_runs",
-    "locate_runs",
-    "simulate_and_locate",
-    "simulate_experiments",
-    "usable_table",
-    "zero_pose_cubes",
-    "zero_pose_attrs",
-    "centroid_status",
-    "write_json",
-]
+__all__ = ["QUICK", "experiment_plans", "locate_runs", "simulate_and_locate"]
 
 #: Experiments of Table 3 and their roles.
 EXPERIMENTS = {"I": "calibration", "II": "validation", "III": "test"}

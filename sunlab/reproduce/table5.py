@@ -43,8 +43,7 @@ from .pipeline import (
     write_json,
 )
 
-__all__ = ["reproduce_table5", "mounting_offset_px", "spot_method", "COLUMNS", "REJECTION_COLUMN",
-           "SPOT_METHODS"]
+__all__ = ["reproduce_table5", "mounting_offset_px", "COLUMNS", "REJECTION_COLUMN", "format_table5"]
 
 #: The paper's column labels (:func:`sunlab.stats.paper_table5`).
 COLUMNS = ("100 holes: geometric centre", "100 holes: averaging", "1 hole")
