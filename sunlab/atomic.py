@@ -52,7 +52,7 @@ from pathlib import Path
 
 from .errors import SunlabError
 
-__all__ = ["OutputExistsError"]
+__all__ = []
 
 
 class OutputExistsError(SunlabError, FileExistsError):

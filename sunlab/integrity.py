@@ -42,7 +42,7 @@ from pathlib import Path
 
 from .errors import SunlabError
 
-__all__ = ["IntegrityError"]
+__all__ = []
 
 #: The attribute (or JSON key) that holds an artifact's digest.
 ATTR = "sunlab_integrity"

@@ -27,7 +27,7 @@ import numpy as np
 
 from .errors import ConfigurationError
 
-__all__ = ["Plan", "experiment", "grid", "custom", "zero_check"]
+__all__ = ["Plan", "experiment", "grid", "custom"]
 
 #: The paper's Table 3: (alpha_min, alpha_max, alpha_step, beta_min, beta_max, beta_step), deg.
 EXPERIMENTS: dict[str, tuple[float, float, float, float, float, float]] = {

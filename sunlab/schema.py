@@ -37,7 +37,7 @@ import xarray as xr
 
 from .errors import SchemaError
 
-__all__ = ["STATUS", "DEFECT_FLAGS", "frames_dataset", "centroids_dataset"]
+__all__ = ["STATUS", "frames_dataset", "centroids_dataset"]
 
 FRAMES_SCHEMA = "frames/1"
 CENTROIDS_SCHEMA = "centroids/1"
