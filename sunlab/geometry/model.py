@@ -97,6 +97,18 @@ def sun_vector(alpha, beta):
 def sun_angles(s):
     """Platform angles (alpha, beta) in degrees of a sun vector; inverse of :func:`sun_vector`.
 
+    Parameters
+    ----------
+    s : array_like, shape (..., 3)
+        Vectors toward the sun in the sensor frame (any length; normalised here).
+
+    Returns
+    -------
+    alpha : numpy.ndarray, shape (...)
+        Outer-axis angle, degrees: ``atan2(-s_x, s_z)``.
+    beta : numpy.ndarray, shape (...)
+        Inner-axis angle, degrees: ``asin(-s_y)`` of the unit vector.
+
     Examples
     --------
     >>> a, b = sun_angles(sun_vector(-12.0, 7.5))
@@ -150,6 +162,24 @@ def ideal_angles(x, y, mask_distance_mm, pixel_pitch_mm, x_cf, y_cf):
     .. math:: \\tan\\alpha = \\frac{(x - x_{cf})\\,p}{F}, \\qquad
               \\tan\\beta = \\frac{(y - y_{cf})\\,p\\cos\\alpha}{F}
 
+    Parameters
+    ----------
+    x, y : array_like
+        Centroid column and row, px (broadcast together).
+    mask_distance_mm : float
+        Mask-to-focal-plane distance F, mm.
+    pixel_pitch_mm : float
+        Pixel pitch p, mm.
+    x_cf, y_cf : float
+        Centroid with the sun at zenith, px.
+
+    Returns
+    -------
+    alpha : numpy.ndarray
+        Outer-axis platform angle, degrees: ``atan((x - x_cf) p / F)``.
+    beta : numpy.ndarray
+        Inner-axis platform angle, degrees: ``atan((y - y_cf) p cos(alpha) / F)``.
+
     Examples
     --------
     >>> a, b = ideal_angles(*ideal_centroid(-10.0, 5.0, 5.0, 0.007, 640, 512), 5.0, 0.007, 640, 512)
@@ -176,6 +206,30 @@ def _check_mounting(mounting: str) -> None:
 def hole_foot(mask_distance_mm, pixel_pitch_mm, delta_f_mm, alpha0, beta0, x_zp, y_zp,
               mounting: str = "additive"):
     """Foot of the hole (x_cf, y_cf) that eq. (4) ties to the zero-pose centroid, px.
+
+    Parameters
+    ----------
+    mask_distance_mm, pixel_pitch_mm : float
+        Nominal F and the pixel pitch p, mm.
+    delta_f_mm : float
+        Mask-distance error dF, mm.
+    alpha0, beta0 : float
+        Mounting errors, degrees.
+    x_zp, y_zp : float or array_like
+        Zero-pose centroid, px.
+    mounting : {"additive", "rotation"}
+        Form of the mounting (:func:`optimised_centroid`); note the default here is the
+        additive form.
+
+    Returns
+    -------
+    x_cf : float or numpy.ndarray
+        Column of the foot of the hole, px: ``x_zp + (F'/p) m_x / m_z`` with ``m = M e_z``
+        for a rotation, ``x_zp - (F'/p) tan(alpha0)`` for the additive form
+        (``F' = F + dF``).
+    y_cf : float or numpy.ndarray
+        Row of the foot of the hole, px: ``y_zp + (F'/p) m_y / m_z`` for a rotation,
+        ``y_zp - (F'/p) tan(beta0) / cos(alpha0)`` for the additive form.
 
     Examples
     --------
@@ -373,11 +427,32 @@ class OptimisedFit:
         )
 
     def angles(self, x, y):
-        """Platform angles (deg) of centroids (px) by the fitted model."""
+        """Platform angles (deg) of centroids (px) by the fitted model.
+
+        Parameters
+        ----------
+        x, y : array_like
+            Centroid column and row, px (broadcast together).
+
+        Returns
+        -------
+        alpha : numpy.ndarray
+            Outer-axis platform angle, degrees.
+        beta : numpy.ndarray
+            Inner-axis platform angle, degrees (both by :func:`optimised_angles` with
+            :attr:`params` and :attr:`mounting`).
+        """
         return optimised_angles(x, y, *self.params, mounting=self.mounting)
 
     def to_dict(self) -> dict:
-        """Plain-Python dictionary (JSON-ready)."""
+        """Plain-Python dictionary (JSON-ready).
+
+        Returns
+        -------
+        dict
+            Every field by name (``stderr`` a nested dict), as ``calibration/1`` files store the
+            optimised model; :func:`sunlab.calibration.model.optimised_fit_from_dict` reverses it.
+        """
         return asdict(self)
 
 
@@ -519,6 +594,16 @@ def _zero_pose_start(x, y, alpha, beta, k: float) -> list:
 def rotation_x(t) -> np.ndarray:
     """Right-handed rotation by ``t`` rad about x.
 
+    Parameters
+    ----------
+    t : float
+        Angle, rad.
+
+    Returns
+    -------
+    numpy.ndarray, shape (3, 3)
+        ``[[1, 0, 0], [0, cos t, -sin t], [0, sin t, cos t]]``.
+
     Examples
     --------
     >>> np.round(rotation_x(np.pi / 2) @ [0.0, 1.0, 0.0], 12).tolist()
@@ -531,6 +616,16 @@ def rotation_x(t) -> np.ndarray:
 def rotation_y(t) -> np.ndarray:
     """Right-handed rotation by ``t`` rad about y.
 
+    Parameters
+    ----------
+    t : float
+        Angle, rad.
+
+    Returns
+    -------
+    numpy.ndarray, shape (3, 3)
+        ``[[cos t, 0, sin t], [0, 1, 0], [-sin t, 0, cos t]]``.
+
     Examples
     --------
     >>> np.round(rotation_y(np.pi / 2) @ [0.0, 0.0, 1.0], 12).tolist()
@@ -542,6 +637,16 @@ def rotation_y(t) -> np.ndarray:
 
 def rotation_z(t) -> np.ndarray:
     """Right-handed rotation by ``t`` rad about z.
+
+    Parameters
+    ----------
+    t : float
+        Angle, rad.
+
+    Returns
+    -------
+    numpy.ndarray, shape (3, 3)
+        ``[[cos t, -sin t, 0], [sin t, cos t, 0], [0, 0, 1]]``.
 
     Examples
     --------
