@@ -236,7 +236,7 @@ def test_defects_injected_in_the_simulator_are_flagged():
     from sunlab import centroid, plans
 
     mask = sim.Mask.grid(10, 10, 0.5, 0.2, centre_mm=sim.mask.PAPER_GRID_CENTRE_MM)
-    mask = mask.with_defects({23: sim.Undersized(0.6),
+    mask = mask.with_defects({23: sim.mask.Undersized(0.6),
                               68: sim.Dust(0.07, 0.0, 0.09, 0.0)})
     bench = sim.Bench.paper_multi_hole(n_bad=0).replace(mask=mask)
     plan = plans.custom([-10.0, -2.0, -6.0], [2.0, 10.0, 6.0], shots=1)
@@ -344,7 +344,8 @@ def test_edge_roughness_flags_burred_holes_and_no_good_one():
     from sunlab import centroid, plans
 
     bench = sim.Bench.paper_multi_hole(n_bad=0)
-    mask = bench.mask.with_defects({37: sim.Burred(0.05, seed=1), 85: sim.Burred(0.05, seed=2)})
+    burred = sim.mask.Burred
+    mask = bench.mask.with_defects({37: burred(0.05, seed=1), 85: burred(0.05, seed=2)})
     g = np.linspace(-12.0, -3.0, 6)
     plan = plans.custom(np.repeat(g, 6), np.tile(g + 15.0, 6), shots=1)
     cube = sim.simulate(plan, bench.replace(mask=mask), seed=4)

@@ -19,7 +19,8 @@ class                     method (docs/paper.md sec. 4)                         
 
 Beyond the paper, :class:`FrameNet` learns the angles from the frames themselves (a CNN on each
 spot's window, a set network for many holes; kind ``learned-frames``, registered in
-:data:`~sunlab.calibration.registry.FRAME_KINDS` since it is fitted on frame cubes, not centroid tables).
+:data:`~sunlab.calibration.registry.FRAME_KINDS` since it is fitted on frame cubes, not centroid
+tables).
 
 Submodules load on first use; torch (the ``neural`` extra) is imported only when a
 :class:`NeuralNet` is fitted, and its absence is an ImportError naming the extra.

@@ -36,7 +36,7 @@ OUTLIER_MADS = 10.0
 #: :mod:`sunlab.calibration`. The library (:func:`fit`, :func:`load`), the command line
 #: (``sunlab calibrate --method``), the reproduction and the docs all read this table. The
 #: multi-hole strategies, which calibrate a whole mask, have their own registry
-#: (:data:`sunlab.multihole.STRATEGY_KINDS`).
+#: (:data:`sunlab.multihole.strategies.STRATEGY_KINDS`).
 KINDS: dict[str, str] = {
     "ideal": "model:IdealModel",
     "optimised": "model:OptimisedModel",

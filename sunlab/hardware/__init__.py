@@ -3,7 +3,8 @@
 - :class:`ESP300`: a Newport ESP300/ESP301 driver over pyserial (any ``serial_for_url`` URL),
   with timeouts, bounded retries, error decoding, limit checks and a settle time;
   :func:`open_stage` opens one from a URL (``fake://``, ``socket://``, a device path). The
-  wire protocol it speaks (commands, replies, error codes, :func:`~sunlab.hardware.esp_protocol.decode_error`, the byte link
+  wire protocol it speaks (commands, replies, error codes,
+  :func:`~sunlab.hardware.esp_protocol.decode_error`, the byte link
   :func:`~sunlab.hardware.esp_protocol.open_transport`) is :mod:`sunlab.hardware.esp_protocol`.
 - :class:`FakeESP`: the same protocol over a pseudo-terminal or loopback TCP, backed by the
   virtual bench's platform model, with fault injection.
