@@ -16,8 +16,8 @@ Estimators (docs/paper.md sec. 3 and beyond):
 * :func:`crlb` — the Cramér–Rao lower bound of the centroid for a given spot, flux and noise.
 
 Moments of a spot: :func:`~sunlab.centroid.moments.spot_moments`. Many spots of one frame at
-given positions, any estimator: :func:`centroid_sources`. Many spots of a multi-hole mask, found and indexed on their
-lattice: :func:`locate_spots`. A whole frame cube: :func:`locate`.
+given positions, any estimator: :func:`centroid_sources`. Many spots of a multi-hole mask, found
+and indexed on their lattice: :func:`locate_spots`. A whole frame cube: :func:`locate`.
 
 Package layout (each concept in one module; the ``_k_*`` modules hold the compiled kernels of
 the module they serve, private to the package):
@@ -27,7 +27,8 @@ the module they serve, private to the package):
   algorithms' steps (:func:`border_mean`, :func:`first_hit`, :func:`projection_profiles`);
 * :mod:`~sunlab.centroid.crlb` -- the Cramér–Rao bound;
 * :mod:`~sunlab.centroid.moments` -- a spot's moments
-  (:class:`~sunlab.centroid.moments.SpotMoments`; the stamp variant :func:`stamp_moments` for cut-outs of multi-hole frames);
+  (:class:`~sunlab.centroid.moments.SpotMoments`; the stamp variant :func:`stamp_moments` for
+  cut-outs of multi-hole frames);
 * :mod:`~sunlab.centroid.sources` -- :func:`centroid_sources`;
 * :mod:`~sunlab.centroid.lattice` -- :func:`locate_spots` (multi-spot lattice);
 * :mod:`~sunlab.centroid.cube` -- :func:`locate` (a whole cube through Dask), :func:`locate_all`
