@@ -56,7 +56,7 @@ import xarray as xr
 
 from .errors import ConfigurationError
 
-__all__ = ["diagnose", "candidate_table"]
+__all__ = ["diagnose"]
 
 #: sigma / mu of ``|X|`` for X uniform: the least any symmetric unimodal error can give.
 UNIMODAL_BOUND = 1.0 / math.sqrt(3.0)

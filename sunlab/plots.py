@@ -40,7 +40,6 @@ __all__ = [
     "fig13_frame",
     "fig14_bad_holes",
     "fig15_rectangles",
-    "plot_metric_map",
 ]
 
 _LABELS = {"local_error": "local error", "max_error": "maximum error"}

@@ -41,7 +41,7 @@ from ..calibration import Calibration, Polynomial, from_dict, load
 from ..errors import ConfigurationError, SchemaError
 from .holes import usable
 
-__all__ = ["load_strategy", "GeometricCentre", "PerHoleAverage"]
+__all__ = ["GeometricCentre", "PerHoleAverage", "load_strategy"]
 
 
 #: The multi-hole strategies, registered once: ``kind`` of the artifact -> ``"module:Class"``

@@ -42,7 +42,7 @@ import pandas as pd
 
 from ..errors import ConfigurationError
 
-__all__ = ["load_protocol", "identified_hypothesis", "ablation"]
+__all__ = ["load_protocol", "identified_hypothesis"]
 
 #: The standard normal quantile of 95 %: a central 90 % interval is mean +- Z90 sd.
 Z90 = 1.6448536269514722
