@@ -63,8 +63,9 @@ def timings(repeat: int = 20) -> None:
     )
     # a cube's pose: 8 shots with the paper's jitter, sharing the spots' shape (per frame)
     jit = 0.0005 * np.random.default_rng(1).standard_normal((2, 8))
-    p1 = _time(lambda i: sim.render_pose(single, -7.0 + jit[0], 6.0 + jit[1], seed=i), repeat // 4)
-    p100 = _time(lambda i: sim.render_pose(multi, -7.0 + jit[0], 6.0 + jit[1], seed=i), 3)
+    render_pose = sim.frame.render_pose
+    p1 = _time(lambda i: render_pose(single, -7.0 + jit[0], 6.0 + jit[1], seed=i), repeat // 4)
+    p100 = _time(lambda i: render_pose(multi, -7.0 + jit[0], 6.0 + jit[1], seed=i), 3)
     p1, p100 = (tuple(v / 8 for v in t) for t in (p1, p100))
     print("virtual bench: ms per full 1280 x 1024 frame, one core (median / best)")
     print(f"{'':34s}{'wall':>16s}{'cpu':>16s}{'cpu / noise':>14s}")

@@ -1,7 +1,9 @@
 """sunlab: reproduce, teach and extend the laboratory calibration of a pinhole APS sun sensor.
 
 Submodules are loaded on first use so that ``import sunlab`` stays light (no torch, no serial
-ports, no widgets until asked for); ``__init__.pyi`` lists them for IDEs and type checkers. The
+ports, no widgets until asked for): every package's ``__init__.pyi`` lists its public submodules
+and names, and ``lazy_loader.attach_stub`` (scikit-image's pattern) loads each from it on first
+access; IDEs and type checkers read the same stubs. The
 optional parts are extras of ``pip install "sunlab[...]"`` (:mod:`sunlab.extras`).
 
 Examples
@@ -11,58 +13,8 @@ Examples
 'frames/1'
 """
 
-from __future__ import annotations
-
-import importlib
-
-from .errors import ConfigurationError, SchemaError, SunlabError
-from .options import OPTIONS, set_options, show_progress
+import lazy_loader as _lazy
 
 __version__ = "0.1.0"
 
-_SUBMODULES = {
-    "schema",
-    "io",
-    "plans",
-    "sim",
-    "centroid",
-    "geometry",
-    "calibration",
-    "stats",
-    "multihole",
-    "hardware",
-    "parallel",
-    "platform_fault",
-    "export",
-    "reproduce",
-    "errors",
-    "options",
-    "extras",
-    "jit",
-    "atomic",
-    "plots",
-    "report",
-    "widgets",
-    "cli",
-}
-
-__all__ = [
-    "SunlabError",
-    "SchemaError",
-    "ConfigurationError",
-    "OPTIONS",
-    "set_options",
-    "show_progress",
-    "__version__",
-    *sorted(_SUBMODULES),
-]
-
-
-def __getattr__(name: str):
-    if name in _SUBMODULES:
-        return importlib.import_module(f".{name}", __name__)
-    raise AttributeError(f"module 'sunlab' has no attribute {name!r}")
-
-
-def __dir__():
-    return sorted(set(globals()) | _SUBMODULES)
+__getattr__, __dir__, __all__ = _lazy.attach_stub(__name__, __file__)

@@ -11,7 +11,7 @@ True
 
 from __future__ import annotations
 
-__all__ = ["dask_setup"]
+__all__ = []
 
 
 def dask_setup(worker=None) -> None:

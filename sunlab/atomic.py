@@ -52,9 +52,7 @@ from pathlib import Path
 
 from .errors import SunlabError
 
-__all__ = ["OutputExistsError", "check_target", "atomic_output", "atomic_files", "check_folder",
-           "signals_held", "write_text", "write_bytes", "temporary_name", "remove_stale",
-           "process_alive"]
+__all__ = []
 
 
 class OutputExistsError(SunlabError, FileExistsError):

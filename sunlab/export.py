@@ -57,8 +57,7 @@ import numpy as np
 
 from .errors import ConfigurationError
 
-__all__ = ["FLAGS", "FORMATS", "export", "export_c", "c_sources", "find_c_compiler", "run_c",
-           "check_c"]
+__all__ = ["export", "check_c"]
 
 #: Return values of the exported C functions.
 FLAGS = {"ok": 0, "outside": 1, "undefined": 2, "bad_input": 3}
@@ -175,7 +174,7 @@ def _optimised_call(P: _Prec, fit, x: str, y: str, a: str, b: str,
     atan2(-s_x, s_z), beta = asin(-s_y / |s|) = atan(-s_y / sqrt(s_x^2 + s_z^2)), as
     :func:`sunlab.geometry.optimised_angles`; "additive": eq. (1) at F + dF minus the offsets.
     """
-    from .geometry import hole_foot, mounting_matrix
+    from .geometry.model import hole_foot, mounting_matrix
 
     mounting = mounting or getattr(fit, "mounting", "additive")
     x_cf, y_cf = hole_foot(fit.mask_distance_mm, fit.pixel_pitch_mm, fit.delta_f_mm,

@@ -26,7 +26,7 @@ import importlib
 import importlib.metadata
 import importlib.util
 
-__all__ = ["EXTRAS", "available", "installed_version", "require"]
+__all__ = []
 
 #: The extra of pyproject.toml that brings each optional top-level package.
 EXTRAS: dict[str, str] = {

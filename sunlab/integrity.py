@@ -42,10 +42,7 @@ from pathlib import Path
 
 from .errors import SunlabError
 
-__all__ = ["ATTR", "IntegrityError", "seal_document", "verify_document", "read_json",
-           "zarr_digest", "seal_zarr", "unseal_zarr", "verify_zarr", "netcdf_digest",
-           "seal_netcdf", "verify_netcdf", "MAX_JSON_DEPTH", "MAX_DOCUMENT_BYTES",
-           "document_digest", "check_depth"]
+__all__ = []
 
 #: The attribute (or JSON key) that holds an artifact's digest.
 ATTR = "sunlab_integrity"

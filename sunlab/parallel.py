@@ -31,8 +31,7 @@ from .errors import ConfigurationError
 from .extras import require
 from .options import dask_progress, show_progress
 
-__all__ = ["SCHEDULERS", "compute", "local_cluster", "single_threaded_blas", "start_workers",
-           "worker_pool"]
+__all__ = ["compute", "local_cluster"]
 
 
 #: Local schedulers of :func:`compute`.

@@ -27,8 +27,7 @@ import numpy as np
 
 from .errors import ConfigurationError
 
-__all__ = ["Plan", "experiment", "grid", "custom", "read_plan", "zero_check", "EXPERIMENTS",
-           "SCANS", "APPROACHES", "PAPER_SCAN"]
+__all__ = ["Plan", "experiment", "grid", "custom"]
 
 #: The paper's Table 3: (alpha_min, alpha_max, alpha_step, beta_min, beta_max, beta_step), deg.
 EXPERIMENTS: dict[str, tuple[float, float, float, float, float, float]] = {

@@ -56,24 +56,7 @@ import xarray as xr
 
 from .errors import ConfigurationError
 
-__all__ = [
-    "UNIMODAL_BOUND",
-    "FAULTS",
-    "shape_test",
-    "paper_shape",
-    "signed_pose_errors",
-    "approach_of",
-    "approach_split",
-    "row_split",
-    "run_offset",
-    "beta_periodogram",
-    "Diagnosis",
-    "diagnose",
-    "fault_bench",
-    "candidate_table",
-    "JointCorrection",
-    "fit_correction",
-]
+__all__ = ["diagnose"]
 
 #: sigma / mu of ``|X|`` for X uniform: the least any symmetric unimodal error can give.
 UNIMODAL_BOUND = 1.0 / math.sqrt(3.0)

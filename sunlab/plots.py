@@ -32,9 +32,15 @@ from matplotlib.patches import Rectangle
 from .errors import ConfigurationError
 from .stats import ANGLES, rectangles, unstack_poses
 
-__all__ = ["ShownFigure", "new_figure", "error_maps", "error_histogram", "error_rectangles",
-           "fig13_frame", "fig14_bad_holes", "fig15_rectangles", "plot_metric_map",
-           "draw_rectangles"]
+__all__ = [
+    "new_figure",
+    "error_maps",
+    "error_histogram",
+    "error_rectangles",
+    "fig13_frame",
+    "fig14_bad_holes",
+    "fig15_rectangles",
+]
 
 _LABELS = {"local_error": "local error", "max_error": "maximum error"}
 
@@ -540,7 +546,8 @@ def plot_metric_map(metrics: xr.Dataset, name: str, *, bad=None, ax=None):
     """
     import matplotlib.pyplot as plt
 
-    from .multihole import hole_grid, metric_scale
+    from .multihole.defects import metric_scale
+    from .multihole.holes import hole_grid
 
     if name not in metrics:
         raise ConfigurationError(f"name: metric {name!r} not in {list(metrics.data_vars)}")

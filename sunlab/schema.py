@@ -37,26 +37,7 @@ import xarray as xr
 
 from .errors import SchemaError
 
-__all__ = [
-    "FRAMES_SCHEMA",
-    "CENTROIDS_SCHEMA",
-    "CALIBRATION_SCHEMA",
-    "SCHEMA_FILES",
-    "STATUS",
-    "STATUS_NAMES",
-    "USABLE_STATUS",
-    "DEFECT_FLAGS",
-    "IBIS4",
-    "frames_dataset",
-    "empty_frames",
-    "validate_frames",
-    "centroids_dataset",
-    "validate_centroids",
-    "validate_calibration",
-    "json_schema",
-    "schema_file",
-    "status_name",
-]
+__all__ = ["STATUS", "frames_dataset", "centroids_dataset"]
 
 FRAMES_SCHEMA = "frames/1"
 CENTROIDS_SCHEMA = "centroids/1"

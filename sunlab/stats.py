@@ -45,19 +45,14 @@ from .errors import ConfigurationError, SchemaError
 from .schema import STATUS, USABLE_STATUS
 
 __all__ = [
-    "ANGLES",
-    "STATS",
-    "PAPER_COLUMNS",
     "shot_errors",
     "local_errors",
     "global_stats",
     "evaluate",
     "error_summary",
     "rectangles",
-    "unstack_poses",
     "paper_table4",
     "paper_table5",
-    "side_by_side",
 ]
 
 ANGLES = ("alpha", "beta")

@@ -1,8 +1,8 @@
 """Interactive explorers (ipywidgets + matplotlib) for JupyterLab and Voila.
 
 :class:`HoleExplorer` shows the holes of a multi-hole mask as a clickable map coloured by a
-defect metric (:data:`sunlab.multihole.DEFECT_METRICS`), on one colour scale
-(:func:`sunlab.multihole.metric_scale`) shown as a colour bar beside it. Holes that the
+defect metric (:data:`sunlab.multihole.defects.DEFECT_METRICS`), on one colour scale
+(:func:`sunlab.multihole.defects.metric_scale`) shown as a colour bar beside it. Holes that the
 automatic rejection flags carry a ⚑ and an orange frame from the start; in simulated data the
 holes the bench gave defects (``hole_defect``) are underlined, so flagged and injected can be
 compared at a glance. Selecting a hole shows its spot close-up at a chosen pose and shot with
@@ -41,9 +41,11 @@ import xarray as xr
 
 from .errors import ConfigurationError
 from .extras import require
-from .multihole import HoleReview, cutout, metric_scale, review_holes
+from .multihole.defects import metric_scale
+from .multihole.holes import cutout
+from .multihole.review import HoleReview, review_holes
 
-__all__ = ["HoleExplorer", "figure_output"]
+__all__ = ["HoleExplorer"]
 
 
 def _png(fig) -> bytes:
@@ -94,8 +96,8 @@ class HoleExplorer:
     centroids : xarray.Dataset
         Centroid table on (pose, shot, hole), the experiment whose statistics are shown
         (usually the test experiment III).
-    review : sunlab.multihole.HoleReview, optional
-        The per-hole results shown (:func:`sunlab.multihole.review_holes` of ``centroids``);
+    review : sunlab.multihole.review.HoleReview, optional
+        The per-hole results shown (:func:`sunlab.multihole.review.review_holes` of ``centroids``);
         the explorer is a view over them. Default: reviewed here from the arguments below.
     strategy : sunlab.multihole.PerHoleAverage, optional
         Fitted per-hole calibrations. Default: fitted on ``train`` (or on ``centroids`` itself,
@@ -142,7 +144,7 @@ class HoleExplorer:
         Holes in the average.
     stats : dict
         Current global statistics: ``{"included": ..., "all": ..., "hole": ...}`` as returned
-        by :meth:`sunlab.multihole.HoleReview.stats` (:func:`sunlab.stats.error_summary`).
+        by :meth:`sunlab.multihole.review.HoleReview.stats` (:func:`sunlab.stats.error_summary`).
     ui : ipywidgets.VBox
         The whole explorer (displayed when the object is the last expression of a cell).
     """

@@ -42,24 +42,25 @@ def write_submissions(root, names, *, notebooks=NOTEBOOK_DIR) -> dict:
     out = {"right": [], "wrong": [], "tampered": []}
     for name in names:
         source = nbformat.read(Path(notebooks) / name, as_version=4)
-        exercises = course.find_exercises(source, name)
-        written = course.find_written(source, name)
+        exercises = course.editions.find_exercises(source, name)
+        written = course.editions.find_written(source, name)
         for student in out:
-            nb = course.student_notebook(source, name)
+            nb = course.editions.student_notebook(source, name)
             for k, ex in enumerate(exercises):
                 cell = nb.cells[ex.solution_cell + 1]  # after the quick cell
                 answer = source.cells[ex.solution_cell].source
                 if student == "right":
                     cell.source = answer
                 elif student == "wrong" and k == 1:
-                    cell.source = course.replace_solution(answer, "def broken(:\n    pass")
+                    cell.source = course.editions.replace_solution(answer, "def broken(:\n    pass")
                 else:
-                    cell.source = course.replace_solution(answer, wrong[ex.number])
+                    cell.source = course.editions.replace_solution(answer, wrong[ex.number])
             for w in written:
                 if student == "right":
                     cell = nb.cells[w.cell + 1]
                     cell.source = cell.source.replace(
-                        course.WRITTEN_PROMPT, "My answer, in my own words, about this question.")
+                        course.editions.WRITTEN_PROMPT,
+                        "My answer, in my own words, about this question.")
             if student == "tampered":
                 checks = [ex.check_cell + 1 for ex in exercises]
                 nb.cells[checks[0]].source = f'print("Check {exercises[0].number} passed")'

@@ -10,7 +10,7 @@ import pytest
 
 from sunlab import atomic, cli, sim
 from sunlab.errors import SunlabError
-from sunlab.reproduce import write_json
+from sunlab.reproduce.pipeline import write_json
 
 
 @pytest.fixture(scope="module")

@@ -444,7 +444,7 @@ def test_aperture_moments_kernel_matches_direct_sums(dtype):
 def test_metric_fields_follow_spot_metrics():
     from sunlab.centroid import _k_lattice as K
 
-    assert K.METRIC_FIELDS == tuple(C.SPOT_METRICS)
+    assert K.METRIC_FIELDS == tuple(C.lattice.SPOT_METRICS)
 
 
 @pytest.mark.parametrize("stride", [3, 8])

@@ -198,8 +198,8 @@ def _books():
 
 
 BOOKS = _books()
-EXERCISES = {name: course.find_exercises(nb, name) for name, nb in BOOKS.items()}
-WRITTEN = {name: course.find_written(nb, name) for name, nb in BOOKS.items()}
+EXERCISES = {name: course.editions.find_exercises(nb, name) for name, nb in BOOKS.items()}
+WRITTEN = {name: course.editions.find_written(nb, name) for name, nb in BOOKS.items()}
 WITH_EXERCISES = [name for name, ex in EXERCISES.items() if ex]
 #: long demonstrations whose exercises (appended at the end) use only the first code cell
 SELF_CONTAINED = {"05-single-hole-experiments.ipynb", "06-multi-hole-mask.ipynb"}
@@ -208,7 +208,7 @@ SELF_CONTAINED = {"05-single-hole-experiments.ipynb", "06-multi-hole-mask.ipynb"
 def _solution(number):
     ex = next(e for exs in EXERCISES.values() for e in exs if e.number == number)
     src = BOOKS[ex.notebook].cells[ex.solution_cell].source
-    return src.split(course.BEGIN_SOLUTION, 1)[1].split(course.END_SOLUTION, 1)[0]
+    return src.split(course.editions.BEGIN_SOLUTION, 1)[1].split(course.editions.END_SOLUTION, 1)[0]
 
 
 # ------------------------------------------------------------------ the exercises as written
@@ -246,7 +246,7 @@ def test_each_answer_has_markers_hint_a_check_and_a_hidden_check(name):
     code = [i for i, c in enumerate(nb.cells) if c.cell_type == "code"]
     for ex in EXERCISES[name]:
         src = nb.cells[ex.solution_cell].source
-        assert course.BEGIN_SOLUTION in src and course.END_SOLUTION in src
+        assert course.editions.BEGIN_SOLUTION in src and course.editions.END_SOLUTION in src
         assert ex.hint, f"exercise {ex.number} has no '# Hint:' line"
         assert ex.number.startswith(name[:2]), f"exercise {ex.number} in {name}"
         gap = code.index(ex.check_cell) - code.index(ex.solution_cell)
@@ -264,7 +264,7 @@ def test_every_exercise_has_a_wrong_answer_to_test_its_check():
 
 def test_no_other_cell_carries_solution_markers():
     for name, nb in BOOKS.items():
-        marked = [i for i, c in enumerate(nb.cells) if course.BEGIN_SOLUTION in c.source]
+        marked = [i for i, c in enumerate(nb.cells) if course.editions.BEGIN_SOLUTION in c.source]
         assert marked == [ex.solution_cell for ex in EXERCISES[name]], name
 
 
@@ -282,7 +282,7 @@ def test_one_sign_convention_everywhere():
 
 @pytest.fixture(scope="module")
 def student_texts():
-    return {name: nbformat.writes(course.student_notebook(nb, name))
+    return {name: nbformat.writes(course.editions.student_notebook(nb, name))
             for name, nb in BOOKS.items()}
 
 
@@ -297,8 +297,8 @@ def test_student_edition_carries_no_solution_line_hidden_check_or_model_answer(s
                            if i not in {e.solution_cell for e in EXERCISES[name]})
         assert "hidden.check" not in text, name
         for ex in EXERCISES[name]:
-            answer = nb.cells[ex.solution_cell].source.split(course.BEGIN_SOLUTION)[1]
-            for line in answer.split(course.END_SOLUTION)[0].splitlines():
+            answer = nb.cells[ex.solution_cell].source.split(course.editions.BEGIN_SOLUTION)[1]
+            for line in answer.split(course.editions.END_SOLUTION)[0].splitlines():
                 line = line.strip()
                 if len(line) >= 12 and not line.startswith("#") and line not in taught:
                     assert json.dumps(line)[1:-1] not in text, (ex.number, line)
@@ -368,7 +368,7 @@ def test_the_hidden_check_names_no_answer():
 def test_replace_solution_keeps_the_rest_of_the_cell():
     src = ("# Exercise 01.1: t\n# Hint: h\ndef f():\n    ### BEGIN SOLUTION\n    return 1\n"
            "    ### END SOLUTION\nprint(f())\n")
-    out = course.replace_solution(src, "raise NotImplementedError('h')")
+    out = course.editions.replace_solution(src, "raise NotImplementedError('h')")
     assert out == ("# Exercise 01.1: t\n# Hint: h\ndef f():\n    raise NotImplementedError('h')\n"
                    "print(f())\n")
 
@@ -379,16 +379,17 @@ def test_a_solution_without_its_check_is_refused():
     cells = [v4.new_code_cell(answer), v4.new_code_cell("a = 1"), v4.new_code_cell("b = 1"),
              v4.new_code_cell("# Check 07.1\nassert x == 1")]
     with pytest.raises(ConfigurationError, match="no '# Check 07.1' cell within"):
-        course.find_exercises(v4.new_notebook(cells=cells), "07-x.ipynb")
+        course.editions.find_exercises(v4.new_notebook(cells=cells), "07-x.ipynb")
     del cells[1]
-    assert [e.number for e in course.find_exercises(v4.new_notebook(cells=cells))] == ["07.1"]
+    found = course.editions.find_exercises(v4.new_notebook(cells=cells))
+    assert [e.number for e in found] == ["07.1"]
 
 
 def test_unbalanced_markers_are_refused():
     v4 = nbformat.v4
     cells = [v4.new_code_cell("# Exercise 07.1: t\n### BEGIN SOLUTION\nx = 1\n")]
     with pytest.raises(ConfigurationError, match="cell 0: found 1 .* and 0"):
-        course.find_exercises(v4.new_notebook(cells=cells), "07-x.ipynb")
+        course.editions.find_exercises(v4.new_notebook(cells=cells), "07-x.ipynb")
 
 
 def _sunlab(*args, cwd=None, **kw):
@@ -411,22 +412,22 @@ def test_python_m_sunlab_course_writes_both_editions(tmp_path):
         for ex in EXERCISES[name]:
             # the quick cell comes first: every index moves by one
             sol = teacher.cells[ex.solution_cell + 1]
-            assert course.BEGIN_SOLUTION in sol.source
+            assert course.editions.BEGIN_SOLUTION in sol.source
             assert sol.metadata["nbgrader"]["solution"] is True
             chk = teacher.cells[ex.check_cell + 1]
             assert chk.metadata["nbgrader"]["grade"] is True
             assert chk.metadata["nbgrader"]["points"] == ex.points
-            assert course.BEGIN_HIDDEN in chk.source
+            assert course.editions.BEGIN_HIDDEN in chk.source
             assert f"Exercise {ex.number}" in student and "raise NotImplementedError" in student
             locked = student_nb.cells[ex.check_cell + 1].metadata
             assert locked["editable"] is False and locked["nbgrader"]["locked"] is True
         for w in WRITTEN[name]:
             cell = student_nb.cells[w.cell + 1]
-            assert cell.source.endswith(course.WRITTEN_PROMPT)
+            assert cell.source.endswith(course.editions.WRITTEN_PROMPT)
             meta = teacher.cells[w.cell + 1].metadata["nbgrader"]
             assert meta["solution"] and meta["grade"] and meta["points"] == w.points
         first_code = next(c for c in teacher.cells if c.cell_type == "code")
-        assert first_code.source == course.QUICK_CELL, name
+        assert first_code.source == course.editions.QUICK_CELL, name
     again = _sunlab("course", "--out", str(tmp_path / "class"))
     assert again.returncode == 1 and "--overwrite" in again.stderr, again.stderr
     assert "nothing was written" in again.stderr
@@ -522,10 +523,10 @@ def _mini_course(folder):
 def _submit(folder, student, answers, edit=None):
     """The student edition of the mini course with ``answers`` {number: code}."""
     src = nbformat.read(folder / "course" / "01-mini.ipynb", as_version=4)
-    nb = course.student_notebook(src, "01-mini.ipynb")
-    for ex in course.find_exercises(src):
+    nb = course.editions.student_notebook(src, "01-mini.ipynb")
+    for ex in course.editions.find_exercises(src):
         if ex.number in answers:
-            nb.cells[ex.solution_cell + 1].source = course.replace_solution(
+            nb.cells[ex.solution_cell + 1].source = course.editions.replace_solution(
                 src.cells[ex.solution_cell].source, answers[ex.number])
     if edit:
         edit(nb)
@@ -579,7 +580,7 @@ def test_grading_restores_replaced_and_deleted_checks_and_scores_them_0(tmp_path
 
     path = _submit(tmp_path, "dan", {"01.1": "x = 5", "01.2": "def three():\n    return 3"},
                    tamper)
-    rows = course.grade_notebook(path, notebooks=tmp_path / "course", seed=7)
+    rows = course.grading.grade_notebook(path, notebooks=tmp_path / "course", seed=7)
     by = {r["exercise"]: r for r in rows}
     assert by["01.1"]["points"] == 0 and by["01.1"]["result"] == "tampered"
     assert by["01.1"]["message"].startswith("check cell altered: scored 0")
@@ -623,7 +624,7 @@ def test_three_simulated_students_on_notebook_03(tmp_path):
     assert got[("tampered", "03.2")]["message"].startswith("check cell deleted: scored 0")
     assert doc["totals"]["wrong"]["points"] == doc["totals"]["tampered"]["points"] == 0
     csv_rows = (tmp_path / "book" / "gradebook.csv").read_text().splitlines()
-    assert csv_rows[0] == ",".join(course.COLUMNS) and len(csv_rows) == 1 + 3 * 3
+    assert csv_rows[0] == ",".join(course.grading.COLUMNS) and len(csv_rows) == 1 + 3 * 3
 
 
 # ------------------------------------------------------------------ executed editions
@@ -637,7 +638,7 @@ def _client(nb):
 def test_student_edition_stops_at_the_first_exercise():
     nbclient = pytest.importorskip("nbclient")
     name = "03-geometric-models.ipynb"  # the quickest to reach its first exercise
-    nb = course.student_notebook(BOOKS[name], name)
+    nb = course.editions.student_notebook(BOOKS[name], name)
     first = EXERCISES[name][0].solution_cell + 1  # after the quick cell
     with pytest.raises(nbclient.exceptions.CellExecutionError) as info:
         _client(nb).execute()
@@ -660,7 +661,7 @@ def _cells_to_run(nb, name):
 @pytest.mark.parametrize("name", WITH_EXERCISES)
 def test_teacher_edition_passes_and_each_check_catches_a_wrong_answer(name):
     nbclient = pytest.importorskip("nbclient")
-    nb = course.teacher_notebook(BOOKS[name], name)
+    nb = course.editions.teacher_notebook(BOOKS[name], name)
     exercises = {ex.check_cell + 1: ex for ex in EXERCISES[name]}
     client = _client(nb)
     caught = []
@@ -673,7 +674,7 @@ def test_teacher_edition_passes_and_each_check_catches_a_wrong_answer(name):
                 continue
             answer = nb.cells[ex.solution_cell + 1]
             wrong = nbformat.v4.new_code_cell(
-                course.replace_solution(answer.source, WRONG[ex.number]))
+                course.editions.replace_solution(answer.source, WRONG[ex.number]))
             client.execute_cell(wrong, i)
             with pytest.raises(nbclient.exceptions.CellExecutionError) as info:
                 client.execute_cell(nbformat.v4.new_code_cell(cell.source), i)
@@ -698,7 +699,7 @@ def test_nbgrader_autograde_scores_the_teacher_edition_like_sunlab(tmp_path):
     name = "03-geometric-models.ipynb"
     root = tmp_path / "nbcourse"
     (root / "source" / "ps1").mkdir(parents=True)
-    nbformat.write(course.teacher_notebook(BOOKS[name], name),
+    nbformat.write(course.editions.teacher_notebook(BOOKS[name], name),
                    root / "source" / "ps1" / name)
     (root / "nbgrader_config.py").write_text(
         "c = get_config()\nc.CourseDirectory.course_id = 'sunlab'\n"

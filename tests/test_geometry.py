@@ -105,13 +105,14 @@ def test_mounting_beta_error_is_not_additive_off_axis():
 
 
 def test_rotations_are_right_handed_and_orthogonal():
-    for rot in (geometry.rotation_x, geometry.rotation_y, geometry.rotation_z):
+    for rot in (geometry.model.rotation_x, geometry.model.rotation_y, geometry.model.rotation_z):
         r = rot(0.3)
         assert_allclose(r @ r.T, np.eye(3), atol=1e-15)
         assert_allclose(np.linalg.det(r), 1.0)
-    assert_allclose(geometry.mounting_matrix(1.0, 2.0, 3.0),
-                    geometry.rotation_z(np.deg2rad(3.0)) @ geometry.rotation_y(np.deg2rad(-1.0))
-                    @ geometry.rotation_x(np.deg2rad(2.0)), rtol=0, atol=0)
+    g = geometry.model
+    assert_allclose(g.mounting_matrix(1.0, 2.0, 3.0),
+                    g.rotation_z(np.deg2rad(3.0)) @ g.rotation_y(np.deg2rad(-1.0))
+                    @ g.rotation_x(np.deg2rad(2.0)), rtol=0, atol=0)
 
 
 def _noisy_grid(seed=7, noise_px=0.05):

@@ -14,7 +14,8 @@ from sunlab import multihole as mh
 from sunlab import plots
 from sunlab.errors import ConfigurationError
 from sunlab.schema import STATUS
-from sunlab.sim import HoleLayout, Mask, synthetic_centroids
+from sunlab.sim import Mask, synthetic_centroids
+from sunlab.sim.centroids import HoleLayout
 from sunlab.stats import error_summary
 
 # A small field of view: 7 x 7 poses over the paper's test range (deg).
@@ -31,11 +32,11 @@ def table(seed, shift=0.0, **kw):
 # ---------------------------------------------------------------------------- hole indexing
 def test_hole_grid_from_coordinates_and_fallback():
     cen = table(0, shots=1)
-    i, j, nr, nc = mh.hole_grid(cen)
+    i, j, nr, nc = mh.holes.hole_grid(cen)
     assert (nr, nc) == (10, 10)
     assert_allclose(i * 10 + j, np.arange(100))
     bare = cen.drop_vars(["hole_i", "hole_j"])
-    assert mh.hole_grid(bare)[2:] == (10, 10)
+    assert mh.holes.hole_grid(bare)[2:] == (10, 10)
 
 
 def test_synthetic_table_follows_eq1():
@@ -55,7 +56,7 @@ def test_geometric_centre_does_not_jump_when_holes_go_missing():
     s1 = mh.GeometricCentre(order=4).fit(full)
     c_full = s1.centre(full)
     c_fill = s1.centre(lossy)
-    c_plain = mh.geometric_centre(lossy)
+    c_plain = mh.strategies.geometric_centre(lossy)
     lost = (mh.usable(lossy).sum("hole") < 100).values
     assert lost.sum() > 10
     jump_fill = np.abs(c_fill.x.values - c_full.x.values)[lost]
@@ -65,7 +66,8 @@ def test_geometric_centre_does_not_jump_when_holes_go_missing():
     # the fitted offsets keep the centre within the noise of the holes (0.01 px / sqrt(96))
     assert jump_fill.max() < 0.01
     # and the estimated angles carry no bias
-    err = mh.angle_errors(s1.predict(lossy)) - mh.angle_errors(s1.predict(full))
+    angle_errors = mh.strategies.angle_errors
+    err = angle_errors(s1.predict(lossy)) - angle_errors(s1.predict(full))
     assert abs(float(err.alpha.where(xr.DataArray(lost, dims=("pose", "shot"))).mean())) < 1e-4
 
 
@@ -89,7 +91,7 @@ def test_averaging_equals_geometric_centre_in_the_linear_case():
     assert_allclose(p2.alpha, p1.alpha, atol=tol)
     assert_allclose(p2.beta, p1.beta, atol=tol)
     # and the difference is much smaller than the tan() nonlinearity both share
-    assert float(np.abs(mh.angle_errors(p1).alpha).max()) > 10 * tol
+    assert float(np.abs(mh.strategies.angle_errors(p1).alpha).max()) > 10 * tol
 
 
 def test_averaging_is_unbiased_with_missing_holes():
@@ -98,7 +100,8 @@ def test_averaging_is_unbiased_with_missing_holes():
     test = table(6, shift=0.5, **kw)
     lossy = table(6, shift=0.5, **kw, defects={h: {"missing": 0.7} for h in range(0, 100, 7)})
     s2 = mh.PerHoleAverage(order=4).fit(train)
-    d = mh.angle_errors(s2.predict(lossy)).alpha - mh.angle_errors(s2.predict(test)).alpha
+    angle_errors = mh.strategies.angle_errors
+    d = angle_errors(s2.predict(lossy)).alpha - angle_errors(s2.predict(test)).alpha
     assert abs(float(d.mean())) < 2e-5
     assert float(np.abs(d).max()) < 0.002
 
@@ -107,13 +110,13 @@ def test_averaging_is_unbiased_with_missing_holes():
 def test_combine_estimates_weights_and_clip(clip):
     est = xr.DataArray([[1.0, 1.0, 1.2, np.nan, 9.0]], dims=("pose", "hole"))
     w = np.array([1.0, 1.0, 2.0, 1.0, 1e-6])
-    m, n = mh.combine_estimates(est, weights=w, clip=clip)
+    m, n = mh.strategies.combine_estimates(est, weights=w, clip=clip)
     expected = (1 + 1 + 2 * 1.2) / 4
     if clip is None:
         expected = (1 + 1 + 2.4 + 9e-6) / (4 + 1e-6)
     assert_allclose(float(m[0]), expected, rtol=1e-9)
     assert int(n[0]) == (3 if clip else 4)
-    m, _ = mh.combine_estimates(est, holes=[True, False, True, True, False])
+    m, _ = mh.strategies.combine_estimates(est, holes=[True, False, True, True, False])
     assert_allclose(float(m[0]), 1.1)
 
 
@@ -233,7 +236,7 @@ def test_defects_injected_in_the_simulator_are_flagged():
     from sunlab import centroid, plans
 
     mask = sim.Mask.grid(10, 10, 0.5, 0.2, centre_mm=sim.mask.PAPER_GRID_CENTRE_MM)
-    mask = mask.with_defects({23: sim.Undersized(0.6),
+    mask = mask.with_defects({23: sim.mask.Undersized(0.6),
                               68: sim.Dust(0.07, 0.0, 0.09, 0.0)})
     bench = sim.Bench.paper_multi_hole(n_bad=0).replace(mask=mask)
     plan = plans.custom([-10.0, -2.0, -6.0], [2.0, 10.0, 6.0], shots=1)
@@ -341,7 +344,8 @@ def test_edge_roughness_flags_burred_holes_and_no_good_one():
     from sunlab import centroid, plans
 
     bench = sim.Bench.paper_multi_hole(n_bad=0)
-    mask = bench.mask.with_defects({37: sim.Burred(0.05, seed=1), 85: sim.Burred(0.05, seed=2)})
+    burred = sim.mask.Burred
+    mask = bench.mask.with_defects({37: burred(0.05, seed=1), 85: burred(0.05, seed=2)})
     g = np.linspace(-12.0, -3.0, 6)
     plan = plans.custom(np.repeat(g, 6), np.tile(g + 15.0, 6), shots=1)
     cube = sim.simulate(plan, bench.replace(mask=mask), seed=4)

@@ -192,7 +192,7 @@ def test_quick_has_one_meaning_for_every_table():
 
 def test_table5_names_its_spot_method_or_raises():
     from sunlab.errors import ConfigurationError
-    from sunlab.reproduce import spot_method
+    from sunlab.reproduce.table5 import spot_method
 
     assert [spot_method(m) for m in ("projection", "threshold", "tight", "fit")] == [
         "tight", "tight", "tight", "fit"]

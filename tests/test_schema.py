@@ -105,7 +105,8 @@ def _readme_examples():
 
 
 def test_readme_examples_follow_the_schemas(tmp_path):
-    from sunlab.io import SENSOR_FIELDS, read_sensor_json
+    from sunlab.io import read_sensor_json
+    from sunlab.io.sensor import SENSOR_FIELDS
 
     examples = _readme_examples()
     found = set()

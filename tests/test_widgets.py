@@ -74,7 +74,7 @@ def test_one_colour_scale_for_buttons_and_bar(explorer):
     ex = explorer
     ex.metric.value = "flux_deficit"
     v = ex.metrics["flux_deficit"].values
-    lo, hi = mh.metric_scale(v)
+    lo, hi = mh.defects.metric_scale(v)
     cmap = mpl.colormaps["viridis"]
     for h in (0, 33, 50):
         want = mpl.colors.to_hex(cmap(np.clip((v[h] - lo) / (hi - lo), 0, 1)))

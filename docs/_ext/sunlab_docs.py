@@ -112,7 +112,8 @@ def room_page(room: str) -> str:
     lines = [title, "=" * len(title), "", f".. automodule:: {name}", "   :no-members:", ""]
     lines += [f".. currentmodule:: {name}", ""] + _autosummary(_exported(module))
     if hasattr(module, "__path__"):
-        shown = set(getattr(module, "__all__", ()))
+        # the names the package documents above (its stub's submodules are not among them)
+        shown = set(_exported(module))
         for info in pkgutil.iter_modules(module.__path__):
             if info.name.startswith("_") or info.name == "__main__":
                 continue

@@ -19,7 +19,8 @@ class                     method (docs/paper.md sec. 4)                         
 
 Beyond the paper, :class:`FrameNet` learns the angles from the frames themselves (a CNN on each
 spot's window, a set network for many holes; kind ``learned-frames``, registered in
-:data:`FRAME_KINDS` since it is fitted on frame cubes, not centroid tables).
+:data:`~sunlab.calibration.registry.FRAME_KINDS` since it is fitted on frame cubes, not centroid
+tables).
 
 Submodules load on first use; torch (the ``neural`` extra) is imported only when a
 :class:`NeuralNet` is fitted, and its absence is an ImportError naming the extra.
@@ -34,34 +35,6 @@ Examples
 'NeuralNet'
 """
 
-from __future__ import annotations
+import lazy_loader as _lazy
 
-import importlib
-
-_LAZY = {
-    **dict.fromkeys(["KINDS", "FRAME_KINDS", "ALIASES", "available_kinds", "fit",
-                     "method_class"], "registry"),
-    **dict.fromkeys(["from_dict", "load"], "artifact"),
-    **dict.fromkeys(["Calibration", "TrainingData", "combine", "training_data"], "base"),
-    "calibration_summary": "summary",
-    "table4_methods": "methods",
-    "Polynomial": "polynomial",
-    "Trigonometric": "trigonometric",
-    "Interpolation": "interpolation",
-    "NeuralNet": "neural",
-    "FrameNet": "frames",
-    "IdealModel": "model",
-    "OptimisedModel": "model",
-}
-
-__all__ = list(_LAZY)
-
-
-def __getattr__(name: str):
-    if name in _LAZY:
-        return getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
-    raise AttributeError(f"module 'sunlab.calibration' has no attribute {name!r}")
-
-
-def __dir__():
-    return sorted(set(globals()) | set(_LAZY))
+__getattr__, __dir__, __all__ = _lazy.attach_stub(__name__, __file__)

@@ -1,12 +1,22 @@
-"""Type stub of :mod:`sunlab.calibration`: its names load on first use (``__getattr__``);
-this stub lets IDEs and type checkers see them."""
+"""Stub of :mod:`sunlab.calibration`: its public submodules and names. ``__init__.py`` reads it with
+``lazy_loader.attach_stub`` (scikit-image's pattern) to load each on first use, and IDEs
+and type checkers read it as the package's interface."""
 
+from . import artifact as artifact
+from . import base as base
+from . import frames as frames
+from . import interpolation as interpolation
+from . import methods as methods
+from . import model as model
+from . import neural as neural
+from . import plausibility as plausibility
+from . import polynomial as polynomial
+from . import registry as registry
+from . import summary as summary
+from . import trigonometric as trigonometric
 from .artifact import from_dict as from_dict
 from .artifact import load as load
 from .base import Calibration as Calibration
-from .base import TrainingData as TrainingData
-from .base import combine as combine
-from .base import training_data as training_data
 from .frames import FrameNet as FrameNet
 from .interpolation import Interpolation as Interpolation
 from .methods import table4_methods as table4_methods
@@ -14,8 +24,6 @@ from .model import IdealModel as IdealModel
 from .model import OptimisedModel as OptimisedModel
 from .neural import NeuralNet as NeuralNet
 from .polynomial import Polynomial as Polynomial
-from .registry import ALIASES as ALIASES
-from .registry import FRAME_KINDS as FRAME_KINDS
 from .registry import KINDS as KINDS
 from .registry import available_kinds as available_kinds
 from .registry import fit as fit

@@ -23,7 +23,7 @@ from .registry import ENTRY_POINT_GROUP, available_kinds, method_class
 if TYPE_CHECKING:
     from .base import Calibration
 
-__all__ = ["MAX_FILE_BYTES", "from_dict", "load", "validate_document"]
+__all__ = ["from_dict", "load"]
 
 _REQUIRED = ("sunlab_schema", "kind", "sunlab_version", "parameters", "training", "domain",
              "residuals")

@@ -55,13 +55,7 @@ from ..schema import CALIBRATION_SCHEMA, STATUS, USABLE_STATUS, validate_centroi
 from .artifact import validate_document
 from .summary import calibration_summary
 
-__all__ = [
-    "Calibration",
-    "TrainingData",
-    "training_data",
-    "sensor_attrs",
-    "combine",
-]
+__all__ = ["Calibration"]
 
 _SENSOR = ("mask_distance_mm", "pixel_pitch_mm", "x_cf_px", "y_cf_px")
 _AVERAGES = ("pose", "shot")

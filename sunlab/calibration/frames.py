@@ -66,7 +66,7 @@ from . import _frames_torch as T
 from ._checks import _bad, _count, _number, _numbers
 from .base import Calibration, _err_summary
 
-__all__ = ["FrameNet", "detect_spots", "spot_windows"]
+__all__ = ["FrameNet"]
 
 _USABLE = [STATUS[k] for k in USABLE_STATUS]
 

@@ -23,7 +23,7 @@ from functools import partial
 
 from .registry import POLYNOMIAL_REFIT, RECIPES, TRIGONOMETRIC_PERIOD, fit
 
-__all__ = ["table4_methods", "TRIGONOMETRIC_PERIOD", "POLYNOMIAL_REFIT"]
+__all__ = ["table4_methods"]
 
 
 def table4_methods(*, neural: bool = True, hidden: int = 8, seed: int = 0,

@@ -23,7 +23,7 @@ from ..errors import ConfigurationError
 from ._checks import _number
 from .base import _SENSOR, Calibration, TrainingData, sensor_attrs
 
-__all__ = ["IdealModel", "OptimisedModel", "fit_optimised", "optimised_fit_from_dict"]
+__all__ = ["IdealModel", "OptimisedModel"]
 
 #: Poses within this distance of alpha = beta = 0 (deg) count as the zero pose.
 ZERO_POSE_TOL_DEG = 1e-9

@@ -51,7 +51,7 @@ from ._checks import _bad, _count, _number, _numbers
 from .base import Calibration, TrainingData, sensor_attrs
 from .model import fit_optimised, optimised_fit_from_dict
 
-__all__ = ["NeuralNet", "STRATEGIES"]
+__all__ = ["NeuralNet"]
 
 #: Table 2 of the paper: strategy -> (input, output).
 STRATEGIES = {

@@ -19,7 +19,7 @@ ideal model: its errors on its own training poses reach
 
 from __future__ import annotations
 
-__all__ = ["implausible", "MAX_PLAUSIBLE_ERROR_DEG"]
+__all__ = []
 
 #: A calibration error above this, deg, on its own training poses (or a test's mean error) is
 #: not a calibration of the sensor: an input is wrong (pitch, mask distance, sign, centroids).

@@ -30,7 +30,7 @@ from ..errors import ConfigurationError
 from ._checks import _bad, _coefficients_ok, _count, _scaling_ok
 from .base import Calibration, TrainingData, combine
 
-__all__ = ["Polynomial", "monomial_exponents", "design_matrix"]
+__all__ = ["Polynomial"]
 
 
 def monomial_exponents(order: int) -> list[tuple[int, int]]:

@@ -36,8 +36,7 @@ if TYPE_CHECKING:
 
     from .base import Calibration
 
-__all__ = ["KINDS", "FRAME_KINDS", "ALIASES", "ENTRY_POINT_GROUP", "RECIPES", "OUTLIER_MADS",
-           "POLYNOMIAL_REFIT", "TRIGONOMETRIC_PERIOD", "available_kinds", "fit", "method_class"]
+__all__ = ["KINDS", "available_kinds", "fit", "method_class"]
 
 #: Default outlier screening of :func:`fit` (and ``sunlab calibrate --outlier-mads``): shots
 #: beyond this many MADs of a robust fit are excluded. The value of

@@ -30,7 +30,7 @@ from ._checks import _coefficients_ok, _count, _number, _scaling_ok
 from .base import Calibration, TrainingData
 from .polynomial import _scale, _scaling
 
-__all__ = ["Trigonometric", "fourier_basis"]
+__all__ = ["Trigonometric"]
 
 
 def fourier_basis(u, order: int, period: float = 4.0) -> np.ndarray:

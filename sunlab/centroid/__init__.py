@@ -15,9 +15,9 @@ Estimators (docs/paper.md sec. 3 and beyond):
 * :func:`disk_fit` — a weighted least-squares fit of an edge-blurred disk (near the CRLB);
 * :func:`crlb` — the Cramér–Rao lower bound of the centroid for a given spot, flux and noise.
 
-Moments of a spot: :func:`spot_moments`. Many spots of one frame at given positions, any
-estimator: :func:`centroid_sources`. Many spots of a multi-hole mask, found and indexed on their
-lattice: :func:`locate_spots`. A whole frame cube: :func:`locate`.
+Moments of a spot: :func:`~sunlab.centroid.moments.spot_moments`. Many spots of one frame at
+given positions, any estimator: :func:`centroid_sources`. Many spots of a multi-hole mask, found
+and indexed on their lattice: :func:`locate_spots`. A whole frame cube: :func:`locate`.
 
 Package layout (each concept in one module; the ``_k_*`` modules hold the compiled kernels of
 the module they serve, private to the package):
@@ -26,8 +26,9 @@ the module they serve, private to the package):
 * :mod:`~sunlab.centroid.estimators` -- the single-spot estimators, :data:`METHODS` and the
   algorithms' steps (:func:`border_mean`, :func:`first_hit`, :func:`projection_profiles`);
 * :mod:`~sunlab.centroid.crlb` -- the Cramér–Rao bound;
-* :mod:`~sunlab.centroid.moments` -- a spot's moments (:class:`SpotMoments`; the stamp
-  variant :func:`stamp_moments` for cut-outs of multi-hole frames);
+* :mod:`~sunlab.centroid.moments` -- a spot's moments
+  (:class:`~sunlab.centroid.moments.SpotMoments`; the stamp variant :func:`stamp_moments` for
+  cut-outs of multi-hole frames);
 * :mod:`~sunlab.centroid.sources` -- :func:`centroid_sources`;
 * :mod:`~sunlab.centroid.lattice` -- :func:`locate_spots` (multi-spot lattice);
 * :mod:`~sunlab.centroid.cube` -- :func:`locate` (a whole cube through Dask), :func:`locate_all`
@@ -55,48 +56,10 @@ Examples
 (120.5, 90.0, 'ok')
 """
 
-from __future__ import annotations
+import lazy_loader as _lazy
 
-from .crlb import CRLB, crlb, disk_profile
-from .cube import default_method, is_multi_hole, locate, locate_all
-from .estimators import (
-    METHODS,
-    border_mean,
-    disk_fit,
-    first_hit,
-    projection_profiles,
-    projection_window,
-    threshold_window,
-    tight_window,
-)
-from .lattice import SPOT_METRICS, Spots, locate_spots
-from .moments import SpotMoments, spot_moments, stamp_moments
-from .result import SATURATION_10BIT, Centroid
-from .sources import centroid_sources
+from ..jit import announce_first_compile
 
-__all__ = [
-    "Centroid",
-    "Spots",
-    "SpotMoments",
-    "SPOT_METRICS",
-    "CRLB",
-    "METHODS",
-    "SATURATION_10BIT",
-    "threshold_window",
-    "projection_window",
-    "tight_window",
-    "disk_fit",
-    "border_mean",
-    "first_hit",
-    "projection_profiles",
-    "crlb",
-    "disk_profile",
-    "spot_moments",
-    "stamp_moments",
-    "centroid_sources",
-    "locate_spots",
-    "locate",
-    "locate_all",
-    "is_multi_hole",
-    "default_method",
-]
+announce_first_compile()  # one line on stderr when a kernel compiles (a cache miss)
+
+__getattr__, __dir__, __all__ = _lazy.attach_stub(__name__, __file__)

@@ -19,7 +19,7 @@ import numpy as np
 from ..errors import ConfigurationError
 from .result import _check_positive
 
-__all__ = ["CRLB", "crlb", "disk_profile"]
+__all__ = ["crlb", "disk_profile"]
 
 
 class CRLB(NamedTuple):

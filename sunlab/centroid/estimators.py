@@ -45,8 +45,14 @@ from .result import (
 )
 
 __all__ = [
-    "METHODS", "PER_SPOT", "threshold_window", "projection_window", "tight_window", "disk_fit",
-    "border_mean", "first_hit", "projection_profiles",
+    "METHODS",
+    "threshold_window",
+    "projection_window",
+    "tight_window",
+    "disk_fit",
+    "border_mean",
+    "first_hit",
+    "projection_profiles",
 ]
 
 

@@ -35,7 +35,7 @@ from .result import (
     _prepare,
 )
 
-__all__ = ["SPOT_METRICS", "Spots", "locate_spots"]
+__all__ = ["locate_spots"]
 
 # Columns of the compiled spot measurement (sunlab.centroid.moments.SpotMoments) read here.
 _FLUX, _X, _Y = (_k_aperture.MEASURE_FIELDS.index(f) for f in ("flux", "x", "y"))

@@ -28,7 +28,7 @@ import numpy as np
 from . import _k_aperture
 from .result import _full_scale, _prepare
 
-__all__ = ["SpotMoments", "spot_moments", "stamp_moments"]
+__all__ = ["stamp_moments"]
 
 
 class SpotMoments(NamedTuple):
@@ -153,7 +153,7 @@ def stamp_moments(img) -> tuple[float, float, float]:
     """RMS radius, ellipticity and asymmetry of the spot filling a stamp: the stamp variant.
 
     :func:`spot_moments` measures a spot at a known centre inside an aperture, against the
-    mean of an annulus; a stamp cut around a multi-hole spot (:func:`sunlab.multihole.cutout`)
+    mean of an annulus; a stamp cut around a multi-hole spot (:func:`sunlab.multihole.holes.cutout`)
     has neighbours' light in any annulus, so this variant takes the median of the stamp's
     border as the background and zeroes pixels under 10 % of the peak. Its radius is the RMS
     radius ``sqrt(mxx + myy)`` (``R / sqrt(2)`` for a uniform disk of radius ``R``, where

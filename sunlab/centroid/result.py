@@ -18,7 +18,7 @@ import numpy as np
 from ..errors import ConfigurationError, SchemaError
 from ..schema import STATUS, STATUS_NAMES
 
-__all__ = ["Centroid", "SATURATION_10BIT"]
+__all__ = ["Centroid"]
 
 #: Full scale of the paper's 10-bit ADC (Ibis4), DN: a pixel at or above it is saturated.
 SATURATION_10BIT = 1023

@@ -18,6 +18,6 @@ Examples
 True
 """
 
-from .commands import build_parser, main, run
+import lazy_loader as _lazy
 
-__all__ = ["build_parser", "main", "run"]
+__getattr__, __dir__, __all__ = _lazy.attach_stub(__name__, __file__)

@@ -29,13 +29,7 @@ from pathlib import Path
 
 from ..errors import SchemaError
 
-__all__ = [
-    "add_folder_options",
-    "read_calibration_json",
-    "is_image_folder",
-    "open_centroid_table",
-    "cube_from_folder",
-]
+__all__ = []
 
 # --------------------------------------------------------------------------------------------
 # sunlab info CAL.json (standard library only; the text: sunlab.calibration.summary)

@@ -11,41 +11,17 @@ docs/course.md (the student syllabus) and docs/teacher-notes.md say how to use t
 
 Examples
 --------
+>>> from sunlab.course import editions
 >>> src = "# Exercise 01.1: x\\n# Hint: two.\\n### BEGIN SOLUTION\\nx = 2\\n### END SOLUTION\\n"
->>> print(replace_solution(src, "x = None"))
+>>> print(editions.replace_solution(src, "x = None"))
 # Exercise 01.1: x
 # Hint: two.
 x = None
 <BLANKLINE>
->>> solution_hint(src)
+>>> editions.solution_hint(src)
 'two.'
 """
 
-from .editions import (
-    BEGIN_HIDDEN,
-    BEGIN_SOLUTION,
-    END_HIDDEN,
-    END_SOLUTION,
-    QUICK_CELL,
-    WRITTEN_PROMPT,
-    Exercise,
-    Written,
-    default_notebook_dir,
-    find_exercises,
-    find_written,
-    replace_solution,
-    solution_hint,
-    strip_hidden,
-    student_notebook,
-    teacher_notebook,
-    write_course,
-)
-from .grading import COLUMNS, grade, grade_notebook, totals, write_gradebook
+import lazy_loader as _lazy
 
-__all__ = [
-    "BEGIN_HIDDEN", "BEGIN_SOLUTION", "COLUMNS", "END_HIDDEN", "END_SOLUTION", "QUICK_CELL",
-    "WRITTEN_PROMPT", "Exercise", "Written", "default_notebook_dir", "find_exercises",
-    "find_written", "grade", "grade_notebook", "replace_solution", "solution_hint",
-    "strip_hidden", "student_notebook", "teacher_notebook", "totals", "write_course",
-    "write_gradebook",
-]
+__getattr__, __dir__, __all__ = _lazy.attach_stub(__name__, __file__)

@@ -42,7 +42,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-__all__ = ["STUDENT_SEED", "Recording", "write_recording"]
+__all__ = ["write_recording"]
 
 #: the seed of the recording the student works on (notebook 08's capstone)
 STUDENT_SEED = 808

@@ -53,25 +53,7 @@ from typing import NamedTuple
 from .. import atomic
 from ..errors import ConfigurationError, SunlabError
 
-__all__ = [
-    "BEGIN_SOLUTION",
-    "END_SOLUTION",
-    "BEGIN_HIDDEN",
-    "END_HIDDEN",
-    "WRITTEN_PROMPT",
-    "Exercise",
-    "Written",
-    "QUICK_CELL",
-    "default_notebook_dir",
-    "find_exercises",
-    "find_written",
-    "replace_solution",
-    "solution_hint",
-    "strip_hidden",
-    "student_notebook",
-    "teacher_notebook",
-    "write_course",
-]
+__all__ = ["write_course"]
 
 #: nbgrader's markers around the answer in a solution cell
 BEGIN_SOLUTION = "### BEGIN SOLUTION"

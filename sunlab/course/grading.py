@@ -49,7 +49,7 @@ from .editions import (
     teacher_notebook,
 )
 
-__all__ = ["COLUMNS", "grade", "grade_notebook", "write_gradebook", "totals"]
+__all__ = ["grade", "write_gradebook"]
 
 #: the columns of gradebook.csv
 COLUMNS = ("student", "notebook", "exercise", "points", "max_points", "message")

@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["DEFAULT_SEED", "SEED_VARIABLE", "CHECKS", "check", "seed"]
+__all__ = ["check"]
 
 #: environment variable that carries the grader's seed into the notebook's kernel
 SEED_VARIABLE = "SUNLAB_COURSE_SEED"

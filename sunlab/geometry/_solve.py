@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import hole_foot, optimised_angles, rotation_x, rotation_y
+from .model import hole_foot, optimised_angles, rotation_x, rotation_y
 
 __all__: list[str] = []
 

@@ -3,8 +3,9 @@
 - :class:`ESP300`: a Newport ESP300/ESP301 driver over pyserial (any ``serial_for_url`` URL),
   with timeouts, bounded retries, error decoding, limit checks and a settle time;
   :func:`open_stage` opens one from a URL (``fake://``, ``socket://``, a device path). The
-  wire protocol it speaks (commands, replies, error codes, :func:`decode_error`, the byte link
-  :func:`open_transport`) is :mod:`sunlab.hardware.esp_protocol`.
+  wire protocol it speaks (commands, replies, error codes,
+  :func:`~sunlab.hardware.esp_protocol.decode_error`, the byte link
+  :func:`~sunlab.hardware.esp_protocol.open_transport`) is :mod:`sunlab.hardware.esp_protocol`.
 - :class:`FakeESP`: the same protocol over a pseudo-terminal or loopback TCP, backed by the
   virtual bench's platform model, with fault injection.
 - :class:`Camera`: the camera protocol (:class:`ControlledCamera` adds exposure, ROI and dark
@@ -26,63 +27,6 @@ Examples
 >>> stage.close()
 """
 
-from __future__ import annotations
+import lazy_loader as _lazy
 
-from .camera import Camera, ControlledCamera, FolderCamera, SimCamera, capture_darks
-from .cameras import ENTRY_POINT_GROUP, available_cameras, camera_class, open_camera
-from .errors import (
-    BenchError,
-    CameraError,
-    CameraTimeout,
-    ControllerError,
-    ControllerLimitError,
-    ErrorReplyLost,
-    LimitError,
-    MotionTimeout,
-    StageDisconnected,
-    StageError,
-    StageProtocolError,
-    StageTimeout,
-)
-from .esp import ESP300
-from .esp_protocol import decode_error, open_transport
-from .fake import FakeESP, Fault
-from .pymeasure_stage import PymeasureStage
-from .runner import RunResult, acquire, open_run
-from .stage import Stage, available_stages, open_stage
-
-__all__ = [
-    "BenchError",
-    "CameraError",
-    "CameraTimeout",
-    "ControllerError",
-    "ControllerLimitError",
-    "ErrorReplyLost",
-    "LimitError",
-    "MotionTimeout",
-    "StageDisconnected",
-    "StageError",
-    "StageProtocolError",
-    "StageTimeout",
-    "Camera",
-    "ControlledCamera",
-    "FolderCamera",
-    "SimCamera",
-    "capture_darks",
-    "ENTRY_POINT_GROUP",
-    "available_cameras",
-    "camera_class",
-    "open_camera",
-    "PymeasureStage",
-    "ESP300",
-    "decode_error",
-    "open_transport",
-    "FakeESP",
-    "Fault",
-    "RunResult",
-    "acquire",
-    "open_run",
-    "Stage",
-    "available_stages",
-    "open_stage",
-]
+__getattr__, __dir__, __all__ = _lazy.attach_stub(__name__, __file__)

@@ -32,8 +32,7 @@ import json
 
 from ..errors import ConfigurationError
 
-__all__ = ["ENTRY_POINT_GROUP", "available_cameras", "camera_class", "open_camera",
-           "parse_camera_options"]
+__all__ = ["available_cameras", "camera_class", "open_camera"]
 
 #: The entry point group a lab's package registers its cameras in.
 ENTRY_POINT_GROUP = "sunlab.cameras"

@@ -13,15 +13,12 @@ __all__ = [
     "BenchError",
     "StageError",
     "StageTimeout",
-    "StageProtocolError",
-    "StageDisconnected",
     "ControllerError",
     "ErrorReplyLost",
     "LimitError",
     "ControllerLimitError",
     "MotionTimeout",
     "CameraError",
-    "CameraTimeout",
 ]
 
 

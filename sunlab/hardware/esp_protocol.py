@@ -48,17 +48,7 @@ from typing import Protocol, runtime_checkable
 from ..extras import require
 from .errors import StageDisconnected
 
-__all__ = [
-    "WRITE_TERMINATOR",
-    "READ_TERMINATOR",
-    "UNITS",
-    "GENERAL_ERRORS",
-    "AXIS_ERRORS",
-    "Transport",
-    "open_transport",
-    "decode_error",
-    "format_number",
-]
+__all__ = []
 
 WRITE_TERMINATOR = b"\r"
 READ_TERMINATOR = b"\r\n"

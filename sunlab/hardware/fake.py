@@ -85,7 +85,7 @@ from dataclasses import dataclass
 from ..errors import ConfigurationError
 from .esp_protocol import decode_error
 
-__all__ = ["FAULT_KINDS", "Fault", "FakeESP", "ManualClock", "DISCONNECT"]
+__all__ = ["FakeESP"]
 
 FAULT_KINDS = ("timeout", "garble", "error", "silent", "stuck", "disconnect", "late")
 

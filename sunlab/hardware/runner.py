@@ -67,7 +67,7 @@ from ..extras import installed_version
 from ..options import show_progress
 from .errors import BenchError, CameraError
 
-__all__ = ["RunResult", "acquire", "open_run", "run_lock", "RunLockedError", "TIME_UNITS"]
+__all__ = ["acquire", "open_run"]
 
 #: Units of the ``time`` coordinate (CF): float seconds since the Unix epoch, UTC.
 TIME_UNITS = "seconds since 1970-01-01T00:00:00+00:00"

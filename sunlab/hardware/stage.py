@@ -22,7 +22,7 @@ from urllib.parse import parse_qs, urlsplit
 
 from ..errors import ConfigurationError
 
-__all__ = ["ENTRY_POINT_GROUP", "Stage", "available_stages", "open_stage"]
+__all__ = ["Stage", "open_stage"]
 
 
 @runtime_checkable

@@ -54,51 +54,6 @@ Examples
 True
 """
 
-from __future__ import annotations
+import lazy_loader as _lazy
 
-from .calframes import (
-    MASTER_NAMES,
-    corrected_frames,
-    corrected_saturation,
-    has_calibration_frames,
-    master_flat,
-    master_frame,
-    read_stack,
-    with_calibration_frames,
-)
-from .csvtable import CSV_SUFFIXES, centroids_from_csv
-from .describe import summary
-from .folder import example_folder, from_image_folder
-from .images import IMAGE_SUFFIXES, read_image
-from .lab import import_folder
-from .read import open_centroids, open_dataset, open_frames
-from .sensor import SENSOR_FIELDS, find_sensor_json, read_sensor_json
-from .write import NETCDF_SUFFIXES, save_centroids, save_frames
-
-__all__ = [
-    "CSV_SUFFIXES",
-    "IMAGE_SUFFIXES",
-    "NETCDF_SUFFIXES",
-    "save_frames",
-    "open_frames",
-    "save_centroids",
-    "open_centroids",
-    "centroids_from_csv",
-    "open_dataset",
-    "from_image_folder",
-    "example_folder",
-    "read_image",
-    "summary",
-    "SENSOR_FIELDS",
-    "read_sensor_json",
-    "find_sensor_json",
-    "MASTER_NAMES",
-    "read_stack",
-    "master_frame",
-    "master_flat",
-    "with_calibration_frames",
-    "corrected_frames",
-    "corrected_saturation",
-    "has_calibration_frames",
-    "import_folder",
-]
+__getattr__, __dir__, __all__ = _lazy.attach_stub(__name__, __file__)

@@ -55,16 +55,7 @@ import numpy as np
 from ..errors import SchemaError
 from .images import IMAGE_SUFFIXES, _image_header, read_image
 
-__all__ = [
-    "MASTER_NAMES",
-    "read_stack",
-    "master_frame",
-    "master_flat",
-    "with_calibration_frames",
-    "corrected_frames",
-    "corrected_saturation",
-    "has_calibration_frames",
-]
+__all__ = ["with_calibration_frames", "corrected_frames", "corrected_saturation"]
 
 #: The master frames a cube may hold: kind -> variable name.
 MASTER_NAMES = {"dark": "master_dark", "bias": "master_bias", "flat": "master_flat"}

@@ -16,7 +16,7 @@ import pandas as pd
 from ..errors import SchemaError
 from ..schema import STATUS, centroids_dataset
 
-__all__ = ["CSV_SUFFIXES", "centroids_from_csv", "csv_line_of", "read_csv_table"]
+__all__ = ["centroids_from_csv"]
 
 #: File suffixes read as CSV centroid tables.
 CSV_SUFFIXES = (".csv", ".txt")

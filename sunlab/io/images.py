@@ -12,7 +12,7 @@ import numpy as np
 
 from ..errors import SchemaError
 
-__all__ = ["IMAGE_SUFFIXES", "read_image"]
+__all__ = ["read_image"]
 
 #: File suffixes read by :func:`~sunlab.io.from_image_folder` and :func:`read_image`.
 IMAGE_SUFFIXES = (".png", ".tif", ".tiff")

@@ -15,9 +15,9 @@ mean. One module per concept:
 ===============================  ==============================================================
 :mod:`~sunlab.multihole.holes`   grid indices, usable spots, cut-outs, centroiding a free layout
 :mod:`~.strategies`              the two strategies, as :class:`sunlab.calibration.Calibration`
-                                 subclasses, entries of the calibration registry
-                                 (:func:`sunlab.calibration.load` reads them); combining
-                                 per-hole estimates
+                                 subclasses in their own registry
+                                 (:data:`~.strategies.STRATEGY_KINDS`, :func:`load_strategy`);
+                                 combining per-hole estimates
 :mod:`~.defects`                 per-hole defect metrics, robust z-scores, bad-hole rejection
 :mod:`~.budget`                  the error budget and the gain of N holes over one
 :mod:`~.review`                  every hole's results, what the hole explorer shows
@@ -35,6 +35,7 @@ row/column ``hole_i``, ``hole_j`` and design position ``hole_x_cf``, ``hole_y_cf
 
 Examples
 --------
+>>> import numpy as np
 >>> from sunlab import multihole as mh
 >>> from sunlab.sim import synthetic_centroids
 >>> cen = synthetic_centroids([0.0, 1.0], [0.0, 1.0], shots=2, layout="grid",
@@ -47,52 +48,6 @@ References
 .. [1] docs/paper.md, sec. 6 and Table 5 (the 2005 preprint on the Naples APS sun sensor).
 """
 
-from __future__ import annotations
+import lazy_loader as _lazy
 
-import numpy as np  # noqa: F401  (the examples)
-
-from .budget import error_budget, gain_study
-from .defects import (
-    DEFECT_METRICS,
-    defect_metrics,
-    edge_roughness,
-    metric_scale,
-    reject_bad_holes,
-    residual_metrics,
-    robust_z,
-    stamp_metrics,
-)
-from .holes import centroid_free_layout, cutout, hole_grid, usable
-from .review import HoleReview, injected_defects, review_holes
-from .strategies import (
-    GeometricCentre,
-    PerHoleAverage,
-    angle_errors,
-    combine_estimates,
-    geometric_centre,
-)
-
-__all__ = [
-    "hole_grid",
-    "usable",
-    "cutout",
-    "centroid_free_layout",
-    "geometric_centre",
-    "GeometricCentre",
-    "PerHoleAverage",
-    "combine_estimates",
-    "angle_errors",
-    "stamp_metrics",
-    "edge_roughness",
-    "residual_metrics",
-    "defect_metrics",
-    "robust_z",
-    "reject_bad_holes",
-    "metric_scale",
-    "DEFECT_METRICS",
-    "error_budget",
-    "gain_study",
-    "HoleReview",
-    "review_holes",
-    "injected_defects",
-]
+__getattr__, __dir__, __all__ = _lazy.attach_stub(__name__, __file__)

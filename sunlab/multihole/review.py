@@ -27,7 +27,7 @@ from .defects import defect_metrics, reject_bad_holes, robust_z
 from .holes import hole_grid
 from .strategies import PerHoleAverage
 
-__all__ = ["HoleReview", "review_holes", "injected_defects"]
+__all__ = []
 
 
 @dataclass

@@ -57,13 +57,7 @@ from ._tables import (
 )
 from .holes import usable
 
-__all__ = [
-    "geometric_centre",
-    "GeometricCentre",
-    "PerHoleAverage",
-    "combine_estimates",
-    "angle_errors",
-]
+__all__ = ["GeometricCentre", "PerHoleAverage"]
 
 
 def geometric_centre(cen: xr.Dataset, accept: Sequence[str] = ("ok",)) -> xr.Dataset:

@@ -46,8 +46,7 @@ import numpy as np
 from ..errors import ConfigurationError
 from .pipeline import experiment_plans, locate_runs, usable_table, write_json
 
-__all__ = ["BENCHES", "MULTI_SHOTS", "bench", "bench_seeds", "crlb_floor", "learned_figure",
-           "records_table", "reproduce_learned"]
+__all__ = ["reproduce_learned"]
 
 #: The benches, in the order they run: name -> what it is (the factory is :func:`bench`).
 BENCHES = {

@@ -41,24 +41,7 @@ import xarray as xr
 from ..centroid.estimators import PER_SPOT
 from ..errors import ConfigurationError
 
-__all__ = [
-    "EXPERIMENTS",
-    "QUICK",
-    "experiment_plans",
-    "simulate_runs",
-    "locate_runs",
-    "simulate_and_locate",
-    "simulate_experiments",
-    "SPOT_METHODS",
-    "spot_method",
-    "mounting_offset_px",
-    "multi_hole_tables",
-    "usable_table",
-    "zero_pose_cubes",
-    "zero_pose_attrs",
-    "centroid_status",
-    "write_json",
-]
+__all__ = ["QUICK", "experiment_plans", "locate_runs", "simulate_and_locate"]
 
 #: Experiments of Table 3 and their roles.
 EXPERIMENTS = {"I": "calibration", "II": "validation", "III": "test"}

@@ -41,7 +41,7 @@ from pathlib import Path
 
 from .pipeline import experiment_plans, locate_runs, simulate_runs, usable_table, write_json
 
-__all__ = ["ROWS", "GEAR_ROW", "reproduce_platform", "format_platform", "bench_fault_values"]
+__all__ = ["ROWS", "reproduce_platform", "format_platform"]
 
 #: The rows of the platform table, in order.
 ROWS = (

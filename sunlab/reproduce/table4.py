@@ -43,16 +43,7 @@ from ..calibration.methods import table4_methods
 from ..errors import ConfigurationError
 from .pipeline import centroid_status, simulate_and_locate, usable_table, write_json
 
-__all__ = [
-    "PAPER_OPTIMISED",
-    "bench_optimised_truth",
-    "Table4Result",
-    "table4_methods",
-    "reproduce_table4",
-    "table4_statistics",
-    "format_table",
-    "comparable_methods",
-]
+__all__ = ["table4_methods", "reproduce_table4", "format_table"]
 
 #: Where the strategy-4 network zeroes model (1): on each run's zero-pose check (strategy 2
 #: keeps model (1) as fitted, :func:`sunlab.calibration.methods.table4_methods`).

@@ -45,7 +45,7 @@ from .pipeline import (
     write_json,
 )
 
-__all__ = ["reproduce_table5", "table5_statistics", "format_table5", "COLUMNS", "REJECTION_COLUMN"]
+__all__ = ["reproduce_table5", "COLUMNS", "REJECTION_COLUMN", "format_table5"]
 
 #: The paper's column labels (:func:`sunlab.stats.paper_table5`).
 COLUMNS = ("100 holes: geometric centre", "100 holes: averaging", "1 hole")

@@ -22,52 +22,10 @@ Examples
 ((1024, 1280), True)
 """
 
-from .bench import Bench, plan_key, platform_pose, simulate
-from .centroids import HoleLayout, synthetic_centroids
-from .detector import Detector, FixedPattern, fixed_pattern
-from .frame import expected_frame, render_frame, render_pose
-from .mask import DEFECT_FLAGS, Burred, Dust, Elliptical, Hole, Mask, Undersized
-from .platform import Platform, sensor_sun_vector
-from .render import (
-    SpotGeometry,
-    frame_key,
-    mask_play,
-    ray_positions,
-    spot_geometry,
-    spot_image,
-    spot_truth,
-)
-from .source import PAPER_SOURCE_DIAMETER_DEG, Source
+import lazy_loader as _lazy
 
-__all__ = [
-    "Bench",
-    "Source",
-    "Mask",
-    "Hole",
-    "Dust",
-    "Elliptical",
-    "Burred",
-    "Undersized",
-    "DEFECT_FLAGS",
-    "Detector",
-    "FixedPattern",
-    "fixed_pattern",
-    "Platform",
-    "PAPER_SOURCE_DIAMETER_DEG",
-    "SpotGeometry",
-    "platform_pose",
-    "simulate",
-    "plan_key",
-    "render_frame",
-    "render_pose",
-    "spot_truth",
-    "spot_image",
-    "spot_geometry",
-    "ray_positions",
-    "expected_frame",
-    "frame_key",
-    "mask_play",
-    "sensor_sun_vector",
-    "HoleLayout",
-    "synthetic_centroids",
-]
+from ..jit import announce_first_compile
+
+announce_first_compile()  # one line on stderr when a kernel compiles (a cache miss)
+
+__getattr__, __dir__, __all__ = _lazy.attach_stub(__name__, __file__)

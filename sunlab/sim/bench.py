@@ -55,7 +55,7 @@ from .platform import Platform
 from .render import _entropy, _truth, mask_play, spot_geometry
 from .source import Source
 
-__all__ = ["Bench", "platform_pose", "homing_offset", "simulate", "plan_key"]
+__all__ = ["Bench", "platform_pose", "simulate"]
 
 #: The presets are the hypothesis that the identification protocol's rule picks
 #: (docs/identification.md, ``sunlab/data/protocol.json``; :func:`sunlab.studies.

@@ -25,7 +25,7 @@ from .. import geometry, schema
 from ..errors import ConfigurationError, SchemaError
 from .mask import Mask
 
-__all__ = ["HoleLayout", "synthetic_centroids"]
+__all__ = ["synthetic_centroids"]
 
 
 @dataclass(frozen=True)

@@ -58,7 +58,7 @@ import numpy as np
 
 from ..errors import ConfigurationError
 
-__all__ = ["Detector", "FixedPattern", "fixed_pattern"]
+__all__ = ["Detector", "fixed_pattern"]
 
 
 @dataclass(frozen=True)

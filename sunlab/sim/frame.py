@@ -32,7 +32,7 @@ from .detector import Detector, fixed_pattern
 from .platform import sensor_sun_vector
 from .render import _groups, _hole_centres_mm, _rays, frame_key, mask_play, spot_geometry
 
-__all__ = ["render_frame", "render_pose", "expected_frame"]
+__all__ = ["render_frame"]
 
 
 def _signal_stamps(bench, alpha_true, beta_true, play_mm):

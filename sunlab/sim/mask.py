@@ -37,18 +37,7 @@ import numpy as np
 from ..errors import ConfigurationError
 from ..schema import DEFECT_FLAGS
 
-__all__ = [
-    "Hole",
-    "Mask",
-    "Dust",
-    "Elliptical",
-    "Burred",
-    "Undersized",
-    "DEFECT_FLAGS",
-    "PAPER_GRID_CENTRE_MM",
-    "PAPER_TRACK_CENTRE_MM",
-    "PAPER_DISTANCE_MM",
-]
+__all__ = ["Hole", "Mask", "Dust"]
 
 
 #: Centre of the paper-like 10 x 10 grid relative to the detector centre, mm (our choice): the

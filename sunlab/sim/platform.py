@@ -59,9 +59,9 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..errors import ConfigurationError
-from ..geometry import rotation_x, rotation_y, rotation_z
+from ..geometry.model import rotation_x, rotation_y, rotation_z
 
-__all__ = ["Platform", "sensor_sun_vector", "rotation_x", "rotation_y", "rotation_z"]
+__all__ = ["Platform"]
 
 
 @dataclass(frozen=True)

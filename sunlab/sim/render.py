@@ -53,15 +53,7 @@ from . import _kernels
 from .detector import Detector
 from .platform import sensor_sun_vector
 
-__all__ = [
-    "SpotGeometry",
-    "spot_geometry",
-    "spot_truth",
-    "ray_positions",
-    "spot_image",
-    "frame_key",
-    "mask_play",
-]
+__all__ = ["spot_truth", "ray_positions", "spot_image"]
 
 _TAG_FRAME = 0xF7A3E
 _TAG_PLAY = 0x91A7

@@ -23,7 +23,7 @@ import numpy as np
 
 from ..errors import ConfigurationError
 
-__all__ = ["Source", "PAPER_SOURCE_DIAMETER_DEG"]
+__all__ = ["Source"]
 
 #: 2 atan(6.82 mm / 1500 mm): the integrating-sphere port seen through the collimating lens, deg.
 PAPER_SOURCE_DIAMETER_DEG = math.degrees(2.0 * math.atan(6.82 / 1500.0))

@@ -1,11 +1,11 @@
-"""Studies over the paper's tables: which bench explains them (:mod:`.identification`)."""
+"""Studies over the paper's tables with the virtual bench, apart from the simulator itself.
 
-__all__ = ["identification"]
+:mod:`.identification` (which bench explains the tables, under a fixed protocol),
+:mod:`.averaging` (why averaging per-hole calibrations loses to the geometric centre) and
+:mod:`.platform_fault` (the inner axis's fault that makes beta worse than alpha). Each loads
+on first use.
+"""
 
+import lazy_loader as _lazy
 
-def __getattr__(name):
-    if name in __all__:
-        import importlib
-
-        return importlib.import_module(f"{__name__}.{name}")
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+__getattr__, __dir__, __all__ = _lazy.attach_stub(__name__, __file__)

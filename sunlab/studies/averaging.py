@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import pandas as pd
 
-__all__ = ["MECHANISMS", "PAPER_RATIO", "mechanisms"]
+__all__ = []
 
 #: The paper's Table 5: averaging / geometric centre, mu.
 PAPER_RATIO = {"alpha": 0.0045 / 0.0041, "beta": 0.0404 / 0.0313}

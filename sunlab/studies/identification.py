@@ -42,29 +42,7 @@ import pandas as pd
 
 from ..errors import ConfigurationError
 
-__all__ = [
-    "load_protocol",
-    "scored_quantities",
-    "draw_nuisances",
-    "hypothesis_bench",
-    "surrogate_runs",
-    "fit_hypothesis",
-    "recorded_draw",
-    "run_protocol",
-    "predict_cells",
-    "run_hypothesis",
-    "score_table",
-    "chosen_hypothesis",
-    "intervals",
-    "load_evidence",
-    "load_intervals",
-    "Z90",
-    "identified_hypothesis",
-    "interval90",
-    "regenerate",
-    "ABLATIONS",
-    "ablation",
-]
+__all__ = ["load_protocol", "identified_hypothesis"]
 
 #: The standard normal quantile of 95 %: a central 90 % interval is mean +- Z90 sd.
 Z90 = 1.6448536269514722

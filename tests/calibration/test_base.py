@@ -179,7 +179,7 @@ def test_missing_file(tmp_path):
 
 def test_combine_renumbers_poses(tables):
     train, val = tables
-    both = calibration.combine(train, val)
+    both = calibration.base.combine(train, val)
     assert both.sizes["pose"] == train.sizes["pose"] + val.sizes["pose"]
     assert_array_equal(both.pose, np.arange(both.sizes["pose"]))
     cal = Interpolation("linear").fit(both)

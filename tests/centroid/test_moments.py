@@ -11,7 +11,7 @@ from sunlab.centroid import _k_aperture
 
 
 def test_fields_are_the_kernel_measurement_columns():
-    assert C.SpotMoments._fields == _k_aperture.MEASURE_FIELDS
+    assert C.moments.SpotMoments._fields == _k_aperture.MEASURE_FIELDS
 
 
 def test_spot_moments_match_direct_sums():
@@ -21,7 +21,7 @@ def test_spot_moments_match_direct_sums():
     yy, xx = np.mgrid[0:120, 0:140]
     frame[np.hypot(xx - 70.3, (yy - 58.6) * 1.2) < 14] += 600
     xc, yc, r = 70.0, 59.0, 22.0
-    m = C.spot_moments(frame, xc, yc, r)
+    m = C.moments.spot_moments(frame, xc, yc, r)
     d = np.hypot(xx - xc, yy - yc)
     ring = (d > r + 1) & (d <= r + 7)
     b = frame[ring].mean()
@@ -42,6 +42,6 @@ def test_locate_spots_metrics_are_the_moments_of_each_spot():
     # asymmetry) as SpotMoments, measured in the spot's first aperture.
     frame = _spots.frame([(300.4, 250.2)], noise=False, edge=3.25, background=30.0)
     s = C.locate_spots(frame, shape=(1, 1))
-    m = C.spot_moments(frame, s.x[0], s.y[0], 30.0)
+    m = C.moments.spot_moments(frame, s.x[0], s.y[0], 30.0)
     assert_allclose(s.metrics["radius"][0], m.radius, rtol=2e-3)
     assert s.metrics["ellipticity"][0] < 1e-3 and m.ellipticity < 1e-3

@@ -14,7 +14,8 @@ from numpy.testing import assert_allclose, assert_array_equal
 from PIL import Image
 
 from sunlab import ConfigurationError, sim
-from sunlab.hardware import Camera, CameraError, CameraTimeout, FakeESP, FolderCamera, SimCamera
+from sunlab.hardware import Camera, CameraError, FakeESP, FolderCamera, SimCamera
+from sunlab.hardware.errors import CameraTimeout
 
 
 @pytest.fixture(scope="module")

@@ -20,11 +20,10 @@ from sunlab.hardware import (
     ErrorReplyLost,
     LimitError,
     MotionTimeout,
-    StageDisconnected,
     StageError,
-    StageProtocolError,
     StageTimeout,
 )
+from sunlab.hardware.errors import StageDisconnected, StageProtocolError
 from sunlab.hardware.esp_protocol import decode_error, format_number
 
 NO_ERROR = b"0, 451322, NO ERROR DETECTED\r\n"

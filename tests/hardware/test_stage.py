@@ -11,7 +11,8 @@ import pytest
 
 from sunlab import cli
 from sunlab.errors import ConfigurationError
-from sunlab.hardware import ESP300, available_stages, open_stage
+from sunlab.hardware import ESP300, open_stage
+from sunlab.hardware.stage import available_stages
 
 
 @pytest.fixture

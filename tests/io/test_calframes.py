@@ -53,7 +53,7 @@ def test_a_dark_and_a_flat_of_different_shapes_are_refused_naming_the_flats():
 
 def test_master_flat_refuses_an_offset_of_another_shape():
     with pytest.raises(SchemaError, match=r"flat offset.*shape \(3, 3\)"):
-        io.master_flat(np.full((2, 4, 4), 500.0), offset=np.zeros((3, 3)))
+        io.calframes.master_flat(np.full((2, 4, 4), 500.0), offset=np.zeros((3, 3)))
 
 
 @pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])

@@ -156,7 +156,7 @@ def test_a_master_of_another_size_is_refused():
 
 def test_a_flat_below_the_dark_is_refused():
     with pytest.raises(SchemaError, match="expose the flats longer"):
-        io.master_flat(np.full((2, 4, 4), 100.0), offset=np.full((4, 4), 100.0))
+        io.calframes.master_flat(np.full((2, 4, 4), 100.0), offset=np.full((4, 4), 100.0))
 
 
 def test_masters_survive_a_save_and_are_applied_by_locate(tmp_path):
@@ -212,11 +212,11 @@ def test_bias_alone_is_subtracted_and_a_dark_takes_its_place(tmp_path):
 def test_a_stack_file_or_a_folder_of_stacks_and_images_are_calibration_frames(tmp_path):
     stack = np.arange(3 * 4 * 5, dtype=np.uint16).reshape(3, 4, 5)
     tifffile.imwrite(tmp_path / "dark.tif", stack, photometric="minisblack")
-    assert np.array_equal(io.read_stack(tmp_path / "dark.tif"), stack)
+    assert np.array_equal(io.calframes.read_stack(tmp_path / "dark.tif"), stack)
     folder = tmp_path / "darks"
     folder.mkdir()
     tifffile.imwrite(folder / "a.tif", stack, photometric="minisblack")
     Image.fromarray(stack[0]).save(folder / "b.png")
-    assert io.read_stack(folder).shape == (4, 4, 5)  # 3 pages + 1 image
+    assert io.calframes.read_stack(folder).shape == (4, 4, 5)  # 3 pages + 1 image
     with pytest.raises(SchemaError, match="an existing folder or TIFF stack"):
-        io.read_stack(tmp_path / "missing")
+        io.calframes.read_stack(tmp_path / "missing")

@@ -7,7 +7,8 @@ from numpy.testing import assert_allclose
 from sunlab import geometry
 from sunlab.errors import ConfigurationError, SchemaError
 from sunlab.schema import STATUS
-from sunlab.sim import HoleLayout, Mask, synthetic_centroids
+from sunlab.sim import Mask, synthetic_centroids
+from sunlab.sim.centroids import HoleLayout
 
 F, P = 5.0, 0.007
 

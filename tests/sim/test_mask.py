@@ -7,7 +7,8 @@ import pytest
 from numpy.testing import assert_allclose
 
 from sunlab import ConfigurationError
-from sunlab.sim import DEFECT_FLAGS, Bench, Burred, Dust, Elliptical, Hole, Mask, Undersized, render
+from sunlab.sim import Bench, Dust, Hole, Mask, render
+from sunlab.sim.mask import DEFECT_FLAGS, Burred, Elliptical, Undersized
 
 
 def _area(poly):

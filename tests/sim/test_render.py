@@ -8,8 +8,9 @@ from numpy.testing import assert_allclose
 
 from sunlab.errors import ConfigurationError
 from sunlab.geometry import ideal_centroid
-from sunlab.sim import Bench, Burred, Dust, Hole, Mask, render
+from sunlab.sim import Bench, Dust, Hole, Mask, render
 from sunlab.sim import frame as simframe
+from sunlab.sim.mask import Burred
 
 P = 0.007  # pixel pitch, mm
 F = 5.0  # nominal mask distance, mm

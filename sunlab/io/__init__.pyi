@@ -1,0 +1,33 @@
+"""Stub of :mod:`sunlab.io`: its public submodules and names. ``__init__.py`` reads it with
+``lazy_loader.attach_stub`` (scikit-image's pattern) to load each on first use, and IDEs
+and type checkers read it as the package's interface."""
+
+from . import calframes as calframes
+from . import chunks as chunks
+from . import codec as codec
+from . import csvtable as csvtable
+from . import describe as describe
+from . import folder as folder
+from . import images as images
+from . import lab as lab
+from . import read as read
+from . import sensor as sensor
+from . import write as write
+from .calframes import corrected_frames as corrected_frames
+from .calframes import corrected_saturation as corrected_saturation
+from .calframes import with_calibration_frames as with_calibration_frames
+from .csvtable import centroids_from_csv as centroids_from_csv
+from .describe import summary as summary
+from .folder import example_folder as example_folder
+from .folder import from_image_folder as from_image_folder
+from .images import read_image as read_image
+from .lab import import_folder as import_folder
+from .read import open_centroids as open_centroids
+from .read import open_dataset as open_dataset
+from .read import open_frames as open_frames
+from .sensor import read_sensor_json as read_sensor_json
+from .write import NETCDF_SUFFIXES as NETCDF_SUFFIXES
+from .write import save_centroids as save_centroids
+from .write import save_frames as save_frames
+
+__all__: list[str]

@@ -1,0 +1,9 @@
+"""Stub of :mod:`sunlab.studies`: its public submodules and names. ``__init__.py`` reads it with
+``lazy_loader.attach_stub`` (scikit-image's pattern) to load each on first use, and IDEs
+and type checkers read it as the package's interface."""
+
+from . import averaging as averaging
+from . import identification as identification
+from . import platform_fault as platform_fault
+
+__all__: list[str]
