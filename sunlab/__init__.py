@@ -32,7 +32,7 @@ _SUBMODULES = {
     "multihole",
     "hardware",
     "parallel",
-    "platform_fault",
+    "studies",
     "export",
     "reproduce",
     "errors",

@@ -16,12 +16,12 @@ from . import multihole as multihole
 from . import options as options
 from . import parallel as parallel
 from . import plans as plans
-from . import platform_fault as platform_fault
 from . import plots as plots
 from . import reproduce as reproduce
 from . import schema as schema
 from . import sim as sim
 from . import stats as stats
+from . import studies as studies
 from . import widgets as widgets
 from .errors import ConfigurationError as ConfigurationError
 from .errors import SchemaError as SchemaError

@@ -5,8 +5,8 @@ fit experiment I alone; the polynomial and trigonometric orders and the networks
 are chosen on experiment II, as the paper does (docs/paper.md sec. 5), and the polynomial of the
 chosen order is then fitted on I and II together (:data:`POLYNOMIAL_REFIT`); the interpolation
 table is experiment I's regular grid. ``sunlab reproduce``,
-the bench identification (:mod:`sunlab.sim.identify`) and the platform study
-(:mod:`sunlab.platform_fault`) all calibrate with these recipes.
+the bench identification (:mod:`sunlab.studies.identification`) and the platform study
+(:mod:`sunlab.studies.platform_fault`) all calibrate with these recipes.
 
 Examples
 --------

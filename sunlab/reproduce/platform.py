@@ -81,7 +81,7 @@ def bench_fault_values(bench, seed, plans_by_run: dict) -> dict:
 def _centroids(bench, plan_sets: dict, *, seed, method, engine, progress, where):
     """Centroid tables for every named plan: rendered and centroided, or from the surrogate."""
     if engine == "surrogate":
-        from ..sim.identify import surrogate_centroids
+        from ..sim.surrogate import surrogate_centroids
 
         return {k: surrogate_centroids(bench, p, seed) for k, p in plan_sets.items()}
     cubes = simulate_runs({k: (p, bench) for k, p in plan_sets.items()}, seed=seed)
@@ -190,9 +190,9 @@ def _plan_sets(paper: dict, uni: dict, checks: int) -> dict:
 def _rows(cens: dict, paper: dict, uni: dict):
     """The local errors of every row of the table, the polynomial of each protocol, the
     diagnosis, the joint fit whose parameters are reported and its row."""
-    from .. import platform_fault as pf
     from .. import stats
     from ..calibration import Polynomial
+    from ..studies import platform_fault as pf
 
     local, fits = {}, {}
     for tag in ("paper", "uni"):
@@ -236,8 +236,8 @@ def _fault_parameters(jc, truth: dict, from_row: str) -> dict:
 def _platform_doc(table, parameters: dict, diag, fits: dict) -> dict:
     """The platform table's results: rows, parameters, diagnosis, the paper's shape test and
     the must-show checks (settings, timings and files are added by the caller)."""
-    from .. import platform_fault as pf
     from .. import stats
+    from ..studies import platform_fault as pf
 
     def cells(col):
         return {f"{a}.{s}": float(table.loc[(a, s), col]) for a in stats.ANGLES
