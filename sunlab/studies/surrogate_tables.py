@@ -462,14 +462,12 @@ def candidate_table(sizes: dict, *, bench=None, seed: int = 0, shots: int = 1,
     >>> list(t.columns), bool(0.005 < t.loc["backlash", "polynomial mu"] < 0.03)
     (['size_deg', 'polynomial mu', 'polynomial sigma', 'score', 'shape_excess'], True)
     """
-    from .. import stats
     from ..calibration.methods import table4_methods
     from ..sim import Bench
     from .platform_fault import fault_bench
 
     bench = Bench.paper_single_hole() if bench is None else bench
     exps = experiment_plans or table3_plans(1, shots)
-    paper = stats.paper_table4()
     fits = table4_methods(neural=False, seed=seed)
     rows = {}
     for kind, size in sizes.items():
@@ -480,23 +478,32 @@ def candidate_table(sizes: dict, *, bench=None, seed: int = 0, shots: int = 1,
             b = b_test = fault_bench(bench, kind, size)
         cen = {n: surrogate_centroids(b_test if n == "III" else b, p, seed)
                for n, p in exps.items()}
-        row, logs = {"size_deg": float(size)}, []
-        for m in methods:
-            loc = stats.local_errors(fits[m](cen["I"], cen["II"]).predict(cen["III"]))
-            g = stats.global_stats({m: loc})[m]
-            for st in ("mu", "sigma"):
-                row[f"{m} {st}"] = float(g[("beta", st)])
-                logs.append(math.log(row[f"{m} {st}"] / float(paper.loc[("beta", st), m])))
-        row["score"] = float(np.sqrt(np.mean(np.square(logs))))
-        shape = [row[f"{m} sigma"] / row[f"{m} mu"] for m in methods
-                 if m in ("polynomial", "linear interp.")]
-        paper_shape_ = [float(paper.loc[("beta", "sigma"), m] / paper.loc[("beta", "mu"), m])
-                        for m in methods if m in ("polynomial", "linear interp.")]
-        # the shape criterion: mean sigma / mu of the polynomial and linear columns, less the
-        # paper's (0.47, 0.48); 0 matches the paper's bimodal shape
-        row["shape_excess"] = (float(np.mean(shape) - np.mean(paper_shape_)) if shape
-                               else float("nan"))
-        rows[kind] = row
+        rows[kind] = {"size_deg": float(size), **_beta_cells(cen, fits, methods)}
     out = pd.DataFrame.from_dict(rows, orient="index")
     out.index.name = "candidate"
     return out
+
+
+def _beta_cells(cen: dict, fits: dict, methods) -> dict:
+    """Table 4's beta mu and sigma of each method calibrated on ``cen["I"]`` (order on II) and
+    applied to III, their ``score`` against the paper's and the ``shape_excess``."""
+    from .. import stats
+
+    paper = stats.paper_table4()
+    row, logs = {}, []
+    for m in methods:
+        loc = stats.local_errors(fits[m](cen["I"], cen["II"]).predict(cen["III"]))
+        g = stats.global_stats({m: loc})[m]
+        for st in ("mu", "sigma"):
+            row[f"{m} {st}"] = float(g[("beta", st)])
+            logs.append(math.log(row[f"{m} {st}"] / float(paper.loc[("beta", st), m])))
+    row["score"] = float(np.sqrt(np.mean(np.square(logs))))
+    shape = [row[f"{m} sigma"] / row[f"{m} mu"] for m in methods
+             if m in ("polynomial", "linear interp.")]
+    paper_shape_ = [float(paper.loc[("beta", "sigma"), m] / paper.loc[("beta", "mu"), m])
+                    for m in methods if m in ("polynomial", "linear interp.")]
+    # the shape criterion: mean sigma / mu of the polynomial and linear columns, less the
+    # paper's (0.47, 0.48); 0 matches the paper's bimodal shape
+    row["shape_excess"] = (float(np.mean(shape) - np.mean(paper_shape_)) if shape
+                           else float("nan"))
+    return row
