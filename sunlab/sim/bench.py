@@ -514,7 +514,7 @@ def platform_pose(
     ----------
     bench : Bench
     alpha_cmd, beta_cmd : float
-        Commanded outer and inner angles, deg (|angle| < 90).
+        Commanded outer and inner angles, deg, each within +-90 (exclusive).
     seed : int or sequence of int
         Seed of the experiment (as :func:`simulate`).
     pose, shot : int

@@ -354,7 +354,7 @@ class Hole:
         Returns
         -------
         float
-            pi |det A| for an affine outline (:meth:`affine`), else the area of a 512-vertex
+            pi abs(det A) for an affine outline (:meth:`affine`), else the area of a 512-vertex
             polygon of the outline, mm^2.
         """
         a = self.affine()

@@ -196,7 +196,7 @@ def spot_geometry(bench, alpha_true, beta_true, play_mm=(0.0, 0.0)) -> SpotGeome
     ----------
     bench : Bench
     alpha_true, beta_true : float
-        True platform angles, deg (|angle| < 90).
+        True platform angles, deg, each within +-90 (exclusive).
     play_mm : (float, float)
         The mask's per-pose offset (:func:`mask_play`), mm.
 
