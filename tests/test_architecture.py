@@ -8,6 +8,8 @@
 - the import direction of docs/architecture.md: the core layer never imports the layers above it;
 - every package exports its ``.pyi`` stub through ``lazy_loader.attach_stub`` (scikit-image's
   pattern), and the public surface stays under :data:`MAX_PUBLIC_NAMES` names.
+- the simulator imports only the foundations it needs and its own modules: the studies over the
+  paper's tables (calibration, statistics, the 100-hole strategies) live in ``sunlab.studies``.
 """
 
 from __future__ import annotations
@@ -157,8 +159,7 @@ def test_notebooks_use_public_names_only(notebook):
 LAYERS = [
     {"errors", "options", "extras", "jit", "atomic", "integrity", "schema", "parallel"},
     {"io", "geometry", "stats", "plans", "calibration", "centroid", "screening"},
-    {"sim", "multihole", "platform_fault", "export", "plots", "report", "hardware",
-     "studies"},
+    {"sim", "multihole", "export", "plots", "report", "hardware", "studies"},
     {"reproduce", "widgets", "cli", "data", "course"},
 ]
 
@@ -370,6 +371,29 @@ def test_imports_point_down_the_layers():
     assert sorted(set(upward)) == []
 
 
+#: What ``sunlab.sim`` may import (docs/architecture.md): the errors, the data contract, the
+#: plans, the rotations, the compile notice and settings, and its own modules.
+SIM_MAY_IMPORT = {"errors", "schema", "plans", "geometry", "jit", "options", "sim"}
+
+
+def _imports_outside(package: str, allowed: set[str], modules=MODULES) -> list[str]:
+    """``module -> target`` for each import of a module of ``package`` (module level or inside
+    a function) whose room is not in ``allowed``."""
+    return sorted({f"{m} -> {t}" for m, path, tree in modules
+                   if m == package or m.startswith(package + ".")
+                   for t in _imports(m, path, tree) if t.split(".")[1] not in allowed})
+
+
+def test_the_simulator_imports_no_study_calibration_or_statistics():
+    # the simulator is physics only: calibrating and computing the paper's statistics is a
+    # study's work (sunlab.studies), so sim sits below calibration, multihole, stats, reproduce
+    outside = _imports_outside("sunlab.sim", SIM_MAY_IMPORT)
+    assert outside == []
+    assert {"calibration", "multihole", "stats", "reproduce", "studies"}.isdisjoint(
+        SIM_MAY_IMPORT)
+    assert len([m for m, _, _ in MODULES if m.startswith("sunlab.sim.")]) >= 9
+
+
 def test_the_checks_can_fail(tmp_path):
     """Each rule finds a planted violation (the checker is not vacuous)."""
     src = "def f():\n" + "    x = 1\n" * 90 + "    return x\n"
@@ -400,3 +424,8 @@ def test_the_checks_can_fail(tmp_path):
     assert [p.split(": ", 1)[1] for p in _attach_stub_problems(pkg / "__init__.py")] == [
         "lists a submodule c that does not exist", "h is not defined in .a",
         "does not list the submodule b"]
+    planted = ast.parse("from . import render\n\ndef f():\n    from .. import stats\n"
+                        "    from ..calibration.methods import table4_methods\n")
+    assert _imports_outside("sunlab.sim", SIM_MAY_IMPORT,
+                            [("sunlab.sim.x", PACKAGE / "sim" / "x.py", planted)]) == [
+        "sunlab.sim.x -> sunlab.calibration.methods", "sunlab.sim.x -> sunlab.stats"]

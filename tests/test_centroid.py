@@ -379,12 +379,12 @@ def test_locate_spots_on_a_rendered_bench_frame_matches_truth():
     # fill factor, hot pixels): every hole found, indexed as the truth orders them, and the
     # centroids within the fixed-pattern error of the identified bench (its 2.97 % response
     # pattern moves a 35 px spot by about 0.05 px per axis; defective holes more); the
-    # pattern's predicted shift (sunlab.sim.identify.spot_error_maps) explains most of it.
+    # pattern's predicted shift (sunlab.sim.surrogate.spot_error_maps) explains most of it.
     from scipy import ndimage
 
     from sunlab import sim
-    from sunlab.sim import identify
     from sunlab.sim.render import mask_play
+    from sunlab.sim.surrogate import spot_error_maps
 
     bench = sim.Bench.paper_multi_hole()
     a, b = sim.platform_pose(bench, -8.0, 7.0, seed=0, pose=0, shot=0)
@@ -396,7 +396,7 @@ def test_locate_spots_on_a_rendered_bench_frame_matches_truth():
     assert np.all(s.status == STATUS["ok"]) and s.unassigned.shape == (0, 2)
     err = np.hypot(s.x - tx, s.y - ty)
     assert np.sqrt(np.mean(err**2) / 2) < 0.1 and err.max() < 0.5
-    dx, dy = identify.spot_error_maps(bench)
+    dx, dy = spot_error_maps(bench)
     yx = np.stack([ty, tx])
     px = tx + ndimage.map_coordinates(dx, yx, order=1)
     py = ty + ndimage.map_coordinates(dy, yx, order=1)

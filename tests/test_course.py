@@ -323,8 +323,8 @@ def _namespace(source):
     from scipy.optimize import curve_fit
 
     from sunlab import calibration, centroid, export, geometry, io, stats
-    from sunlab import platform_fault as pf
     from sunlab.calibration import Polynomial
+    from sunlab.studies import platform_fault as pf
 
     ns = {"np": np, "C": centroid, "centroid": centroid, "geometry": geometry, "stats": stats,
           "pf": pf, "Polynomial": Polynomial, "calibration": calibration, "io": io,

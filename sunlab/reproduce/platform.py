@@ -13,14 +13,15 @@ lab whose stage has one would run them):
    out. Every row fits on I alone, so that the remedies compare like with like; Table 4's
    polynomial is refitted on I + II (:data:`sunlab.calibration.methods.POLYNOMIAL_REFIT`) and
    takes part of the zero shift from II, so its beta mu is below this table's first row;
-2. the diagnosis (:func:`sunlab.platform_fault.diagnose`) of the polynomial's test errors with
-   the run's motion record, beside the shape test applied to the paper's published statistics
-   (:func:`sunlab.platform_fault.paper_shape`);
+2. the diagnosis (:func:`sunlab.studies.platform_fault.diagnose`) of the polynomial's test
+   errors with the run's motion record, beside the shape test applied to the paper's published
+   statistics (:func:`sunlab.studies.platform_fault.paper_shape`);
 3. remedy (a): the same experiments with a unidirectional approach (overshoot and return), and
    with the zero-pose checks correcting the homing offset;
 4. remedy (b): on the paper-protocol runs, the backlash fitted jointly with the polynomial
    from the motion record (and the homing offset from the zero-pose checks), with standard
-   errors (:func:`sunlab.platform_fault.fit_correction`), the test run's reference corrected.
+   errors (:func:`sunlab.studies.platform_fault.fit_correction`), the test run's reference
+   corrected.
 
 Every row is Table 4's eight statistics for the polynomial on experiment III. The frames go
 through the pipeline every table shares (:mod:`sunlab.reproduce.pipeline`, one Dask pass for
@@ -56,7 +57,8 @@ GEAR_ROW = "(b) backlash + homing + gear error at the periodogram's frequency"
 
 
 def bench_fault_values(bench, seed, plans_by_run: dict) -> dict:
-    """The bench's own values of what :func:`sunlab.platform_fault.fit_correction` estimates.
+    """The bench's own values of what :func:`sunlab.studies.platform_fault.fit_correction`
+    estimates.
 
     ``beta_backlash_deg`` (the platform's), ``beta_homing_difference_deg`` (the test run's
     homing offset minus the calibration run's, as drawn for this seed),
@@ -96,7 +98,7 @@ def bench_fault_values(bench, seed, plans_by_run: dict) -> dict:
 def _centroids(bench, plan_sets: dict, *, seed, method, engine, progress, where):
     """Centroid tables for every named plan: rendered and centroided, or from the surrogate."""
     if engine == "surrogate":
-        from ..sim.identify import surrogate_centroids
+        from ..sim.surrogate import surrogate_centroids
 
         return {k: surrogate_centroids(bench, p, seed) for k, p in plan_sets.items()}
     cubes = simulate_runs({k: (p, bench) for k, p in plan_sets.items()}, seed=seed)
@@ -129,7 +131,7 @@ def reproduce_platform(*, quick: bool = False, seed: int = 0, method: str = "pro
         Print stages and progress bars.
     engine : {"render", "surrogate"}
         Rendered frames (default) or the centroid-level surrogate
-        (:func:`sunlab.sim.identify.surrogate_centroids`, seconds instead of minutes).
+        (:func:`sunlab.sim.surrogate.surrogate_centroids`, seconds instead of minutes).
     bench : sunlab.sim.Bench, optional
         Default :meth:`sunlab.sim.Bench.paper_single_hole`.
     checks : int
@@ -205,9 +207,9 @@ def _plan_sets(paper: dict, uni: dict, checks: int) -> dict:
 def _rows(cens: dict, paper: dict, uni: dict):
     """The local errors of every row of the table, the polynomial of each protocol, the
     diagnosis, the joint fit whose parameters are reported and its row."""
-    from .. import platform_fault as pf
     from .. import stats
     from ..calibration import Polynomial
+    from ..studies import platform_fault as pf
 
     local, fits = {}, {}
     for tag in ("paper", "uni"):
@@ -251,8 +253,8 @@ def _fault_parameters(jc, truth: dict, from_row: str) -> dict:
 def _platform_doc(table, parameters: dict, diag, fits: dict) -> dict:
     """The platform table's results: rows, parameters, diagnosis, the paper's shape test and
     the must-show checks (settings, timings and files are added by the caller)."""
-    from .. import platform_fault as pf
     from .. import stats
+    from ..studies import platform_fault as pf
 
     def cells(col):
         return {f"{a}.{s}": float(table.loc[(a, s), col]) for a in stats.ANGLES

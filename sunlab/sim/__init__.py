@@ -24,8 +24,4 @@ Examples
 
 import lazy_loader as _lazy
 
-from ..jit import announce_first_compile
-
-announce_first_compile()  # one line on stderr when a kernel compiles (a cache miss)
-
 __getattr__, __dir__, __all__ = _lazy.attach_stub(__name__, __file__)

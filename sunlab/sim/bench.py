@@ -174,6 +174,11 @@ class Bench:
         within it at each pose); the detector of
         :meth:`_paper_detector`; the platform of :meth:`_paper_platform`. The module notes say
         where each number comes from.
+
+        Returns
+        -------
+        Bench
+            The one-hole bench every single-hole table of sunlab is simulated on.
         """
         mask = Mask.single_hole(
             x_mm=PAPER_TRACK_CENTRE_MM[0],
@@ -204,7 +209,7 @@ class Bench:
         +-``PAPER_BETA_POSE_DEG``, a periodic gear error of ``PAPER_BETA_GEAR_DEG`` (period
         ``PAPER_BETA_GEAR_PERIOD_DEG``) and a shift of its zero of ``PAPER_BETA_REHOMING_DEG``
         between the session of experiment I and that of II and III; no wobble, no
-        non-orthogonality; :mod:`sunlab.platform_fault` diagnoses and removes
+        non-orthogonality; :mod:`sunlab.studies.platform_fault` diagnoses and removes
         such faults. No backlash: the identification needs none.
         """
         return Platform(
@@ -235,6 +240,16 @@ class Bench:
         +-``PAPER_MASK_PLAY_MM`` along y, a new mounting error at every pose. ``n_bad`` holes
         carry random defects (dust standing above the mask, burrs, elliptical or undersized
         holes: the "bad holes" of Fig. 14).
+
+        Parameters
+        ----------
+        n_bad : int
+            Number of holes given random defects (seeded, so the same holes every time).
+
+        Returns
+        -------
+        Bench
+            The 100-hole bench of Table 5.
         """
         mask = Mask.grid(
             10,
@@ -259,6 +274,17 @@ class Bench:
     # ---------------------------------------------------------------- switches
     def replace(self, **changes) -> Bench:
         """A copy with parts or fields changed; ``section__field=value`` reaches inside a part.
+
+        Parameters
+        ----------
+        **changes
+            ``source``, ``mask``, ``detector``, ``platform`` (a whole part) or
+            ``part__field=value`` (one field of a part, e.g. ``mask__distance_mm=17.0``).
+
+        Returns
+        -------
+        Bench
+            A new bench; this one is unchanged.
 
         Examples
         --------
@@ -290,15 +316,33 @@ class Bench:
 
     def noise_free(self) -> Bench:
         """Copy with an ideal detector: no temporal noise and no fixed patterns (bias and
-        quantisation remain)."""
+        quantisation remain).
+
+        Returns
+        -------
+        Bench
+            The same bench with ``temporal_noise`` and ``fixed_pattern`` off.
+        """
         return self.replace(detector__temporal_noise=False, detector__fixed_pattern=False)
 
     def ideal_platform(self) -> Bench:
-        """Copy with a perfect platform and mounting: true angles = commanded angles."""
+        """Copy with a perfect platform and mounting: true angles = commanded angles.
+
+        Returns
+        -------
+        Bench
+            The same bench on :meth:`sunlab.sim.Platform.ideal`.
+        """
         return self.replace(platform=Platform.ideal())
 
     def ideal_mask(self) -> Bench:
-        """Copy with the mask at its design place: no dF, tilt, rotation, offset or play."""
+        """Copy with the mask at its design place: no dF, tilt, rotation, offset or play.
+
+        Returns
+        -------
+        Bench
+            The same bench and holes, the mask's mounting errors set to zero.
+        """
         return self.replace(
             mask__delta_f_mm=0.0,
             mask__tilt_x_deg=0.0,
@@ -312,6 +356,11 @@ class Bench:
 
     def without_lid(self) -> Bench:
         """Copy with a lid-less detector: every ray lands where eq. (1)'s pinhole puts it.
+
+        Returns
+        -------
+        Bench
+            The same bench with ``detector.lid_thickness_mm = 0`` (no refraction in the lid).
 
         Examples
         --------
@@ -335,7 +384,15 @@ class Bench:
         return len(self.mask.holes)
 
     def hole_design_px(self):
-        """Design zenith projection of each hole centre, (x, y) px arrays (n_holes,)."""
+        """Design zenith projection of each hole centre: where eq. (1) puts it at alpha =
+        beta = 0 on a perfectly mounted mask.
+
+        Returns
+        -------
+        x, y : numpy.ndarray, shape (n_holes,)
+            Column and row, px, from the detector's reference pixel and the holes' design
+            positions (mm) over the pixel pitch.
+        """
         xr, yr = self.detector.reference_px
         p = self.detector.pixel_pitch_mm
         x = np.array([xr + h.x_mm / p for h in self.mask.holes])
@@ -343,7 +400,13 @@ class Bench:
         return x, y
 
     def to_json(self) -> str:
-        """The bench's parameters as JSON (provenance attribute of simulated cubes)."""
+        """The bench's parameters as JSON (provenance attribute of simulated cubes).
+
+        Returns
+        -------
+        str
+            Compact JSON of every field of every part, each hole's defects with their kind.
+        """
 
         def default(o):
             if isinstance(o, np.generic):
@@ -405,7 +468,20 @@ def homing_offset(bench: Bench, seed, run: str) -> float:
     offset uniform in +-``bench.platform.beta_homing_deg`` drawn from the seed and the run's
     name, as :func:`simulate` draws it for a plan of that name (a zero-pose check taken with
     the run, :func:`sunlab.plans.zero_check`, shares it): the bench's own value of what
-    :func:`sunlab.platform_fault.fit_correction` estimates from the zero-pose checks.
+    :func:`sunlab.studies.platform_fault.fit_correction` estimates from the zero-pose checks.
+
+    Parameters
+    ----------
+    bench : Bench
+    seed : int or sequence of int
+        Seed of the experiment (as :func:`simulate`).
+    run : str
+        The run's name: a plan's name (``"I"``, ``"II"``, ``"III"``, ...).
+
+    Returns
+    -------
+    float
+        The zero offset of the inner axis (beta) for that run, deg.
 
     Examples
     --------
@@ -439,6 +515,25 @@ def platform_pose(
     only; the inner axis's backlash on the direction ``approach`` (+1 up, -1 down) in which it
     reached the pose, and its homing offset on (seed, ``run``) (none when ``run`` is None).
     See :mod:`sunlab.sim.platform` for the model and its defaults.
+
+    Parameters
+    ----------
+    bench : Bench
+    alpha_cmd, beta_cmd : float
+        Commanded outer and inner angles, deg, each within +-90 (exclusive).
+    seed : int or sequence of int
+        Seed of the experiment (as :func:`simulate`).
+    pose, shot : int
+        Index of the pose in its plan and of the shot at that pose.
+    approach : {1, -1}
+        Direction in which the inner axis reached the pose (up, down).
+    run : str, optional
+        The run's name, for its homing offset (:func:`homing_offset`).
+
+    Returns
+    -------
+    alpha, beta : float
+        True platform angles, deg.
 
     Examples
     --------
@@ -485,7 +580,17 @@ def _platform_table(bench: Bench, plan, key: list[int]):
 # --------------------------------------------------------------------------- cubes
 def plan_key(plan) -> int:
     """A stable 32-bit code of a plan (name, poses, shots), mixed into a cube's seed so that two
-    experiments simulated with the same seed do not share platform errors or noise."""
+    experiments simulated with the same seed do not share platform errors or noise.
+
+    Parameters
+    ----------
+    plan : sunlab.plans.Plan
+
+    Returns
+    -------
+    int
+        CRC-32 of the name, the commanded angles (little-endian float64) and the shots.
+    """
     h = zlib.crc32(plan.name.encode())
     h = zlib.crc32(np.ascontiguousarray(plan.alpha, dtype="<f8").tobytes(), h)
     h = zlib.crc32(np.ascontiguousarray(plan.beta, dtype="<f8").tobytes(), h)
@@ -576,7 +681,7 @@ def simulate(plan, bench: Bench | None = None, seed=0, chunks: str = "frame"):
             "sim_seed": _entropy(seed),
             "sim_key": list(key),
             "sim_bench": bench.to_json(),
-            # the motion history (sunlab.platform_fault reads it back)
+            # the motion history (sunlab.studies.platform_fault reads it back)
             "scan_order": plan.scan,
             "approach": plan.approach,
             "visit_order": plan.visit_order().astype(np.int32),

@@ -58,6 +58,20 @@ class HoleLayout:
 
         The default centre sits off the detector centre so that all spots of the paper's
         10 x 10 grid stay on the Ibis4 over the paper's test range (docs/paper.md sec. 8).
+
+        Parameters
+        ----------
+        mask : sunlab.sim.Mask
+            Its holes' design positions (mm) and grid indices.
+        centre_px : (float, float)
+            Where the mask's origin projects at zenith, (x, y) px.
+        pixel_pitch_mm : float
+            Pixel pitch, mm.
+
+        Returns
+        -------
+        HoleLayout
+            Zenith centroids (px) and grid indices (i, j) of every hole.
         """
         x = np.array([h.x_mm for h in mask.holes], dtype=float) / pixel_pitch_mm
         y = np.array([h.y_mm for h in mask.holes], dtype=float) / pixel_pitch_mm
@@ -66,7 +80,19 @@ class HoleLayout:
 
     @classmethod
     def of(cls, layout, pixel_pitch_mm: float = 0.007) -> HoleLayout:
-        """A layout from ``"grid"`` (the paper's 10 x 10 at 0.5 mm), a Mask or a HoleLayout."""
+        """A layout from ``"grid"`` (the paper's 10 x 10 at 0.5 mm), a Mask or a HoleLayout.
+
+        Parameters
+        ----------
+        layout : {"grid"} or sunlab.sim.Mask or HoleLayout
+            A HoleLayout is returned as it is; a mask goes through :meth:`from_mask`.
+        pixel_pitch_mm : float
+            Pixel pitch, mm.
+
+        Returns
+        -------
+        HoleLayout
+        """
         if isinstance(layout, HoleLayout):
             return layout
         if isinstance(layout, Mask):

@@ -32,7 +32,7 @@ Defaults and their rationale (our choices where the paper is silent, docs/paper.
   1 % white plus 2.8 % over 2 px,
   2.97 % RMS in all (docs/paper.md sec. 10). A white PRNU of RMS s moves a uniform disk's centroid
   by about 0.28 s px per axis whatever its radius (0.003 px at 1 %); a correlated pattern moves it
-  more, a fixed function of where the spot falls (:func:`sunlab.sim.identify.spot_error_maps`:
+  more, a fixed function of where the spot falls (:func:`sunlab.sim.surrogate.spot_error_maps`:
   about 0.04 px RMS for the preset under its 35 px spot). Set ``prnu_correlated=0`` for an ideal
   sensor.
 * glass lid: none by default (``lid_thickness_mm=0``); the preset has the IBIS4-1300's 0.5 mm
@@ -241,7 +241,18 @@ class Detector:
         return ((self.nx - 1) / 2.0, (self.ny - 1) / 2.0)
 
     def replace(self, **changes) -> Detector:
-        """A copy with some fields changed."""
+        """A copy with some fields changed.
+
+        Parameters
+        ----------
+        **changes
+            Field names of :class:`Detector` and their new values.
+
+        Returns
+        -------
+        Detector
+            A new detector; this one is unchanged.
+        """
         return replace(self, **changes)
 
 
@@ -265,6 +276,17 @@ class FixedPattern(NamedTuple):
 @functools.lru_cache(maxsize=4)
 def fixed_pattern(det: Detector) -> FixedPattern:
     """The fixed-pattern maps of a detector, computed once per parameter set (cached).
+
+    Parameters
+    ----------
+    det : Detector
+        Its ``pattern_seed`` fixes the pattern: the same detector gets the same maps.
+
+    Returns
+    -------
+    FixedPattern
+        Gain (1 + PRNU), dark signal (e-), offset (DN), and the dark frame's mean and
+        temporal noise (DN), each float32 of shape (ny, nx).
 
     Examples
     --------

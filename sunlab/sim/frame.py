@@ -143,6 +143,19 @@ def expected_frame(bench, alpha_true, beta_true, *, play_mm=(0.0, 0.0)):
     (dark + PRNU x signal + read noise^2) / gain^2 (without the 1/12 DN^2 of rounding and without
     clipping). For testing the noise model and for teaching.
 
+    Parameters
+    ----------
+    bench : Bench
+    alpha_true, beta_true : float
+        True platform angles, deg.
+    play_mm : (float, float)
+        The mask's per-pose offset (:func:`sunlab.sim.mask_play`), mm.
+
+    Returns
+    -------
+    mean, var : numpy.ndarray, shape (ny, nx)
+        Expected value (DN) and variance (DN^2) of each pixel.
+
     Examples
     --------
     >>> from sunlab.sim import Bench
@@ -235,8 +248,16 @@ def render_pose(bench, alpha_true, beta_true, *, seed, pose: int = 0, out=None) 
     alpha_true, beta_true : array_like, shape (shots,)
         True platform angles of each shot, deg.
     seed : int or sequence of int
+        Seed of the experiment: shot s gets the noise stream ``frame_key(seed, pose, s)``.
     pose : int
+        Index of the pose in its plan.
     out : numpy.ndarray of uint16, shape (shots, ny, nx), optional
+        Written in place when given (a cube's chunk).
+
+    Returns
+    -------
+    numpy.ndarray of uint16, shape (shots, ny, nx)
+        The frames, DN (``out`` when given).
 
     Examples
     --------

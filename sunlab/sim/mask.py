@@ -151,7 +151,19 @@ class Burred:
             )
 
     def radius_factor(self, phi: np.ndarray) -> np.ndarray:
-        """1 + sum_k a_k cos(k phi + phi_k), the relative radius at polar angles ``phi`` (rad)."""
+        """1 + sum_k a_k cos(k phi + phi_k), the relative radius at polar angles ``phi`` (rad).
+
+        Parameters
+        ----------
+        phi : numpy.ndarray, shape (n,)
+            Polar angles about the hole centre, rad.
+
+        Returns
+        -------
+        numpy.ndarray, shape (n,)
+            Radius at each angle over the design radius; the harmonics' amplitudes and phases
+            come from ``seed``, scaled to an RMS of ``amplitude``.
+        """
         k = np.arange(self.harmonics[0], self.harmonics[1] + 1)
         rng = np.random.default_rng(np.random.SeedSequence([int(self.seed), 0xB0B]))
         a = rng.standard_normal(k.size) / np.sqrt(k)
@@ -253,6 +265,11 @@ class Hole:
         """2 x 2 matrix mapping the unit disk onto the (elliptical) aperture, mask frame, mm.
 
         None when the outline is not an affine image of a circle (square or burred holes).
+
+        Returns
+        -------
+        numpy.ndarray, shape (2, 2), or None
+            The effective radius (undersizing included) times the ellipses' stretches, mm.
         """
         if self.shape != "circle" or self._find(Burred):
             return None
@@ -265,7 +282,19 @@ class Hole:
         return a
 
     def outline(self, n: int = 72) -> np.ndarray:
-        """The aperture outline as a counter-clockwise polygon, (n, 2) mm relative to the centre."""
+        """The aperture outline as a counter-clockwise polygon, (n, 2) mm relative to the centre.
+
+        Parameters
+        ----------
+        n : int
+            Number of vertices.
+
+        Returns
+        -------
+        numpy.ndarray, shape (n, 2)
+            Vertices (x, y), mm, in the mask frame; a circle's vertices sit slightly outside it
+            so that the polygon keeps its area.
+        """
         phi = np.linspace(0.0, 2 * np.pi, n, endpoint=False)
         r = self.effective_diameter_mm / 2.0
         if self.shape == "square":
@@ -286,7 +315,19 @@ class Hole:
         return pts
 
     def occluders(self, n: int = 36) -> list[tuple[np.ndarray, float]]:
-        """Dust particles as (convex polygon (n, 2) mm relative to the hole centre, height mm)."""
+        """Dust particles as (convex polygon (n, 2) mm relative to the hole centre, height mm).
+
+        Parameters
+        ----------
+        n : int
+            Vertices of each particle's polygon.
+
+        Returns
+        -------
+        list of (numpy.ndarray, float)
+            One entry per :class:`Dust` defect: its outline (n, 2) mm and its height above the
+            mask, mm; empty for a clean hole.
+        """
         out = []
         phi = np.linspace(0.0, 2 * np.pi, n, endpoint=False)
         for d in self._find(Dust):
@@ -297,7 +338,14 @@ class Hole:
 
     def area_mm2(self) -> float:
         """Open area of the aperture at normal incidence, mm^2 (dust in the hole plane removed
-        only approximately: use the renderer for exact areas)."""
+        only approximately: use the renderer for exact areas).
+
+        Returns
+        -------
+        float
+            pi abs(det A) for an affine outline (:meth:`affine`), else the area of a 512-vertex
+            polygon of the outline, mm^2.
+        """
         a = self.affine()
         if a is not None:
             return float(math.pi * abs(np.linalg.det(a)))
@@ -306,7 +354,14 @@ class Hole:
         return float(0.5 * np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
 
     def max_radius_mm(self) -> float:
-        """Largest distance of the outline from the hole centre, mm."""
+        """Largest distance of the outline from the hole centre, mm.
+
+        Returns
+        -------
+        float
+            The largest semi-axis of an affine outline, else the outline's largest vertex
+            radius, mm.
+        """
         a = self.affine()
         if a is not None:
             return float(np.linalg.norm(a, 2))
@@ -408,7 +463,13 @@ class Mask:
         return len(self.holes)
 
     def rotation_matrix(self) -> np.ndarray:
-        """3 x 3 rotation of the mask frame into the detector frame: R_z(rot) R_y(ty) R_x(tx)."""
+        """3 x 3 rotation of the mask frame into the detector frame: R_z(rot) R_y(ty) R_x(tx).
+
+        Returns
+        -------
+        numpy.ndarray, shape (3, 3)
+            From ``tilt_x_deg``, ``tilt_y_deg`` and ``rotation_deg``.
+        """
         tx, ty, rz = (
             math.radians(v) for v in (self.tilt_x_deg, self.tilt_y_deg, self.rotation_deg)
         )
@@ -424,11 +485,32 @@ class Mask:
         return rzm @ ry @ rx
 
     def replace(self, **changes) -> Mask:
-        """A copy with some fields changed (``dataclasses.replace``)."""
+        """A copy with some fields changed (``dataclasses.replace``).
+
+        Parameters
+        ----------
+        **changes
+            Field names of :class:`Mask` and their new values.
+
+        Returns
+        -------
+        Mask
+            A new mask; this one is unchanged.
+        """
         return replace(self, **changes)
 
     def with_defects(self, defects: dict) -> Mask:
         """A copy where hole ``k`` gets ``defects[k]`` (a defect or a tuple) added to its own.
+
+        Parameters
+        ----------
+        defects : dict of int to defect or tuple of defects
+            Hole index -> :class:`Dust`, :class:`Burred`, :class:`Elliptical` or
+            :class:`Undersized` (or several).
+
+        Returns
+        -------
+        Mask
 
         Examples
         --------
@@ -447,7 +529,21 @@ class Mask:
     def single_hole(
         cls, diameter_mm: float = 0.2, x_mm: float = 0.0, y_mm: float = 0.0, **kwargs
     ) -> Mask:
-        """The paper's one-hole mask: a 0.2 mm pinhole above the detector centre."""
+        """The paper's one-hole mask: a 0.2 mm pinhole above the detector centre.
+
+        Parameters
+        ----------
+        diameter_mm : float
+            Hole diameter, mm.
+        x_mm, y_mm : float
+            Hole centre in the mask frame, mm.
+        **kwargs
+            Other fields of :class:`Mask` (``distance_mm``, ``delta_f_mm``, tilts, play, ...).
+
+        Returns
+        -------
+        Mask
+        """
         kwargs.setdefault("name", "single")
         return cls(holes=(Hole(x_mm, y_mm, diameter_mm),), **kwargs)
 
@@ -464,6 +560,21 @@ class Mask:
         """A rows x cols grid of identical holes at ``pitch_mm`` (the paper: 10 x 10, 0.5 mm).
 
         Hole ``k = i * cols + j`` is at grid row ``i`` (along y) and column ``j`` (along x).
+
+        Parameters
+        ----------
+        rows, cols : int
+            Holes along y and along x.
+        pitch_mm, diameter_mm : float
+            Centre-to-centre spacing and hole diameter, mm.
+        centre_mm : (float, float)
+            Centre of the grid in the mask frame, mm.
+        **kwargs
+            Other fields of :class:`Mask` (``distance_mm``, ``delta_f_mm``, tilts, play, ...).
+
+        Returns
+        -------
+        Mask
         """
         if rows < 1 or cols < 1:
             raise ConfigurationError(f"grid: found {rows} x {cols} holes; expected >= 1 x 1.")
@@ -509,6 +620,13 @@ class Mask:
             Region of the mask frame where hole centres lie, mm.
         min_separation_mm : float
             Smallest centre-to-centre distance, mm (so spots do not overlap).
+        **kwargs
+            Other fields of :class:`Mask`.
+
+        Returns
+        -------
+        Mask
+            Named ``"random<n>"`` unless ``name`` is given.
 
         Examples
         --------
@@ -537,7 +655,19 @@ class Mask:
 
     def with_random_defects(self, n_bad: int, *, seed: int = 0) -> Mask:
         """A copy with ``n_bad`` randomly chosen holes given random defects (dust standing above
-        the mask, burrs, elliptical outlines or undersized holes), reproducible from ``seed``."""
+        the mask, burrs, elliptical outlines or undersized holes), reproducible from ``seed``.
+
+        Parameters
+        ----------
+        n_bad : int
+            Number of holes to spoil (at most all of them); the kinds take turns.
+        seed : int
+            Seed of the choice of holes and of the defects' sizes.
+
+        Returns
+        -------
+        Mask
+        """
         rng = np.random.default_rng(np.random.SeedSequence([int(seed), 0xBAD]))
         idx = rng.choice(len(self.holes), size=min(n_bad, len(self.holes)), replace=False)
         out = {}

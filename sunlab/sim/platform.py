@@ -14,11 +14,11 @@ in the outer angle (a systematic, learnable error), a per-pose positioning error
 in +-``*_pose_error_deg`` (bounded: the stage's positioning resolution and backlash; docs/paper.md
 sec. 8 shows that sigma / mu of the paper's local errors is about 0.6, the value of a uniform, not
 a normal, error) and a per-shot jitter j (normal). Three faults of the inner axis depend on the
-motion history or on beta (:mod:`sunlab.platform_fault` tells them apart): a backlash b, entering
-as :math:`-d\\,b` with the direction d = +-1 in which the axis reached the pose (the plan's scan
-order and approach, :meth:`sunlab.plans.Plan.beta_approach`); a homing offset drawn once per run;
-a periodic gear error :math:`g \\sin(2\\pi\\beta_c / P_g + \\phi_g)`. The sun vector in the
-sensor frame is
+motion history or on beta (:mod:`sunlab.studies.platform_fault` tells them apart): a backlash b,
+entering as :math:`-d\\,b` with the direction d = +-1 in which the axis reached the pose (the
+plan's scan order and approach, :meth:`sunlab.plans.Plan.beta_approach`); a homing offset drawn
+once per run; a periodic gear error :math:`g \\sin(2\\pi\\beta_c / P_g + \\phi_g)`. The sun vector
+in the sensor frame is
 
 .. math::
 
@@ -90,7 +90,7 @@ class Platform:
         downward as far above, :math:`\\beta_t = \\ldots - d\\,b` with the approach direction
         d = +-1 of :meth:`sunlab.plans.Plan.beta_approach` (the motion history: scan order and
         approach). A serpentine scan alternates d row by row, which makes beta's per-pose error
-        bimodal (:mod:`sunlab.platform_fault` finds it from the motion record); the paper's
+        bimodal (:mod:`sunlab.studies.platform_fault` finds it from the motion record); the paper's
         bench, as identified, shows none (docs/identification.md).
     beta_homing_deg : float
         Half-width of the inner axis's homing (zero) offset, deg: drawn uniformly once per run
@@ -172,16 +172,45 @@ class Platform:
 
     @classmethod
     def ideal(cls) -> Platform:
-        """A perfect platform: true angles equal commanded ones, sensor aligned."""
+        """A perfect platform: true angles equal commanded ones, sensor aligned.
+
+        Returns
+        -------
+        Platform
+            Every error, offset and mounting angle zero (the periods keep their defaults).
+        """
         return cls(**{k: 0.0 for k in cls.__dataclass_fields__
                       if k not in ("beta_wobble_period_deg", "beta_gear_period_deg")})
 
     def replace(self, **changes) -> Platform:
-        """A copy with some fields changed."""
+        """A copy with some fields changed.
+
+        Parameters
+        ----------
+        **changes
+            Field names of :class:`Platform` and their new values.
+
+        Returns
+        -------
+        Platform
+            A new platform; this one is unchanged.
+        """
         return replace(self, **changes)
 
     def systematic(self, alpha_cmd, beta_cmd):
-        """True angles without the random parts (encoder, wobble, gear error), deg."""
+        """True angles without the random parts (encoder, wobble, gear error), deg.
+
+        Parameters
+        ----------
+        alpha_cmd, beta_cmd : float or array_like
+            Commanded outer and inner angles, deg.
+
+        Returns
+        -------
+        alpha, beta : float or numpy.ndarray
+            The encoder's scale and offset applied to each axis, plus on beta the wobble (a
+            sinusoid of alpha) and the gear error (a sinusoid of beta), deg.
+        """
         a = np.asarray(alpha_cmd, dtype=float)
         b = np.asarray(beta_cmd, dtype=float)
         at = a * (1 + self.alpha_scale) + self.alpha_offset_deg
@@ -198,7 +227,13 @@ class Platform:
         return at, bt
 
     def mount_matrix(self) -> np.ndarray:
-        """The sensor's mounting rotation R_z(gamma0) R_y(-alpha0) R_x(beta0)."""
+        """The sensor's mounting rotation R_z(gamma0) R_y(-alpha0) R_x(beta0).
+
+        Returns
+        -------
+        numpy.ndarray, shape (3, 3)
+            Rotation from the platform's frame into the sensor's.
+        """
         return (
             rotation_z(math.radians(self.gamma0_deg))
             @ rotation_y(-math.radians(self.alpha0_deg))

@@ -80,6 +80,19 @@ def _entropy(seed) -> list[int]:
 def frame_key(seed, pose: int, shot: int) -> np.random.SeedSequence:
     """The SeedSequence of frame (pose, shot): every frame's noise stream, from (seed, pose, shot).
 
+    Parameters
+    ----------
+    seed : int or sequence of int
+        Seed of the experiment (non-negative).
+    pose, shot : int
+        Index of the pose in its plan and of the shot at that pose.
+
+    Returns
+    -------
+    numpy.random.SeedSequence
+        Entropy ``seed + [frame tag, pose, shot]``: the same frame gets the same noise in any
+        process and in any order.
+
     Examples
     --------
     >>> frame_key(0, 3, 1).entropy
@@ -89,7 +102,22 @@ def frame_key(seed, pose: int, shot: int) -> np.random.SeedSequence:
 
 
 def mask_play(bench, seed, pose: int) -> tuple[float, float]:
-    """Per-pose offset of a loosely held mask, mm: uniform within +-play (0 without play)."""
+    """Per-pose offset of a loosely held mask, mm: uniform within +-play (0 without play).
+
+    Parameters
+    ----------
+    bench : Bench
+        Its mask's ``play_x_mm`` and ``play_y_mm`` bound the offset.
+    seed : int or sequence of int
+        Seed of the experiment.
+    pose : int
+        Index of the pose: every shot of a pose shares its offset.
+
+    Returns
+    -------
+    (float, float)
+        The offset (x, y) of the mask in its own plane, mm.
+    """
     m = bench.mask
     if m.play_x_mm == 0 and m.play_y_mm == 0:
         return (0.0, 0.0)
@@ -155,6 +183,20 @@ def spot_geometry(bench, alpha_true, beta_true, play_mm=(0.0, 0.0)) -> SpotGeome
 
     A frame and its true centroid need the same geometry: the last few thousand results are
     kept (keyed by the bench, which is immutable, and the angles), their arrays read-only.
+
+    Parameters
+    ----------
+    bench : Bench
+    alpha_true, beta_true : float
+        True platform angles, deg, each within +-90 (exclusive).
+    play_mm : (float, float)
+        The mask's per-pose offset (:func:`mask_play`), mm.
+
+    Returns
+    -------
+    SpotGeometry
+        Sun vector, each hole's ray (px) and height (mm), the projections and the sun-disk
+        kernel of the frame.
 
     Examples
     --------
@@ -280,6 +322,20 @@ def _rays(q, s, sz, det):
 
 def ray_positions(bench, alpha_true, beta_true, play_mm=(0.0, 0.0)):
     """Geometric ray through each hole centre on the focal plane: (x, y) px arrays (n_holes,).
+
+    Parameters
+    ----------
+    bench : Bench
+    alpha_true, beta_true : float
+        True platform angles, deg.
+    play_mm : (float, float)
+        The mask's per-pose offset (:func:`mask_play`), mm.
+
+    Returns
+    -------
+    x, y : numpy.ndarray, shape (n_holes,)
+        Where the ray through each hole centre meets the focal plane, px (refracted by the
+        detector's lid); the spot's centroid also carries the sun-disk kernel's mean.
 
     Examples
     --------
@@ -593,6 +649,11 @@ def spot_truth(bench, alpha_true, beta_true, *, play_mm=(0.0, 0.0)):
         True platform angles, deg.
     play_mm : (float, float)
         The mask's per-pose offset (see :func:`mask_play`), mm.
+
+    Returns
+    -------
+    x, y : numpy.ndarray, shape (n_holes,)
+        True centroid of each spot, px (NaN where the spot is clipped or not lit).
 
     Examples
     --------

@@ -101,6 +101,11 @@ class Source:
     def second_moment(self) -> float:
         """<x^2> of the normalised radial profile over the unit disk (1/4 for a uniform disk).
 
+        Returns
+        -------
+        float
+            Second moment along one axis of the limb-darkened disk of unit radius.
+
         Examples
         --------
         >>> Source().second_moment()

@@ -5,5 +5,6 @@ and type checkers read it as the package's interface."""
 from . import averaging as averaging
 from . import identification as identification
 from . import platform_fault as platform_fault
+from . import surrogate_tables as surrogate_tables
 
 __all__: list[str]

@@ -5,7 +5,7 @@ the 100 spots' geometric centre: mu 1.10 times on alpha and 1.29 times on beta. 
 on the detector at every pose, each per-hole polynomial is a least-squares map of its own spot
 and the mean of the per-hole estimates equals, to first order, the estimate from the mean spot:
 the two columns agree. Three mechanisms could break that equality, each tested here on the
-centroid-level surrogate (:mod:`sunlab.sim.identify`) of an identified hypothesis:
+centroid-level surrogate (:mod:`sunlab.sim.surrogate`) of an identified hypothesis:
 
 * **spots leaving the frame** (a long F: the 10 x 10 pattern is wider than the detector over
   the test range): a hole seen at part of the poses gets a polynomial fitted on part of the
@@ -72,8 +72,9 @@ def mechanisms(hypothesis: str | None = None, seeds=None, *, step: int = 2,
     from .. import stats
     from ..calibration import Polynomial
     from ..calibration.methods import POLYNOMIAL_REFIT
-    from ..sim.identify import surrogate_centroids
+    from ..sim.surrogate import surrogate_centroids
     from . import identification as idn
+    from .surrogate_tables import table3_plans
 
     protocol = idn.load_protocol()
     evidence = idn.load_evidence()
@@ -89,7 +90,7 @@ def mechanisms(hypothesis: str | None = None, seeds=None, *, step: int = 2,
             rec = evidence[(evidence["hypothesis"] == hyp) & (evidence["seed"] == seed)].iloc[0]
             nuis, fitted = idn.recorded_draw(protocol, rec)
             multi = idn.hypothesis_bench(protocol, hyp, nuis, fitted, multi=True)
-            exps = idn._experiments(step, shots)
+            exps = table3_plans(step, shots)
             noise = float(rec["noise_px"])
             tr = surrogate_centroids(multi, exps["I"], seed, noise_px=noise)
             te = surrogate_centroids(multi, exps["III"], seed, noise_px=noise)

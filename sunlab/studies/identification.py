@@ -16,7 +16,7 @@ its scores:
   (:func:`score_table`), the rule (:func:`chosen_hypothesis`) is the one-standard-error rule,
   and each published cell gets a 90 % predictive interval (:func:`intervals`).
 
-The predictions come from the centroid-level surrogate of :mod:`sunlab.sim.identify` (geometry,
+The predictions come from the centroid-level surrogate of :mod:`sunlab.sim.surrogate` (geometry,
 platform table and pixel-response maps, no frames rendered); ``sunlab identify --validate``
 compares it with full renders on the confirmation seeds.
 
@@ -53,6 +53,11 @@ _PAPER_FF_QE = 0.35
 
 def load_protocol(path=None) -> dict:
     """The identification protocol (``sunlab/data/protocol.json``, or the file at ``path``).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path, optional
+        A protocol file of the same form.
 
     Returns
     -------
@@ -94,6 +99,11 @@ def _quantity(cells: dict, table: str, col: str, angle: str, stat: str) -> float
 
 def scored_quantities(protocol: dict) -> dict[str, list[tuple]]:
     """The fit-side and held-out quantities ``(table, column, angle, stat)`` of the protocol.
+
+    Parameters
+    ----------
+    protocol : dict
+        As :func:`load_protocol` returns it.
 
     Returns
     -------
@@ -226,12 +236,6 @@ def hypothesis_bench(protocol: dict, name: str, nuisances: dict, fitted: dict, *
 
 
 # ----------------------------------------------------------------------------- surrogate
-def _experiments(step: int, shots: int) -> dict:
-    from .. import plans
-
-    return {n: plans.experiment(n).thin(step).with_shots(shots) for n in ("I", "II", "III")}
-
-
 def surrogate_runs(bench, seed: int = 0, step: int = 1, shots: int = 8,
                    noise_px: float = 0.004) -> dict:
     """Surrogate centroid tables of experiments I-III, each with its run's zero-pose centroid
@@ -253,10 +257,11 @@ def surrogate_runs(bench, seed: int = 0, step: int = 1, shots: int = 8,
         ``centroids/1`` tables keyed ``"I"``, ``"II"``, ``"III"``.
     """
     from .. import plans
-    from ..sim.identify import surrogate_centroids
+    from ..sim.surrogate import surrogate_centroids
+    from .surrogate_tables import table3_plans
 
     out = {}
-    for name, plan in _experiments(step, shots).items():
+    for name, plan in table3_plans(step, shots).items():
         cen = surrogate_centroids(bench, plan, seed, noise_px=noise_px)
         zero = surrogate_centroids(bench, plans.zero_check(plan, 1), seed, noise_px=noise_px)
         out[name] = cen.assign_attrs(zero_pose_x_px=float(zero.x.mean()),
@@ -265,7 +270,7 @@ def surrogate_runs(bench, seed: int = 0, step: int = 1, shots: int = 8,
 
 
 def _noise_px(bench) -> float:
-    from ..sim.identify import centroid_noise_px
+    from .surrogate_tables import centroid_noise_px
 
     return centroid_noise_px(bench, frames=6)
 
@@ -342,7 +347,7 @@ def _predict_benches(protocol: dict, single, multi, seed: int, noise_px: float) 
     """Every published cell from a one-hole and a 100-hole bench (the protocol's settings)."""
     from .. import stats
     from ..calibration.methods import table4_methods
-    from ..sim.identify import surrogate_table5
+    from .surrogate_tables import surrogate_table5
 
     setting = protocol["fit"]["predict"]
     cens = surrogate_runs(single, seed, setting["step"], setting["shots"], noise_px)
@@ -363,6 +368,14 @@ def _predict_benches(protocol: dict, single, multi, seed: int, noise_px: float) 
 
 def run_hypothesis(protocol: dict, name: str, seed: int) -> pd.DataFrame:
     """One hypothesis on one seed: draw, fit, predict; a long table of every cell.
+
+    Parameters
+    ----------
+    protocol : dict
+    name : str
+        A key of ``protocol["hypotheses"]``.
+    seed : int
+        Seed of the nuisance draw (:func:`draw_nuisances`) and of the surrogate's runs.
 
     Returns
     -------
@@ -508,6 +521,16 @@ def _data(name: str) -> pd.DataFrame:
 def load_evidence(path=None) -> pd.DataFrame:
     """The shipped evidence table (``sunlab/data/evidence.csv``) or the one at ``path``.
 
+    Parameters
+    ----------
+    path : str or pathlib.Path, optional
+        An ``evidence.csv`` written by :func:`regenerate`.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per hypothesis and seed: its draw, fit, parameter count and score.
+
     Examples
     --------
     >>> t = load_evidence()
@@ -518,7 +541,18 @@ def load_evidence(path=None) -> pd.DataFrame:
 
 
 def load_intervals(path=None) -> pd.DataFrame:
-    """The shipped predictive intervals (``sunlab/data/intervals.csv``) or those at ``path``."""
+    """The shipped predictive intervals (``sunlab/data/intervals.csv``) or those at ``path``.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path, optional
+        An ``intervals.csv`` written by :func:`regenerate`.
+
+    Returns
+    -------
+    pandas.DataFrame
+        As :func:`intervals`: one row per hypothesis and published cell.
+    """
     return pd.read_csv(path) if path is not None else _data("intervals.csv")
 
 
@@ -583,6 +617,11 @@ def regenerate(out_dir, *, names=None, seeds=None, jobs: int = 2, overwrite: boo
 def identified_hypothesis() -> str:
     """The hypothesis the protocol's rule picks from the shipped evidence (the presets' one).
 
+    Returns
+    -------
+    str
+        A key of the protocol's ``hypotheses`` (:func:`chosen_hypothesis`).
+
     Examples
     --------
     >>> identified_hypothesis() in load_protocol()["hypotheses"]
@@ -640,6 +679,12 @@ ABLATIONS = {
 
 def recorded_draw(protocol: dict, record) -> tuple[dict, dict]:
     """The nuisance draw and the fitted parameters of one row of the evidence table.
+
+    Parameters
+    ----------
+    protocol : dict
+    record : pandas.Series or mapping
+        One row of :func:`load_evidence`.
 
     Returns
     -------

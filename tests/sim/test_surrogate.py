@@ -1,11 +1,13 @@
-"""The bench-identification surrogate (sunlab.sim.identify) against known truth."""
+"""The centroid-level surrogate (sunlab.sim.surrogate) and the paper's tables computed on it
+(sunlab.studies.surrogate_tables) against known truth."""
 
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
 from sunlab import plans, sim
-from sunlab.sim import identify
+from sunlab.sim import surrogate
+from sunlab.studies import surrogate_tables
 
 
 @pytest.fixture(scope="module")
@@ -18,7 +20,7 @@ def test_surrogate_geometry_matches_the_rendered_truth(bench):
     # centroid (ray + sun-disk kernel), to a few thousandths of a pixel, and shares its
     # platform table (the same true angles for the same seed and plan).
     plan = plans.experiment("III").thin(6).with_shots(2)
-    cen = identify.surrogate_centroids(bench, plan, seed=3, noise_px=0.0, spot_error=False)
+    cen = surrogate.surrogate_centroids(bench, plan, seed=3, noise_px=0.0, spot_error=False)
     cube = sim.simulate(plan, bench, seed=3)
     assert_allclose(cen["true_alpha"].values, cube["true_alpha"].values, atol=1e-12)
     assert_allclose(cen.x.values, cube["true_x"].values, atol=0.02)
@@ -35,7 +37,7 @@ def test_spot_error_maps_predict_the_rendered_pattern_shift(bench):
                           mask__play_y_mm=0.0)
     from sunlab import centroid
 
-    dx, _ = identify.spot_error_maps(quiet)
+    dx, _ = surrogate.spot_error_maps(quiet)
     pred, seen = [], []
     for k, (a, b) in enumerate([(-15.0, 1.0), (-11.0, 4.0), (-7.0, 9.0), (-3.0, 13.0),
                                 (0.0, 15.0), (-13.0, 12.0), (-5.0, 2.0), (-9.0, 16.0)]):
@@ -58,11 +60,12 @@ def test_scan_recovers_a_planted_pose_error(bench):
         return ideal.replace(platform__alpha_pose_error_deg=w)
 
     methods = ("polynomial", "linear interp.")
-    target = identify.surrogate_table4(make(0.012), seed=5, step=2, shots=2, methods=methods)
+    target = surrogate_tables.surrogate_table4(make(0.012), seed=5, step=2, shots=2,
+                                               methods=methods)
     scores = []
     for w in (0.004, 0.008, 0.012, 0.018, 0.024):
-        t = identify.surrogate_table4(make(w), seed=5, step=2, shots=2, methods=methods)
-        scores.append(identify.score(t, target, cells=(("alpha", "mu"), ("alpha", "M"))))
+        t = surrogate_tables.surrogate_table4(make(w), seed=5, step=2, shots=2, methods=methods)
+        scores.append(surrogate_tables.score(t, target, cells=(("alpha", "mu"), ("alpha", "M"))))
     assert int(np.argmin(scores)) == 2
     assert scores[2] < 0.05
 
@@ -74,13 +77,13 @@ def test_identified_bench_gives_the_papers_alpha_ordering(bench):
     # polynomial < linear interp. as in Table 4. A pattern correlated over 6 px without the
     # play is partly learned by the table at F = 5 mm (12.5 px per degree), and the order flips.
     methods = ("polynomial", "linear interp.")
-    t = identify.surrogate_table4(bench, seed=0, step=1, shots=2, methods=methods)
+    t = surrogate_tables.surrogate_table4(bench, seed=0, step=1, shots=2, methods=methods)
     assert t.loc[("alpha", "mu"), "polynomial"] < 0.95 * t.loc[("alpha", "mu"),
                                                                "linear interp."]
     learnable = bench.replace(mask__play_x_mm=0.0, mask__play_y_mm=0.0,
                               detector__prnu_correlated=0.12, detector__prnu_correlation_px=6.0,
                               platform__alpha_pose_error_deg=0.002)
-    t6 = identify.surrogate_table4(learnable, seed=0, step=1, shots=2, methods=methods)
+    t6 = surrogate_tables.surrogate_table4(learnable, seed=0, step=1, shots=2, methods=methods)
     assert t6.loc[("alpha", "mu"), "polynomial"] > t6.loc[("alpha", "mu"), "linear interp."]
 
 
@@ -88,10 +91,10 @@ def test_spot_size_and_what_the_roi_clue_would_need(bench):
     # the spot is the hole plus the sun's penumbra, (d + F' theta) / p: 35 px at F = 5 mm
     theta = np.radians(bench.source.diameter_deg)
     expected = (0.2 + bench.mask.true_distance_mm * theta) / 0.007
-    assert identify.spot_diameter_px(bench) == pytest.approx(expected, rel=1e-12)
+    assert surrogate.spot_diameter_px(bench) == pytest.approx(expected, rel=1e-12)
     # "the 130 x 130 ROI is about 2.5 times the spot" would need a 52 px spot, F of 17-19 mm:
     # the clue the presets' F = 5 mm sets aside (sunlab.sim.mask.PAPER_DISTANCE_MM)
-    f_clue = (130 / identify.PAPER_TARGETS["roi_over_spot"] * 0.007 - 0.2) / theta
+    f_clue = (130 / surrogate_tables.PAPER_TARGETS["roi_over_spot"] * 0.007 - 0.2) / theta
     assert 17.0 < f_clue < 19.0 and bench.mask_distance_mm == 5.0
 
 
@@ -101,7 +104,7 @@ def test_score_names_the_problem():
     from sunlab.errors import ConfigurationError
 
     with pytest.raises(ConfigurationError, match="columns"):
-        identify.score(pd.DataFrame({"x": [1.0]}))
+        surrogate_tables.score(pd.DataFrame({"x": [1.0]}))
 
 
 def test_linear_interpolation_is_left_with_138_percent_of_an_aliased_gear_error(bench):
@@ -115,7 +118,7 @@ def test_linear_interpolation_is_left_with_138_percent_of_an_aliased_gear_error(
                                             platform__beta_gear_deg=0.01,
                                             platform__beta_gear_period_deg=1.6)
     exps = {k: plans.experiment(k, shots=1) for k in ("I", "II", "III")}
-    cen = {k: identify.surrogate_centroids(geared, p, 0, spot_error=False, noise_px=0.0)
+    cen = {k: surrogate.surrogate_centroids(geared, p, 0, spot_error=False, noise_px=0.0)
            for k, p in exps.items()}
     fits = table4_methods(neural=False)
     err = {m: fits[m](cen["I"], cen["II"]).predict(cen["III"]) for m in

@@ -1,16 +1,16 @@
-"""sunlab.platform_fault: the diagnosis names the one fault a bench carries; the joint fit
+"""sunlab.studies.platform_fault: the diagnosis names the one fault a bench carries; the joint fit
 recovers the fault's size within its standard error; the remedies remove it. Benches carrying a
-single fault, centroids from the fast surrogate (sunlab.sim.identify)."""
+single fault, centroids from the fast surrogate (sunlab.sim.surrogate)."""
 
 import numpy as np
 import pytest
 
 from sunlab import ConfigurationError, plans, stats
-from sunlab import platform_fault as pf
 from sunlab.calibration import Polynomial
 from sunlab.sim import Bench
 from sunlab.sim.bench import homing_offset
-from sunlab.sim.identify import surrogate_centroids
+from sunlab.sim.surrogate import surrogate_centroids
+from sunlab.studies import platform_fault as pf
 
 SIZES = {"backlash": 0.017, "homing": 0.03, "gear": 0.02}
 SEED = 3

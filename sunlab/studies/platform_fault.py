@@ -54,7 +54,7 @@ import numpy as np
 import pandas as pd
 import xarray as xr
 
-from .errors import ConfigurationError
+from ..errors import ConfigurationError
 
 __all__ = ["diagnose"]
 
@@ -111,13 +111,19 @@ def shape_test(table: pd.DataFrame) -> pd.DataFrame:
 def paper_shape() -> pd.DataFrame:
     """:func:`shape_test` on the paper's Table 4 and Table 5 (docs/paper.md sec. 5-6).
 
+    Returns
+    -------
+    pandas.DataFrame
+        As :func:`shape_test`: Table 4's four methods, then Table 5's two 100-hole columns
+        (its "1 hole" repeats Table 4's polynomial).
+
     Examples
     --------
     >>> t = paper_shape()
     >>> round(float(t.loc[("linear interp.", "beta"), "ratio"]), 2)
     0.48
     """
-    from . import stats
+    from .. import stats
 
     return pd.concat([shape_test(stats.paper_table4()),
                       shape_test(stats.paper_table5().drop(columns="1 hole"))])
@@ -134,6 +140,11 @@ def signed_pose_errors(estimate: xr.Dataset, reference=None) -> xr.Dataset:
     reference : mapping, optional
         As :func:`sunlab.stats.shot_errors`; default the commanded angles.
 
+    Returns
+    -------
+    xarray.Dataset
+        ``alpha`` and ``beta`` on ``pose``, deg (NaN for a pose without a usable shot).
+
     Examples
     --------
     >>> est = xr.Dataset({"alpha": (("pose", "shot"), [[0.1, 0.3]]),
@@ -145,7 +156,7 @@ def signed_pose_errors(estimate: xr.Dataset, reference=None) -> xr.Dataset:
     """
     import warnings
 
-    from . import stats
+    from .. import stats
 
     err = stats.shot_errors(estimate, reference, absolute=False)
     with warnings.catch_warnings():
@@ -162,13 +173,18 @@ def approach_of(source) -> np.ndarray:
         The plan that was run, or a cube with the coordinate ``beta_approach`` (what
         :func:`sunlab.sim.simulate` and the acquisition runner record).
 
+    Returns
+    -------
+    numpy.ndarray of int, shape (pose,)
+        +1 where the inner axis reached the pose upward, -1 downward.
+
     Examples
     --------
     >>> from sunlab import plans
     >>> approach_of(plans.grid(0, 1, 1, 0, 1, 1, shots=1, scan="serpentine")).tolist()
     [1, 1, -1, 1]
     """
-    from .plans import Plan
+    from ..plans import Plan
 
     if isinstance(source, Plan):
         return source.beta_approach().astype(int)
@@ -231,6 +247,21 @@ def approach_split(beta_error, approach) -> dict:
 def row_split(beta_error, alpha_cmd, approach) -> pd.DataFrame:
     """Mean signed beta error per scan row (outer angle alpha) with the row's main direction.
 
+    Parameters
+    ----------
+    beta_error : array_like, shape (pose,)
+        Signed beta error per pose, deg (:func:`signed_pose_errors`).
+    alpha_cmd : array_like, shape (pose,)
+        Commanded outer angle of each pose, deg: the row it belongs to.
+    approach : array_like of +-1, shape (pose,)
+        :func:`approach_of`.
+
+    Returns
+    -------
+    pandas.DataFrame
+        Index ``alpha_cmd``; columns ``mean_error_deg``, ``approach`` (the sign of the row's
+        mean direction) and ``poses``.
+
     Examples
     --------
     >>> r = row_split([0.01, 0.01, -0.01, -0.01], [0, 0, 1, 1], [-1, -1, 1, 1])
@@ -249,6 +280,13 @@ def row_split(beta_error, alpha_cmd, approach) -> pd.DataFrame:
 
 def run_offset(beta_error, approach) -> dict:
     """The run's mean beta error with the approach term removed (regression on [1, d]).
+
+    Parameters
+    ----------
+    beta_error : array_like, shape (pose,)
+        Signed beta error per pose, deg (:func:`signed_pose_errors`).
+    approach : array_like of +-1, shape (pose,)
+        :func:`approach_of`.
 
     Returns
     -------
@@ -374,6 +412,13 @@ class Diagnosis:
     evidence: dict = field(default_factory=dict)
 
     def to_dict(self) -> dict:
+        """The diagnosis as plain JSON types (what ``results/platform.json`` stores).
+
+        Returns
+        -------
+        dict
+            ``candidate``, ``z`` (floats) and ``evidence``.
+        """
         return {"candidate": self.candidate, "z": {k: float(v) for k, v in self.z.items()},
                 "evidence": self.evidence}
 
@@ -454,6 +499,14 @@ def fault_bench(bench, kind: str, size_deg: float, *, period_deg: float = 1.6):
         the per-run offset) or ``beta_gear_deg`` (amplitude, with ``period_deg``).
     size_deg : float
         Its size, deg.
+    period_deg : float
+        The gear error's period, deg (``kind="gear"`` only).
+
+    Returns
+    -------
+    Bench
+        ``bench`` with that fault alone on the inner axis: the other two, the thermal drift
+        and the zero shift at a new homing set to zero.
 
     Examples
     --------
@@ -476,92 +529,12 @@ def fault_bench(bench, kind: str, size_deg: float, *, period_deg: float = 1.6):
     return out
 
 
-def candidate_table(sizes: dict, *, bench=None, seed: int = 0, shots: int = 1,
-                    experiment_plans: dict | None = None,
-                    methods=("polynomial", "linear interp.", "cubic interp.")) -> pd.DataFrame:
-    """Which candidate explains the paper's beta statistics: Table 4's beta cells per fault.
-
-    For each fault and size the bench carries that fault alone (:func:`fault_bench`; for
-    ``"homing"`` the size is the test run's offset relative to the calibration run, a
-    ``beta_offset_deg`` of the test run), the surrogate centroids
-    (:func:`sunlab.sim.identify.surrogate_centroids`) of experiments I, II and III are
-    calibrated by each method as ``sunlab reproduce`` does, and the beta mu and sigma on III are
-    set beside the paper's; ``score`` is the RMS of log(ours / paper) over those cells, and
-    ``shape_excess`` the mean sigma / mu of the polynomial and linear columns less the paper's
-    (0.47 and 0.48: the shape criterion of :func:`paper_shape`).
-
-    Parameters
-    ----------
-    sizes : dict
-        ``kind -> size_deg``, e.g. sizes that match the paper's polynomial beta mu.
-    experiment_plans : dict, optional
-        Plans ``{"I", "II", "III"}``; default Table 3's with ``shots`` frames per pose.
-
-    Returns
-    -------
-    pandas.DataFrame
-        One row per candidate: ``size_deg``, ``<method> mu``, ``<method> sigma``, ``score``,
-        ``shape_excess``.
-
-    Examples
-    --------
-    >>> from sunlab import plans
-    >>> small = {"I": plans.grid(-17, 2, 6, -2, 17, 1, shots=1, name="I", scan="serpentine"),
-    ...          "II": plans.grid(-16.25, 1.75, 6, -1.75, 16.25, 1.5, shots=1, name="II",
-    ...                           scan="serpentine"),
-    ...          "III": plans.grid(-16.5, 1.5, 6, -1.5, 16.5, 1, shots=1, name="III",
-    ...                            scan="serpentine")}
-    >>> t = candidate_table({"backlash": 0.017}, experiment_plans=small,
-    ...                     methods=("polynomial",))
-    >>> list(t.columns), bool(0.005 < t.loc["backlash", "polynomial mu"] < 0.03)
-    (['size_deg', 'polynomial mu', 'polynomial sigma', 'score', 'shape_excess'], True)
-    """
-    from . import plans, stats
-    from .calibration.methods import table4_methods
-    from .sim import Bench
-    from .sim.identify import surrogate_centroids
-
-    bench = Bench.paper_single_hole() if bench is None else bench
-    exps = experiment_plans or {n: plans.experiment(n, shots=shots) for n in ("I", "II", "III")}
-    paper = stats.paper_table4()
-    fits = table4_methods(neural=False, seed=seed)
-    rows = {}
-    for kind, size in sizes.items():
-        if kind == "homing":
-            b = fault_bench(bench, "homing", 0.0)
-            b_test = b.replace(platform__beta_offset_deg=float(size))
-        else:
-            b = b_test = fault_bench(bench, kind, size)
-        cen = {n: surrogate_centroids(b_test if n == "III" else b, p, seed)
-               for n, p in exps.items()}
-        row, logs = {"size_deg": float(size)}, []
-        for m in methods:
-            loc = stats.local_errors(fits[m](cen["I"], cen["II"]).predict(cen["III"]))
-            g = stats.global_stats({m: loc})[m]
-            for st in ("mu", "sigma"):
-                row[f"{m} {st}"] = float(g[("beta", st)])
-                logs.append(math.log(row[f"{m} {st}"] / float(paper.loc[("beta", st), m])))
-        row["score"] = float(np.sqrt(np.mean(np.square(logs))))
-        shape = [row[f"{m} sigma"] / row[f"{m} mu"] for m in methods
-                 if m in ("polynomial", "linear interp.")]
-        paper_shape_ = [float(paper.loc[("beta", "sigma"), m] / paper.loc[("beta", "mu"), m])
-                        for m in methods if m in ("polynomial", "linear interp.")]
-        # the shape criterion: mean sigma / mu of the polynomial and linear columns, less the
-        # paper's (0.47, 0.48); 0 matches the paper's bimodal shape
-        row["shape_excess"] = (float(np.mean(shape) - np.mean(paper_shape_)) if shape
-                               else float("nan"))
-        rows[kind] = row
-    out = pd.DataFrame.from_dict(rows, orient="index")
-    out.index.name = "candidate"
-    return out
-
-
 # --------------------------------------------------------------------------- remedy (b)
 def _pose_means(cen: xr.Dataset):
     """Pose-mean centroids of the usable shots, px (NaN for a pose without one)."""
     import warnings
 
-    from .schema import STATUS, USABLE_STATUS
+    from ..schema import STATUS, USABLE_STATUS
 
     ok = np.asarray(cen["status"].isin([STATUS[k] for k in USABLE_STATUS]).values)
     x = np.where(ok, np.asarray(cen["x"].values, dtype=float), np.nan)
@@ -594,7 +567,18 @@ class JointCorrection:
     _coef: dict = field(default_factory=dict, repr=False)
 
     def predict(self, centroids: xr.Dataset) -> xr.Dataset:
-        """The calibration's estimate (:meth:`sunlab.calibration.Calibration.predict`)."""
+        """The calibration's estimate (:meth:`sunlab.calibration.Calibration.predict`).
+
+        Parameters
+        ----------
+        centroids : xarray.Dataset
+            A ``centroids/1`` table (the test run).
+
+        Returns
+        -------
+        xarray.Dataset
+            Estimated ``alpha`` and ``beta``, deg; compare them with :meth:`reference`.
+        """
         return self.calibration.predict(centroids)
 
     def reference(self, estimate: xr.Dataset, motion) -> dict:
@@ -603,6 +587,18 @@ class JointCorrection:
         beta: commanded - b d + g(beta) + h, with the fitted backlash b, approach d, gear
         error g and homing difference h; alpha: commanded. Pass as ``reference`` to
         :func:`sunlab.stats.local_errors`.
+
+        Parameters
+        ----------
+        estimate : xarray.Dataset
+            :meth:`predict` on the test run, with its commanded angles.
+        motion : sunlab.plans.Plan or xarray.Dataset or array_like
+            The test run's plan or cube (:func:`approach_of`), or its approach per pose.
+
+        Returns
+        -------
+        dict
+            ``alpha`` and ``beta`` (xarray.DataArray on pose), deg.
         """
         d = (np.asarray(motion, dtype=float) if isinstance(motion, np.ndarray | list | tuple)
              else approach_of(motion).astype(float))
@@ -663,7 +659,7 @@ def fit_correction(train: xr.Dataset, train_motion, validation: xr.Dataset | Non
     --------
     >>> from sunlab import plans
     >>> from sunlab.sim import Bench
-    >>> from sunlab.sim.identify import surrogate_centroids
+    >>> from sunlab.sim.surrogate import surrogate_centroids
     >>> bench = fault_bench(Bench.paper_single_hole(), "backlash", 0.02)
     >>> plan = plans.experiment("I", shots=1)
     >>> jc = fit_correction(surrogate_centroids(bench, plan, 0), plan, order=5)
@@ -671,7 +667,7 @@ def fit_correction(train: xr.Dataset, train_motion, validation: xr.Dataset | Non
     >>> abs(p["fitted"] - 0.02) < 3 * p["stderr"] < 0.002
     True
     """
-    from .calibration import Polynomial
+    from ..calibration import Polynomial
 
     if validation is not None:
         cal, _ = Polynomial.select_order(train, validation)
