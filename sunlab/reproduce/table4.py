@@ -188,18 +188,15 @@ def reproduce_table4(
 ) -> Table4Result:
     """Reproduce Table 4 (one hole, experiment III) on the virtual bench.
 
-    Three steps, one after the other: the pipeline renders and centroids experiments I, II, III
-    and their zero-pose checks once (:func:`sunlab.reproduce.pipeline.simulate_and_locate`);
-    :func:`table4_statistics` fits every method on the centroid tables and computes the
-    statistics; the files are written.
+    The pipeline renders and centroids I, II, III and their zero-pose checks once
+    (:func:`~sunlab.reproduce.pipeline.simulate_and_locate`), :func:`table4_statistics` fits
+    and scores every method on those tables, then the files are written.
 
     Parameters
     ----------
     quick : bool
-        Quick mode, the same for every table (:data:`sunlab.reproduce.pipeline.QUICK`): every
-        2nd angle along each grid axis of experiments I, II, III (100 + 49 + 100 poses instead
-        of 930) and 2 shots per pose instead of 8: the table's pattern in a fraction of the
-        time.
+        Quick mode (:data:`sunlab.reproduce.pipeline.QUICK`): every 2nd angle of each grid
+        axis (100 + 49 + 100 poses instead of 930) and 2 shots per pose instead of 8.
     seed : int
         Seed of the virtual bench.
     method : str
@@ -217,19 +214,17 @@ def reproduce_table4(
     step, shots : int, optional
         Keep every ``step``-th pose and take ``shots`` frames per pose (override ``quick``).
     scheduler, workers
-        Local scheduler and its threads or processes
-        (:func:`~sunlab.reproduce.pipeline.simulate_and_locate`).
+        Local scheduler and its threads or processes (:func:`simulate_and_locate`).
 
     Returns
     -------
     Table4Result
-        :func:`table4_statistics`'s result, its ``settings`` led by the run's (``seed``, ``quick``,
-        ``centroid_method``) and followed by the bench's hypothesis (and, for the identified
-        bench, ``interval90``); ``files`` the paths written.
+        :func:`table4_statistics`'s result; ``settings`` adds the run's and the bench's
+        hypothesis (and ``interval90`` for the identified bench), ``files`` the paths written.
 
     Examples
     --------
-    A thinned run (every 4th angle of each grid axis, one frame per pose) in a few seconds:
+    A thinned run (every 4th angle of each axis, one frame per pose) in a few seconds:
 
     >>> res = reproduce_table4(step=4, shots=1, neural=False, out=None, progress=False)
     >>> bool(res.table.loc[("alpha", "mu"), "polynomial"] < 0.05)
@@ -251,10 +246,8 @@ def reproduce_table4(
                       "total": time.perf_counter() - t0}
     result.settings = {"seed": seed, "quick": quick, "centroid_method": method,
                        **result.settings, **_identification(identified, "table4")}
-    if progress:
-        for label in result.local:
-            print(f"  fitted {label:<24s} in {result.timings[f'fit {label}']:6.2f} s",
-                  flush=True)
+    for label in result.local if progress else ():
+        print(f"  fitted {label:<24s} in {result.timings[f'fit {label}']:6.2f} s", flush=True)
     if out is not None:
         result.files = _write_outputs(result, Path(out))
     return result

@@ -89,11 +89,9 @@ def reproduce_table5(quick: bool = True, seed: int = 0, out: Path | str | None =
     progress : bool
         Show progress bars.
     order : int, optional
-        Polynomial order of every calibration. Default: chosen on experiment II of the one-hole
-        mask by the rule of Table 4's polynomial
-        (:meth:`sunlab.calibration.Polynomial.select_order`, the paper's procedure): the one-hole
-        column is that very calibration,
-        and the 100-hole strategies take the larger of its two orders.
+        Polynomial order of every calibration. Default: chosen on the one-hole mask's
+        experiment II by Table 4's rule (:meth:`sunlab.calibration.Polynomial.select_order`);
+        the 100-hole strategies take the larger of its two orders.
     method : str
         Centroid method of every frame (:func:`sunlab.centroid.locate`), the same as Table 4's
         (default ``"projection"``, algorithm B: the paper presents it as its method and names
