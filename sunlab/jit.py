@@ -16,7 +16,7 @@ A reference is either a vectorised numpy function written beside the kernel
 run by the interpreter (:func:`interpreted`: Python loops over numpy arrays, with every
 compiled helper it calls interpreted too). Each kernel and its reference agree: the noise
 stream bit for bit, the centroid kernels to rounding, the spectra to the 1e-8 of the compiled
-Bessel approximation (``tests/test_jit.py`` and ``tests/test_sim_kernels.py`` check them).
+Bessel approximation (``tests/test_jit.py`` and ``tests/sim/test_kernels.py`` check them).
 
 The compile notice: a user who sees the first run stall deserves to know why, so
 :func:`announce_first_compile` prints :data:`MESSAGE` on stderr when a process starts to compile

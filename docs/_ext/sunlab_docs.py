@@ -32,7 +32,7 @@ GROUPS: OrderedDict[str, tuple[str, ...]] = OrderedDict(
         ("Centroids", ("centroid", "screening")),
         ("Geometry", ("geometry",)),
         ("Calibration", ("calibration",)),
-        ("Statistics", ("stats",)),
+        ("Statistics and the evaluation report", ("stats", "report")),
         ("Multi-hole mask", ("multihole",)),
         ("Studies: identification of the bench, platform fault", ("studies",)),
         ("Hardware", ("hardware",)),
