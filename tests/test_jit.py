@@ -107,7 +107,7 @@ def test_bad_values_of_the_switch_are_refused_with_the_fix():
         sunlab.set_options(kernels="cuda")
     with pytest.raises(ConfigurationError, match="True or False"):
         sunlab.set_options(progress="no")
-    out = _run("import sunlab", SUNLAB_KERNELS="cuda")
+    out = _run("import sunlab; sunlab.OPTIONS", SUNLAB_KERNELS="cuda")
     assert out.returncode != 0
     assert "SUNLAB_KERNELS: found 'cuda'" in out.stderr and "Fix:" in out.stderr
 

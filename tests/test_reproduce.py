@@ -38,7 +38,7 @@ def result(run):
 
 
 def test_table4_is_a_function_of_the_pipelines_centroid_tables(run):
-    from sunlab.reproduce import table4_statistics
+    from sunlab.reproduce.table4 import table4_statistics
 
     res, seen = run
     # the run computed its statistics once, from the tables the pipeline returned (I, II, III,
@@ -54,7 +54,8 @@ def test_table4_is_a_function_of_the_pipelines_centroid_tables(run):
 
 def test_the_tables_statistics_name_a_missing_run():
     from sunlab.errors import ConfigurationError
-    from sunlab.reproduce import table4_statistics, table5_statistics
+    from sunlab.reproduce.table4 import table4_statistics
+    from sunlab.reproduce.table5 import table5_statistics
 
     with pytest.raises(ConfigurationError, match=r"cens: found runs \['I', 'II'\]"):
         table4_statistics({"I": None, "II": None}, None)

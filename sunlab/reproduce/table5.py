@@ -295,11 +295,11 @@ def _with_residual_metrics(hole_metrics, strategy, cen):
     then the hole coordinates: the columns of ``hole_metrics.csv``)."""
     import xarray as xr
 
-    from .. import multihole as mh
+    from ..multihole.defects import DEFECT_METRICS, residual_metrics
 
-    rm = mh.residual_metrics(strategy.predict_holes(cen))
+    rm = residual_metrics(strategy.predict_holes(cen))
     data = {k: hole_metrics[k].variable for k in hole_metrics.data_vars}
-    data.update({k: ("hole", rm[k].values, {**rm[k].attrs, "long_name": mh.DEFECT_METRICS[k]})
+    data.update({k: ("hole", rm[k].values, {**rm[k].attrs, "long_name": DEFECT_METRICS[k]})
                  for k in rm.data_vars})
     return xr.Dataset(data, coords={k: hole_metrics[k].variable for k in hole_metrics.coords})
 

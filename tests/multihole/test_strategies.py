@@ -8,6 +8,7 @@ import pytest
 from sunlab import calibration
 from sunlab import multihole as mh
 from sunlab.errors import ConfigurationError, SchemaError
+from sunlab.multihole.review import injected_defects, review_holes
 from sunlab.sim import synthetic_centroids
 
 A = np.repeat(np.linspace(-8.0, 2.0, 5), 5)
@@ -79,13 +80,13 @@ def test_residuals_and_domain_describe_the_training(tables):
 
 def test_review_holes_serves_the_explorer(tables):
     train, test = tables
-    r = mh.review_holes(test, train=train, order=2)
+    r = review_holes(test, train=train, order=2)
     assert np.flatnonzero(r.flagged).tolist() == [4, 9]
     st = r.stats(~r.flagged, 9)
     assert st["included"]["alpha"]["mu"] < st["all"]["alpha"]["mu"]
     res = r.residual_map(9, np.ones(100, bool))
     assert res["alpha"].shape == (25,)
-    assert mh.injected_defects(test) == {}
+    assert injected_defects(test) == {}
 
 
 @pytest.mark.parametrize("make", [

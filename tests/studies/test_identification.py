@@ -90,8 +90,8 @@ def test_score_is_the_held_out_log_density_and_falls_with_the_miss(protocol):
     assert mean["F5"] > mean["F17"]
     f5 = ev[ev.hypothesis == "F5"].set_index("seed")
     # tau^2: the fit side's 12 log residuals, 0 on seed 0 and log 1.1 on seed 1 (M - mu and
-    # every other quantity scale alike), over 12 - 3 degrees of freedom
-    tau2 = 0.5 * 12 * math.log(1.1) ** 2 / 9
+    # every other quantity scale alike), over 12 - 5 degrees of freedom (F5 fits 5 parameters)
+    tau2 = 0.5 * 12 * math.log(1.1) ** 2 / 7
     assert f5["tau"].iloc[0] == pytest.approx(math.sqrt(tau2))
     sd2 = np.var([0.0, math.log(1.1)], ddof=1)
     var = sd2 + tau2
