@@ -133,7 +133,7 @@ class Kernel:
     fn : function
         The kernel's source: Python that Numba compiles (loops over numpy arrays).
     options : dict
-        Options of :func:`numba.njit` (``cache``, ``nogil``, ``fastmath``, ...).
+        Options of ``numba.njit`` (``cache``, ``nogil``, ``fastmath``, ...).
 
     Attributes
     ----------
@@ -217,7 +217,7 @@ def kernel(**options):
     Parameters
     ----------
     **options
-        Options of :func:`numba.njit` (e.g. ``cache=True, nogil=True``).
+        Options of ``numba.njit`` (e.g. ``cache=True, nogil=True``).
 
     Returns
     -------

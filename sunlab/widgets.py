@@ -1,7 +1,7 @@
 """Interactive explorers (ipywidgets + matplotlib) for JupyterLab and Voila.
 
 :class:`HoleExplorer` shows the holes of a multi-hole mask as a clickable map coloured by a
-defect metric (:data:`sunlab.multihole.defects.DEFECT_METRICS`), on one colour scale
+defect metric (``sunlab.multihole.defects.DEFECT_METRICS``), on one colour scale
 (:func:`sunlab.multihole.defects.metric_scale`) shown as a colour bar beside it. Holes that the
 automatic rejection flags carry a ⚑ and an orange frame from the start; in simulated data the
 holes the bench gave defects (``hole_defect``) are underlined, so flagged and injected can be

@@ -46,11 +46,6 @@ def validate_document(doc) -> dict:
     Returns
     -------
     dict
-        ``doc`` itself, checked.
-
-    Returns
-    -------
-    dict
         ``doc`` itself, unchanged, once every check has passed.
 
     Raises
@@ -106,12 +101,6 @@ def from_dict(doc: dict) -> Calibration:
     Returns
     -------
     Calibration
-        The fitted calibration of the document's kind (a multi-hole strategy's nested
-        calibrations rebuilt too).
-
-    Returns
-    -------
-    Calibration
         A fitted instance of the kind's class, with the document's ``training``, ``domain`` and
         ``residuals``; it predicts as the calibration that wrote the document did.
 
@@ -156,13 +145,6 @@ def load(path) -> Calibration:
     ----------
     path : str or path-like
         The JSON file.
-
-    Returns
-    -------
-    Calibration
-        The fitted calibration (``predict``, ``predict_xy``, ``save``), e.g. a
-        :class:`~sunlab.calibration.Polynomial` or a
-        :class:`~sunlab.multihole.PerHoleAverage`.
 
     Returns
     -------

@@ -57,7 +57,7 @@ def table4_methods(*, neural: bool = True, hidden: int = 8, seed: int = 0,
     -------
     dict of str to callable
         Label to ``fit(train, validation) -> Calibration``, each a picklable
-        :func:`functools.partial` of :func:`sunlab.calibration.fit`: ``ideal model (1)``,
+        ``functools.partial`` of :func:`sunlab.calibration.fit`: ``ideal model (1)``,
         ``optimised model (3)-(4)``, ``linear interp.``, ``cubic interp.``, ``polynomial``
         (order chosen on ``validation``, refitted on both tables when :data:`POLYNOMIAL_REFIT`),
         ``trigonometric`` (order 1-4 chosen on ``validation``, period

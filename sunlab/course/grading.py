@@ -276,7 +276,7 @@ def _written_row(head, w, cell) -> dict:
 
 def grade(paths, *, notebooks=None, seed: int | None = None, quick: bool = True,
           timeout: float = 900.0) -> list[dict]:
-    """Grade several students' notebooks (:func:`grade_notebook` for each).
+    """Grade several students' notebooks (``grade_notebook`` for each).
 
     Parameters
     ----------
@@ -294,7 +294,7 @@ def grade(paths, *, notebooks=None, seed: int | None = None, quick: bool = True,
     Returns
     -------
     list of dict
-        The rows of :func:`grade_notebook` of every notebook, in the order of ``paths``.
+        The rows of ``grade_notebook`` of every notebook, in the order of ``paths``.
     """
     rows = []
     for path in paths:

@@ -5,7 +5,7 @@ images cannot: the pixel pitch, the mask distance, the ADC's bit depth and wheth
 left-aligned in a 16-bit word. Nothing is guessed: a field that is absent stays absent, and the
 methods that need it (the geometric models need the pitch and the mask distance) ask for it with
 an error that names this file. Every field is checked here, with a message that names the file,
-the field and the fix; :data:`SENSOR_FIELDS` is the one table the reader, the CLI and
+the field and the fix; ``SENSOR_FIELDS`` is the one table the reader, the CLI and
 ``data_schema/README.md`` describe.
 
 Examples
@@ -88,7 +88,7 @@ def find_sensor_json(folder, manifest=None) -> Path | None:
 
 
 def read_sensor_json(path) -> dict:
-    """Read and check a ``sensor.json`` (fields: :data:`SENSOR_FIELDS`).
+    """Read and check a ``sensor.json`` (fields: ``SENSOR_FIELDS``).
 
     Parameters
     ----------
@@ -122,7 +122,7 @@ def read_sensor_json(path) -> dict:
 
 
 def _checked(path: Path, key: str, value):
-    """One field's value, checked against its kind in :data:`SENSOR_FIELDS`."""
+    """One field's value, checked against its kind in ``SENSOR_FIELDS``."""
     kind, meaning = SENSOR_FIELDS[key]
     is_number = isinstance(value, int | float) and not isinstance(value, bool)
     ok = {

@@ -15,9 +15,9 @@ mean. One module per concept:
 ===============================  ==============================================================
 :mod:`~sunlab.multihole.holes`   grid indices, usable spots, cut-outs, centroiding a free layout
 :mod:`~.strategies`              the two strategies, as :class:`sunlab.calibration.Calibration`
-                                 subclasses in their own registry
-                                 (:data:`~.strategies.STRATEGY_KINDS`, :func:`load_strategy`);
-                                 combining per-hole estimates
+                                 subclasses, entries of the calibration registry (entry
+                                 point group ``sunlab.calibrations``; ``calibration.load``
+                                 reads them); combining per-hole estimates
 :mod:`~.defects`                 per-hole defect metrics, robust z-scores, bad-hole rejection
 :mod:`~.budget`                  the error budget and the gain of N holes over one
 :mod:`~.review`                  every hole's results, what the hole explorer shows

@@ -1,7 +1,7 @@
 """Defects of a multi-hole mask: per-hole metrics and the rejection of bad holes (Fig. 14).
 
 "Bad" holes (dust, burrs, misshapen or partly closed holes) spoil the average of sec. 6. Every
-hole is scored by metrics that are large for a bad hole (:data:`DEFECT_METRICS`): from its spots
+hole is scored by metrics that are large for a bad hole (``DEFECT_METRICS``): from its spots
 (lost frames, flux, size, shape: :func:`stamp_metrics`, :func:`edge_roughness`) and from its
 calibration residuals (:func:`residual_metrics`); :func:`defect_metrics` gathers them,
 :func:`robust_z` scores them against the fleet and :func:`reject_bad_holes` flags the outliers.
@@ -429,7 +429,7 @@ def residual_metrics(est: xr.Dataset, kappa: float = 5.0) -> xr.Dataset:
 
 def defect_metrics(cen: xr.Dataset, *, strategy: PerHoleAverage | None = None, cube=None,
                    accept: Sequence[str] = ("ok",), **spot_kw) -> xr.Dataset:
-    """All defect metrics of every hole (:data:`DEFECT_METRICS`), large = bad.
+    """All defect metrics of every hole (``DEFECT_METRICS``), large = bad.
 
     Parameters
     ----------
@@ -601,7 +601,7 @@ def reject_bad_holes(metrics: xr.Dataset, *, kappa: float = 5.0,
 def metric_scale(values) -> tuple[float, float]:
     """Colour scale (low, high) of a defect metric: its 2nd and 98th percentiles over the holes.
 
-    One scale for every view of a metric (:func:`plot_metric_map`, the buttons of
+    One scale for every view of a metric (``sunlab.plots.plot_metric_map``, the buttons of
     :class:`sunlab.widgets.HoleExplorer`), robust to the one bad hole that would otherwise
     squeeze all good holes into one colour.
 
