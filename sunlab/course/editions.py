@@ -457,22 +457,6 @@ def _hangup_interrupts():
         signal.signal(signal.SIGHUP, old)
 
 
-@contextlib.contextmanager
-def _all_held():
-    """SIGINT, SIGTERM and SIGHUP held back for the moves into place."""
-    held = {signal.SIGINT, signal.SIGTERM} | ({signal.SIGHUP} if hasattr(signal, "SIGHUP")
-                                              else set())
-    try:
-        old = signal.pthread_sigmask(signal.SIG_BLOCK, held)
-    except (AttributeError, OSError, ValueError):  # no POSIX signal masks (Windows)
-        yield
-        return
-    try:
-        yield
-    finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, old)
-
-
 def _move_editions(staging: Path, out: Path, overwrite: bool) -> None:
     """Move the editions of ``staging`` into ``out``; undo the moves made if one fails."""
     if not out.exists():
@@ -578,7 +562,7 @@ def write_course(out, *, notebooks=None, quick: bool = True, overwrite: bool = F
                     (folder / name).write_text(nbf.writes(make(nb, name, quick=quick)) + "\n",
                                                encoding="utf-8")
                     written[edition].append(out / edition / name)
-            with _all_held():
+            with atomic.signals_held():
                 _move_editions(staging, out, overwrite)
         finally:
             if staging.exists():
