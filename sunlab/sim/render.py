@@ -284,6 +284,86 @@ def _spot_geometry(bench, a, b, play_mm) -> SpotGeometry:
     )
 
 
+def spot_centres(bench, alpha_true, beta_true, play_mm) -> tuple[np.ndarray, np.ndarray]:
+    """True spot centroids of many frames at once: the ray plus the sun-disk kernel's mean.
+
+    The same geometry as :func:`spot_geometry` (``ray + kernel_mu * height_mm``), evaluated
+    for a batch of poses in one pass of array arithmetic: the surrogate needs only the
+    centroid, and the per-frame call (about 0.7 ms) dominated the identification's fits.
+
+    Parameters
+    ----------
+    bench : Bench
+    alpha_true, beta_true : array_like, shape (n,)
+        True platform angles, deg, each within +-90 (exclusive).
+    play_mm : array_like, shape (n, 2)
+        The mask's offset of each frame (:func:`mask_play`), mm.
+
+    Returns
+    -------
+    x, y : numpy.ndarray, shape (n, n_holes)
+        Centroid of each hole's spot, px; a frame whose sun is behind the mask gets its rays
+        and no kernel offset, as :func:`spot_geometry` gives it.
+
+    Examples
+    --------
+    >>> from sunlab.sim import Bench
+    >>> b = Bench.paper_single_hole()
+    >>> x, y = spot_centres(b, [3.0], [-2.0], [[0.001, 0.0]])
+    >>> g = spot_geometry(b, 3.0, -2.0, (0.001, 0.0))
+    >>> bool(np.allclose(x[0], g.ray[:, 0] + g.kernel_mu[0] * g.height_mm, atol=1e-9))
+    True
+    """
+    a = np.asarray(alpha_true, dtype=float).ravel()
+    b = np.asarray(beta_true, dtype=float).ravel()
+    play = np.asarray(play_mm, dtype=float).reshape(-1, 2)
+    if not (np.all(np.abs(a) < 90) and np.all(np.abs(b) < 90)):
+        raise ConfigurationError(
+            "alpha_true, beta_true: found an angle with |angle| >= 90 deg; expected the sun in "
+            "front of the mask. Fix: pass platform angles in degrees."
+        )
+    det: Detector = bench.detector
+    mask = bench.mask
+    src = bench.source
+    p = det.pixel_pitch_mm
+    s = sensor_sun_vector(bench.platform, a, b)  # (n, 3)
+    rot = mask.rotation_matrix()
+    n_m = rot[:, 2]
+    lit = (s[:, 2] > 1e-6) & (s @ n_m > 1e-6)
+    sz = np.where(lit, s[:, 2], 1.0)
+    q0 = _hole_centres_mm(bench, (0.0, 0.0))  # (h, 3); the play shifts x and y only
+    qxy = q0[None, :, :2] + play[:, None, :]
+    tan = s[:, :2] / sz[:, None]
+    ray = qxy - q0[None, :, 2:3] * tan[:, None, :]
+    t = det.lid_thickness_mm
+    if t > 0:
+        r = np.hypot(s[:, 0], s[:, 1])
+        safe = np.where(r > 0, r, 1.0)
+        sin_t = r / np.sqrt(r * r + sz**2)
+        tan_in = sin_t / np.sqrt(det.lid_index**2 - sin_t**2)
+        shift = np.where(r > 0, t * (r / sz - tan_in) / safe, 0.0)
+        ray = ray + (shift[:, None] * s[:, :2])[:, None, :]
+    ray = ray / p
+    mu = np.zeros((len(a), 2))
+    rho = src.radius_rad
+    if rho > 0 and lit.any():
+        rq, wr, phi = _quadrature()
+        sl = s[lit]
+        e1 = np.cross([0.0, 1.0, 0.0], sl)
+        e1 /= np.linalg.norm(e1, axis=-1, keepdims=True)
+        e2 = np.cross(sl, e1)
+        rr = rq * rho  # (r,)
+        ring = (np.cos(phi)[None, None, :, None] * e1[:, None, None, :]
+                + np.sin(phi)[None, None, :, None] * e2[:, None, None, :])  # (n, 1, phi, 3)
+        d = (np.cos(rr)[None, :, None, None] * sl[:, None, None, :]
+             + np.sin(rr)[None, :, None, None] * ring)
+        w = (src.profile(rq) * wr * np.sin(rr))[None, :, None] * np.clip(d @ n_m, 0, None)
+        disp = -(d[..., :2] / d[..., 2:3] - (sl[:, :2] / sl[:, 2:3])[:, None, None, :]) / p
+        mu[lit] = (w[..., None] * disp).sum(axis=(1, 2)) / w.sum(axis=(1, 2))[:, None]
+    off = mu[:, None, :] * q0[None, :, 2:3]
+    return ray[..., 0] + off[..., 0], ray[..., 1] + off[..., 1]
+
+
 def _hole_centres_mm(bench, play_mm) -> np.ndarray:
     """Centres of the holes in the detector frame, mm (n, 3): the mask's layout placed by its
     offset, rotation, true distance and the pose's play."""

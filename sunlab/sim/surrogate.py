@@ -207,20 +207,15 @@ def surrogate_centroids(bench, plan, seed=0, *, noise_px: float = 0.004,
     from scipy import ndimage
 
     from .bench import _platform_table, plan_key
-    from .render import _entropy, mask_play, spot_geometry
+    from .render import _entropy, mask_play, spot_centres
 
     key = _entropy(seed) + [plan_key(plan)]
     ta, tb = _platform_table(bench, plan, key)
     n_p, n_s, n_h = len(plan), plan.shots, bench.n_holes
-    x = np.empty((n_p, n_s, n_h))
-    y = np.empty((n_p, n_s, n_h))
-    for p in range(n_p):
-        play = mask_play(bench, key, p)
-        for s in range(n_s):
-            g = spot_geometry(bench, ta[p, s], tb[p, s], play)
-            off = g.kernel_mu[None, :] * g.height_mm[:, None]
-            x[p, s] = g.ray[:, 0] + off[:, 0]
-            y[p, s] = g.ray[:, 1] + off[:, 1]
+    play = np.repeat([mask_play(bench, key, p) for p in range(n_p)], n_s, axis=0)
+    x, y = spot_centres(bench, np.ravel(ta), np.ravel(tb), play.reshape(-1, 2))
+    x = x.reshape(n_p, n_s, n_h)
+    y = y.reshape(n_p, n_s, n_h)
     ny, nx = bench.detector.shape
     edge = spot_diameter_px(bench) / 2 + 4.0 if edge_px is None else float(edge_px)
     clipped = (x < edge) | (x > nx - 1 - edge) | (y < edge) | (y > ny - 1 - edge)

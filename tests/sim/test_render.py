@@ -258,3 +258,28 @@ def test_glass_lid_shifts_an_oblique_ray_as_snells_law_says(ideal, theta_deg):
     assert_allclose(float(abs(x0[0] - foot[0]) - abs(x1[0] - foot[0])), expected, rtol=1e-9)
     # at zenith the lid does nothing
     assert_allclose(render.ray_positions(lid, 0.0, 0.0)[0], foot, atol=1e-12)
+
+
+def test_spot_centres_equal_the_per_frame_geometry_for_one_and_100_holes():
+    """The batched centroids are the same formula as spot_geometry's ray + kernel mean."""
+    from sunlab.sim.render import spot_centres, spot_geometry
+
+    rng = np.random.default_rng(5)
+    for bench in (Bench.paper_single_hole(), Bench.paper_multi_hole()):
+        a, b = rng.uniform(-20, 20, 40), rng.uniform(-20, 20, 40)
+        play = rng.uniform(-0.003, 0.003, (40, 2))
+        x, y = spot_centres(bench, a, b, play)
+        for k in range(40):
+            g = spot_geometry(bench, a[k], b[k], tuple(play[k]))
+            # float64 sums in another order: agreement far below any centroid noise (1e-3 px)
+            np.testing.assert_allclose(x[k], g.ray[:, 0] + g.kernel_mu[0] * g.height_mm,
+                                       rtol=0, atol=1e-9)
+            np.testing.assert_allclose(y[k], g.ray[:, 1] + g.kernel_mu[1] * g.height_mm,
+                                       rtol=0, atol=1e-9)
+
+
+def test_spot_centres_refuse_angles_behind_the_mask():
+    from sunlab.sim.render import spot_centres
+
+    with pytest.raises(ConfigurationError, match="alpha_true, beta_true"):
+        spot_centres(Bench.paper_single_hole(), [95.0], [0.0], [[0.0, 0.0]])
