@@ -9,10 +9,13 @@ def _add_identify(sub) -> None:
     p = sub.add_parser(
         "identify", help="regenerate the bench's identification under its fixed protocol",
         description="Runs every hypothesis of sunlab/data/protocol.json on its confirmation "
-        "seeds (docs/identification.md): draws the nuisances, fits Table 4's pinning cells, "
-        "predicts every published cell on the centroid-level surrogate, scores the held-out "
-        "ones and writes evidence_cells.csv, evidence.csv and intervals.csv into --out; prints "
-        "the evidence and the hypothesis the protocol's rule picks.")
+        "seeds (docs/identification.md): draws the nuisances, fits Table 4's pinning cells "
+        "(a gear hypothesis's period on the protocol's grid), predicts every published cell "
+        "on the centroid-level surrogate, scores the held-out ones and writes "
+        "evidence_cells.csv, evidence.csv and intervals.csv into --out, then the chosen "
+        "hypothesis's presets.json (one fit at the prior medians), profiles.csv (each fitted "
+        "parameter's profile likelihood) and ablation.csv; prints the evidence and the "
+        "hypothesis the protocol's rule picks.")
     p.add_argument("--out", required=True, metavar="DIR",
                    help="folder of the three tables (sunlab/data to refresh the shipped ones)")
     p.add_argument("--hypotheses", nargs="+", default=None, metavar="NAME",
@@ -21,6 +24,8 @@ def _add_identify(sub) -> None:
                    help="seeds (default: the protocol's confirmation seeds)")
     p.add_argument("--jobs", type=int, default=2, help="processes (default 2)")
     p.add_argument("--overwrite", action="store_true", help="replace tables written before")
+    p.add_argument("--no-presets", dest="presets", action="store_false",
+                   help="only the evidence and the intervals (no presets, profiles, ablation)")
     p.set_defaults(func=_run_identify)
 
 
@@ -29,6 +34,7 @@ def _run_identify(args) -> int:
     import pandas as pd
 
     from ..errors import ConfigurationError
+    from ..studies import evidence
     from ..studies import identification as idn
 
     protocol = idn.load_protocol()
@@ -39,8 +45,8 @@ def _run_identify(args) -> int:
     if args.jobs < 1:
         raise ConfigurationError(f"--jobs: found {args.jobs}; expected 1 or more.")
     quiet = not sys.stderr.isatty()
-    res = idn.regenerate(args.out, names=args.hypotheses, seeds=args.seeds, jobs=args.jobs,
-                         overwrite=args.overwrite,
+    res = evidence.regenerate(args.out, names=args.hypotheses, seeds=args.seeds, jobs=args.jobs,
+                         overwrite=args.overwrite, presets=args.presets,
                          progress=None if quiet else (lambda m: print("  done " + m,
                                                                       file=sys.stderr)))
     ev = res["evidence"]

@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Callable, Iterable
+from collections.abc import Iterable
 from dataclasses import replace
 from importlib import resources
 
@@ -219,7 +219,7 @@ def hypothesis_bench(protocol: dict, name: str, nuisances: dict, fitted: dict, *
         platform__beta_drift_deg=0.0, platform__beta_backlash_deg=0.0,
         platform__beta_wobble_deg=0.0, platform__nonorthogonality_deg=0.0,
         platform__beta_gear_deg=fitted.get("beta_gear_deg", 0.0) if gear else 0.0,
-        platform__beta_gear_period_deg=(nuisances["gear_period_deg"] if gear
+        platform__beta_gear_period_deg=(_gear_period(nuisances, fitted) if gear
                                         else base.platform.beta_gear_period_deg),
     )
     # per-shot jitter: fitted from protocol version 3 on (earlier fits leave the presets')
@@ -233,6 +233,12 @@ def hypothesis_bench(protocol: dict, name: str, nuisances: dict, fitted: dict, *
         play_mm = math.tan(math.radians(single_play_deg)) * bench.mask.true_distance_mm
         bench = bench.replace(mask__play_x_mm=play_mm, mask__play_y_mm=0.0)
     return bench
+
+
+def _gear_period(nuisances: dict, fitted: dict) -> float:
+    """The gear's period, deg: fitted from protocol version 4 on, a nuisance draw before."""
+    return float(fitted["gear_period_deg"] if "gear_period_deg" in fitted
+                 else nuisances["gear_period_deg"])
 
 
 # ----------------------------------------------------------------------------- surrogate
@@ -284,50 +290,112 @@ _POWER = {"alpha_total_deg": 1.5, "beta_zero_shift_deg": 1.0, "beta_pose_error_d
 
 
 def fit_hypothesis(protocol: dict, name: str, nuisances: dict, *, seed: int,
-                   iterations: int | None = None, noise_px: float | None = None) -> dict:
+                   iterations: int | None = None, noise_px: float | None = None,
+                   fixed: dict | None = None) -> dict:
     """The fitted parameters of one hypothesis on its pinning cells (Table 4, surrogate).
 
     Each fitted parameter starts at its pinning cell's paper value (deg) and is rescaled by
     that cell's paper / predicted ratio to the power of :data:`_POWER`, each step's factor and
     the parameter bounded as the protocol's ``fit`` says, ``iterations`` times (the
-    protocol's 4 by default).
+    protocol's 4 by default); the fit side is then evaluated once more at the result.
+
+    Parameters
+    ----------
+    protocol : dict
+    name : str
+        A hypothesis of the protocol.
+    nuisances : dict
+        :func:`draw_nuisances`.
+    seed : int
+        Seed of the surrogate's runs.
+    iterations : int, optional
+    noise_px : float, optional
+        Per-shot centroid noise, px (default measured on the hypothesis's bench).
+    fixed : dict, optional
+        Parameters held at the given values (deg; a profile likelihood's), not fitted; a
+        gear hypothesis's ``gear_period_deg`` goes here when the protocol fits it.
 
     Returns
     -------
     dict
-        The fitted parameters (deg) and ``"pinning"``, the pinning cells' last predictions.
+        The fitted parameters (deg), the ``fixed`` ones, ``"pinning"`` (the pinning cells'
+        predictions at the result), ``"fit_ssr"`` (the sum over the fit side's quantities of
+        squared log residuals, paper against prediction) and ``"noise_px"``.
     """
-    from .. import stats
-    from ..calibration.methods import table4_methods
-
+    fixed = dict(fixed or {})
     pins = {k: tuple(v) for k, v in protocol["cells"]["pinning"].items()}
     if not protocol["hypotheses"][name]["gear"]:
         pins.pop("beta_gear_deg")
     paper = _paper_cells()
-    setting = protocol["fit"]["surrogate"]
     iterations = iterations or int(protocol["fit"].get("iterations", 4))
     target = {k: _quantity(paper, *cell) for k, cell in pins.items()}
-    fitted = dict(target)
+    fitted = {**target, **{k: float(v) for k, v in fixed.items()}}
     step_bounds = protocol["fit"]["step_bounds"]
     bounds = protocol["fit"]["parameter_bounds_deg"]
     if noise_px is None:
         noise_px = _noise_px(hypothesis_bench(protocol, name, nuisances, fitted))
-    fits = table4_methods(neural=False)
-    cells: dict = {}
     for _ in range(iterations):
-        bench = hypothesis_bench(protocol, name, nuisances, fitted)
-        cens = surrogate_runs(bench, seed, setting["step"], setting["shots"], noise_px)
-        cols = {"polynomial": fits["polynomial"](cens["I"], cens["II"]),
-                "linear interp.": fits["linear interp."](cens["I"], cens["II"])}
-        t4 = stats.global_stats({m: stats.local_errors(c.predict(cens["III"]))
-                                 for m, c in cols.items()})
-        table = {("table4", col, a, st): float(v) for col in t4.columns
-                 for (a, st), v in t4[col].items()}
-        cells = {cell: _quantity(table, *cell) for cell in pins.values()}
-        fitted = {k: float(np.clip(v * np.clip((target[k] / cells[pins[k]]) ** _POWER[k],
-                                                   *step_bounds), *bounds))
+        table = _fit_side_cells(protocol, name, nuisances, fitted, seed, noise_px)
+        fitted = {k: v if k in fixed else
+                  float(np.clip(v * np.clip((target[k] / _quantity(table, *pins[k])) ** _POWER[k],
+                                            *step_bounds), *bounds))
                   for k, v in fitted.items()}
-    return {**fitted, "pinning": cells, "noise_px": noise_px}
+    table = _fit_side_cells(protocol, name, nuisances, fitted, seed, noise_px)
+    fit_q = scored_quantities(protocol)["fit"]
+    ssr = float(sum((math.log(_quantity(paper, *q)) - math.log(max(_quantity(table, *q), 1e-9)))
+                    ** 2 for q in fit_q))
+    return {**fitted, "pinning": {cell: _quantity(table, *cell) for cell in pins.values()},
+            "fit_ssr": ssr, "noise_px": noise_px}
+
+
+def _fit_side_cells(protocol: dict, name: str, nuisances: dict, fitted: dict, seed: int,
+                    noise_px: float) -> dict:
+    """Table 4's fit-side columns (polynomial, linear interpolation) on the surrogate."""
+    from .. import stats
+    from ..calibration.methods import table4_methods
+    from ..calibration.registry import RECIPES, fit
+
+    setting = protocol["fit"]["surrogate"]
+    bench = hypothesis_bench(protocol, name, nuisances, fitted)
+    cens = surrogate_runs(bench, seed, setting["step"], setting["shots"], noise_px)
+    kind, options = RECIPES["linear interp."]
+    cols = {"polynomial": table4_methods(neural=False)["polynomial"](cens["I"], cens["II"]),
+            # Table 4's recipe without the leave-one-out diagnostic (the predictions are the same)
+            "linear interp.": fit(cens["I"], kind, cens["II"], outlier_mads=None,
+                                  leave_one_out=False, **options)}
+    t4 = stats.global_stats({m: stats.local_errors(c.predict(cens["III"]))
+                             for m, c in cols.items()})
+    return {("table4", col, a, st): float(v) for col in t4.columns
+            for (a, st), v in t4[col].items()}
+
+
+def fit_draw(protocol: dict, name: str, nuisances: dict, *, seed: int,
+             fixed: dict | None = None) -> dict:
+    """:func:`fit_hypothesis`, with a gear hypothesis's period profiled on the protocol's grid.
+
+    Under protocol version 4 the gear period is fitted: the other parameters are fitted at
+    each period of ``protocol["fit"]["gear_period"]["grid_deg"]`` and the period whose fit
+    has the least ``fit_ssr`` is kept (earlier versions drew it as a nuisance).
+
+    Returns
+    -------
+    dict
+        As :func:`fit_hypothesis`, with ``gear_period_deg`` for a gear hypothesis and
+        ``period_ssr`` (period -> fit_ssr over the grid).
+    """
+    fixed = dict(fixed or {})
+    grid = protocol["fit"].get("gear_period", {}).get("grid_deg")
+    if (not protocol["hypotheses"][name]["gear"] or not grid
+            or "gear_period_deg" in fixed):
+        return fit_hypothesis(protocol, name, nuisances, seed=seed, fixed=fixed)
+    noise = None
+    fits = {}
+    for period in grid:
+        fits[period] = fit_hypothesis(protocol, name, nuisances, seed=seed, noise_px=noise,
+                                      fixed={**fixed, "gear_period_deg": float(period)})
+        noise = fits[period]["noise_px"]  # the period does not change the frames' noise
+    best = min(grid, key=lambda p: fits[p]["fit_ssr"])
+    return {**fits[best], "period_ssr": {float(p): fits[p]["fit_ssr"] for p in grid}}
 
 
 def predict_cells(protocol: dict, name: str, nuisances: dict, fitted: dict, *, seed: int,
@@ -384,13 +452,19 @@ def run_hypothesis(protocol: dict, name: str, seed: int) -> pd.DataFrame:
         ``angle``, ``stat``, ``value`` (deg), plus the draw and the fit as columns.
     """
     nuis = draw_nuisances(protocol, seed)
-    fit = fit_hypothesis(protocol, name, nuis, seed=seed)
-    fitted = {k: v for k, v in fit.items() if k not in ("pinning", "noise_px")}
+    fit = fit_draw(protocol, name, nuis, seed=seed)
+    fitted = _parameters(fit)
     cells = predict_cells(protocol, name, nuis, fitted, seed=seed, noise_px=fit["noise_px"])
     rows = [{"hypothesis": name, "seed": int(seed), "table": t, "column": c, "angle": a,
              "stat": s, "value": v} for (t, c, a, s), v in cells.items()]
-    extra = {**nuis, **fitted, "noise_px": fit["noise_px"]}
+    extra = {**nuis, **fitted, "fit_ssr": fit["fit_ssr"], "noise_px": fit["noise_px"]}
     return pd.DataFrame(rows).assign(**extra)
+
+
+def _parameters(fit: dict) -> dict:
+    """The bench's parameters of a fit (deg), without its diagnostics."""
+    return {k: v for k, v in fit.items()
+            if k not in ("pinning", "noise_px", "fit_ssr", "period_ssr")}
 
 
 # ----------------------------------------------------------------------------- scoring
@@ -434,7 +508,7 @@ def score_table(cells: pd.DataFrame, protocol: dict) -> pd.DataFrame:
     rows = []
     for h in held.index.get_level_values("hypothesis").unique():
         hyp = protocol["hypotheses"][h]
-        k = len(protocol["cells"]["pinning"]) - (0 if hyp["gear"] else 1)
+        k = _fitted_count(protocol, h)
         ff = fit_side.loc[h].to_numpy()
         hh = held.loc[h].to_numpy()
         tau2 = float(np.mean(np.sum((ff - log_paper["fit"]) ** 2, axis=1))) / (ff.shape[1] - k)
@@ -450,6 +524,15 @@ def score_table(cells: pd.DataFrame, protocol: dict) -> pd.DataFrame:
                          "held_out_within_1.25": int(np.sum(np.abs(r) <= math.log(1.25))),
                          **extras.loc[(h, seed)].to_dict()})
     return pd.DataFrame(rows)
+
+
+def _fitted_count(protocol: dict, name: str) -> int:
+    """The fitted parameters of a hypothesis (tau's degrees of freedom are 12 minus these)."""
+    gear = protocol["hypotheses"][name]["gear"]
+    counts = protocol["score"].get("fitted_parameters")
+    if counts:
+        return int(counts["with gear" if gear else "without gear"])
+    return len(protocol["cells"]["pinning"]) - (0 if gear else 1)
 
 
 def chosen_hypothesis(evidence: pd.DataFrame, protocol: dict | None = None) -> str:
@@ -556,64 +639,6 @@ def load_intervals(path=None) -> pd.DataFrame:
     return pd.read_csv(path) if path is not None else _data("intervals.csv")
 
 
-def run_protocol(protocol: dict, names=None, seeds=None, *, jobs: int = 1,
-        progress: Callable | None = None) -> pd.DataFrame:
-    """Every (hypothesis, seed) of the protocol: the long table of predicted cells.
-
-    ``jobs`` > 1 runs them in that many processes (each builds its own surrogate maps).
-    """
-    names = list(names or protocol["hypotheses"])
-    seeds = list(seeds if seeds is not None else protocol["confirmation_seeds"])
-    tasks = [(h, s) for h in names for s in seeds]
-    out = []
-    if jobs <= 1:
-        for h, s in tasks:
-            if progress:
-                progress(f"{h} seed {s}")
-            out.append(run_hypothesis(protocol, h, s))
-    else:
-        from concurrent.futures import ProcessPoolExecutor, as_completed
-
-        with ProcessPoolExecutor(jobs) as pool:
-            futs = {pool.submit(run_hypothesis, protocol, h, s): (h, s) for h, s in tasks}
-            for f in as_completed(futs):
-                if progress:
-                    progress("{} seed {}".format(*futs[f]))
-                out.append(f.result())
-    return pd.concat(out, ignore_index=True)
-
-
-def regenerate(out_dir, *, names=None, seeds=None, jobs: int = 2, overwrite: bool = False,
-               progress: Callable | None = None) -> dict:
-    """Run the whole protocol and write its evidence into ``out_dir``.
-
-    Writes ``evidence_cells.csv`` (every predicted cell of every hypothesis and seed),
-    ``evidence.csv`` (:func:`score_table`) and ``intervals.csv`` (:func:`intervals` for
-    every hypothesis), each all-or-nothing.
-
-    Returns
-    -------
-    dict
-        ``chosen`` (the rule's pick) and the three tables.
-    """
-    from pathlib import Path
-
-    from ..atomic import atomic_files, check_folder
-
-    files = ("evidence_cells.csv", "evidence.csv", "intervals.csv")
-    check_folder(out_dir, files, overwrite=overwrite, flag="--overwrite")
-    protocol = load_protocol()
-    cells = run_protocol(protocol, names, seeds, jobs=jobs, progress=progress)
-    cells = cells.sort_values(["hypothesis", "seed", "table", "column", "angle", "stat"])
-    evidence = score_table(cells, protocol).sort_values(["hypothesis", "seed"])
-    chosen = chosen_hypothesis(evidence, protocol)
-    ints = intervals(cells, evidence)
-    with atomic_files(out_dir, files, overwrite=overwrite, flag="--overwrite") as staging:
-        for name, table in zip(files, (cells, evidence, ints), strict=True):
-            table.to_csv(Path(staging) / name, index=False)
-    return {"chosen": chosen, "cells": cells, "evidence": evidence, "intervals": ints}
-
-
 def identified_hypothesis() -> str:
     """The hypothesis the protocol's rule picks from the shipped evidence (the presets' one).
 
@@ -665,18 +690,6 @@ def interval90(table: str) -> dict[str, dict[str, list[float]]]:
     return out
 
 
-#: Each component of the identified bench and how :func:`ablation` turns it off.
-ABLATIONS = {
-    "glass lid": {"detector__lid_thickness_mm": 0.0},
-    "pixel response (PRNU)": {"detector__prnu": 0.0, "detector__prnu_correlated": 0.0},
-    "one-hole mask's play": {"mask__play_x_mm": 0.0},
-    "100-hole mask's play": {"mask__play_y_mm": 0.0},
-    "gear error": {"platform__beta_gear_deg": 0.0},
-    "rehoming (a drift per run instead)": "drift",
-    "boresight rotation gamma0": {"platform__gamma0_deg": 0.0},
-}
-
-
 def recorded_draw(protocol: dict, record) -> tuple[dict, dict]:
     """The nuisance draw and the fitted parameters of one row of the evidence table.
 
@@ -692,83 +705,11 @@ def recorded_draw(protocol: dict, record) -> tuple[dict, dict]:
         As :func:`draw_nuisances` and :func:`fit_hypothesis` gave them for that seed.
     """
     nuis = {k: float(record[k]) for k in protocol["priors"]}
-    fitted = {k: float(record[k]) for k in protocol["cells"]["pinning"]
-              if k in record and pd.notna(record[k])}
+    fitted = {k: float(record[k]) for k in [*protocol["cells"]["pinning"], "gear_period_deg"]
+              if k in record and pd.notna(record[k]) and k not in nuis}
     return nuis, fitted
 
 
 def _log_density(residual: np.ndarray, var: np.ndarray) -> float:
     """Sum of the normal log densities of log residuals with the given variances."""
     return float(np.sum(-0.5 * residual**2 / var - 0.5 * np.log(2 * math.pi * var)))
-
-
-def ablation(name: str | None = None, seeds=None, evidence: pd.DataFrame | None = None,
-             cells: pd.DataFrame | None = None, *, jobs: int = 1) -> pd.DataFrame:
-    """The held-out score of the identified bench with each component turned off.
-
-    The bench is the hypothesis's with its seed's nuisance draw and fit (no refit: what the
-    component contributes to the predictions), each :data:`ABLATIONS` entry applied in turn,
-    scored like :func:`score_table` with the hypothesis's own spread and tau.
-
-    Parameters
-    ----------
-    name : str, optional
-        The hypothesis (default :func:`identified_hypothesis`).
-    seeds : iterable of int, optional
-        Confirmation seeds (default the protocol's first).
-    evidence, cells : pandas.DataFrame, optional
-        The evidence and its cells (default the shipped ones).
-    jobs : int
-        Processes that predict the ablated benches side by side.
-
-    Returns
-    -------
-    pandas.DataFrame
-        One row per component and seed: ``component``, ``seed``, ``score`` and
-        ``held_out_rms_log``; the component ``none`` is the full bench.
-    """
-    protocol = load_protocol()
-    evidence = load_evidence() if evidence is None else evidence
-    cells = _data("evidence_cells.csv") if cells is None else cells
-    name = name or chosen_hypothesis(evidence, protocol)
-    seeds = protocol["confirmation_seeds"][:1] if seeds is None else seeds
-    q = scored_quantities(protocol)["held_out"]
-    paper = _paper_cells()
-    log_paper = np.array([math.log(_quantity(paper, *x)) for x in q])
-    held = _long_to_quantities(cells[cells["hypothesis"] == name], q).loc[name]
-    sd2 = held.to_numpy().std(axis=0, ddof=1) ** 2
-    tau = float(evidence.loc[evidence["hypothesis"] == name, "tau"].iloc[0])
-    var = sd2 + tau**2
-    tasks = []
-    for seed in seeds:
-        rec = evidence[(evidence["hypothesis"] == name) & (evidence["seed"] == seed)].iloc[0]
-        nuis, fitted = recorded_draw(protocol, rec)
-        tasks += [(comp, int(seed), (protocol, name, nuis, fitted, int(seed),
-                                     float(rec["noise_px"]), change))
-                  for comp, change in {"none": {}, **ABLATIONS}.items()]
-    if jobs > 1:
-        from concurrent.futures import ProcessPoolExecutor
-
-        with ProcessPoolExecutor(jobs) as pool:
-            preds = list(pool.map(_ablated_cells, *zip(*(t[2] for t in tasks), strict=True)))
-    else:
-        preds = [_ablated_cells(*t[2]) for t in tasks]
-    rows = []
-    for (comp, seed, _), pred in zip(tasks, preds, strict=True):
-        lp = np.array([math.log(max(_quantity(pred, *x), 1e-9)) for x in q])
-        r = log_paper - lp
-        rows.append({"component": comp, "seed": seed,
-                     "score": _log_density(r, var),
-                     "held_out_rms_log": float(np.sqrt(np.mean(r**2)))})
-    return pd.DataFrame(rows)
-
-
-def _ablated_cells(protocol, name, nuis, fitted, seed, noise_px, change) -> dict:
-    """:func:`predict_cells` with one component of both benches turned off."""
-    single = hypothesis_bench(protocol, name, nuis, fitted)
-    multi = hypothesis_bench(protocol, name, nuis, fitted, multi=True)
-    if change == "drift":
-        shift = single.platform.beta_rehoming_deg
-        change = {"platform__beta_rehoming_deg": 0.0, "platform__beta_drift_deg": shift / 2}
-    return _predict_benches(protocol, single.replace(**change), multi.replace(**change), seed,
-                            noise_px)

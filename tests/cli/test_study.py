@@ -6,6 +6,7 @@ import pandas as pd
 import pytest
 
 from sunlab.cli import build_parser, main
+from sunlab.studies import evidence
 from sunlab.studies import identification as idn
 
 
@@ -25,7 +26,7 @@ def test_help_says_what_is_written(capsys):
 
 def test_bad_arguments_end_in_one_line_before_any_work(monkeypatch, tmp_path, capsys):
     called = []
-    monkeypatch.setattr(idn, "regenerate", lambda *a, **k: called.append(1))
+    monkeypatch.setattr(evidence, "regenerate", lambda *a, **k: called.append(1))
     assert main(["identify", "--out", str(tmp_path), "--hypotheses", "no-such-bench"]) != 0
     err = capsys.readouterr().err
     assert "--hypotheses: ['no-such-bench'] not in the protocol" in err
@@ -47,14 +48,30 @@ def test_the_study_gets_the_arguments_and_its_evidence_is_printed(monkeypatch, t
                            "held_out_within_1.25": [1.0, 0.0]})
         return {"evidence": ev, "chosen": name}
 
-    monkeypatch.setattr(idn, "regenerate", regenerate)
+    monkeypatch.setattr(evidence, "regenerate", regenerate)
     rc = main(["identify", "--out", str(tmp_path), "--hypotheses", name, "--seeds", "7", "8",
                "--jobs", "1"])
     assert rc == 0
     assert seen["out"] == str(tmp_path) and seen["names"] == [name]
     assert seen["seeds"] == [7, 8] and seen["jobs"] == 1 and seen["overwrite"] is False
+    assert seen["presets"] is True  # presets, profiles and ablations follow the evidence
     out = capsys.readouterr().out
     # mean score 2, its standard error std / sqrt(n) = 1.414 / 1.414 = 1
     row = next(line for line in out.splitlines() if line.startswith(name))
     assert row.split()[1:] == ["3", "2.0", "1.0", "0.5", "0.5"]
     assert out.rstrip().endswith(f"chosen by the protocol's rule: {name}")
+
+
+def test_no_presets_asks_for_the_evidence_alone(monkeypatch, tmp_path):
+    name = sorted(idn.load_protocol()["hypotheses"])[0]
+    seen = {}
+
+    def regenerate(out, **kw):
+        seen.update(kw)
+        ev = pd.DataFrame({"hypothesis": [name], "parameters": [3], "score": [1.0],
+                           "tau": [0.5], "held_out_within_1.25": [1.0]})
+        return {"evidence": ev, "chosen": name}
+
+    monkeypatch.setattr(evidence, "regenerate", regenerate)
+    assert main(["identify", "--out", str(tmp_path), "--no-presets"]) == 0
+    assert seen["presets"] is False

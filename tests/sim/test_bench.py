@@ -176,18 +176,19 @@ def test_bad_configuration_raises(call, field):
         call()
 
 
-def test_presets_are_the_identified_hypothesis_with_its_mean_fits_and_median_nuisances():
-    # the presets are the hypothesis the protocol's rule picks from the shipped evidence, with
-    # each fitted parameter the mean of its fits over the confirmation seeds and each nuisance
-    # at its prior median (docs/identification.md), to three significant figures (0.5 %)
+def test_presets_are_the_identified_hypothesis_as_its_one_preset_fit_gives_it():
+    # the presets are the hypothesis the protocol's rule picks from the shipped evidence, fitted
+    # once with every nuisance at its prior median on the preset seed (protocol version 4,
+    # sunlab/data/presets.json), to three significant figures (0.5 %)
     from sunlab.studies import identification as idn
+    from sunlab.studies import profiles
 
     protocol = idn.load_protocol()
     name = idn.identified_hypothesis()
-    ev = idn.load_evidence()
-    fits = ev[ev["hypothesis"] == name][list(protocol["cells"]["pinning"])].mean()
-    fitted = {k: float(v) for k, v in fits.items() if np.isfinite(v)}
-    med = idn.draw_nuisances(protocol, None)
+    presets = profiles.load_presets()
+    assert presets["hypothesis"] == name
+    assert presets["nuisances"] == idn.draw_nuisances(protocol, None)
+    fitted, med = presets["fitted"], presets["nuisances"]
     for multi in (False, True):
         want = idn.hypothesis_bench(protocol, name, med, fitted, multi=multi)
         got = Bench.paper_multi_hole() if multi else Bench.paper_single_hole()

@@ -22,12 +22,36 @@ def protocol():
 
 def test_protocol_counts_every_parameter_and_switch(protocol):
     # F (a discrete choice) + the fitted parameters + the nuisances; a gear adds its switch,
-    # its fitted amplitude and its period's nuisance
+    # its fitted amplitude and its period (fitted on a grid from version 4 on)
     fitted = [k for k in protocol["cells"]["pinning"] if k != "beta_gear_deg"]
-    nuisances = [k for k in protocol["priors"] if k != "gear_period_deg"]
+    assert "gear_period_deg" not in protocol["priors"]
     for name, hyp in protocol["hypotheses"].items():
-        expected = 1 + len(fitted) + len(nuisances) + (3 if hyp["gear"] else 0)
+        expected = 1 + len(fitted) + len(protocol["priors"]) + (3 if hyp["gear"] else 0)
         assert hyp["parameters"] == expected, name
+        # tau's degrees of freedom: 12 minus the fitted ones (amplitude and period with a gear)
+        assert idn._fitted_count(protocol, name) == len(fitted) + (2 if hyp["gear"] else 0)
+
+
+def test_a_gear_fit_keeps_the_period_of_least_fit_side_misfit(protocol, monkeypatch):
+    # the grid is searched whole and the least sum of squares wins, the others' fits recorded
+    ssr = {1.0: 0.5, 1.26: 0.07, 1.587: 0.09, 2.0: 0.3, 2.52: 0.6, 3.175: 1.2, 4.0: 1.5}
+    seen = []
+
+    def fake_fit(protocol, name, nuisances, *, seed, noise_px=None, fixed=None, **kw):
+        seen.append(fixed["gear_period_deg"])
+        return {"beta_gear_deg": 0.01 * fixed["gear_period_deg"], **fixed, "pinning": {},
+                "fit_ssr": ssr[fixed["gear_period_deg"]], "noise_px": 0.004}
+
+    monkeypatch.setattr(idn, "fit_hypothesis", fake_fit)
+    assert protocol["fit"]["gear_period"]["grid_deg"] == sorted(ssr)
+    fit = idn.fit_draw(protocol, "F5-gear", idn.draw_nuisances(protocol, None), seed=0)
+    assert seen == sorted(ssr) and fit["gear_period_deg"] == 1.26
+    assert fit["beta_gear_deg"] == pytest.approx(0.0126) and fit["period_ssr"] == ssr
+    # a hypothesis without the gear is one fit, no period
+    seen.clear()
+    monkeypatch.setattr(idn, "fit_hypothesis",
+                        lambda *a, **k: {"fit_ssr": 0.1, "pinning": {}, "noise_px": 0.0})
+    assert "gear_period_deg" not in idn.fit_draw(protocol, "F5", {}, seed=0)
 
 
 def test_scored_quantities_drop_the_duplicated_cells(protocol):
@@ -54,7 +78,7 @@ def test_nuisance_draws_lie_in_their_priors_and_are_shared_by_hypotheses(protoco
 def test_hypothesis_bench_is_the_datasheet_detector_and_the_protocols_switches(protocol):
     nuis = idn.draw_nuisances(protocol, None)
     fitted = {"alpha_total_deg": 0.01, "beta_zero_shift_deg": 0.02,
-              "beta_pose_error_deg": 0.003, "beta_gear_deg": 0.01}
+              "beta_pose_error_deg": 0.003, "beta_gear_deg": 0.01, "gear_period_deg": 1.26}
     b5 = idn.hypothesis_bench(protocol, "F5", nuis, fitted)
     b17g = idn.hypothesis_bench(protocol, "F17-gear", nuis, fitted)
     for b in (b5, b17g):
@@ -66,7 +90,7 @@ def test_hypothesis_bench_is_the_datasheet_detector_and_the_protocols_switches(p
         assert math.hypot(b.platform.alpha_pose_error_deg, play_deg) == pytest.approx(0.01)
     assert b5.mask_distance_mm == 5.0 and b17g.mask_distance_mm == 17.0
     assert b5.platform.beta_gear_deg == 0 and b17g.platform.beta_gear_deg == 0.01
-    assert b17g.platform.beta_gear_period_deg == nuis["gear_period_deg"]
+    assert b17g.platform.beta_gear_period_deg == 1.26
     many = idn.hypothesis_bench(protocol, "F5", nuis, fitted, multi=True)
     assert many.mask.play_y_mm == nuis["multi_play_mm"] and many.n_holes == 100
 

@@ -1,0 +1,114 @@
+"""The identified bench with each component turned off: what each carries of the score.
+
+The bench is the chosen hypothesis's with a seed's nuisance draw and fit as the evidence
+recorded them (no refit), each :data:`ABLATIONS` entry applied in turn to both the one-hole and
+the 100-hole bench, and scored like :func:`sunlab.studies.identification.score_table` with the
+hypothesis's own spread over seeds and its discrepancy tau (protocol: docs/identification.md).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+
+from .identification import (
+    _data,
+    _log_density,
+    _long_to_quantities,
+    _paper_cells,
+    _predict_benches,
+    _quantity,
+    chosen_hypothesis,
+    hypothesis_bench,
+    load_evidence,
+    load_protocol,
+    recorded_draw,
+    scored_quantities,
+)
+
+__all__ = ["ABLATIONS", "ablation"]
+
+#: Each component of the identified bench and how :func:`ablation` turns it off.
+ABLATIONS = {
+    "glass lid": {"detector__lid_thickness_mm": 0.0},
+    "pixel response (PRNU)": {"detector__prnu": 0.0, "detector__prnu_correlated": 0.0},
+    "one-hole mask's play": {"mask__play_x_mm": 0.0},
+    "100-hole mask's play": {"mask__play_y_mm": 0.0},
+    "gear error": {"platform__beta_gear_deg": 0.0},
+    "rehoming (a drift per run instead)": "drift",
+    "boresight rotation gamma0": {"platform__gamma0_deg": 0.0},
+}
+
+
+def ablation(name: str | None = None, seeds=None, evidence: pd.DataFrame | None = None,
+             cells: pd.DataFrame | None = None, *, jobs: int = 1) -> pd.DataFrame:
+    """The held-out score of the identified bench with each component turned off.
+
+    The bench is the hypothesis's with its seed's nuisance draw and fit (no refit: what the
+    component contributes to the predictions), each :data:`ABLATIONS` entry applied in turn,
+    scored like :func:`score_table` with the hypothesis's own spread and tau.
+
+    Parameters
+    ----------
+    name : str, optional
+        The hypothesis (default :func:`identified_hypothesis`).
+    seeds : iterable of int, optional
+        Confirmation seeds (default the protocol's first).
+    evidence, cells : pandas.DataFrame, optional
+        The evidence and its cells (default the shipped ones).
+    jobs : int
+        Processes that predict the ablated benches side by side.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per component and seed: ``component``, ``seed``, ``score`` and
+        ``held_out_rms_log``; the component ``none`` is the full bench.
+    """
+    protocol = load_protocol()
+    evidence = load_evidence() if evidence is None else evidence
+    cells = _data("evidence_cells.csv") if cells is None else cells
+    name = name or chosen_hypothesis(evidence, protocol)
+    seeds = protocol["confirmation_seeds"][:1] if seeds is None else seeds
+    q = scored_quantities(protocol)["held_out"]
+    paper = _paper_cells()
+    log_paper = np.array([math.log(_quantity(paper, *x)) for x in q])
+    held = _long_to_quantities(cells[cells["hypothesis"] == name], q).loc[name]
+    sd2 = held.to_numpy().std(axis=0, ddof=1) ** 2
+    tau = float(evidence.loc[evidence["hypothesis"] == name, "tau"].iloc[0])
+    var = sd2 + tau**2
+    tasks = []
+    for seed in seeds:
+        rec = evidence[(evidence["hypothesis"] == name) & (evidence["seed"] == seed)].iloc[0]
+        nuis, fitted = recorded_draw(protocol, rec)
+        tasks += [(comp, int(seed), (protocol, name, nuis, fitted, int(seed),
+                                     float(rec["noise_px"]), change))
+                  for comp, change in {"none": {}, **ABLATIONS}.items()]
+    if jobs > 1:
+        from concurrent.futures import ProcessPoolExecutor
+
+        with ProcessPoolExecutor(jobs) as pool:
+            preds = list(pool.map(_ablated_cells, *zip(*(t[2] for t in tasks), strict=True)))
+    else:
+        preds = [_ablated_cells(*t[2]) for t in tasks]
+    rows = []
+    for (comp, seed, _), pred in zip(tasks, preds, strict=True):
+        lp = np.array([math.log(max(_quantity(pred, *x), 1e-9)) for x in q])
+        r = log_paper - lp
+        rows.append({"component": comp, "seed": seed,
+                     "score": _log_density(r, var),
+                     "held_out_rms_log": float(np.sqrt(np.mean(r**2)))})
+    return pd.DataFrame(rows)
+
+
+def _ablated_cells(protocol, name, nuis, fitted, seed, noise_px, change) -> dict:
+    """:func:`predict_cells` with one component of both benches turned off."""
+    single = hypothesis_bench(protocol, name, nuis, fitted)
+    multi = hypothesis_bench(protocol, name, nuis, fitted, multi=True)
+    if change == "drift":
+        shift = single.platform.beta_rehoming_deg
+        change = {"platform__beta_rehoming_deg": 0.0, "platform__beta_drift_deg": shift / 2}
+    return _predict_benches(protocol, single.replace(**change), multi.replace(**change), seed,
+                            noise_px)
