@@ -97,7 +97,7 @@ _TABLE_STEP = 1.0 / 16.0
 #: Tables are kept per Fresnel number rounded to this relative step: a hole's height changes by
 #: microns from pose to pose (the mask's tilt and play), which must not rebuild the table (about
 #: 2 s); the pattern changes by about that fraction between neighbours.
-_KEY_STEP = 1e-3
+_KEY_STEP = 1e-4
 #: Above this Fresnel number (at 550 nm) the table would be large and the shadow is within a few
 #: 1 / (pi^2 N) of the truth: geometric optics (diffraction=False) is the right model there.
 _MAX_FRESNEL = 100.0
@@ -170,6 +170,13 @@ def spectral_weights() -> tuple[np.ndarray, np.ndarray]:
     return lam, w / w.sum()
 
 
+@functools.lru_cache(maxsize=64)
+def _gauss(nodes: int):
+    """Gauss-Legendre nodes and weights on [-1, 1], at least ``nodes`` of them (a multiple of
+    16, so that nearby requests share one)."""
+    return np.polynomial.legendre.leggauss(16 * -(-int(nodes) // 16))
+
+
 def monochromatic_intensity(rho, n_fresnel: float):
     """Fresnel intensity of a circular hole, relative to the incident intensity.
 
@@ -188,8 +195,7 @@ def monochromatic_intensity(rho, n_fresnel: float):
     """
     rho = np.asarray(rho, dtype=float)
     n = float(n_fresnel)
-    nodes = 64 + int(2.0 * math.pi * n * (1.0 + 2.0 * float(np.max(rho, initial=0.0))))
-    x, w = np.polynomial.legendre.leggauss(nodes)
+    x, w = _gauss(64 + int(2.0 * math.pi * n * (1.0 + 2.0 * float(np.max(rho, initial=0.0)))))
     s, w = 0.5 * (x + 1.0), 0.5 * w
     out = np.empty(rho.shape)
     flat, res = rho.ravel(), out.reshape(-1)
@@ -205,7 +211,7 @@ def _lens_ft(q, n_fresnel: float, nodes: int):
     q = np.asarray(q, dtype=float)
     half = np.clip(0.5 * q / float(n_fresnel), 0.0, 1.0)  # s / 2
     phi1 = np.arccos(half)
-    x, w = np.polynomial.legendre.leggauss(nodes)
+    x, w = _gauss(nodes)
     # t = cos(phi) on [0, phi1]: sqrt(1 - t^2) dt = sin^2(phi) dphi, a smooth integrand
     phi = 0.5 * phi1[..., None] * (x + 1.0)
     integrand = np.sin(phi) ** 2 * np.cos(2.0 * math.pi * q[..., None] * (np.cos(phi) - half[..., None]))
