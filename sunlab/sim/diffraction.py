@@ -29,15 +29,23 @@ units of a, radius rho on the focal plane):
 The renderer reads M from a table (:func:`aperture_ft`) at the same affine-mapped frequency as the
 jinc; the truth (``spot_truth``) reads the same table, so a benchmark's truth is the image's.
 
-Measured (``python -m sunlab.sim.diffraction`` prints them; 2 CPU cores, 2026-11-27), the paper's
-0.2 mm hole, broadband, the one-hole bench's frames (noise off), algorithm B's centroid:
+Measured (``python benchmarks/bench_fresnel.py`` prints them; 2026-11-27), the paper's 0.2 mm
+hole on ``Bench.paper_single_hole()`` and on the same bench with ``mask__distance_mm=17.0``:
 
-=============================  ===========  ============
-quantity                        F = 5 mm     F = 17 mm
-=============================  ===========  ============
-N at 550 nm                        3.64         1.07
-spot width at 10 % of peak, px   (see run)    (see run)
-=============================  ===========  ============
+=================================================  ===============  ===============
+quantity                                             F = 5 mm         F = 17 mm
+=================================================  ===============  ===============
+N at 550 nm                                          3.64             1.07
+spot's full width at 10 % of peak, geometric         33.1 px          42.3 px
+the same, Fresnel                                    30.5 px          39.9 px
+ROI 130 px over it (paper: "about 2.5x")             3.93x / 4.27x    3.07x / 3.26x
+algorithm B, Fresnel - geometric, 9 poses, RMS x/y   0.0011/0.0009    0.0023/0.0011
+=================================================  ===============  ===============
+
+(noise-free frames at (alpha, beta) in {0, 10, -15}^2 deg, the mask's play at zero; at 17 mm the
+three beta = -15 deg poses leave the frame, so 6 poses there; each difference is under 0.0032
+px). The Fresnel spot is narrower at 10 % of its peak, with a brighter centre and a halo: at
+N ~ 1 the hole passes about one Fresnel zone, the pinhole camera's sharpest spot.
 
 Examples
 --------
@@ -81,8 +89,8 @@ _SI_ALPHA_PER_UM = np.array([104.0, 9.52, 2.55, 1.11, 0.639, 0.414, 0.281, 0.190
 #: The IBIS4-1300's photodiode as a silicon slab collecting between these depths, um: a dead
 #: surface layer (shallow junction) and the collection depth. The datasheet (FillFactory doc.
 #: 38-05707) states QE > 50 % at 500-700 nm; its spectral-response figure was not available to us,
-#: so this is a model with that anchor (the curve peaks at 550 nm and falls to a tenth of its peak
-#: by 920 nm), not the datasheet's curve. Only the shape matters here: the weights are normalised.
+#: so this is a model with that anchor (the curve peaks at 560 nm and falls to a tenth of its peak
+#: at 960 nm), not the datasheet's curve. Only the shape matters here: the weights are normalised.
 QE_DEAD_UM = 0.2
 QE_DEPTH_UM = 6.0
 #: The halo's energy fraction left outside the renderer's stamps (:attr:`FresnelHole.reach`):
@@ -327,9 +335,10 @@ class FresnelHole:
     """One circular (or elliptical) hole design's broadband Fresnel spot, for the renderer.
 
     Paraxial: the pattern is that of normal incidence for the circle of the hole's area, mapped
-    like the shadow (the renderer evaluates it at the affine-mapped frequency of the jinc); at
-    the bench's obliquities (at most 24 deg) the extra path 1 / cos and the foreshortening change
-    N by under 10 %, which this leaves out.
+    like the shadow (the renderer evaluates it at the affine-mapped frequency of the jinc). At an
+    incidence theta the beam sees the hole foreshortened to a cos(theta) along the tilt and
+    travels z / cos(theta), so the true Fresnel numbers are N cos(theta) across the tilt and
+    N cos^3(theta) along it (-9 % and -24 % at the paper's largest 24 deg): left out here.
 
     Parameters
     ----------

@@ -468,7 +468,9 @@ class _Group:
             self.area = math.pi * abs(float(np.linalg.det(self.affine)))
             self.poly = None
             r_ap = float(np.linalg.norm(self.affine, 2))
-            if fresnel:  # mask.diffraction: the lid's glass counts t / n of the optical path
+            # mask.diffraction, paraxial: the pattern of normal incidence projected like the
+            # shadow (at the jinc's frequency); the lid's glass counts t / n of the optical path
+            if fresnel:
                 self.fresnel = diffraction.FresnelHole(ap.affine, hbar - det.lid_height_loss_mm)
         else:
             self.affine = np.zeros((2, 2))
