@@ -1,4 +1,4 @@
-"""Fresnel diffraction of the paper's pinhole (mask.diffraction): what it changes at F = 5 and 17 mm.
+"""Fresnel diffraction of the paper's pinhole (mask.diffraction): its effect at F = 5 and 17 mm.
 
 Prints, for the paper's 0.2 mm hole on ``Bench.paper_single_hole()`` (F = 5 mm) and the same bench
 with ``mask__distance_mm=17.0``: the Fresnel number at 550 nm; the spot's full width at 10 % of
@@ -60,8 +60,9 @@ def main():
                   f"{err[False][1]:+.4f}), Fresnel ({err[True][0]:+.4f}, {err[True][1]:+.4f})")
         d = np.array(diffs)
         d = d[np.all(np.isfinite(d), axis=1)]
-        print(f"  RMS of the difference over the {len(d)} poses on the frame: x {np.sqrt(np.nanmean(d[:, 0]**2)):.4f}"
-              f" px, y {np.sqrt(np.nanmean(d[:, 1]**2)):.4f} px")
+        rms = np.sqrt(np.mean(d**2, axis=0))
+        print(f"  RMS of the difference over the {len(d)} poses on the frame: x {rms[0]:.4f} px, "
+              f"y {rms[1]:.4f} px")
 
 
 if __name__ == "__main__":

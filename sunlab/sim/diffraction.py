@@ -222,7 +222,8 @@ def _lens_ft(q, n_fresnel: float, nodes: int):
     x, w = _gauss(nodes)
     # t = cos(phi) on [0, phi1]: sqrt(1 - t^2) dt = sin^2(phi) dphi, a smooth integrand
     phi = 0.5 * phi1[..., None] * (x + 1.0)
-    integrand = np.sin(phi) ** 2 * np.cos(2.0 * math.pi * q[..., None] * (np.cos(phi) - half[..., None]))
+    shifted = np.cos(phi) - half[..., None]
+    integrand = np.sin(phi) ** 2 * np.cos(2.0 * math.pi * q[..., None] * shifted)
     return (4.0 / math.pi) * 0.5 * phi1 * (integrand @ w)
 
 

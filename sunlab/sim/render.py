@@ -19,10 +19,11 @@ Physics (docs/paper.md sec. 1-2; ``docs/nomenclature.md`` for the frames):
 
 All of this is a product in the Fourier domain: aperture (a jinc for circles and ellipses, an
 exact polygon transform otherwise; with ``mask.diffraction`` a circle's or an ellipse's broadband
-Fresnel pattern instead of the jinc, :mod:`sunlab.sim.diffraction`) x kernel (the source profile's transform) x the sensitive
-rectangle (two sincs) x a phase for the position. Pixel values are obtained by an inverse FFT of
-that product folded over the neighbouring alias bands (the Poisson summation formula), i.e. the
-exact pixel integrals up to the spectrum beyond 1.5 cycles/px, which is below 1e-6 of the peak.
+Fresnel pattern instead of the jinc, :mod:`sunlab.sim.diffraction`) x kernel (the source
+profile's transform) x the sensitive rectangle (two sincs) x a phase for the position. Pixel
+values are obtained by an inverse FFT of that product folded over the neighbouring alias bands
+(the Poisson summation formula), i.e. the exact pixel integrals up to the spectrum beyond 1.5
+cycles/px, which is below 1e-6 of the peak.
 The *true centroid* of a frame is the centroid of this noiseless expected signal, computed
 directly by the same summation formula (derivative of the spectrum at the integer frequencies):
 it includes the fill-factor sampling error and is exact to far better than 0.001 px; PRNU and the

@@ -8,8 +8,7 @@ import pytest
 from scipy import special
 
 from sunlab.errors import ConfigurationError
-from sunlab.sim import Bench, Hole, Mask, diffraction, render
-from sunlab.sim import _kernels
+from sunlab.sim import Bench, Hole, Mask, _kernels, diffraction, render
 from sunlab.sim import frame as simframe
 
 
@@ -54,8 +53,9 @@ def test_small_fresnel_number_gives_the_airy_pattern():
 
 def test_energy_is_the_aperture_area():
     # the transform is 1 at f = 0 (the lens of zero shift is the disk, area pi a^2) ...
-    assert diffraction.monochromatic_transform(np.array([0.0]), 1.0)[0] == pytest.approx(1.0, abs=1e-14)
-    assert diffraction.broadband_transform(np.array([0.0]), 0.1, 17.0)[0] == pytest.approx(1.0, abs=1e-14)
+    zero = np.array([0.0])
+    assert diffraction.monochromatic_transform(zero, 1.0)[0] == pytest.approx(1.0, abs=1e-14)
+    assert diffraction.broadband_transform(zero, 0.1, 17.0)[0] == pytest.approx(1.0, abs=1e-14)
     # ... and the pattern integrated to R = 10 radii misses the Airy tail's 1 / (pi^2 N R)
     r = np.linspace(0.0, 10.0, 4001)
     e = np.trapezoid(diffraction.monochromatic_intensity(r, 1.0) * 2 * math.pi * r, r) / math.pi
