@@ -10,15 +10,16 @@ the transform in place of the disk's jinc for every dust-free circular or ellipt
 Physics (paraxial Fresnel-Kirchhoff, a plane wave of unit intensity at normal incidence, lengths in
 units of a, radius rho on the focal plane):
 
-* monochromatic intensity, I(rho) = |2 pi N int_0^1 exp(i pi N s^2) J0(2 pi N rho s) s ds|^2
+* monochromatic intensity, I(rho) = abs(2 pi N int_0^1 exp(i pi N s^2) J0(2 pi N rho s) s ds)^2
   (Born & Wolf, *Principles of Optics*, sec. 8.8); on the axis it is 4 sin^2(pi N / 2) (the
   integral in closed form: the Fresnel-zone result, Hecht, *Optics*, sec. 10.3);
 * its 2-D transform, by Guigay's formula (J.-P. Guigay, Optik 49, 121 (1977): the intensity
   spectrum at distance z is the aperture's autocorrelation with the shift lambda z f, phased),
   is the transform of the lens where the disk and its copy shifted by s = lambda z f / a = q / N
-  overlap, taken at the same frequency q = a |f| (cycles per radius). Normalised to 1 at q = 0:
+  overlap, taken at the same frequency q = a f (f the frequency's modulus; cycles per radius).
+  Normalised to 1 at q = 0:
   M(q) = (4 / pi) int_{s/2}^1 sqrt(1 - t^2) cos(2 pi q (t - s/2)) dt for s < 2 and 0 beyond: the
-  pattern's spectrum ends at |f| = 2 a / (lambda z) exactly, and tends to the jinc
+  pattern's spectrum ends at f = 2 a / (lambda z) exactly, and tends to the jinc
   2 J1(2 pi q) / (2 pi q) as N grows (s -> 0). One smooth 1-D integral per frequency
   (Gauss-Legendre in t = cos(phi)), where a Hankel transform of the ringing pattern would need
   thousands of nodes;
@@ -32,15 +33,12 @@ jinc; the truth (``spot_truth``) reads the same table, so a benchmark's truth is
 Measured (``python benchmarks/bench_fresnel.py`` prints them; 2026-11-27), the paper's 0.2 mm
 hole on ``Bench.paper_single_hole()`` and on the same bench with ``mask__distance_mm=17.0``:
 
-=================================================  ===============  ===============
-quantity                                             F = 5 mm         F = 17 mm
-=================================================  ===============  ===============
-N at 550 nm                                          3.64             1.07
-spot's full width at 10 % of peak, geometric         33.1 px          42.3 px
-the same, Fresnel                                    30.5 px          39.9 px
-ROI 130 px over it (paper: "about 2.5x")             3.93x / 4.27x    3.07x / 3.26x
-algorithm B, Fresnel - geometric, 9 poses, RMS x/y   0.0011/0.0009    0.0023/0.0011
-=================================================  ===============  ===============
+* N at 550 nm: 3.64 at F = 5 mm, 1.07 at F = 17 mm;
+* the spot's full width at 10 % of its peak (normal incidence): 33.1 px geometric, 30.5 px
+  Fresnel at 5 mm; 42.3 and 39.9 px at 17 mm. The region of interest's 130 px is then 3.93x /
+  4.27x the spot at 5 mm and 3.07x / 3.26x at 17 mm (the paper: "about 2.5x");
+* algorithm B's centroid, Fresnel minus geometric: RMS 0.0011 px in x, 0.0009 px in y at 5 mm
+  (9 poses), 0.0023 and 0.0011 px at 17 mm (6 poses)
 
 (noise-free frames at (alpha, beta) in {0, 10, -15}^2 deg, the mask's play at zero; at 17 mm the
 three beta = -15 deg poses leave the frame, so 6 poses there; each difference is under 0.0032
@@ -132,7 +130,9 @@ def fresnel_number(radius_mm: float, distance_mm: float, wavelength_um: float = 
 
 
 def jinc(k):
-    """The geometric disk's normalised transform 2 J1(k) / k (k = 2 pi |f| a), 1 at k = 0.
+    """The geometric disk's normalised transform 2 J1(k) / k, 1 at k = 0.
+
+    k = 2 pi f a, with f the frequency's modulus and a the disk's radius.
 
     Parameters
     ----------
@@ -198,7 +198,7 @@ def monochromatic_intensity(rho, n_fresnel: float):
     Returns
     -------
     numpy.ndarray
-        I(rho) / I0 = |2 pi N int_0^1 exp(i pi N s^2) J0(2 pi N rho s) s ds|^2, by Gauss-Legendre
+        I(rho) / I0 = abs(2 pi N int_0^1 exp(i pi N s^2) J0(2 pi N rho s) s ds)^2, by Gauss-Legendre
         quadrature with enough nodes for the integrand's pi N (1 + 2 rho) radians of phase.
     """
     rho = np.asarray(rho, dtype=float)
@@ -233,7 +233,7 @@ def monochromatic_transform(q, n_fresnel: float):
     Parameters
     ----------
     q : array_like
-        |f| a: frequency times the hole radius, cycles per radius (>= 0).
+        f a: the frequency's modulus times the hole radius, cycles per radius (>= 0).
     n_fresnel : float
         Fresnel number N = a^2 / (lambda z).
 
@@ -252,7 +252,7 @@ def broadband_transform(q, radius_mm: float, distance_mm: float):
     Parameters
     ----------
     q : array_like
-        |f| a, cycles per hole radius (>= 0).
+        f a: the frequency's modulus times the hole radius, cycles per radius (>= 0).
     radius_mm, distance_mm : float
         Hole radius a and propagation distance z, mm.
 
@@ -315,7 +315,7 @@ def aperture_ft(k, radius_mm: float, distance_mm: float):
     Parameters
     ----------
     k : array_like
-        2 pi |f| a, the jinc's argument (rad per hole radius), >= 0.
+        2 pi f a (f the frequency's modulus), the jinc's argument, rad; >= 0.
     radius_mm, distance_mm : float
         Hole radius a and propagation distance z, mm.
 
@@ -352,7 +352,7 @@ class FresnelHole:
     Attributes
     ----------
     radius_mm : float
-        The equal-area radius sqrt|det A|, mm.
+        The equal-area radius sqrt(abs(det A)), mm.
     reach : float
         Radius, in hole radii, outside which the pattern holds :data:`HALO_FRACTION` of its
         energy (the Airy tail 1 - EE(rho) ~ 1 / (pi^2 N rho) averaged over the spectrum, within
@@ -388,7 +388,7 @@ class FresnelHole:
         Returns
         -------
         numpy.ndarray, shape (nfy, nfx)
-            :func:`aperture_ft` at k = 2 pi |A^T f|, where the jinc is evaluated.
+            :func:`aperture_ft` at k = 2 pi norm(A^T f), where the jinc is evaluated.
         """
         g1 = affine_px[0, 0] * fx[None, :] + affine_px[1, 0] * fy[:, None]
         g2 = affine_px[0, 1] * fx[None, :] + affine_px[1, 1] * fy[:, None]
