@@ -399,7 +399,9 @@ class Mask:
         Render each dust-free circular or elliptical hole's broadband Fresnel pattern
         (:mod:`sunlab.sim.diffraction`) instead of its geometric shadow. Default False: geometric
         optics, as every preset and the identification's evidence use. Polygonal holes (burrs,
-        undersized outlines) and holes with dust stay geometric either way.
+        undersized outlines) and holes with dust stay geometric either way. The transform's
+        table takes about 2 s per hole height (cached); a 100-hole frame then renders in about
+        2 s instead of 0.2 s.
     """
 
     holes: tuple = ()
