@@ -11,8 +11,11 @@ Physics (paraxial Fresnel-Kirchhoff, a plane wave of unit intensity at normal in
 units of a, radius rho on the focal plane):
 
 * monochromatic intensity, I(rho) = abs(2 pi N int_0^1 exp(i pi N s^2) J0(2 pi N rho s) s ds)^2
-  (Born & Wolf, *Principles of Optics*, sec. 8.8); on the axis it is 4 sin^2(pi N / 2) (the
-  integral in closed form: the Fresnel-zone result, Hecht, *Optics*, sec. 10.3);
+  (the Fresnel approximation, J. W. Goodman, *Introduction to Fourier Optics*, sec. 4.2, in its
+  radially symmetric form); on the axis it is 4 sin^2(pi N / 2) (the integral in closed form: the
+  Fresnel-zone result, E. Hecht, *Optics*, sec. 10.3); ``tests/sim/test_diffraction.py`` checks
+  the transform below against this integral through the renderer, to 1e-4 of the incident
+  intensity;
 * its 2-D transform, by Guigay's formula (J.-P. Guigay, Optik 49, 121 (1977): the intensity
   spectrum at distance z is the aperture's autocorrelation with the shift lambda z f, phased),
   is the transform of the lens where the disk and its copy shifted by s = lambda z f / a = q / N
