@@ -5,6 +5,7 @@ and type checkers read it as the package's interface."""
 from . import bench as bench
 from . import centroids as centroids
 from . import detector as detector
+from . import diffraction as diffraction
 from . import frame as frame
 from . import mask as mask
 from . import platform as platform

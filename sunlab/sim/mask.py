@@ -395,6 +395,13 @@ class Mask:
         Width (x) and height (y) of the mask plate, mm; every hole must lie on it.
     name : str
         Label stored in a cube's ``mask`` attribute.
+    diffraction : bool
+        Render each dust-free circular or elliptical hole's broadband Fresnel pattern
+        (:mod:`sunlab.sim.diffraction`) instead of its geometric shadow. Default False: geometric
+        optics, as every preset and the identification's evidence use. Polygonal holes (burrs,
+        undersized outlines) and holes with dust stay geometric either way. The transform's
+        table takes about 2 s per hole height (cached); a 100-hole frame then renders in about
+        2 s instead of 0.2 s.
     """
 
     holes: tuple = ()
@@ -409,9 +416,16 @@ class Mask:
     play_y_mm: float = 0.0
     size_mm: tuple[float, float] = (11.0, 9.0)
     name: str = "custom"
+    diffraction: bool = False
 
     def __post_init__(self):
         object.__setattr__(self, "holes", tuple(self.holes))
+        if not isinstance(self.diffraction, bool | np.bool_):
+            raise ConfigurationError(
+                f"mask.diffraction: found {self.diffraction!r}; expected True or False. Fix: pass "
+                "diffraction=True for the Fresnel spot, False for the geometric shadow."
+            )
+        object.__setattr__(self, "diffraction", bool(self.diffraction))
         object.__setattr__(self, "size_mm", tuple(float(v) for v in self.size_mm))
         if not self.holes:
             raise ConfigurationError(

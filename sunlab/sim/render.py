@@ -18,10 +18,12 @@ Physics (docs/paper.md sec. 1-2; ``docs/nomenclature.md`` for the frames):
 * A pixel collects the irradiance over its sensitive rectangle (fill factor), times QE.
 
 All of this is a product in the Fourier domain: aperture (a jinc for circles and ellipses, an
-exact polygon transform otherwise) x kernel (the source profile's transform) x the sensitive
-rectangle (two sincs) x a phase for the position. Pixel values are obtained by an inverse FFT of
-that product folded over the neighbouring alias bands (the Poisson summation formula), i.e. the
-exact pixel integrals up to the spectrum beyond 1.5 cycles/px, which is below 1e-6 of the peak.
+exact polygon transform otherwise; with ``mask.diffraction`` a circle's or an ellipse's broadband
+Fresnel pattern instead of the jinc, :mod:`sunlab.sim.diffraction`) x kernel (the source
+profile's transform) x the sensitive rectangle (two sincs) x a phase for the position. Pixel
+values are obtained by an inverse FFT of that product folded over the neighbouring alias bands
+(the Poisson summation formula), i.e. the exact pixel integrals up to the spectrum beyond 1.5
+cycles/px, which is below 1e-6 of the peak.
 The *true centroid* of a frame is the centroid of this noiseless expected signal, computed
 directly by the same summation formula (derivative of the spectrum at the integer frequencies):
 it includes the fill-factor sampling error and is exact to far better than 0.001 px; PRNU and the
@@ -46,10 +48,9 @@ from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import numpy as np
-from scipy import special
 
 from ..errors import ConfigurationError
-from . import _kernels
+from . import _kernels, diffraction
 from .detector import Detector
 from .platform import sensor_sun_vector
 
@@ -430,24 +431,6 @@ def ray_positions(bench, alpha_true, beta_true, play_mm=(0.0, 0.0)):
 
 
 # --------------------------------------------------------------------------- spectra
-def _jinc(k):
-    """2 J1(k) / k, the normalised transform of a uniform unit disk (k = 2 pi |f| radius)."""
-    k = np.maximum(np.asarray(k, dtype=float), 1e-30)
-    return 2.0 * special.j1(k) / k
-
-
-def _profile_ft(k, u: float):
-    """Normalised transform of the limb-darkened unit disk 1 - u (1 - sqrt(1 - r^2))."""
-    if u == 0.0:
-        return _jinc(k)
-    k = np.asarray(k, dtype=float)
-    small = k < 0.05
-    ks = np.where(small, 1.0, k)
-    ld = np.where(small, 1.0 / 3.0 - k * k / 30.0, (np.sin(ks) / ks - np.cos(ks)) / ks**2)
-    dc = (1 - u) * 0.5 + u / 3.0
-    return ((1 - u) * 0.5 * _jinc(k) + u * ld) / dc
-
-
 def _axes(f):
     return np.ascontiguousarray(np.ravel(f), dtype=float)
 
@@ -460,7 +443,7 @@ class _Group:
     (unit integral) and the pixel's sensitive area, ``shift_h`` the kernel's centroid (which
     scales with the hole's height) minus the sensitive area's offset."""
 
-    def __init__(self, geom: SpotGeometry, det: Detector, ap: _Aperture):
+    def __init__(self, geom: SpotGeometry, det: Detector, ap: _Aperture, fresnel: bool = False):
         self.idx = ap.idx
         self.ray = geom.ray[self.idx]
         h = geom.height_mm[self.idx]
@@ -480,11 +463,16 @@ class _Group:
         self.ax, self.ay = det.sensitive_size_px
         self.diff = float(det.diffusion_px)
         self.cut = []
+        self.fresnel = None
         if ap.affine is not None:
             self.affine = geom.proj @ ap.affine
             self.area = math.pi * abs(float(np.linalg.det(self.affine)))
             self.poly = None
             r_ap = float(np.linalg.norm(self.affine, 2))
+            # mask.diffraction, paraxial: the pattern of normal incidence projected like the
+            # shadow (at the jinc's frequency); the lid's glass counts t / n of the optical path
+            if fresnel:
+                self.fresnel = diffraction.FresnelHole(ap.affine, hbar - det.lid_height_loss_mm)
         else:
             self.affine = np.zeros((2, 2))
             self.area = 0.0
@@ -517,7 +505,7 @@ class _Group:
         fy = _axes(fy)
         ax, ay = (self.ax, self.ay) if pixel else (0.0, 0.0)
         args = (fx, fy, self.affine, self.area, self.kernel_m, self.u, ax, ay,
-                self.diff if pixel else 0.0, self.poly is None)
+                self.diff if pixel else 0.0, self.poly is None and self.fresnel is None)
         if tabulated:
             out = _kernels.real_spectrum_tabulated(
                 *args, _kernels.disk_ft_table(0.0), _kernels.disk_ft_table(self.u))
@@ -528,6 +516,8 @@ class _Group:
             for c in self.cut:
                 ap = ap - _kernels.polygon_ft(c[:, 0].copy(), c[:, 1].copy(), fx, fy)
             out = out * ap
+        elif self.fresnel is not None:  # the Fresnel spot's transform where the jinc was
+            out = out * (self.area * self.fresnel.ft(fx, fy, self.affine))
         return out
 
     def centroids(self, n_alias: int = 2, h: float = 1e-5):
@@ -548,6 +538,8 @@ class _Group:
 
     def stamp_size(self) -> int:
         need = 2 * self.radius + 4
+        if self.fresnel is not None:  # the halo: its energy beyond the stamp wraps round it
+            need += 2 * float(np.linalg.norm(self.affine, 2)) * (self.fresnel.reach - 1.0)
         return next((n for n in _STAMP_SIZES if n >= need), int(2 ** math.ceil(math.log2(need))))
 
     def stamps(
@@ -689,7 +681,8 @@ def _groups(bench, geom: SpotGeometry) -> list[_Group]:
     """The frame's hole groups; built once per geometry (a frame and its truth share them)."""
     if geom.groups is None:
         det = bench.detector
-        geom.groups = [_Group(geom, det, ap) for ap in _layout(bench.mask).apertures]
+        on = bench.mask.diffraction
+        geom.groups = [_Group(geom, det, ap, on) for ap in _layout(bench.mask).apertures]
     return geom.groups
 
 
@@ -793,7 +786,8 @@ def spot_image(
     ((48, 48), 1.0)
     """
     geom = spot_geometry(bench, alpha_true, beta_true, play_mm)
-    g = _Group(geom, bench.detector, _aperture(bench.mask.holes[hole], [hole]))
+    g = _Group(geom, bench.detector, _aperture(bench.mask.holes[hole], [hole]),
+               bench.mask.diffraction)
     _, img, x0, y0, step = next(
         g.stamps(geom.q_e, size=size, oversample=int(oversample), pixel=pixel)
     )
