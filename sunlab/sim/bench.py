@@ -59,9 +59,10 @@ __all__ = ["Bench", "platform_pose", "simulate"]
 
 #: The presets are the hypothesis that the identification protocol's rule picks
 #: (docs/identification.md, ``sunlab/data/protocol.json``; :func:`sunlab.studies.
-#: identification.identified_hypothesis`, here ``F5-gear``), each fitted parameter the mean of
-#: its fits over the protocol's confirmation seeds (``sunlab/data/evidence.csv``) and each
-#: nuisance its prior median, to three significant figures.
+#: identification.identified_hypothesis`), fitted once with every nuisance at its prior median
+#: and the gear period profiled on the protocol's grid, on its preset seed
+#: (``sunlab/data/presets.json``, protocol version 4), to three significant figures; each
+#: fitted parameter's profile-likelihood interval is in ``sunlab/data/profiles.csv``.
 #:
 #: The detector's pixel response, a nuisance (prior 0.5-3 % RMS, log-uniform; median 1.22 %),
 #: white and correlated parts equal, the correlation length's median (1-8 px, log-uniform).
@@ -72,24 +73,24 @@ PAPER_PRNU_CORRELATION_PX = 2.83
 #: its thickness is our choice within the 0.4-0.7 mm of cover glasses of that generation).
 PAPER_LID_MM = 0.5
 #: Identified (Table 4's pinning cells, protocol ``cells.pinning``): the one hole's alpha
-#: per-pose error alpha_total = 0.0170 deg (polynomial alpha mu), split by the nuisance
-#: ``alpha_platform_share`` at its median 0.5 into the platform's uniform +-0.00849 deg and
-#: the one-hole mask's play along x (the rest in quadrature, 0.0147 deg at F' = 5.27 mm:
-#: +-1.35 um); beta's per-pose error (polynomial beta sigma), the inner axis's zero shift
-#: between the session of I and that of II-III (polynomial beta mu), its gear error's
-#: amplitude (linear interpolation's beta sigma) and each axis's per-shot jitter (the
-#: polynomial's M - mu of that angle), deg. The 100-hole mask's play along y is a nuisance at
-#: its prior median (0.5-10 um, log-uniform): Table 4 never sees that mask.
-PAPER_ALPHA_POSE_DEG = 0.00849
-PAPER_SINGLE_PLAY_MM = 0.00135
-PAPER_BETA_POSE_DEG = 0.00322
-PAPER_BETA_REHOMING_DEG = 0.0195
-PAPER_BETA_GEAR_DEG = 0.0230
+#: per-pose error alpha_total (polynomial alpha mu), split by the nuisance
+#: ``alpha_platform_share`` at its median 0.5 into the platform's uniform error and the one-hole
+#: mask's play along x (the rest in quadrature); beta's per-pose error (polynomial beta sigma),
+#: the inner axis's zero shift between the session of I and that of II-III (polynomial beta
+#: mu), each axis's per-shot jitter (the polynomial's M - mu of that angle) and, in a
+#: hypothesis with a gear error, its amplitude (linear interpolation's beta sigma), deg. The 100-hole mask's play along y is a
+#: nuisance at its prior median (0.5-10 um, log-uniform): Table 4 never sees that mask.
+PAPER_ALPHA_POSE_DEG = 0.00923
+PAPER_SINGLE_PLAY_MM = 0.00147
+PAPER_BETA_POSE_DEG = 0.0136
+PAPER_BETA_REHOMING_DEG = 0.0238
+PAPER_BETA_GEAR_DEG = 0.0
 PAPER_MASK_PLAY_MM = 0.00224
-PAPER_ALPHA_JITTER_DEG = 0.000694
-PAPER_BETA_JITTER_DEG = 0.000617
-#: The gear error's period, deg: a nuisance at its prior median (1-4 deg, one worm turn of a
-#: catalogue worm-driven stage, log-uniform).
+PAPER_ALPHA_JITTER_DEG = 0.000682
+PAPER_BETA_JITTER_DEG = 0.000623
+#: The identified hypothesis (F5, protocol version 4) has no gear error: the amplitude is 0.
+#: The period, deg, is what a study that switches a gear on gets (1-4 deg is one worm turn of a
+#: catalogue worm-driven stage; the gear hypotheses' fits chose 1.26-1.59 deg).
 PAPER_BETA_GEAR_PERIOD_DEG = 2.0
 #: The sensor's mounting on the platform, deg. A rotation about the boresight (a mounting
 #: tolerance of 2 mrad) that the paper's three-parameter model leaves out: the paper finds its
