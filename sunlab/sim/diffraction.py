@@ -27,10 +27,10 @@ units of a, radius rho on the focal plane):
   (Gauss-Legendre in t = cos(phi)), where a Hankel transform of the ringing pattern would need
   thousands of nodes;
 * broadband: the patterns averaged with the photo-electrons per unit wavelength,
-  ``spectral_weights`` = source photon flux x detector QE (:func:`spectral_weights` gives the two
+  ``spectral_weights`` = source photon flux x detector QE (``spectral_weights`` gives the two
   curves and their sources).
 
-The renderer reads M from a table (:func:`aperture_ft`) at the same affine-mapped frequency as the
+The renderer reads M from a table (``aperture_ft``) at the same affine-mapped frequency as the
 jinc; the truth (``spot_truth``) reads the same table, so a benchmark's truth is the image's.
 
 Measured (``python benchmarks/bench_fresnel.py`` prints them; 2026-11-27), the paper's 0.2 mm
@@ -68,14 +68,9 @@ from ..errors import ConfigurationError
 
 __all__ = [
     "fresnel_number",
-    "jinc",
-    "spectral_weights",
     "monochromatic_intensity",
-    "monochromatic_transform",
-    "broadband_transform",
     "broadband_intensity",
-    "aperture_ft",
-    "FresnelHole",
+    "broadband_transform",
 ]
 
 #: The paper's solar simulator is a 1000 W xenon arc (docs/paper.md sec. 2); no spectrum of it is
@@ -145,7 +140,7 @@ def jinc(k):
     Returns
     -------
     numpy.ndarray
-        2 J1(k) / k, the limit of :func:`monochromatic_transform` as N grows.
+        2 J1(k) / k, the limit of ``monochromatic_transform`` as N grows.
     """
     k = np.maximum(np.abs(np.asarray(k, dtype=float)), 1e-30)
     return 2.0 * special.j1(k) / k
@@ -250,7 +245,7 @@ def monochromatic_transform(q, n_fresnel: float):
 
 
 def broadband_transform(q, radius_mm: float, distance_mm: float):
-    """The broadband Fresnel pattern's transform: M averaged over :func:`spectral_weights`.
+    """The broadband Fresnel pattern's transform: M averaged over ``spectral_weights``.
 
     Parameters
     ----------
@@ -391,7 +386,7 @@ class FresnelHole:
         Returns
         -------
         numpy.ndarray, shape (nfy, nfx)
-            :func:`aperture_ft` at k = 2 pi norm(A^T f), where the jinc is evaluated.
+            ``aperture_ft`` at k = 2 pi norm(A^T f), where the jinc is evaluated.
         """
         g1 = affine_px[0, 0] * fx[None, :] + affine_px[1, 0] * fy[:, None]
         g2 = affine_px[0, 1] * fx[None, :] + affine_px[1, 1] * fy[:, None]

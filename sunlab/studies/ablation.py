@@ -28,7 +28,7 @@ from .identification import (
     scored_quantities,
 )
 
-__all__ = ["ABLATIONS", "ablation"]
+__all__ = ["ablation"]
 
 #: Each component of the identified bench and how :func:`ablation` turns it off.
 ABLATIONS = {
@@ -48,7 +48,7 @@ def ablation(name: str | None = None, seeds=None, evidence: pd.DataFrame | None 
 
     The bench is the hypothesis's with its seed's nuisance draw and fit (no refit: what the
     component contributes to the predictions), each :data:`ABLATIONS` entry applied in turn,
-    scored like :func:`score_table` with the hypothesis's own spread and tau.
+    scored like :func:`sunlab.studies.identification.score_table` with the hypothesis's own spread and tau.
 
     Parameters
     ----------

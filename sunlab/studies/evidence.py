@@ -17,7 +17,7 @@ import pandas as pd
 
 from .identification import chosen_hypothesis, intervals, load_protocol, run_hypothesis, score_table
 
-__all__ = ["regenerate", "run_protocol", "write_evidence"]
+__all__ = ["regenerate", "write_evidence"]
 
 
 def run_protocol(protocol: dict, names=None, seeds=None, *, jobs: int = 1,

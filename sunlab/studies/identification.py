@@ -24,7 +24,7 @@ Examples
 --------
 >>> p = load_protocol()
 >>> sorted(p["hypotheses"]), p["confirmation_seeds"][:2]
-(['F17', 'F17-gear', 'F5', 'F5-gear'], [2000, 2001])
+(['F17', 'F17-gear', 'F5', 'F5-gear'], [3000, 3001])
 >>> len(scored_quantities(p)["fit"]), len(scored_quantities(p)["held_out"])
 (12, 24)
 """

@@ -32,8 +32,7 @@ import pandas as pd
 from ..errors import ConfigurationError
 from . import identification as idn
 
-__all__ = ["fit_presets", "load_presets", "load_profiles", "profile_intervals",
-           "profile_likelihood"]
+__all__ = ["profile_intervals", "profile_likelihood"]
 
 #: chi^2 with one degree of freedom, its 90 % quantile: a profile's interval bound (Wilks).
 CHI2_1_90 = 2.705543454095404

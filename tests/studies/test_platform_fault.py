@@ -104,10 +104,15 @@ def test_zero_checks_measure_the_homing_difference(runs):
     truth = homing_offset(bench, SEED, "III") - homing_offset(bench, SEED, "I")
     p = jc.parameters["beta_homing_difference_deg"]
     assert abs(p["fitted"] - truth) < 2.5 * p["stderr"]
-    assert p["stderr"] < 0.005
+    # six zero checks per run average its per-pose error (uniform +-e, sd e / sqrt(3)): the
+    # difference of two runs' means has sd about e / sqrt(3) * sqrt(2 / 6) = 0.33 e
+    assert p["stderr"] < 0.5 * bench.platform.beta_pose_error_deg
     est = jc.predict(te)
     fixed = stats.global_stats(stats.local_errors(est, jc.reference(est, test)))
-    assert fixed.loc[("beta", "mu")].iloc[0] < 0.006
+    # what stays is beta's per-pose error (uniform +-e: mean |error| e / 2) and the zero
+    # checks' own error, far below the 0.03 deg fault the correction removed
+    e = bench.platform.beta_pose_error_deg
+    assert fixed.loc[("beta", "mu")].iloc[0] < 0.5 * e + p["stderr"] < SIZES["homing"] / 2
     with pytest.raises(ConfigurationError, match="zero_train"):
         pf.fit_correction(tr, cal, order=5, zero_train=zc["I"])
 
