@@ -78,8 +78,9 @@ PAPER_LID_MM = 0.5
 #: mask's play along x (the rest in quadrature); beta's per-pose error (polynomial beta sigma),
 #: the inner axis's zero shift between the session of I and that of II-III (polynomial beta
 #: mu), each axis's per-shot jitter (the polynomial's M - mu of that angle) and, in a
-#: hypothesis with a gear error, its amplitude (linear interpolation's beta sigma), deg. The 100-hole mask's play along y is a
-#: nuisance at its prior median (0.5-10 um, log-uniform): Table 4 never sees that mask.
+#: hypothesis with a gear error, its amplitude (linear interpolation's beta sigma), deg. The
+#: 100-hole mask's play along y is a nuisance at its prior median (0.5-10 um, log-uniform):
+#: Table 4 never sees that mask.
 PAPER_ALPHA_POSE_DEG = 0.00923
 PAPER_SINGLE_PLAY_MM = 0.00147
 PAPER_BETA_POSE_DEG = 0.0136

@@ -48,7 +48,8 @@ def ablation(name: str | None = None, seeds=None, evidence: pd.DataFrame | None 
 
     The bench is the hypothesis's with its seed's nuisance draw and fit (no refit: what the
     component contributes to the predictions), each :data:`ABLATIONS` entry applied in turn,
-    scored like :func:`sunlab.studies.identification.score_table` with the hypothesis's own spread and tau.
+    scored like :func:`sunlab.studies.identification.score_table` with the hypothesis's own
+    spread and tau.
 
     Parameters
     ----------
