@@ -352,17 +352,16 @@ def _fit_side_cells(protocol: dict, name: str, nuisances: dict, fitted: dict, se
                     noise_px: float) -> dict:
     """Table 4's fit-side columns (polynomial, linear interpolation) on the surrogate."""
     from .. import stats
-    from ..calibration.methods import table4_methods
     from ..calibration.registry import RECIPES, fit
 
     setting = protocol["fit"]["surrogate"]
     bench = hypothesis_bench(protocol, name, nuisances, fitted)
     cens = surrogate_runs(bench, seed, setting["step"], setting["shots"], noise_px)
-    kind, options = RECIPES["linear interp."]
-    cols = {"polynomial": table4_methods(neural=False)["polynomial"](cens["I"], cens["II"]),
-            # Table 4's recipe without the leave-one-out diagnostic (the predictions are the same)
-            "linear interp.": fit(cens["I"], kind, cens["II"], outlier_mads=None,
-                                  leave_one_out=False, **options)}
+    # Table 4's recipes as `sunlab reproduce` fits them (unscreened), linear interpolation
+    # without its leave-one-out diagnostic (the predictions are the same)
+    extra = {"polynomial": {}, "linear interp.": {"leave_one_out": False}}
+    cols = {m: fit(cens["I"], RECIPES[m][0], cens["II"], outlier_mads=None,
+                   **RECIPES[m][1], **extra[m]) for m in extra}
     t4 = stats.global_stats({m: stats.local_errors(c.predict(cens["III"]))
                              for m, c in cols.items()})
     return {("table4", col, a, st): float(v) for col in t4.columns
