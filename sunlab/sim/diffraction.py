@@ -52,7 +52,7 @@ Examples
 --------
 >>> round(fresnel_number(0.1, 5.0, 0.55), 2)
 3.64
->>> float(monochromatic_transform(np.array([0.0]), 2.0)[0])
+>>> round(float(monochromatic_transform(np.array([0.0]), 2.0)[0]), 6)
 1.0
 """
 
