@@ -31,9 +31,7 @@ from . import widgets as widgets
 from .errors import ConfigurationError as ConfigurationError
 from .errors import SchemaError as SchemaError
 from .errors import SunlabError as SunlabError
-from .options import OPTIONS as OPTIONS
 from .options import set_options as set_options
-from .options import show_progress as show_progress
 
 __version__: str
 __all__: list[str]

@@ -24,17 +24,12 @@ from __future__ import annotations
 
 import importlib
 import importlib.metadata
-import importlib.util
 
 __all__ = []
 
 #: The extra of pyproject.toml that brings each optional top-level package.
-EXTRAS: dict[str, str] = {
-    "torch": "neural",
-    "serial": "hardware",
-    "ipywidgets": "widgets",
-    "distributed": "distributed",
-}
+EXTRAS = {"torch": "neural", "serial": "hardware", "ipywidgets": "widgets",
+          "distributed": "distributed"}
 
 
 def require(module: str, extra: str | None = None, *, purpose: str = ""):
@@ -69,40 +64,14 @@ def require(module: str, extra: str | None = None, *, purpose: str = ""):
     ...     print(str(err).split(";")[1].strip())
     install it with: pip install "sunlab[neural]" (or "sunlab[all]")
     """
-    extra = extra or EXTRAS.get(module.partition(".")[0], "all")
+    top = module.partition(".")[0]
     try:
         return importlib.import_module(module)
     except ImportError as err:
-        what = f" for {purpose}" if purpose else ""
         raise ImportError(
-            f"sunlab needs the optional package {module.partition('.')[0]!r}{what}, which is "
-            f"not installed; install it with: pip install \"sunlab[{extra}]\" (or "
-            f"\"sunlab[all]\")"
-        ) from err
-
-
-def available(module: str) -> bool:
-    """Whether ``module`` can be imported, without importing it (an extra's package present).
-
-    Parameters
-    ----------
-    module : str
-        A top-level module name (``"torch"``).
-
-    Returns
-    -------
-    bool
-        True when the import system finds the module.
-
-    Examples
-    --------
-    >>> available("math"), available("no_such_package_xyz")
-    (True, False)
-    """
-    try:
-        return importlib.util.find_spec(module) is not None
-    except (ImportError, ValueError):
-        return False
+            f"sunlab needs the optional package {top!r}{f' for {purpose}' if purpose else ''}, "
+            f"which is not installed; install it with: pip install "
+            f"\"sunlab[{extra or EXTRAS.get(top, 'all')}]\" (or \"sunlab[all]\")") from err
 
 
 def installed_version(distribution: str) -> str | None:

@@ -4,6 +4,7 @@
 ``progress=False`` *or* the switch is off. Notebooks turn it off once
 (``sunlab.set_options(progress=False)``) so that their saved outputs hold figures and numbers,
 not bars; the environment variable ``SUNLAB_PROGRESS=0`` does the same for a whole process.
+A bar is tqdm's in a terminal or Jupyter, a few plain lines in a log (:func:`dask_progress`).
 
 ``kernels``: ``"numba"`` runs the compiled kernels, ``"numpy"`` their plain numpy references
 (slower, readable, and Numba compiles nothing; :mod:`sunlab.jit`). The environment variable
@@ -14,44 +15,37 @@ Examples
 --------
 >>> import sunlab
 >>> with sunlab.set_options(progress=False):
-...     sunlab.show_progress(True)
+...     show_progress(True)
 False
->>> sunlab.show_progress(True) == sunlab.OPTIONS["progress"]
+>>> show_progress(True) == OPTIONS["progress"]
 True
 >>> with sunlab.set_options(kernels="numpy"):
-...     sunlab.OPTIONS["kernels"]
+...     OPTIONS["kernels"]
 'numpy'
 """
 
 from __future__ import annotations
 
+import contextlib
 import os
+import sys
+import time
 
 from .errors import ConfigurationError
 
-__all__ = ["OPTIONS", "KERNELS", "set_options", "show_progress"]
+__all__ = ["set_options"]
 
 #: Values of the option ``kernels``: the compiled kernels, or their numpy references.
 KERNELS = ("numba", "numpy")
-
-
-def _kernels_from_environment() -> str:
-    """The option ``kernels`` as ``SUNLAB_KERNELS`` sets it (default ``"numba"``)."""
-    value = os.environ.get("SUNLAB_KERNELS", "numba").strip().lower() or "numba"
-    if value not in KERNELS:
-        raise ConfigurationError(
-            f"environment variable SUNLAB_KERNELS: found {value!r}; expected one of {KERNELS}. "
-            "Fix: SUNLAB_KERNELS=numpy for the references, or unset it."
-        )
-    return value
-
+_KERNELS_ENV = os.environ.get("SUNLAB_KERNELS", "numba").strip().lower() or "numba"
+if _KERNELS_ENV not in KERNELS:
+    raise ConfigurationError(
+        f"environment variable SUNLAB_KERNELS: found {_KERNELS_ENV!r}; expected one of "
+        f"{KERNELS}. Fix: SUNLAB_KERNELS=numpy for the references, or unset it.")
 
 #: Current values of the options (read them; change them with :func:`set_options`).
 OPTIONS: dict[str, object] = {"progress": os.environ.get("SUNLAB_PROGRESS", "1") != "0",
-                              "kernels": _kernels_from_environment()}
-
-#: The values each option accepts.
-_ALLOWED = {"progress": (True, False), "kernels": KERNELS}
+                              "kernels": _KERNELS_ENV}
 
 
 class set_options:  # noqa: N801 - used as a function, as xarray.set_options is
@@ -87,16 +81,14 @@ class set_options:  # noqa: N801 - used as a function, as xarray.set_options is
     def __init__(self, **options):
         unknown = sorted(set(options) - set(OPTIONS))
         if unknown:
-            raise ConfigurationError(
-                f"set_options: unknown option(s) {unknown}; expected one of {sorted(OPTIONS)}."
-            )
+            raise ConfigurationError(f"set_options: unknown option(s) {unknown}; expected one "
+                                     f"of {sorted(OPTIONS)}.")
         for name, value in options.items():
-            allowed = _ALLOWED[name]
-            if not any(value is a if isinstance(a, bool) else value == a for a in allowed):
-                expected = "True or False" if name == "progress" else f"one of {allowed}"
+            ok = value is True or value is False if name == "progress" else value in KERNELS
+            if not ok:
+                expected = "True or False" if name == "progress" else f"one of {KERNELS}"
                 raise ConfigurationError(
-                    f"set_options({name}=...): found {value!r}; expected {expected}."
-                )
+                    f"set_options({name}=...): found {value!r}; expected {expected}.")
         self._old = {name: OPTIONS[name] for name in options}
         self._old_env = os.environ.get("SUNLAB_KERNELS")
         _apply(options)
@@ -136,58 +128,18 @@ def show_progress(requested: bool) -> bool:
 def _interactive() -> bool:
     """True in a terminal (stderr is a TTY) or a Jupyter kernel: a bar redrawn in place fits;
     elsewhere (a log file, a pipe, CI) it would leave a carriage return per redraw."""
-    import sys
-
-    try:
-        if sys.stderr is not None and sys.stderr.isatty():
+    with contextlib.suppress(AttributeError, ValueError):  # a closed or replaced stream
+        if sys.stderr.isatty():
             return True
-    except (AttributeError, ValueError):  # a closed or replaced stream
-        return False
-    shell = sys.modules.get("IPython")
-    ip = getattr(shell, "get_ipython", lambda: None)() if shell else None
+    ip = getattr(sys.modules.get("IPython"), "get_ipython", lambda: None)()
     return ip is not None and "IPKernelApp" in getattr(ip, "config", {})
-
-
-class _LogLines:
-    """A Dask callback that writes a few plain lines to stderr: the task count once the work
-    has run for ``minimum`` s, then at 25, 50 and 75 % and at the end (no carriage returns)."""
-
-    def __new__(cls, desc: str, minimum: float = 1.0):
-        import sys
-        import time
-
-        from dask.callbacks import Callback
-
-        class LogLines(Callback):
-            def _start_state(self, dsk, state):
-                self._t0, self._n, self._said = time.perf_counter(), 0, 0
-                self._total = sum(len(state[k]) for k in ("ready", "waiting", "running"))
-                self._total += len(state.get("finished", ()))
-
-            def _posttask(self, key, result, dsk, state, worker_id):
-                self._n += 1
-                elapsed = time.perf_counter() - self._t0
-                if elapsed < minimum or not self._total:
-                    return
-                quarter = 4 * self._n // self._total
-                if quarter > self._said and quarter < 4:
-                    self._said = quarter
-                    print(f"{desc}: {25 * quarter} % of {self._total} tasks, {elapsed:.1f} s",
-                          file=sys.stderr, flush=True)
-
-            def _finish(self, dsk, state, errored):
-                elapsed = time.perf_counter() - self._t0
-                if elapsed >= minimum and not errored:
-                    print(f"{desc}: done, {self._total} tasks in {elapsed:.1f} s",
-                          file=sys.stderr, flush=True)
-
-        return LogLines()
 
 
 def dask_progress(progress: bool, desc: str = "sunlab", minimum: float = 1.0):
     """A context manager that shows the progress of the Dask computations inside it, as fits
     the place: a tqdm bar (:class:`tqdm.dask.TqdmCallback`) in a terminal or in Jupyter, a few
-    plain lines on stderr otherwise (a log file gets no carriage returns); nothing when
+    plain lines on stderr otherwise (the task count once the work has run for ``minimum`` s,
+    then at 25, 50 and 75 % and at the end: a log file gets no carriage returns); nothing when
     :func:`show_progress` says no.
 
     Parameters
@@ -211,12 +163,33 @@ def dask_progress(progress: bool, desc: str = "sunlab", minimum: float = 1.0):
     ...     int(da.ones(4, chunks=2).sum().compute())
     4
     """
-    import contextlib
-
     if not show_progress(progress):
         return contextlib.nullcontext()
     if _interactive():
         from tqdm.dask import TqdmCallback
 
         return TqdmCallback(desc=desc, mininterval=0.5, delay=minimum)
-    return _LogLines(desc, minimum)
+    from dask.callbacks import Callback
+
+    run = {}
+
+    def say(text):
+        print(f"{desc}: {text} {time.perf_counter() - run['t0']:.1f} s", file=sys.stderr,
+              flush=True)
+
+    def start(dsk, state):
+        run.update(t0=time.perf_counter(), n=0, said=0, total=sum(
+            len(state.get(k, ())) for k in ("ready", "waiting", "running", "finished")))
+
+    def posttask(key, result, dsk, state, worker_id):
+        run["n"] += 1
+        quarter = 4 * run["n"] // max(run["total"], 1)
+        if time.perf_counter() - run["t0"] >= minimum and run["said"] < quarter < 4:
+            run["said"] = quarter
+            say(f"{25 * quarter} % of {run['total']} tasks,")
+
+    def finish(dsk, state, errored):
+        if time.perf_counter() - run["t0"] >= minimum and not errored:
+            say(f"done, {run['total']} tasks in")
+
+    return Callback(start_state=start, posttask=posttask, finish=finish)

@@ -19,6 +19,8 @@ from __future__ import annotations
 import contextlib
 import multiprocessing
 import os
+import signal
+import threading
 from concurrent.futures import ProcessPoolExecutor
 from multiprocessing import forkserver
 
@@ -31,7 +33,7 @@ from .errors import ConfigurationError
 from .extras import require
 from .options import dask_progress, show_progress
 
-__all__ = ["compute", "local_cluster"]
+__all__: list[str] = []
 
 
 #: Local schedulers of :func:`compute`.
@@ -88,30 +90,22 @@ def compute(*objs, scheduler: str = "threads", address: str | None = None,
     if scheduler not in SCHEDULERS:
         raise ConfigurationError(
             f"scheduler: found {scheduler!r}; expected one of {SCHEDULERS}. Fix: 'threads' "
-            "(default), or 'cluster' for CPU-bound rendering on several cores."
-        )
+            "(default), or 'cluster' for CPU-bound rendering on several cores.")
     if num_workers is not None and (not isinstance(num_workers, int | np.integer)
                                     or num_workers < 1):
         raise ConfigurationError(
-            f"num_workers: found {num_workers!r}; expected a positive integer or None."
-        )
-    if address is not None:
-        return _distributed(objs, address, progress)
-    if scheduler == "cluster":
-        return _local_cluster(objs, num_workers, progress)
-    if scheduler == "processes" and pool is None:
-        with worker_pool(scheduler, num_workers) as own:
-            return compute(*objs, scheduler=scheduler, num_workers=num_workers,
-                           progress=progress, pool=own)
-    kw = {"scheduler": scheduler}
-    if pool is not None and scheduler == "processes":
-        kw["pool"] = pool
-    if num_workers:
-        kw["num_workers"] = int(num_workers)
-    elif scheduler == "threads":
-        kw["num_workers"] = 2 * (os.cpu_count() or 1)
-    with dask_progress(progress, "sunlab"):  # a bar in a terminal, plain lines in a log
-        return dask.compute(*objs, **kw)
+            f"num_workers: found {num_workers!r}; expected a positive integer or None.")
+    if address is not None or scheduler == "cluster":
+        return _distributed(objs, address, num_workers, progress)
+    with contextlib.ExitStack() as stack:
+        if scheduler == "processes" and pool is None:
+            pool = stack.enter_context(worker_pool(scheduler, num_workers))
+        kw = {"pool": pool} if scheduler == "processes" else {}
+        n = num_workers or (2 * (os.cpu_count() or 1) if scheduler == "threads" else None)
+        if n:
+            kw["num_workers"] = int(n)
+        with dask_progress(progress, "sunlab"):  # a bar in a terminal, plain lines in a log
+            return dask.compute(*objs, scheduler=scheduler, **kw)
 
 
 @contextlib.contextmanager
@@ -162,12 +156,24 @@ def worker_pool(scheduler: str = "threads", num_workers: int | None = None,
 
 
 def _init_worker() -> None:
-    """Start a pool worker: Dask's set-up, and Ctrl-C left to the parent, which stops the
-    workers (a worker interrupted itself would print a traceback)."""
-    import signal
-
+    """Start a pool worker: Dask's set-up, and Ctrl-C left to the parent."""
     initialize_worker_process()
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    dask_setup()
+
+
+def dask_setup(worker=None) -> None:
+    """Ignore Ctrl-C in a worker process, which the terminal sends to every process of the
+    command: the main process stops the workers (a worker interrupted itself would print a
+    traceback). Dask calls it in each worker of :func:`local_cluster` (whose ``preload`` is
+    this module); :func:`worker_pool`'s workers call it when they start.
+
+    Parameters
+    ----------
+    worker : distributed.Worker, optional
+        The worker Dask passes (unused).
+    """
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 #: The modules the fork server imports before it forks a worker (:func:`worker_pool`): imports
@@ -230,21 +236,18 @@ def single_threaded_blas():
     return threadpool_limits(limits=1)
 
 
-def _distributed(objs, address_or_cluster, progress) -> tuple:
+def _distributed(objs, address, num_workers, progress) -> tuple:
+    """:func:`compute` on the scheduler at ``address``, else on a :func:`local_cluster` of
+    ``num_workers`` processes made for the call."""
     distributed = require("distributed", purpose="a Dask cluster (address=...)")
-    Client, dprogress = distributed.Client, distributed.progress
-
-    with Client(address_or_cluster) as client:
-        futs = client.compute(list(objs))
+    with contextlib.ExitStack() as stack:
+        if address is None:
+            address = stack.enter_context(local_cluster(num_workers))
+        client = stack.enter_context(distributed.Client(address))
+        futures = client.compute(list(objs))
         if show_progress(progress):
-            dprogress(futs)
-        return tuple(client.gather(futs))
-
-
-def _local_cluster(objs, num_workers, progress) -> tuple:
-    """:func:`compute` on a LocalCluster of single-threaded processes made for the call."""
-    with local_cluster(num_workers) as cluster:
-        return _distributed(objs, cluster, progress)
+            distributed.progress(futures)
+        return tuple(client.gather(futures))
 
 
 @contextlib.contextmanager
@@ -277,6 +280,6 @@ def local_cluster(workers: int | None = None):
         n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
         # CRITICAL: a task's error reaches the caller as an exception; a worker that outlives
         # the scheduler at Ctrl-C is not an error to print. Ctrl-C is the main process's.
-        silence_logs=50, preload=["sunlab._cluster_preload"],
+        silence_logs=50, preload=["sunlab.parallel"],
     ) as cluster:
         yield cluster

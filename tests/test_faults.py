@@ -224,7 +224,7 @@ def test_a_signal_during_simulate_ends_in_one_line_and_leaves_nothing(tmp_path, 
 
 
 def test_an_interrupt_a_library_swallows_still_ends_the_command(monkeypatch, capsys):
-    from sunlab.cli import commands
+    from sunlab.cli import _files
 
     def swallowing(args):
         try:
@@ -234,13 +234,13 @@ def test_an_interrupt_a_library_swallows_still_ends_the_command(monkeypatch, cap
             pass
         return 0
 
-    monkeypatch.setattr(commands, "_run_info", swallowing)
+    monkeypatch.setattr(_files, "run_info", swallowing)
     assert main(["info", "x"]) == 130
     assert capsys.readouterr().err.strip() == "sunlab info: interrupted by Ctrl-C (SIGINT)"
 
 
 def test_an_interrupt_during_an_import_waits_for_the_import(tmp_path, monkeypatch, capsys):
-    from sunlab.cli import commands
+    from sunlab.cli import _files
 
     (tmp_path / "slow_import_29.py").write_text(
         "import os, signal, time\nos.kill(os.getpid(), signal.SIGINT)\ntime.sleep(0.3)\n"
@@ -253,7 +253,7 @@ def test_an_interrupt_during_an_import_waits_for_the_import(tmp_path, monkeypatc
         time.sleep(5)  # the interrupt, delivered again after the import, lands here
         return 0
 
-    monkeypatch.setattr(commands, "_run_info", importing)
+    monkeypatch.setattr(_files, "run_info", importing)
     assert main(["info", "x"]) == 130
     assert sys.modules["slow_import_29"].DONE  # the import ran to its end
     assert "interrupted" in capsys.readouterr().err

@@ -1,14 +1,10 @@
 """The ``sunlab`` command line: :func:`main` is the ``sunlab`` entry point.
 
-* :mod:`sunlab.cli.commands`: the parser and the subcommands that run the library
-  (``reproduce``, ``simulate``, ``centroid``, ``calibrate``, ``acquire``, ``info``);
-* :mod:`sunlab.cli.lab`: the lab's own bench (``import``, ``evaluate``, ``export``) and what
-  they share (a CSV table's ``sensor.json``, image folders).
-
-Every verb wraps one library function (``calibrate``: :func:`sunlab.calibration.fit`,
-``evaluate``: :func:`sunlab.stats.evaluate`, tables: :func:`sunlab.io.open_centroids`); the
-methods offered are read from the registry :data:`sunlab.calibration.KINDS`.
-
+One module per group of verbs, each verb a short handler around one library function:
+``reproduce`` (:mod:`sunlab.reproduce`), ``simulate`` and ``acquire`` (the virtual and the real
+bench), ``import``, ``centroid`` and ``info`` (frames and tables), ``calibrate``
+(:func:`sunlab.calibration.fit`), ``evaluate`` (:func:`sunlab.stats.evaluate`) and ``export``,
+``course``. The methods offered are read from the registry :data:`sunlab.calibration.KINDS`.
 ``python -m sunlab.cli`` runs the same command line.
 
 Examples

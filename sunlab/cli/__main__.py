@@ -8,7 +8,7 @@ Examples
 0
 """
 
-from .commands import run
+from ._app import run
 
 __all__: list[str] = []
 

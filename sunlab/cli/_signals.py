@@ -5,6 +5,7 @@ every ``finally`` runs (temporary outputs removed, workers stopped), then
 from __future__ import annotations
 
 import contextlib
+import logging
 import os
 import signal
 import sys
@@ -12,46 +13,47 @@ import threading
 
 __all__: list[str] = []
 
+_LOG = logging.getLogger("sunlab")
+
 
 class _Terminated(KeyboardInterrupt):
-    """SIGTERM, raised in the main thread like Ctrl-C so that every ``finally`` (temporary
-    outputs removed, workers stopped, an acquisition's record closed) runs."""
+    """SIGTERM, raised in the main thread like Ctrl-C so that every ``finally`` runs."""
+
+    name, status = "SIGTERM", 143
 
 
 class _HungUp(_Terminated):
     """SIGHUP (the terminal or the SSH session closed): cleaned up as SIGTERM is."""
 
+    name, status = "SIGHUP", 129
 
-#: The signals that end a command cleanly: name, the exception raised, the exit status.
-_ENDING = {signal.SIGTERM: ("SIGTERM", _Terminated, 143),
-           signal.SIGINT: ("Ctrl-C (SIGINT)", KeyboardInterrupt, 130)}
+
+#: The signals that end a command cleanly, and the exception each raises.
+_RAISES = {signal.SIGINT: KeyboardInterrupt, signal.SIGTERM: _Terminated}
 if hasattr(signal, "SIGHUP"):
-    _ENDING[signal.SIGHUP] = ("SIGHUP", _HungUp, 129)
+    _RAISES[signal.SIGHUP] = _HungUp
 
 
-def _ended_by(err: KeyboardInterrupt) -> tuple[str, int]:
+def ended_by(err: KeyboardInterrupt) -> tuple[str, int]:
     """The name of the signal behind ``err`` and the exit status (128 + its number)."""
-    for name, kind, status in sorted(_ENDING.values(), key=lambda v: -v[2]):
-        if type(err) is kind:
-            return name, status
-    return _ENDING[signal.SIGINT][0], 130
+    return getattr(err, "name", "Ctrl-C (SIGINT)"), getattr(err, "status", 130)
 
 
 @contextlib.contextmanager
-def _signals_interrupt(quiet: bool = True):
-    """While a command runs (main thread only): SIGTERM raises :class:`_Terminated` and SIGINT
-    :class:`KeyboardInterrupt` (whatever handler the caller had), both restored after; with
-    ``quiet``, errors that extensions print from destructors are logged instead.
+def interrupting(quiet: bool = True):
+    """While a command runs (main thread only): SIGINT, SIGTERM and SIGHUP raise (whatever
+    handler the caller had; restored after); with ``quiet``, errors that extensions print from
+    destructors, and asyncio's log of an interrupted dask.distributed client, are logged.
 
-    Yields the list of signals received. A signal that arrives while the main thread is
-    importing a module is raised once the import is over (the signal is sent again 50 ms
-    later): an exception inside an import can leave the import locks of other threads held
-    (a deadlock), and a library's bare ``except:`` around an import would swallow it. The
-    caller also treats a command that returns after a signal as interrupted."""
-    received: list[int] = []
+    A signal that arrives while the main thread imports a module is sent again 50 ms later, so
+    it is raised once the import is over: an exception inside an import can leave other
+    threads' import locks held (a deadlock), and a library's bare ``except:`` around an import
+    would swallow it. A command that returns although a signal came (a library swallowed it)
+    raises the signal's exception on the way out."""
     if threading.current_thread() is not threading.main_thread():
-        yield received
+        yield
         return
+    received: list[int] = []
 
     def on_signal(signum, frame):
         received.append(signum)
@@ -60,25 +62,26 @@ def _signals_interrupt(quiet: bool = True):
             timer.daemon = True
             timer.start()
             return
-        raise _ENDING.get(signum, _ENDING[signal.SIGINT])[1]
+        raise _RAISES[signum]
 
-    previous = {sig: signal.signal(sig, on_signal) for sig in _ENDING}
-    import logging
-
-    hooks = sys.unraisablehook, sys.excepthook
-    # an interrupted dask.distributed client leaves tasks whose errors asyncio logs
-    loop_log = logging.getLogger("asyncio")
+    previous = {sig: signal.signal(sig, on_signal) for sig in _RAISES}
+    hooks, loop_log = (sys.unraisablehook, sys.excepthook), logging.getLogger("asyncio")
     was_disabled = loop_log.disabled
     if quiet:
-        sys.unraisablehook, sys.excepthook = _unraisable, _printed
+        sys.unraisablehook = lambda info: _LOG.debug("ignored in %r: %s", info.object,
+                                                     info.exc_value)
+        sys.excepthook = lambda kind, value, tb: _LOG.debug("ignored: %s: %s", kind.__name__,
+                                                            value)
         loop_log.disabled = True
     try:
-        yield received
+        yield
     finally:
         sys.unraisablehook, sys.excepthook = hooks
         loop_log.disabled = was_disabled
         for sig, handler in previous.items():
             signal.signal(sig, handler)
+    if received:
+        raise _RAISES[received[0]]
 
 
 def _importing(frame) -> bool:
@@ -88,19 +91,3 @@ def _importing(frame) -> bool:
             return True
         frame = frame.f_back
     return False
-
-
-def _unraisable(info) -> None:
-    """Errors Python cannot raise (a destructor's, e.g. h5py closing a file on a full disk)
-    follow the error that the command reports: logged, not printed as tracebacks."""
-    import logging
-
-    logging.getLogger("sunlab").debug("ignored in %r: %s", info.object, info.exc_value)
-
-
-def _printed(kind, value, tb) -> None:
-    """What an extension prints while a command runs (Cython's destructors print their
-    errors through ``sys.excepthook``): logged, as :func:`_unraisable`."""
-    import logging
-
-    logging.getLogger("sunlab").debug("ignored: %s: %s", kind.__name__, value)

@@ -1,4 +1,4 @@
-"""The command line's own guarantees (sunlab.cli.commands): every signal that ends a command
+"""The command line's own guarantees (sunlab.cli): every signal that ends a command
 cleans up (issue 37: SIGHUP as SIGINT and SIGTERM)."""
 
 from __future__ import annotations

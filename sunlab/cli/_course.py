@@ -1,0 +1,83 @@
+"""``sunlab course``: the course's student and teacher editions
+(:func:`sunlab.course.write_course`), or students' notebooks graded (:mod:`sunlab.course.grading`).
+
+Examples
+--------
+>>> from sunlab.cli import build_parser
+>>> build_parser().parse_args(["course", "--out", "editions"]).out
+'editions'
+"""
+
+from __future__ import annotations
+
+import os
+
+from ._args import verb
+
+__all__: list[str] = []
+
+
+def _add(sub) -> None:
+    """Add ``course``."""
+    p = verb(sub, "course", run_course, "write the course's student and teacher editions, or "
+             "grade students' notebooks (exit 1 when a check fails; docs/teacher-notes.md)",
+             overwrite="editions (or a gradebook) written before")
+    what = p.add_mutually_exclusive_group(required=True)
+    what.add_argument("--out", metavar="DIR", help="write DIR/student and DIR/teacher")
+    what.add_argument("--grade", nargs="+", metavar="NOTEBOOK",
+                      help="students' notebooks (STUDENT/NN-title.ipynb) to run and grade")
+    p.add_argument("--gradebook", metavar="DIR", help="write DIR/gradebook.csv and .json")
+    p.add_argument("--seed", type=int, help="seed of the hidden checks (default: drawn)")
+    p.add_argument("--notebooks", metavar="DIR", help="the notebooks (default: notebooks/)")
+    p.add_argument("--full", action="store_true", help="without the quick-settings cell")
+
+
+def run_course(args) -> int:
+    """``sunlab course``: the editions written, or the notebooks graded (exit 1 when a check
+    fails)."""
+    if args.grade:
+        return _grade(args)
+    from ..course import write_course
+
+    res = write_course(args.out, notebooks=args.notebooks, quick=not args.full,
+                       overwrite=args.overwrite)
+    books = {ex.notebook for ex in res["exercises"]}
+    print(f"{len(res['exercises'])} exercises in {len(books)} notebooks, "
+          f"{len(res['written'])} written answers; wrote "
+          f"{len(res['student'])} student notebooks to {res['student'][0].parent} and "
+          f"{len(res['teacher'])} teacher notebooks to {res['teacher'][0].parent}")
+    return 0
+
+
+def _grade(args) -> int:
+    """Grade each notebook of ``--grade``; print each student's points and each exercise's."""
+    from pathlib import Path
+
+    from .. import atomic
+    from ..course import grading
+
+    if args.gradebook is not None:  # refused before hours of grading, not after
+        atomic.check_folder(args.gradebook, grading.GRADEBOOK_FILES, overwrite=args.overwrite,
+                            flag="--overwrite")
+    seed = args.seed if args.seed is not None else int.from_bytes(os.urandom(3), "big")
+    print(f"hidden checks on fresh inputs drawn from seed {seed}")
+    rows = []
+    for path in args.grade:
+        mine = grading.grade_notebook(path, notebooks=args.notebooks, seed=seed,
+                                      quick=not args.full)
+        rows += mine
+        passed = sum(r["result"] == "pass" for r in mine)
+        checked = sum(r["points"] is not None for r in mine)
+        for student, tot in grading.totals(mine).items():
+            hand = tot["written_max_points"]
+            print(f"{student}/{Path(path).name}: {tot['points']} of {tot['max_points']} points "
+                  f"({passed} of {checked} checks pass"
+                  + (f"; {hand} points of written answers to grade by hand)" if hand else ")"))
+        for r in mine:
+            pts = "-" if r["points"] is None else r["points"]
+            print(f"  {r['exercise']:<14} {pts}/{r['max_points']}  {r['result']:<12} "
+                  f"{r['message']}".rstrip())
+    if args.gradebook is not None:
+        files = grading.write_gradebook(rows, args.gradebook, seed=seed, overwrite=args.overwrite)
+        print("wrote " + ", ".join(map(str, files)))
+    return int(any(r["points"] is not None and r["points"] < r["max_points"] for r in rows))
