@@ -194,8 +194,7 @@ def error_histogram(values, *, angle: str = "alpha", variable: str = "local_erro
     if v.size < 2:
         raise ConfigurationError(f"values: found {v.size} finite errors, expected at least 2")
     mu, sigma = float(v.mean()), float(v.std(ddof=1))
-    if ax is None:
-        ax = new_figure(figsize=(5.5, 3.8), layout="constrained").subplots()
+    ax = ax or new_figure(figsize=(5.5, 3.8), layout="constrained").subplots()
     ax.hist(v, bins=bins, density=True, color="0.75", edgecolor="0.4", label=f"{v.size} values")
     if sigma > 0:
         x = np.linspace(min(v.min(), mu - 4 * sigma), max(v.max(), mu + 4 * sigma), 300)
@@ -291,12 +290,9 @@ def draw_rectangles(ax, boxes, *, colors=None, tol: float = 0.02, legend: bool =
     boxes = [(str(b[0]), *map(float, b[1:])) for b in boxes]
     if not boxes:
         raise ConfigurationError("boxes: no rectangle to draw; pass at least one")
-    lo_a = min(b[1] for b in boxes)
-    hi_a = max(b[2] for b in boxes)
-    lo_b = min(b[3] for b in boxes)
-    hi_b = max(b[4] for b in boxes)
-    span_a = (hi_a - lo_a) or 1.0
-    span_b = (hi_b - lo_b) or 1.0
+    sides = np.array([b[1:] for b in boxes])
+    (lo_a, lo_b), (hi_a, hi_b) = sides[:, [0, 2]].min(axis=0), sides[:, [1, 3]].max(axis=0)
+    span_a, span_b = float(hi_a - lo_a) or 1.0, float(hi_b - lo_b) or 1.0
     groups = _coinciding(boxes, span_a, span_b, tol)
     styles = ["-", "--", ":", "-."]
     rank = {k: n for g in groups for n, k in enumerate(g)}  # place within its group
@@ -328,8 +324,7 @@ def _coinciding(boxes, span_a: float, span_b: float, tol: float) -> list[list[in
     groups: list[list[int]] = []
 
     def distance(b, r):  # largest side difference, in fractions of the axis spans
-        return max(abs(b[1] - r[1]) / span_a, abs(b[2] - r[2]) / span_a,
-                   abs(b[3] - r[3]) / span_b, abs(b[4] - r[4]) / span_b)
+        return max(abs(np.subtract(b[1:], r[1:])) / (span_a, span_a, span_b, span_b))
 
     for k, b in enumerate(boxes):
         # join the group whose first rectangle is nearest, if it is within tol
@@ -462,9 +457,8 @@ def fig14_bad_holes(frame, cen_frame, holes, *, reference=None, half: int = 30, 
         title = f"hole {h}" + (" (good)" if h == reference else "")
         if metrics is not None:
             m = metrics.sel(hole=h) if "hole" in metrics.dims else metrics
-            short = {"flux_deficit": "flux deficit", "ellipticity": "ellipticity",
-                     "asymmetry": "asymmetry", "edge_roughness": "edge roughness"}
-            bits = [f"{name} {float(m[k]):.2g}" for k, name in short.items() if k in m]
+            bits = [f"{k.replace('_', ' ')} {float(m[k]):.2g}" for k in
+                    ("flux_deficit", "ellipticity", "asymmetry", "edge_roughness") if k in m]
             title += "".join(("\n" if n % 2 == 0 else ", ") + b for n, b in enumerate(bits))
         ax.set_title(title, fontsize=8)
         ax.set_xticks([])

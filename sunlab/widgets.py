@@ -37,6 +37,7 @@ import html
 import io
 
 import numpy as np
+import pandas as pd
 import xarray as xr
 
 from .errors import ConfigurationError
@@ -44,17 +45,9 @@ from .extras import require
 from .multihole.defects import metric_scale
 from .multihole.holes import cutout
 from .multihole.review import HoleReview, review_holes
+from .stats import ANGLES
 
 __all__ = ["HoleExplorer"]
-
-
-def _png(fig) -> bytes:
-    import matplotlib.pyplot as plt
-
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=100)
-    plt.close(fig)
-    return buf.getvalue()
 
 
 def figure_output(out, fig, text: str = "figure") -> None:
@@ -73,16 +66,14 @@ def figure_output(out, fig, text: str = "figure") -> None:
     text : str
         The plain-text form of the display data (shown where images are not).
     """
-    data = base64.b64encode(_png(fig)).decode("ascii")
-    out.outputs = (
-        {"output_type": "display_data", "data": {"image/png": data, "text/plain": text},
-         "metadata": {}},
-    )
+    import matplotlib.pyplot as plt
 
-
-def _text_color(rgb) -> str:
-    lum = 0.299 * rgb[0] + 0.587 * rgb[1] + 0.114 * rgb[2]
-    return "black" if lum > 0.5 else "white"
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=100)
+    plt.close(fig)
+    data = base64.b64encode(buf.getvalue()).decode("ascii")
+    out.outputs = ({"output_type": "display_data", "metadata": {},
+                    "data": {"image/png": data, "text/plain": text}},)
 
 
 class HoleExplorer:
@@ -262,9 +253,7 @@ class HoleExplorer:
         if not 0 <= hole < len(self.buttons):
             raise ConfigurationError(f"hole: found {hole}, expected 0 .. {len(self.buttons) - 1}")
         self.selected = hole
-        self.include.unobserve(self._on_include, names="value")
-        self.include.value = bool(self.included[hole])
-        self.include.observe(self._on_include, names="value")
+        self._show_included()
         self._borders()
         self._show_info()
         # a hole off the detector at the current frame: go to the nearest pose that shows it
@@ -294,12 +283,16 @@ class HoleExplorer:
         if inc.shape != self.included.shape:
             raise ConfigurationError(f"included: shape {inc.shape}, expected {self.included.shape}")
         self.included = inc.copy()
-        self.include.unobserve(self._on_include, names="value")
-        self.include.value = bool(self.included[self.selected])
-        self.include.observe(self._on_include, names="value")
+        self._show_included()
         self._paint()
         self._update_stats()
         self._show_residuals()
+
+    def _show_included(self) -> None:
+        """The toggle shows whether the selected hole is in the average (without firing)."""
+        self.include.unobserve(self._on_include, names="value")
+        self.include.value = bool(self.included[self.selected])
+        self.include.observe(self._on_include, names="value")
 
     def _on_include(self, change) -> None:
         inc = self.included.copy()
@@ -326,8 +319,9 @@ class HoleExplorer:
         for h, b in enumerate(self.buttons):
             if np.isfinite(v[h]):
                 rgb = cmap(np.clip((v[h] - lo) / (hi - lo), 0, 1))[:3]
-                b.style.button_color = mpl.colors.to_hex(rgb)
-                b.style.text_color = _text_color(rgb)
+                b.style.button_color = mpl.colors.to_hex(rgb)  # text legible on it:
+                lum = 0.299 * rgb[0] + 0.587 * rgb[1] + 0.114 * rgb[2]
+                b.style.text_color = "black" if lum > 0.5 else "white"
             else:
                 b.style.button_color = "#bbbbbb"
                 b.style.text_color = "black"
@@ -335,9 +329,7 @@ class HoleExplorer:
             b.description = label if self.included[h] else f"✕{h}"
             b.style.font_weight = "bold" if h in self.injected else ""
             b.style.text_decoration = "underline" if h in self.injected else ""
-            notes = [f"hole {h}: {name} = {v[h]:.3g}"]
-            if self.flagged[h]:
-                notes.append("flagged")
+            notes = [f"hole {h}: {name} = {v[h]:.3g}"] + ["flagged"] * bool(self.flagged[h])
             if h in self.injected:
                 notes.append(f"injected: {self.injected[h]}")
             b.tooltip = "; ".join(notes)
@@ -441,19 +433,12 @@ class HoleExplorer:
         h = self.selected
         n = int(self.included.sum())
         self.stats = self.review.stats(self.included, h)
-        cols = [(f"average of {n} included holes", self.stats["included"]),
-                (f"average of all {len(self.included)} holes", self.stats["all"]),
-                (f"hole {h} alone", self.stats["hole"])]
-        head = "".join(f"<th>{html.escape(c)}</th>" for c, _ in cols)
-        body = ""
-        for a in ("alpha", "beta"):
-            for k in ("mu", "sigma", "M", "sigma_M"):
-                cells = "".join(
-                    f"<td>{s[a][k]:.5f}</td>" if s is not None and np.isfinite(s[a][k])
-                    else "<td>–</td>" for _, s in cols
-                )
-                body += f"<tr><td>{a}</td><td>{k}</td>{cells}</tr>"
-        self.stats_html.value = (
-            "<b>Global statistics (deg), per-hole calibration then average</b>"
-            f"<table><tr><th>angle</th><th>stat</th>{head}</tr>{body}</table>"
-        )
+        cols = {f"average of {n} included holes": self.stats["included"],
+                f"average of all {len(self.included)} holes": self.stats["all"],
+                f"hole {h} alone": self.stats["hole"]}
+        table = pd.DataFrame({c: {(a, k): np.nan if s is None else s[a][k] for a in ANGLES
+                                  for k in ("mu", "sigma", "M", "sigma_M")}
+                              for c, s in cols.items()}).rename_axis(["angle", "stat"])
+        self.stats_html.value = ("<b>Global statistics (deg), per-hole calibration then "
+                                 "average</b>" + table.to_html(float_format="{:.5f}".format,
+                                                               na_rep="–"))
