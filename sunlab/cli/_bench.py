@@ -19,32 +19,29 @@ __all__: list[str] = []
 
 def _add(sub) -> None:
     """Add ``simulate`` and ``acquire``."""
-    p = verb(sub, "simulate", run_simulate, "render an experiment of the virtual bench into a "
-             "cube", progress=True, overwrite="an existing output")
-    p.add_argument("--experiment", default="III", choices=["I", "II", "III"],
-                   help="the paper's experiment (Table 3); default III")
+    p = verb(sub, "simulate", run_simulate, "render an experiment of the virtual bench",
+             progress=True, overwrite="an existing output")
+    p.add_argument("--experiment", default="III", choices=["I", "II", "III"], help="Table 3")
     p.add_argument("--mask", default="single", choices=["single", "multi", "random"],
-                   help="one 0.2 mm hole, the 10 x 10 grid, or 50 random holes")
+                   help="one hole, the 10 x 10 grid, or 50 random holes")
     p.add_argument("--out", required=True, help="output cube (.zarr store or .nc file)")
     p.add_argument("--seed", type=SEED, default=0, help="seed of the experiment (default 0)")
     p.add_argument("--shots", type=SHOTS, default=8, help="frames per pose (default 8)")
     p.add_argument("--subset", type=POSITIVE, default=1, metavar="STEP",
-                   help="keep every STEP-th angle along each grid axis (quick runs)")
+                   help="every STEP-th angle along each grid axis")
     p.add_argument("--noise-free", action="store_true", help="ideal detector: no noise, no FPN")
     p.add_argument("--ideal-platform", action="store_true", help="true angles = commanded")
-    p.add_argument("--chunks", default="frame", choices=["frame", "pose"],
-                   help="store one frame or one pose per chunk")
+    p.add_argument("--chunks", default="frame", choices=["frame", "pose"], help="per chunk")
     p.add_argument("--workers", type=WORKERS, help="threads rendering in parallel")
 
     p = verb(sub, "acquire", run_acquire, "drive the stage and a camera through a plan into a "
              "Zarr run (--resume continues it; Ctrl-C stops between poses)", progress=True)
-    p.add_argument("--stage", required=True, metavar="URL",
-                   help="fake://, socket://HOST:PORT, or the serial device of an ESP300/301")
+    p.add_argument("--stage", required=True, help="fake://, socket://HOST:PORT, or a serial port")
     p.add_argument("--camera", required=True, metavar="sim|folder:PATH|module:Class|NAME",
                    help="the virtual bench's, a folder a camera writes images into, your "
                    "camera class, or an entry point of sunlab.cameras (docs/hardware.md)")
     p.add_argument("--camera-option", action="append", default=[], metavar="KEY=VALUE",
-                   help="argument of your camera class (repeat; VALUE read as JSON if it parses)")
+                   help="argument of your camera class (VALUE as JSON if it parses)")
     p.add_argument("--plan", required=True, help="experiment I, II, III, or a CSV of alpha,beta")
     p.add_argument("--out", required=True, help="the run's Zarr store (a directory)")
     p.add_argument("--resume", action="store_true", help="continue an existing run in --out")
@@ -52,8 +49,7 @@ def _add(sub) -> None:
     p.add_argument("--step", type=POSITIVE, default=1, help="keep every STEP-th pose")
     p.add_argument("--settle", type=SECONDS, default=0.5, help="settle time after a move, s")
     p.add_argument("--seed", type=SEED, default=0, help="seed of the virtual bench (sim, fake)")
-    p.add_argument("--bench", choices=("single", "multi"), default="single",
-                   help="virtual bench of the sim camera and the fake stage")
+    p.add_argument("--bench", choices=("single", "multi"), default="single", help="sim, fake")
     p.add_argument("--binning", type=POSITIVE, default=1, help="sim camera pixel binning")
     p.add_argument("--roi", metavar="Y0,Y1,X0,X1", help="sim camera region, px (half-open)",
                    type=typed(lambda t: [int(v) for v in t.split(",")], lambda v: len(v) == 4,
@@ -63,8 +59,7 @@ def _add(sub) -> None:
                               lambda v: len(v) == 2 and all(1 <= n <= 16384 for n in v),
                               "NYxNX, each from 1 to 16384 px"))
     p.add_argument("--bit-depth", type=POSITIVE, default=10, help="folder camera ADC bits")
-    p.add_argument("--frame-timeout", type=SECONDS, default=10.0,
-                   help="folder camera: longest wait for an image, s")
+    p.add_argument("--frame-timeout", type=SECONDS, default=10.0, help="folder camera, s")
     p.add_argument("--baudrate", type=POSITIVE, default=19200, help="serial baud rate")
     p.add_argument("--timeout", type=SECONDS, default=1.0, help="serial read timeout, s")
 
