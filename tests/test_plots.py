@@ -1,4 +1,5 @@
-"""Tests of sunlab.plots: the figures carry the expected artists (not pixels)."""
+"""Tests of sunlab.plots.accuracy (Figs. 10-12; the mask's figures: tests/test_multihole.py):
+the figures carry the expected artists (not pixels)."""
 
 import numpy as np
 import pytest
@@ -67,7 +68,7 @@ def test_error_rectangles_fig12():
 
 def test_coinciding_rectangles_share_a_tag():
     """Fig. 15's three 100-hole rectangles can coincide: one tag names them all."""
-    from sunlab.plots import draw_rectangles, new_figure
+    from sunlab.plots.accuracy import draw_rectangles, new_figure
 
     ax = new_figure().subplots()
     groups = draw_rectangles(ax, [("geometric centre", 0.0, 0.01, 0.0, 0.05),
@@ -82,7 +83,7 @@ def test_coinciding_rectangles_share_a_tag():
 def test_figures_show_in_a_fresh_kernel():
     """A returned figure carries its own PNG (IPython shows it without pyplot's formatter)."""
     fig = plots.error_rectangles(stats.paper_table4())
-    assert isinstance(fig, plots.ShownFigure)
+    assert isinstance(fig, plots.accuracy.ShownFigure)
     png = fig._repr_png_()
     assert png.startswith(b"\x89PNG") and len(png) > 10_000
 
@@ -90,7 +91,7 @@ def test_figures_show_in_a_fresh_kernel():
 def test_tags_of_nearby_rectangles_do_not_overlap():
     """Two distinct rectangles with almost the same corner (05's linear and cubic interpolation):
     their tags are drawn apart, so both numbers stay readable."""
-    from sunlab.plots import draw_rectangles, new_figure
+    from sunlab.plots.accuracy import draw_rectangles, new_figure
 
     fig = new_figure(figsize=(5.5, 5.6))
     ax = fig.subplots()
@@ -104,7 +105,7 @@ def test_tags_of_nearby_rectangles_do_not_overlap():
 
 def test_a_rectangle_joins_the_nearest_coinciding_group():
     """Fig. 15: 'averaging + rejection' lies on 'averaging', a little off 'geometric centre'."""
-    from sunlab.plots import draw_rectangles, new_figure
+    from sunlab.plots.accuracy import draw_rectangles, new_figure
 
     ax = new_figure().subplots()
     # the 100-hole rectangles of a quick `sunlab reproduce --table 5` run (deg)
