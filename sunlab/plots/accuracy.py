@@ -60,8 +60,8 @@ class ShownFigure(Figure):
         return buf.getvalue()
 
 
-def new_figure(**kwargs) -> ShownFigure:
-    """A new :class:`ShownFigure` (keywords as :class:`matplotlib.figure.Figure`'s).
+def new_figure(**kwargs) -> Figure:
+    """A new :class:`~sunlab.plots.accuracy.ShownFigure` (keywords as a Figure's).
 
     The one place where sunlab's figure functions make a figure: no pyplot state, no GUI, shown
     as a PNG when a notebook cell returns it.
