@@ -6,9 +6,7 @@ from . import camera as camera
 from . import cameras as cameras
 from . import errors as errors
 from . import esp as esp
-from . import esp_protocol as esp_protocol
 from . import fake as fake
-from . import pymeasure_stage as pymeasure_stage
 from . import runner as runner
 from . import stage as stage
 from .camera import Camera as Camera
@@ -17,7 +15,6 @@ from .camera import FolderCamera as FolderCamera
 from .camera import SimCamera as SimCamera
 from .camera import capture_darks as capture_darks
 from .cameras import available_cameras as available_cameras
-from .cameras import camera_class as camera_class
 from .cameras import open_camera as open_camera
 from .errors import BenchError as BenchError
 from .errors import CameraError as CameraError
@@ -27,10 +24,8 @@ from .errors import ErrorReplyLost as ErrorReplyLost
 from .errors import LimitError as LimitError
 from .errors import MotionTimeout as MotionTimeout
 from .errors import StageError as StageError
-from .errors import StageTimeout as StageTimeout
 from .esp import ESP300 as ESP300
 from .fake import FakeESP as FakeESP
-from .pymeasure_stage import PymeasureStage as PymeasureStage
 from .runner import acquire as acquire
 from .runner import open_run as open_run
 from .stage import Stage as Stage

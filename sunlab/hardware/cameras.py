@@ -18,8 +18,7 @@ virtual bench) and ``folder:PATH`` (:class:`FolderCamera`).
 
 Examples
 --------
->>> cls = camera_class("sunlab.hardware:FolderCamera")
->>> cls.__name__
+>>> camera_class("sunlab.hardware:FolderCamera").__name__
 'FolderCamera'
 >>> sorted(available_cameras())[:2]
 ['folder', 'sim']
@@ -31,21 +30,18 @@ import importlib
 import json
 
 from ..errors import ConfigurationError
+from ._plugins import entry_points, plugin_failed
 
-__all__ = ["available_cameras", "camera_class", "open_camera"]
+__all__ = ["available_cameras", "open_camera"]
 
 #: The entry point group a lab's package registers its cameras in.
 ENTRY_POINT_GROUP = "sunlab.cameras"
 
-
-def _entry_points() -> dict:
-    from importlib.metadata import entry_points
-
-    return {ep.name: ep for ep in entry_points(group=ENTRY_POINT_GROUP)}
-
-
 #: The cameras sunlab brings (name -> class); ``folder`` is opened as ``folder:PATH``.
 _BUILTIN = {"sim": "sunlab.hardware:SimCamera", "folder": "sunlab.hardware:FolderCamera"}
+
+_FIX = ("check that the camera is connected and powered, its driver installed and its options "
+        "(--camera-option); run with --debug for the plug-in's traceback")
 
 
 def available_cameras() -> dict:
@@ -57,21 +53,8 @@ def available_cameras() -> dict:
         Name -> where it comes from (``module:Class``, or the entry point's value); each
         loads with :func:`camera_class`. A registered name never shadows a built-in.
     """
-    found = dict(_BUILTIN)
-    found.update({name: ep.value for name, ep in _entry_points().items()
-                  if name not in _BUILTIN})
-    return found
-
-
-def _plugin_failed(spec: str, what: str, err: BaseException) -> ConfigurationError:
-    """A lab's camera code that raised: named with its error, never a traceback (a camera
-    that is not plugged in is the commonest fault at a bench)."""
-    text = " ".join(str(err).split()) or type(err).__name__
-    return ConfigurationError(
-        f"--camera {spec}: {what} ({type(err).__name__}: {text}). Fix: check that the camera "
-        "is connected and powered, its driver installed and its options (--camera-option); "
-        "run with --debug for the plug-in's traceback"
-    )
+    found = {name: ep.value for name, ep in entry_points(ENTRY_POINT_GROUP).items()}
+    return {**found, **_BUILTIN}
 
 
 def camera_class(spec: str):
@@ -100,37 +83,34 @@ def camera_class(spec: str):
     >>> camera_class("sim").__name__
     'SimCamera'
     """
-    if spec in _BUILTIN:
-        spec = _BUILTIN[spec]
-    elif ":" not in spec:
-        eps = _entry_points()
+    what = f"--camera {spec}"
+    spec = _BUILTIN.get(spec, spec)
+    if ":" not in spec:
+        eps = entry_points(ENTRY_POINT_GROUP)
         if spec not in eps:
             raise ConfigurationError(
                 f"--camera: found {spec!r}, expected 'sim', 'folder:PATH', 'module:Class' or a "
                 f"registered camera ({sorted(eps) or 'none registered'}). Fix: give the class "
                 f"as mypkg.module:MyCamera, or register it in the entry point group "
-                f"{ENTRY_POINT_GROUP!r} of your package (docs/hardware.md)"
-            )
+                f"{ENTRY_POINT_GROUP!r} of your package (docs/hardware.md)")
         try:
             return eps[spec].load()
         except (Exception, SystemExit) as err:  # noqa: BLE001 - a broken plug-in is named
-            raise _plugin_failed(spec, f"the entry point {eps[spec].value!r} does not load",
-                                 err) from err
+            raise plugin_failed(what, f"the entry point {eps[spec].value!r} does not load", err,
+                                _FIX) from err
     module, _, name = spec.partition(":")
     try:
         obj = importlib.import_module(module)
     except ImportError as err:
         raise ConfigurationError(
-            f"--camera {spec}: cannot import {module!r} ({err}). Fix: install the package that "
-            "holds the camera class, or run from its folder"
-        ) from err
+            f"{what}: cannot import {module!r} ({err}). Fix: install the package that holds "
+            "the camera class, or run from its folder") from err
     except (Exception, SystemExit) as err:  # noqa: BLE001 - the module raised on import
-        raise _plugin_failed(spec, f"importing {module!r} failed", err) from err
+        raise plugin_failed(what, f"importing {module!r} failed", err, _FIX) from err
     for part in name.split("."):
         if not hasattr(obj, part):
-            raise ConfigurationError(
-                f"--camera {spec}: {module!r} has no {name!r}. Fix: give module:Class exactly"
-            )
+            raise ConfigurationError(f"{what}: {module!r} has no {name!r}. Fix: give "
+                                     "module:Class exactly")
         obj = getattr(obj, part)
     return obj
 
@@ -148,11 +128,6 @@ def parse_camera_options(pairs) -> dict:
     dict
         Keyword arguments for the camera class, in the order given (a repeated key keeps its
         last value).
-
-    Raises
-    ------
-    ConfigurationError
-        A pair without ``=`` or whose key is not a Python name.
 
     Examples
     --------
@@ -199,23 +174,19 @@ def open_camera(spec: str, **options):
 
     cls = camera_class(spec)
     if not callable(cls):
-        raise ConfigurationError(
-            f"--camera {spec}: found a {type(cls).__name__}, expected a camera class. Fix: give "
-            "module:Class of the class itself")
+        raise ConfigurationError(f"--camera {spec}: found a {type(cls).__name__}, expected a "
+                                 "camera class. Fix: give module:Class of the class itself")
     try:
         camera = cls(**options)
     except TypeError as err:
-        raise ConfigurationError(
-            f"--camera {spec}: {err}. Fix: pass the camera's arguments as --camera-option "
-            "KEY=VALUE"
-        ) from err
+        raise ConfigurationError(f"--camera {spec}: {err}. Fix: pass the camera's arguments as "
+                                 "--camera-option KEY=VALUE") from err
     except (Exception, SystemExit) as err:  # noqa: BLE001 - the camera refused to open
-        raise _plugin_failed(spec, f"{getattr(cls, '__name__', cls)!s} did not open",
-                             err) from err
+        raise plugin_failed(f"--camera {spec}", f"{getattr(cls, '__name__', cls)!s} did not open",
+                            err, _FIX) from err
     if not isinstance(camera, Camera):
         missing = [m for m in ("grab", "shape", "dtype", "bit_depth") if not hasattr(camera, m)]
         raise ConfigurationError(
             f"--camera {spec}: {type(camera).__name__} lacks {missing} of the Camera protocol. "
-            "Fix: give the class grab() -> ndarray, shape, dtype and bit_depth (docs/hardware.md)"
-        )
+            "Fix: give the class grab() -> ndarray, shape, dtype and bit_depth (docs/hardware.md)")
     return camera

@@ -15,10 +15,9 @@ from sunlab.hardware import (
     ErrorReplyLost,
     FakeESP,
     MotionTimeout,
-    StageTimeout,
     open_stage,
 )
-from sunlab.hardware.errors import StageDisconnected
+from sunlab.hardware.errors import StageDisconnected, StageTimeout
 from sunlab.hardware.fake import DISCONNECT, ManualClock
 
 FAST = {"timeout": 0.08, "retries": 3, "retry_delay_s": 0.01, "poll_s": 0.001}
