@@ -9,12 +9,12 @@ from . import esp as esp
 from . import fake as fake
 from . import runner as runner
 from . import stage as stage
-from .camera import Camera as Camera
-from .camera import ControlledCamera as ControlledCamera
 from .camera import FolderCamera as FolderCamera
 from .camera import SimCamera as SimCamera
-from .camera import capture_darks as capture_darks
+from .cameras import Camera as Camera
+from .cameras import ControlledCamera as ControlledCamera
 from .cameras import available_cameras as available_cameras
+from .cameras import capture_darks as capture_darks
 from .cameras import open_camera as open_camera
 from .errors import BenchError as BenchError
 from .errors import CameraError as CameraError

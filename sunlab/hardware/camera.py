@@ -1,15 +1,5 @@
-"""Cameras: the protocol the runner uses, a simulated camera and a folder-watching camera.
-
-A camera is anything with ``grab() -> ndarray`` (one frame, ``shape``, ``dtype``) and
-``bit_depth``. Two optional members are used when present: ``set_index(pose, shot, alpha=,
-beta=)``, called by the runner before each grab with the stage's read-back angles, and ``attrs``,
-the sensor attributes of the frame cube (``pixel_pitch_mm``, ``mask_distance_mm``, ``x_cf_px``,
-``y_cf_px``, ``mask``). A camera that a lab controls from sunlab also offers
-:class:`ControlledCamera`: ``exposure_s`` and ``set_exposure(seconds)``, ``roi`` and
-``set_roi((y0, y1, x0, x1))``, and ``grab_dark()`` (a frame with the light blocked), which
-:func:`capture_darks` stacks into the dark frames of :func:`sunlab.io.with_calibration_frames`.
-A lab's own camera class is opened by :func:`~sunlab.hardware.open_camera`
-(:mod:`sunlab.hardware.cameras`; docs/hardware.md shows how to wrap a camera SDK).
+"""The cameras sunlab ships, each a :class:`~sunlab.hardware.ControlledCamera` (the protocol
+and how a lab's own camera is opened are :mod:`sunlab.hardware.cameras`):
 
 - :class:`SimCamera` renders frames from the virtual bench (:func:`sunlab.sim.render_frame`) at
   the platform's true pose, deterministic in (seed, pose, shot); a region of interest and
@@ -17,14 +7,6 @@ A lab's own camera class is opened by :func:`~sunlab.hardware.open_camera`
 - :class:`FolderCamera` serves real cameras whose software writes one image file per frame
   (TIFF or PNG): it waits for a new, complete file and reads it.
 
-Examples
---------
->>> class Dark:
-...     shape, dtype, bit_depth = (2, 3), np.dtype(np.uint16), 10
-...     def grab(self):
-...         return np.zeros(self.shape, self.dtype)
->>> isinstance(Dark(), Camera)
-True
 """
 
 from __future__ import annotations
@@ -33,102 +15,13 @@ import math
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Protocol, runtime_checkable
 
 import numpy as np
 
 from ..errors import ConfigurationError
 from .errors import CameraError, CameraTimeout
 
-__all__ = ["Camera", "ControlledCamera", "SimCamera", "FolderCamera", "capture_darks"]
-
-
-@runtime_checkable
-class Camera(Protocol):
-    """A frame source: ``grab()`` returns one ``(ny, nx)`` frame of ``dtype`` in DN."""
-
-    shape: tuple[int, int]
-    dtype: np.dtype
-    bit_depth: int
-
-    def grab(self) -> np.ndarray:
-        """Take one frame.
-
-        Returns
-        -------
-        numpy.ndarray
-            One frame, shape ``shape`` (ny, nx), type ``dtype``, in DN (values below
-            ``2**bit_depth``).
-        """
-        ...
-
-
-@runtime_checkable
-class ControlledCamera(Camera, Protocol):
-    """A :class:`Camera` whose exposure, region of interest and dark frames sunlab can set."""
-
-    exposure_s: float | None
-    roi: tuple[int, int, int, int]
-
-    def set_exposure(self, seconds: float) -> None:
-        """Set the exposure (integration) time.
-
-        Parameters
-        ----------
-        seconds : float
-            Exposure time, s.
-        """
-        ...
-
-    def set_roi(self, roi: Sequence[int]) -> None:
-        """Read only rows ``y0:y1`` and columns ``x0:x1`` of the sensor; ``shape`` follows.
-
-        Parameters
-        ----------
-        roi : (y0, y1, x0, x1)
-            Region of interest, half-open pixel ranges of the full sensor (rows, then columns).
-        """
-        ...
-
-    def grab_dark(self) -> np.ndarray:
-        """Take one frame with the light blocked (shutter closed, source off), as ``grab``.
-
-        Returns
-        -------
-        numpy.ndarray
-            One dark frame, shape ``shape`` (ny, nx), type ``dtype``, in DN.
-        """
-        ...
-
-
-def capture_darks(camera, n: int = 16) -> np.ndarray:
-    """``n`` dark frames of a camera, stacked (n, ny, nx): the ``dark`` of
-    :func:`sunlab.io.with_calibration_frames` (whose median is the master dark).
-
-    Parameters
-    ----------
-    camera : object
-        A camera with ``grab_dark()`` (a :class:`ControlledCamera`).
-    n : int
-        Number of dark frames to take.
-
-    Returns
-    -------
-    numpy.ndarray
-        The dark frames, shape (n, ny, nx), the camera's frame type, in DN.
-
-    Examples
-    --------
-    >>> darks = capture_darks(SimCamera(roi=(100, 132, 900, 964)), 3)
-    >>> darks.shape, bool(darks.mean() < 100)
-    ((3, 32, 64), True)
-    """
-    if not callable(getattr(camera, "grab_dark", None)):
-        raise CameraError(
-            f"camera: {type(camera).__name__} cannot take dark frames (no grab_dark). Fix: "
-            "give the camera a grab_dark() (close the shutter or switch the source off, then "
-            "grab), or take the dark frames by hand into a folder for sunlab import --dark")
-    return np.stack([np.asarray(camera.grab_dark()) for _ in range(int(n))])
+__all__ = ["SimCamera", "FolderCamera"]
 
 
 class SimCamera:

@@ -1,4 +1,14 @@
-"""Which camera ``sunlab acquire --camera SPEC`` opens: built-ins, entry points, or a class.
+"""Cameras: the protocol the runner uses, and which camera ``sunlab acquire --camera SPEC``
+opens (built-ins, entry points, or a class).
+
+A camera is anything with ``grab() -> ndarray`` (one frame, ``shape``, ``dtype``) and
+``bit_depth``. Two optional members are used when present: ``set_index(pose, shot, alpha=,
+beta=)``, called by the runner before each grab with the stage's read-back angles, and ``attrs``,
+the sensor attributes of the frame cube (``pixel_pitch_mm``, ``mask_distance_mm``, ``x_cf_px``,
+``y_cf_px``, ``mask``). A camera that a lab controls from sunlab also offers
+:class:`ControlledCamera`: ``exposure_s`` and ``set_exposure(seconds)``, ``roi`` and
+``set_roi((y0, y1, x0, x1))``, and ``grab_dark()`` (a frame with the light blocked), which
+:func:`capture_darks` stacks into the dark frames of :func:`sunlab.io.with_calibration_frames`.
 
 A lab's own camera is one class with the :class:`~sunlab.hardware.Camera` members (``grab``,
 ``shape``, ``dtype``, ``bit_depth``; optionally exposure, ROI and dark frames,
@@ -18,6 +28,12 @@ virtual bench) and ``folder:PATH`` (:class:`FolderCamera`).
 
 Examples
 --------
+>>> class Dark:
+...     shape, dtype, bit_depth = (2, 3), np.dtype(np.uint16), 10
+...     def grab(self):
+...         return np.zeros(self.shape, self.dtype)
+>>> isinstance(Dark(), Camera)
+True
 >>> camera_class("sunlab.hardware:FolderCamera").__name__
 'FolderCamera'
 >>> sorted(available_cameras())[:2]
@@ -28,11 +44,105 @@ from __future__ import annotations
 
 import importlib
 import json
+from collections.abc import Sequence
+from typing import Protocol, runtime_checkable
+
+import numpy as np
 
 from ..errors import ConfigurationError
 from ._plugins import entry_points, plugin_failed
+from .errors import CameraError
 
-__all__ = ["available_cameras", "open_camera"]
+__all__ = ["Camera", "ControlledCamera", "capture_darks", "available_cameras", "open_camera"]
+
+@runtime_checkable
+class Camera(Protocol):
+    """A frame source: ``grab()`` returns one ``(ny, nx)`` frame of ``dtype`` in DN."""
+
+    shape: tuple[int, int]
+    dtype: np.dtype
+    bit_depth: int
+
+    def grab(self) -> np.ndarray:
+        """Take one frame.
+
+        Returns
+        -------
+        numpy.ndarray
+            One frame, shape ``shape`` (ny, nx), type ``dtype``, in DN (values below
+            ``2**bit_depth``).
+        """
+        ...
+
+
+@runtime_checkable
+class ControlledCamera(Camera, Protocol):
+    """A :class:`Camera` whose exposure, region of interest and dark frames sunlab can set."""
+
+    exposure_s: float | None
+    roi: tuple[int, int, int, int]
+
+    def set_exposure(self, seconds: float) -> None:
+        """Set the exposure (integration) time.
+
+        Parameters
+        ----------
+        seconds : float
+            Exposure time, s.
+        """
+        ...
+
+    def set_roi(self, roi: Sequence[int]) -> None:
+        """Read only rows ``y0:y1`` and columns ``x0:x1`` of the sensor; ``shape`` follows.
+
+        Parameters
+        ----------
+        roi : (y0, y1, x0, x1)
+            Region of interest, half-open pixel ranges of the full sensor (rows, then columns).
+        """
+        ...
+
+    def grab_dark(self) -> np.ndarray:
+        """Take one frame with the light blocked (shutter closed, source off), as ``grab``.
+
+        Returns
+        -------
+        numpy.ndarray
+            One dark frame, shape ``shape`` (ny, nx), type ``dtype``, in DN.
+        """
+        ...
+
+
+def capture_darks(camera, n: int = 16) -> np.ndarray:
+    """``n`` dark frames of a camera, stacked (n, ny, nx): the ``dark`` of
+    :func:`sunlab.io.with_calibration_frames` (whose median is the master dark).
+
+    Parameters
+    ----------
+    camera : object
+        A camera with ``grab_dark()`` (a :class:`ControlledCamera`).
+    n : int
+        Number of dark frames to take.
+
+    Returns
+    -------
+    numpy.ndarray
+        The dark frames, shape (n, ny, nx), the camera's frame type, in DN.
+
+    Examples
+    --------
+    >>> from sunlab.hardware import SimCamera
+    >>> darks = capture_darks(SimCamera(roi=(100, 132, 900, 964)), 3)
+    >>> darks.shape, bool(darks.mean() < 100)
+    ((3, 32, 64), True)
+    """
+    if not callable(getattr(camera, "grab_dark", None)):
+        raise CameraError(
+            f"camera: {type(camera).__name__} cannot take dark frames (no grab_dark). Fix: "
+            "give the camera a grab_dark() (close the shutter or switch the source off, then "
+            "grab), or take the dark frames by hand into a folder for sunlab import --dark")
+    return np.stack([np.asarray(camera.grab_dark()) for _ in range(int(n))])
+
 
 #: The entry point group a lab's package registers its cameras in.
 ENTRY_POINT_GROUP = "sunlab.cameras"
@@ -170,8 +280,6 @@ def open_camera(spec: str, **options):
         The spec does not name a camera class, the class refuses the options, or the object
         lacks ``grab``, ``shape``, ``dtype`` or ``bit_depth``.
     """
-    from .camera import Camera
-
     cls = camera_class(spec)
     if not callable(cls):
         raise ConfigurationError(f"--camera {spec}: found a {type(cls).__name__}, expected a "

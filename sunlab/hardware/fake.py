@@ -1,13 +1,11 @@
 """A fake Newport ESP300/ESP301 controller: the same byte protocol, a simulated platform.
 
-:class:`FakeESP` answers the commands of :mod:`sunlab.hardware.esp` (and the manual's others
-below) exactly as the controller does: commands end with ``CR``, query replies end with ``CR
-LF``, errors queue in a 10-deep buffer read with ``TB?``/``TE?``, axis errors are ``axis * 100 +
-code``. Axes move at a finite velocity, so ``MD?`` reads 0 until the move is over
-(``velocity_deg_s=math.inf`` makes every move instant, for protocol tests; ``clock=`` takes any
-monotonic clock, e.g. a :class:`ManualClock` that a test advances by hand). It serves a
-pseudo-terminal (:meth:`FakeESP.serve_pty`; the driver opens the slave path like any serial
-port) and a loopback TCP port (:meth:`FakeESP.serve_tcp`; ``socket://127.0.0.1:PORT``).
+:class:`FakeESP` answers the manual's commands below exactly as the controller does: commands
+end with ``CR``, query replies end with ``CR LF``, errors queue in a 10-deep buffer, axis errors
+are ``axis * 100 + code``. Axes move at a finite velocity (``math.inf``: instant moves, for
+protocol tests) on any monotonic clock (a :class:`ManualClock` that a test advances by hand). It
+serves a pseudo-terminal (:meth:`FakeESP.serve_pty`) and a loopback TCP port
+(:meth:`FakeESP.serve_tcp`), which the driver opens like any serial port.
 
 Commands (``n`` an axis; blanks between fields are ignored, ``;`` chains commands on a line):
 
@@ -32,9 +30,8 @@ Commands (``n`` an axis; blanks between fields are ignored, ``;`` chains command
 Anything else queues error 6 (command does not exist), 37 (axis number missing), 9 (axis out of
 range), 38 (parameter missing) or 7 (parameter out of range), as the controller does.
 
-The platform behind the axes is the virtual bench's (:func:`sunlab.sim.platform_pose`): the
-encoders read the commanded angles, while :meth:`FakeESP.true_pose` gives the angles the platform
-really takes. Without a bench the platform is ideal (true = commanded).
+The encoders read the commanded angles; :meth:`FakeESP.true_pose` gives the angles the virtual
+bench's platform really takes (:func:`sunlab.sim.platform_pose`; ideal without a bench).
 
 Faults are injected with :meth:`FakeESP.inject`:
 
@@ -67,37 +64,31 @@ b'306'
 
 from __future__ import annotations
 
-import contextlib
 import math
-import os
 import re
-import select
-import socket
 import threading
 import time
 from collections import deque
 from dataclasses import dataclass
 
 from ..errors import ConfigurationError
+from . import _serve
+from ._serve import DISCONNECT
 from .errors import decode_error
 
 __all__ = ["FakeESP"]
 
 FAULT_KINDS = ("timeout", "garble", "error", "silent", "stuck", "disconnect", "late")
 
-#: Returned by :meth:`FakeESP.handle` when the link must be closed.
-DISCONNECT = object()
-
 _CMD_RE = re.compile(r"^(\d*)([A-Za-z]{2})(.*)$")
 #: Commands that need an axis number (error 37 without one).
-_AXIS_COMMANDS = frozenset({"TP", "DP", "MD", "PA", "SL", "SR", "SN", "MO", "MF", "ST", "VA",
-                            "WS", "OR", "DH", "ID"})
 #: Commands of an axis that take a number; WS, OR and DH without one take 0.
 _SETTERS = frozenset({"WS", "OR", "DH", "SN", "PA", "SL", "SR", "VA"})
+_AXIS_COMMANDS = _SETTERS | {"TP", "DP", "MD", "MO", "MF", "ST", "ID"}
 
 
 class ManualClock:
-    """A monotonic clock that moves only when told to (for tests of timed behaviour).
+    """A monotonic clock that moves only when told to, for tests of timed behaviour.
 
     Parameters
     ----------
@@ -148,9 +139,8 @@ class Fault:
 class _Axis:
     def __init__(self, low: float, high: float, velocity: float, motor_on: bool):
         self.low, self.high, self.velocity, self.motor_on = low, high, velocity, motor_on
-        self.units, self.home = 7, 0.0
+        self.units, self.home, self.stuck = 7, 0.0, False
         self.start = self.target = self.t0 = self.t1 = 0.0
-        self.stuck = False
 
     def position(self, now: float) -> float:
         if self.stuck:
@@ -169,13 +159,12 @@ class _Axis:
     def move(self, target: float, now: float, stuck: bool = False) -> None:
         self.start, self.target, self.t0, self.stuck = self.position(now), target, now, stuck
         # an infinite velocity (instant motion) ends the move now, exactly
-        travel = abs(target - self.start)
-        self.t1 = now if math.isinf(self.velocity) else now + travel / self.velocity
+        travel_s = 0.0 if math.isinf(self.velocity) else abs(target - self.start) / self.velocity
+        self.t1 = now + travel_s
 
     def halt(self, now: float) -> None:
         self.start = self.target = self.position(now)
-        self.t0 = self.t1 = now
-        self.stuck = False
+        self.t0, self.t1, self.stuck = now, now, False
 
     def define(self, value: float, now: float) -> None:
         """``DH``: the position here now reads ``value`` (the whole move shifts with it)."""
@@ -193,9 +182,9 @@ class FakeESP:
     seed : int
         Seed of the platform model (per-pose error and per-shot jitter).
     alpha_axis, beta_axis : int
-        Controller axes that carry alpha and beta (for :meth:`true_pose`).
+        Controller axes that carry alpha and beta (for :meth:`true_pose`), of ``n_axes``.
     n_axes : int
-        Number of axes the controller has (ESP301: up to 3).
+        Number of axes (ESP301: up to 3).
     velocity_deg_s : float
         Slew rate of every axis, deg/s; ``math.inf`` makes every move instant.
     limits : (float, float)
@@ -229,14 +218,10 @@ class FakeESP:
         self._errors: deque[int] = deque(maxlen=10)
         self._faults: list[Fault] = []
         self._silent_until = self._wait_until = -math.inf
-        self._late_s = 0.0
-        self._lock = threading.RLock()
+        self._late_s, self._lock, self._stop = 0.0, threading.RLock(), threading.Event()
         self._clock = time.monotonic if clock is None else clock
         self._t_boot = self._clock()
-        self._stop = threading.Event()
-        self._threads: list[threading.Thread] = []
-        self._closers: list = []
-        self.received: list[str] = []
+        self._threads, self._closers, self.received = [], [], []  # received: the command lines
 
     # -- faults -------------------------------------------------------------------------------
     def inject(self, kind: str, match: str = "", *, count: int = 1, code: int = 0,
@@ -264,13 +249,6 @@ class FakeESP:
         -------
         Fault
             The queued fault; its ``count`` falls as it hits (0: used up, dropped).
-
-        Examples
-        --------
-        >>> fake = FakeESP()
-        >>> _ = fake.inject("timeout", "1TP?")
-        >>> fake.handle(b"1TP?") is None, fake.handle(b"1TP?")
-        (True, b'0.000000\\r\\n')
         """
         if kind not in FAULT_KINDS:
             raise ConfigurationError(f"fault kind: found {kind!r}, expected one of {FAULT_KINDS}")
@@ -304,8 +282,7 @@ class FakeESP:
         -------
         bytes or None or object
             The replies of the line's queries, each ending ``CR LF``, concatenated; None when
-            nothing is answered; :data:`DISCONNECT` when a ``disconnect`` fault closes the
-            link.
+            nothing is answered; ``DISCONNECT`` when a ``disconnect`` fault closes the link.
         """
         text = line.decode("ascii", "replace").strip()
         if not text:
@@ -346,11 +323,8 @@ class FakeESP:
     def _status(self, now: float) -> str:
         """``TS``: bit n-1 set while axis n moves, bit 4 while any motor is on; bit 6 is set
         as in the manual's example replies, which keeps the byte a printable character."""
-        bits = 0x40 | (0x10 if any(ax.motor_on for ax in self._axes.values()) else 0)
-        for n, ax in self._axes.items():
-            if n <= 3 and not ax.done(now):
-                bits |= 1 << (n - 1)
-        return chr(bits)
+        moving = sum(1 << (n - 1) for n, ax in self._axes.items() if n <= 3 and not ax.done(now))
+        return chr(0x40 | moving | (0x10 if any(a.motor_on for a in self._axes.values()) else 0))
 
     def _execute(self, command: str, now: float, stuck: bool) -> str | None:
         """Run one command; its reply text, or None (an error is queued where the controller
@@ -432,15 +406,13 @@ class FakeESP:
 
     # -- the platform -------------------------------------------------------------------------
     def position(self) -> tuple[float, float]:
-        """Commanded-frame position of the alpha and beta axes now (not rounded).
-
-        "Now" is the controller's time: a ``WS`` wait moves it on to the end of the wait.
+        """Commanded-frame position of the alpha and beta axes now (a ``WS`` wait moves the
+        controller's time on to its end).
 
         Returns
         -------
         (float, float)
-            (alpha, beta), degrees, mid-move positions included (not rounded to
-            ``resolution_deg`` as ``TP?`` is).
+            (alpha, beta), degrees, mid-move positions included, not rounded as ``TP?`` is.
         """
         with self._lock:
             now = max(self._clock(), self._wait_until)
@@ -448,10 +420,8 @@ class FakeESP:
                     self._axes[self.beta_axis].position(now))
 
     def true_pose(self, pose: int = 0, shot: int = 0) -> tuple[float, float]:
-        """True platform angles (alpha, beta) now, degrees, from the virtual bench's platform.
-
-        Deterministic in (seed, pose, shot) for a given position; see
-        :func:`sunlab.sim.platform_pose`.
+        """True platform angles now, from the virtual bench's platform
+        (:func:`sunlab.sim.platform_pose`: deterministic in seed, pose, shot and position).
 
         Parameters
         ----------
@@ -474,38 +444,16 @@ class FakeESP:
         return float(a), float(b)
 
     # -- transports ---------------------------------------------------------------------------
-    def _serve(self, fd: int, hang_up) -> None:
-        """Answer every CR-terminated command read from ``fd`` (a pty master or a connected
-        socket) until :meth:`close`, the link's end or a ``disconnect`` fault; then
-        ``hang_up()``."""
-        buf = b""
-        try:
-            while not self._stop.is_set():
-                if not select.select([fd], [], [], 0.05)[0]:
-                    continue
-                data = os.read(fd, 4096)
-                if not data:
-                    return
-                *lines, buf = (buf + data).split(b"\r")
-                for line in lines:
-                    reply = self.handle(line)
-                    if reply is DISCONNECT:
-                        return
-                    late, self._late_s = self._late_s, 0.0
-                    if late and reply:  # a slow controller: this reply, and what follows, late
-                        self._stop.wait(late)
-                    if reply:
-                        os.write(fd, reply)
-        except OSError:
-            pass
-        finally:
-            hang_up()
+    def _answer(self, line: bytes):  # the reply, and how late it is sent
+        reply = self.handle(line)
+        late, self._late_s = self._late_s, 0.0
+        return reply, late
 
-    def _start(self, target, closer) -> None:
-        thread = threading.Thread(target=target, name="sunlab-fake-esp", daemon=True)
+    def _serving(self, link) -> str:
+        address, thread, closer = link
         self._threads.append(thread)
         self._closers.append(closer)
-        thread.start()
+        return address
 
     def serve_pty(self) -> str:
         """Serve the protocol on a new pseudo-terminal, in a background thread.
@@ -516,19 +464,7 @@ class FakeESP:
             The slave's device path (e.g. ``/dev/pts/5``), to open as a serial port; POSIX
             only. :meth:`close` stops the thread and closes the terminal.
         """
-        import tty
-
-        master, slave = os.openpty()
-        tty.setraw(slave)
-        fds = [slave, master]
-
-        def close() -> None:
-            while fds:  # each once, whichever of the thread and close() comes first
-                with contextlib.suppress(OSError, IndexError):
-                    os.close(fds.pop())
-
-        self._start(lambda: self._serve(master, close), close)
-        return os.ttyname(slave)
+        return self._serving(_serve.serve_pty(self._answer, self._stop))
 
     def serve_tcp(self, port: int = 0) -> str:
         """Serve the protocol on 127.0.0.1:``port``, in a background thread.
@@ -545,23 +481,7 @@ class FakeESP:
         str
             The ``socket://127.0.0.1:PORT`` URL (:func:`serial.serial_for_url` form).
         """
-        server = socket.create_server(("127.0.0.1", int(port)))
-        server.settimeout(0.05)
-
-        def accept() -> None:
-            with server:
-                while not self._stop.is_set():
-                    try:
-                        conn, _ = server.accept()
-                    except TimeoutError:
-                        continue
-                    except OSError:
-                        return
-                    conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-                    self._serve(conn.fileno(), conn.close)
-
-        self._start(accept, server.close)
-        return f"socket://127.0.0.1:{server.getsockname()[1]}"
+        return self._serving(_serve.serve_tcp(self._answer, self._stop, port))
 
     def close(self) -> None:
         """Stop serving and close every transport."""
