@@ -50,7 +50,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 from ..errors import ConfigurationError
-from ._plugins import entry_points, plugin_failed
+from ._plugins import create, entry_points, load, plugin_failed
 from .errors import CameraError
 
 __all__ = ["Camera", "ControlledCamera", "capture_darks", "available_cameras", "open_camera"]
@@ -203,11 +203,7 @@ def camera_class(spec: str):
                 f"registered camera ({sorted(eps) or 'none registered'}). Fix: give the class "
                 f"as mypkg.module:MyCamera, or register it in the entry point group "
                 f"{ENTRY_POINT_GROUP!r} of your package (docs/hardware.md)")
-        try:
-            return eps[spec].load()
-        except (Exception, SystemExit) as err:  # noqa: BLE001 - a broken plug-in is named
-            raise plugin_failed(what, f"the entry point {eps[spec].value!r} does not load", err,
-                                _FIX) from err
+        return load(eps[spec], what, _FIX)
     module, _, name = spec.partition(":")
     try:
         obj = importlib.import_module(module)
@@ -284,17 +280,5 @@ def open_camera(spec: str, **options):
     if not callable(cls):
         raise ConfigurationError(f"--camera {spec}: found a {type(cls).__name__}, expected a "
                                  "camera class. Fix: give module:Class of the class itself")
-    try:
-        camera = cls(**options)
-    except TypeError as err:
-        raise ConfigurationError(f"--camera {spec}: {err}. Fix: pass the camera's arguments as "
-                                 "--camera-option KEY=VALUE") from err
-    except (Exception, SystemExit) as err:  # noqa: BLE001 - the camera refused to open
-        raise plugin_failed(f"--camera {spec}", f"{getattr(cls, '__name__', cls)!s} did not open",
-                            err, _FIX) from err
-    if not isinstance(camera, Camera):
-        missing = [m for m in ("grab", "shape", "dtype", "bit_depth") if not hasattr(camera, m)]
-        raise ConfigurationError(
-            f"--camera {spec}: {type(camera).__name__} lacks {missing} of the Camera protocol. "
-            "Fix: give the class grab() -> ndarray, shape, dtype and bit_depth (docs/hardware.md)")
-    return camera
+    return create(cls, Camera, ("grab", "shape", "dtype", "bit_depth"), f"--camera {spec}",
+                  _FIX, **options)

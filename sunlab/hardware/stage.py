@@ -22,7 +22,7 @@ from typing import Protocol, runtime_checkable
 from urllib.parse import parse_qs, urlsplit
 
 from ..errors import ConfigurationError
-from ._plugins import entry_points, plugin_failed
+from ._plugins import create, entry_points, load
 
 __all__ = ["Stage", "open_stage"]
 
@@ -127,24 +127,10 @@ def open_stage(url: str, *, bench=None, seed: int = 0, **driver_kwargs):
     if scheme not in eps:
         return ESP300(url, **driver_kwargs)
     what = f"stage {url!r}"
-    try:
-        opener = eps[scheme].load()
-    except (Exception, SystemExit) as err:  # noqa: BLE001 - a broken plug-in is named
-        raise plugin_failed(what, f"the entry point {eps[scheme].value!r} does not load",
-                             err, "reinstall the package that provides it") from err
-    try:
-        stage = opener(url, bench=bench, seed=seed, **driver_kwargs)
-    except (Exception, SystemExit) as err:  # noqa: BLE001 - the lab's stage did not open
-        raise plugin_failed(what, f"{getattr(opener, '__name__', opener)} did not open", err,
-                             "check that the controller is connected and powered, and its "
-                             "options") from err
-    if not isinstance(stage, Stage):
-        missing = [m for m in ("move_to", "position", "describe", "close")
-                   if not hasattr(stage, m)]
-        raise ConfigurationError(f"{what}: {type(stage).__name__} lacks {missing} of the Stage "
-                                 "protocol. Fix: give the class move_to, position, describe "
-                                 "and close")
-    return stage
+    opener = load(eps[scheme], what, "reinstall the package that provides it")
+    return create(opener, Stage, ("move_to", "position", "describe", "close"), what,
+                  "check that the controller is connected and powered, and its options", url,
+                  bench=bench, seed=seed, **driver_kwargs)
 
 
 def _open_fake(url: str, bench, seed: int, driver_kwargs: dict):

@@ -113,7 +113,7 @@ def test_fake_encoder_reads_in_resolution_steps():
     assert fake.handle(b"1TP?") == b"1.235000\r\n"
 
 
-# -- the manual's forms and the commands pymeasure's ESP300 driver sends -------------------------
+# -- the manual's other forms and commands (any client of the controller may send them) -----------
 def _no_error(fake):
     assert fake.handle(b"TE?") == b"0\r\n", "the fake queued an error"
 
