@@ -19,7 +19,7 @@ def plugin_failed(what: str, action: str, err: BaseException, fix: str) -> Confi
     return ConfigurationError(f"{what}: {action} ({type(err).__name__}: {text}). Fix: {fix}")
 
 
-def load(ep, what: str, fix: str):
+def load_plugin(ep, what: str, fix: str):
     """The object an entry point names; one that does not load is named."""
     try:
         return ep.load()
@@ -28,7 +28,7 @@ def load(ep, what: str, fix: str):
                             fix) from err
 
 
-def create(factory, protocol, members: tuple, what: str, fix: str, /, *args, **kwargs):
+def open_device(factory, protocol, members: tuple, what: str, fix: str, /, *args, **kwargs):
     """``factory(*args, **kwargs)``, checked against ``protocol`` (a runtime-checkable
     Protocol of ``members``); a factory that raises, or an object that lacks one, is named."""
     try:

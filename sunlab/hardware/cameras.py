@@ -50,7 +50,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 from ..errors import ConfigurationError
-from ._plugins import create, entry_points, load, plugin_failed
+from ._plugins import entry_points, load_plugin, open_device, plugin_failed
 from .errors import CameraError
 
 __all__ = ["Camera", "ControlledCamera", "capture_darks", "available_cameras", "open_camera"]
@@ -203,7 +203,7 @@ def camera_class(spec: str):
                 f"registered camera ({sorted(eps) or 'none registered'}). Fix: give the class "
                 f"as mypkg.module:MyCamera, or register it in the entry point group "
                 f"{ENTRY_POINT_GROUP!r} of your package (docs/hardware.md)")
-        return load(eps[spec], what, _FIX)
+        return load_plugin(eps[spec], what, _FIX)
     module, _, name = spec.partition(":")
     try:
         obj = importlib.import_module(module)
@@ -280,5 +280,5 @@ def open_camera(spec: str, **options):
     if not callable(cls):
         raise ConfigurationError(f"--camera {spec}: found a {type(cls).__name__}, expected a "
                                  "camera class. Fix: give module:Class of the class itself")
-    return create(cls, Camera, ("grab", "shape", "dtype", "bit_depth"), f"--camera {spec}",
-                  _FIX, **options)
+    return open_device(cls, Camera, ("grab", "shape", "dtype", "bit_depth"), f"--camera {spec}",
+                       _FIX, **options)

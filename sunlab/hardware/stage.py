@@ -22,7 +22,7 @@ from typing import Protocol, runtime_checkable
 from urllib.parse import parse_qs, urlsplit
 
 from ..errors import ConfigurationError
-from ._plugins import create, entry_points, load
+from ._plugins import entry_points, load_plugin, open_device
 
 __all__ = ["Stage", "open_stage"]
 
@@ -127,10 +127,10 @@ def open_stage(url: str, *, bench=None, seed: int = 0, **driver_kwargs):
     if scheme not in eps:
         return ESP300(url, **driver_kwargs)
     what = f"stage {url!r}"
-    opener = load(eps[scheme], what, "reinstall the package that provides it")
-    return create(opener, Stage, ("move_to", "position", "describe", "close"), what,
-                  "check that the controller is connected and powered, and its options", url,
-                  bench=bench, seed=seed, **driver_kwargs)
+    opener = load_plugin(eps[scheme], what, "reinstall the package that provides it")
+    return open_device(opener, Stage, ("move_to", "position", "describe", "close"), what,
+                       "check that the controller is connected and powered, and its options",
+                       url, bench=bench, seed=seed, **driver_kwargs)
 
 
 def _open_fake(url: str, bench, seed: int, driver_kwargs: dict):

@@ -22,17 +22,17 @@ from sunlab.hardware import (
     MotionTimeout,
     StageError,
 )
-from sunlab.hardware.errors import (
-    StageDisconnected,
-    StageProtocolError,
-    StageTimeout,
-    decode_error,
-)
 from sunlab.hardware._esp_link import (
     READ_TERMINATOR,
     WRITE_TERMINATOR,
     format_number,
     open_transport,
+)
+from sunlab.hardware.errors import (
+    StageDisconnected,
+    StageProtocolError,
+    StageTimeout,
+    decode_error,
 )
 from sunlab.hardware.esp import UNITS
 
