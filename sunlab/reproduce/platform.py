@@ -13,14 +13,14 @@ lab whose stage has one would run them):
    out. Every row fits on I alone, so that the remedies compare like with like; Table 4's
    polynomial is refitted on I + II (:data:`sunlab.calibration.methods.POLYNOMIAL_REFIT`) and
    takes part of the zero shift from II, so its beta mu is below this table's first row;
-2. the diagnosis (:func:`sunlab.studies.platform_fault.diagnose`) of the polynomial's test
+2. the diagnosis (:func:`sunlab.reproduce.fault.diagnose`) of the polynomial's test
    errors with the run's motion record, beside the shape test applied to the paper's published
-   statistics (:func:`sunlab.studies.platform_fault.paper_shape`);
+   statistics (:func:`sunlab.reproduce.fault.paper_shape`);
 3. remedy (a): the same experiments with a unidirectional approach (overshoot and return), and
    with the zero-pose checks correcting the homing offset;
 4. remedy (b): on the paper-protocol runs, the backlash fitted jointly with the polynomial
    from the motion record (and the homing offset from the zero-pose checks), with standard
-   errors (:func:`sunlab.studies.platform_fault.fit_correction`), the test run's reference
+   errors (:func:`sunlab.reproduce.remedy.fit_correction`), the test run's reference
    corrected.
 
 Every row is Table 4's eight statistics for the polynomial on experiment III. The frames go
@@ -37,8 +37,13 @@ Examples
 
 from __future__ import annotations
 
+import dataclasses
+import math
 import time
 from pathlib import Path
+
+import numpy as np
+import pandas as pd
 
 from .pipeline import experiment_plans, locate_runs, simulate_runs, usable_table, write_json
 
@@ -57,7 +62,7 @@ GEAR_ROW = "(b) backlash + homing + gear error at the periodogram's frequency"
 
 
 def bench_fault_values(bench, seed, plans_by_run: dict) -> dict:
-    """The bench's own values of what :func:`sunlab.studies.platform_fault.fit_correction`
+    """The bench's own values of what :func:`sunlab.reproduce.remedy.fit_correction`
     estimates.
 
     ``beta_backlash_deg`` (the platform's), ``beta_homing_difference_deg`` (the test run's
@@ -209,7 +214,8 @@ def _rows(cens: dict, paper: dict, uni: dict):
     diagnosis, the joint fit whose parameters are reported and its row."""
     from .. import stats
     from ..calibration import Polynomial
-    from ..studies import platform_fault as pf
+    from .fault import diagnose
+    from .remedy import fit_correction
 
     local, fits = {}, {}
     for tag in ("paper", "uni"):
@@ -221,7 +227,7 @@ def _rows(cens: dict, paper: dict, uni: dict):
     zeros = {"zero_train": cens["zero I"], "zero_test": cens["zero III"]}
 
     def corrected(runs, plans_, **kw):
-        jc = pf.fit_correction(cens[f"{runs} I"], plans_["I"], cens[f"{runs} II"], **kw)
+        jc = fit_correction(cens[f"{runs} I"], plans_["I"], cens[f"{runs} II"], **kw)
         est = jc.predict(cens[f"{runs} III"])
         return jc, stats.local_errors(est, jc.reference(est, plans_["III"]))
 
@@ -231,7 +237,7 @@ def _rows(cens: dict, paper: dict, uni: dict):
     _, rows[ROWS[3]] = corrected("paper", paper)
     jc_params, rows[ROWS[4]] = corrected("paper", paper, **zeros)
     from_row = ROWS[4]
-    diag = pf.diagnose(fits["paper"].predict(cens["paper III"]), paper["III"])
+    diag = diagnose(fits["paper"].predict(cens["paper III"]), paper["III"])
     if diag.candidate == "gear":
         # the gear term at the frequency the periodogram found (the alias the grid sees)
         f = diag.evidence["periodogram"]["peak_frequency"]
@@ -254,7 +260,7 @@ def _platform_doc(table, parameters: dict, diag, fits: dict) -> dict:
     """The platform table's results: rows, parameters, diagnosis, the paper's shape test and
     the must-show checks (settings, timings and files are added by the caller)."""
     from .. import stats
-    from ..studies import platform_fault as pf
+    from .fault import paper_shape
 
     def cells(col):
         return {f"{a}.{s}": float(table.loc[(a, s), col]) for a in stats.ANGLES
@@ -273,13 +279,13 @@ def _platform_doc(table, parameters: dict, diag, fits: dict) -> dict:
         "beta_mu_within_0.6x_polynomial_beta_mu": remedies[best] <= 0.6 * poly["beta.mu"],
         "parameters_within_2.5_stderr": all(abs(p["z"]) <= 2.5 for p in parameters.values()),
     }
-    shape = pf.paper_shape()
+    shape = paper_shape()
     return {
         "table": "platform",
         "source": "sunlab virtual bench (ours); the paper's own statistics for paper_shape",
         "rows": {r: cells(r) for r in names},
         "parameters": parameters,
-        "diagnosis": {**diag.to_dict(), "polynomial_shape": {
+        "diagnosis": {**dataclasses.asdict(diag), "polynomial_shape": {
             a: float(table.loc[(a, "sigma"), ROWS[0]] / table.loc[(a, "mu"), ROWS[0]])
             for a in stats.ANGLES}},
         "paper_shape": {f"{m} {a}": {"ratio": float(r["ratio"]),
@@ -339,3 +345,87 @@ def format_platform(res: dict) -> str:
     lines.append("  every fitted fault parameter within 2.5 s.e. of the bench's value: "
                  f"{yes(m['parameters_within_2.5_stderr'])}")
     return "\n".join(lines)
+
+
+def candidate_table(sizes: dict, *, bench=None, seed: int = 0, shots: int = 1,
+                    experiment_plans: dict | None = None,
+                    methods=("polynomial", "linear interp.", "cubic interp.")) -> pd.DataFrame:
+    """Which candidate explains the paper's beta statistics: Table 4's beta cells per fault.
+
+    For each fault and size the bench carries that fault alone
+    (:func:`sunlab.reproduce.fault.fault_bench`; for ``"homing"`` the size is the test run's
+    offset relative to the calibration run, a ``beta_offset_deg`` of the test run), the
+    surrogate centroids
+    (:func:`sunlab.sim.surrogate.surrogate_centroids`) of experiments I, II and III are
+    calibrated by each method as ``sunlab reproduce`` does, and the beta mu and sigma on III are
+    set beside the paper's; ``score`` is the RMS of log(ours / paper) over those cells, and
+    ``shape_excess`` the mean sigma / mu of the polynomial and linear columns less the paper's
+    (0.47 and 0.48: the shape criterion of :func:`sunlab.reproduce.fault.paper_shape`).
+
+    Parameters
+    ----------
+    sizes : dict
+        ``kind -> size_deg``, e.g. sizes that match the paper's polynomial beta mu.
+    bench : sunlab.sim.Bench, optional
+        The bench that carries each fault; default :meth:`sunlab.sim.Bench.paper_single_hole`.
+    seed : int
+        Seed of the experiments.
+    shots : int
+        Frames per pose of the default plans.
+    experiment_plans : dict, optional
+        Plans ``{"I", "II", "III"}``; default Table 3's with ``shots`` frames per pose.
+    methods : sequence of str
+        Table 4's columns compared (keys of :func:`sunlab.calibration.table4_methods`).
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per candidate: ``size_deg``, ``<method> mu``, ``<method> sigma``, ``score``,
+        ``shape_excess``.
+
+    Examples
+    --------
+    >>> from sunlab import plans
+    >>> small = {"I": plans.grid(-17, 2, 6, -2, 17, 1, shots=1, name="I", scan="serpentine"),
+    ...          "II": plans.grid(-16.25, 1.75, 6, -1.75, 16.25, 1.5, shots=1, name="II",
+    ...                           scan="serpentine"),
+    ...          "III": plans.grid(-16.5, 1.5, 6, -1.5, 16.5, 1, shots=1, name="III",
+    ...                            scan="serpentine")}
+    >>> t = candidate_table({"backlash": 0.017}, experiment_plans=small,
+    ...                     methods=("polynomial",))
+    >>> list(t.columns), bool(0.005 < t.loc["backlash", "polynomial mu"] < 0.03)
+    (['size_deg', 'polynomial mu', 'polynomial sigma', 'score', 'shape_excess'], True)
+    """
+    from .. import stats
+    from ..calibration.methods import table4_methods
+    from ..sim import Bench
+    from ..sim.surrogate import surrogate_centroids
+    from .fault import fault_bench
+
+    bench = Bench.paper_single_hole() if bench is None else bench
+    exps = experiment_plans or experiment_plans(step=1, shots=shots)
+    fits = table4_methods(neural=False, seed=seed)
+    paper = stats.paper_table4()
+    shaped = [m for m in methods if m in ("polynomial", "linear interp.")]
+    rows = {}
+    for kind, size in sizes.items():
+        b = fault_bench(bench, kind, 0.0 if kind == "homing" else size)
+        b_test = b.replace(platform__beta_offset_deg=float(size)) if kind == "homing" else b
+        cen = {n: surrogate_centroids(b_test if n == "III" else b, p, seed)
+               for n, p in exps.items()}
+        row, logs = {"size_deg": float(size)}, []
+        for m in methods:
+            loc = stats.local_errors(fits[m](cen["I"], cen["II"]).predict(cen["III"]))
+            g = stats.global_stats({m: loc})[m]
+            for st in ("mu", "sigma"):
+                row[f"{m} {st}"] = float(g[("beta", st)])
+                logs.append(math.log(row[f"{m} {st}"] / float(paper.loc[("beta", st), m])))
+        row["score"] = float(np.sqrt(np.mean(np.square(logs))))
+        # the shape criterion: mean sigma / mu of the polynomial and linear columns, less the
+        # paper's (0.47, 0.48); 0 matches the paper's bimodal shape
+        row["shape_excess"] = float(np.mean(
+            [row[f"{m} sigma"] / row[f"{m} mu"] - float(paper.loc[("beta", "sigma"), m]
+                                                        / paper.loc[("beta", "mu"), m])
+             for m in shaped])) if shaped else float("nan")
+        rows[kind] = row
+    return pd.DataFrame.from_dict(rows, orient="index").rename_axis("candidate")

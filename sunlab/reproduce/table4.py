@@ -23,9 +23,9 @@ The numbers are ours, from the virtual bench, printed beside the paper's.
 
 Examples
 --------
->>> from sunlab.reproduce.table4 import table4_methods
->>> list(table4_methods(neural=False))[:3]
-['ideal model (1)', 'optimised model (3)-(4)', 'linear interp.']
+>>> from sunlab.reproduce.table4 import PAPER_OPTIMISED
+>>> PAPER_OPTIMISED["delta_f_mm"]
+0.094
 """
 
 from __future__ import annotations
@@ -41,9 +41,17 @@ import pandas as pd
 from .. import __version__, parallel, stats
 from ..calibration.methods import table4_methods
 from ..errors import ConfigurationError
-from .pipeline import centroid_status, simulate_and_locate, usable_table, write_json
+from .pipeline import (
+    centroid_status,
+    identified,
+    simulate_and_locate,
+    span,
+    stat_line,
+    usable_table,
+    write_json,
+)
 
-__all__ = ["table4_methods", "reproduce_table4", "format_table"]
+__all__ = ["reproduce_table4", "format_table"]
 
 #: Where the strategy-4 network zeroes model (1): on each run's zero-pose check (strategy 2
 #: keeps model (1) as fitted, :func:`sunlab.calibration.methods.table4_methods`).
@@ -108,27 +116,21 @@ class Table4Result:
         """
 
         def frame(df: pd.DataFrame) -> dict:
-            return {
-                str(col): {f"{a}.{s}": _num(v) for (a, s), v in df[col].items()}
-                for col in df.columns
-            }
+            return {str(c): {f"{a}.{s}": _num(v) for (a, s), v in df[c].items()}
+                    for c in df.columns}
 
+        settings = {k: v for k, v in self.settings.items() if k != "interval90"}
         return {
-            "sunlab_version": __version__,
-            "table": "4",
+            "sunlab_version": __version__, "table": "4",
             "source": "sunlab virtual bench (ours) beside docs/paper.md Table 4 (paper)",
-            "ours": frame(self.table),
-            "paper": frame(self.paper),
-            "rectangle_area_deg2": {
-                str(k): _num(v) for k, v in self.rectangles["area"].items()
-            },
+            "ours": frame(self.table), "paper": frame(self.paper),
+            "rectangle_area_deg2": {str(k): _num(v) for k, v in self.rectangles["area"].items()},
             "optimised_model": self.optimised,
             "polynomial_order": [int(n) for n in self.polynomial_order],
             "centroid_status": self.centroid_status,
             "timings_s": {k: round(float(v), 3) for k, v in self.timings.items()},
-            "settings": {k: v for k, v in self.settings.items() if k != "interval90"},
-            **({"interval90": self.settings["interval90"]} if "interval90" in self.settings
-               else {}),
+            "settings": settings,
+            **{k: self.settings[k] for k in ("interval90",) if k in self.settings},
         }
 
 
@@ -234,8 +236,7 @@ def reproduce_table4(
     """
     from .. import sim
 
-    identified = bench is None
-    bench = sim.Bench.paper_single_hole() if bench is None else bench
+    custom, bench = bench, sim.Bench.paper_single_hole() if bench is None else bench
     t0 = time.perf_counter()
     cens = simulate_and_locate(bench, seed=seed, quick=quick, step=step, shots=shots,
                                method=method, progress=progress, address=address,
@@ -245,7 +246,8 @@ def reproduce_table4(
     result.timings = {"simulate_and_centroid": centroided, **result.timings,
                       "total": time.perf_counter() - t0}
     result.settings = {"seed": seed, "quick": quick, "centroid_method": method,
-                       **result.settings, **_identification(identified, "table4")}
+                       **result.settings, **(identified("table4") if custom is None else
+                                             {"hypothesis": "custom bench (not identified)"})}
     for label in result.local if progress else ():
         print(f"  fitted {label:<24s} in {result.timings[f'fit {label}']:6.2f} s", flush=True)
     if out is not None:
@@ -311,26 +313,10 @@ def table4_statistics(cens: dict, bench, *, neural: bool = True, seed: int = 0) 
         polynomial_order=tuple(int(n) for n in fitted["polynomial"].orders),
         centroid_status=centroid_status(cens),
         timings=timings,
-        settings={"not_run": not_run, **_run_settings(cens, test, bench)},
+        settings={"not_run": not_run, "poses": {k: int(v.sizes["pose"]) for k, v in cens.items()},
+                  "shots": int(test.sizes["shot"]), "bench": json.loads(bench.to_json()),
+                  "network_reference": NN_REFERENCE},
     )
-
-
-def _run_settings(cens, test, bench) -> dict:
-    """What table4.json records of the runs: their sizes, the bench used, the networks' zero."""
-    return {"poses": {k: int(v.sizes["pose"]) for k, v in cens.items()},
-            "shots": int(test.sizes["shot"]), "bench": json.loads(bench.to_json()),
-            "network_reference": NN_REFERENCE}
-
-
-def _identification(identified: bool, table: str) -> dict:
-    """The bench's hypothesis and, for the identified bench, each published cell's 90 %
-    predictive interval (docs/identification.md), as the run's JSON records them."""
-    if not identified:
-        return {"hypothesis": "custom bench (not identified)"}
-    from ..studies import identification
-
-    return {"hypothesis": identification.identified_hypothesis(),
-            "interval90": identification.interval90(table)}
 
 
 def _fit_all(train, val, *, neural, seed, timings, not_run) -> dict:
@@ -424,11 +410,6 @@ def _write_outputs(res: Table4Result, out: Path) -> list[str]:
     return [str(out / f) for f in files]
 
 
-def _span(lo: float, hi: float) -> str:
-    """An interval in 11 characters: ``.0071-.0118`` (deg, below 1)."""
-    return f"{lo:.4f}-{hi:.4f}".replace("0.", ".")
-
-
 def format_table(res: Table4Result) -> str:
     """Table 4 as text: each of our values beside the paper's, then the optimised model.
 
@@ -458,22 +439,17 @@ def format_table(res: Table4Result) -> str:
         "interval = the identified bench's predictive interval (docs/identification.md)",
         "",
     ]
-    stats_cols = [(a, st) for a in stats.ANGLES for st in stats.STATS]
-    lines.append(f"{'method':<26s}" + "".join(f"{a[0] + ' ' + st:>12s}" for a, st in stats_cols))
+    keys = [(a, st) for a in stats.ANGLES for st in stats.STATS]
+    lines.append(f"{'method':<26s}" + "".join(f"{a[0] + ' ' + st:>12s}" for a, st in keys))
     iv = res.settings.get("interval90", {})
     for c in res.table.columns:
         if c in res.paper.columns:
-            lines.append(f"{c:<26s}" + "".join(
-                f"{res.paper.loc[k, c]:12.4f}" for k in stats_cols) + "   paper")
-            lines.append(f"{'':<26s}" + "".join(
-                f"{res.table.loc[k, c]:12.4f}" for k in stats_cols) + "   ours")
-            if c in iv:
-                lines.append(f"{'':<26s}" + "".join(
-                    f"{_span(*iv[c][f'{a}.{st}']):>12s}" for a, st in stats_cols)
-                    + "   our 90 % interval")
-        else:
-            lines.append(f"{c:<26s}" + "".join(
-                f"{res.table.loc[k, c]:12.4f}" for k in stats_cols) + "   ours")
+            lines.append(stat_line(c, [res.paper.loc[k, c] for k in keys], "paper", 26))
+        lines.append(stat_line("" if c in res.paper.columns else c,
+                               [res.table.loc[k, c] for k in keys], "ours", 26))
+        if c in iv:
+            lines.append(stat_line("", [span(*iv[c][f"{a}.{st}"]) for a, st in keys],
+                                   "our 90 % interval", 26))
     not_run = res.settings.get("not_run", {})
     lines += [f"{label:<26s}not run: its extra is not installed" for label in not_run]
     lines += [f"  ({why})" for why in dict.fromkeys(not_run.values())]

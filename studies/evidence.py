@@ -2,8 +2,8 @@
 
 :func:`regenerate` runs the protocol of ``sunlab/data/protocol.json`` on its confirmation seeds
 (:func:`run_protocol`) and :func:`write_evidence` scores the predictions, applies the rule and
-writes the shipped tables (``sunlab identify``); the science is in
-:mod:`sunlab.studies.identification`, the presets and profiles in :mod:`.profiles`, the
+writes the shipped tables (``python -m studies.identify``); the science is in
+:mod:`studies.identification`, the presets and profiles in :mod:`.profiles`, the
 ablations in :mod:`.ablation`.
 """
 
@@ -56,7 +56,7 @@ def regenerate(out_dir, *, names=None, seeds=None, jobs: int = 2, overwrite: boo
     dict
         As :func:`write_evidence`.
     """
-    from ..atomic import check_folder
+    from sunlab.atomic import check_folder
 
     protocol = load_protocol()
     check_folder(out_dir, _evidence_files(protocol, presets), overwrite=overwrite,
@@ -79,8 +79,8 @@ def write_evidence(out_dir, cells: pd.DataFrame, *, jobs: int = 2, overwrite: bo
     Writes ``evidence_cells.csv`` (every predicted cell of every hypothesis and seed),
     ``evidence.csv`` (:func:`score_table`), ``intervals.csv`` (:func:`intervals` for every
     hypothesis) and, with ``presets`` and a protocol that names them, ``presets.json``,
-    ``profiles.csv`` (:mod:`sunlab.studies.profiles`) and ``ablation.csv``
-    (:mod:`sunlab.studies.ablation`, the first two confirmation seeds) for the rule's pick,
+    ``profiles.csv`` (:mod:`studies.profiles`) and ``ablation.csv``
+    (:mod:`studies.ablation`, the first two confirmation seeds) for the rule's pick,
     all-or-nothing.
 
     Parameters
@@ -101,7 +101,8 @@ def write_evidence(out_dir, cells: pd.DataFrame, *, jobs: int = 2, overwrite: bo
         ``chosen`` (the rule's pick), the three tables and, with ``presets``, ``presets``,
         ``profiles`` and ``ablation``.
     """
-    from ..atomic import atomic_files
+    from sunlab.atomic import atomic_files
+
     from . import ablation, profiles
 
     protocol = load_protocol()

@@ -2,7 +2,7 @@
 
 The bench is the chosen hypothesis's with a seed's nuisance draw and fit as the evidence
 recorded them (no refit), each :data:`ABLATIONS` entry applied in turn to both the one-hole and
-the 100-hole bench, and scored like :func:`sunlab.studies.identification.score_table` with the
+the 100-hole bench, and scored like :func:`studies.identification.score_table` with the
 hypothesis's own spread over seeds and its discrepancy tau (protocol: docs/identification.md).
 """
 
@@ -48,7 +48,7 @@ def ablation(name: str | None = None, seeds=None, evidence: pd.DataFrame | None 
 
     The bench is the hypothesis's with its seed's nuisance draw and fit (no refit: what the
     component contributes to the predictions), each :data:`ABLATIONS` entry applied in turn,
-    scored like :func:`sunlab.studies.identification.score_table` with the hypothesis's own
+    scored like :func:`studies.identification.score_table` with the hypothesis's own
     spread and tau.
 
     Parameters

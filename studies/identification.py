@@ -2,7 +2,7 @@
 
 The paper publishes statistics, not its bench. This study asks which physically different bench
 (a *hypothesis*) predicts the published numbers it was *not* fitted on, under the protocol of
-``sunlab/data/protocol.json`` (prose: docs/identification.md), which was committed before any of
+``studies/protocol.json`` (prose: docs/identification.md), which was committed before any of
 its scores:
 
 * every hypothesis is fitted on Table 4's polynomial and linear-interpolation columns (its
@@ -17,8 +17,10 @@ its scores:
   and each published cell gets a 90 % predictive interval (:func:`intervals`).
 
 The predictions come from the centroid-level surrogate of :mod:`sunlab.sim.surrogate` (geometry,
-platform table and pixel-response maps, no frames rendered); ``sunlab identify --validate``
-compares it with full renders on the confirmation seeds.
+platform table and pixel-response maps, no frames rendered). The protocol is
+``studies/protocol.json``; the evidence is written by ``python -m studies.identify`` into
+``studies/results/`` (the evidence tables) and ``sunlab/data/`` (``presets.json`` and
+``intervals.csv``, which the library reads).
 
 Examples
 --------
@@ -35,14 +37,19 @@ import json
 import math
 from collections.abc import Iterable
 from dataclasses import replace
-from importlib import resources
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from ..errors import ConfigurationError
+from sunlab.errors import ConfigurationError
 
 __all__ = ["load_protocol", "identified_hypothesis"]
+
+#: This folder: the protocol, and the evidence tables under ``results/``.
+HERE = Path(__file__).resolve().parent
+#: The library's data: the presets and intervals the studies write for it.
+LIBRARY_DATA = HERE.parent / "sunlab" / "data"
 
 #: The standard normal quantile of 95 %: a central 90 % interval is mean +- Z90 sd.
 Z90 = 1.6448536269514722
@@ -52,7 +59,7 @@ _PAPER_FF_QE = 0.35
 
 
 def load_protocol(path=None) -> dict:
-    """The identification protocol (``sunlab/data/protocol.json``, or the file at ``path``).
+    """The identification protocol (``studies/protocol.json``, or the file at ``path``).
 
     Parameters
     ----------
@@ -65,22 +72,19 @@ def load_protocol(path=None) -> dict:
         ``hypotheses`` (name -> ``F_mm``, ``gear``, ``parameters``), ``priors``, ``cells``,
         ``score``, ``rule``, ``confirmation_seeds``, ``history``.
     """
-    if path is not None:
-        text = open(path, encoding="utf-8").read()
-    else:
-        text = (resources.files("sunlab") / "data" / "protocol.json").read_text("utf-8")
+    path = Path(path) if path is not None else HERE / "protocol.json"
     try:
-        return json.loads(text)
+        return json.loads(path.read_text(encoding="utf-8"))
     except json.JSONDecodeError as err:
         raise ConfigurationError(
-            f"{path or 'sunlab/data/protocol.json'}: not JSON ({err}). Fix: restore the file "
+            f"{path}: not JSON ({err}). Fix: restore the file "
             "from git; a change of protocol is a new dated entry, never an edit."
         ) from None
 
 
 # ----------------------------------------------------------------------------- cells
 def _paper_cells() -> dict[tuple, float]:
-    from .. import stats
+    from sunlab import stats
 
     out = {}
     for name, table in (("table4", stats.paper_table4()), ("table5", stats.paper_table5())):
@@ -187,8 +191,8 @@ def hypothesis_bench(protocol: dict, name: str, nuisances: dict, fitted: dict, *
     -------
     sunlab.sim.Bench
     """
-    from ..sim import Bench
-    from ..sim.mask import PAPER_DISTANCE_MM
+    from sunlab.sim import Bench
+    from sunlab.sim.mask import PAPER_DISTANCE_MM
 
     try:
         hyp = protocol["hypotheses"][name]
@@ -262,12 +266,12 @@ def surrogate_runs(bench, seed: int = 0, step: int = 1, shots: int = 8,
     dict of str to xarray.Dataset
         ``centroids/1`` tables keyed ``"I"``, ``"II"``, ``"III"``.
     """
-    from .. import plans
-    from ..sim.surrogate import surrogate_centroids
-    from .surrogate_tables import table3_plans
+    from sunlab import plans
+    from sunlab.reproduce import experiment_plans
+    from sunlab.sim.surrogate import surrogate_centroids
 
     out = {}
-    for name, plan in table3_plans(step, shots).items():
+    for name, plan in experiment_plans(step=step, shots=shots).items():
         cen = surrogate_centroids(bench, plan, seed, noise_px=noise_px)
         zero = surrogate_centroids(bench, plans.zero_check(plan, 1), seed, noise_px=noise_px)
         out[name] = cen.assign_attrs(zero_pose_x_px=float(zero.x.mean()),
@@ -351,8 +355,8 @@ def fit_hypothesis(protocol: dict, name: str, nuisances: dict, *, seed: int,
 def _fit_side_cells(protocol: dict, name: str, nuisances: dict, fitted: dict, seed: int,
                     noise_px: float) -> dict:
     """Table 4's fit-side columns (polynomial, linear interpolation) on the surrogate."""
-    from .. import stats
-    from ..calibration.registry import RECIPES, fit
+    from sunlab import stats
+    from sunlab.calibration.registry import RECIPES, fit
 
     setting = protocol["fit"]["surrogate"]
     bench = hypothesis_bench(protocol, name, nuisances, fitted)
@@ -412,8 +416,9 @@ def predict_cells(protocol: dict, name: str, nuisances: dict, fitted: dict, *, s
 
 def _predict_benches(protocol: dict, single, multi, seed: int, noise_px: float) -> dict:
     """Every published cell from a one-hole and a 100-hole bench (the protocol's settings)."""
-    from .. import stats
-    from ..calibration.methods import table4_methods
+    from sunlab import stats
+    from sunlab.calibration.methods import table4_methods
+
     from .surrogate_tables import surrogate_table5
 
     setting = protocol["fit"]["predict"]
@@ -593,20 +598,23 @@ def intervals(cells: pd.DataFrame, evidence: pd.DataFrame, names: Iterable[str] 
 
 # ----------------------------------------------------------------------------- shipped
 def _data(name: str) -> pd.DataFrame:
-    with resources.as_file(resources.files("sunlab") / "data" / name) as path:
-        if not path.exists():
-            raise ConfigurationError(
-                f"sunlab/data/{name}: missing. Fix: run `sunlab identify --out sunlab/data`.")
-        return pd.read_csv(path)
+    """A table the studies wrote: ``studies/results/NAME``, or ``sunlab/data/NAME``."""
+    path = HERE / "results" / name
+    path = path if path.exists() else LIBRARY_DATA / name
+    if not path.exists():
+        raise ConfigurationError(
+            f"{name}: missing. Fix: run `python -m studies.identify --out DIR` and put the "
+            "tables where docs/identification.md says.")
+    return pd.read_csv(path)
 
 
 def load_evidence(path=None) -> pd.DataFrame:
-    """The shipped evidence table (``sunlab/data/evidence.csv``) or the one at ``path``.
+    """The shipped evidence table (``studies/results/evidence.csv``) or the one at ``path``.
 
     Parameters
     ----------
     path : str or pathlib.Path, optional
-        An ``evidence.csv`` written by :func:`regenerate`.
+        An ``evidence.csv`` written by :func:`studies.evidence.regenerate`.
 
     Returns
     -------
@@ -628,7 +636,7 @@ def load_intervals(path=None) -> pd.DataFrame:
     Parameters
     ----------
     path : str or pathlib.Path, optional
-        An ``intervals.csv`` written by :func:`regenerate`.
+        An ``intervals.csv`` written by :func:`studies.evidence.regenerate`.
 
     Returns
     -------
@@ -652,41 +660,6 @@ def identified_hypothesis() -> str:
     True
     """
     return chosen_hypothesis(load_evidence(), load_protocol())
-
-
-def interval90(table: str) -> dict[str, dict[str, list[float]]]:
-    """The identified bench's 90 % predictive interval of every published cell of a table.
-
-    Read from the shipped ``sunlab/data/intervals.csv`` for :func:`identified_hypothesis`: the
-    spread over the confirmation seeds (noise, nuisance draws and fits) and the model's
-    discrepancy, not a function of any one run's seed.
-
-    Parameters
-    ----------
-    table : {"table4", "table5"}
-
-    Returns
-    -------
-    dict
-        ``{column: {"angle.stat": [lo, hi]}}`` (deg), keyed as ``table4.json``'s ``ours``
-        rows; Table 5's columns carry its JSON's `` [sunlab]`` suffix.
-
-    Examples
-    --------
-    >>> iv = interval90("table4")
-    >>> lo, hi = iv["polynomial"]["alpha.mu"]
-    >>> 0 < lo < hi
-    True
-    """
-    if table not in ("table4", "table5"):
-        raise ConfigurationError(f"table: found {table!r}; expected 'table4' or 'table5'.")
-    ints = load_intervals()
-    ints = ints[(ints["hypothesis"] == identified_hypothesis()) & (ints["table"] == table)]
-    out: dict = {}
-    for r in ints.itertuples():
-        key = r.column if table == "table4" else f"{r.column} [sunlab]"
-        out.setdefault(key, {})[f"{r.angle}.{r.stat}"] = [float(r.lo), float(r.hi)]
-    return out
 
 
 def recorded_draw(protocol: dict, record) -> tuple[dict, dict]:

@@ -68,13 +68,14 @@ def mechanisms(hypothesis: str | None = None, seeds=None, *, step: int = 2,
         ``beta_ratio`` (averaging mu / geometric-centre mu), ``gc_alpha_mu``,
         ``av_alpha_mu``, ``holes_lost`` (share of spots off the frame on III).
     """
-    from .. import multihole as mh
-    from .. import stats
-    from ..calibration import Polynomial
-    from ..calibration.methods import POLYNOMIAL_REFIT
-    from ..sim.surrogate import surrogate_centroids
+    from sunlab import multihole as mh
+    from sunlab import stats
+    from sunlab.calibration import Polynomial
+    from sunlab.calibration.methods import POLYNOMIAL_REFIT
+    from sunlab.reproduce import experiment_plans
+    from sunlab.sim.surrogate import surrogate_centroids
+
     from . import identification as idn
-    from .surrogate_tables import table3_plans
 
     protocol = idn.load_protocol()
     evidence = idn.load_evidence()
@@ -90,7 +91,7 @@ def mechanisms(hypothesis: str | None = None, seeds=None, *, step: int = 2,
             rec = evidence[(evidence["hypothesis"] == hyp) & (evidence["seed"] == seed)].iloc[0]
             nuis, fitted = idn.recorded_draw(protocol, rec)
             multi = idn.hypothesis_bench(protocol, hyp, nuis, fitted, multi=True)
-            exps = table3_plans(step, shots)
+            exps = experiment_plans(step=step, shots=shots)
             noise = float(rec["noise_px"])
             tr = surrogate_centroids(multi, exps["I"], seed, noise_px=noise)
             te = surrogate_centroids(multi, exps["III"], seed, noise_px=noise)
