@@ -4,7 +4,7 @@ The paper reports statistics, not its bench. The functions here calibrate the su
 centroids of :mod:`sunlab.sim.surrogate` the way ``sunlab reproduce`` calibrates rendered ones
 and compute the paper's statistics from them, in seconds instead of minutes: Table 4
 (:func:`surrogate_table4`) and Table 5 (:func:`surrogate_table5`) of a bench, their distance to
-the paper's (:func:`score`), a scan of one parameter (:func:`scan`), how learnable the
+the paper's (:func:`score`), how learnable the
 pixel-response error is at each mask distance (:func:`interpolation_gap`); which fault of the
 inner axis explains the paper's beta cells is :func:`sunlab.reproduce.platform.candidate_table`.
 The per-shot
@@ -31,12 +31,10 @@ from sunlab.sim.surrogate import spot_diameter_px, surrogate_centroids
 
 __all__ = [
     "PAPER_TARGETS",
-    "TARGET_CELLS",
     "centroid_noise_px",
     "surrogate_table4",
     "surrogate_table5",
     "score",
-    "scan",
     "interpolation_gap",
 ]
 
@@ -56,21 +54,6 @@ def _targets() -> dict:
 #: What the paper states that the bench must explain (docs/paper.md sec. 1, 5, 6): Table 4
 #: (32 cells), Table 5 (24 cells), the ROI-to-spot ratio of algorithm A, and M - mu.
 PAPER_TARGETS: dict = _targets()
-
-#: The Table 4 cells a candidate bench is scored on, and the parameter each mainly pins
-#: (see :func:`score` and the notebook 05 section on identification).
-TARGET_CELLS: dict[str, str] = {
-    "alpha.mu / alpha.M of polynomial, linear, cubic":
-        "alpha's per-pose error and how learnable the spot-specific error is (the "
-        "interpolation-minus-polynomial gap)",
-    "beta.mu / beta.M of polynomial, linear, cubic": "beta's per-pose error (size and offset)",
-    "alpha.sigma / alpha.mu": "the shape of alpha's per-pose error (uniform: 0.58)",
-    "M - mu": "the per-shot jitter",
-    "Table 5 alpha mu, 1 hole / geometric centre": "the one-hole mask's play (and the PRNU)",
-    "Table 5 beta mu, 100 holes vs 1 hole": "the 100-hole mask's play",
-}
-
-
 
 def centroid_noise_px(bench, *, frames: int = 6, method: str = "projection",
                       seed: int = 0) -> float:
@@ -255,52 +238,9 @@ def score(table: pd.DataFrame, paper: pd.DataFrame | None = None,
     if not cols:
         raise ConfigurationError(
             f"table: found columns {list(table.columns)}; expected at least one of the paper's "
-            f"{list(paper.columns)}. Fix: name the columns as stats.paper_table4 does."
-        )
+            f"{list(paper.columns)}. Fix: name the columns as stats.paper_table4 does.")
     r = [math.log(float(table.loc[c, k]) / float(paper.loc[c, k])) for k in cols for c in cells]
     return float(math.sqrt(np.mean(np.square(r))))
-
-
-def scan(make_bench, values, *, seed: int = 0, step: int = 1, shots: int = 8,
-         noise_px: float = 0.004, methods=("polynomial", "linear interp.", "cubic interp.")):
-    """Surrogate Table 4 for each value of a parameter: a long DataFrame of every cell.
-
-    Parameters
-    ----------
-    make_bench : callable
-        ``value -> Bench``.
-    values : iterable
-        Parameter values.
-    seed, step, shots, noise_px, methods
-        As :func:`surrogate_table4`.
-
-    Returns
-    -------
-    pandas.DataFrame
-        Columns ``value``, ``method``, ``angle``, ``stat``, ``ours``, ``paper`` and the row's
-        ``score``.
-
-    Examples
-    --------
-    >>> from sunlab.sim import Bench
-    >>> df = scan(lambda f: Bench.paper_single_hole().replace(mask__distance_mm=f), [17.0],
-    ...           step=4, shots=2, methods=("polynomial",))
-    >>> sorted(df.columns)[:3]
-    ['angle', 'method', 'ours']
-    """
-    paper = PAPER_TARGETS["table4"]
-    rows = []
-    for v in values:
-        t = surrogate_table4(make_bench(v), seed, step=step, shots=shots, noise_px=noise_px,
-                             methods=methods)
-        sc = score(t)
-        for m in t.columns:
-            for (a, st), val in t[m].items():
-                rows.append({"value": v, "method": m, "angle": a, "stat": st,
-                             "ours": float(val),
-                             "paper": float(paper.loc[(a, st), m]) if m in paper else np.nan,
-                             "score": sc})
-    return pd.DataFrame(rows)
 
 
 def interpolation_gap(bench, distances_mm, *, seed: int = 0, shots: int = 2,

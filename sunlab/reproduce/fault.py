@@ -72,8 +72,7 @@ def shape_test(table: pd.DataFrame) -> pd.DataFrame:
     if not isinstance(table, pd.DataFrame) or ("alpha", "mu") not in table.index:
         raise ConfigurationError(
             "table: expected a DataFrame indexed (angle, stat) as sunlab.stats.global_stats "
-            "returns. Fix: pass stats.global_stats(local) or stats.paper_table4()."
-        )
+            "returns. Fix: pass stats.global_stats(local) or stats.paper_table4().")
     rows = {}
     for m in table.columns:
         for a in ("alpha", "beta"):
@@ -173,8 +172,7 @@ def approach_of(source) -> np.ndarray:
     raise ConfigurationError(
         f"source: found {type(source).__name__} without a motion record; expected the "
         "sunlab.plans.Plan that was run or a cube with a 'beta_approach' coordinate. Fix: pass "
-        "the plan (its scan and approach say how each pose was reached)."
-    )
+        "the plan (its scan and approach say how each pose was reached).")
 
 
 def _finite(e, *arrays):
@@ -345,8 +343,7 @@ def beta_periodogram(beta_error, beta_cmd, approach, *, detrend: int = 3,
         raise ConfigurationError(
             f"beta_cmd: found {ub.size} distinct beta values over {e.size} poses; the "
             "periodogram needs several rows at each of at least "
-            f"{detrend + 4} betas. Fix: pass a full grid experiment."
-        )
+            f"{detrend + 4} betas. Fix: pass a full grid experiment.")
     s2_w = float(within @ within) / dof
     w = n_j / s2_w  # inverse variance of each row mean
     x = (ub - ub.mean()) / max(np.ptp(ub), 1e-12)
@@ -432,8 +429,7 @@ def diagnose(estimate: xr.Dataset, motion, *, threshold: float = 4.0) -> Diagnos
     if d.shape != e.shape:
         raise ConfigurationError(
             f"motion: found {d.size} approach directions for {e.size} poses; expected one per "
-            "pose of the test run. Fix: pass the plan of the run that was predicted."
-        )
+            "pose of the test run. Fix: pass the plan of the run that was predicted.")
     b_cmd = np.asarray(estimate["beta_cmd"].values, dtype=float)
     a_cmd = np.asarray(estimate["alpha_cmd"].values, dtype=float)
     ap = approach_split(e, d)

@@ -100,19 +100,6 @@ def bench_fault_values(bench, seed, plans_by_run: dict) -> dict:
             "beta_gear_amplitude_deg": float(bench.platform.beta_gear_deg)}
 
 
-def _centroids(bench, plan_sets: dict, *, seed, method, engine, progress, where):
-    """Centroid tables for every named plan: rendered and centroided, or from the surrogate."""
-    if engine == "surrogate":
-        from ..sim.surrogate import surrogate_centroids
-
-        return {k: surrogate_centroids(bench, p, seed) for k, p in plan_sets.items()}
-    cubes = simulate_runs({k: (p, bench) for k, p in plan_sets.items()}, seed=seed)
-    if progress:
-        n = sum(len(p) * p.shots for p in plan_sets.values())
-        print(f"rendering and centroiding {n} frames ({method})", flush=True)
-    return locate_runs(cubes, method=method, progress=progress, **where)
-
-
 def reproduce_platform(*, quick: bool = False, seed: int = 0, method: str = "projection",
                        out: str | Path | None = "results", progress: bool = True,
                        engine: str = "render", bench=None, checks: int = 4,
@@ -160,140 +147,99 @@ def reproduce_platform(*, quick: bool = False, seed: int = 0, method: str = "pro
     >>> res["diagnosis"]["candidate"]  # the run's offset, the drift of the zero, leads
     'homing'
     """
-    from .. import sim, stats
+    from .. import plans, sim, stats
+    from ..calibration import Polynomial
     from ..errors import ConfigurationError
+    from .fault import diagnose, paper_shape
+    from .remedy import fit_correction
 
     if engine not in ("render", "surrogate"):
-        raise ConfigurationError(
-            f"engine: found {engine!r}; expected 'render' or 'surrogate'."
-        )
+        raise ConfigurationError(f"engine: found {engine!r}; expected 'render' or 'surrogate'.")
     t0 = time.perf_counter()
     bench = sim.Bench.paper_single_hole() if bench is None else bench
     paper = experiment_plans(quick=quick, step=step, shots=shots)
-    uni = {k: p.with_motion(approach="unidirectional") for k, p in paper.items()}
-    sets = _plan_sets(paper, uni, checks)
-    cens = {k: usable_table(v) for k, v in _centroids(
-        bench, sets, seed=seed, method=method, engine=engine, progress=progress,
-        where={"address": address, "scheduler": scheduler, "workers": workers}).items()}
+    protocols = {"paper": paper,
+                 "uni": {k: p.with_motion(approach="unidirectional") for k, p in paper.items()}}
+    # every run of both protocols, and one zero-pose check per run, taken after homing (its
+    # plan is the same for both protocols)
+    sets = {f"{tag} {k}": p for tag, ps in protocols.items() for k, p in ps.items()}
+    sets.update({f"zero {k}": plans.zero_check(paper[k], checks) for k in ("I", "III")})
+    if engine == "surrogate":
+        from ..sim.surrogate import surrogate_centroids
+
+        cens = {k: surrogate_centroids(bench, p, seed) for k, p in sets.items()}
+    else:
+        if progress:
+            print(f"rendering and centroiding {sum(len(p) * p.shots for p in sets.values())} "
+                  f"frames ({method})", flush=True)
+        cens = locate_runs(simulate_runs({k: (p, bench) for k, p in sets.items()}, seed=seed),
+                           method=method, progress=progress, address=address,
+                           scheduler=scheduler, workers=workers)
+    cens = {k: usable_table(v) for k, v in cens.items()}
     t_sim = time.perf_counter() - t0
-    rows, fits, diag, jc_params, from_row = _rows(cens, paper, uni)
-    table = stats.global_stats(rows)
-    parameters = _fault_parameters(jc_params, bench_fault_values(bench, seed, paper), from_row)
-    result = _platform_doc(table, parameters, diag, fits)
-    result["settings"] = {"seed": seed, "quick": quick, "engine": engine,
-                          "centroid_method": method, "scan": paper["III"].scan,
-                          "zero_checks": checks, "poses": {k: len(p) for k, p in paper.items()},
-                          "shots": paper["III"].shots,
-                          "bench": "sunlab.sim.Bench.paper_single_hole()"}
-    result["timings_s"] = {"simulate_and_centroid": round(t_sim, 2),
-                           "total": round(time.perf_counter() - t0, 2)}
-    result["files"] = []
-    if out is not None:
-        out = Path(out)
-        out.mkdir(parents=True, exist_ok=True)
-        result["files"] = [write_json(result, out / "platform.json")]
-    return result
-
-
-def _plan_sets(paper: dict, uni: dict, checks: int) -> dict:
-    """Every run: the paper's protocol and the unidirectional one, and one zero-pose check per
-    run, taken after homing (its plan is the same for both protocols)."""
-    from .. import plans
-
-    sets = {}
-    for tag, ps in (("paper", paper), ("uni", uni)):
-        for k, p in ps.items():
-            sets[f"{tag} {k}"] = p
-    for k in ("I", "III"):
-        sets[f"zero {k}"] = plans.zero_check(paper[k], checks)
-    return sets
-
-
-def _rows(cens: dict, paper: dict, uni: dict):
-    """The local errors of every row of the table, the polynomial of each protocol, the
-    diagnosis, the joint fit whose parameters are reported and its row."""
-    from .. import stats
-    from ..calibration import Polynomial
-    from .fault import diagnose
-    from .remedy import fit_correction
-
-    local, fits = {}, {}
-    for tag in ("paper", "uni"):
-        tr, va, te = (cens[f"{tag} {k}"] for k in ("I", "II", "III"))
-        cal, _ = Polynomial.select_order(tr, va)
-        fits[tag] = cal
-        local[tag] = stats.local_errors(cal.predict(te))
-    rows = {ROWS[0]: local["paper"], ROWS[1]: local["uni"]}
     zeros = {"zero_train": cens["zero I"], "zero_test": cens["zero III"]}
 
-    def corrected(runs, plans_, **kw):
-        jc = fit_correction(cens[f"{runs} I"], plans_["I"], cens[f"{runs} II"], **kw)
-        est = jc.predict(cens[f"{runs} III"])
-        return jc, stats.local_errors(est, jc.reference(est, plans_["III"]))
+    def corrected(tag, **kw):
+        jc = fit_correction(cens[f"{tag} I"], protocols[tag]["I"], cens[f"{tag} II"], **kw)
+        est = jc.predict(cens[f"{tag} III"])
+        return jc, stats.local_errors(est, jc.reference(est, protocols[tag]["III"]))
 
-    # (a) + zero check: the homing difference from the zero-pose checks, no backlash term
-    _, rows[ROWS[2]] = corrected("uni", uni, backlash=False, **zeros)
-    # (b) backlash from the motion record, then with the zero-pose checks
-    _, rows[ROWS[3]] = corrected("paper", paper)
-    jc_params, rows[ROWS[4]] = corrected("paper", paper, **zeros)
+    rows, orders = {}, {}
+    for tag, row in (("paper", ROWS[0]), ("uni", ROWS[1])):
+        cal, _ = Polynomial.select_order(cens[f"{tag} I"], cens[f"{tag} II"])
+        orders[tag] = [int(n) for n in cal.orders]
+        rows[row] = stats.local_errors(cal.predict(cens[f"{tag} III"]))
+        if tag == "paper":
+            diag = diagnose(cal.predict(cens["paper III"]), paper["III"])
+    # (a) + zero check: the homing difference from the zero-pose checks, no backlash term;
+    # (b) the backlash from the motion record, then with the zero-pose checks
+    rows[ROWS[2]] = corrected("uni", backlash=False, **zeros)[1]
+    rows[ROWS[3]] = corrected("paper")[1]
+    jc, rows[ROWS[4]] = corrected("paper", **zeros)
     from_row = ROWS[4]
-    diag = diagnose(fits["paper"].predict(cens["paper III"]), paper["III"])
-    if diag.candidate == "gear":
-        # the gear term at the frequency the periodogram found (the alias the grid sees)
+    if diag.candidate == "gear":  # its term at the frequency the periodogram found (an alias)
         f = diag.evidence["periodogram"]["peak_frequency"]
-        jc_params, rows[GEAR_ROW] = corrected("paper", paper, gear_frequency=f, **zeros)
+        jc, rows[GEAR_ROW] = corrected("paper", gear_frequency=f, **zeros)
         from_row = GEAR_ROW
-    return rows, fits, diag, jc_params, from_row
-
-
-def _fault_parameters(jc, truth: dict, from_row: str) -> dict:
-    """The fitted fault parameters beside the bench's, with their z-scores."""
-    parameters = {}
-    for name, p in jc.parameters.items():
-        z = (p["fitted"] - truth[name]) / p["stderr"] if p["stderr"] > 0 else float("inf")
-        parameters[name] = {"fitted": p["fitted"], "stderr": p["stderr"], "bench": truth[name],
-                            "z": z, "from": from_row}
-    return parameters
-
-
-def _platform_doc(table, parameters: dict, diag, fits: dict) -> dict:
-    """The platform table's results: rows, parameters, diagnosis, the paper's shape test and
-    the must-show checks (settings, timings and files are added by the caller)."""
-    from .. import stats
-    from .fault import paper_shape
-
-    def cells(col):
-        return {f"{a}.{s}": float(table.loc[(a, s), col]) for a in stats.ANGLES
-                for s in stats.STATS}
-
-    poly = cells(ROWS[0])
-    names = list(table.columns)
-    remedies = {r: cells(r)["beta.mu"] for r in names[1:]}
+    table = stats.global_stats(rows)
+    truth = bench_fault_values(bench, seed, paper)
+    parameters = {k: {"fitted": p["fitted"], "stderr": p["stderr"], "bench": truth[k],
+                      "z": ((p["fitted"] - truth[k]) / p["stderr"] if p["stderr"] > 0
+                            else float("inf")), "from": from_row}
+                  for k, p in jc.parameters.items()}
+    cells = {r: {f"{a}.{s}": float(table.loc[(a, s), r]) for a in stats.ANGLES
+                 for s in stats.STATS} for r in table.columns}
+    poly, remedies = cells[ROWS[0]], {r: cells[r]["beta.mu"] for r in list(cells)[1:]}
     best = min(remedies, key=remedies.get)
-    must = {
-        "best_remedy": best,
-        "best_beta_mu": remedies[best],
-        "limit_alpha": 1.3 * poly["alpha.mu"],
-        "limit_beta": 0.6 * poly["beta.mu"],
-        "beta_mu_within_1.3x_polynomial_alpha_mu": remedies[best] <= 1.3 * poly["alpha.mu"],
-        "beta_mu_within_0.6x_polynomial_beta_mu": remedies[best] <= 0.6 * poly["beta.mu"],
-        "parameters_within_2.5_stderr": all(abs(p["z"]) <= 2.5 for p in parameters.values()),
-    }
-    shape = paper_shape()
-    return {
+    result = {
         "table": "platform",
         "source": "sunlab virtual bench (ours); the paper's own statistics for paper_shape",
-        "rows": {r: cells(r) for r in names},
-        "parameters": parameters,
+        "rows": cells, "parameters": parameters,
         "diagnosis": {**dataclasses.asdict(diag), "polynomial_shape": {
-            a: float(table.loc[(a, "sigma"), ROWS[0]] / table.loc[(a, "mu"), ROWS[0]])
-            for a in stats.ANGLES}},
+            a: poly[f"{a}.sigma"] / poly[f"{a}.mu"] for a in stats.ANGLES}},
         "paper_shape": {f"{m} {a}": {"ratio": float(r["ratio"]),
                                      "below_bound": bool(r["below_bound"])}
-                        for (m, a), r in shape.iterrows()},
-        "must_show": must,
-        "polynomial_order": {k: [int(n) for n in c.orders] for k, c in fits.items()},
+                        for (m, a), r in paper_shape().iterrows()},
+        "must_show": {
+            "best_remedy": best, "best_beta_mu": remedies[best],
+            "limit_alpha": 1.3 * poly["alpha.mu"], "limit_beta": 0.6 * poly["beta.mu"],
+            "beta_mu_within_1.3x_polynomial_alpha_mu": remedies[best] <= 1.3 * poly["alpha.mu"],
+            "beta_mu_within_0.6x_polynomial_beta_mu": remedies[best] <= 0.6 * poly["beta.mu"],
+            "parameters_within_2.5_stderr": all(abs(p["z"]) <= 2.5 for p in parameters.values()),
+        },
+        "polynomial_order": orders,
+        "settings": {"seed": seed, "quick": quick, "engine": engine, "centroid_method": method,
+                     "scan": paper["III"].scan, "zero_checks": checks,
+                     "poses": {k: len(p) for k, p in paper.items()}, "shots": paper["III"].shots,
+                     "bench": "sunlab.sim.Bench.paper_single_hole()"},
+        "timings_s": {"simulate_and_centroid": round(t_sim, 2),
+                      "total": round(time.perf_counter() - t0, 2)},
+        "files": [],
     }
+    if out is not None:
+        Path(out).mkdir(parents=True, exist_ok=True)
+        result["files"] = [write_json(result, Path(out) / "platform.json")]
+    return result
 
 
 def format_platform(res: dict) -> str:
@@ -333,17 +279,15 @@ def format_platform(res: dict) -> str:
     ps = res["paper_shape"]
     lines.append("Paper's sigma/mu (bound 1/sqrt(3) = 0.577): " + ", ".join(
         f"{k} {v['ratio']:.2f}" for k, v in ps.items()))
-    m = res["must_show"]
-    def yes(flag) -> str:
-        return "yes" if flag else "no"
-
-    lines.append(f"Best remedy: {m['best_remedy']}: beta mu {m['best_beta_mu']:.4f}")
-    lines.append(f"  beta mu at most 1.3 x the polynomial's alpha mu ({m['limit_alpha']:.4f}): "
-                 f"{yes(m['beta_mu_within_1.3x_polynomial_alpha_mu'])}")
-    lines.append(f"  beta mu at most 0.6 x the polynomial's beta mu ({m['limit_beta']:.4f}): "
-                 f"{yes(m['beta_mu_within_0.6x_polynomial_beta_mu'])}")
-    lines.append("  every fitted fault parameter within 2.5 s.e. of the bench's value: "
-                 f"{yes(m['parameters_within_2.5_stderr'])}")
+    m = {k: ("yes" if v else "no") if isinstance(v, bool) else v
+         for k, v in res["must_show"].items()}
+    lines += [f"Best remedy: {m['best_remedy']}: beta mu {m['best_beta_mu']:.4f}",
+              f"  beta mu at most 1.3 x the polynomial's alpha mu ({m['limit_alpha']:.4f}): "
+              f"{m['beta_mu_within_1.3x_polynomial_alpha_mu']}",
+              f"  beta mu at most 0.6 x the polynomial's beta mu ({m['limit_beta']:.4f}): "
+              f"{m['beta_mu_within_0.6x_polynomial_beta_mu']}",
+              "  every fitted fault parameter within 2.5 s.e. of the bench's value: "
+              f"{m['parameters_within_2.5_stderr']}"]
     return "\n".join(lines)
 
 

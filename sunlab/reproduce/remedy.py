@@ -102,10 +102,8 @@ class JointCorrection:
 
 
 def fit_correction(train: xr.Dataset, train_motion, validation: xr.Dataset | None = None, *,
-                   order=None, gear_frequency: float | None = None,
-                   zero_train: xr.Dataset | None = None,
-                   zero_test: xr.Dataset | None = None,
-                   backlash: bool = True) -> JointCorrection:
+                   order=None, gear_frequency: float | None = None, zero_train=None,
+                   zero_test=None, backlash: bool = True) -> JointCorrection:
     """Fit the polynomial calibration jointly with the inner axis's fault terms.
 
     The beta polynomial P of the centroid estimates the true inner-axis angle; the commanded
@@ -166,31 +164,22 @@ def fit_correction(train: xr.Dataset, train_motion, validation: xr.Dataset | Non
         cal = Polynomial(5 if order is None else order).fit(train)
     xm, ym = _pose_means(train)
     b_cmd = np.asarray(train["beta"].values, dtype=float)
-    d = _approach_directions(train_motion, b_cmd.size)
+    d = approach_of(train_motion).astype(float)
+    if d.shape != b_cmd.shape:
+        raise ConfigurationError(
+            f"train_motion: found {d.size} approach directions for {b_cmd.size} poses; "
+            "expected the motion record of the calibration run. Fix: pass its plan.")
     params, extra = _joint_beta_fit(cal, xm, ym, d, b_cmd, backlash=backlash,
                                     gear_frequency=gear_frequency)
     if (zero_train is None) != (zero_test is None):
         raise ConfigurationError(
             "zero_train, zero_test: found one of them; expected both zero-pose checks (the "
             "calibration run's and the test run's) or neither. Fix: plans.zero_check(plan) "
-            "for each run."
-        )
+            "for each run.")
     if zero_train is not None:
         params["beta_homing_difference_deg"] = _homing_difference(cal, zero_train, zero_test)
     return JointCorrection(cal, params, None if gear_frequency is None else float(gear_frequency),
                            extra)
-
-
-def _approach_directions(motion, n_poses: int) -> np.ndarray:
-    """The approach direction of each pose of the calibration run (+1 up, -1 down), checked
-    against its number of poses."""
-    d = approach_of(motion).astype(float)
-    if d.shape != (n_poses,):
-        raise ConfigurationError(
-            f"train_motion: found {d.size} approach directions for {n_poses} poses; "
-            "expected the motion record of the calibration run. Fix: pass its plan."
-        )
-    return d
 
 
 def _joint_beta_fit(cal, xm, ym, d, b_cmd, *, backlash: bool, gear_frequency):
@@ -237,8 +226,7 @@ def _homing_difference(cal, zero_train, zero_test) -> dict:
         if bz.size < 2:
             raise ConfigurationError(
                 "zero check: found fewer than 2 usable zero-pose visits; expected several. "
-                "Fix: plans.zero_check(plan, checks=4)."
-            )
+                "Fix: plans.zero_check(plan, checks=4).")
         vals.append(bz)
     h = float(vals[1].mean() - vals[0].mean())
     se = math.sqrt(vals[0].var(ddof=1) / vals[0].size + vals[1].var(ddof=1) / vals[1].size)

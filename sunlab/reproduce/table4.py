@@ -173,21 +173,11 @@ def bench_optimised_truth(bench) -> dict:
             "delta_f_mm": height - float(bench.mask_distance_mm)}
 
 
-def reproduce_table4(
-    *,
-    quick: bool = False,
-    seed: int = 0,
-    method: str = "projection",
-    neural: bool = True,
-    out: str | Path | None = "results",
-    progress: bool = True,
-    address: str | None = None,
-    bench=None,
-    step: int | None = None,
-    shots: int | None = None,
-    scheduler: str = "threads",
-    workers: int | None = None,
-) -> Table4Result:
+def reproduce_table4(*, quick: bool = False, seed: int = 0, method: str = "projection",
+                     neural: bool = True, out: str | Path | None = "results",
+                     progress: bool = True, address: str | None = None, bench=None,
+                     step: int | None = None, shots: int | None = None,
+                     scheduler: str = "threads", workers: int | None = None) -> Table4Result:
     """Reproduce Table 4 (one hole, experiment III) on the virtual bench.
 
     The pipeline renders and centroids I, II, III and their zero-pose checks once
@@ -293,60 +283,38 @@ def table4_statistics(cens: dict, bench, *, neural: bool = True, seed: int = 0) 
     >>> bool(res.table.loc[("alpha", "mu"), "polynomial"] < 0.05), res.settings["poses"]["III"]
     (True, 25)
     """
-    for key in ("I", "II", "III"):
-        if key not in cens:
-            raise ConfigurationError(
-                f"cens: found runs {sorted(cens)}; expected 'I', 'II' and 'III'. Fix: the "
-                "tables of simulate_and_locate(..., zero_pose=True).")
-    timings, not_run = {}, {}
-    fitted = _fit_all(usable_table(cens["I"]), usable_table(cens["II"]), neural=neural,
-                      seed=seed, timings=timings, not_run=not_run)
-    test = usable_table(cens["III"])
-    local = {label: stats.local_errors(cal.predict(test)) for label, cal in fitted.items()}
-    table = stats.global_stats(local)
-    return Table4Result(
-        table=table,
-        paper=stats.paper_table4(),
-        rectangles=stats.rectangles(table),
-        local=local,
-        optimised=_optimised_summary(fitted["optimised model (3)-(4)"].result, bench),
-        polynomial_order=tuple(int(n) for n in fitted["polynomial"].orders),
-        centroid_status=centroid_status(cens),
-        timings=timings,
-        settings={"not_run": not_run, "poses": {k: int(v.sizes["pose"]) for k, v in cens.items()},
-                  "shots": int(test.sizes["shot"]), "bench": json.loads(bench.to_json()),
-                  "network_reference": NN_REFERENCE},
-    )
-
-
-def _fit_all(train, val, *, neural, seed, timings, not_run) -> dict:
-    """Fit every method of :func:`table4_methods` on I (II for model selection), BLAS on one
-    thread (small problems, a busy machine: idle BLAS threads slow them several-fold); the fit
-    times go into ``timings``, and a method whose extra is not installed into ``not_run``
-    (label: the ImportError's message, which names the extra)."""
-    fitted = {}
+    if not {"I", "II", "III"} <= set(cens):
+        raise ConfigurationError(
+            f"cens: found runs {sorted(cens)}; expected 'I', 'II' and 'III'. Fix: the "
+            "tables of simulate_and_locate(..., zero_pose=True).")
+    train, val, test = (usable_table(cens[k]) for k in ("I", "II", "III"))
+    # every method fitted on I (II for model selection), BLAS on one thread (small problems, a
+    # busy machine: idle BLAS threads slow them several-fold); a method whose extra is not
+    # installed goes into not_run, with the ImportError's message (which names the extra)
+    fitted, timings, not_run = {}, {}, {}
     with parallel.single_threaded_blas():
         for label, fit in table4_methods(neural=neural, seed=seed,
                                          reference=NN_REFERENCE).items():
             t = time.perf_counter()
             try:
                 fitted[label] = fit(train, val)
-            except ImportError as err:  # a method of an extra that is not installed
+            except ImportError as err:
                 not_run[label] = str(err)
                 continue
             timings[f"fit {label}"] = time.perf_counter() - t
-    return fitted
-
-
-def _optimised_summary(opt, bench) -> dict:
-    """The optimised model's fitted parameters beside the bench's values and the paper's."""
-    truth = bench_optimised_truth(bench)
-    return {
-        k: {"fitted": float(getattr(opt, k)), "stderr": _num(opt.stderr.get(k, np.nan)),
-            "bench": float(truth[k]), "paper": PAPER_OPTIMISED[k],
-            "stderr_method": opt.stderr_method}
-        for k in PAPER_OPTIMISED
-    }
+    local = {label: stats.local_errors(cal.predict(test)) for label, cal in fitted.items()}
+    table = stats.global_stats(local)
+    opt, truth = fitted["optimised model (3)-(4)"].result, bench_optimised_truth(bench)
+    optimised = {k: {"fitted": float(getattr(opt, k)), "stderr": _num(opt.stderr.get(k, np.nan)),
+                     "bench": float(truth[k]), "paper": PAPER_OPTIMISED[k],
+                     "stderr_method": opt.stderr_method} for k in PAPER_OPTIMISED}
+    return Table4Result(
+        table=table, paper=stats.paper_table4(), rectangles=stats.rectangles(table), local=local,
+        optimised=optimised, polynomial_order=tuple(int(n) for n in fitted["polynomial"].orders),
+        centroid_status=centroid_status(cens), timings=timings,
+        settings={"not_run": not_run, "poses": {k: int(v.sizes["pose"]) for k, v in cens.items()},
+                  "shots": int(test.sizes["shot"]), "bench": json.loads(bench.to_json()),
+                  "network_reference": NN_REFERENCE})
 
 
 def comparable_methods(table: pd.DataFrame, factor: float = 10.0) -> list[str]:
@@ -386,24 +354,22 @@ def _write_outputs(res: Table4Result, out: Path) -> list[str]:
     matplotlib.use("Agg", force=False)
     from .. import atomic, plots
 
-    both = stats.side_by_side(res.table, res.paper, names=("sunlab", "paper"))
-    files = ["table4_sunlab.csv", "table4_side_by_side.csv", "table4.json"]
+    local = res.local["polynomial"]
     figs = {
         "fig10_error_maps_polynomial.png": plots.error_maps(
-            res.local["polynomial"], title="Fig. 10: local errors, polynomial (virtual bench)"),
+            local, title="Fig. 10: local errors, polynomial (virtual bench)"),
         "fig11_alpha_histogram_polynomial.png": plots.error_histogram(
-            res.local["polynomial"], angle="alpha",
-            title="Fig. 11: alpha local error, polynomial (virtual bench)"),
+            local, angle="alpha", title="Fig. 11: alpha local error, polynomial (virtual bench)"),
         "fig12_rectangles.png": plots.error_rectangles(
             res.table[comparable_methods(res.table)],
             title="Fig. 12: [M - 3 sigma_M, M + 3 sigma_M],\nexperiment III (virtual bench)"),
     }
-    files += list(figs)
+    files = ["table4_sunlab.csv", "table4_side_by_side.csv", "table4.json", *figs]
     out.parent.mkdir(parents=True, exist_ok=True)
     # every file or none: an interrupted run leaves the previous results (sunlab.atomic)
     with atomic.atomic_files(out, files, overwrite=True, flag="") as tmp:
         res.table.to_csv(tmp / files[0])
-        both.to_csv(tmp / files[1])
+        stats.side_by_side(res.table, res.paper, names=("sunlab", "paper")).to_csv(tmp / files[1])
         write_json(res.to_dict(), tmp / files[2])
         for name, fig in figs.items():
             fig.savefig(tmp / name, dpi=110)  # constrained layout: no tight bbox (a 2nd draw)
@@ -433,14 +399,11 @@ def format_table(res: Table4Result) -> str:
     """
     if not isinstance(res, Table4Result):
         raise ConfigurationError(f"res: found {type(res).__name__}; expected a Table4Result")
-    lines = [
-        "Table 4 - global statistics on experiment III, one hole (deg)",
-        "paper = the 2005 preprint; ours = sunlab virtual bench (simulated frames); our 90 % "
-        "interval = the identified bench's predictive interval (docs/identification.md)",
-        "",
-    ]
     keys = [(a, st) for a in stats.ANGLES for st in stats.STATS]
-    lines.append(f"{'method':<26s}" + "".join(f"{a[0] + ' ' + st:>12s}" for a, st in keys))
+    lines = ["Table 4 - global statistics on experiment III, one hole (deg)",
+             "paper = the 2005 preprint; ours = sunlab virtual bench (simulated frames); our 90 % "
+             "interval = the identified bench's predictive interval (docs/identification.md)",
+             "", f"{'method':<26s}" + "".join(f"{a[0] + ' ' + st:>12s}" for a, st in keys)]
     iv = res.settings.get("interval90", {})
     for c in res.table.columns:
         if c in res.paper.columns:
@@ -466,19 +429,16 @@ def format_table(res: Table4Result) -> str:
         lines.append(f"  {k:<11s} {v['fitted']:8.4f} +- {se:.4f} | {v['bench']:7.4f} | "
                      f"{v['paper']:7.4f} {unit}")
     method = next(iter(res.optimised.values())).get("stderr_method", "jacobian")
-    lines.append(f"  (s.e. by {method} over 2 x 2-degree blocks of poses; mounting as the bench's "
-                 "rotation R_y(-alpha0) R_x(beta0);\n   bench dF = the hole's true height "
-                 "above the focal plane minus F)")
-    lines.append("Polynomial order chosen on experiment II (alpha, beta): "
-                 f"{res.polynomial_order}")
+    lines += [f"  (s.e. by {method} over 2 x 2-degree blocks of poses; mounting as the bench's "
+              "rotation R_y(-alpha0) R_x(beta0);\n   bench dF = the hole's true height "
+              "above the focal plane minus F)",
+              f"Polynomial order chosen on experiment II (alpha, beta): {res.polynomial_order}"]
     lines.append("Centroid status: " + "; ".join(
         f"{k}: " + ", ".join(f"{n} {s}" for s, n in v.items() if s != "removed")
         for k, v in res.centroid_status.items()))
     lines.append("Frames removed (status: count): " + "; ".join(
         f"{k}: " + (", ".join(f"{n} {s}" for s, n in v["removed"].items()) or "none")
         for k, v in res.centroid_status.items()))
-    lines.append(
-        f"Time: {res.timings['simulate_and_centroid']:.1f} s simulate + centroid, "
-        f"{res.timings['total']:.1f} s in all"
-    )
+    lines.append(f"Time: {res.timings['simulate_and_centroid']:.1f} s simulate + centroid, "
+                 f"{res.timings['total']:.1f} s in all")
     return "\n".join(lines)
