@@ -182,8 +182,8 @@ def hypothesis_bench(protocol: dict, name: str, nuisances: dict, fitted: dict, *
         :func:`draw_nuisances`.
     fitted : dict
         ``alpha_total_deg``, ``beta_zero_shift_deg``, ``beta_pose_error_deg``,
-        ``alpha_jitter_deg``, ``beta_jitter_deg`` and, for a hypothesis with a gear error,
-        ``beta_gear_deg`` (deg).
+        ``alpha_jitter_deg``, ``beta_jitter_deg`` (the presets' when left out) and, for a
+        hypothesis with a gear error, ``beta_gear_deg`` and ``gear_period_deg`` (deg).
     multi : bool
         The 100-hole mask instead of the one hole.
 
@@ -223,7 +223,7 @@ def hypothesis_bench(protocol: dict, name: str, nuisances: dict, fitted: dict, *
         platform__beta_drift_deg=0.0, platform__beta_backlash_deg=0.0,
         platform__beta_wobble_deg=0.0, platform__nonorthogonality_deg=0.0,
         platform__beta_gear_deg=fitted.get("beta_gear_deg", 0.0) if gear else 0.0,
-        platform__beta_gear_period_deg=(_gear_period(nuisances, fitted) if gear
+        platform__beta_gear_period_deg=(float(fitted["gear_period_deg"]) if gear
                                         else base.platform.beta_gear_period_deg),
     )
     # per-shot jitter: fitted from protocol version 3 on (earlier fits leave the presets')
@@ -237,12 +237,6 @@ def hypothesis_bench(protocol: dict, name: str, nuisances: dict, fitted: dict, *
         play_mm = math.tan(math.radians(single_play_deg)) * bench.mask.true_distance_mm
         bench = bench.replace(mask__play_x_mm=play_mm, mask__play_y_mm=0.0)
     return bench
-
-
-def _gear_period(nuisances: dict, fitted: dict) -> float:
-    """The gear's period, deg: fitted from protocol version 4 on, a nuisance draw before."""
-    return float(fitted["gear_period_deg"] if "gear_period_deg" in fitted
-                 else nuisances["gear_period_deg"])
 
 
 # ----------------------------------------------------------------------------- surrogate
@@ -533,10 +527,7 @@ def score_table(cells: pd.DataFrame, protocol: dict) -> pd.DataFrame:
 def _fitted_count(protocol: dict, name: str) -> int:
     """The fitted parameters of a hypothesis (tau's degrees of freedom are 12 minus these)."""
     gear = protocol["hypotheses"][name]["gear"]
-    counts = protocol["score"].get("fitted_parameters")
-    if counts:
-        return int(counts["with gear" if gear else "without gear"])
-    return len(protocol["cells"]["pinning"]) - (0 if gear else 1)
+    return int(protocol["score"]["fitted_parameters"]["with gear" if gear else "without gear"])
 
 
 def chosen_hypothesis(evidence: pd.DataFrame, protocol: dict | None = None) -> str:

@@ -245,10 +245,9 @@ def reproduce_learned(*, quick: bool = False, seed: int = 0, out: str | Path | N
             print(f"{name}: {time.perf_counter() - t:.0f} s\n"
                   f"{res['table'].round(5).to_string()}", flush=True)
         result["records"] += res["records"]
-        result["tables"][name] = res["table"]
-        result["models"][name] = res["model"]
-        if "floor" in res:
-            result["floors"][name] = res["floor"]
+        for key, part in (("tables", "table"), ("models", "model"), ("floors", "floor")):
+            if part in res:
+                result[key][name] = res[part]
         if out is not None:  # after every bench: a long run interrupted keeps what it did
             result["files"] = _write(result, Path(out), settings)
     return result
@@ -340,15 +339,14 @@ def _classical(multi: bool, tables: dict, cubes: dict, bench_, opts) -> dict:
 
 
 def _records(name: str, table, timing: dict) -> list[dict]:
-    recs = [{"bench": name, "method": str(m), "angle": a, "stat": s, "value": _num(v)}
-            for m in table.columns for (a, s), v in table[m].items()]
+    def rec(method, angle, stat, value):
+        return {"bench": name, "method": str(method), "angle": angle, "stat": stat,
+                "value": _num(value)}
+
+    recs = [rec(m, a, s, v) for m in table.columns for (a, s), v in table[m].items()]
     for m, (train_s, infer_s, *cpu) in timing.items():
-        recs += [{"bench": name, "method": m, "angle": None, "stat": "train_s",
-                  "value": _num(train_s)},
-                 *[{"bench": name, "method": m, "angle": None, "stat": "train_cpu_s",
-                    "value": _num(c)} for c in cpu],
-                 {"bench": name, "method": m, "angle": None, "stat": "infer_s_per_frame",
-                  "value": _num(infer_s)}]
+        recs += [rec(m, None, "train_s", train_s), *[rec(m, None, "train_cpu_s", c) for c in cpu],
+                 rec(m, None, "infer_s_per_frame", infer_s)]
     return recs
 
 

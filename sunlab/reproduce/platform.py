@@ -100,6 +100,21 @@ def bench_fault_values(bench, seed, plans_by_run: dict) -> dict:
             "beta_gear_amplitude_deg": float(bench.platform.beta_gear_deg)}
 
 
+def _centroids(bench, sets: dict, *, seed, method, engine, progress, where) -> dict:
+    """Usable centroid tables of every named plan: rendered and centroided, or the surrogate's."""
+    if engine == "surrogate":
+        from ..sim.surrogate import surrogate_centroids
+
+        cens = {k: surrogate_centroids(bench, p, seed) for k, p in sets.items()}
+    else:
+        if progress:
+            print(f"rendering and centroiding {sum(len(p) * p.shots for p in sets.values())} "
+                  f"frames ({method})", flush=True)
+        cens = locate_runs(simulate_runs({k: (p, bench) for k, p in sets.items()}, seed=seed),
+                           method=method, progress=progress, **where)
+    return {k: usable_table(v) for k, v in cens.items()}
+
+
 def reproduce_platform(*, quick: bool = False, seed: int = 0, method: str = "projection",
                        out: str | Path | None = "results", progress: bool = True,
                        engine: str = "render", bench=None, checks: int = 4,
@@ -111,8 +126,7 @@ def reproduce_platform(*, quick: bool = False, seed: int = 0, method: str = "pro
     Parameters
     ----------
     quick : bool
-        Quick mode, the same for every table (:data:`sunlab.reproduce.pipeline.QUICK`): every
-        2nd angle along each grid axis and 2 shots per pose.
+        Quick mode, as every table's (:data:`sunlab.reproduce.pipeline.QUICK`).
     seed : int
         Seed of the virtual bench.
     method : str
@@ -148,10 +162,7 @@ def reproduce_platform(*, quick: bool = False, seed: int = 0, method: str = "pro
     'homing'
     """
     from .. import plans, sim, stats
-    from ..calibration import Polynomial
     from ..errors import ConfigurationError
-    from .fault import diagnose, paper_shape
-    from .remedy import fit_correction
 
     if engine not in ("render", "surrogate"):
         raise ConfigurationError(f"engine: found {engine!r}; expected 'render' or 'surrogate'.")
@@ -164,19 +175,35 @@ def reproduce_platform(*, quick: bool = False, seed: int = 0, method: str = "pro
     # plan is the same for both protocols)
     sets = {f"{tag} {k}": p for tag, ps in protocols.items() for k, p in ps.items()}
     sets.update({f"zero {k}": plans.zero_check(paper[k], checks) for k in ("I", "III")})
-    if engine == "surrogate":
-        from ..sim.surrogate import surrogate_centroids
-
-        cens = {k: surrogate_centroids(bench, p, seed) for k, p in sets.items()}
-    else:
-        if progress:
-            print(f"rendering and centroiding {sum(len(p) * p.shots for p in sets.values())} "
-                  f"frames ({method})", flush=True)
-        cens = locate_runs(simulate_runs({k: (p, bench) for k, p in sets.items()}, seed=seed),
-                           method=method, progress=progress, address=address,
-                           scheduler=scheduler, workers=workers)
-    cens = {k: usable_table(v) for k, v in cens.items()}
+    cens = _centroids(bench, sets, seed=seed, method=method, engine=engine, progress=progress,
+                      where={"address": address, "scheduler": scheduler, "workers": workers})
     t_sim = time.perf_counter() - t0
+    rows, orders, diag, jc, from_row = _rows(cens, protocols)
+    truth = bench_fault_values(bench, seed, paper)
+    result = {**_platform_doc(stats.global_stats(rows), jc, truth, from_row, diag),
+              "polynomial_order": orders,
+              "settings": {"seed": seed, "quick": quick, "engine": engine,
+                           "centroid_method": method, "scan": paper["III"].scan,
+                           "zero_checks": checks, "poses": {k: len(p) for k, p in paper.items()},
+                           "shots": paper["III"].shots,
+                           "bench": "sunlab.sim.Bench.paper_single_hole()"},
+              "timings_s": {"simulate_and_centroid": round(t_sim, 2),
+                            "total": round(time.perf_counter() - t0, 2)},
+              "files": []}
+    if out is not None:
+        Path(out).mkdir(parents=True, exist_ok=True)
+        result["files"] = [write_json(result, Path(out) / "platform.json")]
+    return result
+
+
+def _rows(cens: dict, protocols: dict):
+    """The local errors of every row of the table, the polynomial orders of each protocol, the
+    diagnosis, the joint fit whose parameters are reported and its row."""
+    from .. import stats
+    from ..calibration import Polynomial
+    from .fault import diagnose
+    from .remedy import fit_correction
+
     zeros = {"zero_train": cens["zero I"], "zero_test": cens["zero III"]}
 
     def corrected(tag, **kw):
@@ -190,19 +217,27 @@ def reproduce_platform(*, quick: bool = False, seed: int = 0, method: str = "pro
         orders[tag] = [int(n) for n in cal.orders]
         rows[row] = stats.local_errors(cal.predict(cens[f"{tag} III"]))
         if tag == "paper":
-            diag = diagnose(cal.predict(cens["paper III"]), paper["III"])
+            diag = diagnose(cal.predict(cens["paper III"]), protocols["paper"]["III"])
     # (a) + zero check: the homing difference from the zero-pose checks, no backlash term;
     # (b) the backlash from the motion record, then with the zero-pose checks
     rows[ROWS[2]] = corrected("uni", backlash=False, **zeros)[1]
     rows[ROWS[3]] = corrected("paper")[1]
     jc, rows[ROWS[4]] = corrected("paper", **zeros)
-    from_row = ROWS[4]
-    if diag.candidate == "gear":  # its term at the frequency the periodogram found (an alias)
-        f = diag.evidence["periodogram"]["peak_frequency"]
-        jc, rows[GEAR_ROW] = corrected("paper", gear_frequency=f, **zeros)
-        from_row = GEAR_ROW
-    table = stats.global_stats(rows)
-    truth = bench_fault_values(bench, seed, paper)
+    if diag.candidate != "gear":
+        return rows, orders, diag, jc, ROWS[4]
+    # the gear term at the frequency the periodogram found (the alias the grid sees)
+    f = diag.evidence["periodogram"]["peak_frequency"]
+    jc, rows[GEAR_ROW] = corrected("paper", gear_frequency=f, **zeros)
+    return rows, orders, diag, jc, GEAR_ROW
+
+
+def _platform_doc(table, jc, truth: dict, from_row: str, diag) -> dict:
+    """The platform table's results: rows, the joint fit's parameters beside the bench's
+    (``truth``) with their z-scores, the diagnosis, the paper's shape test and the must-show
+    checks (the orders, settings, timings and files are added by the caller)."""
+    from .. import stats
+    from .fault import paper_shape
+
     parameters = {k: {"fitted": p["fitted"], "stderr": p["stderr"], "bench": truth[k],
                       "z": ((p["fitted"] - truth[k]) / p["stderr"] if p["stderr"] > 0
                             else float("inf")), "from": from_row}
@@ -211,7 +246,7 @@ def reproduce_platform(*, quick: bool = False, seed: int = 0, method: str = "pro
                  for s in stats.STATS} for r in table.columns}
     poly, remedies = cells[ROWS[0]], {r: cells[r]["beta.mu"] for r in list(cells)[1:]}
     best = min(remedies, key=remedies.get)
-    result = {
+    return {
         "table": "platform",
         "source": "sunlab virtual bench (ours); the paper's own statistics for paper_shape",
         "rows": cells, "parameters": parameters,
@@ -227,19 +262,7 @@ def reproduce_platform(*, quick: bool = False, seed: int = 0, method: str = "pro
             "beta_mu_within_0.6x_polynomial_beta_mu": remedies[best] <= 0.6 * poly["beta.mu"],
             "parameters_within_2.5_stderr": all(abs(p["z"]) <= 2.5 for p in parameters.values()),
         },
-        "polynomial_order": orders,
-        "settings": {"seed": seed, "quick": quick, "engine": engine, "centroid_method": method,
-                     "scan": paper["III"].scan, "zero_checks": checks,
-                     "poses": {k: len(p) for k, p in paper.items()}, "shots": paper["III"].shots,
-                     "bench": "sunlab.sim.Bench.paper_single_hole()"},
-        "timings_s": {"simulate_and_centroid": round(t_sim, 2),
-                      "total": round(time.perf_counter() - t0, 2)},
-        "files": [],
     }
-    if out is not None:
-        Path(out).mkdir(parents=True, exist_ok=True)
-        result["files"] = [write_json(result, Path(out) / "platform.json")]
-    return result
 
 
 def format_platform(res: dict) -> str:
@@ -340,7 +363,6 @@ def candidate_table(sizes: dict, *, bench=None, seed: int = 0, shots: int = 1,
     >>> list(t.columns), bool(0.005 < t.loc["backlash", "polynomial mu"] < 0.03)
     (['size_deg', 'polynomial mu', 'polynomial sigma', 'score', 'shape_excess'], True)
     """
-    from .. import stats
     from ..calibration.methods import table4_methods
     from ..sim import Bench
     from ..sim.surrogate import surrogate_centroids
@@ -349,27 +371,35 @@ def candidate_table(sizes: dict, *, bench=None, seed: int = 0, shots: int = 1,
     bench = Bench.paper_single_hole() if bench is None else bench
     exps = experiment_plans or experiment_plans(step=1, shots=shots)
     fits = table4_methods(neural=False, seed=seed)
-    paper = stats.paper_table4()
-    shaped = [m for m in methods if m in ("polynomial", "linear interp.")]
     rows = {}
     for kind, size in sizes.items():
         b = fault_bench(bench, kind, 0.0 if kind == "homing" else size)
         b_test = b.replace(platform__beta_offset_deg=float(size)) if kind == "homing" else b
         cen = {n: surrogate_centroids(b_test if n == "III" else b, p, seed)
                for n, p in exps.items()}
-        row, logs = {"size_deg": float(size)}, []
-        for m in methods:
-            loc = stats.local_errors(fits[m](cen["I"], cen["II"]).predict(cen["III"]))
-            g = stats.global_stats({m: loc})[m]
-            for st in ("mu", "sigma"):
-                row[f"{m} {st}"] = float(g[("beta", st)])
-                logs.append(math.log(row[f"{m} {st}"] / float(paper.loc[("beta", st), m])))
-        row["score"] = float(np.sqrt(np.mean(np.square(logs))))
-        # the shape criterion: mean sigma / mu of the polynomial and linear columns, less the
-        # paper's (0.47, 0.48); 0 matches the paper's bimodal shape
-        row["shape_excess"] = float(np.mean(
-            [row[f"{m} sigma"] / row[f"{m} mu"] - float(paper.loc[("beta", "sigma"), m]
-                                                        / paper.loc[("beta", "mu"), m])
-             for m in shaped])) if shaped else float("nan")
-        rows[kind] = row
+        rows[kind] = {"size_deg": float(size), **_beta_cells(cen, fits, methods)}
     return pd.DataFrame.from_dict(rows, orient="index").rename_axis("candidate")
+
+
+def _beta_cells(cen: dict, fits: dict, methods) -> dict:
+    """Table 4's beta mu and sigma of each method calibrated on ``cen["I"]`` (order on II) and
+    applied to III, their ``score`` against the paper's and the ``shape_excess``."""
+    from .. import stats
+
+    paper = stats.paper_table4()
+    row, logs = {}, []
+    for m in methods:
+        loc = stats.local_errors(fits[m](cen["I"], cen["II"]).predict(cen["III"]))
+        g = stats.global_stats({m: loc})[m]
+        for st in ("mu", "sigma"):
+            row[f"{m} {st}"] = float(g[("beta", st)])
+            logs.append(math.log(row[f"{m} {st}"] / float(paper.loc[("beta", st), m])))
+    row["score"] = float(np.sqrt(np.mean(np.square(logs))))
+    # the shape criterion: mean sigma / mu of the polynomial and linear columns, less the
+    # paper's (0.47, 0.48); 0 matches the paper's bimodal shape
+    shaped = [m for m in methods if m in ("polynomial", "linear interp.")]
+    row["shape_excess"] = float(np.mean(
+        [row[f"{m} sigma"] / row[f"{m} mu"] - float(paper.loc[("beta", "sigma"), m]
+                                                    / paper.loc[("beta", "mu"), m])
+         for m in shaped])) if shaped else float("nan")
+    return row

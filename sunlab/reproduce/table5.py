@@ -131,18 +131,24 @@ def reproduce_table5(quick: bool = True, seed: int = 0, out: Path | str | None =
     result["runtime_s"] = time.perf_counter() - t0
     result["timings_s"] = {**{k: round(v, 3) for k, v in timings.items()},
                            "total": round(result["runtime_s"], 3)}
-    if out is not None:  # table5.json: the table, bad holes, budget, sizes, timings, settings
-        table = result["table"]
-        doc = {"table5": {f"{c[0]} [{c[1]}]": {f"{a}.{st}": float(v) for (a, st), v in
-                                                table[c].items()} for c in table.columns},
-               **{k: result[k] for k in ("bad_holes", "injected", "budget", "sizes", "runtime_s",
-                                         "timings_s")},
-               "quick": quick, "centroid_status": result["centroid_status"],
-               "findings": result["findings"], "seed": seed, "order": result["order"],
-               "centroid_method": method, "settings": {"hypothesis": result["hypothesis"]},
-               "interval90": result["interval90"]}
-        result["files"].append(write_json(doc, Path(out) / "table5.json"))
+    if out is not None:
+        result["files"].append(_write_json(result, Path(out), quick=quick, seed=seed,
+                                           method=method))
     return result
+
+
+def _write_json(result: dict, out: Path, *, quick: bool, seed: int, method: str) -> str:
+    """``table5.json``: the table, the bad holes, the budget, sizes, timings and settings."""
+    table = result["table"]
+    doc = {"table5": {f"{c[0]} [{c[1]}]": {f"{a}.{st}": float(v) for (a, st), v in
+                                            table[c].items()} for c in table.columns},
+           **{k: result[k] for k in ("bad_holes", "injected", "budget", "sizes", "runtime_s",
+                                     "timings_s")},
+           "quick": quick, "centroid_status": result["centroid_status"],
+           "findings": result["findings"], "seed": seed, "order": result["order"],
+           "centroid_method": method, "settings": {"hypothesis": result["hypothesis"]},
+           "interval90": result["interval90"]}
+    return write_json(doc, out / "table5.json")
 
 
 def multi_hole_tables(plans_: dict, *, seed: int = 0, method: str = "projection",
@@ -238,20 +244,9 @@ def table5_statistics(tables: dict, hole_metrics, *, order: int | None = None) -
         ``centroid_status`` (:func:`~sunlab.reproduce.pipeline.centroid_status`), ``sizes``,
         ``files`` (empty) and ``data`` (centroid tables and the averaging strategy, for figures
         and :class:`sunlab.widgets.HoleExplorer`).
-
-    Examples
-    --------
-    Its tables come from 100-hole frames (minutes even thinned), so not run here:
-
-    >>> from sunlab.reproduce.pipeline import experiment_plans
-    >>> plans_ = experiment_plans(step=4, shots=1)
-    >>> res = table5_statistics(*multi_hole_tables(plans_, progress=False)[:2])  # doctest: +SKIP
-    >>> res["table"].loc[("alpha", "mu")]  # doctest: +SKIP
     """
     from .. import multihole as mh
     from .. import stats
-    from ..calibration import Polynomial
-    from ..calibration.methods import POLYNOMIAL_REFIT
 
     names = ("100 holes I", "100 holes III", "1 hole I", "1 hole III")
     missing = [k for k in (*names, "1 hole II") if k not in tables]
@@ -259,27 +254,12 @@ def table5_statistics(tables: dict, hole_metrics, *, order: int | None = None) -
         raise ConfigurationError(
             f"tables: missing {missing}. Fix: the tables of multi_hole_tables(...).")
     cens = {k: usable_table(tables[k]) for k in (*names, "1 hole II")}
-    # the order Table 4's polynomial chooses on the one hole's II (the larger of its orders for
-    # the 100-hole strategies, which take one order), unless given
-    if order is None:
-        one_hole, _ = Polynomial.select_order(cens["1 hole I"], cens["1 hole II"],
-                                              refit=POLYNOMIAL_REFIT)
-        order = int(max(one_hole.orders))
-    else:
-        one_hole, order = Polynomial(order).fit(cens["1 hole I"]), int(order)
-    # the strategies fitted on I; the bad holes found from the training run's defect metrics
-    # (spot shape and the edge roughness that finds burrs, with the averaging's residuals)
+    one_hole, order = _one_hole_polynomial(cens, order)
     cen_tr, cen_te = cens["100 holes I"], cens["100 holes III"]
-    s2 = mh.PerHoleAverage(order=order).fit(cen_tr)
-    metrics = _with_residual_metrics(hole_metrics, s2, cen_tr)
-    bad = mh.reject_bad_holes(metrics).values
-    s2r = mh.PerHoleAverage(order=order, holes=~bad, weighting="inverse_variance", clip=4.0,
-                            calibrations_=s2.calibrations_, variance_=s2.variance_)
-    est = s2.predict_holes(cen_te)
-    preds = {COLUMNS[0]: mh.GeometricCentre(order=order).fit(cen_tr).predict(cen_te),
-             COLUMNS[1]: s2.combine(est), COLUMNS[2]: one_hole.predict(cens["1 hole III"]),
-             REJECTION_COLUMN: s2r.combine(est)}
-    ours = stats.global_stats({k: stats.local_errors(v) for k, v in preds.items()})
+    s2, metrics, bad, est, preds = _strategies(cen_tr, cen_te, hole_metrics, order)
+    preds[COLUMNS[2]] = one_hole.predict(cens["1 hole III"])
+    ours = stats.global_stats({k: stats.local_errors(preds[k]) for k in (*COLUMNS,
+                                                                         REJECTION_COLUMN)})
     table = stats.side_by_side(ours[list(COLUMNS)], stats.paper_table5())
     table[(REJECTION_COLUMN, "sunlab")] = ours[REJECTION_COLUMN]
     mu = ours.xs("mu", level=1)
@@ -338,6 +318,37 @@ def format_table5(result: dict) -> str:
             lines.append(stat_line("", [span(*cell[f"{a}.{st}"]) for a, st in keys],
                                    "our 90 % interval", 34))
     return "\n".join(lines)
+
+
+def _one_hole_polynomial(cens: dict, order: int | None):
+    """The one hole's polynomial on I and the order of every calibration of the table: chosen
+    on the one hole's II as Table 4 chooses it (the larger of its orders for the 100-hole
+    strategies, which take one order), unless ``order`` is given."""
+    from ..calibration import Polynomial
+    from ..calibration.methods import POLYNOMIAL_REFIT
+
+    if order is not None:
+        return Polynomial(order).fit(cens["1 hole I"]), int(order)
+    best, _ = Polynomial.select_order(cens["1 hole I"], cens["1 hole II"], refit=POLYNOMIAL_REFIT)
+    return best, int(max(best.orders))
+
+
+def _strategies(cen_tr, cen_te, hole_metrics, order: int):
+    """The strategies of :mod:`sunlab.multihole` fitted on I, the bad holes found from the
+    training run's defect metrics (spot shape and the edge roughness that finds burrs, with the
+    averaging's residual metrics added as :func:`sunlab.multihole.defect_metrics` adds them),
+    the per-hole estimates on III and each 100-hole column's estimate."""
+    from .. import multihole as mh
+
+    s2 = mh.PerHoleAverage(order=order).fit(cen_tr)
+    metrics = _with_residual_metrics(hole_metrics, s2, cen_tr)
+    bad = mh.reject_bad_holes(metrics).values
+    s2r = mh.PerHoleAverage(order=order, holes=~bad, weighting="inverse_variance", clip=4.0,
+                            calibrations_=s2.calibrations_, variance_=s2.variance_)
+    est = s2.predict_holes(cen_te)
+    return s2, metrics, bad, est, {
+        COLUMNS[0]: mh.GeometricCentre(order=order).fit(cen_tr).predict(cen_te),
+        COLUMNS[1]: s2.combine(est), REJECTION_COLUMN: s2r.combine(est)}
 
 
 def _with_residual_metrics(hole_metrics, strategy, cen):
