@@ -75,11 +75,12 @@ def mechanisms(hypothesis: str | None = None, seeds=None, *, step: int = 2,
     from sunlab.reproduce import experiment_plans
     from sunlab.sim.surrogate import surrogate_centroids
 
+    from . import evidence as ev
     from . import identification as idn
 
     protocol = idn.load_protocol()
-    evidence = idn.load_evidence()
-    base = hypothesis or idn.identified_hypothesis()
+    evidence = ev.load_evidence()
+    base = hypothesis or ev.identified_hypothesis()
     gear = protocol["hypotheses"][base]["gear"]
     seeds = protocol["confirmation_seeds"][:1] if seeds is None else seeds
     rows = []
@@ -89,7 +90,7 @@ def mechanisms(hypothesis: str | None = None, seeds=None, *, step: int = 2,
                    if v["F_mm"] == mech["F_mm"] and v["gear"] == gear)
         for seed in seeds:
             rec = evidence[(evidence["hypothesis"] == hyp) & (evidence["seed"] == seed)].iloc[0]
-            nuis, fitted = idn.recorded_draw(protocol, rec)
+            nuis, fitted = ev.recorded_draw(protocol, rec)
             multi = idn.hypothesis_bench(protocol, hyp, nuis, fitted, multi=True)
             exps = experiment_plans(step=step, shots=shots)
             noise = float(rec["noise_px"])

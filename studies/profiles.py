@@ -200,4 +200,6 @@ def load_profiles(path=None) -> pd.DataFrame:
     pandas.DataFrame
         As :func:`profile_likelihood`.
     """
-    return pd.read_csv(path) if path is not None else idn._data("profiles.csv")
+    from .evidence import _data
+
+    return pd.read_csv(path) if path is not None else _data("profiles.csv")

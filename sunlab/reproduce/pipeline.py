@@ -406,14 +406,14 @@ def identified(table: str) -> dict:
     return {"hypothesis": name, "interval90": out}
 
 
-def stat_line(label: str, values, tag: str, width: int) -> str:
+def _stat_line(label: str, values, tag: str, width: int) -> str:
     """One line of a printed table: the label, then each value in 12 characters, then the tag
     (values are numbers, printed to 4 decimals, or ready-made strings)."""
     return f"{label:<{width}s}" + "".join(
         f"{v:>12s}" if isinstance(v, str) else f"{v:12.4f}" for v in values) + f"   {tag}"
 
 
-def span(lo: float, hi: float) -> str:
+def _span(lo: float, hi: float) -> str:
     """An interval in 11 characters: ``.0071-.0118`` (deg, below 1)."""
     return f"{lo:.4f}-{hi:.4f}".replace("0.", ".")
 

@@ -42,11 +42,11 @@ from .. import __version__, parallel, stats
 from ..calibration.methods import table4_methods
 from ..errors import ConfigurationError
 from .pipeline import (
+    _span,
+    _stat_line,
     centroid_status,
     identified,
     simulate_and_locate,
-    span,
-    stat_line,
     usable_table,
     write_json,
 )
@@ -407,11 +407,11 @@ def format_table(res: Table4Result) -> str:
     iv = res.settings.get("interval90", {})
     for c in res.table.columns:
         if c in res.paper.columns:
-            lines.append(stat_line(c, [res.paper.loc[k, c] for k in keys], "paper", 26))
-        lines.append(stat_line("" if c in res.paper.columns else c,
+            lines.append(_stat_line(c, [res.paper.loc[k, c] for k in keys], "paper", 26))
+        lines.append(_stat_line("" if c in res.paper.columns else c,
                                [res.table.loc[k, c] for k in keys], "ours", 26))
         if c in iv:
-            lines.append(stat_line("", [span(*iv[c][f"{a}.{st}"]) for a, st in keys],
+            lines.append(_stat_line("", [_span(*iv[c][f"{a}.{st}"]) for a, st in keys],
                                    "our 90 % interval", 26))
     not_run = res.settings.get("not_run", {})
     lines += [f"{label:<26s}not run: its extra is not installed" for label in not_run]

@@ -35,15 +35,15 @@ import numpy as np
 
 from ..errors import ConfigurationError
 from .pipeline import (
+    _span,
+    _stat_line,
     centroid_status,
     experiment_plans,
     identified,
     locate_runs,
     mounting_offset_px,
     simulate_runs,
-    span,
     spot_method,
-    stat_line,
     usable_table,
     write_json,
 )
@@ -310,12 +310,12 @@ def format_table5(result: dict) -> str:
     for col in (*COLUMNS, REJECTION_COLUMN):
         published = (col, "paper") in table.columns
         if published:
-            lines.append(stat_line(col, [table.loc[k, (col, "paper")] for k in keys], "paper", 34))
-        lines.append(stat_line("" if published else col,
+            lines.append(_stat_line(col, [table.loc[k, (col, "paper")] for k in keys], "paper", 34))
+        lines.append(_stat_line("" if published else col,
                                [table.loc[k, (col, "sunlab")] for k in keys], "ours", 34))
         cell = iv.get(f"{col} [sunlab]")
         if cell:
-            lines.append(stat_line("", [span(*cell[f"{a}.{st}"]) for a, st in keys],
+            lines.append(_stat_line("", [_span(*cell[f"{a}.{st}"]) for a, st in keys],
                                    "our 90 % interval", 34))
     return "\n".join(lines)
 

@@ -11,7 +11,7 @@ import math
 
 import pytest
 
-from studies import identification as idn
+from studies import evidence
 from studies.averaging import MECHANISMS, PAPER_RATIO, mechanisms
 
 
@@ -24,7 +24,7 @@ def test_paper_ratio_is_table5s():
 @pytest.fixture(scope="module")
 def table():
     # a seed of the shipped evidence (its draw and fit are read from it), as notebook 06 does
-    seed = int(idn.load_evidence()["seed"].min())
+    seed = int(evidence.load_evidence()["seed"].min())
     return mechanisms(seeds=(seed,), step=4, shots=2)
 
 

@@ -9,6 +9,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from studies import evidence
 from studies import identification as idn
 from sunlab import stats
 
@@ -29,7 +30,7 @@ def test_protocol_counts_every_parameter_and_switch(protocol):
         expected = 1 + len(fitted) + len(protocol["priors"]) + (3 if hyp["gear"] else 0)
         assert hyp["parameters"] == expected, name
         # tau's degrees of freedom: 12 minus the fitted ones (amplitude and period with a gear)
-        assert idn._fitted_count(protocol, name) == len(fitted) + (2 if hyp["gear"] else 0)
+        assert evidence._fitted_count(protocol, name) == len(fitted) + (2 if hyp["gear"] else 0)
 
 
 def test_a_gear_fit_keeps_the_period_of_least_fit_side_misfit(protocol, monkeypatch):
@@ -109,7 +110,7 @@ def test_score_is_the_held_out_log_density_and_falls_with_the_miss(protocol):
     # predictions off by a seed-dependent factor: the better-centred hypothesis scores higher;
     # with every prediction exact but one seed off, tau and the spread follow from the formula
     cells = _cells({("F5", 0): 1.0, ("F5", 1): 1.1, ("F17", 0): 1.5, ("F17", 1): 1.7})
-    ev = idn.score_table(cells, protocol)
+    ev = evidence.score_table(cells, protocol)
     mean = ev.groupby("hypothesis")["score"].mean()
     assert mean["F5"] > mean["F17"]
     f5 = ev[ev.hypothesis == "F5"].set_index("seed")
@@ -130,13 +131,13 @@ def test_rule_takes_the_simplest_within_one_standard_error_of_the_best():
                        "seed": [0, 1, 2] * 3, "parameters": [11] * 3 + [8] * 3 + [5] * 3,
                        "score": [10.0, 12.0, 14.0, 9.5, 11.0, 12.5, 0.0, 1.0, 2.0]})
     # best: big, 12 +- 2 / sqrt(3) = 1.15; small's 11.0 is within it, bad's 1.0 is not
-    assert idn.chosen_hypothesis(ev) == "small"
+    assert evidence.chosen_hypothesis(ev) == "small"
     ev.loc[ev.hypothesis == "small", "score"] -= 1.0
-    assert idn.chosen_hypothesis(ev) == "big"
+    assert evidence.chosen_hypothesis(ev) == "big"
 
 
 def test_the_shipped_choice_is_the_rule_applied_by_hand_to_the_shipped_evidence(protocol):
-    ev = idn.load_evidence()
+    ev = evidence.load_evidence()
     assert {"hypothesis", "seed", "score"} <= set(ev.columns)
     assert sorted(set(ev.seed)) == protocol["confirmation_seeds"]
     g = ev.groupby("hypothesis")["score"]
@@ -145,7 +146,7 @@ def test_the_shipped_choice_is_the_rule_applied_by_hand_to_the_shipped_evidence(
     eligible = [h for h in mean.index if mean[h] >= mean[best] - se[best]]
     fewest = min(protocol["hypotheses"][h]["parameters"] for h in eligible)
     picks = [h for h in eligible if protocol["hypotheses"][h]["parameters"] == fewest]
-    assert idn.identified_hypothesis() == max(picks, key=lambda h: mean[h])
+    assert evidence.identified_hypothesis() == max(picks, key=lambda h: mean[h])
 
 
 def test_every_published_cell_has_a_90_percent_interval():
@@ -154,7 +155,7 @@ def test_every_published_cell_has_a_90_percent_interval():
     from sunlab.reproduce.pipeline import identified
 
     iv = {t: identified(t) for t in ("table4", "table5")}
-    assert {v["hypothesis"] for v in iv.values()} == {idn.identified_hypothesis()}
+    assert {v["hypothesis"] for v in iv.values()} == {evidence.identified_hypothesis()}
     n4 = sum(len(v) for v in iv["table4"]["interval90"].values())
     n5 = sum(len(v) for v in iv["table5"]["interval90"].values())
     assert (n4, n5) == (stats.paper_table4().size, stats.paper_table5().size)
@@ -169,13 +170,13 @@ def test_every_published_cell_has_a_90_percent_interval():
 def test_intervals_follow_the_log_normal_formula():
     cells = _cells({("F5", 0): 1.0, ("F5", 1): 1.2})
     ev = pd.DataFrame({"hypothesis": ["F5"], "tau": [0.1]})
-    iv = idn.intervals(cells, ev).set_index(["table", "column", "angle", "stat"])
+    iv = evidence.intervals(cells, ev).set_index(["table", "column", "angle", "stat"])
     row = iv.loc[("table4", "polynomial", "alpha", "mu")]
     m = 0.5 * math.log(1.2)
     sd = math.hypot(np.std([0, math.log(1.2)], ddof=1), 0.1)
     assert row["mean"] == pytest.approx(0.0089 * math.exp(m))
-    assert row["hi"] == pytest.approx(0.0089 * math.exp(m + idn.Z90 * sd))
-    assert row["lo"] == pytest.approx(0.0089 * math.exp(m - idn.Z90 * sd))
+    assert row["hi"] == pytest.approx(0.0089 * math.exp(m + evidence.Z90 * sd))
+    assert row["lo"] == pytest.approx(0.0089 * math.exp(m - evidence.Z90 * sd))
     assert bool(row["inside"])
 
 
