@@ -324,7 +324,7 @@ def _namespace(source):
 
     from sunlab import calibration, centroid, export, geometry, io, stats
     from sunlab.calibration import Polynomial
-    from sunlab.studies import platform_fault as pf
+    from sunlab.reproduce import fault as pf
 
     ns = {"np": np, "C": centroid, "centroid": centroid, "geometry": geometry, "stats": stats,
           "pf": pf, "Polynomial": Polynomial, "calibration": calibration, "io": io,

@@ -479,7 +479,7 @@ def _bound(ns, rng):
 
 @_register("09.2")
 def _backlash(ns, rng):
-    from sunlab.studies import platform_fault as pf
+    from sunlab.reproduce import fault as pf
 
     for truth in (0.0, rng.uniform(0.005, 0.03)):
         n = int(rng.integers(150, 400))

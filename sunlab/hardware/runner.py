@@ -338,8 +338,9 @@ def acquire(plan, stage, camera, out, *, resume: bool = False, progress: bool = 
         goes before it returns upward to it, deg (more than the axis's backlash). The poses are
         visited in the plan's scan order (:meth:`sunlab.plans.Plan.visit_order`), and the
         store records the motion (``scan_order``, ``approach``, ``visit_order`` attributes and
-        ``beta_approach`` on pose). A resumed direct-approach run reaches its first pose from
-        wherever the stage stood: use a unidirectional approach where the approach matters.
+        ``beta_approach`` on pose) for :mod:`sunlab.reproduce.fault`. A resumed
+        direct-approach run reaches its first pose from wherever the stage stood: use a
+        unidirectional approach where the approach matters.
 
     Returns
     -------
