@@ -1,27 +1,19 @@
-"""The paper's two strategies for a mask of N holes, as calibrations (sec. 6, Table 5).
+"""The paper's two strategies for a mask of N holes, as calibrations (sec. 6, Table 5):
+:class:`GeometricCentre` calibrates the mean of the N spot centroids as one spot,
+:class:`PerHoleAverage` calibrates every hole and averages the N angle estimates
+(:func:`sunlab.multihole.budget.combine_estimates`).
 
-1. **Geometric centre** (:class:`GeometricCentre`): the mean of the N spot centroids is calibrated
-   as if it were one spot.
-2. **Per-hole calibration, then averaging** (:class:`PerHoleAverage`): one calibration per hole,
-   and the mean of the N angle estimates (:func:`combine_estimates`).
+Both honour the protocol of :class:`sunlab.calibration.Calibration` (``fit(train,
+validation=None)`` on tables on ``(pose, shot, hole)``, ``predict`` on ``(pose, shot)``,
+``predict_xy(x, y)`` on arrays whose last axis is the hole, ``save`` and
+:func:`sunlab.calibration.load`, contract ``calibration/1``, kinds
+``multihole-geometric-centre`` and ``multihole-per-hole-average``). They are entries of the
+one calibration registry, registered by entry point (group ``sunlab.calibrations`` in
+``pyproject.toml``, as a lab's plug-in would be: multihole sits above calibration), so
+``sunlab.calibration.fit(table, "multihole-per-hole-average", order=3)`` fits one.
 
-Both honour the protocol of :class:`sunlab.calibration.Calibration`: ``fit(train,
-validation=None)`` on tables on ``(pose, shot, hole)``, ``predict`` an estimate on
-``(pose, shot)``, ``predict_xy(x, y)`` on centroid arrays whose last axis is the hole,
-``to_dict`` / :func:`sunlab.calibration.from_dict` and ``save`` /
-:func:`sunlab.calibration.load` (contract ``calibration/1``, kinds
-``multihole-geometric-centre`` and ``multihole-per-hole-average``, the fitted per-hole or
-centre calibrations nested as their own documents). They are entries of the one calibration
-registry, registered by entry point (group ``sunlab.calibrations`` in ``pyproject.toml``, as a
-lab's plug-in would be: multihole sits above calibration), so ``sunlab.calibration.fit(table,
-"multihole-per-hole-average", order=3)`` fits one and ``sunlab.calibration.load`` reads one.
-
-Both handle holes missing from some frames (off the detector, lost, flagged) without biasing
-the result: the geometric centre is solved from the holes present with each hole's fitted
-offset from the centre (so the centre does not jump when a hole drops out), and the average
-runs over the holes present after each hole's own calibration (each is an unbiased estimate).
-Averaging N independent errors divides the variance by N, eq. (5); errors common to all holes
-do not average out (:mod:`sunlab.multihole.budget`).
+Both handle holes missing from some frames without bias: the centre is solved from the holes
+present with each one's fitted offset, the average runs over the holes present.
 
 References
 ----------
@@ -41,6 +33,18 @@ import xarray as xr
 from .. import schema
 from ..calibration import Calibration, Polynomial, from_dict
 from ..errors import ConfigurationError, SchemaError
+from ._tables import (
+    _HOLE_VARS,
+    _angles_dataset,
+    _error_stats,
+    _frames,
+    _hole_frames,
+    _predict_arrays,
+    _record_fit,
+    _restore_settings,
+    _settings,
+)
+from .budget import combine_estimates
 from .holes import usable
 
 __all__ = ["GeometricCentre", "PerHoleAverage"]
@@ -86,15 +90,6 @@ class GeometricCentre(Calibration):
     >>> full = GeometricCentre(fill=False).centre(synthetic_centroids(
     ...     [0.0, -5.0, 1.0], [0.0, 3.0, 8.0], shots=1, layout="grid"))  # the plain mean
     >>> bool(np.allclose(c.x, full.x, atol=1e-6) and np.allclose(c.y, full.y, atol=1e-6))
-    True
-
-    Saved and loaded like every calibration (JSON, contract ``calibration/1``):
-
-    >>> import os, tempfile
-    >>> from sunlab import calibration
-    >>> s1 = GeometricCentre(order=1).fit(cen)
-    >>> back = calibration.load(s1.save(os.path.join(tempfile.mkdtemp(), "gc.json")))
-    >>> bool(np.array_equal(back.predict(cen).alpha, s1.predict(cen).alpha, equal_nan=True))
     True
     """
 
@@ -242,16 +237,6 @@ class GeometricCentre(Calibration):
         -------
         alpha, beta : numpy.ndarray, shape (...)
             Angles of the frames, deg.
-
-        Examples
-        --------
-        >>> from sunlab.sim import synthetic_centroids
-        >>> cen = synthetic_centroids([0.0, -5.0, 1.0, 3.0], [0.0, 3.0, 8.0, -2.0], shots=1,
-        ...                           layout="grid")
-        >>> s1 = GeometricCentre(order=1).fit(cen)
-        >>> a, b = s1.predict_xy(cen.x.values, cen.y.values)
-        >>> bool(np.allclose(a, s1.predict(cen).alpha.values))
-        True
         """
         if self.calibration_ is None:
             raise ConfigurationError("GeometricCentre: call fit() first")
@@ -294,69 +279,6 @@ class GeometricCentre(Calibration):
                                {"n_holes": (("pose", "shot"), gc["n_holes"].values)})
 
 
-# --------------------------------------------------------------------------------------------
-# Strategy 2: per-hole calibration, then the average
-# --------------------------------------------------------------------------------------------
-def combine_estimates(est, *, holes=None, weights=None, clip: float | None = None,
-                      n_iter: int = 3, dim: str = "hole"):
-    """Combine per-hole angle estimates of each frame into one: mean, weighted and/or clipped.
-
-    Parameters
-    ----------
-    est : xarray.DataArray
-        Angle estimates, deg, with a ``hole`` dimension; NaN for a hole missing in a frame.
-    holes : array_like of bool, shape (hole,), optional
-        Holes allowed in the combination.
-    weights : array_like, shape (hole,), optional
-        Non-negative weights, e.g. 1 / (hole's residual variance); default equal.
-    clip : float, optional
-        Sigma-clipping threshold: in every frame, estimates further than ``clip`` robust standard
-        deviations from the median of the kept ones are dropped, ``n_iter`` times (the scale is
-        1.4826 MAD, bounded below by the standard deviation of the survivors after the first
-        pass).
-    dim : str
-        Dimension to combine.
-
-    Returns
-    -------
-    mean, n : xarray.DataArray
-        The combined estimate and the number of holes used in each frame.
-
-    Notes
-    -----
-    Averaging N independent estimates of equal variance divides the variance by N, eq. (5):
-
-    .. math:: \\sigma^2_N = \\sigma^2 / N.
-
-    The mean over the holes present is unbiased as long as each hole's estimate is.
-
-    Examples
-    --------
-    >>> e = xr.DataArray([[1.0, 1.1, 0.9, 5.0, np.nan]], dims=("pose", "hole"))
-    >>> float(combine_estimates(e)[0][0])
-    2.0
-    >>> round(float(combine_estimates(e, clip=4.0)[0][0]), 6)
-    1.0
-    """
-    ok = np.isfinite(est)
-    if holes is not None:
-        ok = ok & xr.DataArray(np.asarray(holes, dtype=bool), dims=dim)
-    w = xr.ones_like(est) if weights is None else xr.DataArray(np.asarray(weights, float), dims=dim)
-    w = w.where(ok, 0.0)
-    if clip is not None:
-        for it in range(n_iter):
-            cur = est.where(w > 0)
-            med = cur.median(dim)
-            scale = 1.4826 * np.abs(cur - med).median(dim)
-            if it > 0:  # a few survivors can have MAD 0: their standard deviation bounds it
-                scale = np.maximum(scale, cur.std(dim))
-            keep = np.abs(est - med) <= clip * scale
-            w = w.where(keep, 0.0)
-    wsum = w.sum(dim)
-    mean = (est.fillna(0.0) * w).sum(dim) / wsum.where(wsum > 0)
-    return mean, (w > 0).sum(dim)
-
-
 @dataclass(repr=False)
 class PerHoleAverage(Calibration):
     """Strategy 2 of the paper: a calibration per hole (f1_ij, f2_ij), then the average.
@@ -385,12 +307,10 @@ class PerHoleAverage(Calibration):
     accept : sequence of str
         Status codes accepted as usable.
     poses_per_coef : float
-        A hole gets its own calibration only if it was seen at no fewer than this many
-        training poses per free coefficient (1.5: 15 poses for a cubic's 10). A hole seen at
-        barely as many poses as coefficients is fitted almost exactly, through its noise, and
-        swings between the poses: at a long F (17 mm) the corner holes leave the detector at
-        many poses, and a cubic on 11 of a 4 x 4 grid missed by up to 8 deg. Such a hole is left out
-        of the average (its estimates are NaN).
+        A hole gets its own calibration only if seen at this many training poses per free
+        coefficient (1.5: 15 poses for a cubic's 10); else it is left out of the average (NaN
+        estimates). One seen at barely as many poses as coefficients is fitted through its
+        noise: at F = 17 mm a cubic on 11 poses of a 4 x 4 grid missed by up to 8 deg.
 
     Examples
     --------
@@ -486,17 +406,6 @@ class PerHoleAverage(Calibration):
         -------
         alpha, beta : numpy.ndarray, shape (...)
             Angles of the frames, deg.
-
-        Examples
-        --------
-        >>> from sunlab.calibration import Polynomial
-        >>> from sunlab.sim import synthetic_centroids
-        >>> a = np.repeat(np.arange(-4.0, 5.0, 2.0), 5); b = np.tile(np.arange(-4.0, 5.0, 2.0), 5)
-        >>> cen = synthetic_centroids(a, b, shots=1, layout="grid", noise_px=0.01)
-        >>> s2 = PerHoleAverage(model=lambda: Polynomial(2)).fit(cen)
-        >>> alpha, _ = s2.predict_xy(cen.x.values, cen.y.values)
-        >>> bool(np.allclose(alpha, s2.predict(cen).alpha.values))
-        True
         """
         X, _, shape = _frames(x, y)
         a, b = self._hole_estimates(X[..., 0], X[..., 1], "the last axis of x, y")
@@ -552,13 +461,8 @@ class PerHoleAverage(Calibration):
         return _angles_dataset(cen, a, b, ("pose", "shot", "hole"))
 
     def weights(self) -> np.ndarray | None:
-        """The per-hole weights of the combination.
-
-        Returns
-        -------
-        numpy.ndarray or None
-            1 / ``variance_`` (deg^-2) per hole; None for equal weights.
-        """
+        """The per-hole weights of the combination: 1 / ``variance_`` (deg^-2) per hole, or None
+        for equal weights (numpy.ndarray or None)."""
         return None if self.weighting == "equal" else 1.0 / self.variance_
 
     def combine(self, est: xr.Dataset, holes=None) -> xr.Dataset:
@@ -574,7 +478,7 @@ class PerHoleAverage(Calibration):
         Returns
         -------
         xarray.Dataset
-            ``alpha``, ``beta`` (deg) and ``n_holes`` on (pose, shot).
+            ``alpha``, ``beta`` (deg), ``n_holes`` on (pose, shot).
         """
         (a, n), (b, _) = (self._combine(est[k], holes) for k in ("alpha", "beta"))
         return _angles_dataset(est, a.values, b.values, ("pose", "shot"),
@@ -594,122 +498,3 @@ class PerHoleAverage(Calibration):
             ``alpha``, ``beta`` (deg) and ``n_holes`` on (pose, shot).
         """
         return self.combine(self.predict_holes(cen))
-
-
-def angle_errors(pred: xr.Dataset) -> xr.Dataset:
-    """Estimated minus commanded angles, deg (the paper's test protocol, sec. 5).
-
-    ``pred`` carries the commanded angles as ``alpha_cmd``/``beta_cmd``, as the strategies return
-    them.
-
-    Parameters
-    ----------
-    pred : xarray.Dataset
-        Estimates ``alpha``, ``beta`` (deg) on (pose, shot) or (pose, shot, hole).
-
-    Returns
-    -------
-    xarray.Dataset
-        ``alpha``, ``beta``: estimated minus commanded, deg, on ``pred``'s dims.
-
-    Examples
-    --------
-    >>> p = xr.Dataset({"alpha": (("pose", "shot"), [[1.5]]), "beta": (("pose", "shot"), [[0.0]])},
-    ...                coords={"alpha_cmd": ("pose", [1.0]), "beta_cmd": ("pose", [0.5])})
-    >>> float(angle_errors(p).alpha[0, 0]), float(angle_errors(p).beta[0, 0])
-    (0.5, -0.5)
-    """
-    return xr.Dataset({a: pred[a] - pred[f"{a}_cmd"] for a in ("alpha", "beta")})
-
-
-# --------------------------------------------------------------------------------------------
-# Tables and arrays shared by the two strategies
-# --------------------------------------------------------------------------------------------
-#: the variables of one hole's own centroid table (``centroids/1`` on (pose, shot))
-_HOLE_VARS = ("x", "y", "status", "flux", "x0", "x1", "y0", "y1")
-
-
-def _hole_frames(cen, ok):
-    """A table's centroids as (frame, hole, 2) and its usable mask (frame, hole)."""
-    n_h = cen.sizes["hole"]
-    X = np.stack([cen["x"].values, cen["y"].values], -1).reshape(-1, n_h, 2)
-    return X, ok.values.reshape(-1, n_h)
-
-
-def _frames(x, y):
-    """Centroid arrays (..., hole) as (frames, hole, 2), their usable mask and leading shape."""
-    x, y = np.broadcast_arrays(np.asarray(x, dtype=float), np.asarray(y, dtype=float))
-    if x.ndim < 1:
-        raise ConfigurationError(
-            "x, y: found scalars; a multi-hole strategy needs every hole's centroid of a frame "
-            "(arrays whose last axis is the hole)")
-    X = np.stack([x, y], -1).reshape(-1, x.shape[-1], 2)
-    return X, np.isfinite(X).all(-1), x.shape[:-1]
-
-
-def _predict_arrays(model, x, y):
-    """(alpha, beta) of a fitted calibration for centroid arrays; NaN where x or y is NaN."""
-    x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
-    bad = ~(np.isfinite(x) & np.isfinite(y))
-    a, b = model.predict_xy(np.where(bad, np.nan, x), np.where(bad, np.nan, y))
-    return tuple(np.where(bad, np.nan, np.reshape(v, x.shape)) for v in (a, b))
-
-
-def _error_stats(est, cmd) -> dict:
-    """Statistics of estimated - commanded (deg) over the finite estimates, as ``calibration/1``
-    writes residuals."""
-    e = (est - cmd).values
-    e = e[np.isfinite(e)]
-    if e.size == 0:
-        return dict.fromkeys(("mean", "mean_abs", "rms", "std", "max_abs"), None) | {"n": 0}
-    return {"mean": float(e.mean()), "mean_abs": float(np.abs(e).mean()),
-            "rms": float(np.sqrt(np.mean(e**2))), "std": float(e.std()),
-            "max_abs": float(np.abs(e).max()), "n": int(e.size)}
-
-
-def _record_fit(strategy, cen, ok, residuals: dict, validation):
-    """The training summary, domain and residuals (with the validation table's) every fitted
-    calibration carries; returns the strategy."""
-    ok = np.asarray(ok.values, dtype=bool)
-    strategy.training = {
-        "experiment": str(cen.attrs.get("experiment", "")),
-        "centroid_method": str(cen.attrs.get("method", "")),
-        "n_samples": int(ok.sum()), "n_poses": int(ok.any(axis=(1, 2)).sum()),
-        "n_shots": int(cen.sizes["shot"]), "n_holes": int(cen.sizes["hole"])}
-    values = {"alpha": cen["alpha"].values, "beta": cen["beta"].values,
-              "x": cen["x"].values[ok], "y": cen["y"].values[ok]}
-    strategy.domain = {k: [float(v.min()), float(v.max())] if v.size else [0.0, 0.0]
-                       for k, v in values.items()}
-    strategy.residuals = {"alpha": residuals["alpha"], "beta": residuals["beta"],
-                          "validation": None}
-    if validation is not None:
-        est = strategy.predict(validation)
-        strategy.residuals["validation"] = {a: _error_stats(est[a], est[f"{a}_cmd"])
-                                            for a in ("alpha", "beta")}
-    return strategy
-
-
-def _settings(strategy, names) -> dict:
-    """The strategy's settings (``names`` plus the shared ones) for its saved parameters."""
-    holes = None if strategy.holes is None else np.asarray(strategy.holes, bool).tolist()
-    return {**{k: getattr(strategy, k) for k in names}, "holes": holes,
-            "accept": list(strategy.accept)}
-
-
-def _restore_settings(p: dict) -> dict:
-    return {"holes": None if p["holes"] is None else np.asarray(p["holes"], dtype=bool),
-            "accept": tuple(str(s) for s in p["accept"])}
-
-
-def _angles_dataset(cen, a, b, dims, extra=None):
-    """Angle estimates on ``dims`` with the commanded angles (from a centroid table's
-    ``alpha``/``beta`` or an estimate's ``alpha_cmd``/``beta_cmd``) as coordinates."""
-    cmd = {k: (cen[f"{k}_cmd"] if f"{k}_cmd" in cen.coords else cen[k]).values
-           for k in ("alpha", "beta")}
-    coords = {"pose": cen["pose"].values, "shot": cen["shot"].values,
-              **{f"{k}_cmd": ("pose", v, {"units": "deg"}) for k, v in cmd.items()}}
-    if "hole" in dims:
-        coords.update({c: ("hole", cen[c].values) for c in
-                       ("hole", "hole_i", "hole_j", "hole_x_cf", "hole_y_cf") if c in cen.coords})
-    return xr.Dataset({"alpha": (dims, a, {"units": "deg"}), "beta": (dims, b, {"units": "deg"}),
-                       **(extra or {})}, coords=coords)
