@@ -3,9 +3,10 @@
 Averaging N independent errors divides the variance by N, eq. (5); errors common to all holes
 (platform pose error, mask mounting) do not average out, and bad holes spoil the mean.
 :func:`combine_estimates` is the average (weighted, clipped) of per-hole estimates and
-:func:`angle_errors` their errors against the commanded angles; :func:`error_budget` splits the per-hole errors into their common and hole-specific parts and
-predicts the gain; :func:`gain_study` measures it for both strategies, with and without the
-rejection of bad holes (:mod:`sunlab.multihole.defects`).
+:func:`angle_errors` their errors against the commanded angles; :func:`error_budget` splits the
+per-hole errors into their common and hole-specific parts and predicts the gain;
+:func:`gain_study` measures it for both strategies, with and without the rejection of bad
+holes (:mod:`sunlab.multihole.defects`).
 
 References
 ----------
