@@ -443,9 +443,10 @@ def write_course(out, *, notebooks=None, quick: bool = True, overwrite: bool = F
     Every target is checked before anything is written: without ``overwrite``, a notebook of
     either edition already in ``out`` (a student's work, perhaps) stops the run with nothing
     written. Both editions are written into a temporary sibling of ``out`` and moved into place
-    together (with SIGINT, SIGTERM and SIGHUP held back for the moves); Ctrl-C, SIGTERM or
-    SIGHUP before that removes the temporary folder and leaves ``out`` as it was, and a later
-    run clears what a killed writer left (:func:`sunlab.atomic.remove_stale`).
+    together (with SIGINT, SIGTERM and SIGHUP held back for the moves); an interrupt before
+    that (Ctrl-C; SIGTERM or SIGHUP under ``sunlab course``, whose signal handling raises them)
+    removes the temporary folder and leaves ``out`` as it was, and a later run clears what a
+    killed writer left (:func:`sunlab.atomic.remove_stale`).
 
     Parameters
     ----------
