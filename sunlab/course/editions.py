@@ -14,28 +14,12 @@ An **exercise** is a pair of code cells in a numbered notebook (docs/teacher-not
 A **written answer** is a markdown cell whose first line is ``**Written answer NN.k** (N
 points)``; the rest of the cell is the teacher's model answer.
 
-:func:`write_course` writes two editions of every notebook: the **teacher edition** (solutions
-kept, nbgrader metadata added, so it is also an nbgrader source notebook) and the **student
-edition** (each solution replaced by a stub that raises :class:`NotImplementedError` with the
-hint, each hidden-test block and each model answer left out; no marker left). By default both
-start with a cell that selects the small settings (``SUNLAB_QUICK=1``), so that each notebook
-runs in a few minutes on a laptop. Both editions are written all or nothing.
-:mod:`sunlab.course.grading` grades students' notebooks against the teacher edition.
-
-The notebooks are read with nbformat from the ``notebooks/`` folder of a sunlab checkout (the
-package's parent folder); a sunlab installed from a wheel carries no notebooks, and then the
-folder must be given (``notebooks=``, or ``sunlab course --notebooks DIR``).
-
-Examples
---------
->>> src = "# Exercise 01.1: x\\n# Hint: two.\\n### BEGIN SOLUTION\\nx = 2\\n### END SOLUTION\\n"
->>> print(replace_solution(src, "x = None"))
-# Exercise 01.1: x
-# Hint: two.
-x = None
-<BLANKLINE>
->>> solution_hint(src)
-'two.'
+:func:`write_course` writes the teacher and the student edition of every notebook
+(:func:`edition`), all or nothing; :mod:`sunlab.course.grading` grades students' notebooks
+against the teacher edition. The notebooks are read with nbformat from the ``notebooks/`` folder
+of a sunlab checkout (the package's parent folder); a sunlab installed from a wheel carries no
+notebooks, and then the folder must be given (``notebooks=``, or ``sunlab course --notebooks
+DIR``). The package's docstring shows :func:`replace_solution` and :func:`solution_hint`.
 """
 
 from __future__ import annotations
