@@ -49,7 +49,7 @@ APPROACHES = ("direct", "unidirectional")
 #: The scan order assumed for the paper's experiments: the paper does not state it; a serpentine
 #: scan is what a stage program does to save travel, and the beta statistics of Table 4 (sigma /
 #: mu of 0.47, below the bound of any symmetric unimodal error) ask for an inner-axis error whose
-#: sign alternates (:mod:`sunlab.studies.platform_fault`). Our inference.
+#: sign alternates (:mod:`sunlab.reproduce.fault`). Our inference.
 PAPER_SCAN = "serpentine"
 
 #: Largest platform angle a plan may command, deg: beyond 90 deg the sun is behind the mask.
@@ -582,7 +582,7 @@ def zero_check(plan: Plan, checks: int = 4, *, shots: int | None = None) -> Plan
     Taken right after the stage is homed, before the run's poses (the runner acquires it with
     the same homing). It carries the run's name, so that on the virtual bench it shares the
     run's homing offset; comparing the zero-pose centroids of two runs measures how far their
-    inner-axis zeros differ (:func:`sunlab.studies.platform_fault.fit_correction`). Between
+    inner-axis zeros differ (:func:`sunlab.reproduce.remedy.fit_correction`). Between
     checks the axis moves away and back (an overshoot of its own), so each check is a separate
     pose.
 
