@@ -80,7 +80,7 @@ def _prepare(frame) -> tuple[np.ndarray, bool]:
         )
     if arr.dtype.kind not in "uifb":
         raise SchemaError("frame.dtype", str(arr.dtype), "integer or float intensities (DN)")
-    # Two compiled specialisations only: uint16 (raw DN) and float64 (everything else).
+    # Two dtypes only: uint16 (raw DN, exact integer sums) and float64 (everything else).
     if arr.dtype.kind in "ub" and arr.dtype.itemsize <= 2:
         arr = arr.astype(np.uint16, copy=False)
     else:
