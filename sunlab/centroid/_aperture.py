@@ -227,15 +227,17 @@ _CHUNK = 2**15  # pixels of the spots' stamps measured at a time
 
 def _measure_some(arr, xs, ys, r, margin, annulus, lo, hi, n_iter, sat):
     out = np.full((xs.size, len(MEASURE_FIELDS)), np.nan)
-    bkg, bsd, nb = _annulus(arr, xs, ys, r + 1.0, r + 1.0 + annulus, lo, hi)
-    idx = np.flatnonzero(nb > 0)
-    for _ in range(int(n_iter) - 1):
-        if idx.size == 0:
-            return out
-        s, x1, y1 = _com(arr, xs[idx], ys[idx], r[idx], bkg[idx])
-        good = (s > 0) & (np.abs(x1 - xs[idx]) < r[idx]) & (np.abs(y1 - ys[idx]) < r[idx])
-        idx = idx[good]
-        xs[idx], ys[idx] = x1[good], y1[good]
+    # the ring and the first aperture from the same stamps
+    v, dx, dy, dx2, dy2 = _stamps(arr, xs, ys, float(np.max(r)) + 1.0 + annulus)
+    bkg, bsd, nb = _ring_level(v, _disk(dx2, dy2, r + 1.0 + annulus) & ~_disk(dx2, dy2, r + 1.0),
+                               lo, hi)
+    live = nb > 0
+    for it in range(int(n_iter) - 1):
+        s, x1, y1 = (_com_of(xs, ys, _raw(v, _disk(dx2, dy2, r), bkg, dx, dy, 1)) if it == 0
+                     else _com(arr, xs, ys, r, bkg))
+        live &= (s > 0) & (np.abs(x1 - xs) < r) & (np.abs(y1 - ys) < r)
+        xs, ys = np.where(live, x1, xs), np.where(live, y1, ys)
+    idx = np.flatnonzero(live)
     if idx.size == 0:
         return out
     m = _moments(arr, xs[idx], ys[idx], r[idx], bkg[idx], sat)

@@ -14,12 +14,11 @@ Examples
 from __future__ import annotations
 
 import numpy as np
+from scipy import ndimage
 
 from .result import (
     _INVALID,
     _NO_SPOT,
-    _OK,
-    _REPAIRED,
     Centroid,
     _all_zero,
     _fail,
@@ -161,9 +160,8 @@ def _roi_centroid(arr, roi, roi_border, saturation, clipped, ambiguous) -> Centr
     if vmax >= saturation:
         s, x, y, n_hot, saturated = _repair_hot(arr, (ic0, ic1, ir0, ir1), thr2, s, x, y,
                                                 saturation, threshold=True)
-    status = _status(clipped=clipped, saturated=saturated, ambiguous=ambiguous)
-    if status == _OK and n_hot:
-        status = _REPAIRED
+    status = _status(clipped=clipped, saturated=saturated, ambiguous=ambiguous,
+                     repaired=n_hot > 0)
     return Centroid(float(x), float(y), float(s), (ic0, ic1, ir0, ir1), status)
 
 
@@ -178,36 +176,17 @@ def _robust_level(p: np.ndarray) -> tuple[float, float]:
 
 def _zones(p, base, sigma, nsigma, edge_sigma, min_width):
     """Signal zones of a profile: runs above base + nsigma sigma (at least ``min_width`` long),
-    widened while above base + edge_sigma sigma. Returns a list of (lo, hi, excess), hi
-    exclusive, brightest first."""
+    widened while above base + edge_sigma sigma (hysteresis: the runs of that weaker level
+    holding such a run). Returns a list of (lo, hi, excess), hi exclusive, brightest first."""
     ex = p - base
     floor = max(sigma, 1e-9 * max(abs(base), 1.0))
-    above = ex > nsigma * floor
-    if not above.any():
-        return []
-    d = np.diff(above.astype(np.int8), prepend=0, append=0)
-    starts = np.flatnonzero(d == 1)
-    ends = np.flatnonzero(d == -1)
-    keep = ends - starts >= min_width
-    if not keep.any():
-        return []
-    weak = ex > edge_sigma * floor
-    out = []
-    n = p.size
-    for a, b in zip(starts[keep], ends[keep], strict=True):
-        lo, hi = int(a), int(b)
-        while lo > 0 and weak[lo - 1]:
-            lo -= 1
-        while hi < n and weak[hi]:
-            hi += 1
-        out.append((lo, hi, float(ex[lo:hi].sum())))
-    # Hysteresis can merge runs; keep distinct zones only.
-    merged: list[tuple[int, int, float]] = []
-    for z in sorted(out):
-        if merged and z[0] < merged[-1][1]:
-            continue
-        merged.append(z)
-    return sorted(merged, key=lambda z: -z[2])
+    strong, _ = ndimage.label(ex > nsigma * floor)
+    long = np.flatnonzero(np.bincount(strong)[1:] >= min_width) + 1
+    weak, _ = ndimage.label(ex > min(edge_sigma, nsigma) * floor)
+    spans = ndimage.find_objects(weak)
+    zones = [(spans[k - 1][0].start, spans[k - 1][0].stop, float(ex[spans[k - 1][0]].sum()))
+             for k in np.unique(weak[np.isin(strong, long)])]
+    return sorted(zones, key=lambda z: -z[2])
 
 
 def projection_window(
@@ -307,9 +286,8 @@ def _algorithm_b(arr, nsigma, edge_sigma, margin, min_width, subtract_background
         s, x, y, n_hot, saturated = _repair_hot(arr, window, bkg, s, x, y, saturation)
     if not s > 0:
         return _fail(_NO_SPOT)
-    status = _status(clipped=clipped, saturated=saturated, ambiguous=ambiguous)
-    if status == _OK and n_hot:
-        status = _REPAIRED
+    status = _status(clipped=clipped, saturated=saturated, ambiguous=ambiguous,
+                     repaired=n_hot > 0)
     return Centroid(float(x), float(y), float(s), window, status)
 
 

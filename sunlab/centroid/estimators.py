@@ -34,8 +34,6 @@ from .moments import SpotMoments
 from .result import (
     _INVALID,
     _NO_SPOT,
-    _OK,
-    _REPAIRED,
     Centroid,
     _all_zero,
     _fail,
@@ -161,9 +159,8 @@ def _tight(arr, stride, nsigma, min_contrast, min_samples, margin, annulus, n_it
         if not flux > 0:
             return _fail(_NO_SPOT), None
     window, clipped = _aperture_window(x, y, r_ap, nx, ny)
-    status = _status(clipped=clipped, saturated=saturated, ambiguous=ambiguous)
-    if status == _OK and n_hot:
-        status = _REPAIRED
+    status = _status(clipped=clipped, saturated=saturated, ambiguous=ambiguous,
+                     repaired=n_hot > 0)
     return Centroid(x, y, flux, window, status), m
 
 

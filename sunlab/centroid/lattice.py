@@ -8,7 +8,6 @@ Examples
 
 from __future__ import annotations
 
-import functools
 from typing import NamedTuple
 
 import numpy as np
@@ -101,17 +100,6 @@ class Spots(NamedTuple):
         return pd.DataFrame(cols).rename_axis("hole")
 
 
-
-
-@functools.lru_cache(maxsize=8)
-def _raster_holes(rows, cols):
-    """Grid row, column of the holes in raster order and the (rows, cols) hole lookup table
-    (read-only, shared between calls)."""
-    hi, hj = np.divmod(np.arange(rows * cols), cols)
-    lut = np.arange(rows * cols).reshape(rows, cols)
-    for a in (hi, hj, lut):
-        a.setflags(write=False)
-    return hi, hj, lut
 
 
 def locate_spots(
@@ -227,10 +215,8 @@ def _hole_table(shape, holes):
     rows, cols = (int(v) for v in shape)
     if rows < 1 or cols < 1:
         raise ConfigurationError(f"shape: found {shape!r}, expected (rows, cols) >= (1, 1)")
-    if holes is None:
-        hi, hj, lut = _raster_holes(rows, cols)
-        return hi.copy(), hj.copy(), lut
-    hi, hj = (np.asarray(h, dtype=int) for h in holes)
+    hi, hj = (np.divmod(np.arange(rows * cols), cols) if holes is None else
+              (np.asarray(h, dtype=int) for h in holes))
     lut = np.full((rows, cols), -1, dtype=int)
     inside = (hi >= 0) & (hi < rows) & (hj >= 0) & (hj < cols)
     lut[hi[inside], hj[inside]] = np.flatnonzero(inside)

@@ -109,13 +109,12 @@ def _all_zero(arr: np.ndarray) -> bool:
     return not arr.any()
 
 
-def _status(*, clipped=False, saturated=False, ambiguous=False) -> int:
-    if ambiguous:
-        return _AMBIGUOUS
-    if clipped:
-        return _CLIPPED
-    if saturated:
-        return _SATURATED
+def _status(*, clipped=False, saturated=False, ambiguous=False, repaired=False) -> int:
+    """The status by precedence: ambiguous > clipped > saturated > repaired > ok."""
+    for flag, code in ((ambiguous, _AMBIGUOUS), (clipped, _CLIPPED), (saturated, _SATURATED),
+                       (repaired, _REPAIRED)):
+        if flag:
+            return code
     return _OK
 
 
