@@ -98,8 +98,9 @@ def _aperture_window(x, y, r, nx, ny):
 def _stamps(arr, xs, ys, radius):
     """Stamps (n, s, s) of the frame holding each circle of ``radius`` (the largest of the
     spots') about ``(xs, ys)``, cut from a sliding-window view (a stamp at the frame's edge is
-    moved inside it), and the offsets ``dx``, ``dy`` (n, s) of their columns and rows from the
-    centres with their squares ``dx2``, ``dy2`` (infinite beyond a frame smaller than a stamp)."""
+    moved inside it), the column and row of each stamp's middle pixel, and the squared offsets
+    ``dx2``, ``dy2`` (n, s) of the stamps' columns and rows from the centres (infinite beyond
+    a frame smaller than a stamp)."""
     half = math.ceil(radius + 0.5)
     size = 2 * half + 1
     ny, nx = arr.shape
@@ -110,7 +111,8 @@ def _stamps(arr, xs, ys, radius):
     v = sliding_window_view(arr, (size, size))[r0, c0]
     cols, rows = c0[:, None] + np.arange(size), r0[:, None] + np.arange(size)
     dx, dy = cols - xs[:, None], rows - ys[:, None]
-    return v, dx, dy, np.where(cols < nx, dx * dx, np.inf), np.where(rows < ny, dy * dy, np.inf)
+    return (v, c0 + half, r0 + half, np.where(cols < nx, dx * dx, np.inf),
+            np.where(rows < ny, dy * dy, np.inf))
 
 
 def _disk(dx2, dy2, r):
@@ -126,10 +128,11 @@ def _ring_level(v, ring, lo, hi):
     if not n.all():
         use |= ring & (n == 0)[:, None, None]
         n = np.count_nonzero(use, axis=(1, 2))
-    vu = (v * use).astype(np.float64)
+    vu = v * use  # no float64 copy: each fresh temporary of a stamp batch costs page faults
     with np.errstate(invalid="ignore", divide="ignore"):
-        m = vu.sum((1, 2)) / n
-        sd = np.sqrt(np.maximum((vu * vu).sum((1, 2)) / n - m * m, 0.0))
+        m = vu.sum((1, 2), dtype=np.float64) / n
+        sd = np.sqrt(np.maximum(np.einsum("nij,nij->n", vu, vu, dtype=np.float64) / n - m * m,
+                                0.0))
     return m, sd, n
 
 
@@ -139,20 +142,24 @@ def _annulus(arr, xs, ys, r_in, r_out, lo, hi):
     return _ring_level(v, _disk(dx2, dy2, r_out) & ~_disk(dx2, dy2, r_in), lo, hi)
 
 
-def _raw(v, inside, bkg, dx, dy, order):
-    """Raw moments ``p[:, l, k]`` = sum of ``(I - bkg) dy^l dx^k`` over each aperture, l, k <=
-    ``order`` (two matrix products per stamp)."""
-    w = (v - bkg[:, None, None]) * inside
-    ex = dx[:, :, None] ** np.arange(order + 1)
-    ey = dy[:, :, None] ** np.arange(order + 1)
-    return ey.transpose(0, 2, 1) @ (w @ ex)
+def _raw(v, inside, bkg, order):
+    """Moments ``p[:, l, k]`` = sum of ``(I - bkg) v^l u^k`` over each aperture, l, k <=
+    ``order``, u and v the column and row offsets from the stamp's middle pixel: one matrix
+    product of all the stamps' rows with the powers of u, then one with those of v."""
+    n, size, _ = v.shape
+    pw = (np.arange(size) - size // 2)[:, None] ** np.arange(order + 1.0)
+    w = v.astype(np.float64)
+    w -= bkg[:, None, None]
+    w *= inside
+    return pw.T @ (w.reshape(-1, size) @ pw).reshape(n, size, order + 1)
 
 
-def _com_of(xs, ys, p):
-    """Sum and centre of mass from raw moments (NaN where the sum is not positive)."""
+def _com_of(cx, cy, p):
+    """Sum and centre of mass from the moments of :func:`_raw` about the stamps' middle pixels
+    (cx, cy); NaN where the sum is not positive."""
     s = p[:, 0, 0]
     with np.errstate(invalid="ignore", divide="ignore"):
-        x, y = xs + p[:, 0, 1] / s, ys + p[:, 1, 0] / s
+        x, y = cx + p[:, 0, 1] / s, cy + p[:, 1, 0] / s
     bad = ~(s > 0)
     x[bad], y[bad] = np.nan, np.nan
     return s, x, y
@@ -160,23 +167,22 @@ def _com_of(xs, ys, p):
 
 def _com(arr, xs, ys, r, bkg):
     """Sum and centre of mass of ``I - bkg`` in each aperture of radius ``r`` about (xs, ys)."""
-    v, dx, dy, dx2, dy2 = _stamps(arr, xs, ys, float(np.max(r)))
-    return _com_of(xs, ys, _raw(v, _disk(dx2, dy2, r), bkg, dx, dy, 1))
+    v, cx, cy, dx2, dy2 = _stamps(arr, xs, ys, float(np.max(r)))
+    return _com_of(cx, cy, _raw(v, _disk(dx2, dy2, r), bkg, 1))
 
 
 def _moments(arr, xs, ys, r, bkg, sat):
     """Moments of ``I - bkg`` in each aperture of radius ``r`` about (xs, ys): an (n, 13) array,
     columns the first 13 of :data:`MEASURE_FIELDS` (central moments about the centre of mass;
     NaN where the sum is not positive, but for the sum, peak, pixel and saturated counts)."""
-    v, dx, dy, dx2, dy2 = _stamps(arr, xs, ys, float(np.max(r)))
+    v, cx, cy, dx2, dy2 = _stamps(arr, xs, ys, float(np.max(r)))
     inside = _disk(dx2, dy2, r)
-    p = _raw(v, inside, bkg, dx, dy, 3)
-    s, x, y = _com_of(xs, ys, p)
+    p = _raw(v, inside, bkg, 3)
+    s, x, y = _com_of(cx, cy, p)
     with np.errstate(invalid="ignore", divide="ignore"):
         p = p / s[:, None, None]
         # about the centre of mass: c[l, k] = sum_ab C(l, a) C(k, b) (-my)^(l-a) (-mx)^(k-b) p[a, b]
-        ty, tx = _shift(-(y - ys)), _shift(-(x - xs))
-        c = ty @ p @ tx.transpose(0, 2, 1)
+        c = _shift(-p[:, 1, 0]) @ p @ _shift(-p[:, 0, 1]).transpose(0, 2, 1)
     out = np.full((xs.size, 13), np.nan)
     out[:, FLUX], out[:, X], out[:, Y] = s, x, y
     out[:, MXX:M03 + 1] = c[:, [0, 2, 1, 0, 1, 2, 3], [2, 0, 1, 3, 2, 1, 0]]
@@ -222,18 +228,18 @@ def _measure(arr, xs, ys, r0s, margin, annulus, lo, hi, n_iter, sat):
     return out
 
 
-_CHUNK = 2**15  # pixels of the spots' stamps measured at a time
+_CHUNK = 2**18  # pixels of the spots' stamps measured at a time
 
 
 def _measure_some(arr, xs, ys, r, margin, annulus, lo, hi, n_iter, sat):
     out = np.full((xs.size, len(MEASURE_FIELDS)), np.nan)
     # the ring and the first aperture from the same stamps
-    v, dx, dy, dx2, dy2 = _stamps(arr, xs, ys, float(np.max(r)) + 1.0 + annulus)
+    v, cx, cy, dx2, dy2 = _stamps(arr, xs, ys, float(np.max(r)) + 1.0 + annulus)
     bkg, bsd, nb = _ring_level(v, _disk(dx2, dy2, r + 1.0 + annulus) & ~_disk(dx2, dy2, r + 1.0),
                                lo, hi)
     live = nb > 0
     for it in range(int(n_iter) - 1):
-        s, x1, y1 = (_com_of(xs, ys, _raw(v, _disk(dx2, dy2, r), bkg, dx, dy, 1)) if it == 0
+        s, x1, y1 = (_com_of(cx, cy, _raw(v, _disk(dx2, dy2, r), bkg, 1)) if it == 0
                      else _com(arr, xs, ys, r, bkg))
         live &= (s > 0) & (np.abs(x1 - xs) < r) & (np.abs(y1 - ys) < r)
         xs, ys = np.where(live, x1, xs), np.where(live, y1, ys)
