@@ -106,8 +106,8 @@ def _stamps(arr, xs, ys, radius):
     ny, nx = arr.shape
     if ny < size or nx < size:
         arr = np.pad(arr, ((0, max(size - ny, 0)), (0, max(size - nx, 0))))
-    c0 = np.clip(np.rint(xs).astype(np.intp) - half, 0, arr.shape[1] - size)
-    r0 = np.clip(np.rint(ys).astype(np.intp) - half, 0, arr.shape[0] - size)
+    c0 = np.minimum(np.maximum(np.rint(xs).astype(np.intp) - half, 0), arr.shape[1] - size)
+    r0 = np.minimum(np.maximum(np.rint(ys).astype(np.intp) - half, 0), arr.shape[0] - size)
     v = sliding_window_view(arr, (size, size))[r0, c0]
     cols, rows = c0[:, None] + np.arange(size), r0[:, None] + np.arange(size)
     dx, dy = cols - xs[:, None], rows - ys[:, None]
