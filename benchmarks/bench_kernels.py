@@ -2,7 +2,7 @@
 in the same run.
 
 For each kernel on the paper's bench (a full 1280 x 1024 frame, one spot's spectra) and for the
-whole of one frame (render, then the paper's algorithm B), the best process CPU time of a few
+whole of one rendered frame, the best process CPU time of a few
 calls of the compiled kernel (``kernels="numba"``) and of its numpy reference
 (``kernels="numpy"``), after one call of each (compiling or loading from Numba's cache, and the
 fixed-pattern maps). CPU time, not wall time: on a shared machine it is the fairer figure. BLAS
@@ -43,8 +43,7 @@ def _best_cpu_ms(fn, repeat: int, kernels: str) -> float:
 
 def _cases():
     """(name, zero-argument callable) for each measured kernel and for one whole frame."""
-    from sunlab import centroid, sim
-    from sunlab.centroid import _k_windows
+    from sunlab import sim
     from sunlab.sim import _kernels as K
     from sunlab.sim import render
     from sunlab.sim.detector import fixed_pattern
@@ -54,7 +53,6 @@ def _cases():
     fp = fixed_pattern(det)
     table = K.normal_table()
     out = np.empty(det.shape, dtype=np.uint16)
-    frame = sim.render_frame(bench, -7.0, 6.0, seed=0, pose=0, shot=0)
     group = render._groups(bench, render.spot_geometry(bench, -7.0, 6.0))[0]
     m = group.stamp_size()
     al = np.arange(-1, 2)
@@ -65,9 +63,7 @@ def _cases():
             fp.bg_mean_dn, fp.bg_sigma_dn, table, np.array([7], np.uint64),
             float(det.max_dn), out)),
         (f"spectrum ({fy.size} x {fx.size})", lambda: group.common(fx, fy, tabulated=True)),
-        ("profiles (1280 x 1024)", lambda: _k_windows.profiles(frame)),
         ("render_frame", lambda: sim.render_frame(bench, -7.0, 6.0, seed=0, pose=0, shot=1)),
-        ("projection_window", lambda: centroid.projection_window(frame)),
     ]
 
 

@@ -19,24 +19,21 @@ Moments of a spot: :func:`~sunlab.centroid.moments.spot_moments`. Many spots of 
 given positions, any estimator: :func:`centroid_sources`. Many spots of a multi-hole mask, found
 and indexed on their lattice: :func:`locate_spots`. A whole frame cube: :func:`locate`.
 
-Package layout (each concept in one module; the ``_k_*`` modules hold the compiled kernels of
-the module they serve, private to the package):
+Package layout (one concept per module, all numpy and scipy; private helpers beside them):
 
 * :mod:`~sunlab.centroid.result` -- :class:`Centroid`, frame checks and status rules;
-* :mod:`~sunlab.centroid.estimators` -- the single-spot estimators, :data:`METHODS` and the
-  algorithms' steps (:func:`border_mean`, :func:`first_hit`, :func:`projection_profiles`);
+* ``_paper`` -- the paper's algorithms A and B and their steps (:func:`border_mean`,
+  :func:`first_hit`, :func:`projection_profiles`);
+* :mod:`~sunlab.centroid.estimators` -- the tight window, the disk fit (its stages in
+  ``_diskfit``) and :data:`METHODS`; ``_aperture`` holds the detection and aperture
+  measurement that the tight window and the lattice share;
 * :mod:`~sunlab.centroid.crlb` -- the Cramér–Rao bound;
-* :mod:`~sunlab.centroid.moments` -- a spot's moments
-  (:class:`~sunlab.centroid.moments.SpotMoments`; the stamp variant :func:`stamp_moments` for
-  cut-outs of multi-hole frames);
+* :mod:`~sunlab.centroid.moments` -- a spot's moments and the stamp variant
+  :func:`stamp_moments` for cut-outs of multi-hole frames;
 * :mod:`~sunlab.centroid.sources` -- :func:`centroid_sources`;
-* :mod:`~sunlab.centroid.lattice` -- :func:`locate_spots` (multi-spot lattice);
-* :mod:`~sunlab.centroid.cube` -- :func:`locate` (a whole cube through Dask), :func:`locate_all`
-  (several cubes in one pass).
-
-Imports run one way: ``result`` <- ``moments`` <- ``estimators`` <- ``sources`` and ``cube``;
-``lattice`` (which shares the estimators' private detection and disk-fit stages,
-``_detection`` and ``_diskfit``) <- ``cube``; ``crlb`` needs only ``result``.
+* :mod:`~sunlab.centroid.lattice` -- :func:`locate_spots` (its lattice fit and hole assignment in
+  ``_grid``);
+* :mod:`~sunlab.centroid.cube` -- :func:`locate` (a whole cube through Dask), :func:`locate_all`.
 
 Status precedence when several apply: invalid > no_spot > ambiguous > clipped > saturated >
 repaired > ok. ``saturated`` means the spot saturates (touching clipped pixels); an isolated clipped

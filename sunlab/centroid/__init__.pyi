@@ -8,6 +8,11 @@ from . import lattice as lattice
 from . import moments as moments
 from . import result as result
 from . import sources as sources
+from ._paper import border_mean as border_mean
+from ._paper import first_hit as first_hit
+from ._paper import projection_profiles as projection_profiles
+from ._paper import projection_window as projection_window
+from ._paper import threshold_window as threshold_window
 from .crlb import crlb as crlb
 from .crlb import disk_profile as disk_profile
 from .cube import default_method as default_method
@@ -15,12 +20,7 @@ from .cube import is_multi_hole as is_multi_hole
 from .cube import locate as locate
 from .cube import locate_all as locate_all
 from .estimators import METHODS as METHODS
-from .estimators import border_mean as border_mean
 from .estimators import disk_fit as disk_fit
-from .estimators import first_hit as first_hit
-from .estimators import projection_profiles as projection_profiles
-from .estimators import projection_window as projection_window
-from .estimators import threshold_window as threshold_window
 from .estimators import tight_window as tight_window
 from .lattice import locate_spots as locate_spots
 from .moments import stamp_moments as stamp_moments

@@ -1,7 +1,7 @@
 """The tight window's local pass in NumPy: a background plane fitted around the spot, and
 isolated hot pixels repaired (private to :mod:`sunlab.centroid`).
 
-The compiled aperture (:mod:`sunlab.centroid._k_aperture`) subtracts the sigma-clipped *mean*
+The tight window's aperture (:mod:`sunlab.centroid._aperture`) subtracts the sigma-clipped *mean*
 of a ring around the spot. On a background that slopes (an uncorrected dark-offset ramp, stray
 light that drifts between frames) a constant leaves the slope inside the window, and a slope
 ``g`` DN/px moves the centre of mass of a circular window of radius ``r`` by about

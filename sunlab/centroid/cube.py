@@ -181,8 +181,8 @@ def locate(
     estimator sees it (:func:`sunlab.io.corrected_frames`).
 
     The frames go through :func:`dask.array.blockwise`, one task per frame chunk and no copy
-    of the frames, on Dask's threaded scheduler by default (the compiled kernels release the GIL,
-    so threads scale), or on a ``dask.distributed`` cluster at ``address``.
+    of the frames, on Dask's threaded scheduler by default (numpy releases the GIL in its array
+    passes), or on a ``dask.distributed`` cluster at ``address``.
 
     Parameters
     ----------

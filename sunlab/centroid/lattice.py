@@ -8,16 +8,14 @@ Examples
 
 from __future__ import annotations
 
-import functools
-import math
 from typing import NamedTuple
 
 import numpy as np
 
 from ..errors import ConfigurationError
-from . import _k_aperture, _k_lattice
-from ._detection import _background_band, _detect, _first_radius
+from ._aperture import FLUX, X, Y, _background_band, _detect, _first_radius, _measure
 from ._diskfit import _fit_from
+from ._grid import METRIC_FIELDS, _assign, _fit_lattice, _new_holes, _spot_table
 from ._local import _local_centroid
 from .estimators import PER_SPOT
 from .moments import SpotMoments
@@ -36,9 +34,6 @@ from .result import (
 )
 
 __all__ = ["locate_spots"]
-
-# Columns of the compiled spot measurement (sunlab.centroid.moments.SpotMoments) read here.
-_FLUX, _X, _Y = (_k_aperture.MEASURE_FIELDS.index(f) for f in ("flux", "x", "y"))
 
 
 #: Per-spot quality metrics returned by :func:`locate_spots` (name -> meaning).
@@ -105,28 +100,6 @@ class Spots(NamedTuple):
         return pd.DataFrame(cols).rename_axis("hole")
 
 
-def _fit_lattice(p, shape, pitch, good, max_residual):
-    """Lattice indices of spots ``p`` (n, 2): relative integer (j, i), the affine lattice
-    (origin, step_j, step_i) and each spot's residual, px. ``good`` marks spots used for the fit
-    (compiled: :func:`sunlab._centroid_kernels.fit_lattice`); None when no spot is good.
-    """
-    ij, origin, basis, resid, ok = _k_lattice.fit_lattice(
-        np.ascontiguousarray(p, dtype=np.float64), np.ascontiguousarray(good, dtype=bool),
-        float(pitch), float(max_residual))
-    if not ok:
-        return None
-    return ij, origin, basis, resid
-
-
-@functools.lru_cache(maxsize=8)
-def _raster_holes(rows, cols):
-    """Grid row, column of the holes in raster order and the (rows, cols) hole lookup table
-    (read-only, shared between calls)."""
-    hi, hj = np.divmod(np.arange(rows * cols), cols)
-    lut = np.arange(rows * cols).reshape(rows, cols)
-    for a in (hi, hj, lut):
-        a.setflags(write=False)
-    return hi, hj, lut
 
 
 def locate_spots(
@@ -197,33 +170,43 @@ def locate_spots(
         raise ConfigurationError(f"method: found {method!r}, expected one of {spot}")
     _check_positive("pitch", pitch, "give the hole pitch on the detector in px")
     hi, hj, lut = _hole_table(shape, holes)
-    opts = _SpotOptions(int(stride), float(nsigma), float(min_contrast), int(min_samples),
-                        float(margin), float(annulus), int(n_iter), _full_scale(frame, saturation),
-                        float(pitch), float(max_residual))
-    exp = (np.empty((0, 2)) if expected is None else
-           np.ascontiguousarray(np.asarray(expected, dtype=float).reshape(hi.size, 2)))
-    locate_one = _locate_tight if method == "tight" else _locate_fit
-    vals, window, status, unassigned, lattice = locate_one(frame, opts, lut, exp,
-                                                           expected is not None, hi.size)
-    # x, y, flux and the metrics (columns METRIC_FIELDS, the order of SPOT_METRICS) are rows
-    # of one block.
-    metrics = dict(zip(_k_lattice.METRIC_FIELDS, vals[3:], strict=True))
+    exp = None if expected is None else np.asarray(expected, dtype=float).reshape(hi.size, 2)
+    vals, window, status = _new_holes(hi.size, _NO_SPOT)
+    unassigned, lattice = _locate(frame, method, lut, exp, vals, window, status, stride, nsigma,
+                                  min_contrast, min_samples, float(margin), float(annulus),
+                                  int(n_iter), _full_scale(frame, saturation), float(pitch),
+                                  float(max_residual))
+    # x, y, flux and the metrics (the order of SPOT_METRICS) are rows of one block.
+    metrics = dict(zip(METRIC_FIELDS, vals[3:], strict=True))
     return Spots(vals[0], vals[1], vals[2], window, status, hi, hj, metrics, unassigned, lattice)
 
 
-class _SpotOptions(NamedTuple):
-    """Detection, measurement and lattice options of :func:`locate_spots` (the kernels' order)."""
-
-    stride: int
-    nsigma: float
-    min_contrast: float
-    min_samples: int
-    margin: float
-    annulus: float
-    n_iter: int
-    saturation: float
-    pitch: float
-    max_residual: float
+def _locate(frame, method, lut, exp, vals, window, status, stride, nsigma, min_contrast,
+            min_samples, margin, annulus, n_iter, saturation, pitch, max_residual):
+    """Steps 1-4 of :func:`locate_spots` into the per-hole outputs ``vals``, ``window`` and
+    ``status``; returns (unassigned spots, lattice)."""
+    arr, usable = _prepare(frame)
+    det = _detect(arr, stride, nsigma, min_contrast, min_samples) if usable else None
+    if not usable or (det.count.size == 0 and det.sample_max == 0 and _all_zero(arr)):
+        status[:] = _INVALID
+    if not usable or det.count.size == 0:
+        return np.zeros((0, 2)), np.full((3, 2), np.nan)
+    m = _measure(arr, det.x, det.y, _first_radius(det.count, stride, margin), margin, annulus,
+                 *_background_band(det), n_iter, saturation)
+    m = m[m[:, FLUX] > 0]
+    win, st = _spot_table(m, arr.shape[1], arr.shape[0], _OK, _SATURATED, _CLIPPED)
+    if method == "fit":
+        _fit_spots(arr, m, win, st, saturation)
+    good = (st == _OK) & (m[:, FLUX] > 0.3 * np.median(m[:, FLUX])) if len(m) else st == 0
+    fit = _fit_lattice(m[:, [X, Y]], good if good.any() else np.ones(len(m), bool), pitch,
+                       max_residual)
+    out = np.zeros((0, 2)), np.full((3, 2), np.nan)
+    if fit is not None:
+        out = _assign(m, win, st, good, fit, max_residual, lut, exp, vals, window, status,
+                      _AMBIGUOUS)
+    if method == "tight":
+        _repair_hot_spots(arr, vals, window, status, annulus, n_iter, saturation)
+    return out
 
 
 def _hole_table(shape, holes):
@@ -232,106 +215,35 @@ def _hole_table(shape, holes):
     rows, cols = (int(v) for v in shape)
     if rows < 1 or cols < 1:
         raise ConfigurationError(f"shape: found {shape!r}, expected (rows, cols) >= (1, 1)")
-    if holes is None:
-        hi, hj, lut = _raster_holes(rows, cols)
-        return hi.copy(), hj.copy(), lut
-    hi, hj = (np.asarray(h, dtype=int) for h in holes)
+    hi, hj = (np.divmod(np.arange(rows * cols), cols) if holes is None else
+              (np.asarray(h, dtype=int) for h in holes))
     lut = np.full((rows, cols), -1, dtype=int)
     inside = (hi >= 0) & (hi < rows) & (hj >= 0) & (hj < cols)
     lut[hi[inside], hj[inside]] = np.flatnonzero(inside)
     return hi, hj, lut
 
 
-def _no_lattice():
-    """Unassigned spots and lattice of a frame without any: (0, 2) and (3, 2) NaN."""
-    return np.zeros((0, 2)), np.full((3, 2), np.nan)
+def _fit_spots(arr, m, win, st, saturation) -> None:
+    """``method="fit"``: each measured spot's x, y and flux (rows of ``m``) and window replaced,
+    in place, by those of its disk fit (:func:`sunlab.centroid.disk_fit` started from its
+    moments) where the fit converges."""
+    for k in range(len(m)):
+        c = _fit_from(arr, SpotMoments(*m[k]), int(st[k]), 1.5, 30, True, saturation)
+        if np.isfinite(c.x):
+            m[k, X], m[k, Y], m[k, FLUX] = c.x, c.y, c.flux
+            win[:, k] = c.window
 
 
-def _locate_tight(frame, opts: _SpotOptions, lut, exp, has_exp, n_holes):
-    """:func:`locate_spots` with the tight window: the compiled ``locate_tight`` with its
-    arguments by name. Returns (values, windows, status, unassigned, lattice)."""
-    arr, usable = _prepare(frame)
-    if not usable:
-        return (*_k_lattice.new_holes(n_holes, _INVALID), *_no_lattice())
-    vals, window, status, n_detected, sample_max, unassigned, lattice = _k_lattice.locate_tight(
-        arr, opts.stride, opts.nsigma, opts.min_contrast, opts.min_samples, opts.margin,
-        opts.annulus, opts.n_iter, opts.saturation, opts.pitch, opts.max_residual,
-        ok=_OK, saturated=_SATURATED, clipped=_CLIPPED, lut=lut, exp=exp, has_exp=has_exp,
-        n_holes=n_holes, no_spot=_NO_SPOT, ambiguous=_AMBIGUOUS)
-    if n_detected == 0 and sample_max == 0 and _all_zero(arr):
-        status[:] = _INVALID
-    _repair_hot_spots(arr, vals, window, status, opts)
-    return vals, window, status, unassigned, lattice
-
-
-def _repair_hot_spots(arr, vals, window, status, opts: _SpotOptions) -> None:
+def _repair_hot_spots(arr, vals, window, status, annulus, n_iter, saturation) -> None:
     """Spots flagged ``saturated`` for isolated pixels at full scale (hot pixels) in their
     window: those pixels replaced by the median of their neighbours and x, y, flux measured
     again (the tight window's repair, :func:`tight_window`), status ``repaired``; a spot with
-    touching clipped pixels stays ``saturated``. The metrics keep the compiled values."""
+    touching clipped pixels stays ``saturated``. The metrics keep the first values."""
     for k in np.flatnonzero(status == _SATURATED):
         x0, x1 = int(window[0, k]), int(window[1, k])
         flux, x, y, n_hot, saturated = _local_centroid(
-            arr, float(vals[0, k]), float(vals[1, k]), 0.5 * (x1 - x0 - 1), opts.annulus,
-            opts.n_iter, opts.saturation, False)
+            arr, float(vals[0, k]), float(vals[1, k]), 0.5 * (x1 - x0 - 1), annulus, n_iter,
+            saturation, False)
         if n_hot and not saturated and flux > 0:
             vals[0, k], vals[1, k], vals[2, k] = x, y, flux
             status[k] = _REPAIRED
-
-
-def _locate_fit(frame, opts: _SpotOptions, lut, exp, has_exp, n_holes):
-    """:func:`locate_spots` with the disk fit per spot: :func:`_measure_and_fit`, then the
-    compiled grid assignment. Returns (values, windows, status, unassigned, lattice)."""
-    arr, usable = _prepare(frame)
-    if not usable:
-        return (*_k_lattice.new_holes(n_holes, _INVALID), *_no_lattice())
-    vals, window, status = _k_lattice.new_holes(n_holes, _NO_SPOT)
-    unassigned, lattice = _no_lattice()
-    fitted = _measure_and_fit(arr, opts)
-    if fitted is None:
-        if _all_zero(arr):
-            status[:] = _INVALID
-    elif fitted is not False:
-        m, swin, sstat, good, ij, origin, basis, resid, on_node, pts = fitted
-        unassigned, lattice = _k_lattice.assign_grid(
-            m, swin, sstat, good, ij, origin, basis, resid, on_node, pts, lut, exp, has_exp,
-            vals, window, status, _AMBIGUOUS)
-    return vals, window, status, unassigned, lattice
-
-
-def _measure_and_fit(arr, opts: _SpotOptions):
-    """Steps 1-3 of :func:`locate_spots` for ``method="fit"`` (the tight-window measurement,
-    then a disk fit of each spot). None: no spot detected and the frame's samples are all 0;
-    False: nothing to index."""
-    stride, saturation, max_residual = opts.stride, opts.saturation, opts.max_residual
-    det = _detect(arr, stride, opts.nsigma, opts.min_contrast, opts.min_samples)
-    if det.count.size == 0:
-        return None if det.sample_max == 0 else False
-    r0 = _first_radius(det.count, stride, opts.margin)
-    band_lo, band_hi = _background_band(det)
-    m = _k_aperture.measure_spots(arr, det.x, det.y, r0, opts.margin, opts.annulus, band_lo,
-                                  band_hi, opts.n_iter, saturation)
-    m = m[m[:, _FLUX] > 0]
-    if m.shape[0] == 0:
-        return False
-    sx, sy = m[:, _X].copy(), m[:, _Y].copy()
-    sflux = m[:, _FLUX].copy()
-    ny, nx = arr.shape
-    swin, sstat = _k_lattice.spot_table(m, nx, ny, _OK, _SATURATED, _CLIPPED)
-    wx0, wx1, wy0, wy1 = swin
-    for k in range(len(sx)):
-        c = _fit_from(arr, SpotMoments(*m[k]), int(sstat[k]), 1.5, 30, True, saturation)
-        if np.isfinite(c.x):
-            sx[k], sy[k], sflux[k] = c.x, c.y, c.flux
-            wx0[k], wx1[k], wy0[k], wy1[k] = c.window
-    # The per-hole outputs are read from m: carry the fitted values there.
-    m = m.copy()
-    m[:, _FLUX], m[:, _X], m[:, _Y] = sflux, sx, sy
-    pts = np.column_stack([sx, sy])
-    med_flux = np.median(sflux)
-    good = (sstat == _OK) & (sflux > 0.3 * med_flux)
-    if not good.any():
-        good = np.ones(len(sx), bool)
-    ij, origin, basis, resid = _fit_lattice(pts, None, opts.pitch, good, max_residual)
-    on_node = resid < max_residual * math.sqrt(abs(np.linalg.det(basis)))
-    return m, swin, sstat, good, ij, origin, basis, resid, on_node, pts

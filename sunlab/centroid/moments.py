@@ -25,14 +25,14 @@ from typing import NamedTuple
 
 import numpy as np
 
-from . import _k_aperture
+from ._aperture import _annulus, _moments
 from .result import _full_scale, _prepare
 
 __all__ = ["stamp_moments"]
 
 
 class SpotMoments(NamedTuple):
-    """Moments of one spot (a row of the compiled spot measurement, fields in this order).
+    """Moments of one spot (a row of the spot measurement, fields in this order).
 
     Attributes
     ----------
@@ -106,9 +106,9 @@ def spot_moments(
     The background ``b`` is the mean of the annulus ``radius + 1 < d <= radius + 1 + annulus``
     (its pixels with values in ``band``; all of them when none is), then the moments of
     ``I - b`` over the pixels whose centres lie within ``radius`` of ``(x, y)``: the centre of
-    mass, eq. (2), and the central second and third moments about it. The same compiled code
-    measures every spot of :func:`sunlab.centroid.tight_window` and
-    :func:`sunlab.centroid.locate_spots` (which re-centre the aperture first).
+    mass, eq. (2), and the central second and third moments about it. The same code measures
+    every spot of :func:`sunlab.centroid.tight_window` and :func:`sunlab.centroid.locate_spots`
+    (which re-centre the aperture first).
 
     Parameters
     ----------
@@ -144,9 +144,10 @@ def spot_moments(
     arr, _ = _prepare(frame)
     x, y, r = float(x), float(y), float(radius)
     lo, hi = (float(v) for v in band)
-    bkg, bsd, _ = _k_aperture.annulus_mean(arr, x, y, r + 1.0, r + 1.0 + float(annulus), lo, hi)
-    m = _k_aperture.aperture_moments(arr, x, y, r, bkg, float(saturation))
-    return SpotMoments(*(float(v) for v in m), float(bkg), float(bsd), r)
+    xs, ys, rs = np.array([x]), np.array([y]), np.array([r])
+    bkg, bsd, _ = _annulus(arr, xs, ys, rs + 1.0, rs + 1.0 + float(annulus), lo, hi)
+    m = _moments(arr, xs, ys, rs, bkg, float(saturation))[0]
+    return SpotMoments(*(float(v) for v in m), float(bkg[0]), float(bsd[0]), r)
 
 
 def stamp_moments(img) -> tuple[float, float, float]:

@@ -80,7 +80,7 @@ def _prepare(frame) -> tuple[np.ndarray, bool]:
         )
     if arr.dtype.kind not in "uifb":
         raise SchemaError("frame.dtype", str(arr.dtype), "integer or float intensities (DN)")
-    # Two compiled specialisations only: uint16 (raw DN) and float64 (everything else).
+    # Two dtypes only: uint16 (raw DN, exact integer sums) and float64 (everything else).
     if arr.dtype.kind in "ub" and arr.dtype.itemsize <= 2:
         arr = arr.astype(np.uint16, copy=False)
     else:
@@ -109,13 +109,12 @@ def _all_zero(arr: np.ndarray) -> bool:
     return not arr.any()
 
 
-def _status(*, clipped=False, saturated=False, ambiguous=False) -> int:
-    if ambiguous:
-        return _AMBIGUOUS
-    if clipped:
-        return _CLIPPED
-    if saturated:
-        return _SATURATED
+def _status(*, clipped=False, saturated=False, ambiguous=False, repaired=False) -> int:
+    """The status by precedence: ambiguous > clipped > saturated > repaired > ok."""
+    for flag, code in ((ambiguous, _AMBIGUOUS), (clipped, _CLIPPED), (saturated, _SATURATED),
+                       (repaired, _REPAIRED)):
+        if flag:
+            return code
     return _OK
 
 

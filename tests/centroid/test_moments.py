@@ -7,11 +7,11 @@ import numpy as np
 from numpy.testing import assert_allclose
 
 from sunlab import centroid as C
-from sunlab.centroid import _k_aperture
+from sunlab.centroid import _aperture
 
 
 def test_fields_are_the_kernel_measurement_columns():
-    assert C.moments.SpotMoments._fields == _k_aperture.MEASURE_FIELDS
+    assert C.moments.SpotMoments._fields == _aperture.MEASURE_FIELDS
 
 
 def test_spot_moments_match_direct_sums():
