@@ -11,6 +11,7 @@ from . import mask as mask
 from . import platform as platform
 from . import render as render
 from . import source as source
+from . import spots as spots
 from . import surrogate as surrogate
 from .bench import Bench as Bench
 from .bench import platform_pose as platform_pose
@@ -24,8 +25,8 @@ from .mask import Hole as Hole
 from .mask import Mask as Mask
 from .platform import Platform as Platform
 from .render import ray_positions as ray_positions
-from .render import spot_image as spot_image
-from .render import spot_truth as spot_truth
 from .source import Source as Source
+from .spots import spot_image as spot_image
+from .spots import spot_truth as spot_truth
 
 __all__: list[str]

@@ -52,8 +52,9 @@ from .detector import Detector
 from .frame import render_frame, render_pose
 from .mask import PAPER_DISTANCE_MM, PAPER_TRACK_CENTRE_MM, Mask
 from .platform import Platform
-from .render import _entropy, _truth, mask_play, spot_geometry
+from .render import _entropy, mask_play, spot_geometry
 from .source import Source
+from .spots import _truth
 
 __all__ = ["Bench", "platform_pose", "simulate"]
 

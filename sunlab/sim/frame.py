@@ -22,15 +22,13 @@ Examples
 
 from __future__ import annotations
 
-import functools
-
 import numpy as np
 
 from ..errors import ConfigurationError
-from . import _kernels
-from .detector import Detector, fixed_pattern
+from .detector import Detector, adc_frame, adc_region, fixed_pattern, normal_table
 from .platform import sensor_sun_vector
-from .render import _groups, _hole_centres_mm, _rays, frame_key, mask_play, spot_geometry
+from .render import _hole_centres_mm, _rays, frame_key, mask_play, spot_geometry
+from .spots import _groups
 
 __all__ = ["render_frame"]
 
@@ -127,13 +125,6 @@ def _signal_map(stamps, det: Detector):
         for k, v, x, y in views:
             out[k] = (v, x, y)
     return out
-
-
-@functools.lru_cache(maxsize=1)
-def _table():
-    t = _kernels.normal_table()
-    t.setflags(write=False)
-    return t
 
 
 def expected_frame(bench, alpha_true, beta_true, *, play_mm=(0.0, 0.0)):
@@ -297,24 +288,12 @@ def _expose(bench, stamps, seed, pose, shot, out):
     hold spot signal (``stamps``) recomputed with their photon noise."""
     det = bench.detector
     fp = fixed_pattern(det)
-    table = _table() if det.temporal_noise else np.empty(0, dtype=np.float32)
+    table = normal_table() if det.temporal_noise else np.empty(0, dtype=np.float32)
     state = frame_key(seed, pose, shot).generate_state(1, dtype=np.uint64)
     max_dn = float(det.max_dn)
-    _kernels.adc_frame(fp.bg_mean_dn, fp.bg_sigma_dn, table, state, max_dn, out)
+    adc_frame(fp.bg_mean_dn, fp.bg_sigma_dn, table, state, max_dn, out)
     read_var = float(det.read_noise_e**2) if det.temporal_noise else 0.0
     for part, xa, ya in _signal_map(stamps, det):
-        _kernels.adc_region(
-            ya,
-            xa,
-            np.ascontiguousarray(part, dtype=np.float64),
-            fp.gain,
-            fp.dark_e,
-            fp.offset_dn,
-            table,
-            state,
-            read_var,
-            1.0 / det.gain_e_per_dn,
-            float(det.full_well_e),
-            max_dn,
-            out,
-        )
+        adc_region(ya, xa, np.ascontiguousarray(part, dtype=np.float64), fp.gain, fp.dark_e,
+                   fp.offset_dn, table, state, read_var, 1.0 / det.gain_e_per_dn,
+                   float(det.full_well_e), max_dn, out)

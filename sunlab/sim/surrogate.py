@@ -90,7 +90,7 @@ def spot_diameter_px(bench) -> float:
 
 def _spot_profile(bench) -> np.ndarray:
     """The expected single-spot image at zenith (electrons, before PRNU), centred stamp."""
-    from .render import spot_image
+    from .spots import spot_image
 
     one = bench.replace(mask=bench.mask.replace(holes=bench.mask.holes[:1]))
     one = one.replace(platform=one.platform.ideal()).ideal_mask()
