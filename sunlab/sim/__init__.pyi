@@ -4,6 +4,7 @@ and type checkers read it as the package's interface."""
 
 from . import bench as bench
 from . import centroids as centroids
+from . import cube as cube
 from . import detector as detector
 from . import diffraction as diffraction
 from . import frame as frame
@@ -14,9 +15,8 @@ from . import source as source
 from . import spots as spots
 from . import surrogate as surrogate
 from .bench import Bench as Bench
-from .bench import platform_pose as platform_pose
-from .bench import simulate as simulate
 from .centroids import synthetic_centroids as synthetic_centroids
+from .cube import simulate as simulate
 from .detector import Detector as Detector
 from .detector import fixed_pattern as fixed_pattern
 from .frame import render_frame as render_frame
@@ -24,6 +24,7 @@ from .mask import Dust as Dust
 from .mask import Hole as Hole
 from .mask import Mask as Mask
 from .platform import Platform as Platform
+from .platform import platform_pose as platform_pose
 from .render import ray_positions as ray_positions
 from .source import Source as Source
 from .spots import spot_image as spot_image

@@ -42,7 +42,7 @@ import numpy as np
 
 from ..errors import ConfigurationError
 from .detector import Detector
-from .platform import sensor_sun_vector
+from .platform import _entropy, sensor_sun_vector
 
 __all__ = ["ray_positions"]
 
@@ -51,20 +51,6 @@ _TAG_PLAY = 0x91A7
 
 
 # --------------------------------------------------------------------------- seeding
-def _entropy(seed) -> list[int]:
-    """Seed as a list of non-negative ints (an int or a sequence of ints)."""
-    items = [seed] if isinstance(seed, int | np.integer) else list(seed)
-    out = []
-    for v in items:
-        if isinstance(v, bool) or not isinstance(v, int | np.integer) or v < 0:
-            raise ConfigurationError(
-                f"seed: found {seed!r}; expected a non-negative integer or a sequence of them. "
-                "Fix: pass seed=0."
-            )
-        out.append(int(v))
-    return out
-
-
 def frame_key(seed, pose: int, shot: int) -> np.random.SeedSequence:
     """The SeedSequence of frame (pose, shot): every frame's noise stream, from (seed, pose, shot).
 

@@ -206,8 +206,9 @@ def surrogate_centroids(bench, plan, seed=0, *, noise_px: float = 0.004,
     """
     from scipy import ndimage
 
-    from .bench import _platform_table, plan_key
-    from .render import _entropy, mask_play, spot_centres
+    from .cube import plan_key
+    from .platform import _entropy, _platform_table
+    from .render import mask_play, spot_centres
 
     key = _entropy(seed) + [plan_key(plan)]
     ta, tb = _platform_table(bench, plan, key)

@@ -8,7 +8,7 @@ import pytest
 from sunlab import ConfigurationError, plans, stats
 from sunlab.calibration import Polynomial
 from sunlab.sim import Bench
-from sunlab.sim.bench import homing_offset
+from sunlab.sim.platform import homing_offset
 from sunlab.sim.surrogate import surrogate_centroids
 from sunlab.studies import platform_fault as pf
 
