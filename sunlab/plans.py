@@ -21,7 +21,8 @@ References
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import zlib
+from dataclasses import dataclass, fields, replace
 
 import numpy as np
 
@@ -56,32 +57,27 @@ PAPER_SCAN = "serpentine"
 MAX_ANGLE_DEG = 90.0
 
 
+def _check(ok: bool, name: str, found, expected: str, fix: str = "") -> None:
+    if not ok:
+        raise ConfigurationError(f"{name}: found {found}; expected {expected}." +
+                                 (f" Fix: {fix}" if fix else ""))
+
+
 def _check_angles(name: str, values: np.ndarray) -> None:
-    if values.ndim != 1:
-        raise ConfigurationError(
-            f"{name}: found an array of shape {values.shape}; expected a flat list of angles "
-            "(one per pose). Fix: pass np.ravel(angles)."
-        )
-    if not np.all(np.isfinite(values)):
-        raise ConfigurationError(
-            f"{name}: found non-finite angles; expected finite degrees. Fix: drop NaN/inf poses."
-        )
+    _check(values.ndim == 1, name, f"an array of shape {values.shape}",
+           "a flat list of angles (one per pose)", "pass np.ravel(angles).")
+    _check(np.all(np.isfinite(values)), name, "non-finite angles", "finite degrees",
+           "drop NaN/inf poses.")
     bad = np.abs(values) >= MAX_ANGLE_DEG
-    if np.any(bad):
-        raise ConfigurationError(
-            f"{name}: found {values[bad][0]!r} deg; expected |angle| < {MAX_ANGLE_DEG:g} deg "
-            "(the sun "
-            "must stay in front of the mask). Fix: command angles in degrees within (-90, 90)."
-        )
+    _check(not np.any(bad), name, f"{values[bad][0] if bad.any() else 0:g} deg",
+           f"|angle| < {MAX_ANGLE_DEG:g} deg (the sun must stay in front of the mask)",
+           "command angles in degrees within (-90, 90).")
 
 
-def _check_shots(shots) -> int:
-    if isinstance(shots, bool) or not isinstance(shots, int | np.integer) or shots < 1:
-        raise ConfigurationError(
-            f"shots: found {shots!r}; expected a positive integer number of frames per pose "
-            "(the paper takes 8). Fix: pass shots=8."
-        )
-    return int(shots)
+def _positive_int(name: str, value, expected: str, fix: str) -> int:
+    _check(not isinstance(value, bool) and isinstance(value, int | np.integer) and value >= 1,
+           name, repr(value), expected, fix)
+    return int(value)
 
 
 @dataclass(frozen=True, eq=False)
@@ -124,31 +120,22 @@ class Plan:
         beta = np.atleast_1d(np.array(self.beta, dtype=float))
         _check_angles("alpha", alpha)
         _check_angles("beta", beta)
-        if alpha.shape != beta.shape:
-            raise ConfigurationError(
-                f"alpha, beta: found {alpha.size} and {beta.size} angles; expected one alpha and "
-                "one beta per pose. Fix: pass equal-length lists."
-            )
-        if alpha.size == 0:
-            raise ConfigurationError(
-                "alpha, beta: found an empty plan; expected at least one pose. Fix: widen the "
-                "range or the slice."
-            )
+        _check(alpha.shape == beta.shape, "alpha, beta", f"{alpha.size} and {beta.size} angles",
+               "one alpha and one beta per pose", "pass equal-length lists.")
+        _check(alpha.size > 0, "alpha, beta", "an empty plan", "at least one pose",
+               "widen the range or the slice.")
         alpha.setflags(write=False)
         beta.setflags(write=False)
         object.__setattr__(self, "alpha", alpha)
         object.__setattr__(self, "beta", beta)
-        object.__setattr__(self, "shots", _check_shots(self.shots))
+        object.__setattr__(self, "shots", _positive_int(
+            "shots", self.shots, "a positive integer number of frames per pose (the paper takes "
+            "8)", "pass shots=8."))
         object.__setattr__(self, "name", str(self.name))
-        if self.scan not in SCANS:
-            raise ConfigurationError(
-                f"scan: found {self.scan!r}; expected one of {SCANS}. Fix: scan='serpentine'."
-            )
-        if self.approach not in APPROACHES:
-            raise ConfigurationError(
-                f"approach: found {self.approach!r}; expected one of {APPROACHES}. Fix: "
-                "approach='unidirectional' (overshoot and return)."
-            )
+        _check(self.scan in SCANS, "scan", repr(self.scan), f"one of {SCANS}",
+               "scan='serpentine'.")
+        _check(self.approach in APPROACHES, "approach", repr(self.approach),
+               f"one of {APPROACHES}", "approach='unidirectional' (overshoot and return).")
 
     def __len__(self) -> int:
         return int(self.alpha.size)
@@ -157,19 +144,11 @@ class Plan:
         """A plan of a subset of the poses (slice, integer array or boolean mask)."""
         if isinstance(index, int | np.integer):
             index = [int(index)]
-        return Plan(self.name, self.alpha[index], self.beta[index], self.shots, self.scan,
-                    self.approach)
+        return replace(self, alpha=self.alpha[index], beta=self.beta[index])
 
     def __eq__(self, other) -> bool:
-        return (
-            isinstance(other, Plan)
-            and self.name == other.name
-            and self.shots == other.shots
-            and np.array_equal(self.alpha, other.alpha)
-            and np.array_equal(self.beta, other.beta)
-            and self.scan == other.scan
-            and self.approach == other.approach
-        )
+        return isinstance(other, Plan) and all(
+            np.array_equal(getattr(self, f.name), getattr(other, f.name)) for f in fields(self))
 
     __hash__ = None  # mutable-looking contents: plans are compared by value, not hashed
 
@@ -196,12 +175,8 @@ class Plan:
         >>> len(experiment("I").subset(10))
         40
         """
-        if isinstance(step, bool) or not isinstance(step, int | np.integer) or step < 1:
-            raise ConfigurationError(
-                f"step: found {step!r}; expected a positive integer. Fix: pass step=2 to keep "
-                "every other pose."
-            )
-        return self[:: int(step)]
+        return self[::_positive_int("step", step, "a positive integer",
+                                    "pass step=2 to keep every other pose.")]
 
     def thin(self, step: int) -> Plan:
         """Every ``step``-th angle along each grid axis, so a thinned grid is still a grid.
@@ -256,7 +231,7 @@ class Plan:
         Plan
             A new plan; this one is unchanged.
         """
-        return Plan(self.name, self.alpha, self.beta, shots, self.scan, self.approach)
+        return replace(self, shots=shots)
 
     def with_motion(self, scan: str | None = None, approach: str | None = None) -> Plan:
         """The same poses visited in another order or approached another way.
@@ -279,9 +254,8 @@ class Plan:
         >>> p.scan, p.approach
         ('serpentine', 'unidirectional')
         """
-        return Plan(self.name, self.alpha, self.beta, self.shots,
-                    self.scan if scan is None else scan,
-                    self.approach if approach is None else approach)
+        return replace(self, scan=self.scan if scan is None else scan,
+                       approach=self.approach if approach is None else approach)
 
     def visit_order(self) -> np.ndarray:
         """Indices of the poses in the order the stage visits them (:data:`SCANS`).
@@ -310,12 +284,26 @@ class Plan:
             starts = np.flatnonzero(np.r_[True, self.alpha[1:] != self.alpha[:-1]])
             runs = np.split(np.arange(n), starts[1:])
             return np.concatenate([r if k % 2 == 0 else r[::-1] for k, r in enumerate(runs)])
-        import zlib
+        return np.random.default_rng([self.crc32(with_shots=False), 0x5CA7]).permutation(n)
 
+    def crc32(self, with_shots: bool = True) -> int:
+        """A stable 32-bit code of the plan: CRC-32 of the name, the commanded angles
+        (little-endian float64) and, unless ``with_shots`` is False, the shots (uint32).
+
+        Parameters
+        ----------
+        with_shots : bool
+            Whether the shots enter the code.
+
+        Returns
+        -------
+        int
+            The code (a simulated cube mixes it into its seed: :func:`sunlab.sim.simulate`).
+        """
         h = zlib.crc32(self.name.encode())
-        h = zlib.crc32(np.ascontiguousarray(self.alpha, dtype="<f8").tobytes(), h)
-        h = zlib.crc32(np.ascontiguousarray(self.beta, dtype="<f8").tobytes(), h)
-        return np.random.default_rng([h, 0x5CA7]).permutation(n)
+        for a in (self.alpha, self.beta):
+            h = zlib.crc32(np.ascontiguousarray(a, dtype="<f8").tobytes(), h)
+        return zlib.crc32(int(self.shots).to_bytes(4, "little"), h) if with_shots else h
 
     def beta_approach(self, *, home_deg: float = 0.0) -> np.ndarray:
         """Direction (+1 up, -1 down) in which the inner axis arrives at each pose, by pose.
@@ -371,13 +359,9 @@ class Plan:
         >>> experiment("II").unstack_shape()
         (13, 13)
         """
-        ua = np.unique(self.alpha)
-        ub = np.unique(self.beta)
-        if ua.size * ub.size != len(self):
-            return None
-        if np.array_equal(self.alpha, np.repeat(ua, ub.size)) and np.array_equal(
-            self.beta, np.tile(ub, ua.size)
-        ):
+        ua, ub = np.unique(self.alpha), np.unique(self.beta)
+        if (ua.size * ub.size == len(self) and np.array_equal(self.alpha, np.repeat(ua, ub.size))
+                and np.array_equal(self.beta, np.tile(ub, ua.size))):
             return int(ua.size), int(ub.size)
         return None
 
@@ -390,34 +374,19 @@ class Plan:
 
 
 def _axis(vmin: float, vmax: float, step: float, name: str) -> np.ndarray:
-    if not (np.isfinite(vmin) and np.isfinite(vmax) and np.isfinite(step)):
-        raise ConfigurationError(f"{name}: found non-finite bounds or step; expected finite deg.")
-    if step <= 0:
-        raise ConfigurationError(
-            f"{name}_step: found {step!r}; expected a positive step in degrees. Fix: pass e.g. 1.0."
-        )
-    if vmax < vmin:
-        raise ConfigurationError(
-            f"{name}_min, {name}_max: found {vmin!r} > {vmax!r}; expected min <= max. "
-            "Fix: swap them."
-        )
+    _check(np.isfinite(vmin) and np.isfinite(vmax) and np.isfinite(step), name,
+           "non-finite bounds or step", "finite deg")
+    _check(step > 0, f"{name}_step", repr(step), "a positive step in degrees", "pass e.g. 1.0.")
+    _check(vmax >= vmin, f"{name}_min, {name}_max", f"{vmin!r} > {vmax!r}", "min <= max",
+           "swap them.")
     n = int(np.floor((vmax - vmin) / step + 1e-9)) + 1
     # Built from integers so that -16.25 + 12 * 1.5 is exactly 1.75, not 1.7500000000000002.
     return np.round(vmin + step * np.arange(n), 10)
 
 
-def grid(
-    alpha_min: float,
-    alpha_max: float,
-    alpha_step: float,
-    beta_min: float,
-    beta_max: float,
-    beta_step: float,
-    shots: int = 8,
-    name: str = "grid",
-    scan: str = "raster",
-    approach: str = "direct",
-) -> Plan:
+def grid(alpha_min: float, alpha_max: float, alpha_step: float, beta_min: float,
+         beta_max: float, beta_step: float, shots: int = 8, name: str = "grid",
+         scan: str = "raster", approach: str = "direct") -> Plan:
     """A regular grid of poses, alpha as the outer loop, bounds inclusive.
 
     Parameters
@@ -475,12 +444,9 @@ def experiment(name: str, shots: int = 8, *, scan: str = PAPER_SCAN,
     (1.75, -1.75)
     """
     key = {"1": "I", "2": "II", "3": "III"}.get(str(name).strip(), str(name).strip().upper())
-    if key not in EXPERIMENTS:
-        raise ConfigurationError(
-            f"experiment: found {name!r}; expected one of 'I', 'II', 'III' "
-            "(docs/paper.md Table 3). "
-            "Fix: use sunlab.plans.grid(...) for other poses."
-        )
+    _check(key in EXPERIMENTS, "experiment", repr(name),
+           "one of 'I', 'II', 'III' (docs/paper.md Table 3)",
+           "use sunlab.plans.grid(...) for other poses.")
     return grid(*EXPERIMENTS[key], shots=shots, name=key, scan=scan, approach=approach)
 
 
@@ -512,14 +478,8 @@ def custom(alpha, beta, shots: int = 8, name: str = "custom", scan: str = "raste
     >>> p.alpha.tolist(), p.beta.tolist(), p.shots
     ([0.0, -5.0], [0.0, 3.0], 1)
     """
-    return Plan(
-        name,
-        np.atleast_1d(np.asarray(alpha, dtype=float)),
-        np.atleast_1d(np.asarray(beta, dtype=float)),
-        shots,
-        scan,
-        approach,
-    )
+    return Plan(name, np.atleast_1d(np.asarray(alpha, dtype=float)),
+                np.atleast_1d(np.asarray(beta, dtype=float)), shots, scan, approach)
 
 
 def read_plan(spec, shots: int = 8, *, field: str = "plan") -> Plan:
@@ -607,15 +567,7 @@ def zero_check(plan: Plan, checks: int = 4, *, shots: int | None = None) -> Plan
     >>> len(z), z.name, z.approach, float(z.alpha.max()), float(z.beta.max())
     (4, 'III', 'unidirectional', 0.0, 0.0)
     """
-    if not isinstance(plan, Plan):
-        raise ConfigurationError(
-            f"plan: found {type(plan).__name__}; expected a sunlab.plans.Plan."
-        )
-    if isinstance(checks, bool) or not isinstance(checks, int | np.integer) or checks < 1:
-        raise ConfigurationError(
-            f"checks: found {checks!r}; expected a positive number of zero-pose visits. "
-            "Fix: checks=4."
-        )
-    n = int(checks)
+    _check(isinstance(plan, Plan), "plan", type(plan).__name__, "a sunlab.plans.Plan")
+    n = _positive_int("checks", checks, "a positive number of zero-pose visits", "checks=4.")
     return Plan(plan.name, np.zeros(n), np.zeros(n), plan.shots if shots is None else shots,
                 "raster", "unidirectional")

@@ -105,6 +105,9 @@ PAPER_BETA0_DEG = 0.294
 #: plus what the lid takes off the apparent height of a paraxial ray, t (1 - 1/n).
 PAPER_DELTA_F_MM = 0.094 + Detector(lid_thickness_mm=PAPER_LID_MM).lid_height_loss_mm
 
+_PARTS = {"source": Source, "mask": Mask, "detector": Detector, "platform": Platform}
+
+
 @dataclass(frozen=True)
 class Bench:
     """The virtual laboratory bench (a dataclass of dataclasses).
@@ -135,17 +138,11 @@ class Bench:
     platform: Platform = field(default_factory=Platform)
 
     def __post_init__(self):
-        for name, kind in (
-            ("source", Source),
-            ("mask", Mask),
-            ("detector", Detector),
-            ("platform", Platform),
-        ):
+        for name, kind in _PARTS.items():
             if not isinstance(getattr(self, name), kind):
                 raise ConfigurationError(
                     f"bench.{name}: found {type(getattr(self, name)).__name__}; expected a "
-                    f"{kind.__name__}. Fix: build it with sunlab.sim.{kind.__name__}(...)."
-                )
+                    f"{kind.__name__}. Fix: build it with sunlab.sim.{kind.__name__}(...).")
 
     # ---------------------------------------------------------------- presets
     @classmethod
@@ -167,16 +164,10 @@ class Bench:
             The one-hole bench every single-hole table of sunlab is simulated on.
         """
         mask = Mask.single_hole(
-            x_mm=PAPER_TRACK_CENTRE_MM[0],
-            y_mm=PAPER_TRACK_CENTRE_MM[1],
-            distance_mm=PAPER_DISTANCE_MM,
-            delta_f_mm=PAPER_DELTA_F_MM,
-            tilt_x_deg=0.25,
-            tilt_y_deg=-0.15,
-            offset_x_mm=0.012,
-            offset_y_mm=-0.008,
-            play_x_mm=PAPER_SINGLE_PLAY_MM,
-        )
+            x_mm=PAPER_TRACK_CENTRE_MM[0], y_mm=PAPER_TRACK_CENTRE_MM[1],
+            distance_mm=PAPER_DISTANCE_MM, delta_f_mm=PAPER_DELTA_F_MM, tilt_x_deg=0.25,
+            tilt_y_deg=-0.15, offset_x_mm=0.012, offset_y_mm=-0.008,
+            play_x_mm=PAPER_SINGLE_PLAY_MM)
         return cls(Source(), mask, cls._paper_detector(), cls._paper_platform())
 
     @staticmethod
@@ -199,20 +190,13 @@ class Bench:
         such faults. No backlash: the identification needs none.
         """
         return Platform(
-            alpha0_deg=PAPER_ALPHA0_DEG,
-            beta0_deg=PAPER_BETA0_DEG,
-            gamma0_deg=PAPER_GAMMA0_DEG,
-            alpha_pose_error_deg=PAPER_ALPHA_POSE_DEG,
-            beta_pose_error_deg=PAPER_BETA_POSE_DEG,
-            beta_rehoming_deg=PAPER_BETA_REHOMING_DEG,
-            beta_gear_deg=PAPER_BETA_GEAR_DEG,
+            alpha0_deg=PAPER_ALPHA0_DEG, beta0_deg=PAPER_BETA0_DEG, gamma0_deg=PAPER_GAMMA0_DEG,
+            alpha_pose_error_deg=PAPER_ALPHA_POSE_DEG, beta_pose_error_deg=PAPER_BETA_POSE_DEG,
+            beta_rehoming_deg=PAPER_BETA_REHOMING_DEG, beta_gear_deg=PAPER_BETA_GEAR_DEG,
             beta_gear_period_deg=PAPER_BETA_GEAR_PERIOD_DEG,
-            alpha_jitter_deg=PAPER_ALPHA_JITTER_DEG,
-            beta_jitter_deg=PAPER_BETA_JITTER_DEG,
+            alpha_jitter_deg=PAPER_ALPHA_JITTER_DEG, beta_jitter_deg=PAPER_BETA_JITTER_DEG,
             # no source gives the stage a wobble or a non-orthogonality: off
-            beta_wobble_deg=0.0,
-            nonorthogonality_deg=0.0,
-        )
+            beta_wobble_deg=0.0, nonorthogonality_deg=0.0)
 
     @classmethod
     def paper_multi_hole(cls, n_bad: int = 6) -> Bench:
@@ -238,21 +222,10 @@ class Bench:
             The 100-hole bench of Table 5.
         """
         mask = Mask.grid(
-            10,
-            10,
-            0.5,
-            0.2,
-            centre_mm=PAPER_TRACK_CENTRE_MM,
-            distance_mm=PAPER_DISTANCE_MM,
-            delta_f_mm=0.06 + PAPER_DELTA_F_MM - 0.094,
-            tilt_x_deg=0.2,
-            tilt_y_deg=0.3,
-            rotation_deg=0.4,
-            offset_x_mm=-0.01,
-            offset_y_mm=0.015,
-            play_y_mm=PAPER_MASK_PLAY_MM,
-            size_mm=(12.0, 12.0),
-        )
+            10, 10, 0.5, 0.2, centre_mm=PAPER_TRACK_CENTRE_MM, distance_mm=PAPER_DISTANCE_MM,
+            delta_f_mm=0.06 + PAPER_DELTA_F_MM - 0.094, tilt_x_deg=0.2, tilt_y_deg=0.3,
+            rotation_deg=0.4, offset_x_mm=-0.01, offset_y_mm=0.015,
+            play_y_mm=PAPER_MASK_PLAY_MM, size_mm=(12.0, 12.0))
         if n_bad:
             mask = mask.with_random_defects(n_bad, seed=2005)
         return cls(Source(), mask, cls._paper_detector(), cls._paper_platform())
@@ -277,25 +250,18 @@ class Bench:
         >>> Bench().replace(detector__read_noise_e=0.0).detector.read_noise_e
         0.0
         """
-        top = {}
+        top = {k: v for k, v in changes.items() if "__" not in k}
         nested: dict[str, dict] = {}
         for key, value in changes.items():
             if "__" in key:
                 part, name = key.split("__", 1)
                 nested.setdefault(part, {})[name] = value
-            else:
-                top[key] = value
-        for part, kw in nested.items():
-            if part not in ("source", "mask", "detector", "platform"):
-                raise ConfigurationError(
-                    f"replace: found {part!r}; expected source, mask, detector or platform."
-                )
-            base = top.get(part, getattr(self, part))
-            try:
-                top[part] = replace(base, **kw)
-            except TypeError as err:
-                raise ConfigurationError(f"replace: {err}. Fix: check the field names.") from None
+        if set(nested) - set(_PARTS):
+            raise ConfigurationError(f"replace: found {sorted(set(nested) - set(_PARTS))}; "
+                                     "expected source, mask, detector or platform.")
         try:
+            for part, kw in nested.items():
+                top[part] = replace(top.get(part, getattr(self, part)), **kw)
             return replace(self, **top)
         except TypeError as err:
             raise ConfigurationError(f"replace: {err}. Fix: check the field names.") from None
@@ -329,16 +295,9 @@ class Bench:
         Bench
             The same bench and holes, the mask's mounting errors set to zero.
         """
-        return self.replace(
-            mask__delta_f_mm=0.0,
-            mask__tilt_x_deg=0.0,
-            mask__tilt_y_deg=0.0,
-            mask__rotation_deg=0.0,
-            mask__offset_x_mm=0.0,
-            mask__offset_y_mm=0.0,
-            mask__play_x_mm=0.0,
-            mask__play_y_mm=0.0,
-        )
+        return self.replace(**{f"mask__{k}": 0.0 for k in (
+            "delta_f_mm", "tilt_x_deg", "tilt_y_deg", "rotation_deg", "offset_x_mm",
+            "offset_y_mm", "play_x_mm", "play_y_mm")})
 
     def without_lid(self) -> Bench:
         """Copy with a lid-less detector: every ray lands where eq. (1)'s pinhole puts it.
@@ -379,11 +338,9 @@ class Bench:
             Column and row, px, from the detector's reference pixel and the holes' design
             positions (mm) over the pixel pitch.
         """
-        xr, yr = self.detector.reference_px
-        p = self.detector.pixel_pitch_mm
-        x = np.array([xr + h.x_mm / p for h in self.mask.holes])
-        y = np.array([yr + h.y_mm / p for h in self.mask.holes])
-        return x, y
+        (xr, yr), p = self.detector.reference_px, self.detector.pixel_pitch_mm
+        return (np.array([xr + h.x_mm / p for h in self.mask.holes]),
+                np.array([yr + h.y_mm / p for h in self.mask.holes]))
 
     def to_json(self) -> str:
         """The bench's parameters as JSON (provenance attribute of simulated cubes).

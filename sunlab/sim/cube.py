@@ -13,8 +13,6 @@ Examples
 
 from __future__ import annotations
 
-import zlib
-
 import numpy as np
 
 from ..errors import ConfigurationError
@@ -25,25 +23,6 @@ from .render import mask_play, spot_geometry
 from .spots import _truth
 
 __all__ = ["simulate"]
-
-
-def plan_key(plan) -> int:
-    """A stable 32-bit code of a plan (name, poses, shots), mixed into a cube's seed so that two
-    experiments simulated with the same seed do not share platform errors or noise.
-
-    Parameters
-    ----------
-    plan : sunlab.plans.Plan
-
-    Returns
-    -------
-    int
-        CRC-32 of the name, the commanded angles (little-endian float64) and the shots.
-    """
-    h = zlib.crc32(plan.name.encode())
-    h = zlib.crc32(np.ascontiguousarray(plan.alpha, dtype="<f8").tobytes(), h)
-    h = zlib.crc32(np.ascontiguousarray(plan.beta, dtype="<f8").tobytes(), h)
-    return zlib.crc32(int(plan.shots).to_bytes(4, "little"), h)
 
 
 def _truth_task(bench, a_row, b_row, key, pose):
@@ -64,7 +43,7 @@ def simulate(plan, bench: Bench | None = None, seed=0, chunks: str = "frame"):
 
     Frames are rendered on demand, one chunk per frame, deterministically from
     (seed, plan, pose, shot); the cube's ``sim_key`` attribute is the seed entropy actually used
-    (``[seed, plan_key(plan)]``): ``render_pose(bench, true_alpha[p], true_beta[p],
+    (``[seed, plan.crc32()]``): ``render_pose(bench, true_alpha[p], true_beta[p],
     seed=cube.attrs["sim_key"], pose=p)`` reproduces the frames of pose p.
 
     Parameters
@@ -115,7 +94,7 @@ def simulate(plan, bench: Bench | None = None, seed=0, chunks: str = "frame"):
         raise ConfigurationError(
             f"bench: found {type(bench).__name__}; expected a sunlab.sim.Bench."
         )
-    key = _entropy(seed) + [plan_key(plan)]
+    key = _entropy(seed) + [plan.crc32()]
     ta, tb = _platform_table(bench, plan, key)
     token = tokenize(bench.to_json(), key, ta, tb)
     frames = _frames_array(bench, key, ta, tb, token, chunks)

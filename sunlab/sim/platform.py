@@ -137,39 +137,18 @@ class Platform:
     beta_gear_phase_deg: float = 0.0
 
     def __post_init__(self):
-        for name, v in self.__dict__.items():
-            if not math.isfinite(v):
-                raise ConfigurationError(f"platform.{name}: found {v!r}; expected a finite number.")
-        for name in (
-            "alpha_pose_error_deg",
-            "beta_pose_error_deg",
-            "alpha_jitter_deg",
-            "beta_jitter_deg",
-            "beta_wobble_deg",
-            "beta_backlash_deg",
-            "beta_homing_deg",
-            "beta_gear_deg",
-        ):
-            if getattr(self, name) < 0:
+        rules = [(n, "a finite number", math.isfinite) for n in self.__dict__]
+        rules += [(n, ">= 0 deg", lambda v: v >= 0) for n in (
+            "alpha_pose_error_deg", "beta_pose_error_deg", "alpha_jitter_deg", "beta_jitter_deg",
+            "beta_wobble_deg", "beta_backlash_deg", "beta_homing_deg", "beta_gear_deg")]
+        rules += [(n, "a positive period in deg", lambda v: v > 0)
+                  for n in ("beta_gear_period_deg", "beta_wobble_period_deg")]
+        rules += [(n, "a small angle (|value| < 45 deg)", lambda v: abs(v) < 45)
+                  for n in ("alpha0_deg", "beta0_deg", "gamma0_deg", "nonorthogonality_deg")]
+        for name, expected, ok in rules:
+            if not ok(getattr(self, name)):
                 raise ConfigurationError(
-                    f"platform.{name}: found {getattr(self, name)!r}; expected >= 0 deg."
-                )
-        if self.beta_gear_period_deg <= 0:
-            raise ConfigurationError(
-                f"platform.beta_gear_period_deg: found {self.beta_gear_period_deg!r}; expected a"
-                " positive period in deg."
-            )
-        if self.beta_wobble_period_deg <= 0:
-            raise ConfigurationError(
-                f"platform.beta_wobble_period_deg: found {self.beta_wobble_period_deg!r}; expected"
-                " a positive period in deg."
-            )
-        for name in ("alpha0_deg", "beta0_deg", "gamma0_deg", "nonorthogonality_deg"):
-            if abs(getattr(self, name)) >= 45:
-                raise ConfigurationError(
-                    f"platform.{name}: found {getattr(self, name)!r}; expected a small angle "
-                    "(|value| < 45 deg)."
-                )
+                    f"platform.{name}: found {getattr(self, name)!r}; expected {expected}.")
 
     @classmethod
     def ideal(cls) -> Platform:
@@ -217,14 +196,11 @@ class Platform:
         at = a * (1 + self.alpha_scale) + self.alpha_offset_deg
         bt = b * (1 + self.beta_scale) + self.beta_offset_deg
         if self.beta_wobble_deg:
-            bt = bt + self.beta_wobble_deg * np.sin(
-                2 * np.pi * a / self.beta_wobble_period_deg
-                + math.radians(self.beta_wobble_phase_deg)
-            )
+            bt = bt + self.beta_wobble_deg * np.sin(2 * np.pi * a / self.beta_wobble_period_deg
+                                                    + math.radians(self.beta_wobble_phase_deg))
         if self.beta_gear_deg:
-            bt = bt + self.beta_gear_deg * np.sin(
-                2 * np.pi * b / self.beta_gear_period_deg + math.radians(self.beta_gear_phase_deg)
-            )
+            bt = bt + self.beta_gear_deg * np.sin(2 * np.pi * b / self.beta_gear_period_deg
+                                                  + math.radians(self.beta_gear_phase_deg))
         return at, bt
 
     def mount_matrix(self) -> np.ndarray:
@@ -235,11 +211,8 @@ class Platform:
         numpy.ndarray, shape (3, 3)
             Rotation from the platform's frame into the sensor's.
         """
-        return (
-            rotation_z(math.radians(self.gamma0_deg))
-            @ rotation_y(-math.radians(self.alpha0_deg))
-            @ rotation_x(math.radians(self.beta0_deg))
-        )
+        return (rotation_z(math.radians(self.gamma0_deg)) @ rotation_y(
+            -math.radians(self.alpha0_deg)) @ rotation_x(math.radians(self.beta0_deg)))
 
 
 def sensor_sun_vector(platform: Platform, alpha_true, beta_true) -> np.ndarray:
@@ -267,14 +240,11 @@ def sensor_sun_vector(platform: Platform, alpha_true, beta_true) -> np.ndarray:
     b = np.deg2rad(np.asarray(beta_true, dtype=float))
     eps = math.radians(platform.nonorthogonality_deg)
     # R_u(beta) e_z for the inner axis u = (cos eps, sin eps, 0) (Rodrigues), then R_y(-alpha).
-    v = np.stack(
-        np.broadcast_arrays(math.sin(eps) * np.sin(b), -math.cos(eps) * np.sin(b), np.cos(b)),
-        axis=-1,
-    )
+    v = np.stack(np.broadcast_arrays(math.sin(eps) * np.sin(b), -math.cos(eps) * np.sin(b),
+                                     np.cos(b)), axis=-1)
     ca, sa = np.cos(a), np.sin(a)
-    g = np.stack(
-        [ca * v[..., 0] - sa * v[..., 2], v[..., 1], sa * v[..., 0] + ca * v[..., 2]], axis=-1
-    )
+    g = np.stack([ca * v[..., 0] - sa * v[..., 2], v[..., 1], sa * v[..., 0] + ca * v[..., 2]],
+                 axis=-1)
     return g @ platform.mount_matrix().T
 
 
@@ -306,10 +276,8 @@ def _check_cmd(alpha_cmd, beta_cmd):
     for name, v in (("alpha_cmd", alpha_cmd), ("beta_cmd", beta_cmd)):
         v = np.asarray(v, dtype=float)
         if not np.all(np.isfinite(v)) or np.any(np.abs(v) >= 90.0):
-            raise ConfigurationError(
-                f"{name}: found {v!r}; expected finite angles with |angle| < 90 deg. "
-                "Fix: command platform angles in degrees."
-            )
+            raise ConfigurationError(f"{name}: found {v!r}; expected finite angles with "
+                                     "|angle| < 90 deg. Fix: command platform angles in degrees.")
 
 
 def _pose_error(plat: Platform, key: list[int], pose: int, approach: int = 1,
@@ -320,11 +288,9 @@ def _pose_error(plat: Platform, key: list[int], pose: int, approach: int = 1,
     eb = homing - approach * plat.beta_backlash_deg
     if not (plat.alpha_pose_error_deg or plat.beta_pose_error_deg):
         return 0.0, float(eb)
-    u = np.random.default_rng(np.random.SeedSequence(key + [_TAG_POSE, int(pose)])).uniform(
-        -1.0, 1.0, 3
-    )
-    return (float(u[0]) * plat.alpha_pose_error_deg,
-            float(u[1]) * plat.beta_pose_error_deg + eb)
+    u = np.random.default_rng(np.random.SeedSequence(key + [_TAG_POSE, int(pose)]))
+    u = u.uniform(-1.0, 1.0, 3)
+    return float(u[0]) * plat.alpha_pose_error_deg, float(u[1]) * plat.beta_pose_error_deg + eb
 
 
 def _homing(plat: Platform, seed_key: list[int], run: str) -> float:
@@ -346,9 +312,9 @@ def homing_offset(bench, seed, run: str) -> float:
     """The inner axis's zero offset of one named run (one homing) on a bench, deg.
 
     The run's place in the session (:data:`RUN_ORDER`) times ``beta_drift_deg``, plus its
-    session (:data:`SESSION`) times ``beta_rehoming_deg``, plus a homing
-    offset uniform in +-``bench.platform.beta_homing_deg`` drawn from the seed and the run's
-    name, as :func:`simulate` draws it for a plan of that name (a zero-pose check taken with
+    session (:data:`SESSION`) times ``beta_rehoming_deg``, plus a homing offset uniform in
+    +-``bench.platform.beta_homing_deg`` drawn from the seed and the run's name, as
+    :func:`sunlab.sim.simulate` draws it for a plan of that name (a zero-pose check taken with
     the run, :func:`sunlab.plans.zero_check`, shares it): the bench's own value of what
     :func:`sunlab.studies.platform_fault.fit_correction` estimates from the zero-pose checks.
 
@@ -356,7 +322,7 @@ def homing_offset(bench, seed, run: str) -> float:
     ----------
     bench : Bench
     seed : int or sequence of int
-        Seed of the experiment (as :func:`simulate`).
+        Seed of the experiment (as :func:`sunlab.sim.simulate`).
     run : str
         The run's name: a plan's name (``"I"``, ``"II"``, ``"III"``, ...).
 
@@ -381,9 +347,8 @@ def homing_offset(bench, seed, run: str) -> float:
 def _jitter(plat: Platform, key: list[int], pose: int, shot: int) -> tuple[float, float]:
     if not (plat.alpha_jitter_deg or plat.beta_jitter_deg):
         return 0.0, 0.0
-    j = np.random.default_rng(
-        np.random.SeedSequence(key + [_TAG_SHOT, int(pose), int(shot)])
-    ).standard_normal(2)
+    j = np.random.default_rng(np.random.SeedSequence(key + [_TAG_SHOT, int(pose), int(shot)]))
+    j = j.standard_normal(2)
     return float(j[0]) * plat.alpha_jitter_deg, float(j[1]) * plat.beta_jitter_deg
 
 
@@ -405,7 +370,7 @@ def platform_pose(
     alpha_cmd, beta_cmd : float
         Commanded outer and inner angles, deg, each within +-90 (exclusive).
     seed : int or sequence of int
-        Seed of the experiment (as :func:`simulate`).
+        Seed of the experiment (as :func:`sunlab.sim.simulate`).
     pose, shot : int
         Index of the pose in its plan and of the shot at that pose.
     approach : {1, -1}
@@ -433,9 +398,8 @@ def platform_pose(
     at, bt = plat.systematic(float(alpha_cmd), float(beta_cmd))
     key = _entropy(seed)
     if approach not in (1, -1):
-        raise ConfigurationError(
-            f"approach: found {approach!r}; expected +1 (reached upward) or -1 (downward)."
-        )
+        raise ConfigurationError(f"approach: found {approach!r}; expected +1 (reached upward) "
+                                 "or -1 (downward).")
     home = 0.0 if run is None else _homing(plat, key, run)
     ea, eb = _pose_error(plat, key, pose, approach, home)
     ja, jb = _jitter(plat, key, pose, shot)

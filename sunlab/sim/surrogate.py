@@ -206,11 +206,10 @@ def surrogate_centroids(bench, plan, seed=0, *, noise_px: float = 0.004,
     """
     from scipy import ndimage
 
-    from .cube import plan_key
     from .platform import _entropy, _platform_table
     from .render import mask_play, spot_centres
 
-    key = _entropy(seed) + [plan_key(plan)]
+    key = _entropy(seed) + [plan.crc32()]
     ta, tb = _platform_table(bench, plan, key)
     n_p, n_s, n_h = len(plan), plan.shots, bench.n_holes
     play = np.repeat([mask_play(bench, key, p) for p in range(n_p)], n_s, axis=0)
