@@ -87,13 +87,15 @@ def simulate(plan, bench: Bench | None = None, seed=0, chunks: str = "frame"):
     if not isinstance(plan, Plan):
         raise ConfigurationError(
             f"plan: found {type(plan).__name__}; expected a sunlab.plans.Plan. Fix: use "
-            "sunlab.plans.experiment('III') or sunlab.plans.custom(alpha, beta)."
-        )
+            "sunlab.plans.experiment('III') or sunlab.plans.custom(alpha, beta).")
     bench = Bench.paper_single_hole() if bench is None else bench
     if not isinstance(bench, Bench):
+        raise ConfigurationError(f"bench: found {type(bench).__name__}; expected a "
+                                 "sunlab.sim.Bench.")
+    if chunks not in ("frame", "pose"):
         raise ConfigurationError(
-            f"bench: found {type(bench).__name__}; expected a sunlab.sim.Bench."
-        )
+            f"chunks: found {chunks!r}; expected 'frame' or 'pose'. Fix: chunks='frame' (one "
+            "frame per chunk) or chunks='pose' (all shots of a pose per chunk).")
     key = _entropy(seed) + [plan.crc32()]
     ta, tb = _platform_table(bench, plan, key)
     token = tokenize(bench.to_json(), key, ta, tb)
@@ -104,17 +106,11 @@ def simulate(plan, bench: Bench | None = None, seed=0, chunks: str = "frame"):
         mask_distance_mm=bench.mask_distance_mm, x_cf_px=float(np.mean(xd)),
         y_cf_px=float(np.mean(yd)), bit_depth=bench.detector.bit_depth, mask=bench.mask.name,
         experiment=plan.name, coords=_hole_coords(bench, plan),
-        attrs={
-            "source": "sunlab virtual bench",
-            "sim_seed": _entropy(seed),
-            "sim_key": list(key),
-            "sim_bench": bench.to_json(),
-            # the motion history (sunlab.studies.platform_fault reads it back)
-            "scan_order": plan.scan,
-            "approach": plan.approach,
-            "visit_order": plan.visit_order().astype(np.int32),
-        },
-    )
+        attrs={"source": "sunlab virtual bench", "sim_seed": _entropy(seed), "sim_key": list(key),
+               "sim_bench": bench.to_json(),
+               # the motion history (sunlab.studies.platform_fault reads it back)
+               "scan_order": plan.scan, "approach": plan.approach,
+               "visit_order": plan.visit_order().astype(np.int32)})
     ds = _add_truth(ds, bench, key, ta, tb, token)
     return schema.validate_frames(ds)
 
@@ -150,45 +146,31 @@ def _frames_array(bench: Bench, key, ta, tb, token: str, chunks: str):
     if chunks == "frame":
         index = da.from_array(np.arange(n_p * n_s).reshape(n_p, n_s), chunks=1,
                               name="sunlab-sim-index-" + token)
-        new_axis = [2, 3]
-        shot_chunks = (1,) * n_s
-    elif chunks == "pose":
-        index = da.from_array(np.arange(n_p), chunks=1, name="sunlab-sim-poses-" + token)
-        new_axis = [1, 2, 3]
-        shot_chunks = (n_s,)
+        new_axis, shot_chunks = [2, 3], (1,) * n_s
     else:
-        raise ConfigurationError(
-            f"chunks: found {chunks!r}; expected 'frame' or 'pose'. Fix: chunks='frame' (one "
-            "frame per chunk) or chunks='pose' (all shots of a pose per chunk)."
-        )
+        index = da.from_array(np.arange(n_p), chunks=1, name="sunlab-sim-poses-" + token)
+        new_axis, shot_chunks = [1, 2, 3], (n_s,)
     return da.map_blocks(
         _frames_block, index, bench=bench, key=key, ta=ta, tb=tb, new_axis=new_axis,
         chunks=((1,) * n_p, shot_chunks, (ny,), (nx,)), dtype=np.uint16,
         meta=np.empty((0, 0, 0, 0), dtype=np.uint16),
-        name=f"sunlab-sim-frames-{chunks}-" + token,
-    )
+        name=f"sunlab-sim-frames-{chunks}-" + token)
 
 
 def _hole_coords(bench: Bench, plan) -> dict:
     """The cube's coordinates: each pose's approach direction and, for a multi-hole mask, the
     holes' grid places, design zenith projections and defect flags."""
-    coords = {}
+    coords, holes = {}, bench.mask.holes
     if bench.n_holes > 1:
         xd, yd = bench.hole_design_px()
         coords = {
-            "hole_i": ("hole", np.array([h.i for h in bench.mask.holes], dtype=np.int32)),
-            "hole_j": ("hole", np.array([h.j for h in bench.mask.holes], dtype=np.int32)),
+            "hole_i": ("hole", np.array([h.i for h in holes], dtype=np.int32)),
+            "hole_j": ("hole", np.array([h.j for h in holes], dtype=np.int32)),
             "hole_x_cf": ("hole", xd, {"units": "px", "long_name": "design zenith projection x"}),
             "hole_y_cf": ("hole", yd, {"units": "px", "long_name": "design zenith projection y"}),
-            "hole_defect": (
-                "hole",
-                np.array([h.defect_flags for h in bench.mask.holes], dtype=np.int8),
-                {
-                    "flag_masks": np.array([1, 2, 4, 8], dtype=np.int8),
-                    "flag_meanings": "dust elliptical burred undersized",
-                },
-            ),
-        }
+            "hole_defect": ("hole", np.array([h.defect_flags for h in holes], dtype=np.int8),
+                            {"flag_masks": np.array([1, 2, 4, 8], dtype=np.int8),
+                             "flag_meanings": "dust elliptical burred undersized"})}
     coords["beta_approach"] = ("pose", plan.beta_approach(), {
         "long_name": "direction in which the inner axis reached the pose (+1 up, -1 down)"})
     return coords
@@ -204,20 +186,14 @@ def _add_truth(ds, bench: Bench, key, ta, tb, token: str):
     tdsk = {(tname, 0, p, 0, 0): (_truth_task, bench, ta[p], tb[p], key, p) for p in range(n_p)}
     truth = da.Array(tdsk, tname, chunks=((4,), (1,) * n_p, (n_s,), (n_h,)), dtype=float)
     dims = ("pose", "shot", "hole") if n_h > 1 else ("pose", "shot")
-    if n_h == 1:
-        truth = truth[..., 0]
-    ds["true_alpha"] = (
-        ("pose", "shot"),
-        ta,
-        {"units": "deg", "long_name": "true outer-axis angle"},
-    )
-    ds["true_beta"] = (("pose", "shot"), tb, {"units": "deg", "long_name": "true inner-axis angle"})
-    long = {
-        "true_x": "true centroid column (noiseless expected signal, fill factor included)",
-        "true_y": "true centroid row (noiseless expected signal, fill factor included)",
-        "ray_x": "geometric ray through the hole centre, column",
-        "ray_y": "geometric ray through the hole centre, row",
-    }
-    for i, var in enumerate(("true_x", "true_y", "ray_x", "ray_y")):
-        ds[var] = (dims, truth[i], {"units": "px", "long_name": long[var]})
+    truth = truth if n_h > 1 else truth[..., 0]
+    for var, angle, axis in (("true_alpha", ta, "outer"), ("true_beta", tb, "inner")):
+        ds[var] = (("pose", "shot"), angle,
+                   {"units": "deg", "long_name": f"true {axis}-axis angle"})
+    signal = "(noiseless expected signal, fill factor included)"
+    names = {"true_x": f"true centroid column {signal}", "true_y": f"true centroid row {signal}",
+             "ray_x": "geometric ray through the hole centre, column",
+             "ray_y": "geometric ray through the hole centre, row"}
+    for i, (var, long) in enumerate(names.items()):
+        ds[var] = (dims, truth[i], {"units": "px", "long_name": long})
     return ds

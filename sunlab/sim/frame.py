@@ -97,8 +97,7 @@ def _clip_region(img, x0, y0, det: Detector):
 def _signal_map(stamps, det: Detector):
     """The regions [(signal, xa, ya), ...] of the stamps clipped to the detector, in their order;
     where stamps overlap, each region holds the sum of all stamps over it."""
-    regions = [c for c in (_clip_region(img, x0, y0, det) for img, x0, y0 in stamps)
-               if c is not None]
+    regions = [c for c in (_clip_region(img, x0, y0, det) for img, x0, y0 in stamps) if c]
     if len(regions) < 2:
         return regions
     box = np.array([(xa, ya, xa + p.shape[1], ya + p.shape[0]) for p, xa, ya in regions])
@@ -209,14 +208,7 @@ def render_frame(
     >>> f1.dtype.name, f1.shape, bool((f1 == f2).all())
     ('uint16', (1024, 1280), True)
     """
-    det = bench.detector
-    if out is None:
-        out = np.empty(det.shape, dtype=np.uint16)
-    elif out.shape != det.shape or out.dtype != np.uint16 or not out.flags.c_contiguous:
-        raise ConfigurationError(
-            f"out: found {out.dtype} {out.shape}; expected a C-contiguous uint16 array of shape "
-            f"{det.shape}. Fix: pass numpy.empty({det.shape}, dtype=numpy.uint16) or omit out."
-        )
+    out = _output(out, bench.detector.shape)
     if play_mm is None:
         play_mm = mask_play(bench, seed, pose)
     ref = (alpha_true, beta_true) if shape_angles is None else shape_angles
@@ -260,26 +252,28 @@ def render_pose(bench, alpha_true, beta_true, *, seed, pose: int = 0, out=None) 
     >>> frames.shape, bool((frames[1] == one).all())
     ((2, 1024, 1280), True)
     """
-    det = bench.detector
     a = np.atleast_1d(np.asarray(alpha_true, dtype=float))
     b = np.atleast_1d(np.asarray(beta_true, dtype=float))
     if a.shape != b.shape or a.ndim != 1:
         raise ConfigurationError(
             f"alpha_true, beta_true: found shapes {a.shape} and {b.shape}; expected two 1-D "
-            "arrays of the same length (one angle per shot)."
-        )
-    shape = (a.size,) + det.shape
-    if out is None:
-        out = np.empty(shape, dtype=np.uint16)
-    elif out.shape != shape or out.dtype != np.uint16 or not out.flags.c_contiguous:
-        raise ConfigurationError(
-            f"out: found {out.dtype} {out.shape}; expected a C-contiguous uint16 array of shape "
-            f"{shape}. Fix: pass numpy.empty({shape}, dtype=numpy.uint16) or omit out."
-        )
+            "arrays of the same length (one angle per shot).")
+    out = _output(out, (a.size,) + bench.detector.shape)
     play_mm = mask_play(bench, seed, pose)
     per_shot = _pose_stamps(bench, a, b, play_mm, (a[0], b[0]))
     for k, stamps in enumerate(per_shot):
         _expose(bench, stamps, seed, pose, k, out[k])
+    return out
+
+
+def _output(out, shape):
+    """``out``, checked, or a new uint16 array of ``shape``."""
+    if out is None:
+        return np.empty(shape, dtype=np.uint16)
+    if out.shape != shape or out.dtype != np.uint16 or not out.flags.c_contiguous:
+        raise ConfigurationError(
+            f"out: found {out.dtype} {out.shape}; expected a C-contiguous uint16 array of shape "
+            f"{shape}. Fix: pass numpy.empty({shape}, dtype=numpy.uint16) or omit out.")
     return out
 
 

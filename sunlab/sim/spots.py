@@ -134,8 +134,8 @@ class _Group:
         h = geom.height_mm[self.idx]
         # the spot's centre relative to its ray: the kernel's centroid, which scales with the
         # hole's height, minus the sensitive area's offset
-        self.shift = geom.kernel_mu[None, :] * h[:, None] - np.asarray(
-            det.sensitive_offset_px)[None, :]
+        self.shift = (geom.kernel_mu[None, :] * h[:, None]
+                      - np.asarray(det.sensitive_offset_px)[None, :])
         self.centre = self.ray + self.shift
         hbar = float(np.mean(h))
         cov = geom.kernel_cov * hbar * hbar
@@ -144,24 +144,19 @@ class _Group:
             self.kernel_m = (v * np.sqrt(np.clip(w, 0, None))) @ v.T
         else:
             self.kernel_m = np.zeros((2, 2))
-        self.u = float(geom.limb_darkening)
+        self.u, self.diff = float(geom.limb_darkening), float(det.diffusion_px)
         self.ax, self.ay = det.sensitive_size_px
-        self.diff = float(det.diffusion_px)
-        self.cut = []
-        self.fresnel = None
+        self.cut, self.fresnel, self.poly = [], None, None
         if ap.affine is not None:
             self.affine = geom.proj @ ap.affine
             self.area = math.pi * abs(float(np.linalg.det(self.affine)))
-            self.poly = None
             r_ap = float(np.linalg.norm(self.affine, 2))
             # mask.diffraction, paraxial: the pattern of normal incidence projected like the
             # shadow (at the jinc's frequency); the lid's glass counts t / n of the optical path
             if fresnel:
                 self.fresnel = diffraction.FresnelHole(ap.affine, hbar - det.lid_height_loss_mm)
         else:
-            self.affine = np.zeros((2, 2))
-            self.area = 0.0
-            self.poly = ap.outline @ geom.proj.T
+            self.affine, self.area, self.poly = np.zeros((2, 2)), 0.0, ap.outline @ geom.proj.T
             for poly, hd in ap.occluders:
                 shadow = poly @ geom.proj.T + geom.proj_w * hd
                 cx, cy = _aperture.clip_convex(self.poly[:, 0], self.poly[:, 1], shadow[:, 0],
@@ -169,28 +164,20 @@ class _Group:
                 if cx.size >= 3:
                     self.cut.append(np.stack([cx, cy], axis=-1))
             r_ap = float(np.max(np.hypot(self.poly[:, 0], self.poly[:, 1])))
-        self.radius = (
-            r_ap
-            + 1.05 * float(np.linalg.norm(self.kernel_m, 2))
-            + float(np.max(np.hypot(*(self.centre - self.ray).T)))
-            + 0.5 * math.hypot(self.ax, self.ay)
-            + 4 * self.diff
-        )
+        self.radius = (r_ap + 1.05 * float(np.linalg.norm(self.kernel_m, 2))
+                       + float(np.max(np.hypot(*(self.centre - self.ray).T)))
+                       + 0.5 * math.hypot(self.ax, self.ay) + 4 * self.diff)
 
     def common(self, fx, fy, pixel: bool = True, tabulated: bool = False):
         """Centred spectrum on the grid fy x fx (1-D axes, cycles/px); (nfy, nfx).
 
         ``tabulated``: interpolate the disk transforms in tables (images; error below 2e-10 of
         the peak); the truth uses the direct evaluation."""
-        fx = _axes(fx)
-        fy = _axes(fy)
+        fx, fy = _axes(fx), _axes(fy)
         ax, ay = (self.ax, self.ay) if pixel else (0.0, 0.0)
         args = (fx, fy, self.affine, self.area, self.kernel_m, self.u, ax, ay,
                 self.diff if pixel else 0.0, self.poly is None and self.fresnel is None)
-        if tabulated:
-            out = _aperture.spectrum_tabulated(*args)
-        else:
-            out = _aperture.spectrum_direct(*args)
+        out = (_aperture.spectrum_tabulated if tabulated else _aperture.spectrum_direct)(*args)
         if self.poly is not None:
             ap = _aperture.polygon_ft(self.poly[:, 0].copy(), self.poly[:, 1].copy(), fx, fy)
             for c in self.cut:
@@ -221,28 +208,6 @@ class _Group:
         if self.fresnel is not None:  # the halo: its energy beyond the stamp wraps round it
             need += 2 * float(np.linalg.norm(self.affine, 2)) * (self.fresnel.reach - 1.0)
         return next((n for n in _STAMP_SIZES if n >= need), int(2 ** math.ceil(math.log2(need))))
-
-    def stamps(
-        self,
-        q_e: float,
-        size: int | None = None,
-        oversample: int = 1,
-        pixel: bool = True,
-        n_alias: int = 1,
-        members=None,
-    ):
-        """Expected photo-electrons on a size x size grid around each spot of the group.
-
-        Yields (k, image, x0, y0, step): image[i, j] is at x = x0 + j * step, y = y0 + i * step;
-        k indexes the group's holes.
-        """
-        members = np.arange(len(self.idx)) if members is None else np.asarray(members, dtype=int)
-        if members.size == 0:
-            return
-        spec = self.spectrum(size, oversample, pixel, n_alias)
-        imgs, x0, y0 = spec.images(self.ray[members], self.centre[members], q_e)
-        for n, k in enumerate(members):
-            yield int(k), imgs[n], int(x0[n]), int(y0[n]), spec.step
 
     def spectrum(self, size=None, oversample: int = 1, pixel: bool = True, n_alias: int = 1):
         """The group's centred spectrum on a stamp's frequency grid, folded and phased by
@@ -446,7 +411,6 @@ def spot_image(
     geom = spot_geometry(bench, alpha_true, beta_true, play_mm)
     g = _Group(geom, bench.detector, _aperture_of(bench.mask.holes[hole], [hole]),
                bench.mask.diffraction)
-    _, img, x0, y0, step = next(
-        g.stamps(geom.q_e, size=size, oversample=int(oversample), pixel=pixel)
-    )
-    return img, x0, y0, step
+    spec = g.spectrum(size, int(oversample), pixel)
+    imgs, x0, y0 = spec.images(g.ray, g.centre, geom.q_e)
+    return imgs[0], int(x0[0]), int(y0[0]), spec.step
