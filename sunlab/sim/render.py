@@ -41,7 +41,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import ConfigurationError
-from .detector import Detector
 from .platform import _entropy, sensor_sun_vector
 
 __all__ = ["ray_positions"]
@@ -180,8 +179,7 @@ def spot_geometry(bench, alpha_true, beta_true, play_mm=(0.0, 0.0)) -> SpotGeome
     >>> round(float(g.ray[0, 0] - g0.ray[0, 0]), 2)  # F tan(10 deg) / p, F = 5 mm, p = 7 um
     125.95
     """
-    a = float(alpha_true)
-    b = float(beta_true)
+    a, b = float(alpha_true), float(beta_true)
     if not (abs(a) < 90 and abs(b) < 90):
         raise ConfigurationError(
             f"alpha_true, beta_true: found ({a!r}, {b!r}) deg; expected |angle| < 90 deg (the sun "
@@ -204,9 +202,7 @@ def _spot_geometry_cached(bench, a, b, play_mm) -> SpotGeometry:
 
 
 def _spot_geometry(bench, a, b, play_mm) -> SpotGeometry:
-    det: Detector = bench.detector
-    mask = bench.mask
-    src = bench.source
+    det, mask, src = bench.detector, bench.mask, bench.source
     p = det.pixel_pitch_mm
     s = sensor_sun_vector(bench.platform, a, b)
     rot = mask.rotation_matrix()
@@ -243,19 +239,8 @@ def _spot_geometry(bench, a, b, play_mm) -> SpotGeometry:
         cov = np.zeros((2, 2))
         flux_factor = 1.0
     q_e = src.fluence_photons_per_um2 * (p * 1e3) ** 2 * det.qe * sz * flux_factor if lit else 0.0
-    return SpotGeometry(
-        s=s,
-        lit=lit,
-        ray=ray,
-        height_mm=q[:, 2].copy(),
-        proj=proj,
-        proj_w=proj_w,
-        q_e=float(q_e),
-        kernel_mu=mu,
-        kernel_cov=cov,
-        limb_darkening=src.limb_darkening,
-        second_moment=src.second_moment(),
-    )
+    return SpotGeometry(s, lit, ray, q[:, 2].copy(), proj, proj_w, float(q_e), mu, cov,
+                        src.limb_darkening, src.second_moment())
 
 
 def spot_centres(bench, alpha_true, beta_true, play_mm) -> tuple[np.ndarray, np.ndarray]:
@@ -288,17 +273,14 @@ def spot_centres(bench, alpha_true, beta_true, play_mm) -> tuple[np.ndarray, np.
     >>> bool(np.allclose(x[0], g.ray[:, 0] + g.kernel_mu[0] * g.height_mm, atol=1e-9))
     True
     """
-    a = np.asarray(alpha_true, dtype=float).ravel()
-    b = np.asarray(beta_true, dtype=float).ravel()
+    a, b = np.asarray(alpha_true, dtype=float).ravel(), np.asarray(beta_true, dtype=float).ravel()
     play = np.asarray(play_mm, dtype=float).reshape(-1, 2)
     if not (np.all(np.abs(a) < 90) and np.all(np.abs(b) < 90)):
         raise ConfigurationError(
             "alpha_true, beta_true: found an angle with |angle| >= 90 deg; expected the sun in "
             "front of the mask. Fix: pass platform angles in degrees."
         )
-    det: Detector = bench.detector
-    mask = bench.mask
-    src = bench.source
+    det, mask, src = bench.detector, bench.mask, bench.source
     p = det.pixel_pitch_mm
     s = sensor_sun_vector(bench.platform, a, b)  # (n, 3)
     rot = mask.rotation_matrix()
@@ -341,8 +323,7 @@ def spot_centres(bench, alpha_true, beta_true, play_mm) -> tuple[np.ndarray, np.
 def _hole_centres_mm(bench, play_mm) -> np.ndarray:
     """Centres of the holes in the detector frame, mm (n, 3): the mask's layout placed by its
     offset, rotation, true distance and the pose's play."""
-    det: Detector = bench.detector
-    mask = bench.mask
+    det, mask = bench.detector, bench.mask
     p = det.pixel_pitch_mm
     xr, yr = det.reference_px
     origin = np.array([xr * p + mask.offset_x_mm + play_mm[0],
