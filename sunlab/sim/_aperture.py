@@ -27,7 +27,7 @@ TABLE_STEP = 1.0 / 64.0
 TABLE_KMAX = 256.0
 
 
-def clip_convex(px, py, cx, cy):
+def _clip_convex(px, py, cx, cy):
     """Sutherland-Hodgman: the part of polygon (px, py) inside the convex CCW polygon (cx, cy).
 
     Parameters
@@ -40,13 +40,17 @@ def clip_convex(px, py, cx, cy):
     x, y : ndarray of float64
         The vertices of the intersection (empty when the polygons do not meet).
     """
-    ox, oy = list(px), list(py)
+    ox = list(px)
+    oy = list(py)
     m = cx.shape[0]
     for k in range(m):
-        if not ox:
+        if len(ox) == 0:
             break
         ax, ay, bx, by = cx[k], cy[k], cx[(k + 1) % m], cy[(k + 1) % m]
-        ix, iy, ox, oy = ox, oy, [], []
+        ix = ox
+        iy = oy
+        ox = []
+        oy = []
         for i in range(len(ix)):
             x1, y1, x0, y0 = ix[i], iy[i], ix[i - 1], iy[i - 1]
             s1 = (bx - ax) * (y1 - ay) - (by - ay) * (x1 - ax)
@@ -59,6 +63,10 @@ def clip_convex(px, py, cx, cy):
                 ox.append(x1)
                 oy.append(y1)
     return np.array(ox, dtype=np.float64), np.array(oy, dtype=np.float64)
+
+
+#: compiled (a dusty hole's shadow is clipped every frame); its reference is its own source
+clip_convex = _jit.kernel(_clip_convex)(_clip_convex)
 
 
 def _polygon_ft_numpy(vx, vy, fx, fy):

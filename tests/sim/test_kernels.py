@@ -25,7 +25,7 @@ ROOT = Path(__file__).resolve().parents[2]
 #: every compiled kernel of the simulator, beside the concept it serves
 KERNELS = {"adc_frame": D.adc_frame, "adc_region": D.adc_region, "polygon_ft": A.polygon_ft,
            "_build_table": A._build_table, "_spectrum_tabulated": A._spectrum_tabulated,
-           "fold_phase": spots.fold_phase}
+           "fold_phase": spots.fold_phase, "_clip_convex": A.clip_convex}
 
 _MASK64 = (1 << 64) - 1
 
@@ -187,6 +187,10 @@ def test_clip_convex_cuts_a_polygon_by_a_convex_one():
     assert 0.5 * abs(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y)) == pytest.approx(1.0)
     x, _ = A.clip_convex(*sq, np.array([5.0, 6.0, 6.0]), np.array([5.0, 5.0, 6.0]))
     assert x.size == 0
+    tri = np.array([0.5, 3.0, 0.5]), np.array([0.5, 1.0, 3.0])
+    for a, b in zip(A.clip_convex.compiled(*sq, *tri), A.clip_convex.numpy(*sq, *tri),
+                    strict=True):
+        np.testing.assert_array_equal(a, b)
 
 
 def test_the_polygon_and_fold_references_agree_to_rounding():
