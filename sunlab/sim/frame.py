@@ -166,10 +166,8 @@ def expected_frame(bench, alpha_true, beta_true, *, play_mm=(0.0, 0.0)):
     return mean, var
 
 
-def render_frame(
-    bench, alpha_true, beta_true, *, seed, pose: int = 0, shot: int = 0, play_mm=None, out=None,
-    shape_angles=None,
-) -> np.ndarray:
+def render_frame(bench, alpha_true, beta_true, *, seed, pose: int = 0, shot: int = 0,
+                 play_mm=None, out=None, shape_angles=None) -> np.ndarray:
     """One full detector frame, uint16 (ny, nx), deterministic in (seed, pose, shot).
 
     Parameters

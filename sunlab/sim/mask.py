@@ -120,7 +120,13 @@ class Elliptical:
                "0 < ratio <= 1", "pass minor/major, e.g. 0.85.")
 
     def stretch(self) -> np.ndarray:
-        """The 2 x 2 map of a circle onto this ellipse (mask frame): R diag(1, ratio) R^T."""
+        """The map of a circle onto this ellipse (mask frame).
+
+        Returns
+        -------
+        numpy.ndarray, shape (2, 2)
+            R diag(1, ratio) R^T, R the rotation by ``angle_deg``.
+        """
         c, s = math.cos(math.radians(self.angle_deg)), math.sin(math.radians(self.angle_deg))
         rot = np.array([[c, -s], [s, c]])
         return rot @ np.diag([1.0, self.axis_ratio]) @ rot.T

@@ -352,10 +352,8 @@ def _jitter(plat: Platform, key: list[int], pose: int, shot: int) -> tuple[float
     return float(j[0]) * plat.alpha_jitter_deg, float(j[1]) * plat.beta_jitter_deg
 
 
-def platform_pose(
-    bench, alpha_cmd: float, beta_cmd: float, *, seed, pose: int, shot: int,
-    approach: int = 1, run: str | None = None,
-) -> tuple[float, float]:
+def platform_pose(bench, alpha_cmd: float, beta_cmd: float, *, seed, pose: int, shot: int,
+                  approach: int = 1, run: str | None = None) -> tuple[float, float]:
     """True platform angles (deg) for commanded ones, deterministic in (seed, pose, shot).
 
     The per-pose error (uniform, bounded) depends on (seed, pose), the jitter (normal) on

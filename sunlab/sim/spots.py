@@ -365,17 +365,8 @@ def spot_truth(bench, alpha_true, beta_true, *, play_mm=(0.0, 0.0)):
     return _truth(bench, spot_geometry(bench, alpha_true, beta_true, play_mm))
 
 
-def spot_image(
-    bench,
-    alpha_true,
-    beta_true,
-    *,
-    hole: int = 0,
-    oversample: int = 1,
-    pixel: bool = True,
-    size: int | None = None,
-    play_mm=(0.0, 0.0),
-):
+def spot_image(bench, alpha_true, beta_true, *, hole: int = 0, oversample: int = 1,
+               pixel: bool = True, size: int | None = None, play_mm=(0.0, 0.0)):
     """The noiseless expected image of one spot, photo-electrons (before PRNU).
 
     Parameters
