@@ -343,7 +343,7 @@ def spot_truth(bench, alpha_true, beta_true, *, play_mm=(0.0, 0.0)):
     alpha_true, beta_true : float
         True platform angles, deg.
     play_mm : (float, float)
-        The mask's per-pose offset (see :func:`mask_play`), mm.
+        The mask's per-pose offset (see :func:`sunlab.sim.render.mask_play`), mm.
 
     Returns
     -------
