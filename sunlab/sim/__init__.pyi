@@ -8,6 +8,7 @@ from . import cube as cube
 from . import detector as detector
 from . import diffraction as diffraction
 from . import frame as frame
+from . import holes as holes
 from . import mask as mask
 from . import platform as platform
 from . import render as render
@@ -20,8 +21,8 @@ from .cube import simulate as simulate
 from .detector import Detector as Detector
 from .detector import fixed_pattern as fixed_pattern
 from .frame import render_frame as render_frame
-from .mask import Dust as Dust
-from .mask import Hole as Hole
+from .holes import Dust as Dust
+from .holes import Hole as Hole
 from .mask import Mask as Mask
 from .platform import Platform as Platform
 from .platform import platform_pose as platform_pose

@@ -67,7 +67,7 @@ def simulate(plan, bench: Bench | None = None, seed=0, chunks: str = "frame"):
         ``ray_x``, ``ray_y`` (geometric rays through the hole centres, px) on (pose, shot) for one
         hole or (pose, shot, hole), lazy; for multi-hole masks the coordinates ``hole_i``,
         ``hole_j``, ``hole_x_cf``, ``hole_y_cf`` (design zenith projections, px) and
-        ``hole_defect`` (bit flags of :data:`sunlab.sim.mask.DEFECT_FLAGS`) on ``hole``.
+        ``hole_defect`` (bit flags of :data:`sunlab.schema.DEFECT_FLAGS`) on ``hole``.
 
     Examples
     --------

@@ -7,8 +7,9 @@ import pytest
 from numpy.testing import assert_allclose
 
 from sunlab import ConfigurationError
+from sunlab.schema import DEFECT_FLAGS
 from sunlab.sim import Bench, Dust, Hole, Mask, render, spots
-from sunlab.sim.mask import DEFECT_FLAGS, Burred, Elliptical, Undersized
+from sunlab.sim.holes import Burred, Elliptical, Undersized
 
 
 def _area(poly):
