@@ -21,7 +21,7 @@ reproduce: $(STAMP)
 	$(BIN)/sunlab reproduce $(ARGS)
 
 test: $(STAMP)
-	SUNLAB_QUICK=1 $(BIN)/python -m pytest --doctest-modules sunlab tests $(ARGS)
+	SUNLAB_QUICK=1 $(BIN)/python -m pytest --doctest-modules sunlab studies tests $(ARGS)
 
 lint: $(STAMP)
 	$(BIN)/ruff check sunlab tests benchmarks

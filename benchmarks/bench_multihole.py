@@ -70,24 +70,29 @@ def dust_masks(mask, kind: str, n_bad: int, seed: int = 0, height_mm=(0.2, 0.5))
     return mask.with_defects(cal), mask.with_defects(test), holes
 
 
+def centroid_runs(bench, masks, args, seed_step=0):
+    """Experiments I and III on ``bench`` with ``masks`` (one per run), simulated and centroided;
+    returns the two tables and the seconds taken."""
+    from sunlab import centroid, plans, sim
+
+    t0 = time.perf_counter()
+    tabs = [centroid.locate(sim.simulate(plans.experiment(exp, shots=args.shots).subset(
+        args.step), bench.replace(mask=mask), seed=args.seed + k * seed_step), "tight",
+        progress=False) for k, (exp, mask) in enumerate(zip(("I", "III"), masks, strict=True))]
+    return tabs, time.perf_counter() - t0
+
+
 def defect_study(args):
     """The second study: dust that a per-hole calibration cannot absorb (or, control, can)."""
-    from sunlab import centroid, plans, sim
     from sunlab import multihole as mh
+    from sunlab import sim
     from sunlab.stats import error_summary
 
     bench = (sim.Bench.paper_multi_hole(n_bad=0).ideal_platform()
              .replace(mask__play_x_mm=0.0, mask__play_y_mm=0.0))
     m1, m3, injected = dust_masks(bench.mask, args.defects, args.bad, seed=args.seed,
                                    height_mm=args.height)
-    t0 = time.perf_counter()
-    tabs = []
-    for exp, mask in (("I", m1), ("III", m3)):
-        plan = plans.experiment(exp, shots=args.shots).subset(args.step)
-        cube = sim.simulate(plan, bench.replace(mask=mask), seed=args.seed + len(tabs))
-        tabs.append(centroid.locate(cube, "tight", progress=False))
-    t_sim = time.perf_counter() - t0
-    train, test = tabs
+    (train, test), t_sim = centroid_runs(bench, (m1, m3), args, seed_step=1)
     s2 = mh.PerHoleAverage(order=args.order).fit(train)
     bad = mh.reject_bad_holes(mh.defect_metrics(train, strategy=s2), kappa=args.kappa).values
     est = s2.predict_holes(test)
@@ -145,19 +150,13 @@ def main(argv=None):
         defect_study(args)
         return
 
-    from sunlab import centroid, plans, sim
     from sunlab import multihole as mh
+    from sunlab import sim
 
     bench = sim.Bench.paper_multi_hole(n_bad=args.bad)
     if not args.platform:
         bench = bench.ideal_platform().replace(mask__play_x_mm=0.0, mask__play_y_mm=0.0)
-    t0 = time.perf_counter()
-    tabs = []
-    for exp in ("I", "III"):
-        plan = plans.experiment(exp, shots=args.shots).subset(args.step)
-        cube = sim.simulate(plan, bench, seed=args.seed)
-        tabs.append(centroid.locate(cube, "tight", progress=False))
-    t_sim = time.perf_counter() - t0
+    tabs, t_sim = centroid_runs(bench, (bench.mask, bench.mask), args)
     g = mh.gain_study(tabs[0], tabs[1], order=args.order, kappa=args.kappa)
     injected = np.flatnonzero(tabs[0]["hole_defect"].values).tolist()
     print(f"frames: {tabs[0].sizes['pose'] * args.shots} + {tabs[1].sizes['pose'] * args.shots}"

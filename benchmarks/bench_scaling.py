@@ -40,7 +40,7 @@ def _rss_mb() -> float:
 def main(argv=None):
     from sunlab import parallel, sim
     from sunlab.reproduce import experiment_plans, simulate_and_locate
-    from sunlab.reproduce.pipeline import locate_runs, simulate_experiments
+    from sunlab.reproduce.pipeline import locate_runs, simulate_runs
     from sunlab.sim import render
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -95,7 +95,8 @@ def main(argv=None):
                 # server (parallel.worker_pool), whose children they are: their CPU and memory
                 # are read from /proc before the pool closes
                 with parallel.worker_pool(sched, workers) as pool:
-                    cubes = simulate_experiments(step=args.step, progress=False)
+                    cubes = simulate_runs({k: (p, bench) for k, p in
+                                           experiment_plans(step=args.step).items()})
                     got = locate_runs(cubes, progress=False, scheduler=sched, workers=workers,
                                       pool=pool)
                     cpu, rss = _pool_usage()

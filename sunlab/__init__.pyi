@@ -25,7 +25,6 @@ from . import schema as schema
 from . import screening as screening
 from . import sim as sim
 from . import stats as stats
-from . import studies as studies
 from . import widgets as widgets
 from .errors import ConfigurationError as ConfigurationError
 from .errors import SchemaError as SchemaError

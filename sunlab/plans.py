@@ -42,7 +42,7 @@ APPROACHES = ("direct", "unidirectional")
 #: The scan order assumed for the paper's experiments: the paper does not state it; a serpentine
 #: scan is what a stage program does to save travel, and the beta statistics of Table 4 (sigma /
 #: mu of 0.47, below the bound of any symmetric unimodal error) ask for an inner-axis error whose
-#: sign alternates (:mod:`sunlab.studies.platform_fault`). Our inference.
+#: sign alternates (:mod:`sunlab.reproduce.fault`). Our inference.
 PAPER_SCAN = "serpentine"
 
 #: Largest platform angle a plan may command, deg: beyond 90 deg the sun is behind the mask.
@@ -471,7 +471,7 @@ def zero_check(plan: Plan, checks: int = 4, *, shots: int | None = None) -> Plan
     Taken right after the stage is homed, before the run's poses, under the run's name, so that
     on the virtual bench it shares the run's homing offset: the zero-pose centroids of two runs
     measure how far their inner-axis zeros differ
-    (:func:`sunlab.studies.platform_fault.fit_correction`).
+    (:func:`sunlab.reproduce.remedy.fit_correction`).
 
     Parameters
     ----------

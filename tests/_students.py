@@ -45,7 +45,7 @@ def write_submissions(root, names, *, notebooks=NOTEBOOK_DIR) -> dict:
         exercises = course.editions.find_exercises(source, name)
         written = course.editions.find_written(source, name)
         for student in out:
-            nb = course.editions.student_notebook(source, name)
+            nb = course.editions.edition(source, name, student=True)
             for k, ex in enumerate(exercises):
                 cell = nb.cells[ex.solution_cell + 1]  # after the quick cell
                 answer = source.cells[ex.solution_cell].source

@@ -282,7 +282,7 @@ def test_one_sign_convention_everywhere():
 
 @pytest.fixture(scope="module")
 def student_texts():
-    return {name: nbformat.writes(course.editions.student_notebook(nb, name))
+    return {name: nbformat.writes(course.editions.edition(nb, name, student=True))
             for name, nb in BOOKS.items()}
 
 
@@ -324,7 +324,7 @@ def _namespace(source):
 
     from sunlab import calibration, centroid, export, geometry, io, stats
     from sunlab.calibration import Polynomial
-    from sunlab.studies import platform_fault as pf
+    from sunlab.reproduce import fault as pf
 
     ns = {"np": np, "C": centroid, "centroid": centroid, "geometry": geometry, "stats": stats,
           "pf": pf, "Polynomial": Polynomial, "calibration": calibration, "io": io,
@@ -523,7 +523,7 @@ def _mini_course(folder):
 def _submit(folder, student, answers, edit=None):
     """The student edition of the mini course with ``answers`` {number: code}."""
     src = nbformat.read(folder / "course" / "01-mini.ipynb", as_version=4)
-    nb = course.editions.student_notebook(src, "01-mini.ipynb")
+    nb = course.editions.edition(src, "01-mini.ipynb", student=True)
     for ex in course.editions.find_exercises(src):
         if ex.number in answers:
             nb.cells[ex.solution_cell + 1].source = course.editions.replace_solution(
@@ -638,7 +638,7 @@ def _client(nb):
 def test_student_edition_stops_at_the_first_exercise():
     nbclient = pytest.importorskip("nbclient")
     name = "03-geometric-models.ipynb"  # the quickest to reach its first exercise
-    nb = course.editions.student_notebook(BOOKS[name], name)
+    nb = course.editions.edition(BOOKS[name], name, student=True)
     first = EXERCISES[name][0].solution_cell + 1  # after the quick cell
     with pytest.raises(nbclient.exceptions.CellExecutionError) as info:
         _client(nb).execute()
@@ -661,7 +661,7 @@ def _cells_to_run(nb, name):
 @pytest.mark.parametrize("name", WITH_EXERCISES)
 def test_teacher_edition_passes_and_each_check_catches_a_wrong_answer(name):
     nbclient = pytest.importorskip("nbclient")
-    nb = course.editions.teacher_notebook(BOOKS[name], name)
+    nb = course.editions.edition(BOOKS[name], name, student=False)
     exercises = {ex.check_cell + 1: ex for ex in EXERCISES[name]}
     client = _client(nb)
     caught = []
@@ -699,7 +699,7 @@ def test_nbgrader_autograde_scores_the_teacher_edition_like_sunlab(tmp_path):
     name = "03-geometric-models.ipynb"
     root = tmp_path / "nbcourse"
     (root / "source" / "ps1").mkdir(parents=True)
-    nbformat.write(course.editions.teacher_notebook(BOOKS[name], name),
+    nbformat.write(course.editions.edition(BOOKS[name], name, student=False),
                    root / "source" / "ps1" / name)
     (root / "nbgrader_config.py").write_text(
         "c = get_config()\nc.CourseDirectory.course_id = 'sunlab'\n"

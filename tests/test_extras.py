@@ -119,11 +119,11 @@ def test_a_cluster_without_distributed_names_its_extra(hide):
 
 
 def test_a_serial_port_without_pyserial_names_the_hardware_extra(hide):
-    from sunlab.hardware.esp_protocol import open_transport
+    from sunlab.hardware import ESP300
 
     hide("serial")
     with pytest.raises(ImportError, match=re.escape('"sunlab[hardware]"')):
-        open_transport("loop://")
+        ESP300("loop://")
 
 
 def test_table4_without_torch_marks_the_networks_not_run(hide):

@@ -1,6 +1,5 @@
 """A lab's own hardware: a camera class found without editing sunlab (module:Class, the
-``sunlab.cameras`` entry point group), dark frames, and the ESP300 driven through PyMeasure's
-driver behind the Stage protocol, against the fake controller."""
+``sunlab.cameras`` entry point group) and dark frames."""
 
 from __future__ import annotations
 
@@ -11,25 +10,7 @@ import pytest
 
 from sunlab import ConfigurationError, io, schema
 from sunlab.cli import main
-from sunlab.hardware import (
-    CameraError,
-    ControllerError,
-    FakeESP,
-    LimitError,
-    PymeasureStage,
-    SimCamera,
-    Stage,
-    available_cameras,
-    capture_darks,
-    open_camera,
-    open_stage,
-)
-
-# pymeasure's ESP300 warns at construction that it does not know whether the instrument
-# speaks SCPI (it does not); the notice is about pymeasure's class only
-pytestmark = pytest.mark.filterwarnings(
-    "ignore:It is not known whether this device support SCPI commands:FutureWarning"
-)
+from sunlab.hardware import CameraError, SimCamera, available_cameras, capture_darks, open_camera
 
 LAB_CAMERA = '''
 import numpy as np
@@ -123,61 +104,3 @@ def test_sim_camera_roi_can_be_changed():
     assert cam.shape == (64, 128) and cam.grab().shape == (64, 128)
     with pytest.raises(ConfigurationError, match="roi"):
         cam.set_roi((0, 2000, 0, 10))
-
-
-@pytest.fixture
-def fake():
-    controller = FakeESP(velocity_deg_s=50.0)
-    yield controller
-    controller.close()
-
-
-@pytest.fixture(params=["tcp", "pty"])
-def resource(request, fake):
-    if request.param == "tcp":
-        return f"TCPIP::127.0.0.1::{fake.serve_tcp().rsplit(':', 1)[1]}::SOCKET"
-    return f"ASRL{fake.serve_pty()}::INSTR"
-
-
-def test_pymeasure_stage_is_a_stage_that_moves_waits_and_reads_back(fake, resource):
-    stage = PymeasureStage(resource, settle_s=0.0, timeout_ms=2000)
-    try:
-        assert isinstance(stage, Stage)
-        assert stage.move_to(-16.5, 2.0) == (-16.5, 2.0)
-        assert stage.position() == (-16.5, 2.0)
-        assert "1WS0" in fake.received and "2WS0" in fake.received  # waited for the stop
-        desc = stage.describe()
-        assert desc["limits"] == [[-170.0, 170.0], [-170.0, 170.0]]
-        assert desc["version"].startswith("ESP301")
-    finally:
-        stage.close()
-
-
-def test_pymeasure_stage_refuses_a_target_outside_the_travel_before_moving(fake, resource):
-    stage = PymeasureStage(resource, settle_s=0.0, limits=((-20, 5), (-5, 20)), timeout_ms=2000)
-    try:
-        n0 = len(fake.received)
-        with pytest.raises(LimitError, match="alpha = 6.0 deg is outside the travel"):
-            stage.move_to(6.0, 0.0)
-        assert fake.received[n0:] == []  # nothing was sent
-    finally:
-        stage.close()
-
-
-def test_pymeasure_stage_raises_the_controllers_error(fake, resource):
-    stage = PymeasureStage(resource, settle_s=0.0, timeout_ms=2000)
-    try:
-        fake.inject("error", "2PA", code=213)  # axis 2: motor not enabled
-        with pytest.raises(ControllerError, match="axis 2 reported error 213"):
-            stage.move_to(1.0, 1.0)
-    finally:
-        stage.close()
-
-
-def test_open_stage_opens_a_pymeasure_resource(fake):
-    port = fake.serve_tcp().rsplit(":", 1)[1]
-    stage = open_stage(f"pymeasure:TCPIP::127.0.0.1::{port}::SOCKET", settle_s=0.0)
-    try:
-        assert isinstance(stage, PymeasureStage) and stage.move_to(3.0, -1.0) == (3.0, -1.0)
-    finally:
-        stage.close()

@@ -149,10 +149,10 @@ def test_outputs_written(result):
 
 
 def test_json_records_the_identified_bench_and_each_published_cells_interval(result):
-    from sunlab.studies import identification
+    from sunlab.reproduce.pipeline import identified
 
     doc = json.loads(Path(next(p for p in result.files if p.endswith(".json"))).read_text())
-    assert doc["settings"]["hypothesis"] == identification.identified_hypothesis()
+    assert doc["settings"]["hypothesis"] == identified("table4")["hypothesis"]
     det = doc["settings"]["bench"]["detector"]
     assert det["read_noise_e"] == 20.0 and det["fill_factor"] == 0.6  # the datasheet's
     # every published cell, keyed as the `ours` rows it bounds (this run leaves the networks
@@ -163,7 +163,7 @@ def test_json_records_the_identified_bench_and_each_published_cells_interval(res
     for cells in doc["interval90"].values():
         assert set(cells) == {f"{a}.{s}" for a, s in paper.index}
         assert all(0 < lo < hi for lo, hi in cells.values())
-    assert doc["interval90"] == identification.interval90("table4")
+    assert doc["interval90"] == identified("table4")["interval90"]
 
 
 def test_format_prints_ours_beside_the_paper(result):
@@ -193,7 +193,7 @@ def test_quick_has_one_meaning_for_every_table():
 
 def test_table5_names_its_spot_method_or_raises():
     from sunlab.errors import ConfigurationError
-    from sunlab.reproduce.table5 import spot_method
+    from sunlab.reproduce.pipeline import spot_method
 
     assert [spot_method(m) for m in ("projection", "threshold", "tight", "fit")] == [
         "tight", "tight", "tight", "fit"]

@@ -34,7 +34,6 @@ GROUPS: OrderedDict[str, tuple[str, ...]] = OrderedDict(
         ("Calibration", ("calibration",)),
         ("Statistics and the evaluation report", ("stats", "report")),
         ("Multi-hole mask", ("multihole",)),
-        ("Studies: identification of the bench, platform fault", ("studies",)),
         ("Hardware", ("hardware",)),
         ("Reproduction", ("reproduce",)),
         ("Export", ("export",)),

@@ -12,7 +12,7 @@ Interpolation passes through its nodes exactly, noise included. Which wins depen
 the error varies between nodes. A repeatable, spot-specific error that varies smoothly over a
 grid step (a short mask distance: F = 5 mm moves the spot 12.5 px per degree) is learned by the
 table, which then beats a polynomial. On the paper's bench as identified (F = 17 mm, 42 px per
-degree, :func:`sunlab.studies.surrogate_tables.interpolation_gap`) the same kind of error changes
+degree, ``studies.surrogate_tables.interpolation_gap``) the same kind of error changes
 completely from node to node, so it acts like the platform's per-pose error: noise on the nodes,
 which the table copies and a smoothing polynomial averages. There the polynomial wins on alpha
 (polynomial < linear < cubic interpolation), as in the paper's Table 4; ``sunlab reproduce``

@@ -7,8 +7,8 @@ the polynomial and trigonometric orders and the networks' early stopping are cho
 experiment II, as the paper does (docs/paper.md sec. 5), and the polynomial of the chosen order
 is then fitted on I and II together (:data:`POLYNOMIAL_REFIT`); the interpolation table is
 experiment I's regular grid. ``sunlab reproduce``, the bench identification
-(:mod:`sunlab.studies.identification`) and the platform study
-(:mod:`sunlab.studies.platform_fault`) all calibrate with these recipes.
+(``studies.identification``) and the platform study
+(:mod:`sunlab.reproduce.fault`) all calibrate with these recipes.
 
 Examples
 --------

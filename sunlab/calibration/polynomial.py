@@ -187,7 +187,7 @@ class Polynomial(Calibration):
         """The design matrix of centroids ``x``, ``y`` (px) for one angle's polynomial: the
         monomials of the fitted calibration's scaled coordinates, so that
         ``basis(x, y, angle) @ coefficients[angle]`` is its prediction (a joint fit such as
-        :func:`sunlab.studies.platform_fault.fit_correction` adds its own columns beside them).
+        :func:`sunlab.reproduce.remedy.fit_correction` adds its own columns beside them).
 
         Parameters
         ----------

@@ -42,6 +42,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..geometry import sun_vector
+
 __all__ = ["write_recording"]
 
 #: the seed of the recording the student works on (notebook 08's capstone)
@@ -89,16 +91,13 @@ def _camera(rng):
 
 
 def _centre(alpha, beta, f_mm, x_cf, y_cf, mount):
-    """Spot centre, px: eq. (1) for the sun vector seen through a mounting rotation."""
-    a, b = np.radians(alpha), np.radians(beta)
-    s = np.array([-np.sin(a) * np.cos(b), -np.sin(b), np.cos(a) * np.cos(b)])
-    ta, tb, tg = np.radians(mount)
-    rx = np.array([[1, 0, 0], [0, np.cos(tb), -np.sin(tb)], [0, np.sin(tb), np.cos(tb)]])
-    ry = np.array([[np.cos(ta), 0, np.sin(ta)], [0, 1, 0], [-np.sin(ta), 0, np.cos(ta)]])
-    rz = np.array([[np.cos(tg), -np.sin(tg), 0], [np.sin(tg), np.cos(tg), 0], [0, 0, 1]])
-    s = rz @ ry @ rx @ s
-    k = f_mm / PITCH_MM
-    return x_cf - k * s[0] / s[2], y_cf - k * s[1] / s[2]
+    """Spot centre, px: eq. (1) for the sun vector seen through a mounting rotation (about y
+    by ``mount[0]``, x by ``mount[1]``, z by ``mount[2]``, deg: Rz Ry Rx)."""
+    from scipy.spatial.transform import Rotation
+
+    s = Rotation.from_euler("xyz", [mount[1], mount[0], mount[2]], degrees=True).apply(
+        sun_vector(alpha, beta))
+    return x_cf - f_mm / PITCH_MM * s[0] / s[2], y_cf - f_mm / PITCH_MM * s[1] / s[2]
 
 
 def _disk(xc, yc, radius_px):
@@ -112,12 +111,6 @@ def _expose(light, dark, response, rng):
     full = 2**BITS - 1
     dn = dark + response * light + rng.normal(0.0, 0.002 * full, light.shape)
     return np.clip(np.rint(dn), 0, full).astype(np.uint16)
-
-
-def _save(path, frame):
-    from PIL import Image
-
-    Image.fromarray(frame).save(path)
 
 
 def write_recording(root, seed: int = STUDENT_SEED, *, step: float = 1.5) -> Recording:
@@ -137,6 +130,8 @@ def write_recording(root, seed: int = STUDENT_SEED, *, step: float = 1.5) -> Rec
     -------
     Recording
     """
+    from PIL import Image
+
     rng = np.random.default_rng([int(seed), 8])
     root = Path(root)
     geometry = {"mask_distance_mm": float(rng.uniform(2.5, 3.0)),
@@ -162,7 +157,8 @@ def write_recording(root, seed: int = STUDENT_SEED, *, step: float = 1.5) -> Rec
             centres.append([(xc, yc)] * SHOTS)
             light = peak * _disk(xc, yc, radius_px)
             for s in range(SHOTS):
-                _save(folder / f"p{p:03d}_s{s}.png", _expose(light, dark, response, rng))
+                Image.fromarray(_expose(light, dark, response, rng)).save(
+                    folder / f"p{p:03d}_s{s}.png")
                 rows.append(f"p{p:03d}_s{s}.png,{a:g},{b:g},{s}")
         (folder / "manifest.csv").write_text("\n".join(rows) + "\n", encoding="utf-8")
         sensor = {"pixel_pitch_mm": PITCH_MM, "mask_distance_mm": NOMINAL_F_MM, "bit_depth": BITS,
@@ -174,6 +170,6 @@ def write_recording(root, seed: int = STUDENT_SEED, *, step: float = 1.5) -> Rec
         folder = root / what
         folder.mkdir(parents=True, exist_ok=True)
         for k in range(N_CAL):
-            _save(folder / f"{what}{k}.png",
-                  _expose(np.full((NY, NX), level), dark, response, rng))
+            Image.fromarray(_expose(np.full((NY, NX), level), dark, response, rng)).save(
+                folder / f"{what}{k}.png")
     return Recording(root, truth, poses, geometry)

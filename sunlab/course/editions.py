@@ -14,39 +14,22 @@ An **exercise** is a pair of code cells in a numbered notebook (docs/teacher-not
 A **written answer** is a markdown cell whose first line is ``**Written answer NN.k** (N
 points)``; the rest of the cell is the teacher's model answer.
 
-:func:`write_course` writes two editions of every notebook: the **teacher edition** (solutions
-kept, nbgrader metadata added, so it is also an nbgrader source notebook) and the **student
-edition** (each solution replaced by a stub that raises :class:`NotImplementedError` with the
-hint, each hidden-test block and each model answer left out; no marker left). By default both
-start with a cell that selects the small settings (``SUNLAB_QUICK=1``), so that each notebook
-runs in a few minutes on a laptop. Both editions are written all or nothing.
-:mod:`sunlab.course.grading` grades students' notebooks against the teacher edition.
-
-The notebooks are read with nbformat from the ``notebooks/`` folder of a sunlab checkout (the
-package's parent folder); a sunlab installed from a wheel carries no notebooks, and then the
-folder must be given (``notebooks=``, or ``sunlab course --notebooks DIR``).
-
-Examples
---------
->>> src = "# Exercise 01.1: x\\n# Hint: two.\\n### BEGIN SOLUTION\\nx = 2\\n### END SOLUTION\\n"
->>> print(replace_solution(src, "x = None"))
-# Exercise 01.1: x
-# Hint: two.
-x = None
-<BLANKLINE>
->>> solution_hint(src)
-'two.'
+:func:`write_course` writes the teacher and the student edition of every notebook
+(:func:`edition`), all or nothing; :mod:`sunlab.course.grading` grades students' notebooks
+against the teacher edition. The notebooks are read with nbformat from the ``notebooks/`` folder
+of a sunlab checkout (the package's parent folder); a sunlab installed from a wheel carries no
+notebooks, and then the folder must be given (``notebooks=``, or ``sunlab course --notebooks
+DIR``). The package's docstring shows :func:`replace_solution` and :func:`solution_hint`.
 """
 
 from __future__ import annotations
 
 import contextlib
 import copy
+import importlib
 import os
 import re
 import shutil
-import signal
-import threading
 from pathlib import Path
 from typing import NamedTuple
 
@@ -128,14 +111,14 @@ class Written(NamedTuple):
         return f"ex{self.number.replace('.', '-')}-written"
 
 
-def _nbformat():
+def _jupyter(name: str):
+    """nbformat or nbclient, which read, write and run the course's notebooks."""
     try:
-        import nbformat
-    except ImportError:  # pragma: no cover - nbformat comes with Jupyter
+        return importlib.import_module(name)
+    except ImportError:  # pragma: no cover - they come with Jupyter
         raise ConfigurationError(
-            "nbformat: not installed; the course reads and writes notebooks with it. "
-            "Fix: pip install nbformat (it comes with Jupyter)") from None
-    return nbformat
+            f"{name}: not installed; the course reads, writes and runs notebooks with it. "
+            "Fix: pip install nbformat nbclient ipykernel (they come with Jupyter)") from None
 
 
 def _read(nbf, path: Path):
@@ -349,73 +332,14 @@ def strip_hidden(source: str) -> str:
     return "\n".join(out).rstrip("\n")
 
 
-def _stub(ex: Exercise) -> str:
-    hint = f" Hint: {ex.hint}" if ex.hint else ""
-    msg = f"Exercise {ex.number} ({ex.title}) is yours to answer: replace this line.{hint}"
-    return f"# YOUR CODE HERE\nraise NotImplementedError({msg!r})"
+def edition(nb, name: str = "notebook", *, student: bool, quick: bool = True):
+    """The student or the teacher edition of a notebook (a copy; outputs cleared, nbgrader
+    metadata on every solution, check and written-answer cell).
 
-
-def _edition(nb, name: str, *, student: bool, quick: bool):
-    out = copy.deepcopy(nb)
-    for cell in out.cells:
-        if cell.cell_type == "code":
-            cell.outputs, cell.execution_count = [], None
-    for ex in find_exercises(nb, name):
-        tag = ex.grade_id
-        sol, chk = out.cells[ex.solution_cell], out.cells[ex.check_cell]
-        if student:
-            sol.source = replace_solution(sol.source, _stub(ex), where=f"{name}, cell "
-                                          f"{ex.solution_cell}").rstrip("\n")
-            chk.source = strip_hidden(chk.source)
-        sol.metadata["nbgrader"] = {"grade": False, "solution": True, "locked": False,
-                                    "grade_id": tag, "schema_version": 3}
-        chk.metadata["nbgrader"] = {"grade": True, "solution": False, "locked": True,
-                                    "points": ex.points, "grade_id": f"{tag}-check",
-                                    "schema_version": 3}
-        if student:  # Jupyter keeps a student from editing or deleting a check
-            chk.metadata.update(editable=False, deletable=False)
-            sol.metadata["deletable"] = False
-    for w in find_written(nb, name):
-        cell = out.cells[w.cell]
-        if student:  # the model answer stays with the teacher
-            cell.source = cell.source.split("\n", 1)[0] + "\n\n" + WRITTEN_PROMPT
-            cell.metadata["deletable"] = False
-        cell.metadata["nbgrader"] = {"grade": True, "solution": True, "locked": False,
-                                     "points": w.points, "grade_id": w.grade_id,
-                                     "schema_version": 3}
-    if quick:
-        nbf = _nbformat()
-        first = next((i for i, c in enumerate(out.cells) if c.cell_type == "code"),
-                     len(out.cells))
-        out.cells.insert(first, nbf.v4.new_code_cell(QUICK_CELL))
-    return out
-
-
-def teacher_notebook(nb, name: str = "notebook", *, quick: bool = True):
-    """The teacher edition of a notebook: solutions kept, outputs cleared, nbgrader metadata
-    on every solution, check and written-answer cell.
-
-    Parameters
-    ----------
-    nb : nbformat.NotebookNode
-        A course notebook (left unchanged).
-    name : str
-        Its file name, for the error messages.
-    quick : bool
-        Insert :data:`QUICK_CELL` before the first code cell (``SUNLAB_QUICK=1``).
-
-    Returns
-    -------
-    nbformat.NotebookNode
-        The teacher edition (a copy), also an nbgrader source notebook.
-    """
-    return _edition(nb, name, student=False, quick=quick)
-
-
-def student_notebook(nb, name: str = "notebook", *, quick: bool = True):
-    """The student edition of a notebook: every marked answer replaced by a stub that raises
-    :class:`NotImplementedError` with the exercise's hint, every hidden-test block and model
-    answer left out; no solution marker left.
+    The **teacher edition** keeps the solutions, hidden tests and model answers: it is also an
+    nbgrader source notebook. The **student edition** has every marked answer replaced by a
+    stub that raises :class:`NotImplementedError` with the exercise's hint, every hidden-test
+    block and model answer left out (no solution marker left), and its check cells locked.
 
     Parameters
     ----------
@@ -423,38 +347,48 @@ def student_notebook(nb, name: str = "notebook", *, quick: bool = True):
         A course notebook (left unchanged).
     name : str
         Its file name, for the stubs' and the errors' messages.
+    student : bool
+        Write the student edition (True) or the teacher's (False).
     quick : bool
         Insert :data:`QUICK_CELL` before the first code cell (``SUNLAB_QUICK=1``).
 
     Returns
     -------
     nbformat.NotebookNode
-        The student edition (a copy): outputs cleared, check cells locked, nbgrader metadata.
+        The edition.
     """
-    return _edition(nb, name, student=True, quick=quick)
-
-
-class _Hangup(KeyboardInterrupt):
-    """SIGHUP (the terminal closed) while the editions are written: stop like Ctrl-C."""
-
-
-@contextlib.contextmanager
-def _hangup_interrupts():
-    """While the block runs in the main thread, SIGHUP raises :class:`_Hangup` (its default
-    action would kill the process before the temporary folder is removed)."""
-    if threading.current_thread() is not threading.main_thread() or not hasattr(
-            signal, "SIGHUP"):
-        yield
-        return
-
-    def on_hangup(signum, frame):
-        raise _Hangup
-
-    old = signal.signal(signal.SIGHUP, on_hangup)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGHUP, old)
+    out = copy.deepcopy(nb)
+    for cell in out.cells:
+        if cell.cell_type == "code":
+            cell.outputs, cell.execution_count = [], None
+    meta = {"schema_version": 3}
+    for ex in find_exercises(nb, name):
+        sol, chk = out.cells[ex.solution_cell], out.cells[ex.check_cell]
+        if student:  # Jupyter keeps a student from editing or deleting a check
+            hint = f" Hint: {ex.hint}" if ex.hint else ""
+            msg = f"Exercise {ex.number} ({ex.title}) is yours to answer: replace this line.{hint}"
+            stub = f"# YOUR CODE HERE\nraise NotImplementedError({msg!r})"
+            sol.source = replace_solution(sol.source, stub, where=f"{name}, cell "
+                                          f"{ex.solution_cell}").rstrip("\n")
+            chk.source = strip_hidden(chk.source)
+            chk.metadata.update(editable=False, deletable=False)
+            sol.metadata["deletable"] = False
+        sol.metadata["nbgrader"] = {"grade": False, "solution": True, "locked": False,
+                                    "grade_id": ex.grade_id, **meta}
+        chk.metadata["nbgrader"] = {"grade": True, "solution": False, "locked": True,
+                                    "points": ex.points, "grade_id": f"{ex.grade_id}-check", **meta}
+    for w in find_written(nb, name):
+        cell = out.cells[w.cell]
+        if student:  # the model answer stays with the teacher
+            cell.source = cell.source.split("\n", 1)[0] + "\n\n" + WRITTEN_PROMPT
+            cell.metadata["deletable"] = False
+        cell.metadata["nbgrader"] = {"grade": True, "solution": True, "locked": False,
+                                     "points": w.points, "grade_id": w.grade_id, **meta}
+    if quick:
+        first = next((i for i, c in enumerate(out.cells) if c.cell_type == "code"),
+                     len(out.cells))
+        out.cells.insert(first, _jupyter("nbformat").v4.new_code_cell(QUICK_CELL))
+    return out
 
 
 def _move_editions(staging: Path, out: Path, overwrite: bool) -> None:
@@ -463,24 +397,20 @@ def _move_editions(staging: Path, out: Path, overwrite: bool) -> None:
         os.replace(staging, out)  # one atomic rename
         return
     done: list[tuple[Path, Path | None]] = []  # (target, the old file set aside or None)
-    aside = staging / ".old"
-    aside.mkdir()
+    (staging / ".old").mkdir()
     try:
-        for edition in ("teacher", "student"):
-            (out / edition).mkdir(exist_ok=True)
-            for new in sorted((staging / edition).iterdir()):
-                target = out / edition / new.name
-                old = None
-                if target.exists() or target.is_symlink():
-                    if not overwrite:  # created by someone else since the check
-                        raise atomic.OutputExistsError(
-                            f"{target}: was created while sunlab was writing the course; "
-                            "nothing was changed. Fix: pass --overwrite to replace it, or "
-                            "choose a new folder")
-                    old = aside / f"{edition}-{new.name}"
-                    os.replace(target, old)
-                done.append((target, old))
-                os.replace(new, target)
+        for new in sorted(staging.glob("*/*.ipynb")):
+            target, old = out / new.parent.name / new.name, None
+            target.parent.mkdir(exist_ok=True)
+            if target.exists() or target.is_symlink():
+                if not overwrite:  # created by someone else since the check
+                    raise atomic.OutputExistsError(
+                        f"{target}: was created while sunlab was writing the course; nothing "
+                        "was changed. Fix: pass --overwrite to replace it, or choose a new folder")
+                old = staging / ".old" / f"{new.parent.name}-{new.name}"
+                os.replace(target, old)
+            done.append((target, old))
+            os.replace(new, target)
     except BaseException:
         for target, old in reversed(done):
             with contextlib.suppress(OSError):
@@ -497,9 +427,10 @@ def write_course(out, *, notebooks=None, quick: bool = True, overwrite: bool = F
     Every target is checked before anything is written: without ``overwrite``, a notebook of
     either edition already in ``out`` (a student's work, perhaps) stops the run with nothing
     written. Both editions are written into a temporary sibling of ``out`` and moved into place
-    together (with SIGINT, SIGTERM and SIGHUP held back for the moves); Ctrl-C, SIGTERM or
-    SIGHUP before that removes the temporary folder and leaves ``out`` as it was, and a later
-    run clears what a killed writer left (:func:`sunlab.atomic.remove_stale`).
+    together (with SIGINT, SIGTERM and SIGHUP held back for the moves); an interrupt before
+    that (Ctrl-C; SIGTERM or SIGHUP under ``sunlab course``, whose signal handling raises them)
+    removes the temporary folder and leaves ``out`` as it was, and a later run clears what a
+    killed writer left (:func:`sunlab.atomic.remove_stale`).
 
     Parameters
     ----------
@@ -526,7 +457,7 @@ def write_course(out, *, notebooks=None, quick: bool = True, overwrite: bool = F
     sunlab.atomic.OutputExistsError
         A notebook of an edition exists and ``overwrite`` is False (nothing written).
     """
-    nbf = _nbformat()
+    nbf = _jupyter("nbformat")
     src = Path(notebooks) if notebooks is not None else default_notebook_dir()
     paths = sorted(src.glob("[0-9][0-9]-*.ipynb"))
     if not paths:
@@ -551,20 +482,15 @@ def write_course(out, *, notebooks=None, quick: bool = True, overwrite: bool = F
     exercises = [ex for name, nb in books.items() for ex in find_exercises(nb, name)]
     written_answers = [w for name, nb in books.items() for w in find_written(nb, name)]
     staging = atomic.temporary_name(out)
-    written = {"student": [], "teacher": [], "exercises": exercises,
-               "written": written_answers}
-    with _hangup_interrupts():
-        try:
-            for edition, make in (("teacher", teacher_notebook), ("student", student_notebook)):
-                folder = staging / edition
-                folder.mkdir(parents=True)
-                for name, nb in books.items():
-                    (folder / name).write_text(nbf.writes(make(nb, name, quick=quick)) + "\n",
-                                               encoding="utf-8")
-                    written[edition].append(out / edition / name)
-            with atomic.signals_held():
-                _move_editions(staging, out, overwrite)
-        finally:
-            if staging.exists():
-                shutil.rmtree(staging, ignore_errors=True)
-    return written
+    try:
+        for kind in ("teacher", "student"):
+            (staging / kind).mkdir(parents=True)
+            for name, nb in books.items():
+                (staging / kind / name).write_text(nbf.writes(edition(
+                    nb, name, student=kind == "student", quick=quick)) + "\n", encoding="utf-8")
+        with atomic.signals_held():
+            _move_editions(staging, out, overwrite)
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
+    return {kind: [out / kind / name for name in books] for kind in ("student", "teacher")} | {
+        "exercises": exercises, "written": written_answers}

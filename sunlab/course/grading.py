@@ -23,10 +23,7 @@ both at once (:func:`sunlab.atomic.atomic_files`).
 
 from __future__ import annotations
 
-import contextlib
 import copy
-import csv
-import io
 import json
 import os
 import re
@@ -40,13 +37,13 @@ from .editions import (
     _EXERCISE,
     _WRITTEN,
     WRITTEN_PROMPT,
-    _nbformat,
+    _jupyter,
     _read,
     default_notebook_dir,
+    edition,
     find_exercises,
     find_written,
     strip_hidden,
-    teacher_notebook,
 )
 
 __all__ = ["grade", "write_gradebook"]
@@ -54,16 +51,6 @@ __all__ = ["grade", "write_gradebook"]
 #: the columns of gradebook.csv
 COLUMNS = ("student", "notebook", "exercise", "points", "max_points", "message")
 GRADEBOOK_FILES = ("gradebook.csv", "gradebook.json")
-
-
-def _nbclient():
-    try:
-        import nbclient
-    except ImportError:  # pragma: no cover - nbclient comes with Jupyter
-        raise ConfigurationError(
-            "nbclient: not installed; grading executes the notebook with it. "
-            "Fix: pip install nbclient ipykernel (they come with Jupyter)") from None
-    return nbclient
 
 
 def _grade_id(cell) -> str:
@@ -147,28 +134,10 @@ def _result(answer_err, check_err):
     return "error", f"{check_err['ename']}: {_one_line(check_err['evalue'])}"
 
 
-@contextlib.contextmanager
-def _environment(**values):
-    old = {k: os.environ.get(k) for k in values}
-    os.environ.update({k: str(v) for k, v in values.items()})
-    try:
-        yield
-    finally:
-        for k, v in old.items():
-            if v is None:
-                os.environ.pop(k, None)
-            else:
-                os.environ[k] = v
-
-
-def _rows_for_unreadable(path, student, message, exercises, written):
-    rows = [{"student": student, "notebook": path.name, "exercise": ex.number, "points": 0,
-             "max_points": ex.points, "result": "unreadable", "message": message}
-            for ex in exercises]
-    rows += [{"student": student, "notebook": path.name, "exercise": f"{w.number} (written)",
-              "points": None, "max_points": w.points, "result": "unreadable",
-              "message": message} for w in written]
-    return rows
+def _rows_for_unreadable(head, message, exercises, written):
+    return [{**head, "exercise": e.number + (" (written)" if e in written else ""),
+             "points": None if e in written else 0, "max_points": e.points,
+             "result": "unreadable", "message": message} for e in [*exercises, *written]]
 
 
 def grade_notebook(path, *, notebooks=None, seed: int | None = None, quick: bool = True,
@@ -197,7 +166,7 @@ def grade_notebook(path, *, notebooks=None, seed: int | None = None, quick: bool
         ``result`` (``pass``, ``wrong``, ``not answered``, ``syntax error``, ``error``,
         ``tampered``, ``written``, ``unreadable``) and ``message``.
     """
-    nbf = _nbformat()
+    nbf = _jupyter("nbformat")
     path = Path(path)
     src = Path(notebooks) if notebooks is not None else default_notebook_dir()
     source_path = _source_for(path, src)
@@ -208,22 +177,19 @@ def grade_notebook(path, *, notebooks=None, seed: int | None = None, quick: bool
         raise ConfigurationError(
             f"{path}: the course notebook {source_path.name} has no exercise to grade. Fix: "
             "give the notebooks that carry exercises")
-    student = path.resolve().parent.name
+    head = {"student": path.resolve().parent.name, "notebook": path.name}
     try:
         submitted = _read(nbf, path)
     except (ConfigurationError, OSError) as err:
-        return _rows_for_unreadable(path, student, _one_line(err), exercises, written)
+        return _rows_for_unreadable(head, _one_line(err), exercises, written)
     answers, checks, texts = _submitted(submitted)
     graded, tampered = _graded(source, source_path.name, exercises, answers, checks, quick)
-    nbclient = _nbclient()
-    client = nbclient.NotebookClient(graded, timeout=timeout, kernel_name="python3",
-                                     allow_errors=True,
-                                     resources={"metadata": {"path": str(path.parent)}})
     seed_value = hidden.DEFAULT_SEED if seed is None else int(seed)
-    with _environment(**{hidden.SEED_VARIABLE: seed_value}):
-        client.execute()
+    _jupyter("nbclient").NotebookClient(
+        graded, timeout=timeout, kernel_name="python3", allow_errors=True,
+        resources={"metadata": {"path": str(path.parent)}}).execute(
+        env={**os.environ, hidden.SEED_VARIABLE: str(seed_value)})  # the kernel's environment
     shift = 1 if quick else 0
-    head = {"student": student, "notebook": path.name}
     rows = []
     for ex in exercises:
         result, message = _result(_error_of(graded.cells[ex.solution_cell + shift]),
@@ -244,7 +210,7 @@ def grade_notebook(path, *, notebooks=None, seed: int | None = None, quick: bool
 def _graded(source, name, exercises, answers, checks, quick):
     """The teacher edition with the student's answers in it, and the exercises whose check
     cell was altered or deleted (number -> what happened)."""
-    teacher = teacher_notebook(source, name, quick=quick)
+    teacher = edition(source, name, student=False, quick=quick)
     shift = 1 if quick else 0
     graded = copy.deepcopy(teacher)
     tampered = {}
@@ -296,11 +262,8 @@ def grade(paths, *, notebooks=None, seed: int | None = None, quick: bool = True,
     list of dict
         The rows of ``grade_notebook`` of every notebook, in the order of ``paths``.
     """
-    rows = []
-    for path in paths:
-        rows += grade_notebook(path, notebooks=notebooks, seed=seed, quick=quick,
-                               timeout=timeout)
-    return rows
+    return [r for path in paths for r in grade_notebook(path, notebooks=notebooks, seed=seed,
+                                                         quick=quick, timeout=timeout)]
 
 
 def totals(rows) -> dict:
@@ -319,13 +282,11 @@ def totals(rows) -> dict:
     """
     out: dict = {}
     for r in rows:
-        t = out.setdefault(r["student"], {"points": 0, "max_points": 0,
-                                          "written_max_points": 0})
-        if r["points"] is None:
-            t["written_max_points"] += r["max_points"]
-        else:
-            t["points"] += r["points"]
-            t["max_points"] += r["max_points"]
+        t = out.setdefault(r["student"], dict.fromkeys(("points", "max_points",
+                                                         "written_max_points"), 0))
+        hand = r["points"] is None
+        t["written_max_points" if hand else "max_points"] += r["max_points"]
+        t["points"] += r["points"] or 0
     return out
 
 
@@ -342,12 +303,10 @@ def csv_text(rows) -> str:
     str
         The CSV text: a header line, then one line per row, ``\\n`` line ends.
     """
-    buf = io.StringIO()
-    w = csv.DictWriter(buf, fieldnames=COLUMNS, extrasaction="ignore", lineterminator="\n")
-    w.writeheader()
-    for r in rows:
-        w.writerow({**r, "points": "" if r["points"] is None else r["points"]})
-    return buf.getvalue()
+    import pandas as pd
+
+    return pd.DataFrame(list(rows), columns=list(COLUMNS), dtype=object).to_csv(
+        index=False, lineterminator="\n")
 
 
 def write_gradebook(rows, folder, *, seed: int, overwrite: bool = False) -> list[Path]:

@@ -21,11 +21,12 @@ the answer.
 
 from __future__ import annotations
 
-import contextlib
 import os
+import re
 import sys
 import tempfile
 from pathlib import Path
+from unittest import mock
 
 import numpy as np
 
@@ -35,7 +36,7 @@ __all__ = ["check"]
 SEED_VARIABLE = "SUNLAB_COURSE_SEED"
 #: the seed when none is given (a teacher running the teacher edition by hand)
 DEFAULT_SEED = 38
-#: exercise number -> hidden check ``f(namespace, rng)``
+#: exercise number -> hidden check ``f(namespace, rng)``: the functions ``_exNN_k_...`` below
 CHECKS: dict = {}
 
 
@@ -78,29 +79,13 @@ def check(number: str, namespace: dict, seed_value: int | None = None) -> None:
     print(f"Hidden check {number} passed (fresh inputs, seed {s}).")
 
 
-def _register(number):
-    def wrap(fn):
-        CHECKS[number] = fn
-        return fn
-    return wrap
-
-
-def _answer(ns, name):
-    fn = ns.get(name)
-    assert fn is not None, f"`{name}` is not defined: the exercise asks you to define it"
-    return fn
-
-
-def _code(fn):
-    fn = getattr(fn, "__func__", fn)
-    return getattr(fn, "__code__", None)
-
-
 def _call(ns, name, *args, forbidden=(), **kwargs):
     """``ns[name](*args, **kwargs)``, failing when it calls one of ``forbidden`` (library
     functions) or raises."""
-    fn = _answer(ns, name)
-    codes = {_code(f): f"{f.__module__}.{f.__qualname__}" for f in forbidden if _code(f)}
+    fn = ns.get(name)
+    assert fn is not None, f"`{name}` is not defined: the exercise asks you to define it"
+    codes = {code: f"{f.__module__}.{f.__qualname__}" for f in forbidden
+             if (code := getattr(getattr(f, "__func__", f), "__code__", None))}
     hits: list[str] = []
 
     def profile(frame, event, arg):
@@ -123,22 +108,6 @@ def _call(ns, name, *args, forbidden=(), **kwargs):
     return out
 
 
-@contextlib.contextmanager
-def _rebound(ns, **values):
-    """The notebook's constants rebound for a call (another bench), put back after."""
-    missing = object()
-    old = {k: ns.get(k, missing) for k in values}
-    ns.update(values)
-    try:
-        yield
-    finally:
-        for k, v in old.items():
-            if v is missing:
-                ns.pop(k, None)
-            else:
-                ns[k] = v
-
-
 def _close(mine, ref, tol, what):
     mine = np.asarray(mine, dtype=float)
     ref = np.asarray(ref, dtype=float)
@@ -150,8 +119,7 @@ def _close(mine, ref, tol, what):
 
 # --------------------------------------------------------------------------- notebook 01
 
-@_register("01.1")
-def _flux(ns, rng):
+def _ex01_1_flux(ns, rng):
     from sunlab import geometry
 
     a, b = rng.uniform(-30, 30, 6), rng.uniform(-30, 30, 6)
@@ -163,8 +131,7 @@ def _flux(ns, rng):
            f"{b[0]:.2f}) deg")
 
 
-@_register("01.2")
-def _motion(ns, rng):
+def _ex01_2_motion(ns, rng):
     from sunlab import geometry
 
     f_mm, p_mm = rng.uniform(3, 20), rng.uniform(0.004, 0.012)
@@ -172,7 +139,7 @@ def _motion(ns, rng):
     h = 1e-4  # deg: the numerical derivative's error is ~h^2, far below the tolerance
     ref = (geometry.ideal_centroid(a + h, 0 * a, f_mm, p_mm, 0, 0)[0]
            - geometry.ideal_centroid(a - h, 0 * a, f_mm, p_mm, 0, 0)[0]) / (2 * h)
-    with _rebound(ns, F=f_mm, p=p_mm):
+    with mock.patch.dict(ns, F=f_mm, p=p_mm):
         mine = [float(_call(ns, "px_per_degree", x)) for x in a]
     _close(np.array(mine) / ref, np.ones_like(ref), 1e-6,
            f"another bench (F = {f_mm:.2f} mm, p = {p_mm * 1e3:.1f} um), px per degree over "
@@ -191,8 +158,7 @@ def _spot_frame(rng):
     return level + spot + rng.normal(0, 2.0, (ny, nx))
 
 
-@_register("02.1")
-def _window(ns, rng):
+def _ex02_1_window(ns, rng):
     from sunlab import centroid as C
 
     for _ in range(3):
@@ -207,8 +173,7 @@ def _window(ns, rng):
             "is wrong")
 
 
-@_register("02.2")
-def _centre_of_mass(ns, rng):
+def _ex02_2_centre_of_mass(ns, rng):
     from sunlab import centroid as C
 
     for _ in range(3):
@@ -227,8 +192,7 @@ def _centre_of_mass(ns, rng):
                f"a {ny} x {nx} spot you have not seen, (x, y) in px")
 
 
-@_register("02.3")
-def _crlb(ns, rng):
+def _ex02_3_crlb(ns, rng):
     from sunlab import centroid as C
 
     for _ in range(2):
@@ -250,22 +214,20 @@ def _geometry(rng):
                 X_CF=rng.uniform(200, 1000), Y_CF=rng.uniform(150, 850))
 
 
-@_register("03.1")
-def _inverse(ns, rng):
+def _ex03_1_inverse(ns, rng):
     from sunlab import geometry
 
     g = _geometry(rng)
     a, b = rng.uniform(-25, 25, 50), rng.uniform(-25, 25, 50)
     x, y = geometry.ideal_centroid(a, b, g["F"], g["P"], g["X_CF"], g["Y_CF"])
-    with _rebound(ns, **g):
+    with mock.patch.dict(ns, **g):
         mine = _call(ns, "angles_from_centroid", x, y,
                      forbidden=(geometry.ideal_angles, geometry.sun_angles))
     _close(np.asarray(mine, dtype=float), np.array([a, b]), 1e-9,
            f"another bench (F = {g['F']:.2f} mm), angles back from centroids, deg")
 
 
-@_register("03.2")
-def _delta_f(ns, rng):
+def _ex03_2_delta_f(ns, rng):
     from sunlab import geometry
 
     g = _geometry(rng)
@@ -274,7 +236,7 @@ def _delta_f(ns, rng):
     xg, yg = geometry.optimised_centroid(grid, np.full_like(grid, 5.0), g["F"], g["P"], dF,
                                          0.0, 0.0, g["X_CF"], g["Y_CF"])
     measured = geometry.ideal_angles(xg, yg, g["F"], g["P"], g["X_CF"], g["Y_CF"])[0] - grid
-    with _rebound(ns, **g):
+    with mock.patch.dict(ns, **g):
         mine = _call(ns, "ideal_alpha_error", grid, dF,
                      forbidden=(geometry.ideal_angles, geometry.optimised_centroid))
     # the second order in dF / F (below 1 %) is all that may differ
@@ -300,8 +262,7 @@ def _tables(rng):
     return out
 
 
-@_register("04.1")
-def _orders(ns, rng):
+def _ex04_1_orders(ns, rng):
     from sunlab import calibration
     from sunlab.calibration import Polynomial
 
@@ -318,8 +279,7 @@ def _orders(ns, rng):
             f"{float(mine[1]) / ref[n]:.4f} times the library's")
 
 
-@_register("04.2")
-def _global(ns, rng):
+def _ex04_2_global(ns, rng):
     from sunlab import stats
     from sunlab.calibration import Polynomial
 
@@ -337,8 +297,7 @@ def _global(ns, rng):
 
 # --------------------------------------------------------------------------- notebook 05
 
-@_register("05.1")
-def _areas(ns, rng):
+def _ex05_1_areas(ns, rng):
     import pandas as pd
 
     from sunlab import stats
@@ -359,8 +318,7 @@ def _areas(ns, rng):
 
 # --------------------------------------------------------------------------- notebook 06
 
-@_register("06.1")
-def _gain(ns, rng):
+def _ex06_1_gain(ns, rng):
     from sunlab.multihole import budget
 
     for _ in range(3):
@@ -377,8 +335,7 @@ def _gain(ns, rng):
 
 # --------------------------------------------------------------------------- notebook 07
 
-@_register("07.1")
-def _x_model(ns, rng):
+def _ex07_1_x_model(ns, rng):
     x_cf, f_mm, a0 = rng.uniform(300, 900), rng.uniform(4.2, 5.8), rng.uniform(-2, 2)
     pitch = rng.uniform(0.006, 0.008)
     a = rng.uniform(-20, 20, 80)
@@ -408,8 +365,7 @@ def _recording(rng, folder):
     return write_recording(folder, seed=int(rng.integers(1 << 30)))
 
 
-@_register("08.1")
-def _import(ns, rng):
+def _ex08_1_import(ns, rng):
     with tempfile.TemporaryDirectory(prefix="sunlab-hidden-") as tmp:
         rec = _recording(rng, tmp)
         for name in ("train", "test"):
@@ -433,8 +389,7 @@ def _import(ns, rng):
 CAPSTONE_MU_DEG, CAPSTONE_M_DEG = 0.002, 0.003
 
 
-@_register("08.2")
-def _calibrate(ns, rng):
+def _ex08_2_calibrate(ns, rng):
     from sunlab import centroid, export, io, stats
 
     with tempfile.TemporaryDirectory(prefix="sunlab-hidden-") as tmp:
@@ -465,8 +420,7 @@ def _calibrate(ns, rng):
 
 # --------------------------------------------------------------------------- notebook 09
 
-@_register("09.1")
-def _bound(ns, rng):
+def _ex09_1_bound(ns, rng):
     for c, w in ((rng.uniform(-1, 1), 1.0), (rng.uniform(1.2, 3), 1.0),
                  (rng.uniform(0, 0.05), rng.uniform(0.01, 0.1))):
         e = np.abs(rng.uniform(c - w, c + w, 4 * 10**6))
@@ -477,9 +431,8 @@ def _bound(ns, rng):
             f"c = {c:.3f}, w = {w:.3f}: draws disagree with yours by {mine - sampled:+.4f}")
 
 
-@_register("09.2")
-def _backlash(ns, rng):
-    from sunlab.studies import platform_fault as pf
+def _ex09_2_backlash(ns, rng):
+    from sunlab.reproduce import fault as pf
 
     for truth in (0.0, rng.uniform(0.005, 0.03)):
         n = int(rng.integers(150, 400))
@@ -493,3 +446,7 @@ def _backlash(ns, rng):
         assert abs(mine - truth) < 5 * stderr, (
             f"on a bench you have not seen, your backlash is off by "
             f"{(mine - truth) / stderr:+.1f} standard errors")
+
+
+CHECKS.update({f"{m[1]}.{m[2]}": f for n, f in list(globals().items())
+               if (m := re.match(r"_ex(\d\d)_(\d+)_", n))})

@@ -1,18 +1,15 @@
 """The lab hardware: drive a two-axis rotation platform and a camera, and record resumable runs.
 
 - :class:`ESP300`: a Newport ESP300/ESP301 driver over pyserial (any ``serial_for_url`` URL),
-  with timeouts, bounded retries, error decoding, limit checks and a settle time;
-  :func:`open_stage` opens one from a URL (``fake://``, ``socket://``, a device path). The
-  wire protocol it speaks (commands, replies, error codes,
-  :func:`~sunlab.hardware.esp_protocol.decode_error`, the byte link
-  :func:`~sunlab.hardware.esp_protocol.open_transport`) is :mod:`sunlab.hardware.esp_protocol`.
+  with timeouts, bounded retries, error decoding, limit checks and a settle time, in
+  :mod:`sunlab.hardware.esp` with the wire protocol it speaks; :func:`open_stage` opens one
+  from a URL (``fake://``, ``socket://``, a device path) or a lab's own stage by its entry point.
 - :class:`FakeESP`: the same protocol over a pseudo-terminal or loopback TCP, backed by the
   virtual bench's platform model, with fault injection.
 - :class:`Camera`: the camera protocol (:class:`ControlledCamera` adds exposure, ROI and dark
   frames); :class:`SimCamera` renders from the virtual bench, :class:`FolderCamera` picks up
   the image files a real camera writes; a lab's own class is opened by :func:`open_camera`
   (``module:Class`` or the entry point group ``sunlab.cameras``).
-- :class:`PymeasureStage`: an ESP300 driven through PyMeasure's own driver (VISA).
 - :func:`acquire`: plan -> move -> settle -> N shots -> a pre-allocated Zarr store, one pose at a
   time, resumable after a crash or Ctrl-C.
 

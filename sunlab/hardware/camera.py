@@ -1,16 +1,5 @@
-"""Cameras: the protocol the runner uses, a simulated camera and a folder-watching camera.
-
-A camera is anything with ``grab() -> ndarray`` (one frame, ``shape``, ``dtype``) and
-``bit_depth``. Two optional members are used when present: ``set_index(pose, shot, alpha=,
-beta=)``, called by the runner before each grab with the stage's read-back angles, and ``attrs``,
-the sensor attributes of the frame cube (``pixel_pitch_mm``, ``mask_distance_mm``, ``x_cf_px``,
-``y_cf_px``, ``mask``). A camera that a lab controls from sunlab also offers
-:class:`ControlledCamera`: ``exposure_s`` and ``set_exposure(seconds)``, ``roi`` and
-``set_roi((y0, y1, x0, x1))``, and ``grab_dark()`` (a frame with the light blocked: a shutter
-closed, the lamp off), which :func:`capture_darks` stacks into the dark frames of
-:func:`sunlab.io.with_calibration_frames`. A lab's own camera class is found by
-``sunlab acquire --camera mypkg:MyCamera`` or through the entry point group ``sunlab.cameras``
-(:mod:`sunlab.hardware.cameras`; docs/hardware.md shows how to wrap a camera SDK).
+"""The cameras sunlab ships, each a :class:`~sunlab.hardware.ControlledCamera` (the protocol
+and how a lab's own camera is opened are :mod:`sunlab.hardware.cameras`):
 
 - :class:`SimCamera` renders frames from the virtual bench (:func:`sunlab.sim.render_frame`) at
   the platform's true pose, deterministic in (seed, pose, shot); a region of interest and
@@ -18,15 +7,6 @@ closed, the lamp off), which :func:`capture_darks` stacks into the dark frames o
 - :class:`FolderCamera` serves real cameras whose software writes one image file per frame
   (TIFF or PNG): it waits for a new, complete file and reads it.
 
-Examples
---------
->>> import numpy as np
->>> class Dark:
-...     shape, dtype, bit_depth = (2, 3), np.dtype(np.uint16), 10
-...     def grab(self):
-...         return np.zeros(self.shape, self.dtype)
->>> isinstance(Dark(), Camera)
-True
 """
 
 from __future__ import annotations
@@ -35,114 +15,13 @@ import math
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Protocol, runtime_checkable
 
 import numpy as np
 
 from ..errors import ConfigurationError
 from .errors import CameraError, CameraTimeout
 
-__all__ = ["Camera", "ControlledCamera", "SimCamera", "FolderCamera", "capture_darks"]
-
-
-@runtime_checkable
-class Camera(Protocol):
-    """A frame source: ``grab()`` returns one ``(ny, nx)`` frame of ``dtype`` in DN."""
-
-    shape: tuple[int, int]
-    dtype: np.dtype
-    bit_depth: int
-
-    def grab(self) -> np.ndarray:
-        """Take one frame.
-
-        Returns
-        -------
-        numpy.ndarray
-            One frame, shape ``shape`` (ny, nx), type ``dtype``, in DN (values below
-            ``2**bit_depth``).
-        """
-        ...
-
-
-@runtime_checkable
-class ControlledCamera(Camera, Protocol):
-    """A :class:`Camera` whose exposure, region of interest and dark frames sunlab can set."""
-
-    exposure_s: float | None
-    roi: tuple[int, int, int, int]
-
-    def set_exposure(self, seconds: float) -> None:
-        """Set the exposure (integration) time.
-
-        Parameters
-        ----------
-        seconds : float
-            Exposure time, s.
-        """
-        ...
-
-    def set_roi(self, roi: Sequence[int]) -> None:
-        """Read only rows ``y0:y1`` and columns ``x0:x1`` of the sensor; ``shape`` follows.
-
-        Parameters
-        ----------
-        roi : (y0, y1, x0, x1)
-            Region of interest, half-open pixel ranges of the full sensor (rows, then columns).
-        """
-        ...
-
-    def grab_dark(self) -> np.ndarray:
-        """Take one frame with the light blocked (shutter closed, source off), as ``grab``.
-
-        Returns
-        -------
-        numpy.ndarray
-            One dark frame, shape ``shape`` (ny, nx), type ``dtype``, in DN.
-        """
-        ...
-
-
-def capture_darks(camera, n: int = 16) -> np.ndarray:
-    """``n`` dark frames of a camera, stacked (n, ny, nx): the ``dark`` of
-    :func:`sunlab.io.with_calibration_frames` (whose median is the master dark).
-
-    Parameters
-    ----------
-    camera : object
-        A camera with ``grab_dark()`` (a :class:`ControlledCamera`).
-    n : int
-        Number of dark frames to take.
-
-    Returns
-    -------
-    numpy.ndarray
-        The dark frames, shape (n, ny, nx), the camera's frame type, in DN.
-
-    Raises
-    ------
-    CameraError
-        The camera has no ``grab_dark``.
-
-    Examples
-    --------
-    >>> cam = SimCamera(roi=(100, 132, 900, 964))
-    >>> darks = capture_darks(cam, 3)
-    >>> darks.shape, bool(darks.mean() < 100)
-    ((3, 32, 64), True)
-    """
-    if not callable(getattr(camera, "grab_dark", None)):
-        raise CameraError(
-            f"camera: {type(camera).__name__} cannot take dark frames (no grab_dark). Fix: "
-            "give the camera a grab_dark() (close the shutter or switch the source off, then "
-            "grab), or take the dark frames by hand into a folder for sunlab import --dark"
-        )
-    return np.stack([np.asarray(camera.grab_dark()) for _ in range(int(n))])
-
-
-def _bin(frame: np.ndarray, b: int) -> np.ndarray:
-    ny, nx = frame.shape
-    return frame.reshape(ny // b, b, nx // b, b).sum(axis=(1, 3), dtype=np.uint32)
+__all__ = ["SimCamera", "FolderCamera"]
 
 
 class SimCamera:
@@ -185,39 +64,27 @@ class SimCamera:
     (dtype('uint16'), True)
     """
 
-    def __init__(
-        self,
-        bench=None,
-        *,
-        seed: int = 0,
-        truth: Callable[[int, int], tuple[float, float]] | None = None,
-        roi: Sequence[int] | None = None,
-        binning: int = 1,
-    ):
+    def __init__(self, bench=None, *, seed: int = 0,
+                 truth: Callable[[int, int], tuple[float, float]] | None = None,
+                 roi: Sequence[int] | None = None, binning: int = 1):
         from .. import sim
 
         self.bench = sim.Bench.paper_single_hole() if bench is None else bench
-        self.seed = int(seed)
-        self.truth = truth
-        b = int(binning)
-        if b < 1:
+        self.seed, self.truth, self.binning = int(seed), truth, int(binning)
+        if self.binning < 1:
             raise ConfigurationError(f"binning: found {binning!r}, expected a positive integer")
-        self.binning = b
         self.set_roi(roi)
         base_bits = int(self.bench.detector.bit_depth)
-        bits = base_bits + math.ceil(2 * math.log2(b))
-        if bits > 16:
+        self.bit_depth = base_bits + math.ceil(2 * math.log2(self.binning))
+        if self.bit_depth > 16:
             raise ConfigurationError(
-                f"binning: {b} x {b} sums of {base_bits}-bit pixels need {bits} bits, expected "
-                "<= 16 (uint16). Fix: bin less"
-            )
+                f"binning: {binning} x {binning} sums of {base_bits}-bit pixels need "
+                f"{self.bit_depth} bits, expected <= 16 (uint16). Fix: bin less")
         self.dtype = np.dtype(np.uint16)
-        self.bit_depth = bits
         self.exposure_s = None  # the virtual bench's exposure is its detector model's
-        self.pose, self.shot = 0, 0
-        self.alpha, self.beta = 0.0, 0.0
+        self.pose = self.shot = self._n_dark = 0
+        self.alpha = self.beta = 0.0
         self.last_truth: tuple[float, float] | None = None
-        self._n_dark = 0
 
     def set_roi(self, roi: Sequence[int] | None) -> None:
         """Read rows ``y0:y1`` and columns ``x0:x1`` (half-open) of the detector; ``shape``
@@ -228,27 +95,18 @@ class SimCamera:
         roi : (y0, y1, x0, x1) or None
             Region of interest in unbinned detector pixels, half-open (rows, then columns);
             None reads the whole detector. Both sides must be multiples of ``binning``.
-
-        Raises
-        ------
-        ConfigurationError
-            The ROI lies outside the detector or its sides are not multiples of ``binning``.
         """
         ny, nx = (int(n) for n in self.bench.detector.shape)
         y0, y1, x0, x1 = (0, ny, 0, nx) if roi is None else (int(v) for v in roi)
         if not (0 <= y0 < y1 <= ny and 0 <= x0 < x1 <= nx):
             raise ConfigurationError(
                 f"roi: found {tuple(roi)}, expected (y0, y1, x0, x1) with 0 <= y0 < y1 <= {ny} "
-                f"and 0 <= x0 < x1 <= {nx}"
-            )
+                f"and 0 <= x0 < x1 <= {nx}")
         b = self.binning
         if (y1 - y0) % b or (x1 - x0) % b:
-            raise ConfigurationError(
-                f"binning: found {b!r} for a {y1 - y0} x {x1 - x0} roi, expected a "
-                "positive divisor of both sides"
-            )
-        self.roi = (y0, y1, x0, x1)
-        self.shape = ((y1 - y0) // b, (x1 - x0) // b)
+            raise ConfigurationError(f"binning: found {b!r} for a {y1 - y0} x {x1 - x0} roi, "
+                                     "expected a positive divisor of both sides")
+        self.roi, self.shape = (y0, y1, x0, x1), ((y1 - y0) // b, (x1 - x0) // b)
 
     def set_exposure(self, seconds: float) -> None:
         """Refused: the virtual bench's signal and noise are set by its detector model.
@@ -257,39 +115,10 @@ class SimCamera:
         ----------
         seconds : float
             The exposure asked for, s (named in the error).
-
-        Raises
-        ------
-        ConfigurationError
-            Always: change the bench's :class:`sunlab.sim.Detector` instead.
         """
         raise ConfigurationError(
             f"set_exposure({seconds!r}): the sim camera's exposure is its detector model's. Fix: "
-            "change the bench's detector (sunlab.sim.Detector: qe, gain, dark signal) instead"
-        )
-
-    def grab_dark(self) -> np.ndarray:
-        """A dark frame: the detector with the sun far outside the field (its bias, dark
-        signal, fixed pattern, hot pixels and noise), a new noise draw per call.
-
-        Returns
-        -------
-        numpy.ndarray
-            The frame, shape ``shape`` (ROI and binning applied), uint16, in DN.
-        """
-        from ..sim import render_frame
-
-        self._n_dark += 1
-        full = render_frame(self.bench, 80.0, 80.0, seed=self.seed, pose=10**6,
-                            shot=self._n_dark)
-        return self._crop(full)
-
-    def _crop(self, full) -> np.ndarray:
-        y0, y1, x0, x1 = self.roi
-        frame = np.asarray(full)[y0:y1, x0:x1]
-        if self.binning > 1:
-            frame = _bin(frame, self.binning)
-        return frame.astype(self.dtype, copy=False)
+            "change the bench's detector (sunlab.sim.Detector: qe, gain, dark signal) instead")
 
     def set_index(self, pose: int, shot: int, *, alpha: float | None = None,
                   beta: float | None = None) -> None:
@@ -306,10 +135,8 @@ class SimCamera:
             pose is drawn round them when the camera has no ``truth``.
         """
         self.pose, self.shot = int(pose), int(shot)
-        if alpha is not None:
-            self.alpha = float(alpha)
-        if beta is not None:
-            self.beta = float(beta)
+        self.alpha = self.alpha if alpha is None else float(alpha)
+        self.beta = self.beta if beta is None else float(beta)
 
     def true_pose(self) -> tuple[float, float]:
         """True platform angles of the next frame.
@@ -320,14 +147,25 @@ class SimCamera:
             (alpha, beta) true platform angles, degrees: ``truth(pose, shot)``, or else
             :func:`sunlab.sim.platform_pose` round the read-back angles.
         """
-        if self.truth is not None:
-            a, b = self.truth(self.pose, self.shot)
-        else:
-            from ..sim import platform_pose
+        from ..sim import platform_pose
 
-            a, b = platform_pose(self.bench, self.alpha, self.beta, seed=self.seed,
-                                 pose=self.pose, shot=self.shot)
+        a, b = (self.truth(self.pose, self.shot) if self.truth is not None else
+                platform_pose(self.bench, self.alpha, self.beta, seed=self.seed,
+                              pose=self.pose, shot=self.shot))
         return float(a), float(b)
+
+    def _render(self, alpha: float, beta: float, pose: int, shot: int) -> np.ndarray:
+        """The bench's frame, cropped to the ROI and binned."""
+        from ..sim import render_frame
+
+        y0, y1, x0, x1 = self.roi
+        frame = np.asarray(render_frame(self.bench, alpha, beta, seed=self.seed, pose=pose,
+                                        shot=shot))[y0:y1, x0:x1]
+        b = self.binning
+        if b > 1:
+            frame = frame.reshape(self.shape[0], b, self.shape[1], b).sum(axis=(1, 3),
+                                                                         dtype=np.uint32)
+        return frame.astype(self.dtype, copy=False)
 
     def grab(self) -> np.ndarray:
         """Render the frame of the current (pose, shot) at the true pose.
@@ -338,27 +176,32 @@ class SimCamera:
             The frame, shape ``shape`` (ROI and binning applied), uint16, in DN; the true
             angles it was rendered at are kept in ``last_truth`` (degrees).
         """
-        from ..sim import render_frame
+        self.last_truth = self.true_pose()
+        return self._render(*self.last_truth, self.pose, self.shot)
 
-        a, b = self.true_pose()
-        self.last_truth = (a, b)
-        full = render_frame(self.bench, a, b, seed=self.seed, pose=self.pose, shot=self.shot)
-        return self._crop(full)
+    def grab_dark(self) -> np.ndarray:
+        """A dark frame: the detector with the sun far outside the field (its bias, dark
+        signal, fixed pattern, hot pixels and noise), a new noise draw per call.
+
+        Returns
+        -------
+        numpy.ndarray
+            The frame, shape ``shape`` (ROI and binning applied), uint16, in DN.
+        """
+        self._n_dark += 1
+        return self._render(80.0, 80.0, 10**6, self._n_dark)
 
     @property
     def attrs(self) -> dict:
         """Sensor attributes of the cube in this camera's pixels (ROI and binning applied)."""
-        det = self.bench.detector
-        b = self.binning
-        y0, _, x0, _ = self.roi
+        b, (y0, _, x0, _) = self.binning, self.roi
         x_design, y_design = self.bench.hole_design_px()
-        x_cf, y_cf = float(np.mean(x_design)), float(np.mean(y_design))
         return {
-            "pixel_pitch_mm": float(det.pixel_pitch_mm) * b,
+            "pixel_pitch_mm": float(self.bench.detector.pixel_pitch_mm) * b,
             "mask_distance_mm": float(self.bench.mask_distance_mm),
             # binned pixel j sums pixels b*j .. b*j + b-1, whose centre is b*j + (b-1)/2
-            "x_cf_px": (x_cf - x0 - (b - 1) / 2) / b,
-            "y_cf_px": (y_cf - y0 - (b - 1) / 2) / b,
+            "x_cf_px": (float(np.mean(x_design)) - x0 - (b - 1) / 2) / b,
+            "y_cf_px": (float(np.mean(y_design)) - y0 - (b - 1) / 2) / b,
             "bit_depth": self.bit_depth,
             "mask": str(self.bench.mask.name),
         }
@@ -380,53 +223,32 @@ class _Unreadable(CameraError):
     """The decoder failed: a truncated file still being written, or a corrupt one."""
 
 
-def _read_new_file(path) -> np.ndarray:
+def _read_new_file(path: Path) -> np.ndarray:
     """Decode a TIFF (tifffile) or PNG (Pillow) file a camera just wrote, as a 2-d array.
 
-    Not :func:`sunlab.io.read_image`, which reads finished raw frames (uint8/uint16 only, a
-    :class:`~sunlab.SchemaError` naming the fix): here a decoder failure is
-    :class:`_Unreadable`, which :meth:`FolderCamera.grab` takes for a file still being written
-    and polls again, and any integer type is returned for :meth:`FolderCamera._check` to fit.
-
-    Raises
-    ------
-    CameraError
-        Unknown suffix, or not a single 2-d frame; :class:`_Unreadable` for a truncated or
-        unreadable file.
-
-    Examples
-    --------
-    >>> import tempfile, os, tifffile
-    >>> path = os.path.join(tempfile.mkdtemp(), "f.tif")
-    >>> tifffile.imwrite(path, np.full((2, 3), 7, np.uint16))
-    >>> _read_new_file(path).tolist()
-    [[7, 7, 7], [7, 7, 7]]
+    Not :func:`sunlab.io.read_image`, which reads finished raw frames: here a decoder failure
+    is :class:`_Unreadable`, a file still being written that :meth:`FolderCamera.grab` polls
+    again, and any integer type is returned for :meth:`FolderCamera._check` to fit.
     """
-    path = Path(path)
     suffix = path.suffix.lower()
+    if suffix not in (".tif", ".tiff", ".png"):
+        raise CameraError(f"camera: {path.name}: suffix {suffix!r}, expected .tif, .tiff, .png")
     try:
-        if suffix in (".tif", ".tiff"):
-            import tifffile
-
-            data = tifffile.imread(path)
-        elif suffix == ".png":
+        if suffix == ".png":
             from PIL import Image
 
             with Image.open(path) as img:
-                img.load()
                 data = np.asarray(img)
         else:
-            raise CameraError(f"camera: {path.name}: suffix {suffix!r}, expected .tif, .tiff, .png")
-    except CameraError:
-        raise
+            import tifffile
+
+            data = tifffile.imread(path)
     except Exception as err:  # noqa: BLE001 - any decoder failure is an unreadable file
         raise _Unreadable(f"camera: cannot read {str(path)!r}: {err}") from err
-    data = np.asarray(data)
     if data.ndim != 2:
         raise CameraError(
             f"camera: {path.name} holds an array of shape {data.shape}, expected one grey frame "
-            "(ny, nx). Fix: save single-channel images, one frame per file"
-        )
+            "(ny, nx). Fix: save single-channel images, one frame per file")
     return data
 
 
@@ -455,7 +277,7 @@ class FolderCamera:
     patterns : sequence of str
         Glob patterns of image files.
     timeout_s : float
-        Longest wait for a new complete file, s.
+        Longest wait for a new complete file, s (:class:`CameraTimeout` after it).
     poll_s : float
         Folder polling interval, s.
     stable_s : float
@@ -482,42 +304,23 @@ class FolderCamera:
     np.uint64(6)
     """
 
-    def __init__(
-        self,
-        folder,
-        *,
-        shape: Sequence[int] = (1024, 1280),
-        dtype=np.uint16,
-        bit_depth: int = 10,
-        patterns: Sequence[str] = ("*.tif", "*.tiff", "*.png"),
-        timeout_s: float = 10.0,
-        poll_s: float = 0.02,
-        stable_s: float = 0.05,
-        trigger: Callable[[], object] | None = None,
-        skip: int = 0,
-        dark_trigger: Callable[[], object] | None = None,
-        exposure: Callable[[float], object] | None = None,
-    ):
+    def __init__(self, folder, *, shape: Sequence[int] = (1024, 1280), dtype=np.uint16,
+                 bit_depth: int = 10, patterns: Sequence[str] = ("*.tif", "*.tiff", "*.png"),
+                 timeout_s: float = 10.0, poll_s: float = 0.02, stable_s: float = 0.05,
+                 trigger: Callable[[], object] | None = None, skip: int = 0,
+                 dark_trigger: Callable[[], object] | None = None,
+                 exposure: Callable[[float], object] | None = None):
         self.folder = Path(folder)
         if not self.folder.is_dir():
             raise ConfigurationError(
                 f"camera folder: {str(self.folder)!r} is not a directory. Fix: create it or "
-                "point the camera software and --camera folder:PATH at the same folder"
-            )
-        self.shape = tuple(int(n) for n in shape)
-        self.dtype = np.dtype(dtype)
-        self.bit_depth = int(bit_depth)
-        self.patterns = tuple(patterns)
-        self.timeout_s = float(timeout_s)
-        self.poll_s = float(poll_s)
+                "point the camera software and --camera folder:PATH at the same folder")
+        self.dtype, self.bit_depth, self.patterns = np.dtype(dtype), int(bit_depth), tuple(patterns)
+        self.timeout_s, self.poll_s = float(timeout_s), float(poll_s)
         self.stable_s = float(stable_s)
-        self.trigger = trigger
-        self.skip = int(skip)
-        self.dark_trigger = dark_trigger
-        self.exposure = exposure
-        self.exposure_s: float | None = None
-        self.roi = (0, self.shape[0], 0, self.shape[1])
-        self._seen = set(self._listing())
+        self.trigger, self.skip, self.dark_trigger = trigger, int(skip), dark_trigger
+        self.exposure, self.exposure_s = exposure, None
+        self.set_roi((0, int(shape[0]), 0, int(shape[1])))
         self.last_file: Path | None = None
 
     def set_exposure(self, seconds: float) -> None:
@@ -527,17 +330,11 @@ class FolderCamera:
         ----------
         seconds : float
             Exposure time, s; kept in ``exposure_s``.
-
-        Raises
-        ------
-        CameraError
-            The camera was made without an ``exposure`` callable.
         """
         if self.exposure is None:
-            raise CameraError(
-                "camera: this folder camera has no exposure control. Fix: set the exposure in "
-                "the camera software, or pass FolderCamera(exposure=sdk_call)"
-            )
+            raise CameraError("camera: this folder camera has no exposure control. Fix: set the "
+                              "exposure in the camera software, or pass "
+                              "FolderCamera(exposure=sdk_call)")
         self.exposure(float(seconds))
         self.exposure_s = float(seconds)
 
@@ -555,33 +352,7 @@ class FolderCamera:
         if not (0 <= y0 < y1 and 0 <= x0 < x1):
             raise ConfigurationError(
                 f"roi: found {tuple(roi)}, expected 0 <= y0 < y1, 0 <= x0 < x1")
-        self.roi = (y0, y1, x0, x1)
-        self.shape = (y1 - y0, x1 - x0)
-
-    def grab_dark(self) -> np.ndarray:
-        """A dark frame: ``dark_trigger()`` blocks the light and triggers, then as :meth:`grab`.
-
-        Returns
-        -------
-        numpy.ndarray
-            The frame of the first new complete file, shape ``shape``, type ``dtype``, in DN.
-
-        Raises
-        ------
-        CameraError
-            The camera was made without a ``dark_trigger``.
-        """
-        if self.dark_trigger is None:
-            raise CameraError(
-                "camera: no dark_trigger. Fix: pass FolderCamera(dark_trigger=...) that closes "
-                "the shutter (or switches the source off) and triggers a frame"
-            )
-        return self._next_file(self.dark_trigger)
-
-    def _listing(self) -> list[Path]:
-        files = {p for pattern in self.patterns for p in self.folder.glob(pattern)
-                 if p.is_file() and not p.name.startswith(".")}  # hidden: a write in progress
-        return sorted(files, key=lambda p: (p.stat().st_mtime_ns, p.name))
+        self.roi, self.shape = (y0, y1, x0, x1), (y1 - y0, x1 - x0)
 
     def grab(self) -> np.ndarray:
         """Wait for the next new complete image file and return its frame.
@@ -591,47 +362,57 @@ class FolderCamera:
         numpy.ndarray
             The frame, shape ``shape``, type ``dtype``, in DN; its file is kept in
             ``last_file``.
-
-        Raises
-        ------
-        CameraTimeout
-            No new complete file within ``timeout_s``.
-        CameraError
-            The file holds a frame of another shape or a type that does not fit ``dtype``.
         """
         return self._next_file(self.trigger)
+
+    def grab_dark(self) -> np.ndarray:
+        """A dark frame: ``dark_trigger()`` blocks the light and triggers, then as :meth:`grab`.
+
+        Returns
+        -------
+        numpy.ndarray
+            The frame of the first new complete file, shape ``shape``, type ``dtype``, in DN.
+        """
+        if self.dark_trigger is None:
+            raise CameraError(
+                "camera: no dark_trigger. Fix: pass FolderCamera(dark_trigger=...) that closes "
+                "the shutter (or switches the source off) and triggers a frame")
+        return self._next_file(self.dark_trigger)
+
+    def _listing(self) -> list[Path]:
+        files = {p for pattern in self.patterns for p in self.folder.glob(pattern)
+                 if p.is_file() and not p.name.startswith(".")}  # hidden: a write in progress
+        return sorted(files, key=lambda p: (p.stat().st_mtime_ns, p.name))
 
     def _next_file(self, trigger) -> np.ndarray:
         """Fire ``trigger``, then read the first complete file written after it (``skip``
         dropped)."""
-        self._seen = set(self._listing())  # whatever is there now was written before
+        seen = set(self._listing())  # whatever is there now was written before
         if trigger is not None:
             trigger()
         t_end = time.monotonic() + self.timeout_s
         sizes: dict[Path, tuple[int, float]] = {}
-        last_error: _Unreadable | None = None
-        to_skip = self.skip
+        last_error, to_skip = None, self.skip
         while True:
             now = time.monotonic()
-            for path in [p for p in self._listing() if p not in self._seen][:1]:  # the oldest
+            for path in [p for p in self._listing() if p not in seen][:1]:  # the oldest new one
                 try:
                     size = path.stat().st_size
                 except FileNotFoundError:
                     continue
-                seen = sizes.get(path)
-                if seen is None or seen[0] != size or size == 0:
+                first = sizes.get(path)
+                if first is None or first[0] != size or size == 0:  # new or still growing
                     sizes[path] = (size, now)
                     if self.stable_s > 0 or size == 0:
                         continue
-                elif now - seen[1] < self.stable_s:
+                elif now - first[1] < self.stable_s:
                     continue
                 try:
                     data = _read_new_file(path)
                 except _Unreadable as err:  # still being written: try again at the next poll
-                    last_error = err
-                    sizes[path] = (size, now)
+                    last_error, sizes[path] = err, (size, now)
                     continue
-                self._seen.add(path)
+                seen.add(path)
                 if to_skip:
                     to_skip -= 1
                     continue
@@ -643,26 +424,20 @@ class FolderCamera:
                     f"camera: no new complete image ({', '.join(self.patterns)}) in "
                     f"{str(self.folder)!r} within {self.timeout_s:g} s{detail}. Fix: check that "
                     "the camera software saves into this folder and is triggered, or raise "
-                    "timeout_s"
-                )
+                    "timeout_s")
             time.sleep(self.poll_s)
 
     def _check(self, data: np.ndarray, path: Path) -> np.ndarray:
         if data.shape != self.shape:
-            raise CameraError(
-                f"camera: {path.name} is {data.shape}, expected {self.shape}. Fix: set the "
-                "camera's ROI or FolderCamera(shape=...)"
-            )
-        if data.dtype != self.dtype:
-            if not np.issubdtype(data.dtype, np.integer) or (
-                data.size and (data.min() < 0 or data.max() > np.iinfo(self.dtype).max)
-            ):
-                raise CameraError(
-                    f"camera: {path.name} holds {data.dtype} values that do not fit "
-                    f"{self.dtype}. Fix: save raw integer frames"
-                )
-            data = data.astype(self.dtype)
-        return data
+            raise CameraError(f"camera: {path.name} is {data.shape}, expected {self.shape}. Fix: "
+                              "set the camera's ROI or FolderCamera(shape=...)")
+        info = np.iinfo(self.dtype)
+        if data.dtype != self.dtype and not (
+                np.issubdtype(data.dtype, np.integer)
+                and info.min <= data.min(initial=0) and data.max(initial=0) <= info.max):
+            raise CameraError(f"camera: {path.name} holds {data.dtype} values that do not fit "
+                              f"{self.dtype}. Fix: save raw integer frames")
+        return data.astype(self.dtype, copy=False)
 
     def describe(self) -> dict:
         """What the run metadata records about the camera.

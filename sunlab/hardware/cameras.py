@@ -1,4 +1,14 @@
-"""Which camera ``sunlab acquire --camera SPEC`` opens: built-ins, entry points, or a class.
+"""Cameras: the protocol the runner uses, and which camera ``sunlab acquire --camera SPEC``
+opens (built-ins, entry points, or a class).
+
+A camera is anything with ``grab() -> ndarray`` (one frame, ``shape``, ``dtype``) and
+``bit_depth``. Two optional members are used when present: ``set_index(pose, shot, alpha=,
+beta=)``, called by the runner before each grab with the stage's read-back angles, and ``attrs``,
+the sensor attributes of the frame cube (``pixel_pitch_mm``, ``mask_distance_mm``, ``x_cf_px``,
+``y_cf_px``, ``mask``). A camera that a lab controls from sunlab also offers
+:class:`ControlledCamera`: ``exposure_s`` and ``set_exposure(seconds)``, ``roi`` and
+``set_roi((y0, y1, x0, x1))``, and ``grab_dark()`` (a frame with the light blocked), which
+:func:`capture_darks` stacks into the dark frames of :func:`sunlab.io.with_calibration_frames`.
 
 A lab's own camera is one class with the :class:`~sunlab.hardware.Camera` members (``grab``,
 ``shape``, ``dtype``, ``bit_depth``; optionally exposure, ROI and dark frames,
@@ -18,8 +28,13 @@ virtual bench) and ``folder:PATH`` (:class:`FolderCamera`).
 
 Examples
 --------
->>> cls = camera_class("sunlab.hardware:FolderCamera")
->>> cls.__name__
+>>> class Dark:
+...     shape, dtype, bit_depth = (2, 3), np.dtype(np.uint16), 10
+...     def grab(self):
+...         return np.zeros(self.shape, self.dtype)
+>>> isinstance(Dark(), Camera)
+True
+>>> camera_class("sunlab.hardware:FolderCamera").__name__
 'FolderCamera'
 >>> sorted(available_cameras())[:2]
 ['folder', 'sim']
@@ -29,23 +44,114 @@ from __future__ import annotations
 
 import importlib
 import json
+from collections.abc import Sequence
+from typing import Protocol, runtime_checkable
+
+import numpy as np
 
 from ..errors import ConfigurationError
+from ._plugins import entry_points, load_plugin, open_device, plugin_failed
+from .errors import CameraError
 
-__all__ = ["available_cameras", "camera_class", "open_camera"]
+__all__ = ["Camera", "ControlledCamera", "capture_darks", "available_cameras", "open_camera"]
+
+@runtime_checkable
+class Camera(Protocol):
+    """A frame source: ``grab()`` returns one ``(ny, nx)`` frame of ``dtype`` in DN."""
+
+    shape: tuple[int, int]
+    dtype: np.dtype
+    bit_depth: int
+
+    def grab(self) -> np.ndarray:
+        """Take one frame.
+
+        Returns
+        -------
+        numpy.ndarray
+            One frame, shape ``shape`` (ny, nx), type ``dtype``, in DN (values below
+            ``2**bit_depth``).
+        """
+        ...
+
+
+@runtime_checkable
+class ControlledCamera(Camera, Protocol):
+    """A :class:`Camera` whose exposure, region of interest and dark frames sunlab can set."""
+
+    exposure_s: float | None
+    roi: tuple[int, int, int, int]
+
+    def set_exposure(self, seconds: float) -> None:
+        """Set the exposure (integration) time.
+
+        Parameters
+        ----------
+        seconds : float
+            Exposure time, s.
+        """
+        ...
+
+    def set_roi(self, roi: Sequence[int]) -> None:
+        """Read only rows ``y0:y1`` and columns ``x0:x1`` of the sensor; ``shape`` follows.
+
+        Parameters
+        ----------
+        roi : (y0, y1, x0, x1)
+            Region of interest, half-open pixel ranges of the full sensor (rows, then columns).
+        """
+        ...
+
+    def grab_dark(self) -> np.ndarray:
+        """Take one frame with the light blocked (shutter closed, source off), as ``grab``.
+
+        Returns
+        -------
+        numpy.ndarray
+            One dark frame, shape ``shape`` (ny, nx), type ``dtype``, in DN.
+        """
+        ...
+
+
+def capture_darks(camera, n: int = 16) -> np.ndarray:
+    """``n`` dark frames of a camera, stacked (n, ny, nx): the ``dark`` of
+    :func:`sunlab.io.with_calibration_frames` (whose median is the master dark).
+
+    Parameters
+    ----------
+    camera : object
+        A camera with ``grab_dark()`` (a :class:`ControlledCamera`).
+    n : int
+        Number of dark frames to take.
+
+    Returns
+    -------
+    numpy.ndarray
+        The dark frames, shape (n, ny, nx), the camera's frame type, in DN.
+
+    Examples
+    --------
+    >>> from sunlab.hardware import SimCamera
+    >>> darks = capture_darks(SimCamera(roi=(100, 132, 900, 964)), 3)
+    >>> darks.shape, bool(darks.mean() < 100)
+    ((3, 32, 64), True)
+    """
+    if not callable(getattr(camera, "grab_dark", None)):
+        raise CameraError(
+            f"camera: {type(camera).__name__} cannot take dark frames (no grab_dark). Fix: "
+            "give the camera a grab_dark() (close the shutter or switch the source off, then "
+            "grab), or take the dark frames by hand into a folder for sunlab import --dark")
+    return np.stack([np.asarray(camera.grab_dark()) for _ in range(int(n))])
+
 
 #: The entry point group a lab's package registers its cameras in.
 ENTRY_POINT_GROUP = "sunlab.cameras"
 
-
-def _entry_points() -> dict:
-    from importlib.metadata import entry_points
-
-    return {ep.name: ep for ep in entry_points(group=ENTRY_POINT_GROUP)}
-
-
 #: The cameras sunlab brings (name -> class); ``folder`` is opened as ``folder:PATH``.
 _BUILTIN = {"sim": "sunlab.hardware:SimCamera", "folder": "sunlab.hardware:FolderCamera"}
+
+_FIX = ("check that the camera is connected and powered, its driver installed and its options "
+        "(--camera-option); run with --debug for the plug-in's traceback")
 
 
 def available_cameras() -> dict:
@@ -57,21 +163,8 @@ def available_cameras() -> dict:
         Name -> where it comes from (``module:Class``, or the entry point's value); each
         loads with :func:`camera_class`. A registered name never shadows a built-in.
     """
-    found = dict(_BUILTIN)
-    found.update({name: ep.value for name, ep in _entry_points().items()
-                  if name not in _BUILTIN})
-    return found
-
-
-def _plugin_failed(spec: str, what: str, err: BaseException) -> ConfigurationError:
-    """A lab's camera code that raised: named with its error, never a traceback (a camera
-    that is not plugged in is the commonest fault at a bench)."""
-    text = " ".join(str(err).split()) or type(err).__name__
-    return ConfigurationError(
-        f"--camera {spec}: {what} ({type(err).__name__}: {text}). Fix: check that the camera "
-        "is connected and powered, its driver installed and its options (--camera-option); "
-        "run with --debug for the plug-in's traceback"
-    )
+    found = {name: ep.value for name, ep in entry_points(ENTRY_POINT_GROUP).items()}
+    return {**found, **_BUILTIN}
 
 
 def camera_class(spec: str):
@@ -100,37 +193,30 @@ def camera_class(spec: str):
     >>> camera_class("sim").__name__
     'SimCamera'
     """
-    if spec in _BUILTIN:
-        spec = _BUILTIN[spec]
-    elif ":" not in spec:
-        eps = _entry_points()
+    what = f"--camera {spec}"
+    spec = _BUILTIN.get(spec, spec)
+    if ":" not in spec:
+        eps = entry_points(ENTRY_POINT_GROUP)
         if spec not in eps:
             raise ConfigurationError(
                 f"--camera: found {spec!r}, expected 'sim', 'folder:PATH', 'module:Class' or a "
                 f"registered camera ({sorted(eps) or 'none registered'}). Fix: give the class "
                 f"as mypkg.module:MyCamera, or register it in the entry point group "
-                f"{ENTRY_POINT_GROUP!r} of your package (docs/hardware.md)"
-            )
-        try:
-            return eps[spec].load()
-        except (Exception, SystemExit) as err:  # noqa: BLE001 - a broken plug-in is named
-            raise _plugin_failed(spec, f"the entry point {eps[spec].value!r} does not load",
-                                 err) from err
+                f"{ENTRY_POINT_GROUP!r} of your package (docs/hardware.md)")
+        return load_plugin(eps[spec], what, _FIX)
     module, _, name = spec.partition(":")
     try:
         obj = importlib.import_module(module)
     except ImportError as err:
         raise ConfigurationError(
-            f"--camera {spec}: cannot import {module!r} ({err}). Fix: install the package that "
-            "holds the camera class, or run from its folder"
-        ) from err
+            f"{what}: cannot import {module!r} ({err}). Fix: install the package that holds "
+            "the camera class, or run from its folder") from err
     except (Exception, SystemExit) as err:  # noqa: BLE001 - the module raised on import
-        raise _plugin_failed(spec, f"importing {module!r} failed", err) from err
+        raise plugin_failed(what, f"importing {module!r} failed", err, _FIX) from err
     for part in name.split("."):
         if not hasattr(obj, part):
-            raise ConfigurationError(
-                f"--camera {spec}: {module!r} has no {name!r}. Fix: give module:Class exactly"
-            )
+            raise ConfigurationError(f"{what}: {module!r} has no {name!r}. Fix: give "
+                                     "module:Class exactly")
         obj = getattr(obj, part)
     return obj
 
@@ -148,11 +234,6 @@ def parse_camera_options(pairs) -> dict:
     dict
         Keyword arguments for the camera class, in the order given (a repeated key keeps its
         last value).
-
-    Raises
-    ------
-    ConfigurationError
-        A pair without ``=`` or whose key is not a Python name.
 
     Examples
     --------
@@ -195,27 +276,9 @@ def open_camera(spec: str, **options):
         The spec does not name a camera class, the class refuses the options, or the object
         lacks ``grab``, ``shape``, ``dtype`` or ``bit_depth``.
     """
-    from .camera import Camera
-
     cls = camera_class(spec)
     if not callable(cls):
-        raise ConfigurationError(
-            f"--camera {spec}: found a {type(cls).__name__}, expected a camera class. Fix: give "
-            "module:Class of the class itself")
-    try:
-        camera = cls(**options)
-    except TypeError as err:
-        raise ConfigurationError(
-            f"--camera {spec}: {err}. Fix: pass the camera's arguments as --camera-option "
-            "KEY=VALUE"
-        ) from err
-    except (Exception, SystemExit) as err:  # noqa: BLE001 - the camera refused to open
-        raise _plugin_failed(spec, f"{getattr(cls, '__name__', cls)!s} did not open",
-                             err) from err
-    if not isinstance(camera, Camera):
-        missing = [m for m in ("grab", "shape", "dtype", "bit_depth") if not hasattr(camera, m)]
-        raise ConfigurationError(
-            f"--camera {spec}: {type(camera).__name__} lacks {missing} of the Camera protocol. "
-            "Fix: give the class grab() -> ndarray, shape, dtype and bit_depth (docs/hardware.md)"
-        )
-    return camera
+        raise ConfigurationError(f"--camera {spec}: found a {type(cls).__name__}, expected a "
+                                 "camera class. Fix: give module:Class of the class itself")
+    return open_device(cls, Camera, ("grab", "shape", "dtype", "bit_depth"), f"--camera {spec}",
+                       _FIX, **options)

@@ -1,4 +1,5 @@
-"""Exceptions raised by the bench: stage, camera and acquisition faults.
+"""Exceptions raised by the bench: stage, camera and acquisition faults, and the controller's
+error codes (:func:`decode_error`).
 
 Every fault of the hardware has its own class so that a script can catch exactly what it can
 recover from; every message names the device, the command or field, what was found and the fix.
@@ -9,17 +10,8 @@ from __future__ import annotations
 
 from ..errors import SunlabError
 
-__all__ = [
-    "BenchError",
-    "StageError",
-    "StageTimeout",
-    "ControllerError",
-    "ErrorReplyLost",
-    "LimitError",
-    "ControllerLimitError",
-    "MotionTimeout",
-    "CameraError",
-]
+__all__ = ["BenchError", "StageError", "ControllerError", "ErrorReplyLost", "LimitError",
+           "ControllerLimitError", "MotionTimeout", "CameraError"]
 
 
 class BenchError(SunlabError):
@@ -44,14 +36,11 @@ class StageTimeout(StageError):
     """
 
     def __init__(self, command: str, attempts: int, timeout_s: float):
-        self.command = command
-        self.attempts = attempts
-        self.timeout_s = timeout_s
+        self.command, self.attempts, self.timeout_s = command, attempts, timeout_s
         super().__init__(
             f"stage: no reply to {command!r} after {attempts} attempt(s) of {timeout_s:g} s. "
             "Fix: check the cable, the port and the baud rate (ESP300: 19200 8N1, RTS/CTS), "
-            "that the controller is powered, and raise `timeout` if it goes silent after a limit"
-        )
+            "that the controller is powered, and raise `timeout` if it goes silent after a limit")
 
 
 class StageProtocolError(StageError):
@@ -65,30 +54,110 @@ class StageProtocolError(StageError):
         The last reply received.
     expected : str
         What a valid reply looks like.
+    attempts : int
+        How many times the command was sent.
     """
 
     def __init__(self, command: str, reply: bytes, expected: str, attempts: int = 1):
-        self.command = command
-        self.reply = reply
-        self.expected = expected
-        self.attempts = attempts
+        self.command, self.reply, self.expected, self.attempts = command, reply, expected, attempts
         super().__init__(
-            f"stage: reply {reply!r} to {command!r} is not {expected} "
-            f"(after {attempts} attempt(s)). Fix: check the baud rate and flow control, and "
-            "that no other program is using the port"
-        )
+            f"stage: reply {reply!r} to {command!r} is not {expected} (after {attempts} "
+            "attempt(s)). Fix: check the baud rate and flow control, and that no other program "
+            "is using the port")
 
 
 class StageDisconnected(StageError):
-    """The link to the controller was lost (port closed, cable pulled, server gone)."""
+    """The link to the controller was lost (port closed, cable pulled, server gone).
+
+    Parameters
+    ----------
+    port : str
+        The port or URL of the link.
+    detail : str
+        What happened.
+    """
 
     def __init__(self, port: str, detail: str):
-        self.port = port
-        self.detail = detail
+        self.port, self.detail = port, detail
         super().__init__(
             f"stage: link to {port!r} lost ({detail}). Fix: reconnect the cable or restart the "
-            "controller, then resume the run with `--resume`"
-        )
+            "controller, then resume the run with `--resume`")
+
+
+#: General (controller) error codes, below 100 (ESP300/301 manuals, "Error Messages").
+GENERAL_ERRORS = {
+    0: "no error detected", 1: "PCI communication time-out", 4: "emergency stop activated",
+    6: "command does not exist", 7: "parameter out of range", 8: "cable interlock error",
+    9: "axis number out of range", 13: "group number missing", 14: "group number out of range",
+    15: "group number not assigned", 16: "group number already assigned",
+    17: "group axis out of range", 18: "group axis already assigned",
+    19: "group axis duplicated", 20: "data acquisition is busy",
+    21: "data acquisition setup error", 22: "data acquisition not enabled",
+    23: "servo cycle (400 us) tick failure", 25: "download in progress",
+    26: "stored program not started", 27: "command not allowed",
+    28: "stored program flash area full", 29: "group parameter missing",
+    30: "group parameter out of range", 31: "group maximum velocity exceeded",
+    32: "group maximum acceleration exceeded", 33: "group maximum deceleration exceeded",
+    34: "group move not allowed during motion", 35: "program not found",
+    37: "axis number missing", 38: "command parameter missing", 39: "program label not found",
+    40: "last command cannot be repeated", 41: "maximum number of labels per program exceeded",
+}
+
+#: Axis error codes: the controller reports ``axis * 100 + code``.
+AXIS_ERRORS = {
+    0: "motor type not defined", 1: "parameter out of range", 2: "amplifier fault detected",
+    3: "following error threshold exceeded", 4: "positive hardware limit detected",
+    5: "negative hardware limit detected", 6: "positive software limit detected",
+    7: "negative software limit detected", 8: "motor / stage not connected",
+    9: "feedback signal fault detected", 10: "maximum velocity exceeded",
+    11: "maximum acceleration exceeded", 13: "motor not enabled", 15: "maximum jerk exceeded",
+    16: "maximum DAC offset exceeded", 17: "ESP critical settings are protected",
+    18: "ESP stage device error", 19: "ESP stage data invalid", 20: "homing aborted",
+    21: "motor current not defined", 22: "unidrive communications error",
+    23: "unidrive not detected", 24: "speed out of range", 25: "invalid trajectory master axis",
+    26: "parameter change not allowed", 27: "invalid trajectory mode for homing",
+    28: "invalid encoder step ratio", 29: "digital I/O interlock detected",
+    30: "command not allowed during homing", 31: "command not allowed due to group assignment",
+    32: "invalid trajectory mode for moving",
+}
+
+def decode_error(code: int) -> tuple[int | None, str]:
+    """Axis and meaning of an ESP300/301 error code.
+
+    Parameters
+    ----------
+    code : int
+        Code from ``TE?`` or ``TB?``; axis errors are ``axis * 100 + code``.
+
+    Returns
+    -------
+    axis : int or None
+        The axis (1, 2, 3) of an axis error; None for a general error.
+    message : str
+        The meaning of the code.
+
+    Examples
+    --------
+    >>> decode_error(104), decode_error(6)
+    ((1, 'positive hardware limit detected'), (None, 'command does not exist'))
+    """
+    axis, sub = divmod(int(code), 100)
+    if axis:
+        return axis, AXIS_ERRORS.get(sub, f"unknown axis error {sub}")
+    return None, GENERAL_ERRORS.get(sub, f"unknown error {sub}")
+
+
+#: The fix of a controller error: by axis sub-code (axis errors) or by general code.
+_AXIS_FIXES = {
+    (4, 5): "move the axis back inside its travel, then check the plan's angle range",
+    (6, 7): "keep targets inside the software limits (SL/SR) or widen them on the controller",
+    (2, 3, 9): "check the motor cable and the load, re-enable the motor (MO) and home the axis",
+    (8, 13): "connect the stage and enable the motor (MO)",
+}
+_GENERAL_FIXES = {
+    (6, 7, 9, 37, 38): "the command sent is invalid for this controller; report it as a sunlab bug",
+    (4,): "release the emergency stop and re-enable the motors",
+}
 
 
 class ControllerError(StageError):
@@ -107,16 +176,14 @@ class ControllerError(StageError):
     """
 
     def __init__(self, code: int, message: str, axis: int | None = None, command: str = ""):
-        self.code = int(code)
-        self.message = message
-        self.axis = axis
-        self.command = command
+        self.code, self.message, self.axis, self.command = int(code), message, axis, command
+        sub, fixes = (code % 100, _AXIS_FIXES) if code >= 100 else (code, _GENERAL_FIXES)
+        fix = next((text for codes, text in fixes.items() if sub in codes),
+                   "see the controller manual's error table for this code")
         where = f"axis {axis}" if axis is not None else "controller"
         after = f" after {command!r}" if command else ""
-        super().__init__(
-            f"stage: {where} reported error {self.code} ({message}){after}. "
-            f"Fix: {_fix_for(self.code)}"
-        )
+        super().__init__(f"stage: {where} reported error {self.code} ({message}){after}. "
+                         f"Fix: {fix}")
 
 
 class ErrorReplyLost(StageError):
@@ -144,33 +211,26 @@ class ErrorReplyLost(StageError):
     Examples
     --------
     >>> err = ErrorReplyLost("PA", 1, [], True, "no reply within 1 s")
-    >>> err.lost, err.empty
-    (1, True)
-    >>> "may have been lost" in str(err)
-    True
+    >>> err.lost, err.empty, "may have been lost" in str(err)
+    (1, True, True)
     """
 
     def __init__(self, command: str, lost: int, errors: list[ControllerError], empty: bool,
                  detail: str = ""):
-        self.command = command
-        self.lost = int(lost)
-        self.errors = list(errors)
-        self.empty = bool(empty)
-        self.detail = detail
+        self.command, self.lost, self.errors = command, int(lost), list(errors)
+        self.empty, self.detail = bool(empty), detail
         after = f" after {command!r}" if command else ""
         read = ("; read cleanly: " + "; ".join(f"error {e.code} ({e.message})" for e in errors)
                 if errors else "")
-        state = ("the buffer was then read to empty" if empty else
-                 "the buffer could not be read to empty")
+        state = "was then read" if empty else "could not be read"
         why = f" (last: {detail})" if detail else ""
         replies = "1 reply" if self.lost == 1 else f"{self.lost} replies"
         super().__init__(
             f"stage: {replies} to the error query 'TB?'{after} lost or garbled{why}; each "
             "'TB?' pops one error from the controller's buffer, so a controller error may "
-            f"have been lost{read}; {state}. The command is not known to "
-            "have succeeded. Fix: check the stage position and the controller's front panel "
-            "for an error, then the cable, baud rate and flow control, and resume the run"
-        )
+            f"have been lost{read}; the buffer {state} to empty. The command is not known to have "
+            "succeeded. Fix: check the stage position and the controller's front panel for an "
+            "error, then the cable, baud rate and flow control, and resume the run")
 
 
 class LimitError(StageError):
@@ -202,8 +262,7 @@ class LimitError(StageError):
         err = cls(
             f"stage: {field} = {value!r} deg is outside the travel [{low:g}, {high:g}] deg; "
             "nothing was moved. Fix: drop the pose from the plan, or widen the limits "
-            "(controller SL/SR, or the driver's `limits`) if the mechanics allow it"
-        )
+            "(controller SL/SR, or the driver's `limits`) if the mechanics allow it")
         err.field, err.value, err.low, err.high = field, value, low, high
         return err
 
@@ -213,17 +272,24 @@ class ControllerLimitError(ControllerError, LimitError):
 
 
 class MotionTimeout(StageError):
-    """A move did not finish (``MD?`` stayed 0) within the motion timeout: a stuck axis."""
+    """A move did not finish (``MD?`` stayed 0) within the motion timeout: a stuck axis.
+
+    Parameters
+    ----------
+    axes : list of int
+        The controller axes still moving.
+    target : dict
+        Their targets, degrees, by axis.
+    timeout_s : float
+        The motion timeout, s.
+    """
 
     def __init__(self, axes: list[int], target: dict[int, float], timeout_s: float):
-        self.axes = axes
-        self.target = target
-        self.timeout_s = timeout_s
+        self.axes, self.target, self.timeout_s = axes, target, timeout_s
         super().__init__(
             f"stage: axis {axes} did not reach {target} within {timeout_s:g} s and was stopped. "
             "Fix: check for a mechanical block or a disabled motor, then raise `motion_timeout` "
-            "if the move is just long"
-        )
+            "if the move is just long")
 
 
 class CameraError(BenchError):
@@ -232,20 +298,3 @@ class CameraError(BenchError):
 
 class CameraTimeout(CameraError):
     """No frame arrived within the camera timeout."""
-
-
-def _fix_for(code: int) -> str:
-    sub = code % 100 if code >= 100 else None
-    if sub in (4, 5):
-        return "move the axis back inside its travel, then check the plan's angle range"
-    if sub in (6, 7):
-        return "keep targets inside the software limits (SL/SR) or widen them on the controller"
-    if sub in (2, 3, 9):
-        return "check the motor cable and the load, re-enable the motor (MO) and home the axis"
-    if sub in (8, 13):
-        return "connect the stage and enable the motor (MO)"
-    if code in (6, 7, 9, 37, 38):
-        return "the command sent is invalid for this controller; report it as a sunlab bug"
-    if code == 4:
-        return "release the emergency stop and re-enable the motors"
-    return "see the controller manual's error table for this code"

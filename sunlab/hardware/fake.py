@@ -1,16 +1,11 @@
 """A fake Newport ESP300/ESP301 controller: the same byte protocol, a simulated platform.
 
-:class:`FakeESP` answers the command subset that :class:`~sunlab.hardware.ESP300` uses (and a few
-more) exactly as the controller does: commands end with ``CR``, query replies end with ``CR LF``,
-errors queue in a 10-deep buffer read with ``TB?``/``TE?``, axis errors are ``axis * 100 +
-code``. Axes move at a finite velocity, so ``MD?`` reads 0 until the move is over
-(``velocity_deg_s=math.inf`` makes every move instant, for protocol tests; ``clock=`` takes any
-monotonic clock, e.g. a :class:`ManualClock` that a test advances by hand). It serves
-
-- a pseudo-terminal (:meth:`FakeESP.serve_pty`: ``os.openpty`` and a thread on the master side;
-  the driver opens the slave path like any serial port), and
-- a loopback TCP port (:meth:`FakeESP.serve_tcp`: 127.0.0.1 only; the driver opens
-  ``socket://127.0.0.1:PORT``).
+:class:`FakeESP` answers the manual's commands below exactly as the controller does: commands
+end with ``CR``, query replies end with ``CR LF``, errors queue in a 10-deep buffer, axis errors
+are ``axis * 100 + code``. Axes move at a finite velocity (``math.inf``: instant moves, for
+protocol tests) on any monotonic clock (a :class:`ManualClock` that a test advances by hand). It
+serves a pseudo-terminal (:meth:`FakeESP.serve_pty`) and a loopback TCP port
+(:meth:`FakeESP.serve_tcp`), which the driver opens like any serial port.
 
 Commands (``n`` an axis; blanks between fields are ignored, ``;`` chains commands on a line):
 
@@ -18,7 +13,7 @@ Commands (``n`` an axis; blanks between fields are ignored, ``;`` chains command
 ``VE?``                 firmware version
 ``TB?``, ``TE?``        pop the oldest error (``code, timestamp, message``; the code); 0 when empty
 ``TS``                  status byte, one character: bit n-1 axis n moving, bit 4 a motor on
-``nTP?``, ``nTP``       actual position (the manual also reads it without ``?``, as pymeasure does)
+``nTP?``, ``nTP``       actual position (the manual also reads it without ``?``)
 ``nDP?``                desired position (the destination of the move)
 ``nMD?``                motion done (1) or moving (0)
 ``nID?``                positioner model and serial number: ``URS100BCC, SN0001``
@@ -33,13 +28,10 @@ Commands (``n`` an axis; blanks between fields are ignored, ``;`` chains command
 ======================  ========================================================================
 
 Anything else queues error 6 (command does not exist), 37 (axis number missing), 9 (axis out of
-range), 38 (parameter missing) or 7 (parameter out of range), as the controller does; only
-queries are answered.
+range), 38 (parameter missing) or 7 (parameter out of range), as the controller does.
 
-The platform behind the axes is the virtual bench's (:func:`sunlab.sim.platform_pose`): the
-encoders read the commanded angles, while :meth:`FakeESP.true_pose` gives the angles the platform
-really takes, with its offsets, non-orthogonality, per-pose error and per-shot jitter. Without a
-bench the platform is ideal (true = commanded).
+The encoders read the commanded angles; :meth:`FakeESP.true_pose` gives the angles the virtual
+bench's platform really takes (:func:`sunlab.sim.platform_pose`; ideal without a bench).
 
 Faults are injected with :meth:`FakeESP.inject`:
 
@@ -73,41 +65,35 @@ b'306'
 from __future__ import annotations
 
 import math
-import os
 import re
-import select
-import socket
 import threading
 import time
 from collections import deque
 from dataclasses import dataclass
 
 from ..errors import ConfigurationError
-from .esp_protocol import decode_error
+from . import _serve
+from ._serve import DISCONNECT
+from .errors import decode_error
 
 __all__ = ["FakeESP"]
 
 FAULT_KINDS = ("timeout", "garble", "error", "silent", "stuck", "disconnect", "late")
 
-#: Returned by :meth:`FakeESP.handle` when the link must be closed.
-DISCONNECT = object()
-
 _CMD_RE = re.compile(r"^(\d*)([A-Za-z]{2})(.*)$")
-
-#: Reads the manual also writes without ``?`` (pymeasure's ESP300 reads the position as ``1TP``).
-_READ_WITHOUT_MARK = frozenset({"TP"})
 #: Commands that need an axis number (error 37 without one).
-_AXIS_COMMANDS = frozenset({"TP", "DP", "MD", "PA", "SL", "SR", "SN", "MO", "MF", "ST", "VA",
-                            "WS", "OR", "DH", "ID"})
-_NUMBER_COMMANDS = ("PA", "SL", "SR", "VA")
-#: ``SN`` unit codes (0 encoder count ... 7 degree ... 11 microradian).
-_UNIT_CODES = frozenset(range(12))
-#: ``OR`` home search modes.
-_HOME_MODES = frozenset(range(7))
+#: Commands of an axis that take a number; WS, OR and DH without one take 0.
+_SETTERS = frozenset({"WS", "OR", "DH", "SN", "PA", "SL", "SR", "VA"})
+_AXIS_COMMANDS = _SETTERS | {"TP", "DP", "MD", "MO", "MF", "ST", "ID"}
 
 
 class ManualClock:
-    """A monotonic clock that moves only when told to (for tests of timed behaviour).
+    """A monotonic clock that moves only when told to, for tests of timed behaviour.
+
+    Parameters
+    ----------
+    start : float
+        The time it reads at first, s.
 
     Examples
     --------
@@ -132,11 +118,6 @@ class ManualClock:
         ----------
         seconds : float
             How far, s (>= 0: the clock is monotonic).
-
-        Raises
-        ------
-        ConfigurationError
-            ``seconds`` is negative or NaN.
         """
         if not seconds >= 0:
             raise ConfigurationError(f"advance: found {seconds!r} s, expected >= 0")
@@ -157,13 +138,9 @@ class Fault:
 
 class _Axis:
     def __init__(self, low: float, high: float, velocity: float, motor_on: bool):
-        self.low, self.high, self.velocity = low, high, velocity
-        self.motor_on = motor_on
-        self.units = 7
-        self.home = 0.0
-        self.start = self.target = 0.0
-        self.t0 = self.t1 = 0.0
-        self.stuck = False
+        self.low, self.high, self.velocity, self.motor_on = low, high, velocity, motor_on
+        self.units, self.home, self.stuck = 7, 0.0, False
+        self.start = self.target = self.t0 = self.t1 = 0.0
 
     def position(self, now: float) -> float:
         if self.stuck:
@@ -180,26 +157,19 @@ class _Axis:
         return not self.stuck and now >= self.t1
 
     def move(self, target: float, now: float, stuck: bool = False) -> None:
-        self.start = self.position(now)
-        self.target = target
-        self.t0 = now
+        self.start, self.target, self.t0, self.stuck = self.position(now), target, now, stuck
         # an infinite velocity (instant motion) ends the move now, exactly
-        travel = abs(target - self.start)
-        self.t1 = now if math.isinf(self.velocity) else now + travel / self.velocity
-        self.stuck = stuck
+        travel_s = 0.0 if math.isinf(self.velocity) else abs(target - self.start) / self.velocity
+        self.t1 = now + travel_s
 
     def halt(self, now: float) -> None:
-        here = self.position(now)
-        self.start = self.target = here
-        self.t0 = self.t1 = now
-        self.stuck = False
+        self.start = self.target = self.position(now)
+        self.t0, self.t1, self.stuck = now, now, False
 
     def define(self, value: float, now: float) -> None:
         """``DH``: the position here now reads ``value`` (the whole move shifts with it)."""
         shift = value - self.position(now)
-        self.start += shift
-        self.target += shift
-        self.home = value
+        self.start, self.target, self.home = self.start + shift, self.target + shift, value
 
 
 class FakeESP:
@@ -212,12 +182,11 @@ class FakeESP:
     seed : int
         Seed of the platform model (per-pose error and per-shot jitter).
     alpha_axis, beta_axis : int
-        Controller axes that carry alpha and beta (for :meth:`true_pose`).
+        Controller axes that carry alpha and beta (for :meth:`true_pose`), of ``n_axes``.
     n_axes : int
-        Number of axes the controller has (ESP301: up to 3).
+        Number of axes (ESP301: up to 3).
     velocity_deg_s : float
-        Slew rate of every axis, deg/s; ``math.inf`` makes every move instant (``MD?`` reads 1
-        and ``TP?`` the target at once, whatever the clock).
+        Slew rate of every axis, deg/s; ``math.inf`` makes every move instant.
     limits : (float, float)
         Software limits ``SL``, ``SR`` of every axis, degrees.
     resolution_deg : float
@@ -233,46 +202,26 @@ class FakeESP:
         makes timed behaviour (moves, silences, error time stamps) deterministic.
     """
 
-    def __init__(
-        self,
-        *,
-        bench=None,
-        seed: int = 0,
-        alpha_axis: int = 1,
-        beta_axis: int = 2,
-        n_axes: int = 3,
-        velocity_deg_s: float = 20.0,
-        limits: tuple[float, float] = (-170.0, 170.0),
-        resolution_deg: float = 1e-4,
-        motors_on: bool = True,
-        version: str = "ESP301 Version 3.0.2 6/29/11 (sunlab fake)",
-        stage_model: str = "URS100BCC",
-        clock=None,
-    ):
+    def __init__(self, *, bench=None, seed: int = 0, alpha_axis: int = 1, beta_axis: int = 2,
+                 n_axes: int = 3, velocity_deg_s: float = 20.0,
+                 limits: tuple[float, float] = (-170.0, 170.0), resolution_deg: float = 1e-4,
+                 motors_on: bool = True,
+                 version: str = "ESP301 Version 3.0.2 6/29/11 (sunlab fake)",
+                 stage_model: str = "URS100BCC", clock=None):
         if not velocity_deg_s > 0:
             raise ConfigurationError(f"velocity_deg_s: found {velocity_deg_s!r}, expected > 0")
-        self.bench = bench
-        self.seed = int(seed)
+        self.bench, self.seed = bench, int(seed)
         self.alpha_axis, self.beta_axis = int(alpha_axis), int(beta_axis)
-        self.resolution_deg = float(resolution_deg)
-        self.version = version
-        self.stage_model = stage_model
-        self._axes = {
-            n: _Axis(float(limits[0]), float(limits[1]), float(velocity_deg_s), motors_on)
-            for n in range(1, n_axes + 1)
-        }
+        self.resolution_deg, self.version, self.stage_model = resolution_deg, version, stage_model
+        self._axes = {n: _Axis(float(limits[0]), float(limits[1]), float(velocity_deg_s),
+                               motors_on) for n in range(1, n_axes + 1)}
         self._errors: deque[int] = deque(maxlen=10)
         self._faults: list[Fault] = []
-        self._silent_until = -math.inf
-        self._wait_until = -math.inf
-        self._lock = threading.RLock()
+        self._silent_until = self._wait_until = -math.inf
+        self._late_s, self._lock, self._stop = 0.0, threading.RLock(), threading.Event()
         self._clock = time.monotonic if clock is None else clock
         self._t_boot = self._clock()
-        self._stop = threading.Event()
-        self._late_s = 0.0
-        self._threads: list[threading.Thread] = []
-        self._closers: list = []
-        self.received: list[str] = []
+        self._threads, self._closers, self.received = [], [], []  # received: the command lines
 
     # -- faults -------------------------------------------------------------------------------
     def inject(self, kind: str, match: str = "", *, count: int = 1, code: int = 0,
@@ -290,8 +239,7 @@ class FakeESP:
         count : int
             How many matching commands the fault hits.
         code : int
-            Error code queued by an ``error`` fault (``axis * 100 + code`` for an axis error,
-            e.g. 104 for axis 1's positive hardware limit).
+            Error code queued by an ``error`` fault (``axis * 100 + code`` for an axis error).
         silent_s : float
             Silence of ``silent`` (and of a limit ``error``), or delay of ``late``, s.
         after : int
@@ -300,20 +248,7 @@ class FakeESP:
         Returns
         -------
         Fault
-            The queued fault; its ``count`` falls as it hits (0: used up, dropped from the
-            queue).
-
-        Raises
-        ------
-        ConfigurationError
-            ``kind`` is not in :data:`FAULT_KINDS`.
-
-        Examples
-        --------
-        >>> fake = FakeESP()
-        >>> _ = fake.inject("timeout", "1TP?")
-        >>> fake.handle(b"1TP?") is None, fake.handle(b"1TP?")
-        (True, b'0.000000\\r\\n')
+            The queued fault; its ``count`` falls as it hits (0: used up, dropped).
         """
         if kind not in FAULT_KINDS:
             raise ConfigurationError(f"fault kind: found {kind!r}, expected one of {FAULT_KINDS}")
@@ -347,8 +282,7 @@ class FakeESP:
         -------
         bytes or None or object
             The replies of the line's queries, each ending ``CR LF``, concatenated; None when
-            nothing is answered; :data:`DISCONNECT` when a ``disconnect`` fault closes the
-            link.
+            nothing is answered; ``DISCONNECT`` when a ``disconnect`` fault closes the link.
         """
         text = line.decode("ascii", "replace").strip()
         if not text:
@@ -364,157 +298,121 @@ class FakeESP:
                 if now < self._silent_until:  # busy recovering: the command is lost
                     continue
                 fault = self._take_fault(command)
-                if fault is not None and fault.kind == "disconnect":
+                kind = fault.kind if fault is not None else None
+                if kind == "disconnect":
                     return DISCONNECT
-                reply = self._execute(command, now, fault)
-                if fault is not None:
-                    if fault.kind == "timeout":
-                        reply = None
-                    elif fault.kind == "garble" and reply is not None:
-                        reply = bytes(b | 0x80 for b in reply.encode("ascii")).decode("latin-1")
-                    elif fault.kind == "silent":
+                reply = self._execute(command, now, kind == "stuck")
+                if kind == "timeout":
+                    reply = None
+                elif kind == "garble" and reply is not None:
+                    reply = bytes(b | 0x80 for b in reply.encode("ascii")).decode("latin-1")
+                elif kind == "silent":
+                    self._silent_until = now + fault.silent_s
+                elif kind == "late":
+                    self._late_s = fault.silent_s
+                elif kind == "error":
+                    self._errors.append(fault.code)
+                    axis = self._axes.get(fault.code // 100)
+                    if axis is not None and fault.code % 100 in (4, 5, 6, 7):
+                        axis.halt(now)
                         self._silent_until = now + fault.silent_s
-                    elif fault.kind == "late":
-                        self._late_s = fault.silent_s
-                    elif fault.kind == "error":
-                        self._errors.append(fault.code)
-                        axis = fault.code // 100
-                        if axis in self._axes and fault.code % 100 in (4, 5, 6, 7):
-                            self._axes[axis].halt(now)
-                            self._silent_until = now + fault.silent_s
                 if reply is not None and now >= self._silent_until:  # no reply if silenced now
                     out.append(reply.encode("latin-1") + b"\r\n")
         return b"".join(out) or None
 
-    def _error_text(self, code: int, now: float) -> str:
-        stamp = int((now - self._t_boot) * 1000)
-        message = "NO ERROR DETECTED" if code == 0 else decode_error(code)[1].upper()
-        return f"{code}, {stamp}, {message}"
-
     def _status(self, now: float) -> str:
         """``TS``: bit n-1 set while axis n moves, bit 4 while any motor is on; bit 6 is set
         as in the manual's example replies, which keeps the byte a printable character."""
-        bits = 0x40
-        for n, ax in self._axes.items():
-            if n <= 3 and not ax.done(now):
-                bits |= 1 << (n - 1)
-        if any(ax.motor_on for ax in self._axes.values()):
-            bits |= 0x10
-        return chr(bits)
+        moving = sum(1 << (n - 1) for n, ax in self._axes.items() if n <= 3 and not ax.done(now))
+        return chr(0x40 | moving | (0x10 if any(a.motor_on for a in self._axes.values()) else 0))
 
-    def _execute(self, command: str, now: float, fault: Fault | None) -> str | None:
+    def _execute(self, command: str, now: float, stuck: bool) -> str | None:
+        """Run one command; its reply text, or None (an error is queued where the controller
+        queues one)."""
         match = _CMD_RE.match(command)
         if match is None:
-            self._errors.append(6)
-            return None
-        axis_text, mnemonic, rest = match.groups()
-        mnemonic = mnemonic.upper()
-        # a read: "?" after the mnemonic, or no parameter for those the manual reads without it
-        query = rest == "?" or (rest == "" and mnemonic in _READ_WITHOUT_MARK)
-        if not axis_text:
-            if mnemonic == "VE" and query:
-                return self.version
-            if mnemonic == "TB" and query:
-                return self._error_text(self._errors.popleft() if self._errors else 0, now)
-            if mnemonic == "TE" and query:
-                return str(self._errors.popleft() if self._errors else 0)
-            if mnemonic == "TS" and rest == "":
+            return self._errors.append(6)
+        axis, mn, rest = match.groups()
+        mn = mn.upper()
+        # a read: "?" after the mnemonic, or TP without it (the manual reads it both ways)
+        query = rest == "?" or (rest == "" and mn == "TP")
+        if not axis:
+            if query and mn in ("VE", "TB", "TE"):
+                if mn == "VE":
+                    return self.version
+                code = self._errors.popleft() if self._errors else 0
+                if mn == "TE":
+                    return str(code)
+                message = "NO ERROR DETECTED" if code == 0 else decode_error(code)[1].upper()
+                return f"{code}, {int((now - self._t_boot) * 1000)}, {message}"
+            if (mn, rest) == ("TS", ""):
                 return self._status(now)
-            if mnemonic == "AB":
-                for ax in self._axes.values():
-                    ax.halt(now)
+            if mn == "AB":
+                for each in self._axes.values():
+                    each.halt(now)
                 return None
-            self._errors.append(37 if mnemonic in _AXIS_COMMANDS else 6)
-            return None
-        n = int(axis_text)
-        if n not in self._axes:
-            self._errors.append(9)
-            return None
-        ax = self._axes[n]
+            return self._errors.append(37 if mn in _AXIS_COMMANDS else 6)
+        n = int(axis)
+        ax = self._axes.get(n)
+        if ax is None:
+            return self._errors.append(9)
         if query:
-            if mnemonic == "TP":
-                q = round(ax.position(now) / self.resolution_deg) * self.resolution_deg
-                return f"{q:.6f}"
-            values = {"MD": lambda: str(int(ax.done(now))), "PA": lambda: f"{ax.target:.6f}",
-                      "DP": lambda: f"{ax.target:.6f}", "DH": lambda: f"{ax.home:.6f}",
-                      "SL": lambda: f"{ax.low:.6f}", "SR": lambda: f"{ax.high:.6f}",
-                      "SN": lambda: str(ax.units), "MO": lambda: str(int(ax.motor_on)),
-                      "VA": lambda: f"{ax.velocity:.6f}",
-                      "ID": lambda: f"{self.stage_model}, SN{n:04d}"}
-            if mnemonic in values:
-                return values[mnemonic]()
-            self._errors.append(6)
-            return None
-        if mnemonic in ("MO", "MF", "ST") and rest == "":
-            if mnemonic == "MO":
-                ax.motor_on = True
-            else:
+            if mn == "TP":
+                return f"{round(ax.position(now) / self.resolution_deg) * self.resolution_deg:.6f}"
+            if mn == "ID":
+                return f"{self.stage_model}, SN{n:04d}"
+            value = {"MD": ax.done(now), "MO": ax.motor_on, "SN": ax.units, "PA": ax.target,
+                     "DP": ax.target, "DH": ax.home, "SL": ax.low, "SR": ax.high,
+                     "VA": ax.velocity}.get(mn)
+            if value is None:
+                return self._errors.append(6)
+            return str(int(value)) if isinstance(value, int) else f"{value:.6f}"
+        if rest == "" and mn in ("MO", "MF", "ST"):
+            if mn != "MO":
                 ax.halt(now)
-                ax.motor_on = ax.motor_on and mnemonic == "ST"
+            ax.motor_on = mn == "MO" or (ax.motor_on and mn == "ST")
             return None
-        if mnemonic in ("WS", "OR", "DH", "SN") or mnemonic in _NUMBER_COMMANDS:
-            return self._set(n, ax, mnemonic, rest, now, fault)
-        self._errors.append(6)
-        return None
-
-    def _set(self, n: int, ax: _Axis, mnemonic: str, rest: str, now: float,
-             fault: Fault | None) -> None:
-        """Run a command of axis ``n`` that takes a number (optional for WS, OR and DH)."""
-        default = {"WS": 0.0, "OR": 0.0, "DH": 0.0}.get(mnemonic)
+        if mn not in _SETTERS:
+            return self._errors.append(6)
         try:
-            value = default if rest == "" and default is not None else float(rest)
+            value = 0.0 if rest == "" and mn in ("WS", "OR", "DH") else float(rest)
         except ValueError:
-            self._errors.append(38 if rest == "" else 7)
-            return None
-        if not math.isfinite(value):
-            self._errors.append(7)
-        elif mnemonic == "WS":  # wait for stop, then ``value`` ms; a stuck axis is not awaited
-            if not ax.stuck and value >= 0:
+            return self._errors.append(38 if rest == "" else 7)
+        if not math.isfinite(value) or (mn == "WS" and value < 0) or (
+                mn in ("SN", "OR") and value not in range(12 if mn == "SN" else 7)):
+            return self._errors.append(7)
+        if mn == "WS":  # wait for stop, then ``value`` ms; a stuck axis is not awaited
+            if not ax.stuck:
                 self._wait_until = max(self._wait_until, max(ax.t1, now) + value / 1000.0)
-            elif value < 0:
-                self._errors.append(7)
-        elif mnemonic == "DH":
+        elif mn == "DH":
             ax.define(value, now)
-        elif mnemonic == "SN":
-            if value in _UNIT_CODES:
-                ax.units = int(value)
-            else:
-                self._errors.append(7)
-        elif mnemonic in ("PA", "OR"):
-            if mnemonic == "OR" and value not in _HOME_MODES:
-                self._errors.append(7)
-            elif not ax.motor_on:
-                self._errors.append(100 * n + 13)
-            elif mnemonic == "OR":  # home search: to the home switch, where DH's value reads
-                ax.move(ax.home, now)
-            elif value > ax.high:
-                self._errors.append(100 * n + 6)
-            elif value < ax.low:
-                self._errors.append(100 * n + 7)
-            else:
-                ax.move(value, now, stuck=fault is not None and fault.kind == "stuck")
-        elif mnemonic == "VA":
-            if value > 0:
-                ax.velocity = value
-            else:
-                self._errors.append(100 * n + 1)
-        elif mnemonic == "SL":
-            ax.low = value
+        elif mn == "SN":
+            ax.units = int(value)
+        elif mn == "VA":
+            if not value > 0:
+                return self._errors.append(100 * n + 1)
+            ax.velocity = value
+        elif mn in ("SL", "SR"):
+            setattr(ax, "low" if mn == "SL" else "high", value)
+        elif not ax.motor_on:  # PA, OR
+            return self._errors.append(100 * n + 13)
+        elif mn == "OR":  # home search: to the home switch, where DH's value reads
+            ax.move(ax.home, now)
+        elif not ax.low <= value <= ax.high:
+            return self._errors.append(100 * n + (6 if value > ax.high else 7))
         else:
-            ax.high = value
+            ax.move(value, now, stuck=stuck)
         return None
 
     # -- the platform -------------------------------------------------------------------------
     def position(self) -> tuple[float, float]:
-        """Commanded-frame position of the alpha and beta axes now (not rounded).
-
-        "Now" is the controller's time: a ``WS`` wait moves it on to the end of the wait.
+        """Commanded-frame position of the alpha and beta axes now (a ``WS`` wait moves the
+        controller's time on to its end).
 
         Returns
         -------
         (float, float)
-            (alpha, beta), degrees, mid-move positions included (not rounded to
-            ``resolution_deg`` as ``TP?`` is).
+            (alpha, beta), degrees, mid-move positions included, not rounded as ``TP?`` is.
         """
         with self._lock:
             now = max(self._clock(), self._wait_until)
@@ -522,10 +420,8 @@ class FakeESP:
                     self._axes[self.beta_axis].position(now))
 
     def true_pose(self, pose: int = 0, shot: int = 0) -> tuple[float, float]:
-        """True platform angles (alpha, beta) now, degrees, from the virtual bench's platform.
-
-        Deterministic in (seed, pose, shot) for a given position; see
-        :func:`sunlab.sim.platform_pose`.
+        """True platform angles now, from the virtual bench's platform
+        (:func:`sunlab.sim.platform_pose`: deterministic in seed, pose, shot and position).
 
         Parameters
         ----------
@@ -548,20 +444,16 @@ class FakeESP:
         return float(a), float(b)
 
     # -- transports ---------------------------------------------------------------------------
-    def _answer(self, buf: bytes, write) -> tuple[bytes, bool]:
-        """Answer every complete (CR-terminated) command in ``buf`` through ``write``; return the
-        unfinished rest and False if a ``disconnect`` fault hung up the line."""
-        while b"\r" in buf:
-            line, buf = buf.split(b"\r", 1)
-            reply = self.handle(line)
-            if reply is DISCONNECT:
-                return buf, False
-            late, self._late_s = self._late_s, 0.0
-            if late and reply:  # a slow controller: this reply, and what follows, comes late
-                self._stop.wait(late)
-            if reply:
-                write(reply)
-        return buf, True
+    def _answer(self, line: bytes):  # the reply, and how late it is sent
+        reply = self.handle(line)
+        late, self._late_s = self._late_s, 0.0
+        return reply, late
+
+    def _serving(self, link) -> str:
+        address, thread, closer = link
+        self._threads.append(thread)
+        self._closers.append(closer)
+        return address
 
     def serve_pty(self) -> str:
         """Serve the protocol on a new pseudo-terminal, in a background thread.
@@ -572,40 +464,7 @@ class FakeESP:
             The slave's device path (e.g. ``/dev/pts/5``), to open as a serial port; POSIX
             only. :meth:`close` stops the thread and closes the terminal.
         """
-        import tty
-
-        master, slave = os.openpty()
-        tty.setraw(slave)
-        path = os.ttyname(slave)
-        closed = threading.Event()
-
-        def close() -> None:
-            if not closed.is_set():
-                closed.set()
-                for fd in (master, slave):
-                    try:
-                        os.close(fd)
-                    except OSError:
-                        pass
-
-        def serve() -> None:
-            buf = b""
-            try:
-                while not self._stop.is_set() and not closed.is_set():
-                    ready, _, _ = select.select([master], [], [], 0.05)
-                    if not ready:
-                        continue
-                    buf, connected = self._answer(buf + os.read(master, 4096),
-                                                  lambda r: os.write(master, r))
-                    if not connected:
-                        return
-            except OSError:
-                pass
-            finally:
-                close()
-
-        self._start(serve, close)
-        return path
+        return self._serving(_serve.serve_pty(self._answer, self._stop))
 
     def serve_tcp(self, port: int = 0) -> str:
         """Serve the protocol on 127.0.0.1:``port``, in a background thread.
@@ -620,53 +479,9 @@ class FakeESP:
         Returns
         -------
         str
-            The ``socket://127.0.0.1:PORT`` URL (:func:`serial.serial_for_url` form) with the
-            port bound.
+            The ``socket://127.0.0.1:PORT`` URL (:func:`serial.serial_for_url` form).
         """
-        server = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
-        server.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-        server.bind(("127.0.0.1", int(port)))
-        server.listen(4)
-        server.settimeout(0.05)
-        host, bound = server.getsockname()
-
-        def serve_client(conn: socket.socket) -> None:
-            conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-            conn.settimeout(0.05)
-            buf = b""
-            with conn:
-                while not self._stop.is_set():
-                    try:
-                        data = conn.recv(4096)
-                    except TimeoutError:
-                        continue
-                    except OSError:
-                        return
-                    if not data:
-                        return
-                    buf, connected = self._answer(buf + data, conn.sendall)
-                    if not connected:
-                        return
-
-        def serve() -> None:
-            with server:
-                while not self._stop.is_set():
-                    try:
-                        conn, _ = server.accept()
-                    except TimeoutError:
-                        continue
-                    except OSError:
-                        return
-                    serve_client(conn)
-
-        self._start(serve, server.close)
-        return f"socket://{host}:{bound}"
-
-    def _start(self, target, closer) -> None:
-        thread = threading.Thread(target=target, name="sunlab-fake-esp", daemon=True)
-        self._threads.append(thread)
-        self._closers.append(closer)
-        thread.start()
+        return self._serving(_serve.serve_tcp(self._answer, self._stop, port))
 
     def close(self) -> None:
         """Stop serving and close every transport."""

@@ -17,9 +17,10 @@ mean. One module per concept:
 :mod:`~.strategies`              the two strategies, as :class:`sunlab.calibration.Calibration`
                                  subclasses, entries of the calibration registry (entry
                                  point group ``sunlab.calibrations``; ``calibration.load``
-                                 reads them); combining per-hole estimates
+                                 reads them)
 :mod:`~.defects`                 per-hole defect metrics, robust z-scores, bad-hole rejection
-:mod:`~.budget`                  the error budget and the gain of N holes over one
+:mod:`~.budget`                  combining per-hole estimates, the error budget and the gain of
+                                 N holes over one
 :mod:`~.review`                  every hole's results, what the hole explorer shows
 ===============================  ==============================================================
 

@@ -1,10 +1,12 @@
-"""The gain of N holes over one (eq. 5) and its error budget: what averaging can and cannot do.
+"""Averaging N holes (eq. 5): the combination, the gain over one hole and its error budget.
 
 Averaging N independent errors divides the variance by N, eq. (5); errors common to all holes
 (platform pose error, mask mounting) do not average out, and bad holes spoil the mean.
-:func:`error_budget` splits the per-hole errors into their common and hole-specific parts and
-predicts the gain; :func:`gain_study` measures it for both strategies, with and without the
-rejection of bad holes (:mod:`sunlab.multihole.defects`).
+:func:`combine_estimates` is the average (weighted, clipped) of per-hole estimates and
+:func:`angle_errors` their errors against the commanded angles; :func:`error_budget` splits the
+per-hole errors into their common and hole-specific parts and predicts the gain;
+:func:`gain_study` measures it for both strategies, with and without the rejection of bad
+holes (:mod:`sunlab.multihole.defects`).
 
 References
 ----------
@@ -20,10 +22,94 @@ import xarray as xr
 
 from ..errors import ConfigurationError
 from ..stats import error_summary
-from .defects import defect_metrics, reject_bad_holes
-from .strategies import GeometricCentre, PerHoleAverage, angle_errors
 
 __all__ = ["error_budget", "gain_study"]
+
+
+def combine_estimates(est, *, holes=None, weights=None, clip: float | None = None,
+                      n_iter: int = 3, dim: str = "hole"):
+    """Combine per-hole angle estimates of each frame into one: mean, weighted and/or clipped.
+
+    Parameters
+    ----------
+    est : xarray.DataArray
+        Angle estimates, deg, with a ``hole`` dimension; NaN for a hole missing in a frame.
+    holes : array_like of bool, shape (hole,), optional
+        Holes allowed in the combination.
+    weights : array_like, shape (hole,), optional
+        Non-negative weights, e.g. 1 / (hole's residual variance); default equal.
+    clip : float, optional
+        Sigma-clipping threshold: in every frame, estimates further than ``clip`` robust standard
+        deviations from the median of the kept ones are dropped, ``n_iter`` times (the scale is
+        1.4826 MAD, bounded below by the standard deviation of the survivors after the first
+        pass).
+    dim : str
+        Dimension to combine.
+
+    Returns
+    -------
+    mean, n : xarray.DataArray
+        The combined estimate and the number of holes used in each frame.
+
+    Notes
+    -----
+    Averaging N independent estimates of equal variance divides the variance by N, eq. (5):
+
+    .. math:: \\sigma^2_N = \\sigma^2 / N.
+
+    The mean over the holes present is unbiased as long as each hole's estimate is.
+
+    Examples
+    --------
+    >>> e = xr.DataArray([[1.0, 1.1, 0.9, 5.0, np.nan]], dims=("pose", "hole"))
+    >>> float(combine_estimates(e)[0][0])
+    2.0
+    >>> round(float(combine_estimates(e, clip=4.0)[0][0]), 6)
+    1.0
+    """
+    ok = np.isfinite(est)
+    if holes is not None:
+        ok = ok & xr.DataArray(np.asarray(holes, dtype=bool), dims=dim)
+    w = xr.ones_like(est) if weights is None else xr.DataArray(np.asarray(weights, float), dims=dim)
+    w = w.where(ok, 0.0)
+    if clip is not None:
+        for it in range(n_iter):
+            cur = est.where(w > 0)
+            med = cur.median(dim)
+            scale = 1.4826 * np.abs(cur - med).median(dim)
+            if it > 0:  # a few survivors can have MAD 0: their standard deviation bounds it
+                scale = np.maximum(scale, cur.std(dim))
+            keep = np.abs(est - med) <= clip * scale
+            w = w.where(keep, 0.0)
+    wsum = w.sum(dim)
+    mean = (est.fillna(0.0) * w).sum(dim) / wsum.where(wsum > 0)
+    return mean, (w > 0).sum(dim)
+
+
+def angle_errors(pred: xr.Dataset) -> xr.Dataset:
+    """Estimated minus commanded angles, deg (the paper's test protocol, sec. 5).
+
+    ``pred`` carries the commanded angles as ``alpha_cmd``/``beta_cmd``, as the strategies return
+    them.
+
+    Parameters
+    ----------
+    pred : xarray.Dataset
+        Estimates ``alpha``, ``beta`` (deg) on (pose, shot) or (pose, shot, hole).
+
+    Returns
+    -------
+    xarray.Dataset
+        ``alpha``, ``beta``: estimated minus commanded, deg, on ``pred``'s dims.
+
+    Examples
+    --------
+    >>> p = xr.Dataset({"alpha": (("pose", "shot"), [[1.5]]), "beta": (("pose", "shot"), [[0.0]])},
+    ...                coords={"alpha_cmd": ("pose", [1.0]), "beta_cmd": ("pose", [0.5])})
+    >>> float(angle_errors(p).alpha[0, 0]), float(angle_errors(p).beta[0, 0])
+    (0.5, -0.5)
+    """
+    return xr.Dataset({a: pred[a] - pred[f"{a}_cmd"] for a in ("alpha", "beta")})
 
 
 def error_budget(est: xr.Dataset, holes=None) -> dict:
@@ -131,6 +217,8 @@ def gain_study(train: xr.Dataset, test: xr.Dataset, *, order: int = 5, model=Non
     >>> bool(g["gain"]["averaging"]["alpha"]["rms"] > 5)
     True
     """
+    from .defects import defect_metrics, reject_bad_holes  # above this module
+    from .strategies import GeometricCentre, PerHoleAverage
     s2 = PerHoleAverage(order=order, model=model).fit(train)
     metrics = defect_metrics(train, strategy=s2, cube=cube)
     bad = reject_bad_holes(metrics, kappa=kappa).values
@@ -138,8 +226,7 @@ def gain_study(train: xr.Dataset, test: xr.Dataset, *, order: int = 5, model=Non
     s1 = GeometricCentre(order=order, model=model).fit(train)
     s1r = GeometricCentre(order=order, model=model, holes=good).fit(train)
     est = s2.predict_holes(test)
-    # one hole: each good hole alone
-    # (a hole never on the detector during the test, or without a calibration, has no statistics)
+    # one hole: each good hole alone (one never on the detector has no statistics)
     singles = [s for s in (error_summary(est.isel(hole=h)) for h in np.flatnonzero(good))
                if s["alpha"]["n_poses"] and s["beta"]["n_poses"]]
     if not singles:

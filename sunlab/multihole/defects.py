@@ -18,6 +18,7 @@ from collections.abc import Sequence
 
 import numpy as np
 import xarray as xr
+from scipy import ndimage
 
 from .. import centroid, schema
 from ..errors import ConfigurationError
@@ -40,6 +41,8 @@ DEFECT_METRICS: dict[str, str] = {
     "scatter": "RMS of the hole's angle estimate minus the consensus of all holes, deg",
     "outlier_fraction": "fraction of frames where the hole departs from the consensus by > 5 sigma",
 }
+
+_SHAPE = ("radius", "ellipticity", "asymmetry")
 
 
 def stamp_metrics(cube: xr.Dataset, cen: xr.Dataset, *, poses=None, shot: int = 0,
@@ -87,23 +90,15 @@ def stamp_metrics(cube: xr.Dataset, cen: xr.Dataset, *, poses=None, shot: int = 
     n_p = cube.sizes["pose"]
     if poses is None:
         poses = np.unique(np.linspace(0, n_p - 1, min(max_frames, n_p)).round().astype(int))
-    n_h = cen.sizes["hole"]
-    res = np.full((len(poses), n_h, 3), np.nan)
-    ok = usable(cen).values
+    ok, x, y = usable(cen).values[:, shot], cen["x"].values[:, shot], cen["y"].values[:, shot]
+    res = np.full((len(poses), cen.sizes["hole"], 3), np.nan)
     for n, (p, frame) in enumerate(_frames_of(cube, poses, shot)):
-        for h in range(n_h):
-            if not ok[p, shot, h]:
-                continue
-            st, _ = cutout(frame, cen["x"].values[p, shot, h], cen["y"].values[p, shot, h], half)
-            res[n, h] = centroid.stamp_moments(st)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)
+        for h in np.flatnonzero(ok[p]):
+            res[n, h] = centroid.stamp_moments(cutout(frame, x[p, h], y[p, h], half)[0])
+    with warnings.catch_warnings(action="ignore", category=RuntimeWarning):
         med = np.nanmedian(res, axis=0)
-    return xr.Dataset(
-        {"radius": ("hole", med[:, 0], {"units": "px"}), "ellipticity": ("hole", med[:, 1]),
-         "asymmetry": ("hole", med[:, 2])},
-        coords={"hole": cen["hole"].values},
-    )
+    return xr.Dataset({k: ("hole", med[:, i]) for i, k in enumerate(_SHAPE)},
+                      coords={"hole": cen["hole"].values})
 
 
 def edge_roughness(cube: xr.Dataset, cen: xr.Dataset, *, shot: int = 0, max_frames: int = 100,
@@ -180,8 +175,7 @@ def edge_roughness(cube: xr.Dataset, cen: xr.Dataset, *, shot: int = 0, max_fram
     value = np.full(cen.sizes["hole"], np.nan)
     if poses and np.isfinite(radius_px) and radius_px >= 3:
         amp = _harmonic_amplitudes(cube, ok, xs, ys, poses, shot, radius_px, harmonics)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)
+        with warnings.catch_warnings(action="ignore", category=RuntimeWarning):
             scale = np.nanmedian(amp, axis=0)
             value = np.sqrt(np.nanmean((amp / np.where(scale > 0, scale, np.nan)) ** 2, axis=1))
     return xr.DataArray(value, dims="hole", coords={"hole": cen["hole"].values},
@@ -191,25 +185,20 @@ def edge_roughness(cube: xr.Dataset, cen: xr.Dataset, *, shot: int = 0, max_fram
 def _roughness_radius(cube, cen, ok, poses, shot) -> float:
     """Default stamp radius of :func:`edge_roughness`: 2.1 RMS spot radii, at most 0.45 of the
     spacing of neighbouring spots."""
-    xs, ys = cen["x"].values[:, shot, :], cen["y"].values[:, shot, :]
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)
-        r_rms = float(np.nanmedian(cen["radius"].where(usable(cen)).values)) \
-            if "radius" in cen else np.nan
-    if not np.isfinite(r_rms) and poses:
+    with warnings.catch_warnings(action="ignore", category=RuntimeWarning):
+        r_rms = float(np.nanmedian(cen["radius"].where(usable(cen)))) if "radius" in cen \
+            else np.nan
+    if not poses:
+        return 2.1 * r_rms
+    hs = np.flatnonzero(ok[poses[0]])
+    xy = np.stack([cen["x"].values[poses[0], shot, hs], cen["y"].values[poses[0], shot, hs]], 1)
+    if not np.isfinite(r_rms):
         frame = np.asarray(cube["frames"].isel(pose=poses[0], shot=shot).values)
-        hs = np.flatnonzero(ok[poses[0]])[:10]
-        r_rms = float(np.nanmedian([centroid.stamp_moments(cutout(frame, xs[poses[0], h],
-                                                          ys[poses[0], h], 40)[0])[0]
-                                    for h in hs]))
-    radius_px = 2.1 * r_rms
-    if poses:
-        p0 = poses[0]
-        hx, hy = xs[p0][ok[p0]], ys[p0][ok[p0]]
-        d = np.hypot(hx[:, None] - hx[None], hy[:, None] - hy[None])
-        d[d == 0] = np.inf
-        radius_px = min(radius_px, 0.45 * float(np.median(d.min(1))))
-    return radius_px
+        r_rms = float(np.nanmedian([centroid.stamp_moments(cutout(frame, *c, 40)[0])[0]
+                                    for c in xy[:10]]))
+    d = np.linalg.norm(xy[:, None] - xy[None], axis=-1)
+    d[d == 0] = np.inf
+    return min(2.1 * r_rms, 0.45 * float(np.median(d.min(1))))
 
 
 def _frames_of(cube, poses, shot, batch: int = 32):
@@ -219,155 +208,65 @@ def _frames_of(cube, poses, shot, batch: int = 32):
     already queued there), and memory stays bounded (32 full frames are 84 MB)."""
     poses = [int(p) for p in poses]
     for k in range(0, len(poses), batch):
-        part = poses[k:k + batch]
         # the shot first: one pose list then indexes one axis (an outer index on two axes of an
         # in-memory cube copies the frames many times slower)
-        block = np.asarray(cube["frames"].isel(shot=shot).isel(pose=part).values)
-        yield from zip(part, block, strict=True)
+        block = np.asarray(cube["frames"].isel(shot=shot).isel(pose=poses[k:k + batch]).values)
+        yield from zip(poses[k:k + batch], block, strict=True)
+
+
+def _cubic_stamps(frame, x, y, n_r):
+    """Stamps (spot, 2 n_r + 1, 2 n_r + 1) of ``frame`` on the pixel grid -n_r..n_r about each
+    (x, y): ``scipy.ndimage.map_coordinates(frame, ..., order=3, mode="nearest")``, done as
+    the separable 4-tap B-spline sum it is on a shifted pixel grid (several times faster)."""
+    iy, ix = np.floor(y).astype(int), np.floor(x).astype(int)
+    m = n_r + 24  # the part of the frame the spots' taps reach, and 22 px the filter sees
+    y0, x0 = max(iy.min() - m, 0), max(ix.min() - m, 0)
+    sub = np.asarray(frame[y0:iy.max() + m, x0:ix.max() + m], dtype=float)
+    # padded by 12 px of edge values before the prefilter, as map_coordinates does, and each
+    # tap beyond the coefficients takes the nearest one ("nearest")
+    coef = ndimage.spline_filter(np.pad(sub, 12, mode="edge"), 3, mode="nearest")
+    taps = np.arange(-n_r - 1, n_r + 3)
+    rows = np.clip(iy[:, None] + taps - y0 + 12, 0, coef.shape[0] - 1)
+    cols = np.clip(ix[:, None] + taps - x0 + 12, 0, coef.shape[1] - 1)
+    blocks, n = coef[rows[:, :, None], cols[:, None, :]], 2 * n_r + 1  # (spot, n + 3, n + 3)
+
+    def weights(f):  # the cubic B-spline at the taps -1..2 about the offset f in [0, 1)
+        return np.stack([(1 - f) ** 3, 3 * f**3 - 6 * f**2 + 4, -3 * f**3 + 3 * f**2 + 3 * f + 1,
+                         f**3], axis=1) / 6
+
+    wy, wx = weights(y - iy), weights(x - ix)
+    rows = sum(wy[:, k, None, None] * blocks[:, k:k + n] for k in range(4))
+    return sum(wx[:, k, None, None] * rows[:, :, k:k + n] for k in range(4))
 
 
 def _harmonic_amplitudes(cube, ok, xs, ys, poses, shot, radius_px, harmonics):
     """|c_m| (hole, harmonic) of each hole's mean over ``poses`` of its unit-flux stamp minus
     the frame's median stamp (relative to its peak), on a ring of pixels; NaN for a hole never
-    seen whole.
-
-    The stamps of a frame are resampled all at once (:func:`_cubic_stamps`), to the same values
-    as ``scipy.ndimage.map_coordinates(sub, ..., order=3, mode="nearest")`` on a sub-image around
-    each centroid up to float rounding."""
-    n_h = ok.shape[1]
+    seen whole. The stamps of a frame are resampled at once by ``scipy.ndimage`` (cubic
+    B-spline, boundary mode "nearest") on the part of the frame the spots cover."""
     n_r = int(np.ceil(radius_px))
     g = np.arange(-n_r, n_r + 1, dtype=float)
     gy, gx = np.meshgrid(g, g, indexing="ij")
     rr = np.hypot(gx, gy)
-    disk = rr <= radius_px
-    ring = (rr > 0.5) & disk
-    theta = np.arctan2(gy, gx)[ring]
-    acc = np.zeros((n_h, ring.sum()))
-    count = np.zeros(n_h)
+    disk, ring = rr <= radius_px, (rr > 0.5) & (rr <= radius_px)
+    acc, count = np.zeros((ok.shape[1], ring.sum())), np.zeros(ok.shape[1])
     for p, frame in _frames_of(cube, poses, shot):
         hs = np.flatnonzero(ok[p])
-        st = _cubic_stamps(frame, xs[p, hs], ys[p, hs], n_r)  # (hole, y, x)
-        edge = np.concatenate([st[:, 0], st[:, -1], st[:, :, 0], st[:, :, -1]], axis=1)
-        st -= np.median(edge, axis=1)[:, None, None]
+        st = _cubic_stamps(frame, xs[p, hs], ys[p, hs], n_r)
+        st -= np.median(np.concatenate([st[:, 0], st[:, -1], st[:, :, 0], st[:, :, -1]], 1),
+                        axis=1)[:, None, None]
         total = st[:, disk].sum(axis=1)
-        stamps = st[:, ring] / np.where(total > 0, total, np.nan)[:, None]
-        good = np.isfinite(stamps).all(axis=1)
-        if good.any() and np.isnan(stamps[~good]).all():
-            # NaN only in whole stamps (no flux): the median of the others
-            template = _median_of_rows(stamps[good])
-        else:
-            template = np.nanmedian(stamps, axis=0)
-        peak = np.nanmax(template)
-        acc[hs[good]] += (stamps[good] - template) / peak
-        count[hs[good]] += 1
-    mean_res = acc / np.maximum(count, 1)[:, None]
+        good = total > 0
+        if good.any():
+            stamps = st[good][:, ring] / total[good, None]
+            template = np.median(stamps.T, axis=1)
+            acc[hs[good]] += (stamps - template) / template.max()
+            count[hs[good]] += 1
     m = np.arange(harmonics[0], harmonics[1] + 1)
-    amp = np.abs(mean_res @ np.exp(-1j * m[None, :] * theta[:, None]))  # (hole, harmonic)
+    amp = np.abs(acc / np.maximum(count, 1)[:, None]
+                 @ np.exp(-1j * m[None, :] * np.arctan2(gy, gx)[ring][:, None]))
     amp[count == 0] = np.nan
     return amp
-
-
-def _median_of_rows(a):
-    """``np.median(a, axis=0)`` of a finite 2-D array, by a sort (several times faster than
-    the partition of ``np.median`` along the first axis)."""
-    a = np.sort(a, axis=0)
-    k = len(a) // 2
-    return a[k] if len(a) % 2 else (a[k - 1] + a[k]) / 2
-
-
-#: Edge padding before the spline prefilter of boundary mode "nearest", as
-#: ``scipy.ndimage.map_coordinates`` pads (its ``_prepad_for_spline_filter``).
-_NEAREST_PREPAD = 12
-
-
-def _cubic_stamps(frame, x, y, n_r):
-    """Stamps (spot, 2 n_r + 1, 2 n_r + 1) of a frame on the pixel grid -n_r..n_r around each
-    centroid (x, y), by cubic spline interpolation with boundary mode "nearest".
-
-    Each spot's sub-image (``n_r + 4`` px around its rounded centroid, clipped at the frame's
-    edge) is what ``map_coordinates`` is given; :func:`_spline_grid` resamples the equal-sized
-    ones together, and those clipped at the frame's edge (other shapes) one at a time."""
-    m = n_r + 4
-    xi, yi = np.round(x).astype(int), np.round(y).astype(int)
-    full = (yi >= m) & (xi >= m) & (yi + m < frame.shape[0]) & (xi + m < frame.shape[1])
-    if full.any():
-        windows = np.lib.stride_tricks.sliding_window_view(frame, (2 * m + 1, 2 * m + 1))
-        y0, x0 = yi[full] - m, xi[full] - m
-        st = _spline_grid(windows[y0, x0], y[full] - y0, x[full] - x0, n_r)
-        if full.all():
-            return st
-    out = np.empty((x.size, 2 * n_r + 1, 2 * n_r + 1))
-    if full.any():
-        out[full] = st
-    for j in np.flatnonzero(~full):
-        y0, x0 = max(int(yi[j]) - m, 0), max(int(xi[j]) - m, 0)
-        sub = frame[y0:int(yi[j]) + m + 1, x0:int(xi[j]) + m + 1]
-        out[j] = _spline_grid(sub[None], y[j:j + 1] - y0, x[j:j + 1] - x0, n_r)[0]
-    return out
-
-
-def _spline_grid(subs, cy, cx, n_r):
-    """``map_coordinates(sub, [cy + g, cx + g], order=3, mode="nearest")`` with g = -n_r..n_r
-    on rows and columns, for each of the equal-sized ``subs`` (spot, y, x) at once.
-
-    The prefilter is that of ``map_coordinates``: pad by the edge values, cubic B-spline filter
-    along y, then x. The grid is a pixel grid shifted by the spot's sub-pixel offset, so the
-    interpolation is separable, with the same 4 B-spline weights for every row (column) of a
-    stamp: it runs along y, then x (on the taps of all spots: spots whose first taps differ by
-    d cost d more taps, one at most for the sub-images of :func:`_cubic_stamps`)."""
-    from scipy.ndimage import spline_filter1d
-
-    pad = _NEAREST_PREPAD
-    n, ly, lx = subs.shape
-    n_g = 2 * n_r + 1
-    # padded in y (an index clipped into the sub repeats the edge row) and filtered along y;
-    # the columns padded in x repeat the edge column, and so do their filtered values: they are
-    # added afterwards
-    c = np.take(subs, np.clip(np.arange(-pad, ly + pad), 0, ly - 1), axis=1)
-    c = spline_filter1d(c, 3, axis=1, output=np.float64, mode="nearest")
-    # taps from the first of all spots on (a tap off the padded sub takes its edge: "nearest")
-    y0, wy = _cubic_taps(cy - n_r + pad)
-    x0, wx = _cubic_taps(cx - n_r + pad)
-    rows = np.clip(y0 + np.arange(n_g + wy.shape[1] - 1), 0, ly + 2 * pad - 1)
-    cols = np.clip(np.arange(-pad, lx + pad), 0, lx - 1)
-    # only the rows that the taps reach are filtered along x (the filter runs row by row)
-    c = np.take(np.take(c, rows, axis=1), cols, axis=2)
-    c = spline_filter1d(c, 3, axis=2, output=np.float64, mode="nearest")
-    c = np.take(c, np.clip(x0 + np.arange(n_g + wx.shape[1] - 1), 0, lx + 2 * pad - 1), axis=2)
-    t = wy[:, 0, None, None] * c[:, :n_g]
-    for k in range(1, wy.shape[1]):
-        t += wy[:, k, None, None] * c[:, k:k + n_g]
-    out = wx[:, 0, None, None] * t[:, :, :n_g]
-    for k in range(1, wx.shape[1]):
-        out += wx[:, k, None, None] * t[:, :, k:k + n_g]
-    return out
-
-
-def _cubic_taps(cc):
-    """The cubic B-spline weights at coordinates ``cc`` (spot,), as ``scipy.ndimage`` computes
-    them (``get_spline_interpolation_weights``), on taps common to all spots.
-
-    Returns
-    -------
-    first : int
-        First tap of all spots.
-    weights : numpy.ndarray (spot, tap)
-        A spot's 4 weights from its first tap ``floor(cc) - 1`` on, zero on the other taps.
-    """
-    f = np.floor(cc)
-    y = cc - f
-    z = 1.0 - y
-    w = np.empty((cc.size, 4))
-    w[:, 1] = (y * y * (y - 2.0) * 3.0 + 4.0) / 6.0
-    w[:, 2] = (z * z * (z - 2.0) * 3.0 + 4.0) / 6.0
-    w[:, 0] = z * z * z / 6.0
-    w[:, 3] = 1.0 - w[:, 0] - w[:, 1] - w[:, 2]
-    first = f.astype(int) - 1
-    shift = first - first.min()
-    out = np.zeros((cc.size, 4 + shift.max()))
-    for a in range(4):
-        out[np.arange(cc.size), shift + a] = w[:, a]
-    return int(first.min()), out
 
 
 def residual_metrics(est: xr.Dataset, kappa: float = 5.0) -> xr.Dataset:
@@ -398,33 +297,22 @@ def residual_metrics(est: xr.Dataset, kappa: float = 5.0) -> xr.Dataset:
     >>> int(np.argmax(m.scatter.values))
     2
     """
-    res2 = 0.0
-    dev2 = 0.0
-    devs = []
-    for name in ("alpha", "beta"):
-        cmd = xr.DataArray(est[f"{name}_cmd"].values, dims="pose")
-        res2 = res2 + (est[name] - cmd) ** 2
-        d = est[name] - est[name].median("hole")
-        dev2 = dev2 + d**2
-        devs.append(d)
-    dims = ("pose", "shot")
-    rms = np.sqrt(res2.mean(dims) / 2)
-    scatter = np.sqrt(dev2.mean(dims) / 2)
-    scale = 1.4826 * np.nanmedian(np.abs(np.stack([d.values for d in devs])))
-    scale = max(scale, 1e-12)
-    out = 0.0
-    for d in devs:
-        out = out + (np.abs(d) > kappa * scale).where(np.isfinite(d)).mean(dims)
+    angle = xr.DataArray(["alpha", "beta"], dims="angle")
+    e = xr.concat([est["alpha"], est["beta"]], angle)
+    res = e - xr.concat([est["alpha_cmd"], est["beta_cmd"]], angle)
+    dev = e - e.median("hole")
+    dims = ("angle", "pose", "shot")
+    scale = max(1.4826 * float(np.nanmedian(np.abs(dev))), 1e-12)
     # trials behind each hole's fraction (frames x 2 angles): robust_z bounds the spread of the
     # fraction below by its binomial counting noise, so that one or two tail frames of a hole
     # seen in a few frames do not make it an outlier
-    n_trials = float(np.nanmedian(sum(np.isfinite(d).sum(dims).values for d in devs)))
+    n_trials = float(np.nanmedian(np.isfinite(dev).sum(dims)))
+    out = (np.abs(dev) > kappa * scale).where(np.isfinite(dev)).mean(("pose", "shot")).mean("angle")
     return xr.Dataset(
-        {"residual_rms": ("hole", rms.values, {"units": "deg"}),
-         "scatter": ("hole", scatter.values, {"units": "deg"}),
-         "outlier_fraction": ("hole", (out / 2).values, {"n_trials": n_trials})},
-        coords={"hole": est["hole"].values},
-    )
+        {"residual_rms": ("hole", np.sqrt((res**2).mean(dims)).values, {"units": "deg"}),
+         "scatter": ("hole", np.sqrt((dev**2).mean(dims)).values, {"units": "deg"}),
+         "outlier_fraction": ("hole", out.values, {"n_trials": n_trials})},
+        coords={"hole": est["hole"].values})
 
 
 def defect_metrics(cen: xr.Dataset, *, strategy: PerHoleAverage | None = None, cube=None,
@@ -464,38 +352,22 @@ def defect_metrics(cen: xr.Dataset, *, strategy: PerHoleAverage | None = None, c
     # a lost or confused spot counts against the hole; a spot off the detector edge (clipped)
     # or touched by a hot pixel at full scale (saturated) is geometry or detector, not the hole
     lost = cen["status"].isin([schema.STATUS["no_spot"], schema.STATUS["ambiguous"]])
-    missing = lost.mean(("pose", "shot"))
     flux = cen["flux"].where(ok)
-    rel = flux / flux.median("hole")
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)
-        deficit = 1.0 - rel.median(("pose", "shot"))
-    data = {"missing_fraction": ("hole", missing.values), "flux_deficit": ("hole", deficit.values)}
-    if cube is None and all(k in cen for k in ("radius", "ellipticity", "asymmetry")):
-        # per-spot shape metrics measured by the centroiding step (sunlab.centroid.locate)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)
-            shape = {k: cen[k].where(ok).median(("pose", "shot")).values
-                     for k in ("radius", "ellipticity", "asymmetry")}
-        data["size_deficit"] = ("hole", 1.0 - shape["radius"] / np.nanmedian(shape["radius"]))
-        data["ellipticity"] = ("hole", shape["ellipticity"])
-        data["asymmetry"] = ("hole", shape["asymmetry"])
-    if cube is not None:
-        sm = stamp_metrics(cube, cen, **spot_kw)
-        r = sm["radius"].values
-        data["size_deficit"] = ("hole", 1.0 - r / np.nanmedian(r))
-        data["ellipticity"] = ("hole", sm["ellipticity"].values)
-        data["asymmetry"] = ("hole", sm["asymmetry"].values)
-        data["edge_roughness"] = ("hole", edge_roughness(cube, cen).values)
+    with warnings.catch_warnings(action="ignore", category=RuntimeWarning):
+        rel = (flux / flux.median("hole")).median(("pose", "shot"))
+        ds = xr.Dataset({"missing_fraction": lost.mean(("pose", "shot")), "flux_deficit": 1 - rel})
+        if cube is not None:  # from the frames
+            ds.update(stamp_metrics(cube, cen, **spot_kw).drop_vars("hole"))
+            ds["edge_roughness"] = ("hole", edge_roughness(cube, cen).values)
+        elif all(k in cen for k in _SHAPE):  # per spot, by the centroiding (centroid.locate)
+            ds.update({k: cen[k].where(ok).median(("pose", "shot")) for k in _SHAPE})
+        if "radius" in ds:
+            ds["size_deficit"] = 1.0 - ds["radius"] / float(np.nanmedian(ds["radius"]))
     if strategy is not None:
-        rm = residual_metrics(strategy.predict_holes(cen))
-        for k in rm.data_vars:
-            data[k] = ("hole", rm[k].values, rm[k].attrs)
-    coords = {"hole": cen["hole"].values}
-    for c in ("hole_i", "hole_j", "hole_x_cf", "hole_y_cf"):
-        if c in cen.coords:
-            coords[c] = ("hole", cen[c].values)
-    ds = xr.Dataset(data, coords=coords)
+        ds.update(residual_metrics(strategy.predict_holes(cen)).drop_vars("hole"))
+    keep = [k for k in DEFECT_METRICS if k in ds]  # in the table's order
+    coords = [c for c in ("hole", "hole_i", "hole_j", "hole_x_cf", "hole_y_cf") if c in cen.coords]
+    ds = ds[keep].drop_vars(list(ds.coords)).assign_coords({c: cen[c] for c in coords})
     for k in ds.data_vars:
         ds[k].attrs["long_name"] = DEFECT_METRICS[k]
     return ds
@@ -539,23 +411,18 @@ def robust_z(metrics: xr.Dataset) -> xr.Dataset:
     >>> bool(robust_z(m).outlier_fraction[9] > 5)
     True
     """
+    from scipy.stats import binom, median_abs_deviation, norm
+
     out = {}
     for k in metrics.data_vars:
         v = metrics[k].values.astype(float)
         med = np.nanmedian(v)
-        mad = 1.4826 * np.nanmedian(np.abs(v - med))
-        floor = _FLOORS.get(k, 0.0)
-        if k in ("residual_rms", "scatter"):
-            floor = 0.05 * abs(med)
+        floor = 0.05 * abs(med) if k in ("residual_rms", "scatter") else _FLOORS.get(k, 0.0)
+        mad = median_abs_deviation(v, scale="normal", nan_policy="omit")
         z = (v - med) / max(mad, floor, 1e-15)
-        n_trials = metrics[k].attrs.get("n_trials")
-        if n_trials:
-            from scipy.stats import binom, norm
-
-            n = int(round(float(n_trials)))
+        if n := round(float(metrics[k].attrs.get("n_trials", 0))):
             rate = float(np.clip(np.nanmean(v), 1e-6, 1.0))
-            count = np.round(np.nan_to_num(v) * n)
-            z_count = norm.isf(binom.sf(count - 1, n, rate))
+            z_count = norm.isf(binom.sf(np.round(np.nan_to_num(v) * n) - 1, n, rate))
             z = np.where(z > 0, np.minimum(z, np.maximum(z_count, 0.0)), z)
         out[k] = ("hole", z)
     return xr.Dataset(out, coords=metrics.coords)
@@ -587,15 +454,12 @@ def reject_bad_holes(metrics: xr.Dataset, *, kappa: float = 5.0,
     [7]
     """
     z = robust_z(metrics)
-    names = list(use) if use is not None else list(z.data_vars)
-    for n in names:
-        if n not in z:
-            raise ConfigurationError(f"use: metric {n!r} not in {list(z.data_vars)}")
-    stack = np.stack([z[n].values for n in names])
-    bad = np.nanmax(np.where(np.isfinite(stack), stack, -np.inf), axis=0) > kappa
+    if missing := set(use or ()) - set(z.data_vars):
+        raise ConfigurationError(f"use: metric {sorted(missing)[0]!r} not in {list(z.data_vars)}")
+    bad = (z[list(use or z.data_vars)].to_array() > kappa).any("variable")
     if "missing_fraction" in metrics:
-        bad |= metrics["missing_fraction"].values > 0.5
-    return xr.DataArray(bad, dims="hole", coords=metrics.coords, name="bad")
+        bad |= metrics["missing_fraction"] > 0.5
+    return bad.rename("bad")
 
 
 def metric_scale(values) -> tuple[float, float]:
@@ -624,10 +488,7 @@ def metric_scale(values) -> tuple[float, float]:
     (0.0, 1.0)
     """
     v = np.asarray(values, dtype=float)
-    v = v[np.isfinite(v)]
-    if not v.size:
+    if not np.isfinite(v).any():
         return 0.0, 1.0
-    lo, hi = (float(q) for q in np.percentile(v, [2, 98]))
-    if hi <= lo:
-        hi = lo + max(abs(lo) * 1e-6, 1e-12)
-    return lo, hi
+    lo, hi = (float(q) for q in np.nanpercentile(v, [2, 98]))
+    return lo, hi if hi > lo else lo + max(abs(lo) * 1e-6, 1e-12)

@@ -7,7 +7,9 @@
   removed ones, and the one JSON writer;
 * :mod:`sunlab.reproduce.table4`: Table 4 (one hole, every calibration method);
 * :mod:`sunlab.reproduce.table5`: Table 5 (100 holes vs one hole) and Figs. 13-15;
-* :mod:`sunlab.reproduce.platform`: beyond the paper, the platform fault diagnosed and removed.
+* :mod:`sunlab.reproduce.platform`: beyond the paper, the platform fault diagnosed
+  (:mod:`sunlab.reproduce.fault`) and removed (:mod:`sunlab.reproduce.remedy`);
+* :mod:`sunlab.reproduce.learned`: beyond the paper, a calibration learned from the frames.
 
 ``sunlab reproduce --table 4|5|platform|all`` runs them (:mod:`sunlab.cli`).
 

@@ -197,8 +197,8 @@ def crlb_floor(bench_, cen_test, calibration) -> dict:
 
 def reproduce_learned(*, quick: bool = False, seed: int = 0, out: str | Path | None = "results",
                       progress: bool = True, step: int | None = None, shots: int | None = None,
-                      benches=None, epochs: int = 40, threads: int = 2, device: str = "cpu",
-                      **_ignored) -> dict:
+                      benches=None, epochs: int = 40, threads: int = 2,
+                      device: str = "cpu") -> dict:
     """Train, test and compare the learned route on every bench (module docstring).
 
     Parameters
@@ -245,10 +245,9 @@ def reproduce_learned(*, quick: bool = False, seed: int = 0, out: str | Path | N
             print(f"{name}: {time.perf_counter() - t:.0f} s\n"
                   f"{res['table'].round(5).to_string()}", flush=True)
         result["records"] += res["records"]
-        result["tables"][name] = res["table"]
-        result["models"][name] = res["model"]
-        if "floor" in res:
-            result["floors"][name] = res["floor"]
+        for key, part in (("tables", "table"), ("models", "model"), ("floors", "floor")):
+            if part in res:
+                result[key][name] = res[part]
         if out is not None:  # after every bench: a long run interrupted keeps what it did
             result["files"] = _write(result, Path(out), settings)
     return result
@@ -258,7 +257,7 @@ def _mounting_offset(seed: int) -> tuple[float, float]:
     """Where the one-hole spot falls off its design track, px, from a thinned experiment I on
     the paper bench: the prior that numbers the 100 spots (as Table 5 does)."""
     from .. import sim
-    from .table5 import mounting_offset_px
+    from .pipeline import mounting_offset_px
 
     plan = experiment_plans(("I",), step=4, shots=1)["I"]
     cen = locate_runs({"I": (sim.simulate(plan, sim.Bench.paper_single_hole(),
@@ -316,42 +315,38 @@ def _classical(multi: bool, tables: dict, cubes: dict, bench_, opts) -> dict:
     """The classical routes: method -> (calibration, fit seconds, test table, detection
     seconds of the test run or None when it is the learned route's detection)."""
     from ..calibration import Polynomial
+    from ..multihole import GeometricCentre
 
-    out = {}
+    def timed(fit, *args, **kw):
+        t = time.perf_counter()
+        return fit(*args, **kw), time.perf_counter() - t
+
     if multi:
-        from ..multihole import GeometricCentre
-
-        t = time.perf_counter()
-        gc = GeometricCentre(order=5).fit(tables["I"])
-        return {"geometric centre": (gc, time.perf_counter() - t, tables["III"], None)}
-    t = time.perf_counter()
-    poly, _ = Polynomial.select_order(tables["I"], tables["II"], refit=True)
-    out["polynomial"] = (poly, time.perf_counter() - t, tables["III"], None)
-    t = time.perf_counter()
-    poly1, _ = Polynomial.select_order(tables["I"], tables["II"], refit=False)
-    out["polynomial (I only)"] = (poly1, time.perf_counter() - t, tables["III"], None)
+        gc, sec = timed(GeometricCentre(order=5).fit, tables["I"])
+        return {"geometric centre": (gc, sec, tables["III"], None)}
+    out = {}
+    for method, refit in (("polynomial", True), ("polynomial (I only)", False)):
+        (cal, _), sec = timed(Polynomial.select_order, tables["I"], tables["II"], refit=refit)
+        out[method] = (cal, sec, tables["III"], None)
     if bench_.platform.alpha_pose_error_deg == 0 and bench_.mask.play_x_mm == 0:
-        t = time.perf_counter()
-        fit = {k: usable_table(c) for k, c in locate_runs(
-            cubes, method="fit", progress=False, workers=opts["threads"]).items()}
-        det_s = (time.perf_counter() - t) * cubes["III"].sizes["pose"] / sum(
-            c.sizes["pose"] for c in cubes.values())
-        t = time.perf_counter()
-        pfit, _ = Polynomial.select_order(fit["I"], fit["II"], refit=True)
-        out["disk fit + polynomial"] = (pfit, time.perf_counter() - t, fit["III"], det_s)
+        found, sec = timed(locate_runs, cubes, method="fit", progress=False,
+                           workers=opts["threads"])
+        fit = {k: usable_table(c) for k, c in found.items()}
+        det_s = sec * cubes["III"].sizes["pose"] / sum(c.sizes["pose"] for c in cubes.values())
+        (pfit, _), sec = timed(Polynomial.select_order, fit["I"], fit["II"], refit=True)
+        out["disk fit + polynomial"] = (pfit, sec, fit["III"], det_s)
     return out
 
 
 def _records(name: str, table, timing: dict) -> list[dict]:
-    recs = [{"bench": name, "method": str(m), "angle": a, "stat": s, "value": _num(v)}
-            for m in table.columns for (a, s), v in table[m].items()]
+    def rec(method, angle, stat, value):
+        return {"bench": name, "method": str(method), "angle": angle, "stat": stat,
+                "value": _num(value)}
+
+    recs = [rec(m, a, s, v) for m in table.columns for (a, s), v in table[m].items()]
     for m, (train_s, infer_s, *cpu) in timing.items():
-        recs += [{"bench": name, "method": m, "angle": None, "stat": "train_s",
-                  "value": _num(train_s)},
-                 *[{"bench": name, "method": m, "angle": None, "stat": "train_cpu_s",
-                    "value": _num(c)} for c in cpu],
-                 {"bench": name, "method": m, "angle": None, "stat": "infer_s_per_frame",
-                  "value": _num(infer_s)}]
+        recs += [rec(m, None, "train_s", train_s), *[rec(m, None, "train_cpu_s", c) for c in cpu],
+                 rec(m, None, "infer_s_per_frame", infer_s)]
     return recs
 
 

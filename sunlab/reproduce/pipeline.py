@@ -10,18 +10,13 @@ steps, and this module is the one place that renders frames and centroids them:
 2. :func:`simulate_runs` and :func:`locate_runs`: the frame cubes of the virtual bench, lazy,
    and every frame of every run centroided in ONE pass of Dask (:func:`sunlab.parallel.compute`)
    with the table's centroid ``method`` on the scheduler the caller chose (``address``,
-   ``scheduler``, ``workers``);
-3. the tables of each reproduced table, rendered and centroided once and returned:
-   :func:`simulate_and_locate` (experiments I-III of one hole, with their zero-pose checks for
-   Table 4) and :func:`multi_hole_tables` (Table 5: one hole, then the 100 holes numbered by the
-   one hole's :func:`mounting_offset_px`, and the per-hole metrics that need the frames);
-4. :func:`usable_table` and :func:`centroid_status`: which frames the calibrations use, and the
+   ``scheduler``, ``workers``); :func:`simulate_and_locate` does both for experiments I-III of
+   one hole (with their zero-pose checks for Table 4);
+3. :func:`usable_table` and :func:`centroid_status`: which frames the calibrations use, and the
    counts of the frames removed;
-5. :func:`write_json`: the one writer of every table's machine-readable results file.
-
-The tables' statistics are functions of these centroid tables
-(:func:`sunlab.reproduce.table4.table4_statistics`,
-:func:`sunlab.reproduce.table5.table5_statistics`).
+4. :func:`identified`: the identified bench's hypothesis and 90 % predictive intervals, read
+   from ``sunlab/data/`` (``presets.json``, ``intervals.csv``; written by ``python -m
+   studies.identify``), and :func:`write_json`, the one writer of every results file.
 
 Examples
 --------
@@ -33,12 +28,12 @@ Examples
 from __future__ import annotations
 
 import json
+from importlib import resources
 from pathlib import Path
 
 import numpy as np
 import xarray as xr
 
-from ..centroid.estimators import PER_SPOT
 from ..errors import ConfigurationError
 
 __all__ = ["QUICK", "experiment_plans", "locate_runs", "simulate_and_locate"]
@@ -112,9 +107,11 @@ def simulate_runs(runs: dict, *, seed: int = 0, chunks: str = "pose") -> dict[st
 
 def locate_runs(cubes: dict, *, method: str = "projection", hole_offset=(0.0, 0.0),
                 progress: bool = True, address: str | None = None, scheduler: str = "threads",
-                workers: int | None = None, truth: bool = False,
-                pool=None) -> dict[str, xr.Dataset]:
+                workers: int | None = None, pool=None) -> dict[str, xr.Dataset]:
     """Centroid every frame of every cube in one pass of Dask; centroid tables by run.
+
+    The cubes' true centroids are left out (on the virtual bench they cost a second pass over
+    each frame's spot geometry, and no table uses them).
 
     Parameters
     ----------
@@ -136,10 +133,6 @@ def locate_runs(cubes: dict, *, method: str = "projection", hole_offset=(0.0, 0.
     workers : int, optional
         Threads or processes of the local scheduler (default: the CPU count). The centroids
         do not depend on the scheduler or on where a frame is rendered.
-    truth : bool
-        Carry the cubes' true centroids (``true_x``, ``true_y``, lazy on a simulated cube)
-        into the tables. The reproduced tables do not use them, and on the virtual bench they
-        cost a second pass over each frame's spot geometry, so they are left out by default.
     pool : concurrent.futures.Executor, optional
         Worker processes kept between calls (:func:`sunlab.parallel.worker_pool`).
 
@@ -156,15 +149,12 @@ def locate_runs(cubes: dict, *, method: str = "projection", hole_offset=(0.0, 0.
     >>> cens = locate_runs(cubes, progress=False)
     >>> int((cens["III"].status == 0).sum()), "true_x" in cens["III"]
     (9, False)
-    >>> bool(locate_runs(cubes, progress=False, truth=True)["III"].true_x.notnull().all())
-    True
     """
     from .. import centroid
 
     moved = {}
     for name, cube in cubes.items():
-        if not truth:
-            cube = cube.drop_vars(["true_x", "true_y"], errors="ignore")
+        cube = cube.drop_vars(["true_x", "true_y"], errors="ignore")
         if "hole_x_cf" in cube.coords:
             cube = cube.assign_coords(hole_x_cf=cube["hole_x_cf"] + hole_offset[0],
                                       hole_y_cf=cube["hole_y_cf"] + hole_offset[1])
@@ -178,20 +168,11 @@ def locate_runs(cubes: dict, *, method: str = "projection", hole_offset=(0.0, 0.
     return done
 
 
-def simulate_and_locate(
-    bench=None,
-    *,
-    seed: int = 0,
-    quick: bool = False,
-    method: str = "projection",
-    progress: bool = True,
-    address: str | None = None,
-    step: int | None = None,
-    shots: int | None = None,
-    scheduler: str = "threads",
-    workers: int | None = None,
-    zero_pose: bool = False,
-) -> dict[str, xr.Dataset]:
+def simulate_and_locate(bench=None, *, seed: int = 0, quick: bool = False,
+                        method: str = "projection", progress: bool = True,
+                        address: str | None = None, step: int | None = None,
+                        shots: int | None = None, scheduler: str = "threads",
+                        workers: int | None = None, zero_pose: bool = False) -> dict:
     """Simulate experiments I, II, III and centroid every frame; centroid tables by experiment.
 
     Every frame is rendered and centroided once, in one pass of Dask (:func:`locate_runs`).
@@ -211,10 +192,11 @@ def simulate_and_locate(
     address, scheduler, workers
         Where the frames are rendered and centroided (:func:`locate_runs`).
     zero_pose : bool
-        Also render and centroid each experiment's zero-pose check (:func:`zero_pose_cubes`, in
-        the same pass) and give each table its check's centroid as the attributes
-        ``zero_pose_x_px``, ``zero_pose_y_px`` (px, :func:`zero_pose_attrs`), which a network
-        re-zeroed on each run's zero pose reads (Table 4's strategy 4).
+        Also render and centroid each experiment's zero-pose check
+        (:func:`sunlab.plans.zero_check`, one visit with the run's shots, in the same pass) and
+        give each table the mean of its check's usable centroids as the attributes
+        ``zero_pose_x_px``, ``zero_pose_y_px`` (px), which a network re-zeroed on each run's
+        zero pose reads (Table 4's strategy 4).
 
     Returns
     -------
@@ -224,143 +206,39 @@ def simulate_and_locate(
 
     Examples
     --------
-    >>> cens = simulate_and_locate(seed=1, step=7, shots=1, progress=False)
-    >>> {k: int(v.sizes["pose"]) for k, v in cens.items()}
-    {'I': 9, 'II': 4, 'III': 9}
+    >>> cens = simulate_and_locate(seed=1, step=7, shots=1, progress=False, zero_pose=True)
+    >>> {k: int(v.sizes["pose"]) for k, v in cens.items()}, "zero_pose_x_px" in cens["I"].attrs
+    ({'I': 9, 'II': 4, 'III': 9}, True)
     """
-    from .. import sim
+    from .. import plans, sim
 
     bench = sim.Bench.paper_single_hole() if bench is None else bench
     plans_ = experiment_plans(quick=quick, step=step, shots=shots)
-    cubes = simulate_experiments(bench, seed=seed, quick=quick, step=step, shots=shots,
-                                 progress=progress, method=method)
+    runs = {k: (p, bench) for k, p in plans_.items()}
     if zero_pose:
-        cubes.update(zero_pose_cubes(bench, plans_, seed=seed))
-    cens = locate_runs(cubes, method=method, progress=progress, address=address,
-                       scheduler=scheduler, workers=workers)
-    zero = zero_pose_attrs(cens)
-    return {k: cens[k].assign_attrs(zero.get(k, {})) for k in plans_}
-
-
-def simulate_experiments(bench=None, *, seed: int = 0, quick: bool = False,
-                         step: int | None = None, shots: int | None = None,
-                         progress: bool = True, method: str = "projection") -> dict:
-    """The lazy frame cubes of experiments I, II, III on the virtual bench: the first half of
-    :func:`simulate_and_locate`, for a caller that centroids them itself.
-
-    Parameters
-    ----------
-    bench : sunlab.sim.Bench, optional
-        Default :meth:`sunlab.sim.Bench.paper_single_hole`.
-    seed : int
-        Seed of the virtual bench; each experiment mixes its plan into it.
-    quick, step, shots
-        The plans (:func:`experiment_plans`).
-    progress : bool
-        Print what the experiments hold (poses x shots, frames in all).
-    method : str
-        The centroid method announced with the frame count (nothing is centroided here).
-
-    Returns
-    -------
-    dict of str to xarray.Dataset
-        Lazy ``frames/1`` cubes keyed ``"I"``, ``"II"``, ``"III"``.
-
-    Examples
-    --------
-    >>> cubes = simulate_experiments(step=7, shots=1, progress=False)
-    >>> {k: int(v.sizes["pose"]) for k, v in cubes.items()}
-    {'I': 9, 'II': 4, 'III': 9}
-    """
-    from .. import sim
-
-    bench = sim.Bench.paper_single_hole() if bench is None else bench
-    plans_ = experiment_plans(quick=quick, step=step, shots=shots)
-    cubes = simulate_runs({k: (p, bench) for k, p in plans_.items()}, seed=seed)
+        runs.update({f"zero {k}": (plans.zero_check(p, 1), bench) for k, p in plans_.items()})
     if progress:
         for name, plan in plans_.items():
             print(f"experiment {name} ({EXPERIMENTS[name]}): {len(plan)} poses x "
                   f"{plan.shots} shots", flush=True)
         n_frames = sum(len(p) * p.shots for p in plans_.values())
         print(f"rendering and centroiding {n_frames} frames ({method})", flush=True)
-    return cubes
-
-
-def zero_pose_cubes(bench, plans_: dict, *, seed: int = 0) -> dict:
-    """The lazy cubes of each run's zero-pose check (:func:`sunlab.plans.zero_check`, one
-    visit with the run's shots): rendered on the bench with the run's homing and drift and a
-    per-pose platform error of their own, to be centroided in the same pass as the runs
-    (:func:`locate_runs`) and read by :func:`zero_pose_attrs`.
-
-    Parameters
-    ----------
-    bench : sunlab.sim.Bench
-        The bench the runs are rendered on.
-    plans_ : dict of str to sunlab.plans.Plan
-        The runs, keyed ``"I"`` ... (:func:`experiment_plans`).
-    seed : int
-        Seed of the virtual bench (the runs' seed).
-
-    Returns
-    -------
-    dict of str to xarray.Dataset
-        Lazy ``frames/1`` cubes keyed ``"zero I"`` ..., one pose each.
-
-    Examples
-    --------
-    >>> from sunlab import sim
-    >>> z = zero_pose_cubes(sim.Bench.paper_single_hole(), experiment_plans(("I",), shots=2))
-    >>> list(z), dict(z["zero I"].frames.sizes)["shot"]
-    (['zero I'], 2)
-    """
-    from .. import plans
-
-    return simulate_runs({f"zero {k}": (plans.zero_check(p, 1), bench)
-                          for k, p in plans_.items()}, seed=seed)
-
-
-def zero_pose_attrs(cens: dict) -> dict:
-    """Each run's zero-pose centroid from the centroided checks of :func:`zero_pose_cubes`: the
-    mean over the usable shots, as the attributes that a network re-zeroed on each run's zero
-    pose reads (``reference="zero_pose"`` of :class:`sunlab.calibration.NeuralNet`).
-
-    Parameters
-    ----------
-    cens : dict of str to xarray.Dataset
-        Centroid tables; those keyed ``"zero I"`` ... are read, the others ignored.
-
-    Returns
-    -------
-    dict of str to dict
-        Per run (``"I"`` ...): ``zero_pose_x_px``, ``zero_pose_y_px`` (px).
-
-    Examples
-    --------
-    >>> from sunlab import schema
-    >>> cen = schema.centroids_dataset([[10.0, 12.0]], [[5.0, 5.0]], alpha=[0.0], beta=[0.0])
-    >>> zero_pose_attrs({"zero I": cen})
-    {'I': {'zero_pose_x_px': 11.0, 'zero_pose_y_px': 5.0}}
-    """
-    out = {}
-    for key, cen in cens.items():
-        if not key.startswith("zero "):
-            continue
-        ok = usable_table(cen)["status"].values == 0
-        out[key[len("zero "):]] = {"zero_pose_x_px": float(np.mean(cen.x.values[ok])),
-                                   "zero_pose_y_px": float(np.mean(cen.y.values[ok]))}
+    cens = locate_runs(simulate_runs(runs, seed=seed), method=method, progress=progress,
+                       address=address, scheduler=scheduler, workers=workers)
+    out = {k: cens[k] for k in plans_}
+    for k in plans_ if zero_pose else ():
+        zero = cens[f"zero {k}"]
+        ok = usable_table(zero)["status"].values == 0
+        out[k] = out[k].assign_attrs(zero_pose_x_px=float(np.mean(zero.x.values[ok])),
+                                     zero_pose_y_px=float(np.mean(zero.y.values[ok])))
     return out
 
 
-#: The per-spot centroid estimator on the 100-hole frames for each method of Table 5: the
-#: single-spot algorithms (B's profiles run over the whole frame) cannot separate 100 spots, so
-#: there each spot gets its own tight window (:func:`sunlab.centroid.locate_spots`); the
-#: centroid methods' one table (:data:`sunlab.centroid.estimators.PER_SPOT`).
-SPOT_METHODS = PER_SPOT
-
-
 def spot_method(method: str) -> str:
-    """The centroid estimator of the 100-hole frames for the table's ``method``
-    (:data:`SPOT_METHODS`); an unknown method raises, naming the choices.
+    """The centroid estimator of the 100-hole frames for the table's ``method``: the
+    single-spot algorithms (B's profiles run over the whole frame) cannot separate 100 spots,
+    so there each spot gets its own tight window (:func:`sunlab.centroid.locate_spots`;
+    :data:`sunlab.centroid.estimators.PER_SPOT`); an unknown method raises, naming the choices.
 
     Parameters
     ----------
@@ -381,11 +259,11 @@ def spot_method(method: str) -> str:
     ...
     sunlab.errors.ConfigurationError: method: found 'nearest'; expected one of [...]
     """
-    if method not in SPOT_METHODS:
-        raise ConfigurationError(
-            f"method: found {method!r}; expected one of {sorted(SPOT_METHODS)}"
-        )
-    return SPOT_METHODS[method]
+    from ..centroid.estimators import PER_SPOT
+
+    if method not in PER_SPOT:
+        raise ConfigurationError(f"method: found {method!r}; expected one of {sorted(PER_SPOT)}")
+    return PER_SPOT[method]
 
 
 def mounting_offset_px(one_hole) -> tuple[float, float]:
@@ -422,78 +300,10 @@ def mounting_offset_px(one_hole) -> tuple[float, float]:
 
     a = one_hole["alpha"].values[:, None]
     b = one_hole["beta"].values[:, None]
-    x0, y0 = ideal_centroid(a, b, float(one_hole.attrs["mask_distance_mm"]),
-                            float(one_hole.attrs["pixel_pitch_mm"]),
-                            float(one_hole.attrs["x_cf_px"]), float(one_hole.attrs["y_cf_px"]))
+    x0, y0 = ideal_centroid(a, b, *(float(one_hole.attrs[k]) for k in (
+        "mask_distance_mm", "pixel_pitch_mm", "x_cf_px", "y_cf_px")))
     return (float(np.nanmedian(one_hole["x"].values - x0)),
             float(np.nanmedian(one_hole["y"].values - y0)))
-
-
-def multi_hole_tables(plans_: dict, *, seed: int = 0, method: str = "projection",
-                      progress: bool = True, address: str | None = None,
-                      scheduler: str = "threads", workers: int | None = None) -> tuple:
-    """Render and centroid Table 5's runs once, one pool of workers for every pass
-    (:func:`sunlab.parallel.worker_pool`): the one-hole runs I, II, III first, whose spot gives
-    the mounting offset (:func:`mounting_offset_px`) that numbers the 100 spots; then the
-    100-hole runs I and III in one pass; last the per-hole metrics of the 100-hole run I that
-    need its frames (spot shape, edge roughness: :func:`sunlab.multihole.defect_metrics`).
-
-    Parameters
-    ----------
-    plans_ : dict of str to sunlab.plans.Plan
-        Experiments ``"I"``, ``"II"``, ``"III"`` (:func:`experiment_plans`); the 100-hole mask
-        runs I and III (the order is chosen on the one hole's II).
-    seed : int
-        Seed of the virtual bench.
-    method : str
-        Centroid method of the one-hole frames; the 100-hole frames get :func:`spot_method`'s.
-    progress : bool
-        Show progress bars.
-    address, scheduler, workers
-        Where the frames are rendered and centroided (:func:`locate_runs`).
-
-    Returns
-    -------
-    tables : dict of str to xarray.Dataset
-        ``centroids/1`` tables keyed ``"1 hole I"``, ``"1 hole II"``, ``"1 hole III"``,
-        ``"100 holes I"``, ``"100 holes III"``, every centroid status kept; the 100-hole tables
-        on (pose, shot, hole) with the design positions ``hole_x_cf``, ``hole_y_cf`` (px).
-    hole_metrics : xarray.Dataset
-        :func:`sunlab.multihole.defect_metrics` of the usable 100-hole run I with its frames
-        and no strategy (the residual metrics need a fitted calibration: Table 5 adds them).
-    cubes : dict of str to xarray.Dataset
-        The lazy frame cubes, keyed as ``tables`` and chunked by frame, for figures and
-        :class:`sunlab.widgets.HoleExplorer` (the same frames the tables were measured on).
-
-    Examples
-    --------
-    A 100-hole run renders 100 spots a frame: minutes even thinned, so not run here.
-
-    >>> tables, metrics, cubes = multi_hole_tables(
-    ...     experiment_plans(step=4, shots=1), progress=False)  # doctest: +SKIP
-    >>> sorted(tables)  # doctest: +SKIP
-    ['1 hole I', '1 hole II', '1 hole III', '100 holes I', '100 holes III']
-    """
-    from .. import multihole as mh
-    from .. import parallel, sim
-
-    one = {f"1 hole {k}": (p, sim.Bench.paper_single_hole()) for k, p in plans_.items()}
-    many = {f"100 holes {k}": (p, sim.Bench.paper_multi_hole()) for k, p in plans_.items()
-            if k != "II"}
-    where = {"progress": progress, "address": address, "scheduler": scheduler,
-             "workers": workers}
-    with parallel.worker_pool(scheduler, workers, address) as pool:
-        tables = locate_runs(simulate_runs(one, seed=seed), method=method, pool=pool, **where)
-        tables.update(locate_runs(simulate_runs(many, seed=seed), method=spot_method(method),
-                                  hole_offset=mounting_offset_px(tables["1 hole I"]),
-                                  pool=pool, **where))
-    # the passes take whole poses (one Dask task each); the cubes handed on serve single
-    # frames (the metrics sample frames, figures, the explorer), so they are chunked by frame:
-    # the same frames either way
-    cubes = simulate_runs({**one, **many}, seed=seed, chunks="frame")
-    hole_metrics = mh.defect_metrics(usable_table(tables["100 holes I"]),
-                                     cube=cubes["100 holes I"])
-    return tables, hole_metrics, cubes
 
 
 def usable_table(cen: xr.Dataset) -> xr.Dataset:
@@ -559,6 +369,55 @@ def centroid_status(cens: dict) -> dict:
     return out
 
 
+def identified(table: str) -> dict:
+    """The identified bench's hypothesis and each published cell's 90 % predictive interval.
+
+    Read from ``sunlab/data/presets.json`` (its ``hypothesis``) and ``sunlab/data/intervals.csv``
+    (written by ``python -m studies.identify``; docs/identification.md): the spread over the
+    confirmation seeds and the model's discrepancy, not a function of any one run's seed.
+
+    Parameters
+    ----------
+    table : {"table4", "table5"}
+
+    Returns
+    -------
+    dict
+        ``hypothesis`` and ``interval90``: ``{column: {"angle.stat": [lo, hi]}}`` (deg), keyed
+        as ``table4.json``'s ``ours`` rows; Table 5's columns carry its JSON's `` [sunlab]``.
+
+    Examples
+    --------
+    >>> iv = identified("table4")
+    >>> lo, hi = iv["interval90"]["polynomial"]["alpha.mu"]
+    >>> iv["hypothesis"], bool(0 < lo < hi)
+    ('F5', True)
+    """
+    import pandas as pd
+
+    data = resources.files("sunlab") / "data"
+    name = json.loads((data / "presets.json").read_text("utf-8"))["hypothesis"]
+    with resources.as_file(data / "intervals.csv") as path:
+        ints = pd.read_csv(path)
+    out: dict = {}
+    for r in ints[(ints["hypothesis"] == name) & (ints["table"] == table)].itertuples():
+        key = r.column if table == "table4" else f"{r.column} [sunlab]"
+        out.setdefault(key, {})[f"{r.angle}.{r.stat}"] = [float(r.lo), float(r.hi)]
+    return {"hypothesis": name, "interval90": out}
+
+
+def _stat_line(label: str, values, tag: str, width: int) -> str:
+    """One line of a printed table: the label, then each value in 12 characters, then the tag
+    (values are numbers, printed to 4 decimals, or ready-made strings)."""
+    return f"{label:<{width}s}" + "".join(
+        f"{v:>12s}" if isinstance(v, str) else f"{v:12.4f}" for v in values) + f"   {tag}"
+
+
+def _span(lo: float, hi: float) -> str:
+    """An interval in 11 characters: ``.0071-.0118`` (deg, below 1)."""
+    return f"{lo:.4f}-{hi:.4f}".replace("0.", ".")
+
+
 def write_json(doc: dict, path: str | Path) -> str:
     """Write a table's results file (indented JSON; NumPy scalars and arrays as numbers).
 
@@ -589,15 +448,11 @@ def write_json(doc: dict, path: str | Path) -> str:
     """
     from .. import atomic
 
-    path = Path(path)
-    atomic.write_text(path, json.dumps(doc, indent=2, default=_jsonable), overwrite=True,
+    def plain(o):
+        if isinstance(o, np.generic | np.ndarray):
+            return o.tolist()
+        raise TypeError(type(o).__name__)
+
+    atomic.write_text(Path(path), json.dumps(doc, indent=2, default=plain), overwrite=True,
                       flag="")
     return str(path)
-
-
-def _jsonable(o):
-    if isinstance(o, np.generic):
-        return o.item()
-    if isinstance(o, np.ndarray):
-        return o.tolist()
-    raise TypeError(type(o).__name__)

@@ -13,14 +13,14 @@ lab whose stage has one would run them):
    out. Every row fits on I alone, so that the remedies compare like with like; Table 4's
    polynomial is refitted on I + II (:data:`sunlab.calibration.methods.POLYNOMIAL_REFIT`) and
    takes part of the zero shift from II, so its beta mu is below this table's first row;
-2. the diagnosis (:func:`sunlab.studies.platform_fault.diagnose`) of the polynomial's test
+2. the diagnosis (:func:`sunlab.reproduce.fault.diagnose`) of the polynomial's test
    errors with the run's motion record, beside the shape test applied to the paper's published
-   statistics (:func:`sunlab.studies.platform_fault.paper_shape`);
+   statistics (:func:`sunlab.reproduce.fault.paper_shape`);
 3. remedy (a): the same experiments with a unidirectional approach (overshoot and return), and
    with the zero-pose checks correcting the homing offset;
 4. remedy (b): on the paper-protocol runs, the backlash fitted jointly with the polynomial
    from the motion record (and the homing offset from the zero-pose checks), with standard
-   errors (:func:`sunlab.studies.platform_fault.fit_correction`), the test run's reference
+   errors (:func:`sunlab.reproduce.remedy.fit_correction`), the test run's reference
    corrected.
 
 Every row is Table 4's eight statistics for the polynomial on experiment III. The frames go
@@ -37,8 +37,13 @@ Examples
 
 from __future__ import annotations
 
+import dataclasses
+import math
 import time
 from pathlib import Path
+
+import numpy as np
+import pandas as pd
 
 from .pipeline import experiment_plans, locate_runs, simulate_runs, usable_table, write_json
 
@@ -57,7 +62,7 @@ GEAR_ROW = "(b) backlash + homing + gear error at the periodogram's frequency"
 
 
 def bench_fault_values(bench, seed, plans_by_run: dict) -> dict:
-    """The bench's own values of what :func:`sunlab.studies.platform_fault.fit_correction`
+    """The bench's own values of what :func:`sunlab.reproduce.remedy.fit_correction`
     estimates.
 
     ``beta_backlash_deg`` (the platform's), ``beta_homing_difference_deg`` (the test run's
@@ -95,17 +100,19 @@ def bench_fault_values(bench, seed, plans_by_run: dict) -> dict:
             "beta_gear_amplitude_deg": float(bench.platform.beta_gear_deg)}
 
 
-def _centroids(bench, plan_sets: dict, *, seed, method, engine, progress, where):
-    """Centroid tables for every named plan: rendered and centroided, or from the surrogate."""
+def _centroids(bench, sets: dict, *, seed, method, engine, progress, where) -> dict:
+    """Usable centroid tables of every named plan: rendered and centroided, or the surrogate's."""
     if engine == "surrogate":
         from ..sim.surrogate import surrogate_centroids
 
-        return {k: surrogate_centroids(bench, p, seed) for k, p in plan_sets.items()}
-    cubes = simulate_runs({k: (p, bench) for k, p in plan_sets.items()}, seed=seed)
-    if progress:
-        n = sum(len(p) * p.shots for p in plan_sets.values())
-        print(f"rendering and centroiding {n} frames ({method})", flush=True)
-    return locate_runs(cubes, method=method, progress=progress, **where)
+        cens = {k: surrogate_centroids(bench, p, seed) for k, p in sets.items()}
+    else:
+        if progress:
+            print(f"rendering and centroiding {sum(len(p) * p.shots for p in sets.values())} "
+                  f"frames ({method})", flush=True)
+        cens = locate_runs(simulate_runs({k: (p, bench) for k, p in sets.items()}, seed=seed),
+                           method=method, progress=progress, **where)
+    return {k: usable_table(v) for k, v in cens.items()}
 
 
 def reproduce_platform(*, quick: bool = False, seed: int = 0, method: str = "projection",
@@ -119,8 +126,7 @@ def reproduce_platform(*, quick: bool = False, seed: int = 0, method: str = "pro
     Parameters
     ----------
     quick : bool
-        Quick mode, the same for every table (:data:`sunlab.reproduce.pipeline.QUICK`): every
-        2nd angle along each grid axis and 2 shots per pose.
+        Quick mode, as every table's (:data:`sunlab.reproduce.pipeline.QUICK`).
     seed : int
         Seed of the virtual bench.
     method : str
@@ -155,138 +161,107 @@ def reproduce_platform(*, quick: bool = False, seed: int = 0, method: str = "pro
     >>> res["diagnosis"]["candidate"]  # the run's offset, the drift of the zero, leads
     'homing'
     """
-    from .. import sim, stats
+    from .. import plans, sim, stats
     from ..errors import ConfigurationError
 
     if engine not in ("render", "surrogate"):
-        raise ConfigurationError(
-            f"engine: found {engine!r}; expected 'render' or 'surrogate'."
-        )
+        raise ConfigurationError(f"engine: found {engine!r}; expected 'render' or 'surrogate'.")
     t0 = time.perf_counter()
     bench = sim.Bench.paper_single_hole() if bench is None else bench
     paper = experiment_plans(quick=quick, step=step, shots=shots)
-    uni = {k: p.with_motion(approach="unidirectional") for k, p in paper.items()}
-    sets = _plan_sets(paper, uni, checks)
-    cens = {k: usable_table(v) for k, v in _centroids(
-        bench, sets, seed=seed, method=method, engine=engine, progress=progress,
-        where={"address": address, "scheduler": scheduler, "workers": workers}).items()}
+    protocols = {"paper": paper,
+                 "uni": {k: p.with_motion(approach="unidirectional") for k, p in paper.items()}}
+    # every run of both protocols, and one zero-pose check per run, taken after homing (its
+    # plan is the same for both protocols)
+    sets = {f"{tag} {k}": p for tag, ps in protocols.items() for k, p in ps.items()}
+    sets.update({f"zero {k}": plans.zero_check(paper[k], checks) for k in ("I", "III")})
+    cens = _centroids(bench, sets, seed=seed, method=method, engine=engine, progress=progress,
+                      where={"address": address, "scheduler": scheduler, "workers": workers})
     t_sim = time.perf_counter() - t0
-    rows, fits, diag, jc_params, from_row = _rows(cens, paper, uni)
-    table = stats.global_stats(rows)
-    parameters = _fault_parameters(jc_params, bench_fault_values(bench, seed, paper), from_row)
-    result = _platform_doc(table, parameters, diag, fits)
-    result["settings"] = {"seed": seed, "quick": quick, "engine": engine,
-                          "centroid_method": method, "scan": paper["III"].scan,
-                          "zero_checks": checks, "poses": {k: len(p) for k, p in paper.items()},
-                          "shots": paper["III"].shots,
-                          "bench": "sunlab.sim.Bench.paper_single_hole()"}
-    result["timings_s"] = {"simulate_and_centroid": round(t_sim, 2),
-                           "total": round(time.perf_counter() - t0, 2)}
-    result["files"] = []
+    rows, orders, diag, jc, from_row = _rows(cens, protocols)
+    truth = bench_fault_values(bench, seed, paper)
+    result = {**_platform_doc(stats.global_stats(rows), jc, truth, from_row, diag),
+              "polynomial_order": orders,
+              "settings": {"seed": seed, "quick": quick, "engine": engine,
+                           "centroid_method": method, "scan": paper["III"].scan,
+                           "zero_checks": checks, "poses": {k: len(p) for k, p in paper.items()},
+                           "shots": paper["III"].shots,
+                           "bench": "sunlab.sim.Bench.paper_single_hole()"},
+              "timings_s": {"simulate_and_centroid": round(t_sim, 2),
+                            "total": round(time.perf_counter() - t0, 2)},
+              "files": []}
     if out is not None:
-        out = Path(out)
-        out.mkdir(parents=True, exist_ok=True)
-        result["files"] = [write_json(result, out / "platform.json")]
+        Path(out).mkdir(parents=True, exist_ok=True)
+        result["files"] = [write_json(result, Path(out) / "platform.json")]
     return result
 
 
-def _plan_sets(paper: dict, uni: dict, checks: int) -> dict:
-    """Every run: the paper's protocol and the unidirectional one, and one zero-pose check per
-    run, taken after homing (its plan is the same for both protocols)."""
-    from .. import plans
-
-    sets = {}
-    for tag, ps in (("paper", paper), ("uni", uni)):
-        for k, p in ps.items():
-            sets[f"{tag} {k}"] = p
-    for k in ("I", "III"):
-        sets[f"zero {k}"] = plans.zero_check(paper[k], checks)
-    return sets
-
-
-def _rows(cens: dict, paper: dict, uni: dict):
-    """The local errors of every row of the table, the polynomial of each protocol, the
+def _rows(cens: dict, protocols: dict):
+    """The local errors of every row of the table, the polynomial orders of each protocol, the
     diagnosis, the joint fit whose parameters are reported and its row."""
     from .. import stats
     from ..calibration import Polynomial
-    from ..studies import platform_fault as pf
+    from .fault import diagnose
+    from .remedy import fit_correction
 
-    local, fits = {}, {}
-    for tag in ("paper", "uni"):
-        tr, va, te = (cens[f"{tag} {k}"] for k in ("I", "II", "III"))
-        cal, _ = Polynomial.select_order(tr, va)
-        fits[tag] = cal
-        local[tag] = stats.local_errors(cal.predict(te))
-    rows = {ROWS[0]: local["paper"], ROWS[1]: local["uni"]}
     zeros = {"zero_train": cens["zero I"], "zero_test": cens["zero III"]}
 
-    def corrected(runs, plans_, **kw):
-        jc = pf.fit_correction(cens[f"{runs} I"], plans_["I"], cens[f"{runs} II"], **kw)
-        est = jc.predict(cens[f"{runs} III"])
-        return jc, stats.local_errors(est, jc.reference(est, plans_["III"]))
+    def corrected(tag, **kw):
+        jc = fit_correction(cens[f"{tag} I"], protocols[tag]["I"], cens[f"{tag} II"], **kw)
+        est = jc.predict(cens[f"{tag} III"])
+        return jc, stats.local_errors(est, jc.reference(est, protocols[tag]["III"]))
 
-    # (a) + zero check: the homing difference from the zero-pose checks, no backlash term
-    _, rows[ROWS[2]] = corrected("uni", uni, backlash=False, **zeros)
-    # (b) backlash from the motion record, then with the zero-pose checks
-    _, rows[ROWS[3]] = corrected("paper", paper)
-    jc_params, rows[ROWS[4]] = corrected("paper", paper, **zeros)
-    from_row = ROWS[4]
-    diag = pf.diagnose(fits["paper"].predict(cens["paper III"]), paper["III"])
-    if diag.candidate == "gear":
-        # the gear term at the frequency the periodogram found (the alias the grid sees)
-        f = diag.evidence["periodogram"]["peak_frequency"]
-        jc_params, rows[GEAR_ROW] = corrected("paper", paper, gear_frequency=f, **zeros)
-        from_row = GEAR_ROW
-    return rows, fits, diag, jc_params, from_row
-
-
-def _fault_parameters(jc, truth: dict, from_row: str) -> dict:
-    """The fitted fault parameters beside the bench's, with their z-scores."""
-    parameters = {}
-    for name, p in jc.parameters.items():
-        z = (p["fitted"] - truth[name]) / p["stderr"] if p["stderr"] > 0 else float("inf")
-        parameters[name] = {"fitted": p["fitted"], "stderr": p["stderr"], "bench": truth[name],
-                            "z": z, "from": from_row}
-    return parameters
+    rows, orders = {}, {}
+    for tag, row in (("paper", ROWS[0]), ("uni", ROWS[1])):
+        cal, _ = Polynomial.select_order(cens[f"{tag} I"], cens[f"{tag} II"])
+        orders[tag] = [int(n) for n in cal.orders]
+        rows[row] = stats.local_errors(cal.predict(cens[f"{tag} III"]))
+        if tag == "paper":
+            diag = diagnose(cal.predict(cens["paper III"]), protocols["paper"]["III"])
+    # (a) + zero check: the homing difference from the zero-pose checks, no backlash term;
+    # (b) the backlash from the motion record, then with the zero-pose checks
+    rows[ROWS[2]] = corrected("uni", backlash=False, **zeros)[1]
+    rows[ROWS[3]] = corrected("paper")[1]
+    jc, rows[ROWS[4]] = corrected("paper", **zeros)
+    if diag.candidate != "gear":
+        return rows, orders, diag, jc, ROWS[4]
+    # the gear term at the frequency the periodogram found (the alias the grid sees)
+    f = diag.evidence["periodogram"]["peak_frequency"]
+    jc, rows[GEAR_ROW] = corrected("paper", gear_frequency=f, **zeros)
+    return rows, orders, diag, jc, GEAR_ROW
 
 
-def _platform_doc(table, parameters: dict, diag, fits: dict) -> dict:
-    """The platform table's results: rows, parameters, diagnosis, the paper's shape test and
-    the must-show checks (settings, timings and files are added by the caller)."""
+def _platform_doc(table, jc, truth: dict, from_row: str, diag) -> dict:
+    """The platform table's results: rows, the joint fit's parameters beside the bench's
+    (``truth``) with their z-scores, the diagnosis, the paper's shape test and the must-show
+    checks (the orders, settings, timings and files are added by the caller)."""
     from .. import stats
-    from ..studies import platform_fault as pf
+    from .fault import paper_shape
 
-    def cells(col):
-        return {f"{a}.{s}": float(table.loc[(a, s), col]) for a in stats.ANGLES
-                for s in stats.STATS}
-
-    poly = cells(ROWS[0])
-    names = list(table.columns)
-    remedies = {r: cells(r)["beta.mu"] for r in names[1:]}
+    parameters = {k: {"fitted": p["fitted"], "stderr": p["stderr"], "bench": truth[k],
+                      "z": ((p["fitted"] - truth[k]) / p["stderr"] if p["stderr"] > 0
+                            else float("inf")), "from": from_row}
+                  for k, p in jc.parameters.items()}
+    cells = {r: {f"{a}.{s}": float(table.loc[(a, s), r]) for a in stats.ANGLES
+                 for s in stats.STATS} for r in table.columns}
+    poly, remedies = cells[ROWS[0]], {r: cells[r]["beta.mu"] for r in list(cells)[1:]}
     best = min(remedies, key=remedies.get)
-    must = {
-        "best_remedy": best,
-        "best_beta_mu": remedies[best],
-        "limit_alpha": 1.3 * poly["alpha.mu"],
-        "limit_beta": 0.6 * poly["beta.mu"],
-        "beta_mu_within_1.3x_polynomial_alpha_mu": remedies[best] <= 1.3 * poly["alpha.mu"],
-        "beta_mu_within_0.6x_polynomial_beta_mu": remedies[best] <= 0.6 * poly["beta.mu"],
-        "parameters_within_2.5_stderr": all(abs(p["z"]) <= 2.5 for p in parameters.values()),
-    }
-    shape = pf.paper_shape()
     return {
         "table": "platform",
         "source": "sunlab virtual bench (ours); the paper's own statistics for paper_shape",
-        "rows": {r: cells(r) for r in names},
-        "parameters": parameters,
-        "diagnosis": {**diag.to_dict(), "polynomial_shape": {
-            a: float(table.loc[(a, "sigma"), ROWS[0]] / table.loc[(a, "mu"), ROWS[0]])
-            for a in stats.ANGLES}},
+        "rows": cells, "parameters": parameters,
+        "diagnosis": {**dataclasses.asdict(diag), "polynomial_shape": {
+            a: poly[f"{a}.sigma"] / poly[f"{a}.mu"] for a in stats.ANGLES}},
         "paper_shape": {f"{m} {a}": {"ratio": float(r["ratio"]),
                                      "below_bound": bool(r["below_bound"])}
-                        for (m, a), r in shape.iterrows()},
-        "must_show": must,
-        "polynomial_order": {k: [int(n) for n in c.orders] for k, c in fits.items()},
+                        for (m, a), r in paper_shape().iterrows()},
+        "must_show": {
+            "best_remedy": best, "best_beta_mu": remedies[best],
+            "limit_alpha": 1.3 * poly["alpha.mu"], "limit_beta": 0.6 * poly["beta.mu"],
+            "beta_mu_within_1.3x_polynomial_alpha_mu": remedies[best] <= 1.3 * poly["alpha.mu"],
+            "beta_mu_within_0.6x_polynomial_beta_mu": remedies[best] <= 0.6 * poly["beta.mu"],
+            "parameters_within_2.5_stderr": all(abs(p["z"]) <= 2.5 for p in parameters.values()),
+        },
     }
 
 
@@ -327,15 +302,104 @@ def format_platform(res: dict) -> str:
     ps = res["paper_shape"]
     lines.append("Paper's sigma/mu (bound 1/sqrt(3) = 0.577): " + ", ".join(
         f"{k} {v['ratio']:.2f}" for k, v in ps.items()))
-    m = res["must_show"]
-    def yes(flag) -> str:
-        return "yes" if flag else "no"
-
-    lines.append(f"Best remedy: {m['best_remedy']}: beta mu {m['best_beta_mu']:.4f}")
-    lines.append(f"  beta mu at most 1.3 x the polynomial's alpha mu ({m['limit_alpha']:.4f}): "
-                 f"{yes(m['beta_mu_within_1.3x_polynomial_alpha_mu'])}")
-    lines.append(f"  beta mu at most 0.6 x the polynomial's beta mu ({m['limit_beta']:.4f}): "
-                 f"{yes(m['beta_mu_within_0.6x_polynomial_beta_mu'])}")
-    lines.append("  every fitted fault parameter within 2.5 s.e. of the bench's value: "
-                 f"{yes(m['parameters_within_2.5_stderr'])}")
+    m = {k: ("yes" if v else "no") if isinstance(v, bool) else v
+         for k, v in res["must_show"].items()}
+    lines += [f"Best remedy: {m['best_remedy']}: beta mu {m['best_beta_mu']:.4f}",
+              f"  beta mu at most 1.3 x the polynomial's alpha mu ({m['limit_alpha']:.4f}): "
+              f"{m['beta_mu_within_1.3x_polynomial_alpha_mu']}",
+              f"  beta mu at most 0.6 x the polynomial's beta mu ({m['limit_beta']:.4f}): "
+              f"{m['beta_mu_within_0.6x_polynomial_beta_mu']}",
+              "  every fitted fault parameter within 2.5 s.e. of the bench's value: "
+              f"{m['parameters_within_2.5_stderr']}"]
     return "\n".join(lines)
+
+
+def candidate_table(sizes: dict, *, bench=None, seed: int = 0, shots: int = 1,
+                    experiment_plans: dict | None = None,
+                    methods=("polynomial", "linear interp.", "cubic interp.")) -> pd.DataFrame:
+    """Which candidate explains the paper's beta statistics: Table 4's beta cells per fault.
+
+    For each fault and size the bench carries that fault alone
+    (:func:`sunlab.reproduce.fault.fault_bench`; for ``"homing"`` the size is the test run's
+    offset relative to the calibration run, a ``beta_offset_deg`` of the test run), the
+    surrogate centroids
+    (:func:`sunlab.sim.surrogate.surrogate_centroids`) of experiments I, II and III are
+    calibrated by each method as ``sunlab reproduce`` does, and the beta mu and sigma on III are
+    set beside the paper's; ``score`` is the RMS of log(ours / paper) over those cells, and
+    ``shape_excess`` the mean sigma / mu of the polynomial and linear columns less the paper's
+    (0.47 and 0.48: the shape criterion of :func:`sunlab.reproduce.fault.paper_shape`).
+
+    Parameters
+    ----------
+    sizes : dict
+        ``kind -> size_deg``, e.g. sizes that match the paper's polynomial beta mu.
+    bench : sunlab.sim.Bench, optional
+        The bench that carries each fault; default :meth:`sunlab.sim.Bench.paper_single_hole`.
+    seed : int
+        Seed of the experiments.
+    shots : int
+        Frames per pose of the default plans.
+    experiment_plans : dict, optional
+        Plans ``{"I", "II", "III"}``; default Table 3's with ``shots`` frames per pose.
+    methods : sequence of str
+        Table 4's columns compared (keys of :func:`sunlab.calibration.table4_methods`).
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per candidate: ``size_deg``, ``<method> mu``, ``<method> sigma``, ``score``,
+        ``shape_excess``.
+
+    Examples
+    --------
+    >>> from sunlab import plans
+    >>> small = {"I": plans.grid(-17, 2, 6, -2, 17, 1, shots=1, name="I", scan="serpentine"),
+    ...          "II": plans.grid(-16.25, 1.75, 6, -1.75, 16.25, 1.5, shots=1, name="II",
+    ...                           scan="serpentine"),
+    ...          "III": plans.grid(-16.5, 1.5, 6, -1.5, 16.5, 1, shots=1, name="III",
+    ...                            scan="serpentine")}
+    >>> t = candidate_table({"backlash": 0.017}, experiment_plans=small,
+    ...                     methods=("polynomial",))
+    >>> list(t.columns), bool(0.005 < t.loc["backlash", "polynomial mu"] < 0.03)
+    (['size_deg', 'polynomial mu', 'polynomial sigma', 'score', 'shape_excess'], True)
+    """
+    from ..calibration.methods import table4_methods
+    from ..sim import Bench
+    from ..sim.surrogate import surrogate_centroids
+    from .fault import fault_bench
+
+    bench = Bench.paper_single_hole() if bench is None else bench
+    exps = experiment_plans or experiment_plans(step=1, shots=shots)
+    fits = table4_methods(neural=False, seed=seed)
+    rows = {}
+    for kind, size in sizes.items():
+        b = fault_bench(bench, kind, 0.0 if kind == "homing" else size)
+        b_test = b.replace(platform__beta_offset_deg=float(size)) if kind == "homing" else b
+        cen = {n: surrogate_centroids(b_test if n == "III" else b, p, seed)
+               for n, p in exps.items()}
+        rows[kind] = {"size_deg": float(size), **_beta_cells(cen, fits, methods)}
+    return pd.DataFrame.from_dict(rows, orient="index").rename_axis("candidate")
+
+
+def _beta_cells(cen: dict, fits: dict, methods) -> dict:
+    """Table 4's beta mu and sigma of each method calibrated on ``cen["I"]`` (order on II) and
+    applied to III, their ``score`` against the paper's and the ``shape_excess``."""
+    from .. import stats
+
+    paper = stats.paper_table4()
+    row, logs = {}, []
+    for m in methods:
+        loc = stats.local_errors(fits[m](cen["I"], cen["II"]).predict(cen["III"]))
+        g = stats.global_stats({m: loc})[m]
+        for st in ("mu", "sigma"):
+            row[f"{m} {st}"] = float(g[("beta", st)])
+            logs.append(math.log(row[f"{m} {st}"] / float(paper.loc[("beta", st), m])))
+    row["score"] = float(np.sqrt(np.mean(np.square(logs))))
+    # the shape criterion: mean sigma / mu of the polynomial and linear columns, less the
+    # paper's (0.47, 0.48); 0 matches the paper's bimodal shape
+    shaped = [m for m in methods if m in ("polynomial", "linear interp.")]
+    row["shape_excess"] = float(np.mean(
+        [row[f"{m} sigma"] / row[f"{m} mu"] - float(paper.loc[("beta", "sigma"), m]
+                                                    / paper.loc[("beta", "mu"), m])
+         for m in shaped])) if shaped else float("nan")
+    return row

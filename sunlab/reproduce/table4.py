@@ -23,9 +23,9 @@ The numbers are ours, from the virtual bench, printed beside the paper's.
 
 Examples
 --------
->>> from sunlab.reproduce.table4 import table4_methods
->>> list(table4_methods(neural=False))[:3]
-['ideal model (1)', 'optimised model (3)-(4)', 'linear interp.']
+>>> from sunlab.reproduce.table4 import PAPER_OPTIMISED
+>>> PAPER_OPTIMISED["delta_f_mm"]
+0.094
 """
 
 from __future__ import annotations
@@ -41,9 +41,17 @@ import pandas as pd
 from .. import __version__, parallel, stats
 from ..calibration.methods import table4_methods
 from ..errors import ConfigurationError
-from .pipeline import centroid_status, simulate_and_locate, usable_table, write_json
+from .pipeline import (
+    _span,
+    _stat_line,
+    centroid_status,
+    identified,
+    simulate_and_locate,
+    usable_table,
+    write_json,
+)
 
-__all__ = ["table4_methods", "reproduce_table4", "format_table"]
+__all__ = ["reproduce_table4", "format_table"]
 
 #: Where the strategy-4 network zeroes model (1): on each run's zero-pose check (strategy 2
 #: keeps model (1) as fitted, :func:`sunlab.calibration.methods.table4_methods`).
@@ -108,27 +116,21 @@ class Table4Result:
         """
 
         def frame(df: pd.DataFrame) -> dict:
-            return {
-                str(col): {f"{a}.{s}": _num(v) for (a, s), v in df[col].items()}
-                for col in df.columns
-            }
+            return {str(c): {f"{a}.{s}": _num(v) for (a, s), v in df[c].items()}
+                    for c in df.columns}
 
+        settings = {k: v for k, v in self.settings.items() if k != "interval90"}
         return {
-            "sunlab_version": __version__,
-            "table": "4",
+            "sunlab_version": __version__, "table": "4",
             "source": "sunlab virtual bench (ours) beside docs/paper.md Table 4 (paper)",
-            "ours": frame(self.table),
-            "paper": frame(self.paper),
-            "rectangle_area_deg2": {
-                str(k): _num(v) for k, v in self.rectangles["area"].items()
-            },
+            "ours": frame(self.table), "paper": frame(self.paper),
+            "rectangle_area_deg2": {str(k): _num(v) for k, v in self.rectangles["area"].items()},
             "optimised_model": self.optimised,
             "polynomial_order": [int(n) for n in self.polynomial_order],
             "centroid_status": self.centroid_status,
             "timings_s": {k: round(float(v), 3) for k, v in self.timings.items()},
-            "settings": {k: v for k, v in self.settings.items() if k != "interval90"},
-            **({"interval90": self.settings["interval90"]} if "interval90" in self.settings
-               else {}),
+            "settings": settings,
+            **{k: self.settings[k] for k in ("interval90",) if k in self.settings},
         }
 
 
@@ -171,21 +173,11 @@ def bench_optimised_truth(bench) -> dict:
             "delta_f_mm": height - float(bench.mask_distance_mm)}
 
 
-def reproduce_table4(
-    *,
-    quick: bool = False,
-    seed: int = 0,
-    method: str = "projection",
-    neural: bool = True,
-    out: str | Path | None = "results",
-    progress: bool = True,
-    address: str | None = None,
-    bench=None,
-    step: int | None = None,
-    shots: int | None = None,
-    scheduler: str = "threads",
-    workers: int | None = None,
-) -> Table4Result:
+def reproduce_table4(*, quick: bool = False, seed: int = 0, method: str = "projection",
+                     neural: bool = True, out: str | Path | None = "results",
+                     progress: bool = True, address: str | None = None, bench=None,
+                     step: int | None = None, shots: int | None = None,
+                     scheduler: str = "threads", workers: int | None = None) -> Table4Result:
     """Reproduce Table 4 (one hole, experiment III) on the virtual bench.
 
     The pipeline renders and centroids I, II, III and their zero-pose checks once
@@ -234,8 +226,7 @@ def reproduce_table4(
     """
     from .. import sim
 
-    identified = bench is None
-    bench = sim.Bench.paper_single_hole() if bench is None else bench
+    custom, bench = bench, sim.Bench.paper_single_hole() if bench is None else bench
     t0 = time.perf_counter()
     cens = simulate_and_locate(bench, seed=seed, quick=quick, step=step, shots=shots,
                                method=method, progress=progress, address=address,
@@ -245,7 +236,8 @@ def reproduce_table4(
     result.timings = {"simulate_and_centroid": centroided, **result.timings,
                       "total": time.perf_counter() - t0}
     result.settings = {"seed": seed, "quick": quick, "centroid_method": method,
-                       **result.settings, **_identification(identified, "table4")}
+                       **result.settings, **(identified("table4") if custom is None else
+                                             {"hypothesis": "custom bench (not identified)"})}
     for label in result.local if progress else ():
         print(f"  fitted {label:<24s} in {result.timings[f'fit {label}']:6.2f} s", flush=True)
     if out is not None:
@@ -291,76 +283,38 @@ def table4_statistics(cens: dict, bench, *, neural: bool = True, seed: int = 0) 
     >>> bool(res.table.loc[("alpha", "mu"), "polynomial"] < 0.05), res.settings["poses"]["III"]
     (True, 25)
     """
-    for key in ("I", "II", "III"):
-        if key not in cens:
-            raise ConfigurationError(
-                f"cens: found runs {sorted(cens)}; expected 'I', 'II' and 'III'. Fix: the "
-                "tables of simulate_and_locate(..., zero_pose=True).")
-    timings, not_run = {}, {}
-    fitted = _fit_all(usable_table(cens["I"]), usable_table(cens["II"]), neural=neural,
-                      seed=seed, timings=timings, not_run=not_run)
-    test = usable_table(cens["III"])
-    local = {label: stats.local_errors(cal.predict(test)) for label, cal in fitted.items()}
-    table = stats.global_stats(local)
-    return Table4Result(
-        table=table,
-        paper=stats.paper_table4(),
-        rectangles=stats.rectangles(table),
-        local=local,
-        optimised=_optimised_summary(fitted["optimised model (3)-(4)"].result, bench),
-        polynomial_order=tuple(int(n) for n in fitted["polynomial"].orders),
-        centroid_status=centroid_status(cens),
-        timings=timings,
-        settings={"not_run": not_run, **_run_settings(cens, test, bench)},
-    )
-
-
-def _run_settings(cens, test, bench) -> dict:
-    """What table4.json records of the runs: their sizes, the bench used, the networks' zero."""
-    return {"poses": {k: int(v.sizes["pose"]) for k, v in cens.items()},
-            "shots": int(test.sizes["shot"]), "bench": json.loads(bench.to_json()),
-            "network_reference": NN_REFERENCE}
-
-
-def _identification(identified: bool, table: str) -> dict:
-    """The bench's hypothesis and, for the identified bench, each published cell's 90 %
-    predictive interval (docs/identification.md), as the run's JSON records them."""
-    if not identified:
-        return {"hypothesis": "custom bench (not identified)"}
-    from ..studies import identification
-
-    return {"hypothesis": identification.identified_hypothesis(),
-            "interval90": identification.interval90(table)}
-
-
-def _fit_all(train, val, *, neural, seed, timings, not_run) -> dict:
-    """Fit every method of :func:`table4_methods` on I (II for model selection), BLAS on one
-    thread (small problems, a busy machine: idle BLAS threads slow them several-fold); the fit
-    times go into ``timings``, and a method whose extra is not installed into ``not_run``
-    (label: the ImportError's message, which names the extra)."""
-    fitted = {}
+    if not {"I", "II", "III"} <= set(cens):
+        raise ConfigurationError(
+            f"cens: found runs {sorted(cens)}; expected 'I', 'II' and 'III'. Fix: the "
+            "tables of simulate_and_locate(..., zero_pose=True).")
+    train, val, test = (usable_table(cens[k]) for k in ("I", "II", "III"))
+    # every method fitted on I (II for model selection), BLAS on one thread (small problems, a
+    # busy machine: idle BLAS threads slow them several-fold); a method whose extra is not
+    # installed goes into not_run, with the ImportError's message (which names the extra)
+    fitted, timings, not_run = {}, {}, {}
     with parallel.single_threaded_blas():
         for label, fit in table4_methods(neural=neural, seed=seed,
                                          reference=NN_REFERENCE).items():
             t = time.perf_counter()
             try:
                 fitted[label] = fit(train, val)
-            except ImportError as err:  # a method of an extra that is not installed
+            except ImportError as err:
                 not_run[label] = str(err)
                 continue
             timings[f"fit {label}"] = time.perf_counter() - t
-    return fitted
-
-
-def _optimised_summary(opt, bench) -> dict:
-    """The optimised model's fitted parameters beside the bench's values and the paper's."""
-    truth = bench_optimised_truth(bench)
-    return {
-        k: {"fitted": float(getattr(opt, k)), "stderr": _num(opt.stderr.get(k, np.nan)),
-            "bench": float(truth[k]), "paper": PAPER_OPTIMISED[k],
-            "stderr_method": opt.stderr_method}
-        for k in PAPER_OPTIMISED
-    }
+    local = {label: stats.local_errors(cal.predict(test)) for label, cal in fitted.items()}
+    table = stats.global_stats(local)
+    opt, truth = fitted["optimised model (3)-(4)"].result, bench_optimised_truth(bench)
+    optimised = {k: {"fitted": float(getattr(opt, k)), "stderr": _num(opt.stderr.get(k, np.nan)),
+                     "bench": float(truth[k]), "paper": PAPER_OPTIMISED[k],
+                     "stderr_method": opt.stderr_method} for k in PAPER_OPTIMISED}
+    return Table4Result(
+        table=table, paper=stats.paper_table4(), rectangles=stats.rectangles(table), local=local,
+        optimised=optimised, polynomial_order=tuple(int(n) for n in fitted["polynomial"].orders),
+        centroid_status=centroid_status(cens), timings=timings,
+        settings={"not_run": not_run, "poses": {k: int(v.sizes["pose"]) for k, v in cens.items()},
+                  "shots": int(test.sizes["shot"]), "bench": json.loads(bench.to_json()),
+                  "network_reference": NN_REFERENCE})
 
 
 def comparable_methods(table: pd.DataFrame, factor: float = 10.0) -> list[str]:
@@ -400,33 +354,26 @@ def _write_outputs(res: Table4Result, out: Path) -> list[str]:
     matplotlib.use("Agg", force=False)
     from .. import atomic, plots
 
-    both = stats.side_by_side(res.table, res.paper, names=("sunlab", "paper"))
-    files = ["table4_sunlab.csv", "table4_side_by_side.csv", "table4.json"]
+    local = res.local["polynomial"]
     figs = {
         "fig10_error_maps_polynomial.png": plots.error_maps(
-            res.local["polynomial"], title="Fig. 10: local errors, polynomial (virtual bench)"),
+            local, title="Fig. 10: local errors, polynomial (virtual bench)"),
         "fig11_alpha_histogram_polynomial.png": plots.error_histogram(
-            res.local["polynomial"], angle="alpha",
-            title="Fig. 11: alpha local error, polynomial (virtual bench)"),
+            local, angle="alpha", title="Fig. 11: alpha local error, polynomial (virtual bench)"),
         "fig12_rectangles.png": plots.error_rectangles(
             res.table[comparable_methods(res.table)],
             title="Fig. 12: [M - 3 sigma_M, M + 3 sigma_M],\nexperiment III (virtual bench)"),
     }
-    files += list(figs)
+    files = ["table4_sunlab.csv", "table4_side_by_side.csv", "table4.json", *figs]
     out.parent.mkdir(parents=True, exist_ok=True)
     # every file or none: an interrupted run leaves the previous results (sunlab.atomic)
     with atomic.atomic_files(out, files, overwrite=True, flag="") as tmp:
         res.table.to_csv(tmp / files[0])
-        both.to_csv(tmp / files[1])
+        stats.side_by_side(res.table, res.paper, names=("sunlab", "paper")).to_csv(tmp / files[1])
         write_json(res.to_dict(), tmp / files[2])
         for name, fig in figs.items():
             fig.savefig(tmp / name, dpi=110)  # constrained layout: no tight bbox (a 2nd draw)
     return [str(out / f) for f in files]
-
-
-def _span(lo: float, hi: float) -> str:
-    """An interval in 11 characters: ``.0071-.0118`` (deg, below 1)."""
-    return f"{lo:.4f}-{hi:.4f}".replace("0.", ".")
 
 
 def format_table(res: Table4Result) -> str:
@@ -452,28 +399,20 @@ def format_table(res: Table4Result) -> str:
     """
     if not isinstance(res, Table4Result):
         raise ConfigurationError(f"res: found {type(res).__name__}; expected a Table4Result")
-    lines = [
-        "Table 4 - global statistics on experiment III, one hole (deg)",
-        "paper = the 2005 preprint; ours = sunlab virtual bench (simulated frames); our 90 % "
-        "interval = the identified bench's predictive interval (docs/identification.md)",
-        "",
-    ]
-    stats_cols = [(a, st) for a in stats.ANGLES for st in stats.STATS]
-    lines.append(f"{'method':<26s}" + "".join(f"{a[0] + ' ' + st:>12s}" for a, st in stats_cols))
+    keys = [(a, st) for a in stats.ANGLES for st in stats.STATS]
+    lines = ["Table 4 - global statistics on experiment III, one hole (deg)",
+             "paper = the 2005 preprint; ours = sunlab virtual bench (simulated frames); our 90 % "
+             "interval = the identified bench's predictive interval (docs/identification.md)",
+             "", f"{'method':<26s}" + "".join(f"{a[0] + ' ' + st:>12s}" for a, st in keys)]
     iv = res.settings.get("interval90", {})
     for c in res.table.columns:
         if c in res.paper.columns:
-            lines.append(f"{c:<26s}" + "".join(
-                f"{res.paper.loc[k, c]:12.4f}" for k in stats_cols) + "   paper")
-            lines.append(f"{'':<26s}" + "".join(
-                f"{res.table.loc[k, c]:12.4f}" for k in stats_cols) + "   ours")
-            if c in iv:
-                lines.append(f"{'':<26s}" + "".join(
-                    f"{_span(*iv[c][f'{a}.{st}']):>12s}" for a, st in stats_cols)
-                    + "   our 90 % interval")
-        else:
-            lines.append(f"{c:<26s}" + "".join(
-                f"{res.table.loc[k, c]:12.4f}" for k in stats_cols) + "   ours")
+            lines.append(_stat_line(c, [res.paper.loc[k, c] for k in keys], "paper", 26))
+        lines.append(_stat_line("" if c in res.paper.columns else c,
+                               [res.table.loc[k, c] for k in keys], "ours", 26))
+        if c in iv:
+            lines.append(_stat_line("", [_span(*iv[c][f"{a}.{st}"]) for a, st in keys],
+                                   "our 90 % interval", 26))
     not_run = res.settings.get("not_run", {})
     lines += [f"{label:<26s}not run: its extra is not installed" for label in not_run]
     lines += [f"  ({why})" for why in dict.fromkeys(not_run.values())]
@@ -490,19 +429,16 @@ def format_table(res: Table4Result) -> str:
         lines.append(f"  {k:<11s} {v['fitted']:8.4f} +- {se:.4f} | {v['bench']:7.4f} | "
                      f"{v['paper']:7.4f} {unit}")
     method = next(iter(res.optimised.values())).get("stderr_method", "jacobian")
-    lines.append(f"  (s.e. by {method} over 2 x 2-degree blocks of poses; mounting as the bench's "
-                 "rotation R_y(-alpha0) R_x(beta0);\n   bench dF = the hole's true height "
-                 "above the focal plane minus F)")
-    lines.append("Polynomial order chosen on experiment II (alpha, beta): "
-                 f"{res.polynomial_order}")
+    lines += [f"  (s.e. by {method} over 2 x 2-degree blocks of poses; mounting as the bench's "
+              "rotation R_y(-alpha0) R_x(beta0);\n   bench dF = the hole's true height "
+              "above the focal plane minus F)",
+              f"Polynomial order chosen on experiment II (alpha, beta): {res.polynomial_order}"]
     lines.append("Centroid status: " + "; ".join(
         f"{k}: " + ", ".join(f"{n} {s}" for s, n in v.items() if s != "removed")
         for k, v in res.centroid_status.items()))
     lines.append("Frames removed (status: count): " + "; ".join(
         f"{k}: " + (", ".join(f"{n} {s}" for s, n in v["removed"].items()) or "none")
         for k, v in res.centroid_status.items()))
-    lines.append(
-        f"Time: {res.timings['simulate_and_centroid']:.1f} s simulate + centroid, "
-        f"{res.timings['total']:.1f} s in all"
-    )
+    lines.append(f"Time: {res.timings['simulate_and_centroid']:.1f} s simulate + centroid, "
+                 f"{res.timings['total']:.1f} s in all")
     return "\n".join(lines)

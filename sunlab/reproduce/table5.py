@@ -11,7 +11,7 @@ extra column: the average after automatic bad-hole rejection with inverse-varian
 sigma clipping.
 
 The frames go through the pipeline the other tables share
-(:func:`sunlab.reproduce.pipeline.multi_hole_tables`: rendered and centroided once, on one
+(:func:`multi_hole_tables`: rendered and centroided once, on one
 pool of workers: the one-hole runs, whose spot gives the mounting offset that numbers the 100
 spots, then the 100-hole runs I and III, and the per-hole metrics that need the frames);
 :func:`table5_statistics` is a function of the centroid tables it returns. Quick mode is the
@@ -21,9 +21,9 @@ instead of 8.
 
 Examples
 --------
->>> from sunlab.reproduce.table5 import spot_method
->>> spot_method("projection"), spot_method("fit")
-('tight', 'fit')
+>>> from sunlab.reproduce.table5 import COLUMNS
+>>> COLUMNS[2]
+'1 hole'
 """
 
 from __future__ import annotations
@@ -35,12 +35,15 @@ import numpy as np
 
 from ..errors import ConfigurationError
 from .pipeline import (
-    SPOT_METHODS,  # noqa: F401 (where Table 5's readers look for them)
+    _span,
+    _stat_line,
     centroid_status,
     experiment_plans,
-    mounting_offset_px,  # noqa: F401
-    multi_hole_tables,
-    spot_method,  # noqa: F401
+    identified,
+    locate_runs,
+    mounting_offset_px,
+    simulate_runs,
+    spot_method,
     usable_table,
     write_json,
 )
@@ -51,21 +54,6 @@ __all__ = ["reproduce_table5", "COLUMNS", "REJECTION_COLUMN", "format_table5"]
 COLUMNS = ("100 holes: geometric centre", "100 holes: averaging", "1 hole")
 #: Our extra column.
 REJECTION_COLUMN = "100 holes: averaging + rejection"
-
-
-def _findings(ours) -> dict:
-    """The ratios behind the paper's Table 5 findings, from our columns (deg / deg).
-
-    ``alpha_gain``: 1-hole alpha mu over each 100-hole column's (the paper: about 2);
-    ``beta_loss``: each 100-hole column's beta mu over the 1-hole beta mu (the paper: above 1).
-    """
-    one = COLUMNS[2]
-    return {
-        "alpha_gain": {k: float(ours.loc[("alpha", "mu"), one] / ours.loc[("alpha", "mu"), k])
-                       for k in (COLUMNS[0], COLUMNS[1], REJECTION_COLUMN)},
-        "beta_loss": {k: float(ours.loc[("beta", "mu"), k] / ours.loc[("beta", "mu"), one])
-                      for k in (COLUMNS[0], COLUMNS[1], REJECTION_COLUMN)},
-    }
 
 
 def reproduce_table5(quick: bool = True, seed: int = 0, out: Path | str | None = None,
@@ -112,7 +100,7 @@ def reproduce_table5(quick: bool = True, seed: int = 0, out: Path | str | None =
         ``table`` (pandas.DataFrame: our value and the paper's per column, deg), ``ours`` (our
         four columns), ``bad_holes`` (rejected), ``injected`` (holes the bench gave defects),
         ``budget`` (common vs hole-specific error), ``findings`` (the ratios of the paper's
-        findings, ``_findings``), ``runtime_s``, ``timings_s`` (by stage), ``sizes``,
+        findings), ``runtime_s``, ``timings_s`` (by stage), ``sizes``,
         ``files`` and ``data`` (the lazy frame cubes, centroid tables and per-hole
         calibrations, for figures and :class:`sunlab.widgets.HoleExplorer`; not written).
 
@@ -135,7 +123,7 @@ def reproduce_table5(quick: bool = True, seed: int = 0, out: Path | str | None =
     result = table5_statistics(tables, hole_metrics, order=order)
     timings["calibrate, find bad holes, compare"] = time.perf_counter() - t
     result["data"].update(cube_train=cubes["100 holes I"], cube_test=cubes["100 holes III"])
-    result.update(_identification())
+    result.update(identified("table5"))
     if out is not None:
         t = time.perf_counter()
         result["files"] = _write_figures(result, Path(out))
@@ -144,9 +132,83 @@ def reproduce_table5(quick: bool = True, seed: int = 0, out: Path | str | None =
     result["timings_s"] = {**{k: round(v, 3) for k, v in timings.items()},
                            "total": round(result["runtime_s"], 3)}
     if out is not None:
-        result["files"].append(_write_json(result, Path(out), {
-            "quick": quick, "seed": seed, "order": result["order"], "centroid_method": method}))
+        result["files"].append(_write_json(result, Path(out), quick=quick, seed=seed,
+                                           method=method))
     return result
+
+
+def _write_json(result: dict, out: Path, *, quick: bool, seed: int, method: str) -> str:
+    """``table5.json``: the table, the bad holes, the budget, sizes, timings and settings."""
+    table = result["table"]
+    doc = {"table5": {f"{c[0]} [{c[1]}]": {f"{a}.{st}": float(v) for (a, st), v in
+                                            table[c].items()} for c in table.columns},
+           **{k: result[k] for k in ("bad_holes", "injected", "budget", "sizes", "runtime_s",
+                                     "timings_s")},
+           "quick": quick, "centroid_status": result["centroid_status"],
+           "findings": result["findings"], "seed": seed, "order": result["order"],
+           "centroid_method": method, "settings": {"hypothesis": result["hypothesis"]},
+           "interval90": result["interval90"]}
+    return write_json(doc, out / "table5.json")
+
+
+def multi_hole_tables(plans_: dict, *, seed: int = 0, method: str = "projection",
+                      progress: bool = True, address: str | None = None,
+                      scheduler: str = "threads", workers: int | None = None) -> tuple:
+    """Render and centroid Table 5's runs once, one pool of workers for every pass
+    (:func:`sunlab.parallel.worker_pool`): the one-hole runs I, II, III first, whose spot gives
+    the mounting offset (:func:`mounting_offset_px`) that numbers the 100 spots; then the
+    100-hole runs I and III in one pass; last the per-hole metrics of the 100-hole run I that
+    need its frames (spot shape, edge roughness: :func:`sunlab.multihole.defect_metrics`).
+
+    Parameters
+    ----------
+    plans_ : dict of str to sunlab.plans.Plan
+        Experiments ``"I"``, ``"II"``, ``"III"`` (:func:`experiment_plans`); the 100-hole mask
+        runs I and III (the order is chosen on the one hole's II).
+    seed : int
+        Seed of the virtual bench.
+    method : str
+        Centroid method of the one-hole frames; the 100-hole frames get :func:`spot_method`'s.
+    progress : bool
+        Show progress bars.
+    address, scheduler, workers
+        Where the frames are rendered and centroided (:func:`locate_runs`).
+
+    Returns
+    -------
+    tables : dict of str to xarray.Dataset
+        ``centroids/1`` tables keyed ``"1 hole I"``, ``"1 hole II"``, ``"1 hole III"``,
+        ``"100 holes I"``, ``"100 holes III"``, every centroid status kept; the 100-hole tables
+        on (pose, shot, hole) with the design positions ``hole_x_cf``, ``hole_y_cf`` (px).
+    hole_metrics : xarray.Dataset
+        :func:`sunlab.multihole.defect_metrics` of the usable 100-hole run I with its frames
+        and no strategy (the residual metrics need a fitted calibration: Table 5 adds them).
+    cubes : dict of str to xarray.Dataset
+        The lazy frame cubes, keyed as ``tables`` and chunked by frame, for figures and
+        :class:`sunlab.widgets.HoleExplorer` (the same frames the tables were measured on).
+
+    """
+    from .. import multihole as mh
+    from .. import parallel, sim
+
+    one = {f"1 hole {k}": (p, sim.Bench.paper_single_hole()) for k, p in plans_.items()}
+    many = {f"100 holes {k}": (p, sim.Bench.paper_multi_hole()) for k, p in plans_.items()
+            if k != "II"}
+    where = {"progress": progress, "address": address, "scheduler": scheduler,
+             "workers": workers}
+    with parallel.worker_pool(scheduler, workers, address) as pool:
+        tables = locate_runs(simulate_runs(one, seed=seed), method=method, pool=pool, **where)
+        tables.update(locate_runs(simulate_runs(many, seed=seed), method=spot_method(method),
+                                  hole_offset=mounting_offset_px(tables["1 hole I"]),
+                                  pool=pool, **where))
+    # the passes take whole poses (one Dask task each); the cubes handed on serve single
+    # frames (the metrics sample frames, figures, the explorer), so they are chunked by frame:
+    # the same frames either way
+    cubes = simulate_runs({**one, **many}, seed=seed, chunks="frame")
+    hole_metrics = mh.defect_metrics(usable_table(tables["100 holes I"]),
+                                     cube=cubes["100 holes I"])
+    return tables, hole_metrics, cubes
+
 
 
 def table5_statistics(tables: dict, hole_metrics, *, order: int | None = None) -> dict:
@@ -162,7 +224,7 @@ def table5_statistics(tables: dict, hole_metrics, *, order: int | None = None) -
         ``centroids/1`` tables keyed ``"1 hole I"``, ``"1 hole II"``, ``"1 hole III"``,
         ``"100 holes I"``, ``"100 holes III"``, as centroided (every status;
         :func:`~sunlab.reproduce.pipeline.usable_table` selects here):
-        :func:`~sunlab.reproduce.pipeline.multi_hole_tables`.
+        :func:`multi_hole_tables`.
     hole_metrics : xarray.Dataset
         The per-hole defect metrics of the 100-hole run I without the residual ones
         (:func:`sunlab.multihole.defect_metrics` with its frames and no strategy); the
@@ -182,56 +244,47 @@ def table5_statistics(tables: dict, hole_metrics, *, order: int | None = None) -
         ``centroid_status`` (:func:`~sunlab.reproduce.pipeline.centroid_status`), ``sizes``,
         ``files`` (empty) and ``data`` (centroid tables and the averaging strategy, for figures
         and :class:`sunlab.widgets.HoleExplorer`).
-
-    Examples
-    --------
-    Its tables come from 100-hole frames (minutes even thinned), so not run here:
-
-    >>> from sunlab.reproduce.pipeline import experiment_plans, multi_hole_tables
-    >>> plans_ = experiment_plans(step=4, shots=1)
-    >>> res = table5_statistics(*multi_hole_tables(plans_, progress=False)[:2])  # doctest: +SKIP
-    >>> res["table"].loc[("alpha", "mu")]  # doctest: +SKIP
     """
+    from .. import multihole as mh
+    from .. import stats
+
     names = ("100 holes I", "100 holes III", "1 hole I", "1 hole III")
     missing = [k for k in (*names, "1 hole II") if k not in tables]
     if missing:
         raise ConfigurationError(
             f"tables: missing {missing}. Fix: the tables of multi_hole_tables(...).")
-    one_hole, order = _one_hole_polynomial(tables, order)
-    cens = {k: usable_table(tables[k]) for k in names}
-    fitted = _calibrate(cens["100 holes I"], hole_metrics, order=order)
-    result = _compare(fitted, cens, one_hole=one_hole)
-    result["order"] = order
-    result["centroid_status"] = centroid_status({k: tables[k] for k in names})
-    result["sizes"] = {"train_poses": int(tables["100 holes I"].sizes["pose"]),
-                       "test_poses": int(tables["100 holes III"].sizes["pose"]),
-                       "shots": int(tables["100 holes I"].sizes["shot"]),
-                       "holes": int(tables["100 holes I"].sizes["hole"])}
-    return result
-
-
-def _write_json(result: dict, out: Path, settings: dict) -> str:
-    """``table5.json``: the table, the bad holes, the budget, sizes, timings and settings."""
-    doc = {"table5": {f"{c[0]} [{c[1]}]": {f"{a}.{st}": float(v) for (a, st), v in
-                                            result["table"][c].items()}
-                      for c in result["table"].columns},
-           **{k: result[k] for k in ("bad_holes", "injected", "budget", "sizes", "runtime_s",
-                                     "timings_s")},
-           "quick": settings["quick"], "centroid_status": result["centroid_status"],
-           "findings": result["findings"], "seed": settings["seed"],
-           "order": settings["order"], "centroid_method": settings["centroid_method"],
-           "settings": {"hypothesis": result["hypothesis"]},
-           "interval90": result["interval90"]}
-    return write_json(doc, out / "table5.json")
-
-
-def _identification() -> dict:
-    """The presets' hypothesis and each published cell's 90 % predictive interval
-    (docs/identification.md), keyed as table5.json's ``[sunlab]`` rows."""
-    from ..studies import identification
-
-    return {"hypothesis": identification.identified_hypothesis(),
-            "interval90": identification.interval90("table5")}
+    cens = {k: usable_table(tables[k]) for k in (*names, "1 hole II")}
+    one_hole, order = _one_hole_polynomial(cens, order)
+    cen_tr, cen_te = cens["100 holes I"], cens["100 holes III"]
+    s2, metrics, bad, est, preds = _strategies(cen_tr, cen_te, hole_metrics, order)
+    preds[COLUMNS[2]] = one_hole.predict(cens["1 hole III"])
+    ours = stats.global_stats({k: stats.local_errors(preds[k]) for k in (*COLUMNS,
+                                                                         REJECTION_COLUMN)})
+    table = stats.side_by_side(ours[list(COLUMNS)], stats.paper_table5())
+    table[(REJECTION_COLUMN, "sunlab")] = ours[REJECTION_COLUMN]
+    mu = ours.xs("mu", level=1)
+    many = (COLUMNS[0], COLUMNS[1], REJECTION_COLUMN)
+    size = tables["100 holes I"].sizes
+    return {
+        "table": table, "ours": ours, "bad_holes": np.flatnonzero(bad).tolist(),
+        "injected": (np.flatnonzero(cen_tr["hole_defect"].values).tolist()
+                     if "hole_defect" in cen_tr.coords else []),
+        "budget": mh.error_budget(est, holes=~bad), "metrics": metrics,
+        # the paper's findings: one hole's alpha mu over each 100-hole column's (about 2),
+        # each 100-hole column's beta mu over one hole's (above 1)
+        "findings": {"alpha_gain": {k: float(mu.loc["alpha", COLUMNS[2]] / mu.loc["alpha", k])
+                                    for k in many},
+                     "beta_loss": {k: float(mu.loc["beta", k] / mu.loc["beta", COLUMNS[2]])
+                                   for k in many}},
+        "files": [],
+        # what the figures and the hole explorer need (not written); the caller adds the cubes
+        "data": {"centroids_train": cen_tr, "centroids_test": cen_te, "strategy": s2,
+                 "one_hole_test": cens["1 hole III"]},
+        "order": order, "centroid_status": centroid_status({k: tables[k] for k in names}),
+        "sizes": {"train_poses": int(size["pose"]),
+                  "test_poses": int(tables["100 holes III"].sizes["pose"]),
+                  "shots": int(size["shot"]), "holes": int(size["hole"])},
+    }
 
 
 def format_table5(result: dict) -> str:
@@ -247,7 +300,6 @@ def format_table5(result: dict) -> str:
     str
     """
     from .. import stats
-    from .table4 import _span
 
     keys = [(a, st) for a in stats.ANGLES for st in stats.STATS]
     lines = ["Table 5 - polynomial calibration, 100 holes vs one hole (deg)",
@@ -256,36 +308,47 @@ def format_table5(result: dict) -> str:
              "", f"{'column':<34s}" + "".join(f"{a[0] + ' ' + st:>12s}" for a, st in keys)]
     table, iv = result["table"], result.get("interval90", {})
     for col in (*COLUMNS, REJECTION_COLUMN):
-        if (col, "paper") in table.columns:
-            lines.append(f"{col:<34s}" + "".join(
-                f"{table.loc[k, (col, 'paper')]:12.4f}" for k in keys) + "   paper")
-            lines.append(f"{'':<34s}" + "".join(
-                f"{table.loc[k, (col, 'sunlab')]:12.4f}" for k in keys) + "   ours")
-        else:
-            lines.append(f"{col:<34s}" + "".join(
-                f"{table.loc[k, (col, 'sunlab')]:12.4f}" for k in keys) + "   ours")
+        published = (col, "paper") in table.columns
+        if published:
+            lines.append(_stat_line(col, [table.loc[k, (col, "paper")] for k in keys], "paper", 34))
+        lines.append(_stat_line("" if published else col,
+                               [table.loc[k, (col, "sunlab")] for k in keys], "ours", 34))
         cell = iv.get(f"{col} [sunlab]")
         if cell:
-            lines.append(f"{'':<34s}" + "".join(
-                f"{_span(*cell[f'{a}.{st}']):>12s}" for a, st in keys) + "   our 90 % interval")
+            lines.append(_stat_line("", [_span(*cell[f"{a}.{st}"]) for a, st in keys],
+                                   "our 90 % interval", 34))
     return "\n".join(lines)
 
 
-def _calibrate(cen_tr, hole_metrics, *, order: int) -> dict:
-    """The strategies of :mod:`sunlab.multihole` fitted on I, and the bad holes found from
-    the training run's defect metrics (``hole_metrics``, which hold the spot-shape metrics and
-    the edge roughness that finds burrs, and the averaging strategy's residual metrics added
-    here, as :func:`sunlab.multihole.defect_metrics` adds them)."""
+def _one_hole_polynomial(cens: dict, order: int | None):
+    """The one hole's polynomial on I and the order of every calibration of the table: chosen
+    on the one hole's II as Table 4 chooses it (the larger of its orders for the 100-hole
+    strategies, which take one order), unless ``order`` is given."""
+    from ..calibration import Polynomial
+    from ..calibration.methods import POLYNOMIAL_REFIT
+
+    if order is not None:
+        return Polynomial(order).fit(cens["1 hole I"]), int(order)
+    best, _ = Polynomial.select_order(cens["1 hole I"], cens["1 hole II"], refit=POLYNOMIAL_REFIT)
+    return best, int(max(best.orders))
+
+
+def _strategies(cen_tr, cen_te, hole_metrics, order: int):
+    """The strategies of :mod:`sunlab.multihole` fitted on I, the bad holes found from the
+    training run's defect metrics (spot shape and the edge roughness that finds burrs, with the
+    averaging's residual metrics added as :func:`sunlab.multihole.defect_metrics` adds them),
+    the per-hole estimates on III and each 100-hole column's estimate."""
     from .. import multihole as mh
 
-    s1 = mh.GeometricCentre(order=order).fit(cen_tr)
     s2 = mh.PerHoleAverage(order=order).fit(cen_tr)
     metrics = _with_residual_metrics(hole_metrics, s2, cen_tr)
     bad = mh.reject_bad_holes(metrics).values
     s2r = mh.PerHoleAverage(order=order, holes=~bad, weighting="inverse_variance", clip=4.0,
                             calibrations_=s2.calibrations_, variance_=s2.variance_)
-    return {"geometric centre": s1, "averaging": s2, "rejection": s2r, "metrics": metrics,
-            "bad": bad}
+    est = s2.predict_holes(cen_te)
+    return s2, metrics, bad, est, {
+        COLUMNS[0]: mh.GeometricCentre(order=order).fit(cen_tr).predict(cen_te),
+        COLUMNS[1]: s2.combine(est), REJECTION_COLUMN: s2r.combine(est)}
 
 
 def _with_residual_metrics(hole_metrics, strategy, cen):
@@ -302,57 +365,6 @@ def _with_residual_metrics(hole_metrics, strategy, cen):
     data.update({k: ("hole", rm[k].values, {**rm[k].attrs, "long_name": DEFECT_METRICS[k]})
                  for k in rm.data_vars})
     return xr.Dataset(data, coords={k: hole_metrics[k].variable for k in hole_metrics.coords})
-
-
-def _one_hole_polynomial(cens: dict, order: int | None):
-    """The one hole's polynomial on I and the order of every calibration of the table: chosen
-    on the one hole's II as Table 4 chooses it (the larger of its orders for the 100-hole
-    strategies, which take one order), unless ``order`` is given."""
-    from ..calibration import Polynomial
-    from ..calibration.methods import POLYNOMIAL_REFIT
-
-    train = usable_table(cens["1 hole I"])
-    if order is not None:
-        return Polynomial(order).fit(train), int(order)
-    best, _ = Polynomial.select_order(train, usable_table(cens["1 hole II"]),
-                                      refit=POLYNOMIAL_REFIT)
-    return best, int(max(best.orders))
-
-
-def _compare(fitted: dict, cens: dict, *, one_hole) -> dict:
-    """The fitted strategies applied to III beside the one hole's polynomial; the statistics,
-    the bad holes, the error budget and what the figures need."""
-    from .. import multihole as mh
-    from .. import stats
-
-    cen_tr, cen_te = cens["100 holes I"], cens["100 holes III"]
-    s2, bad, metrics = fitted["averaging"], fitted["bad"], fitted["metrics"]
-    est = s2.predict_holes(cen_te)
-    preds = {
-        COLUMNS[0]: fitted["geometric centre"].predict(cen_te),
-        COLUMNS[1]: s2.combine(est),
-        COLUMNS[2]: one_hole.predict(cens["1 hole III"]),
-        REJECTION_COLUMN: fitted["rejection"].combine(est),
-    }
-    ours = stats.global_stats({k: stats.local_errors(v) for k, v in preds.items()})
-    table = stats.side_by_side(ours[list(COLUMNS)], stats.paper_table5())
-    table[(REJECTION_COLUMN, "sunlab")] = ours[REJECTION_COLUMN]
-    injected = (np.flatnonzero(cen_tr["hole_defect"].values).tolist()
-                if "hole_defect" in cen_tr.coords else [])
-    return {
-        "table": table,
-        "ours": ours,
-        "bad_holes": np.flatnonzero(bad).tolist(),
-        "injected": injected,
-        "budget": mh.error_budget(est, holes=~bad),
-        "metrics": metrics,
-        "findings": _findings(ours),
-        "files": [],
-        # what the figures and the hole explorer need (not written to disk); the caller adds
-        # the lazy frame cubes
-        "data": {"centroids_train": cen_tr, "centroids_test": cen_te,
-                 "strategy": s2, "one_hole_test": cens["1 hole III"]},
-    }
 
 
 def _write_figures(result: dict, out: Path) -> list[str]:

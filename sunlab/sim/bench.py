@@ -2,7 +2,7 @@
 
 Every parameter of the presets has a source: the paper (section), a datasheet, physics, or the
 identification of docs/identification.md (a protocol fixed before its scores; its rule picks the
-hypothesis ``F5-gear``, :mod:`sunlab.studies.identification`), where a parameter is either
+hypothesis ``F5-gear``, ``studies.identification``), where a parameter is either
 fitted on a named cell of Table 4 or a nuisance at its prior median. Error budget:
 
 * per shot (the paper's M - mu of about 0.001 deg): a jitter common to every hole of a frame,
@@ -55,11 +55,11 @@ from .source import Source
 __all__ = ["Bench"]
 
 #: The presets are the hypothesis that the identification protocol's rule picks
-#: (docs/identification.md, ``sunlab/data/protocol.json``; :func:`sunlab.studies.
-#: identification.identified_hypothesis`), fitted once with every nuisance at its prior median
+#: (docs/identification.md, ``studies/protocol.json``; ``studies.identification.
+#: identified_hypothesis``), fitted once with every nuisance at its prior median
 #: and the gear period profiled on the protocol's grid, on its preset seed
 #: (``sunlab/data/presets.json``, protocol version 4), to three significant figures; each
-#: fitted parameter's profile-likelihood interval is in ``sunlab/data/profiles.csv``.
+#: fitted parameter's profile-likelihood interval is in ``studies/results/profiles.csv``.
 #:
 #: The detector's pixel response, a nuisance (prior 0.5-3 % RMS, log-uniform; median 1.22 %),
 #: white and correlated parts equal, the correlation length's median (1-8 px, log-uniform).
@@ -186,7 +186,7 @@ class Bench:
         +-``PAPER_BETA_POSE_DEG``, a periodic gear error of ``PAPER_BETA_GEAR_DEG`` (period
         ``PAPER_BETA_GEAR_PERIOD_DEG``) and a shift of its zero of ``PAPER_BETA_REHOMING_DEG``
         between the session of experiment I and that of II and III; no wobble, no
-        non-orthogonality; :mod:`sunlab.studies.platform_fault` diagnoses and removes
+        non-orthogonality; :mod:`sunlab.reproduce.fault` diagnoses and removes
         such faults. No backlash: the identification needs none.
         """
         return Platform(

@@ -108,7 +108,7 @@ def simulate(plan, bench: Bench | None = None, seed=0, chunks: str = "frame"):
         experiment=plan.name, coords=_hole_coords(bench, plan),
         attrs={"source": "sunlab virtual bench", "sim_seed": _entropy(seed), "sim_key": list(key),
                "sim_bench": bench.to_json(),
-               # the motion history (sunlab.studies.platform_fault reads it back)
+               # the motion history (sunlab.reproduce.fault reads it back)
                "scan_order": plan.scan, "approach": plan.approach,
                "visit_order": plan.visit_order().astype(np.int32)})
     ds = _add_truth(ds, bench, key, ta, tb, token)

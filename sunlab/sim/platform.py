@@ -14,7 +14,7 @@ in the outer angle (a systematic, learnable error), a per-pose positioning error
 in +-``*_pose_error_deg`` (bounded: the stage's positioning resolution and backlash; docs/paper.md
 sec. 8 shows that sigma / mu of the paper's local errors is about 0.6, the value of a uniform, not
 a normal, error) and a per-shot jitter j (normal). Three faults of the inner axis depend on the
-motion history or on beta (:mod:`sunlab.studies.platform_fault` tells them apart): a backlash b,
+motion history or on beta (:mod:`sunlab.reproduce.fault` tells them apart): a backlash b,
 entering as :math:`-d\\,b` with the direction d = +-1 in which the axis reached the pose (the
 plan's scan order and approach, :meth:`sunlab.plans.Plan.beta_approach`); a homing offset drawn
 once per run; a periodic gear error :math:`g \\sin(2\\pi\\beta_c / P_g + \\phi_g)`. The sun vector
@@ -91,7 +91,7 @@ class Platform:
         downward as far above, :math:`\\beta_t = \\ldots - d\\,b` with the approach direction
         d = +-1 of :meth:`sunlab.plans.Plan.beta_approach` (the motion history: scan order and
         approach). A serpentine scan alternates d row by row, which makes beta's per-pose error
-        bimodal (:mod:`sunlab.studies.platform_fault` finds it from the motion record); the paper's
+        bimodal (:mod:`sunlab.reproduce.fault` finds it from the motion record); the paper's
         bench, as identified, shows none (docs/identification.md).
     beta_homing_deg : float
         Half-width of the inner axis's homing (zero) offset, deg: drawn uniformly once per run
@@ -316,7 +316,7 @@ def homing_offset(bench, seed, run: str) -> float:
     +-``bench.platform.beta_homing_deg`` drawn from the seed and the run's name, as
     :func:`sunlab.sim.simulate` draws it for a plan of that name (a zero-pose check taken with
     the run, :func:`sunlab.plans.zero_check`, shares it): the bench's own value of what
-    :func:`sunlab.studies.platform_fault.fit_correction` estimates from the zero-pose checks.
+    :func:`sunlab.reproduce.remedy.fit_correction` estimates from the zero-pose checks.
 
     Parameters
     ----------

@@ -1,7 +1,7 @@
 """The centroid-level surrogate of the virtual bench: centroids of a plan without rendering.
 
 A rendered experiment takes minutes; the surrogate gives the same plan's centroid table in
-seconds, so that a parameter of the bench can be scanned (the studies of :mod:`sunlab.studies`
+seconds, so that a parameter of the bench can be scanned (the studies of ``studies/``
 do) and the chosen values then confirmed on rendered frames by ``sunlab reproduce``.
 
 The surrogate, :func:`surrogate_centroids`, keeps every mechanism of the rendered bench that moves
@@ -29,7 +29,7 @@ a centroid by more than a few thousandths of a pixel, computed the same way as t
   (noisy calibration nodes) and again in experiment III.
 * **Per-shot centroid noise**: photon, dark and read noise of the window, normal, RMS
   ``noise_px`` (measured on rendered frames of the same spot, see
-  :func:`sunlab.studies.surrogate_tables.centroid_noise_px`).
+  ``studies.surrogate_tables.centroid_noise_px``).
 
 What the surrogate leaves out (all below 0.01 px on the default bench): the fill factor's
 pixel-phase bias, quantisation, and the window of the centroid algorithm.
@@ -64,7 +64,7 @@ def spot_diameter_px(bench) -> float:
     is d + F' theta across (the umbra shrinks and the penumbra grows with F'). The paper's
     algorithm A takes a 130 px ROI that is "about 2.5 times the spot" (docs/paper.md sec. 1),
     which would put the spot at about 52 px and F at about 17 mm; the presets' F = 5 mm
-    (:mod:`sunlab.studies.identification`) gives a 35 px spot, 1/3.7 of the ROI.
+    (``studies.identification``) gives a 35 px spot, 1/3.7 of the ROI.
 
     Parameters
     ----------
@@ -181,7 +181,7 @@ def surrogate_centroids(bench, plan, seed=0, *, noise_px: float = 0.004,
         Seed of the experiment (as :func:`sunlab.sim.simulate`).
     noise_px : float
         Per-shot centroid noise, px RMS per axis
-        (:func:`sunlab.studies.surrogate_tables.centroid_noise_px`).
+        (``studies.surrogate_tables.centroid_noise_px``).
     spot_error : bool
         Add the gain-pattern (PRNU) centroid shift of :func:`spot_error_maps`.
     edge_px : float, optional

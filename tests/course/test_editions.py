@@ -45,7 +45,7 @@ def test_exercises_and_written_answers_are_found_with_their_points():
 
 
 def test_student_edition_hides_the_answers_and_locks_the_checks():
-    nb = E.student_notebook(_notebook(), "03.ipynb", quick=False)
+    nb = E.edition(_notebook(), "03.ipynb", student=True, quick=False)
     sol, chk, written = nb.cells[2].source, nb.cells[3], nb.cells[4]
     assert E.BEGIN_SOLUTION not in sol and "12.5 * a" not in sol
     assert "raise NotImplementedError" in sol and "use eq. (1)" in sol
@@ -57,7 +57,7 @@ def test_student_edition_hides_the_answers_and_locks_the_checks():
 
 
 def test_teacher_edition_keeps_everything_and_adds_the_quick_cell():
-    nb = E.teacher_notebook(_notebook(), "03.ipynb", quick=True)
+    nb = E.edition(_notebook(), "03.ipynb", student=False, quick=True)
     assert nb.cells[1].source == E.QUICK_CELL  # before the first code cell
     assert nb.cells[3].source == SOLUTION and nb.cells[4].source == CHECK
     assert nb.cells[3].metadata["nbgrader"]["grade_id"] == "ex03-1"

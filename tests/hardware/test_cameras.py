@@ -11,7 +11,8 @@ import pytest
 
 from sunlab import cli
 from sunlab.errors import ConfigurationError
-from sunlab.hardware import available_cameras, camera_class, open_camera
+from sunlab.hardware import available_cameras, open_camera
+from sunlab.hardware.cameras import camera_class
 
 
 @pytest.fixture

@@ -8,7 +8,7 @@ from sunlab.hardware import errors as E
 
 
 def test_every_fault_is_a_bench_error_and_a_sunlab_error():
-    for name in E.__all__:
+    for name in [*E.__all__, "StageTimeout", "StageProtocolError", "StageDisconnected"]:
         cls = getattr(E, name)
         assert issubclass(cls, E.BenchError) and issubclass(cls, SunlabError), name
     assert issubclass(E.CameraTimeout, E.CameraError)

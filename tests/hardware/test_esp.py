@@ -21,10 +21,20 @@ from sunlab.hardware import (
     LimitError,
     MotionTimeout,
     StageError,
-    StageTimeout,
 )
-from sunlab.hardware.errors import StageDisconnected, StageProtocolError
-from sunlab.hardware.esp_protocol import decode_error, format_number
+from sunlab.hardware._esp_link import (
+    READ_TERMINATOR,
+    WRITE_TERMINATOR,
+    format_number,
+    open_transport,
+)
+from sunlab.hardware.errors import (
+    StageDisconnected,
+    StageProtocolError,
+    StageTimeout,
+    decode_error,
+)
+from sunlab.hardware.esp import UNITS
 
 NO_ERROR = b"0, 451322, NO ERROR DETECTED\r\n"
 #: The marker query the driver sends to get back in step after a lost reply, and its answer.
@@ -478,3 +488,52 @@ def test_a_dead_controller_is_declared_within_tries_times_timeout_plus_the_backo
     # the bound: tries x timeout + about 1.5 s (the back-off waits, 0.2 + 0.4 + 0.8 s,
     # or the driver's 1.5 s of slack for a late reply, whichever is longer)
     assert link.now <= (retries + 1) * timeout + 1.5 + 1e-9
+
+
+# -- the wire protocol: terminators, error codes, numbers, the link ------------------------------
+def test_terminators_are_the_manuals():
+    # commands end in CR; the controller answers queries with CR LF
+    assert WRITE_TERMINATOR == b"\r" and READ_TERMINATOR == b"\r\n"
+    assert UNITS[7] == "degree"
+
+
+@pytest.mark.parametrize("code, axis, text", [
+    (0, None, "no error detected"),
+    (6, None, "command does not exist"),
+    (104, 1, "positive hardware limit detected"),
+    (205, 2, "negative hardware limit detected"),
+    (313, 3, "motor not enabled"),
+    (99, None, "unknown error 99"),
+    (112, 1, "unknown axis error 12"),
+])
+def test_decode_error_splits_axis_and_code(code, axis, text):
+    assert decode_error(code) == (axis, text)
+
+
+def test_every_limit_code_decodes_to_a_limit():
+    for sub in (4, 5, 6, 7):
+        assert "limit" in decode_error(100 + sub)[1]
+
+
+@pytest.mark.parametrize("value, text", [
+    (12.5, "12.5"), (-3.0, "-3"), (0.1234567, "0.123457"), (0.0, "0"), (-0.0000001, "0"),
+    (170, "170"), (-169.999999, "-169.999999"),
+])
+def test_format_number_is_the_shortest_fixed_point_to_a_microdegree(value, text):
+    assert format_number(value) == text
+    assert float(text) == pytest.approx(value, abs=5e-7)
+
+
+def test_loopback_transport_echoes_and_is_a_serial_port():
+    port = open_transport("loop://", timeout=0.1)
+    try:
+        assert isinstance(port, serial.SerialBase)
+        port.write(b"1TP?" + WRITE_TERMINATOR)
+        assert port.read_until(WRITE_TERMINATOR) == b"1TP?\r"
+    finally:
+        port.close()
+
+
+def test_a_port_that_cannot_open_is_a_disconnected_stage():
+    with pytest.raises(StageDisconnected, match="cannot open"):
+        open_transport("nosuchscheme://x", timeout=0.1)

@@ -15,10 +15,9 @@ from sunlab.hardware import (
     ErrorReplyLost,
     FakeESP,
     MotionTimeout,
-    StageTimeout,
     open_stage,
 )
-from sunlab.hardware.errors import StageDisconnected
+from sunlab.hardware.errors import StageDisconnected, StageTimeout
 from sunlab.hardware.fake import DISCONNECT, ManualClock
 
 FAST = {"timeout": 0.08, "retries": 3, "retry_delay_s": 0.01, "poll_s": 0.001}
@@ -114,7 +113,7 @@ def test_fake_encoder_reads_in_resolution_steps():
     assert fake.handle(b"1TP?") == b"1.235000\r\n"
 
 
-# -- the manual's forms and the commands pymeasure's ESP300 driver sends -------------------------
+# -- the manual's other forms and commands (any client of the controller may send them) -----------
 def _no_error(fake):
     assert fake.handle(b"TE?") == b"0\r\n", "the fake queued an error"
 

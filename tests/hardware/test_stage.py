@@ -49,7 +49,7 @@ def plugin(tmp_path, monkeypatch):
 
 
 def test_the_builtins_are_registered():
-    assert {"fake", "pymeasure"} <= set(available_stages())
+    assert "fake" in available_stages()
     stage = open_stage("fake://?velocity=1e4", retry_delay_s=0.0, poll_s=0.001)
     try:
         assert isinstance(stage, ESP300) and stage.move_to(1.0, 2.0) == (1.0, 2.0)

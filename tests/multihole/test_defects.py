@@ -1,10 +1,11 @@
 """Tests of sunlab.multihole.defects: the batched cubic resampling of the edge roughness.
 
 :func:`sunlab.multihole.defects._harmonic_amplitudes` resamples the stamps of all holes of a
-frame at once (the spline prefilter of ``map_coordinates`` on a stack of sub-images, then
-separable 4-tap B-spline weights); these tests hold it to the straightforward form, one
-``scipy.ndimage.map_coordinates`` call per stamp (:func:`harmonic_amplitudes_reference`), on
-synthetic frames with spots at and across the frame's edges.
+frame at once (the spline prefilter of ``map_coordinates`` on the part of the frame the spots
+cover, then separable 4-tap B-spline weights); these tests hold it to the straightforward form,
+one ``scipy.ndimage.map_coordinates`` call on the frame per stamp
+(:func:`harmonic_amplitudes_reference`), on synthetic frames with spots at and across the
+frame's edges.
 """
 
 import numpy as np
@@ -17,15 +18,14 @@ from sunlab.multihole import defects
 
 # The batched form performs the same operations as map_coordinates (same padding, prefilter and
 # B-spline weights); only the order of the float additions differs (4 + 4 separable taps for the
-# 16 products of map_coordinates, sums over a stack): the stamps differ by a few 1e-16 of their
-# peak, the amplitudes (residuals of stamps minus their median) by up to some 1e-13. rtol 1e-9 is
-# float rounding only, with a wide margin: a wrong padding (11 or 13 px instead of scipy's 12)
-# moves the stamps by 1e-7 of their peak and the amplitudes by 1e-10 to 1e-7.
+# 16 products of map_coordinates): the amplitudes differ by some 1e-13. rtol 1e-9 is float
+# rounding only, with a wide margin: a wrong padding (11 or 13 px instead of scipy's 12) moves
+# the amplitudes by 1e-10 to 1e-7.
 RTOL = 1e-9
 
 
 def harmonic_amplitudes_reference(cube, ok, xs, ys, poses, shot, radius_px, harmonics):
-    """The per-stamp form: map_coordinates (cubic, "nearest") on a sub-image per hole."""
+    """The per-stamp form: map_coordinates (cubic, "nearest") on the frame per hole."""
     n_r = int(np.ceil(radius_px))
     g = np.arange(-n_r, n_r + 1, dtype=float)
     gy, gx = np.meshgrid(g, g, indexing="ij")
@@ -37,11 +37,7 @@ def harmonic_amplitudes_reference(cube, ok, xs, ys, poses, shot, radius_px, harm
         hs = np.flatnonzero(ok[p])
         stamps = np.empty((hs.size, ring.sum()))
         for n, h in enumerate(hs):
-            xi, yi, m = int(round(xs[p, h])), int(round(ys[p, h])), n_r + 4
-            y0, x0 = max(yi - m, 0), max(xi - m, 0)
-            st = map_coordinates(frame[y0:yi + m + 1, x0:xi + m + 1],
-                                 [ys[p, h] - y0 + gy, xs[p, h] - x0 + gx], order=3,
-                                 mode="nearest")
+            st = map_coordinates(frame, [ys[p, h] + gy, xs[p, h] + gx], order=3, mode="nearest")
             st = st - np.median(np.concatenate([st[0], st[-1], st[:, 0], st[:, -1]]))
             total = st[disk].sum()
             stamps[n] = st[ring] / total if total > 0 else np.nan
@@ -115,22 +111,16 @@ def test_edge_roughness_equals_the_per_stamp_form(frames, monkeypatch):
 
 
 @pytest.mark.parametrize("shape", [(29, 29), (17, 29), (29, 20), (6, 9)])
-def test_spline_grid_is_map_coordinates_on_and_off_the_sub(shape):
-    # coordinates inside the sub, off it by less and by more than scipy's 12 px of padding
+def test_cubic_stamps_are_map_coordinates_on_and_off_the_frame(shape):
+    # centres inside the frame, off it by less and by more than scipy's 12 px of padding
     rng = np.random.default_rng(7)
-    subs = rng.uniform(0, 4000, (6,) + shape).round().astype(np.uint16)
+    frame = rng.uniform(0, 4000, shape).round().astype(np.uint16)
     cy = np.array([14.2, 13.5, -3.7, 20.1, -30.4, shape[0] + 15.5])
     cx = np.array([14.8, 14.5, 30.2, -1.0, 50.6, -20.3])
-    got = defects._spline_grid(subs, cy, cx, 10)
+    got = defects._cubic_stamps(frame, cx, cy, 10)
     g = np.arange(-10, 11, dtype=float)
     gy, gx = np.meshgrid(g, g, indexing="ij")
-    for k in range(len(subs)):
-        ref = map_coordinates(subs[k].astype(float), [cy[k] + gy, cx[k] + gx], order=3,
+    for k in range(len(cx)):
+        ref = map_coordinates(frame.astype(float), [cy[k] + gy, cx[k] + gx], order=3,
                               mode="nearest")
         assert_allclose(got[k], ref, rtol=RTOL, atol=RTOL * np.abs(ref).max())
-
-
-@pytest.mark.parametrize("n", [1, 2, 7, 8])
-def test_median_of_rows_is_numpy_median(n):
-    a = np.random.default_rng(n).normal(size=(n, 33))
-    assert_array_equal(defects._median_of_rows(a), np.median(a, axis=0))

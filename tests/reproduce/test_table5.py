@@ -6,19 +6,14 @@ import pandas as pd
 import pytest
 
 from sunlab import sim, stats
+from sunlab.centroid.estimators import PER_SPOT
 from sunlab.errors import ConfigurationError
-from sunlab.reproduce.table5 import (
-    COLUMNS,
-    REJECTION_COLUMN,
-    SPOT_METHODS,
-    format_table5,
-    mounting_offset_px,
-    spot_method,
-)
+from sunlab.reproduce.pipeline import mounting_offset_px, spot_method
+from sunlab.reproduce.table5 import COLUMNS, REJECTION_COLUMN, format_table5
 
 
 def test_single_spot_algorithms_become_the_tight_window_on_100_spots():
-    assert {m: spot_method(m) for m in SPOT_METHODS} == {
+    assert {m: spot_method(m) for m in PER_SPOT} == {
         "projection": "tight", "threshold": "tight", "tight": "tight", "fit": "fit"}
     with pytest.raises(ConfigurationError, match="method: found 'nearest'"):
         spot_method("nearest")

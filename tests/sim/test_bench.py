@@ -180,11 +180,11 @@ def test_presets_are_the_identified_hypothesis_as_its_one_preset_fit_gives_it():
     # the presets are the hypothesis the protocol's rule picks from the shipped evidence, fitted
     # once with every nuisance at its prior median on the preset seed (protocol version 4,
     # sunlab/data/presets.json), to three significant figures (0.5 %)
-    from sunlab.studies import identification as idn
-    from sunlab.studies import profiles
+    from studies import evidence, profiles
+    from studies import identification as idn
 
     protocol = idn.load_protocol()
-    name = idn.identified_hypothesis()
+    name = evidence.identified_hypothesis()
     presets = profiles.load_presets()
     assert presets["hypothesis"] == name
     assert presets["nuisances"] == idn.draw_nuisances(protocol, None)

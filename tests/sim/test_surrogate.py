@@ -1,13 +1,13 @@
 """The centroid-level surrogate (sunlab.sim.surrogate) and the paper's tables computed on it
-(sunlab.studies.surrogate_tables) against known truth."""
+(studies.surrogate_tables) against known truth."""
 
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
+from studies import surrogate_tables
 from sunlab import plans, sim
 from sunlab.sim import surrogate
-from sunlab.studies import surrogate_tables
 
 
 @pytest.fixture(scope="module")
@@ -140,9 +140,9 @@ def test_a_zero_shift_between_sessions_gives_betas_offset_shape_and_the_tables_b
     # to it on beta than on alpha (the paper: 1.38 and 1.12). The identified bench itself puts
     # more of beta's error in its per-pose error and gear (docs/paper.md sec. 10).
     bench = bench.replace(platform__beta_pose_error_deg=0.0005, platform__beta_gear_deg=0.0)
+    from studies.identification import surrogate_runs
     from sunlab import stats
     from sunlab.calibration.methods import table4_methods
-    from sunlab.studies.identification import surrogate_runs
 
     cen = surrogate_runs(bench, seed=0, step=1, shots=2)
     rec = table4_methods(neural=False)

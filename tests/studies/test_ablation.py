@@ -2,8 +2,8 @@
 
 import pytest
 
-from sunlab.studies import ablation
-from sunlab.studies import identification as idn
+from studies import ablation
+from studies import identification as idn
 
 
 @pytest.mark.parametrize("component", sorted(ablation.ABLATIONS))

@@ -1,4 +1,4 @@
-"""Why averaging per-hole calibrations loses to the geometric centre (sunlab.studies.averaging):
+"""Why averaging per-hole calibrations loses to the geometric centre (studies.averaging):
 the mechanisms run on the surrogate of the identified bench, one seed, a thinned grid.
 
 With every spot on the detector, each per-hole polynomial is a least-squares map of its own
@@ -11,8 +11,8 @@ import math
 
 import pytest
 
-from sunlab.studies import identification as idn
-from sunlab.studies.averaging import MECHANISMS, PAPER_RATIO, mechanisms
+from studies import evidence
+from studies.averaging import MECHANISMS, PAPER_RATIO, mechanisms
 
 
 def test_paper_ratio_is_table5s():
@@ -24,7 +24,7 @@ def test_paper_ratio_is_table5s():
 @pytest.fixture(scope="module")
 def table():
     # a seed of the shipped evidence (its draw and fit are read from it), as notebook 06 does
-    seed = int(idn.load_evidence()["seed"].min())
+    seed = int(evidence.load_evidence()["seed"].min())
     return mechanisms(seeds=(seed,), step=4, shots=2)
 
 

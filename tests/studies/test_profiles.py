@@ -5,8 +5,8 @@ import math
 import pandas as pd
 import pytest
 
-from sunlab.studies import identification as idn
-from sunlab.studies import profiles
+from studies import identification as idn
+from studies import profiles
 
 
 @pytest.fixture(scope="module")

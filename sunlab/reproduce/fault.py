@@ -1,39 +1,17 @@
 """Find the platform fault that makes beta worse than alpha, from data a lab already has.
 
-The paper ends with an open problem: beta is worse than alpha for every method and every mask,
-"which points at the rotation platform (its second axis)" (docs/paper.md sec. 5-7). Three faults
-of a worm-gear rotation stage's inner axis explain a beta error that is larger than alpha's and
-not a symmetric unimodal one; they differ in how their sign depends on the motion history:
-
-* **backlash**: the load lags the motor by the half dead band b, so a pose reached upward ends
-  b below its target and one reached downward b above; in a serpentine scan the inner axis
-  alternates its direction row by row (the outer axis moves monotonically, so alpha cannot show
-  it), a sign that follows the *approach direction*;
-* **homing offset**: the inner axis's zero differs between the calibration run and the test
-  run (each run homes the stage); a sign that is *constant within a run*;
-* **periodic gear error**: a worm's eccentricity repeats once per worm turn; with a period under
-  two grid steps a 1-degree calibration grid sees it only aliased, and the test grid, offset by
-  half a step, sees its other phase; a sign that is *periodic in beta*, the same in every row.
-
-The tests, each on the signed beta errors of a test run (estimate minus commanded angle, mean
-over the shots of each pose):
-
-1. **shape**: for any symmetric unimodal error X, sigma / mu of ``|X|`` is at least
-   :data:`UNIMODAL_BOUND` = 1/sqrt(3) (uniform is the minimum; normal gives 0.76); below it the
-   error is bimodal or offset (:func:`shape_test`; applied to the paper's own tables by
-   :func:`paper_shape`);
-2. **approach split**: the mean error of the poses reached downward minus that of the poses
-   reached upward is 2 b (:func:`approach_split`);
-3. **run offset**: the mean error of the run, with the approach term removed
-   (:func:`run_offset`);
-4. **periodogram against beta**: the error averaged over the scan rows at each beta, detrended,
-   against sinusoids of beta; a gear error stands above what the within-row scatter allows
-   (:func:`beta_periodogram`).
-
-:func:`diagnose` turns each into a z-score and names the candidate; :func:`fit_correction` fits
-the backlash (and, given zero-pose checks, the homing offset, and given a period, the gear
-error) jointly with the polynomial calibration, with standard errors, and corrects the test
-run's reference angles from its recorded motion.
+The paper's open problem (docs/paper.md sec. 5-7): beta is worse than alpha for every method
+and mask, "which points at the rotation platform (its second axis)". Three faults of a worm-gear
+stage's inner axis explain it; their sign depends on the motion history differently (notebook
+09): **backlash** follows the *approach direction* (a serpentine scan alternates it row by row),
+a **homing offset** is *constant within a run*, a **periodic gear error** is *periodic in beta*.
+The tests, on the signed beta errors of a test run: the **shape** (:func:`shape_test`: sigma /
+mu of ``|X|`` below :data:`UNIMODAL_BOUND` = 1/sqrt(3) means bimodal or offset; the paper's own
+tables by :func:`paper_shape`), the **approach split** (:func:`approach_split`: 2 b), the **run
+offset** (:func:`run_offset`) and the **periodogram against beta** (:func:`beta_periodogram`).
+:func:`diagnose` turns each into a z-score and names the candidate; :func:`candidate_table`
+sets each fault, alone on the bench, beside the paper's beta cells. The remedy that fits the
+faults jointly with the calibration is :mod:`sunlab.reproduce.remedy`.
 
 Examples
 --------
@@ -94,8 +72,7 @@ def shape_test(table: pd.DataFrame) -> pd.DataFrame:
     if not isinstance(table, pd.DataFrame) or ("alpha", "mu") not in table.index:
         raise ConfigurationError(
             "table: expected a DataFrame indexed (angle, stat) as sunlab.stats.global_stats "
-            "returns. Fix: pass stats.global_stats(local) or stats.paper_table4()."
-        )
+            "returns. Fix: pass stats.global_stats(local) or stats.paper_table4().")
     rows = {}
     for m in table.columns:
         for a in ("alpha", "beta"):
@@ -169,9 +146,9 @@ def approach_of(source) -> np.ndarray:
 
     Parameters
     ----------
-    source : sunlab.plans.Plan or xarray.Dataset
-        The plan that was run, or a cube with the coordinate ``beta_approach`` (what
-        :func:`sunlab.sim.simulate` and the acquisition runner record).
+    source : sunlab.plans.Plan or xarray.Dataset or array_like
+        The plan that was run, a cube with the coordinate ``beta_approach`` (what
+        :func:`sunlab.sim.simulate` and the acquisition runner record), or the directions.
 
     Returns
     -------
@@ -186,6 +163,8 @@ def approach_of(source) -> np.ndarray:
     """
     from ..plans import Plan
 
+    if isinstance(source, np.ndarray | list | tuple) and np.isin(source, (-1, 1)).all():
+        return np.asarray(source, dtype=int)
     if isinstance(source, Plan):
         return source.beta_approach().astype(int)
     if isinstance(source, xr.Dataset) and "beta_approach" in source.variables:
@@ -193,13 +172,19 @@ def approach_of(source) -> np.ndarray:
     raise ConfigurationError(
         f"source: found {type(source).__name__} without a motion record; expected the "
         "sunlab.plans.Plan that was run or a cube with a 'beta_approach' coordinate. Fix: pass "
-        "the plan (its scan and approach say how each pose was reached)."
-    )
+        "the plan (its scan and approach say how each pose was reached).")
 
 
 def _finite(e, *arrays):
     ok = np.isfinite(e)
     return (e[ok],) + tuple(np.asarray(a)[ok] for a in arrays)
+
+
+def _approach_fit(e, d):
+    """The least-squares fit of the errors on [1, d]: the design, coefficients, residuals."""
+    A = np.column_stack([np.ones_like(e), d])
+    coef, *_ = np.linalg.lstsq(A, e, rcond=None)
+    return A, coef, e - A @ coef
 
 
 def approach_split(beta_error, approach) -> dict:
@@ -301,9 +286,7 @@ def run_offset(beta_error, approach) -> dict:
     (0.02, True)
     """
     e, d = _finite(np.asarray(beta_error, dtype=float), np.asarray(approach, dtype=float))
-    A = np.column_stack([np.ones_like(e), d])
-    coef, *_ = np.linalg.lstsq(A, e, rcond=None)
-    r = e - A @ coef
+    A, coef, r = _approach_fit(e, d)
     s2 = float(r @ r) / max(e.size - 2, 1)
     cov = s2 * np.linalg.pinv(A.T @ A)
     se = math.sqrt(cov[0, 0])
@@ -350,9 +333,7 @@ def beta_periodogram(beta_error, beta_cmd, approach, *, detrend: int = 3,
 
     e, b, d = _finite(np.asarray(beta_error, dtype=float), np.asarray(beta_cmd, dtype=float),
                       np.asarray(approach, dtype=float))
-    A = np.column_stack([np.ones_like(e), d])
-    coef, *_ = np.linalg.lstsq(A, e, rcond=None)
-    r = e - A @ coef
+    r = _approach_fit(e, d)[2]
     ub, inv = np.unique(b, return_inverse=True)
     n_j = np.bincount(inv).astype(float)
     m_j = np.bincount(inv, weights=r) / n_j
@@ -362,8 +343,7 @@ def beta_periodogram(beta_error, beta_cmd, approach, *, detrend: int = 3,
         raise ConfigurationError(
             f"beta_cmd: found {ub.size} distinct beta values over {e.size} poses; the "
             "periodogram needs several rows at each of at least "
-            f"{detrend + 4} betas. Fix: pass a full grid experiment."
-        )
+            f"{detrend + 4} betas. Fix: pass a full grid experiment.")
     s2_w = float(within @ within) / dof
     w = n_j / s2_w  # inverse variance of each row mean
     x = (ub - ub.mean()) / max(np.ptp(ub), 1e-12)
@@ -411,17 +391,6 @@ class Diagnosis:
     z: dict
     evidence: dict = field(default_factory=dict)
 
-    def to_dict(self) -> dict:
-        """The diagnosis as plain JSON types (what ``results/platform.json`` stores).
-
-        Returns
-        -------
-        dict
-            ``candidate``, ``z`` (floats) and ``evidence``.
-        """
-        return {"candidate": self.candidate, "z": {k: float(v) for k, v in self.z.items()},
-                "evidence": self.evidence}
-
 
 def diagnose(estimate: xr.Dataset, motion, *, threshold: float = 4.0) -> Diagnosis:
     """Name the inner-axis fault from a test run's estimates and its motion record.
@@ -454,15 +423,13 @@ def diagnose(estimate: xr.Dataset, motion, *, threshold: float = 4.0) -> Diagnos
     >>> diagnose(est, plan).candidate
     'backlash'
     """
-    d = (np.asarray(motion, dtype=int) if isinstance(motion, np.ndarray | list | tuple)
-         else approach_of(motion))
+    d = approach_of(motion)
     err = signed_pose_errors(estimate)
     e = np.asarray(err["beta"].values, dtype=float)
     if d.shape != e.shape:
         raise ConfigurationError(
             f"motion: found {d.size} approach directions for {e.size} poses; expected one per "
-            "pose of the test run. Fix: pass the plan of the run that was predicted."
-        )
+            "pose of the test run. Fix: pass the plan of the run that was predicted.")
     b_cmd = np.asarray(estimate["beta_cmd"].values, dtype=float)
     a_cmd = np.asarray(estimate["alpha_cmd"].values, dtype=float)
     ap = approach_split(e, d)
@@ -518,238 +485,8 @@ def fault_bench(bench, kind: str, size_deg: float, *, period_deg: float = 1.6):
         raise ConfigurationError(f"kind: found {kind!r}; expected one of {tuple(FAULTS)}.")
     # the thermal drift of the zero between runs and its shift at a new homing between the
     # sessions are run offsets like the homing's: out too
-    base = bench.replace(platform__beta_backlash_deg=0.0, platform__beta_homing_deg=0.0,
-                         platform__beta_drift_deg=0.0, platform__beta_rehoming_deg=0.0,
-                         platform__beta_gear_deg=0.0)
-    field_ = {"backlash": "beta_backlash_deg", "homing": "beta_homing_deg",
-              "gear": "beta_gear_deg"}[kind]
-    out = base.replace(**{f"platform__{field_}": float(size_deg)})
+    change = {f"platform__beta_{k}_deg": 0.0 for k in (*FAULTS, "drift", "rehoming")}
+    change[f"platform__beta_{kind}_deg"] = float(size_deg)
     if kind == "gear":
-        out = out.replace(platform__beta_gear_period_deg=float(period_deg))
-    return out
-
-
-# --------------------------------------------------------------------------- remedy (b)
-def _pose_means(cen: xr.Dataset):
-    """Pose-mean centroids of the usable shots, px (NaN for a pose without one)."""
-    import warnings
-
-    from ..schema import STATUS, USABLE_STATUS
-
-    ok = np.asarray(cen["status"].isin([STATUS[k] for k in USABLE_STATUS]).values)
-    x = np.where(ok, np.asarray(cen["x"].values, dtype=float), np.nan)
-    y = np.where(ok, np.asarray(cen["y"].values, dtype=float), np.nan)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", category=RuntimeWarning)
-        return np.nanmean(x, axis=1), np.nanmean(y, axis=1)
-
-
-@dataclass
-class JointCorrection:
-    """A polynomial calibration whose beta part was fitted jointly with fault terms.
-
-    Attributes
-    ----------
-    calibration : sunlab.calibration.Polynomial
-        alpha as fitted alone; beta the polynomial part of the joint fit (it estimates the
-        true inner-axis angle, not the commanded one).
-    parameters : dict
-        ``name -> {"fitted": value, "stderr": value}`` (deg): ``beta_backlash_deg``, and when
-        fitted ``beta_homing_difference_deg`` (test run minus calibration run) and
-        ``beta_gear_amplitude_deg``.
-    gear_frequency : float or None
-        Frequency of the gear term, cycles/deg.
-    """
-
-    calibration: object
-    parameters: dict
-    gear_frequency: float | None = None
-    _coef: dict = field(default_factory=dict, repr=False)
-
-    def predict(self, centroids: xr.Dataset) -> xr.Dataset:
-        """The calibration's estimate (:meth:`sunlab.calibration.Calibration.predict`).
-
-        Parameters
-        ----------
-        centroids : xarray.Dataset
-            A ``centroids/1`` table (the test run).
-
-        Returns
-        -------
-        xarray.Dataset
-            Estimated ``alpha`` and ``beta``, deg; compare them with :meth:`reference`.
-        """
-        return self.calibration.predict(centroids)
-
-    def reference(self, estimate: xr.Dataset, motion) -> dict:
-        """The test run's reference angles corrected from its motion record, deg.
-
-        beta: commanded - b d + g(beta) + h, with the fitted backlash b, approach d, gear
-        error g and homing difference h; alpha: commanded. Pass as ``reference`` to
-        :func:`sunlab.stats.local_errors`.
-
-        Parameters
-        ----------
-        estimate : xarray.Dataset
-            :meth:`predict` on the test run, with its commanded angles.
-        motion : sunlab.plans.Plan or xarray.Dataset or array_like
-            The test run's plan or cube (:func:`approach_of`), or its approach per pose.
-
-        Returns
-        -------
-        dict
-            ``alpha`` and ``beta`` (xarray.DataArray on pose), deg.
-        """
-        d = (np.asarray(motion, dtype=float) if isinstance(motion, np.ndarray | list | tuple)
-             else approach_of(motion).astype(float))
-        b_cmd = estimate["beta_cmd"]
-        beta = b_cmd - self._coef.get("backlash", 0.0) * xr.DataArray(d, dims=b_cmd.dims)
-        if self.gear_frequency is not None:
-            ph = 2 * np.pi * self.gear_frequency * b_cmd
-            beta = beta - (self._coef["sin"] * np.sin(ph) + self._coef["cos"] * np.cos(ph))
-        beta = beta + self.parameters.get("beta_homing_difference_deg", {}).get("fitted", 0.0)
-        return {"alpha": estimate["alpha_cmd"], "beta": beta}
-
-
-def fit_correction(train: xr.Dataset, train_motion, validation: xr.Dataset | None = None, *,
-                   order=None, gear_frequency: float | None = None,
-                   zero_train: xr.Dataset | None = None,
-                   zero_test: xr.Dataset | None = None,
-                   backlash: bool = True) -> JointCorrection:
-    """Fit the polynomial calibration jointly with the inner axis's fault terms.
-
-    The beta polynomial P of the centroid estimates the true inner-axis angle; the commanded
-    angle of each calibration pose is
-
-    .. math:: \\beta_{cmd} = P(x, y) + b\\,d - g(\\beta_{cmd}),
-              \\quad g(\\beta) = s \\sin 2\\pi f\\beta + c \\cos 2\\pi f\\beta
-
-    with the approach direction d of the pose (the motion record), the backlash b and, when
-    ``gear_frequency`` f is given, the gear error g (at the grid, a period under two steps is
-    only seen aliased, so f is the alias the periodogram finds; the amplitude is the same).
-    All coefficients come from one least-squares fit over the pose means, the standard errors
-    from its covariance (residuals independent between poses: the per-pose errors are). The
-    homing offset of the test run relative to the calibration run comes from their zero-pose
-    checks (:func:`sunlab.plans.zero_check`): the mean of P over the test run's checks minus
-    that over the calibration run's, its standard error from the checks' scatter.
-
-    Parameters
-    ----------
-    train : xarray.Dataset
-        Centroid table of the calibration run (experiment I).
-    train_motion : sunlab.plans.Plan or xarray.Dataset or array_like
-        Its motion record (:func:`approach_of`).
-    validation : xarray.Dataset, optional
-        Experiment II: picks the polynomial order (:meth:`Polynomial.select_order`).
-    order : int or (int, int), optional
-        The order, when no validation table is given (default 5).
-    gear_frequency : float, optional
-        Fit a gear term at this frequency, cycles/deg.
-    zero_train, zero_test : xarray.Dataset, optional
-        Centroid tables of the zero-pose checks of the calibration and test runs.
-    backlash : bool
-        Fit the backlash term (leave it out for a unidirectional plan, where every pose is
-        reached upward and the term cannot be told from the polynomial's constant).
-
-    Returns
-    -------
-    JointCorrection
-
-    Examples
-    --------
-    >>> from sunlab import plans
-    >>> from sunlab.sim import Bench
-    >>> from sunlab.sim.surrogate import surrogate_centroids
-    >>> bench = fault_bench(Bench.paper_single_hole(), "backlash", 0.02)
-    >>> plan = plans.experiment("I", shots=1)
-    >>> jc = fit_correction(surrogate_centroids(bench, plan, 0), plan, order=5)
-    >>> p = jc.parameters["beta_backlash_deg"]
-    >>> abs(p["fitted"] - 0.02) < 3 * p["stderr"] < 0.002
-    True
-    """
-    from ..calibration import Polynomial
-
-    if validation is not None:
-        cal, _ = Polynomial.select_order(train, validation)
-    else:
-        cal = Polynomial(5 if order is None else order).fit(train)
-    xm, ym = _pose_means(train)
-    b_cmd = np.asarray(train["beta"].values, dtype=float)
-    d = _approach_directions(train_motion, b_cmd.size)
-    params, extra = _joint_beta_fit(cal, xm, ym, d, b_cmd, backlash=backlash,
-                                    gear_frequency=gear_frequency)
-    if (zero_train is None) != (zero_test is None):
-        raise ConfigurationError(
-            "zero_train, zero_test: found one of them; expected both zero-pose checks (the "
-            "calibration run's and the test run's) or neither. Fix: plans.zero_check(plan) "
-            "for each run."
-        )
-    if zero_train is not None:
-        params["beta_homing_difference_deg"] = _homing_difference(cal, zero_train, zero_test)
-    return JointCorrection(cal, params, None if gear_frequency is None else float(gear_frequency),
-                           extra)
-
-
-def _approach_directions(motion, n_poses: int) -> np.ndarray:
-    """The approach direction of each pose of the calibration run (+1 up, -1 down), checked
-    against its number of poses."""
-    d = (np.asarray(motion, dtype=float) if isinstance(motion, np.ndarray | list | tuple)
-         else approach_of(motion).astype(float))
-    if d.shape != (n_poses,):
-        raise ConfigurationError(
-            f"train_motion: found {d.size} approach directions for {n_poses} poses; "
-            "expected the motion record of the calibration run. Fix: pass its plan."
-        )
-    return d
-
-
-def _joint_beta_fit(cal, xm, ym, d, b_cmd, *, backlash: bool, gear_frequency):
-    """Refit beta's polynomial jointly with the backlash term (``d``: approach directions) and
-    a gear term; the polynomial's coefficients go into ``cal``. The fitted fault parameters
-    with standard errors, and the terms :class:`JointCorrection` applies."""
-    ok = np.isfinite(xm) & np.isfinite(ym)
-    P = cal.basis(xm[ok], ym[ok], "beta")
-    cols = [P, d[ok, None]] if backlash else [P]
-    if gear_frequency is not None:
-        ph = 2 * np.pi * float(gear_frequency) * b_cmd[ok]
-        cols.append(np.column_stack([np.sin(ph), np.cos(ph)]))
-    A = np.hstack(cols)
-    coef, *_ = np.linalg.lstsq(A, b_cmd[ok], rcond=None)
-    r = b_cmd[ok] - A @ coef
-    s2 = float(r @ r) / (A.shape[0] - A.shape[1])
-    cov = s2 * np.linalg.pinv(A.T @ A)
-    k = P.shape[1]
-    cal.coefficients["beta"] = coef[:k]
-    params, extra = {}, {}
-    if backlash:
-        params["beta_backlash_deg"] = {"fitted": float(coef[k]),
-                                       "stderr": math.sqrt(float(cov[k, k]))}
-        extra["backlash"] = float(coef[k])
-        k += 1
-    if gear_frequency is not None:
-        s, c = float(coef[k]), float(coef[k + 1])
-        amp = math.hypot(s, c)
-        g = np.array([s, c]) / max(amp, 1e-300)
-        se = math.sqrt(float(g @ cov[k:k + 2, k:k + 2] @ g))
-        params["beta_gear_amplitude_deg"] = {"fitted": amp, "stderr": se}
-        extra.update({"sin": -s, "cos": -c})
-    return params, extra
-
-
-def _homing_difference(cal, zero_train, zero_test) -> dict:
-    """The test run's homing offset minus the calibration run's, from the beta ``cal`` reads
-    at the zero-pose checks of each run, with its standard error."""
-    vals = []
-    for z in (zero_train, zero_test):
-        zx, zy = _pose_means(z)
-        _, bz = cal.predict_xy(zx, zy)
-        bz = bz[np.isfinite(bz)]
-        if bz.size < 2:
-            raise ConfigurationError(
-                "zero check: found fewer than 2 usable zero-pose visits; expected several. "
-                "Fix: plans.zero_check(plan, checks=4)."
-            )
-        vals.append(bz)
-    h = float(vals[1].mean() - vals[0].mean())
-    se = math.sqrt(vals[0].var(ddof=1) / vals[0].size + vals[1].var(ddof=1) / vals[1].size)
-    return {"fitted": h, "stderr": se}
+        change["platform__beta_gear_period_deg"] = float(period_deg)
+    return bench.replace(**change)

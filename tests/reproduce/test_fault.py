@@ -1,16 +1,17 @@
-"""sunlab.studies.platform_fault: the diagnosis names the one fault a bench carries; the joint fit
-recovers the fault's size within its standard error; the remedies remove it. Benches carrying a
-single fault, centroids from the fast surrogate (sunlab.sim.surrogate)."""
+"""sunlab.reproduce.fault and .remedy: the diagnosis names the one fault a bench carries; the
+joint fit recovers the fault's size within its standard error; the remedies remove it. Benches
+carrying a single fault, centroids from the fast surrogate (sunlab.sim.surrogate)."""
 
 import numpy as np
 import pytest
 
 from sunlab import ConfigurationError, plans, stats
 from sunlab.calibration import Polynomial
+from sunlab.reproduce import fault as pf
+from sunlab.reproduce.remedy import fit_correction
 from sunlab.sim import Bench
 from sunlab.sim.platform import homing_offset
 from sunlab.sim.surrogate import surrogate_centroids
-from sunlab.studies import platform_fault as pf
 
 SIZES = {"backlash": 0.017, "homing": 0.03, "gear": 0.02}
 SEED = 3
@@ -69,7 +70,7 @@ def test_diagnosis_names_the_one_fault(runs, kind):
 def test_joint_fit_recovers_backlash_and_remedies_remove_it(runs):
     bench, tr, te = runs["backlash"]
     cal, test = _plans()
-    jc = pf.fit_correction(tr, cal, order=5)
+    jc = fit_correction(tr, cal, order=5)
     p = jc.parameters["beta_backlash_deg"]
     assert abs(p["fitted"] - SIZES["backlash"]) < 2.5 * p["stderr"]
     assert p["stderr"] < 0.1 * SIZES["backlash"]
@@ -100,7 +101,7 @@ def test_zero_checks_measure_the_homing_difference(runs):
     cal, test = _plans()
     zc = {n: surrogate_centroids(bench, plans.zero_check(p, 6), SEED, spot_error=False)
           for n, p in (("I", cal), ("III", test))}
-    jc = pf.fit_correction(tr, cal, order=5, zero_train=zc["I"], zero_test=zc["III"])
+    jc = fit_correction(tr, cal, order=5, zero_train=zc["I"], zero_test=zc["III"])
     truth = homing_offset(bench, SEED, "III") - homing_offset(bench, SEED, "I")
     p = jc.parameters["beta_homing_difference_deg"]
     assert abs(p["fitted"] - truth) < 2.5 * p["stderr"]
@@ -114,7 +115,7 @@ def test_zero_checks_measure_the_homing_difference(runs):
     e = bench.platform.beta_pose_error_deg
     assert fixed.loc[("beta", "mu")].iloc[0] < 0.5 * e + p["stderr"] < SIZES["homing"] / 2
     with pytest.raises(ConfigurationError, match="zero_train"):
-        pf.fit_correction(tr, cal, order=5, zero_train=zc["I"])
+        fit_correction(tr, cal, order=5, zero_train=zc["I"])
 
 
 def test_gear_term_recovers_the_amplitude_at_the_aliased_frequency(runs):
@@ -122,7 +123,7 @@ def test_gear_term_recovers_the_amplitude_at_the_aliased_frequency(runs):
     cal, test = _plans()
     est = Polynomial(5).fit(tr).predict(te)
     f = pf.diagnose(est, test).evidence["periodogram"]["peak_frequency"]
-    jc = pf.fit_correction(tr, cal, order=5, gear_frequency=f)
+    jc = fit_correction(tr, cal, order=5, gear_frequency=f)
     p = jc.parameters["beta_gear_amplitude_deg"]
     assert abs(p["fitted"] - SIZES["gear"]) < 2.5 * p["stderr"]
     est2 = jc.predict(te)

@@ -2,7 +2,7 @@
 
 The paper publishes statistics, not its bench. This study asks which physically different bench
 (a *hypothesis*) predicts the published numbers it was *not* fitted on, under the protocol of
-``sunlab/data/protocol.json`` (prose: docs/identification.md), which was committed before any of
+``studies/protocol.json`` (prose: docs/identification.md), which was committed before any of
 its scores:
 
 * every hypothesis is fitted on Table 4's polynomial and linear-interpolation columns (its
@@ -13,12 +13,15 @@ its scores:
   drawn from their priors once per seed; the fit follows each draw, so the spread of a
   prediction over the seeds is its spread over noise *and* parameters;
 * the score of a hypothesis on a seed is the held-out log predictive density
-  (:func:`score_table`), the rule (:func:`chosen_hypothesis`) is the one-standard-error rule,
-  and each published cell gets a 90 % predictive interval (:func:`intervals`).
+  (:func:`studies.evidence.score_table`), the rule (:func:`studies.evidence.chosen_hypothesis`)
+  is the one-standard-error rule, and each published cell gets a 90 % predictive interval
+  (:func:`studies.evidence.intervals`).
 
 The predictions come from the centroid-level surrogate of :mod:`sunlab.sim.surrogate` (geometry,
-platform table and pixel-response maps, no frames rendered); ``sunlab identify --validate``
-compares it with full renders on the confirmation seeds.
+platform table and pixel-response maps, no frames rendered). The protocol is
+``studies/protocol.json``; the evidence is written by ``python -m studies.identify`` into
+``studies/results/`` (the evidence tables) and ``sunlab/data/`` (``presets.json`` and
+``intervals.csv``, which the library reads).
 
 Examples
 --------
@@ -33,26 +36,25 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Iterable
 from dataclasses import replace
-from importlib import resources
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from ..errors import ConfigurationError
+from sunlab.errors import ConfigurationError
 
-__all__ = ["load_protocol", "identified_hypothesis"]
+__all__ = ["load_protocol", "run_hypothesis"]
 
-#: The standard normal quantile of 95 %: a central 90 % interval is mean +- Z90 sd.
-Z90 = 1.6448536269514722
+#: This folder: the protocol, and the evidence tables under ``results/``.
+HERE = Path(__file__).resolve().parent
+#: The library's data: the presets and intervals the studies write for it.
+LIBRARY_DATA = HERE.parent / "sunlab" / "data"
 
-#: The ratio of FF x QE the paper gives (sec. 1: 35 %) to the datasheet's fill factor.
-_PAPER_FF_QE = 0.35
 
 
 def load_protocol(path=None) -> dict:
-    """The identification protocol (``sunlab/data/protocol.json``, or the file at ``path``).
+    """The identification protocol (``studies/protocol.json``, or the file at ``path``).
 
     Parameters
     ----------
@@ -65,22 +67,19 @@ def load_protocol(path=None) -> dict:
         ``hypotheses`` (name -> ``F_mm``, ``gear``, ``parameters``), ``priors``, ``cells``,
         ``score``, ``rule``, ``confirmation_seeds``, ``history``.
     """
-    if path is not None:
-        text = open(path, encoding="utf-8").read()
-    else:
-        text = (resources.files("sunlab") / "data" / "protocol.json").read_text("utf-8")
+    path = Path(path) if path is not None else HERE / "protocol.json"
     try:
-        return json.loads(text)
+        return json.loads(path.read_text(encoding="utf-8"))
     except json.JSONDecodeError as err:
         raise ConfigurationError(
-            f"{path or 'sunlab/data/protocol.json'}: not JSON ({err}). Fix: restore the file "
+            f"{path}: not JSON ({err}). Fix: restore the file "
             "from git; a change of protocol is a new dated entry, never an edit."
         ) from None
 
 
 # ----------------------------------------------------------------------------- cells
 def _paper_cells() -> dict[tuple, float]:
-    from .. import stats
+    from sunlab import stats
 
     out = {}
     for name, table in (("table4", stats.paper_table4()), ("table5", stats.paper_table5())):
@@ -178,8 +177,8 @@ def hypothesis_bench(protocol: dict, name: str, nuisances: dict, fitted: dict, *
         :func:`draw_nuisances`.
     fitted : dict
         ``alpha_total_deg``, ``beta_zero_shift_deg``, ``beta_pose_error_deg``,
-        ``alpha_jitter_deg``, ``beta_jitter_deg`` and, for a hypothesis with a gear error,
-        ``beta_gear_deg`` (deg).
+        ``alpha_jitter_deg``, ``beta_jitter_deg`` (the presets' when left out) and, for a
+        hypothesis with a gear error, ``beta_gear_deg`` and ``gear_period_deg`` (deg).
     multi : bool
         The 100-hole mask instead of the one hole.
 
@@ -187,8 +186,8 @@ def hypothesis_bench(protocol: dict, name: str, nuisances: dict, fitted: dict, *
     -------
     sunlab.sim.Bench
     """
-    from ..sim import Bench
-    from ..sim.mask import PAPER_DISTANCE_MM
+    from sunlab.sim import Bench
+    from sunlab.sim.mask import PAPER_DISTANCE_MM
 
     try:
         hyp = protocol["hypotheses"][name]
@@ -219,7 +218,7 @@ def hypothesis_bench(protocol: dict, name: str, nuisances: dict, fitted: dict, *
         platform__beta_drift_deg=0.0, platform__beta_backlash_deg=0.0,
         platform__beta_wobble_deg=0.0, platform__nonorthogonality_deg=0.0,
         platform__beta_gear_deg=fitted.get("beta_gear_deg", 0.0) if gear else 0.0,
-        platform__beta_gear_period_deg=(_gear_period(nuisances, fitted) if gear
+        platform__beta_gear_period_deg=(float(fitted["gear_period_deg"]) if gear
                                         else base.platform.beta_gear_period_deg),
     )
     # per-shot jitter: fitted from protocol version 3 on (earlier fits leave the presets')
@@ -233,12 +232,6 @@ def hypothesis_bench(protocol: dict, name: str, nuisances: dict, fitted: dict, *
         play_mm = math.tan(math.radians(single_play_deg)) * bench.mask.true_distance_mm
         bench = bench.replace(mask__play_x_mm=play_mm, mask__play_y_mm=0.0)
     return bench
-
-
-def _gear_period(nuisances: dict, fitted: dict) -> float:
-    """The gear's period, deg: fitted from protocol version 4 on, a nuisance draw before."""
-    return float(fitted["gear_period_deg"] if "gear_period_deg" in fitted
-                 else nuisances["gear_period_deg"])
 
 
 # ----------------------------------------------------------------------------- surrogate
@@ -262,12 +255,12 @@ def surrogate_runs(bench, seed: int = 0, step: int = 1, shots: int = 8,
     dict of str to xarray.Dataset
         ``centroids/1`` tables keyed ``"I"``, ``"II"``, ``"III"``.
     """
-    from .. import plans
-    from ..sim.surrogate import surrogate_centroids
-    from .surrogate_tables import table3_plans
+    from sunlab import plans
+    from sunlab.reproduce import experiment_plans
+    from sunlab.sim.surrogate import surrogate_centroids
 
     out = {}
-    for name, plan in table3_plans(step, shots).items():
+    for name, plan in experiment_plans(step=step, shots=shots).items():
         cen = surrogate_centroids(bench, plan, seed, noise_px=noise_px)
         zero = surrogate_centroids(bench, plans.zero_check(plan, 1), seed, noise_px=noise_px)
         out[name] = cen.assign_attrs(zero_pose_x_px=float(zero.x.mean()),
@@ -351,8 +344,8 @@ def fit_hypothesis(protocol: dict, name: str, nuisances: dict, *, seed: int,
 def _fit_side_cells(protocol: dict, name: str, nuisances: dict, fitted: dict, seed: int,
                     noise_px: float) -> dict:
     """Table 4's fit-side columns (polynomial, linear interpolation) on the surrogate."""
-    from .. import stats
-    from ..calibration.registry import RECIPES, fit
+    from sunlab import stats
+    from sunlab.calibration.registry import RECIPES, fit
 
     setting = protocol["fit"]["surrogate"]
     bench = hypothesis_bench(protocol, name, nuisances, fitted)
@@ -412,8 +405,9 @@ def predict_cells(protocol: dict, name: str, nuisances: dict, fitted: dict, *, s
 
 def _predict_benches(protocol: dict, single, multi, seed: int, noise_px: float) -> dict:
     """Every published cell from a one-hole and a 100-hole bench (the protocol's settings)."""
-    from .. import stats
-    from ..calibration.methods import table4_methods
+    from sunlab import stats
+    from sunlab.calibration.methods import table4_methods
+
     from .surrogate_tables import surrogate_table5
 
     setting = protocol["fit"]["predict"]
@@ -464,251 +458,3 @@ def _parameters(fit: dict) -> dict:
     """The bench's parameters of a fit (deg), without its diagnostics."""
     return {k: v for k, v in fit.items()
             if k not in ("pinning", "noise_px", "fit_ssr", "period_ssr")}
-
-
-# ----------------------------------------------------------------------------- scoring
-def _long_to_quantities(cells: pd.DataFrame, quantities) -> pd.DataFrame:
-    """(hypothesis, seed) x quantity table of log predictions."""
-    out = {}
-    for (h, s), g in cells.groupby(["hypothesis", "seed"]):
-        d = {(r.table, r.column, r.angle, r.stat): r.value for r in g.itertuples()}
-        out[(h, s)] = {q: math.log(max(_quantity(d, *q), 1e-9)) for q in quantities}
-    df = pd.DataFrame.from_dict(out, orient="index")
-    df.index.names = ["hypothesis", "seed"]
-    return df
-
-
-def score_table(cells: pd.DataFrame, protocol: dict) -> pd.DataFrame:
-    """The evidence table: each hypothesis's held-out score on each seed.
-
-    Parameters
-    ----------
-    cells : pandas.DataFrame
-        The rows of :func:`run_hypothesis` for every hypothesis and seed.
-    protocol : dict
-
-    Returns
-    -------
-    pandas.DataFrame
-        One row per hypothesis and seed: ``hypothesis``, ``seed``, ``parameters``, ``score``
-        (held-out log predictive density, nats, higher is better), ``tau`` (the model's
-        discrepancy, log units), ``held_out_rms_log``, ``held_out_within_1.25``, and the
-        nuisance draw and fitted parameters.
-    """
-    q = scored_quantities(protocol)
-    paper = _paper_cells()
-    log_paper = {side: np.array([math.log(_quantity(paper, *x)) for x in q[side]])
-                 for side in q}
-    fit_side = _long_to_quantities(cells, q["fit"])
-    held = _long_to_quantities(cells, q["held_out"])
-    extra_cols = [c for c in cells.columns if c not in
-                  ("hypothesis", "seed", "table", "column", "angle", "stat", "value")]
-    extras = cells.groupby(["hypothesis", "seed"])[extra_cols].first()
-    rows = []
-    for h in held.index.get_level_values("hypothesis").unique():
-        hyp = protocol["hypotheses"][h]
-        k = _fitted_count(protocol, h)
-        ff = fit_side.loc[h].to_numpy()
-        hh = held.loc[h].to_numpy()
-        tau2 = float(np.mean(np.sum((ff - log_paper["fit"]) ** 2, axis=1))) / (ff.shape[1] - k)
-        sd2 = hh.std(axis=0, ddof=1) ** 2 if hh.shape[0] > 1 else np.zeros(hh.shape[1])
-        var = sd2 + tau2
-        for i, seed in enumerate(held.loc[h].index):
-            r = log_paper["held_out"] - hh[i]
-            ll = _log_density(r, var)
-            rows.append({"hypothesis": h, "seed": int(seed),
-                         "parameters": int(hyp["parameters"]), "score": ll,
-                         "tau": math.sqrt(tau2),
-                         "held_out_rms_log": float(np.sqrt(np.mean(r**2))),
-                         "held_out_within_1.25": int(np.sum(np.abs(r) <= math.log(1.25))),
-                         **extras.loc[(h, seed)].to_dict()})
-    return pd.DataFrame(rows)
-
-
-def _fitted_count(protocol: dict, name: str) -> int:
-    """The fitted parameters of a hypothesis (tau's degrees of freedom are 12 minus these)."""
-    gear = protocol["hypotheses"][name]["gear"]
-    counts = protocol["score"].get("fitted_parameters")
-    if counts:
-        return int(counts["with gear" if gear else "without gear"])
-    return len(protocol["cells"]["pinning"]) - (0 if gear else 1)
-
-
-def chosen_hypothesis(evidence: pd.DataFrame, protocol: dict | None = None) -> str:
-    """The hypothesis the protocol's one-standard-error rule picks from an evidence table.
-
-    The best is the highest mean score over seeds; every hypothesis whose mean lies within
-    one standard error (the best's, over its seeds) of it is eligible; the eligible one with
-    the fewest parameters is chosen, a tie going to the higher mean.
-
-    Examples
-    --------
-    >>> t = pd.DataFrame({"hypothesis": ["a", "a", "b", "b"], "seed": [0, 1, 0, 1],
-    ...                   "parameters": [3, 3, 5, 5], "score": [1.0, 3.0, 1.9, 3.5]})
-    >>> chosen_hypothesis(t)     # b is best (2.7 +- 0.8), a (2.0) lies within it: simpler
-    'a'
-    """
-    g = evidence.groupby("hypothesis")
-    mean = g["score"].mean()
-    n = g["score"].count()
-    se = (g["score"].std(ddof=1) / np.sqrt(n)).fillna(0.0)
-    params = g["parameters"].first()
-    best = mean.idxmax()
-    eligible = mean[mean >= mean[best] - se[best]].index
-    return str(min(eligible, key=lambda h: (params[h], -mean[h])))
-
-
-def intervals(cells: pd.DataFrame, evidence: pd.DataFrame, names: Iterable[str] | None = None,
-              level: float = 0.90) -> pd.DataFrame:
-    """Each published cell's predictive mean, interval and z under the given hypotheses.
-
-    Returns
-    -------
-    pandas.DataFrame
-        Columns ``hypothesis``, ``table``, ``column``, ``angle``, ``stat``, ``paper``,
-        ``mean`` (exp of the mean log prediction), ``lo``, ``hi`` (the central ``level``
-        interval, log-normal with sd = sqrt(seed spread^2 + tau^2)), ``z`` (the paper's log
-        value in predictive sds from the mean), ``inside``.
-    """
-    from scipy.stats import norm
-
-    zq = float(norm.ppf(0.5 + level / 2.0))
-    paper = _paper_cells()
-    tau = evidence.groupby("hypothesis")["tau"].first()
-    names = list(names) if names is not None else sorted(tau.index)
-    rows = []
-    for h in names:
-        g = cells[cells["hypothesis"] == h]
-        for (t, c, a, s), v in g.groupby(["table", "column", "angle", "stat"])["value"]:
-            lv = np.log(np.maximum(v.to_numpy(), 1e-9))
-            m = float(lv.mean())
-            sd = math.sqrt(float(lv.std(ddof=1)) ** 2 + float(tau[h]) ** 2)
-            p = paper[(t, c, a, s)]
-            z = (math.log(p) - m) / sd
-            rows.append({"hypothesis": h, "table": t, "column": c, "angle": a, "stat": s,
-                         "paper": p, "mean": math.exp(m), "lo": math.exp(m - zq * sd),
-                         "hi": math.exp(m + zq * sd), "z": z, "inside": abs(z) <= zq})
-    return pd.DataFrame(rows)
-
-
-# ----------------------------------------------------------------------------- shipped
-def _data(name: str) -> pd.DataFrame:
-    with resources.as_file(resources.files("sunlab") / "data" / name) as path:
-        if not path.exists():
-            raise ConfigurationError(
-                f"sunlab/data/{name}: missing. Fix: run `sunlab identify --out sunlab/data`.")
-        return pd.read_csv(path)
-
-
-def load_evidence(path=None) -> pd.DataFrame:
-    """The shipped evidence table (``sunlab/data/evidence.csv``) or the one at ``path``.
-
-    Parameters
-    ----------
-    path : str or pathlib.Path, optional
-        An ``evidence.csv`` written by :func:`regenerate`.
-
-    Returns
-    -------
-    pandas.DataFrame
-        One row per hypothesis and seed: its draw, fit, parameter count and score.
-
-    Examples
-    --------
-    >>> t = load_evidence()
-    >>> {"hypothesis", "seed", "score"} <= set(t.columns)
-    True
-    """
-    return pd.read_csv(path) if path is not None else _data("evidence.csv")
-
-
-def load_intervals(path=None) -> pd.DataFrame:
-    """The shipped predictive intervals (``sunlab/data/intervals.csv``) or those at ``path``.
-
-    Parameters
-    ----------
-    path : str or pathlib.Path, optional
-        An ``intervals.csv`` written by :func:`regenerate`.
-
-    Returns
-    -------
-    pandas.DataFrame
-        As :func:`intervals`: one row per hypothesis and published cell.
-    """
-    return pd.read_csv(path) if path is not None else _data("intervals.csv")
-
-
-def identified_hypothesis() -> str:
-    """The hypothesis the protocol's rule picks from the shipped evidence (the presets' one).
-
-    Returns
-    -------
-    str
-        A key of the protocol's ``hypotheses`` (:func:`chosen_hypothesis`).
-
-    Examples
-    --------
-    >>> identified_hypothesis() in load_protocol()["hypotheses"]
-    True
-    """
-    return chosen_hypothesis(load_evidence(), load_protocol())
-
-
-def interval90(table: str) -> dict[str, dict[str, list[float]]]:
-    """The identified bench's 90 % predictive interval of every published cell of a table.
-
-    Read from the shipped ``sunlab/data/intervals.csv`` for :func:`identified_hypothesis`: the
-    spread over the confirmation seeds (noise, nuisance draws and fits) and the model's
-    discrepancy, not a function of any one run's seed.
-
-    Parameters
-    ----------
-    table : {"table4", "table5"}
-
-    Returns
-    -------
-    dict
-        ``{column: {"angle.stat": [lo, hi]}}`` (deg), keyed as ``table4.json``'s ``ours``
-        rows; Table 5's columns carry its JSON's `` [sunlab]`` suffix.
-
-    Examples
-    --------
-    >>> iv = interval90("table4")
-    >>> lo, hi = iv["polynomial"]["alpha.mu"]
-    >>> 0 < lo < hi
-    True
-    """
-    if table not in ("table4", "table5"):
-        raise ConfigurationError(f"table: found {table!r}; expected 'table4' or 'table5'.")
-    ints = load_intervals()
-    ints = ints[(ints["hypothesis"] == identified_hypothesis()) & (ints["table"] == table)]
-    out: dict = {}
-    for r in ints.itertuples():
-        key = r.column if table == "table4" else f"{r.column} [sunlab]"
-        out.setdefault(key, {})[f"{r.angle}.{r.stat}"] = [float(r.lo), float(r.hi)]
-    return out
-
-
-def recorded_draw(protocol: dict, record) -> tuple[dict, dict]:
-    """The nuisance draw and the fitted parameters of one row of the evidence table.
-
-    Parameters
-    ----------
-    protocol : dict
-    record : pandas.Series or mapping
-        One row of :func:`load_evidence`.
-
-    Returns
-    -------
-    nuisances, fitted : dict
-        As :func:`draw_nuisances` and :func:`fit_hypothesis` gave them for that seed.
-    """
-    nuis = {k: float(record[k]) for k in protocol["priors"]}
-    fitted = {k: float(record[k]) for k in [*protocol["cells"]["pinning"], "gear_period_deg"]
-              if k in record and pd.notna(record[k]) and k not in nuis}
-    return nuis, fitted
-
-
-def _log_density(residual: np.ndarray, var: np.ndarray) -> float:
-    """Sum of the normal log densities of log residuals with the given variances."""
-    return float(np.sum(-0.5 * residual**2 / var - 0.5 * np.log(2 * math.pi * var)))

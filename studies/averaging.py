@@ -68,17 +68,19 @@ def mechanisms(hypothesis: str | None = None, seeds=None, *, step: int = 2,
         ``beta_ratio`` (averaging mu / geometric-centre mu), ``gc_alpha_mu``,
         ``av_alpha_mu``, ``holes_lost`` (share of spots off the frame on III).
     """
-    from .. import multihole as mh
-    from .. import stats
-    from ..calibration import Polynomial
-    from ..calibration.methods import POLYNOMIAL_REFIT
-    from ..sim.surrogate import surrogate_centroids
+    from sunlab import multihole as mh
+    from sunlab import stats
+    from sunlab.calibration import Polynomial
+    from sunlab.calibration.methods import POLYNOMIAL_REFIT
+    from sunlab.reproduce import experiment_plans
+    from sunlab.sim.surrogate import surrogate_centroids
+
+    from . import evidence as ev
     from . import identification as idn
-    from .surrogate_tables import table3_plans
 
     protocol = idn.load_protocol()
-    evidence = idn.load_evidence()
-    base = hypothesis or idn.identified_hypothesis()
+    evidence = ev.load_evidence()
+    base = hypothesis or ev.identified_hypothesis()
     gear = protocol["hypotheses"][base]["gear"]
     seeds = protocol["confirmation_seeds"][:1] if seeds is None else seeds
     rows = []
@@ -88,9 +90,9 @@ def mechanisms(hypothesis: str | None = None, seeds=None, *, step: int = 2,
                    if v["F_mm"] == mech["F_mm"] and v["gear"] == gear)
         for seed in seeds:
             rec = evidence[(evidence["hypothesis"] == hyp) & (evidence["seed"] == seed)].iloc[0]
-            nuis, fitted = idn.recorded_draw(protocol, rec)
+            nuis, fitted = ev.recorded_draw(protocol, rec)
             multi = idn.hypothesis_bench(protocol, hyp, nuis, fitted, multi=True)
-            exps = table3_plans(step, shots)
+            exps = experiment_plans(step=step, shots=shots)
             noise = float(rec["noise_px"])
             tr = surrogate_centroids(multi, exps["I"], seed, noise_px=noise)
             te = surrogate_centroids(multi, exps["III"], seed, noise_px=noise)

@@ -2,7 +2,7 @@
 
 The bench is the chosen hypothesis's with a seed's nuisance draw and fit as the evidence
 recorded them (no refit), each :data:`ABLATIONS` entry applied in turn to both the one-hole and
-the 100-hole bench, and scored like :func:`sunlab.studies.identification.score_table` with the
+the 100-hole bench, and scored like :func:`studies.evidence.score_table` with the
 hypothesis's own spread over seeds and its discrepancy tau (protocol: docs/identification.md).
 """
 
@@ -13,18 +13,20 @@ import math
 import numpy as np
 import pandas as pd
 
-from .identification import (
+from .evidence import (
     _data,
     _log_density,
     _long_to_quantities,
+    chosen_hypothesis,
+    load_evidence,
+    recorded_draw,
+)
+from .identification import (
     _paper_cells,
     _predict_benches,
     _quantity,
-    chosen_hypothesis,
     hypothesis_bench,
-    load_evidence,
     load_protocol,
-    recorded_draw,
     scored_quantities,
 )
 
@@ -48,7 +50,7 @@ def ablation(name: str | None = None, seeds=None, evidence: pd.DataFrame | None 
 
     The bench is the hypothesis's with its seed's nuisance draw and fit (no refit: what the
     component contributes to the predictions), each :data:`ABLATIONS` entry applied in turn,
-    scored like :func:`sunlab.studies.identification.score_table` with the hypothesis's own
+    scored like :func:`studies.evidence.score_table` with the hypothesis's own
     spread and tau.
 
     Parameters

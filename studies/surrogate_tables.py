@@ -4,19 +4,18 @@ The paper reports statistics, not its bench. The functions here calibrate the su
 centroids of :mod:`sunlab.sim.surrogate` the way ``sunlab reproduce`` calibrates rendered ones
 and compute the paper's statistics from them, in seconds instead of minutes: Table 4
 (:func:`surrogate_table4`) and Table 5 (:func:`surrogate_table5`) of a bench, their distance to
-the paper's (:func:`score`), a scan of one parameter (:func:`scan`), how learnable the
-pixel-response error is at each mask distance (:func:`interpolation_gap`) and which fault of
-the inner axis explains the paper's beta cells (:func:`candidate_table`). The per-shot
+the paper's (:func:`score`), how learnable the
+pixel-response error is at each mask distance (:func:`interpolation_gap`); which fault of the
+inner axis explains the paper's beta cells is :func:`sunlab.reproduce.platform.candidate_table`.
+The per-shot
 centroid noise the surrogate adds is measured on rendered frames by :func:`centroid_noise_px`.
-:mod:`sunlab.studies.identification` builds its protocol on these.
+:mod:`studies.identification` builds its protocol on these.
 
 Examples
 --------
 >>> t = PAPER_TARGETS
 >>> t["table4"].loc[("alpha", "mu"), "polynomial"], t["roi_over_spot"]
 (np.float64(0.0089), 2.5)
->>> sorted(table3_plans(step=4, shots=2)), len(table3_plans(step=4, shots=2)["I"])
-(['I', 'II', 'III'], 25)
 """
 
 from __future__ import annotations
@@ -26,24 +25,21 @@ import math
 import numpy as np
 import pandas as pd
 
-from ..errors import ConfigurationError
-from ..sim.surrogate import spot_diameter_px, surrogate_centroids
+from sunlab.errors import ConfigurationError
+from sunlab.reproduce import experiment_plans
+from sunlab.sim.surrogate import spot_diameter_px, surrogate_centroids
 
 __all__ = [
     "PAPER_TARGETS",
-    "TARGET_CELLS",
-    "table3_plans",
     "centroid_noise_px",
     "surrogate_table4",
     "surrogate_table5",
     "score",
-    "scan",
     "interpolation_gap",
-    "candidate_table",
 ]
 
 def _targets() -> dict:
-    from .. import stats
+    from sunlab import stats
 
     return {
         "table4": stats.paper_table4(),
@@ -58,47 +54,6 @@ def _targets() -> dict:
 #: What the paper states that the bench must explain (docs/paper.md sec. 1, 5, 6): Table 4
 #: (32 cells), Table 5 (24 cells), the ROI-to-spot ratio of algorithm A, and M - mu.
 PAPER_TARGETS: dict = _targets()
-
-#: The Table 4 cells a candidate bench is scored on, and the parameter each mainly pins
-#: (see :func:`score` and the notebook 05 section on identification).
-TARGET_CELLS: dict[str, str] = {
-    "alpha.mu / alpha.M of polynomial, linear, cubic":
-        "alpha's per-pose error and how learnable the spot-specific error is (the "
-        "interpolation-minus-polynomial gap)",
-    "beta.mu / beta.M of polynomial, linear, cubic": "beta's per-pose error (size and offset)",
-    "alpha.sigma / alpha.mu": "the shape of alpha's per-pose error (uniform: 0.58)",
-    "M - mu": "the per-shot jitter",
-    "Table 5 alpha mu, 1 hole / geometric centre": "the one-hole mask's play (and the PRNU)",
-    "Table 5 beta mu, 100 holes vs 1 hole": "the 100-hole mask's play",
-}
-
-
-
-def table3_plans(step: int = 1, shots: int = 8) -> dict:
-    """The paper's three experiments (Table 3), thinned for a quick surrogate run.
-
-    Parameters
-    ----------
-    step : int
-        Every ``step``-th angle along each grid axis (:meth:`sunlab.plans.Plan.thin`); 1 keeps
-        the full 1-degree grids.
-    shots : int
-        Frames per pose (the paper takes 8).
-
-    Returns
-    -------
-    dict of str to sunlab.plans.Plan
-        Keyed ``"I"`` (calibration), ``"II"`` (validation), ``"III"`` (test).
-
-    Examples
-    --------
-    >>> [len(p) for p in table3_plans().values()]
-    [400, 169, 361]
-    """
-    from .. import plans
-
-    return {n: plans.experiment(n).thin(step).with_shots(shots) for n in ("I", "II", "III")}
-
 
 def centroid_noise_px(bench, *, frames: int = 6, method: str = "projection",
                       seed: int = 0) -> float:
@@ -131,8 +86,8 @@ def centroid_noise_px(bench, *, frames: int = 6, method: str = "projection",
     >>> bool(0.0 < n < 0.05)
     True
     """
-    from .. import centroid, plans
-    from ..sim import simulate
+    from sunlab import centroid, plans
+    from sunlab.sim import simulate
 
     quiet = bench.replace(
         platform=bench.platform.replace(
@@ -162,7 +117,7 @@ def surrogate_table4(bench, seed: int = 0, *, step: int = 1, shots: int = 8,
     seed : int
         Seed of the experiments (and of the networks, for an ``NN`` method).
     step, shots : int
-        Grid thinning and frames per pose (:func:`table3_plans`).
+        Grid thinning and frames per pose (:func:`sunlab.reproduce.experiment_plans`).
     noise_px : float
         Per-shot centroid noise, px RMS per axis (:func:`centroid_noise_px`).
     methods : sequence of str
@@ -182,11 +137,11 @@ def surrogate_table4(bench, seed: int = 0, *, step: int = 1, shots: int = 8,
     >>> bool(0.002 < t.loc[("alpha", "mu"), "polynomial"] < 0.03)
     True
     """
-    from .. import stats
-    from ..calibration.methods import table4_methods
+    from sunlab import stats
+    from sunlab.calibration.methods import table4_methods
 
     cens = {n: surrogate_centroids(bench, p, seed, noise_px=noise_px)
-            for n, p in table3_plans(step, shots).items()}
+            for n, p in experiment_plans(step=step, shots=shots).items()}
     fits = table4_methods(neural=any(m.startswith("NN") for m in methods), seed=seed)
     local = {}
     for m in methods:
@@ -210,7 +165,7 @@ def surrogate_table5(bench_multi, bench_single, seed: int = 0, *, step: int = 1,
     seed : int
         Seed of the experiments.
     step, shots : int
-        Grid thinning and frames per pose (:func:`table3_plans`).
+        Grid thinning and frames per pose (:func:`sunlab.reproduce.experiment_plans`).
     order : int
         Polynomial order of the geometric centre and of each hole's polynomial.
     noise_px : float
@@ -231,11 +186,11 @@ def surrogate_table5(bench_multi, bench_single, seed: int = 0, *, step: int = 1,
     >>> list(t.columns)
     ['100 holes: geometric centre', '100 holes: averaging', '1 hole']
     """
-    from .. import multihole as mh
-    from .. import stats
-    from ..calibration import Polynomial
+    from sunlab import multihole as mh
+    from sunlab import stats
+    from sunlab.calibration import Polynomial
 
-    exps = table3_plans(step, shots)
+    exps = experiment_plans(step=step, shots=shots)
     tr_m = surrogate_centroids(bench_multi, exps["I"], seed, noise_px=noise_px)
     te_m = surrogate_centroids(bench_multi, exps["III"], seed, noise_px=noise_px)
     te_1 = surrogate_centroids(bench_single, exps["III"], seed, noise_px=noise_px)
@@ -283,52 +238,9 @@ def score(table: pd.DataFrame, paper: pd.DataFrame | None = None,
     if not cols:
         raise ConfigurationError(
             f"table: found columns {list(table.columns)}; expected at least one of the paper's "
-            f"{list(paper.columns)}. Fix: name the columns as stats.paper_table4 does."
-        )
+            f"{list(paper.columns)}. Fix: name the columns as stats.paper_table4 does.")
     r = [math.log(float(table.loc[c, k]) / float(paper.loc[c, k])) for k in cols for c in cells]
     return float(math.sqrt(np.mean(np.square(r))))
-
-
-def scan(make_bench, values, *, seed: int = 0, step: int = 1, shots: int = 8,
-         noise_px: float = 0.004, methods=("polynomial", "linear interp.", "cubic interp.")):
-    """Surrogate Table 4 for each value of a parameter: a long DataFrame of every cell.
-
-    Parameters
-    ----------
-    make_bench : callable
-        ``value -> Bench``.
-    values : iterable
-        Parameter values.
-    seed, step, shots, noise_px, methods
-        As :func:`surrogate_table4`.
-
-    Returns
-    -------
-    pandas.DataFrame
-        Columns ``value``, ``method``, ``angle``, ``stat``, ``ours``, ``paper`` and the row's
-        ``score``.
-
-    Examples
-    --------
-    >>> from sunlab.sim import Bench
-    >>> df = scan(lambda f: Bench.paper_single_hole().replace(mask__distance_mm=f), [17.0],
-    ...           step=4, shots=2, methods=("polynomial",))
-    >>> sorted(df.columns)[:3]
-    ['angle', 'method', 'ours']
-    """
-    paper = PAPER_TARGETS["table4"]
-    rows = []
-    for v in values:
-        t = surrogate_table4(make_bench(v), seed, step=step, shots=shots, noise_px=noise_px,
-                             methods=methods)
-        sc = score(t)
-        for m in t.columns:
-            for (a, st), val in t[m].items():
-                rows.append({"value": v, "method": m, "angle": a, "stat": st,
-                             "ours": float(val),
-                             "paper": float(paper.loc[(a, st), m]) if m in paper else np.nan,
-                             "score": sc})
-    return pd.DataFrame(rows)
 
 
 def interpolation_gap(bench, distances_mm, *, seed: int = 0, shots: int = 2,
@@ -340,7 +252,7 @@ def interpolation_gap(bench, distances_mm, *, seed: int = 0, shots: int = 2,
     grid step moves the spot by several of the pattern's correlation lengths the table only
     copies noisy nodes and loses (positive gap, as the paper's 0.0100 - 0.0089 = +0.0011 deg). F
     sets the grid step in pixels, the pattern its correlation length; the held-out comparison
-    of :mod:`sunlab.studies.identification` weighs this with the rest. For each F the one hole
+    of :mod:`studies.identification` weighs this with the rest. For each F the one hole
     is kept on the same part of the detector (its offset scaled with F) and the experiments of
     Table 3 are run on the full grids. The interpolant is
     :class:`scipy.interpolate.LinearNDInterpolator` on pose-mean centroids rescaled to the unit
@@ -377,12 +289,12 @@ def interpolation_gap(bench, distances_mm, *, seed: int = 0, shots: int = 2,
     """
     from scipy.interpolate import LinearNDInterpolator
 
-    from .. import stats
-    from ..calibration import Polynomial
+    from sunlab import stats
+    from sunlab.calibration import Polynomial
 
     f0 = bench.mask_distance_mm
     rows = {}
-    exps = table3_plans(1, shots)
+    exps = experiment_plans(step=1, shots=shots)
     for f in distances_mm:
         scale = float(f) / f0
         holes = tuple(h.__class__(h.x_mm * scale, h.y_mm * scale, h.diameter_mm)
@@ -410,100 +322,3 @@ def interpolation_gap(bench, distances_mm, *, seed: int = 0, shots: int = 2,
                           "spot_px": spot_diameter_px(b),
                           "nodes_off_frame": int((~node).sum())}
     return pd.DataFrame.from_dict(rows, orient="index").rename_axis("F_mm")
-
-
-def candidate_table(sizes: dict, *, bench=None, seed: int = 0, shots: int = 1,
-                    experiment_plans: dict | None = None,
-                    methods=("polynomial", "linear interp.", "cubic interp.")) -> pd.DataFrame:
-    """Which candidate explains the paper's beta statistics: Table 4's beta cells per fault.
-
-    For each fault and size the bench carries that fault alone
-    (:func:`sunlab.studies.platform_fault.fault_bench`; for
-    ``"homing"`` the size is the test run's offset relative to the calibration run, a
-    ``beta_offset_deg`` of the test run), the surrogate centroids
-    (:func:`sunlab.sim.surrogate.surrogate_centroids`) of experiments I, II and III are
-    calibrated by each method as ``sunlab reproduce`` does, and the beta mu and sigma on III are
-    set beside the paper's; ``score`` is the RMS of log(ours / paper) over those cells, and
-    ``shape_excess`` the mean sigma / mu of the polynomial and linear columns less the paper's
-    (0.47 and 0.48: the shape criterion of
-    :func:`sunlab.studies.platform_fault.paper_shape`).
-
-    Parameters
-    ----------
-    sizes : dict
-        ``kind -> size_deg``, e.g. sizes that match the paper's polynomial beta mu.
-    bench : sunlab.sim.Bench, optional
-        The bench that carries each fault; default :meth:`sunlab.sim.Bench.paper_single_hole`.
-    seed : int
-        Seed of the experiments.
-    shots : int
-        Frames per pose of the default plans.
-    experiment_plans : dict, optional
-        Plans ``{"I", "II", "III"}``; default Table 3's with ``shots`` frames per pose.
-    methods : sequence of str
-        Table 4's columns compared (keys of :func:`sunlab.calibration.table4_methods`).
-
-    Returns
-    -------
-    pandas.DataFrame
-        One row per candidate: ``size_deg``, ``<method> mu``, ``<method> sigma``, ``score``,
-        ``shape_excess``.
-
-    Examples
-    --------
-    >>> from sunlab import plans
-    >>> small = {"I": plans.grid(-17, 2, 6, -2, 17, 1, shots=1, name="I", scan="serpentine"),
-    ...          "II": plans.grid(-16.25, 1.75, 6, -1.75, 16.25, 1.5, shots=1, name="II",
-    ...                           scan="serpentine"),
-    ...          "III": plans.grid(-16.5, 1.5, 6, -1.5, 16.5, 1, shots=1, name="III",
-    ...                            scan="serpentine")}
-    >>> t = candidate_table({"backlash": 0.017}, experiment_plans=small,
-    ...                     methods=("polynomial",))
-    >>> list(t.columns), bool(0.005 < t.loc["backlash", "polynomial mu"] < 0.03)
-    (['size_deg', 'polynomial mu', 'polynomial sigma', 'score', 'shape_excess'], True)
-    """
-    from ..calibration.methods import table4_methods
-    from ..sim import Bench
-    from .platform_fault import fault_bench
-
-    bench = Bench.paper_single_hole() if bench is None else bench
-    exps = experiment_plans or table3_plans(1, shots)
-    fits = table4_methods(neural=False, seed=seed)
-    rows = {}
-    for kind, size in sizes.items():
-        if kind == "homing":
-            b = fault_bench(bench, "homing", 0.0)
-            b_test = b.replace(platform__beta_offset_deg=float(size))
-        else:
-            b = b_test = fault_bench(bench, kind, size)
-        cen = {n: surrogate_centroids(b_test if n == "III" else b, p, seed)
-               for n, p in exps.items()}
-        rows[kind] = {"size_deg": float(size), **_beta_cells(cen, fits, methods)}
-    out = pd.DataFrame.from_dict(rows, orient="index")
-    out.index.name = "candidate"
-    return out
-
-
-def _beta_cells(cen: dict, fits: dict, methods) -> dict:
-    """Table 4's beta mu and sigma of each method calibrated on ``cen["I"]`` (order on II) and
-    applied to III, their ``score`` against the paper's and the ``shape_excess``."""
-    from .. import stats
-
-    paper = stats.paper_table4()
-    row, logs = {}, []
-    for m in methods:
-        loc = stats.local_errors(fits[m](cen["I"], cen["II"]).predict(cen["III"]))
-        g = stats.global_stats({m: loc})[m]
-        for st in ("mu", "sigma"):
-            row[f"{m} {st}"] = float(g[("beta", st)])
-            logs.append(math.log(row[f"{m} {st}"] / float(paper.loc[("beta", st), m])))
-    row["score"] = float(np.sqrt(np.mean(np.square(logs))))
-    shape = [row[f"{m} sigma"] / row[f"{m} mu"] for m in methods
-             if m in ("polynomial", "linear interp.")]
-    paper_shape_ = [float(paper.loc[("beta", "sigma"), m] / paper.loc[("beta", "mu"), m])
-                    for m in methods if m in ("polynomial", "linear interp.")]
-    # the shape criterion: mean sigma / mu of the polynomial and linear columns, less the
-    # paper's (0.47, 0.48); 0 matches the paper's bimodal shape
-    row["shape_excess"] = (float(np.mean(shape) - np.mean(paper_shape_)) if shape
-                           else float("nan"))
-    return row

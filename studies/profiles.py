@@ -23,13 +23,13 @@ from __future__ import annotations
 
 import json
 import math
-from importlib import resources
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from ..errors import ConfigurationError
+from sunlab.errors import ConfigurationError
+
 from . import identification as idn
 
 __all__ = ["profile_intervals", "profile_likelihood"]
@@ -44,7 +44,7 @@ def fit_presets(protocol: dict, name: str) -> dict:
     Parameters
     ----------
     protocol : dict
-        :func:`sunlab.studies.identification.load_protocol` (version 4 or later).
+        :func:`studies.identification.load_protocol` (version 4 or later).
     name : str
         The chosen hypothesis.
 
@@ -80,7 +80,7 @@ def profile_likelihood(protocol: dict, presets: dict, tau: float, *,
     """Each fitted parameter's profile on the fit side, around the presets.
 
     Each parameter rescaled by the protocol's ``profiles.factors`` is held while the others are
-    refitted (:func:`sunlab.studies.identification.fit_hypothesis`; the gear period is held at
+    refitted (:func:`studies.identification.fit_hypothesis`; the gear period is held at
     the presets' in the others' profiles: the refit moves the rescaled parameters only); the
     gear period's profile is the presets' grid.
 
@@ -175,14 +175,6 @@ def profile_intervals(profile: pd.DataFrame, presets: dict,
     return pd.DataFrame(rows)
 
 
-def _data_path(name: str) -> Path:
-    with resources.as_file(resources.files("sunlab") / "data" / name) as path:
-        if not path.exists():
-            raise ConfigurationError(
-                f"sunlab/data/{name}: missing. Fix: run `sunlab identify --out sunlab/data`.")
-        return Path(path)
-
-
 def load_presets(path=None) -> dict:
     """The shipped presets (``sunlab/data/presets.json``) or the file at ``path``.
 
@@ -191,20 +183,23 @@ def load_presets(path=None) -> dict:
     dict
         As :func:`fit_presets` wrote it.
     """
-    path = Path(path) if path is not None else _data_path("presets.json")
+    path = Path(path) if path is not None else idn.LIBRARY_DATA / "presets.json"
     try:
         return json.loads(path.read_text(encoding="utf-8"))
     except json.JSONDecodeError as err:
         raise ConfigurationError(
-            f"{path}: not JSON ({err}). Fix: run `sunlab identify --out DIR` again.") from None
+            f"{path}: not JSON ({err}). Fix: run `python -m studies.identify --out DIR` "
+            "again.") from None
 
 
 def load_profiles(path=None) -> pd.DataFrame:
-    """The shipped profile likelihoods (``sunlab/data/profiles.csv``) or those at ``path``.
+    """The shipped profile likelihoods (``studies/results/profiles.csv``) or those at ``path``.
 
     Returns
     -------
     pandas.DataFrame
         As :func:`profile_likelihood`.
     """
-    return pd.read_csv(path if path is not None else _data_path("profiles.csv"))
+    from .evidence import _data
+
+    return pd.read_csv(path) if path is not None else _data("profiles.csv")

@@ -1,0 +1,364 @@
+"""The evidence of the identification: every (hypothesis, seed) run, scored, written and read.
+
+:func:`regenerate` runs the protocol of ``studies/protocol.json`` on its confirmation seeds
+(:func:`run_protocol`) and :func:`write_evidence` scores the predictions (:func:`score_table`:
+the held-out log predictive density), applies the rule (:func:`chosen_hypothesis`: the
+one-standard-error rule), gives each published cell its 90 % predictive interval
+(:func:`intervals`) and writes the shipped tables (``python -m studies.identify``), which
+:func:`load_evidence` and :func:`load_intervals` read back; the model is in
+:mod:`studies.identification`, the presets and profiles in :mod:`.profiles`, the ablations in
+:mod:`.ablation`.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Callable, Iterable
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from sunlab.errors import ConfigurationError
+
+from .identification import (
+    HERE,
+    LIBRARY_DATA,
+    _paper_cells,
+    _quantity,
+    load_protocol,
+    run_hypothesis,
+    scored_quantities,
+)
+
+__all__ = ["regenerate", "write_evidence", "identified_hypothesis"]
+
+#: The standard normal quantile of 95 %: a central 90 % interval is mean +- Z90 sd.
+Z90 = 1.6448536269514722
+
+
+def run_protocol(protocol: dict, names=None, seeds=None, *, jobs: int = 1,
+        progress: Callable | None = None) -> pd.DataFrame:
+    """Every (hypothesis, seed) of the protocol: the long table of predicted cells.
+
+    ``jobs`` > 1 runs them in that many processes (each builds its own surrogate maps).
+    """
+    names = list(names or protocol["hypotheses"])
+    seeds = list(seeds if seeds is not None else protocol["confirmation_seeds"])
+    tasks = [(h, s) for h in names for s in seeds]
+    out = []
+    if jobs <= 1:
+        for h, s in tasks:
+            if progress:
+                progress(f"{h} seed {s}")
+            out.append(run_hypothesis(protocol, h, s))
+    else:
+        from concurrent.futures import ProcessPoolExecutor, as_completed
+
+        with ProcessPoolExecutor(jobs) as pool:
+            futs = {pool.submit(run_hypothesis, protocol, h, s): (h, s) for h, s in tasks}
+            for f in as_completed(futs):
+                if progress:
+                    progress("{} seed {}".format(*futs[f]))
+                out.append(f.result())
+    return pd.concat(out, ignore_index=True)
+
+
+def regenerate(out_dir, *, names=None, seeds=None, jobs: int = 2, overwrite: bool = False,
+               presets: bool = True, progress: Callable | None = None) -> dict:
+    """Run the whole protocol and write its evidence into ``out_dir`` (:func:`write_evidence`).
+
+    Returns
+    -------
+    dict
+        As :func:`write_evidence`.
+    """
+    from sunlab.atomic import check_folder
+
+    protocol = load_protocol()
+    check_folder(out_dir, _evidence_files(protocol, presets), overwrite=overwrite,
+                 flag="--overwrite")
+    cells = run_protocol(protocol, names, seeds, jobs=jobs, progress=progress)
+    return write_evidence(out_dir, cells, jobs=jobs, overwrite=overwrite, presets=presets,
+                          progress=progress)
+
+
+def _evidence_files(protocol: dict, presets: bool) -> tuple[str, ...]:
+    files = ("evidence_cells.csv", "evidence.csv", "intervals.csv")
+    return files + (("presets.json", "profiles.csv", "ablation.csv")
+                    if presets and "presets" in protocol else ())
+
+
+def write_evidence(out_dir, cells: pd.DataFrame, *, jobs: int = 2, overwrite: bool = False,
+                   presets: bool = True, progress: Callable | None = None) -> dict:
+    """Score the predicted cells of every (hypothesis, seed) and write the evidence.
+
+    Writes ``evidence_cells.csv`` (every predicted cell of every hypothesis and seed),
+    ``evidence.csv`` (:func:`score_table`), ``intervals.csv`` (:func:`intervals` for every
+    hypothesis) and, with ``presets`` and a protocol that names them, ``presets.json``,
+    ``profiles.csv`` (:mod:`studies.profiles`) and ``ablation.csv``
+    (:mod:`studies.ablation`, the first two confirmation seeds) for the rule's pick,
+    all-or-nothing.
+
+    Parameters
+    ----------
+    out_dir : str or pathlib.Path
+        Folder of the tables.
+    cells : pandas.DataFrame
+        The rows of :func:`run_hypothesis` for every hypothesis and confirmation seed.
+    jobs : int
+        Processes for the profiles and the ablations.
+    overwrite, presets : bool
+    progress : callable, optional
+        Called with a line of text as each stage starts.
+
+    Returns
+    -------
+    dict
+        ``chosen`` (the rule's pick), the three tables and, with ``presets``, ``presets``,
+        ``profiles`` and ``ablation``.
+    """
+    from sunlab.atomic import atomic_files
+
+    from . import ablation, profiles
+
+    protocol = load_protocol()
+    files = _evidence_files(protocol, presets)
+    cells = cells.sort_values(["hypothesis", "seed", "table", "column", "angle", "stat"])
+    evidence = score_table(cells, protocol).sort_values(["hypothesis", "seed"])
+    chosen = chosen_hypothesis(evidence, protocol)
+    ints = intervals(cells, evidence)
+    out = {"chosen": chosen, "cells": cells, "evidence": evidence, "intervals": ints}
+    if len(files) > 3:
+        if progress:
+            progress(f"presets: {chosen} at the prior medians")
+        out["presets"] = profiles.fit_presets(protocol, chosen)
+        tau = float(evidence.loc[evidence["hypothesis"] == chosen, "tau"].iloc[0])
+        out["profiles"] = profiles.profile_likelihood(protocol, out["presets"], tau, jobs=jobs)
+        if progress:
+            progress(f"ablations of {chosen}")
+        out["ablation"] = ablation.ablation(chosen, protocol["confirmation_seeds"][:2],
+                                            evidence, cells, jobs=jobs)
+    with atomic_files(out_dir, files, overwrite=overwrite, flag="--overwrite") as staging:
+        for name, table in zip(files[:3], (cells, evidence, ints), strict=True):
+            table.to_csv(Path(staging) / name, index=False)
+        if len(files) > 3:
+            (Path(staging) / "presets.json").write_text(
+                json.dumps(out["presets"], indent=2) + "\n", encoding="utf-8")
+            out["profiles"].to_csv(Path(staging) / "profiles.csv", index=False)
+            out["ablation"].to_csv(Path(staging) / "ablation.csv", index=False)
+    return out
+
+
+# ----------------------------------------------------------------------------- scoring
+def _long_to_quantities(cells: pd.DataFrame, quantities) -> pd.DataFrame:
+    """(hypothesis, seed) x quantity table of log predictions."""
+    out = {}
+    for (h, s), g in cells.groupby(["hypothesis", "seed"]):
+        d = {(r.table, r.column, r.angle, r.stat): r.value for r in g.itertuples()}
+        out[(h, s)] = {q: math.log(max(_quantity(d, *q), 1e-9)) for q in quantities}
+    df = pd.DataFrame.from_dict(out, orient="index")
+    df.index.names = ["hypothesis", "seed"]
+    return df
+
+
+def score_table(cells: pd.DataFrame, protocol: dict) -> pd.DataFrame:
+    """The evidence table: each hypothesis's held-out score on each seed.
+
+    Parameters
+    ----------
+    cells : pandas.DataFrame
+        The rows of :func:`run_hypothesis` for every hypothesis and seed.
+    protocol : dict
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per hypothesis and seed: ``hypothesis``, ``seed``, ``parameters``, ``score``
+        (held-out log predictive density, nats, higher is better), ``tau`` (the model's
+        discrepancy, log units), ``held_out_rms_log``, ``held_out_within_1.25``, and the
+        nuisance draw and fitted parameters.
+    """
+    q = scored_quantities(protocol)
+    paper = _paper_cells()
+    log_paper = {side: np.array([math.log(_quantity(paper, *x)) for x in q[side]])
+                 for side in q}
+    fit_side = _long_to_quantities(cells, q["fit"])
+    held = _long_to_quantities(cells, q["held_out"])
+    extra_cols = [c for c in cells.columns if c not in
+                  ("hypothesis", "seed", "table", "column", "angle", "stat", "value")]
+    extras = cells.groupby(["hypothesis", "seed"])[extra_cols].first()
+    rows = []
+    for h in held.index.get_level_values("hypothesis").unique():
+        hyp = protocol["hypotheses"][h]
+        k = _fitted_count(protocol, h)
+        ff = fit_side.loc[h].to_numpy()
+        hh = held.loc[h].to_numpy()
+        tau2 = float(np.mean(np.sum((ff - log_paper["fit"]) ** 2, axis=1))) / (ff.shape[1] - k)
+        sd2 = hh.std(axis=0, ddof=1) ** 2 if hh.shape[0] > 1 else np.zeros(hh.shape[1])
+        var = sd2 + tau2
+        for i, seed in enumerate(held.loc[h].index):
+            r = log_paper["held_out"] - hh[i]
+            ll = _log_density(r, var)
+            rows.append({"hypothesis": h, "seed": int(seed),
+                         "parameters": int(hyp["parameters"]), "score": ll,
+                         "tau": math.sqrt(tau2),
+                         "held_out_rms_log": float(np.sqrt(np.mean(r**2))),
+                         "held_out_within_1.25": int(np.sum(np.abs(r) <= math.log(1.25))),
+                         **extras.loc[(h, seed)].to_dict()})
+    return pd.DataFrame(rows)
+
+
+def _fitted_count(protocol: dict, name: str) -> int:
+    """The fitted parameters of a hypothesis (tau's degrees of freedom are 12 minus these)."""
+    gear = protocol["hypotheses"][name]["gear"]
+    return int(protocol["score"]["fitted_parameters"]["with gear" if gear else "without gear"])
+
+
+def chosen_hypothesis(evidence: pd.DataFrame, protocol: dict | None = None) -> str:
+    """The hypothesis the protocol's one-standard-error rule picks from an evidence table.
+
+    The best is the highest mean score over seeds; every hypothesis whose mean lies within
+    one standard error (the best's, over its seeds) of it is eligible; the eligible one with
+    the fewest parameters is chosen, a tie going to the higher mean.
+
+    Examples
+    --------
+    >>> t = pd.DataFrame({"hypothesis": ["a", "a", "b", "b"], "seed": [0, 1, 0, 1],
+    ...                   "parameters": [3, 3, 5, 5], "score": [1.0, 3.0, 1.9, 3.5]})
+    >>> chosen_hypothesis(t)     # b is best (2.7 +- 0.8), a (2.0) lies within it: simpler
+    'a'
+    """
+    g = evidence.groupby("hypothesis")
+    mean = g["score"].mean()
+    n = g["score"].count()
+    se = (g["score"].std(ddof=1) / np.sqrt(n)).fillna(0.0)
+    params = g["parameters"].first()
+    best = mean.idxmax()
+    eligible = mean[mean >= mean[best] - se[best]].index
+    return str(min(eligible, key=lambda h: (params[h], -mean[h])))
+
+
+def intervals(cells: pd.DataFrame, evidence: pd.DataFrame, names: Iterable[str] | None = None,
+              level: float = 0.90) -> pd.DataFrame:
+    """Each published cell's predictive mean, interval and z under the given hypotheses.
+
+    Returns
+    -------
+    pandas.DataFrame
+        Columns ``hypothesis``, ``table``, ``column``, ``angle``, ``stat``, ``paper``,
+        ``mean`` (exp of the mean log prediction), ``lo``, ``hi`` (the central ``level``
+        interval, log-normal with sd = sqrt(seed spread^2 + tau^2)), ``z`` (the paper's log
+        value in predictive sds from the mean), ``inside``.
+    """
+    from scipy.stats import norm
+
+    zq = float(norm.ppf(0.5 + level / 2.0))
+    paper = _paper_cells()
+    tau = evidence.groupby("hypothesis")["tau"].first()
+    names = list(names) if names is not None else sorted(tau.index)
+    rows = []
+    for h in names:
+        g = cells[cells["hypothesis"] == h]
+        for (t, c, a, s), v in g.groupby(["table", "column", "angle", "stat"])["value"]:
+            lv = np.log(np.maximum(v.to_numpy(), 1e-9))
+            m = float(lv.mean())
+            sd = math.sqrt(float(lv.std(ddof=1)) ** 2 + float(tau[h]) ** 2)
+            p = paper[(t, c, a, s)]
+            z = (math.log(p) - m) / sd
+            rows.append({"hypothesis": h, "table": t, "column": c, "angle": a, "stat": s,
+                         "paper": p, "mean": math.exp(m), "lo": math.exp(m - zq * sd),
+                         "hi": math.exp(m + zq * sd), "z": z, "inside": abs(z) <= zq})
+    return pd.DataFrame(rows)
+
+
+# ----------------------------------------------------------------------------- shipped
+def _data(name: str) -> pd.DataFrame:
+    """A table the studies wrote: ``studies/results/NAME``, or ``sunlab/data/NAME``."""
+    path = HERE / "results" / name
+    path = path if path.exists() else LIBRARY_DATA / name
+    if not path.exists():
+        raise ConfigurationError(
+            f"{name}: missing. Fix: run `python -m studies.identify --out DIR` and put the "
+            "tables where docs/identification.md says.")
+    return pd.read_csv(path)
+
+
+def load_evidence(path=None) -> pd.DataFrame:
+    """The shipped evidence table (``studies/results/evidence.csv``) or the one at ``path``.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path, optional
+        An ``evidence.csv`` written by :func:`studies.evidence.regenerate`.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per hypothesis and seed: its draw, fit, parameter count and score.
+
+    Examples
+    --------
+    >>> t = load_evidence()
+    >>> {"hypothesis", "seed", "score"} <= set(t.columns)
+    True
+    """
+    return pd.read_csv(path) if path is not None else _data("evidence.csv")
+
+
+def load_intervals(path=None) -> pd.DataFrame:
+    """The shipped predictive intervals (``sunlab/data/intervals.csv``) or those at ``path``.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path, optional
+        An ``intervals.csv`` written by :func:`studies.evidence.regenerate`.
+
+    Returns
+    -------
+    pandas.DataFrame
+        As :func:`intervals`: one row per hypothesis and published cell.
+    """
+    return pd.read_csv(path) if path is not None else _data("intervals.csv")
+
+
+def identified_hypothesis() -> str:
+    """The hypothesis the protocol's rule picks from the shipped evidence (the presets' one).
+
+    Returns
+    -------
+    str
+        A key of the protocol's ``hypotheses`` (:func:`chosen_hypothesis`).
+
+    Examples
+    --------
+    >>> identified_hypothesis() in load_protocol()["hypotheses"]
+    True
+    """
+    return chosen_hypothesis(load_evidence(), load_protocol())
+
+
+def recorded_draw(protocol: dict, record) -> tuple[dict, dict]:
+    """The nuisance draw and the fitted parameters of one row of the evidence table.
+
+    Parameters
+    ----------
+    protocol : dict
+    record : pandas.Series or mapping
+        One row of :func:`load_evidence`.
+
+    Returns
+    -------
+    nuisances, fitted : dict
+        As :func:`draw_nuisances` and :func:`fit_hypothesis` gave them for that seed.
+    """
+    nuis = {k: float(record[k]) for k in protocol["priors"]}
+    fitted = {k: float(record[k]) for k in [*protocol["cells"]["pinning"], "gear_period_deg"]
+              if k in record and pd.notna(record[k]) and k not in nuis}
+    return nuis, fitted
+
+
+def _log_density(residual: np.ndarray, var: np.ndarray) -> float:
+    """Sum of the normal log densities of log residuals with the given variances."""
+    return float(np.sum(-0.5 * residual**2 / var - 0.5 * np.log(2 * math.pi * var)))
