@@ -44,22 +44,21 @@ def _best_cpu_ms(fn, repeat: int, kernels: str) -> float:
 def _cases():
     """(name, zero-argument callable) for each measured kernel and for one whole frame."""
     from sunlab import sim
-    from sunlab.sim import _kernels as K
-    from sunlab.sim import render
-    from sunlab.sim.detector import fixed_pattern
+    from sunlab.sim import render, spots
+    from sunlab.sim.detector import adc_frame, fixed_pattern, normal_table
 
     bench = sim.Bench.paper_single_hole()
     det = bench.detector
     fp = fixed_pattern(det)
-    table = K.normal_table()
+    table = normal_table()
     out = np.empty(det.shape, dtype=np.uint16)
-    group = render._groups(bench, render.spot_geometry(bench, -7.0, 6.0))[0]
+    group = spots._groups(bench, render.spot_geometry(bench, -7.0, 6.0))[0]
     m = group.stamp_size()
     al = np.arange(-1, 2)
     fx = (al[:, None] + (np.arange(m // 2 + 1) / m)[None, :]).ravel()
     fy = (al[:, None] + np.fft.fftfreq(m)[None, :]).ravel()
     return [
-        ("adc_frame (1280 x 1024)", lambda: K.adc_frame(
+        ("adc_frame (1280 x 1024)", lambda: adc_frame(
             fp.bg_mean_dn, fp.bg_sigma_dn, table, np.array([7], np.uint64),
             float(det.max_dn), out)),
         (f"spectrum ({fy.size} x {fx.size})", lambda: group.common(fx, fy, tabulated=True)),

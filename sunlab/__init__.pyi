@@ -14,7 +14,6 @@ from . import geometry as geometry
 from . import hardware as hardware
 from . import integrity as integrity
 from . import io as io
-from . import jit as jit
 from . import multihole as multihole
 from . import options as options
 from . import parallel as parallel

@@ -7,7 +7,7 @@ not bars; the environment variable ``SUNLAB_PROGRESS=0`` does the same for a who
 A bar is tqdm's in a terminal or Jupyter, a few plain lines in a log (:func:`dask_progress`).
 
 ``kernels``: ``"numba"`` runs the compiled kernels, ``"numpy"`` their plain numpy references
-(slower, readable, and Numba compiles nothing; :mod:`sunlab.jit`). The environment variable
+(slower, readable, and Numba compiles nothing; ``sunlab.sim._jit``). The environment variable
 ``SUNLAB_KERNELS=numpy`` sets it for a whole process and the worker processes it starts, e.g.
 ``SUNLAB_KERNELS=numpy sunlab reproduce --quick``.
 
@@ -57,7 +57,7 @@ class set_options:  # noqa: N801 - used as a function, as xarray.set_options is
         Allow progress bars (default True, or False when ``SUNLAB_PROGRESS=0``).
     kernels : {"numba", "numpy"}
         Run the compiled kernels (default, or as ``SUNLAB_KERNELS`` says) or their numpy
-        references (:mod:`sunlab.jit`). It is also written to ``SUNLAB_KERNELS`` in the
+        references (``sunlab.sim._jit``). It is also written to ``SUNLAB_KERNELS`` in the
         environment, so worker processes started afterwards (Dask's ``"cluster"`` scheduler,
         a new process pool) follow it; a pool already running keeps the value it started with.
 

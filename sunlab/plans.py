@@ -13,15 +13,12 @@ Examples
 (361, 8)
 >>> float(exp3.alpha[0]), float(exp3.beta[0]), float(exp3.beta[1])
 (-16.5, -1.5, -0.5)
-
-References
-----------
-.. [1] docs/paper.md, sec. 5, Table 3 (poses of experiments I, II and III).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import zlib
+from dataclasses import dataclass, fields, replace
 
 import numpy as np
 
@@ -31,16 +28,12 @@ __all__ = ["Plan", "experiment", "grid", "custom"]
 
 #: The paper's Table 3: (alpha_min, alpha_max, alpha_step, beta_min, beta_max, beta_step), deg.
 EXPERIMENTS: dict[str, tuple[float, float, float, float, float, float]] = {
-    "I": (-17.0, 2.0, 1.0, -2.0, 17.0, 1.0),
-    "II": (-16.25, 1.75, 1.5, -1.75, 16.25, 1.5),
-    "III": (-16.5, 1.5, 1.0, -1.5, 16.5, 1.0),
-}
+    "I": (-17.0, 2.0, 1.0, -2.0, 17.0, 1.0), "II": (-16.25, 1.75, 1.5, -1.75, 16.25, 1.5),
+    "III": (-16.5, 1.5, 1.0, -1.5, 16.5, 1.0)}
 
-#: Orders in which the stage visits a plan's poses (:meth:`Plan.visit_order`): ``"raster"`` in
-#: the listed order (for a grid: every row of the inner axis beta from its minimum up, so the
-#: inner axis runs back at each row start), ``"serpentine"`` with every other row of the outer
-#: axis reversed (the inner axis alternates its direction row by row: the shortest path), and
-#: ``"random"`` a fixed pseudo-random permutation of the poses.
+#: Orders in which the stage visits a plan's poses (:meth:`Plan.visit_order`): ``"raster"`` as
+#: listed (the inner axis runs back at each row start), ``"serpentine"`` with every other row
+#: reversed (the shortest path), ``"random"`` a fixed pseudo-random permutation.
 SCANS = ("raster", "serpentine", "random")
 #: How the inner axis reaches a pose: ``"direct"`` (the last move's direction, so a backlash
 #: follows the scan) or ``"unidirectional"`` (overshoot below the target and return: every pose
@@ -56,32 +49,27 @@ PAPER_SCAN = "serpentine"
 MAX_ANGLE_DEG = 90.0
 
 
+def _check(ok: bool, name: str, found, expected: str, fix: str = "") -> None:
+    if not ok:
+        raise ConfigurationError(f"{name}: found {found}; expected {expected}." +
+                                 (f" Fix: {fix}" if fix else ""))
+
+
 def _check_angles(name: str, values: np.ndarray) -> None:
-    if values.ndim != 1:
-        raise ConfigurationError(
-            f"{name}: found an array of shape {values.shape}; expected a flat list of angles "
-            "(one per pose). Fix: pass np.ravel(angles)."
-        )
-    if not np.all(np.isfinite(values)):
-        raise ConfigurationError(
-            f"{name}: found non-finite angles; expected finite degrees. Fix: drop NaN/inf poses."
-        )
+    _check(values.ndim == 1, name, f"an array of shape {values.shape}",
+           "a flat list of angles (one per pose)", "pass np.ravel(angles).")
+    _check(np.all(np.isfinite(values)), name, "non-finite angles", "finite degrees",
+           "drop NaN/inf poses.")
     bad = np.abs(values) >= MAX_ANGLE_DEG
-    if np.any(bad):
-        raise ConfigurationError(
-            f"{name}: found {values[bad][0]!r} deg; expected |angle| < {MAX_ANGLE_DEG:g} deg "
-            "(the sun "
-            "must stay in front of the mask). Fix: command angles in degrees within (-90, 90)."
-        )
+    _check(not np.any(bad), name, f"{values[bad][0] if bad.any() else 0:g} deg",
+           f"|angle| < {MAX_ANGLE_DEG:g} deg (the sun must stay in front of the mask)",
+           "command angles in degrees within (-90, 90).")
 
 
-def _check_shots(shots) -> int:
-    if isinstance(shots, bool) or not isinstance(shots, int | np.integer) or shots < 1:
-        raise ConfigurationError(
-            f"shots: found {shots!r}; expected a positive integer number of frames per pose "
-            "(the paper takes 8). Fix: pass shots=8."
-        )
-    return int(shots)
+def _positive_int(name: str, value, expected: str, fix: str) -> int:
+    _check(not isinstance(value, bool) and isinstance(value, int | np.integer) and value >= 1,
+           name, repr(value), expected, fix)
+    return int(value)
 
 
 @dataclass(frozen=True, eq=False)
@@ -97,19 +85,9 @@ class Plan:
         outer loop (``beta`` varies fastest).
     shots : int
         Frames per pose (the paper: 8).
-    scan : {"raster", "serpentine", "random"}
-        Order in which the stage visits the poses (:data:`SCANS`, :meth:`visit_order`); the
-        poses stay listed in their own order (a grid stays a grid), the scan is the motion.
-    approach : {"direct", "unidirectional"}
-        How the inner axis reaches each pose (:data:`APPROACHES`).
-
-    Examples
-    --------
-    >>> p = Plan("demo", np.array([0.0, 1.0]), np.array([0.0, 0.0]), shots=2)
-    >>> len(p), p.n_frames
-    (2, 4)
-    >>> p[1:].alpha.tolist()
-    [1.0]
+    scan, approach : str
+        The motion: the order of the visits (:data:`SCANS`; the poses stay listed in their own
+        order) and how the inner axis reaches each pose (:data:`APPROACHES`).
     """
 
     name: str
@@ -124,31 +102,22 @@ class Plan:
         beta = np.atleast_1d(np.array(self.beta, dtype=float))
         _check_angles("alpha", alpha)
         _check_angles("beta", beta)
-        if alpha.shape != beta.shape:
-            raise ConfigurationError(
-                f"alpha, beta: found {alpha.size} and {beta.size} angles; expected one alpha and "
-                "one beta per pose. Fix: pass equal-length lists."
-            )
-        if alpha.size == 0:
-            raise ConfigurationError(
-                "alpha, beta: found an empty plan; expected at least one pose. Fix: widen the "
-                "range or the slice."
-            )
+        _check(alpha.shape == beta.shape, "alpha, beta", f"{alpha.size} and {beta.size} angles",
+               "one alpha and one beta per pose", "pass equal-length lists.")
+        _check(alpha.size > 0, "alpha, beta", "an empty plan", "at least one pose",
+               "widen the range or the slice.")
         alpha.setflags(write=False)
         beta.setflags(write=False)
         object.__setattr__(self, "alpha", alpha)
         object.__setattr__(self, "beta", beta)
-        object.__setattr__(self, "shots", _check_shots(self.shots))
+        object.__setattr__(self, "shots", _positive_int(
+            "shots", self.shots, "a positive integer number of frames per pose (the paper takes "
+            "8)", "pass shots=8."))
         object.__setattr__(self, "name", str(self.name))
-        if self.scan not in SCANS:
-            raise ConfigurationError(
-                f"scan: found {self.scan!r}; expected one of {SCANS}. Fix: scan='serpentine'."
-            )
-        if self.approach not in APPROACHES:
-            raise ConfigurationError(
-                f"approach: found {self.approach!r}; expected one of {APPROACHES}. Fix: "
-                "approach='unidirectional' (overshoot and return)."
-            )
+        _check(self.scan in SCANS, "scan", repr(self.scan), f"one of {SCANS}",
+               "scan='serpentine'.")
+        _check(self.approach in APPROACHES, "approach", repr(self.approach),
+               f"one of {APPROACHES}", "approach='unidirectional' (overshoot and return).")
 
     def __len__(self) -> int:
         return int(self.alpha.size)
@@ -157,19 +126,11 @@ class Plan:
         """A plan of a subset of the poses (slice, integer array or boolean mask)."""
         if isinstance(index, int | np.integer):
             index = [int(index)]
-        return Plan(self.name, self.alpha[index], self.beta[index], self.shots, self.scan,
-                    self.approach)
+        return replace(self, alpha=self.alpha[index], beta=self.beta[index])
 
     def __eq__(self, other) -> bool:
-        return (
-            isinstance(other, Plan)
-            and self.name == other.name
-            and self.shots == other.shots
-            and np.array_equal(self.alpha, other.alpha)
-            and np.array_equal(self.beta, other.beta)
-            and self.scan == other.scan
-            and self.approach == other.approach
-        )
+        return isinstance(other, Plan) and all(
+            np.array_equal(getattr(self, f.name), getattr(other, f.name)) for f in fields(self))
 
     __hash__ = None  # mutable-looking contents: plans are compared by value, not hashed
 
@@ -190,26 +151,15 @@ class Plan:
         -------
         Plan
             Same name, shots and motion; ``ceil(len / step)`` poses.
-
-        Examples
-        --------
-        >>> len(experiment("I").subset(10))
-        40
         """
-        if isinstance(step, bool) or not isinstance(step, int | np.integer) or step < 1:
-            raise ConfigurationError(
-                f"step: found {step!r}; expected a positive integer. Fix: pass step=2 to keep "
-                "every other pose."
-            )
-        return self[:: int(step)]
+        return self[::_positive_int("step", step, "a positive integer",
+                                    "pass step=2 to keep every other pose.")]
 
     def thin(self, step: int) -> Plan:
         """Every ``step``-th angle along each grid axis, so a thinned grid is still a grid.
 
-        For a full alpha-outer grid (:meth:`unstack_shape` is not None) this keeps every
-        ``step``-th alpha and every ``step``-th beta (about ``len / step**2`` poses) and maps
-        stay maps; any other plan keeps every ``step``-th pose (as :meth:`subset`). Quick runs
-        of the notebooks and the command line use this.
+        A full alpha-outer grid (:meth:`unstack_shape`) keeps every ``step``-th alpha and beta
+        (maps stay maps); any other plan every ``step``-th pose (as :meth:`subset`).
 
         Parameters
         ----------
@@ -221,17 +171,6 @@ class Plan:
         Plan
             Same name, shots and motion; ``ceil(n_alpha / step) * ceil(n_beta / step)`` poses for a
             full grid, ``ceil(len / step)`` otherwise.
-
-        Examples
-        --------
-        >>> exp1 = experiment("I")          # 20 x 20 grid, 1-degree steps
-        >>> quick = exp1.thin(3)
-        >>> quick.unstack_shape(), float(quick.alpha[1] - quick.alpha[0])
-        ((7, 7), 0.0)
-        >>> float(np.unique(quick.alpha)[1] - np.unique(quick.alpha)[0])
-        3.0
-        >>> len(custom([0.0, 1.0, 2.0], [0.0, 0.0, 5.0]).thin(2))
-        2
         """
         self.subset(step)  # the same check of step
         shape = self.unstack_shape()
@@ -244,34 +183,31 @@ class Plan:
         return self[index]
 
     def with_shots(self, shots: int) -> Plan:
-        """The same poses with another number of shots per pose.
+        """The same poses with ``shots`` (a positive integer) frames per pose.
 
         Parameters
         ----------
         shots : int
-            Frames per pose (a positive integer).
+            Frames per pose.
 
         Returns
         -------
         Plan
-            A new plan; this one is unchanged.
         """
-        return Plan(self.name, self.alpha, self.beta, shots, self.scan, self.approach)
+        return replace(self, shots=shots)
 
     def with_motion(self, scan: str | None = None, approach: str | None = None) -> Plan:
-        """The same poses visited in another order or approached another way.
+        """The same poses visited in another order (:data:`SCANS`) or approached another way
+        (:data:`APPROACHES`); None keeps this plan's.
 
         Parameters
         ----------
-        scan : {"raster", "serpentine", "random"}, optional
-            Visit order (:data:`SCANS`); default this plan's.
-        approach : {"direct", "unidirectional"}, optional
-            How the inner axis reaches each pose (:data:`APPROACHES`); default this plan's.
+        scan, approach : str, optional
+            The motion.
 
         Returns
         -------
         Plan
-            A new plan with the same poses and shots.
 
         Examples
         --------
@@ -279,29 +215,19 @@ class Plan:
         >>> p.scan, p.approach
         ('serpentine', 'unidirectional')
         """
-        return Plan(self.name, self.alpha, self.beta, self.shots,
-                    self.scan if scan is None else scan,
-                    self.approach if approach is None else approach)
+        return replace(self, scan=self.scan if scan is None else scan,
+                       approach=self.approach if approach is None else approach)
 
     def visit_order(self) -> np.ndarray:
         """Indices of the poses in the order the stage visits them (:data:`SCANS`).
 
-        ``"serpentine"`` reverses every other run of equal outer angle alpha (for a grid: every
-        other row), ``"random"`` is a permutation seeded by the plan's name and poses, so a
-        plan always replays the same way.
+        ``"serpentine"`` reverses every other run of equal alpha, ``"random"`` is seeded by
+        the plan's name and poses: a plan always replays the same way.
 
         Returns
         -------
         numpy.ndarray of int, shape (pose,)
             A permutation of ``0 .. len - 1``: the k-th pose visited is ``plan[order[k]]``.
-
-        Examples
-        --------
-        >>> g = grid(0, 1, 1, 0, 2, 1, shots=1)
-        >>> g.visit_order().tolist()
-        [0, 1, 2, 3, 4, 5]
-        >>> g.with_motion(scan="serpentine").visit_order().tolist()
-        [0, 1, 2, 5, 4, 3]
         """
         n = len(self)
         if self.scan == "raster":
@@ -310,21 +236,33 @@ class Plan:
             starts = np.flatnonzero(np.r_[True, self.alpha[1:] != self.alpha[:-1]])
             runs = np.split(np.arange(n), starts[1:])
             return np.concatenate([r if k % 2 == 0 else r[::-1] for k, r in enumerate(runs)])
-        import zlib
+        return np.random.default_rng([self.crc32(with_shots=False), 0x5CA7]).permutation(n)
 
+    def crc32(self, with_shots: bool = True) -> int:
+        """A stable 32-bit code: CRC-32 of the name, the angles (little-endian float64) and,
+        ``with_shots``, the shots (a cube mixes it into its seed, :func:`sunlab.sim.simulate`).
+
+        Parameters
+        ----------
+        with_shots : bool
+            Whether the shots enter the code.
+
+        Returns
+        -------
+        int
+        """
         h = zlib.crc32(self.name.encode())
-        h = zlib.crc32(np.ascontiguousarray(self.alpha, dtype="<f8").tobytes(), h)
-        h = zlib.crc32(np.ascontiguousarray(self.beta, dtype="<f8").tobytes(), h)
-        return np.random.default_rng([h, 0x5CA7]).permutation(n)
+        for a in (self.alpha, self.beta):
+            h = zlib.crc32(np.ascontiguousarray(a, dtype="<f8").tobytes(), h)
+        return zlib.crc32(int(self.shots).to_bytes(4, "little"), h) if with_shots else h
 
     def beta_approach(self, *, home_deg: float = 0.0) -> np.ndarray:
         """Direction (+1 up, -1 down) in which the inner axis arrives at each pose, by pose.
 
-        The stage starts at ``home_deg`` having last moved upward (a homing ends on an upward
-        approach). Along :meth:`visit_order`, a pose is reached in the direction of the move
-        from the previous pose; a pose with no inner-axis move keeps the last direction (the
-        gear stays on the same flank). With ``approach="unidirectional"`` every pose is reached
-        upward (an overshoot below the target, then the return).
+        The stage starts at ``home_deg``, last moved upward (as a homing ends). Along
+        :meth:`visit_order` a pose is reached in the direction of the move from the previous
+        one, or the last direction if beta did not move (the gear stays on its flank);
+        ``approach="unidirectional"`` reaches every pose upward (overshoot, then return).
 
         Parameters
         ----------
@@ -362,22 +300,12 @@ class Plan:
         Returns
         -------
         (int, int) or None
-            The numbers of distinct alpha and beta when the poses are exactly every
-            (alpha, beta) pair, alpha ascending in the outer loop and beta ascending in the
-            inner one; None for any other plan.
-
-        Examples
-        --------
-        >>> experiment("II").unstack_shape()
-        (13, 13)
+            The numbers of distinct alpha and beta when the poses are every (alpha, beta) pair,
+            both ascending, alpha the outer loop; None for any other plan.
         """
-        ua = np.unique(self.alpha)
-        ub = np.unique(self.beta)
-        if ua.size * ub.size != len(self):
-            return None
-        if np.array_equal(self.alpha, np.repeat(ua, ub.size)) and np.array_equal(
-            self.beta, np.tile(ub, ua.size)
-        ):
+        ua, ub = np.unique(self.alpha), np.unique(self.beta)
+        if (ua.size * ub.size == len(self) and np.array_equal(self.alpha, np.repeat(ua, ub.size))
+                and np.array_equal(self.beta, np.tile(ub, ua.size))):
             return int(ua.size), int(ub.size)
         return None
 
@@ -390,34 +318,19 @@ class Plan:
 
 
 def _axis(vmin: float, vmax: float, step: float, name: str) -> np.ndarray:
-    if not (np.isfinite(vmin) and np.isfinite(vmax) and np.isfinite(step)):
-        raise ConfigurationError(f"{name}: found non-finite bounds or step; expected finite deg.")
-    if step <= 0:
-        raise ConfigurationError(
-            f"{name}_step: found {step!r}; expected a positive step in degrees. Fix: pass e.g. 1.0."
-        )
-    if vmax < vmin:
-        raise ConfigurationError(
-            f"{name}_min, {name}_max: found {vmin!r} > {vmax!r}; expected min <= max. "
-            "Fix: swap them."
-        )
+    _check(np.isfinite(vmin) and np.isfinite(vmax) and np.isfinite(step), name,
+           "non-finite bounds or step", "finite deg")
+    _check(step > 0, f"{name}_step", repr(step), "a positive step in degrees", "pass e.g. 1.0.")
+    _check(vmax >= vmin, f"{name}_min, {name}_max", f"{vmin!r} > {vmax!r}", "min <= max",
+           "swap them.")
     n = int(np.floor((vmax - vmin) / step + 1e-9)) + 1
     # Built from integers so that -16.25 + 12 * 1.5 is exactly 1.75, not 1.7500000000000002.
     return np.round(vmin + step * np.arange(n), 10)
 
 
-def grid(
-    alpha_min: float,
-    alpha_max: float,
-    alpha_step: float,
-    beta_min: float,
-    beta_max: float,
-    beta_step: float,
-    shots: int = 8,
-    name: str = "grid",
-    scan: str = "raster",
-    approach: str = "direct",
-) -> Plan:
+def grid(alpha_min: float, alpha_max: float, alpha_step: float, beta_min: float,
+         beta_max: float, beta_step: float, shots: int = 8, name: str = "grid",
+         scan: str = "raster", approach: str = "direct") -> Plan:
     """A regular grid of poses, alpha as the outer loop, bounds inclusive.
 
     Parameters
@@ -426,10 +339,8 @@ def grid(
         Outer-axis range and step, degrees.
     beta_min, beta_max, beta_step : float
         Inner-axis range and step, degrees.
-    shots : int
-        Frames per pose.
-    name : str
-        Name of the plan.
+    shots, name : int, str
+        Frames per pose and the plan's name.
     scan, approach : str
         The motion (:data:`SCANS`, :data:`APPROACHES`).
 
@@ -459,8 +370,7 @@ def experiment(name: str, shots: int = 8, *, scan: str = PAPER_SCAN,
     shots : int
         Frames per pose; the paper takes 8.
     scan, approach : str
-        The motion; default :data:`PAPER_SCAN` (our inference: the paper does not state it)
-        and a direct approach.
+        The motion; default :data:`PAPER_SCAN` (our inference) and a direct approach.
 
     Returns
     -------
@@ -475,12 +385,9 @@ def experiment(name: str, shots: int = 8, *, scan: str = PAPER_SCAN,
     (1.75, -1.75)
     """
     key = {"1": "I", "2": "II", "3": "III"}.get(str(name).strip(), str(name).strip().upper())
-    if key not in EXPERIMENTS:
-        raise ConfigurationError(
-            f"experiment: found {name!r}; expected one of 'I', 'II', 'III' "
-            "(docs/paper.md Table 3). "
-            "Fix: use sunlab.plans.grid(...) for other poses."
-        )
+    _check(key in EXPERIMENTS, "experiment", repr(name),
+           "one of 'I', 'II', 'III' (docs/paper.md Table 3)",
+           "use sunlab.plans.grid(...) for other poses.")
     return grid(*EXPERIMENTS[key], shots=shots, name=key, scan=scan, approach=approach)
 
 
@@ -492,14 +399,10 @@ def custom(alpha, beta, shots: int = 8, name: str = "custom", scan: str = "raste
     ----------
     alpha, beta : array_like of float
         Commanded outer- and inner-axis angles, deg, one each per pose (same length).
-    shots : int
-        Frames per pose (the paper: 8).
-    name : str
-        Name of the plan (the cube's ``experiment`` attribute).
-    scan : {"raster", "serpentine", "random"}
-        Visit order (:data:`SCANS`).
-    approach : {"direct", "unidirectional"}
-        How the inner axis reaches each pose (:data:`APPROACHES`).
+    shots, name : int, str
+        Frames per pose (the paper: 8) and the plan's name (a cube's ``experiment``).
+    scan, approach : str
+        The motion (:data:`SCANS`, :data:`APPROACHES`).
 
     Returns
     -------
@@ -512,38 +415,26 @@ def custom(alpha, beta, shots: int = 8, name: str = "custom", scan: str = "raste
     >>> p.alpha.tolist(), p.beta.tolist(), p.shots
     ([0.0, -5.0], [0.0, 3.0], 1)
     """
-    return Plan(
-        name,
-        np.atleast_1d(np.asarray(alpha, dtype=float)),
-        np.atleast_1d(np.asarray(beta, dtype=float)),
-        shots,
-        scan,
-        approach,
-    )
+    return Plan(name, np.atleast_1d(np.asarray(alpha, dtype=float)),
+                np.atleast_1d(np.asarray(beta, dtype=float)), shots, scan, approach)
 
 
 def read_plan(spec, shots: int = 8, *, field: str = "plan") -> Plan:
-    """A plan from its name or a CSV file: ``"I"``, ``"II"``, ``"III"`` (any case; Table 3) or
-    the path of a CSV with a header line ``alpha,beta`` and one pose (deg) per row.
+    """A plan from its name (``"I"``, ``"II"``, ``"III"``, any case; Table 3) or from a CSV
+    file with a header line ``alpha,beta`` and one pose (deg) per row, named after its stem.
 
     Parameters
     ----------
     spec : str or path
-        Experiment name or CSV file (the plan is named after the file's stem).
+        Experiment name or CSV file.
     shots : int
         Frames per pose.
     field : str
-        The name the caller gave ``spec`` (e.g. ``"--plan"`` on the command line), for the
-        messages of the errors.
+        The caller's name for ``spec`` (e.g. ``"--plan"``), for the error messages.
 
     Returns
     -------
     Plan
-
-    Raises
-    ------
-    sunlab.errors.ConfigurationError
-        Neither an experiment nor an existing file, or a CSV without ``alpha`` and ``beta``.
 
     Examples
     --------
@@ -561,9 +452,8 @@ def read_plan(spec, shots: int = 8, *, field: str = "plan") -> Plan:
     if str(spec).upper() in EXPERIMENTS:
         return experiment(str(spec).upper(), shots=shots)
     if not Path(spec).is_file():
-        raise ConfigurationError(
-            f"{field}: found {str(spec)!r}, expected I, II, III or an existing CSV file"
-        )
+        raise ConfigurationError(f"{field}: found {str(spec)!r}, expected I, II, III or an "
+                                 "existing CSV file")
     import pandas as pd
 
     table = pd.read_csv(spec)
@@ -571,35 +461,31 @@ def read_plan(spec, shots: int = 8, *, field: str = "plan") -> Plan:
     if missing:
         raise ConfigurationError(
             f"{field} {spec}: columns {sorted(table.columns)}, missing {sorted(missing)}. "
-            "Fix: a CSV with a header line 'alpha,beta' and one pose (deg) per row"
-        )
+            "Fix: a CSV with a header line 'alpha,beta' and one pose (deg) per row")
     return custom(table["alpha"], table["beta"], shots=shots, name=Path(spec).stem)
 
 
 def zero_check(plan: Plan, checks: int = 4, *, shots: int | None = None) -> Plan:
     """The zero-pose check of a run: ``checks`` visits of the zero pose, each approached upward.
 
-    Taken right after the stage is homed, before the run's poses (the runner acquires it with
-    the same homing). It carries the run's name, so that on the virtual bench it shares the
-    run's homing offset; comparing the zero-pose centroids of two runs measures how far their
-    inner-axis zeros differ (:func:`sunlab.reproduce.remedy.fit_correction`). Between
-    checks the axis moves away and back (an overshoot of its own), so each check is a separate
-    pose.
+    Taken right after the stage is homed, before the run's poses, under the run's name, so that
+    on the virtual bench it shares the run's homing offset: the zero-pose centroids of two runs
+    measure how far their inner-axis zeros differ
+    (:func:`sunlab.reproduce.remedy.fit_correction`).
 
     Parameters
     ----------
     plan : Plan
         The run.
     checks : int
-        Visits of the zero pose.
+        Visits of the zero pose (each a pose: the axis moves away and back between them).
     shots : int, optional
         Frames per visit; default the run's.
 
     Returns
     -------
     Plan
-        ``checks`` poses at alpha = beta = 0, ``plan``'s name, raster scan, unidirectional
-        approach.
+        ``checks`` poses at alpha = beta = 0, raster scan, unidirectional approach.
 
     Examples
     --------
@@ -607,15 +493,7 @@ def zero_check(plan: Plan, checks: int = 4, *, shots: int | None = None) -> Plan
     >>> len(z), z.name, z.approach, float(z.alpha.max()), float(z.beta.max())
     (4, 'III', 'unidirectional', 0.0, 0.0)
     """
-    if not isinstance(plan, Plan):
-        raise ConfigurationError(
-            f"plan: found {type(plan).__name__}; expected a sunlab.plans.Plan."
-        )
-    if isinstance(checks, bool) or not isinstance(checks, int | np.integer) or checks < 1:
-        raise ConfigurationError(
-            f"checks: found {checks!r}; expected a positive number of zero-pose visits. "
-            "Fix: checks=4."
-        )
-    n = int(checks)
+    _check(isinstance(plan, Plan), "plan", type(plan).__name__, "a sunlab.plans.Plan")
+    n = _positive_int("checks", checks, "a positive number of zero-pose visits", "checks=4.")
     return Plan(plan.name, np.zeros(n), np.zeros(n), plan.shots if shots is None else shots,
                 "raster", "unidirectional")

@@ -1,5 +1,5 @@
 """Progress that fits the place: plain lines in a log, a tqdm bar in a terminal or Jupyter (the
-first compile of the kernels is said by sunlab.jit: tests/test_jit.py)."""
+first compile of the kernels is said by sunlab.sim._jit: tests/sim/test_kernels.py)."""
 
 import dask.array as da
 

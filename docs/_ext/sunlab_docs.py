@@ -38,7 +38,7 @@ GROUPS: OrderedDict[str, tuple[str, ...]] = OrderedDict(
         ("Reproduction", ("reproduce",)),
         ("Export", ("export",)),
         ("Figures and widgets", ("plots", "widgets")),
-        ("Foundations", ("errors", "options", "extras", "jit", "parallel")),
+        ("Foundations", ("errors", "options", "extras", "parallel")),
         ("Command line, course and example data", ("cli", "course", "data.make_example")),
     ]
 )

@@ -92,7 +92,7 @@ def bench_fault_values(bench, seed, plans_by_run: dict) -> dict:
     >>> v["beta_backlash_deg"], round(v["beta_homing_difference_deg"], 4)  # I -> III shift
     (0.0, 0.0238)
     """
-    from ..sim.bench import homing_offset
+    from ..sim.platform import homing_offset
 
     h = {k: homing_offset(bench, seed, p.name) for k, p in plans_by_run.items()}
     return {"beta_backlash_deg": float(bench.platform.beta_backlash_deg),

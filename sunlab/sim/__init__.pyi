@@ -4,28 +4,31 @@ and type checkers read it as the package's interface."""
 
 from . import bench as bench
 from . import centroids as centroids
+from . import cube as cube
 from . import detector as detector
 from . import diffraction as diffraction
 from . import frame as frame
+from . import holes as holes
 from . import mask as mask
 from . import platform as platform
 from . import render as render
 from . import source as source
+from . import spots as spots
 from . import surrogate as surrogate
 from .bench import Bench as Bench
-from .bench import platform_pose as platform_pose
-from .bench import simulate as simulate
 from .centroids import synthetic_centroids as synthetic_centroids
+from .cube import simulate as simulate
 from .detector import Detector as Detector
 from .detector import fixed_pattern as fixed_pattern
 from .frame import render_frame as render_frame
-from .mask import Dust as Dust
-from .mask import Hole as Hole
+from .holes import Dust as Dust
+from .holes import Hole as Hole
 from .mask import Mask as Mask
 from .platform import Platform as Platform
+from .platform import platform_pose as platform_pose
 from .render import ray_positions as ray_positions
-from .render import spot_image as spot_image
-from .render import spot_truth as spot_truth
 from .source import Source as Source
+from .spots import spot_image as spot_image
+from .spots import spot_truth as spot_truth
 
 __all__: list[str]

@@ -1,4 +1,4 @@
-"""The virtual bench: source + mask + detector + platform, presets, and lazy simulated cubes.
+"""The virtual bench: source + mask + detector + platform, and the presets of the paper's bench.
 
 Every parameter of the presets has a source: the paper (section), a datasheet, physics, or the
 identification of docs/identification.md (a protocol fixed before its scores; its rule picks the
@@ -42,20 +42,17 @@ Examples
 from __future__ import annotations
 
 import json
-import zlib
 from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
 from ..errors import ConfigurationError
 from .detector import Detector
-from .frame import render_frame, render_pose
 from .mask import PAPER_DISTANCE_MM, PAPER_TRACK_CENTRE_MM, Mask
 from .platform import Platform
-from .render import _entropy, _truth, mask_play, spot_geometry
 from .source import Source
 
-__all__ = ["Bench", "platform_pose", "simulate"]
+__all__ = ["Bench"]
 
 #: The presets are the hypothesis that the identification protocol's rule picks
 #: (docs/identification.md, ``studies/protocol.json``; ``studies.identification.
@@ -108,17 +105,7 @@ PAPER_BETA0_DEG = 0.294
 #: plus what the lid takes off the apparent height of a paraxial ray, t (1 - 1/n).
 PAPER_DELTA_F_MM = 0.094 + Detector(lid_thickness_mm=PAPER_LID_MM).lid_height_loss_mm
 
-#: The place of each experiment of Table 3 in the session (docs/paper.md sec. 5 runs them in
-#: this order): a run named otherwise is taken at the session's start.
-RUN_ORDER = {"I": 0, "II": 1, "III": 2}
-#: The session of each experiment: experiment I in one, II and III in the next, after the
-#: stage was homed again (``Platform.beta_rehoming_deg``); a run named otherwise is in the
-#: first.
-SESSION = {"I": 0, "II": 1, "III": 1}
-
-_TAG_POSE = 0x905E
-_TAG_SHOT = 0x5407
-_TAG_HOME = 0x803E
+_PARTS = {"source": Source, "mask": Mask, "detector": Detector, "platform": Platform}
 
 
 @dataclass(frozen=True)
@@ -151,17 +138,11 @@ class Bench:
     platform: Platform = field(default_factory=Platform)
 
     def __post_init__(self):
-        for name, kind in (
-            ("source", Source),
-            ("mask", Mask),
-            ("detector", Detector),
-            ("platform", Platform),
-        ):
+        for name, kind in _PARTS.items():
             if not isinstance(getattr(self, name), kind):
                 raise ConfigurationError(
                     f"bench.{name}: found {type(getattr(self, name)).__name__}; expected a "
-                    f"{kind.__name__}. Fix: build it with sunlab.sim.{kind.__name__}(...)."
-                )
+                    f"{kind.__name__}. Fix: build it with sunlab.sim.{kind.__name__}(...).")
 
     # ---------------------------------------------------------------- presets
     @classmethod
@@ -183,16 +164,10 @@ class Bench:
             The one-hole bench every single-hole table of sunlab is simulated on.
         """
         mask = Mask.single_hole(
-            x_mm=PAPER_TRACK_CENTRE_MM[0],
-            y_mm=PAPER_TRACK_CENTRE_MM[1],
-            distance_mm=PAPER_DISTANCE_MM,
-            delta_f_mm=PAPER_DELTA_F_MM,
-            tilt_x_deg=0.25,
-            tilt_y_deg=-0.15,
-            offset_x_mm=0.012,
-            offset_y_mm=-0.008,
-            play_x_mm=PAPER_SINGLE_PLAY_MM,
-        )
+            x_mm=PAPER_TRACK_CENTRE_MM[0], y_mm=PAPER_TRACK_CENTRE_MM[1],
+            distance_mm=PAPER_DISTANCE_MM, delta_f_mm=PAPER_DELTA_F_MM, tilt_x_deg=0.25,
+            tilt_y_deg=-0.15, offset_x_mm=0.012, offset_y_mm=-0.008,
+            play_x_mm=PAPER_SINGLE_PLAY_MM)
         return cls(Source(), mask, cls._paper_detector(), cls._paper_platform())
 
     @staticmethod
@@ -215,20 +190,13 @@ class Bench:
         such faults. No backlash: the identification needs none.
         """
         return Platform(
-            alpha0_deg=PAPER_ALPHA0_DEG,
-            beta0_deg=PAPER_BETA0_DEG,
-            gamma0_deg=PAPER_GAMMA0_DEG,
-            alpha_pose_error_deg=PAPER_ALPHA_POSE_DEG,
-            beta_pose_error_deg=PAPER_BETA_POSE_DEG,
-            beta_rehoming_deg=PAPER_BETA_REHOMING_DEG,
-            beta_gear_deg=PAPER_BETA_GEAR_DEG,
+            alpha0_deg=PAPER_ALPHA0_DEG, beta0_deg=PAPER_BETA0_DEG, gamma0_deg=PAPER_GAMMA0_DEG,
+            alpha_pose_error_deg=PAPER_ALPHA_POSE_DEG, beta_pose_error_deg=PAPER_BETA_POSE_DEG,
+            beta_rehoming_deg=PAPER_BETA_REHOMING_DEG, beta_gear_deg=PAPER_BETA_GEAR_DEG,
             beta_gear_period_deg=PAPER_BETA_GEAR_PERIOD_DEG,
-            alpha_jitter_deg=PAPER_ALPHA_JITTER_DEG,
-            beta_jitter_deg=PAPER_BETA_JITTER_DEG,
+            alpha_jitter_deg=PAPER_ALPHA_JITTER_DEG, beta_jitter_deg=PAPER_BETA_JITTER_DEG,
             # no source gives the stage a wobble or a non-orthogonality: off
-            beta_wobble_deg=0.0,
-            nonorthogonality_deg=0.0,
-        )
+            beta_wobble_deg=0.0, nonorthogonality_deg=0.0)
 
     @classmethod
     def paper_multi_hole(cls, n_bad: int = 6) -> Bench:
@@ -254,21 +222,10 @@ class Bench:
             The 100-hole bench of Table 5.
         """
         mask = Mask.grid(
-            10,
-            10,
-            0.5,
-            0.2,
-            centre_mm=PAPER_TRACK_CENTRE_MM,
-            distance_mm=PAPER_DISTANCE_MM,
-            delta_f_mm=0.06 + PAPER_DELTA_F_MM - 0.094,
-            tilt_x_deg=0.2,
-            tilt_y_deg=0.3,
-            rotation_deg=0.4,
-            offset_x_mm=-0.01,
-            offset_y_mm=0.015,
-            play_y_mm=PAPER_MASK_PLAY_MM,
-            size_mm=(12.0, 12.0),
-        )
+            10, 10, 0.5, 0.2, centre_mm=PAPER_TRACK_CENTRE_MM, distance_mm=PAPER_DISTANCE_MM,
+            delta_f_mm=0.06 + PAPER_DELTA_F_MM - 0.094, tilt_x_deg=0.2, tilt_y_deg=0.3,
+            rotation_deg=0.4, offset_x_mm=-0.01, offset_y_mm=0.015,
+            play_y_mm=PAPER_MASK_PLAY_MM, size_mm=(12.0, 12.0))
         if n_bad:
             mask = mask.with_random_defects(n_bad, seed=2005)
         return cls(Source(), mask, cls._paper_detector(), cls._paper_platform())
@@ -293,25 +250,18 @@ class Bench:
         >>> Bench().replace(detector__read_noise_e=0.0).detector.read_noise_e
         0.0
         """
-        top = {}
+        top = {k: v for k, v in changes.items() if "__" not in k}
         nested: dict[str, dict] = {}
         for key, value in changes.items():
             if "__" in key:
                 part, name = key.split("__", 1)
                 nested.setdefault(part, {})[name] = value
-            else:
-                top[key] = value
-        for part, kw in nested.items():
-            if part not in ("source", "mask", "detector", "platform"):
-                raise ConfigurationError(
-                    f"replace: found {part!r}; expected source, mask, detector or platform."
-                )
-            base = top.get(part, getattr(self, part))
-            try:
-                top[part] = replace(base, **kw)
-            except TypeError as err:
-                raise ConfigurationError(f"replace: {err}. Fix: check the field names.") from None
+        if set(nested) - set(_PARTS):
+            raise ConfigurationError(f"replace: found {sorted(set(nested) - set(_PARTS))}; "
+                                     "expected source, mask, detector or platform.")
         try:
+            for part, kw in nested.items():
+                top[part] = replace(top.get(part, getattr(self, part)), **kw)
             return replace(self, **top)
         except TypeError as err:
             raise ConfigurationError(f"replace: {err}. Fix: check the field names.") from None
@@ -345,16 +295,9 @@ class Bench:
         Bench
             The same bench and holes, the mask's mounting errors set to zero.
         """
-        return self.replace(
-            mask__delta_f_mm=0.0,
-            mask__tilt_x_deg=0.0,
-            mask__tilt_y_deg=0.0,
-            mask__rotation_deg=0.0,
-            mask__offset_x_mm=0.0,
-            mask__offset_y_mm=0.0,
-            mask__play_x_mm=0.0,
-            mask__play_y_mm=0.0,
-        )
+        return self.replace(**{f"mask__{k}": 0.0 for k in (
+            "delta_f_mm", "tilt_x_deg", "tilt_y_deg", "rotation_deg", "offset_x_mm",
+            "offset_y_mm", "play_x_mm", "play_y_mm")})
 
     def without_lid(self) -> Bench:
         """Copy with a lid-less detector: every ray lands where eq. (1)'s pinhole puts it.
@@ -395,11 +338,9 @@ class Bench:
             Column and row, px, from the detector's reference pixel and the holes' design
             positions (mm) over the pixel pitch.
         """
-        xr, yr = self.detector.reference_px
-        p = self.detector.pixel_pitch_mm
-        x = np.array([xr + h.x_mm / p for h in self.mask.holes])
-        y = np.array([yr + h.y_mm / p for h in self.mask.holes])
-        return x, y
+        (xr, yr), p = self.detector.reference_px, self.detector.pixel_pitch_mm
+        return (np.array([xr + h.x_mm / p for h in self.mask.holes]),
+                np.array([yr + h.y_mm / p for h in self.mask.holes]))
 
     def to_json(self) -> str:
         """The bench's parameters as JSON (provenance attribute of simulated cubes).
@@ -419,379 +360,3 @@ class Bench:
         for h, hole in zip(d["mask"]["holes"], self.mask.holes, strict=True):
             h["defect"] = [{"kind": type(x).__name__, **asdict(x)} for x in hole.defect]
         return json.dumps(d, default=default, separators=(",", ":"))
-
-
-# --------------------------------------------------------------------------- platform
-def _check_cmd(alpha_cmd, beta_cmd):
-    for name, v in (("alpha_cmd", alpha_cmd), ("beta_cmd", beta_cmd)):
-        v = np.asarray(v, dtype=float)
-        if not np.all(np.isfinite(v)) or np.any(np.abs(v) >= 90.0):
-            raise ConfigurationError(
-                f"{name}: found {v!r}; expected finite angles with |angle| < 90 deg. "
-                "Fix: command platform angles in degrees."
-            )
-
-
-def _pose_error(plat: Platform, key: list[int], pose: int, approach: int = 1,
-                homing: float = 0.0) -> tuple[float, float]:
-    """Per-pose errors (alpha, beta), deg: uniform positioning errors, plus on beta the
-    backlash for the approach direction (+1 up, -1 down; :meth:`Plan.beta_approach`) and the
-    run's homing offset (:func:`_homing`)."""
-    eb = homing - approach * plat.beta_backlash_deg
-    if not (plat.alpha_pose_error_deg or plat.beta_pose_error_deg):
-        return 0.0, float(eb)
-    u = np.random.default_rng(np.random.SeedSequence(key + [_TAG_POSE, int(pose)])).uniform(
-        -1.0, 1.0, 3
-    )
-    return (float(u[0]) * plat.alpha_pose_error_deg,
-            float(u[1]) * plat.beta_pose_error_deg + eb)
-
-
-def _homing(plat: Platform, seed_key: list[int], run: str) -> float:
-    """The inner axis's zero offset of one run, deg: its place in the session times the
-    thermal drift per run (:data:`RUN_ORDER`, ``beta_drift_deg``), its session times the shift
-    at a new homing (:data:`SESSION`, ``beta_rehoming_deg``), plus a homing offset uniform
-    in +-``beta_homing_deg``, drawn from the seed and the run's name (a zero-pose check taken
-    with the run, :func:`sunlab.plans.zero_check`, shares both)."""
-    drift = (plat.beta_drift_deg * RUN_ORDER.get(str(run), 0)
-             + plat.beta_rehoming_deg * SESSION.get(str(run), 0))
-    if not plat.beta_homing_deg:
-        return drift
-    tag = zlib.crc32(str(run).encode())
-    u = np.random.default_rng(np.random.SeedSequence(list(seed_key) + [_TAG_HOME, tag]))
-    return drift + float(u.uniform(-1.0, 1.0)) * plat.beta_homing_deg
-
-
-def homing_offset(bench: Bench, seed, run: str) -> float:
-    """The inner axis's zero offset of one named run (one homing) on a bench, deg.
-
-    The run's place in the session (:data:`RUN_ORDER`) times ``beta_drift_deg``, plus its
-    session (:data:`SESSION`) times ``beta_rehoming_deg``, plus a homing
-    offset uniform in +-``bench.platform.beta_homing_deg`` drawn from the seed and the run's
-    name, as :func:`simulate` draws it for a plan of that name (a zero-pose check taken with
-    the run, :func:`sunlab.plans.zero_check`, shares it): the bench's own value of what
-    :func:`sunlab.reproduce.remedy.fit_correction` estimates from the zero-pose checks.
-
-    Parameters
-    ----------
-    bench : Bench
-    seed : int or sequence of int
-        Seed of the experiment (as :func:`simulate`).
-    run : str
-        The run's name: a plan's name (``"I"``, ``"II"``, ``"III"``, ...).
-
-    Returns
-    -------
-    float
-        The zero offset of the inner axis (beta) for that run, deg.
-
-    Examples
-    --------
-    >>> b = Bench.paper_single_hole()
-    >>> round(homing_offset(b, 0, "III") - homing_offset(b, 0, "I"), 4)  # the new homing
-    0.0238
-    >>> h = homing_offset(b.replace(platform__beta_homing_deg=0.01), 0, "I")
-    >>> bool(abs(h) <= 0.01)
-    True
-    """
-    return _homing(bench.platform, _entropy(seed), run)
-
-
-def _jitter(plat: Platform, key: list[int], pose: int, shot: int) -> tuple[float, float]:
-    if not (plat.alpha_jitter_deg or plat.beta_jitter_deg):
-        return 0.0, 0.0
-    j = np.random.default_rng(
-        np.random.SeedSequence(key + [_TAG_SHOT, int(pose), int(shot)])
-    ).standard_normal(2)
-    return float(j[0]) * plat.alpha_jitter_deg, float(j[1]) * plat.beta_jitter_deg
-
-
-def platform_pose(
-    bench: Bench, alpha_cmd: float, beta_cmd: float, *, seed, pose: int, shot: int,
-    approach: int = 1, run: str | None = None,
-) -> tuple[float, float]:
-    """True platform angles (deg) for commanded ones, deterministic in (seed, pose, shot).
-
-    The per-pose error (uniform, bounded) depends on (seed, pose), the jitter (normal) on
-    (seed, pose, shot); the systematic errors (encoder, wobble, gear) on the commanded angles
-    only; the inner axis's backlash on the direction ``approach`` (+1 up, -1 down) in which it
-    reached the pose, and its homing offset on (seed, ``run``) (none when ``run`` is None).
-    See :mod:`sunlab.sim.platform` for the model and its defaults.
-
-    Parameters
-    ----------
-    bench : Bench
-    alpha_cmd, beta_cmd : float
-        Commanded outer and inner angles, deg, each within +-90 (exclusive).
-    seed : int or sequence of int
-        Seed of the experiment (as :func:`simulate`).
-    pose, shot : int
-        Index of the pose in its plan and of the shot at that pose.
-    approach : {1, -1}
-        Direction in which the inner axis reached the pose (up, down).
-    run : str, optional
-        The run's name, for its homing offset (:func:`homing_offset`).
-
-    Returns
-    -------
-    alpha, beta : float
-        True platform angles, deg.
-
-    Examples
-    --------
-    >>> b = Bench.paper_single_hole()
-    >>> a, _ = platform_pose(b, -10.0, 5.0, seed=0, pose=3, shot=0)
-    >>> bool(abs(a + 10.0) < 0.008 + 5 * 0.0005)
-    True
-    >>> platform_pose(b.ideal_platform(), -10.0, 5.0, seed=0, pose=3, shot=0)
-    (-10.0, 5.0)
-    """
-    _check_cmd(alpha_cmd, beta_cmd)
-    plat = bench.platform
-    at, bt = plat.systematic(float(alpha_cmd), float(beta_cmd))
-    key = _entropy(seed)
-    if approach not in (1, -1):
-        raise ConfigurationError(
-            f"approach: found {approach!r}; expected +1 (reached upward) or -1 (downward)."
-        )
-    home = 0.0 if run is None else _homing(plat, key, run)
-    ea, eb = _pose_error(plat, key, pose, approach, home)
-    ja, jb = _jitter(plat, key, pose, shot)
-    return float(at) + ea + ja, float(bt) + eb + jb
-
-
-def _platform_table(bench: Bench, plan, key: list[int]):
-    """True angles (pose, shot) of a whole plan; identical to :func:`platform_pose` per frame
-    (with each pose's approach direction from the plan's motion and the plan's name as run)."""
-    plat = bench.platform
-    ta = np.empty((len(plan), plan.shots))
-    tb = np.empty((len(plan), plan.shots))
-    approach = plan.beta_approach()
-    home = _homing(plat, key[:-1], plan.name)
-    for p in range(len(plan)):
-        # scalar arithmetic, as in platform_pose, so that both agree to the last bit
-        at, bt = plat.systematic(float(plan.alpha[p]), float(plan.beta[p]))
-        ea, eb = _pose_error(plat, key, p, int(approach[p]), home)
-        for s in range(plan.shots):
-            ja, jb = _jitter(plat, key, p, s)
-            ta[p, s] = float(at) + ea + ja
-            tb[p, s] = float(bt) + eb + jb
-    return ta, tb
-
-
-# --------------------------------------------------------------------------- cubes
-def plan_key(plan) -> int:
-    """A stable 32-bit code of a plan (name, poses, shots), mixed into a cube's seed so that two
-    experiments simulated with the same seed do not share platform errors or noise.
-
-    Parameters
-    ----------
-    plan : sunlab.plans.Plan
-
-    Returns
-    -------
-    int
-        CRC-32 of the name, the commanded angles (little-endian float64) and the shots.
-    """
-    h = zlib.crc32(plan.name.encode())
-    h = zlib.crc32(np.ascontiguousarray(plan.alpha, dtype="<f8").tobytes(), h)
-    h = zlib.crc32(np.ascontiguousarray(plan.beta, dtype="<f8").tobytes(), h)
-    return zlib.crc32(int(plan.shots).to_bytes(4, "little"), h)
-
-
-def _truth_task(bench, a_row, b_row, key, pose):
-    """(4, 1, shots, holes): true x, true y, ray x, ray y of every shot of one pose."""
-    n_s = len(a_row)
-    out = np.full((4, 1, n_s, bench.n_holes), np.nan)
-    play = mask_play(bench, key, pose)
-    for s in range(n_s):
-        geom = spot_geometry(bench, a_row[s], b_row[s], play)
-        out[2, 0, s] = geom.ray[:, 0]
-        out[3, 0, s] = geom.ray[:, 1]
-        out[0, 0, s], out[1, 0, s] = _truth(bench, geom)
-    return out
-
-
-def simulate(plan, bench: Bench | None = None, seed=0, chunks: str = "frame"):
-    """A lazy, Dask-backed frame cube (contract frames/1) of a plan on the virtual bench.
-
-    Frames are rendered on demand, one chunk per frame, deterministically from
-    (seed, plan, pose, shot); the cube's ``sim_key`` attribute is the seed entropy actually used
-    (``[seed, plan_key(plan)]``): ``render_pose(bench, true_alpha[p], true_beta[p],
-    seed=cube.attrs["sim_key"], pose=p)`` reproduces the frames of pose p.
-
-    Parameters
-    ----------
-    plan : sunlab.plans.Plan
-        Commanded poses and shots.
-    bench : Bench, optional
-        Default :meth:`Bench.paper_single_hole`.
-    seed : int or sequence of int
-        Seed of the experiment.
-    chunks : {"frame", "pose"}
-        One Dask chunk (and task) per frame, or per pose with all its shots: fewer, larger
-        tasks for pipelines that reduce every frame at once (``sunlab reproduce``). The frames
-        are identical either way.
-
-    Returns
-    -------
-    xarray.Dataset
-        ``frames`` (pose, shot, y, x) uint16, lazy; ground truth ``true_alpha``, ``true_beta`` on
-        (pose, shot) (true axis angles, deg); ``true_x``, ``true_y`` (true centroids, px) and
-        ``ray_x``, ``ray_y`` (geometric rays through the hole centres, px) on (pose, shot) for one
-        hole or (pose, shot, hole), lazy; for multi-hole masks the coordinates ``hole_i``,
-        ``hole_j``, ``hole_x_cf``, ``hole_y_cf`` (design zenith projections, px) and
-        ``hole_defect`` (bit flags of :data:`sunlab.sim.mask.DEFECT_FLAGS`) on ``hole``.
-
-    Examples
-    --------
-    >>> from sunlab import plans
-    >>> cube = simulate(plans.experiment("III").subset(60), seed=1)
-    >>> dict(cube.frames.sizes), cube.frames.data.chunksize
-    ({'pose': 7, 'shot': 8, 'y': 1024, 'x': 1280}, (1, 1, 1024, 1280))
-    >>> frame = cube.frames[0, 0].values
-    >>> bool(frame.max() > 300)
-    True
-    """
-    from dask.base import tokenize
-
-    from .. import schema
-    from ..plans import Plan
-
-    if not isinstance(plan, Plan):
-        raise ConfigurationError(
-            f"plan: found {type(plan).__name__}; expected a sunlab.plans.Plan. Fix: use "
-            "sunlab.plans.experiment('III') or sunlab.plans.custom(alpha, beta)."
-        )
-    bench = Bench.paper_single_hole() if bench is None else bench
-    if not isinstance(bench, Bench):
-        raise ConfigurationError(
-            f"bench: found {type(bench).__name__}; expected a sunlab.sim.Bench."
-        )
-    key = _entropy(seed) + [plan_key(plan)]
-    ta, tb = _platform_table(bench, plan, key)
-    token = tokenize(bench.to_json(), key, ta, tb)
-    frames = _frames_array(bench, key, ta, tb, token, chunks)
-    xd, yd = bench.hole_design_px()
-    ds = schema.frames_dataset(
-        frames, plan.alpha, plan.beta, pixel_pitch_mm=bench.detector.pixel_pitch_mm,
-        mask_distance_mm=bench.mask_distance_mm, x_cf_px=float(np.mean(xd)),
-        y_cf_px=float(np.mean(yd)), bit_depth=bench.detector.bit_depth, mask=bench.mask.name,
-        experiment=plan.name, coords=_hole_coords(bench, plan),
-        attrs={
-            "source": "sunlab virtual bench",
-            "sim_seed": _entropy(seed),
-            "sim_key": list(key),
-            "sim_bench": bench.to_json(),
-            # the motion history (sunlab.reproduce.fault reads it back)
-            "scan_order": plan.scan,
-            "approach": plan.approach,
-            "visit_order": plan.visit_order().astype(np.int32),
-        },
-    )
-    ds = _add_truth(ds, bench, key, ta, tb, token)
-    return schema.validate_frames(ds)
-
-
-def _frames_block(index, bench, key, ta, tb):
-    """The frames of one block: ``index`` holds pose numbers (pose, ) for a block of whole
-    poses, or frame numbers pose * shots + shot (pose, shot) for a block of single frames;
-    returns (poses, shots, ny, nx), each frame rendered in place."""
-    n_s = ta.shape[1]
-    if index.ndim == 1:
-        out = np.empty((index.size, n_s) + bench.detector.shape, dtype=np.uint16)
-        for i, p in enumerate(index):
-            render_pose(bench, ta[p], tb[p], seed=key, pose=int(p), out=out[i])
-        return out
-    out = np.empty(index.shape + bench.detector.shape, dtype=np.uint16)
-    for (i, j), k in np.ndenumerate(index):
-        p, s = divmod(int(k), n_s)
-        render_frame(bench, ta[p, s], tb[p, s], seed=key, pose=p, shot=s, out=out[i, j],
-                     shape_angles=(ta[p, 0], tb[p, 0]))
-    return out
-
-
-def _frames_array(bench: Bench, key, ta, tb, token: str, chunks: str):
-    """The lazy frames (pose, shot, y, x): one task per frame or per pose (:func:`simulate`).
-
-    A blockwise map over frame numbers, so that a blockwise reduction of the frames
-    (:func:`sunlab.centroid.locate`) fuses with the rendering into one task per block: the
-    frames never leave the worker (thread or process) that renders them."""
-    import dask.array as da
-
-    n_p, n_s = ta.shape
-    ny, nx = bench.detector.shape
-    if chunks == "frame":
-        index = da.from_array(np.arange(n_p * n_s).reshape(n_p, n_s), chunks=1,
-                              name="sunlab-sim-index-" + token)
-        new_axis = [2, 3]
-        shot_chunks = (1,) * n_s
-    elif chunks == "pose":
-        index = da.from_array(np.arange(n_p), chunks=1, name="sunlab-sim-poses-" + token)
-        new_axis = [1, 2, 3]
-        shot_chunks = (n_s,)
-    else:
-        raise ConfigurationError(
-            f"chunks: found {chunks!r}; expected 'frame' or 'pose'. Fix: chunks='frame' (one "
-            "frame per chunk) or chunks='pose' (all shots of a pose per chunk)."
-        )
-    return da.map_blocks(
-        _frames_block, index, bench=bench, key=key, ta=ta, tb=tb, new_axis=new_axis,
-        chunks=((1,) * n_p, shot_chunks, (ny,), (nx,)), dtype=np.uint16,
-        meta=np.empty((0, 0, 0, 0), dtype=np.uint16),
-        name=f"sunlab-sim-frames-{chunks}-" + token,
-    )
-
-
-def _hole_coords(bench: Bench, plan) -> dict:
-    """The cube's coordinates: each pose's approach direction and, for a multi-hole mask, the
-    holes' grid places, design zenith projections and defect flags."""
-    coords = {}
-    if bench.n_holes > 1:
-        xd, yd = bench.hole_design_px()
-        coords = {
-            "hole_i": ("hole", np.array([h.i for h in bench.mask.holes], dtype=np.int32)),
-            "hole_j": ("hole", np.array([h.j for h in bench.mask.holes], dtype=np.int32)),
-            "hole_x_cf": ("hole", xd, {"units": "px", "long_name": "design zenith projection x"}),
-            "hole_y_cf": ("hole", yd, {"units": "px", "long_name": "design zenith projection y"}),
-            "hole_defect": (
-                "hole",
-                np.array([h.defect_flags for h in bench.mask.holes], dtype=np.int8),
-                {
-                    "flag_masks": np.array([1, 2, 4, 8], dtype=np.int8),
-                    "flag_meanings": "dust elliptical burred undersized",
-                },
-            ),
-        }
-    coords["beta_approach"] = ("pose", plan.beta_approach(), {
-        "long_name": "direction in which the inner axis reached the pose (+1 up, -1 down)"})
-    return coords
-
-
-def _add_truth(ds, bench: Bench, key, ta, tb, token: str):
-    """The ground truth: true platform angles, and the lazy true centroids and rays."""
-    import dask.array as da
-
-    n_p, n_s = ta.shape
-    n_h = bench.n_holes
-    tname = "sunlab-sim-truth-" + token
-    tdsk = {(tname, 0, p, 0, 0): (_truth_task, bench, ta[p], tb[p], key, p) for p in range(n_p)}
-    truth = da.Array(tdsk, tname, chunks=((4,), (1,) * n_p, (n_s,), (n_h,)), dtype=float)
-    dims = ("pose", "shot", "hole") if n_h > 1 else ("pose", "shot")
-    if n_h == 1:
-        truth = truth[..., 0]
-    ds["true_alpha"] = (
-        ("pose", "shot"),
-        ta,
-        {"units": "deg", "long_name": "true outer-axis angle"},
-    )
-    ds["true_beta"] = (("pose", "shot"), tb, {"units": "deg", "long_name": "true inner-axis angle"})
-    long = {
-        "true_x": "true centroid column (noiseless expected signal, fill factor included)",
-        "true_y": "true centroid row (noiseless expected signal, fill factor included)",
-        "ray_x": "geometric ray through the hole centre, column",
-        "ray_y": "geometric ray through the hole centre, row",
-    }
-    for i, var in enumerate(("true_x", "true_y", "ray_x", "ray_y")):
-        ds[var] = (dims, truth[i], {"units": "px", "long_name": long[var]})
-    return ds

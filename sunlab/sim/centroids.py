@@ -73,10 +73,9 @@ class HoleLayout:
         HoleLayout
             Zenith centroids (px) and grid indices (i, j) of every hole.
         """
-        x = np.array([h.x_mm for h in mask.holes], dtype=float) / pixel_pitch_mm
-        y = np.array([h.y_mm for h in mask.holes], dtype=float) / pixel_pitch_mm
-        return cls(centre_px[0] + x, centre_px[1] + y,
-                   np.array([h.i for h in mask.holes]), np.array([h.j for h in mask.holes]))
+        x, y, i, j = np.array([(h.x_mm, h.y_mm, h.i, h.j) for h in mask.holes]).T
+        return cls(centre_px[0] + x / pixel_pitch_mm, centre_px[1] + y / pixel_pitch_mm,
+                   i.astype(int), j.astype(int))
 
     @classmethod
     def of(cls, layout, pixel_pitch_mm: float = 0.007) -> HoleLayout:
@@ -163,8 +162,7 @@ def _one_hole(alpha, beta, shots: int = 8, *, mask_distance_mm: float = 5.0,
               pose_error_deg=(0.0, 0.0), jitter_deg: float = 0.0, noise_px: float = 0.0,
               seed: int = 0, experiment: str = ""):
     """One hole: the bench's per-pose error, jitter, mounting and noise (see the caller)."""
-    alpha = np.asarray(alpha, dtype=float).ravel()
-    beta = np.asarray(beta, dtype=float).ravel()
+    alpha, beta = np.asarray(alpha, dtype=float).ravel(), np.asarray(beta, dtype=float).ravel()
     if alpha.shape != beta.shape:
         raise ConfigurationError(
             f"alpha, beta: found shapes {alpha.shape} and {beta.shape}, expected equal lengths "
@@ -178,27 +176,21 @@ def _one_hole(alpha, beta, shots: int = 8, *, mask_distance_mm: float = 5.0,
     wa, wb = pose_error_deg
     true_a = alpha[:, None] + rng.uniform(-wa, wa, (n, 1)) + rng.normal(0.0, jitter_deg, shape)
     true_b = beta[:, None] + rng.uniform(-wb, wb, (n, 1)) + rng.normal(0.0, jitter_deg, shape)
-    x, y = geometry.pinhole_centroid(
-        true_a, true_b, mask_distance_mm, pixel_pitch_mm,
-        x_cf + hole_offset_px[0], y_cf + hole_offset_px[1],
-        delta_f_mm=delta_f_mm, mounting_deg=mounting_deg,
-    )
+    x, y = geometry.pinhole_centroid(true_a, true_b, mask_distance_mm, pixel_pitch_mm,
+                                     x_cf + hole_offset_px[0], y_cf + hole_offset_px[1],
+                                     delta_f_mm=delta_f_mm, mounting_deg=mounting_deg)
     x = x + rng.normal(0.0, noise_px, shape)
     y = y + rng.normal(0.0, noise_px, shape)
-    attrs = {
-        "pixel_pitch_mm": float(pixel_pitch_mm),
-        "mask_distance_mm": float(mask_distance_mm),
-        "x_cf_px": float(x_cf),
-        "y_cf_px": float(y_cf),
-        "experiment": str(experiment),
-    }
-    truth = {
-        "true_alpha": (("pose", "shot"), true_a, {"units": "deg"}),
-        "true_beta": (("pose", "shot"), true_b, {"units": "deg"}),
-    }
-    return schema.centroids_dataset(
-        x, y, alpha=alpha, beta=beta, method="synthetic", attrs=attrs, extra=truth
-    )
+    attrs = {"pixel_pitch_mm": float(pixel_pitch_mm), "mask_distance_mm": float(mask_distance_mm),
+             "x_cf_px": float(x_cf), "y_cf_px": float(y_cf), "experiment": str(experiment)}
+    return schema.centroids_dataset(x, y, alpha=alpha, beta=beta, method="synthetic", attrs=attrs,
+                                    extra=_truth(true_a, true_b))
+
+
+def _truth(ta, tb) -> dict:
+    """The true platform angles of a table, deg, on (pose, shot)."""
+    return {"true_alpha": (("pose", "shot"), ta, {"units": "deg"}),
+            "true_beta": (("pose", "shot"), tb, {"units": "deg"})}
 
 
 def _uniform(rng, sigma, size):
@@ -261,11 +253,7 @@ def _many_holes(alpha, beta, shots: int, layout: HoleLayout, *, mask_distance_mm
         np.where(bad, np.nan, x), np.where(bad, np.nan, y), flux=fl, status=status, alpha=alpha,
         beta=beta, method="synthetic",
         attrs={"mask_distance_mm": mask_distance_mm, "pixel_pitch_mm": pixel_pitch_mm},
-        extra={
-            "true_alpha": (("pose", "shot"), ta, {"units": "deg"}),
-            "true_beta": (("pose", "shot"), tb, {"units": "deg"}),
-        },
-    )
+        extra=_truth(ta, tb))
     return cen.assign_coords(
         hole_i=("hole", np.asarray(layout.hole_i)), hole_j=("hole", np.asarray(layout.hole_j)),
         hole_x_cf=("hole", x_cf, {"units": "px"}), hole_y_cf=("hole", y_cf, {"units": "px"}),

@@ -54,9 +54,11 @@ import math
 from dataclasses import dataclass, replace
 from typing import NamedTuple
 
+import numba
 import numpy as np
 
 from ..errors import ConfigurationError
+from . import _jit
 
 __all__ = ["Detector", "fixed_pattern"]
 
@@ -150,66 +152,41 @@ class Detector:
     pattern_seed: int = 1
 
     def __post_init__(self):
-        object.__setattr__(
-            self, "sensitive_offset_px", tuple(float(v) for v in self.sensitive_offset_px)
-        )
+        object.__setattr__(self, "sensitive_offset_px",
+                           tuple(float(v) for v in self.sensitive_offset_px))
         for name in ("nx", "ny", "bit_depth"):
             v = getattr(self, name)
-            if not isinstance(v, int | np.integer) or v < 1:
-                raise ConfigurationError(
-                    f"detector.{name}: found {v!r}; expected a positive integer."
-                )
-        if self.bit_depth > 16:
-            raise ConfigurationError(
-                f"detector.bit_depth: found {self.bit_depth}; expected <= 16 (uint16 frames)."
-            )
-        checks = {
-            "pixel_pitch_mm": (0.0, 1.0, "e.g. 0.007 for the Ibis4"),
-            "fill_factor": (0.0, 1.0, "the sensitive fraction of the pixel, e.g. 0.5"),
-            "qe": (0.0, 1.0, "e.g. 0.7"),
-            "gain_e_per_dn": (0.0, math.inf, "e.g. 40"),
-            "full_well_e": (0.0, math.inf, "e.g. 62500"),
-            "sensitive_aspect": (0.0, math.inf, "1 for a square photodiode"),
-        }
-        for name, (lo, hi, fix) in checks.items():
+            if not isinstance(v, int | np.integer) or v < 1 or (name == "bit_depth" and v > 16):
+                raise ConfigurationError(f"detector.{name}: found {v!r}; expected a positive "
+                                         "integer (bit_depth <= 16: uint16 frames).")
+        checks = {"pixel_pitch_mm": (1.0, "e.g. 0.007 for the Ibis4"),
+                  "fill_factor": (1.0, "the sensitive fraction of the pixel, e.g. 0.5"),
+                  "qe": (1.0, "e.g. 0.7"), "gain_e_per_dn": (math.inf, "e.g. 40"),
+                  "full_well_e": (math.inf, "e.g. 62500"),
+                  "sensitive_aspect": (math.inf, "1 for a square photodiode")}
+        for name, (hi, fix) in checks.items():
             v = getattr(self, name)
-            if not (math.isfinite(v) and lo < v <= hi):
+            if not (math.isfinite(v) and 0.0 < v <= hi):
                 raise ConfigurationError(
-                    f"detector.{name}: found {v!r}; expected {lo} < value <= {hi}. Fix: {fix}."
-                )
-        for name in (
-            "read_noise_e",
-            "dark_signal_e",
-            "dsnu",
-            "column_fpn_dn",
-            "bias_dn",
-            "prnu",
-            "prnu_correlated",
-            "hot_pixel_fraction",
-            "hot_pixel_dark_e",
-            "diffusion_px",
-            "lid_thickness_mm",
-        ):
+                    f"detector.{name}: found {v!r}; expected 0.0 < value <= {hi}. Fix: {fix}.")
+        for name in ("read_noise_e", "dark_signal_e", "dsnu", "column_fpn_dn", "bias_dn", "prnu",
+                     "prnu_correlated", "hot_pixel_fraction", "hot_pixel_dark_e", "diffusion_px",
+                     "lid_thickness_mm"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0):
                 raise ConfigurationError(f"detector.{name}: found {v!r}; expected a value >= 0.")
         if not (math.isfinite(self.lid_index) and self.lid_index >= 1.0):
-            raise ConfigurationError(
-                f"detector.lid_index: found {self.lid_index!r}; expected a refractive index >= 1 "
-                "(Schott D263: 1.523)."
-            )
+            raise ConfigurationError(f"detector.lid_index: found {self.lid_index!r}; expected a "
+                                     "refractive index >= 1 (Schott D263: 1.523).")
         if self.prnu_correlation_px <= 0:
-            raise ConfigurationError(
-                f"detector.prnu_correlation_px: found {self.prnu_correlation_px!r}; "
-                "expected > 0 px."
-            )
+            raise ConfigurationError(f"detector.prnu_correlation_px: found "
+                                     f"{self.prnu_correlation_px!r}; expected > 0 px.")
         ax, ay = self.sensitive_size_px
         ox, oy = self.sensitive_offset_px
         if abs(ox) + ax / 2 > 0.5 + 1e-12 or abs(oy) + ay / 2 > 0.5 + 1e-12:
             raise ConfigurationError(
                 f"detector.sensitive_offset_px: found {self.sensitive_offset_px}; the {ax:.3f} x "
-                f"{ay:.3f} px sensitive area must stay inside its pixel. Fix: reduce the offset."
-            )
+                f"{ay:.3f} px sensitive area must stay inside its pixel. Fix: reduce the offset.")
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -301,9 +278,8 @@ def fixed_pattern(det: Detector) -> FixedPattern:
     if det.fixed_pattern:
         gain = 1.0 + det.prnu * rng.standard_normal(shape)
         if det.prnu_correlated > 0:
-            field = ndimage.gaussian_filter(
-                rng.standard_normal(shape), det.prnu_correlation_px, mode="wrap"
-            )
+            field = ndimage.gaussian_filter(rng.standard_normal(shape), det.prnu_correlation_px,
+                                            mode="wrap")
             field *= det.prnu_correlated / field.std()
             gain += field
         dark = det.dark_signal_e * (1.0 + det.dsnu * rng.standard_normal(shape))
@@ -318,13 +294,191 @@ def fixed_pattern(det: Detector) -> FixedPattern:
         offset = np.full(shape, det.bias_dn)
     g = det.gain_e_per_dn
     bg_mean = offset + dark / g
-    if det.temporal_noise:
-        bg_sigma = np.sqrt(dark + det.read_noise_e**2) / g
-    else:
-        bg_sigma = np.zeros(shape)
-    maps = [
-        np.ascontiguousarray(m, dtype=np.float32) for m in (gain, dark, offset, bg_mean, bg_sigma)
-    ]
+    bg_sigma = np.sqrt(dark + det.read_noise_e**2) / g if det.temporal_noise else np.zeros(shape)
+    maps = [np.ascontiguousarray(m, dtype=np.float32)
+            for m in (gain, dark, offset, bg_mean, bg_sigma)]
     for m in maps:
         m.setflags(write=False)
     return FixedPattern(*maps)
+
+
+# --------------------------------------------------------------------------- noise and ADC
+# The noise stream: SplitMix64 (Steele, Lea & Flood 2014), counter-based: output b of a frame's
+# stream is _mix64(state + b golden), and its four 16-bit fields, low bits first, index the
+# 65 536 equiprobable midpoint quantiles of N(0, 1) (:func:`normal_table`) for four
+# consecutive pixels (row-major). The numpy references draw the same stream on uint64 arrays
+# (whose arithmetic wraps modulo 2**64 as the compiled code's does): the same frames bit for bit.
+_GOLDEN = np.uint64(0x9E3779B97F4A7C15)
+_M1 = np.uint64(0xBF58476D1CE4E5B9)
+_M2 = np.uint64(0x94D049BB133111EB)
+
+
+def _mix64_numpy(z):
+    z = (z ^ (z >> np.uint64(30))) * _M1
+    z = (z ^ (z >> np.uint64(27))) * _M2
+    return z ^ (z >> np.uint64(31))
+
+
+_mix64 = numba.njit(inline="always")(_mix64_numpy)
+
+
+@functools.lru_cache(maxsize=1)
+def normal_table() -> np.ndarray:
+    """The 65 536 midpoint quantiles of N(0, 1), float32, read-only (variance 0.9998, tails at
+    4.3 sigma).
+
+    Returns
+    -------
+    numpy.ndarray of float32, shape (65536,)
+    """
+    from scipy.special import ndtri
+
+    t = ndtri((np.arange(65536) + 0.5) / 65536).astype(np.float32)
+    t.setflags(write=False)
+    return t
+
+
+@numba.njit(inline="always")
+def _to_dn32(v, top):
+    """floor(v + 0.5) clipped to 0 .. max_dn as uint16, for v float32 (top = max_dn + 0.5).
+    Bit for bit the float64 rounding: below 2**23 the float32 sum v + 0.5 is exact or rounds to
+    a neighbour never across an integer; clamping first makes truncation the floor."""
+    return np.uint16(np.int32(min(max(v + np.float32(0.5), np.float32(0.0)), top)))
+
+
+def _normal_deviates(table, state, n):
+    """The n deviates of the stream at ``state`` (uint64[1]), advanced past them (numpy)."""
+    steps = -(-n // 4)
+    counters = state + np.arange(1, steps + 1, dtype=np.uint64) * _GOLDEN
+    fields = _mix64_numpy(counters)[:, None] >> (np.uint64(16) * np.arange(4, dtype=np.uint64))
+    state += np.array([steps], dtype=np.uint64) * _GOLDEN  # in place, wrapping
+    return table[(fields & np.uint64(0xFFFF)).ravel()[:n]]
+
+
+def _round_clip(v, max_dn):
+    return np.clip(np.floor(np.asarray(v, dtype=np.float64) + 0.5), 0.0, max_dn).astype(np.uint16)
+
+
+def _adc_frame_numpy(mean_dn, sigma_dn, table, state, max_dn, out):
+    """numpy reference of :func:`adc_frame`."""
+    if table.shape[0] == 0:
+        out[...] = _round_clip(mean_dn, max_dn)
+        return
+    z = _normal_deviates(table, state, mean_dn.size).reshape(mean_dn.shape)
+    out[...] = _round_clip(mean_dn + sigma_dn * z, max_dn)  # float32, as the kernel sums
+
+
+@_jit.kernel(_adc_frame_numpy)
+def adc_frame(mean_dn, sigma_dn, table, state, max_dn, out):
+    """out = clip(rint(mean + sigma z), 0, max_dn) over a whole frame (float32 arithmetic).
+
+    Parameters
+    ----------
+    mean_dn, sigma_dn : ndarray of float32, shape (ny, nx)
+        Mean and standard deviation of every pixel (DN).
+    table : ndarray of float32, shape (65536,) or (0,)
+        :func:`normal_table`; empty for no noise.
+    state : ndarray of uint64, shape (1,)
+        The stream's counter, advanced one step per four pixels (rounded up).
+    max_dn : float
+        Full scale of the ADC (DN).
+    out : ndarray of uint16, shape (ny, nx)
+        Written with the frame (DN).
+
+    Returns
+    -------
+    None
+        ``out`` and ``state`` are written in place.
+    """
+    n = mean_dn.size
+    m, s, o = mean_dn.reshape(n), sigma_dn.reshape(n), out.reshape(n)
+    top = np.float32(max_dn + 0.5)
+    if table.shape[0] == 0:
+        for k in range(n):
+            o[k] = _to_dn32(m[k], top)
+        return
+    s0, low, n4 = state[0], np.uint64(0xFFFF), n // 4
+    for b in range(n4):  # four pixels per output: no bits carried between iterations
+        r = _mix64(s0 + np.uint64(b + 1) * _GOLDEN)
+        k = 4 * b
+        for q in range(4):
+            o[k + q] = _to_dn32(m[k + q] + s[k + q] * table[(r >> np.uint64(16 * q)) & low], top)
+    steps = n4 + (1 if n > 4 * n4 else 0)
+    if n > 4 * n4:
+        r = _mix64(s0 + np.uint64(steps) * _GOLDEN)
+        for k in range(4 * n4, n):
+            o[k] = _to_dn32(m[k] + s[k] * table[r & low], top)
+            r = r >> np.uint64(16)
+    state[0] = s0 + np.uint64(steps) * _GOLDEN
+
+
+def _adc_region_numpy(y0, x0, signal_e, gain, dark_e, offset_dn, table, state, read_var_e,
+                      inv_gain, full_well_e, max_dn, out):
+    """numpy reference of :func:`adc_region`."""
+    ny, nx = signal_e.shape
+    box = (slice(y0, y0 + ny), slice(x0, x0 + nx))
+    e = np.maximum(gain[box] * signal_e + dark_e[box], 0.0)
+    if table.shape[0] > 0:
+        z = _normal_deviates(table, state, signal_e.size).reshape(signal_e.shape)
+        e = e + np.sqrt(e + read_var_e) * z.astype(np.float64)
+    out[box] = _round_clip(offset_dn[box] + np.minimum(e, full_well_e) * inv_gain, max_dn)
+
+
+@_jit.kernel(_adc_region_numpy)
+def adc_region(y0, x0, signal_e, gain, dark_e, offset_dn, table, state, read_var_e, inv_gain,
+               full_well_e, max_dn, out):
+    """Recompute the pixels of a region holding spot signal, continuing the frame's stream.
+
+    Electrons e = max(gain signal + dark, 0), plus sqrt(e + read noise^2) z (photon and dark
+    shot noise in the Gaussian limit), saturated at the full well, rounded and clipped by the
+    ADC. The deviates are drawn first, then each row is computed branch-free (the compiler
+    vectorises it).
+
+    Parameters
+    ----------
+    y0, x0 : int
+        Row and column of the region's first pixel in the frame.
+    signal_e : ndarray of float64, shape (ny, nx)
+        Photo-electrons of the spot signal before PRNU.
+    gain, dark_e, offset_dn : ndarray of float32, shape of the frame
+        PRNU gain, dark electrons and offset (DN) of every pixel.
+    table, state
+        As :func:`adc_frame`'s.
+    read_var_e, inv_gain, full_well_e, max_dn : float
+        Read-noise variance (e^2), DN per electron, saturation (e), full scale (DN).
+    out : ndarray of uint16, shape of the frame
+        The frame; the region's pixels are rewritten.
+
+    Returns
+    -------
+    None
+        ``out`` and ``state`` are written in place.
+    """
+    ny, nx = signal_e.shape
+    n = ny * nx
+    noisy = table.shape[0] > 0
+    z = np.zeros(n if noisy else 0, dtype=np.float32)
+    if noisy:
+        s0, low, n4 = state[0], np.uint64(0xFFFF), n // 4
+        for b in range(n4):
+            r = _mix64(s0 + np.uint64(b + 1) * _GOLDEN)
+            for q in range(4):
+                z[4 * b + q] = table[(r >> np.uint64(16 * q)) & low]
+        steps = n4 + (1 if n > 4 * n4 else 0)
+        if n > 4 * n4:
+            r = _mix64(s0 + np.uint64(steps) * _GOLDEN)
+            for k in range(4 * n4, n):
+                z[k] = table[r & low]
+                r = r >> np.uint64(16)
+        state[0] = s0 + np.uint64(steps) * _GOLDEN
+    top = max_dn + 0.5
+    for i in range(ny):
+        yy, xb = y0 + i, x0 + nx
+        g, d, off, o = gain[yy, x0:xb], dark_e[yy, x0:xb], offset_dn[yy, x0:xb], out[yy, x0:xb]
+        sig, zi = signal_e[i], z[i * nx:(i + 1) * nx] if noisy else z
+        for j in range(nx):
+            e = max(g[j] * sig[j] + d[j], 0.0)
+            if noisy:
+                e += math.sqrt(e + read_var_e) * zi[j]
+            e = min(e, full_well_e)
+            o[j] = np.uint16(np.int32(min(max(np.float64(off[j] + e * inv_gain) + 0.5, 0.0), top)))

@@ -22,15 +22,13 @@ Examples
 
 from __future__ import annotations
 
-import functools
-
 import numpy as np
 
 from ..errors import ConfigurationError
-from . import _kernels
-from .detector import Detector, fixed_pattern
+from .detector import Detector, adc_frame, adc_region, fixed_pattern, normal_table
 from .platform import sensor_sun_vector
-from .render import _groups, _hole_centres_mm, _rays, frame_key, mask_play, spot_geometry
+from .render import _hole_centres_mm, _rays, frame_key, mask_play, spot_geometry
+from .spots import _groups
 
 __all__ = ["render_frame"]
 
@@ -99,8 +97,7 @@ def _clip_region(img, x0, y0, det: Detector):
 def _signal_map(stamps, det: Detector):
     """The regions [(signal, xa, ya), ...] of the stamps clipped to the detector, in their order;
     where stamps overlap, each region holds the sum of all stamps over it."""
-    regions = [c for c in (_clip_region(img, x0, y0, det) for img, x0, y0 in stamps)
-               if c is not None]
+    regions = [c for c in (_clip_region(img, x0, y0, det) for img, x0, y0 in stamps) if c]
     if len(regions) < 2:
         return regions
     box = np.array([(xa, ya, xa + p.shape[1], ya + p.shape[0]) for p, xa, ya in regions])
@@ -127,13 +124,6 @@ def _signal_map(stamps, det: Detector):
         for k, v, x, y in views:
             out[k] = (v, x, y)
     return out
-
-
-@functools.lru_cache(maxsize=1)
-def _table():
-    t = _kernels.normal_table()
-    t.setflags(write=False)
-    return t
 
 
 def expected_frame(bench, alpha_true, beta_true, *, play_mm=(0.0, 0.0)):
@@ -176,10 +166,8 @@ def expected_frame(bench, alpha_true, beta_true, *, play_mm=(0.0, 0.0)):
     return mean, var
 
 
-def render_frame(
-    bench, alpha_true, beta_true, *, seed, pose: int = 0, shot: int = 0, play_mm=None, out=None,
-    shape_angles=None,
-) -> np.ndarray:
+def render_frame(bench, alpha_true, beta_true, *, seed, pose: int = 0, shot: int = 0,
+                 play_mm=None, out=None, shape_angles=None) -> np.ndarray:
     """One full detector frame, uint16 (ny, nx), deterministic in (seed, pose, shot).
 
     Parameters
@@ -218,14 +206,7 @@ def render_frame(
     >>> f1.dtype.name, f1.shape, bool((f1 == f2).all())
     ('uint16', (1024, 1280), True)
     """
-    det = bench.detector
-    if out is None:
-        out = np.empty(det.shape, dtype=np.uint16)
-    elif out.shape != det.shape or out.dtype != np.uint16 or not out.flags.c_contiguous:
-        raise ConfigurationError(
-            f"out: found {out.dtype} {out.shape}; expected a C-contiguous uint16 array of shape "
-            f"{det.shape}. Fix: pass numpy.empty({det.shape}, dtype=numpy.uint16) or omit out."
-        )
+    out = _output(out, bench.detector.shape)
     if play_mm is None:
         play_mm = mask_play(bench, seed, pose)
     ref = (alpha_true, beta_true) if shape_angles is None else shape_angles
@@ -269,26 +250,28 @@ def render_pose(bench, alpha_true, beta_true, *, seed, pose: int = 0, out=None) 
     >>> frames.shape, bool((frames[1] == one).all())
     ((2, 1024, 1280), True)
     """
-    det = bench.detector
     a = np.atleast_1d(np.asarray(alpha_true, dtype=float))
     b = np.atleast_1d(np.asarray(beta_true, dtype=float))
     if a.shape != b.shape or a.ndim != 1:
         raise ConfigurationError(
             f"alpha_true, beta_true: found shapes {a.shape} and {b.shape}; expected two 1-D "
-            "arrays of the same length (one angle per shot)."
-        )
-    shape = (a.size,) + det.shape
-    if out is None:
-        out = np.empty(shape, dtype=np.uint16)
-    elif out.shape != shape or out.dtype != np.uint16 or not out.flags.c_contiguous:
-        raise ConfigurationError(
-            f"out: found {out.dtype} {out.shape}; expected a C-contiguous uint16 array of shape "
-            f"{shape}. Fix: pass numpy.empty({shape}, dtype=numpy.uint16) or omit out."
-        )
+            "arrays of the same length (one angle per shot).")
+    out = _output(out, (a.size,) + bench.detector.shape)
     play_mm = mask_play(bench, seed, pose)
     per_shot = _pose_stamps(bench, a, b, play_mm, (a[0], b[0]))
     for k, stamps in enumerate(per_shot):
         _expose(bench, stamps, seed, pose, k, out[k])
+    return out
+
+
+def _output(out, shape):
+    """``out``, checked, or a new uint16 array of ``shape``."""
+    if out is None:
+        return np.empty(shape, dtype=np.uint16)
+    if out.shape != shape or out.dtype != np.uint16 or not out.flags.c_contiguous:
+        raise ConfigurationError(
+            f"out: found {out.dtype} {out.shape}; expected a C-contiguous uint16 array of shape "
+            f"{shape}. Fix: pass numpy.empty({shape}, dtype=numpy.uint16) or omit out.")
     return out
 
 
@@ -297,24 +280,12 @@ def _expose(bench, stamps, seed, pose, shot, out):
     hold spot signal (``stamps``) recomputed with their photon noise."""
     det = bench.detector
     fp = fixed_pattern(det)
-    table = _table() if det.temporal_noise else np.empty(0, dtype=np.float32)
+    table = normal_table() if det.temporal_noise else np.empty(0, dtype=np.float32)
     state = frame_key(seed, pose, shot).generate_state(1, dtype=np.uint64)
     max_dn = float(det.max_dn)
-    _kernels.adc_frame(fp.bg_mean_dn, fp.bg_sigma_dn, table, state, max_dn, out)
+    adc_frame(fp.bg_mean_dn, fp.bg_sigma_dn, table, state, max_dn, out)
     read_var = float(det.read_noise_e**2) if det.temporal_noise else 0.0
     for part, xa, ya in _signal_map(stamps, det):
-        _kernels.adc_region(
-            ya,
-            xa,
-            np.ascontiguousarray(part, dtype=np.float64),
-            fp.gain,
-            fp.dark_e,
-            fp.offset_dn,
-            table,
-            state,
-            read_var,
-            1.0 / det.gain_e_per_dn,
-            float(det.full_well_e),
-            max_dn,
-            out,
-        )
+        adc_region(ya, xa, np.ascontiguousarray(part, dtype=np.float64), fp.gain, fp.dark_e,
+                   fp.offset_dn, table, state, read_var, 1.0 / det.gain_e_per_dn,
+                   float(det.full_well_e), max_dn, out)

@@ -1,4 +1,4 @@
-"""The pinhole mask: holes (position, diameter, shape, defects) and the mask's placement errors.
+"""The pinhole mask: its holes (:mod:`sunlab.sim.holes`), layouts and placement errors.
 
 Frames and units. The mask frame has its origin above the centre of the detector (the design
 point, pixel ((nx - 1) / 2, (ny - 1) / 2)), x along the detector columns and y along the rows, in
@@ -8,15 +8,6 @@ plane sits at height ``distance_mm + delta_f_mm`` above the focal plane; it may 
 (``tilt_x_deg`` about x, ``tilt_y_deg`` about y), rotated in its plane (``rotation_deg``) about its
 origin and offset (``offset_x_mm, offset_y_mm``). ``play_x_mm, play_y_mm`` model a loosely held
 mask: at every pose it sits at a new offset within +-play, uniformly distributed.
-
-Defects (per hole, any combination):
-
-* :class:`Dust` -- an opaque particle over part of the hole, optionally standing ``height_mm``
-  above the mask plane, so that its shadow slides over the aperture with the sun angle (a
-  pose-dependent centroid error: a "bad hole" of docs/paper.md Fig. 14);
-* :class:`Elliptical` -- an elliptical outline (a drill that wandered, an etch that ran);
-* :class:`Burred` -- an irregular, burred rim (random low-order harmonics of the radius);
-* :class:`Undersized` -- a smaller diameter (a partly closed hole).
 
 Examples
 --------
@@ -30,14 +21,13 @@ Examples
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..errors import ConfigurationError
-from ..schema import DEFECT_FLAGS
+from .holes import _DEFECT_TYPES, Burred, Dust, Elliptical, Hole, Undersized, _check, _positive
 
-__all__ = ["Hole", "Mask", "Dust"]
+__all__ = ["Mask"]
 
 
 #: Centre of the paper-like 10 x 10 grid relative to the detector centre, mm (our choice): the
@@ -59,313 +49,6 @@ PAPER_DISTANCE_MM = 5.0
 #: 10 x 10 grid (:data:`PAPER_GRID_CENTRE_MM`), so that the one spot's track over the test
 #: range (about 250 x 260 px at F = 5 mm) sits where the grid's central spots go.
 PAPER_TRACK_CENTRE_MM = PAPER_GRID_CENTRE_MM
-
-
-def _positive(name: str, value: float, fix: str) -> None:
-    if not (
-        isinstance(value, int | float | np.floating | np.integer)
-        and math.isfinite(value)
-        and value > 0
-    ):
-        raise ConfigurationError(f"{name}: found {value!r}; expected a positive number. Fix: {fix}")
-
-
-@dataclass(frozen=True)
-class Dust:
-    """An opaque dust particle partly covering a hole.
-
-    Parameters
-    ----------
-    dx_mm, dy_mm : float
-        Centre of the particle relative to the hole centre, mask frame, mm.
-    diameter_mm : float
-        Particle diameter, mm.
-    height_mm : float
-        Height of the particle above the mask plane (toward the sun), mm. 0: it lies in the hole's
-        plane and only removes a fixed part of the aperture (a constant centroid offset). > 0: its
-        shadow moves by ``height * tan(theta)`` with the sun angle, so the occluded part of the
-        aperture and the centroid error change from pose to pose.
-    """
-
-    dx_mm: float = 0.07
-    dy_mm: float = 0.0
-    diameter_mm: float = 0.06
-    height_mm: float = 0.03
-
-    def __post_init__(self):
-        _positive("dust.diameter_mm", self.diameter_mm, "pass the particle size in mm, e.g. 0.05")
-        if not (math.isfinite(self.height_mm) and self.height_mm >= 0):
-            raise ConfigurationError(
-                f"dust.height_mm: found {self.height_mm!r}; expected >= 0 mm. Fix: 0 for a particle"
-                " in the hole plane."
-            )
-
-
-@dataclass(frozen=True)
-class Elliptical:
-    """An elliptical outline: the hole's diameter is the major axis, ``axis_ratio`` = minor/major.
-
-    Parameters
-    ----------
-    axis_ratio : float
-        Minor over major axis, 0 < ratio <= 1.
-    angle_deg : float
-        Angle of the major axis from the mask x axis, deg.
-    """
-
-    axis_ratio: float = 0.85
-    angle_deg: float = 30.0
-
-    def __post_init__(self):
-        if not (0.0 < self.axis_ratio <= 1.0):
-            raise ConfigurationError(
-                f"elliptical.axis_ratio: found {self.axis_ratio!r}; expected 0 < ratio <= 1. "
-                "Fix: pass minor/major, e.g. 0.85."
-            )
-
-
-@dataclass(frozen=True)
-class Burred:
-    """An irregular (burred) rim: r(phi) = r0 (1 + sum_k a_k cos(k phi + phi_k)).
-
-    Parameters
-    ----------
-    amplitude : float
-        RMS relative perturbation of the radius (0.05 = 5 % of the radius).
-    seed : int
-        Seed of the random harmonic amplitudes and phases (the hole's own shape).
-    harmonics : tuple of int
-        Lowest and highest harmonic k.
-    """
-
-    amplitude: float = 0.05
-    seed: int = 0
-    harmonics: tuple[int, int] = (2, 12)
-
-    def __post_init__(self):
-        if not (0.0 <= self.amplitude < 0.3):
-            raise ConfigurationError(
-                f"burred.amplitude: found {self.amplitude!r}; expected 0 <= amplitude < 0.3 "
-                "(relative"
-                " RMS radius error). Fix: pass e.g. 0.05."
-            )
-
-    def radius_factor(self, phi: np.ndarray) -> np.ndarray:
-        """1 + sum_k a_k cos(k phi + phi_k), the relative radius at polar angles ``phi`` (rad).
-
-        Parameters
-        ----------
-        phi : numpy.ndarray, shape (n,)
-            Polar angles about the hole centre, rad.
-
-        Returns
-        -------
-        numpy.ndarray, shape (n,)
-            Radius at each angle over the design radius; the harmonics' amplitudes and phases
-            come from ``seed``, scaled to an RMS of ``amplitude``.
-        """
-        k = np.arange(self.harmonics[0], self.harmonics[1] + 1)
-        rng = np.random.default_rng(np.random.SeedSequence([int(self.seed), 0xB0B]))
-        a = rng.standard_normal(k.size) / np.sqrt(k)
-        a *= self.amplitude * np.sqrt(2.0) / np.sqrt(np.sum(a * a))
-        ph = rng.uniform(0.0, 2 * np.pi, k.size)
-        return 1.0 + np.sum(a[:, None] * np.cos(k[:, None] * phi[None, :] + ph[:, None]), axis=0)
-
-
-@dataclass(frozen=True)
-class Undersized:
-    """A hole smaller than designed: diameter multiplied by ``factor`` (0 < factor <= 1)."""
-
-    factor: float = 0.8
-
-    def __post_init__(self):
-        if not (0.0 < self.factor <= 1.0):
-            raise ConfigurationError(
-                f"undersized.factor: found {self.factor!r}; expected 0 < factor <= 1. "
-                "Fix: pass e.g. 0.8 for a hole 20 % too small."
-            )
-
-
-_DEFECT_TYPES = (Dust, Elliptical, Burred, Undersized)
-
-
-@dataclass(frozen=True)
-class Hole:
-    """One pinhole of the mask.
-
-    Parameters
-    ----------
-    x_mm, y_mm : float
-        Design position of the hole centre in the mask frame, mm (x along columns, y along rows).
-    diameter_mm : float
-        Design diameter, mm (the paper: 0.2).
-    shape : {"circle", "square"}
-        Design outline; a square's side equals ``diameter_mm``.
-    defect : Dust, Elliptical, Burred, Undersized or a tuple of them, optional
-        Manufacturing defects or contamination; stored as a tuple.
-    i, j : int
-        Grid row and column of the hole (-1 when the mask is not a grid).
-
-    Examples
-    --------
-    >>> h = Hole(0.0, 0.0, 0.2, defect=Undersized(0.5))
-    >>> round(h.area_mm2(), 6)  # pi (0.05 mm)^2
-    0.007854
-    """
-
-    x_mm: float
-    y_mm: float
-    diameter_mm: float = 0.2
-    shape: str = "circle"
-    defect: tuple = field(default=())
-    i: int = -1
-    j: int = -1
-
-    def __post_init__(self):
-        for name in ("x_mm", "y_mm"):
-            v = getattr(self, name)
-            if not math.isfinite(v):
-                raise ConfigurationError(f"hole.{name}: found {v!r}; expected a finite position.")
-        _positive("hole.diameter_mm", self.diameter_mm, "pass the hole diameter in mm, e.g. 0.2")
-        if self.shape not in ("circle", "square"):
-            raise ConfigurationError(
-                f"hole.shape: found {self.shape!r}; expected 'circle' or 'square'. "
-                "Fix: describe irregular outlines with a Burred or Elliptical defect."
-            )
-        d = self.defect
-        d = () if d is None else (d,) if isinstance(d, _DEFECT_TYPES) else tuple(d)
-        for item in d:
-            if not isinstance(item, _DEFECT_TYPES):
-                raise ConfigurationError(
-                    f"hole.defect: found {item!r}; expected Dust, Elliptical, Burred or Undersized."
-                )
-        object.__setattr__(self, "defect", d)
-
-    def _find(self, kind):
-        return [d for d in self.defect if isinstance(d, kind)]
-
-    @property
-    def defect_flags(self) -> int:
-        """Bit flags of the defects (:data:`DEFECT_FLAGS`); 0 for a good hole."""
-        flags = 0
-        for name, kind in zip(DEFECT_FLAGS, _DEFECT_TYPES, strict=True):
-            if self._find(kind):
-                flags |= DEFECT_FLAGS[name]
-        return flags
-
-    @property
-    def effective_diameter_mm(self) -> float:
-        """Design diameter times the :class:`Undersized` factors, mm."""
-        d = self.diameter_mm
-        for u in self._find(Undersized):
-            d *= u.factor
-        return d
-
-    def affine(self) -> np.ndarray | None:
-        """2 x 2 matrix mapping the unit disk onto the (elliptical) aperture, mask frame, mm.
-
-        None when the outline is not an affine image of a circle (square or burred holes).
-
-        Returns
-        -------
-        numpy.ndarray, shape (2, 2), or None
-            The effective radius (undersizing included) times the ellipses' stretches, mm.
-        """
-        if self.shape != "circle" or self._find(Burred):
-            return None
-        r = self.effective_diameter_mm / 2.0
-        a = np.diag([r, r])
-        for e in self._find(Elliptical):
-            c, s = math.cos(math.radians(e.angle_deg)), math.sin(math.radians(e.angle_deg))
-            rot = np.array([[c, -s], [s, c]])
-            a = rot @ np.diag([1.0, e.axis_ratio]) @ rot.T @ a
-        return a
-
-    def outline(self, n: int = 72) -> np.ndarray:
-        """The aperture outline as a counter-clockwise polygon, (n, 2) mm relative to the centre.
-
-        Parameters
-        ----------
-        n : int
-            Number of vertices.
-
-        Returns
-        -------
-        numpy.ndarray, shape (n, 2)
-            Vertices (x, y), mm, in the mask frame; a circle's vertices sit slightly outside it
-            so that the polygon keeps its area.
-        """
-        phi = np.linspace(0.0, 2 * np.pi, n, endpoint=False)
-        r = self.effective_diameter_mm / 2.0
-        if self.shape == "square":
-            # Polar radius of a square of side 2 r, sampled at the same angles plus its corners.
-            c = np.cos(phi)
-            s = np.sin(phi)
-            rho = r / np.maximum(np.abs(c), np.abs(s))
-        else:
-            # vertices slightly outside the circle so that the polygon keeps the circle's area
-            rho = np.full(n, r * math.sqrt((2 * math.pi / n) / math.sin(2 * math.pi / n)))
-        for b in self._find(Burred):
-            rho = rho * b.radius_factor(phi)
-        pts = np.stack([rho * np.cos(phi), rho * np.sin(phi)], axis=-1)
-        for e in self._find(Elliptical):
-            c, s = math.cos(math.radians(e.angle_deg)), math.sin(math.radians(e.angle_deg))
-            rot = np.array([[c, -s], [s, c]])
-            pts = pts @ (rot @ np.diag([1.0, e.axis_ratio]) @ rot.T).T
-        return pts
-
-    def occluders(self, n: int = 36) -> list[tuple[np.ndarray, float]]:
-        """Dust particles as (convex polygon (n, 2) mm relative to the hole centre, height mm).
-
-        Parameters
-        ----------
-        n : int
-            Vertices of each particle's polygon.
-
-        Returns
-        -------
-        list of (numpy.ndarray, float)
-            One entry per :class:`Dust` defect: its outline (n, 2) mm and its height above the
-            mask, mm; empty for a clean hole.
-        """
-        out = []
-        phi = np.linspace(0.0, 2 * np.pi, n, endpoint=False)
-        for d in self._find(Dust):
-            r = d.diameter_mm / 2.0
-            poly = np.stack([d.dx_mm + r * np.cos(phi), d.dy_mm + r * np.sin(phi)], axis=-1)
-            out.append((poly, float(d.height_mm)))
-        return out
-
-    def area_mm2(self) -> float:
-        """Open area of the aperture at normal incidence, mm^2 (dust in the hole plane removed
-        only approximately: use the renderer for exact areas).
-
-        Returns
-        -------
-        float
-            pi abs(det A) for an affine outline (:meth:`affine`), else the area of a 512-vertex
-            polygon of the outline, mm^2.
-        """
-        a = self.affine()
-        if a is not None:
-            return float(math.pi * abs(np.linalg.det(a)))
-        p = self.outline(512)
-        x, y = p[:, 0], p[:, 1]
-        return float(0.5 * np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
-
-    def max_radius_mm(self) -> float:
-        """Largest distance of the outline from the hole centre, mm.
-
-        Returns
-        -------
-        float
-            The largest semi-axis of an affine outline, else the outline's largest vertex
-            radius, mm.
-        """
-        a = self.affine()
-        if a is not None:
-            return float(np.linalg.norm(a, 2))
-        return float(np.max(np.hypot(*self.outline(256).T)))
 
 
 @dataclass(frozen=True)
@@ -420,52 +103,35 @@ class Mask:
 
     def __post_init__(self):
         object.__setattr__(self, "holes", tuple(self.holes))
-        if not isinstance(self.diffraction, bool | np.bool_):
-            raise ConfigurationError(
-                f"mask.diffraction: found {self.diffraction!r}; expected True or False. Fix: pass "
-                "diffraction=True for the Fresnel spot, False for the geometric shadow."
-            )
+        _check(isinstance(self.diffraction, bool | np.bool_), "mask.diffraction", self.diffraction,
+               "True or False", "pass diffraction=True for the Fresnel spot, False for the "
+               "geometric shadow.")
         object.__setattr__(self, "diffraction", bool(self.diffraction))
         object.__setattr__(self, "size_mm", tuple(float(v) for v in self.size_mm))
-        if not self.holes:
-            raise ConfigurationError(
-                "mask.holes: found no holes; expected at least one Hole. Fix: use "
-                "Mask.single_hole() or Mask.grid()."
-            )
+        _check(bool(self.holes), "mask.holes", self.holes, "at least one Hole",
+               "use Mask.single_hole() or Mask.grid().")
         for h in self.holes:
-            if not isinstance(h, Hole):
-                raise ConfigurationError(f"mask.holes: found {h!r}; expected Hole objects.")
-        if not (math.isfinite(self.distance_mm) and self.distance_mm > 0):
-            raise ConfigurationError(
-                f"mask.distance_mm: found {self.distance_mm!r}; expected a positive mask-to-focal-"
-                "plane distance F in mm. Fix: pass distance_mm=5.0."
-            )
-        if not (math.isfinite(self.delta_f_mm) and self.distance_mm + self.delta_f_mm > 0):
-            raise ConfigurationError(
-                f"mask.delta_f_mm: found {self.delta_f_mm!r}; the true distance F + dF = "
-                f"{self.distance_mm + self.delta_f_mm!r} mm must be positive. Fix: keep |dF| < F."
-            )
+            _check(isinstance(h, Hole), "mask.holes", h, "Hole objects")
+        _check(math.isfinite(self.distance_mm) and self.distance_mm > 0, "mask.distance_mm",
+               self.distance_mm, "a positive mask-to-focal-plane distance F in mm",
+               "pass distance_mm=5.0.")
+        _check(math.isfinite(self.delta_f_mm) and self.distance_mm + self.delta_f_mm > 0,
+               "mask.delta_f_mm", self.delta_f_mm, "a true distance F + dF = "
+               f"{self.distance_mm + self.delta_f_mm!r} mm > 0", "keep |dF| < F.")
         for name in ("tilt_x_deg", "tilt_y_deg"):
             v = getattr(self, name)
-            if not (math.isfinite(v) and abs(v) < 30.0):
-                raise ConfigurationError(
-                    f"mask.{name}: found {v!r}; expected a small tilt |tilt| < 30 deg."
-                )
+            _check(math.isfinite(v) and abs(v) < 30.0, f"mask.{name}", v,
+                   "a small tilt |tilt| < 30 deg")
         for name in ("play_x_mm", "play_y_mm"):
             v = getattr(self, name)
-            if not (math.isfinite(v) and v >= 0):
-                raise ConfigurationError(
-                    f"mask.{name}: found {v!r}; expected a half-width >= 0 mm."
-                )
+            _check(math.isfinite(v) and v >= 0, f"mask.{name}", v, "a half-width >= 0 mm")
         w, h = self.size_mm
         for k, hole in enumerate(self.holes):
             r = hole.max_radius_mm()
-            if abs(hole.x_mm) + r > w / 2 or abs(hole.y_mm) + r > h / 2:
-                raise ConfigurationError(
-                    f"mask.holes[{k}]: found a hole at ({hole.x_mm:g}, {hole.y_mm:g}) mm, off the "
-                    f"{w:g} x {h:g} mm mask centred on the detector. Fix: move the hole within "
-                    f"+-{w / 2:g}, +-{h / 2:g} mm or enlarge size_mm."
-                )
+            _check(abs(hole.x_mm) + r <= w / 2 and abs(hole.y_mm) + r <= h / 2,
+                   f"mask.holes[{k}]", (hole.x_mm, hole.y_mm),
+                   f"a hole on the {w:g} x {h:g} mm mask centred on the detector",
+                   f"move the hole within +-{w / 2:g}, +-{h / 2:g} mm or enlarge size_mm.")
 
     @property
     def true_distance_mm(self) -> float:
@@ -484,19 +150,11 @@ class Mask:
         numpy.ndarray, shape (3, 3)
             From ``tilt_x_deg``, ``tilt_y_deg`` and ``rotation_deg``.
         """
-        tx, ty, rz = (
-            math.radians(v) for v in (self.tilt_x_deg, self.tilt_y_deg, self.rotation_deg)
-        )
-        rx = np.array(
-            [[1, 0, 0], [0, math.cos(tx), -math.sin(tx)], [0, math.sin(tx), math.cos(tx)]]
-        )
-        ry = np.array(
-            [[math.cos(ty), 0, math.sin(ty)], [0, 1, 0], [-math.sin(ty), 0, math.cos(ty)]]
-        )
-        rzm = np.array(
-            [[math.cos(rz), -math.sin(rz), 0], [math.sin(rz), math.cos(rz), 0], [0, 0, 1]]
-        )
-        return rzm @ ry @ rx
+        cx, sx, cy, sy, cz, sz = (f(math.radians(v)) for v in (self.tilt_x_deg, self.tilt_y_deg,
+                                  self.rotation_deg) for f in (math.cos, math.sin))
+        return (np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
+                @ np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
+                @ np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]]))
 
     def replace(self, **changes) -> Mask:
         """A copy with some fields changed (``dataclasses.replace``).
@@ -540,9 +198,8 @@ class Mask:
 
     # ------------------------------------------------------------------ constructors
     @classmethod
-    def single_hole(
-        cls, diameter_mm: float = 0.2, x_mm: float = 0.0, y_mm: float = 0.0, **kwargs
-    ) -> Mask:
+    def single_hole(cls, diameter_mm: float = 0.2, x_mm: float = 0.0, y_mm: float = 0.0,
+                    **kwargs) -> Mask:
         """The paper's one-hole mask: a 0.2 mm pinhole above the detector centre.
 
         Parameters
@@ -562,15 +219,8 @@ class Mask:
         return cls(holes=(Hole(x_mm, y_mm, diameter_mm),), **kwargs)
 
     @classmethod
-    def grid(
-        cls,
-        rows: int = 10,
-        cols: int = 10,
-        pitch_mm: float = 0.5,
-        diameter_mm: float = 0.2,
-        centre_mm: tuple[float, float] = (0.0, 0.0),
-        **kwargs,
-    ) -> Mask:
+    def grid(cls, rows: int = 10, cols: int = 10, pitch_mm: float = 0.5, diameter_mm: float = 0.2,
+             centre_mm: tuple[float, float] = (0.0, 0.0), **kwargs) -> Mask:
         """A rows x cols grid of identical holes at ``pitch_mm`` (the paper: 10 x 10, 0.5 mm).
 
         Hole ``k = i * cols + j`` is at grid row ``i`` (along y) and column ``j`` (along x).
@@ -590,35 +240,19 @@ class Mask:
         -------
         Mask
         """
-        if rows < 1 or cols < 1:
-            raise ConfigurationError(f"grid: found {rows} x {cols} holes; expected >= 1 x 1.")
+        _check(rows >= 1 and cols >= 1, "grid", f"{rows} x {cols} holes", ">= 1 x 1")
         _positive("grid.pitch_mm", pitch_mm, "pass the hole spacing in mm, e.g. 0.5")
-        holes = []
-        for i in range(rows):
-            for j in range(cols):
-                holes.append(
-                    Hole(
-                        centre_mm[0] + (j - (cols - 1) / 2) * pitch_mm,
-                        centre_mm[1] + (i - (rows - 1) / 2) * pitch_mm,
-                        diameter_mm,
-                        i=i,
-                        j=j,
-                    )
-                )
+        holes = [Hole(centre_mm[0] + (j - (cols - 1) / 2) * pitch_mm,
+                      centre_mm[1] + (i - (rows - 1) / 2) * pitch_mm, diameter_mm, i=i, j=j)
+                 for i in range(rows) for j in range(cols)]
         kwargs.setdefault("name", f"grid{rows}x{cols}")
         return cls(holes=tuple(holes), **kwargs)
 
     @classmethod
-    def random_layout(
-        cls,
-        n: int = 50,
-        *,
-        seed: int = 0,
-        diameter_mm: tuple[float, float] = (0.12, 0.3),
-        region_mm: tuple[float, float, float, float] = (-1.8, 2.8, -3.0, 1.4),
-        min_separation_mm: float = 0.45,
-        **kwargs,
-    ) -> Mask:
+    def random_layout(cls, n: int = 50, *, seed: int = 0,
+                      diameter_mm: tuple[float, float] = (0.12, 0.3),
+                      region_mm: tuple[float, float, float, float] = (-1.8, 2.8, -3.0, 1.4),
+                      min_separation_mm: float = 0.45, **kwargs) -> Mask:
         """Randomly placed holes of random diameters (the paper's open problem, docs/paper.md
         sec. 6).
 
@@ -650,22 +284,19 @@ class Mask:
         """
         rng = np.random.default_rng(np.random.SeedSequence([int(seed), 0x5EED]))
         pts: list[tuple[float, float]] = []
-        tries = 0
-        while len(pts) < n:
-            tries += 1
-            if tries > 200 * n:
-                raise ConfigurationError(
-                    f"random_layout: could not place {n} holes {min_separation_mm} mm apart in "
-                    f"{region_mm}. Fix: fewer holes, a smaller separation or a larger region."
-                )
+        for _ in range(200 * n):
+            if len(pts) == n:
+                break
             p = (rng.uniform(region_mm[0], region_mm[1]), rng.uniform(region_mm[2], region_mm[3]))
             if all(math.hypot(p[0] - q[0], p[1] - q[1]) >= min_separation_mm for q in pts):
                 pts.append(p)
+        _check(len(pts) == n, "random_layout", f"{len(pts)} of {n} holes placed",
+               f"{n} holes {min_separation_mm} mm apart in {region_mm}",
+               "fewer holes, a smaller separation or a larger region.")
         d = rng.uniform(diameter_mm[0], diameter_mm[1], n)
         kwargs.setdefault("name", f"random{n}")
-        return cls(
-            holes=tuple(Hole(x, y, float(dk)) for (x, y), dk in zip(pts, d, strict=True)), **kwargs
-        )
+        return cls(holes=tuple(Hole(x, y, float(dk)) for (x, y), dk in zip(pts, d, strict=True)),
+                   **kwargs)
 
     def with_random_defects(self, n_bad: int, *, seed: int = 0) -> Mask:
         """A copy with ``n_bad`` randomly chosen holes given random defects (dust standing above
@@ -691,12 +322,8 @@ class Mask:
             if kind == 0:
                 ang = rng.uniform(0, 2 * np.pi)
                 dist = rng.uniform(0.6, 0.9) * r
-                out[k] = Dust(
-                    dist * math.cos(ang),
-                    dist * math.sin(ang),
-                    rng.uniform(0.5, 0.8) * r,
-                    rng.uniform(0.02, 0.05),
-                )
+                out[k] = Dust(dist * math.cos(ang), dist * math.sin(ang),
+                              rng.uniform(0.5, 0.8) * r, rng.uniform(0.02, 0.05))
             elif kind == 1:
                 out[k] = Burred(rng.uniform(0.04, 0.08), seed=int(rng.integers(1 << 30)))
             elif kind == 2:

@@ -54,6 +54,7 @@ Examples
 from __future__ import annotations
 
 import math
+import zlib
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -61,7 +62,7 @@ import numpy as np
 from ..errors import ConfigurationError
 from ..geometry.model import rotation_x, rotation_y, rotation_z
 
-__all__ = ["Platform"]
+__all__ = ["Platform", "platform_pose"]
 
 
 @dataclass(frozen=True)
@@ -98,12 +99,12 @@ class Platform:
         absorbs its own run's offset, so a test run is off by the difference of the two.
     beta_drift_deg : float
         Thermal drift of the inner axis's zero per run, deg: a run's zero is off by its place
-        in the session (:data:`sunlab.sim.bench.RUN_ORDER`: I 0, II 1, III 2) times this, as
+        in the session (:data:`RUN_ORDER`: I 0, II 1, III 2) times this, as
         the lamp and the stage warm up between experiments I and III; like the homing offset
         it is constant within a run, and a zero-pose check taken with the run shares it.
     beta_rehoming_deg : float
         Shift of the inner axis's zero between the session of experiment I and the session of
-        II and III, deg (:data:`sunlab.sim.bench.SESSION`: I 0, II 1, III 1): the stage homed
+        II and III, deg (:data:`SESSION`: I 0, II 1, III 1): the stage homed
         again between them lands its zero elsewhere by its homing repeatability. Constant
         within a run and shared by the run's zero-pose check, like the drift.
     beta_gear_deg, beta_gear_period_deg, beta_gear_phase_deg : float
@@ -136,39 +137,18 @@ class Platform:
     beta_gear_phase_deg: float = 0.0
 
     def __post_init__(self):
-        for name, v in self.__dict__.items():
-            if not math.isfinite(v):
-                raise ConfigurationError(f"platform.{name}: found {v!r}; expected a finite number.")
-        for name in (
-            "alpha_pose_error_deg",
-            "beta_pose_error_deg",
-            "alpha_jitter_deg",
-            "beta_jitter_deg",
-            "beta_wobble_deg",
-            "beta_backlash_deg",
-            "beta_homing_deg",
-            "beta_gear_deg",
-        ):
-            if getattr(self, name) < 0:
+        rules = [(n, "a finite number", math.isfinite) for n in self.__dict__]
+        rules += [(n, ">= 0 deg", lambda v: v >= 0) for n in (
+            "alpha_pose_error_deg", "beta_pose_error_deg", "alpha_jitter_deg", "beta_jitter_deg",
+            "beta_wobble_deg", "beta_backlash_deg", "beta_homing_deg", "beta_gear_deg")]
+        rules += [(n, "a positive period in deg", lambda v: v > 0)
+                  for n in ("beta_gear_period_deg", "beta_wobble_period_deg")]
+        rules += [(n, "a small angle (|value| < 45 deg)", lambda v: abs(v) < 45)
+                  for n in ("alpha0_deg", "beta0_deg", "gamma0_deg", "nonorthogonality_deg")]
+        for name, expected, ok in rules:
+            if not ok(getattr(self, name)):
                 raise ConfigurationError(
-                    f"platform.{name}: found {getattr(self, name)!r}; expected >= 0 deg."
-                )
-        if self.beta_gear_period_deg <= 0:
-            raise ConfigurationError(
-                f"platform.beta_gear_period_deg: found {self.beta_gear_period_deg!r}; expected a"
-                " positive period in deg."
-            )
-        if self.beta_wobble_period_deg <= 0:
-            raise ConfigurationError(
-                f"platform.beta_wobble_period_deg: found {self.beta_wobble_period_deg!r}; expected"
-                " a positive period in deg."
-            )
-        for name in ("alpha0_deg", "beta0_deg", "gamma0_deg", "nonorthogonality_deg"):
-            if abs(getattr(self, name)) >= 45:
-                raise ConfigurationError(
-                    f"platform.{name}: found {getattr(self, name)!r}; expected a small angle "
-                    "(|value| < 45 deg)."
-                )
+                    f"platform.{name}: found {getattr(self, name)!r}; expected {expected}.")
 
     @classmethod
     def ideal(cls) -> Platform:
@@ -216,14 +196,11 @@ class Platform:
         at = a * (1 + self.alpha_scale) + self.alpha_offset_deg
         bt = b * (1 + self.beta_scale) + self.beta_offset_deg
         if self.beta_wobble_deg:
-            bt = bt + self.beta_wobble_deg * np.sin(
-                2 * np.pi * a / self.beta_wobble_period_deg
-                + math.radians(self.beta_wobble_phase_deg)
-            )
+            bt = bt + self.beta_wobble_deg * np.sin(2 * np.pi * a / self.beta_wobble_period_deg
+                                                    + math.radians(self.beta_wobble_phase_deg))
         if self.beta_gear_deg:
-            bt = bt + self.beta_gear_deg * np.sin(
-                2 * np.pi * b / self.beta_gear_period_deg + math.radians(self.beta_gear_phase_deg)
-            )
+            bt = bt + self.beta_gear_deg * np.sin(2 * np.pi * b / self.beta_gear_period_deg
+                                                  + math.radians(self.beta_gear_phase_deg))
         return at, bt
 
     def mount_matrix(self) -> np.ndarray:
@@ -234,11 +211,8 @@ class Platform:
         numpy.ndarray, shape (3, 3)
             Rotation from the platform's frame into the sensor's.
         """
-        return (
-            rotation_z(math.radians(self.gamma0_deg))
-            @ rotation_y(-math.radians(self.alpha0_deg))
-            @ rotation_x(math.radians(self.beta0_deg))
-        )
+        return (rotation_z(math.radians(self.gamma0_deg)) @ rotation_y(
+            -math.radians(self.alpha0_deg)) @ rotation_x(math.radians(self.beta0_deg)))
 
 
 def sensor_sun_vector(platform: Platform, alpha_true, beta_true) -> np.ndarray:
@@ -266,12 +240,184 @@ def sensor_sun_vector(platform: Platform, alpha_true, beta_true) -> np.ndarray:
     b = np.deg2rad(np.asarray(beta_true, dtype=float))
     eps = math.radians(platform.nonorthogonality_deg)
     # R_u(beta) e_z for the inner axis u = (cos eps, sin eps, 0) (Rodrigues), then R_y(-alpha).
-    v = np.stack(
-        np.broadcast_arrays(math.sin(eps) * np.sin(b), -math.cos(eps) * np.sin(b), np.cos(b)),
-        axis=-1,
-    )
+    v = np.stack(np.broadcast_arrays(math.sin(eps) * np.sin(b), -math.cos(eps) * np.sin(b),
+                                     np.cos(b)), axis=-1)
     ca, sa = np.cos(a), np.sin(a)
-    g = np.stack(
-        [ca * v[..., 0] - sa * v[..., 2], v[..., 1], sa * v[..., 0] + ca * v[..., 2]], axis=-1
-    )
+    g = np.stack([ca * v[..., 0] - sa * v[..., 2], v[..., 1], sa * v[..., 0] + ca * v[..., 2]],
+                 axis=-1)
     return g @ platform.mount_matrix().T
+
+
+# --------------------------------------------------------------------------- random errors
+#: The place of each experiment of Table 3 in the session (docs/paper.md sec. 5 runs them in
+#: this order): a run named otherwise is taken at the session's start.
+RUN_ORDER = {"I": 0, "II": 1, "III": 2}
+#: The session of each experiment: experiment I in one, II and III in the next, after the
+#: stage was homed again (``Platform.beta_rehoming_deg``); a run named otherwise is in the
+#: first.
+SESSION = {"I": 0, "II": 1, "III": 1}
+
+_TAG_POSE = 0x905E
+_TAG_SHOT = 0x5407
+_TAG_HOME = 0x803E
+
+def _entropy(seed) -> list[int]:
+    """Seed as a list of non-negative ints (an int or a sequence of ints)."""
+    items = [seed] if isinstance(seed, int | np.integer) else list(seed)
+    for v in items:
+        if isinstance(v, bool) or not isinstance(v, int | np.integer) or v < 0:
+            raise ConfigurationError(
+                f"seed: found {seed!r}; expected a non-negative integer or a sequence of them. "
+                "Fix: pass seed=0.")
+    return [int(v) for v in items]
+
+
+def _check_cmd(alpha_cmd, beta_cmd):
+    for name, v in (("alpha_cmd", alpha_cmd), ("beta_cmd", beta_cmd)):
+        v = np.asarray(v, dtype=float)
+        if not np.all(np.isfinite(v)) or np.any(np.abs(v) >= 90.0):
+            raise ConfigurationError(f"{name}: found {v!r}; expected finite angles with "
+                                     "|angle| < 90 deg. Fix: command platform angles in degrees.")
+
+
+def _pose_error(plat: Platform, key: list[int], pose: int, approach: int = 1,
+                homing: float = 0.0) -> tuple[float, float]:
+    """Per-pose errors (alpha, beta), deg: uniform positioning errors, plus on beta the
+    backlash for the approach direction (+1 up, -1 down; :meth:`Plan.beta_approach`) and the
+    run's homing offset (:func:`_homing`)."""
+    eb = homing - approach * plat.beta_backlash_deg
+    if not (plat.alpha_pose_error_deg or plat.beta_pose_error_deg):
+        return 0.0, float(eb)
+    u = np.random.default_rng(np.random.SeedSequence(key + [_TAG_POSE, int(pose)]))
+    u = u.uniform(-1.0, 1.0, 3)
+    return float(u[0]) * plat.alpha_pose_error_deg, float(u[1]) * plat.beta_pose_error_deg + eb
+
+
+def _homing(plat: Platform, seed_key: list[int], run: str) -> float:
+    """The inner axis's zero offset of one run, deg: its place in the session times the
+    thermal drift per run (:data:`RUN_ORDER`, ``beta_drift_deg``), its session times the shift
+    at a new homing (:data:`SESSION`, ``beta_rehoming_deg``), plus a homing offset uniform
+    in +-``beta_homing_deg``, drawn from the seed and the run's name (a zero-pose check taken
+    with the run, :func:`sunlab.plans.zero_check`, shares both)."""
+    drift = (plat.beta_drift_deg * RUN_ORDER.get(str(run), 0)
+             + plat.beta_rehoming_deg * SESSION.get(str(run), 0))
+    if not plat.beta_homing_deg:
+        return drift
+    tag = zlib.crc32(str(run).encode())
+    u = np.random.default_rng(np.random.SeedSequence(list(seed_key) + [_TAG_HOME, tag]))
+    return drift + float(u.uniform(-1.0, 1.0)) * plat.beta_homing_deg
+
+
+def homing_offset(bench, seed, run: str) -> float:
+    """The inner axis's zero offset of one named run (one homing) on a bench, deg.
+
+    The run's place in the session (:data:`RUN_ORDER`) times ``beta_drift_deg``, plus its
+    session (:data:`SESSION`) times ``beta_rehoming_deg``, plus a homing offset uniform in
+    +-``bench.platform.beta_homing_deg`` drawn from the seed and the run's name, as
+    :func:`sunlab.sim.simulate` draws it for a plan of that name (a zero-pose check taken with
+    the run, :func:`sunlab.plans.zero_check`, shares it): the bench's own value of what
+    :func:`sunlab.reproduce.remedy.fit_correction` estimates from the zero-pose checks.
+
+    Parameters
+    ----------
+    bench : Bench
+    seed : int or sequence of int
+        Seed of the experiment (as :func:`sunlab.sim.simulate`).
+    run : str
+        The run's name: a plan's name (``"I"``, ``"II"``, ``"III"``, ...).
+
+    Returns
+    -------
+    float
+        The zero offset of the inner axis (beta) for that run, deg.
+
+    Examples
+    --------
+    >>> from sunlab.sim import Bench
+    >>> b = Bench.paper_single_hole()
+    >>> round(homing_offset(b, 0, "III") - homing_offset(b, 0, "I"), 4)  # the new homing
+    0.0238
+    >>> h = homing_offset(b.replace(platform__beta_homing_deg=0.01), 0, "I")
+    >>> bool(abs(h) <= 0.01)
+    True
+    """
+    return _homing(bench.platform, _entropy(seed), run)
+
+
+def _jitter(plat: Platform, key: list[int], pose: int, shot: int) -> tuple[float, float]:
+    if not (plat.alpha_jitter_deg or plat.beta_jitter_deg):
+        return 0.0, 0.0
+    j = np.random.default_rng(np.random.SeedSequence(key + [_TAG_SHOT, int(pose), int(shot)]))
+    j = j.standard_normal(2)
+    return float(j[0]) * plat.alpha_jitter_deg, float(j[1]) * plat.beta_jitter_deg
+
+
+def platform_pose(bench, alpha_cmd: float, beta_cmd: float, *, seed, pose: int, shot: int,
+                  approach: int = 1, run: str | None = None) -> tuple[float, float]:
+    """True platform angles (deg) for commanded ones, deterministic in (seed, pose, shot).
+
+    The per-pose error (uniform, bounded) depends on (seed, pose), the jitter (normal) on
+    (seed, pose, shot); the systematic errors (encoder, wobble, gear) on the commanded angles
+    only; the inner axis's backlash on the direction ``approach`` (+1 up, -1 down) in which it
+    reached the pose, and its homing offset on (seed, ``run``) (none when ``run`` is None).
+    See :mod:`sunlab.sim.platform` for the model and its defaults.
+
+    Parameters
+    ----------
+    bench : Bench
+    alpha_cmd, beta_cmd : float
+        Commanded outer and inner angles, deg, each within +-90 (exclusive).
+    seed : int or sequence of int
+        Seed of the experiment (as :func:`sunlab.sim.simulate`).
+    pose, shot : int
+        Index of the pose in its plan and of the shot at that pose.
+    approach : {1, -1}
+        Direction in which the inner axis reached the pose (up, down).
+    run : str, optional
+        The run's name, for its homing offset (:func:`homing_offset`).
+
+    Returns
+    -------
+    alpha, beta : float
+        True platform angles, deg.
+
+    Examples
+    --------
+    >>> from sunlab.sim import Bench
+    >>> b = Bench.paper_single_hole()
+    >>> a, _ = platform_pose(b, -10.0, 5.0, seed=0, pose=3, shot=0)
+    >>> bool(abs(a + 10.0) < 0.008 + 5 * 0.0005)
+    True
+    >>> platform_pose(b.ideal_platform(), -10.0, 5.0, seed=0, pose=3, shot=0)
+    (-10.0, 5.0)
+    """
+    _check_cmd(alpha_cmd, beta_cmd)
+    plat = bench.platform
+    at, bt = plat.systematic(float(alpha_cmd), float(beta_cmd))
+    key = _entropy(seed)
+    if approach not in (1, -1):
+        raise ConfigurationError(f"approach: found {approach!r}; expected +1 (reached upward) "
+                                 "or -1 (downward).")
+    home = 0.0 if run is None else _homing(plat, key, run)
+    ea, eb = _pose_error(plat, key, pose, approach, home)
+    ja, jb = _jitter(plat, key, pose, shot)
+    return float(at) + ea + ja, float(bt) + eb + jb
+
+
+def _platform_table(bench, plan, key: list[int]):
+    """True angles (pose, shot) of a whole plan; identical to :func:`platform_pose` per frame
+    (with each pose's approach direction from the plan's motion and the plan's name as run)."""
+    plat = bench.platform
+    ta = np.empty((len(plan), plan.shots))
+    tb = np.empty((len(plan), plan.shots))
+    approach = plan.beta_approach()
+    home = _homing(plat, key[:-1], plan.name)
+    for p in range(len(plan)):
+        # scalar arithmetic, as in platform_pose, so that both agree to the last bit
+        at, bt = plat.systematic(float(plan.alpha[p]), float(plan.beta[p]))
+        ea, eb = _pose_error(plat, key, p, int(approach[p]), home)
+        for s in range(plan.shots):
+            ja, jb = _jitter(plat, key, p, s)
+            ta[p, s] = float(at) + ea + ja
+            tb[p, s] = float(bt) + eb + jb
+    return ta, tb

@@ -54,7 +54,7 @@ import functools
 import numpy as np
 import xarray as xr
 
-__all__ = ["spot_diameter_px", "spot_error_maps", "surrogate_centroids"]
+__all__ = ["spot_diameter_px", "surrogate_centroids"]
 
 
 def spot_diameter_px(bench) -> float:
@@ -90,7 +90,7 @@ def spot_diameter_px(bench) -> float:
 
 def _spot_profile(bench) -> np.ndarray:
     """The expected single-spot image at zenith (electrons, before PRNU), centred stamp."""
-    from .render import spot_image
+    from .spots import spot_image
 
     one = bench.replace(mask=bench.mask.replace(holes=bench.mask.holes[:1]))
     one = one.replace(platform=one.platform.ideal()).ideal_mask()
@@ -110,10 +110,8 @@ def _maps(key: _ByJson):
     s = _spot_profile(bench)
     m = s.shape[0]
     u = np.arange(m) - (m - 1) / 2.0
-    ux = np.broadcast_to(u[None, :], s.shape)
-    uy = np.broadcast_to(u[:, None], s.shape)
-    mx = float((ux * s).sum() / s.sum())
-    my = float((uy * s).sum() / s.sum())
+    ux, uy = np.broadcast_to(u[None, :], s.shape), np.broadcast_to(u[:, None], s.shape)
+    mx, my = float((ux * s).sum() / s.sum()), float((uy * s).sum() / s.sum())
     g = fixed_pattern(bench.detector).gain.astype(float)
     # correlation = convolution with the flipped kernel
     den = fftconvolve(g, s[::-1, ::-1], mode="same")
@@ -206,16 +204,15 @@ def surrogate_centroids(bench, plan, seed=0, *, noise_px: float = 0.004,
     """
     from scipy import ndimage
 
-    from .bench import _platform_table, plan_key
-    from .render import _entropy, mask_play, spot_centres
+    from .platform import _entropy, _platform_table
+    from .render import mask_play, spot_centres
 
-    key = _entropy(seed) + [plan_key(plan)]
+    key = _entropy(seed) + [plan.crc32()]
     ta, tb = _platform_table(bench, plan, key)
     n_p, n_s, n_h = len(plan), plan.shots, bench.n_holes
     play = np.repeat([mask_play(bench, key, p) for p in range(n_p)], n_s, axis=0)
     x, y = spot_centres(bench, np.ravel(ta), np.ravel(tb), play.reshape(-1, 2))
-    x = x.reshape(n_p, n_s, n_h)
-    y = y.reshape(n_p, n_s, n_h)
+    x, y = x.reshape(n_p, n_s, n_h), y.reshape(n_p, n_s, n_h)
     ny, nx = bench.detector.shape
     edge = spot_diameter_px(bench) / 2 + 4.0 if edge_px is None else float(edge_px)
     clipped = (x < edge) | (x > nx - 1 - edge) | (y < edge) | (y > ny - 1 - edge)
@@ -234,23 +231,17 @@ def _surrogate_table(bench, plan, x, y, clipped, ta, tb):
     """The surrogate's ``centroids/1`` table: clipped spots NaN, the true angles beside,
     and for a multi-hole mask the holes' coordinates."""
     from .. import schema
+    from .centroids import _truth
 
     n_h = x.shape[-1]
     status = np.where(clipped, schema.STATUS["clipped"], schema.STATUS["ok"])
     x = np.where(clipped, np.nan, x)
     y = np.where(clipped, np.nan, y)
     xd, yd = bench.hole_design_px()
-    attrs = {
-        "pixel_pitch_mm": bench.detector.pixel_pitch_mm,
-        "mask_distance_mm": bench.mask_distance_mm,
-        "x_cf_px": float(np.mean(xd)),
-        "y_cf_px": float(np.mean(yd)),
-        "experiment": plan.name,
-    }
-    extra = {
-        "true_alpha": (("pose", "shot"), ta, {"units": "deg"}),
-        "true_beta": (("pose", "shot"), tb, {"units": "deg"}),
-    }
+    attrs = {"pixel_pitch_mm": bench.detector.pixel_pitch_mm,
+             "mask_distance_mm": bench.mask_distance_mm, "x_cf_px": float(np.mean(xd)),
+             "y_cf_px": float(np.mean(yd)), "experiment": plan.name}
+    extra = _truth(ta, tb)
     if n_h == 1:
         return schema.centroids_dataset(
             x[..., 0], y[..., 0], status=status[..., 0], alpha=plan.alpha, beta=plan.beta,

@@ -10,7 +10,7 @@ from sunlab.calibration import Polynomial
 from sunlab.reproduce import fault as pf
 from sunlab.reproduce.remedy import fit_correction
 from sunlab.sim import Bench
-from sunlab.sim.bench import homing_offset
+from sunlab.sim.platform import homing_offset
 from sunlab.sim.surrogate import surrogate_centroids
 
 SIZES = {"backlash": 0.017, "homing": 0.03, "gear": 0.02}

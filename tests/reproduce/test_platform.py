@@ -8,7 +8,7 @@ import pytest
 from sunlab import plans, sim
 from sunlab.reproduce.platform import GEAR_ROW, ROWS, bench_fault_values, format_platform
 from sunlab.sim import bench as bench_module
-from sunlab.sim.bench import homing_offset
+from sunlab.sim.platform import homing_offset
 
 RUNS = {"I": plans.experiment("I"), "III": plans.experiment("III")}
 

@@ -8,7 +8,7 @@ import pytest
 from scipy import special
 
 from sunlab.errors import ConfigurationError
-from sunlab.sim import Bench, Hole, Mask, _kernels, diffraction, render
+from sunlab.sim import Bench, Hole, Mask, _aperture, diffraction, render, spots
 from sunlab.sim import frame as simframe
 
 
@@ -90,12 +90,11 @@ def test_switch_off_is_the_geometric_path_bit_for_bit():
     # off: no Fresnel hole, and the spectrum is the kernel's jinc path exactly as before
     b = _bench(5.0, False)
     geom = render.spot_geometry(b, -8.0, 4.0)
-    g = render._groups(b, geom)[0]
+    g = spots._groups(b, geom)[0]
     assert g.fresnel is None
     fx, fy = np.linspace(-1.5, 1.5, 31), np.linspace(-1.5, 1.5, 29)
-    ref = _kernels.real_spectrum_tabulated(
-        fx, fy, g.affine, g.area, g.kernel_m, g.u, g.ax, g.ay, g.diff, True,
-        _kernels.disk_ft_table(0.0), _kernels.disk_ft_table(g.u))
+    ref = _aperture.spectrum_tabulated(fx, fy, g.affine, g.area, g.kernel_m, g.u, g.ax, g.ay,
+                                       g.diff, True)
     assert np.array_equal(g.common(fx, fy, tabulated=True), ref)
     default = Bench.paper_single_hole()
     assert default.mask.diffraction is False
@@ -109,7 +108,7 @@ def test_rendered_pattern_is_the_broadband_fresnel_intensity():
     # transform's table and diffraction.broadband_intensity from the Kirchhoff integral; the
     # pattern is band-limited below 2 a p / (lambda_min z) = 0.24 cycles/px, so sampling is exact
     b = _bench(17.0, True).without_lid().replace(source__diameter_deg=0.0)
-    img, x0, y0, _ = render.spot_image(b, 0.0, 0.0, pixel=False)
+    img, x0, y0, _ = spots.spot_image(b, 0.0, 0.0, pixel=False)
     q_e = render.spot_geometry(b, 0.0, 0.0).q_e
     (x,), (y,) = render.ray_positions(b, 0.0, 0.0)
     yy, xx = np.mgrid[-30:31:3, -30:31:3] + np.array([[[round(y) - y0]], [[round(x) - x0]]])
@@ -121,15 +120,15 @@ def test_rendered_pattern_is_the_broadband_fresnel_intensity():
 
 def test_fresnel_spot_at_17_mm_keeps_its_centroid_and_grows_a_halo():
     geo, fre = _bench(17.0, False), _bench(17.0, True)
-    (xg, yg), (xf, yf) = render.spot_truth(geo, 0.0, 0.0), render.spot_truth(fre, 0.0, 0.0)
+    (xg, yg), (xf, yf) = spots.spot_truth(geo, 0.0, 0.0), spots.spot_truth(fre, 0.0, 0.0)
     # a normally incident sun: the pattern is symmetric about the geometric ray
     assert abs(xf[0] - xg[0]) < 1e-3 and abs(yf[0] - yg[0]) < 1e-3
-    img, x0, y0, _ = render.spot_image(fre, 0.0, 0.0)
+    img, x0, y0, _ = spots.spot_image(fre, 0.0, 0.0)
     yy, xx = np.indices(img.shape)
     cx, cy = (img * xx).sum() / img.sum() + x0, (img * yy).sum() / img.sum() + y0
     # the stamp wraps 0.5 % of the energy (the halo): a pull under 0.005 px toward its centre
     assert abs(cx - xg[0]) < 0.005 and abs(cy - yg[0]) < 0.005
-    ig, xg0, yg0, _ = render.spot_image(geo, 0.0, 0.0, size=img.shape[0])
+    ig, xg0, yg0, _ = spots.spot_image(geo, 0.0, 0.0, size=img.shape[0])
     assert img.sum() == pytest.approx(ig.sum(), rel=1e-4)  # the same energy
     # the geometric spot ends at the hole's radius plus the sun disk's, 14.3 + 11.0 px; the
     # Fresnel spot spreads about 1 / (pi^2 N rho) of its energy beyond any radius rho
@@ -154,4 +153,4 @@ def test_out_of_range_fresnel_number_is_refused():
     # a 2 mm hole at 5 mm: N = 364, where the geometric shadow is the model
     big = Mask(holes=(Hole(0.0, 0.0, 4.0),), size_mm=(11.0, 9.0), diffraction=True)
     with pytest.raises(ConfigurationError, match="mask.diffraction"):
-        render.spot_truth(Bench.paper_single_hole().replace(mask=big), 0.0, 0.0)
+        spots.spot_truth(Bench.paper_single_hole().replace(mask=big), 0.0, 0.0)

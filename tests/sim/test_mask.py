@@ -7,8 +7,9 @@ import pytest
 from numpy.testing import assert_allclose
 
 from sunlab import ConfigurationError
-from sunlab.sim import Bench, Dust, Hole, Mask, render
-from sunlab.sim.mask import DEFECT_FLAGS, Burred, Elliptical, Undersized
+from sunlab.schema import DEFECT_FLAGS
+from sunlab.sim import Bench, Dust, Hole, Mask, render, spots
+from sunlab.sim.holes import Burred, Elliptical, Undersized
 
 
 def _area(poly):
@@ -70,20 +71,20 @@ def test_defect_flags_and_random_defects():
 
 def test_dust_reduces_the_flux_by_its_area():
     ideal = Bench.paper_single_hole().ideal_platform().ideal_mask()
-    clean = render.spot_image(ideal, 0.0, 0.0)[0].sum()
+    clean = spots.spot_image(ideal, 0.0, 0.0)[0].sum()
     dusty = ideal.replace(mask=Mask(holes=(Hole(0, 0, 0.2, defect=Dust(0.0, 0.0, 0.08, 0.0)),)))
     # a particle entirely inside the hole removes (0.08 / 0.2)^2 of the light
-    assert render.spot_image(dusty, 0.0, 0.0)[0].sum() / clean == pytest.approx(1 - 0.16, rel=1e-3)
+    assert spots.spot_image(dusty, 0.0, 0.0)[0].sum() / clean == pytest.approx(1 - 0.16, rel=1e-3)
 
 
 def test_limb_darkening_keeps_flux_and_centroid():
     ideal = Bench.paper_single_hole().ideal_platform().ideal_mask()
     ld = ideal.replace(source__limb_darkening=0.6)
     for a, b in [(0.0, 0.0), (-14.0, 9.0)]:
-        assert render.spot_image(ld, a, b)[0].sum() == pytest.approx(
-            render.spot_image(ideal, a, b)[0].sum(), rel=1e-4
+        assert spots.spot_image(ld, a, b)[0].sum() == pytest.approx(
+            spots.spot_image(ideal, a, b)[0].sum(), rel=1e-4
         )
-        assert_allclose(render.spot_truth(ld, a, b), render.spot_truth(ideal, a, b), atol=2e-3)
+        assert_allclose(spots.spot_truth(ld, a, b), spots.spot_truth(ideal, a, b), atol=2e-3)
 
 
 @pytest.mark.parametrize(

@@ -8,7 +8,7 @@ from numpy.testing import assert_allclose
 
 from sunlab.errors import ConfigurationError
 from sunlab.geometry import ideal_centroid
-from sunlab.sim import Bench, Dust, Hole, Mask, render
+from sunlab.sim import Bench, Dust, Hole, Mask, render, spots
 from sunlab.sim import frame as simframe
 from sunlab.sim.mask import Burred
 
@@ -56,8 +56,8 @@ def test_rendered_spot_centroid_matches_eq1(ideal, alpha, beta):
 
 @pytest.mark.parametrize(("alpha", "beta"), [(0.0, 0.0), (-16.5, 16.5), (-3.3, 9.9)])
 def test_truth_is_the_centroid_of_the_expected_signal(ideal, alpha, beta):
-    x, y = render.spot_truth(ideal, alpha, beta)
-    img, x0, y0, _ = render.spot_image(ideal, alpha, beta)
+    x, y = spots.spot_truth(ideal, alpha, beta)
+    img, x0, y0, _ = spots.spot_image(ideal, alpha, beta)
     yy, xx = np.mgrid[0 : img.shape[0], 0 : img.shape[1]]
     assert_allclose((img * (xx + x0)).sum() / img.sum(), x[0], atol=1e-4)
     assert_allclose((img * (yy + y0)).sum() / img.sum(), y[0], atol=1e-4)
@@ -71,8 +71,8 @@ def test_truth_is_the_centroid_of_the_expected_signal(ideal, alpha, beta):
 def test_spot_diameter_is_hole_plus_sun_disk(ideal):
     # Irradiance of a normally incident spot, 8 samples per pixel: the plateau ends at
     # R_hole - r_sun and the light at R_hole + r_sun, with r_sun = F tan(0.26 deg).
-    img, x0, y0, step = render.spot_image(ideal, 0.0, 0.0, oversample=8, pixel=False)
-    xc, yc = render.spot_truth(ideal, 0.0, 0.0)
+    img, x0, y0, step = spots.spot_image(ideal, 0.0, 0.0, oversample=8, pixel=False)
+    xc, yc = spots.spot_truth(ideal, 0.0, 0.0)
     yy, xx = np.mgrid[0 : img.shape[0], 0 : img.shape[1]]
     r = np.hypot(x0 + xx * step - xc[0], y0 + yy * step - yc[0]).ravel()
     v = img.ravel() / img.max()
@@ -90,7 +90,7 @@ def test_spot_diameter_is_hole_plus_sun_disk(ideal):
 )
 def test_flux_follows_projected_hole_area(ideal, alpha, beta):
     def flux(a, b):
-        img, *_ = render.spot_image(ideal, a, b, size=96)
+        img, *_ = spots.spot_image(ideal, a, b, size=96)
         return img.sum()
 
     ratio = flux(alpha, beta) / flux(0.0, 0.0)
@@ -101,7 +101,7 @@ def test_flux_follows_projected_hole_area(ideal, alpha, beta):
 
 def test_flux_absolute(ideal):
     # fluence x hole area x QE x fill factor, in electrons
-    img, *_ = render.spot_image(ideal, 0.0, 0.0)
+    img, *_ = spots.spot_image(ideal, 0.0, 0.0)
     det = ideal.detector
     expected = ideal.source.fluence_photons_per_um2 * math.pi * 100.0**2 * det.qe * det.fill_factor
     assert img.sum() == pytest.approx(expected, rel=1e-4)
@@ -114,7 +114,7 @@ def test_fill_factor_makes_centroid_depend_on_subpixel_position():
         source__diameter_deg=0.0, detector__fill_factor=0.16)
     errs = []
     for a in np.linspace(0.0, 0.08, 9):  # 0.08 deg = one pixel of travel
-        x, _ = render.spot_truth(bench, a, 0.0)
+        x, _ = spots.spot_truth(bench, a, 0.0)
         xr, _ = render.ray_positions(bench, a, 0.0)
         errs.append(x[0] - xr[0])
     errs = np.array(errs)
@@ -125,11 +125,11 @@ def test_polygon_path_agrees_with_jinc_path(ideal):
     # A burr of zero amplitude forces the polygon transform of a circle.
     poly = ideal.replace(mask=Mask(holes=(Hole(0.0, 0.0, 0.2, defect=Burred(0.0)),)))
     for a, b in [(0.0, 0.0), (-10.0, 6.0)]:
-        x1, y1 = render.spot_truth(ideal, a, b)
-        x2, y2 = render.spot_truth(poly, a, b)
+        x1, y1 = spots.spot_truth(ideal, a, b)
+        x2, y2 = spots.spot_truth(poly, a, b)
         assert_allclose([x2[0], y2[0]], [x1[0], y1[0]], atol=1e-4)
-        f1 = render.spot_image(ideal, a, b)[0].sum()
-        f2 = render.spot_image(poly, a, b)[0].sum()
+        f1 = spots.spot_image(ideal, a, b)[0].sum()
+        f2 = spots.spot_image(poly, a, b)[0].sum()
         assert f2 == pytest.approx(f1, rel=1e-3)
 
 
@@ -139,7 +139,7 @@ def test_dust_above_the_mask_makes_a_pose_dependent_error(ideal):
         b = ideal.replace(mask=m)
         out = []
         for a in (-15.0, 0.0):
-            x, _ = render.spot_truth(b, a, 0.0)
+            x, _ = spots.spot_truth(b, a, 0.0)
             xr, _ = render.ray_positions(b, a, 0.0)
             out.append(x[0] - xr[0])
         return np.array(out)
@@ -152,8 +152,8 @@ def test_dust_above_the_mask_makes_a_pose_dependent_error(ideal):
 
 
 def test_tilted_mask_and_dF_move_the_spot(ideal):
-    x0, _ = render.spot_truth(ideal, -10.0, 0.0)
-    x1, _ = render.spot_truth(ideal.replace(mask__delta_f_mm=0.094), -10.0, 0.0)
+    x0, _ = spots.spot_truth(ideal, -10.0, 0.0)
+    x1, _ = spots.spot_truth(ideal.replace(mask__delta_f_mm=0.094), -10.0, 0.0)
     assert x1[0] - x0[0] == pytest.approx(0.094 * math.tan(math.radians(-10.0)) / P, abs=0.01)
 
 
@@ -161,7 +161,7 @@ def test_sun_behind_the_mask_gives_no_spot(ideal):
     bench = ideal.replace(mask__tilt_y_deg=20.0)
     g = render.spot_geometry(bench, 80.0, 0.0)
     assert not g.lit
-    x, y = render.spot_truth(bench, 80.0, 0.0)
+    x, y = spots.spot_truth(bench, 80.0, 0.0)
     assert np.isnan(x[0]) and np.isnan(y[0])
 
 
