@@ -271,7 +271,7 @@ def test_the_option_picks_the_reference_and_compiles_nothing():
         assert os.environ["SUNLAB_KERNELS"] == "numpy"  # for workers started inside
     assert k.compiled.signatures == []
     assert k(np.ones(3)) == 4.0 and len(k.compiled.signatures) == 1
-    assert sunlab.OPTIONS["kernels"] == "numba"
+    assert sunlab.options.OPTIONS["kernels"] == "numba"
 
 
 def test_bad_values_of_the_switch_are_refused_with_the_fix():
@@ -279,7 +279,7 @@ def test_bad_values_of_the_switch_are_refused_with_the_fix():
         sunlab.set_options(kernels="cuda")
     with pytest.raises(ConfigurationError, match="True or False"):
         sunlab.set_options(progress="no")
-    out = _run("import sunlab; sunlab.OPTIONS", SUNLAB_KERNELS="cuda")
+    out = _run("import sunlab.options", SUNLAB_KERNELS="cuda")
     assert out.returncode != 0
     assert "SUNLAB_KERNELS: found 'cuda'" in out.stderr and "Fix:" in out.stderr
 
