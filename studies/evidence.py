@@ -32,7 +32,7 @@ from .identification import (
     scored_quantities,
 )
 
-__all__ = ["regenerate", "write_evidence", "identified_hypothesis"]
+__all__ = ["regenerate", "write_evidence", "identified_hypothesis", "interval_role"]
 
 #: The standard normal quantile of 95 %: a central 90 % interval is mean +- Z90 sd.
 Z90 = 1.6448536269514722
@@ -240,6 +240,37 @@ def chosen_hypothesis(evidence: pd.DataFrame, protocol: dict | None = None) -> s
     return str(min(eligible, key=lambda h: (params[h], -mean[h])))
 
 
+def interval_role(protocol: dict, table: str, column: str) -> str:
+    """A published column's role in the identification: ``"fit"``, ``"held-out"`` or
+    ``"duplicate"``.
+
+    ``fit``: the protocol's fit side (its cells pin the fitted parameters, so they lie inside
+    their intervals nearly by construction); ``held-out``: the protocol's held-out columns;
+    ``duplicate``: a published column the protocol drops because it repeats another (Table 5's
+    ``1 hole``, Table 4's polynomial).
+
+    Examples
+    --------
+    >>> p = load_protocol()
+    >>> [interval_role(p, "table4", c) for c in ("polynomial", "cubic interp.")]
+    ['fit', 'held-out']
+    >>> interval_role(p, "table5", "1 hole")
+    'duplicate'
+    """
+    for role, side in (("fit", "fit"), ("held-out", "held_out")):
+        if column in protocol["cells"][side].get(table, ()):
+            return role
+    return "duplicate"
+
+
+def with_roles(ints: pd.DataFrame, protocol: dict | None = None) -> pd.DataFrame:
+    """The intervals table with each cell's ``role`` (:func:`interval_role`) as a column."""
+    protocol = protocol or load_protocol()
+    role = [interval_role(protocol, t, c) for t, c in zip(ints["table"], ints["column"],
+                                                          strict=True)]
+    return ints.drop(columns="role", errors="ignore").assign(role=role)
+
+
 def intervals(cells: pd.DataFrame, evidence: pd.DataFrame, names: Iterable[str] | None = None,
               level: float = 0.90) -> pd.DataFrame:
     """Each published cell's predictive mean, interval and z under the given hypotheses.
@@ -270,7 +301,7 @@ def intervals(cells: pd.DataFrame, evidence: pd.DataFrame, names: Iterable[str] 
             rows.append({"hypothesis": h, "table": t, "column": c, "angle": a, "stat": s,
                          "paper": p, "mean": math.exp(m), "lo": math.exp(m - zq * sd),
                          "hi": math.exp(m + zq * sd), "z": z, "inside": abs(z) <= zq})
-    return pd.DataFrame(rows)
+    return with_roles(pd.DataFrame(rows))
 
 
 # ----------------------------------------------------------------------------- shipped
