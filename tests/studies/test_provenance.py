@@ -59,6 +59,15 @@ def test_the_code_commit_precedes_the_commit_that_added_the_evidence():
         old = subprocess.run(["git", "-C", str(ROOT), "show", f"{added}:sunlab/data/{name}"],
                              capture_output=True, check=True).stdout
         assert old == (ROOT / "studies" / "results" / name).read_bytes(), name
+    # the library's two files: the same but for the columns and keys added since, declared
+    assert set(RECORD["later_additions"]) == {"sunlab/data/intervals.csv",
+                                              "sunlab/data/presets.json"}
+    then = json.loads(_git("show", f"{added}:sunlab/data/presets.json").stdout)
+    now = json.loads((ROOT / "sunlab" / "data" / "presets.json").read_text("utf-8"))
+    assert {k: v for k, v in now.items() if k != "choices"} == then
+    old = _git("show", f"{added}:sunlab/data/intervals.csv").stdout.splitlines()
+    new = (ROOT / "sunlab" / "data" / "intervals.csv").read_text("utf-8").splitlines()
+    assert [line.rsplit(",", 1)[0] for line in new] == old
 
 
 def test_a_new_run_records_its_code_commit(tmp_path):
