@@ -30,7 +30,7 @@ import pandas as pd
 from .evidence import _data, _log_density
 from .identification import HERE, _paper_cells, _quantity, load_protocol, scored_quantities
 
-__all__ = ["sensitivity_table", "verdicts"]
+__all__ = ["interval_coverage", "quantity_z", "sensitivity_table", "verdicts"]
 
 #: The bootstrap of the pooled row: resamples and the generator's seed (declared in the
 #: protocol's ``sensitivity`` section).
@@ -217,6 +217,54 @@ def _record(protocol, name, nq, mean, se, d, params) -> dict:
     return rec
 
 
+def interval_coverage(intervals: pd.DataFrame | None = None) -> pd.DataFrame:
+    """The paper's cells inside each hypothesis's 90 % intervals: held-out apart from the whole.
+
+    Parameters
+    ----------
+    intervals : pandas.DataFrame, optional
+        ``intervals.csv`` with its ``role`` column (default the shipped one, ``sunlab/data/``).
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per hypothesis and set of cells (``held-out``, ``all``): ``inside``, ``cells``
+        and ``median_half_width`` ((hi - lo) / 2 / paper, the median over the cells).
+    """
+    from .evidence import load_intervals, with_roles
+
+    ints = with_roles(load_intervals() if intervals is None else intervals)
+    rows = []
+    for h, g in ints.groupby("hypothesis"):
+        for name, sel in (("held-out", g[g["role"] == "held-out"]), ("all", g)):
+            hw = (sel["hi"] - sel["lo"]) / 2 / sel["paper"]
+            rows.append({"hypothesis": h, "cells": name, "inside": int(sel["inside"].sum()),
+                         "of": len(sel), "median_half_width": float(hw.median())})
+    return pd.DataFrame(rows)
+
+
+def quantity_z(cells: pd.DataFrame | None = None, hypothesis: str = "F5",
+               protocol: dict | None = None) -> pd.DataFrame:
+    """Each held-out scored quantity's z under a hypothesis: (log paper - mean log pred) /
+    sqrt(seed spread^2 + tau^2), the protocol's predictive distribution.
+
+    Returns
+    -------
+    pandas.DataFrame
+        ``table``, ``column``, ``angle``, ``stat``, ``z``, ``inside`` (|z| <= 1.645).
+    """
+    protocol = protocol or load_protocol()
+    cells = _data("evidence_cells.csv") if cells is None else cells
+    a = _arrays(cells[cells["hypothesis"] == hypothesis], protocol)
+    v = a["by_h"][hypothesis]
+    tau2 = _tau2(v["ss"], _fitted(protocol, hypothesis), a["n_fit"])
+    sd = np.sqrt(v["held"].std(axis=0, ddof=1) ** 2 + tau2)
+    z = (a["paper"] - v["held"].mean(axis=0)) / sd
+    return pd.DataFrame([(*q, float(zi), bool(abs(zi) <= 1.6448536269514722))
+                         for q, zi in zip(a["quantities"], z, strict=True)],
+                        columns=["table", "column", "angle", "stat", "z", "inside"])
+
+
 def verdicts(table: pd.DataFrame) -> dict[str, str]:
     """Each component's verdict: its value where every row of the table gives the same one,
     otherwise ``"not identified"``.
@@ -258,6 +306,12 @@ def main(argv=None) -> int:
         print(t[["row", *[c for c in t.columns if c.startswith("se_d_")]]].round(2)
               .to_string(index=False))
     print(f"\nverdicts: {verdicts(t)}  (written to {args.out})")
+    print("\nthe paper's cells inside each hypothesis's 90 % intervals (intervals.csv):")
+    print(interval_coverage().round(3).to_string(index=False))
+    z = quantity_z()
+    print(f"\nF5 by held-out scored quantity: {int(z['inside'].sum())} of {len(z)} inside "
+          f"(|z| <= 1.645), {int((z['z'].abs() > 3).sum())} beyond |z| = 3:")
+    print(z[~z["inside"]].round(2).to_string(index=False))
     return 0
 
 

@@ -53,3 +53,11 @@ def test_the_pooled_row_pairs_seeds_and_is_reproducible():
     b = sensitivity.sensitivity_table().iloc[-1]
     assert a["row"].startswith("pooled") and a.equals(b)
     assert a["se_d_F5_F17"] > 0
+
+
+def test_held_out_coverage_is_reported_apart_and_by_scored_quantity():
+    cov = sensitivity.interval_coverage().set_index(["hypothesis", "cells"])
+    assert (cov.loc[("F5", "held-out"), "inside"], cov.loc[("F5", "held-out"), "of"]) == (26, 32)
+    assert (cov.loc[("F5", "all"), "inside"], cov.loc[("F5", "all"), "of"]) == (50, 56)
+    z = sensitivity.quantity_z()
+    assert len(z) == 24 and int(z["inside"].sum()) == 17 and int((z["z"].abs() > 3).sum()) == 3
