@@ -78,3 +78,18 @@ def test_a_new_run_records_its_code_commit(tmp_path):
     _need_commits()
     c = evidence.code_commit()
     assert re.fullmatch(r"[0-9a-f]{40}", c["code_commit"]) and isinstance(c["dirty"], bool)
+
+
+def test_write_evidence_records_the_code_commit_and_each_intervals_role(tmp_path):
+    # a tiny case from the shipped cells (three seeds, no presets): no run, only the writing
+    import pandas as pd
+
+    from studies import evidence
+
+    cells = pd.read_csv(ROOT / "studies" / "results" / "evidence_cells.csv")
+    evidence.write_evidence(tmp_path, cells[cells["seed"].isin([3000, 3001, 3002])],
+                            presets=False, provenance={"code_commit": "a" * 40, "dirty": True})
+    record = json.loads((tmp_path / "evidence_provenance.json").read_text("utf-8"))
+    assert record["code_commit"] == "a" * 40 and record["dirty"] is True
+    roles = pd.read_csv(tmp_path / "intervals.csv").groupby("role").size().to_dict()
+    assert roles == {"fit": 64, "held-out": 128, "duplicate": 32}  # 4 hypotheses x 16/32/8
