@@ -9,6 +9,8 @@ Run from the repository's root as ``python -m studies.NAME`` (the folder is not 
   :mod:`.ablation` (each component of the identified bench turned off); ``python -m
   studies.identify --out DIR`` (:mod:`.identify`) regenerates them: the evidence tables belong
   in ``studies/results/``, ``presets.json`` and ``intervals.csv`` in ``sunlab/data/``;
+* :mod:`.sensitivity` (the verdicts' sensitivity, ``studies/results/sensitivity.csv``) and
+  :mod:`.preset_sources` (each preset's source, ``sunlab/data/preset_sources.csv``);
 * :mod:`.averaging` (why averaging per-hole calibrations loses to the geometric centre);
 * :mod:`.surrogate_tables` (the paper's tables on the centroid-level surrogate).
 """

@@ -32,7 +32,7 @@ from .identification import (
     scored_quantities,
 )
 
-__all__ = ["regenerate", "write_evidence", "identified_hypothesis"]
+__all__ = ["regenerate", "write_evidence", "identified_hypothesis", "interval_role"]
 
 #: The standard normal quantile of 95 %: a central 90 % interval is mean +- Z90 sd.
 Z90 = 1.6448536269514722
@@ -79,25 +79,54 @@ def regenerate(out_dir, *, names=None, seeds=None, jobs: int = 2, overwrite: boo
     protocol = load_protocol()
     check_folder(out_dir, _evidence_files(protocol, presets), overwrite=overwrite,
                  flag="--overwrite")
+    started = code_commit()  # the code the runs start from, before the first run
     cells = run_protocol(protocol, names, seeds, jobs=jobs, progress=progress)
     return write_evidence(out_dir, cells, jobs=jobs, overwrite=overwrite, presets=presets,
-                          progress=progress)
+                          progress=progress, provenance=started)
+
+
+def code_commit(root=None) -> dict:
+    """The commit of the code that runs now: ``{"code_commit": 40 hex, "dirty": bool}``.
+
+    ``dirty`` is true where tracked files differ from that commit (the code that ran is then
+    not the commit's; say so in the record). Outside a git checkout both are None.
+
+    Examples
+    --------
+    >>> c = code_commit()
+    >>> c["code_commit"] is None or len(c["code_commit"]) == 40
+    True
+    """
+    import subprocess
+
+    root = Path(root) if root is not None else HERE.parent
+    try:
+        head = subprocess.run(["git", "-C", str(root), "rev-parse", "HEAD"], check=True,
+                              capture_output=True, text=True).stdout.strip()
+        dirty = subprocess.run(["git", "-C", str(root), "status", "--porcelain",
+                                "--untracked-files=no"], check=True, capture_output=True,
+                               text=True).stdout.strip() != ""
+    except (OSError, subprocess.CalledProcessError):
+        return {"code_commit": None, "dirty": None}
+    return {"code_commit": head, "dirty": dirty}
 
 
 def _evidence_files(protocol: dict, presets: bool) -> tuple[str, ...]:
-    files = ("evidence_cells.csv", "evidence.csv", "intervals.csv")
+    files = ("evidence_cells.csv", "evidence.csv", "intervals.csv", "evidence_provenance.json")
     return files + (("presets.json", "profiles.csv", "ablation.csv")
                     if presets and "presets" in protocol else ())
 
 
 def write_evidence(out_dir, cells: pd.DataFrame, *, jobs: int = 2, overwrite: bool = False,
-                   presets: bool = True, progress: Callable | None = None) -> dict:
+                   presets: bool = True, progress: Callable | None = None,
+                   provenance: dict | None = None) -> dict:
     """Score the predicted cells of every (hypothesis, seed) and write the evidence.
 
     Writes ``evidence_cells.csv`` (every predicted cell of every hypothesis and seed),
     ``evidence.csv`` (:func:`score_table`), ``intervals.csv`` (:func:`intervals` for every
-    hypothesis) and, with ``presets`` and a protocol that names them, ``presets.json``,
-    ``profiles.csv`` (:mod:`studies.profiles`) and ``ablation.csv``
+    hypothesis), ``evidence_provenance.json`` (:func:`code_commit`) and, with ``presets``
+    and a protocol that names them, ``presets.json``, ``profiles.csv``
+    (:mod:`studies.profiles`) and ``ablation.csv``
     (:mod:`studies.ablation`, the first two confirmation seeds) for the rule's pick,
     all-or-nothing.
 
@@ -112,6 +141,8 @@ def write_evidence(out_dir, cells: pd.DataFrame, *, jobs: int = 2, overwrite: bo
     overwrite, presets : bool
     progress : callable, optional
         Called with a line of text as each stage starts.
+    provenance : dict, optional
+        :func:`code_commit` taken before the first run (default: taken now).
 
     Returns
     -------
@@ -130,7 +161,8 @@ def write_evidence(out_dir, cells: pd.DataFrame, *, jobs: int = 2, overwrite: bo
     chosen = chosen_hypothesis(evidence, protocol)
     ints = intervals(cells, evidence)
     out = {"chosen": chosen, "cells": cells, "evidence": evidence, "intervals": ints}
-    if len(files) > 3:
+    started = provenance or code_commit()
+    if len(files) > 4:
         if progress:
             progress(f"presets: {chosen} at the prior medians")
         out["presets"] = profiles.fit_presets(protocol, chosen)
@@ -143,7 +175,13 @@ def write_evidence(out_dir, cells: pd.DataFrame, *, jobs: int = 2, overwrite: bo
     with atomic_files(out_dir, files, overwrite=overwrite, flag="--overwrite") as staging:
         for name, table in zip(files[:3], (cells, evidence, ints), strict=True):
             table.to_csv(Path(staging) / name, index=False)
-        if len(files) > 3:
+        record = {**started, "protocol_version": protocol["version"],
+                  "note": "code_commit: HEAD when the runs started (regenerate) or when "
+                          "they were scored (write_evidence alone); dirty: tracked files "
+                          "differed from it, so the code that ran is not exactly the commit"}
+        (Path(staging) / files[3]).write_text(json.dumps(record, indent=2) + "\n",
+                                             encoding="utf-8")
+        if len(files) > 4:
             (Path(staging) / "presets.json").write_text(
                 json.dumps(out["presets"], indent=2) + "\n", encoding="utf-8")
             out["profiles"].to_csv(Path(staging) / "profiles.csv", index=False)
@@ -240,6 +278,37 @@ def chosen_hypothesis(evidence: pd.DataFrame, protocol: dict | None = None) -> s
     return str(min(eligible, key=lambda h: (params[h], -mean[h])))
 
 
+def interval_role(protocol: dict, table: str, column: str) -> str:
+    """A published column's role in the identification: ``"fit"``, ``"held-out"`` or
+    ``"duplicate"``.
+
+    ``fit``: the protocol's fit side (its cells pin the fitted parameters, so they lie inside
+    their intervals nearly by construction); ``held-out``: the protocol's held-out columns;
+    ``duplicate``: a published column the protocol drops because it repeats another (Table 5's
+    ``1 hole``, Table 4's polynomial).
+
+    Examples
+    --------
+    >>> p = load_protocol()
+    >>> [interval_role(p, "table4", c) for c in ("polynomial", "cubic interp.")]
+    ['fit', 'held-out']
+    >>> interval_role(p, "table5", "1 hole")
+    'duplicate'
+    """
+    for role, side in (("fit", "fit"), ("held-out", "held_out")):
+        if column in protocol["cells"][side].get(table, ()):
+            return role
+    return "duplicate"
+
+
+def with_roles(ints: pd.DataFrame, protocol: dict | None = None) -> pd.DataFrame:
+    """The intervals table with each cell's ``role`` (:func:`interval_role`) as a column."""
+    protocol = protocol or load_protocol()
+    role = [interval_role(protocol, t, c) for t, c in zip(ints["table"], ints["column"],
+                                                          strict=True)]
+    return ints.drop(columns="role", errors="ignore").assign(role=role)
+
+
 def intervals(cells: pd.DataFrame, evidence: pd.DataFrame, names: Iterable[str] | None = None,
               level: float = 0.90) -> pd.DataFrame:
     """Each published cell's predictive mean, interval and z under the given hypotheses.
@@ -270,7 +339,7 @@ def intervals(cells: pd.DataFrame, evidence: pd.DataFrame, names: Iterable[str] 
             rows.append({"hypothesis": h, "table": t, "column": c, "angle": a, "stat": s,
                          "paper": p, "mean": math.exp(m), "lo": math.exp(m - zq * sd),
                          "hi": math.exp(m + zq * sd), "z": z, "inside": abs(z) <= zq})
-    return pd.DataFrame(rows)
+    return with_roles(pd.DataFrame(rows))
 
 
 # ----------------------------------------------------------------------------- shipped

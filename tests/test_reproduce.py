@@ -164,6 +164,10 @@ def test_json_records_the_identified_bench_and_each_published_cells_interval(res
         assert set(cells) == {f"{a}.{s}" for a, s in paper.index}
         assert all(0 < lo < hi for lo, hi in cells.values())
     assert doc["interval90"] == identified("table4")["interval90"]
+    # each cell's role, the same keys: the fit side apart from the held-out cells
+    assert doc["interval_role"] == identified("table4")["interval_role"]
+    assert doc["interval_role"]["cubic interp."]["beta.sigma"] == "held-out"
+    assert doc["interval_role"]["polynomial"]["beta.sigma"] == "fit"
 
 
 def test_format_prints_ours_beside_the_paper(result):
@@ -173,6 +177,9 @@ def test_format_prints_ours_beside_the_paper(result):
     assert f"{result.table.loc[('beta', 'mu'), 'polynomial']:.4f}" in text
     lo, hi = result.settings["interval90"]["polynomial"]["beta.mu"]
     assert f"{lo:.4f}-{hi:.4f}".replace("0.", ".") in text and "our 90 % interval" in text
+    # the paper's cells inside the intervals: held-out apart from the whole table
+    line = next(ln for ln in text.splitlines() if ln.startswith("  paper "))
+    assert "held-out 10 of 16" in line and "all 26 of 32" in line
 
 
 def test_cli_arguments():

@@ -45,6 +45,7 @@ from .pipeline import (
     _span,
     _stat_line,
     centroid_status,
+    coverage_lines,
     identified,
     simulate_and_locate,
     usable_table,
@@ -112,14 +113,16 @@ class Table4Result:
             What ``table4.json`` holds: ``ours`` and ``paper`` (method -> ``"angle.stat"`` ->
             deg, None where not finite), ``rectangle_area_deg2``, ``optimised_model``,
             ``polynomial_order``, ``centroid_status``, ``timings_s``, ``settings`` and, for
-            the identified bench, ``interval90``.
+            the identified bench, ``interval90`` and ``interval_role`` (each cell's role:
+            fit, held-out or duplicate; :func:`sunlab.reproduce.pipeline.identified`).
         """
 
         def frame(df: pd.DataFrame) -> dict:
             return {str(c): {f"{a}.{s}": _num(v) for (a, s), v in df[c].items()}
                     for c in df.columns}
 
-        settings = {k: v for k, v in self.settings.items() if k != "interval90"}
+        tops = ("interval90", "interval_role")
+        settings = {k: v for k, v in self.settings.items() if k not in tops}
         return {
             "sunlab_version": __version__, "table": "4",
             "source": "sunlab virtual bench (ours) beside docs/paper.md Table 4 (paper)",
@@ -130,8 +133,14 @@ class Table4Result:
             "centroid_status": self.centroid_status,
             "timings_s": {k: round(float(v), 3) for k, v in self.timings.items()},
             "settings": settings,
-            **{k: self.settings[k] for k in ("interval90",) if k in self.settings},
+            **{k: self.settings[k] for k in tops if k in self.settings},
         }
+
+
+def _cells(df: pd.DataFrame, keys: dict) -> dict:
+    """``{column: {"angle.stat": value}}`` of a table's columns that ``keys`` names."""
+    return {c: {f"{a}.{st}": float(v) for (a, st), v in df[c].items()}
+            for c in df.columns if c in keys}
 
 
 def _num(v) -> float | None:
@@ -413,6 +422,8 @@ def format_table(res: Table4Result) -> str:
         if c in iv:
             lines.append(_stat_line("", [_span(*iv[c][f"{a}.{st}"]) for a, st in keys],
                                    "our 90 % interval", 26))
+    lines += coverage_lines(iv, res.settings.get("interval_role", {}),
+                            _cells(res.paper, iv), _cells(res.table, iv))
     not_run = res.settings.get("not_run", {})
     lines += [f"{label:<26s}not run: its extra is not installed" for label in not_run]
     lines += [f"  ({why})" for why in dict.fromkeys(not_run.values())]

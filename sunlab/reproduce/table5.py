@@ -38,6 +38,7 @@ from .pipeline import (
     _span,
     _stat_line,
     centroid_status,
+    coverage_lines,
     experiment_plans,
     identified,
     locate_runs,
@@ -147,7 +148,7 @@ def _write_json(result: dict, out: Path, *, quick: bool, seed: int, method: str)
            "quick": quick, "centroid_status": result["centroid_status"],
            "findings": result["findings"], "seed": seed, "order": result["order"],
            "centroid_method": method, "settings": {"hypothesis": result["hypothesis"]},
-           "interval90": result["interval90"]}
+           "interval90": result["interval90"], "interval_role": result["interval_role"]}
     return write_json(doc, out / "table5.json")
 
 
@@ -317,6 +318,10 @@ def format_table5(result: dict) -> str:
         if cell:
             lines.append(_stat_line("", [_span(*cell[f"{a}.{st}"]) for a, st in keys],
                                    "our 90 % interval", 34))
+    cells = {src: {f"{c} [sunlab]": {f"{a}.{st}": float(v)
+                                     for (a, st), v in table[(c, src)].items()}
+                   for c in COLUMNS if (c, src) in table.columns} for src in ("paper", "sunlab")}
+    lines += coverage_lines(iv, result.get("interval_role", {}), cells["paper"], cells["sunlab"])
     return "\n".join(lines)
 
 

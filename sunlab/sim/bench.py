@@ -2,7 +2,7 @@
 
 Every parameter of the presets has a source: the paper (section), a datasheet, physics, or the
 identification of docs/identification.md (a protocol fixed before its scores; its rule picks the
-hypothesis ``F5-gear``, ``studies.identification``), where a parameter is either
+hypothesis ``F5``; F and the gear are choices, see its Results), where a parameter is either
 fitted on a named cell of Table 4 or a nuisance at its prior median. Error budget:
 
 * per shot (the paper's M - mu of about 0.001 deg): a jitter common to every hole of a frame,
