@@ -58,8 +58,8 @@ __all__ = ["Bench"]
 #: (docs/identification.md, ``studies/protocol.json``; ``studies.identification.
 #: identified_hypothesis``), fitted once with every nuisance at its prior median
 #: and the gear period profiled on the protocol's grid, on its preset seed
-#: (``sunlab/data/presets.json``, protocol version 4), to three significant figures; each
-#: fitted parameter's profile-likelihood interval is in ``studies/results/profiles.csv``.
+#: (``sunlab/data/presets.json``, protocol version 4), to three significant figures; the profile
+#: likelihoods in ``studies/results/profiles.csv`` are withdrawn as intervals (docs/identification.md).
 #:
 #: The detector's pixel response, a nuisance (prior 0.5-3 % RMS, log-uniform; median 1.22 %),
 #: white and correlated parts equal, the correlation length's median (1-8 px, log-uniform).
@@ -86,7 +86,7 @@ PAPER_BETA_GEAR_DEG = 0.0
 PAPER_MASK_PLAY_MM = 0.00224
 PAPER_ALPHA_JITTER_DEG = 0.000682
 PAPER_BETA_JITTER_DEG = 0.000623
-#: The identified hypothesis (F5, protocol version 4) has no gear error: the amplitude is 0.
+#: The presets' hypothesis (F5, a choice: the gear is not identified) has no gear error: 0.
 #: The period, deg, is what a study that switches a gear on gets (1-4 deg is one worm turn of a
 #: catalogue worm-driven stage; the gear hypotheses' fits chose 1.26-1.59 deg).
 PAPER_BETA_GEAR_PERIOD_DEG = 2.0

@@ -36,13 +36,11 @@ __all__ = ["Mask"]
 #: of and above the centre to keep every spot on the 1280 x 1024 detector (docs/paper.md sec. 8).
 PAPER_GRID_CENTRE_MM = (0.52, -0.78)
 
-#: Mask-to-focal-plane distance F of the paper's bench, mm: the hypothesis the identification
-#: protocol's rule picks (docs/identification.md; ``F5-gear``). F is *not identified* by the
-#: evidence: F17-gear scores within one standard error of F5-gear, the rule takes the better
-#: mean of two hypotheses of the same size. The primary clues split: the ROI sentence ("130 px,
-#: about 2.5 times the spot", sec. 1) gives 3.67 at 5 mm and 2.55 at 17 mm; at 5 mm the
-#: 10 x 10 pattern stays whole on the detector over the test range, at 17 mm part of it leaves
-#: the frame (docs/paper.md sec. 10 shows the arithmetic).
+#: Mask-to-focal-plane distance F of the paper's bench, mm: a choice, not identified (the
+#: sensitivity table's rows disagree; docs/identification.md, Results). The paper never gives F;
+#: the primary clues split: the ROI sentence ("130 px, about 2.5 times the spot", sec. 1) gives
+#: 3.67 at 5 mm and 2.55 at 17 mm; at 5 mm the 10 x 10 pattern stays whole on the detector over
+#: the test range, at 17 mm part of it leaves the frame (docs/paper.md sec. 10).
 PAPER_DISTANCE_MM = 5.0
 
 #: Where the presets put the one hole, mm from the detector centre: under the centre of the
