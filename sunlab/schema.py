@@ -401,8 +401,8 @@ def _check_schema_attr(ds: xr.Dataset, expected: str) -> None:
             )
         elif found in SCHEMA_FILES:
             fix = (
-                f"this is a {found!r} dataset, not {expected!r}: open it with "
-                "sunlab.io.open_dataset, which picks the reader from this attribute"
+                f"this is a {found!r} dataset, not {expected!r}: open a frame cube with "
+                "sunlab.io.open_frames, a centroid table with sunlab.io.open_centroids"
             )
         else:
             fix = "rebuild the dataset with sunlab.schema"
@@ -415,8 +415,8 @@ def _check_dims(ds: xr.Dataset, var: str, allowed: Sequence[tuple[str, ...]]) ->
             var, f"missing (variables: {sorted(map(str, ds.variables))})",
             f"a variable {var!r} on dims {' or '.join(map(str, allowed))}",
             f"add {var!r} (build the dataset with sunlab.schema), or check that this is the "
-            "kind of dataset you meant: sunlab.io.open_dataset picks the reader from "
-            "attrs['sunlab_schema']",
+            "kind of dataset you meant: sunlab.io.open_frames for frame cubes, "
+            "sunlab.io.open_centroids for centroid tables",
         )
     dims = tuple(map(str, ds[var].dims))
     if dims not in [tuple(a) for a in allowed]:

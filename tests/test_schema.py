@@ -207,7 +207,7 @@ def test_wrong_contract_and_version():
     cen = schema.centroids_dataset(np.zeros((2, 3)), np.zeros((2, 3)))
     with pytest.raises(SchemaError, match="found 'centroids/1', expected 'frames/1'") as err:
         schema.validate_frames(cen)
-    assert "open_dataset" in err.value.fix
+    assert "open_centroids" in err.value.fix
     cube = _cube().assign_attrs(sunlab_schema="frames/2")
     with pytest.raises(SchemaError, match="holds version '2'") as err:
         schema.validate_frames(cube)

@@ -97,7 +97,7 @@ def _run_info(args) -> int:
     # Describe incomplete stores (an acquisition in progress) instead of refusing them:
     # the summary names the missing chunk files. Names and attributes come from the file:
     # a terminal escape sequence in them is shown escaped, not run.
-    print(_printable(io.summary(io.open_dataset(args.path, check_chunks=False)), keep="\n"))
+    print(_printable(io.summary(args.path), keep="\n"))
     return 0
 
 

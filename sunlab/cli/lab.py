@@ -197,11 +197,11 @@ def cube_from_folder(folder, args):
     -------
     xarray.Dataset
         Contract ``frames/1`` on (pose, shot, y, x), DN, read lazily, with the masters of
-        the dark, flat and bias frames stored for centroiding (:func:`sunlab.io.import_folder`).
+        the dark, flat and bias frames stored for centroiding (:func:`sunlab.io.open_frames`).
     """
     from .. import io
 
-    return io.import_folder(
+    return io.open_frames(
         folder, getattr(args, "manifest", None), dark=getattr(args, "dark", None),
         flat=getattr(args, "flat", None), bias=getattr(args, "bias", None),
         pixel_pitch_mm=args.pixel_pitch_mm, mask_distance_mm=args.mask_distance_mm,

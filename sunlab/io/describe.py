@@ -41,7 +41,7 @@ def _coord_lines(ds: xr.Dataset, skip) -> list[str]:
     return lines
 
 
-def summary(ds: xr.Dataset) -> str:
+def summary(ds) -> str:
     """A human-readable summary of a frame cube or a centroid table.
 
     Frame cubes: contract, dims, pose grid ranges, shots, dtype and bit depth, chunking, size,
@@ -52,9 +52,10 @@ def summary(ds: xr.Dataset) -> str:
 
     Parameters
     ----------
-    ds : xarray.Dataset
-        A frame cube (``frames/1``) or a centroid table (``centroids/1``), as
-        :func:`sunlab.io.open_dataset` returns it.
+    ds : xarray.Dataset or path-like
+        A frame cube (``frames/1``) or a centroid table (``centroids/1``), or a store or file
+        holding one (opened lazily, whichever contract it names, with missing chunks allowed:
+        ``sunlab info``).
 
     Returns
     -------
@@ -76,13 +77,17 @@ def summary(ds: xr.Dataset) -> str:
     >>> "no_spot 1 (25.0 %)" in summary(cen)
     True
     """
+    if not isinstance(ds, xr.Dataset):
+        from .read import _open_any
+
+        ds = _open_any(ds)
     contract = ds.attrs.get("sunlab_schema")
     source = ds.encoding.get("source")
     storage = _storage_lines(ds, source)
     if contract not in (FRAMES_SCHEMA, CENTROIDS_SCHEMA):
         raise SchemaError(
             "attrs['sunlab_schema']", contract, f"{FRAMES_SCHEMA!r} or {CENTROIDS_SCHEMA!r}",
-            "open the file with sunlab.io.open_dataset",
+            "open the file with sunlab.io.open_frames or sunlab.io.open_centroids",
         )
     kind = "frame cube" if contract == FRAMES_SCHEMA else "centroid table"
     lines = [f"sunlab {kind} ({contract})"]
