@@ -3,6 +3,7 @@
 import json
 import shutil
 
+import dask.array as da
 import h5netcdf
 import numpy as np
 import pytest
@@ -107,7 +108,8 @@ def test_uint8_round_trip(tmp_path, name):
 
 
 def test_lazy_cube_writes_with_progress_on(tmp_path, capsys):
-    cube = schema.empty_frames(NP, NS, alpha=[0, 1], beta=[0, 0], ny=NY, nx=NX)
+    zeros = da.zeros((NP, NS, NY, NX), dtype=np.uint16, chunks=(1, 1, NY, NX))
+    cube = schema.frames_dataset(zeros, alpha=[0, 1], beta=[0, 0])
     cube["frames"] = cube.frames + np.uint16(3)
     cube["true_x"] = cube.alpha.chunk(pose=1) + xr.zeros_like(cube.shot, dtype=float)
     assert cube.true_x.dims == ("pose", "shot") and cube.true_x.chunks is not None

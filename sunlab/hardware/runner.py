@@ -3,8 +3,8 @@
 For each pose of a :class:`sunlab.plans.Plan` the runner moves the stage (which waits for
 motion done and settles), takes ``plan.shots`` frames, each with the encoder read-back and a
 timestamp, and writes the pose into a Zarr store that was allocated up front in the frames/1
-contract (:func:`sunlab.schema.empty_frames`): frames, ``alpha_read``, ``beta_read`` and
-``time`` on (pose, shot), and a per-pose flag ``done``.
+contract (:func:`sunlab.schema.frames_dataset` of lazy zeros): frames, ``alpha_read``,
+``beta_read`` and ``time`` on (pose, shot), and a per-pose flag ``done``.
 
 Crash safety rests on one ordering: a pose's frames and read-backs are written (and fsync'ed)
 before its ``done`` flag, and every chunk file is replaced atomically by Zarr (write to a
@@ -206,8 +206,8 @@ def _create_store(path: Path, alpha, beta, shots, name, camera, stage, attrs,
     if motion is not None and motion["beta_approach"] is not None:
         coords["beta_approach"] = ("pose", np.asarray(motion["beta_approach"], dtype=np.int8), {
             "long_name": "direction in which the inner axis reached the pose (+1 up, -1 down)"})
-    cube = schema.empty_frames(n, shots, alpha, beta, ny=ny, nx=nx, dtype=dtype,
-                               experiment=name, coords=coords, **sensor)
+    zeros = da.zeros((n, shots, ny, nx), dtype=dtype, chunks=(1, 1, ny, nx))  # allocated lazily
+    cube = schema.frames_dataset(zeros, alpha, beta, experiment=name, coords=coords, **sensor)
     from .. import atomic
 
     tmp = atomic.temporary_name(path)  # a later run removes it if this one is killed
