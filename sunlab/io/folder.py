@@ -26,7 +26,7 @@ from ..schema import frames_dataset
 from .calframes import with_calibration_frames
 from .codec import _short
 from .csvtable import _line, _numbers, _poses, read_csv_table
-from .images import IMAGE_SUFFIXES, _image_header, _read_checked
+from .images import IMAGE_SUFFIXES, _image_header, _raw_dtype, _read_checked
 from .sensor import find_sensor_json, read_sensor_json
 
 __all__ = ["example_folder"]
@@ -239,11 +239,7 @@ def _common_header(table, paths, order, pages, mname: str):
     shape, dtype, _ = headers[first]
     for i, path in enumerate(paths):
         shp, dt, n_pages = headers[path]
-        if dt not in (np.dtype(np.uint8), np.dtype(np.uint16)):
-            raise SchemaError(
-                f"image {path.name}", f"pixel type {dt}", "uint8 or uint16 digital numbers",
-                "export raw DN as 8- or 16-bit unsigned integers; float or 32-bit images are "
-                "not raw frames")
+        _raw_dtype(path, dt)
         if shp != shape or dt != dtype:
             raise SchemaError(
                 f"image {path.name} (manifest line {_line(table, i)})", f"shape {shp}, {dt}",
