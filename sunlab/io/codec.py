@@ -79,6 +79,16 @@ def _decode_attrs(attrs: Mapping) -> dict:
     return out
 
 
+def _strings_as_objects(ds):
+    """Fixed-width unicode variables as Python strings (Zarr v3 has no stable fixed-width
+    unicode type: sunlab writes variable-length strings, and reads them back the same)."""
+    for name in [n for n, v in ds.variables.items() if v.dtype.kind in "UT"]:
+        var = ds.variables[name]
+        new = (var.dims, np.asarray(var.values).astype(object), var.attrs)
+        ds = ds.assign_coords({name: new}) if name in ds.coords else ds.assign({name: new})
+    return ds
+
+
 def _short(value, limit: int = 60) -> str:
     text = repr(value)
     return text if len(text) <= limit else text[: limit - 4] + " ..."

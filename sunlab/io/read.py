@@ -11,14 +11,13 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-import numpy as np
 import xarray as xr
 
 from .. import integrity
 from ..errors import SchemaError, SunlabError
 from ..schema import CENTROIDS_SCHEMA, FRAMES_SCHEMA, validate_centroids, validate_frames
 from .chunks import _check_chunks, _checked_lazy
-from .codec import _CODEC_ATTR, _decode_attrs
+from .codec import _CODEC_ATTR, _decode_attrs, _strings_as_objects
 from .csvtable import CSV_SUFFIXES, centroids_from_csv
 
 __all__ = ["open_frames", "open_centroids"]
@@ -109,10 +108,7 @@ def _open_raw(path, format: str | None = None) -> xr.Dataset:
                               "re-create it") from exc
     ds.attrs.pop(integrity.ATTR, None)
     try:
-        for name in [n for n, v in ds.variables.items() if v.dtype.kind in "UT"]:
-            var = ds.variables[name]
-            new = (var.dims, np.asarray(var.values).astype(object), var.attrs)
-            ds = ds.assign_coords({name: new}) if name in ds.coords else ds.assign({name: new})
+        ds = _strings_as_objects(ds)
         for var in ds.variables.values():
             var.attrs = _decode_attrs(var.attrs)
         ds.attrs = _decode_attrs(ds.attrs)
@@ -217,14 +213,12 @@ CSV_SENSOR_KEYS = ("pixel_pitch_mm", "mask_distance_mm", "x_cf_px", "y_cf_px")
 
 def _sensor_attrs(path) -> dict | None:
     """The sensor attributes of a CSV table from the ``sensor.json`` in its folder, or None."""
-    from .sensor import read_sensor_json
+    from .sensor import find_sensor_json, read_sensor_json
 
-    sensor_json = Path(path).resolve().parent / "sensor.json"
-    if not sensor_json.is_file():
-        return None
-    sensor = read_sensor_json(sensor_json)
-    return {**{k: sensor[k] for k in CSV_SENSOR_KEYS if k in sensor},
-            "sensor_json": str(sensor_json)}
+    found = find_sensor_json(Path(path).resolve().parent)
+    sensor = read_sensor_json(found) if found else None
+    return None if found is None else {**{k: sensor[k] for k in CSV_SENSOR_KEYS if k in sensor},
+                                       "sensor_json": str(found)}
 
 
 def open_centroids(path, *, format: str | None = None, lazy: bool = False,

@@ -18,7 +18,7 @@ from .. import atomic, integrity
 from ..errors import SchemaError
 from ..schema import validate_centroids, validate_frames
 from .chunks import _checked_dn
-from .codec import _encode_attrs
+from .codec import _encode_attrs, _strings_as_objects
 
 __all__ = ["NETCDF_SUFFIXES", "save_frames", "save_centroids"]
 
@@ -47,14 +47,9 @@ def _target(path, format: str | None, overwrite: bool) -> tuple[Path, str]:
 
 
 def _prepare(ds: xr.Dataset) -> xr.Dataset:
-    """A shallow copy with encodings cleared, attributes encoded and strings as objects (Zarr
-    v3 has no stable fixed-width unicode type: variable-length strings are written)."""
-    ds = ds.copy(deep=False)
+    """A shallow copy with encodings cleared, attributes encoded and strings as objects."""
+    ds = _strings_as_objects(ds.copy(deep=False))
     ds.encoding = {}
-    for name in [n for n, v in ds.variables.items() if v.dtype.kind in "UT"]:
-        var = ds.variables[name]
-        new = (var.dims, np.asarray(var.values).astype(object), var.attrs)
-        ds = ds.assign_coords({name: new}) if name in ds.coords else ds.assign({name: new})
     for name, var in ds.variables.items():
         var.encoding = {}
         var.attrs = _encode_attrs(var.attrs, where=f"{name}.")
