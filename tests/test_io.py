@@ -199,7 +199,7 @@ def _folder(tmp_path, suffix=".png", dtype=np.uint16, bits=10, extra=True):
      (".tif", np.uint8, 8), (".tif", np.uint16, 10)],
 )
 @pytest.mark.parametrize("lazy", [True, False])
-def test_from_image_folder(tmp_path, suffix, dtype, bits, lazy):
+def test_open_frames_of_an_image_folder(tmp_path, suffix, dtype, bits, lazy):
     folder, truth = _folder(tmp_path, suffix, dtype, bits)
     cube = io.open_frames(folder, lazy=lazy, experiment="II")
     assert cube.frames.dtype == dtype

@@ -14,7 +14,7 @@ from ..errors import SchemaError
 
 __all__ = ["read_image"]
 
-#: File suffixes read by :func:`~sunlab.io.from_image_folder` and :func:`read_image`.
+#: File suffixes read by :func:`~sunlab.io.open_frames` (a folder of images) and :func:`read_image`.
 IMAGE_SUFFIXES = (".png", ".tif", ".tiff")
 
 _PNG_MODES = {"L": np.uint8, "I;16": np.uint16, "I;16L": np.uint16, "I;16B": np.uint16}
