@@ -155,13 +155,6 @@ def save_frames(
         ``path`` exists and ``overwrite`` is False, or its folder is missing or read-only
         (checked before any frame is computed).
 
-    Notes
-    -----
-    The store is written to a hidden sibling (``.NAME.tmp-XXXXXXXX``) and renamed into place
-    only when complete; with ``overwrite=True`` the old output is moved aside, the new one moved
-    in, and only then the old one deleted, so a failed write leaves the old output intact.
-    Every Zarr chunk carries a CRC-32C checksum, every NetCDF frame chunk a Fletcher-32 one.
-
     Examples
     --------
     >>> import numpy as np, tempfile, pathlib
