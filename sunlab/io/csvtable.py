@@ -126,36 +126,24 @@ def read_csv_table(path, what: str = "table"):
 
     path = Path(path)
     name = f"{what} {path.name}" if what else path.name
-    text = _read_text(path, name)
-    records = []
-    for number, raw in enumerate(text.splitlines(), 1):
-        body = _uncommented(raw)
-        if body.strip():
-            fields = next(csv.reader([body]))
-            records.append((number, [f.strip() for f in fields]))
+    records = [(n, [f.strip() for f in next(csv.reader([body]))])
+               for n, raw in enumerate(_read_text(path, name).splitlines(), 1)
+               if (body := _uncommented(raw)).strip()]
     if not records:
         raise SchemaError(name, "an empty file", "a header line and one row per line",
                           "write the header and the rows")
-    (head_line, header), rows = records[0], records[1:]
-    header = _checked_header(header, name, head_line)
+    header = _checked_header(records[0][1], name, records[0][0])
     n = len(header)
-    data, lines = [], []
-    for number, fields in rows:
-        if len(fields) > n:
-            if any(fields[n:]):
-                raise SchemaError(
-                    f"{name} line {number}", f"{len(fields)} fields",
-                    f"the header's {n} ({', '.join(header)})",
-                    "write decimals with '.', not ',' (512.5, not 512,5), quote a text that "
-                    "holds a comma, or remove the extra fields",
-                )
-            fields = fields[:n]
-        data.append([f if f else None for f in fields] + [None] * (n - len(fields)))
-        lines.append(number)
-    import pandas as pd
-
-    table = pd.DataFrame(data, columns=header, dtype=object)
-    table.attrs["lines"] = lines
+    for number, fields in records[1:]:
+        if any(fields[n:]):
+            raise SchemaError(
+                f"{name} line {number}", f"{len(fields)} fields",
+                f"the header's {n} ({', '.join(header)})",
+                "write decimals with '.', not ',' (512.5, not 512,5), quote a text that holds a "
+                "comma, or remove the extra fields")
+    table = pd.DataFrame([[f or None for f in fields[:n]] + [None] * (n - len(fields))
+                          for _, fields in records[1:]], columns=header, dtype=object)
+    table.attrs["lines"] = [number for number, _ in records[1:]]
     return table
 
 
