@@ -1,19 +1,19 @@
-"""Atomic outputs: write a temporary sibling, then rename it into place.
+"""Atomic outputs: write a temporary sibling, then :func:`os.replace` it into place.
 
 Every file or store sunlab writes goes through this module, so that an output is either the old
 one or the new one, never a half-written mix, and an existing output is replaced only when the
 caller says so (``overwrite=True`` / ``--overwrite``):
 
 * :func:`check_target` checks an output path *before* any work is done (the folder exists and
-  is writable; an existing output needs ``overwrite``);
+  is writable; an existing output needs ``overwrite``; a named pipe, a socket or a device is
+  never replaced; a folder is replaced only when it is a Zarr store);
 * :func:`atomic_output` yields a temporary sibling path to write (a file or a directory, e.g. a
   Zarr store) and moves it into place when the block ends without error. A file replaces the old
-  one with :func:`os.replace`; a directory is swapped by renaming the old one aside, renaming the
-  new one in and only then deleting the old one, so the old output survives any failure;
+  one (or a symbolic link, never followed) with :func:`os.replace`; a directory is swapped by
+  renaming the old one aside, the new one in, and only then deleting the old one;
 * :func:`atomic_files` does the same for several files of one folder (``export``'s header and
-  source, ``evaluate``'s tables and figures): they are written into a temporary sibling folder
-  and moved into place together, so a failure leaves all the old files or all the new ones;
-* :func:`write_text` and :func:`write_bytes` do both for small files (JSON, CSV).
+  source, ``evaluate``'s tables and figures): all the old files or all the new ones;
+* :func:`write_text` does both for a small file (JSON, CSV), flushed to disk first.
 
 Temporary names carry the writer's process id (``.NAME.tmp-PID-XXXXXXXX``, an old output set
 aside ``.NAME.old-PID-XXXXXXXX``): a later write of the same output removes the leftovers of a
@@ -47,6 +47,7 @@ import os
 import re
 import shutil
 import signal
+import stat
 import uuid
 from pathlib import Path
 
@@ -54,14 +55,25 @@ from .errors import SunlabError
 
 __all__ = []
 
+_DISK_FULL = {errno.ENOSPC, errno.EFBIG, getattr(errno, "EDQUOT", errno.ENOSPC)}
+_SPECIAL = ((stat.S_ISFIFO, "a named pipe (FIFO)"), (stat.S_ISSOCK, "a socket"),
+            (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"))
+#: Name of the staging folder that :func:`atomic_files` makes inside an existing folder.
+_STAGING = "sunlab-output"
+
 
 class OutputExistsError(SunlabError, FileExistsError):
     """An output exists and the caller did not ask to replace it."""
 
 
-def _is_zarr_store(path: Path) -> bool:
-    return (path / "zarr.json").exists() or (path / ".zgroup").exists() or (
-        path / ".zarray").exists()
+def _exists(path: Path) -> bool:
+    return path.exists() or path.is_symlink()
+
+
+def _exists_error(path, flag: str, meanwhile: bool = False, what: str = "path"):
+    said = "was created while sunlab was writing it" if meanwhile else "already exists"
+    return OutputExistsError(f"{path}: {said}. Fix: pass {flag} to replace it, or choose a new "
+                             f"{what}")
 
 
 def temporary_name(path, what: str = "tmp") -> Path:
@@ -72,8 +84,7 @@ def temporary_name(path, what: str = "tmp") -> Path:
     path : str or path-like
         The output.
     what : str
-        The kind of sibling: ``"tmp"`` (an output being written) or ``"old"`` (an output set
-        aside).
+        ``"tmp"`` (an output being written) or ``"old"`` (an output set aside).
 
     Returns
     -------
@@ -118,7 +129,7 @@ def process_alive(pid) -> bool:
     except ProcessLookupError:
         return False
     except PermissionError:  # another user's process
-        return True
+        pass
     return True
 
 
@@ -148,30 +159,24 @@ def remove_stale(path) -> list[Path]:
     ['.c.json.tmp-999999999-0123abcd']
     """
     path = Path(path)
-    parent = path.parent if str(path.parent) else Path(".")
     pattern = re.compile(rf"\.{re.escape(path.name)}\.(tmp|old)-(\d+)-[0-9a-f]{{8}}")
     cleared = []
-    try:
-        entries = sorted(os.scandir(parent), key=lambda e: e.name)
-    except OSError:
-        return cleared
-    for entry in entries:
-        match = pattern.fullmatch(entry.name)
-        if match is None or process_alive(int(match.group(2))):
-            continue
-        stale = Path(entry.path)
-        if match.group(1) == "old" and not (path.exists() or path.is_symlink()):
-            with contextlib.suppress(OSError):
-                os.replace(stale, path)
-                cleared.append(stale)
+    with contextlib.suppress(OSError):
+        for stale in sorted(path.parent.iterdir()):
+            match = pattern.fullmatch(stale.name)
+            if match is None or process_alive(int(match.group(2))):
                 continue
-        _remove(stale)
-        cleared.append(stale)
+            cleared.append(stale)
+            if match.group(1) == "old" and not _exists(path):
+                with contextlib.suppress(OSError):
+                    os.replace(stale, path)
+                    continue
+            _remove(stale)
     return cleared
 
 
-def check_target(path, *, overwrite: bool = False, kind: str = "file", flag: str = "overwrite=True"
-                 ) -> Path:
+def check_target(path, *, overwrite: bool = False, kind: str = "file",
+                 flag: str = "overwrite=True") -> Path:
     """Check that ``path`` can be written, before any work is done; return it as a Path.
 
     Parameters
@@ -197,7 +202,7 @@ def check_target(path, *, overwrite: bool = False, kind: str = "file", flag: str
         ``path`` exists and ``overwrite`` is False.
     SunlabError
         The parent folder is missing or not writable, or ``path`` is a folder that must not be
-        replaced.
+        replaced, or a named pipe, a socket or a device.
 
     Examples
     --------
@@ -212,54 +217,31 @@ def check_target(path, *, overwrite: bool = False, kind: str = "file", flag: str
     True
     """
     path = Path(path)
-    parent = path.parent if str(path.parent) else Path(".")
+    parent = path.parent
     if not parent.is_dir():
-        raise SunlabError(
-            f"{path}: the folder does not exist ({parent}). Fix: create it first "
-            f"(mkdir -p {parent}) or choose another output path"
-        )
+        raise SunlabError(f"{path}: the folder does not exist ({parent}). Fix: create it first "
+                          f"(mkdir -p {parent}) or choose another output path")
     if not os.access(parent, os.W_OK | os.X_OK):
-        raise SunlabError(
-            f"{path}: the folder {parent} is not writable. Fix: choose an output path in a "
-            "folder you can write to, or change the folder's permissions"
-        )
+        raise SunlabError(f"{path}: the folder {parent} is not writable. Fix: choose an output "
+                          "path in a folder you can write to, or change the folder's permissions")
     remove_stale(path)
-    special = _special_file(path)
-    if special:
-        raise SunlabError(
-            f"{path}: is {special}, not a regular file; sunlab never replaces one (a reader "
-            "may hold it open). Fix: choose a path for a new file"
-        )
-    if path.is_dir() and not path.is_symlink() and not (kind == "zarr" and _is_zarr_store(path)):
-        if kind == "zarr":
-            raise SunlabError(
-                f"{path}: is a directory, not a Zarr store; sunlab will not delete it. Fix: "
-                "choose another path")
-        raise SunlabError(
-            f"{path}: is a directory, expected a file; sunlab will not delete it. Fix: give a "
-            f"file path (e.g. {path / 'out'}{path.suffix or ''})")
-    if path.exists() or path.is_symlink():
-        if not overwrite:
-            raise OutputExistsError(
-                f"{path}: already exists. Fix: pass {flag} to replace it, or choose a new path"
-            )
-    return path
-
-
-def _special_file(path: Path) -> str | None:
-    """What ``path`` is when it is neither a regular file, a folder nor a symbolic link (a
-    named pipe, a socket, a device), else None. A link is judged by what it points to."""
-    import stat
-
-    try:
+    with contextlib.suppress(OSError):  # missing, or a dangling link: nothing a write reaches
         mode = os.stat(path).st_mode
-    except OSError:  # missing, or a dangling link: nothing that a write could reach
-        return None
-    for test, name in ((stat.S_ISFIFO, "a named pipe (FIFO)"), (stat.S_ISSOCK, "a socket"),
-                       (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device")):
-        if test(mode):
-            return name
-    return None
+        for test, name in _SPECIAL:
+            if test(mode):
+                raise SunlabError(f"{path}: is {name}, not a regular file; sunlab never replaces "
+                                  "one (a reader may hold it open). Fix: choose a path for a new "
+                                  "file")
+    zarr = kind == "zarr" and any(_exists(path / n) for n in ("zarr.json", ".zgroup", ".zarray"))
+    if path.is_dir() and not path.is_symlink() and not zarr:
+        if kind == "zarr":
+            raise SunlabError(f"{path}: is a directory, not a Zarr store; sunlab will not delete "
+                              "it. Fix: choose another path")
+        raise SunlabError(f"{path}: is a directory, expected a file; sunlab will not delete it. "
+                          f"Fix: give a file path (e.g. {path / 'out'}{path.suffix or ''})")
+    if _exists(path) and not overwrite:
+        raise _exists_error(path, flag)
+    return path
 
 
 def _remove(path: Path) -> None:
@@ -275,61 +257,35 @@ def signals_held():
     """Hold SIGINT, SIGTERM and SIGHUP back while the block runs (delivered when it ends):
     for a few renames, or a step whose writes run on another thread that an interrupt of this
     one would not stop (they would recreate a temporary output after its removal)."""
-    held = {signal.SIGINT, signal.SIGTERM} | (
-        {signal.SIGHUP} if hasattr(signal, "SIGHUP") else set())
+    held = {signal.SIGINT, signal.SIGTERM, getattr(signal, "SIGHUP", signal.SIGTERM)}
     try:
         old = signal.pthread_sigmask(signal.SIG_BLOCK, held)
     except (AttributeError, OSError, ValueError):  # no POSIX signal masks (Windows)
-        yield
-        return
+        old = None
     try:
         yield
     finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+        if old is not None:
+            signal.pthread_sigmask(signal.SIG_SETMASK, old)
 
 
-_DISK_FULL = {errno.ENOSPC, errno.EFBIG, getattr(errno, "EDQUOT", errno.ENOSPC)}
-
-
-def _named(err: OSError, path: Path) -> BaseException:
-    """An OS error of a write, as a SunlabError naming the output (a full disk says so)."""
-    # the system's own words: a library's text may name the temporary file instead
+def _named(err: OSError, tmp: Path, path: Path) -> BaseException:
+    """An OS error of a write into ``tmp``, naming the output ``path`` the user asked for: a
+    full disk or an error without a file name becomes a SunlabError (the system's own words: a
+    library's text may name the temporary file), one naming ``tmp`` names ``path`` instead."""
+    if err.filename is not None and err.errno not in _DISK_FULL:
+        if str(tmp) in str(err.filename):
+            err.filename = str(path)
+        return err
     what = (os.strerror(err.errno) if isinstance(err.errno, int)
             else err.strerror or str(err) or type(err).__name__)
     if err.errno in _DISK_FULL:
         return SunlabError(
             f"{path}: {what} while writing it (errno {errno.errorcode.get(err.errno, '?')}); "
             "nothing was changed there. Fix: free disk space (or raise the file-size or quota "
-            "limit), or write to another disk"
-        )
+            "limit), or write to another disk")
     return SunlabError(f"{path}: {what} while writing it; nothing was changed there. Fix: check "
                        "the folder, its free space and its permissions")
-
-
-def _renamed(err: OSError, tmp: Path, path: Path) -> BaseException:
-    """An OS error of a write into ``tmp``, naming the output ``path`` the user asked for: a
-    full disk or an error without a file name becomes a SunlabError, one naming the temporary
-    output names ``path`` instead (same type)."""
-    if err.filename is None or err.errno in _DISK_FULL:
-        return _named(err, path)
-    if str(tmp) in str(err.filename):
-        err.filename = str(path)
-    return err
-
-
-def _swap(tmp: Path, path: Path) -> None:
-    """Move ``tmp`` to ``path``; an existing ``path`` survives any failure of the move."""
-    if tmp.is_dir() and (path.exists() or path.is_symlink()):
-        aside = temporary_name(path, "old")
-        os.replace(path, aside)
-        try:
-            os.replace(tmp, path)
-        except BaseException:
-            os.replace(aside, path)
-            raise
-        _remove(aside)
-    else:
-        os.replace(tmp, path)
 
 
 @contextlib.contextmanager
@@ -364,24 +320,26 @@ def atomic_output(path, *, overwrite: bool = False, kind: str = "file",
         try:
             yield tmp
         except OSError as err:
-            raise _renamed(err, tmp, path) from err.__cause__
-        if not (tmp.exists() or tmp.is_symlink()):
+            raise _named(err, tmp, path) from err.__cause__
+        if not _exists(tmp):
             raise SunlabError(f"{path}: nothing was written. Fix: this is a bug in the writer")
-        # Checked again: another process may have created the output meanwhile.
-        if (path.exists() or path.is_symlink()) and not overwrite:
-            raise OutputExistsError(
-                f"{path}: was created while sunlab was writing it. Fix: pass {flag} to replace "
-                "it, or choose a new path"
-            )
+        if _exists(path) and not overwrite:  # another process may have created it meanwhile
+            raise _exists_error(path, flag, meanwhile=True)
         with signals_held():
-            _swap(tmp, path)
+            if tmp.is_dir() and _exists(path):  # the old output survives a failed move
+                aside = temporary_name(path, "old")
+                os.replace(path, aside)
+                try:
+                    os.replace(tmp, path)
+                except BaseException:
+                    os.replace(aside, path)
+                    raise
+                _remove(aside)
+            else:
+                os.replace(tmp, path)
     finally:
-        if tmp.exists() or tmp.is_symlink():
+        if _exists(tmp):
             _remove(tmp)
-
-
-#: Name of the staging folder that :func:`atomic_files` makes inside an existing folder.
-_STAGING = "sunlab-output"
 
 
 def check_folder(folder, names, *, overwrite: bool = False, flag: str = "overwrite=True"
@@ -417,7 +375,7 @@ def check_folder(folder, names, *, overwrite: bool = False, flag: str = "overwri
         remove_stale(folder / _STAGING)
         for name in names:
             check_target(folder / name, overwrite=overwrite, flag=flag)
-    elif folder.exists() or folder.is_symlink():
+    elif _exists(folder):
         raise SunlabError(f"{folder}: exists and is not a folder. Fix: choose another output "
                           "folder")
     else:  # the parent must exist and be writable; leftovers of a killed writer go
@@ -425,45 +383,17 @@ def check_folder(folder, names, *, overwrite: bool = False, flag: str = "overwri
     return folder
 
 
-def _move_in(staging: Path, folder: Path, overwrite: bool, flag: str) -> None:
-    """Move every file of ``staging`` into ``folder``; on a failure, undo the moves made."""
-    aside = staging / ".old"
-    aside.mkdir()
-    done: list[tuple[Path, Path | None]] = []
-    try:
-        for new in sorted(p for p in staging.iterdir() if p != aside):
-            target = folder / new.name
-            old = None
-            if target.exists() or target.is_symlink():
-                if not overwrite:
-                    raise OutputExistsError(
-                        f"{target}: was created while sunlab was writing it. Fix: pass {flag} "
-                        "to replace it, or choose a new folder")
-                old = aside / new.name
-                os.replace(target, old)
-            done.append((target, old))
-            os.replace(new, target)
-    except BaseException:
-        for target, old in reversed(done):
-            with contextlib.suppress(OSError):
-                if old is not None:
-                    os.replace(old, target)
-                elif target.exists():
-                    target.unlink()
-        raise
-
-
 @contextlib.contextmanager
 def atomic_files(folder, names, *, overwrite: bool = False, flag: str = "overwrite=True"):
     """Yield a temporary folder to write the files ``names`` in; move them into ``folder``
     together when the block ends without error.
 
-    Everything is checked before the block runs (the parent folder is writable, no listed file
-    exists unless ``overwrite``), and ``folder`` is not created until the files are complete:
-    a missing ``folder`` is the temporary folder renamed (one atomic step); in an existing one
-    the old files are set aside, the new ones moved in, and the old ones deleted, with SIGINT
-    and SIGTERM held back, and the moves undone if one fails. On any error before that nothing
-    in ``folder`` changes. Files of ``folder`` that are not written are left alone.
+    Everything is checked before the block runs (:func:`check_folder`), and ``folder`` is not
+    created until the files are complete: a missing ``folder`` is the temporary folder renamed
+    (one atomic step); in an existing one the old files are set aside, the new ones moved in,
+    and the old ones deleted, with SIGINT and SIGTERM held back, and the moves undone if one
+    fails. On any error before that nothing in ``folder`` changes. Files of ``folder`` that are
+    not written are left alone.
 
     Parameters
     ----------
@@ -492,14 +422,11 @@ def atomic_files(folder, names, *, overwrite: bool = False, flag: str = "overwri
     # beside a missing folder (renamed into place), inside an existing one (the same disk)
     staging = temporary_name(folder / _STAGING if folder.is_dir() else folder)
     try:
-        staging.mkdir()
-    except OSError as err:
-        raise _named(err, folder) from err
-    try:
         try:
+            staging.mkdir()
             yield staging
         except OSError as err:
-            raise _renamed(err, staging, folder) from err.__cause__
+            raise _named(err, staging, folder) from err.__cause__
         unknown = sorted(p.name for p in staging.iterdir() if p.name not in names)
         if unknown:
             raise SunlabError(f"{folder}: unexpected outputs {unknown}. Fix: this is a bug in "
@@ -514,53 +441,41 @@ def atomic_files(folder, names, *, overwrite: bool = False, flag: str = "overwri
             _remove(staging)
 
 
-def write_bytes(path, data: bytes, *, overwrite: bool = False, flag: str = "overwrite=True"
-                ) -> Path:
-    """Write ``data`` to ``path`` atomically (temporary sibling, fsync, rename); return the path.
+def _move_in(staging: Path, folder: Path, overwrite: bool, flag: str) -> None:
+    """Move every file of ``staging`` into ``folder``; on a failure, undo the moves made."""
+    aside = staging / ".old"
+    aside.mkdir()
+    done: list[tuple[Path, Path | None]] = []
+    try:
+        for new in sorted(p for p in staging.iterdir() if p != aside):
+            target, old = folder / new.name, None
+            if _exists(target):
+                if not overwrite:
+                    raise _exists_error(target, flag, meanwhile=True, what="folder")
+                old = aside / new.name
+                os.replace(target, old)
+            done.append((target, old))
+            os.replace(new, target)
+    except BaseException:
+        for target, old in reversed(done):
+            with contextlib.suppress(OSError):
+                os.replace(old, target) if old is not None else target.unlink()
+        raise
+
+
+def write_text(path, text: str | bytes, *, overwrite: bool = False,
+               flag: str = "overwrite=True") -> Path:
+    """Write ``text`` (UTF-8; or bytes) to ``path`` atomically (temporary sibling, fsync,
+    rename); return the path.
 
     Parameters
     ----------
     path : str or path-like
         The output file.
-    data : bytes
+    text : str or bytes
         Its content.
     overwrite, flag
         As in :func:`check_target`.
-
-    Returns
-    -------
-    pathlib.Path
-        ``path``.
-
-    Examples
-    --------
-    >>> import pathlib, tempfile
-    >>> path = pathlib.Path(tempfile.mkdtemp()) / "x.bin"
-    >>> write_bytes(path, b"abc").read_bytes()
-    b'abc'
-    """
-    with atomic_output(path, overwrite=overwrite, flag=flag) as tmp:
-        with open(tmp, "xb") as fh:
-            fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
-    return Path(path)
-
-
-def write_text(path, text: str, *, overwrite: bool = False, flag: str = "overwrite=True",
-               encoding: str = "utf-8") -> Path:
-    """Write ``text`` to ``path`` atomically; return the path. See :func:`write_bytes`.
-
-    Parameters
-    ----------
-    path : str or path-like
-        The output file.
-    text : str
-        Its content.
-    overwrite, flag
-        As in :func:`check_target`.
-    encoding : str
-        Text encoding of the file.
 
     Returns
     -------
@@ -574,4 +489,8 @@ def write_text(path, text: str, *, overwrite: bool = False, flag: str = "overwri
     >>> write_text(path, "{}").read_text()
     '{}'
     """
-    return write_bytes(path, text.encode(encoding), overwrite=overwrite, flag=flag)
+    with atomic_output(path, overwrite=overwrite, flag=flag) as tmp, open(tmp, "xb") as fh:
+        fh.write(text.encode("utf-8") if isinstance(text, str) else text)
+        fh.flush()
+        os.fsync(fh.fileno())
+    return Path(path)

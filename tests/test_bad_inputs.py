@@ -459,7 +459,7 @@ def _chunk(c, store="cube.zarr", key="frames/c/1/0/0/0"):
 
 
 def _read_all(path):
-    with io.open_dataset(path) as ds:
+    with io.open_frames(path) as ds:
         return {k: np.asarray(v.values) for k, v in ds.variables.items()}
 
 
@@ -560,19 +560,19 @@ def _truncate(path: Path, keep: float = 0.6) -> None:
 
 row("image folder truncated PNG (lazy, at compute)",
     lambda c: (c.copy("imgs"), _truncate(c.tmp / "imgs" / "f1.png")),
-    lambda c: io.from_image_folder(c.tmp / "imgs", bit_depth=10).frames.values,
+    lambda c: io.open_frames(c.tmp / "imgs", bit_depth=10).frames.values,
     r"image .*imgs/f1.png: found 'unreadable pixel data", exc=SchemaError)
 row("image folder truncated PNG (eager)",
     lambda c: (c.copy("imgs"), _truncate(c.tmp / "imgs" / "f1.png")),
-    lambda c: io.from_image_folder(c.tmp / "imgs", bit_depth=10, lazy=False),
+    lambda c: io.open_frames(c.tmp / "imgs", bit_depth=10, lazy=False),
     r"image .*f1.png", exc=SchemaError)
 row("image folder PNG header garbled",
     lambda c: (c.copy("imgs"), (c.tmp / "imgs" / "f0.png").write_bytes(b"\x89PNG garbage")),
-    lambda c: io.from_image_folder(c.tmp / "imgs", bit_depth=10),
+    lambda c: io.open_frames(c.tmp / "imgs", bit_depth=10),
     r"image f0.png: found .unreadable", exc=SchemaError)
 row("image folder DN above bit depth",
     lambda c: c.copy("imgs"),
-    lambda c: io.from_image_folder(c.tmp / "imgs", bit_depth=6).frames.values,
+    lambda c: io.open_frames(c.tmp / "imgs", bit_depth=6).frames.values,
     r"image .*f1.png: found 'maximum 107 DN', expected < 2\*\*6", exc=SchemaError)
 row("read_image truncated TIFF",
     lambda c: (__import__("tifffile").imwrite(c.tmp / "t.tif", np.ones((NY, NX), np.uint16)),

@@ -124,7 +124,7 @@ WRONG = {
             "    return tuple(float(v) for v in params)",
     # the frames imported without their dark and flat
     "08.1": "def centroids_of(folder, dark, flat):\n"
-            "    return centroid.locate(io.import_folder(folder), 'projection', progress=False)",
+            "    return centroid.locate(io.open_frames(folder), 'projection', progress=False)",
     # a first-order polynomial: the geometry over +-6 deg is not linear
     "08.2": "def calibrate_and_export(train, out):\n"
             "    cal = calibration.fit(train, 'polynomial', order=1)\n"

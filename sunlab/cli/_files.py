@@ -51,7 +51,7 @@ def _add(sub) -> None:
 
 
 def run_import(args) -> int:
-    """``sunlab import``: :func:`sunlab.io.import_folder` saved as a cube."""
+    """``sunlab import``: :func:`sunlab.io.open_frames` saved as a cube."""
     from .. import io
 
     check_out(args.out, args.overwrite)
@@ -109,7 +109,7 @@ def run_info(args) -> int:
         return 0
     from .. import io
 
-    print(printable(io.summary(io.open_dataset(args.path, check_chunks=False)), keep="\n"))
+    print(printable(io.summary(args.path), keep="\n"))
     return 0
 
 
@@ -165,7 +165,7 @@ def _is_image_folder(path) -> bool:
 
 def _add_folder_options(p) -> None:
     """The options of an image folder (``import``, ``centroid FOLDER``); each defaults to the
-    folder's ``sensor.json`` (:func:`sunlab.io.import_folder`)."""
+    folder's ``sensor.json`` (:func:`sunlab.io.open_frames`)."""
     g = p.add_argument_group("image folder (PNG/TIFF frames + manifest.csv)")
     g.add_argument("--manifest", help="columns file, alpha, beta, shot (FOLDER/manifest.csv)")
     g.add_argument("--pixel-pitch-mm", type=float, help="pixel pitch, mm (never guessed)")
@@ -182,10 +182,10 @@ def _add_folder_options(p) -> None:
 
 def _cube_from_folder(folder, args):
     """A lazy cube of an image folder with the folder options of ``args``
-    (:func:`sunlab.io.import_folder`)."""
+    (:func:`sunlab.io.open_frames`)."""
     from .. import io
 
-    return io.import_folder(
+    return io.open_frames(
         folder, args.manifest, dark=args.dark, flat=args.flat, bias=args.bias,
         pixel_pitch_mm=args.pixel_pitch_mm, mask_distance_mm=args.mask_distance_mm,
         bit_depth=args.bit_depth, left_aligned=args.left_aligned,

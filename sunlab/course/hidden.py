@@ -394,9 +394,9 @@ def _ex08_2_calibrate(ns, rng):
 
     with tempfile.TemporaryDirectory(prefix="sunlab-hidden-") as tmp:
         rec = _recording(rng, Path(tmp) / "run")
-        cen = {name: centroid.locate(io.import_folder(rec.folder / name,
-                                                      dark=rec.folder / "dark",
-                                                      flat=rec.folder / "flat"),
+        cen = {name: centroid.locate(io.open_frames(rec.folder / name,
+                                                    dark=rec.folder / "dark",
+                                                    flat=rec.folder / "flat"),
                                      "projection", progress=False)
                for name in ("train", "test")}
         out = Path(tmp) / "onboard"

@@ -3,8 +3,8 @@
 For each pose of a :class:`sunlab.plans.Plan` the runner moves the stage (which waits for
 motion done and settles), takes ``plan.shots`` frames, each with the encoder read-back and a
 timestamp, and writes the pose into a Zarr store that was allocated up front in the frames/1
-contract (:func:`sunlab.schema.empty_frames`): frames, ``alpha_read``, ``beta_read`` and
-``time`` on (pose, shot), and a per-pose flag ``done``.
+contract (:func:`sunlab.schema.frames_dataset` of lazy zeros): frames, ``alpha_read``,
+``beta_read`` and ``time`` on (pose, shot), and a per-pose flag ``done``.
 
 Crash safety rests on one ordering: a pose's frames and read-backs are written (and fsync'ed)
 before its ``done`` flag, and every chunk file is replaced atomically by Zarr (write to a
@@ -195,8 +195,10 @@ def _create_store(path: Path, run: _Run, camera, stage, attrs) -> None:
     if run.motion["beta_approach"] is not None:
         coords["beta_approach"] = ("pose", np.asarray(run.motion["beta_approach"], np.int8), {
             "long_name": "direction in which the inner axis reached the pose (+1 up, -1 down)"})
-    cube = schema.empty_frames(n, shots, run.alpha, run.beta, ny=run.shape[0], nx=run.shape[1],
-                               dtype=run.dtype, experiment=run.name, coords=coords, **sensor)
+    ny, nx = run.shape
+    zeros = da.zeros((n, shots, ny, nx), dtype=run.dtype, chunks=(1, 1, ny, nx))  # lazily
+    cube = schema.frames_dataset(zeros, run.alpha, run.beta, experiment=run.name, coords=coords,
+                                 **sensor)
     tmp = atomic.temporary_name(path)  # a later run removes it if this one is killed
     # time is stored as float seconds since the epoch (NaN until taken), decoded to datetime64
     encoding = {v: {"_FillValue": np.nan} for v in ("alpha_read", "beta_read")}

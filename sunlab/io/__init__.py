@@ -1,20 +1,12 @@
 """Open and save frame cubes and centroid tables; import a folder of images with a manifest.
 
-One module per concept, every public name re-exported here:
-
-* :mod:`sunlab.io.write` -- :func:`save_frames`, :func:`save_centroids` (Zarr or NetCDF4);
-* :mod:`sunlab.io.read` -- :func:`open_frames`, :func:`open_centroids`, :func:`open_dataset`;
-* :mod:`sunlab.io.csvtable` -- :func:`centroids_from_csv`, centroid tables of other tools;
-* :mod:`sunlab.io.chunks` -- a damaged, missing or out-of-range chunk names itself;
-* :mod:`sunlab.io.codec` -- exact round trips of attributes;
-* :mod:`sunlab.io.images` -- :func:`read_image`, one PNG or TIFF frame;
-* :mod:`sunlab.io.folder` -- :func:`from_image_folder`, :func:`example_folder`;
-* :mod:`sunlab.io.sensor` -- :func:`read_sensor_json`, the checked ``sensor.json`` of a folder;
-* :mod:`sunlab.io.calframes` -- master dark, bias and flat frames
-  (:func:`with_calibration_frames`) and the lazy correction (:func:`corrected_frames`);
-* :mod:`sunlab.io.lab` -- :func:`import_folder`: a lab's folder, sensor.json and calibration
-  frames as one cube (``sunlab import``);
-* :mod:`sunlab.io.describe` -- :func:`summary`.
+One way per step: :func:`open_frames` opens frames from every source (a Zarr store, a NetCDF4
+file, a folder of images with its manifest, a TIFF stack), :func:`open_centroids` every centroid
+table (Zarr, NetCDF4, a CSV of another tool), :func:`save_frames` and :func:`save_centroids`
+write them. One module per concept: ``read`` (the openers), ``write``, ``folder`` (a folder of
+images as a cube), ``images`` (one image file), ``sensor`` (``sensor.json``), ``csvtable`` (CSV
+tables and manifests), ``calframes`` (master dark, bias and flat), ``chunks`` (a damaged chunk
+names itself), ``codec`` (attributes), ``describe`` (:func:`summary`).
 
 Two on-disk formats hold the same datasets (contracts ``frames/1`` and ``centroids/1`` of
 ``data_schema/``):

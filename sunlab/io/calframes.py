@@ -59,6 +59,8 @@ __all__ = ["with_calibration_frames", "corrected_frames", "corrected_saturation"
 
 #: The master frames a cube may hold: kind -> variable name.
 MASTER_NAMES = {"dark": "master_dark", "bias": "master_bias", "flat": "master_flat"}
+#: Above this fraction of clipped pixels a master flat is refused rather than flagged.
+_MAX_CLIPPED_FLAT = 0.01
 
 
 def read_stack(source, *, bit_depth: int | None = None, left_aligned: bool = False):
@@ -78,25 +80,20 @@ def read_stack(source, *, bit_depth: int | None = None, left_aligned: bool = Fal
     numpy.ndarray, shape (n, y, x)
     """
     source = Path(source)
-    if source.is_dir():
-        files = sorted(p for p in source.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
-        if not files:
-            raise SchemaError(
-                "calibration frames", f"{source} (no {', '.join(IMAGE_SUFFIXES)} images)",
-                "a folder of frames or a TIFF stack",
-                "point to the folder that holds the dark/flat/bias frames",
-            )
-    elif source.is_file():
-        files = [source]
-    else:
+    if not (source.is_dir() or source.is_file()):
         raise SchemaError("calibration frames", str(source), "an existing folder or TIFF stack",
                           "check the path (relative to the current directory unless absolute)")
+    files = sorted(p for p in source.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES) \
+        if source.is_dir() else [source]
+    if not files:
+        raise SchemaError("calibration frames", f"{source} (no {', '.join(IMAGE_SUFFIXES)} "
+                          "images)", "a folder of frames or a TIFF stack",
+                          "point to the folder that holds the dark/flat/bias frames")
     frames = []
     for path in files:
-        _, _, n_pages = _image_header(path, stack=True)
-        pages = [None] if n_pages == 1 else range(n_pages)
-        frames.extend(read_image(path, bit_depth=bit_depth, page=page, left_aligned=left_aligned)
-                      for page in pages)
+        n_pages = _image_header(path, stack=True)[2]
+        frames += [read_image(path, bit_depth=bit_depth, page=page, left_aligned=left_aligned)
+                   for page in ([None] if n_pages == 1 else range(n_pages))]
     shapes = {f.shape for f in frames}
     if len(shapes) > 1:
         raise SchemaError(f"calibration frames {source}", f"frames of shapes {sorted(shapes)}",
@@ -104,60 +101,34 @@ def read_stack(source, *, bit_depth: int | None = None, left_aligned: bool = Fal
     return np.stack(frames)
 
 
-def _as_stack(frames, what: str, bit_depth, left_aligned) -> tuple[np.ndarray, str]:
+def _as_stack(frames, what: str, bit_depth=None, left_aligned=False) -> tuple[np.ndarray, str]:
     """Frames (n, y, x) and a description of their source, from a path or an array."""
     if isinstance(frames, str | Path):
-        return read_stack(frames, bit_depth=bit_depth, left_aligned=left_aligned), str(
-            Path(frames).resolve())
+        return (read_stack(frames, bit_depth=bit_depth, left_aligned=left_aligned),
+                str(Path(frames).resolve()))
     try:
         arr = np.asarray(frames)
     except ValueError as err:  # ragged nested lists
         raise SchemaError(what, f"not an array ({err})", "frames (n, y, x) or one (y, x)",
                           "stack frames of one size along a first axis") from err
-    if arr.ndim == 2:
-        arr = arr[None]
+    arr = arr[None] if arr.ndim == 2 else arr
     if arr.ndim != 3 or arr.shape[0] == 0:
         raise SchemaError(what, f"an array of shape {arr.shape}", "frames (n, y, x) or one (y, x)",
                           "stack the calibration frames along a first axis")
     if arr.dtype.kind not in "uif":
         raise SchemaError(what, f"an array of {arr.dtype}", "numbers (DN)",
                           "pass the frames as an integer or float array")
-    if arr.dtype.kind == "f" and not np.isfinite(arr).all():
+    bad = ~np.isfinite(arr) if arr.dtype.kind == "f" else np.zeros(0, bool)
+    if bad.any():
         # a NaN or inf pixel propagates through the median into every corrected frame, and
         # then into every centroid window that holds it (all shots invalid, no reason given)
-        bad = ~np.isfinite(arr)
         n, y, x = np.argwhere(bad)[0]
         raise SchemaError(
             what, f"{int(bad.sum())} value(s) that are not finite (first {arr[n, y, x]} at "
                   f"frame {n}, row {y}, column {x})", "finite DN in every pixel",
             "replace the NaN/inf pixels (e.g. by the median of their neighbours) or take the "
-            "frames again",
-        )
+            "frames again")
     return arr, "array"
-
-
-def master_frame(frames, *, bit_depth: int | None = None, left_aligned: bool = False):
-    """Master dark or bias: the pixel-wise median of the frames, DN (float32, (y, x)).
-
-    Parameters
-    ----------
-    frames : path or array_like
-        A folder of frames, a TIFF stack, or an array (n, y, x).
-    bit_depth, left_aligned
-        As for :func:`~sunlab.io.read_image`, when ``frames`` is a path.
-
-    Returns
-    -------
-    numpy.ndarray of float32, shape (y, x)
-        The median over the frames of each pixel, DN.
-
-    Examples
-    --------
-    >>> master_frame([[[1, 5]], [[3, 5]], [[100, 6]]]).tolist()
-    [[3.0, 5.0]]
-    """
-    stack, _ = _as_stack(frames, "dark", bit_depth, left_aligned)
-    return np.median(stack, axis=0).astype(np.float32)
 
 
 def master_flat(frames, offset=None, *, bit_depth: int | None = None, left_aligned: bool = False):
@@ -169,6 +140,8 @@ def master_flat(frames, offset=None, *, bit_depth: int | None = None, left_align
         The flat frames (a uniformly lit sensor): a folder, a TIFF stack or an array (n, y, x).
     offset : array_like (y, x), optional
         The master dark (or bias) of the flats, DN; default none.
+    bit_depth, left_aligned
+        As for :func:`~sunlab.io.read_image`, when ``frames`` is a path.
 
     Returns
     -------
@@ -185,17 +158,16 @@ def master_flat(frames, offset=None, *, bit_depth: int | None = None, left_align
     >>> master_flat([[[110, 120, 130]]], offset=[[10, 10, 10]]).astype(float).round(3).tolist()
     [[0.909, 1.0, 1.091]]
     """
-    stack, _ = _as_stack(frames, "flat", bit_depth, left_aligned)
+    stack = _as_stack(frames, "flat", bit_depth, left_aligned)[0].astype(np.float64)
     if offset is not None:
-        offset = _as_stack(offset, "flat offset (dark or bias)", None, False)[0][0]
+        offset = _as_stack(offset, "flat offset (dark or bias)")[0][0]
         if offset.shape != stack.shape[1:]:
             raise SchemaError(
                 "flat offset (dark or bias)", f"a master of shape {offset.shape}",
                 f"the flats' frame shape {stack.shape[1:]}",
-                "take the dark (or bias) with the camera's settings of the flats",
-            )
-    flat = np.median(stack.astype(np.float64) - (0.0 if offset is None else
-                                                 np.asarray(offset, np.float64)), axis=0)
+                "take the dark (or bias) with the camera's settings of the flats")
+        stack -= offset
+    flat = np.median(stack, axis=0)
     level = float(np.median(flat))
     bad = ~(flat > 0.05 * level) if level > 0 else np.ones(flat.shape, bool)
     if bad.any():
@@ -205,14 +177,12 @@ def master_flat(frames, offset=None, *, bit_depth: int | None = None, left_align
                     f"(first at row {y}, column {x}: {flat[y, x]:.1f} DN over the dark)",
             "flats well above the dark everywhere",
             "expose the flats longer (a few thousand DN), check that dark and flats come from "
-            "the same camera settings, or mask dead pixels before the flat",
-        )
+            "the same camera settings, or mask dead pixels before the flat")
     return (flat / level).astype(np.float32)
 
 
-def with_calibration_frames(
-    cube, *, dark=None, flat=None, bias=None, left_aligned: bool | None = None,
-):
+def with_calibration_frames(cube, *, dark=None, flat=None, bias=None,
+                            left_aligned: bool | None = None):
     """The cube with master frames stored in it, ready for :func:`corrected_frames`.
 
     Parameters
@@ -221,8 +191,9 @@ def with_calibration_frames(
         A frame cube (contract ``frames/1``).
     dark, flat, bias : path or array_like, optional
         Calibration frames: a folder of images, a TIFF stack, or an array (n, y, x) (or a
-        master (y, x)). The dark (or, without one, the bias) is subtracted from the flats before
-        they are combined.
+        master (y, x)). Master dark and bias: the pixel-wise median. The dark (or, without
+        one, the bias) is subtracted from the flats before they are combined
+        (:func:`master_flat`).
     left_aligned : bool, optional
         The calibration files are left-aligned; default: as the cube
         (``attrs['left_aligned']``). Files are read at the cube's ``bit_depth``.
@@ -252,20 +223,30 @@ def with_calibration_frames(
     bits = int(cube.attrs["bit_depth"])
     left = bool(cube.attrs.get("left_aligned", False)) if left_aligned is None else left_aligned
     masters, prov = {}, dict(cube.attrs.get("calibration_frames") or {})
-    for kind, given in (("bias", bias), ("dark", dark)):
-        if given is not None:
-            stack, src = _checked_stack(cube, given, kind, bits, left)
+    for kind, given in (("bias", bias), ("dark", dark), ("flat", flat)):
+        if given is None:
+            continue
+        stack, src = _checked_stack(cube, given, kind, bits, left)
+        prov[kind] = {"source": src, "n_frames": int(stack.shape[0]), "combine": "median"}
+        if kind != "flat":
             masters[kind] = np.median(stack, axis=0).astype(np.float32)
-            prov[kind] = {"source": src, "n_frames": int(stack.shape[0]), "combine": "median"}
-    if flat is not None:
-        stack, src = _checked_stack(cube, flat, "flat", bits, left)
-        offset = masters.get("dark", masters.get("bias"))
-        masters["flat"] = master_flat(stack, offset)
-        prov["flat"] = {"source": src, "n_frames": int(stack.shape[0]),
-                        "combine": "median of (flat - " + ("dark" if "dark" in masters else
-                                                            "bias" if "bias" in masters else
-                                                            "nothing") + "), normalised to 1",
-                        **_flag_clipped_flat(stack, masters["flat"], bits, src)}
+            continue
+        under = "dark" if "dark" in masters else "bias" if "bias" in masters else None
+        masters["flat"] = master_flat(stack, masters.get(under))
+        prov["flat"]["combine"] = f"median of (flat - {under or 'nothing'}), normalised to 1"
+        # a pixel at full scale in a flat has an unknown response (the ADC cut it): NaN, read
+        # as saturated by corrected_frames; a flat mostly clipped is refused
+        clipped = (stack >= 2**bits - 1).any(axis=0)
+        prov["flat"]["clipped_pixels"] = n = int(clipped.sum())
+        if n:
+            y, x = np.argwhere(clipped)[0]
+            if n > _MAX_CLIPPED_FLAT * clipped.size:
+                raise SchemaError(f"flat frames {src}", f"{n} of {clipped.size} pixels at full "
+                                  f"scale ({2**bits - 1} DN; first at row {y}, column {x})",
+                                  "flats below full scale",
+                                  "expose the flats shorter (about half of full scale)")
+            masters["flat"][clipped] = np.nan
+            prov["flat"]["first_clipped"] = [int(y), int(x)]
     units = {"dark": "DN", "bias": "DN", "flat": "1"}
     out = cube.assign({MASTER_NAMES[k]: (("y", "x"), m, {"units": units[k]})
                        for k, m in masters.items()})
@@ -278,48 +259,18 @@ def _checked_stack(cube, given, kind: str, bits: int, left: bool):
     combined: the frame size, and for integer frames the pixel type (8-bit darks read as the
     DN of 10-bit frames would be subtracted at a quarter of their level)."""
     stack, src = _as_stack(given, kind, bits, left)
-    shape = (cube.sizes["y"], cube.sizes["x"])
+    shape, own = (cube.sizes["y"], cube.sizes["x"]), np.dtype(cube["frames"].dtype)
+    settings = f"take the {kind} frames with the camera's settings"
     if stack.shape[1:] != shape:
-        raise SchemaError(
-            f"{kind} frames {src}", f"frames of shape {stack.shape[1:]}", f"the cube's {shape}",
-            f"take the {kind} frames with the camera's settings (size, ROI, binning) of "
-            "the cube",
-        )
-    own = np.dtype(cube["frames"].dtype)
+        raise SchemaError(f"{kind} frames {src}", f"frames of shape {stack.shape[1:]}",
+                          f"the cube's {shape}", f"{settings} (size, ROI, binning) of the cube")
     types = (np.dtype(np.uint8), np.dtype(np.uint16))
     if stack.dtype in types and own in types and stack.dtype != own:
-        raise SchemaError(
-            f"{kind} frames {src}", f"pixel type {stack.dtype}",
-            f"{own} like the cube's frames ({bits}-bit DN)",
-            f"take the {kind} frames with the camera's settings (bit depth, pixel format) of "
-            "the frames, or convert them to the frames' DN scale before the import",
-        )
+        raise SchemaError(f"{kind} frames {src}", f"pixel type {stack.dtype}",
+                          f"{own} like the cube's frames ({bits}-bit DN)",
+                          f"{settings} (bit depth, pixel format) of the frames, or convert them "
+                          "to the frames' DN scale before the import")
     return stack, src
-
-
-#: Above this fraction of clipped pixels a master flat is refused rather than flagged.
-_MAX_CLIPPED_FLAT = 0.01
-
-
-def _flag_clipped_flat(stack, flat, bits: int, src: str) -> dict:
-    """Mark the pixels of a master flat whose flats reached full scale: their response is
-    unknown (the ADC cut it), so ``flat`` is set to NaN there (in place) and
-    :func:`corrected_frames` reads them as saturated, which the estimators flag (or repair, if
-    isolated). Returns the provenance entry; a flat mostly clipped is refused."""
-    clipped = (np.asarray(stack) >= 2**bits - 1).any(axis=0)
-    n = int(clipped.sum())
-    if n == 0:
-        return {"clipped_pixels": 0}
-    if n > _MAX_CLIPPED_FLAT * clipped.size:
-        y, x = np.argwhere(clipped)[0]
-        raise SchemaError(
-            f"flat frames {src}", f"{n} of {clipped.size} pixels at full scale "
-                                  f"({2**bits - 1} DN; first at row {y}, column {x})",
-            "flats below full scale", "expose the flats shorter (about half of full scale)",
-        )
-    flat[clipped] = np.nan
-    y, x = np.argwhere(clipped)[0]
-    return {"clipped_pixels": n, "first_clipped": [int(y), int(x)]}
 
 
 def has_calibration_frames(cube) -> bool:
@@ -362,28 +313,16 @@ def corrected_saturation(cube) -> float:
     return 2.0 * full
 
 
-def _offset_and_flat(cube):
-    """The offset (dark, else bias, else 0) and the flat (else 1) of a cube, NumPy float32."""
-    names = MASTER_NAMES
-    offset = (cube[names["dark"]] if names["dark"] in cube.variables else
-              cube[names["bias"]] if names["bias"] in cube.variables else None)
-    flat = cube[names["flat"]] if names["flat"] in cube.variables else None
-    return (None if offset is None else np.asarray(offset.values, np.float32),
-            None if flat is None else np.asarray(flat.values, np.float32))
-
-
 def _correct_block(block, offset, flat, full, level):
     """``(R - offset) / flat`` of a block of raw frames (..., y, x), float32; raw pixels at or
-    above ``full`` become ``level``."""
+    above ``full``, and pixels clipped in the flats (NaN), become ``level``."""
     raw = np.asarray(block)
     out = raw.astype(np.float32)
     if offset is not None:
         out -= offset
     if flat is not None:
         out /= flat
-        unknown = ~np.isfinite(flat)  # clipped in the flats: read as saturated
-        if unknown.any():
-            out[..., unknown] = level
+        out[..., ~np.isfinite(flat)] = level
     out[raw >= full] = level
     return out
 
@@ -406,14 +345,15 @@ def corrected_frames(cube):
     import dask.array as da
 
     frames = cube["frames"]
-    offset, flat = _offset_and_flat(cube)
-    full = float(2 ** int(cube.attrs["bit_depth"]) - 1)
-    level = corrected_saturation(cube)
+    master = {k: np.asarray(cube[v].values, np.float32) for k, v in MASTER_NAMES.items()
+              if v in cube.variables}
+    kw = {"offset": master.get("dark", master.get("bias")), "flat": master.get("flat"),
+          "full": float(2 ** int(cube.attrs["bit_depth"]) - 1),
+          "level": corrected_saturation(cube)}
     if isinstance(frames.data, da.Array):
         if any(len(c) > 1 for c in frames.data.chunks[-2:]):  # masters apply to whole frames
             frames = frames.chunk({"y": -1, "x": -1})
-        data = da.map_blocks(_correct_block, frames.data, offset=offset, flat=flat, full=full,
-                             level=level, dtype=np.float32)
+        data = da.map_blocks(_correct_block, frames.data, dtype=np.float32, **kw)
     else:
-        data = _correct_block(frames.values, offset, flat, full, level)
+        data = _correct_block(frames.values, **kw)
     return frames.copy(data=data).assign_attrs(units="DN", long_name="corrected frames")

@@ -7,6 +7,8 @@ variable, the chunk index and (for Zarr) its file, with the fix.
 
 from __future__ import annotations
 
+import contextlib
+import itertools
 from pathlib import Path
 
 import numpy as np
@@ -21,13 +23,17 @@ def _chunk_label(dims, index) -> str:
     return ", ".join(f"{d} {i}" for d, i in zip(dims, index, strict=True))
 
 
+def _chunk_file(arr, path: Path, index) -> str:
+    """The file of chunk ``index`` of a Zarr array (``path/c/1/0/0/0``)."""
+    return str(path / arr.metadata.chunk_key_encoding.encode_chunk_key(tuple(index)))
+
+
 def _dn_error(where: str, label: str, peak: int, bits: int) -> SchemaError:
     return SchemaError(
         f"{where} frames chunk ({label})", f"DN up to {peak}",
         f"< 2**{bits} = {2**bits} DN for attrs['bit_depth'] = {bits}",
         "set the true ADC bit depth (frames_dataset(bit_depth=...)); if the camera left-aligns "
-        "its data in the 16-bit word, divide the frames by 2**(16 - bit_depth) first",
-    )
+        "its data in the 16-bit word, divide the frames by 2**(16 - bit_depth) first")
 
 
 def _check_dn_block(block, bits, where, dims, block_info=None):
@@ -39,12 +45,10 @@ def _check_dn_block(block, bits, where, dims, block_info=None):
 
 def _checked_dn(data, bits, where: str):
     """A Dask array (``data`` itself if not Dask) whose chunks fail if DN >= 2**bits."""
-    if not hasattr(data, "map_blocks") or data.dtype.kind != "u":
+    if not hasattr(data, "map_blocks") or data.dtype.kind != "u" or \
+            int(bits) >= 8 * data.dtype.itemsize:
         return data
-    bits = int(bits)
-    if bits >= 8 * data.dtype.itemsize:
-        return data
-    return data.map_blocks(_check_dn_block, bits, where, ("pose", "shot", "y", "x"),
+    return data.map_blocks(_check_dn_block, int(bits), where, ("pose", "shot", "y", "x"),
                            dtype=data.dtype, meta=np.empty((0,) * data.ndim, data.dtype))
 
 
@@ -57,66 +61,52 @@ class _ChunkReader:
     """
 
     def __init__(self, var: xr.Variable, path: Path, name: str, fmt: str, chunks, bits):
-        self.var = var
-        self.path, self.name, self.fmt, self.chunks, self.bits = path, name, fmt, chunks, bits
+        self.var, self.path, self.name, self.fmt, self.chunks, self.bits = (
+            var, path, name, fmt, chunks, bits)
         self.shape, self.ndim = var.shape, var.ndim
         self.dtype = var.dtype if var.dtype.kind in "OSUT" else var.dtype.newbyteorder("=")
 
     def __getitem__(self, key):
+        key = key if isinstance(key, tuple) else (key,)
+        index = tuple((k.start or 0 if isinstance(k, slice) else int(k)) // max(size, 1)
+                      for k, size in zip(key, self.chunks, strict=False))
         try:
             block = np.asarray(self.var[key].values, dtype=self.dtype)
         except Exception as exc:  # noqa: BLE001 - any decoder failure is reported with the chunk
-            raise self._error(key, exc) from exc
+            raise self._error(index, exc) from exc
         if self.bits is not None and block.size and int(block.max()) >= 2**self.bits:
-            raise _dn_error(str(self.path), self._label(key), int(block.max()), self.bits)
+            raise _dn_error(str(self.path), _chunk_label(self.var.dims, index), int(block.max()),
+                            self.bits)
         return block
 
-    def _index(self, key) -> tuple[int, ...]:
-        key = key if isinstance(key, tuple) else (key,)
-        out = []
-        for k, size in zip(key, self.chunks, strict=False):
-            start = k.start or 0 if isinstance(k, slice) else int(k)
-            out.append(start // max(size, 1))
-        return tuple(out)
+    def _error(self, index, exc: Exception) -> SunlabError:
+        where = f"{self.path} (HDF5 variable {self.name!r})"
+        if self.fmt == "zarr":
+            try:
+                import zarr
 
-    def _label(self, key) -> str:
-        return _chunk_label(self.var.dims, self._index(key))
-
-    def _chunk_file(self, index) -> str:
-        if self.fmt != "zarr":
-            return f"{self.path} (HDF5 variable {self.name!r})"
-        try:
-            import zarr
-
-            arr = zarr.open_array(str(self.path / self.name), mode="r")
-            return str(self.path / self.name / arr.metadata.chunk_key_encoding.encode_chunk_key(
-                index))
-        except Exception:  # noqa: BLE001 - the file name is a courtesy; the index is enough
-            return f"{self.path / self.name} chunk {index}"
-
-    def _error(self, key, exc: Exception) -> SunlabError:
-        index = self._index(key)
+                arr = zarr.open_array(str(self.path / self.name), mode="r")
+                where = _chunk_file(arr, self.path / self.name, index)
+            except Exception:  # noqa: BLE001 - the file name is a courtesy; the index is enough
+                where = f"{self.path / self.name} chunk {index}"
         text = str(exc)
-        checksum = "checksum" in text.lower() or "fletcher" in text.lower()
-        what = "fails its checksum (the data were changed after writing)" if checksum else \
-            f"cannot be decoded ({type(exc).__name__}: {text})"
+        what = ("fails its checksum (the data were changed after writing)"
+                if "checksum" in text.lower() or "fletcher" in text.lower()
+                else f"cannot be decoded ({type(exc).__name__}: {text})")
         return SunlabError(
-            f"{self._chunk_file(index)}: chunk ({_chunk_label(self.var.dims, index)}) of "
-            f"variable {self.name!r} in {self.path} {what}. Fix: the store is damaged (disk "
-            "error, interrupted or edited copy): copy it again from its source or re-create it; "
-            "sunlab will not read corrupt data"
-        )
+            f"{where}: chunk ({_chunk_label(self.var.dims, index)}) of variable {self.name!r} "
+            f"in {self.path} {what}. Fix: the store is damaged (disk error, interrupted or "
+            "edited copy): copy it again from its source or re-create it; sunlab will not read "
+            "corrupt data")
 
 
 def _stored_chunks(var: xr.Variable) -> tuple[int, ...]:
     enc = var.encoding
-    preferred = enc.get("preferred_chunks")
-    if preferred:
-        return tuple(int(preferred.get(d, n)) for d, n in zip(var.dims, var.shape, strict=True))
+    if enc.get("preferred_chunks"):
+        return tuple(int(enc["preferred_chunks"].get(d, n))
+                     for d, n in zip(var.dims, var.shape, strict=True))
     chunks = enc.get("chunks") or enc.get("chunksizes")
-    if chunks and len(chunks) == var.ndim:
-        return tuple(int(c) for c in chunks)
-    return tuple(int(n) for n in var.shape)
+    return tuple(int(c) for c in (chunks if chunks and len(chunks) == var.ndim else var.shape))
 
 
 def _checked_lazy(ds: xr.Dataset, path: Path, fmt: str) -> xr.Dataset:
@@ -124,10 +114,7 @@ def _checked_lazy(ds: xr.Dataset, path: Path, fmt: str) -> xr.Dataset:
     import dask.array as da
     from dask.base import tokenize
 
-    try:
-        stamp = path.stat().st_mtime_ns
-    except OSError:  # pragma: no cover - the store was just opened
-        stamp = 0
+    stamp = path.stat().st_mtime_ns
     bits = ds.attrs.get("bit_depth")
     bits = int(bits) if isinstance(bits, int | np.integer) and not isinstance(bits, bool) \
         else None
@@ -136,19 +123,16 @@ def _checked_lazy(ds: xr.Dataset, path: Path, fmt: str) -> xr.Dataset:
         if name in ds.indexes or var.ndim == 0:
             continue
         chunks = _stored_chunks(var)
-        lazy = xr.Variable(var.dims, var._data)  # the backend's lazily indexed array
         check = bits if name == "frames" and var.dtype.kind == "u" else None
-        reader = _ChunkReader(lazy, path, str(name), fmt, chunks, check)
-        data = da.from_array(
+        # the backend's lazily indexed array
+        reader = _ChunkReader(xr.Variable(var.dims, var._data), path, str(name), fmt, chunks,
+                              check)
+        new[name] = var.copy(deep=False, data=da.from_array(
             reader, chunks=chunks, asarray=False, fancy=False,
             name=f"sunlab-open-{name}-{tokenize(str(path), stamp, name, chunks)}",
-            meta=np.empty((0,) * var.ndim, reader.dtype),
-        )
-        new[name] = var.copy(deep=False, data=data)
+            meta=np.empty((0,) * var.ndim, reader.dtype)))
     coords = {n: v for n, v in new.items() if n in ds.coords}
-    ds = ds.assign_coords(coords).assign({n: v for n, v in new.items() if n not in coords})
-    return ds
-
+    return ds.assign_coords(coords).assign({n: v for n, v in new.items() if n not in coords})
 
 
 def _chunk_report(path: Path) -> dict[str, tuple[int, int, list[str]]]:
@@ -156,23 +140,14 @@ def _chunk_report(path: Path) -> dict[str, tuple[int, int, list[str]]]:
     import zarr
 
     report = {}
-    group = zarr.open_group(str(path), mode="r")
-    for name, arr in group.arrays():
+    for name, arr in zarr.open_group(str(path), mode="r").arrays():
         n_missing = arr.nchunks - arr.nchunks_initialized
-        if n_missing <= 0:
-            continue
-        examples = []
-        try:
-            encode = arr.metadata.chunk_key_encoding.encode_chunk_key
-            for index in np.ndindex(*arr.cdata_shape):
-                key = encode(index)
-                if not (path / name / key).exists():
-                    examples.append(str(path / name / key))
-                    if len(examples) == 3:
-                        break
-        except AttributeError:  # zarr v2 metadata: no example paths
-            pass
-        report[name] = (n_missing, arr.nchunks, examples)
+        if n_missing > 0:
+            examples = []
+            with contextlib.suppress(AttributeError):  # zarr v2 metadata: no example paths
+                files = (_chunk_file(arr, path / name, i) for i in np.ndindex(*arr.cdata_shape))
+                examples = list(itertools.islice((f for f in files if not Path(f).exists()), 3))
+            report[name] = (n_missing, arr.nchunks, examples)
     return report
 
 
@@ -180,12 +155,9 @@ def _check_chunks(ds: xr.Dataset, path: Path) -> None:
     """Every chunk of a sunlab Zarr store exists (missing chunks would read as silent zeros)."""
     for name, (n_missing, total, examples) in _chunk_report(path).items():
         raise SchemaError(
-            f"{name} chunks",
-            f"{n_missing} of {total} chunk files missing"
+            f"{name} chunks", f"{n_missing} of {total} chunk files missing"
             + (f", e.g. {', '.join(examples)}" if examples else ""),
             "every chunk of the store on disk",
             "the store is incomplete (an interrupted copy, write or acquisition, or deleted "
             "files): copy it again from its source, re-create it, or finish the acquisition; "
-            "to read it anyway, with missing frames as 0 DN, pass check_chunks=False",
-        )
-
+            "to read it anyway, with missing frames as 0 DN, pass check_chunks=False")

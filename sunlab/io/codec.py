@@ -23,20 +23,13 @@ _CODEC_ATTR = "sunlab_attr_codec"
 
 def _encode_attrs(attrs: Mapping, where: str) -> dict:
     """Attributes ready for NetCDF and Zarr, plus the codec entry that restores them."""
-    out: dict = {}
-    codec: dict = {}
+    out, codec = {}, {}
     for key, value in attrs.items():
+        value = value.item() if isinstance(value, np.generic) else value
         if key == _CODEC_ATTR:
             continue
-        if isinstance(value, np.generic):
-            value = value.item()
-        big_int = isinstance(value, int) and not -(2**63) <= value < 2**63
-        if (
-            isinstance(value, bool)
-            or value is None
-            or isinstance(value, list | tuple | dict)
-            or big_int
-        ):
+        if isinstance(value, bool | list | tuple | dict | type(None)) or (
+                isinstance(value, int) and not -(2**63) <= value < 2**63):
             try:
                 out[key] = json.dumps(value, allow_nan=False, default=_json_default)
             except (TypeError, ValueError) as exc:
@@ -47,27 +40,23 @@ def _encode_attrs(attrs: Mapping, where: str) -> dict:
             codec[key] = "tuple" if isinstance(value, tuple) else "json"
         elif isinstance(value, str | int | float):
             out[key] = value
-        elif isinstance(value, np.ndarray) and value.dtype.kind in "iuf" and value.size > 0:
-            out[key] = value.ravel()
-            codec[key] = {"ndarray": value.dtype.str, "shape": list(value.shape)}
         elif isinstance(value, np.ndarray) and value.dtype.kind in "iufb":
-            out[key] = json.dumps(value.tolist())
+            # a flat array where the format holds one, else JSON text
+            flat = value.size > 0 and value.dtype.kind != "b"
+            out[key] = value.ravel() if flat else json.dumps(value.tolist())
             codec[key] = {"ndarray": value.dtype.str, "shape": list(value.shape)}
         else:
             raise SchemaError(
                 f"{where}attrs[{key!r}]", f"a value of type {type(value).__name__}",
                 "str, int, float, bool, None, list, tuple, dict or a numeric numpy array",
-                "convert the attribute to one of these types before saving",
-            )
+                "convert the attribute to one of these types before saving")
     if codec:
         out[_CODEC_ATTR] = json.dumps(codec)
     return out
 
 
 def _json_default(obj):
-    if isinstance(obj, np.generic):
-        return obj.item()
-    if isinstance(obj, np.ndarray):
+    if isinstance(obj, np.generic | np.ndarray):
         return obj.tolist()
     raise TypeError(f"{type(obj).__name__} is not JSON serialisable")
 
@@ -77,25 +66,29 @@ def _decode_attrs(attrs: Mapping) -> dict:
     codec = json.loads(attrs.get(_CODEC_ATTR, "{}"))
     out = {}
     for key, value in attrs.items():
+        rule = codec.get(key)
         if key == _CODEC_ATTR:
             continue
-        rule = codec.get(key)
         if rule is None:
-            if isinstance(value, np.generic):
-                value = value.item()
+            out[key] = value.item() if isinstance(value, np.generic) else value
         elif rule in ("json", "tuple"):
-            value = json.loads(value)
-            if rule == "tuple":
-                value = tuple(value)
+            out[key] = (tuple if rule == "tuple" else lambda v: v)(json.loads(value))
         else:
-            if isinstance(value, str):
-                value = json.loads(value)
-            value = np.asarray(value, dtype=np.dtype(rule["ndarray"])).reshape(rule["shape"])
-        out[key] = value
+            value = json.loads(value) if isinstance(value, str) else value
+            out[key] = np.asarray(value, dtype=np.dtype(rule["ndarray"])).reshape(rule["shape"])
     return out
+
+
+def _strings_as_objects(ds):
+    """Fixed-width unicode variables as Python strings (Zarr v3 has no stable fixed-width
+    unicode type: sunlab writes variable-length strings, and reads them back the same)."""
+    for name in [n for n, v in ds.variables.items() if v.dtype.kind in "UT"]:
+        var = ds.variables[name]
+        new = (var.dims, np.asarray(var.values).astype(object), var.attrs)
+        ds = ds.assign_coords({name: new}) if name in ds.coords else ds.assign({name: new})
+    return ds
 
 
 def _short(value, limit: int = 60) -> str:
     text = repr(value)
     return text if len(text) <= limit else text[: limit - 4] + " ..."
-

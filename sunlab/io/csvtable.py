@@ -16,7 +16,7 @@ import pandas as pd
 from ..errors import SchemaError
 from ..schema import STATUS, centroids_dataset
 
-__all__ = ["centroids_from_csv"]
+__all__: list[str] = []
 
 #: File suffixes read as CSV centroid tables.
 CSV_SUFFIXES = (".csv", ".txt")
@@ -126,90 +126,47 @@ def read_csv_table(path, what: str = "table"):
 
     path = Path(path)
     name = f"{what} {path.name}" if what else path.name
-    text = _read_text(path, name)
-    records = []
-    for number, raw in enumerate(text.splitlines(), 1):
-        body = _uncommented(raw)
-        if body.strip():
-            fields = next(csv.reader([body]))
-            records.append((number, [f.strip() for f in fields]))
+    records = [(n, [f.strip() for f in next(csv.reader([body]))])
+               for n, raw in enumerate(_read_text(path, name).splitlines(), 1)
+               if (body := _uncommented(raw)).strip()]
     if not records:
         raise SchemaError(name, "an empty file", "a header line and one row per line",
                           "write the header and the rows")
-    (head_line, header), rows = records[0], records[1:]
-    header = _checked_header(header, name, head_line)
+    header = _checked_header(records[0][1], name, records[0][0])
     n = len(header)
-    data, lines = [], []
-    for number, fields in rows:
-        if len(fields) > n:
-            if any(fields[n:]):
-                raise SchemaError(
-                    f"{name} line {number}", f"{len(fields)} fields",
-                    f"the header's {n} ({', '.join(header)})",
-                    "write decimals with '.', not ',' (512.5, not 512,5), quote a text that "
-                    "holds a comma, or remove the extra fields",
-                )
-            fields = fields[:n]
-        data.append([f if f else None for f in fields] + [None] * (n - len(fields)))
-        lines.append(number)
-    import pandas as pd
-
-    table = pd.DataFrame(data, columns=header, dtype=object)
-    table.attrs["lines"] = lines
+    for number, fields in records[1:]:
+        if any(fields[n:]):
+            raise SchemaError(
+                f"{name} line {number}", f"{len(fields)} fields",
+                f"the header's {n} ({', '.join(header)})",
+                "write decimals with '.', not ',' (512.5, not 512,5), quote a text that holds a "
+                "comma, or remove the extra fields")
+    table = pd.DataFrame([[f or None for f in fields[:n]] + [None] * (n - len(fields))
+                          for _, fields in records[1:]], columns=header, dtype=object)
+    table.attrs["lines"] = [number for number, _ in records[1:]]
     return table
 
 
 def centroids_from_csv(path, *, attrs: dict | None = None):
-    """Read a centroid table written by another tool: CSV with columns alpha, beta, x, y.
-
-    One row per shot: ``alpha``, ``beta`` (commanded angles, deg), ``x``, ``y`` (centroid, px,
-    x = column, y = row, centre of the first pixel = 0; empty or NaN where no spot). Optional
-    columns: ``shot`` (label within the pose; default the order of the rows of a pose) and
-    ``status`` (a code or name of :data:`sunlab.schema.STATUS`; default ``ok`` where x and y are
-    finite). Poses are the distinct (alpha, beta) pairs in file order; poses with fewer shots
-    are padded with NaN (status ``no_spot``). Lines starting with ``#`` are comments.
-
-    Parameters
-    ----------
-    path : str or path-like
-        The CSV file.
-    attrs : dict, optional
-        Attributes of the table (sensor: ``mask_distance_mm``, ``pixel_pitch_mm``, ...).
-
-    Returns
-    -------
-    xarray.Dataset
-        A ``centroids/1`` table on (pose, shot).
-
-    Examples
-    --------
-    >>> import tempfile, pathlib
-    >>> path = pathlib.Path(tempfile.mkdtemp()) / "c.csv"
-    >>> _ = path.write_text("alpha,beta,x,y\\n0,0,10.5,20.25\\n0,0,10.7,20.0\\n1,0,30.0,20.0\\n")
-    >>> cen = centroids_from_csv(path)
-    >>> dict(cen.sizes), cen.status.values.tolist()
-    ({'pose': 2, 'shot': 2}, [[0, 0], [0, 1]])
-    """
+    """A CSV table of another tool as a ``centroids/1`` table on (pose, shot): what
+    :func:`sunlab.io.open_centroids` returns for a ``.csv`` path (the columns are described
+    there; ``status`` holds names or codes of :data:`sunlab.schema.STATUS`, default ``ok`` where
+    x and y are finite). ``attrs``: attributes of the table (the sensor's)."""
     path = Path(path)
     table = _read_csv_table(path)
-    num = _numeric_columns(table, path.name)
-    pairs = list(zip(num["alpha"].tolist(), num["beta"].tolist(), strict=True))
-    pose_of: dict = {}
-    for pair in pairs:
-        pose_of.setdefault(pair, len(pose_of))
-    pose = np.array([pose_of[p] for p in pairs])
+    num = {c: _numbers(table, c, path.name, "pixels" if c in "xy" else "degrees")
+           for c in ("alpha", "beta", "x", "y")}
+    poses, pose = _poses(num["alpha"], num["beta"])
     shot = _shot_numbers(table, pose, path.name)
-    n_pose, n_shot = len(pose_of), int(shot.max()) + 1
-    x = np.full((n_pose, n_shot), np.nan)
-    y = np.full((n_pose, n_shot), np.nan)
-    status = np.full((n_pose, n_shot), STATUS["no_spot"], dtype=np.int8)
+    shape = (len(poses), int(shot.max()) + 1)
+    x, y = np.full(shape, np.nan), np.full(shape, np.nan)
+    status = np.full(shape, STATUS["no_spot"], dtype=np.int8)
     x[pose, shot], y[pose, shot] = num["x"], num["y"]
     status[pose, shot] = _status_codes(table, num, path.name)
     return centroids_dataset(
-        x, y, status=status, alpha=[a for a, _ in pose_of], beta=[b for _, b in pose_of],
+        x, y, status=status, alpha=[a for a, _ in poses], beta=[b for _, b in poses],
         method=str((attrs or {}).get("method", "")),
-        attrs={"source": str(path.resolve()), "experiment": path.stem, **dict(attrs or {})},
-    )
+        attrs={"source": str(path.resolve()), "experiment": path.stem, **dict(attrs or {})})
 
 
 def csv_line_of(path, shot: dict) -> int | None:
@@ -231,13 +188,9 @@ def csv_line_of(path, shot: dict) -> int | None:
         row; None when no row matches.
     """
     table = _read_csv_table(Path(path))
-    num = _numeric_columns(table, Path(path).name)
-    hit = np.ones(len(table), dtype=bool)
-    for key in ("alpha", "beta", "x", "y"):
-        hit &= num[key] == shot[key]
-    if not hit.any():
-        return None
-    return table.attrs["lines"][int(np.flatnonzero(hit)[0])]
+    hit = np.logical_and.reduce([_numbers(table, k, "", "pixels" if k in "xy" else "degrees")
+                                 == shot[k] for k in ("alpha", "beta", "x", "y")])
+    return _line(table, np.flatnonzero(hit)[0]) if hit.any() else None
 
 
 def _read_csv_table(path: Path):
@@ -248,78 +201,69 @@ def _read_csv_table(path: Path):
         raise SchemaError(
             f"{path.name} columns {missing}", f"missing (columns: {list(table.columns)})",
             "columns alpha, beta (deg), x, y (px); shot and status optional",
-            "rename the columns (x = centroid column, y = centroid row, in pixels)",
-        )
+            "rename the columns (x = centroid column, y = centroid row, in pixels)")
     if len(table) == 0:
         raise SchemaError(path.name, "no rows", "one row per shot", "add the rows")
     return table
 
 
 def _line(table, i) -> int:
-    """The file's line number of row ``i`` (:func:`read_csv_table`), else the row + 2."""
-    lines = table.attrs.get("lines")
-    return int(lines[int(i)]) if lines is not None else int(i) + 2
+    """The file's line number of row ``i`` (:func:`read_csv_table`)."""
+    return int(table.attrs["lines"][int(i)])
 
 
-def _numeric_columns(table, name: str) -> dict:
-    """alpha, beta, x, y as float arrays; a value that is not a number names its line (x, y
-    may be empty: no spot)."""
-    num = {}
-    for col in ("alpha", "beta", "x", "y"):
-        v = pd.to_numeric(table[col], errors="coerce").to_numpy(dtype=float)
-        bad = np.flatnonzero(np.isnan(v) & table[col].notna().to_numpy()
-                             if col in ("x", "y") else ~np.isfinite(v))
-        if bad.size:
-            raise SchemaError(
-                f"{name} line {_line(table, bad[0])} column {col!r}", table[col].iloc[bad[0]],
-                "a number" + (" of degrees" if col in ("alpha", "beta") else " of pixels"),
-                f"correct the value ({bad.size} bad row(s))",
-            )
-        if col in ("alpha", "beta"):
-            _check_angles(table, v, name, col)
-        num[col] = v
-    return num
-
-
-def _check_angles(table, values, name: str, col: str) -> None:
-    """Refuse a commanded angle no pinhole sensor can see (|angle| >= 90 deg: the sun behind
-    the mask): one typo in a training table would otherwise bend the whole calibration."""
+def _numbers(table, col: str, name: str, unit: str | None):
+    """A column as floats; a value that is not a number names its line (pixels may be empty:
+    no spot). Degrees are commanded angles: one a pinhole sensor cannot see (|angle| >= 90
+    deg, the sun behind the mask) is refused, as one typo would bend a whole calibration."""
+    v = pd.to_numeric(table[col], errors="coerce").to_numpy(dtype=float)
+    bad = np.flatnonzero(np.isnan(v) & table[col].notna().to_numpy() if unit == "pixels"
+                         else ~np.isfinite(v))
+    if bad.size:
+        raise SchemaError(f"{name} line {_line(table, bad[0])} column {col!r}",
+                          table[col].iloc[bad[0]], "a finite number" + (f" of {unit}" if unit
+                                                                        else ""),
+                          f"correct the value ({bad.size} bad row(s))")
     from ..plans import MAX_ANGLE_DEG
 
-    bad = np.flatnonzero(np.abs(values) >= MAX_ANGLE_DEG)
-    if bad.size:
+    bad = np.flatnonzero(np.abs(v) >= MAX_ANGLE_DEG) if unit == "degrees" else []
+    if len(bad):
         raise SchemaError(
             f"{name} line {_line(table, bad[0])} column {col!r}", table[col].iloc[bad[0]],
             f"a commanded angle within (-{MAX_ANGLE_DEG:g}, {MAX_ANGLE_DEG:g}) deg (the sun in "
             "front of the mask; the paper's platform spans a few tens of degrees)",
-            f"correct the value, or remove the row ({bad.size} such row(s))",
-        )
+            f"correct the value, or remove the row ({len(bad)} such row(s))")
+    return v
+
+
+def _poses(alpha, beta):
+    """The distinct (alpha, beta) pairs in order of appearance, and each row's pose."""
+    pairs = list(zip(alpha.tolist(), beta.tolist(), strict=True))
+    poses = dict.fromkeys(pairs)
+    index = {p: i for i, p in enumerate(poses)}
+    return list(poses), np.array([index[p] for p in pairs], dtype=int)
 
 
 def _shot_numbers(table, pose, name: str):
     """Each row's shot within its pose: the rank of its ``shot`` label, or its order."""
     if "shot" not in table.columns:
         return pd.Series(pose).groupby(pose).cumcount().to_numpy()
-    labels = pd.to_numeric(table["shot"], errors="coerce").to_numpy(dtype=float)
-    if not np.all(np.isfinite(labels)):
-        i = int(np.flatnonzero(~np.isfinite(labels))[0])
-        raise SchemaError(f"{name} line {_line(table, i)} column 'shot'", table["shot"].iloc[i],
-                          "an integer shot label", "number the shots 0, 1, 2, ...")
-    order = pd.DataFrame({"p": pose, "s": labels}).groupby("p")["s"].rank(method="first")
-    dup = pd.DataFrame({"p": pose, "s": labels}).duplicated()
+    labels = _numbers(table, "shot", name, None)
+    frame = pd.DataFrame({"p": pose, "s": labels})
+    dup = frame.duplicated().to_numpy()
     if dup.any():
-        i = int(np.flatnonzero(dup.to_numpy())[0])
-        raise SchemaError(f"{name} line {_line(table, i)}", "the same pose and shot again",
-                          "one row per (alpha, beta, shot)", "remove the duplicate row")
-    return order.to_numpy(dtype=int) - 1
+        raise SchemaError(f"{name} line {_line(table, np.flatnonzero(dup)[0])}",
+                          "the same pose and shot again", "one row per (alpha, beta, shot)",
+                          "remove the duplicate row")
+    return frame.groupby("p")["s"].rank(method="first").to_numpy(dtype=int) - 1
 
 
 def _status_codes(table, num: dict, name: str):
     """Each row's status code: the ``status`` column (name or code), or ``ok`` where x and y
     are finite and ``no_spot`` elsewhere."""
     if "status" not in table.columns:
-        return np.where(np.isfinite(num["x"]) & np.isfinite(num["y"]),
-                        STATUS["ok"], STATUS["no_spot"])
+        return np.where(np.isfinite(num["x"]) & np.isfinite(num["y"]), STATUS["ok"],
+                        STATUS["no_spot"])
     codes = []
     for i, v in enumerate(table["status"].tolist()):
         text = str(v).strip()

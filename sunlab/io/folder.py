@@ -1,33 +1,96 @@
-"""Build a frame cube from a folder of image files and a manifest CSV; the shipped example.
+"""A folder of images (or a TIFF stack) with its manifest CSV and ``sensor.json`` as a frame
+cube, what :func:`sunlab.io.open_frames` returns for such a path; the shipped example.
 
-The manifest names, per image, the commanded pose (``alpha``, ``beta``) and the shot label;
-every check names the manifest line and column, or the image, and the fix.
+The manifest names, per image, the commanded pose (``alpha``, ``beta``) and the shot label:
+columns ``file`` (image name relative to the folder, inside it), ``alpha``, ``beta`` (deg),
+``shot`` (integer label within the pose), optional ``page`` (the frame, 0-based, of a
+multi-page TIFF). Poses are the unique (alpha, beta) pairs in manifest order; every pose has the
+same shot labels, ordered by value (kept as ``shot_label`` when they are not 0 .. n - 1). Any
+other column becomes a coordinate on (pose, shot) (``time`` parsed as a date-time). The bit
+depth, when neither given nor in ``sensor.json``, is 8 for 8-bit images and otherwise the
+smallest of 8, 10, 12, 14, 16 bits that holds the largest DN (every image read once).
+Every check names the manifest line and column, or the image, and the fix.
 """
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import xarray as xr
 
 from ..errors import SchemaError, SunlabError
 from ..schema import frames_dataset
+from .calframes import with_calibration_frames
 from .codec import _short
-from .csvtable import read_csv_table
-from .images import IMAGE_SUFFIXES, _image_header, _read_checked
+from .csvtable import _line, _numbers, _poses, read_csv_table
+from .images import IMAGE_SUFFIXES, _image_header, _raw_dtype, _read_checked
+from .sensor import find_sensor_json, read_sensor_json
 
-__all__ = ["from_image_folder", "example_folder"]
+__all__ = ["example_folder"]
 
 _REQUIRED_COLUMNS = ("file", "alpha", "beta", "shot")
 _RESERVED_COLUMNS = ("pose", "x", "y", "frames", "hole", "shot_label")
+_SENSOR = ("pixel_pitch_mm", "mask_distance_mm", "x_cf_px", "y_cf_px", "bit_depth",
+           "left_aligned", "mask", "experiment")
+_FIX_COLUMN = {"file": " with the image file name of each row",
+               "alpha": " with the commanded outer-axis angle in degrees",
+               "beta": " with the commanded inner-axis angle in degrees",
+               "shot": " numbering the frames of each pose 0, 1, ..."}
+#: Largest page number of a TIFF stack in a manifest (a stack of 2**31 frames is no stack).
+_MAX_PAGE = 2**31 - 1
+
+
+def _from_images(path: Path, manifest=None, *, lazy=True, dark=None, flat=None, bias=None,
+                 **sensor) -> xr.Dataset:
+    """The cube of a folder of images or of a TIFF stack (see :func:`sunlab.io.open_frames`)."""
+    unknown = sorted(set(sensor) - set(_SENSOR))
+    if unknown:
+        raise TypeError(f"open_frames() got unexpected keyword(s) {unknown}")
+    folder = path.parent if path.is_file() else path
+    found = find_sensor_json(folder, manifest)
+    doc = read_sensor_json(found) if found is not None else {}
+    given = {k: sensor[k] if sensor.get(k) is not None else doc.get(k) for k in _SENSOR}
+    bit_depth, left_aligned = given.pop("bit_depth"), bool(given.pop("left_aligned"))
+    table, mname = _manifest_table(folder, manifest)
+    if path.is_file():  # a TIFF stack: the manifest's rows that name it
+        keep = (table["file"].fillna("").str.strip() == path.name).to_numpy()
+        lines = [n for n, k in zip(table.attrs["lines"], keep, strict=True) if k]
+        table = table[keep].reset_index(drop=True)
+        table.attrs["lines"] = lines
+    _check_columns(table, mname)
+    alpha, beta, shot = (_numbers(table, c, f"manifest {mname}", "degrees" if c != "shot"
+                                  else None) for c in ("alpha", "beta", "shot"))
+    if np.any(shot != np.round(shot)):
+        i = int(np.flatnonzero(shot != np.round(shot))[0])
+        raise SchemaError(f"manifest {mname} line {_line(table, i)} column 'shot'",
+                          table["shot"].iloc[i], "an integer shot label",
+                          "number the frames of each pose 0, 1, 2, ...")
+    files, paths = _image_paths(folder, table, mname)
+    pages = _page_column(table, files, mname)
+    poses, labels, order = _pose_grid(table, alpha, beta, shot.astype(np.int64), mname)
+    shape, dtype = _common_header(table, paths, order, pages, mname)
+    bit_depth = _checked_bit_depth(bit_depth, dtype, left_aligned)
+    frames = _read_frames(paths, order, shape, dtype, (bit_depth, pages, left_aligned), lazy)
+    if bit_depth is None:
+        peak = int(frames.max()) if frames.size and dtype != np.uint8 else 0
+        bit_depth = next(b for b in (8, 10, 12, 14, 16) if peak < 2**b)
+    attrs = {"source": str(folder.resolve()), "left_aligned": left_aligned,
+             **dict(doc.get("attrs") or {})}
+    if found is not None:
+        attrs["sensor_json"] = str(found.resolve())
+    kw = {k: given[k] for k in ("x_cf_px", "y_cf_px", "mask") if given[k] is not None}
+    cube = frames_dataset(
+        frames, alpha=[a for a, _ in poses], beta=[b for _, b in poses], bit_depth=bit_depth,
+        pixel_pitch_mm=given["pixel_pitch_mm"], mask_distance_mm=given["mask_distance_mm"],
+        experiment=given["experiment"] or folder.resolve().name, attrs=attrs,
+        coords=_manifest_coords(table, files, order, labels, mname), **kw)
+    return with_calibration_frames(cube, dark=dark, flat=flat, bias=bias)
 
 
 def _manifest_table(folder: Path, manifest):
-    import pandas as pd
-
-    if isinstance(manifest, pd.DataFrame):
-        return manifest.copy(), "manifest"
     if manifest is None:
         path = folder / "manifest.csv"
         if not path.exists():
@@ -36,237 +99,72 @@ def _manifest_table(folder: Path, manifest):
                 raise SchemaError(
                     "folder", f"{folder} (no images, no manifest.csv)",
                     f"image files ({', '.join(IMAGE_SUFFIXES)}) and a manifest CSV",
-                    "point to the folder that holds the frames, or acquire them first",
-                )
+                    "point to the folder that holds the frames, or acquire them first")
             raise SchemaError(
                 "manifest", f"no manifest.csv in {folder} ({len(images)} images)",
                 "a CSV with columns file, alpha, beta, shot (one row per image)",
-                "write manifest.csv next to the images, or pass manifest=path",
-            )
+                "write manifest.csv next to the images, or pass manifest=path")
     else:
         path = Path(manifest)
         if not path.is_absolute() and not path.exists():
             path = folder / path
         if not path.exists():
-            raise SchemaError(
-                "manifest", str(manifest), "an existing CSV file",
-                f"give the manifest's path (absolute, or relative to {folder})",
-            )
+            raise SchemaError("manifest", str(manifest), "an existing CSV file",
+                              f"give the manifest's path (absolute, or relative to {folder})")
     # every row checked against the header: comma decimals, duplicated columns, ESC in names
-    table = read_csv_table(path, "manifest")
-    return table, path.name
-
-
-def _line(i: int) -> int:
-    """CSV line number of table row i (line 1 is the header)."""
-    return int(i) + 2
-
-
-def from_image_folder(
-    folder,
-    manifest=None,
-    *,
-    bit_depth: int | None = None,
-    left_aligned: bool = False,
-    lazy: bool = True,
-    **frames_kwargs,
-) -> xr.Dataset:
-    """Build a frame cube from a folder of PNG or TIFF frames and a manifest CSV.
-
-    Parameters
-    ----------
-    folder : str or path-like
-        Folder holding the images (8-bit, or 16-bit for deeper ADCs; single channel).
-    manifest : str, path-like or pandas.DataFrame, optional
-        The manifest, one row per image; default ``folder/manifest.csv`` (a relative path is
-        relative to ``folder``). Required columns: ``file`` (image name relative to
-        ``folder``), ``alpha``, ``beta`` (commanded platform angles, deg), ``shot`` (integer
-        label within the pose, e.g. 0 .. 7). Optional ``page``: the frame (0-based) of a
-        multi-page TIFF (a stack per pose, shots as pages). One row per image (file, page);
-        files inside ``folder`` only.
-        Poses are the unique (alpha, beta) pairs in manifest order; every pose must have the same
-        set of shot labels, ordered by value. Any other column becomes a coordinate on
-        (pose, shot) (``time`` parsed as a date-time). Lines starting with ``#`` are comments.
-    bit_depth : int, optional
-        ADC bit depth. Default: 8 for 8-bit images; for 16-bit images the smallest of 8, 10,
-        12, 14, 16 bits that holds the largest DN in the folder (this reads every image once;
-        give it for dark or dim frames, whose maximum says little about the ADC).
-    left_aligned : bool
-        DN in the top bits of the 16-bit word (12-bit machine-vision cameras): shifted right
-        by ``16 - bit_depth`` on read (:func:`~sunlab.io.read_image`). Needs ``bit_depth``.
-    lazy : bool
-        Read each image only when its frame is computed (``dask.delayed`` per image, one chunk
-        per frame); headers are still checked at once. False reads everything now.
-    **frames_kwargs
-        Passed to :func:`sunlab.schema.frames_dataset` (``pixel_pitch_mm``, ``attrs``, ...).
-
-    Returns
-    -------
-    xarray.Dataset
-        A frame cube (contract ``frames/1``) with a ``file`` coordinate on (pose, shot), and
-        ``shot_label`` on shot when the labels are not 0 .. n_shot - 1.
-
-    Raises
-    ------
-    SchemaError
-        Naming the manifest line and column, or the image, and the fix.
-
-    Examples
-    --------
-    >>> import numpy as np, tempfile, pathlib, tifffile
-    >>> folder = pathlib.Path(tempfile.mkdtemp())
-    >>> rows = ["file,alpha,beta,shot"]
-    >>> for k, (a, b, s) in enumerate([(0, 0, 0), (0, 0, 1), (5, -2, 0), (5, -2, 1)]):
-    ...     tifffile.imwrite(folder / f"f{k}.tif", np.full((4, 6), 100 * k, np.uint16))
-    ...     rows.append(f"f{k}.tif,{a},{b},{s}")
-    >>> _ = (folder / "manifest.csv").write_text("\\n".join(rows))
-    >>> cube = from_image_folder(folder, bit_depth=10)
-    >>> dict(cube.sizes), cube.alpha.values.tolist(), int(cube.frames[1, 0, 0, 0])
-    ({'pose': 2, 'shot': 2, 'y': 4, 'x': 6}, [0.0, 5.0], 200)
-    """
-    folder = _existing_folder(folder)
-    table, mname = _manifest_table(folder, manifest)
-    _check_columns(table, mname)
-    alpha, beta, shot = _pose_columns(table, mname)
-    files, paths = _image_paths(folder, table, mname)
-    pages = _page_column(table, files, mname)
-    poses, labels, order = _pose_grid(alpha, beta, shot, mname)
-    shape, dtype = _common_header(paths, order, pages, mname)
-    bit_depth = _checked_bit_depth(bit_depth, dtype, left_aligned)
-    frames = _read_frames(paths, order, shape, dtype, (bit_depth, pages, left_aligned), lazy)
-    bit_depth = _detected_bit_depth(frames, dtype) if bit_depth is None else bit_depth
-    coords = {**_manifest_coords(table, files, order, labels, mname),
-              **dict(frames_kwargs.pop("coords", None) or {})}
-    attrs = {"source": str(folder.resolve()), "left_aligned": bool(left_aligned),
-             **dict(frames_kwargs.pop("attrs", None) or {})}
-    return frames_dataset(frames, alpha=[a for a, _ in poses], beta=[b for _, b in poses],
-                          bit_depth=bit_depth, coords=coords, attrs=attrs, **frames_kwargs)
-
-
-def _existing_folder(folder) -> Path:
-    folder = Path(folder)
-    if not folder.is_dir():
-        raise SchemaError(
-            "folder", str(folder), "an existing folder of images",
-            "check the path (it is relative to the current directory unless absolute)",
-        )
-    return folder
+    return read_csv_table(path, "manifest"), path.name
 
 
 def _check_columns(table, mname: str) -> None:
-    """The manifest has rows, the required columns and no reserved column name."""
+    """The manifest has rows, the required columns and no reserved or unstorable name."""
     if len(table) == 0:
-        raise SchemaError(
-            f"manifest {mname}", "no rows", "one row per image", "add the rows for the images"
-        )
+        raise SchemaError(f"manifest {mname}", "no rows", "one row per image",
+                          "add the rows for the images")
     for col in _REQUIRED_COLUMNS:
         if col not in table.columns:
             raise SchemaError(
                 f"manifest {mname} column {col!r}", f"missing (columns: {list(table.columns)})",
-                "columns file, alpha, beta, shot",
-                f"add a {col!r} column"
-                + {
-                    "file": " with the image file name of each row",
-                    "alpha": " with the commanded outer-axis angle in degrees",
-                    "beta": " with the commanded inner-axis angle in degrees",
-                    "shot": " numbering the frames of each pose 0, 1, ...",
-                }[col],
-            )
+                "columns file, alpha, beta, shot", f"add a {col!r} column{_FIX_COLUMN[col]}")
     for col in table.columns:
         if col in _RESERVED_COLUMNS:
-            raise SchemaError(
-                f"manifest {mname} column {col!r}", "a reserved name",
-                f"extra columns named other than {_RESERVED_COLUMNS}", "rename the column",
-            )
-        if col not in _REQUIRED_COLUMNS and not _storable_name(col):
-            # an extra column becomes a variable of the store: Zarr and NetCDF name nodes by
-            # path, so '..', '../../x' or 'a/b' would name another place (or be refused deep
-            # inside the writer)
+            raise SchemaError(f"manifest {mname} column {col!r}", "a reserved name",
+                              f"extra columns named other than {_RESERVED_COLUMNS}",
+                              "rename the column")
+        # an extra column becomes a variable of the store: Zarr and NetCDF name nodes by path,
+        # so '..', '../../x' or 'a/b' would name another place (or be refused deep in the writer)
+        if col not in _REQUIRED_COLUMNS and (len(col) > 100 or col.startswith((".", "__")) or
+                                             not re.fullmatch(r"\w[\w .()\-]*", col, re.A)):
             raise SchemaError(
                 f"manifest {mname} column {col!r}", "a name that cannot name a variable",
                 "letters, digits, spaces and _ - . ( ) , not starting with '.' or '__', no "
-                "'/' or '\\', at most 100 characters",
-                "rename the column (e.g. exposure_ms)",
-            )
-
-
-def _storable_name(name: str) -> bool:
-    """Whether a manifest column can name a variable of a Zarr store and a NetCDF file."""
-    import re
-
-    return (0 < len(name) <= 100 and not name.startswith((".", "__"))
-            and re.fullmatch(r"[A-Za-z0-9_][A-Za-z0-9_ .()\-]*", name) is not None)
-
-
-def _pose_columns(table, mname: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The ``alpha``, ``beta`` (finite degrees) and ``shot`` (integer label) columns."""
-    import pandas as pd
-
-    numeric = {}
-    for col in ("alpha", "beta", "shot"):
-        values = pd.to_numeric(table[col], errors="coerce")
-        bad = np.flatnonzero(~np.isfinite(values.to_numpy(dtype=float)))
-        if bad.size:
-            i = bad[0]
-            raise SchemaError(
-                f"manifest {mname} line {_line(i)} column {col!r}", table[col].iloc[i],
-                "a finite number" + (" of degrees" if col != "shot" else ""),
-                f"correct the value ({bad.size} bad row(s), first on line {_line(i)})",
-            )
-        numeric[col] = values.to_numpy(dtype=float)
-    from ..plans import MAX_ANGLE_DEG
-
-    for col in ("alpha", "beta"):
-        bad = np.flatnonzero(np.abs(numeric[col]) >= MAX_ANGLE_DEG)
-        if bad.size:
-            i = bad[0]
-            raise SchemaError(
-                f"manifest {mname} line {_line(i)} column {col!r}", table[col].iloc[i],
-                f"a commanded angle within (-{MAX_ANGLE_DEG:g}, {MAX_ANGLE_DEG:g}) deg (the sun "
-                "in front of the mask)", f"correct the value ({bad.size} such row(s))",
-            )
-    if np.any(numeric["shot"] != np.round(numeric["shot"])):
-        i = int(np.flatnonzero(numeric["shot"] != np.round(numeric["shot"]))[0])
-        raise SchemaError(
-            f"manifest {mname} line {_line(i)} column 'shot'", table["shot"].iloc[i],
-            "an integer shot label", "number the frames of each pose 0, 1, 2, ...",
-        )
-    return numeric["alpha"], numeric["beta"], numeric["shot"].astype(np.int64)
+                "'/' or '\\', at most 100 characters", "rename the column (e.g. exposure_ms)")
 
 
 def _image_paths(folder: Path, table, mname: str):
     """The ``file`` column (stripped) and the image paths: every one an existing file inside
     ``folder`` (a relative name; ``..`` that leaves the folder and absolute paths refused)."""
     files = table["file"].fillna("").astype(str).str.strip()
-    root = folder.resolve()
-    paths = []
+    root, paths = folder.resolve(), []
     for i, f in enumerate(files):
+        field = f"manifest {mname} line {_line(table, i)} column 'file'"
         try:
             path = (folder / f).resolve()
         except (RuntimeError, OSError) as err:  # a symlink loop (RuntimeError before 3.13)
-            raise SchemaError(
-                f"manifest {mname} line {_line(i)} column 'file'", f,
-                f"an image file in {folder}",
-                f"the path cannot be resolved ({type(err).__name__}: {err}); replace the link "
-                "by the image itself",
-            ) from err
+            raise SchemaError(field, f, f"an image file in {folder}", "the path cannot be "
+                              f"resolved ({type(err).__name__}: {err}); replace the link by the "
+                              "image itself") from err
         if not f or Path(f).is_absolute() or not path.is_relative_to(root):
             raise SchemaError(
-                f"manifest {mname} line {_line(i)} column 'file'", f,
-                f"a file name relative to {folder}, inside it",
+                field, f, f"a file name relative to {folder}, inside it",
                 "copy the image into the folder and give its name relative to the folder "
-                "(absolute paths and '..' are refused, so a cube names only its own frames)",
-            )
+                "(absolute paths and '..' are refused, so a cube names only its own frames)")
         paths.append(path)
     missing = [i for i, p in enumerate(paths) if not _is_file(p)]
     if missing:
-        i = missing[0]
-        raise SchemaError(
-            f"manifest {mname} line {_line(i)} column 'file'", files.iloc[i],
-            f"an image file in {folder}",
-            f"{len(missing)} listed file(s) do not exist; copy them into the folder or remove "
-            "their rows",
-        )
+        raise SchemaError(f"manifest {mname} line {_line(table, missing[0])} column 'file'",
+                          files.iloc[missing[0]], f"an image file in {folder}",
+                          f"{len(missing)} listed file(s) do not exist; copy them into the "
+                          "folder or remove their rows")
     return files, paths
 
 
@@ -278,30 +176,19 @@ def _is_file(path: Path) -> bool:
         return False
 
 
-#: Largest page number of a TIFF stack in a manifest (a stack of 2**31 frames is no stack).
-_MAX_PAGE = 2**31 - 1
-
-
 def _page_column(table, files, mname: str):
     """The ``page`` of each row (None without the column): a non-negative integer, and no
     image (file, page) listed twice."""
-    import pandas as pd
-
-    if "page" not in table.columns:
-        pages = None
-        keys = list(files)
-    else:
+    pages, keys = None, list(files)
+    if "page" in table.columns:
         values = pd.to_numeric(table["page"], errors="coerce").to_numpy(dtype=float)
         bad = np.flatnonzero(~np.isfinite(values) | (values < 0) | (values > _MAX_PAGE)
                              | (values != np.round(values)))
         if bad.size:
-            i = int(bad[0])
             raise SchemaError(
-                f"manifest {mname} line {_line(i)} column 'page'", table["page"].iloc[i],
-                f"an integer page 0, 1, ... (at most {_MAX_PAGE}) of the TIFF stack named in "
-                "'file'",
-                f"correct the value ({bad.size} bad row(s))",
-            )
+                f"manifest {mname} line {_line(table, bad[0])} column 'page'",
+                table["page"].iloc[bad[0]], f"an integer page 0, 1, ... (at most {_MAX_PAGE}) "
+                "of the TIFF stack named in 'file'", f"correct the value ({bad.size} bad row(s))")
         pages = values.astype(np.int64)
         keys = list(zip(files, pages.tolist(), strict=True))
     first: dict = {}
@@ -309,82 +196,60 @@ def _page_column(table, files, mname: str):
         if key in first:
             what = f"file {key[0]!r} page {key[1]}" if pages is not None else f"file {key!r}"
             raise SchemaError(
-                f"manifest {mname} line {_line(i)}", f"{what} again (first on line "
-                f"{_line(first[key])})", "one image per (pose, shot)",
-                "give each row its own image" + (" or page" if pages is not None else ""),
-            )
+                f"manifest {mname} line {_line(table, i)}",
+                f"{what} again (first on line {_line(table, first[key])})",
+                "one image per (pose, shot)",
+                "give each row its own image" + (" or page" if pages is not None else ""))
         first[key] = i
     return pages
 
 
-def _pose_grid(alpha, beta, shot, mname: str):
-    """Poses and shots of the manifest rows.
-
-    Poses are the unique (alpha, beta) pairs in manifest order, shots the labels sorted by
-    value. Returns the poses (an ordered dict of pairs), the shot labels and ``order``, the
-    manifest row of each (pose, shot).
-    """
-    pairs = list(zip(alpha.tolist(), beta.tolist(), strict=True))
-    pose_of_pair: dict = {}
-    for pair in pairs:
-        pose_of_pair.setdefault(pair, len(pose_of_pair))
-    pose = np.array([pose_of_pair[p] for p in pairs])
+def _pose_grid(table, alpha, beta, shot, mname: str):
+    """The poses (unique (alpha, beta) pairs in manifest order), the shot labels (sorted) and
+    ``order``, the manifest row of each (pose, shot)."""
+    poses, pose = _poses(alpha, beta)
     seen: dict = {}
     for i, key in enumerate(zip(pose.tolist(), shot.tolist(), strict=True)):
         if key in seen:
             raise SchemaError(
-                f"manifest {mname} line {_line(i)}",
-                f"alpha={alpha[i]:g}, beta={beta[i]:g}, shot={shot[i]} again (first on line "
-                f"{_line(seen[key])})",
-                "one row per (pose, shot)",
-                "remove the duplicate row or give it the next shot number",
-            )
+                f"manifest {mname} line {_line(table, i)}", f"alpha={alpha[i]:g}, "
+                f"beta={beta[i]:g}, shot={shot[i]} again (first on line "
+                f"{_line(table, seen[key])})", "one row per (pose, shot)",
+                "remove the duplicate row or give it the next shot number")
         seen[key] = i
     labels = np.unique(shot)
-    n_pose, n_shot = len(pose_of_pair), len(labels)
-    for p, (a, b) in enumerate(pose_of_pair):
+    for p, (a, b) in enumerate(poses):
         have = set(shot[pose == p].tolist())
         if have != set(labels.tolist()):
-            lacking = sorted(set(labels.tolist()) - have)
             raise SchemaError(
                 f"manifest {mname} pose alpha={a:g}, beta={b:g}", f"shots {sorted(have)}",
                 f"the same shots as every other pose: {labels.tolist()}",
-                f"add rows for shot(s) {lacking} of this pose, or drop the pose",
-            )
-    shot_index = np.searchsorted(labels, shot)
-    order = np.full((n_pose, n_shot), -1)
-    order[pose, shot_index] = np.arange(len(pairs))
-    return pose_of_pair, labels, order
+                f"add rows for shot(s) {sorted(set(labels.tolist()) - have)} of this pose, or "
+                "drop the pose")
+    order = np.full((len(poses), len(labels)), -1)
+    order[pose, np.searchsorted(labels, shot)] = np.arange(len(pose))
+    return poses, labels, order
 
 
-def _common_header(paths, order, pages, mname: str) -> tuple[tuple[int, ...], np.dtype]:
+def _common_header(table, paths, order, pages, mname: str):
     """Image headers: one frame size and one pixel type (uint8 or uint16) for the whole cube,
     and every ``page`` within its stack."""
-    headers = {}
-    for p in dict.fromkeys(paths):
-        headers[p] = _image_header(p, stack=pages is not None)
-    shape, dtype, _ = headers[paths[int(order[0, 0])]]
+    headers = {p: _image_header(p, stack=pages is not None) for p in dict.fromkeys(paths)}
+    first = paths[int(order[0, 0])]
+    shape, dtype, _ = headers[first]
     for i, path in enumerate(paths):
         shp, dt, n_pages = headers[path]
-        if dt not in (np.dtype(np.uint8), np.dtype(np.uint16)):
-            raise SchemaError(
-                f"image {path.name}", f"pixel type {dt}", "uint8 or uint16 digital numbers",
-                "export raw DN as 8- or 16-bit unsigned integers; float or 32-bit images are "
-                "not raw frames",
-            )
+        _raw_dtype(path, dt)
         if shp != shape or dt != dtype:
             raise SchemaError(
-                f"image {path.name} (manifest line {_line(i)})", f"shape {shp}, {dt}",
-                f"shape {shape}, {dtype} like {paths[int(order[0, 0])].name}",
-                "every frame of a cube has the same size and pixel type; remove or re-export "
-                "the odd image",
-            )
+                f"image {path.name} (manifest line {_line(table, i)})", f"shape {shp}, {dt}",
+                f"shape {shape}, {dtype} like {first.name}", "every frame of a cube has the "
+                "same size and pixel type; remove or re-export the odd image")
         if pages is not None and pages[i] >= n_pages:
-            raise SchemaError(
-                f"manifest {mname} line {_line(i)} column 'page'", int(pages[i]),
-                f"a page 0 .. {n_pages - 1} of {path.name} ({n_pages} frames)",
-                "correct the page number (pages count from 0)",
-            )
+            raise SchemaError(f"manifest {mname} line {_line(table, i)} column 'page'",
+                              int(pages[i]), f"a page 0 .. {n_pages - 1} of {path.name} "
+                              f"({n_pages} frames)", "correct the page number (pages count "
+                              "from 0)")
     return shape, dtype
 
 
@@ -392,68 +257,41 @@ def _checked_bit_depth(bit_depth, dtype: np.dtype, left_aligned=False) -> int | 
     """The given bit depth as an int that fits the pixel type (None stays None, unless the
     frames are left-aligned: their shift needs it)."""
     if bit_depth is None and left_aligned:
-        raise SchemaError(
-            "bit_depth", None, "the ADC's bit depth for left-aligned frames",
-            "give bit_depth (sensor.json \"bit_depth\", or --bit-depth) with left_aligned",
-        )
-    if bit_depth is None:
-        return None
-    if int(bit_depth) != bit_depth or not 1 <= bit_depth <= 8 * dtype.itemsize:
-        raise SchemaError(
-            "bit_depth", bit_depth, f"an integer 1 .. {8 * dtype.itemsize} for {dtype} images",
-            "give the ADC bit depth (Ibis4: 10)",
-        )
-    return int(bit_depth)
+        raise SchemaError("bit_depth", None, "the ADC's bit depth for left-aligned frames",
+                          "give bit_depth (sensor.json \"bit_depth\", or --bit-depth) with "
+                          "left_aligned")
+    if bit_depth is not None and (int(bit_depth) != bit_depth
+                                  or not 1 <= bit_depth <= 8 * dtype.itemsize):
+        raise SchemaError("bit_depth", bit_depth, f"an integer 1 .. {8 * dtype.itemsize} for "
+                          f"{dtype} images", "give the ADC bit depth (Ibis4: 10)")
+    return None if bit_depth is None else int(bit_depth)
 
 
 def _read_frames(paths, order, shape, dtype, how, lazy: bool):
     """The (pose, shot, y, x) frames: one ``dask.delayed`` read per image, or all read now;
     ``how`` is (bit_depth, pages or None, left_aligned)."""
     bit_depth, pages, left_aligned = how
-    n_pose, n_shot = order.shape
 
-    def args(p, s):
-        row = order[p, s]
+    def args(row):
         page = None if pages is None else int(pages[row])
         return paths[row], shape, dtype, bit_depth, page, left_aligned
 
-    if lazy:
-        import dask
-        import dask.array as da
+    if not lazy:
+        return np.stack([np.stack([_read_checked(*args(r)) for r in rows]) for rows in order])
+    import dask
+    import dask.array as da
 
-        read = dask.delayed(_read_checked, pure=True)
-        return da.stack([
-            da.stack([da.from_delayed(read(*args(p, s)), shape, dtype) for s in range(n_shot)])
-            for p in range(n_pose)
-        ])
-    frames = np.empty((n_pose, n_shot, *shape), dtype)
-    for p in range(n_pose):
-        for s in range(n_shot):
-            frames[p, s] = _read_checked(*args(p, s))
-    return frames
-
-
-def _detected_bit_depth(frames, dtype: np.dtype) -> int:
-    """8 for 8-bit images, else the smallest of 8, 10, 12, 14, 16 bits that holds the peak DN."""
-    if dtype == np.uint8:
-        return 8
-    peak = int(frames.max()) if frames.size else 0
-    return next(b for b in (8, 10, 12, 14, 16) if peak < 2**b)
+    read = dask.delayed(_read_checked, pure=True)
+    return da.stack([da.stack([da.from_delayed(read(*args(r)), shape, dtype) for r in rows])
+                     for rows in order])
 
 
 def _manifest_coords(table, files, order, labels, mname: str) -> dict:
     """Coordinates from the manifest: ``file``, ``shot_label`` and every extra column."""
-    import pandas as pd
-
-    n_shot = order.shape[1]
-    coords = {
-        "file": (("pose", "shot"), files.to_numpy(dtype=object)[order]),
-    }
-    if not np.array_equal(labels, np.arange(n_shot)):
+    coords = {"file": (("pose", "shot"), files.to_numpy(dtype=object)[order])}
+    if not np.array_equal(labels, np.arange(order.shape[1])):
         coords["shot_label"] = ("shot", labels)
-    for col in table.columns:
-        if col in _REQUIRED_COLUMNS:
-            continue
+    for col in [c for c in table.columns if c not in _REQUIRED_COLUMNS]:
         raw = table[col]
         if col == "time":
             try:
@@ -462,14 +300,11 @@ def _manifest_coords(table, files, order, labels, mname: str) -> dict:
                 raise SchemaError(
                     f"manifest {mname} column 'time'", _short(raw.tolist()),
                     "ISO 8601 date-times, e.g. 2005-06-01T12:00:00.125",
-                    f"write the times in ISO 8601 or rename the column ({exc})",
-                ) from exc
+                    f"write the times in ISO 8601 or rename the column ({exc})") from exc
         else:
             num = pd.to_numeric(raw, errors="coerce")
-            if num.notna().sum() == raw.notna().sum():
-                values = num.to_numpy()
-            else:
-                values = raw.fillna("").astype(str).to_numpy(dtype=object)
+            values = (num.to_numpy() if num.notna().sum() == raw.notna().sum()
+                      else raw.fillna("").astype(str).to_numpy(dtype=object))
         coords[col] = (("pose", "shot"), values[order])
     return coords
 
@@ -495,23 +330,21 @@ def example_folder(name: str = "train") -> Path:
 
     Examples
     --------
+    >>> from sunlab import io
     >>> folder = example_folder("train")
     >>> sorted(p.name for p in folder.glob("*.json")), (folder / "manifest.csv").exists()
     (['sensor.json'], True)
-    >>> cube = from_image_folder(folder, mask_distance_mm=17.0, bit_depth=10)
+    >>> cube = io.open_frames(folder)
     >>> dict(cube.sizes)["pose"], cube.frames.dtype
     (25, dtype('uint16'))
     """
-    names = ("train", "test")
-    if name not in names:
-        raise SchemaError("name", name, f"one of {names}", "pass 'train' or 'test'")
+    if name not in ("train", "test"):
+        raise SchemaError("name", name, "one of ('train', 'test')", "pass 'train' or 'test'")
     from importlib import resources
 
     folder = Path(str(resources.files("sunlab") / "data" / "example" / name))
     if not (folder / "manifest.csv").is_file():
         raise SunlabError(
             f"example_folder: {folder} has no manifest.csv. Fix: reinstall sunlab (the package "
-            "data is missing), or regenerate it with sunlab/data/make_example.py"
-        )
+            "data is missing), or regenerate it with sunlab/data/make_example.py")
     return folder
-

@@ -1,8 +1,9 @@
-"""Open frame cubes and centroid tables lazily, checked chunk by chunk, and validate them.
+"""The two openers: :func:`open_frames` (a Zarr store, a NetCDF4 file, a folder of images with
+its manifest, a TIFF stack) and :func:`open_centroids` (Zarr, NetCDF4, CSV).
 
-A directory is read as a Zarr store, a file as NetCDF4/HDF5 (checked by its signature). Every
-non-index variable is Dask-backed through a reader that names the chunk when a read fails
-(:mod:`sunlab.io.chunks`); attributes are restored by :mod:`sunlab.io.codec`.
+A Zarr store or a NetCDF file opens lazily: every non-index variable is Dask-backed through a
+reader that names the chunk when a read fails (:mod:`sunlab.io.chunks`), the metadata are checked
+against their digest (:mod:`sunlab.integrity`) and attributes restored (:mod:`sunlab.io.codec`).
 """
 
 from __future__ import annotations
@@ -10,19 +11,19 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-import numpy as np
 import xarray as xr
 
 from .. import integrity
 from ..errors import SchemaError, SunlabError
 from ..schema import CENTROIDS_SCHEMA, FRAMES_SCHEMA, validate_centroids, validate_frames
 from .chunks import _check_chunks, _checked_lazy
-from .codec import _CODEC_ATTR, _decode_attrs
+from .codec import _CODEC_ATTR, _decode_attrs, _strings_as_objects
 from .csvtable import CSV_SUFFIXES, centroids_from_csv
 
-__all__ = ["open_frames", "open_centroids", "open_dataset"]
+__all__ = ["open_frames", "open_centroids"]
 
 _HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
+_TIFF_SUFFIXES = (".tif", ".tiff")
 
 
 def _fail_zarr(path: Path, exc: Exception):
@@ -34,12 +35,10 @@ def _fail_zarr(path: Path, exc: Exception):
             raise SunlabError(
                 f"{meta}: corrupt Zarr metadata ({err}). Fix: restore this file from a backup or "
                 "copy the store again from its source; a store written by sunlab.io can also be "
-                "re-created with save_frames"
-            ) from exc
+                "re-created with save_frames") from exc
     raise SunlabError(
         f"{path}: cannot be read as a Zarr store ({type(exc).__name__}: {exc}). Fix: check "
-        "that the copy is complete, or re-create the store with sunlab.io.save_frames"
-    ) from exc
+        "that the copy is complete, or re-create the store with sunlab.io.save_frames") from exc
 
 
 def _sniff(path: Path) -> str:
@@ -53,40 +52,38 @@ def _sniff(path: Path) -> str:
     if head == _HDF5_SIGNATURE:
         return "netcdf"
     if head[:3] == b"CDF":
-        raise SunlabError(
-            f"{path}: a NetCDF3 (classic) file; sunlab reads NetCDF4/HDF5. Fix: convert it with "
-            "`nccopy -k nc4 in.nc out.nc`"
-        )
+        raise SunlabError(f"{path}: a NetCDF3 (classic) file; sunlab reads NetCDF4/HDF5. Fix: "
+                          "convert it with `nccopy -k nc4 in.nc out.nc`")
     raise SunlabError(
         f"{path}: neither a Zarr store (a directory) nor a NetCDF4/HDF5 file (first bytes "
         f"{head!r}). Fix: the file may be truncated or of another type; copy it again from its "
-        "source"
-    )
+        "source")
+
+
+def _existing(path) -> Path:
+    path = Path(path)
+    if not path.exists():
+        raise SunlabError(f"{path}: no such file or directory. Fix: give the path of a .zarr "
+                          "store or a .nc file written by sunlab.io (or sunlab simulate)")
+    if not (path.is_dir() or path.is_file()):  # a FIFO or a device would block or never end
+        raise SunlabError(f"{path}: not a regular file or folder. Fix: give the path of a .zarr "
+                          "store or a .nc file written by sunlab.io")
+    return path
+
+
+def _is_zarr(path: Path) -> bool:
+    return (path / "zarr.json").exists() or (path / ".zgroup").exists()
 
 
 def _open_raw(path, format: str | None = None) -> xr.Dataset:
     """Open a store or file lazily, decode sunlab attributes; no validation."""
-    path = Path(path)
-    if not path.exists():
-        raise SunlabError(
-            f"{path}: no such file or directory. Fix: give the path of a .zarr store or a .nc "
-            "file written by sunlab.io (or sunlab simulate)"
-        )
-    if not (path.is_dir() or path.is_file()):  # a FIFO or a device would block or never end
-        raise SunlabError(
-            f"{path}: not a regular file or folder. Fix: give the path of a .zarr store or a .nc "
-            "file written by sunlab.io"
-        )
-    if format is None:
-        format = "zarr" if path.is_dir() else _sniff(path)
+    path = _existing(path)
+    format = format or ("zarr" if path.is_dir() else _sniff(path))
     if format == "zarr":
-        if not path.is_dir() or not (
-            (path / "zarr.json").exists() or (path / ".zgroup").exists()
-        ):
-            raise SunlabError(
-                f"{path}: not a Zarr store (no zarr.json in it). Fix: give the store's top "
-                "directory, or copy the store again if its metadata is missing"
-            )
+        if not (path.is_dir() and _is_zarr(path)):
+            raise SunlabError(f"{path}: not a Zarr store (no zarr.json in it). Fix: give the "
+                              "store's top directory, or copy the store again if its metadata "
+                              "is missing")
         integrity.verify_zarr(path)  # metadata (shapes, data types, codecs) as written
         try:
             ds = xr.open_zarr(path, consolidated=False, chunks=None)
@@ -99,26 +96,19 @@ def _open_raw(path, format: str | None = None) -> xr.Dataset:
             raise SunlabError(
                 f"{path}: cannot be read as NetCDF4/HDF5 ({type(exc).__name__}: {exc}). Fix: "
                 "the file is probably truncated or corrupt (an interrupted copy or write); copy "
-                "it again from its source or re-create it with sunlab.io.save_frames"
-            ) from exc
+                "it again from its source or re-create it with sunlab.io.save_frames") from exc
         try:
             integrity.verify_netcdf(ds, path)  # every value but the frames' (Fletcher-32)
-        except SunlabError:
+        except Exception as exc:
             ds.close()
-            raise
-        except Exception as exc:  # noqa: BLE001 - a damaged variable: name the file
-            ds.close()
-            raise SunlabError(
-                f"{path}: a variable cannot be read ({type(exc).__name__}: {exc}). Fix: the "
-                "file is corrupt; copy it again from its source or re-create it"
-            ) from exc
+            if isinstance(exc, SunlabError):
+                raise
+            raise SunlabError(f"{path}: a variable cannot be read ({type(exc).__name__}: {exc})"
+                              ". Fix: the file is corrupt; copy it again from its source or "
+                              "re-create it") from exc
     ds.attrs.pop(integrity.ATTR, None)
     try:
-        for name in list(ds.variables):
-            var = ds.variables[name]
-            if var.dtype.kind in "UT":
-                new = (var.dims, np.asarray(var.values).astype(object), var.attrs)
-                ds = ds.assign_coords({name: new}) if name in ds.coords else ds.assign({name: new})
+        ds = _strings_as_objects(ds)
         for var in ds.variables.values():
             var.attrs = _decode_attrs(var.attrs)
         ds.attrs = _decode_attrs(ds.attrs)
@@ -126,11 +116,9 @@ def _open_raw(path, format: str | None = None) -> xr.Dataset:
         ds.close()
         raise SunlabError(
             f"{path}: unreadable attribute {_CODEC_ATTR!r} ({exc}). Fix: the metadata was edited "
-            "by hand or by another tool; remove that attribute or re-create the store"
-        ) from exc
+            "by hand or by another tool; remove that attribute or re-create the store") from exc
     ds = _checked_lazy(ds, path, format)
-    ds.encoding["sunlab_format"] = format
-    ds.encoding["source"] = str(path)
+    ds.encoding.update(sunlab_format=format, source=str(path))
     return ds
 
 
@@ -145,18 +133,45 @@ def _finish(ds: xr.Dataset, validate, check_chunks: bool) -> xr.Dataset:
     return ds
 
 
-def open_frames(path, *, format: str | None = None, check_chunks: bool = True) -> xr.Dataset:
-    """Open a frame cube lazily (Dask arrays, one chunk per stored chunk) and validate it.
+def _is_image_source(path: Path) -> bool:
+    """A TIFF stack, or a folder that is no Zarr store (nor the remains of one)."""
+    if path.is_file():
+        return path.suffix.lower() in _TIFF_SUFFIXES
+    return path.is_dir() and not _is_zarr(path) and not any(path.glob("*/zarr.json"))
+
+
+def open_frames(path, manifest=None, *, format: str | None = None, check_chunks: bool = True,
+                lazy: bool = True, dark=None, flat=None, bias=None, **sensor) -> xr.Dataset:
+    """Open a frame cube from any source sunlab reads, lazily, validated (``frames/1``).
+
+    The one opener of frames: a Zarr store or a NetCDF4 file written by
+    :func:`~sunlab.io.save_frames`, a folder of PNG or TIFF images with its ``manifest.csv``
+    (and ``sensor.json``), or a multi-page TIFF stack with the manifest beside it. The same run
+    gives the same cube from each (:mod:`sunlab.io.folder` says how a folder becomes a cube).
 
     Parameters
     ----------
     path : str or path-like
-        A Zarr store or a NetCDF4 file written by :func:`~sunlab.io.save_frames`.
+        A Zarr store (a folder holding ``zarr.json``), a NetCDF4 file, a folder of images or a
+        TIFF stack (``.tif``, ``.tiff``: the rows of the manifest beside it that name it).
+    manifest : str or path-like, optional
+        Images only: another manifest (default ``manifest.csv`` in the folder); its folder's
+        ``sensor.json`` is read first.
     format : {"zarr", "netcdf"}, optional
-        Default: a directory is Zarr, a file is NetCDF4 (checked by its signature).
+        Stores only. Default: a directory is Zarr, a file is NetCDF4 (checked by its signature).
     check_chunks : bool
         Zarr only: check that every chunk file exists. A missing chunk would otherwise read as
         frames of 0 DN without any warning. Turn off to read an incomplete store on purpose.
+    lazy : bool
+        Images only: read each image when its frame is computed (headers are checked at once).
+    dark, flat, bias : str, path-like or array_like, optional
+        Images only: calibration frames whose masters are stored with the cube
+        (:func:`~sunlab.io.with_calibration_frames`).
+    **sensor
+        Images only: sensor constants that override ``sensor.json``: ``pixel_pitch_mm``,
+        ``mask_distance_mm``, ``x_cf_px``, ``y_cf_px``, ``bit_depth``, ``left_aligned``,
+        ``mask``, ``experiment`` (None = not given). The pitch and the mask distance are never
+        guessed: absent, they stay absent, and only the methods that need them ask.
 
     Returns
     -------
@@ -168,12 +183,27 @@ def open_frames(path, *, format: str | None = None, check_chunks: bool = True) -
     SunlabError
         The path is missing, truncated or corrupt (the message names the file and the fix).
     SchemaError
-        The dataset breaks the contract ``frames/1``, or Zarr chunks are missing.
+        The dataset breaks the contract ``frames/1``, Zarr chunks are missing, or a manifest
+        line, a column or an image is wrong (named, with the fix).
 
     Examples
     --------
-    See :func:`~sunlab.io.save_frames`.
+    >>> from sunlab import io
+    >>> cube = io.open_frames(io.example_folder("train"))
+    >>> cube.attrs["bit_depth"], cube.attrs["mask_distance_mm"], dict(cube.sizes)["pose"]
+    (10, 17.0, 25)
     """
+    path = _existing(path)
+    if format is None and _is_image_source(path):
+        from .folder import _from_images
+
+        return _from_images(path, manifest, lazy=lazy, dark=dark, flat=flat, bias=bias,
+                            **sensor)
+    given = [k for k, v in {"manifest": manifest, "dark": dark, "flat": flat, "bias": bias,
+                            **sensor}.items() if v is not None]
+    if given:
+        raise SunlabError(f"{path}: {', '.join(given)} apply to a folder of images or a TIFF "
+                          "stack only. Fix: leave them out (a store carries its own)")
     return _finish(_open_raw(path, format), validate_frames, check_chunks)
 
 
@@ -183,28 +213,28 @@ CSV_SENSOR_KEYS = ("pixel_pitch_mm", "mask_distance_mm", "x_cf_px", "y_cf_px")
 
 def _sensor_attrs(path) -> dict | None:
     """The sensor attributes of a CSV table from the ``sensor.json`` in its folder, or None."""
-    from .sensor import read_sensor_json
+    from .sensor import find_sensor_json, read_sensor_json
 
-    sensor_json = Path(path).resolve().parent / "sensor.json"
-    if not sensor_json.is_file():
-        return None
-    sensor = read_sensor_json(sensor_json)
-    return {**{k: sensor[k] for k in CSV_SENSOR_KEYS if k in sensor},
-            "sensor_json": str(sensor_json)}
+    found = find_sensor_json(Path(path).resolve().parent)
+    sensor = read_sensor_json(found) if found else None
+    return None if found is None else {**{k: sensor[k] for k in CSV_SENSOR_KEYS if k in sensor},
+                                       "sensor_json": str(found)}
 
 
-def open_centroids(
-    path, *, format: str | None = None, lazy: bool = False, check_chunks: bool = True,
-    attrs: dict | None = None,
-) -> xr.Dataset:
+def open_centroids(path, *, format: str | None = None, lazy: bool = False,
+                   check_chunks: bool = True, attrs: dict | None = None) -> xr.Dataset:
     """Open and validate a centroid table: Zarr, NetCDF4 or CSV; loaded unless ``lazy``.
+
+    The one opener of centroid tables.
 
     Parameters
     ----------
     path : str or path-like
         A Zarr store or NetCDF4 file written by :func:`~sunlab.io.save_centroids`, or a CSV
-        file (suffix ``.csv`` or ``.txt``) with the columns ``alpha, beta, x, y[, shot]``
-        (commanded angles in deg, centroid in px; :func:`~sunlab.io.centroids_from_csv`).
+        file (suffix ``.csv`` or ``.txt``) of another tool with the columns
+        ``alpha, beta, x, y[, shot, status]`` (commanded angles in deg, centroid in px, one row
+        per shot; poses are the distinct (alpha, beta) pairs in file order, poses with fewer
+        shots padded with NaN and status ``no_spot``; ``#`` starts a comment).
     format : {"zarr", "netcdf", "csv"}, optional
         Default: from the path (a directory is Zarr, a ``.csv``/``.txt`` file CSV, any other
         file NetCDF4, checked by its signature).
@@ -236,91 +266,33 @@ def open_centroids(
     --------
     >>> import tempfile, pathlib
     >>> path = pathlib.Path(tempfile.mkdtemp()) / "c.csv"
-    >>> _ = path.write_text("alpha,beta,x,y\\n0,0,10.5,20.25\\n1,0,30.0,20.0\\n")
-    >>> dict(open_centroids(path).sizes)
-    {'pose': 2, 'shot': 1}
+    >>> _ = path.write_text("alpha,beta,x,y\\n0,0,10.5,20.25\\n0,0,10.7,20.0\\n1,0,30.0,20.0\\n")
+    >>> cen = open_centroids(path)
+    >>> dict(cen.sizes), cen.status.values.tolist()
+    ({'pose': 2, 'shot': 2}, [[0, 0], [0, 1]])
     """
     if format == "csv" or (format is None and Path(path).suffix.lower() in CSV_SUFFIXES):
         return centroids_from_csv(path, attrs=_sensor_attrs(path) if attrs is None else attrs)
     if attrs is not None:
-        raise SunlabError(
-            f"{path}: attrs= applies to CSV tables only. Fix: leave attrs out (a Zarr or NetCDF "
-            "table carries its own attributes)")
+        raise SunlabError(f"{path}: attrs= applies to CSV tables only. Fix: leave attrs out (a "
+                          "Zarr or NetCDF table carries its own attributes)")
     ds = _open_raw(path, format)
-    found = ds.attrs.get("sunlab_schema")
-    if found == FRAMES_SCHEMA:
+    if ds.attrs.get("sunlab_schema") == FRAMES_SCHEMA:
         ds.close()
         raise SchemaError(
             f"{path}", "a frame cube (frames/1)", "a centroid table (centroids/1)",
             f"centroid the frames first: sunlab.centroid.locate(cube) or `sunlab centroid {path} "
             "--out table.nc`")
     ds = _finish(ds, validate_centroids, check_chunks)
-    if not lazy:
-        loaded = ds.load()
-        ds.close()
-        return loaded
-    return ds
-
-
-def open_dataset(path, *, format: str | None = None, check_chunks: bool = True) -> xr.Dataset:
-    """Open a frame cube or a centroid table, whichever ``attrs['sunlab_schema']`` names.
-
-    Frame cubes open lazily (see :func:`open_frames`), centroid tables are loaded.
-
-    Parameters
-    ----------
-    path : str or path-like
-        A Zarr store or a NetCDF4 file written by :mod:`sunlab.io`.
-    format : {"zarr", "netcdf"}, optional
-        Default: a directory is Zarr, a file is NetCDF4 (checked by its signature).
-    check_chunks : bool
-        Zarr only: check that every chunk file exists (see :func:`open_frames`).
-
-    Returns
-    -------
-    xarray.Dataset
-        A validated ``frames/1`` cube (lazy; close it to release a NetCDF file) or a
-        ``centroids/1`` table (in memory, the file closed).
-
-    Raises
-    ------
-    SunlabError
-        The path is missing, truncated or corrupt (the message names the file and the fix).
-    SchemaError
-        ``attrs['sunlab_schema']`` names neither contract, or the dataset breaks its contract.
-
-    Examples
-    --------
-    >>> import numpy as np, tempfile, pathlib
-    >>> from sunlab import schema
-    >>> from sunlab.io import save_centroids
-    >>> path = pathlib.Path(tempfile.mkdtemp()) / "c.zarr"
-    >>> save_centroids(schema.centroids_dataset([[1.0]], [[2.0]]), path)
-    >>> open_dataset(path).attrs["sunlab_schema"]
-    'centroids/1'
-    """
-    ds = _open_raw(path, format)
-    found = ds.attrs.get("sunlab_schema")
-    if found == FRAMES_SCHEMA:
-        return _finish(ds, validate_frames, check_chunks)
-    if found == CENTROIDS_SCHEMA:
-        ds = _finish(ds, validate_centroids, check_chunks)
-        loaded = ds.load()
-        ds.close()
-        return loaded
+    if lazy:
+        return ds
+    loaded = ds.load()
     ds.close()
-    family = str(found).partition("/")[0]
-    if family in ("frames", "centroids"):
-        fix = (
-            f"this sunlab reads {FRAMES_SCHEMA!r} and {CENTROIDS_SCHEMA!r}: open the file with "
-            "the sunlab version that wrote it and save it again, or upgrade sunlab"
-        )
-    else:
-        fix = (
-            "the file was not written by sunlab.io; build a dataset with sunlab.schema "
-            "(frames_dataset, centroids_dataset) and save it with sunlab.io"
-        )
-    raise SchemaError(
-        "attrs['sunlab_schema']", found, f"{FRAMES_SCHEMA!r} or {CENTROIDS_SCHEMA!r}", fix
-    )
+    return loaded
 
+
+def _open_any(path, check_chunks: bool = False) -> xr.Dataset:
+    """A frame cube (lazy) or a centroid table (lazy), whichever the file's contract names."""
+    ds = _open_raw(path)
+    centroids = ds.attrs.get("sunlab_schema") == CENTROIDS_SCHEMA
+    return _finish(ds, validate_centroids if centroids else validate_frames, check_chunks)

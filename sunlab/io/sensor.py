@@ -77,14 +77,9 @@ def find_sensor_json(folder, manifest=None) -> Path | None:
     pathlib.Path or None
         The first ``sensor.json`` found, or None.
     """
-    folder = Path(folder)
     places = [Path(manifest).resolve().parent] if manifest is not None else []
-    places.append(folder)
-    for place in places:
-        path = place / "sensor.json"
-        if path.is_file():
-            return path
-    return None
+    return next((p / "sensor.json" for p in [*places, Path(folder)]
+                 if (p / "sensor.json").is_file()), None)
 
 
 def read_sensor_json(path) -> dict:

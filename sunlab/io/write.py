@@ -18,7 +18,7 @@ from .. import atomic, integrity
 from ..errors import SchemaError
 from ..schema import validate_centroids, validate_frames
 from .chunks import _checked_dn
-from .codec import _encode_attrs
+from .codec import _encode_attrs, _strings_as_objects
 
 __all__ = ["NETCDF_SUFFIXES", "save_frames", "save_centroids"]
 
@@ -26,86 +26,6 @@ __all__ = ["NETCDF_SUFFIXES", "save_frames", "save_centroids"]
 NETCDF_SUFFIXES = (".nc", ".nc4", ".netcdf", ".h5", ".hdf5")
 
 _CHUNKING = ("frame", "pose")
-
-
-def _format_of(path: Path, format: str | None) -> str:
-    if format is None:
-        return "netcdf" if path.suffix.lower() in NETCDF_SUFFIXES else "zarr"
-    if format not in ("zarr", "netcdf"):
-        raise SchemaError("format", format, "'zarr', 'netcdf' or None (from the suffix)")
-    return format
-
-
-def _prepare(ds: xr.Dataset, fmt: str) -> xr.Dataset:
-    """A shallow copy with encodings cleared, attributes encoded and strings as objects."""
-    ds = ds.copy(deep=False)
-    ds.encoding = {}
-    for name in list(ds.variables):
-        var = ds.variables[name]
-        kind = var.dtype.kind
-        if kind in "UT":
-            # Zarr v3 has no stable fixed-width unicode type: write variable-length strings.
-            values = np.asarray(var.values).astype(object)
-            new = (var.dims, values, var.attrs)
-            ds = ds.assign_coords({name: new}) if name in ds.coords else ds.assign({name: new})
-    for name, var in ds.variables.items():
-        var.encoding = {}
-        var.attrs = _encode_attrs(var.attrs, where=f"{name}.")
-    ds.attrs = _encode_attrs({k: v for k, v in ds.attrs.items() if k != integrity.ATTR},
-                             where="")
-    return ds
-
-
-def _check_target(path: Path, fmt: str, overwrite: bool) -> None:
-    """Refuse an existing output without ``overwrite``, a missing or read-only folder: early."""
-    atomic.check_target(path, overwrite=overwrite, kind="zarr" if fmt == "zarr" else "file")
-
-
-def _zarr_checksum_encoding(ds: xr.Dataset, encoding: dict) -> dict:
-    """Encoding that gives every array of a Zarr store a CRC-32C checksum after compression."""
-    from zarr.codecs import Crc32cCodec, ZstdCodec
-
-    out = {}
-    for name in ds.variables:
-        enc = dict(encoding.get(name, {}))
-        compressors = tuple(enc.get("compressors", (ZstdCodec(level=0),)))
-        enc["compressors"] = (*compressors, Crc32cCodec())
-        out[name] = enc
-    return out
-
-
-def _maybe_progress(progress: bool):
-    """A tqdm bar in a terminal or Jupyter, a few plain lines in a log (no carriage returns)."""
-    from ..options import dask_progress
-
-    return dask_progress(progress, "write", minimum=1.0)
-
-
-def _write(ds: xr.Dataset, path: Path, fmt: str, encoding: dict, progress: bool,
-           overwrite: bool) -> None:
-    """Write to a temporary sibling, then rename it into place (the old output survives)."""
-    with atomic.atomic_output(path, overwrite=overwrite,
-                               kind="zarr" if fmt == "zarr" else "file") as tmp:
-        # the metadata are written on zarr's own I/O thread: Ctrl-C waits until they are
-        with atomic.signals_held():
-            if fmt == "zarr":
-                job = ds.to_zarr(
-                    tmp, mode="w-", zarr_format=3, consolidated=False, write_empty_chunks=True,
-                    encoding=_zarr_checksum_encoding(ds, encoding), compute=False,
-                )
-            elif ds.nbytes <= NETCDF_IN_MEMORY_MAX:
-                job = None
-            else:
-                job = ds.to_netcdf(tmp, engine="h5netcdf", encoding=encoding, compute=False)
-        with _maybe_progress(progress):
-            if job is None:  # built in memory, then written as plain bytes
-                _write_bytes(tmp, ds.to_netcdf(engine="h5netcdf", encoding=encoding))
-            else:
-                _compute_then_settle(job)
-        # the digest of what was written, checked by every read (sunlab.integrity)
-        (integrity.seal_zarr if fmt == "zarr" else integrity.seal_netcdf)(tmp)
-
-
 #: NetCDF outputs up to this size (bytes in memory) are built in memory and written as plain
 #: bytes: a write that fails there (a full disk) is an OSError like any other, where HDF5
 #: writing to a file that stopped growing can leave its library in a state that crashes the
@@ -115,12 +35,59 @@ def _write(ds: xr.Dataset, path: Path, fmt: str, encoding: dict, progress: bool,
 NETCDF_IN_MEMORY_MAX = 1 << 30
 
 
-def _write_bytes(path, data) -> None:
-    """Write a NetCDF image to ``path`` (a temporary sibling of the output), flushed to disk."""
-    with open(path, "wb") as fh:
-        fh.write(data)
-        fh.flush()
-        os.fsync(fh.fileno())
+def _target(path, format: str | None, overwrite: bool) -> tuple[Path, str]:
+    """The output and its format; an existing output without ``overwrite``, a missing or
+    read-only folder refused early (before any frame is computed)."""
+    path = Path(path)
+    if format not in ("zarr", "netcdf", None):
+        raise SchemaError("format", format, "'zarr', 'netcdf' or None (from the suffix)")
+    fmt = format or ("netcdf" if path.suffix.lower() in NETCDF_SUFFIXES else "zarr")
+    atomic.check_target(path, overwrite=overwrite, kind="zarr" if fmt == "zarr" else "file")
+    return path, fmt
+
+
+def _prepare(ds: xr.Dataset) -> xr.Dataset:
+    """A shallow copy with encodings cleared, attributes encoded and strings as objects."""
+    ds = _strings_as_objects(ds.copy(deep=False))
+    ds.encoding = {}
+    for name, var in ds.variables.items():
+        var.encoding = {}
+        var.attrs = _encode_attrs(var.attrs, where=f"{name}.")
+    ds.attrs = _encode_attrs({k: v for k, v in ds.attrs.items() if k != integrity.ATTR}, "")
+    return ds
+
+
+def _write(ds: xr.Dataset, path: Path, fmt: str, encoding: dict, progress: bool,
+           overwrite: bool) -> None:
+    """Write to a temporary sibling, then rename it into place (the old output survives).
+    Every Zarr array gets a CRC-32C checksum after its compressor."""
+    from zarr.codecs import Crc32cCodec, ZstdCodec
+
+    from ..options import dask_progress
+
+    with atomic.atomic_output(path, overwrite=overwrite,
+                              kind="zarr" if fmt == "zarr" else "file") as tmp:
+        # the metadata are written on zarr's own I/O thread: Ctrl-C waits until they are
+        with atomic.signals_held():
+            if fmt == "zarr":
+                zarr_enc = {n: {**encoding.get(n, {}), "compressors": (*encoding.get(n, {}).get(
+                    "compressors", (ZstdCodec(level=0),)), Crc32cCodec())} for n in ds.variables}
+                job = ds.to_zarr(tmp, mode="w-", zarr_format=3, consolidated=False,
+                                 write_empty_chunks=True, encoding=zarr_enc, compute=False)
+            elif ds.nbytes <= NETCDF_IN_MEMORY_MAX:
+                job = None
+            else:
+                job = ds.to_netcdf(tmp, engine="h5netcdf", encoding=encoding, compute=False)
+        with dask_progress(progress, "write", minimum=1.0):
+            if job is None:  # built in memory, then written as plain bytes
+                with open(tmp, "wb") as fh:
+                    fh.write(ds.to_netcdf(engine="h5netcdf", encoding=encoding))
+                    fh.flush()
+                    os.fsync(fh.fileno())
+            else:
+                _compute_then_settle(job)
+        # the digest of what was written, checked by every read (sunlab.integrity)
+        (integrity.seal_zarr if fmt == "zarr" else integrity.seal_netcdf)(tmp)
 
 
 def _compute_then_settle(job) -> None:
@@ -188,13 +155,6 @@ def save_frames(
         ``path`` exists and ``overwrite`` is False, or its folder is missing or read-only
         (checked before any frame is computed).
 
-    Notes
-    -----
-    The store is written to a hidden sibling (``.NAME.tmp-XXXXXXXX``) and renamed into place
-    only when complete; with ``overwrite=True`` the old output is moved aside, the new one moved
-    in, and only then the old one deleted, so a failed write leaves the old output intact.
-    Every Zarr chunk carries a CRC-32C checksum, every NetCDF frame chunk a Fletcher-32 one.
-
     Examples
     --------
     >>> import numpy as np, tempfile, pathlib
@@ -207,13 +167,20 @@ def save_frames(
     ...     print(back.frames.dtype, back.frames.data.chunksize)
     uint16 (1, 1, 3, 4)
     """
-    path = Path(path)
-    fmt = _format_of(path, format)
-    _check_target(path, fmt, overwrite)
+    path, fmt = _target(path, format, overwrite)
     validate_frames(cube)
     if chunks not in _CHUNKING:
         raise SchemaError("chunks", chunks, f"one of {_CHUNKING}", "per frame or per pose")
-    ds = _chunk_metadata(_prepare(cube, fmt))
+    ds = _prepare(cube)
+    # metadata and ground truth in a few large chunks (<= ~32 MB), not one file per frame
+    for name in [n for n, v in ds.variables.items() if n != "frames" and v.chunks is not None]:
+        var = ds.variables[name]
+        block = {d: -1 for d in var.dims}
+        if "pose" in var.dims:
+            per_pose = max(var.nbytes // max(var.sizes["pose"], 1), 1)
+            block["pose"] = int(max(1, min(var.sizes["pose"], 32_000_000 // per_pose)))
+        var = var.chunk(block)
+        ds = ds.assign_coords({name: var}) if name in ds.coords else ds.assign({name: var})
     n_pose, n_shot, ny, nx = ds["frames"].shape
     block = (1, 1 if chunks == "frame" else max(n_shot, 1), max(ny, 1), max(nx, 1))
     ds["frames"] = ds["frames"].chunk(dict(zip(ds["frames"].dims, block, strict=True)))
@@ -225,19 +192,6 @@ def save_frames(
     _write(ds, path, fmt, encoding, progress, overwrite)
 
 
-def _chunk_metadata(ds: xr.Dataset) -> xr.Dataset:
-    """Metadata and ground truth in a few large chunks (<= ~32 MB), not one file per frame."""
-    for name in [n for n, v in ds.variables.items() if n != "frames" and v.chunks is not None]:
-        var = ds.variables[name]
-        per_pose = max(var.nbytes // max(var.sizes.get("pose", 1), 1), 1)
-        block = {d: -1 for d in var.dims}
-        if "pose" in var.dims:
-            block["pose"] = int(max(1, min(var.sizes["pose"], 32_000_000 // per_pose)))
-        var = var.chunk(block)
-        ds = ds.assign_coords({name: var}) if name in ds.coords else ds.assign({name: var})
-    return ds
-
-
 def _frames_encoding(dtype: np.dtype, block: tuple, fmt: str, level: int) -> dict:
     """Compression of the frames: Blosc (Zarr) or HDF5 shuffle + gzip and Fletcher-32 (NetCDF)."""
     if fmt == "zarr":
@@ -245,15 +199,10 @@ def _frames_encoding(dtype: np.dtype, block: tuple, fmt: str, level: int) -> dic
 
         # Byte shuffle + Zstandard: on noisy 10-bit frames a better ratio than plain Zstandard
         # at about twice its speed.
-        codec = BloscCodec(cname="zstd", clevel=level, shuffle="shuffle",
-                           typesize=dtype.itemsize)
-        return {"frames": {"compressors": (codec,)}}
-    return {
-        "frames": {
-            "chunksizes": block, "zlib": level > 0, "complevel": level, "shuffle": level > 0,
-            "fletcher32": True,
-        }
-    }
+        blosc = BloscCodec(cname="zstd", clevel=level, shuffle="shuffle", typesize=dtype.itemsize)
+        return {"frames": {"compressors": (blosc,)}}
+    return {"frames": {"chunksizes": block, "zlib": level > 0, "complevel": level,
+                       "shuffle": level > 0, "fletcher32": True}}
 
 
 def save_centroids(
@@ -296,11 +245,9 @@ def save_centroids(
     >>> open_centroids(path).status.values.tolist()
     [[0, 1]]
     """
-    path = Path(path)
-    fmt = _format_of(path, format)
-    _check_target(path, fmt, overwrite)
+    path, fmt = _target(path, format, overwrite)
     validate_centroids(centroids)
-    ds = _prepare(centroids, fmt)
-    ds = ds.chunk({d: -1 for d in ds.dims})
-    _write(ds, path, fmt, {}, progress=False, overwrite=overwrite)
+    ds = _prepare(centroids)
+    _write(ds.chunk({d: -1 for d in ds.dims}), path, fmt, {}, progress=False,
+           overwrite=overwrite)
 

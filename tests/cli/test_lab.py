@@ -17,7 +17,6 @@ from PIL import Image
 from sunlab import SchemaError, export, geometry, io, sim
 from sunlab.calibration import Interpolation, calibration_summary, load
 from sunlab.cli import main
-from sunlab.io import centroids_from_csv
 
 F_MM, PITCH_MM = 5.0, 0.007  # 1 deg ~ 12.5 px
 N_PX, RADIUS_PX, SUB = 144, 8.0, 4
@@ -114,7 +113,7 @@ def test_exported_c_reproduces_predict(lab):
 
 
 def _to_csv(table_path, csv_path):
-    cen = io.open_dataset(table_path)
+    cen = io.open_centroids(table_path)
     df = pd.DataFrame({
         "alpha": np.repeat(cen.alpha.values, cen.sizes["shot"]),
         "beta": np.repeat(cen.beta.values, cen.sizes["shot"]),
@@ -142,12 +141,12 @@ def test_evaluate_and_calibrate_read_csv_tables(lab, tmp_path):
 def test_csv_reader_pads_and_explains(tmp_path):
     path = tmp_path / "c.csv"
     path.write_text("alpha,beta,x,y\n0,0,1,2\n0,0,1.5,2\n1,0,,\n# comment\n2,1,3,4\n")
-    cen = centroids_from_csv(path)
+    cen = io.open_centroids(path)
     assert dict(cen.sizes) == {"pose": 3, "shot": 2}
     assert cen.status.values.tolist() == [[0, 0], [1, 1], [0, 1]]  # no spot, padding
     path.write_text("alpha,beta,col,row\n0,0,1,2\n")
     with pytest.raises(SchemaError, match=r"columns \['x', 'y'\].*missing"):
-        centroids_from_csv(path)
+        io.open_centroids(path)
 
 
 def test_info_describes_a_calibration_without_heavy_imports(lab):

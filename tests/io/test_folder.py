@@ -37,7 +37,7 @@ def _tree(root):
 def test_an_extra_column_that_names_a_path_is_refused(folder, tmp_path, capsys, name):
     _manifest(folder, f"file,alpha,beta,shot,{name}", (",1", ",2"))
     with pytest.raises(SchemaError, match="cannot name a variable"):
-        io.from_image_folder(folder, bit_depth=10)
+        io.open_frames(folder, bit_depth=10)
     before = _tree(tmp_path)
     status = cli.main(["import", str(folder), "--out", str(tmp_path / "cube.zarr"),
                        "--bit-depth", "10", "--no-progress"])
@@ -48,7 +48,7 @@ def test_an_extra_column_that_names_a_path_is_refused(folder, tmp_path, capsys, 
 
 def test_an_ordinary_extra_column_is_kept(folder):
     _manifest(folder, "file,alpha,beta,shot,exposure_ms", (",2.5", ",2.5"))
-    cube = io.from_image_folder(folder, bit_depth=10)
+    cube = io.open_frames(folder, bit_depth=10)
     assert cube["exposure_ms"].values.tolist() == [[2.5], [2.5]]
 
 
@@ -58,14 +58,14 @@ def test_a_symlink_loop_in_a_manifest_is_named_by_its_line(folder):
     (folder / "manifest.csv").write_text("file,alpha,beta,shot\nf0.png,0,0,0\n"
                                          "loop_a.png,1,0,0\n")
     with pytest.raises(SchemaError, match=r"manifest manifest.csv line 3 column 'file'"):
-        io.from_image_folder(folder, bit_depth=10)
+        io.open_frames(folder, bit_depth=10)
 
 
 def test_a_page_of_1e19_is_refused_naming_its_line(folder, capsys, tmp_path):
     (folder / "manifest.csv").write_text("file,alpha,beta,shot,page\nf0.png,0,0,0,0\n"
                                          "f1.png,1,0,0,1e19\n")
     with pytest.raises(SchemaError, match=r"line 3 column 'page': found '1e19'"):
-        io.from_image_folder(folder, bit_depth=10)
+        io.open_frames(folder, bit_depth=10)
     status = cli.main(["import", str(folder), "--out", str(tmp_path / "c.zarr"),
                        "--bit-depth", "10", "--no-progress"])
     err = capsys.readouterr().err
@@ -76,10 +76,10 @@ def test_a_manifest_with_comma_decimals_is_refused(folder):
     (folder / "manifest.csv").write_text("file,alpha,beta,shot\nf0.png,0,5,0,0\n"
                                          "f1.png,1,5,0,0\n")
     with pytest.raises(SchemaError, match=r"line 2: found '5 fields'"):
-        io.from_image_folder(folder, bit_depth=10)
+        io.open_frames(folder, bit_depth=10)
 
 
 def test_a_manifest_with_a_duplicated_column_is_refused(folder):
     _manifest(folder, "file,alpha,beta,shot,alpha", (",7", ",8"))
     with pytest.raises(SchemaError, match=r"column 'alpha' twice"):
-        io.from_image_folder(folder, bit_depth=10)
+        io.open_frames(folder, bit_depth=10)

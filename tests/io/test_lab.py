@@ -57,7 +57,7 @@ def test_manifest_paths_stay_inside_the_folder(tmp_path, name):
     folder = _folder(tmp_path, ["file,alpha,beta,shot", f"{name},0,0,0"],
                      {"a.png": np.zeros((8, 8), np.uint16)})
     with pytest.raises(SchemaError, match="inside it") as err:
-        io.from_image_folder(folder)
+        io.open_frames(folder)
     assert "line 2 column 'file'" in err.value.field
 
 
@@ -66,11 +66,11 @@ def test_one_image_per_pose_and_shot(tmp_path):
     rows = ["file,alpha,beta,shot,page", "s.tif,0,0,0,0", "s.tif,0,0,1,1", "s.tif,1,0,0,1"]
     folder = _folder(tmp_path, rows, {"s.tif": stack})
     with pytest.raises(SchemaError, match="page 1 again.*first on line 3"):
-        io.from_image_folder(folder)
+        io.open_frames(folder)
     rows = ["file,alpha,beta,shot", "a.png,0,0,0", "a.png,1,0,0"]
     folder = _folder(tmp_path, rows, {"a.png": np.zeros((8, 8), np.uint16)}, "png")
     with pytest.raises(SchemaError, match="one image per"):
-        io.from_image_folder(folder)
+        io.open_frames(folder)
 
 
 def test_tiff_stack_pages_are_the_shots_of_a_pose(tmp_path):
@@ -78,7 +78,7 @@ def test_tiff_stack_pages_are_the_shots_of_a_pose(tmp_path):
                                + np.zeros((3, 6, 7))).astype(np.uint16) for p in range(2)}
     rows = ["file,alpha,beta,shot,page"] + [f"pose{p}.tif,{p},0,{s},{2 - s}"
                                             for p in range(2) for s in range(3)]
-    cube = io.from_image_folder(_folder(tmp_path, rows, stacks), bit_depth=10)
+    cube = io.open_frames(_folder(tmp_path, rows, stacks), bit_depth=10)
     assert dict(cube.sizes) == {"pose": 2, "shot": 3, "y": 6, "x": 7}
     assert cube.frames[:, :, 0, 0].values.tolist() == [[2, 1, 0], [102, 101, 100]]
     assert cube.page.values.tolist() == [[2, 1, 0], [2, 1, 0]]
@@ -88,7 +88,7 @@ def test_a_page_beyond_the_stack_names_the_line(tmp_path):
     rows = ["file,alpha,beta,shot,page", "s.tif,0,0,0,0", "s.tif,0,0,1,5"]
     folder = _folder(tmp_path, rows, {"s.tif": np.zeros((2, 8, 8), np.uint16)})
     with pytest.raises(SchemaError, match="a page 0 .. 1 of s.tif") as err:
-        io.from_image_folder(folder)
+        io.open_frames(folder)
     assert err.value.field == "manifest manifest.csv line 3 column 'page'"
 
 
@@ -96,22 +96,22 @@ def test_a_stack_without_a_page_column_says_how(tmp_path):
     folder = _folder(tmp_path, ["file,alpha,beta,shot", "s.tif,0,0,0"],
                      {"s.tif": np.zeros((2, 8, 8), np.uint16)})
     with pytest.raises(SchemaError, match="add a 'page' column"):
-        io.from_image_folder(folder)
+        io.open_frames(folder)
 
 
 def test_left_aligned_frames_are_shifted_and_checked(tmp_path):
     frame = (np.arange(64).reshape(8, 8) * 60).astype(np.uint16)  # 12-bit DN
     folder = _folder(tmp_path, ["file,alpha,beta,shot", "a.png,0,0,0"],
                      {"a.png": (frame << 4).astype(np.uint16)})
-    cube = io.from_image_folder(folder, bit_depth=12, left_aligned=True, lazy=False)
+    cube = io.open_frames(folder, bit_depth=12, left_aligned=True, lazy=False)
     assert np.array_equal(cube.frames[0, 0].values, frame)
     assert cube.attrs["left_aligned"] is True
     with pytest.raises(SchemaError, match="bit depth for left-aligned"):
-        io.from_image_folder(folder, left_aligned=True)
+        io.open_frames(folder, left_aligned=True)
     right = _folder(tmp_path, ["file,alpha,beta,shot", "a.png,0,0,0"], {"a.png": frame + 1},
                     "right")  # right-aligned data said to be left-aligned: low bits set
     with pytest.raises(SchemaError, match="not multiples of 16"):
-        io.from_image_folder(right, bit_depth=12, left_aligned=True, lazy=False)
+        io.open_frames(right, bit_depth=12, left_aligned=True, lazy=False)
 
 
 def test_masters_are_medians_and_the_flat_is_normalised(tmp_path):
