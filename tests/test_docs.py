@@ -134,3 +134,18 @@ def test_a_widget_is_drawn_from_its_saved_state():
     # the Output widgets' figures (close-up, residual maps) as images, the statistics as HTML
     assert page.count('<img src="data:image/png;base64,') >= 2
     assert explorer.stats_html.value in page
+
+
+def test_the_landing_page_counts_the_notebooks_and_those_with_exercises():
+    import nbformat
+
+    from sunlab.course import editions
+
+    words = {n: w for n, w in enumerate("zero one two three four five six seven eight nine ten "
+                                        "eleven twelve".split())}
+    notebooks = sorted((ROOT / "notebooks").glob("[0-9][0-9]-*.ipynb"))
+    with_exercises = sum(bool(editions.find_exercises(nbformat.read(p, 4), p.name))
+                         for p in notebooks)
+    text = " ".join((ROOT / "docs" / "index.md").read_text(encoding="utf-8").split())
+    assert f"{words[len(notebooks)]} notebooks" in text
+    assert f"{words[with_exercises]} of them with exercises" in text
