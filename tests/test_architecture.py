@@ -8,8 +8,10 @@
 - the import direction of docs/architecture.md: the core layer never imports the layers above it;
 - every package exports its ``.pyi`` stub through ``lazy_loader.attach_stub`` (scikit-image's
   pattern), and the public surface stays under :data:`MAX_PUBLIC_NAMES` names.
-- the simulator imports only the foundations it needs and its own modules: the studies over the
-  paper's tables (calibration, statistics, the 100-hole strategies) live in ``sunlab.studies``.
+- the simulator imports only the foundations it needs and its own modules: what calibrates or
+  computes statistics on its output lives above it (``sunlab.reproduce``) or outside the package
+  (the repository's ``studies/``); Numba is imported only under ``sunlab/sim/``, where a
+  benchmark shows compiling pays (``benchmarks/bench_kernels.py``).
 """
 
 from __future__ import annotations
@@ -82,6 +84,17 @@ def _target_room(target: str) -> str:
 def test_no_module_over_800_lines():
     long = {m: p.read_text().count("\n") for m, p, _ in MODULES}
     assert {m: n for m, n in long.items() if n > MAX_MODULE_LINES} == {}
+
+
+def test_numba_is_imported_only_by_the_simulator():
+    users = set()
+    for module, _, tree in MODULES:
+        for node in ast.walk(tree):
+            names = ([a.name for a in node.names] if isinstance(node, ast.Import)
+                     else [node.module or ""] if isinstance(node, ast.ImportFrom) else [])
+            if any(n.split(".")[0] == "numba" for n in names):
+                users.add(module)
+    assert users and {m for m in users if not m.startswith("sunlab.sim")} == set()
 
 
 def test_no_function_over_80_lines_outside_numba_kernels():
@@ -157,9 +170,9 @@ def test_notebooks_use_public_names_only(notebook):
 #: The layers of docs/architecture.md, lowest first; a module may import its own layer and
 #: the layers below, never a layer above (lazy imports inside functions included).
 LAYERS = [
-    {"errors", "options", "extras", "jit", "atomic", "integrity", "schema", "parallel"},
+    {"errors", "options", "extras", "atomic", "integrity", "schema", "parallel"},
     {"io", "geometry", "stats", "plans", "calibration", "centroid", "screening"},
-    {"sim", "multihole", "export", "plots", "report", "hardware", "studies"},
+    {"sim", "multihole", "export", "plots", "report", "hardware"},
     {"reproduce", "widgets", "cli", "data", "course"},
 ]
 
@@ -373,7 +386,7 @@ def test_imports_point_down_the_layers():
 
 #: What ``sunlab.sim`` may import (docs/architecture.md): the errors, the data contract, the
 #: plans, the rotations, the compile notice and settings, and its own modules.
-SIM_MAY_IMPORT = {"errors", "schema", "plans", "geometry", "jit", "options", "sim"}
+SIM_MAY_IMPORT = {"errors", "schema", "plans", "geometry", "options", "sim"}
 
 
 def _imports_outside(package: str, allowed: set[str], modules=MODULES) -> list[str]:
@@ -385,8 +398,9 @@ def _imports_outside(package: str, allowed: set[str], modules=MODULES) -> list[s
 
 
 def test_the_simulator_imports_no_study_calibration_or_statistics():
-    # the simulator is physics only: calibrating and computing the paper's statistics is a
-    # study's work (sunlab.studies), so sim sits below calibration, multihole, stats, reproduce
+    # the simulator is physics only: calibrating and computing the paper's statistics is the
+    # work of sunlab.reproduce or of the repository's studies/, so sim sits below calibration,
+    # multihole, stats and reproduce
     outside = _imports_outside("sunlab.sim", SIM_MAY_IMPORT)
     assert outside == []
     assert {"calibration", "multihole", "stats", "reproduce", "studies"}.isdisjoint(
