@@ -102,7 +102,7 @@ def error_maps(local: xr.Dataset, *, variables=("local_error", "max_error"), ang
     Parameters
     ----------
     local : xarray.Dataset
-        Output of :func:`sunlab.stats.local_errors` with the pose angles ``alpha_cmd``,
+        The per-pose errors of :func:`sunlab.stats.evaluate` (``return_errors``) with the pose angles ``alpha_cmd``,
         ``beta_cmd`` as coordinates; poses are unstacked to an (alpha, beta) grid.
     variables : sequence of str
         Rows of the figure (``local_error``, ``max_error``).
@@ -155,7 +155,7 @@ def error_histogram(values, *, angle: str = "alpha", variable: str = "local_erro
     Parameters
     ----------
     values : xarray.Dataset or array_like
-        A :func:`sunlab.stats.local_errors` dataset (``variable`` of ``angle`` is taken), or the
+        A :func:`sunlab.stats.evaluate` per-pose errors dataset (``return_errors``) (``variable`` of ``angle`` is taken), or the
         errors themselves (deg; e.g. signed per-shot errors from
         :func:`sunlab.stats.shot_errors`).
     angle : str
@@ -217,7 +217,7 @@ def error_rectangles(table: pd.DataFrame, *, title: str | None = None,
     Parameters
     ----------
     table : pandas.DataFrame
-        Global statistics (:func:`sunlab.stats.global_stats`, :func:`sunlab.stats.paper_table4`)
+        Global statistics (:func:`sunlab.stats.evaluate`, :func:`sunlab.stats.paper_table4`)
         or their :func:`sunlab.stats.rectangles`.
     title : str, optional
         Axes title.

@@ -415,7 +415,7 @@ class FrameNet(Calibration):
         xarray.Dataset
             ``alpha``, ``beta`` (deg) on (pose, shot), NaN for a frame without a usable spot;
             ``status`` (``ok``, or ``no_spot``), ``n_spots``; coordinates ``alpha_cmd``,
-            ``beta_cmd`` (the commanded angles): what :func:`sunlab.stats.local_errors` reads.
+            ``beta_cmd`` (the commanded angles): what :func:`sunlab.stats.evaluate` reads.
             Attribute ``timings`` (str) gives the seconds of each stage.
         """
         self.check_fitted()

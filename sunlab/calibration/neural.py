@@ -48,7 +48,7 @@ from .. import geometry, parallel
 from ..errors import ConfigurationError
 from ..extras import require
 from ._checks import _bad, _count, _number, _numbers
-from .base import Calibration, TrainingData, sensor_attrs
+from .base import Calibration, sensor_attrs
 from .model import fit_optimised, optimised_fit_from_dict
 
 __all__ = ["NeuralNet"]
@@ -157,7 +157,7 @@ class NeuralNet(Calibration):
             return np.column_stack(self._ideal(x, y))
         return np.column_stack(geometry.optimised_angles(x, y, *self.optimised.params))
 
-    def _targets(self, d: TrainingData) -> np.ndarray:
+    def _targets(self, d) -> np.ndarray:
         if self.strategy == 4:
             ia, ib = self._ideal(d.x, d.y)
             return np.column_stack([d.alpha - ia, d.beta - ib])
@@ -216,27 +216,8 @@ class NeuralNet(Calibration):
         finally:
             self.sensor = fitted
 
-    def fit(self, train, validation=None) -> NeuralNet:
-        """Fit the networks on a training table (early stopping on ``validation``); return
-        ``self``. Needs torch (the ``neural`` extra), checked before anything else.
-
-        Parameters
-        ----------
-        train : xarray.Dataset
-            ``centroids/1`` table with the commanded angles (experiment I).
-        validation : xarray.Dataset, optional
-            Table for early stopping (experiment II).
-
-        Returns
-        -------
-        NeuralNet
-            ``self``, fitted: the networks, their ``history``, ``training``, ``domain`` and
-            ``residuals`` (deg).
-        """
+    def _fit(self, data, validation) -> None:
         require("torch", purpose="the neural-network calibration (NeuralNet)")
-        return super().fit(train, validation)
-
-    def _fit(self, data: TrainingData, validation: TrainingData | None) -> None:
         self.sensor = sensor_attrs(data.attrs) if self.strategy != 1 else None
         if self.reference == "zero_pose" and self.strategy in (2, 4):
             self.sensor = self._zeroed(data.attrs)

@@ -70,7 +70,7 @@ def _fit_model(factory, table: xr.Dataset):
     ok = np.isfinite(table["x"].values) & np.isfinite(table["y"].values)
     if ok.sum() < 3:
         raise ConfigurationError("too few usable frames to fit a calibration (fewer than 3)")
-    return factory().fit(table)
+    return factory().fit(table, outlier_mads=None)  # the strategy screened the whole table
 
 
 def _predict_arrays(model, x, y):

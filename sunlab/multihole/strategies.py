@@ -266,7 +266,8 @@ class GeometricCentre(Calibration):
         flux = cen["flux"].where(self._ok(cen)).sum("hole").values
         return _centre_table(cen, c[..., 0], c[..., 1], flux, n, "geometric_centre")
 
-    def fit(self, cen: xr.Dataset, validation: xr.Dataset | None = None) -> GeometricCentre:
+    def _fit_tables(self, cen: xr.Dataset, validation: xr.Dataset | None = None
+                    ) -> GeometricCentre:
         """Fit the centre maps and the calibration of the centre on a training table.
 
         Parameters
@@ -478,7 +479,8 @@ class PerHoleAverage(Calibration):
     calibrations_: list | None = field(default=None, repr=False)
     variance_: np.ndarray | None = field(default=None, repr=False)
 
-    def fit(self, cen: xr.Dataset, validation: xr.Dataset | None = None) -> PerHoleAverage:
+    def _fit_tables(self, cen: xr.Dataset, validation: xr.Dataset | None = None
+                    ) -> PerHoleAverage:
         """Fit one calibration per hole on a training table; estimate each hole's variance.
 
         Parameters

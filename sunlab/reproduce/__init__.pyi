@@ -16,7 +16,6 @@ from .platform import format_platform as format_platform
 from .platform import reproduce_platform as reproduce_platform
 from .table4 import format_table as format_table
 from .table4 import reproduce_table4 as reproduce_table4
-from .table4 import table4_methods as table4_methods
 from .table5 import COLUMNS as COLUMNS
 from .table5 import REJECTION_COLUMN as REJECTION_COLUMN
 from .table5 import format_table5 as format_table5

@@ -11,7 +11,7 @@ lab whose stage has one would run them):
    polynomial calibration (order chosen on II), statistics on III; plus a zero-pose check
    (:func:`sunlab.plans.zero_check`) before runs I and III, which the paper's statistics leave
    out. Every row fits on I alone, so that the remedies compare like with like; Table 4's
-   polynomial is refitted on I + II (:data:`sunlab.calibration.methods.POLYNOMIAL_REFIT`) and
+   polynomial is refitted on I + II (:data:`sunlab.calibration.registry.POLYNOMIAL_REFIT`) and
    takes part of the zero shift from II, so its beta mu is below this table's first row;
 2. the diagnosis (:func:`sunlab.studies.platform_fault.diagnose`) of the polynomial's test
    errors with the run's motion record, beside the shape test applied to the paper's published
@@ -172,7 +172,10 @@ def reproduce_platform(*, quick: bool = False, seed: int = 0, method: str = "pro
         where={"address": address, "scheduler": scheduler, "workers": workers}).items()}
     t_sim = time.perf_counter() - t0
     rows, fits, diag, jc_params, from_row = _rows(cens, paper, uni)
-    table = stats.global_stats(rows)
+    import pandas as pd
+
+    table = pd.concat([stats.evaluate({k: est}, reference=ref) for k, (est, ref) in rows.items()],
+                      axis=1)
     parameters = _fault_parameters(jc_params, bench_fault_values(bench, seed, paper), from_row)
     result = _platform_doc(table, parameters, diag, fits)
     result["settings"] = {"seed": seed, "quick": quick, "engine": engine,
@@ -205,7 +208,7 @@ def _plan_sets(paper: dict, uni: dict, checks: int) -> dict:
 
 
 def _rows(cens: dict, paper: dict, uni: dict):
-    """The local errors of every row of the table, the polynomial of each protocol, the
+    """The estimate and reference of every row of the table, the polynomial of each protocol, the
     diagnosis, the joint fit whose parameters are reported and its row."""
     from .. import stats
     from ..calibration import Polynomial
@@ -216,14 +219,14 @@ def _rows(cens: dict, paper: dict, uni: dict):
         tr, va, te = (cens[f"{tag} {k}"] for k in ("I", "II", "III"))
         cal, _ = Polynomial.select_order(tr, va)
         fits[tag] = cal
-        local[tag] = stats.local_errors(cal.predict(te))
+        local[tag] = (cal.predict(te), None)
     rows = {ROWS[0]: local["paper"], ROWS[1]: local["uni"]}
     zeros = {"zero_train": cens["zero I"], "zero_test": cens["zero III"]}
 
     def corrected(runs, plans_, **kw):
         jc = pf.fit_correction(cens[f"{runs} I"], plans_["I"], cens[f"{runs} II"], **kw)
         est = jc.predict(cens[f"{runs} III"])
-        return jc, stats.local_errors(est, jc.reference(est, plans_["III"]))
+        return jc, (est, jc.reference(est, plans_["III"]))
 
     # (a) + zero check: the homing difference from the zero-pose checks, no backlash term
     _, rows[ROWS[2]] = corrected("uni", uni, backlash=False, **zeros)

@@ -23,7 +23,7 @@ The numbers are ours, from the virtual bench, printed beside the paper's.
 
 Examples
 --------
->>> from sunlab.reproduce.table4 import table4_methods
+>>> from sunlab.calibration import table4_methods
 >>> list(table4_methods(neural=False))[:3]
 ['ideal model (1)', 'optimised model (3)-(4)', 'linear interp.']
 """
@@ -39,14 +39,14 @@ import numpy as np
 import pandas as pd
 
 from .. import __version__, parallel, stats
-from ..calibration.methods import table4_methods
+from ..calibration import table4_methods
 from ..errors import ConfigurationError
 from .pipeline import centroid_status, simulate_and_locate, usable_table, write_json
 
-__all__ = ["table4_methods", "reproduce_table4", "format_table"]
+__all__ = ["reproduce_table4", "format_table"]
 
 #: Where the strategy-4 network zeroes model (1): on each run's zero-pose check (strategy 2
-#: keeps model (1) as fitted, :func:`sunlab.calibration.methods.table4_methods`).
+#: keeps model (1) as fitted, :func:`sunlab.calibration.table4_methods`).
 #: Model (1) puts (x_cf, y_cf) at the zero-orientation centroid (docs/paper.md sec. 4.1), which
 #: a bench measures with each run; a strategy-4 network that adds its learned correction to
 #: model (1) re-zeroed on the test run's zero pose carries that one pose's platform error as a
@@ -300,8 +300,7 @@ def table4_statistics(cens: dict, bench, *, neural: bool = True, seed: int = 0) 
     fitted = _fit_all(usable_table(cens["I"]), usable_table(cens["II"]), neural=neural,
                       seed=seed, timings=timings, not_run=not_run)
     test = usable_table(cens["III"])
-    local = {label: stats.local_errors(cal.predict(test)) for label, cal in fitted.items()}
-    table = stats.global_stats(local)
+    table, _, local = stats.evaluate(fitted, test, return_errors=True)
     return Table4Result(
         table=table,
         paper=stats.paper_table4(),

@@ -309,7 +309,7 @@ def _one_hole_polynomial(cens: dict, order: int | None):
     on the one hole's II as Table 4 chooses it (the larger of its orders for the 100-hole
     strategies, which take one order), unless ``order`` is given."""
     from ..calibration import Polynomial
-    from ..calibration.methods import POLYNOMIAL_REFIT
+    from ..calibration.registry import POLYNOMIAL_REFIT
 
     train = usable_table(cens["1 hole I"])
     if order is not None:
@@ -334,7 +334,7 @@ def _compare(fitted: dict, cens: dict, *, one_hole) -> dict:
         COLUMNS[2]: one_hole.predict(cens["1 hole III"]),
         REJECTION_COLUMN: fitted["rejection"].combine(est),
     }
-    ours = stats.global_stats({k: stats.local_errors(v) for k, v in preds.items()})
+    ours = stats.evaluate(preds)
     table = stats.side_by_side(ours[list(COLUMNS)], stats.paper_table5())
     table[(REJECTION_COLUMN, "sunlab")] = ours[REJECTION_COLUMN]
     injected = (np.flatnonzero(cen_tr["hole_defect"].values).tolist()

@@ -75,7 +75,7 @@ def shape_test(table: pd.DataFrame) -> pd.DataFrame:
     Parameters
     ----------
     table : pandas.DataFrame
-        Global statistics as :func:`sunlab.stats.global_stats` lays them out (index
+        Global statistics as :func:`sunlab.stats.evaluate` lays them out (index
         ``(angle, stat)``, one column per method), ours or the paper's.
 
     Returns
@@ -93,8 +93,8 @@ def shape_test(table: pd.DataFrame) -> pd.DataFrame:
     """
     if not isinstance(table, pd.DataFrame) or ("alpha", "mu") not in table.index:
         raise ConfigurationError(
-            "table: expected a DataFrame indexed (angle, stat) as sunlab.stats.global_stats "
-            "returns. Fix: pass stats.global_stats(local) or stats.paper_table4()."
+            "table: expected a DataFrame indexed (angle, stat) as sunlab.stats.evaluate "
+            "returns. Fix: pass stats.evaluate(...) or stats.paper_table4()."
         )
     rows = {}
     for m in table.columns:
@@ -586,7 +586,7 @@ class JointCorrection:
 
         beta: commanded - b d + g(beta) + h, with the fitted backlash b, approach d, gear
         error g and homing difference h; alpha: commanded. Pass as ``reference`` to
-        :func:`sunlab.stats.local_errors`.
+        :func:`sunlab.stats.evaluate`.
 
         Parameters
         ----------
