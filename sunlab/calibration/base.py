@@ -64,8 +64,8 @@ _USABLE = [STATUS[k] for k in USABLE_STATUS]
 
 
 def _check_table(ds, name: str, fitting: bool = True) -> None:
-    """What fitting or predicting needs of a ``centroids/1`` table (validated in full when it
-    was built or opened: :func:`sunlab.schema.centroids_dataset`, :func:`sunlab.io.open_centroids`)."""
+    """What fitting or predicting needs of a ``centroids/1`` table (checked in full when it was
+    built or opened: :func:`sunlab.schema.centroids_dataset`, :func:`sunlab.io.open_centroids`)."""
     if not isinstance(ds, xr.Dataset):
         raise SchemaError(name, type(ds).__name__, "a centroids/1 xarray.Dataset",
                           "build it with sunlab.schema.centroids_dataset or sunlab.centroid")
@@ -237,6 +237,9 @@ class Calibration:
     kind: ClassVar[str] = ""
     #: How training points are formed: ``"pose"`` (pose means) or ``"shot"``.
     average: str = "pose"
+    #: The default screening of :meth:`fit`, MADs (None: none): :data:`OUTLIER_MADS` for every
+    #: method fitted on shots (the multi-hole strategies, which judge whole holes, set None).
+    default_outlier_mads: ClassVar[float | None] = OUTLIER_MADS
 
     def __init__(self) -> None:
         self.training: dict | None = None
@@ -254,7 +257,7 @@ class Calibration:
         return self.kind
 
     def fit(self, train: xr.Dataset, validation: xr.Dataset | None = None, *,
-            outlier_mads: float | None = OUTLIER_MADS):
+            outlier_mads: float | str | None = "default"):
         """Fit the calibration on a training table; return ``self``.
 
         Parameters
@@ -267,16 +270,19 @@ class Calibration:
             the validation residuals of the artifact.
         outlier_mads : float or None
             Screen both tables first (:func:`sunlab.screening.screen_outliers`): shots whose
-            centroid lies more than this many MADs from a robust fit are excluded (default
-            :data:`sunlab.calibration.registry.OUTLIER_MADS`, as :func:`sunlab.calibration.fit`
-            and ``sunlab calibrate``); 0 or None keeps every shot. The excluded shots are
-            listed in ``training["excluded"]`` (and ``training["validation_excluded"]``).
+            centroid lies more than this many MADs from a robust fit are excluded; 0 or None
+            keeps every shot. ``"default"``: :attr:`default_outlier_mads`, 10 MADs
+            (:data:`sunlab.calibration.registry.OUTLIER_MADS`, as :func:`sunlab.calibration.fit`
+            and ``sunlab calibrate``). The excluded shots are listed in ``training["excluded"]``
+            (and ``training["validation_excluded"]``).
 
         Returns
         -------
         Calibration
             ``self``, fitted: ``training``, ``domain`` (deg, px) and ``residuals`` (deg).
         """
+        if outlier_mads == "default":
+            outlier_mads = self.default_outlier_mads
         excluded = {}
         if outlier_mads:
             train, excluded["excluded"] = screen_outliers(train, outlier_mads)

@@ -96,7 +96,8 @@ def _scale(values, bounds) -> np.ndarray:
 def _lstsq(A: np.ndarray, target: np.ndarray, what: str) -> np.ndarray:
     if A.shape[0] < A.shape[1]:
         raise ConfigurationError(f"order: {what} needs {A.shape[1]} coefficients but the training "
-                                 f"table has {A.shape[0]} points. Fix: lower the order or add poses")
+                                 f"table has {A.shape[0]} points. Fix: lower the order or add "
+                                 "poses")
     return np.linalg.lstsq(A, target, rcond=None)[0]
 
 

@@ -165,7 +165,7 @@ def method_class(method: str, *, frames: bool = False) -> type[Calibration]:
 
 
 def fit(table: xr.Dataset, method: str, validation: xr.Dataset | None = None, *,
-        outlier_mads: float | None = OUTLIER_MADS, **options) -> Calibration:
+        outlier_mads: float | str | None = "default", **options) -> Calibration:
     """Fit the calibration ``method`` on a centroid table: ``method_class(method)(**options)
     .fit(table, validation, outlier_mads=outlier_mads)``, the same result as the class's own
     ``fit``.
@@ -184,8 +184,8 @@ def fit(table: xr.Dataset, method: str, validation: xr.Dataset | None = None, *,
         Validation table (experiment II): early stopping of the networks, the order of
         ``order="auto"``, the validation residuals of the artifact.
     outlier_mads : float or None
-        Outlier screening of both tables (:meth:`Calibration.fit`; default
-        :data:`OUTLIER_MADS`); 0 or None keeps every shot.
+        Outlier screening of both tables (:meth:`Calibration.fit`); ``"default"`` is the
+        class's, :data:`OUTLIER_MADS` for the single-hole methods; 0 or None keeps every shot.
     **options
         Keywords of the method's class, e.g. ``order=3``. ``order="auto"`` (with
         ``validation``): the order the validation table prefers (:meth:`Polynomial.select_order`;
@@ -231,6 +231,8 @@ def _auto_order(cls, kind: str, table, validation, outlier_mads, options: dict):
     if validation is None:
         raise ConfigurationError("order: found 'auto' without a validation table. Fix: pass "
                                  "validation= (experiment II), or an integer order")
+    if outlier_mads == "default":
+        outlier_mads = cls.default_outlier_mads
     excluded = {}
     if outlier_mads:
         table, excluded["excluded"] = screen_outliers(table, outlier_mads)

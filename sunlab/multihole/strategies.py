@@ -148,6 +148,7 @@ class GeometricCentre(Calibration):
     True
     """
 
+    default_outlier_mads = None  # no shot screening by default: holes are judged whole
     kind: ClassVar[str] = "multihole-geometric-centre"
     order: int = 5
     model: Callable | None = None
@@ -468,6 +469,7 @@ class PerHoleAverage(Calibration):
     True
     """
 
+    default_outlier_mads = None  # no shot screening by default: holes are judged whole
     kind: ClassVar[str] = "multihole-per-hole-average"
     order: int = 5
     model: Callable | None = None

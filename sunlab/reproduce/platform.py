@@ -40,6 +40,8 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
+import pandas as pd
+
 from .pipeline import experiment_plans, locate_runs, simulate_runs, usable_table, write_json
 
 __all__ = ["ROWS", "reproduce_platform", "format_platform"]
@@ -172,10 +174,7 @@ def reproduce_platform(*, quick: bool = False, seed: int = 0, method: str = "pro
         where={"address": address, "scheduler": scheduler, "workers": workers}).items()}
     t_sim = time.perf_counter() - t0
     rows, fits, diag, jc_params, from_row = _rows(cens, paper, uni)
-    import pandas as pd
-
-    table = pd.concat([stats.evaluate({k: est}, reference=ref) for k, (est, ref) in rows.items()],
-                      axis=1)
+    table = pd.concat([stats.evaluate({k: e}, reference=r) for k, (e, r) in rows.items()], axis=1)
     parameters = _fault_parameters(jc_params, bench_fault_values(bench, seed, paper), from_row)
     result = _platform_doc(table, parameters, diag, fits)
     result["settings"] = {"seed": seed, "quick": quick, "engine": engine,
@@ -210,7 +209,6 @@ def _plan_sets(paper: dict, uni: dict, checks: int) -> dict:
 def _rows(cens: dict, paper: dict, uni: dict):
     """The estimate and reference of every row of the table, the polynomial of each protocol, the
     diagnosis, the joint fit whose parameters are reported and its row."""
-    from .. import stats
     from ..calibration import Polynomial
     from ..studies import platform_fault as pf
 
