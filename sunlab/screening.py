@@ -73,11 +73,11 @@ def _flag(centroids, n_mad: float) -> tuple[np.ndarray, list]:
     if not (isinstance(n_mad, int | float) and np.isfinite(n_mad) and n_mad > 3):
         raise ConfigurationError(f"n_mad: found {n_mad!r}, expected a number of MADs above 3 "
                                  f"(default {N_MAD:g})")
-    status = centroids["status"].values.copy()
-    x, y = centroids["x"].values, centroids["y"].values
-    alpha = np.broadcast_to(centroids["alpha"].values[:, None], x.shape[:2])
-    beta = np.broadcast_to(centroids["beta"].values[:, None], x.shape[:2])
-    usable = np.isin(status, [schema.STATUS[k] for k in schema.USABLE_STATUS])
+    v = centroids.variables
+    status, x, y = v["status"].values.copy(), v["x"].values, v["y"].values
+    alpha = np.broadcast_to(v["alpha"].values[:, None], x.shape[:2])
+    beta = np.broadcast_to(v["beta"].values[:, None], x.shape[:2])
+    usable = np.logical_or.reduce([status == schema.STATUS[k] for k in schema.USABLE_STATUS])
     usable &= np.isfinite(x) & np.isfinite(y)
     holes = x.shape[2] if x.ndim == 3 else 0
     outliers = []

@@ -97,8 +97,10 @@ def _check_table(ds, name: str, fitting: bool = True) -> None:
 
 def _ok_mask(ds: xr.Dataset) -> np.ndarray:
     """The usable shots: a usable status (:data:`sunlab.schema.USABLE_STATUS`), finite x, y."""
-    x, y = np.asarray(ds["x"].values, float), np.asarray(ds["y"].values, float)
-    return np.isin(np.asarray(ds["status"].values), _USABLE) & np.isfinite(x) & np.isfinite(y)
+    v = ds.variables
+    status = np.asarray(v["status"].values)
+    usable = np.logical_or.reduce([status == code for code in _USABLE])
+    return usable & np.isfinite(v["x"].values) & np.isfinite(v["y"].values)
 
 
 def _points(centroids: xr.Dataset, average: str, name: str) -> SimpleNamespace:
@@ -109,10 +111,10 @@ def _points(centroids: xr.Dataset, average: str, name: str) -> SimpleNamespace:
         raise ConfigurationError(f"average: found {average!r}, expected one of ('pose', 'shot')."
                                  " Fix: pass 'pose' (mean of each pose's usable shots) or 'shot'")
     _check_table(centroids, name)
-    ok = _ok_mask(centroids)
-    x, y = np.where(ok, centroids["x"].values, 0.0), np.where(ok, centroids["y"].values, 0.0)
-    alpha = np.broadcast_to(np.asarray(centroids["alpha"].values, float)[:, None], ok.shape)
-    beta = np.broadcast_to(np.asarray(centroids["beta"].values, float)[:, None], ok.shape)
+    ok, v = _ok_mask(centroids), centroids.variables
+    x, y = np.where(ok, v["x"].values, 0.0), np.where(ok, v["y"].values, 0.0)
+    alpha = np.broadcast_to(np.asarray(v["alpha"].values, float)[:, None], ok.shape)
+    beta = np.broadcast_to(np.asarray(v["beta"].values, float)[:, None], ok.shape)
     n = ok.sum(axis=1)
     keep = n > 0
     if not keep.any():
@@ -122,7 +124,7 @@ def _points(centroids: xr.Dataset, average: str, name: str) -> SimpleNamespace:
         pts = [x.sum(1)[keep] / n[keep], y.sum(1)[keep] / n[keep], alpha[keep, 0], beta[keep, 0]]
     else:
         pts = [x[ok], y[ok], alpha[ok], beta[ok]]
-    repaired = ok & (np.asarray(centroids["status"].values) == STATUS["repaired"])
+    repaired = ok & (np.asarray(v["status"].values) == STATUS["repaired"])
     return SimpleNamespace(**dict(zip(("x", "y", "alpha", "beta"), pts, strict=True)),
                            n_poses=int(keep.sum()), n_shots=int(ok.sum()),
                            n_repaired=int(repaired.sum()), attrs=dict(centroids.attrs))
@@ -480,9 +482,9 @@ class Calibration:
         return f"<{type(self).__name__} {self.label} ({'' if self.is_fitted else 'not '}fitted)>"
 
     def _residuals(self, table: xr.Dataset) -> dict:
-        ok = _ok_mask(table)
-        a, b = self.predict_xy(table["x"].values, table["y"].values)
-        return {c: _err_summary(e[ok], np.broadcast_to(table[c].values[:, None], ok.shape)[ok])
+        ok, v = _ok_mask(table), table.variables
+        a, b = self.predict_xy(v["x"].values, v["y"].values)
+        return {c: _err_summary(e[ok], np.broadcast_to(v[c].values[:, None], ok.shape)[ok])
                 for c, e in (("alpha", a), ("beta", b))}
 
     def _extra_residuals(self, data) -> dict:
