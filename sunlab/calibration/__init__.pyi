@@ -13,6 +13,7 @@ from . import polynomial as polynomial
 from . import registry as registry
 from . import summary as summary
 from . import trigonometric as trigonometric
+from . import windows as windows
 from .artifact import from_dict as from_dict
 from .artifact import load as load
 from .base import Calibration as Calibration

@@ -1,29 +1,20 @@
 """The common interface of every calibration function, and the ``calibration/1`` JSON artifact.
 
-A calibration maps a spot centroid ``(x, y)`` (px) to platform angles ``(alpha, beta)`` (deg):
-``alpha = f1(x, y)``, ``beta = f2(x, y)`` (docs/paper.md sec. 4). Every method in
-:mod:`sunlab.calibration` is a :class:`Calibration` with the same three verbs:
+A calibration maps a spot centroid ``(x, y)`` (px) to platform angles ``(alpha, beta)`` (deg)
+(docs/paper.md sec. 4). Every method in :mod:`sunlab.calibration` is a :class:`Calibration`:
 
-- ``fit(train, validation=None, *, outlier_mads=10)`` on ``centroids/1`` tables with the
-  commanded angles as coordinates ``alpha``, ``beta`` on ``pose``. Both tables are first
-  screened for outliers (:func:`sunlab.screening.screen_outliers`, ``outlier_mads`` MADs; 0 or
-  None keeps every shot), the same default as :func:`sunlab.calibration.fit`, which builds the
-  class and calls this method. Only usable shots (status ``ok``, or ``repaired``: an isolated
-  hot pixel replaced in the window, counted in ``training["n_repaired_shots"]``) with finite
-  x, y are used. By default (``average="pose"``) each pose contributes the mean centroid of its
-  usable shots, so every pose weighs the same; ``average="shot"`` fits every usable shot.
-- ``predict(centroids)`` returns an ``xarray.Dataset`` with the estimates ``alpha``, ``beta``
-  (deg) on the dims of ``x`` (NaN where x or y is NaN), the table's ``status``, ``in_domain``
-  and the commanded angles renamed ``alpha_cmd``, ``beta_cmd``; :meth:`Calibration.predict_xy`
-  does the same on plain arrays.
-- ``save(path)`` writes JSON (contract ``calibration/1``, no pickle); :func:`load` restores it.
-
-The artifact holds ``sunlab_schema``, ``kind``, ``sunlab_version``, ``parameters`` (kind-specific,
-numbers as lists), ``training`` (the table it was fitted on, and the shots screening excluded),
-``domain`` (``[low, high]`` of the training angles in deg and centroids in px) and ``residuals``:
-per-shot errors estimated - commanded over the usable training shots, per angle (``mean``,
-``mean_abs``, ``rms``, ``std``, ``max_abs``, ``n``; deg), and the same under
-``residuals["validation"]`` (or null). The contract is ``data_schema/calibration-1.schema.json``.
+- ``fit(train, validation=None, *, outlier_mads="default")`` on ``centroids/1`` tables with the
+  commanded angles ``alpha``, ``beta`` on ``pose``: both tables are first screened for outliers
+  (:func:`sunlab.screening.screen_outliers`, 10 MADs by default, the same as
+  :func:`sunlab.calibration.fit`, which builds the class and calls this method); then the usable
+  shots (status ``ok`` or ``repaired``, finite x, y) are fitted, one point per pose (the mean of
+  its usable shots, ``average="pose"``) or per shot (``average="shot"``).
+- ``predict(centroids)``: the estimates ``alpha``, ``beta`` (deg) on the dims of ``x``, the
+  table's ``status``, ``in_domain`` and the commanded angles as ``alpha_cmd``, ``beta_cmd``;
+  ``predict_xy(x, y)`` on plain arrays.
+- ``save(path)``: JSON (contract ``calibration/1``, no pickle); :func:`load` restores it, with
+  ``parameters``, ``training`` (the table, and the shots screening excluded), ``domain`` (deg,
+  px) and ``residuals`` (per-shot errors of the training and validation tables, deg).
 
 Examples
 --------
@@ -155,13 +146,13 @@ def sensor_attrs(attrs: dict, *, name: str = "train") -> dict:
     for key in _SENSOR:
         value = attrs.get(key)
         if value is None or not np.isfinite(float(value)):
-            raise SchemaError(
-                f"{name}.attrs[{key!r}]", value, "the sensor attribute of the frame cube",
-                f"a geometric model needs it: write {key} in the frames' sensor.json (or pass "
-                "it to sunlab import), carry the cube's attrs into the centroid table (a CSV "
-                "table: sunlab.io.open_centroids(path, attrs={...}), or a sensor.json beside "
-                "it for the command line), or pass the value to the model explicitly; the "
-                "polynomial and interpolation methods do not need it")
+            raise SchemaError(f"{name}.attrs[{key!r}]", value, "the sensor attribute of the frame "
+                              "cube", f"a geometric model needs it: write {key} in the frames' "
+                              "sensor.json (or pass it to sunlab import), carry the cube's attrs "
+                              "into the centroid table (a CSV table: sunlab.io.open_centroids("
+                              "path, attrs={...}), or a sensor.json beside it for the command "
+                              "line), or pass the value to the model explicitly; the polynomial "
+                              "and interpolation methods do not need it")
         out[key] = float(value)
     return out
 
@@ -206,13 +197,10 @@ def _jsonable(obj):
         return _jsonable(obj.tolist())
     if isinstance(obj, list | tuple):
         return [_jsonable(v) for v in obj]
-    if isinstance(obj, bool | np.bool_):
-        return bool(obj)
-    if isinstance(obj, int | np.integer):
-        return int(obj)
-    if isinstance(obj, float | np.floating):
-        return float(obj) if math.isfinite(obj) else None
-    return obj
+    if isinstance(obj, bool | np.bool_ | int | np.integer):
+        return bool(obj) if isinstance(obj, bool | np.bool_) else int(obj)
+    return (float(obj) if math.isfinite(obj) else None) if isinstance(obj, float | np.floating) \
+        else obj
 
 
 def _err_summary(est, ref) -> dict:
@@ -480,7 +468,6 @@ class Calibration:
 
     def __repr__(self) -> str:
         return f"<{type(self).__name__} {self.label} ({'' if self.is_fitted else 'not '}fitted)>"
-
     def _residuals(self, table: xr.Dataset) -> dict:
         ok, v = _ok_mask(table), table.variables
         a, b = self.predict_xy(v["x"].values, v["y"].values)

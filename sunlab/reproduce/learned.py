@@ -271,7 +271,7 @@ def _run_bench(name: str, plans_: dict, seed: int, opts: dict, offset) -> dict:
     """One bench: render, detect, train and test both routes; records and the table."""
     from .. import sim, stats
     from ..calibration import FrameNet
-    from ..calibration.frames import detect_spots
+    from ..calibration.windows import detect_spots
 
     b, seeds = bench(name), bench_seeds(name, seed)
     multi = b.n_holes > 1
