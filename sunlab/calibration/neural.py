@@ -62,6 +62,9 @@ STRATEGIES = {
 }
 
 
+_SETTINGS = ("strategy", "hidden", "seed", "max_iter", "patience", "weight_decay")
+
+
 def _forward(z: np.ndarray, net: dict) -> np.ndarray:
     """NumPy forward pass of one standardised network: tanh hidden layer, linear output."""
     h = np.tanh(z @ net["W1"].T + net["b1"])
@@ -114,26 +117,18 @@ class NeuralNet(Calibration):
                  average: str = "pose", reference: str = "design"):
         super().__init__()
         if reference not in ("design", "zero_pose"):
-            raise ConfigurationError(
-                f"reference: found {reference!r}, expected 'design' or 'zero_pose'"
-            )
-        self.reference = reference
+            raise ConfigurationError(f"reference: found {reference!r}, expected 'design' or "
+                                     "'zero_pose'")
         if strategy not in STRATEGIES:
-            raise ConfigurationError(
-                f"strategy: found {strategy!r}, expected one of {sorted(STRATEGIES)} (Table 2)"
-            )
-        if int(hidden) != hidden or hidden < 1:
-            raise ConfigurationError(f"hidden: found {hidden!r}, expected a positive integer")
-        for name, v in (("max_iter", max_iter), ("patience", patience)):
+            raise ConfigurationError(f"strategy: found {strategy!r}, expected one of "
+                                     f"{sorted(STRATEGIES)} (Table 2)")
+        for name, v in (("hidden", hidden), ("max_iter", max_iter), ("patience", patience)):
             if int(v) != v or v < 1:
                 raise ConfigurationError(f"{name}: found {v!r}, expected a positive integer")
-        self.strategy = int(strategy)
-        self.hidden = int(hidden)
-        self.seed = int(seed)
-        self.max_iter = int(max_iter)
-        self.patience = int(patience)
-        self.weight_decay = float(weight_decay)
-        self.average = average
+        self.strategy, self.hidden, self.seed = int(strategy), int(hidden), int(seed)
+        self.max_iter, self.patience, self.weight_decay = int(max_iter), int(patience), \
+            float(weight_decay)
+        self.reference, self.average = reference, average
         self.sensor: dict | None = None
         self.optimised: geometry.OptimisedFit | None = None
         self.input_scaling: dict | None = None
@@ -326,14 +321,8 @@ class NeuralNet(Calibration):
     # --- artifact ----------------------------------------------------------------------------
     def _parameters(self) -> dict:
         return {
-            "strategy": self.strategy,
+            **{k: getattr(self, k) for k in _SETTINGS}, "reference": self.reference,
             "strategy_io": list(STRATEGIES[self.strategy]),
-            "hidden": self.hidden,
-            "seed": self.seed,
-            "max_iter": self.max_iter,
-            "patience": self.patience,
-            "weight_decay": self.weight_decay,
-            "reference": self.reference,
             "activation": "tanh hidden layer, linear output",
             "sensor": self.sensor,
             "optimised": None if self.optimised is None else self.optimised.to_dict(),
@@ -375,10 +364,7 @@ class NeuralNet(Calibration):
 
     @classmethod
     def _from_parameters(cls, p: dict):
-        obj = cls(strategy=int(p["strategy"]), hidden=int(p["hidden"]), seed=int(p["seed"]),
-                  max_iter=int(p["max_iter"]), patience=int(p["patience"]),
-                  weight_decay=float(p["weight_decay"]),
-                  reference=str(p.get("reference", "design")))
+        obj = cls(**{k: p[k] for k in _SETTINGS}, reference=str(p.get("reference", "design")))
         obj.sensor = None if p["sensor"] is None else sensor_attrs(p["sensor"], name="sensor")
         if obj.strategy == 3:
             obj.optimised = optimised_fit_from_dict(p["optimised"])
@@ -388,9 +374,8 @@ class NeuralNet(Calibration):
         h = obj.hidden
         for angle in ("alpha", "beta"):
             q = p["networks"][angle]
-            net = {"W1": np.asarray(q["W1"], dtype=float), "b1": np.asarray(q["b1"], dtype=float),
-                   "W2": np.asarray(q["W2"], dtype=float), "b2": float(q["b2"]),
-                   "target_mean": float(q["target_mean"]), "target_std": float(q["target_std"])}
+            net = {k: np.asarray(q[k], dtype=float) for k in ("W1", "b1", "W2")} | {
+                k: float(q[k]) for k in ("b2", "target_mean", "target_std")}
             if net["W1"].shape != (h, 2) or net["b1"].shape != (h,) or net["W2"].shape != (h,):
                 raise ValueError(f"{angle} network weights do not match hidden={h}")
             obj.networks[angle] = net
