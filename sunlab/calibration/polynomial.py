@@ -241,7 +241,9 @@ class Polynomial(Calibration):
     @classmethod
     def select_order(cls, train, validation, orders=range(1, 9), *, metric: str = "mean_abs",
                      per_angle: bool = False, average: str = "pose", refit: bool = False):
-        """Pick the order on a validation table (experiment II), as the paper does.
+        """Pick the order on a validation table (experiment II), as the paper does; the tables
+        are taken as given (``calibration.fit(train, "polynomial", validation, order="auto")``
+        screens them first).
 
         Parameters
         ----------
