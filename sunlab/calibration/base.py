@@ -227,8 +227,8 @@ class Calibration:
     kind: ClassVar[str] = ""
     #: How training points are formed: ``"pose"`` (pose means) or ``"shot"``.
     average: str = "pose"
-    #: The default screening of :meth:`fit`, MADs (None: none): :data:`OUTLIER_MADS` for every
-    #: method fitted on shots (the multi-hole strategies, which judge whole holes, set None).
+    #: The default screening of :meth:`fit`, MADs (None: none): 10 for every method fitted on
+    #: shots (the multi-hole strategies, which judge whole holes, set None).
     default_outlier_mads: ClassVar[float | None] = OUTLIER_MADS
 
     def __init__(self) -> None:

@@ -211,8 +211,11 @@ class NeuralNet(Calibration):
         finally:
             self.sensor = fitted
 
+    def _fit_tables(self, train, validation) -> None:
+        require("torch", purpose="the neural-network calibration (NeuralNet)")  # checked first
+        super()._fit_tables(train, validation)
+
     def _fit(self, data, validation) -> None:
-        require("torch", purpose="the neural-network calibration (NeuralNet)")
         self.sensor = sensor_attrs(data.attrs) if self.strategy != 1 else None
         if self.reference == "zero_pose" and self.strategy in (2, 4):
             self.sensor = self._zeroed(data.attrs)
