@@ -102,8 +102,9 @@ def error_maps(local: xr.Dataset, *, variables=("local_error", "max_error"), ang
     Parameters
     ----------
     local : xarray.Dataset
-        The per-pose errors of :func:`sunlab.stats.evaluate` (``return_errors``) with the pose angles ``alpha_cmd``,
-        ``beta_cmd`` as coordinates; poses are unstacked to an (alpha, beta) grid.
+        The per-pose errors of :func:`sunlab.stats.evaluate` (``return_errors``) with the pose
+        angles ``alpha_cmd``, ``beta_cmd`` as coordinates; poses are unstacked to an (alpha,
+        beta) grid.
     variables : sequence of str
         Rows of the figure (``local_error``, ``max_error``).
     angles : sequence of str
@@ -155,8 +156,8 @@ def error_histogram(values, *, angle: str = "alpha", variable: str = "local_erro
     Parameters
     ----------
     values : xarray.Dataset or array_like
-        A :func:`sunlab.stats.evaluate` per-pose errors dataset (``return_errors``) (``variable`` of ``angle`` is taken), or the
-        errors themselves (deg; e.g. signed per-shot errors from
+        The per-pose errors of :func:`sunlab.stats.evaluate` (``return_errors``; ``variable``
+        of ``angle`` is taken), or the errors themselves (deg; e.g. signed per-shot errors from
         :func:`sunlab.stats.shot_errors`).
     angle : str
         Angle to show when ``values`` is a dataset.
