@@ -71,7 +71,7 @@ def mechanisms(hypothesis: str | None = None, seeds=None, *, step: int = 2,
     from sunlab import multihole as mh
     from sunlab import stats
     from sunlab.calibration import Polynomial
-    from sunlab.calibration.methods import POLYNOMIAL_REFIT
+    from sunlab.calibration.registry import POLYNOMIAL_REFIT
     from sunlab.reproduce import experiment_plans
     from sunlab.sim.surrogate import surrogate_centroids
 
@@ -105,8 +105,7 @@ def mechanisms(hypothesis: str | None = None, seeds=None, *, step: int = 2,
             av_order = order + mech["extra_order"]
             av = mh.PerHoleAverage(order=av_order, weighting=mech["weighting"],
                                    model=lambda o=av_order: Polynomial(o)).fit(tr)
-            t = stats.global_stats({"gc": stats.local_errors(gc.predict(te)),
-                                    "av": stats.local_errors(av.predict(te))})
+            t = stats.evaluate({"gc": gc, "av": av}, te)
             lost = float((te.status != 0).mean())
             rows.append({"mechanism": name, "seed": int(seed), "order": order,
                          "alpha_ratio": t.loc[("alpha", "mu"), "av"] / t.loc[("alpha", "mu"), "gc"],

@@ -355,8 +355,7 @@ def _fit_side_cells(protocol: dict, name: str, nuisances: dict, fitted: dict, se
     extra = {"polynomial": {}, "linear interp.": {"leave_one_out": False}}
     cols = {m: fit(cens["I"], RECIPES[m][0], cens["II"], outlier_mads=None,
                    **RECIPES[m][1], **extra[m]) for m in extra}
-    t4 = stats.global_stats({m: stats.local_errors(c.predict(cens["III"]))
-                             for m, c in cols.items()})
+    t4 = stats.evaluate(cols, cens["III"])
     return {("table4", col, a, st): float(v) for col in t4.columns
             for (a, st), v in t4[col].items()}
 
@@ -406,7 +405,7 @@ def predict_cells(protocol: dict, name: str, nuisances: dict, fitted: dict, *, s
 def _predict_benches(protocol: dict, single, multi, seed: int, noise_px: float) -> dict:
     """Every published cell from a one-hole and a 100-hole bench (the protocol's settings)."""
     from sunlab import stats
-    from sunlab.calibration.methods import table4_methods
+    from sunlab.calibration import table4_methods
 
     from .surrogate_tables import surrogate_table5
 
@@ -414,8 +413,7 @@ def _predict_benches(protocol: dict, single, multi, seed: int, noise_px: float) 
     cens = surrogate_runs(single, seed, setting["step"], setting["shots"], noise_px)
     fits = table4_methods(seed=seed, reference="zero_pose")
     fitted_cal = {m: fits[m](cens["I"], cens["II"]) for m in stats.paper_table4().columns}
-    t4 = stats.global_stats({m: stats.local_errors(c.predict(cens["III"]))
-                             for m, c in fitted_cal.items()})
+    t4 = stats.evaluate(fitted_cal, cens["III"])
     t5 = surrogate_table5(multi, single, seed, step=setting["table5_step"],
                           shots=setting["shots"], order=int(max(fitted_cal["polynomial"].orders)),
                           one_hole=fitted_cal["polynomial"], noise_px=noise_px)

@@ -126,7 +126,7 @@ def surrogate_table4(bench, seed: int = 0, *, step: int = 1, shots: int = 8,
     Returns
     -------
     pandas.DataFrame
-        Index ``(angle, stat)`` as :func:`sunlab.stats.global_stats` (mu, sigma, M, m; deg),
+        Index ``(angle, stat)`` as :func:`sunlab.stats.evaluate` (mu, sigma, M, m; deg),
         one column per method.
 
     Examples
@@ -138,16 +138,12 @@ def surrogate_table4(bench, seed: int = 0, *, step: int = 1, shots: int = 8,
     True
     """
     from sunlab import stats
-    from sunlab.calibration.methods import table4_methods
+    from sunlab.calibration import table4_methods
 
     cens = {n: surrogate_centroids(bench, p, seed, noise_px=noise_px)
             for n, p in experiment_plans(step=step, shots=shots).items()}
     fits = table4_methods(neural=any(m.startswith("NN") for m in methods), seed=seed)
-    local = {}
-    for m in methods:
-        cal = fits[m](cens["I"], cens["II"])
-        local[m] = stats.local_errors(cal.predict(cens["III"]))
-    return stats.global_stats(local)
+    return stats.evaluate({m: fits[m](cens["I"], cens["II"]) for m in methods}, cens["III"])
 
 
 def surrogate_table5(bench_multi, bench_single, seed: int = 0, *, step: int = 1,
@@ -204,7 +200,7 @@ def surrogate_table5(bench_multi, bench_single, seed: int = 0, *, step: int = 1,
         "100 holes: averaging": av.predict(te_m),
         "1 hole": one_hole.predict(te_1),
     }
-    return stats.global_stats({k: stats.local_errors(v) for k, v in preds.items()})
+    return stats.evaluate(preds)
 
 
 def score(table: pd.DataFrame, paper: pd.DataFrame | None = None,
@@ -216,7 +212,7 @@ def score(table: pd.DataFrame, paper: pd.DataFrame | None = None,
     Parameters
     ----------
     table : pandas.DataFrame
-        Ours, laid out as :func:`sunlab.stats.global_stats` (index ``(angle, stat)``).
+        Ours, laid out as :func:`sunlab.stats.evaluate` (index ``(angle, stat)``).
     paper : pandas.DataFrame, optional
         The reference; default the paper's Table 4.
     cells : sequence of (str, str)
@@ -302,7 +298,7 @@ def interpolation_gap(bench, distances_mm, *, seed: int = 0, shots: int = 2,
         b = bench.replace(mask__distance_mm=float(f), mask__holes=holes)
         tr = surrogate_centroids(b, exps["I"], seed)
         te = surrogate_centroids(b, exps["III"], seed)
-        poly = stats.local_errors(Polynomial(order).fit(tr).predict(te))
+        poly = Polynomial(order).fit(tr, outlier_mads=None)
         xm, ym = tr.x.mean("shot").values, tr.y.mean("shot").values
         # at a long F some spots leave the frame (NaN centroids): they are no table nodes
         node = np.isfinite(xm) & np.isfinite(ym)
@@ -316,7 +312,7 @@ def interpolation_gap(bench, distances_mm, *, seed: int = 0, shots: int = 2,
         err = np.abs(est - te["alpha"].values[:, None])
         seen = np.isfinite(err).any(axis=1)  # test poses whose spot stayed on the detector
         lin = np.nanmean(err[seen], axis=1)
-        p_mu = float(stats.global_stats({"p": poly}).loc[("alpha", "mu"), "p"])
+        p_mu = float(stats.evaluate({"p": poly}, te).loc[("alpha", "mu"), "p"])
         l_mu = float(np.mean(lin))
         rows[float(f)] = {"polynomial": p_mu, "linear": l_mu, "gap": l_mu - p_mu,
                           "spot_px": spot_diameter_px(b),

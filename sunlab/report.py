@@ -45,13 +45,6 @@ _DEFINITIONS = ("local error = mean over the shots of a pose of |estimated - com
                 "errors over poses; M, sigma_M = the same of the maximum errors")
 
 
-def _evaluated(calibration, table, evaluation, ddof: int):
-    """``evaluation`` as :func:`sunlab.stats.evaluate` returns it with ``return_errors``."""
-    if evaluation is None:
-        evaluation = stats.evaluate(calibration, table, ddof=ddof, return_errors=True)
-    return evaluation
-
-
 def evaluation_document(calibration, table, evaluation=None, *, paper: bool = False,
                         sources: dict | None = None, ddof: int = 1) -> dict:
     """The contents of ``evaluation.json``: the eight statistics and what was evaluated.
@@ -83,7 +76,8 @@ def evaluation_document(calibration, table, evaluation=None, *, paper: bool = Fa
         shots of the table), ``n_out_of_domain`` (centroids outside the calibrated domain),
         ``ddof``, ``definitions`` and, with ``paper``, ``paper``.
     """
-    frame, estimate, _ = _evaluated(calibration, table, evaluation, ddof)
+    frame, estimate, _ = evaluation or stats.evaluate(calibration, table, ddof=ddof,
+                                                      return_errors=True)
     col = frame[calibration.label]
     doc = {f"{a}.{s}": (float(col[(a, s)]) if np.isfinite(col[(a, s)]) else None)
            for a in stats.ANGLES for s in stats.STATS}
@@ -188,7 +182,7 @@ def write_report(out, calibration, table, evaluation=None, *, paper: bool = Fals
         A file exists and ``overwrite`` is False, or ``out`` cannot be made.
     """
     out = atomic.check_folder(out, REPORT_FILES, overwrite=overwrite, flag=flag)
-    evaluation = _evaluated(calibration, table, evaluation, ddof)
+    evaluation = evaluation or stats.evaluate(calibration, table, ddof=ddof, return_errors=True)
     doc = evaluation_document(calibration, table, evaluation, paper=paper, sources=sources,
                               ddof=ddof)
     _, estimate, local = evaluation

@@ -13,7 +13,8 @@ in which the ideal centroid is linear (:func:`sunlab.geometry.ideal_centroid`); 
 absorb the mounting errors and the mask's distance, so the inliers' residuals are the centroid
 noise. The MAD is floored at :data:`MAD_FLOOR_PX` so that a noise-free (simulated) table does not
 flag its rounding errors. Flagged shots get the status ``invalid`` (not usable), keep their
-values, and are listed in the table's ``screened_outliers`` attribute.
+values, and are listed in the table's ``screened_outliers`` attribute. Every calibration's
+``fit`` screens its tables this way by default (``outlier_mads``).
 
 Examples
 --------
@@ -45,14 +46,6 @@ N_MAD = 10.0
 MAD_FLOOR_PX = 0.02
 
 
-def _design(alpha, beta, order: int) -> np.ndarray:
-    """Monomials u^i v^j, i + j <= order, of the ideal model's variables (eq. 1)."""
-    a, b = np.deg2rad(alpha), np.deg2rad(beta)
-    u, v = np.tan(a), np.tan(b) / np.cos(a)
-    return np.stack([u**i * v**j for i in range(order + 1) for j in range(order + 1 - i)],
-                    axis=1)
-
-
 def _mad(r: np.ndarray) -> float:
     return float(np.median(np.abs(r - np.median(r)))) if r.size else 0.0
 
@@ -73,6 +66,43 @@ def _robust_residuals(A: np.ndarray, z: np.ndarray, n_mad: float) -> tuple[np.nd
             break
         keep = new
     return r - np.median(r[keep]), mad
+
+
+def _flag(centroids, n_mad: float) -> tuple[np.ndarray, list]:
+    """The table's status with its outliers set ``invalid``, and the list of them."""
+    if not (isinstance(n_mad, int | float) and np.isfinite(n_mad) and n_mad > 3):
+        raise ConfigurationError(f"n_mad: found {n_mad!r}, expected a number of MADs above 3 "
+                                 f"(default {N_MAD:g})")
+    v = centroids.variables
+    status, x, y = v["status"].values.copy(), v["x"].values, v["y"].values
+    alpha = np.broadcast_to(v["alpha"].values[:, None], x.shape[:2])
+    beta = np.broadcast_to(v["beta"].values[:, None], x.shape[:2])
+    usable = np.logical_or.reduce([status == schema.STATUS[k] for k in schema.USABLE_STATUS])
+    usable &= np.isfinite(x) & np.isfinite(y)
+    holes = x.shape[2] if x.ndim == 3 else 0
+    outliers = []
+    for hole in range(max(holes, 1)):
+        pick = (slice(None), slice(None), hole) if holes else (slice(None), slice(None))
+        ok = usable[pick]
+        if ok.sum() < 6:
+            continue
+        order = 3 if ok.sum() >= 30 else 1
+        u, v = np.tan(np.deg2rad(alpha[ok])), np.tan(np.deg2rad(beta[ok]))
+        v = v / np.cos(np.deg2rad(alpha[ok]))
+        A = np.stack([u**i * v**j for i in range(order + 1) for j in range(order + 1 - i)], 1)
+        fits = [_robust_residuals(A, z, n_mad) for z in (x[pick][ok], y[pick][ok])]
+        mads = np.max([np.abs(r) / mad for r, mad in fits], axis=0)
+        worst = np.max([np.abs(r) for r, _ in fits], axis=0)
+        bad = np.any([np.abs(r) > n_mad * mad for r, mad in fits], axis=0)
+        for k in np.flatnonzero(bad):
+            p, s = (int(i[k]) for i in np.nonzero(ok))
+            where = (p, s, hole) if holes else (p, s)
+            status[where] = schema.STATUS["invalid"]
+            outliers.append({"pose": p, "shot": s, **({"hole": hole} if holes else {}),
+                             "alpha": float(alpha[p, s]), "beta": float(beta[p, s]),
+                             "x": float(x[where]), "y": float(y[where]),
+                             "residual_px": float(worst[k]), "mads": float(mads[k])})
+    return status, outliers
 
 
 def screen_outliers(centroids, n_mad: float = N_MAD):
@@ -101,43 +131,9 @@ def screen_outliers(centroids, n_mad: float = N_MAD):
     ConfigurationError
         ``n_mad`` is not a number above 3 (a lower threshold flags ordinary noise).
     """
-    if not (isinstance(n_mad, int | float) and np.isfinite(n_mad) and n_mad > 3):
-        raise ConfigurationError(f"n_mad: found {n_mad!r}, expected a number of MADs above 3 "
-                                 f"(default {N_MAD:g})")
-    status = centroids["status"].values.copy()
-    x, y = centroids["x"].values, centroids["y"].values
-    alpha = np.broadcast_to(centroids["alpha"].values[:, None], x.shape[:2])
-    beta = np.broadcast_to(centroids["beta"].values[:, None], x.shape[:2])
-    usable = np.isin(status, [schema.STATUS[k] for k in schema.USABLE_STATUS])
-    usable &= np.isfinite(x) & np.isfinite(y)
-    holes = x.shape[2] if x.ndim == 3 else 0
-    outliers = []
-    for hole in range(max(holes, 1)):
-        pick = (slice(None), slice(None), hole) if holes else (slice(None), slice(None))
-        ok = usable[pick]
-        if ok.sum() < 6:
-            continue
-        order = 3 if ok.sum() >= 30 else 1
-        A = _design(alpha[ok], beta[ok], order)
-        bad = np.zeros(int(ok.sum()), dtype=bool)
-        worst = np.zeros(int(ok.sum()))
-        mads = np.zeros(int(ok.sum()))
-        for z in (x[pick][ok], y[pick][ok]):
-            r, mad = _robust_residuals(A, z, n_mad)
-            bad |= np.abs(r) > n_mad * mad
-            mads = np.maximum(mads, np.abs(r) / mad)
-            worst = np.maximum(worst, np.abs(r))
-        for k, (p, s) in enumerate(zip(*np.nonzero(ok), strict=True)):
-            if not bad[k]:
-                continue
-            where = (p, s, hole) if holes else (p, s)
-            status[where] = schema.STATUS["invalid"]
-            outliers.append({"pose": int(p), "shot": int(s), **({"hole": hole} if holes else {}),
-                             "alpha": float(alpha[p, s]), "beta": float(beta[p, s]),
-                             "x": float(x[where]), "y": float(y[where]),
-                             "residual_px": float(worst[k]), "mads": float(mads[k])})
-    screened = centroids.copy()
-    screened["status"] = centroids["status"].copy(data=status)
+    status, outliers = _flag(centroids, n_mad)
+    screened = centroids.copy()  # shallow: the new status replaces the copy's only
+    screened["status"].values = status
     screened.attrs["screening"] = {"n_mad": float(n_mad), "mad_floor_px": MAD_FLOOR_PX,
                                    "flagged": len(outliers)}
     screened.attrs["screened_outliers"] = outliers

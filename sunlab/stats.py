@@ -25,10 +25,10 @@ Examples
 >>> est = xr.Dataset({"alpha": (("pose", "shot"), [[1.0, 1.2], [2.0, 2.0]]),
 ...                   "beta": (("pose", "shot"), [[0.0, 0.0], [0.5, 0.3]])},
 ...                  coords={"alpha_cmd": ("pose", [1.0, 2.1]), "beta_cmd": ("pose", [0.0, 0.4])})
->>> loc = local_errors(est)
->>> np.round(loc.local_error.sel(angle="alpha").values, 6).tolist()
+>>> table, _, loc = evaluate({"demo": est}, return_errors=True)
+>>> np.round(loc["demo"].local_error.sel(angle="alpha").values, 6).tolist()
 [0.1, 0.1]
->>> global_stats({"demo": loc}).loc[("alpha", "M"), "demo"].round(6)
+>>> table.loc[("alpha", "M"), "demo"].round(6)
 np.float64(0.15)
 """
 
@@ -44,16 +44,8 @@ import xarray as xr
 from .errors import ConfigurationError, SchemaError
 from .schema import STATUS, USABLE_STATUS
 
-__all__ = [
-    "shot_errors",
-    "local_errors",
-    "global_stats",
-    "evaluate",
-    "error_summary",
-    "rectangles",
-    "paper_table4",
-    "paper_table5",
-]
+__all__ = ["evaluate", "shot_errors", "error_summary", "rectangles", "paper_table4",
+           "paper_table5"]
 
 ANGLES = ("alpha", "beta")
 #: Row labels of the global statistics, in the paper's order (Table 4).
@@ -125,139 +117,78 @@ def shot_errors(estimate: xr.Dataset, reference=None, *, absolute: bool = True) 
     return xr.Dataset(out, attrs=dict(estimate.attrs))
 
 
-def local_errors(estimate: xr.Dataset, reference=None, *, dim: str = "shot") -> xr.Dataset:
-    """Local (mean over shots) and maximum (max over shots) absolute error per pose.
-
-    Parameters
-    ----------
-    estimate : xarray.Dataset
-        Output of :meth:`sunlab.calibration.Calibration.predict`.
-    reference : mapping, optional
-        See :func:`shot_errors`; default the commanded angles.
-    dim : str
-        The dimension to reduce (the shots).
-
-    Returns
-    -------
-    xarray.Dataset
-        ``local_error`` and ``max_error`` (deg) on ``(angle, pose)`` (plus any other dims),
-        ``n_shots`` (usable shots per pose), coordinate ``angle`` = ``["alpha", "beta"]`` and the
-        pose coordinates of the estimate (e.g. ``alpha_cmd``, ``beta_cmd``). NaN for a pose
-        without a usable shot.
-
-    Examples
-    --------
-    >>> est = xr.Dataset({"alpha": (("pose", "shot"), [[0.1, -0.3]]),
-    ...                   "beta": (("pose", "shot"), [[0.2, np.nan]])},
-    ...                  coords={"alpha_cmd": ("pose", [0.0]), "beta_cmd": ("pose", [0.0])})
-    >>> loc = local_errors(est)
-    >>> loc.local_error.values.round(6).tolist(), loc.max_error.values.round(6).tolist()
-    ([[0.2], [0.2]], [[0.3], [0.2]])
-    """
+def _local_errors(estimate: xr.Dataset, reference=None, dim: str = "shot") -> xr.Dataset:
+    """``local_error`` (mean over the shots of the absolute error) and ``max_error`` per pose
+    and angle (deg, NaN for a pose without a usable shot), and ``n_shots``."""
     err = shot_errors(estimate, reference)
     if dim not in err.dims:
         raise SchemaError("estimate.dims", tuple(err.dims), f"a {dim!r} dimension to reduce")
     e = xr.concat([err[a] for a in ANGLES], dim=pd.Index(list(ANGLES), name="angle"))
-    valid = e.notnull()
-    n = valid.sum(dim)
-    local = e.fillna(0.0).sum(dim) / n.where(n > 0)
-    maximum = e.fillna(-np.inf).max(dim).where(n > 0)
-    ds = xr.Dataset(
-        {
-            "local_error": local.assign_attrs(units="deg", long_name="local error (mean over "
-                                              "shots of |measured - estimated|)"),
-            "max_error": maximum.assign_attrs(units="deg", long_name="maximum error over shots"),
-            "n_shots": n.assign_attrs(long_name="usable shots"),
-        },
-        attrs={k: v for k, v in estimate.attrs.items() if isinstance(v, str)},
-    )
-    return ds
+    n = e.notnull().sum(dim)
+    return xr.Dataset(
+        {"local_error": (e.fillna(0.0).sum(dim) / n.where(n > 0)).assign_attrs(
+            units="deg", long_name="local error (mean over shots of |measured - estimated|)"),
+         "max_error": e.fillna(-np.inf).max(dim).where(n > 0).assign_attrs(
+             units="deg", long_name="maximum error over shots"),
+         "n_shots": n.assign_attrs(long_name="usable shots")},
+        attrs={k: v for k, v in estimate.attrs.items() if isinstance(v, str)})
 
 
-def _column(local: xr.Dataset, ddof: int) -> dict:
-    out = {}
-    for a in ANGLES:
-        for stat, var in (("mu", "local_error"), ("sigma", "local_error"),
-                          ("M", "max_error"), ("sigma_M", "max_error")):
-            v = np.asarray(local[var].sel(angle=a).values, dtype=float).ravel()
-            v = v[np.isfinite(v)]
-            if v.size <= (ddof if stat.startswith("sigma") else 0):
-                out[(a, stat)] = np.nan
-            elif stat in ("mu", "M"):
-                out[(a, stat)] = float(v.mean())
-            else:
-                out[(a, stat)] = float(v.std(ddof=ddof))
-    return out
-
-
-def global_stats(local, *, ddof: int = 1) -> pd.DataFrame:
-    """Global statistics mu, sigma, M, sigma_M per angle, laid out like the paper's Table 4.
-
-    Parameters
-    ----------
-    local : xarray.Dataset or mapping of str to xarray.Dataset
-        Output of :func:`local_errors`, or several keyed by method name (the columns).
-    ddof : int
-        Delta degrees of freedom of the standard deviations (1: sample standard deviation).
-
-    Returns
-    -------
-    pandas.DataFrame
-        Index ``(angle, stat)`` with angle in ``("alpha", "beta")`` and stat in
-        ``("mu", "sigma", "M", "sigma_M")``; one column per method; degrees.
-
-    Examples
-    --------
-    >>> loc = xr.Dataset({"local_error": (("angle", "pose"), [[1.0, 3.0], [2.0, 2.0]]),
-    ...                   "max_error": (("angle", "pose"), [[2.0, 4.0], [3.0, 5.0]])},
-    ...                  coords={"angle": ["alpha", "beta"]})
-    >>> global_stats({"m": loc})["m"].round(4).tolist()
-    [2.0, 1.4142, 3.0, 1.4142, 2.0, 0.0, 4.0, 1.4142]
-    """
-    if isinstance(local, xr.Dataset):
-        local = {str(local.attrs.get("label") or local.attrs.get("calibration") or "method"):
-                 local}
-    if not isinstance(local, Mapping) or not local:
-        raise ConfigurationError(
-            f"local: found {type(local).__name__}, expected a local_errors() dataset or a "
-            "non-empty mapping of method name to such datasets"
-        )
+def _global_stats(local: Mapping, ddof: int = 1) -> pd.DataFrame:
+    """mu, sigma (of the local errors over the poses), M, sigma_M (of the maximum errors) per
+    angle: index ``(angle, stat)``, one column per entry of ``local``."""
     cols = {}
     for name, ds in local.items():
-        for var in ("local_error", "max_error"):
-            if var not in ds.variables or "angle" not in ds[var].dims:
-                raise SchemaError(f"{name}.{var}", "missing", "output of sunlab.stats."
-                                  "local_errors", "call local_errors(estimate) first")
-        cols[str(name)] = _column(ds, ddof)
-    index = pd.MultiIndex.from_product([ANGLES, STATS], names=["angle", "stat"])
-    return pd.DataFrame(cols, index=index)
+        col = {}
+        for a in ANGLES:
+            for stat, var in (("mu", "local_error"), ("sigma", "local_error"),
+                              ("M", "max_error"), ("sigma_M", "max_error")):
+                v = np.asarray(ds[var].sel(angle=a).values, dtype=float).ravel()
+                v = v[np.isfinite(v)]
+                sigma = stat.startswith("sigma")
+                col[(a, stat)] = (np.nan if v.size <= (ddof if sigma else 0)
+                                  else float(v.std(ddof=ddof) if sigma else v.mean()))
+        cols[str(name)] = col
+    return pd.DataFrame(cols, index=pd.MultiIndex.from_product([ANGLES, STATS],
+                                                               names=["angle", "stat"]))
 
 
-def evaluate(calibration, table: xr.Dataset, *, ddof: int = 1, return_errors: bool = False):
-    """The paper's global statistics of a calibration on a test table (Table 4's column).
+def evaluate(calibration, table: xr.Dataset | None = None, *, reference=None, ddof: int = 1,
+             return_errors: bool = False):
+    """The paper's global statistics (Table 4's columns): the one way to score a calibration.
 
-    The calibration estimates the angles of every centroid of ``table``; each is compared with
-    the table's commanded angles: per pose the local error (mean over the ok shots) and the
-    maximum error (:func:`local_errors`, eq. (6)), then mu, sigma, M, sigma_M per angle
-    (:func:`global_stats`).
+    Each calibration estimates the angles of every centroid of ``table`` (or the estimate is
+    given); each shot's estimate is compared with the reference (the commanded angles): per pose
+    the local error (mean over the usable shots of the absolute error) and the maximum error,
+    then over the poses mu, sigma (mean and standard deviation of the local errors), M and
+    sigma_M (of the maximum errors), per angle (docs/paper.md sec. 5). Poses without a usable
+    shot are left out.
 
     Parameters
     ----------
-    calibration : sunlab.calibration.Calibration
-        A fitted (or loaded) calibration.
-    table : xarray.Dataset
-        ``centroids/1`` test table on (pose, shot) with the commanded angles ``alpha``,
-        ``beta`` (deg) as coordinates (experiment III in the paper).
+    calibration : Calibration, xarray.Dataset or mapping
+        A fitted (or loaded) calibration, an estimate (its ``predict``'s output: ``alpha``,
+        ``beta`` in deg, ``status``, the commanded ``alpha_cmd``, ``beta_cmd``), or a mapping
+        of column name to either (one column each).
+    table : xarray.Dataset, optional
+        ``centroids/1`` test table on (pose, shot) with the commanded angles ``alpha``, ``beta``
+        (deg) as coordinates (experiment III), which the calibrations predict.
+    reference : mapping, optional
+        The measured angles ``{"alpha": ..., "beta": ...}`` (deg, broadcasting against the
+        estimate), e.g. the simulated truth; default the commanded angles.
     ddof : int
-        Delta degrees of freedom of the standard deviations.
+        Delta degrees of freedom of sigma and sigma_M (1: the sample standard deviation; the
+        paper does not say which it used, 0.14 % apart for 361 poses).
     return_errors : bool
-        Also return the estimate (``calibration.predict(table)``) and the per-pose errors.
+        Also return the estimate(s) and the per-pose errors: ``local_error``, ``max_error``
+        (deg) and ``n_shots`` on ``(angle, pose)`` (what Figs. 10 and 11 draw).
 
     Returns
     -------
     pandas.DataFrame
-        Index ``(angle, stat)`` as :func:`paper_table4`; one column, the calibration's label;
-        degrees. With ``return_errors``: ``(table, estimate, local)``.
+        Index ``(angle, stat)`` as :func:`paper_table4`; one column per calibration (its label,
+        or the mapping's key); degrees. With ``return_errors``: ``(table, estimate, local)``,
+        the last two dicts by column for a mapping.
 
     Examples
     --------
@@ -272,35 +203,45 @@ def evaluate(calibration, table: xr.Dataset, *, ddof: int = 1, return_errors: bo
     >>> bool(res.loc[("alpha", "mu")].iloc[0] < 0.01)
     True
     """
-    estimate = calibration.predict(table)
-    local = local_errors(estimate)
-    frame = global_stats({calibration.label: local}, ddof=ddof)
-    return (frame, estimate, local) if return_errors else frame
+    single = isinstance(calibration, xr.Dataset) or not isinstance(calibration, Mapping)
+    items = {None: calibration} if single else dict(calibration)
+    if not items:
+        raise ConfigurationError("calibration: found an empty mapping, expected calibrations or "
+                                 "estimates by column name")
+    est, local = {}, {}
+    for key, obj in items.items():
+        e = obj if isinstance(obj, xr.Dataset) else obj.predict(table)
+        name = key if key is not None else (getattr(obj, "label", None) or e.attrs.get("label")
+                                            or e.attrs.get("calibration") or "method")
+        for a in ANGLES:
+            if a not in e.variables:
+                raise SchemaError(f"{name}.{a}", "missing", "estimated angles alpha, beta (deg)",
+                                  "pass a calibration or its predict() output")
+        est[str(name)], local[str(name)] = e, _local_errors(e, reference)
+    frame = _global_stats(local, ddof)
+    if not return_errors:
+        return frame
+    return (frame, *(next(iter(d.values())) for d in (est, local))) if single else \
+        (frame, est, local)
 
 
 def error_summary(est: xr.Dataset) -> dict:
-    """The paper's global statistics of one estimate as a dict per angle, plus the RMS.
+    """One estimate's column of :func:`evaluate` as a dict per angle, with the RMS and the
+    number of poses: what the multi-hole strategies report per hole.
 
-    Local error = mean over the shots of ``|error|``, maximum error = max over the shots; mu and
-    sigma are the mean and (sample) standard deviation of the local errors over the poses, M and
-    sigma_M those of the maximum errors (docs/paper.md sec. 5), computed by :func:`global_stats`
-    (the table of several estimates side by side; this is one estimate's column as a dict).
-    ``rms`` is the root mean square of the per-shot errors and ``n_poses`` the number of poses
-    with at least one usable estimate. A hole never seen (no usable estimate: off the detector
-    over the whole plan, or left without a calibration) gives NaN statistics with
-    ``n_poses = 0``, not a warning.
+    A hole never seen (no usable estimate) gives NaN statistics with ``n_poses = 0``.
 
     Parameters
     ----------
     est : xarray.Dataset
         Estimates ``alpha``, ``beta`` on (pose, shot) with the commanded angles ``alpha_cmd``,
-        ``beta_cmd`` as coordinates (the strategies' output), or signed errors (no ``*_cmd``).
+        ``beta_cmd`` as coordinates, or signed errors (no ``*_cmd``).
 
     Returns
     -------
     dict
-        Per angle (``"alpha"``, ``"beta"``) a dict of ``mu``, ``sigma``, ``M``, ``sigma_M`` and
-        ``rms`` (deg, float) and ``n_poses`` (int).
+        Per angle a dict of ``mu``, ``sigma``, ``M``, ``sigma_M`` and ``rms`` (deg, float) and
+        ``n_poses`` (int).
 
     Examples
     --------
@@ -315,16 +256,14 @@ def error_summary(est: xr.Dataset) -> dict:
     ref = None
     if "alpha_cmd" not in est.variables or "beta_cmd" not in est.variables:
         ref = {"alpha": xr.DataArray(0.0), "beta": xr.DataArray(0.0)}
-    loc = local_errors(est[["alpha", "beta"]], ref)
-    table = global_stats({"m": loc})["m"]
+    table, _, loc = evaluate({"m": est[["alpha", "beta"]]}, reference=ref, return_errors=True)
     err = shot_errors(est[["alpha", "beta"]], ref)
     out = {}
-    for name in ("alpha", "beta"):
+    for name in ANGLES:
         e = np.asarray(err[name].values, dtype=float)
         e = e[np.isfinite(e)]
-        n_poses = int(np.isfinite(loc["local_error"].sel(angle=name).values).sum())
-        out[name] = {k: float(table.loc[(name, k)]) if n_poses else math.nan
-                     for k in STATS}
+        n_poses = int(np.isfinite(loc["m"]["local_error"].sel(angle=name).values).sum())
+        out[name] = {k: float(table.loc[(name, k), "m"]) if n_poses else math.nan for k in STATS}
         out[name]["rms"] = float(np.sqrt(np.mean(e**2))) if e.size else math.nan
         out[name]["n_poses"] = n_poses
     return out
@@ -336,7 +275,7 @@ def rectangles(table: pd.DataFrame) -> pd.DataFrame:
     Parameters
     ----------
     table : pandas.DataFrame
-        Output of :func:`global_stats` (or :func:`paper_table4`).
+        Output of :func:`evaluate` (or :func:`paper_table4`).
 
     Returns
     -------
@@ -417,7 +356,7 @@ def paper_table4() -> pd.DataFrame:
     """The paper's Table 4: global statistics on experiment III, one hole, deg.
 
     Columns ``linear interp.``, ``cubic interp.``, ``polynomial``, ``NN strategy 4``; index
-    ``(angle, stat)`` as :func:`global_stats`. Source: docs/paper.md sec. 5, Table 4.
+    ``(angle, stat)`` as :func:`evaluate`. Source: docs/paper.md sec. 5, Table 4.
 
     Returns
     -------
@@ -473,7 +412,7 @@ def side_by_side(ours: pd.DataFrame, paper: pd.DataFrame,
     Parameters
     ----------
     ours, paper : pandas.DataFrame
-        Tables with the index of :func:`global_stats` and one column per method (deg).
+        Tables with the index of :func:`evaluate` and one column per method (deg).
     names : (str, str)
         The ``source`` labels of ``ours`` and ``paper``.
 

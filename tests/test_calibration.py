@@ -39,3 +39,25 @@ def test_fit_by_kind_equals_the_class_and_round_trips_through_a_file(tmp_path):
 def test_every_registered_kind_names_a_calibration_class():
     for kind in cal.KINDS:
         assert issubclass(cal.method_class(kind), cal.Calibration), kind
+
+
+def test_fit_and_the_class_give_identical_coefficients_on_a_table_with_an_outlier():
+    # one fit: calibration.fit and the class's own fit screen outliers with the same default
+    # (outlier_mads, 10 MADs), so one absurd row is excluded by both, and the same shot
+    a, b = np.meshgrid(np.linspace(-10, 10, 11), np.linspace(-10, 10, 11), indexing="ij")
+    table = sim.synthetic_centroids(a.ravel(), b.ravel(), shots=2, noise_px=0.02, seed=1,
+                                    delta_f_mm=0.05)
+    table["x"][7, 0] += 40.0
+    by_kind = cal.fit(table, "polynomial", order=3)
+    direct = cal.Polynomial(order=3).fit(table)
+    for angle in ("alpha", "beta"):
+        np.testing.assert_array_equal(by_kind.coefficients[angle], direct.coefficients[angle])
+    assert [(o["pose"], o["shot"]) for o in direct.training["excluded"]] == [(7, 0)]
+    assert by_kind.training == direct.training
+    # the one default, and the explicit argument that turns it off on both paths
+    unscreened = cal.Polynomial(order=3).fit(table, outlier_mads=None)
+    np.testing.assert_array_equal(
+        cal.fit(table, "polynomial", order=3, outlier_mads=None).coefficients["alpha"],
+        unscreened.coefficients["alpha"])
+    assert not np.array_equal(unscreened.coefficients["alpha"], direct.coefficients["alpha"])
+    assert "excluded" not in unscreened.training

@@ -15,7 +15,7 @@ def local():
     a, b = np.meshgrid(np.arange(-4.0, 1.0), np.arange(-1.0, 3.0), indexing="ij")
     cen = sim.synthetic_centroids(a.ravel(), b.ravel(), 3, pose_error_deg=(0.01, 0.02),
                                        seed=1)
-    return stats.local_errors(Polynomial(order=2).fit(cen).predict(cen))
+    return stats.evaluate(Polynomial(order=2).fit(cen), cen, return_errors=True)[2]
 
 
 def test_error_maps_fig10(local):

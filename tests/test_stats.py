@@ -32,8 +32,12 @@ def test_shot_errors_absolute_signed_and_status():
     assert_allclose(signed.alpha.values[0], [0.1, -0.2, 0.0], atol=1e-12)
 
 
+def _local(est, reference=None):
+    return stats.evaluate(est, reference=reference, return_errors=True)[2]
+
+
 def test_local_and_maximum_errors_by_hand():
-    loc = stats.local_errors(_estimate())
+    loc = _local(_estimate())
     # alpha: pose 0 -> mean(0.1, 0.2, 0) = 0.1, max 0.2; pose 1 -> mean(0, 0.4) = 0.2 (clipped
     # shot excluded), max 0.4
     assert_allclose(loc.local_error.sel(angle="alpha"), [0.1, 0.2], atol=1e-12)
@@ -47,23 +51,22 @@ def test_local_and_maximum_errors_by_hand():
 def test_pose_without_usable_shot_is_nan_and_skipped():
     est = _estimate()
     est["status"][1, :] = STATUS["no_spot"]
-    loc = stats.local_errors(est)
+    loc = _local(est)
     assert np.isnan(loc.local_error.sel(angle="alpha")[1])
-    tab = stats.global_stats({"m": loc})
+    tab = stats.evaluate({"m": est})
     assert_allclose(tab.loc[("alpha", "mu"), "m"], 0.1, atol=1e-12)
     assert np.isnan(tab.loc[("alpha", "sigma"), "m"])  # one pose: no sample std
 
 
 def test_global_stats_by_hand_and_layout():
-    loc = stats.local_errors(_estimate())
-    tab = stats.global_stats(loc)
+    tab = stats.evaluate(_estimate())
     assert list(tab.columns) == ["demo"]
     assert tab.index.names == ["angle", "stat"]
     assert [s for _, s in tab.index][:4] == ["mu", "sigma", "M", "sigma_M"]
     # alpha local (0.1, 0.2): mu 0.15, sigma (ddof=1) = 0.0707107; max (0.2, 0.4): M 0.3, sM 0.1414
     assert_allclose(tab["demo"].loc["alpha"].values, [0.15, 0.05 * 2**0.5, 0.3, 0.1 * 2**0.5],
                     atol=1e-12)
-    pop = stats.global_stats(loc, ddof=0)
+    pop = stats.evaluate(_estimate(), ddof=0)
     assert_allclose(pop.loc[("alpha", "sigma"), "demo"], 0.05, atol=1e-12)
 
 
@@ -72,6 +75,8 @@ def test_reference_can_be_the_truth():
     truth = {"alpha": xr.full_like(est.alpha, 1.0), "beta": xr.full_like(est.beta, 0.0)}
     err = stats.shot_errors(est, truth)
     assert_allclose(err.alpha.values[1, :2], [1.0, 1.4], atol=1e-12)
+    # evaluate scores against the same reference: pose 1's alpha errors (1.0, 1.4)
+    assert_allclose(_local(est, truth).local_error.sel(angle="alpha")[1], 1.2, atol=1e-12)
     with pytest.raises(SchemaError, match="reference"):
         stats.shot_errors(est, {"alpha": est.alpha})
     with pytest.raises(SchemaError, match="alpha_cmd"):
@@ -121,19 +126,19 @@ def test_unstack_poses_to_grid():
     assert float(g.sel(alpha=1.0, beta=2.0)) == 4.0
 
 
-def test_global_stats_bad_input():
-    with pytest.raises(ConfigurationError, match="local"):
-        stats.global_stats({})
-    with pytest.raises(SchemaError, match="local_error"):
-        stats.global_stats({"m": xr.Dataset()})
+def test_evaluate_bad_input():
+    with pytest.raises(ConfigurationError, match="empty mapping"):
+        stats.evaluate({})
+    with pytest.raises(SchemaError, match=r"m\.alpha"):
+        stats.evaluate({"m": xr.Dataset()})
 
 
-def test_error_summary_is_one_column_of_global_stats():
+def test_error_summary_is_one_column_of_evaluate():
     rng = np.random.default_rng(1)
     e = xr.Dataset({a: (("pose", "shot"), rng.normal(0, 0.01, (6, 3))) for a in ("alpha", "beta")})
     s = stats.error_summary(e)
     ref = {"alpha": xr.DataArray(0.0), "beta": xr.DataArray(0.0)}
-    table = stats.global_stats({"m": stats.local_errors(e, ref)})["m"]
+    table = stats.evaluate({"m": e}, reference=ref)["m"]
     for a in ("alpha", "beta"):
         for k in stats.STATS:
             assert s[a][k] == float(table.loc[(a, k)])

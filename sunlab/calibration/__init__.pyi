@@ -6,7 +6,6 @@ from . import artifact as artifact
 from . import base as base
 from . import frames as frames
 from . import interpolation as interpolation
-from . import methods as methods
 from . import model as model
 from . import neural as neural
 from . import plausibility as plausibility
@@ -14,12 +13,12 @@ from . import polynomial as polynomial
 from . import registry as registry
 from . import summary as summary
 from . import trigonometric as trigonometric
+from . import windows as windows
 from .artifact import from_dict as from_dict
 from .artifact import load as load
 from .base import Calibration as Calibration
 from .frames import FrameNet as FrameNet
 from .interpolation import Interpolation as Interpolation
-from .methods import table4_methods as table4_methods
 from .model import IdealModel as IdealModel
 from .model import OptimisedModel as OptimisedModel
 from .neural import NeuralNet as NeuralNet
@@ -28,6 +27,7 @@ from .registry import KINDS as KINDS
 from .registry import available_kinds as available_kinds
 from .registry import fit as fit
 from .registry import method_class as method_class
+from .registry import table4_methods as table4_methods
 from .summary import calibration_summary as calibration_summary
 from .trigonometric import Trigonometric as Trigonometric
 

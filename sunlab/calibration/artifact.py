@@ -25,9 +25,6 @@ if TYPE_CHECKING:
 
 __all__ = ["from_dict", "load"]
 
-_REQUIRED = ("sunlab_schema", "kind", "sunlab_version", "parameters", "training", "domain",
-             "residuals")
-
 #: Largest calibration file :func:`load` reads (bytes); the biggest real one is a few MB.
 MAX_FILE_BYTES = 64 * 2**20
 
@@ -71,10 +68,6 @@ def validate_document(doc) -> dict:
             "this file was not written by Calibration.save of this sunlab version; re-fit the "
             "calibration (sunlab calibrate) or convert it with the version that wrote it",
         )
-    missing = [k for k in _REQUIRED if k not in doc]
-    if missing:
-        raise SchemaError(", ".join(missing), "missing", f"the keys {list(_REQUIRED)}",
-                          "the file is truncated or edited; re-fit the calibration")
     validate_calibration(doc)
     kind = doc.get("kind")
     registry = available_kinds()

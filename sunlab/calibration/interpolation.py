@@ -41,7 +41,7 @@ from scipy.spatial import Delaunay, QhullError, cKDTree
 
 from ..errors import ConfigurationError
 from ._checks import _bad, _numbers
-from .base import Calibration, TrainingData, _err_summary
+from .base import Calibration, _err_summary
 
 __all__ = ["Interpolation"]
 
@@ -90,33 +90,11 @@ class Interpolation(Calibration):
         self._interp = None
         self._nearest = None
 
-    @classmethod
-    def for_kind(cls, kind: str, **options) -> Interpolation:
-        """An unfitted interpolation whose mode is the kind's suffix.
-
-        Parameters
-        ----------
-        kind : {"interpolation-linear", "interpolation-cubic"}
-            The registered kind.
-        **options
-            ``extrapolate``, ``leave_one_out``.
-
-        Returns
-        -------
-        Interpolation
-            Unfitted, ``method`` ``"linear"`` or ``"cubic"``.
-        """
-        return cls(kind.removeprefix("interpolation-"), **options)
-
     @property
     def label(self) -> str:
         return f"{self.method} interp."
 
     def _build(self) -> None:
-        from scipy.interpolate import (
-            CloughTocher2DInterpolator,
-        )
-
         pts = np.column_stack([self.nodes["x"], self.nodes["y"]])
         vals = np.column_stack([self.nodes["alpha"], self.nodes["beta"]])
         if len(pts) < 3:
@@ -143,7 +121,7 @@ class Interpolation(Calibration):
         """
         return 3  # one triangle
 
-    def _fit(self, data: TrainingData, validation) -> None:
+    def _fit(self, data, validation) -> None:
         self.nodes = {"x": data.x, "y": data.y, "alpha": data.alpha, "beta": data.beta}
         self._build()
 
@@ -200,8 +178,6 @@ class Interpolation(Calibration):
         >>> 49 <= loo["alpha"]["n"] < 81, 0 < loo["alpha"]["max_abs"] < 0.05  # 7 x 7 inner nodes
         (True, True)
         """
-
-
         pts = np.column_stack([self.nodes["x"], self.nodes["y"]])
         vals = np.column_stack([self.nodes["alpha"], self.nodes["beta"]])
         lo, span = pts.min(axis=0), np.ptp(pts, axis=0)
@@ -232,7 +208,7 @@ class Interpolation(Calibration):
         return {"alpha": _err_summary(est[:, 0], vals[:, 0]),
                 "beta": _err_summary(est[:, 1], vals[:, 1])}
 
-    def _extra_residuals(self, data: TrainingData) -> dict:
+    def _extra_residuals(self, data) -> dict:
         return {"leave_one_out": self.leave_one_out()} if self.with_leave_one_out else {}
 
     def _predict_xy(self, x, y):

@@ -21,7 +21,7 @@ import numpy as np
 from .. import geometry
 from ..errors import ConfigurationError
 from ._checks import _number
-from .base import _SENSOR, Calibration, TrainingData, sensor_attrs
+from .base import _SENSOR, Calibration, sensor_attrs
 
 __all__ = ["IdealModel", "OptimisedModel"]
 
@@ -66,7 +66,7 @@ class IdealModel(Calibration):
     def label(self) -> str:
         return "ideal model (1)"
 
-    def _fit(self, data: TrainingData, validation) -> None:
+    def _fit(self, data, validation) -> None:
         attrs = {**data.attrs, **{k: v for k, v in self._given.items() if v is not None}}
         self.sensor = sensor_attrs(attrs)
 
@@ -92,7 +92,7 @@ class IdealModel(Calibration):
         return obj
 
 
-def fit_optimised(data: TrainingData, sensor: dict, fit_zero_pose: bool | None = True, *,
+def fit_optimised(data, sensor: dict, fit_zero_pose: bool | None = True, *,
                   n_boot: int = 0, block_deg: float = 2.0, seed: int = 0):
     """Fit the optimised model on training points; return a :class:`geometry.OptimisedFit`.
 
@@ -107,9 +107,9 @@ def fit_optimised(data: TrainingData, sensor: dict, fit_zero_pose: bool | None =
 
     Parameters
     ----------
-    data : TrainingData
+    data : types.SimpleNamespace
         Training points: centroids ``x``, ``y`` (px) and commanded ``alpha``, ``beta`` (deg)
-        (:func:`sunlab.calibration.base.training_data`).
+        (the training points :meth:`sunlab.calibration.Calibration.fit` takes from a table).
     sensor : dict
         ``mask_distance_mm`` (nominal F, mm) and ``pixel_pitch_mm`` (p, mm), as
         :func:`sunlab.calibration.base.sensor_attrs` returns them.
@@ -210,7 +210,7 @@ class OptimisedModel(Calibration):
         """
         return 3  # dF, alpha0, beta0 (+ the zero pose): two equations per pose
 
-    def _fit(self, data: TrainingData, validation) -> None:
+    def _fit(self, data, validation) -> None:
         self.result = fit_optimised(data, sensor_attrs(data.attrs), self.fit_zero_pose,
                                     n_boot=self.n_boot)
 

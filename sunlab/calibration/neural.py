@@ -48,7 +48,7 @@ from .. import geometry, parallel
 from ..errors import ConfigurationError
 from ..extras import require
 from ._checks import _bad, _count, _number, _numbers
-from .base import Calibration, TrainingData, sensor_attrs
+from .base import Calibration, sensor_attrs
 from .model import fit_optimised, optimised_fit_from_dict
 
 __all__ = ["NeuralNet"]
@@ -60,6 +60,9 @@ STRATEGIES = {
     3: ("angles from the optimised model (3)-(4)", "platform angles"),
     4: ("centroid (x, y)", "error of model (1)"),
 }
+
+
+_SETTINGS = ("strategy", "hidden", "seed", "max_iter", "patience", "weight_decay")
 
 
 def _forward(z: np.ndarray, net: dict) -> np.ndarray:
@@ -114,26 +117,18 @@ class NeuralNet(Calibration):
                  average: str = "pose", reference: str = "design"):
         super().__init__()
         if reference not in ("design", "zero_pose"):
-            raise ConfigurationError(
-                f"reference: found {reference!r}, expected 'design' or 'zero_pose'"
-            )
-        self.reference = reference
+            raise ConfigurationError(f"reference: found {reference!r}, expected 'design' or "
+                                     "'zero_pose'")
         if strategy not in STRATEGIES:
-            raise ConfigurationError(
-                f"strategy: found {strategy!r}, expected one of {sorted(STRATEGIES)} (Table 2)"
-            )
-        if int(hidden) != hidden or hidden < 1:
-            raise ConfigurationError(f"hidden: found {hidden!r}, expected a positive integer")
-        for name, v in (("max_iter", max_iter), ("patience", patience)):
+            raise ConfigurationError(f"strategy: found {strategy!r}, expected one of "
+                                     f"{sorted(STRATEGIES)} (Table 2)")
+        for name, v in (("hidden", hidden), ("max_iter", max_iter), ("patience", patience)):
             if int(v) != v or v < 1:
                 raise ConfigurationError(f"{name}: found {v!r}, expected a positive integer")
-        self.strategy = int(strategy)
-        self.hidden = int(hidden)
-        self.seed = int(seed)
-        self.max_iter = int(max_iter)
-        self.patience = int(patience)
-        self.weight_decay = float(weight_decay)
-        self.average = average
+        self.strategy, self.hidden, self.seed = int(strategy), int(hidden), int(seed)
+        self.max_iter, self.patience, self.weight_decay = int(max_iter), int(patience), \
+            float(weight_decay)
+        self.reference, self.average = reference, average
         self.sensor: dict | None = None
         self.optimised: geometry.OptimisedFit | None = None
         self.input_scaling: dict | None = None
@@ -157,7 +152,7 @@ class NeuralNet(Calibration):
             return np.column_stack(self._ideal(x, y))
         return np.column_stack(geometry.optimised_angles(x, y, *self.optimised.params))
 
-    def _targets(self, d: TrainingData) -> np.ndarray:
+    def _targets(self, d) -> np.ndarray:
         if self.strategy == 4:
             ia, ib = self._ideal(d.x, d.y)
             return np.column_stack([d.alpha - ia, d.beta - ib])
@@ -216,27 +211,11 @@ class NeuralNet(Calibration):
         finally:
             self.sensor = fitted
 
-    def fit(self, train, validation=None) -> NeuralNet:
-        """Fit the networks on a training table (early stopping on ``validation``); return
-        ``self``. Needs torch (the ``neural`` extra), checked before anything else.
+    def _fit_tables(self, train, validation) -> None:
+        require("torch", purpose="the neural-network calibration (NeuralNet)")  # checked first
+        super()._fit_tables(train, validation)
 
-        Parameters
-        ----------
-        train : xarray.Dataset
-            ``centroids/1`` table with the commanded angles (experiment I).
-        validation : xarray.Dataset, optional
-            Table for early stopping (experiment II).
-
-        Returns
-        -------
-        NeuralNet
-            ``self``, fitted: the networks, their ``history``, ``training``, ``domain`` and
-            ``residuals`` (deg).
-        """
-        require("torch", purpose="the neural-network calibration (NeuralNet)")
-        return super().fit(train, validation)
-
-    def _fit(self, data: TrainingData, validation: TrainingData | None) -> None:
+    def _fit(self, data, validation) -> None:
         self.sensor = sensor_attrs(data.attrs) if self.strategy != 1 else None
         if self.reference == "zero_pose" and self.strategy in (2, 4):
             self.sensor = self._zeroed(data.attrs)
@@ -345,14 +324,8 @@ class NeuralNet(Calibration):
     # --- artifact ----------------------------------------------------------------------------
     def _parameters(self) -> dict:
         return {
-            "strategy": self.strategy,
+            **{k: getattr(self, k) for k in _SETTINGS}, "reference": self.reference,
             "strategy_io": list(STRATEGIES[self.strategy]),
-            "hidden": self.hidden,
-            "seed": self.seed,
-            "max_iter": self.max_iter,
-            "patience": self.patience,
-            "weight_decay": self.weight_decay,
-            "reference": self.reference,
             "activation": "tanh hidden layer, linear output",
             "sensor": self.sensor,
             "optimised": None if self.optimised is None else self.optimised.to_dict(),
@@ -394,10 +367,7 @@ class NeuralNet(Calibration):
 
     @classmethod
     def _from_parameters(cls, p: dict):
-        obj = cls(strategy=int(p["strategy"]), hidden=int(p["hidden"]), seed=int(p["seed"]),
-                  max_iter=int(p["max_iter"]), patience=int(p["patience"]),
-                  weight_decay=float(p["weight_decay"]),
-                  reference=str(p.get("reference", "design")))
+        obj = cls(**{k: p[k] for k in _SETTINGS}, reference=str(p.get("reference", "design")))
         obj.sensor = None if p["sensor"] is None else sensor_attrs(p["sensor"], name="sensor")
         if obj.strategy == 3:
             obj.optimised = optimised_fit_from_dict(p["optimised"])
@@ -407,9 +377,8 @@ class NeuralNet(Calibration):
         h = obj.hidden
         for angle in ("alpha", "beta"):
             q = p["networks"][angle]
-            net = {"W1": np.asarray(q["W1"], dtype=float), "b1": np.asarray(q["b1"], dtype=float),
-                   "W2": np.asarray(q["W2"], dtype=float), "b2": float(q["b2"]),
-                   "target_mean": float(q["target_mean"]), "target_std": float(q["target_std"])}
+            net = {k: np.asarray(q[k], dtype=float) for k in ("W1", "b1", "W2")} | {
+                k: float(q[k]) for k in ("b2", "target_mean", "target_std")}
             if net["W1"].shape != (h, 2) or net["b1"].shape != (h,) or net["W2"].shape != (h,):
                 raise ValueError(f"{angle} network weights do not match hidden={h}")
             obj.networks[angle] = net

@@ -28,7 +28,7 @@ import pandas as pd
 
 from ..errors import ConfigurationError
 from ._checks import _bad, _coefficients_ok, _count, _scaling_ok
-from .base import Calibration, TrainingData, combine
+from .base import Calibration, combine
 
 __all__ = ["Polynomial"]
 
@@ -56,51 +56,61 @@ def monomial_exponents(order: int) -> list[tuple[int, int]]:
 
 
 def design_matrix(u, v, order: int) -> np.ndarray:
-    """Matrix of the monomials :math:`u^{k-l} v^l`, shape ``(len(u), (n + 1)(n + 2) / 2)``.
+    """Matrix of the monomials :math:`u^{k-l} v^l`, shape ``u.shape + ((n + 1)(n + 2) / 2,)``.
 
     Parameters
     ----------
     u, v : array_like
-        Scaled centroid coordinates (in [-1, 1] over the training domain, module docstring),
-        broadcast together.
+        Scaled centroid coordinates (in [-1, 1] over the training domain), broadcast together.
     order : int
         Total degree n.
 
     Returns
     -------
     numpy.ndarray
-        The broadcast shape of u and v plus a last axis of ``(n + 1)(n + 2) / 2`` columns,
-        in the order of :func:`monomial_exponents`; ``design_matrix(u, v, n) @ a`` is the
-        polynomial f(u, v) of docs/paper.md sec. 4.2.
+        The columns in the order of :func:`monomial_exponents`: ``design_matrix(u, v, n) @ a``
+        is the polynomial f(u, v) of docs/paper.md sec. 4.2.
 
     Examples
     --------
     >>> design_matrix(np.array([2.0]), np.array([3.0]), 1).tolist()
     [[1.0, 2.0, 3.0]]
     """
-    u = np.asarray(u, dtype=float)
-    v = np.asarray(v, dtype=float)
-    pu = [np.ones_like(u)]
-    pv = [np.ones_like(v)]
-    for _ in range(order):
-        pu.append(pu[-1] * u)
-        pv.append(pv[-1] * v)
-    return np.stack([pu[i] * pv[j] for i, j in monomial_exponents(order)], axis=-1)
+    u, v = np.broadcast_arrays(np.asarray(u, dtype=float), np.asarray(v, dtype=float))
+    return np.stack([u**i * v**j for i, j in monomial_exponents(order)], axis=-1)
 
 
 def _scaling(values: np.ndarray, name: str) -> list[float]:
     lo, hi = float(np.min(values)), float(np.max(values))
     if not hi > lo:
-        raise ConfigurationError(
-            f"{name}: the training centroids span [{lo}, {hi}] px, expected a range. Fix: "
-            "calibrate on poses that move the spot in both axes"
-        )
+        raise ConfigurationError(f"{name}: the training centroids span [{lo}, {hi}] px, expected "
+                                 "a range. Fix: calibrate on poses that move the spot in both axes")
     return [lo, hi]
 
 
 def _scale(values, bounds) -> np.ndarray:
     lo, hi = bounds
     return (2.0 * np.asarray(values, dtype=float) - (lo + hi)) / (hi - lo)
+
+
+def _lstsq(A: np.ndarray, target: np.ndarray, what: str) -> np.ndarray:
+    if A.shape[0] < A.shape[1]:
+        raise ConfigurationError(f"order: {what} needs {A.shape[1]} coefficients but the training "
+                                 f"table has {A.shape[0]} points. Fix: lower the order or add "
+                                 "poses")
+    return np.linalg.lstsq(A, target, rcond=None)[0]
+
+
+def _read_series(obj, p: dict, sizes: dict):
+    """Scaling and coefficients of a saved series (polynomial or trigonometric)."""
+    obj.scaling = {k: [float(v[0]), float(v[1])] for k, v in p["scaling"].items()}
+    obj.coefficients = {}
+    for angle, n in sizes.items():
+        coef = np.asarray(p["coefficients"][angle], dtype=float)
+        if coef.shape != (n,):
+            raise ValueError(f"{angle} has {coef.size} coefficients, expected {n}")
+        obj.coefficients[angle] = coef
+    return obj
 
 
 def _orders(order) -> tuple[int, int]:
@@ -114,12 +124,6 @@ def _orders(order) -> tuple[int, int]:
 
 
 _METRICS = ("mean_abs", "rms", "max_abs")
-
-
-def _errors_table(cal: Calibration, table) -> dict:
-    """Per-shot validation errors of a fitted calibration: mean_abs, rms, max_abs per angle."""
-    res = cal._residuals(table)
-    return {f"{a}_{s}": res[a][s] for a in ("alpha", "beta") for s in _METRICS}
 
 
 class Polynomial(Calibration):
@@ -168,20 +172,10 @@ class Polynomial(Calibration):
         """
         return max(len(monomial_exponents(n)) for n in self.orders)
 
-    def _fit(self, data: TrainingData, validation) -> None:
+    def _fit(self, data, validation) -> None:
         self.scaling = {"x": _scaling(data.x, "x"), "y": _scaling(data.y, "y")}
-        u, v = _scale(data.x, self.scaling["x"]), _scale(data.y, self.scaling["y"])
-        self.coefficients = {}
-        for angle, n, target in zip(("alpha", "beta"), self.orders, (data.alpha, data.beta),
-                                    strict=True):
-            A = design_matrix(u, v, n)
-            if A.shape[0] < A.shape[1]:
-                raise ConfigurationError(
-                    f"order: {n} needs {A.shape[1]} coefficients but the training table has "
-                    f"{A.shape[0]} points. Fix: lower the order or add poses"
-                )
-            coef, *_ = np.linalg.lstsq(A, target, rcond=None)
-            self.coefficients[angle] = coef
+        self.coefficients = {a: _lstsq(self.basis(data.x, data.y, a), getattr(data, a), str(n))
+                             for a, n in zip(("alpha", "beta"), self.orders, strict=True)}
 
     def basis(self, x, y, angle: str = "beta") -> np.ndarray:
         """The design matrix of centroids ``x``, ``y`` (px) for one angle's polynomial: the
@@ -209,8 +203,6 @@ class Polynomial(Calibration):
         >>> cal.basis([100.0, 200.0], [50.0, 60.0], "alpha").shape
         (2, 6)
         """
-        self.check_fitted()
-        x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
         u, v = _scale(x, self.scaling["x"]), _scale(y, self.scaling["y"])
         return design_matrix(u, v, self.orders[("alpha", "beta").index(angle)])
 
@@ -243,19 +235,15 @@ class Polynomial(Calibration):
     @classmethod
     def _from_parameters(cls, p: dict):
         obj = cls(order=tuple(p["order"]))
-        obj.scaling = {k: [float(v[0]), float(v[1])] for k, v in p["scaling"].items()}
-        obj.coefficients = {}
-        for angle, n in zip(("alpha", "beta"), obj.orders, strict=True):
-            coef = np.asarray(p["coefficients"][angle], dtype=float)
-            if coef.shape != (len(monomial_exponents(n)),):
-                raise ValueError(f"{angle} has {coef.size} coefficients for order {n}")
-            obj.coefficients[angle] = coef
-        return obj
+        return _read_series(obj, p, {a: len(monomial_exponents(n))
+                                     for a, n in zip(("alpha", "beta"), obj.orders, strict=True)})
 
     @classmethod
     def select_order(cls, train, validation, orders=range(1, 9), *, metric: str = "mean_abs",
                      per_angle: bool = False, average: str = "pose", refit: bool = False):
-        """Pick the order on a validation table (experiment II), as the paper does.
+        """Pick the order on a validation table (experiment II), as the paper does; the tables
+        are taken as given (``calibration.fit(train, "polynomial", validation, order="auto")``
+        screens them first).
 
         Parameters
         ----------
@@ -301,10 +289,11 @@ class Polynomial(Calibration):
         rows = {}
         for n in orders:
             try:
-                cal = cls(order=int(n), average=average).fit(train)
+                cal = cls(order=int(n), average=average).fit(train, outlier_mads=None)
             except ConfigurationError:
                 continue
-            rows[int(n)] = _errors_table(cal, validation)
+            res = cal._residuals(validation)
+            rows[int(n)] = {f"{a}_{s}": res[a][s] for a in ("alpha", "beta") for s in _METRICS}
         if not rows:
             raise ConfigurationError(
                 f"orders: none of {list(orders)} could be fitted. Fix: lower the orders"
@@ -318,4 +307,4 @@ class Polynomial(Calibration):
             n = int((scores[f"alpha_{metric}"] + scores[f"beta_{metric}"]).idxmin())
             chosen = (n, n)
         fit_on = (combine(train, validation), None) if refit else (train, validation)
-        return cls(order=chosen, average=average).fit(*fit_on), scores
+        return cls(order=chosen, average=average).fit(*fit_on, outlier_mads=None), scores

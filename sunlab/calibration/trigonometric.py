@@ -27,8 +27,8 @@ import numpy as np
 
 from ..errors import ConfigurationError
 from ._checks import _coefficients_ok, _count, _number, _scaling_ok
-from .base import Calibration, TrainingData
-from .polynomial import _scale, _scaling
+from .base import Calibration
+from .polynomial import _lstsq, _read_series, _scale, _scaling
 
 __all__ = ["Trigonometric"]
 
@@ -114,18 +114,11 @@ class Trigonometric(Calibration):
         """
         return (2 * self.order + 1) ** 2
 
-    def _fit(self, data: TrainingData, validation) -> None:
+    def _fit(self, data, validation) -> None:
         self.scaling = {"x": _scaling(data.x, "x"), "y": _scaling(data.y, "y")}
         A = self._design(data.x, data.y)
-        if A.shape[0] < A.shape[1]:
-            raise ConfigurationError(
-                f"order: {self.order} needs {A.shape[1]} coefficients but the training table has "
-                f"{A.shape[0]} points. Fix: lower the order or add poses"
-            )
-        self.coefficients = {
-            angle: np.linalg.lstsq(A, t, rcond=None)[0]
-            for angle, t in (("alpha", data.alpha), ("beta", data.beta))
-        }
+        self.coefficients = {a: _lstsq(A, getattr(data, a), str(self.order))
+                             for a in ("alpha", "beta")}
 
     def _predict_xy(self, x, y):
         A = self._design(x, y)
@@ -153,12 +146,4 @@ class Trigonometric(Calibration):
     @classmethod
     def _from_parameters(cls, p: dict):
         obj = cls(order=int(p["order"]), period=float(p["period"]))
-        obj.scaling = {k: [float(v[0]), float(v[1])] for k, v in p["scaling"].items()}
-        n = (2 * obj.order + 1) ** 2
-        obj.coefficients = {}
-        for angle in ("alpha", "beta"):
-            coef = np.asarray(p["coefficients"][angle], dtype=float)
-            if coef.shape != (n,):
-                raise ValueError(f"{angle} has {coef.size} coefficients, expected {n}")
-            obj.coefficients[angle] = coef
-        return obj
+        return _read_series(obj, p, dict.fromkeys(("alpha", "beta"), (2 * obj.order + 1) ** 2))

@@ -285,9 +285,9 @@ def _ex04_2_global(ns, rng):
 
     train, _, test = _tables(rng)
     est = Polynomial(order=int(rng.integers(2, 5))).fit(train).predict(test)
-    ref = stats.global_stats(stats.local_errors(est)).iloc[:, 0]
+    ref = stats.evaluate(est).iloc[:, 0]
     mine = _call(ns, "global_statistics", stats.shot_errors(est),
-                 forbidden=(stats.global_stats, stats.local_errors, stats.error_summary))
+                 forbidden=(stats.evaluate, stats.error_summary))
     for key, value in ref.items():
         got = mine.get(key) if hasattr(mine, "get") else None
         assert got is not None and abs(float(got) - value) <= 1e-9 * abs(value), (

@@ -93,6 +93,7 @@ class GeometricCentre(Calibration):
     True
     """
 
+    default_outlier_mads = None  # no shot screening by default: holes are judged whole
     kind: ClassVar[str] = "multihole-geometric-centre"
     order: int = 5
     model: Callable | None = None
@@ -198,7 +199,8 @@ class GeometricCentre(Calibration):
                 out[name] = (("pose", "shot"), np.asarray(cen[name].values))
         return out
 
-    def fit(self, cen: xr.Dataset, validation: xr.Dataset | None = None) -> GeometricCentre:
+    def _fit_tables(self, cen: xr.Dataset, validation: xr.Dataset | None = None
+                    ) -> GeometricCentre:
         """Fit the centre maps and the calibration of the centre on a training table.
 
         Parameters
@@ -218,7 +220,9 @@ class GeometricCentre(Calibration):
         centre = self.centre(cen)
         if (np.isfinite(centre["x"]) & np.isfinite(centre["y"])).sum() < 3:
             raise ConfigurationError("too few usable frames to fit a calibration (fewer than 3)")
-        self.calibration_ = (self.model or (lambda: Polynomial(self.order)))().fit(centre)
+        # the strategy judges holes whole: no shot screening inside its calibrations
+        self.calibration_ = (self.model or (lambda: Polynomial(self.order)))().fit(
+            centre, outlier_mads=None)
         return _record_fit(self, cen, self._ok(cen), self.calibration_.residuals, validation)
 
     def __post_init__(self):
@@ -324,6 +328,7 @@ class PerHoleAverage(Calibration):
     True
     """
 
+    default_outlier_mads = None  # no shot screening by default: holes are judged whole
     kind: ClassVar[str] = "multihole-per-hole-average"
     order: int = 5
     model: Callable | None = None
@@ -335,7 +340,8 @@ class PerHoleAverage(Calibration):
     calibrations_: list | None = field(default=None, repr=False)
     variance_: np.ndarray | None = field(default=None, repr=False)
 
-    def fit(self, cen: xr.Dataset, validation: xr.Dataset | None = None) -> PerHoleAverage:
+    def _fit_tables(self, cen: xr.Dataset, validation: xr.Dataset | None = None
+                    ) -> PerHoleAverage:
         """Fit one calibration per hole on a training table; estimate each hole's variance.
 
         Parameters
@@ -372,7 +378,7 @@ class PerHoleAverage(Calibration):
                   "alpha": ("pose", cen["alpha"].values), "beta": ("pose", cen["beta"].values)}
         self.calibrations_ = [
             factory().fit(xr.Dataset({k: (("pose", "shot"), v[..., h]) for k, v in data.items()},
-                                     coords=coords, attrs=cen.attrs))
+                                     coords=coords, attrs=cen.attrs), outlier_mads=None)
             # a hole seen at too few poses cannot carry its own calibration: it is left out
             if okv[..., h].any(1).sum() >= need else None for h in range(cen.sizes["hole"])]
         if all(c is None for c in self.calibrations_):

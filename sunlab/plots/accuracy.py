@@ -92,8 +92,9 @@ def error_maps(local: xr.Dataset, *, variables=("local_error", "max_error"), ang
     Parameters
     ----------
     local : xarray.Dataset
-        Output of :func:`sunlab.stats.local_errors` with the pose angles ``alpha_cmd``,
-        ``beta_cmd`` as coordinates; poses are unstacked to an (alpha, beta) grid.
+        The per-pose errors of :func:`sunlab.stats.evaluate` (``return_errors``) with the pose
+        angles ``alpha_cmd``, ``beta_cmd`` as coordinates; poses are unstacked to an (alpha,
+        beta) grid.
     variables : sequence of str
         Rows of the figure (``local_error``, ``max_error``).
     angles : sequence of str
@@ -145,8 +146,8 @@ def error_histogram(values, *, angle: str = "alpha", variable: str = "local_erro
     Parameters
     ----------
     values : xarray.Dataset or array_like
-        A :func:`sunlab.stats.local_errors` dataset (``variable`` of ``angle`` is taken), or the
-        errors themselves (deg; e.g. signed per-shot errors from
+        The per-pose errors of :func:`sunlab.stats.evaluate` (``return_errors``; ``variable``
+        of ``angle`` is taken), or the errors themselves (deg; e.g. signed per-shot errors from
         :func:`sunlab.stats.shot_errors`).
     angle : str
         Angle to show when ``values`` is a dataset.
@@ -206,7 +207,7 @@ def error_rectangles(table: pd.DataFrame, *, title: str | None = None,
     Parameters
     ----------
     table : pandas.DataFrame
-        Global statistics (:func:`sunlab.stats.global_stats`, :func:`sunlab.stats.paper_table4`)
+        Global statistics (:func:`sunlab.stats.evaluate`, :func:`sunlab.stats.paper_table4`)
         or their :func:`sunlab.stats.rectangles`.
     title : str, optional
         Axes title.

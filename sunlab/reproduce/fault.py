@@ -54,7 +54,7 @@ def shape_test(table: pd.DataFrame) -> pd.DataFrame:
     Parameters
     ----------
     table : pandas.DataFrame
-        Global statistics as :func:`sunlab.stats.global_stats` lays them out (index
+        Global statistics as :func:`sunlab.stats.evaluate` lays them out (index
         ``(angle, stat)``, one column per method), ours or the paper's.
 
     Returns
@@ -72,8 +72,8 @@ def shape_test(table: pd.DataFrame) -> pd.DataFrame:
     """
     if not isinstance(table, pd.DataFrame) or ("alpha", "mu") not in table.index:
         raise ConfigurationError(
-            "table: expected a DataFrame indexed (angle, stat) as sunlab.stats.global_stats "
-            "returns. Fix: pass stats.global_stats(local) or stats.paper_table4().")
+            "table: expected a DataFrame indexed (angle, stat) as sunlab.stats.evaluate "
+            "returns. Fix: pass stats.evaluate(...) or stats.paper_table4().")
     rows = {}
     for m in table.columns:
         for a in ("alpha", "beta"):

@@ -270,7 +270,7 @@ def _run_bench(name: str, plans_: dict, seed: int, opts: dict, offset) -> dict:
     """One bench: render, detect, train and test both routes; records and the table."""
     from .. import sim, stats
     from ..calibration import FrameNet
-    from ..calibration.frames import detect_spots
+    from ..calibration.windows import detect_spots
 
     b, seeds = bench(name), bench_seeds(name, seed)
     multi = b.n_holes > 1
@@ -291,17 +291,17 @@ def _run_bench(name: str, plans_: dict, seed: int, opts: dict, offset) -> dict:
         cubes["I"], cubes["II"], detections=det["I"], val_detections=det["II"])
     train_s = net.timings["train network"]
     est = net.predict_frames(cubes["III"], detections=det["III"])
-    local = {"learned": stats.local_errors(est)}
+    ests = {"learned": est}
     timing = {"learned": (train_s, (secs["detect III"] + net.timings["cube windows"]
                                     + net.timings["cube network"]) / n_test,
                           net.history["cpu_seconds"])}
     classical = _classical(multi, tables, cubes, b, opts)
     for method, (cal, fit_s, test_table, det_s) in classical.items():
         t = time.perf_counter()
-        local[method] = stats.local_errors(cal.predict(test_table))
+        ests[method] = cal.predict(test_table)
         timing[method] = (fit_s, ((secs["detect III"] if det_s is None else det_s)
                                   + time.perf_counter() - t) / n_test)
-    table = stats.global_stats(local)
+    table = stats.evaluate(ests)
     res = {"table": table, "model": net, "records": _records(name, table, timing)}
     if not multi:
         floor = crlb_floor(b, tables["III"], classical["polynomial"][0])

@@ -11,7 +11,7 @@ lab whose stage has one would run them):
    polynomial calibration (order chosen on II), statistics on III; plus a zero-pose check
    (:func:`sunlab.plans.zero_check`) before runs I and III, which the paper's statistics leave
    out. Every row fits on I alone, so that the remedies compare like with like; Table 4's
-   polynomial is refitted on I + II (:data:`sunlab.calibration.methods.POLYNOMIAL_REFIT`) and
+   polynomial is refitted on I + II (:data:`sunlab.calibration.registry.POLYNOMIAL_REFIT`) and
    takes part of the zero shift from II, so its beta mu is below this table's first row;
 2. the diagnosis (:func:`sunlab.reproduce.fault.diagnose`) of the polynomial's test
    errors with the run's motion record, beside the shape test applied to the paper's published
@@ -180,7 +180,8 @@ def reproduce_platform(*, quick: bool = False, seed: int = 0, method: str = "pro
     t_sim = time.perf_counter() - t0
     rows, orders, diag, jc, from_row = _rows(cens, protocols)
     truth = bench_fault_values(bench, seed, paper)
-    result = {**_platform_doc(stats.global_stats(rows), jc, truth, from_row, diag),
+    table = pd.concat([stats.evaluate({k: e}, reference=r) for k, (e, r) in rows.items()], axis=1)
+    result = {**_platform_doc(table, jc, truth, from_row, diag),
               "polynomial_order": orders,
               "settings": {"seed": seed, "quick": quick, "engine": engine,
                            "centroid_method": method, "scan": paper["III"].scan,
@@ -197,9 +198,8 @@ def reproduce_platform(*, quick: bool = False, seed: int = 0, method: str = "pro
 
 
 def _rows(cens: dict, protocols: dict):
-    """The local errors of every row of the table, the polynomial orders of each protocol, the
-    diagnosis, the joint fit whose parameters are reported and its row."""
-    from .. import stats
+    """The estimate and reference angles of every row of the table, the polynomial orders of
+    each protocol, the diagnosis, the joint fit whose parameters are reported and its row."""
     from ..calibration import Polynomial
     from .fault import diagnose
     from .remedy import fit_correction
@@ -209,13 +209,13 @@ def _rows(cens: dict, protocols: dict):
     def corrected(tag, **kw):
         jc = fit_correction(cens[f"{tag} I"], protocols[tag]["I"], cens[f"{tag} II"], **kw)
         est = jc.predict(cens[f"{tag} III"])
-        return jc, stats.local_errors(est, jc.reference(est, protocols[tag]["III"]))
+        return jc, (est, jc.reference(est, protocols[tag]["III"]))
 
     rows, orders = {}, {}
     for tag, row in (("paper", ROWS[0]), ("uni", ROWS[1])):
         cal, _ = Polynomial.select_order(cens[f"{tag} I"], cens[f"{tag} II"])
         orders[tag] = [int(n) for n in cal.orders]
-        rows[row] = stats.local_errors(cal.predict(cens[f"{tag} III"]))
+        rows[row] = (cal.predict(cens[f"{tag} III"]), None)
         if tag == "paper":
             diag = diagnose(cal.predict(cens["paper III"]), protocols["paper"]["III"])
     # (a) + zero check: the homing difference from the zero-pose checks, no backlash term;
@@ -363,7 +363,7 @@ def candidate_table(sizes: dict, *, bench=None, seed: int = 0, shots: int = 1,
     >>> list(t.columns), bool(0.005 < t.loc["backlash", "polynomial mu"] < 0.03)
     (['size_deg', 'polynomial mu', 'polynomial sigma', 'score', 'shape_excess'], True)
     """
-    from ..calibration.methods import table4_methods
+    from ..calibration import table4_methods
     from ..sim import Bench
     from ..sim.surrogate import surrogate_centroids
     from .fault import fault_bench
@@ -389,8 +389,7 @@ def _beta_cells(cen: dict, fits: dict, methods) -> dict:
     paper = stats.paper_table4()
     row, logs = {}, []
     for m in methods:
-        loc = stats.local_errors(fits[m](cen["I"], cen["II"]).predict(cen["III"]))
-        g = stats.global_stats({m: loc})[m]
+        g = stats.evaluate({m: fits[m](cen["I"], cen["II"])}, cen["III"])[m]
         for st in ("mu", "sigma"):
             row[f"{m} {st}"] = float(g[("beta", st)])
             logs.append(math.log(row[f"{m} {st}"] / float(paper.loc[("beta", st), m])))

@@ -77,7 +77,7 @@ class JointCorrection:
 
         beta: commanded - b d + g(beta) + h, with the fitted backlash b, approach d, gear
         error g and homing difference h; alpha: commanded. Pass as ``reference`` to
-        :func:`sunlab.stats.local_errors`.
+        :func:`sunlab.stats.evaluate`.
 
         Parameters
         ----------

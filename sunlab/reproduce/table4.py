@@ -39,7 +39,7 @@ import numpy as np
 import pandas as pd
 
 from .. import __version__, parallel, stats
-from ..calibration.methods import table4_methods
+from ..calibration import table4_methods
 from ..errors import ConfigurationError
 from .pipeline import (
     _span,
@@ -55,7 +55,7 @@ from .pipeline import (
 __all__ = ["reproduce_table4", "format_table"]
 
 #: Where the strategy-4 network zeroes model (1): on each run's zero-pose check (strategy 2
-#: keeps model (1) as fitted, :func:`sunlab.calibration.methods.table4_methods`).
+#: keeps model (1) as fitted, :func:`sunlab.calibration.table4_methods`).
 #: Model (1) puts (x_cf, y_cf) at the zero-orientation centroid (docs/paper.md sec. 4.1), which
 #: a bench measures with each run; a strategy-4 network that adds its learned correction to
 #: model (1) re-zeroed on the test run's zero pose carries that one pose's platform error as a
@@ -311,8 +311,7 @@ def table4_statistics(cens: dict, bench, *, neural: bool = True, seed: int = 0) 
                 not_run[label] = str(err)
                 continue
             timings[f"fit {label}"] = time.perf_counter() - t
-    local = {label: stats.local_errors(cal.predict(test)) for label, cal in fitted.items()}
-    table = stats.global_stats(local)
+    table, _, local = stats.evaluate(fitted, test, return_errors=True)
     opt, truth = fitted["optimised model (3)-(4)"].result, bench_optimised_truth(bench)
     optimised = {k: {"fitted": float(getattr(opt, k)), "stderr": _num(opt.stderr.get(k, np.nan)),
                      "bench": float(truth[k]), "paper": PAPER_OPTIMISED[k],

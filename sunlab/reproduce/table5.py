@@ -259,8 +259,7 @@ def table5_statistics(tables: dict, hole_metrics, *, order: int | None = None) -
     cen_tr, cen_te = cens["100 holes I"], cens["100 holes III"]
     s2, metrics, bad, est, preds = _strategies(cen_tr, cen_te, hole_metrics, order)
     preds[COLUMNS[2]] = one_hole.predict(cens["1 hole III"])
-    ours = stats.global_stats({k: stats.local_errors(preds[k]) for k in (*COLUMNS,
-                                                                         REJECTION_COLUMN)})
+    ours = stats.evaluate({k: preds[k] for k in (*COLUMNS, REJECTION_COLUMN)})
     table = stats.side_by_side(ours[list(COLUMNS)], stats.paper_table5())
     table[(REJECTION_COLUMN, "sunlab")] = ours[REJECTION_COLUMN]
     mu = ours.xs("mu", level=1)
@@ -330,7 +329,7 @@ def _one_hole_polynomial(cens: dict, order: int | None):
     on the one hole's II as Table 4 chooses it (the larger of its orders for the 100-hole
     strategies, which take one order), unless ``order`` is given."""
     from ..calibration import Polynomial
-    from ..calibration.methods import POLYNOMIAL_REFIT
+    from ..calibration.registry import POLYNOMIAL_REFIT
 
     if order is not None:
         return Polynomial(order).fit(cens["1 hole I"]), int(order)

@@ -40,7 +40,7 @@ def test_noise_free_frames_give_the_angles_to_a_hundredth_of_a_degree(fitted, cu
     # distortion over the 5-degree grid to well under 0.01 deg, and B + a cubic on the same
     # frames does no better than half of what is asked here
     est = fitted.predict_frames(cubes["III"])
-    table = stats.global_stats(stats.local_errors(est))
+    table = stats.evaluate(est)
     assert table.loc[("alpha", "mu")].iloc[0] < 0.01
     assert table.loc[("beta", "mu")].iloc[0] < 0.01
     assert est["alpha"].dims == ("pose", "shot") and int(est["n_spots"].min()) == 1

@@ -109,7 +109,7 @@ def test_table4_rezeroes_the_strategy_4_network_and_keeps_strategy_2s_model_1(be
     # model (1) is a fixed change of input variables, kept as fitted. A test run whose zero
     # pose reads 2 px further along x moves NN 4's alpha by model (1)'s change and leaves
     # NN 2's estimates where they were.
-    from sunlab.calibration.methods import table4_methods
+    from sunlab.calibration import table4_methods
 
     tr, va, te, _ = bench
     z = {"zero_pose_x_px": float(tr.attrs["x_cf_px"]),

@@ -74,21 +74,21 @@ def test_joint_fit_recovers_backlash_and_remedies_remove_it(runs):
     p = jc.parameters["beta_backlash_deg"]
     assert abs(p["fitted"] - SIZES["backlash"]) < 2.5 * p["stderr"]
     assert p["stderr"] < 0.1 * SIZES["backlash"]
-    plain = stats.global_stats(stats.local_errors(Polynomial(5).fit(tr).predict(te)))
+    plain = stats.evaluate(Polynomial(5).fit(tr).predict(te))
     est = jc.predict(te)
-    fixed = stats.global_stats(stats.local_errors(est, jc.reference(est, test)))
+    fixed = stats.evaluate(est, reference=jc.reference(est, test))
     # unidirectional approach: the same poses, every one reached upward
     ucal, utest = _plans("unidirectional")
     assert set(utest.beta_approach().tolist()) == {1}
     utr = surrogate_centroids(bench, ucal, SEED, spot_error=False)
     ute = surrogate_centroids(bench, utest, SEED, spot_error=False)
-    uni = stats.global_stats(stats.local_errors(Polynomial(5).fit(utr).predict(ute)))
+    uni = stats.evaluate(Polynomial(5).fit(utr).predict(ute))
     b_plain = plain.loc[("beta", "mu")].iloc[0]
     # what the bench leaves without the backlash: its per-pose error, jitter and wobble
     clean = bench.replace(platform__beta_backlash_deg=0.0)
     ctr = surrogate_centroids(clean, cal, SEED, spot_error=False)
     cte = surrogate_centroids(clean, test, SEED, spot_error=False)
-    b_clean = stats.global_stats(stats.local_errors(Polynomial(5).fit(ctr).predict(cte))).loc[
+    b_clean = stats.evaluate(Polynomial(5).fit(ctr).predict(cte)).loc[
         ("beta", "mu")].iloc[0]
     for t in (fixed, uni):
         b = t.loc[("beta", "mu")].iloc[0]
@@ -109,7 +109,7 @@ def test_zero_checks_measure_the_homing_difference(runs):
     # difference of two runs' means has sd about e / sqrt(3) * sqrt(2 / 6) = 0.33 e
     assert p["stderr"] < 0.5 * bench.platform.beta_pose_error_deg
     est = jc.predict(te)
-    fixed = stats.global_stats(stats.local_errors(est, jc.reference(est, test)))
+    fixed = stats.evaluate(est, reference=jc.reference(est, test))
     # what stays is beta's per-pose error (uniform +-e: mean |error| e / 2) and the zero
     # checks' own error, far below the 0.03 deg fault the correction removed
     e = bench.platform.beta_pose_error_deg
@@ -127,8 +127,8 @@ def test_gear_term_recovers_the_amplitude_at_the_aliased_frequency(runs):
     p = jc.parameters["beta_gear_amplitude_deg"]
     assert abs(p["fitted"] - SIZES["gear"]) < 2.5 * p["stderr"]
     est2 = jc.predict(te)
-    fixed = stats.global_stats(stats.local_errors(est2, jc.reference(est2, test)))
-    plain = stats.global_stats(stats.local_errors(est))
+    fixed = stats.evaluate(est2, reference=jc.reference(est2, test))
+    plain = stats.evaluate(est)
     assert fixed.loc[("beta", "mu")].iloc[0] < 0.6 * plain.loc[("beta", "mu")].iloc[0]
 
 

@@ -80,7 +80,7 @@ def test_each_model_is_saved_and_loads_through_the_registry(run, tmp_path):
                  "--subset", "6", "--shots", "1", "--ideal-platform", "--out", str(cube_path),
                  "--no-progress"]) == 0
     est = cal.predict_frames(io.open_frames(cube_path))
-    table = stats.global_stats(stats.local_errors(est))
+    table = stats.evaluate(est)
     assert np.isfinite(table.values).all()
 
 

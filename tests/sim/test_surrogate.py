@@ -112,7 +112,7 @@ def test_linear_interpolation_is_left_with_138_percent_of_an_aliased_gear_error(
     # degrees (III): a polynomial cannot follow it and is left with about all of it; linear
     # interpolation predicts cos(pi / 1.6) = -0.38 times it at III's poses and is left with
     # 1.38 times it (docs/paper.md sec. 10).
-    from sunlab.calibration.methods import table4_methods
+    from sunlab.calibration import table4_methods
 
     geared = bench.ideal_platform().replace(mask__play_x_mm=0.0, mask__play_y_mm=0.0,
                                             platform__beta_gear_deg=0.01,
@@ -142,12 +142,12 @@ def test_a_zero_shift_between_sessions_gives_betas_offset_shape_and_the_tables_b
     bench = bench.replace(platform__beta_pose_error_deg=0.0005, platform__beta_gear_deg=0.0)
     from studies.identification import surrogate_runs
     from sunlab import stats
-    from sunlab.calibration.methods import table4_methods
+    from sunlab.calibration import table4_methods
 
     cen = surrogate_runs(bench, seed=0, step=1, shots=2)
     rec = table4_methods(neural=False)
-    t = stats.global_stats({m: stats.local_errors(rec[m](cen["I"], cen["II"]).predict(cen["III"]))
-                            for m in ("polynomial", "linear interp.")})
+    t = stats.evaluate({m: rec[m](cen["I"], cen["II"]) for m in ("polynomial", "linear interp.")},
+                       cen["III"])
     shape = t.xs("sigma", level="stat") / t.xs("mu", level="stat")
     assert (shape.loc["beta"] < 1 / np.sqrt(3)).all(), shape
     assert (shape.loc["alpha"] > 1 / np.sqrt(3)).all(), shape
