@@ -58,8 +58,9 @@ __all__ = ["Bench"]
 #: (docs/identification.md, ``studies/protocol.json``; ``studies.identification.
 #: identified_hypothesis``), fitted once with every nuisance at its prior median
 #: and the gear period profiled on the protocol's grid, on its preset seed
-#: (``sunlab/data/presets.json``, protocol version 4), to three significant figures; the profile
-#: likelihoods in ``studies/results/profiles.csv`` are withdrawn as intervals (docs/identification.md).
+#: (``sunlab/data/presets.json``, protocol version 4), to three significant figures; the
+#: profile likelihoods in ``studies/results/profiles.csv`` are withdrawn as intervals
+#: (docs/identification.md).
 #:
 #: The detector's pixel response, a nuisance (prior 0.5-3 % RMS, log-uniform; median 1.22 %),
 #: white and correlated parts equal, the correlation length's median (1-8 px, log-uniform).

@@ -28,8 +28,9 @@ Defaults and their rationale (our choices where the paper is silent, docs/paper.
 * hot pixels: 2e-4 of the array with an exponential dark signal of mean 8000 e-.
 * PRNU: 1 % white plus 4 % spatially correlated (white noise smoothed by a Gaussian of 6 px) by
   default, a generic low-cost sensor; the paper's preset
-  (:meth:`sunlab.sim.Bench.paper_single_hole`) takes the identification's nuisance median,
-  0.87 % white plus 0.87 % correlated over 2.8 px (``sunlab/data/preset_sources.csv``). A white PRNU of RMS s moves a uniform disk's centroid
+  (:meth:`sunlab.sim.Bench.paper_single_hole`) takes the identification's nuisance
+  median, 0.87 % white plus 0.87 % correlated over 2.8 px
+  (``sunlab/data/preset_sources.csv``). A white PRNU of RMS s moves a uniform disk's centroid
   by about 0.28 s px per axis whatever its radius (0.003 px at 1 %); a correlated pattern moves it
   more, a fixed function of where the spot falls (:func:`sunlab.sim.surrogate.spot_error_maps`:
   about 0.04 px RMS for the preset under its 35 px spot). Set ``prnu_correlated=0`` for an ideal
