@@ -183,17 +183,23 @@ def fit_optimised_model(x, y, alpha, beta, mask_distance_mm, pixel_pitch_mm, x_z
     err = (_bootstrap_stderr(solve, x, y, alpha, beta, res.x, blocks, n_boot, seed) if boot
            else _jacobian_stderr(res, n_par))
     names = ["delta_f_mm", "alpha0", "beta0", "x_zp", "y_zp"][:n_par]
+    zp = (float(res.x[3]), float(res.x[4])) if free_zp else (float(x_zp), float(y_zp))
+    return _fit_result(res, zp, F, p, mounting, dict(zip(names, err, strict=True)),
+                       "block bootstrap" if boot else "jacobian")
+
+
+def _fit_result(res, zp, F, p, mounting, err: dict, method: str) -> OptimisedFit:
+    """The :class:`OptimisedFit` of a least-squares solution ``res``."""
     q, n = res.x, res.fun.size // 2
-    zp = (float(q[3]), float(q[4])) if free_zp else (float(x_zp), float(y_zp))
     x_cf, y_cf = hole_foot(F, p, q[0], q[1], q[2], *zp, mounting)
     return OptimisedFit(
         delta_f_mm=float(q[0]), alpha0=float(q[1]), beta0=float(q[2]), x_zp=zp[0], y_zp=zp[1],
         x_cf=float(x_cf), y_cf=float(y_cf), mask_distance_mm=F, pixel_pitch_mm=p,
-        stderr={k: float(v) for k, v in zip(names, err, strict=True)},
+        stderr={k: float(v) for k, v in err.items()},
         rms_alpha=float(np.sqrt(np.mean(res.fun[:n] ** 2))),
         rms_beta=float(np.sqrt(np.mean(res.fun[n:] ** 2))), n_points=int(n),
-        zero_pose_fitted=free_zp, success=bool(res.success), message=str(res.message),
-        mounting=mounting, stderr_method="block bootstrap" if boot else "jacobian")
+        zero_pose_fitted=len(q) == 5, success=bool(res.success), message=str(res.message),
+        mounting=mounting, stderr_method=method)
 
 
 def _usable_points(x, y, alpha, beta, blocks, n_par: int):
