@@ -4,8 +4,8 @@ a numpydoc parse check that is a build warning, and a check that executed notebo
 The API reference is generated, not written: every room of sunlab (a module or sub-package
 directly under ``sunlab/``) gets a page listing its ``__all__`` with an autosummary table, one page
 per name, and, for a sub-package, each public submodule with the names it exports that the
-package does not re-export. A room that no group of :data:`GROUPS` names is a build warning, so
-the reference cannot silently miss a new room.
+package does not re-export. A room that no group of :data:`GROUPS` names, or a group's room the
+package no longer has, is a build warning, so the reference follows the package's rooms.
 """
 
 from __future__ import annotations
@@ -117,8 +117,9 @@ def room_page(room: str) -> str:
     return "\n".join(lines) + "\n"
 
 
-def index_page() -> str:
-    """The reST source of the API reference's index: the groups and their rooms."""
+def index_page(present) -> str:
+    """The reST source of the API reference's index: the groups and their rooms (those of
+    ``present``)."""
     title = "API reference"
     lines = [title, "=" * len(title), "",
              "Generated from the docstrings: every name in each room's ``__all__``, grouped as",
@@ -128,7 +129,7 @@ def index_page() -> str:
              ".. automodule:: sunlab", "   :no-members:", ""]
     for group, rooms in GROUPS.items():
         lines += [group, "-" * len(group), "", ".. toctree::", "   :maxdepth: 1", ""]
-        lines += [f"   sunlab.{room}" for room in rooms] + [""]
+        lines += [f"   sunlab.{room}" for room in rooms if room in present] + [""]
     return "\n".join(lines) + "\n"
 
 
@@ -136,16 +137,17 @@ def generate_api(app, config) -> None:
     """Write ``docs/api/*.rst`` before Sphinx looks for its sources (``config-inited``)."""
     import sunlab
 
-    package_dir = Path(sunlab.__file__).parent
+    on_disk = rooms_on_disk(Path(sunlab.__file__).parent)
     grouped = [room for rooms in GROUPS.values() for room in rooms]
-    for room in rooms_on_disk(package_dir):
-        if room not in grouped:
-            logger.warning(
-                "sunlab.%s is in no group of the API reference; add it to GROUPS in "
-                "docs/_ext/sunlab_docs.py", room, type="sunlab", subtype="api")
+    for room in sorted(set(on_disk) ^ set(grouped)):
+        logger.warning("sunlab.%s is %s GROUPS in docs/_ext/sunlab_docs.py", room,
+                       "in no group of the API reference: add it to" if room in on_disk
+                       else "no room of the package: remove it from", type="sunlab",
+                       subtype="api")
+    grouped = [room for room in grouped if room in on_disk]
     out = Path(app.srcdir) / API_DIR
     out.mkdir(exist_ok=True)
-    pages = {"index": index_page()} | {f"sunlab.{room}": room_page(room) for room in grouped}
+    pages = {"index": index_page(grouped)} | {f"sunlab.{room}": room_page(room) for room in grouped}
     for page, text in pages.items():
         # an unchanged page keeps its mtime, so an incremental build does not reread it
         path = out / f"{page}.rst"
