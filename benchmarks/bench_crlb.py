@@ -18,6 +18,7 @@ import argparse
 import math
 import time
 
+import _timing
 import numpy as np
 from scipy import stats
 
@@ -37,7 +38,7 @@ def sun_disk_profile(radius, sun, dmax, n=20001):
     dd = d[part]
     c1 = np.clip((dd**2 + sun**2 - radius**2) / (2 * dd * sun), -1, 1)
     c2 = np.clip((dd**2 + radius**2 - sun**2) / (2 * dd * radius), -1, 1)
-    k = np.clip((-dd + sun + radius) * (dd + sun - radius) * (dd - sun + radius)
+    k = np.clip((sun + radius - dd) * (dd + sun - radius) * (dd - sun + radius)
                 * (dd + sun + radius), 0, None)
     area = sun**2 * np.arccos(c1) + radius**2 * np.arccos(c2) - 0.5 * np.sqrt(k)
     out[part] = area / (math.pi * sun**2)
@@ -56,9 +57,8 @@ def render(profile, x0, y0, half, flux, rng, ss=8):
     """A (2 half + 1)^2 uint16 cutout of the spot centred at (x0, y0) with ``flux`` DN."""
     n = int(2 * half + 1)
     off = (np.arange(ss) + 0.5) / ss - 0.5
-    xs = (np.arange(n)[:, None] + off).ravel() - x0
-    ys = (np.arange(n)[:, None] + off).ravel() - y0
-    p = profile(np.hypot(xs[None, :], ys[:, None])).reshape(n, ss, n, ss).mean(axis=(1, 3))
+    grid = (np.arange(n)[:, None] + off).ravel()
+    p = profile(np.hypot(grid[None, :] - x0, grid[:, None] - y0)).reshape(n, ss, n, ss).mean((1, 3))
     mu = flux * p / p.sum() + BACKGROUND
     dn = rng.poisson(mu * GAIN) / GAIN + rng.normal(0.0, READ_NOISE, mu.shape)
     return np.clip(np.rint(dn), 0, 1023).astype(np.uint16)
@@ -90,8 +90,7 @@ def measure(name, n_frames, seed=1):
         t = time.perf_counter()
         got = np.array([(r.x, r.y) for r in (C.disk_fit(f, profile=pr) for f in frames)])
         row[pr + " ms"] = (time.perf_counter() - t) / n_frames * 1e3
-        err = got - truth
-        row[pr] = float(np.sqrt(np.mean(err**2)))  # both axes pooled
+        row[pr] = float(np.sqrt(np.mean((got - truth) ** 2)))  # both axes pooled
     return row
 
 
@@ -99,8 +98,7 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--frames", type=int, default=200)
     args = ap.parse_args(argv)
-    full = np.zeros((1024, 1280), np.uint16)
-    floor = min(_timed(np.copy, full) for _ in range(20))
+    floor = _timing.copy_ms(20)
     print(f"{args.frames} cutouts per spot; gain {GAIN:g} e-/DN, read noise {READ_NOISE} DN, "
           f"background {BACKGROUND:g} DN; floor: np.copy of a 1024 x 1280 frame {floor:.3f} ms")
     print(f"{'spot':36s} {'CRLB px':>8s} | {'erfc rms':>8s} {'/CRLB':>6s} {'ms':>6s} | "
@@ -112,12 +110,6 @@ def main(argv=None):
               f"{r['spline ms']:6.2f}", flush=True)
     print("rms: both axes pooled (sqrt of the mean squared error); its relative standard error "
           f"is about {1 / math.sqrt(4 * args.frames):.3f}")
-
-
-def _timed(fn, *args):
-    t = time.perf_counter()
-    fn(*args)
-    return (time.perf_counter() - t) * 1e3
 
 
 if __name__ == "__main__":

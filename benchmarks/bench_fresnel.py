@@ -50,16 +50,15 @@ def main():
             c, err = {}, {}
             for on, bench in benches.items():
                 r = projection_window(render_frame(bench, a, b, seed=0, play_mm=(0.0, 0.0)))
-                tx, ty = spot_truth(bench, a, b)
                 c[on] = np.array([r.x, r.y])
-                err[on] = c[on] - np.array([tx[0], ty[0]])
+                err[on] = c[on] - np.concatenate(spot_truth(bench, a, b))  # one hole
             d = c[True] - c[False]
             diffs.append(d)
+            (gx, gy), (fx, fy) = err[False], err[True]
             print(f"  alpha {a:+5.1f} beta {b:+5.1f}: B(Fresnel) - B(geometric) = "
-                  f"({d[0]:+.4f}, {d[1]:+.4f}) px; B - truth geometric ({err[False][0]:+.4f}, "
-                  f"{err[False][1]:+.4f}), Fresnel ({err[True][0]:+.4f}, {err[True][1]:+.4f})")
-        d = np.array(diffs)
-        d = d[np.all(np.isfinite(d), axis=1)]
+                  f"({d[0]:+.4f}, {d[1]:+.4f}) px; B - truth geometric ({gx:+.4f}, {gy:+.4f}), "
+                  f"Fresnel ({fx:+.4f}, {fy:+.4f})")
+        d = np.array(diffs)[np.all(np.isfinite(diffs), axis=1)]
         rms = np.sqrt(np.mean(d**2, axis=0))
         print(f"  RMS of the difference over the {len(d)} poses on the frame: x {rms[0]:.4f} px, "
               f"y {rms[1]:.4f} px")

@@ -7,23 +7,27 @@ realistic noise. Run: ``python benchmarks/bench_io.py [--poses 4] [--shots 8]``.
 from __future__ import annotations
 
 import argparse
-import shutil
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 
+from sunlab import io, plans, sim
+
 
 def _size(path: Path) -> int:
-    if path.is_dir():
-        return sum(f.stat().st_size for f in path.rglob("*") if f.is_file())
-    return path.stat().st_size
+    files = path.rglob("*") if path.is_dir() else [path]
+    return sum(f.stat().st_size for f in files if f.is_file())
+
+
+def _timed(fn):
+    t = time.perf_counter()
+    out = fn()
+    return time.perf_counter() - t, out
 
 
 def main(argv=None) -> None:
-    from sunlab import io, plans, sim
-
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--poses", type=int, default=4)
     ap.add_argument("--shots", type=int, default=8)
@@ -32,32 +36,25 @@ def main(argv=None) -> None:
     cube = sim.simulate(plan, seed=0).compute()
     frames = cube.frames.values
     mb = frames.nbytes / 1e6
-    tmp = Path(tempfile.mkdtemp())
-    try:
+
+    def read(path):
+        with io.open_frames(path) as opened:
+            return opened.frames.values
+
+    ways = {"np.save / np.load (raw)": ("raw.npy", lambda p: np.save(p, frames), np.load),
+            "sunlab.io zarr": ("cube.zarr", lambda p: io.save_frames(cube, p), read),
+            "sunlab.io nc": ("cube.nc", lambda p: io.save_frames(cube, p), read)}
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
         io.save_frames(cube.isel(pose=[0], shot=[0]), tmp / "warm.zarr")  # imports, codecs
         io.save_frames(cube.isel(pose=[0], shot=[0]), tmp / "warm.nc")
-        rows = []
-        t = time.perf_counter()
-        np.save(tmp / "raw.npy", frames)
-        tw = time.perf_counter() - t
-        t = time.perf_counter()
-        back = np.load(tmp / "raw.npy")
-        tr = time.perf_counter() - t
-        assert np.array_equal(back, frames)
-        raw = (tw, tr)
-        rows.append(("np.save / np.load (raw)", _size(tmp / "raw.npy"), tw, tr))
-        for name in ("cube.zarr", "cube.nc"):
-            t = time.perf_counter()
-            io.save_frames(cube, tmp / name)
-            tw = time.perf_counter() - t
-            t = time.perf_counter()
-            with io.open_frames(tmp / name) as opened:
-                data = opened.frames.values
-            tr = time.perf_counter() - t
-            assert np.array_equal(data, frames), name
-            rows.append((f"sunlab.io {name.split('.')[1]}", _size(tmp / name), tw, tr))
-    finally:
-        shutil.rmtree(tmp)
+        for name, (file, write, load) in ways.items():
+            tw, _ = _timed(lambda: write(tmp / file))  # noqa: B023 - called at once
+            tr, back = _timed(lambda: load(tmp / file))  # noqa: B023
+            assert np.array_equal(back, frames), name
+            rows.append((name, _size(tmp / file), tw, tr))
+    raw = rows[0][2:]
     print(f"{frames.shape} uint16 frames from the virtual bench, {mb:.0f} MB raw")
     print(f"{'format':<26}{'MB on disk':>11}{'ratio':>7}{'write s':>9}{'MB/s':>7}"
           f"{'read s':>8}{'MB/s':>7}{'write/raw':>10}{'read/raw':>9}")

@@ -17,50 +17,34 @@ Usage::
 from __future__ import annotations
 
 import argparse
-import os
 
-for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
-    os.environ.setdefault(_var, "1")
+import _timing
 
-import time  # noqa: E402
+_timing.single_thread()
 
 import numpy as np  # noqa: E402
 
-
-def _best_cpu_ms(fn, repeat: int, kernels: str) -> float:
-    """Best process CPU time of ``repeat`` calls of ``fn()`` under the option ``kernels``, ms."""
-    import sunlab
-
-    with sunlab.set_options(kernels=kernels):
-        fn()  # warm-up
-        best = np.inf
-        for _ in range(repeat):
-            c0 = time.process_time()
-            fn()
-            best = min(best, time.process_time() - c0)
-    return 1e3 * best
+import sunlab  # noqa: E402
+from sunlab import sim  # noqa: E402
+from sunlab.sim import render, spots  # noqa: E402
+from sunlab.sim.detector import adc_frame, fixed_pattern, normal_table  # noqa: E402
 
 
 def _cases():
     """(name, zero-argument callable) for each measured kernel and for one whole frame."""
-    from sunlab import sim
-    from sunlab.sim import render, spots
-    from sunlab.sim.detector import adc_frame, fixed_pattern, normal_table
-
     bench = sim.Bench.paper_single_hole()
     det = bench.detector
-    fp = fixed_pattern(det)
-    table = normal_table()
+    fp, table = fixed_pattern(det), normal_table()
     out = np.empty(det.shape, dtype=np.uint16)
     group = spots._groups(bench, render.spot_geometry(bench, -7.0, 6.0))[0]
     m = group.stamp_size()
     al = np.arange(-1, 2)
     fx = (al[:, None] + (np.arange(m // 2 + 1) / m)[None, :]).ravel()
     fy = (al[:, None] + np.fft.fftfreq(m)[None, :]).ravel()
+    seed = np.array([7], np.uint64)
     return [
-        ("adc_frame (1280 x 1024)", lambda: adc_frame(
-            fp.bg_mean_dn, fp.bg_sigma_dn, table, np.array([7], np.uint64),
-            float(det.max_dn), out)),
+        ("adc_frame (1280 x 1024)", lambda: adc_frame(fp.bg_mean_dn, fp.bg_sigma_dn, table, seed,
+                                                      float(det.max_dn), out)),
         (f"spectrum ({fy.size} x {fx.size})", lambda: group.common(fx, fy, tabulated=True)),
         ("render_frame", lambda: sim.render_frame(bench, -7.0, 6.0, seed=0, pose=0, shot=1)),
     ]
@@ -81,9 +65,12 @@ def main(repeat: int = 5) -> None:
     """
     print(f"{'case':34s} {'numba ms':>10s} {'numpy ms':>10s} {'numpy/numba':>12s}")
     for name, fn in _cases():
-        compiled = _best_cpu_ms(fn, repeat, "numba")
-        reference = _best_cpu_ms(fn, repeat, "numpy")
-        print(f"{name:34s} {compiled:10.2f} {reference:10.2f} {reference / compiled:12.1f}")
+        ms = {}
+        for kernels in ("numba", "numpy"):
+            with sunlab.set_options(kernels=kernels):
+                ms[kernels] = _timing.best_ms(fn, repeat, "cpu")
+        print(f"{name:34s} {ms['numba']:10.2f} {ms['numpy']:10.2f} "
+              f"{ms['numpy'] / ms['numba']:12.1f}")
 
 
 if __name__ == "__main__":

@@ -34,8 +34,7 @@ from sunlab.cli import main  # noqa: E402
 def _run(root: Path, camera: str, correct: bool, method: str) -> str:
     bits, left, kind = lab.CAMERAS[camera]
     rng = np.random.default_rng(len(camera))
-    train, train_truth = lab._recording(root, "train", lab._grid(lab.TRAIN), bits, left, kind,
-                                        rng)
+    train, _ = lab._recording(root, "train", lab._grid(lab.TRAIN), bits, left, kind, rng)
     test, test_truth = lab._recording(root, "test", lab._grid(lab.TEST), bits, left, kind, rng)
     cal = lab._calibration_frames(root, bits, left, kind, rng)
     extra = ["--dark", str(cal["dark"]), "--flat", str(cal["flat"])] if correct else []
@@ -52,8 +51,8 @@ def _run(root: Path, camera: str, correct: bool, method: str) -> str:
                                      "--out", str(root / "ev")]) == 0
     cen = io.open_centroids(root / "test.nc")
     ok = cen.status.values == 0
-    measured = np.stack([cen.x.values, cen.y.values], axis=-1)
-    rms = lab._affine_rms(measured[ok], test_truth[ok]) if ok.any() else float("nan")
+    measured = np.stack([cen.x.values, cen.y.values], axis=-1)[ok]
+    rms = lab._affine_rms(measured, test_truth[ok]) if ok.any() else float("nan")
     mu = "calibrate refused (no usable shot)"
     if evaluated:
         doc = json.loads((root / "ev" / "evaluation.json").read_text())

@@ -37,8 +37,14 @@ import time
 
 import numpy as np
 
+from sunlab import centroid, plans, sim
+from sunlab import multihole as mh
+from sunlab.stats import error_summary
 
-def dust_masks(mask, kind: str, n_bad: int, seed: int = 0, height_mm=(0.2, 0.5)):
+ORDER, KAPPA, SEED = 5, 5.0, 0  # per-hole calibration order, rejection threshold (robust z)
+
+
+def dust_masks(mask, kind: str, n_bad: int, seed: int = SEED, height_mm=(0.2, 0.5)):
     """Calibration and test masks with ``n_bad`` dusty holes of the given ``kind``.
 
     Returns ``(mask_I, mask_III, holes)``. Particles are 0.05-0.08 mm across on 0.2 mm holes
@@ -49,74 +55,69 @@ def dust_masks(mask, kind: str, n_bad: int, seed: int = 0, height_mm=(0.2, 0.5))
     that its shadow (moving by height x tan(angle)) enters and leaves the aperture over the
     test's 18 deg range.
     """
-    from sunlab import sim
-
     rng = np.random.default_rng(np.random.SeedSequence([int(seed), 0xD057]))
     holes = sorted(rng.choice(mask.n_holes, size=n_bad, replace=False).tolist())
     cal, test = {}, {}
     for k in holes:
-        ang = rng.uniform(0, 2 * np.pi)
-        size = rng.uniform(0.05, 0.08)
+        ang, size = rng.uniform(0, 2 * np.pi), rng.uniform(0.05, 0.08)
         if kind == "parallax":
             dist, height = rng.uniform(0.08, 0.13), rng.uniform(*height_mm)
         else:
             dist, height = rng.uniform(0.05, 0.08), 0.0
-        cal[k] = sim.Dust(dist * math.cos(ang), dist * math.sin(ang), size, height)
+        cal[k] = test[k] = sim.Dust(dist * math.cos(ang), dist * math.sin(ang), size, height)
         if kind == "moving":
             ang2 = ang + rng.uniform(0.5 * np.pi, 1.5 * np.pi)
             test[k] = sim.Dust(dist * math.cos(ang2), dist * math.sin(ang2), size, height)
-        else:
-            test[k] = cal[k]
     return mask.with_defects(cal), mask.with_defects(test), holes
 
 
 def centroid_runs(bench, masks, args, seed_step=0):
     """Experiments I and III on ``bench`` with ``masks`` (one per run), simulated and centroided;
     returns the two tables and the seconds taken."""
-    from sunlab import centroid, plans, sim
-
     t0 = time.perf_counter()
     tabs = [centroid.locate(sim.simulate(plans.experiment(exp, shots=args.shots).subset(
-        args.step), bench.replace(mask=mask), seed=args.seed + k * seed_step), "tight",
+        args.step), bench.replace(mask=mask), seed=SEED + k * seed_step), "tight",
         progress=False) for k, (exp, mask) in enumerate(zip(("I", "III"), masks, strict=True))]
     return tabs, time.perf_counter() - t0
 
 
+def _perfect_bench(n_bad: int):
+    """Table 5's bench with a perfect platform and the mask held without play."""
+    return (sim.Bench.paper_multi_hole(n_bad=n_bad).ideal_platform()
+            .replace(mask__play_x_mm=0.0, mask__play_y_mm=0.0))
+
+
+def _median_summary(summaries):
+    return {a: {k: float(np.median([s[a][k] for s in summaries])) for k in summaries[0][a]}
+            for a in ("alpha", "beta")}
+
+
 def defect_study(args):
     """The second study: dust that a per-hole calibration cannot absorb (or, control, can)."""
-    from sunlab import multihole as mh
-    from sunlab import sim
-    from sunlab.stats import error_summary
-
-    bench = (sim.Bench.paper_multi_hole(n_bad=0).ideal_platform()
-             .replace(mask__play_x_mm=0.0, mask__play_y_mm=0.0))
-    m1, m3, injected = dust_masks(bench.mask, args.defects, args.bad, seed=args.seed,
-                                   height_mm=args.height)
+    bench = _perfect_bench(0)
+    m1, m3, injected = dust_masks(bench.mask, args.defects, args.bad)
     (train, test), t_sim = centroid_runs(bench, (m1, m3), args, seed_step=1)
-    s2 = mh.PerHoleAverage(order=args.order).fit(train)
-    bad = mh.reject_bad_holes(mh.defect_metrics(train, strategy=s2), kappa=args.kappa).values
+    s2 = mh.PerHoleAverage(order=ORDER).fit(train)
+    bad = mh.reject_bad_holes(mh.defect_metrics(train, strategy=s2), kappa=KAPPA).values
     est = s2.predict_holes(test)
     good = np.ones(100, bool)
     good[injected] = False
-    singles = [error_summary(est.isel(hole=h)) for h in np.flatnonzero(good)]
+    robust = mh.PerHoleAverage(order=ORDER, holes=~bad, weighting="inverse_variance", clip=4.0,
+                               calibrations_=s2.calibrations_, variance_=s2.variance_)
     rows = {
-        "one hole (median good hole)": {a: {k: float(np.median([s[a][k] for s in singles]))
-                                            for k in singles[0][a]} for a in ("alpha", "beta")},
-        "one bad hole (median)": {
-            a: {k: float(np.median([error_summary(est.isel(hole=h))[a][k] for h in injected]))
-                for k in singles[0][a]} for a in ("alpha", "beta")},
+        "one hole (median good hole)": _median_summary(
+            [error_summary(est.isel(hole=h)) for h in np.flatnonzero(good)]),
+        "one bad hole (median)": _median_summary(
+            [error_summary(est.isel(hole=h)) for h in injected]),
         "average of all 100": error_summary(s2.combine(est)),
         "average, flagged left out": error_summary(s2.combine(est, holes=~bad)),
-        "average, flagged out + robust": error_summary(
-            mh.PerHoleAverage(order=args.order, holes=~bad, weighting="inverse_variance",
-                              clip=4.0, calibrations_=s2.calibrations_,
-                              variance_=s2.variance_).combine(est)),
+        "average, flagged out + robust": error_summary(robust.combine(est)),
         "average, injected left out": error_summary(s2.combine(est, holes=good)),
     }
     flagged = np.flatnonzero(bad).tolist()
     print(f"defects: {args.defects}; frames: {train.sizes['pose'] * args.shots} (I) + "
           f"{test.sizes['pose'] * args.shots} (III) of 100 spots, simulated and centroided in "
-          f"{t_sim:.0f} s; per-hole calibration order {args.order}")
+          f"{t_sim:.0f} s; per-hole calibration order {ORDER}")
     print(f"injected: {injected}")
     print(f"flagged:  {flagged}  (missed {sorted(set(injected) - set(flagged))}, false "
           f"{sorted(set(flagged) - set(injected))})")
@@ -124,11 +125,9 @@ def defect_study(args):
     print(f"{'strategy':32s} {'alpha mu':>9s} {'alpha rms':>9s} {'gain mu':>7s} {'gain rms':>8s}"
           f" {'beta mu':>9s} {'beta rms':>9s} {'gain mu':>7s} {'gain rms':>8s}   (deg)")
     for k, s in rows.items():
-        line = f"{k:32s}"
-        for a in ("alpha", "beta"):
-            line += (f" {s[a]['mu']:9.5f} {s[a]['rms']:9.5f} {one[a]['mu'] / s[a]['mu']:7.2f}"
-                     f" {one[a]['rms'] / s[a]['rms']:8.2f}")
-        print(line)
+        print(f"{k:32s}" + "".join(
+            f" {s[a]['mu']:9.5f} {s[a]['rms']:9.5f} {one[a]['mu'] / s[a]['mu']:7.2f}"
+            f" {one[a]['rms'] / s[a]['rms']:8.2f}" for a in ("alpha", "beta")))
     return rows, injected, flagged
 
 
@@ -137,27 +136,15 @@ def main(argv=None):
     ap.add_argument("--step", type=int, default=2, help="take every step-th pose")
     ap.add_argument("--shots", type=int, default=2)
     ap.add_argument("--bad", type=int, default=10, help="holes with random defects")
-    ap.add_argument("--order", type=int, default=5)
-    ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--kappa", type=float, default=5.0, help="rejection threshold (robust z)")
-    ap.add_argument("--platform", action="store_true", help="keep the paper's platform errors")
-    ap.add_argument("--height", type=float, nargs=2, default=(0.2, 0.5), metavar=("LO", "HI"),
-                    help="range of the parallax particles' height above the mask, mm")
     ap.add_argument("--defects", choices=("moving", "parallax", "static"), default=None,
                     help="run the dust study instead (see the module notes)")
     args = ap.parse_args(argv)
     if args.defects:
         defect_study(args)
         return
-
-    from sunlab import multihole as mh
-    from sunlab import sim
-
-    bench = sim.Bench.paper_multi_hole(n_bad=args.bad)
-    if not args.platform:
-        bench = bench.ideal_platform().replace(mask__play_x_mm=0.0, mask__play_y_mm=0.0)
+    bench = _perfect_bench(args.bad)
     tabs, t_sim = centroid_runs(bench, (bench.mask, bench.mask), args)
-    g = mh.gain_study(tabs[0], tabs[1], order=args.order, kappa=args.kappa)
+    g = mh.gain_study(tabs[0], tabs[1], order=ORDER, kappa=KAPPA)
     injected = np.flatnonzero(tabs[0]["hole_defect"].values).tolist()
     print(f"frames: {tabs[0].sizes['pose'] * args.shots} + {tabs[1].sizes['pose'] * args.shots}"
           f" of 100 spots, simulated and centroided in {t_sim:.0f} s")

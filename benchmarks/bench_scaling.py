@@ -16,46 +16,63 @@ from __future__ import annotations
 
 import argparse
 import os
+import resource
 import time
 
+import _timing
 import numpy as np
+
+from sunlab import parallel, sim
+from sunlab.reproduce import experiment_plans, simulate_and_locate
+from sunlab.reproduce.pipeline import locate_runs, simulate_runs
+from sunlab.sim import render
 
 
 def floor_u() -> float:
-    rng = np.random.default_rng()
-    best = np.inf
-    for _ in range(5):
-        t = time.perf_counter()
-        rng.standard_normal((1024, 1280), dtype=np.float32)
-        best = min(best, time.perf_counter() - t)
-    return best
+    """The floor u of issue 16, s: best of 5 of one frame of float32 standard normals."""
+    return _timing.noise_ms() / 1e3
 
 
 def _rss_mb() -> float:
-    import resource
-
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
-def main(argv=None):
-    from sunlab import parallel, sim
-    from sunlab.reproduce import experiment_plans, simulate_and_locate
-    from sunlab.reproduce.pipeline import locate_runs, simulate_runs
-    from sunlab.sim import render
+def _run(sched: str, workers: int, step: int, bench):
+    """One reproduction's frames on ``workers`` of ``sched``: (tables, CPU s, memory text)."""
+    c0 = time.process_time()
+    if sched == "cluster":
+        from distributed import Client
 
+        with parallel.local_cluster(workers) as cluster, Client(cluster) as client:
+            w0 = client.run(time.process_time)
+            got = simulate_and_locate(step=step, progress=False, address=cluster.scheduler_address)
+            w1 = client.run(time.process_time)
+            mem = client.run(_rss_mb)
+        rss = ", ".join(f"{v:.0f}" for v in mem.values())
+        return got, sum(w1[k] - w0[k] for k in w0), f"peak RSS per worker {rss} MB"
+    if sched == "processes":
+        # as sunlab reproduce runs it: one pool, its workers forked warm from the fork server
+        # (parallel.worker_pool), whose children they are: their CPU and memory are read from
+        # /proc before the pool closes
+        with parallel.worker_pool(sched, workers) as pool:
+            cubes = simulate_runs({k: (p, bench) for k, p in experiment_plans(step=step).items()})
+            got = locate_runs(cubes, progress=False, scheduler=sched, workers=workers, pool=pool)
+            cpu, rss = _pool_usage()
+        return got, cpu, f"peak RSS per worker {rss} MB"
+    got = simulate_and_locate(step=step, progress=False, scheduler=sched, workers=workers)
+    return got, time.process_time() - c0, f"peak RSS of this process {_rss_mb():.0f} MB"
+
+
+def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--step", type=int, default=3, help="keep every step-th angle per axis")
     args = ap.parse_args(argv)
 
     bench = sim.Bench.paper_single_hole()
-    frame = sim.render_frame(bench, -5.0, 5.0, seed=0)
-    best = np.inf
-    for i in range(10):
-        t = time.perf_counter()
-        sim.render_frame(bench, -5.0, 5.0, seed=0, pose=i)
-        best = min(best, time.perf_counter() - t)
-    cp = min(_timed(np.copy, frame) for _ in range(10))
-    u = floor_u()
+    sim.render_frame(bench, -5.0, 5.0, seed=0)
+    best = _timing.times(lambda i: sim.render_frame(bench, -5.0, 5.0, seed=0, pose=i), 10,
+                         warm=False)["wall"][1] / 1e3
+    cp, u = _timing.copy_ms() / 1e3, floor_u()
     n = sum(len(p) * p.shots for p in experiment_plans(step=args.step).values())
     print(f"load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} CPUs")
     print(f"u (float32 standard normals, one frame) {u * 1e3:.2f} ms; np.copy of a frame "
@@ -67,8 +84,7 @@ def main(argv=None):
         pool.submit(int).result()
     print(f"fork server of the process pool ready in {time.perf_counter() - t:.2f} s (once per "
           "process, in parallel with the caller's own start in sunlab reproduce)")
-    ref = None
-    walls = {}
+    ref, walls = None, {}
     for sched in ("threads", "processes", "cluster"):
         for workers in (1, 2):
             # every run renders the same frames: empty the geometry cache of this process so
@@ -76,38 +92,8 @@ def main(argv=None):
             # empty)
             render._spot_geometry_cached.cache_clear()
             t = time.perf_counter()
-            c0 = time.process_time()
-            if sched == "cluster":
-                with parallel.local_cluster(workers) as cluster:
-                    from distributed import Client
-
-                    with Client(cluster) as client:
-                        w0 = client.run(time.process_time)
-                        got = simulate_and_locate(step=args.step, progress=False,
-                                                  address=cluster.scheduler_address)
-                        w1 = client.run(time.process_time)
-                        mem = client.run(_rss_mb)
-                cpu = sum(w1[k] - w0[k] for k in w0)
-                mem_txt = "peak RSS per worker " + ", ".join(f"{v:.0f}" for v in mem.values())
-                mem_txt += " MB"
-            elif sched == "processes":
-                # as sunlab reproduce runs it: one pool, its workers forked warm from the fork
-                # server (parallel.worker_pool), whose children they are: their CPU and memory
-                # are read from /proc before the pool closes
-                with parallel.worker_pool(sched, workers) as pool:
-                    cubes = simulate_runs({k: (p, bench) for k, p in
-                                           experiment_plans(step=args.step).items()})
-                    got = locate_runs(cubes, progress=False, scheduler=sched, workers=workers,
-                                      pool=pool)
-                    cpu, rss = _pool_usage()
-                mem_txt = f"peak RSS per worker {rss} MB"
-            else:
-                got = simulate_and_locate(step=args.step, progress=False, scheduler=sched,
-                                          workers=workers)
-                cpu = time.process_time() - c0
-                mem_txt = f"peak RSS of this process {_rss_mb():.0f} MB"
-            wall = time.perf_counter() - t
-            walls[(sched, workers)] = wall
+            got, cpu, mem_txt = _run(sched, workers, args.step, bench)
+            wall = walls[(sched, workers)] = time.perf_counter() - t
             xy = np.concatenate([np.r_[c.x.values.ravel(), c.y.values.ravel()]
                                  for c in got.values()])
             same = ref is None or np.array_equal(xy, ref, equal_nan=True)
@@ -136,18 +122,11 @@ def _pool_usage() -> tuple[float, str]:
         except OSError:
             continue
         fields = stat[stat.rindex(")") + 2:].split()
-        if int(fields[1]) != server:
-            continue
-        cpu += (int(fields[11]) + int(fields[12])) / tick
-        rss += [int(line.split()[1]) / 1024 for line in status.splitlines()
-                if line.startswith("VmHWM")]
+        if int(fields[1]) == server:
+            cpu += (int(fields[11]) + int(fields[12])) / tick
+            rss += [int(ln.split()[1]) / 1024 for ln in status.splitlines()
+                    if ln.startswith("VmHWM")]
     return cpu, ", ".join(f"{v:.0f}" for v in rss)
-
-
-def _timed(fn, *args):
-    t = time.perf_counter()
-    fn(*args)
-    return time.perf_counter() - t
 
 
 if __name__ == "__main__":

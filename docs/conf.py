@@ -79,43 +79,31 @@ numpydoc_xref_param_type = False
 numpydoc_class_members_toctree = False
 
 # --- references to other projects ----------------------------------------------------------------
+_MODULES = (r"os|pathlib|collections|typing|dataclasses|enum|abc|argparse|subprocess|json|logging"
+            r"|threading|concurrent|multiprocessing|signal|io|contextlib|time|socket")
+#: project -> (its documentation, the names its references start with)
 PROJECTS = {
-    "python": "https://docs.python.org/3/",
-    "numpy": "https://numpy.org/doc/stable/",
-    "scipy": "https://docs.scipy.org/doc/scipy/",
-    "xarray": "https://docs.xarray.dev/en/stable/",
-    "pandas": "https://pandas.pydata.org/docs/",
-    "matplotlib": "https://matplotlib.org/stable/",
-    "torch": "https://docs.pytorch.org/docs/stable/",
-    "dask": "https://docs.dask.org/en/stable/",
-    "pyserial": "https://pyserial.readthedocs.io/en/latest/",
-}
-#: the names in docstrings that belong to each project (a module prefix, or Python's builtins)
-PREFIXES = {
-    "python": r"(builtins\.)?(" + "|".join(n for n in dir(builtins) if not n.startswith("_"))
-              + r")|(os|pathlib|collections|typing|dataclasses|enum|abc|argparse|subprocess|json"
-              r"|logging|threading|concurrent|multiprocessing|signal|io|contextlib|time|socket)\.\S+",
-    "numpy": r"(numpy|np)(\.\S+)?",
-    "scipy": r"scipy(\.\S+)?",
-    "xarray": r"(xarray|xr)(\.\S+)?",
-    "pandas": r"(pandas|pd)(\.\S+)?",
-    "matplotlib": r"(matplotlib|mpl|plt)(\.\S+)?",
-    "torch": r"torch(\.\S+)?",
-    "dask": r"(dask|distributed)(\.\S+)?",
-    "pyserial": r"serial(\.\S+)?",
+    "python": ("https://docs.python.org/3/", r"(builtins\.)?(" + "|".join(
+        n for n in dir(builtins) if not n.startswith("_")) + rf")|({_MODULES})\.\S+"),
+    "numpy": ("https://numpy.org/doc/stable/", r"(numpy|np)(\.\S+)?"),
+    "scipy": ("https://docs.scipy.org/doc/scipy/", r"scipy(\.\S+)?"),
+    "xarray": ("https://docs.xarray.dev/en/stable/", r"(xarray|xr)(\.\S+)?"),
+    "pandas": ("https://pandas.pydata.org/docs/", r"(pandas|pd)(\.\S+)?"),
+    "matplotlib": ("https://matplotlib.org/stable/", r"(matplotlib|mpl|plt)(\.\S+)?"),
+    "torch": ("https://docs.pytorch.org/docs/stable/", r"torch(\.\S+)?"),
+    "dask": ("https://docs.dask.org/en/stable/", r"(dask|distributed)(\.\S+)?"),
+    "pyserial": ("https://pyserial.readthedocs.io/en/latest/", r"serial(\.\S+)?"),
 }
 _inventories = os.environ.get("SUNLAB_DOCS_INVENTORIES", "")
 intersphinx_mapping = {}
 nitpick_ignore_regex = []
-for name, url in PROJECTS.items():
-    if _inventories == "online":
-        intersphinx_mapping[name] = (url, None)
-    elif _inventories and (Path(_inventories) / f"{name}.inv").is_file():
-        intersphinx_mapping[name] = (url, str(Path(_inventories) / f"{name}.inv"))
+for name, (url, prefix) in PROJECTS.items():
+    inv = Path(_inventories) / f"{name}.inv"
+    if _inventories == "online" or (_inventories and inv.is_file()):
+        intersphinx_mapping[name] = (url, None if _inventories == "online" else str(inv))
     else:
-        nitpick_ignore_regex.append((r"py:.*", PREFIXES[name]))
+        nitpick_ignore_regex.append((r"py:.*", prefix))
 
-# --- the pages ----------------------------------------------------------------------------------
 html_theme = "pydata_sphinx_theme"
 html_title = "sunlab"
 html_theme_options = {

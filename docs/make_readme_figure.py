@@ -2,23 +2,19 @@
 
 from pathlib import Path
 
-import matplotlib
+import numpy as np
+from matplotlib.figure import Figure
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from sunlab import centroid, sim  # noqa: E402
+from sunlab import centroid, sim
 
 
 def main(path: Path = Path(__file__).parent / "images" / "bench.png") -> Path:
-    one = sim.Bench.paper_single_hole()
-    many = sim.Bench.paper_multi_hole()
     a, b = -8.0, 7.0
-    f1 = sim.render_frame(one, a, b, seed=0)
-    f100 = sim.render_frame(many, a, b, seed=0)
+    f1 = sim.render_frame(sim.Bench.paper_single_hole(), a, b, seed=0)
+    f100 = sim.render_frame(sim.Bench.paper_multi_hole(), a, b, seed=0)
     c = centroid.projection_window(f1)
-    fig, ax = plt.subplots(1, 3, figsize=(13, 3.6), gridspec_kw={"width_ratios": [1.25, 1.25, 1]})
+    fig = Figure(figsize=(13, 3.6))
+    ax = fig.subplots(1, 3, gridspec_kw={"width_ratios": [1.25, 1.25, 1]})
     ax[0].imshow(f1, cmap="gray", vmax=np.percentile(f1, 99.99))
     ax[0].set_title(f"one 0.2 mm hole, alpha={a} deg, beta={b} deg")
     ax[1].imshow(f100, cmap="gray", vmax=np.percentile(f100, 99.9))
@@ -29,8 +25,7 @@ def main(path: Path = Path(__file__).parent / "images" / "bench.png") -> Path:
     ax[2].plot(c.x, c.y, "c+", ms=14, mew=1.5)
     ax[2].set_title(f"algorithm B window\ncentroid ({c.x:.2f}, {c.y:.2f}) px")
     for a_ in ax[:2]:
-        a_.set_xlabel("x (column)")
-        a_.set_ylabel("y (row)")
+        a_.set(xlabel="x (column)", ylabel="y (row)")
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=80)

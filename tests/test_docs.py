@@ -81,6 +81,7 @@ def test_every_room_of_sunlab_is_in_the_api_reference():
     grouped = {room for rooms in docs.GROUPS.values() for room in rooms}
     rooms = set(docs.rooms_on_disk(ROOT / "sunlab"))
     assert rooms <= grouped, f"rooms missing from the API reference: {sorted(rooms - grouped)}"
+    assert grouped <= rooms, f"groups name rooms the package has not: {sorted(grouped - rooms)}"
 
 
 def test_a_docstring_numpydoc_cannot_parse_is_reported():

@@ -6,7 +6,7 @@ from numpy.testing import assert_allclose
 
 from sunlab import geometry
 from sunlab.errors import ConfigurationError
-from sunlab.geometry import _solve
+from sunlab.geometry import _fit
 
 F, P = 5.0, 0.007
 TRUTH = {"delta_f_mm": 0.094, "alpha0": 1.864, "beta0": 0.415}
@@ -130,7 +130,7 @@ def test_analytic_jacobian_matches_finite_differences(mounting, free_zero_pose):
     w = np.sqrt(np.arange(a.size) % 3 + 1.0)  # bootstrap multiplicities 1..3
     q = np.array([0.12, 1.5, 0.6, 598.0, 523.0][: 5 if free_zero_pose else 3])
     zp = None if free_zero_pose else (598.0, 523.0)
-    model = _solve._AngleResiduals(x, y, a, b, F, P, zp, mounting, w)
+    model = _fit._AngleResiduals(x, y, a, b, F, P, zp, mounting, w)
     # the residuals are those of optimised_angles, weighted
     am, bm = geometry.optimised_angles(x, y, F, P, *q[:3], *(zp or q[3:]), mounting=mounting)
     assert_allclose(model.residuals(q), np.concatenate([am - a, bm - b]) * np.tile(w, 2),
@@ -160,10 +160,9 @@ def test_integer_weights_equal_duplicated_points():
     dup = np.repeat(np.arange(a.size), k)
     use = k > 0
     q0 = [0.0, 0.0, 0.0, 600.0, 520.0]
-    by_copies = _solve._least_squares(x[dup], y[dup], a[dup], b[dup], q0, F, P, None,
-                                        "rotation")
-    by_weight = _solve._least_squares(x[use], y[use], a[use], b[use], q0, F, P, None,
-                                        "rotation", np.sqrt(k[use]))
+    by_copies = _fit._least_squares(x[dup], y[dup], a[dup], b[dup], q0, F, P, None, "rotation")
+    by_weight = _fit._least_squares(x[use], y[use], a[use], b[use], q0, F, P, None, "rotation",
+                                    np.sqrt(k[use]))
     # Two solves of one objective agree to what the solver and the arithmetic can resolve, not
     # to a fixed 1e-10 (issue 37: 3.4e-10 on another machine's BLAS): each stops within its
     # Gauss-Newton step of the minimiser (the stopping rule), and rounding of the m residuals

@@ -4,18 +4,18 @@ a numpydoc parse check that is a build warning, and a check that executed notebo
 The API reference is generated, not written: every room of sunlab (a module or sub-package
 directly under ``sunlab/``) gets a page listing its ``__all__`` with an autosummary table, one page
 per name, and, for a sub-package, each public submodule with the names it exports that the
-package does not re-export. A room that no group of :data:`GROUPS` names is a build warning, so
-the reference cannot silently miss a new room.
+package does not re-export. A room that no group of :data:`GROUPS` names, or a group's room the
+package no longer has, is a build warning, so the reference follows the package's rooms.
 """
 
 from __future__ import annotations
 
 import importlib
+import itertools
 import pkgutil
 import re
 import subprocess
 import warnings
-from collections import OrderedDict
 from pathlib import Path
 
 from docutils import nodes
@@ -25,23 +25,21 @@ from sphinx.util.docutils import SphinxDirective
 logger = logging.getLogger(__name__)
 
 #: the API reference's sections, in the order of the package's layers (docs/architecture.md)
-GROUPS: OrderedDict[str, tuple[str, ...]] = OrderedDict(
-    [
-        ("Schema and I/O", ("schema", "io", "integrity", "atomic")),
-        ("Plans and simulation", ("plans", "sim")),
-        ("Centroids", ("centroid", "screening")),
-        ("Geometry", ("geometry",)),
-        ("Calibration", ("calibration",)),
-        ("Statistics and the evaluation report", ("stats", "report")),
-        ("Multi-hole mask", ("multihole",)),
-        ("Hardware", ("hardware",)),
-        ("Reproduction", ("reproduce",)),
-        ("Export", ("export",)),
-        ("Figures and widgets", ("plots", "widgets")),
-        ("Foundations", ("errors", "options", "extras", "parallel")),
-        ("Command line, course and example data", ("cli", "course", "data.make_example")),
-    ]
-)
+GROUPS: dict[str, tuple[str, ...]] = {
+    "Schema and I/O": ("schema", "io", "integrity", "atomic"),
+    "Plans and simulation": ("plans", "sim"),
+    "Centroids": ("centroid", "screening"),
+    "Geometry": ("geometry",),
+    "Calibration": ("calibration",),
+    "Statistics and the evaluation report": ("stats", "report"),
+    "Multi-hole mask": ("multihole",),
+    "Hardware": ("hardware",),
+    "Reproduction": ("reproduce",),
+    "Export": ("export",),
+    "Figures and widgets": ("plots", "widgets"),
+    "Foundations": ("errors", "options", "extras", "parallel"),
+    "Command line, course and example data": ("cli", "course", "data.make_example"),
+}
 
 API_DIR = "api"
 
@@ -60,34 +58,20 @@ def rooms_on_disk(package_dir: Path) -> list[str]:
         Room names, sorted (``"io"``, ``"stats"``, ...); ``data`` counts by its modules
         (``"data.make_example"``), as it is a folder of files rather than a package.
     """
-    found = []
-    for info in pkgutil.iter_modules([str(package_dir)]):
-        if not info.name.startswith("_"):
-            found.append(info.name)
-    for path in sorted((package_dir / "data").glob("[!_]*.py")):
-        found.append(f"data.{path.stem}")
-    return sorted(found)
+    found = [i.name for i in pkgutil.iter_modules([str(package_dir)]) if i.name[0] != "_"]
+    return sorted(found + [f"data.{p.stem}" for p in (package_dir / "data").glob("[!_]*.py")])
 
 
 def _exported(module) -> list[str]:
     """``module.__all__`` without the submodules it lists (they get their own section)."""
-    names = []
-    for name in getattr(module, "__all__", ()):
-        if name.startswith("__"):
-            continue
-        obj = getattr(module, name)
-        if getattr(obj, "__name__", None) == f"{module.__name__}.{name}":
-            continue  # a submodule re-exported by name
-        names.append(name)
-    return names
+    # a submodule listed by name has its own section
+    return [n for n in getattr(module, "__all__", ()) if not n.startswith("__")
+            and getattr(getattr(module, n), "__name__", None) != f"{module.__name__}.{n}"]
 
 
 def _autosummary(names: list[str]) -> list[str]:
-    if not names:
-        return []
-    lines = [".. autosummary::", "   :toctree: generated", "   :nosignatures:", ""]
-    lines += [f"   {n}" for n in names]
-    return lines + [""]
+    head = [".. autosummary::", "   :toctree: generated", "   :nosignatures:", ""]
+    return head + [f"   {n}" for n in names] + [""] if names else []
 
 
 def room_page(room: str) -> str:
@@ -133,8 +117,9 @@ def room_page(room: str) -> str:
     return "\n".join(lines) + "\n"
 
 
-def index_page() -> str:
-    """The reST source of the API reference's index: the groups and their rooms."""
+def index_page(present) -> str:
+    """The reST source of the API reference's index: the groups and their rooms (those of
+    ``present``)."""
     title = "API reference"
     lines = [title, "=" * len(title), "",
              "Generated from the docstrings: every name in each room's ``__all__``, grouped as",
@@ -144,32 +129,30 @@ def index_page() -> str:
              ".. automodule:: sunlab", "   :no-members:", ""]
     for group, rooms in GROUPS.items():
         lines += [group, "-" * len(group), "", ".. toctree::", "   :maxdepth: 1", ""]
-        lines += [f"   sunlab.{room}" for room in rooms] + [""]
+        lines += [f"   sunlab.{room}" for room in rooms if room in present] + [""]
     return "\n".join(lines) + "\n"
-
-
-def _write_if_changed(path: Path, text: str) -> None:
-    # an unchanged page keeps its mtime, so an incremental build does not reread it
-    if not path.exists() or path.read_text() != text:
-        path.write_text(text)
 
 
 def generate_api(app, config) -> None:
     """Write ``docs/api/*.rst`` before Sphinx looks for its sources (``config-inited``)."""
     import sunlab
 
-    package_dir = Path(sunlab.__file__).parent
+    on_disk = rooms_on_disk(Path(sunlab.__file__).parent)
     grouped = [room for rooms in GROUPS.values() for room in rooms]
-    for room in rooms_on_disk(package_dir):
-        if room not in grouped:
-            logger.warning(
-                "sunlab.%s is in no group of the API reference; add it to GROUPS in "
-                "docs/_ext/sunlab_docs.py", room, type="sunlab", subtype="api")
+    for room in sorted(set(on_disk) ^ set(grouped)):
+        logger.warning("sunlab.%s is %s GROUPS in docs/_ext/sunlab_docs.py", room,
+                       "in no group of the API reference: add it to" if room in on_disk
+                       else "no room of the package: remove it from", type="sunlab",
+                       subtype="api")
+    grouped = [room for room in grouped if room in on_disk]
     out = Path(app.srcdir) / API_DIR
     out.mkdir(exist_ok=True)
-    _write_if_changed(out / "index.rst", index_page())
-    for room in grouped:
-        _write_if_changed(out / f"sunlab.{room}.rst", room_page(room))
+    pages = {"index": index_page(grouped)} | {f"sunlab.{room}": room_page(room) for room in grouped}
+    for page, text in pages.items():
+        # an unchanged page keeps its mtime, so an incremental build does not reread it
+        path = out / f"{page}.rst"
+        if not path.exists() or path.read_text() != text:
+            path.write_text(text)
 
 
 def numpydoc_problems(text: str) -> list[str]:
@@ -222,20 +205,14 @@ class ChangelogDirective(SphinxDirective):
                            exc, location=self.get_location(), type="sunlab",
                            subtype="changelog")
             return []
-        days: OrderedDict[str, list[tuple[str, str]]] = OrderedDict()
-        for line in out.splitlines():
-            day, sha, subject = line.split("\t", 2)
-            days.setdefault(day, []).append((sha, subject))
         result = []
-        for day, commits in days.items():
-            result.append(nodes.rubric(text=f"{day} ({len(commits)} commits)"))
-            items = nodes.bullet_list()
-            for sha, subject in commits:
-                para = nodes.paragraph()
-                para += nodes.literal(text=sha)
-                para += nodes.Text(" " + subject)
-                items += nodes.list_item("", para)
-            result.append(items)
+        rows = (line.split("\t", 2) for line in out.splitlines())
+        for day, commits in itertools.groupby(rows, key=lambda row: row[0]):
+            items = [nodes.list_item("", nodes.paragraph("", "", nodes.literal(text=sha),
+                                                         nodes.Text(" " + subject)))
+                     for _, sha, subject in commits]
+            result += [nodes.rubric(text=f"{day} ({len(items)} commits)"),
+                       nodes.bullet_list("", *items)]
         return result
 
 
@@ -256,31 +233,25 @@ def locate(name: str):
     parts = name.split(".")
     if parts[0] != "sunlab":
         return None
-    module, i = None, len(parts)
-    while i > 0:
+    for i in range(len(parts), 0, -1):  # the longest importable prefix, then attributes
         try:
-            module = importlib.import_module(".".join(parts[:i]))
+            obj, parent, attr = importlib.import_module(".".join(parts[:i])), None, parts[i - 1]
             break
         except ImportError:
-            i -= 1
-    if module is None:
-        return None
-    obj, parent, attr = module, None, parts[i - 1]
+            continue
     for attr in parts[i:]:
-        parent = obj
-        try:
-            obj = getattr(obj, attr)
-        except AttributeError:
+        parent, obj = obj, getattr(obj, attr, _MISSING)
+        if obj is _MISSING:
             return None
     return obj, parent, attr
 
 
+_MISSING = object()
+
+
 def _owner(cls: type, attr: str) -> type:
     """The class of ``cls``'s method resolution order that defines ``attr``."""
-    for klass in cls.__mro__:
-        if attr in vars(klass):
-            return klass
-    return cls
+    return next((klass for klass in cls.__mro__ if attr in vars(klass)), cls)
 
 
 def _key(found):
@@ -340,18 +311,12 @@ def resolve_by_object(app, env, node, contnode):
         return None
     target = node["reftarget"]
     modname, clsname = node.get("py:module"), node.get("py:class")
-    scopes = []
-    if modname:
-        scopes.append(modname)
     # the module whose source the docstring is in: names there are what its author meant
     m = _DOCSTRING_OF.search(node.source or "")
     home = locate(m.group(1)) if m else None
-    if home is not None and _home_module(home):
-        scopes.append(_home_module(home))
-    candidates = []
-    if modname and clsname:
-        candidates.append(f"{modname}.{clsname}.{target}")
-    for scope in scopes:
+    scopes = [modname, home and _home_module(home)]
+    candidates = [f"{modname}.{clsname}.{target}"] if modname and clsname else []
+    for scope in filter(None, scopes):
         parts = scope.split(".")
         candidates += [".".join(parts[:i] + [target]) for i in range(len(parts), 0, -1)]
     candidates.append(target)
@@ -424,24 +389,10 @@ def skip_foreign_member(app, what, name, obj, skip, options):
     return None
 
 
-#: pages listed in a toctree (the page that lists them: the pages) that other work adds
-OPTIONAL_PAGES = {"study": ("identification",)}
-
-
-def drop_missing_optional_pages(app, docname, source) -> None:
-    """``source-read``: until a page of :data:`OPTIONAL_PAGES` exists, its toctree line is
-    left out, with a note, so the build does not break on it."""
-    for page in OPTIONAL_PAGES.get(docname, ()):
-        if not Path(app.srcdir, f"{page}.md").exists():
-            logger.info("docs/%s.md does not exist yet: left out of %s", page, docname)
-            source[0] = re.sub(rf"^{page}\n", "", source[0], flags=re.M)
-
-
 def setup(app):
     import sunlab_widgets
 
     sunlab_widgets.install()
-    app.connect("source-read", drop_missing_optional_pages)
     app.connect("autodoc-skip-member", skip_foreign_member)
     app.connect("config-inited", generate_api)
     # before numpydoc's own handler (priority 500), so it sees the docstring as written

@@ -28,12 +28,8 @@ def _model(state: dict, ref) -> dict | None:
 
 
 def _css(state: dict, model: dict, extra: dict | None = None) -> str:
-    layout = _model(state, model["state"].get("layout")) or {"state": {}}
-    css = dict(extra or {})
-    for trait in LAYOUT_CSS:
-        value = layout["state"].get(trait)
-        if value:
-            css[trait.replace("_", "-")] = value
+    layout = (_model(state, model["state"].get("layout")) or {"state": {}})["state"]
+    css = dict(extra or {}) | {t.replace("_", "-"): layout[t] for t in LAYOUT_CSS if layout.get(t)}
     return "; ".join(f"{k}: {v}" for k, v in css.items())
 
 
@@ -44,11 +40,8 @@ def _output(out: dict) -> str:
         return f'<img src="data:image/png;base64,{data["image/png"]}" alt="{alt}"/>'
     if "text/html" in data:
         return "".join(data["text/html"])
-    if out.get("output_type") == "stream":
-        return f"<pre>{html.escape(''.join(out.get('text', '')))}</pre>"
-    if "text/plain" in data:
-        return f"<pre>{html.escape(''.join(data['text/plain']))}</pre>"
-    return ""
+    text = out.get("text", "") if out.get("output_type") == "stream" else data.get("text/plain")
+    return f"<pre>{html.escape(''.join(text))}</pre>" if text is not None else ""
 
 
 def widget_html(state: dict, model_id: str) -> str:
@@ -77,18 +70,17 @@ def widget_html(state: dict, model_id: str) -> str:
         return "".join(widget_html(state, c[len("IPY_MODEL_"):]) for c in s.get("children", ())
                        if isinstance(c, str) and c.startswith("IPY_MODEL_"))
 
+    def div(inner: str, extra: dict | None = None) -> str:
+        return f'<div class="sunlab-widget" style="{_css(state, model, extra)}">{inner}</div>'
+
     if name in BOXES:
-        style = _css(state, model, {"display": "flex", "flex-direction": BOXES[name],
-                                    "gap": "4px"})
-        return f'<div class="sunlab-widget" style="{style}">{kids()}</div>'
+        return div(kids(), {"display": "flex", "flex-direction": BOXES[name], "gap": "4px"})
     if name == "GridBoxModel":
-        return f'<div class="sunlab-widget" style="{_css(state, model, {"display": "grid"})}">' \
-               f"{kids()}</div>"
+        return div(kids(), {"display": "grid"})
     if name == "OutputModel":
-        inner = "".join(_output(o) for o in s.get("outputs", ()))
-        return f'<div class="sunlab-widget" style="{_css(state, model)}">{inner}</div>'
+        return div("".join(_output(o) for o in s.get("outputs", ())))
     if name in ("HTMLModel", "HTMLMathModel"):
-        return f'<div class="sunlab-widget" style="{_css(state, model)}">{s.get("value", "")}</div>'
+        return div(s.get("value", ""))
     if name == "LabelModel":
         return f"<span>{html.escape(str(s.get('value', '')))}</span>"
     if name in ("ButtonModel", "ToggleButtonModel"):

@@ -1,8 +1,9 @@
 """Geometric models of the pinhole sun sensor: the ideal model (1), the optimised model (3)-(4),
 an exact pinhole forward model with mounting errors, and sun-vector conversions.
 
-The models, their sign convention and the equations are :mod:`sunlab.geometry.model`; this
-package exports its public functions, loaded on first use.
+The models, their sign convention and the equations are :mod:`sunlab.geometry.model`, the fit of
+the optimised model (:func:`fit_optimised_model`) its private ``_fit``; this package exports their
+public names, loaded on first use.
 
 Examples
 --------

@@ -3,8 +3,8 @@
 and type checkers read it as the package's interface."""
 
 from . import model as model
-from .model import OptimisedFit as OptimisedFit
-from .model import fit_optimised_model as fit_optimised_model
+from ._fit import OptimisedFit as OptimisedFit
+from ._fit import fit_optimised_model as fit_optimised_model
 from .model import ideal_angles as ideal_angles
 from .model import ideal_centroid as ideal_centroid
 from .model import optimised_angles as optimised_angles

@@ -40,7 +40,8 @@ in the mounting angles this is the additive form ``alpha_m = a_s - alpha0``, ``b
 beta0`` (``mounting="additive"``, kept for comparison); off the axes the two differ because
 rotations do not commute (a roll of about beta0 sin(alpha): 0.12 deg at alpha = -17 deg), and a fit
 of the additive form to a rotated mounting returns biased alpha0, beta0. The zero-pose centroid is
-a fitted parameter by default (:func:`fit_optimised_model`), not one noisy measured frame.
+a fitted parameter by default (:func:`sunlab.geometry.fit_optimised_model`), not one noisy
+measured frame.
 
 References
 ----------
@@ -49,23 +50,12 @@ References
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
-
 import numpy as np
 
 from ..errors import ConfigurationError
 
-__all__ = [
-    "sun_vector",
-    "sun_angles",
-    "ideal_centroid",
-    "ideal_angles",
-    "optimised_centroid",
-    "optimised_angles",
-    "OptimisedFit",
-    "fit_optimised_model",
-    "pinhole_centroid",
-]
+__all__ = ["sun_vector", "sun_angles", "ideal_centroid", "ideal_angles", "optimised_centroid",
+           "optimised_angles", "pinhole_centroid"]
 
 
 def sun_vector(alpha, beta):
@@ -89,9 +79,8 @@ def sun_vector(alpha, beta):
     """
     a = np.deg2rad(np.asarray(alpha, dtype=float))
     b = np.deg2rad(np.asarray(beta, dtype=float))
-    return np.stack(
-        np.broadcast_arrays(-np.sin(a) * np.cos(b), -np.sin(b), np.cos(a) * np.cos(b)), axis=-1
-    )
+    return np.stack(np.broadcast_arrays(-np.sin(a) * np.cos(b), -np.sin(b), np.cos(a) * np.cos(b)),
+                    axis=-1)
 
 
 def sun_angles(s):
@@ -245,10 +234,8 @@ def hole_foot(mask_distance_mm, pixel_pitch_mm, delta_f_mm, alpha0, beta0, x_zp,
     return x_zp - k * np.tan(a0), y_zp - k * np.tan(b0) / np.cos(a0)
 
 
-def optimised_centroid(
-    alpha, beta, mask_distance_mm, pixel_pitch_mm, delta_f_mm, alpha0, beta0, x_zp, y_zp,
-    *, mounting: str = "rotation",
-):
+def optimised_centroid(alpha, beta, mask_distance_mm, pixel_pitch_mm, delta_f_mm, alpha0, beta0,
+                       x_zp, y_zp, *, mounting: str = "rotation"):
     r"""Spot centroid predicted by the optimised model, eqs. (3)-(4), for platform angles.
 
     The forward direction of :func:`optimised_angles`: the platform's sun vector is rotated by
@@ -292,26 +279,18 @@ def optimised_centroid(
     (600.0, 500.0)
     """
     _check_mounting(mounting)
-    x_cf, y_cf = hole_foot(
-        mask_distance_mm, pixel_pitch_mm, delta_f_mm, alpha0, beta0, x_zp, y_zp, mounting
-    )
+    x_cf, y_cf = hole_foot(mask_distance_mm, pixel_pitch_mm, delta_f_mm, alpha0, beta0, x_zp,
+                           y_zp, mounting)
     if mounting == "rotation":
         return pinhole_centroid(alpha, beta, mask_distance_mm, pixel_pitch_mm, x_cf, y_cf,
                                 delta_f_mm=delta_f_mm, mounting_deg=(alpha0, beta0, 0.0))
-    return ideal_centroid(
-        np.asarray(alpha, dtype=float) + alpha0,
-        np.asarray(beta, dtype=float) + beta0,
-        mask_distance_mm + delta_f_mm,
-        pixel_pitch_mm,
-        x_cf,
-        y_cf,
-    )
+    return ideal_centroid(np.asarray(alpha, dtype=float) + alpha0,
+                          np.asarray(beta, dtype=float) + beta0, mask_distance_mm + delta_f_mm,
+                          pixel_pitch_mm, x_cf, y_cf)
 
 
-def optimised_angles(
-    x, y, mask_distance_mm, pixel_pitch_mm, delta_f_mm, alpha0, beta0, x_zp, y_zp,
-    *, mounting: str = "rotation",
-):
+def optimised_angles(x, y, mask_distance_mm, pixel_pitch_mm, delta_f_mm, alpha0, beta0, x_zp,
+                     y_zp, *, mounting: str = "rotation"):
     r"""Platform angles from a spot centroid by the optimised model, eqs. (3)-(4).
 
     Parameters
@@ -345,9 +324,8 @@ def optimised_angles(
     (-12.0, 9.0)
     """
     _check_mounting(mounting)
-    x_cf, y_cf = hole_foot(
-        mask_distance_mm, pixel_pitch_mm, delta_f_mm, alpha0, beta0, x_zp, y_zp, mounting
-    )
+    x_cf, y_cf = hole_foot(mask_distance_mm, pixel_pitch_mm, delta_f_mm, alpha0, beta0, x_zp,
+                           y_zp, mounting)
     if mounting == "rotation":
         k = (mask_distance_mm + delta_f_mm) / pixel_pitch_mm
         x, y = np.broadcast_arrays(np.asarray(x, dtype=float), np.asarray(y, dtype=float))
@@ -355,240 +333,6 @@ def optimised_angles(
         return sun_angles(sp @ mounting_matrix(alpha0, beta0))
     a_s, b_s = ideal_angles(x, y, mask_distance_mm + delta_f_mm, pixel_pitch_mm, x_cf, y_cf)
     return a_s - alpha0, b_s - beta0
-
-
-@dataclass(frozen=True)
-class OptimisedFit:
-    """Result of :func:`fit_optimised_model`.
-
-    Attributes
-    ----------
-    delta_f_mm : float
-        Mask-distance error dF, mm.
-    alpha0, beta0 : float
-        Mounting errors, degrees.
-    x_zp, y_zp : float
-        Zero-pose centroid, px (measured, or fitted when ``zero_pose_fitted``).
-    x_cf, y_cf : float
-        Foot of the hole implied by eq. (4), px.
-    mask_distance_mm, pixel_pitch_mm : float
-        The nominal F and the pixel pitch used, mm.
-    stderr : dict
-        One-sigma standard errors of the fitted parameters (same units), by ``stderr_method``.
-    rms_alpha, rms_beta : float
-        RMS residual of the fit per angle, degrees.
-    n_points : int
-        Number of centroids used.
-    zero_pose_fitted : bool
-        True when (x_zp, y_zp) were free parameters.
-    success : bool
-        Whether the optimiser reported convergence.
-    message : str
-        The optimiser's message.
-    mounting : str
-        ``"rotation"`` or ``"additive"`` (:func:`optimised_centroid`).
-    stderr_method : str
-        ``"jacobian"`` (white residuals) or ``"block bootstrap"`` (see
-        :func:`fit_optimised_model`).
-    """
-
-    delta_f_mm: float
-    alpha0: float
-    beta0: float
-    x_zp: float
-    y_zp: float
-    x_cf: float
-    y_cf: float
-    mask_distance_mm: float
-    pixel_pitch_mm: float
-    stderr: dict
-    rms_alpha: float
-    rms_beta: float
-    n_points: int
-    zero_pose_fitted: bool
-    success: bool
-    message: str
-    mounting: str = "rotation"
-    stderr_method: str = "jacobian"
-
-    @property
-    def params(self) -> tuple:
-        """``(mask_distance_mm, pixel_pitch_mm, delta_f_mm, alpha0, beta0, x_zp, y_zp)``, the
-        trailing arguments of :func:`optimised_angles` and :func:`optimised_centroid` (pass
-        ``mounting=fit.mounting`` with them, or use :meth:`angles`)."""
-        return (
-            self.mask_distance_mm,
-            self.pixel_pitch_mm,
-            self.delta_f_mm,
-            self.alpha0,
-            self.beta0,
-            self.x_zp,
-            self.y_zp,
-        )
-
-    def angles(self, x, y):
-        """Platform angles (deg) of centroids (px) by the fitted model.
-
-        Parameters
-        ----------
-        x, y : array_like
-            Centroid column and row, px (broadcast together).
-
-        Returns
-        -------
-        alpha : numpy.ndarray
-            Outer-axis platform angle, degrees.
-        beta : numpy.ndarray
-            Inner-axis platform angle, degrees (both by :func:`optimised_angles` with
-            :attr:`params` and :attr:`mounting`).
-        """
-        return optimised_angles(x, y, *self.params, mounting=self.mounting)
-
-    def to_dict(self) -> dict:
-        """Plain-Python dictionary (JSON-ready).
-
-        Returns
-        -------
-        dict
-            Every field by name (``stderr`` a nested dict), as ``calibration/1`` files store the
-            optimised model; :func:`sunlab.calibration.model.optimised_fit_from_dict` reverses it.
-        """
-        return asdict(self)
-
-
-def fit_optimised_model(x, y, alpha, beta, mask_distance_mm, pixel_pitch_mm, x_zp=None,
-                        y_zp=None, *, initial=(0.0, 0.0, 0.0), mounting: str = "rotation",
-                        blocks=None, n_boot: int = 0, seed: int = 0) -> OptimisedFit:
-    """Fit dF, alpha0, beta0 (and the zero-pose centroid) of the optimised model (3)-(4).
-
-    Minimises
-    :math:`\\sum_i (\\alpha_m(x_i, y_i) - \\alpha_i)^2 + (\\beta_m(x_i, y_i) - \\beta_i)^2`
-    over the calibration centroids with :func:`scipy.optimize.least_squares` (trust-region
-    reflective, Jacobian-scaled), as in docs/paper.md sec. 4.1.
-
-    Parameters
-    ----------
-    x, y : array_like
-        Centroids, px. Non-finite entries are ignored.
-    alpha, beta : array_like
-        Platform angles of each centroid (broadcast against x), degrees.
-    mask_distance_mm, pixel_pitch_mm : float
-        Nominal F and pixel pitch, mm.
-    x_zp, y_zp : float, optional
-        Measured zero-pose centroid, px. When either is None (default), both are free
-        parameters fitted jointly with the others from every pose, rather than anchored on the
-        few noisy frames of one pose.
-    initial : tuple of 3 float
-        Starting ``(delta_f_mm, alpha0, beta0)``, mm and degrees.
-    mounting : {"rotation", "additive"}
-        Form of the mounting (:func:`optimised_centroid`).
-    blocks : array_like of int, optional
-        A block label per centroid for the block bootstrap (e.g. poses grouped into
-        2 x 2-degree squares of the grid): residuals inside a block may be correlated
-        (shots of one pose share the platform's pose error; neighbouring poses share the
-        pixel pattern under the spot), different blocks are taken as independent.
-    n_boot : int
-        Bootstrap replicas; 0 (default) gives the Jacobian standard errors, which assume
-        white residuals. Replicas start at the full-data solution (analytic Jacobian).
-    seed : int
-        Seed of the bootstrap's resampling.
-
-    Returns
-    -------
-    OptimisedFit
-
-    Raises
-    ------
-    ConfigurationError
-        If fewer usable centroids than parameters remain.
-
-    Examples
-    --------
-    >>> a, b = np.meshgrid(np.arange(-17.0, 3.0), np.arange(-2.0, 18.0), indexing="ij")
-    >>> x, y = optimised_centroid(a, b, 5.0, 0.007, 0.094, 1.864, 0.415, 640.0, 512.0)
-    >>> fit = fit_optimised_model(x, y, a, b, 5.0, 0.007)
-    >>> round(fit.delta_f_mm, 6), round(fit.alpha0, 6), round(fit.beta0, 6)
-    (0.094, 1.864, 0.415)
-    >>> round(fit.x_zp, 6), round(fit.y_zp, 6)
-    (640.0, 512.0)
-    """
-    from ._solve import _bootstrap_stderr, _jacobian_stderr, _least_squares
-
-    _check_mounting(mounting)
-    free_zp = x_zp is None or y_zp is None
-    n_par = 5 if free_zp else 3
-    x, y, alpha, beta, blocks = _usable_points(x, y, alpha, beta, blocks, n_par)
-    F, p = float(mask_distance_mm), float(pixel_pitch_mm)
-    p0 = [float(v) for v in initial]
-    if free_zp:
-        p0 += _zero_pose_start(x, y, alpha, beta, F / p)
-    fixed_zp = None if free_zp else (x_zp, y_zp)
-
-    def solve(xs, ys, al, be, start, weights=None):
-        return _least_squares(xs, ys, al, be, start, F, p, fixed_zp, mounting, weights)
-
-    res = _least_squares(x, y, alpha, beta, p0, F, p, fixed_zp, mounting, analytic=False)
-    q = res.x
-    names = ["delta_f_mm", "alpha0", "beta0", "x_zp", "y_zp"][:n_par]
-    boot = bool(n_boot and n_boot > 1)
-    err = (_bootstrap_stderr(solve, x, y, alpha, beta, q, blocks, n_boot, seed) if boot
-           else _jacobian_stderr(res, n_par))
-    method = "block bootstrap" if boot else "jacobian"
-    zp = (float(q[3]), float(q[4])) if free_zp else (float(x_zp), float(y_zp))
-    return _fit_result(res, zp, F, p, mounting, dict(zip(names, err, strict=True)), method)
-
-
-def _fit_result(res, zp, F, p, mounting, err: dict, method: str) -> OptimisedFit:
-    """The :class:`OptimisedFit` of a least-squares solution ``res``."""
-    q = res.x
-    x_cf, y_cf = hole_foot(F, p, q[0], q[1], q[2], *zp, mounting)
-    n = res.fun.size // 2
-    return OptimisedFit(
-        delta_f_mm=float(q[0]),
-        alpha0=float(q[1]),
-        beta0=float(q[2]),
-        x_zp=zp[0],
-        y_zp=zp[1],
-        x_cf=float(x_cf),
-        y_cf=float(y_cf),
-        mask_distance_mm=F,
-        pixel_pitch_mm=p,
-        stderr={k: float(v) for k, v in err.items()},
-        rms_alpha=float(np.sqrt(np.mean(res.fun[:n] ** 2))),
-        rms_beta=float(np.sqrt(np.mean(res.fun[n:] ** 2))),
-        n_points=int(n),
-        zero_pose_fitted=len(q) == 5,
-        success=bool(res.success),
-        message=str(res.message),
-        mounting=mounting,
-        stderr_method=method,
-    )
-
-
-def _usable_points(x, y, alpha, beta, blocks, n_par: int):
-    """The finite calibration points (and their bootstrap blocks); at least ``n_par``."""
-    x, y, alpha, beta = np.broadcast_arrays(
-        *(np.asarray(v, dtype=float) for v in (x, y, alpha, beta))
-    )
-    ok = np.isfinite(x) & np.isfinite(y) & np.isfinite(alpha) & np.isfinite(beta)
-    if blocks is not None:
-        blocks = np.broadcast_to(np.asarray(blocks), x.shape)[ok]
-    x, y, alpha, beta = x[ok], y[ok], alpha[ok], beta[ok]
-    if x.size < n_par:
-        raise ConfigurationError(
-            f"centroids: found {x.size} usable centroids, expected at least {n_par} for the "
-            "optimised model. Fix: pass a calibration table with more poses of status ok"
-        )
-    return x, y, alpha, beta, blocks
-
-
-def _zero_pose_start(x, y, alpha, beta, k: float) -> list:
-    """Starting zero-pose centroid: the median of the centroids moved back by eq. (1)."""
-    a = np.deg2rad(alpha)
-    return [
-        float(np.median(x - k * np.tan(a))),
-        float(np.median(y - k * np.tan(np.deg2rad(beta)) / np.cos(a))),
-    ]
 
 
 def rotation_x(t) -> np.ndarray:
@@ -686,17 +430,8 @@ def mounting_matrix(alpha0=0.0, beta0=0.0, gamma0=0.0):
     return rotation_z(g0) @ rotation_y(-a0) @ rotation_x(b0)
 
 
-def pinhole_centroid(
-    alpha,
-    beta,
-    mask_distance_mm,
-    pixel_pitch_mm,
-    x_cf,
-    y_cf,
-    *,
-    delta_f_mm=0.0,
-    mounting_deg=(0.0, 0.0, 0.0),
-):
+def pinhole_centroid(alpha, beta, mask_distance_mm, pixel_pitch_mm, x_cf, y_cf, *,
+                     delta_f_mm=0.0, mounting_deg=(0.0, 0.0, 0.0)):
     """Exact pinhole forward model: centroid of the spot for platform angles (alpha, beta).
 
     The sun vector of the platform, :func:`sun_vector`, is rotated into the sensor frame by the

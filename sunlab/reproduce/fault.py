@@ -10,9 +10,9 @@ mu of ``|X|`` below :data:`UNIMODAL_BOUND` = 1/sqrt(3) means bimodal or offset; 
 tables by :func:`paper_shape`), the **approach split** (:func:`approach_split`: 2 b), the **run
 offset** (:func:`run_offset`) and the **periodogram against beta** (:func:`beta_periodogram`).
 :func:`diagnose` turns each into a z-score and names the candidate;
-:func:`~sunlab.reproduce.platform.candidate_table` sets each fault, alone on the bench, beside
-the paper's beta cells. The remedy that fits the
-faults jointly with the calibration is :mod:`sunlab.reproduce.remedy`.
+:func:`sunlab.reproduce.platform.candidate_table` sets each fault, alone on the bench, beside the
+paper's beta cells. The remedy that fits the faults jointly with the calibration is
+:mod:`sunlab.reproduce.remedy`.
 
 Examples
 --------
