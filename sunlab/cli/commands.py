@@ -508,8 +508,11 @@ def _add_reproduce(sub) -> None:
                    help="local threads or processes (default: one per core)")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     p.add_argument("--benches", nargs="+", default=None, metavar="BENCH",
-                   help="--table learned: the benches to run (default all; "
-                   "sunlab.reproduce.learned.BENCHES)")
+                   help="--table learned: the benches to run (default paper good-platform; "
+                   "'all' or names of sunlab.reproduce.learned.BENCHES)")
+    p.add_argument("--full", action="store_true",
+                   help="--table learned: the paper-size run, every bench at the full plans "
+                   "(hours on 2 cores; docs/learned/README.md)")
     p.set_defaults(func=_run_reproduce)
 
 
@@ -571,7 +574,7 @@ def _run_reproduce(args) -> int:
 def _run_learned(args) -> int:
     from ..reproduce.learned import records_table, reproduce_learned
 
-    res = reproduce_learned(out=args.out, quick=args.quick, seed=args.seed,
+    res = reproduce_learned(out=args.out, quick=args.quick, full=args.full, seed=args.seed,
                             progress=not args.no_progress, threads=args.workers or 2,
                             benches=args.benches)
     print("\nmu (deg) on experiment III, unseen seeds; sunlab virtual bench")
