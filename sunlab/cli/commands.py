@@ -507,12 +507,10 @@ def _add_reproduce(sub) -> None:
     p.add_argument("--workers", type=_WORKERS, default=None,
                    help="local threads or processes (default: one per core)")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
-    p.add_argument("--benches", nargs="+", default=None, metavar="BENCH",
-                   help="--table learned: the benches to run (default paper good-platform; "
-                   "'all' or names of sunlab.reproduce.learned.BENCHES)")
-    p.add_argument("--full", action="store_true",
-                   help="--table learned: the paper-size run, every bench at the full plans "
-                   "(hours on 2 cores; docs/learned/README.md)")
+    p.add_argument("--benches", nargs="+", default=None, metavar="BENCH", help="--table "
+                   "learned: default paper good-platform; 'all' or names of learned.BENCHES")
+    p.add_argument("--full", action="store_true", help="--table learned: every bench at the "
+                   "full plans, paper size (hours on 2 cores; docs/learned/README.md)")
     p.set_defaults(func=_run_reproduce)
 
 

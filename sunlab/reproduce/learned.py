@@ -207,11 +207,8 @@ def reproduce_learned(*, full: bool = False, quick: bool = False, seed: int = 0,
                       step: int | None = None, shots: int | None = None, benches=None,
                       epochs: int = 40, threads: int = 2, device: str = "cpu",
                       resume: bool = True) -> dict:
-    """Train, test and compare the learned route on the benches (module docstring).
-
-    By default the run is sized for a laptop (:data:`DEFAULT_BENCHES` at the quick plans: a few
-    minutes on 2 cores); ``full=True`` (``--full``) is the paper-size run, every bench of
-    :data:`BENCHES` at the full plans (docs/learned/README.md gives both times).
+    """Train, test and compare the learned route on the benches (module docstring): by default
+    :data:`DEFAULT_BENCHES` at the quick plans (minutes on 2 cores), with ``full`` every bench.
 
     Parameters
     ----------
@@ -260,12 +257,7 @@ def reproduce_learned(*, full: bool = False, quick: bool = False, seed: int = 0,
     for name in names:
         old = run.stored(out, per[name]) if resume else None
         if old is not None:
-            from ..calibration import load
-
-            res = {"records": old["records"], "model": load(out / "models" / f"{name}.json"),
-                   "table": run.table_of(old["records"]), "history": old["history"]}
-            if old.get("floor") is not None:
-                res["floor"] = old["floor"]
+            res = run.read_back(out, old)
             result["reused"].append(name)
         else:
             t = time.perf_counter()
@@ -274,15 +266,15 @@ def reproduce_learned(*, full: bool = False, quick: bool = False, seed: int = 0,
                 offset = _mounting_offset(seed)
             res = _run_bench(name, thin if multi else plans_, seed,
                              {"epochs": per[name]["epochs"], "threads": threads,
-                              "device": device, "seed": seed}, offset if multi else (0, 0))
-            res["history"] = res["model"].history
+                              "device": device, "seed": seed}, offset if multi else (0, 0),
+                             stage=lambda what, f, name=name: bar.stage(name, what, f))
             if out is not None:  # the bench is done: a stopped run resumes after it
                 run.store(out, per[name], res, time.perf_counter() - t)
         if progress:
             print(f"{name}:\n{res['table'].round(5).to_string()}", flush=True)
         bar.finished(name, reused=old is not None)
         result["records"] += res["records"]
-        result["histories"][name] = res["history"]
+        result["histories"][name] = res["model"].history
         for key, part in (("tables", "table"), ("models", "model"), ("floors", "floor")):
             if part in res:
                 result[key][name] = res[part]
@@ -350,8 +342,9 @@ def _mounting_offset(seed: int) -> tuple[float, float]:
     return mounting_offset_px(usable_table(cen))
 
 
-def _run_bench(name: str, plans_: dict, seed: int, opts: dict, offset) -> dict:
-    """One bench: render, detect, train and test both routes; records and the table."""
+def _run_bench(name: str, plans_: dict, seed: int, opts: dict, offset, stage=None) -> dict:
+    """One bench: render, detect, train and test both routes; records and the table.
+    ``stage(what, fraction)`` hears of each stage done and the fraction of the bench done."""
     from .. import sim, stats
     from ..calibration import FrameNet
     from ..calibration.frames import detect_spots
@@ -368,12 +361,15 @@ def _run_bench(name: str, plans_: dict, seed: int, opts: dict, offset) -> dict:
         t = time.perf_counter()
         det[k] = detect_spots(cube, off, workers=opts["threads"])
         secs[f"detect {k}"] = time.perf_counter() - t
+    stage = stage or (lambda what, fraction: None)
+    stage("rendered and detected I, II, III", 0.4)
     tables = {k: usable_table(c) for k, c in det.items()}
     n_test = int(cubes["III"].sizes["pose"] * cubes["III"].sizes["shot"])
     net = FrameNet(epochs=opts["epochs"], threads=opts["threads"], device=opts["device"],
                    seed=opts["seed"], hole_offset=off).fit(
         cubes["I"], cubes["II"], detections=det["I"], val_detections=det["II"])
     train_s = net.timings["train network"]
+    stage(f"trained ({net.history['epochs']} epochs)", 0.85)
     est = net.predict_frames(cubes["III"], detections=det["III"])
     local = {"learned": stats.local_errors(est)}
     timing = {"learned": (train_s, (secs["detect III"] + net.timings["cube windows"]

@@ -26,10 +26,15 @@ import numpy as np
 from ..errors import ConfigurationError
 from .pipeline import write_json
 
-#: Seconds of work per frame on 2 idle cores (render, detect, train, test and the classical
-#: fits, spread over a bench's frames), measured with sunlab's own runs (docs/learned/README.md):
-#: one-hole benches (the good-platform bench also runs the disk fit) and 100-hole benches.
-SECONDS_PER_FRAME = {"one-hole": 0.07, "good-platform": 0.16, "100-holes": 1.6}
+#: Seconds of work per frame on 2 cores (render, detect, train, test and the classical fits,
+#: spread over a bench's frames): the CPU seconds of sunlab's own runs at the quick plans
+#: (docs/learned/README.md), for one-hole benches (the good-platform bench also runs the disk
+#: fit) and the 100-hole benches (100 windows a frame, at most 12 epochs).
+SECONDS_PER_FRAME = {"one-hole": 0.075, "good-platform": 0.11, "100-holes": 0.85}
+#: How much more a frame costs when a bench's cubes exceed the memory kept
+#: (:data:`sunlab.reproduce.learned.IN_MEMORY_BYTES`): they are rendered again for each pass
+#: (detection, windows, test, disk fit). An estimate, not measured.
+RERENDER = 2.0
 #: A run longer than this prints its estimate before it starts, seconds.
 ANNOUNCE_S = 60
 
@@ -47,13 +52,17 @@ def bench_settings(name: str, plans: dict, *, seed: int, epochs: int, threads: i
 
 
 def estimate_s(settings: dict) -> float:
-    """Seconds one bench takes on 2 idle cores, by :data:`SECONDS_PER_FRAME`."""
-    from .learned import bench
+    """Seconds one bench takes on 2 idle cores, by :data:`SECONDS_PER_FRAME` and
+    :data:`RERENDER`."""
+    from .learned import IN_MEMORY_BYTES, bench
 
     name = settings["bench"]
-    kind = ("100-holes" if bench(name).n_holes > 1 else
+    b = bench(name)
+    kind = ("100-holes" if b.n_holes > 1 else
             "good-platform" if name == "good-platform" else "one-hole")
-    return SECONDS_PER_FRAME[kind] * settings["frames"]
+    pixels = int(np.prod(b.detector.shape)) * settings["frames"]
+    again = RERENDER if 2 * pixels > IN_MEMORY_BYTES else 1.0  # uint16 frames
+    return SECONDS_PER_FRAME[kind] * settings["frames"] * again
 
 
 def command(*, out, full: bool, quick: bool, seed: int, benches, threads: int, default_benches,
@@ -100,6 +109,21 @@ def store(out: Path, settings: dict, res: dict, seconds: float) -> None:
     write_json(json.loads(json.dumps(doc, default=float)), out / "benches" / f"{name}.json")
 
 
+def read_back(out: Path, doc: dict) -> dict:
+    """A stored bench (:func:`stored`) as :func:`sunlab.reproduce.learned.reproduce_learned`
+    uses it: ``records``, ``model`` (loaded, its training history restored), ``table`` and
+    ``floor`` where the bench has one."""
+    from ..calibration import load
+
+    name = doc["settings"]["bench"]
+    model = load(out / "models" / f"{name}.json")
+    model.history = doc["history"]
+    res = {"records": doc["records"], "model": model, "table": table_of(doc["records"])}
+    if doc.get("floor") is not None:
+        res["floor"] = doc["floor"]
+    return res
+
+
 class Progress:
     """Lines of a run's progress: a bar over the estimated seconds, elapsed and remaining
     minutes (the estimate scaled by how the finished work compared with its own)."""
@@ -115,22 +139,29 @@ class Progress:
                   f"detect, training up to the epochs set: about {total / 60:.0f} min on "
                   f"{machine} (docs/learned/README.md)", flush=True)
 
+    def _line(self, head: str, rest_s: float) -> None:
+        elapsed = time.perf_counter() - self.start
+        pace = elapsed / self.done_est if self.done_est > 0 and elapsed > 5 else 1.0
+        total = sum(self.estimates.values()) or 1.0
+        full = round(20 * min(1.0, max(0.0, 1 - rest_s / total)))
+        print(f"[{'#' * full}{'-' * (20 - full)}] {head}: {elapsed / 60:.1f} min elapsed, about "
+              f"{math.ceil(rest_s * pace / 60)} min left", flush=True)
+
+    def stage(self, name: str, what: str, fraction: float) -> None:
+        """A stage of bench ``name`` is done, and ``fraction`` of the bench with it."""
+        if self.show:
+            rest = sum(v for k, v in self.estimates.items() if k not in self.done)
+            self._line(f"{name}: {what}", rest - fraction * self.estimates[name])
+
     def finished(self, name: str, reused: bool = False) -> None:
+        """Bench ``name`` is done (``reused``: read back from an earlier run)."""
         self.done.append(name)
         if not reused:
             self.done_est += self.estimates[name]
-        if not self.show:
-            return
-        elapsed = time.perf_counter() - self.start
-        rest = sum(v for k, v in self.estimates.items() if k not in self.done)
-        pace = elapsed / self.done_est if self.done_est and elapsed > 5 else 1.0
-        total = sum(self.estimates.values()) or 1.0
-        frac = 1 - rest / total
-        bar = "#" * round(20 * frac) + "-" * (20 - round(20 * frac))
-        print(f"[{bar}] {len(self.done)}/{len(self.estimates)} benches ({name}"
-              f"{', read back from an earlier run' if reused else ''}): "
-              f"{elapsed / 60:.1f} min elapsed, about {math.ceil(rest * pace / 60)} min left",
-              flush=True)
+        if self.show:
+            rest = sum(v for k, v in self.estimates.items() if k not in self.done)
+            self._line(f"{len(self.done)}/{len(self.estimates)} benches ({name}"
+                       f"{', read back from an earlier run' if reused else ''})", rest)
 
 
 def table_of(records):

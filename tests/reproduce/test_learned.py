@@ -1,11 +1,14 @@
 """Tests of sunlab.reproduce.learned: the benches, their seeds, the records, the files, a
-saved model applied to a cube written by ``sunlab simulate`` and a stopped run resumed.
+saved model applied to a cube written by ``sunlab simulate``, a stopped run resumed, and the
+shipped docs/learned written by the command it names.
 
 One tiny run (good-platform bench, every 4th angle, one shot, one epoch) serves every test of
 the files; the accuracy of a real run is ``sunlab reproduce --table learned``'s to measure.
 """
 
 import json
+import shlex
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -25,6 +28,8 @@ from sunlab.reproduce.learned import (
     reproduce_learned,
     run_settings,
 )
+
+SHIPPED = Path(__file__).resolve().parents[2] / "docs" / "learned"
 
 pytest.importorskip("torch")
 
@@ -156,3 +161,23 @@ def test_a_stopped_run_resumes_after_the_benches_it_finished(tmp_path, monkeypat
     reproduce_learned(**{**opts, "benches": ["paper"], "epochs": 2})
     assert calls == ["paper"]
 
+
+def test_the_shipped_results_name_the_command_that_wrote_them(monkeypatch):
+    doc = json.loads((SHIPPED / "learned.json").read_text())
+    argv = shlex.split(doc["command"])
+    assert argv[:4] == ["sunlab", "reproduce", "--table", "learned"]
+    seen = {}
+
+    def fake(**kw):
+        seen.update(kw)
+        return {"records": doc["records"], "files": []}
+
+    monkeypatch.setattr(learned, "reproduce_learned", fake)
+    assert main(argv[1:]) == 0  # the command exists, and reaches reproduce_learned with ...
+    settings, _, _ = run_settings(**seen)
+    assert settings == doc["settings"]  # ... the settings the file records
+    assert {"paper", "good-platform"} <= {r["bench"] for r in doc["records"]}
+    for name in doc["settings"]["benches"]:
+        assert calibration.load(SHIPPED / "models" / f"{name}.json").kind == "learned-frames"
+    assert json.loads((SHIPPED / "learned_settings.json").read_text())["command"] == \
+        doc["command"]
