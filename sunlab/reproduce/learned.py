@@ -247,16 +247,17 @@ def reproduce_learned(*, full: bool = False, quick: bool = False, seed: int = 0,
     settings, plans_, thin = run_settings(full=full, quick=quick, seed=seed, out=out, step=step,
                                           shots=shots, benches=benches, epochs=epochs,
                                           threads=threads, device=device)
-    names, per, cmd = list(settings["benches"]), settings["benches"], settings["command"]
-    out = None if out is None else Path(out)
-    bar = run.Progress({n: run.estimate_s(s) for n, s in per.items()}, progress)
-    bar.announce(sum(s["frames"] for s in per.values()))
-    result = {"records": [], "command": cmd, "settings": settings, "tables": {}, "floors": {},
-              "models": {}, "reused": [], "files": [], "histories": {}}
+    per, out = settings["benches"], out if out is None else Path(out)
+    olds = {n: run.stored(out, s) if resume else None for n, s in per.items()}
+    bar = run.Progress({n: 0.0 if olds[n] else run.estimate_s(s) for n, s in per.items()},
+                       progress)
+    bar.announce(sum(s["frames"] for n, s in per.items() if not olds[n]),
+                 sum(map(bool, olds.values())))
+    result = {"records": [], "command": settings["command"], "settings": settings,
+              "tables": {}, "floors": {}, "models": {}, "reused": [], "histories": {}}
     offset = None
-    for name in names:
-        old = run.stored(out, per[name]) if resume else None
-        if old is not None:
+    for name in per:
+        if (old := olds[name]) is not None:
             res = run.read_back(out, old)
             result["reused"].append(name)
         else:
@@ -278,8 +279,7 @@ def reproduce_learned(*, full: bool = False, quick: bool = False, seed: int = 0,
         for key, part in (("tables", "table"), ("models", "model"), ("floors", "floor")):
             if part in res:
                 result[key][name] = res[part]
-    if out is not None:
-        result["files"] = run.write(result, out)
+    result["files"] = run.write(result, out) if out is not None else []
     return result
 
 

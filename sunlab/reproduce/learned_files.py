@@ -132,12 +132,14 @@ class Progress:
         self.estimates, self.show = dict(estimates), show
         self.start, self.done_est, self.done = time.perf_counter(), 0.0, []
 
-    def announce(self, frames: int, machine: str = "2 idle cores") -> None:
+    def announce(self, frames: int, reused: int = 0, machine: str = "2 idle cores") -> None:
+        """Print the work and its estimate when it exceeds :data:`ANNOUNCE_S`."""
         total = sum(self.estimates.values())
         if self.show and total > ANNOUNCE_S:
-            print(f"learned: {len(self.estimates)} benches, {frames} frames to render and "
-                  f"detect, training up to the epochs set: about {total / 60:.0f} min on "
-                  f"{machine} (docs/learned/README.md)", flush=True)
+            again = f" ({reused} read back from an earlier run)" if reused else ""
+            print(f"learned: {len(self.estimates)} benches{again}, {frames} frames to render "
+                  f"and detect, training up to the epochs set: about {math.ceil(total / 60)} "
+                  f"min on {machine} (docs/learned/README.md)", flush=True)
 
     def _line(self, head: str, rest_s: float) -> None:
         elapsed = time.perf_counter() - self.start
