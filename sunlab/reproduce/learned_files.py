@@ -137,7 +137,8 @@ class Progress:
         total = sum(self.estimates.values())
         if self.show and total > ANNOUNCE_S:
             again = f" ({reused} read back from an earlier run)" if reused else ""
-            print(f"learned: {len(self.estimates)} benches{again}, {frames} frames to render "
+            n = len(self.estimates)
+            print(f"learned: {n} bench{'es' * (n != 1)}{again}, {frames} frames to render "
                   f"and detect, training up to the epochs set: about {math.ceil(total / 60)} "
                   f"min on {machine} (docs/learned/README.md)", flush=True)
 

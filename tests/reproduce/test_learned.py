@@ -181,3 +181,23 @@ def test_the_shipped_results_name_the_command_that_wrote_them(monkeypatch):
         assert calibration.load(SHIPPED / "models" / f"{name}.json").kind == "learned-frames"
     assert json.loads((SHIPPED / "learned_settings.json").read_text())["command"] == \
         doc["command"]
+
+
+def test_a_long_run_prints_its_estimate_and_the_time_left(capsys):
+    from sunlab.reproduce import learned_files
+
+    settings, _, _ = run_settings(out="DIR")
+    est = {n: learned_files.estimate_s(s) for n, s in settings["benches"].items()}
+    assert 60 < sum(est.values()) < 600  # the default run: announced, and within 10 minutes
+    bar = learned_files.Progress(est, show=True)
+    bar.announce(996)
+    bar.stage("paper", "trained (9 epochs)", 0.85)
+    bar.finished("paper")
+    bar.finished("good-platform", reused=True)
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0].startswith("learned: 2 benches, 996 frames") and " min on 2 idle" in lines[0]
+    assert all("min left" in line for line in lines[1:]) and len(lines) == 4
+    assert "read back from an earlier run" in lines[-1]
+    full, _, _ = run_settings(full=True, out="DIR")
+    hours = sum(learned_files.estimate_s(s) for s in full["benches"].values()) / 3600
+    assert 2 < hours < 5  # the paper-size run: the hours docs/learned/README.md states
