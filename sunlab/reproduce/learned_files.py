@@ -30,7 +30,7 @@ from .pipeline import write_json
 #: spread over a bench's frames): the CPU seconds of sunlab's own runs at the quick plans
 #: (docs/learned/README.md), for one-hole benches (the good-platform bench also runs the disk
 #: fit) and the 100-hole benches (100 windows a frame, at most 12 epochs).
-SECONDS_PER_FRAME = {"one-hole": 0.075, "good-platform": 0.11, "100-holes": 0.85}
+SECONDS_PER_FRAME = {"one-hole": 0.075, "good-platform": 0.11, "100-holes": 0.6}
 #: How much more a frame costs when a bench's cubes exceed the memory kept
 #: (:data:`sunlab.reproduce.learned.IN_MEMORY_BYTES`): they are rendered again for each pass
 #: (detection, windows, test, disk fit). An estimate, not measured.
