@@ -36,8 +36,10 @@ def _add(sub) -> None:
                    help="local Dask scheduler (default: processes on several cores)")
     p.add_argument("--workers", type=WORKERS, help="local threads or processes")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
-    p.add_argument("--benches", nargs="+", metavar="BENCH",
-                   help="--table learned: the benches (default all)")
+    p.add_argument("--benches", nargs="+", metavar="BENCH", help="--table learned: default "
+                   "paper good-platform; 'all' or names of learned.BENCHES")
+    p.add_argument("--full", action="store_true", help="--table learned: every bench at the "
+                   "full plans, paper size (hours on 2 cores; docs/learned/README.md)")
 
 
 def run_reproduce(args) -> int:
@@ -78,7 +80,7 @@ def _run_learned(args) -> int:
     """``--table learned``: :func:`sunlab.reproduce.learned.reproduce_learned`."""
     from ..reproduce.learned import records_table, reproduce_learned
 
-    res = reproduce_learned(out=args.out, quick=args.quick, seed=args.seed,
+    res = reproduce_learned(out=args.out, quick=args.quick, full=args.full, seed=args.seed,
                             progress=not args.no_progress, threads=args.workers or 2,
                             benches=args.benches)
     print("\nmu (deg) on experiment III, unseen seeds; sunlab virtual bench")

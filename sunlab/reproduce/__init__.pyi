@@ -4,6 +4,7 @@ and type checkers read it as the package's interface."""
 
 from . import fault as fault
 from . import learned as learned
+from . import learned_files as learned_files
 from . import pipeline as pipeline
 from . import platform as platform
 from . import remedy as remedy

@@ -1,8 +1,10 @@
 """Beyond the paper: a calibration learned from the frames, measured against the classical one.
 
-``sunlab reproduce --table learned`` runs, on each bench of :data:`BENCHES`, the protocol of
-Table 4: experiments I (train), II (stop) and III (test) rendered with three seeds of the
-bench's own, so the test frames are never seen in training. On each:
+``sunlab reproduce --table learned`` runs, on the benches :data:`DEFAULT_BENCHES` at the quick
+plans (minutes on 2 cores), or with ``--full`` on every bench of :data:`BENCHES` at the full
+plans (the paper-size run; docs/learned/README.md gives both times), the protocol of Table 4:
+experiments I (train), II (stop) and III (test) rendered with three seeds of the bench's own,
+so the test frames are never seen in training. On each:
 
 * ``learned``: :class:`sunlab.calibration.FrameNet` trained on I's frames, stopped on II's;
 * one hole: ``polynomial``, Table 4's recipe on algorithm B's centroids (order chosen on II,
@@ -16,8 +18,10 @@ bench's own, so the test frames are never seen in training. On each:
   spots numbered with the one-hole paper bench's mounting offset, as Table 5 does).
 
 Each bench's model is saved as ``models/<bench>.json`` (``calibration/1``, loadable by
-:func:`sunlab.calibration.load`); ``learned.json`` holds the records ``{bench, method, angle,
-stat, value}``: mu, sigma, M, sigma_M per angle (deg), and per method the seconds of training
+:func:`sunlab.calibration.load`) and its records as ``benches/<bench>.json`` as soon as the
+bench is done, so a stopped run resumes after the last bench it finished. ``learned.json``
+holds the ``command`` that wrote it, its ``settings`` and the ``records`` ``{bench, method,
+angle, stat, value}``: mu, sigma, M, sigma_M per angle (deg), and per method the seconds of training
 (``train_s``, wall clock, angle null; for the learned route also ``train_cpu_s``, the CPU
 seconds of every thread, which a shared machine does not inflate) and of inference per frame
 (``infer_s_per_frame``, wall clock: detection,
@@ -36,7 +40,6 @@ Examples
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
 import time
 from pathlib import Path
@@ -44,9 +47,10 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ConfigurationError
-from .pipeline import experiment_plans, locate_runs, usable_table, write_json
+from .learned_files import learned_figure, records_of, records_table
+from .pipeline import experiment_plans, locate_runs, usable_table
 
-__all__ = ["reproduce_learned"]
+__all__ = ["learned_figure", "records_of", "records_table", "reproduce_learned", "run_settings"]
 
 #: The benches, in the order they run: name -> what it is (the factory is :func:`bench`).
 BENCHES = {
@@ -60,6 +64,9 @@ BENCHES = {
     "hot-pixels": "the paper bench with 50 times its hot pixels",
     "dust": "the paper bench's hole partly shadowed by a dust grain standing above the mask",
 }
+#: The benches of the default run (``sunlab reproduce --table learned``: minutes on 2 cores);
+#: ``--full`` or ``--benches all`` runs every bench of :data:`BENCHES`.
+DEFAULT_BENCHES = ("paper", "good-platform")
 #: Most shots per pose on the 100-hole benches (each frame is 100 windows in memory).
 MULTI_SHOTS = 2
 #: Most epochs on the 100-hole benches (an epoch there costs 16 windows a training frame and
@@ -195,62 +202,131 @@ def crlb_floor(bench_, cen_test, calibration) -> dict:
     return out
 
 
-def reproduce_learned(*, quick: bool = False, seed: int = 0, out: str | Path | None = "results",
-                      progress: bool = True, step: int | None = None, shots: int | None = None,
-                      benches=None, epochs: int = 40, threads: int = 2,
-                      device: str = "cpu") -> dict:
-    """Train, test and compare the learned route on every bench (module docstring).
+def reproduce_learned(*, full: bool = False, quick: bool = False, seed: int = 0,
+                      out: str | Path | None = "results", progress: bool = True,
+                      step: int | None = None, shots: int | None = None, benches=None,
+                      epochs: int = 40, threads: int = 2, device: str = "cpu",
+                      resume: bool = True) -> dict:
+    """Train, test and compare the learned route on the benches (module docstring): by default
+    :data:`DEFAULT_BENCHES` at the quick plans (minutes on 2 cores), with ``full`` every bench.
 
     Parameters
     ----------
-    quick, step, shots
-        The plans, as every table (:func:`sunlab.reproduce.experiment_plans`); the 100-hole
-        benches take at most :data:`MULTI_SHOTS` shots.
+    full : bool
+        Every bench, full plans (8 shots per pose; the 100-hole benches :data:`MULTI_SHOTS`).
+    quick : bool
+        The tables' quick mode (:data:`sunlab.reproduce.QUICK`): the learned table's default
+        size already; refused with ``full``.
+    step, shots
+        Thin the plans (:func:`sunlab.reproduce.experiment_plans`; override the above).
     seed : int
         Base of every bench's seeds (:func:`bench_seeds`).
     out : path, optional
-        Folder of ``learned.json``, ``learned.png`` and ``models/<bench>.json``.
+        Folder of ``learned.json``, ``learned_settings.json``, ``learned.png``,
+        ``models/<bench>.json`` and the per-bench records ``benches/<bench>.json``.
     progress : bool
-        Print each stage.
+        Print the estimate, each bench's table and a progress line with the time left.
     benches : sequence of str, optional
-        Names of :data:`BENCHES` (default all).
+        Names of :data:`BENCHES`, or ``["all"]`` (default :data:`DEFAULT_BENCHES`, every bench
+        with ``full``).
     epochs, threads, device
         Of :class:`sunlab.calibration.FrameNet`.
+    resume : bool
+        Read back each bench that ``out`` holds from a run with the same settings (stopped or
+        finished) instead of recomputing it.
 
     Returns
     -------
     dict
-        ``records`` (the list written), ``tables`` (per bench, a DataFrame of the statistics
-        by method), ``floors`` (the CRLB floors), ``models`` (the fitted nets), ``files``.
+        ``records`` (the list written), ``command``, ``settings``, ``tables`` (per bench, a
+        DataFrame of the statistics by method), ``floors`` (the CRLB floors), ``models`` (the
+        fitted or read-back nets), ``reused`` (benches read back), ``files``.
     """
-    names = list(BENCHES) if benches is None else list(benches)
-    for name in names:
-        bench(name)  # an unknown name is refused before anything runs
-    plans_ = experiment_plans(quick=quick, step=step, shots=shots)
-    thin = experiment_plans(quick=quick, step=step, shots=min(MULTI_SHOTS, plans_["I"].shots))
-    offset = _mounting_offset(seed) if any(bench(n).n_holes > 1 for n in names) else (0, 0)
-    opts = {"epochs": epochs, "threads": threads, "device": device, "seed": seed}
-    result = {"records": [], "tables": {}, "floors": {}, "models": {}, "files": []}
-    settings = {"quick": quick, "step": step, "shots": shots, "seed": seed, "epochs": epochs,
-                "multi_epochs": min(epochs, MULTI_EPOCHS), "threads": threads,
-                "device": device, "plans": {k: [len(p), p.shots] for k, p in plans_.items()},
-                "multi_plans": {k: [len(p), p.shots] for k, p in thin.items()},
-                "seeds": {n: bench_seeds(n, seed) for n in names}}
-    for name in names:
-        t = time.perf_counter()
-        multi = bench(name).n_holes > 1
-        res = _run_bench(name, thin if multi else plans_, seed,
-                         {**opts, "epochs": settings["multi_epochs"]} if multi else opts, offset)
+    from . import learned_files as run
+
+    settings, plans_, thin = run_settings(full=full, quick=quick, seed=seed, out=out, step=step,
+                                          shots=shots, benches=benches, epochs=epochs,
+                                          threads=threads, device=device)
+    per, out = settings["benches"], out if out is None else Path(out)
+    olds = {n: run.stored(out, s) if resume else None for n, s in per.items()}
+    bar = run.Progress({n: 0.0 if olds[n] else run.estimate_s(s) for n, s in per.items()},
+                       progress)
+    bar.announce(sum(s["frames"] for n, s in per.items() if not olds[n]),
+                 sum(map(bool, olds.values())))
+    result = {"records": [], "command": settings["command"], "settings": settings,
+              "tables": {}, "floors": {}, "models": {}, "reused": [], "histories": {}}
+    offset = None
+    for name in per:
+        if (old := olds[name]) is not None:
+            res = run.read_back(out, old)
+            result["reused"].append(name)
+        else:
+            t = time.perf_counter()
+            multi = bench(name).n_holes > 1
+            if multi and offset is None:
+                offset = _mounting_offset(seed)
+            res = _run_bench(name, thin if multi else plans_, seed,
+                             {"epochs": per[name]["epochs"], "threads": threads,
+                              "device": device, "seed": seed}, offset if multi else (0, 0),
+                             stage=lambda what, f, name=name: bar.stage(name, what, f))
+            if out is not None:  # the bench is done: a stopped run resumes after it
+                run.store(out, per[name], res, time.perf_counter() - t)
         if progress:
-            print(f"{name}: {time.perf_counter() - t:.0f} s\n"
-                  f"{res['table'].round(5).to_string()}", flush=True)
+            print(f"{name}:\n{res['table'].round(5).to_string()}", flush=True)
+        bar.finished(name, reused=old is not None)
         result["records"] += res["records"]
+        result["histories"][name] = res["model"].history
         for key, part in (("tables", "table"), ("models", "model"), ("floors", "floor")):
             if part in res:
                 result[key][name] = res[part]
-        if out is not None:  # after every bench: a long run interrupted keeps what it did
-            result["files"] = _write(result, Path(out), settings)
+    result["files"] = run.write(result, out) if out is not None else []
     return result
+
+
+def run_settings(*, full: bool = False, quick: bool = False, seed: int = 0,
+                 out: str | Path | None = "results", step: int | None = None,
+                 shots: int | None = None, benches=None, epochs: int = 40, threads: int = 2,
+                 device: str = "cpu", **_) -> tuple:
+    """The settings a :func:`reproduce_learned` call runs with, computed without running it.
+
+    Returns
+    -------
+    tuple
+        ``settings`` (as ``learned.json`` records them: the ``command``, the options and per
+        bench its plans, seeds and epochs), and the plans of the one-hole and the 100-hole
+        benches.
+
+    Examples
+    --------
+    >>> s, _, _ = run_settings(out="r")
+    >>> s["command"], list(s["benches"]), s["benches"]["paper"]["plans"]["I"]
+    ('sunlab reproduce --table learned --out r', ['paper', 'good-platform'], [100, 2])
+    """
+    from . import learned_files as run
+
+    if full and quick:
+        raise ConfigurationError("quick: found quick and full together, expected one of them")
+    names = (list(BENCHES) if full else list(DEFAULT_BENCHES)) if benches is None else \
+        (list(BENCHES) if list(benches) == ["all"] else list(benches))
+    for name in names:
+        bench(name)  # an unknown name is refused before anything runs
+    plans_ = experiment_plans(quick=not full, step=step, shots=shots)
+    thin = experiment_plans(quick=not full, step=step,
+                            shots=min(MULTI_SHOTS, plans_["I"].shots))
+    per = {}
+    for name in names:
+        multi = bench(name).n_holes > 1
+        per[name] = run.bench_settings(
+            name, {k: (len(p), p.shots) for k, p in (thin if multi else plans_).items()},
+            seed=seed, epochs=min(epochs, MULTI_EPOCHS) if multi else epochs, threads=threads,
+            device=device)
+    cmd = run.command(out=out, full=full, quick=quick, seed=seed, benches=benches,
+                      threads=threads, default_benches=DEFAULT_BENCHES, step=step, shots=shots,
+                      epochs=epochs, device=device)
+    settings = {"command": cmd, "full": full, "quick": quick, "step": step, "shots": shots,
+                "seed": seed, "epochs": epochs, "multi_epochs": min(epochs, MULTI_EPOCHS),
+                "threads": threads, "device": device, "benches": per}
+    return settings, plans_, thin
 
 
 def _mounting_offset(seed: int) -> tuple[float, float]:
@@ -266,8 +342,9 @@ def _mounting_offset(seed: int) -> tuple[float, float]:
     return mounting_offset_px(usable_table(cen))
 
 
-def _run_bench(name: str, plans_: dict, seed: int, opts: dict, offset) -> dict:
-    """One bench: render, detect, train and test both routes; records and the table."""
+def _run_bench(name: str, plans_: dict, seed: int, opts: dict, offset, stage=None) -> dict:
+    """One bench: render, detect, train and test both routes; records and the table.
+    ``stage(what, fraction)`` hears of each stage done and the fraction of the bench done."""
     from .. import sim, stats
     from ..calibration import FrameNet
     from ..calibration.windows import detect_spots
@@ -284,12 +361,15 @@ def _run_bench(name: str, plans_: dict, seed: int, opts: dict, offset) -> dict:
         t = time.perf_counter()
         det[k] = detect_spots(cube, off, workers=opts["threads"])
         secs[f"detect {k}"] = time.perf_counter() - t
+    stage = stage or (lambda what, fraction: None)
+    stage("rendered and detected I, II, III", 0.4)
     tables = {k: usable_table(c) for k, c in det.items()}
     n_test = int(cubes["III"].sizes["pose"] * cubes["III"].sizes["shot"])
     net = FrameNet(epochs=opts["epochs"], threads=opts["threads"], device=opts["device"],
                    seed=opts["seed"], hole_offset=off).fit(
         cubes["I"], cubes["II"], detections=det["I"], val_detections=det["II"])
     train_s = net.timings["train network"]
+    stage(f"trained ({net.history['epochs']} epochs)", 0.85)
     est = net.predict_frames(cubes["III"], detections=det["III"])
     ests = {"learned": est}
     timing = {"learned": (train_s, (secs["detect III"] + net.timings["cube windows"]
@@ -353,100 +433,3 @@ def _records(name: str, table, timing: dict) -> list[dict]:
 def _num(v):
     v = float(v)
     return v if math.isfinite(v) else None
-
-
-def _write(result: dict, out: Path, settings: dict) -> list[str]:
-    """``learned.json`` (the records), ``learned_settings.json``, ``learned.png`` and
-    ``models/<bench>.json``; the paths."""
-    import matplotlib.pyplot as plt
-
-    (out / "models").mkdir(parents=True, exist_ok=True)
-    files = [str(m.save(out / "models" / f"{n}.json", overwrite=True))
-             for n, m in result["models"].items()]
-    files.append(write_json(result["records"], out / "learned.json"))
-    doc = {**settings, "floors": result["floors"],
-           "histories": {n: m.history for n, m in result["models"].items()}}
-    files.append(write_json(json.loads(json.dumps(doc, default=float)),
-                            out / "learned_settings.json"))
-    fig = learned_figure(result["records"])
-    fig.savefig(out / "learned.png", dpi=110)
-    plt.close(fig)
-    files.append(str(out / "learned.png"))
-    return files
-
-
-def records_table(records, stat: str = "mu"):
-    """The records of one statistic as a table: rows (bench, angle), columns the methods.
-
-    Parameters
-    ----------
-    records : sequence of dict
-        Records with ``bench``, ``method``, ``angle`` (None for a statistic of no angle),
-        ``stat`` and ``value`` (:func:`reproduce_learned`'s ``records``).
-    stat : str
-        The statistic kept (e.g. ``"mu"``, deg).
-
-    Returns
-    -------
-    pandas.DataFrame
-        Values indexed by (bench, angle), or by bench alone where no record has an angle;
-        benches and methods in the order first met.
-
-    Examples
-    --------
-    >>> recs = [{"bench": "paper", "method": "learned", "angle": "alpha", "stat": "mu",
-    ...          "value": 0.01}, {"bench": "paper", "method": "polynomial", "angle": "alpha",
-    ...          "stat": "mu", "value": 0.012}]
-    >>> records_table(recs).loc[("paper", "alpha")].tolist()
-    [0.01, 0.012]
-    """
-    import pandas as pd
-
-    df = pd.DataFrame([r for r in records if r["stat"] == stat])
-    if df.empty:
-        raise ConfigurationError(f"stat: found {stat!r}, not among the records' stats")
-    order = list(dict.fromkeys(df["bench"]))
-    cols = list(dict.fromkeys(df["method"]))
-    if df["angle"].isna().all():
-        table = df.pivot(index="bench", columns="method", values="value")
-        return table.reindex(index=order, columns=cols)
-    table = df.pivot_table(index=["bench", "angle"], columns="method", values="value",
-                           sort=False)
-    return table.reindex(columns=cols)
-
-
-def learned_figure(records):
-    """mu of alpha and beta per bench, every method side by side (log scale, deg); the CRLB
-    floor where computed as a black tick.
-
-    Parameters
-    ----------
-    records : list of dict
-        The records of :func:`reproduce_learned` (``learned.json``).
-
-    Returns
-    -------
-    matplotlib.figure.Figure
-    """
-    import matplotlib.pyplot as plt
-
-    mu = records_table(records, "mu")
-    methods = [m for m in mu.columns if m != "CRLB floor"]
-    benches = list(dict.fromkeys(mu.index.get_level_values(0)))
-    fig, axes = plt.subplots(1, 2, figsize=(12, 4.2), layout="constrained", sharey=True)
-    width = 0.8 / len(methods)
-    xs = np.arange(len(benches))
-    for ax, angle in zip(axes, ("alpha", "beta"), strict=True):
-        for k, m in enumerate(methods):
-            vals = [mu[m].get((b, angle), np.nan) for b in benches]
-            ax.bar(xs - 0.4 + (k + 0.5) * width, vals, width, label=m)
-        if "CRLB floor" in mu.columns:
-            floor = [mu["CRLB floor"].get((b, angle), np.nan) for b in benches]
-            ax.scatter(xs, floor, marker="_", s=600, color="k", zorder=3, label="CRLB floor")
-        ax.set_yscale("log")
-        ax.set_xticks(xs, benches, rotation=30, ha="right")
-        ax.set_title(f"{angle}: mu on experiment III (unseen seeds)")
-        ax.grid(axis="y", which="both", alpha=0.3)
-    axes[0].set_ylabel("mu, deg")
-    axes[1].legend(loc="upper left", bbox_to_anchor=(1.01, 1), frameon=False)
-    return fig
