@@ -149,7 +149,7 @@ def test_outputs_written(result):
 
 
 def test_json_records_the_identified_bench_and_each_published_cells_interval(result):
-    from sunlab.reproduce.pipeline import identified
+    from sunlab.reproduce.intervals import identified
 
     doc = json.loads(Path(next(p for p in result.files if p.endswith(".json"))).read_text())
     assert doc["settings"]["hypothesis"] == identified("table4")["hypothesis"]

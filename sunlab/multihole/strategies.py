@@ -33,17 +33,7 @@ import xarray as xr
 from .. import schema
 from ..calibration import Calibration, Polynomial, from_dict
 from ..errors import ConfigurationError, SchemaError
-from ._tables import (
-    _HOLE_VARS,
-    _angles_dataset,
-    _error_stats,
-    _frames,
-    _hole_frames,
-    _predict_arrays,
-    _record_fit,
-    _restore_settings,
-    _settings,
-)
+from . import _tables as _t
 from .budget import combine_estimates
 from .holes import usable
 
@@ -125,7 +115,7 @@ class GeometricCentre(Calibration):
         GeometricCentre
             ``self``, with the maps ``A_`` (hole, 2), px, and ``M_`` (hole, 2, 2) set.
         """
-        X, ok = _hole_frames(cen, self._ok(cen))
+        X, ok = _t._hole_frames(cen, self._ok(cen))
         n_ok, Xz = ok.sum(1), np.where(ok[..., None], X, 0.0)
         # start: design offsets of the holes from the mask centre where known, else zero
         d0 = np.zeros((X.shape[1], 2))
@@ -183,7 +173,7 @@ class GeometricCentre(Calibration):
         if self.A_ is not None and self.A_.shape[0] != cen.sizes["hole"]:
             raise SchemaError("hole", cen.sizes["hole"],
                               f"{self.A_.shape[0]} holes, as in the training table")
-        X, ok = _hole_frames(cen, self._ok(cen))
+        X, ok = _t._hole_frames(cen, self._ok(cen))
         c = self._solve(X, ok)
         n = np.where(np.isfinite(c[:, 0]), ok.sum(1), 0).reshape(cen["x"].shape[:2])
         x, y = (c[:, k].reshape(n.shape) for k in (0, 1))
@@ -223,7 +213,7 @@ class GeometricCentre(Calibration):
         # the strategy judges holes whole: no shot screening inside its calibrations
         self.calibration_ = (self.model or (lambda: Polynomial(self.order)))().fit(
             centre, outlier_mads=None)
-        return _record_fit(self, cen, self._ok(cen), self.calibration_.residuals, validation)
+        return _t._record_fit(self, cen, self._ok(cen), self.calibration_.residuals, validation)
 
     def __post_init__(self):
         Calibration.__init__(self)
@@ -244,22 +234,22 @@ class GeometricCentre(Calibration):
         """
         if self.calibration_ is None:
             raise ConfigurationError("GeometricCentre: call fit() first")
-        X, ok, shape = _frames(x, y)
+        X, ok, shape = _t._frames(x, y)
         if self.holes is not None:
             ok = ok & np.asarray(self.holes, dtype=bool)
         c = self._solve(np.where(ok[..., None], X, 0.0), ok)
-        a, b = _predict_arrays(self.calibration_, c[:, 0], c[:, 1])
+        a, b = _t._predict_arrays(self.calibration_, c[:, 0], c[:, 1])
         return a.reshape(shape), b.reshape(shape)
 
     def _parameters(self) -> dict:
-        return {**_settings(self, ("order", "fill", "min_holes")),
+        return {**_t._settings(self, ("order", "fill", "min_holes")),
                 "A": self.A_, "M": self.M_, "calibration": self.calibration_.to_dict()}
 
     @classmethod
     def _from_parameters(cls, p: dict) -> GeometricCentre:
         A, M = (None if p[k] is None else np.asarray(p[k], dtype=float) for k in ("A", "M"))
         return cls(order=int(p["order"]), fill=bool(p["fill"]), min_holes=int(p["min_holes"]),
-                   **_restore_settings(p), A_=A, M_=M, calibration_=from_dict(p["calibration"]))
+                   **_t._restore_settings(p), A_=A, M_=M, calibration_=from_dict(p["calibration"]))
 
     def predict(self, cen: xr.Dataset) -> xr.Dataset:
         """Estimated (alpha, beta) of every frame from the calibrated centre.
@@ -278,8 +268,8 @@ class GeometricCentre(Calibration):
         if self.calibration_ is None:
             raise ConfigurationError("GeometricCentre: call fit() first")
         gc = self.centre(cen)
-        a, b = _predict_arrays(self.calibration_, gc["x"].values, gc["y"].values)
-        return _angles_dataset(cen, a, b, ("pose", "shot"),
+        a, b = _t._predict_arrays(self.calibration_, gc["x"].values, gc["y"].values)
+        return _t._angles_dataset(cen, a, b, ("pose", "shot"),
                                {"n_holes": (("pose", "shot"), gc["n_holes"].values)})
 
 
@@ -373,7 +363,7 @@ class PerHoleAverage(Calibration):
         data = {"x": np.where(okv, cen["x"].values, np.nan),
                 "y": np.where(okv, cen["y"].values, np.nan),
                 "status": np.where(okv | (status != 0), status, schema.STATUS["no_spot"]).astype(
-                    np.int8), **{v: cen[v].values for v in _HOLE_VARS[3:] if v in cen}}
+                    np.int8), **{v: cen[v].values for v in _t._HOLE_VARS[3:] if v in cen}}
         coords = {"pose": cen["pose"].values, "shot": cen["shot"].values,
                   "alpha": ("pose", cen["alpha"].values), "beta": ("pose", cen["beta"].values)}
         self.calibrations_ = [
@@ -392,7 +382,7 @@ class PerHoleAverage(Calibration):
         self.variance_ = np.where(np.isfinite(var), np.maximum(var, 1e-3 * np.nanmedian(var)),
                                   np.inf)
         mean = self.combine(est)
-        return _record_fit(self, cen, ok, {a: _error_stats(mean[a], mean[f"{a}_cmd"])
+        return _t._record_fit(self, cen, ok, {a: _t._error_stats(mean[a], mean[f"{a}_cmd"])
                                            for a in ("alpha", "beta")}, validation)
 
     def __post_init__(self):
@@ -413,7 +403,7 @@ class PerHoleAverage(Calibration):
         alpha, beta : numpy.ndarray, shape (...)
             Angles of the frames, deg.
         """
-        X, _, shape = _frames(x, y)
+        X, _, shape = _t._frames(x, y)
         a, b = self._hole_estimates(X[..., 0], X[..., 1], "the last axis of x, y")
         return tuple(self._combine(xr.DataArray(v, dims=("frame", "hole")))[0].values.reshape(
             shape) for v in (a, b))
@@ -428,7 +418,7 @@ class PerHoleAverage(Calibration):
         a, b = np.full(x.shape, np.nan), np.full(x.shape, np.nan)
         for h, cal in enumerate(self.calibrations_):
             if cal is not None:
-                a[..., h], b[..., h] = _predict_arrays(cal, x[..., h], y[..., h])
+                a[..., h], b[..., h] = _t._predict_arrays(cal, x[..., h], y[..., h])
         return a, b
 
     def _combine(self, est, holes=None):
@@ -436,7 +426,7 @@ class PerHoleAverage(Calibration):
                                  weights=self.weights(), clip=self.clip)
 
     def _parameters(self) -> dict:
-        return {**_settings(self, ("order", "weighting", "clip", "poses_per_coef")),
+        return {**_t._settings(self, ("order", "weighting", "clip", "poses_per_coef")),
                 "variance": self.variance_,
                 "calibrations": [None if c is None else c.to_dict() for c in self.calibrations_]}
 
@@ -444,7 +434,7 @@ class PerHoleAverage(Calibration):
     def _from_parameters(cls, p: dict) -> PerHoleAverage:
         var = np.array([np.inf if v is None else v for v in p["variance"]], dtype=float)
         return cls(order=int(p["order"]), weighting=str(p["weighting"]), clip=p["clip"],
-                   poses_per_coef=float(p["poses_per_coef"]), **_restore_settings(p),
+                   poses_per_coef=float(p["poses_per_coef"]), **_t._restore_settings(p),
                    variance_=var, calibrations_=[None if d is None else from_dict(d)
                                                  for d in p["calibrations"]])
 
@@ -464,7 +454,7 @@ class PerHoleAverage(Calibration):
         ok = usable(cen, self.accept).values
         a, b = self._hole_estimates(np.where(ok, cen["x"].values, np.nan),
                                     np.where(ok, cen["y"].values, np.nan))
-        return _angles_dataset(cen, a, b, ("pose", "shot", "hole"))
+        return _t._angles_dataset(cen, a, b, ("pose", "shot", "hole"))
 
     def weights(self) -> np.ndarray | None:
         """The per-hole weights of the combination: 1 / ``variance_`` (deg^-2) per hole, or None
@@ -487,7 +477,7 @@ class PerHoleAverage(Calibration):
             ``alpha``, ``beta`` (deg), ``n_holes`` on (pose, shot).
         """
         (a, n), (b, _) = (self._combine(est[k], holes) for k in ("alpha", "beta"))
-        return _angles_dataset(est, a.values, b.values, ("pose", "shot"),
+        return _t._angles_dataset(est, a.values, b.values, ("pose", "shot"),
                                {"n_holes": (("pose", "shot"), n.values)})
 
     def predict(self, cen: xr.Dataset) -> xr.Dataset:

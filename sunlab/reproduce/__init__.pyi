@@ -3,6 +3,7 @@
 and type checkers read it as the package's interface."""
 
 from . import fault as fault
+from . import intervals as intervals
 from . import learned as learned
 from . import learned_files as learned_files
 from . import pipeline as pipeline

@@ -14,11 +14,8 @@ steps, and this module is the one place that renders frames and centroids them:
    one hole (with their zero-pose checks for Table 4);
 3. :func:`usable_table` and :func:`centroid_status`: which frames the calibrations use, and the
    counts of the frames removed;
-4. :func:`identified`: the identified bench's hypothesis, 90 % predictive intervals and each
-   cell's role (fit, held-out, duplicate), read from ``sunlab/data/`` (``presets.json``,
-   ``intervals.csv``; written by ``python -m studies.identify``), :func:`interval_coverage`
-   (held-out cells apart from the whole table), and :func:`write_json`, the one writer of
-   every results file.
+4. :func:`write_json`, the one writer of every results file (the identified bench's intervals
+   are :mod:`sunlab.reproduce.intervals`).
 
 Examples
 --------
@@ -30,7 +27,6 @@ Examples
 from __future__ import annotations
 
 import json
-from importlib import resources
 from pathlib import Path
 
 import numpy as np
@@ -369,126 +365,6 @@ def centroid_status(cens: dict) -> dict:
         n = {STATUS_NAMES[int(c)]: int(k) for c, k in zip(codes, counts, strict=True)}
         out[name] = {**n, "removed": {k: v for k, v in n.items() if k not in USABLE_STATUS}}
     return out
-
-
-def identified(table: str) -> dict:
-    """The identified bench's hypothesis and each published cell's 90 % predictive interval.
-
-    Read from ``sunlab/data/presets.json`` (its ``hypothesis``) and ``sunlab/data/intervals.csv``
-    (written by ``python -m studies.identify``; docs/identification.md): the spread over the
-    confirmation seeds and the model's discrepancy, not a function of any one run's seed.
-
-    Parameters
-    ----------
-    table : {"table4", "table5"}
-
-    Returns
-    -------
-    dict
-        ``hypothesis``, ``interval90``: ``{column: {"angle.stat": [lo, hi]}}`` (deg), keyed
-        as ``table4.json``'s ``ours`` rows (Table 5's columns carry its JSON's `` [sunlab]``),
-        and ``interval_role``, with the same keys: each cell's role in the identification,
-        ``"fit"`` (its column pinned the fit: inside nearly by construction), ``"held-out"``
-        or ``"duplicate"`` (Table 5's ``1 hole``, a repeat of Table 4's polynomial).
-
-    Examples
-    --------
-    >>> iv = identified("table4")
-    >>> lo, hi = iv["interval90"]["polynomial"]["alpha.mu"]
-    >>> iv["hypothesis"], bool(0 < lo < hi), iv["interval_role"]["cubic interp."]["alpha.mu"]
-    ('F5', True, 'held-out')
-    """
-    name = json.loads((resources.files("sunlab") / "data" / "presets.json")
-                      .read_text("utf-8"))["hypothesis"]
-    ints = _intervals(name)
-    out: dict = {}
-    role: dict = {}
-    for r in ints[ints["table"] == table].itertuples():
-        key = r.column if table == "table4" else f"{r.column} [sunlab]"
-        out.setdefault(key, {})[f"{r.angle}.{r.stat}"] = [float(r.lo), float(r.hi)]
-        role.setdefault(key, {})[f"{r.angle}.{r.stat}"] = str(r.role)
-    return {"hypothesis": name, "interval90": out, "interval_role": role}
-
-
-def _intervals(name: str):
-    """The shipped intervals of one hypothesis (``sunlab/data/intervals.csv``)."""
-    import pandas as pd
-
-    with resources.as_file(resources.files("sunlab") / "data" / "intervals.csv") as path:
-        ints = pd.read_csv(path)
-    if "role" not in ints.columns:
-        raise ConfigurationError(
-            f"{path}: no 'role' column. Fix: rewrite it with `python -m studies.identify` "
-            "(studies.evidence.intervals gives each cell its role).")
-    return ints[ints["hypothesis"] == name]
-
-
-def interval_coverage(interval90: dict, interval_role: dict, values: dict) -> dict:
-    """How many of ``values``' cells lie inside their 90 % interval, by role.
-
-    Parameters
-    ----------
-    interval90, interval_role : dict
-        As :func:`identified` gives them.
-    values : dict
-        ``{column: {"angle.stat": value}}`` (deg), keyed as ``interval90``; cells missing
-        or not finite are left out.
-
-    Returns
-    -------
-    dict
-        ``"held-out"``, ``"fit"``, ``"duplicate"`` and ``"all"`` (the whole table), each
-        ``{"inside": int, "cells": int, "median_half_width": float}``: the half-width as a
-        fraction of the value, (hi - lo) / 2 / value, its median over the cells.
-
-    Examples
-    --------
-    >>> iv = {"a": {"x": [1.0, 3.0], "y": [1.0, 2.0]}}
-    >>> cov = interval_coverage(iv, {"a": {"x": "held-out", "y": "fit"}},
-    ...                         {"a": {"x": 2.0, "y": 4.0}})
-    >>> cov["held-out"], cov["all"]["inside"]
-    ({'inside': 1, 'cells': 1, 'median_half_width': 0.5}, 1)
-    """
-    rows = [(interval_role[c][k], lo <= values[c][k] <= hi, (hi - lo) / 2.0 / values[c][k])
-            for c, cells in interval90.items() for k, (lo, hi) in cells.items()
-            if values.get(c, {}).get(k) is not None and np.isfinite(values[c][k])
-            and values[c][k] > 0]
-    out = {}
-    for role in ("held-out", "fit", "duplicate", "all"):
-        sel = [r for r in rows if role in ("all", r[0])]
-        out[role] = {"inside": int(sum(r[1] for r in sel)), "cells": len(sel),
-                     "median_half_width": float(np.median([r[2] for r in sel])) if sel
-                     else float("nan")}
-    return out
-
-
-def coverage_lines(interval90: dict, interval_role: dict, paper: dict, ours: dict) -> list[str]:
-    """The printed lines of a table's interval coverage: the paper's cells and this run's,
-    the held-out cells beside the whole table (:func:`interval_coverage`)."""
-    if not interval90:
-        return []
-    lines = ["", "Inside our 90 % interval: the held-out cells (never fitted) beside the whole "
-             "table (its fit-side\nand duplicate cells are inside nearly by construction)"]
-    for label, values in (("paper", paper), ("ours (this run)", ours)):
-        cov = interval_coverage(interval90, interval_role, values)
-        if cov["all"]["cells"]:
-            lines.append(f"  {label:<16s}" + "; ".join(
-                f"{role} {cov[role]['inside']} of {cov[role]['cells']}, median half-width "
-                f"{cov[role]['median_half_width']:.3f} of the value"
-                for role in ("held-out", "all")))
-    return lines
-
-
-def _stat_line(label: str, values, tag: str, width: int) -> str:
-    """One line of a printed table: the label, then each value in 12 characters, then the tag
-    (values are numbers, printed to 4 decimals, or ready-made strings)."""
-    return f"{label:<{width}s}" + "".join(
-        f"{v:>12s}" if isinstance(v, str) else f"{v:12.4f}" for v in values) + f"   {tag}"
-
-
-def _span(lo: float, hi: float) -> str:
-    """An interval in 11 characters: ``.0071-.0118`` (deg, below 1)."""
-    return f"{lo:.4f}-{hi:.4f}".replace("0.", ".")
 
 
 def write_json(doc: dict, path: str | Path) -> str:

@@ -41,12 +41,9 @@ import pandas as pd
 from .. import __version__, parallel, stats
 from ..calibration import table4_methods
 from ..errors import ConfigurationError
+from .intervals import _span, _stat_line, coverage_lines, identified
 from .pipeline import (
-    _span,
-    _stat_line,
     centroid_status,
-    coverage_lines,
-    identified,
     simulate_and_locate,
     usable_table,
     write_json,
@@ -114,7 +111,7 @@ class Table4Result:
             deg, None where not finite), ``rectangle_area_deg2``, ``optimised_model``,
             ``polynomial_order``, ``centroid_status``, ``timings_s``, ``settings`` and, for
             the identified bench, ``interval90`` and ``interval_role`` (each cell's role:
-            fit, held-out or duplicate; :func:`sunlab.reproduce.pipeline.identified`).
+            fit, held-out or duplicate; :func:`sunlab.reproduce.intervals.identified`).
         """
 
         def frame(df: pd.DataFrame) -> dict:

@@ -34,13 +34,10 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ConfigurationError
+from .intervals import _span, _stat_line, coverage_lines, identified
 from .pipeline import (
-    _span,
-    _stat_line,
     centroid_status,
-    coverage_lines,
     experiment_plans,
-    identified,
     locate_runs,
     mounting_offset_px,
     simulate_runs,

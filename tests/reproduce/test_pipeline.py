@@ -75,7 +75,7 @@ def test_each_interval_carries_its_role_and_the_held_out_coverage_is_reported_ap
     # the shipped intervals hold the paper's held-out cells as the record says
     # (docs/identification.md): 26 of 32, median half-width 0.565 of the paper's value
     from sunlab import stats
-    from sunlab.reproduce.pipeline import identified, interval_coverage
+    from sunlab.reproduce.intervals import identified, interval_coverage
 
     counts = {"held-out": [0, 0], "all": [0, 0]}
     widths = {"held-out": [], "all": []}

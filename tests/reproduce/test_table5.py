@@ -47,7 +47,7 @@ def test_the_text_puts_each_paper_cell_above_ours():
 def test_the_text_gives_held_out_coverage_beside_the_whole_tables():
     # the identified bench's intervals with their roles: the paper's own cells are counted
     # inside their intervals on the held-out columns apart from the whole table
-    from sunlab.reproduce.pipeline import identified, interval_coverage
+    from sunlab.reproduce.intervals import identified, interval_coverage
 
     iv = identified("table5")
     keys = [(a, s) for a in stats.ANGLES for s in stats.STATS]
@@ -70,7 +70,7 @@ def test_table5_json_keeps_interval90_and_adds_each_cells_role(tmp_path):
     import json
     from pathlib import Path
 
-    from sunlab.reproduce.pipeline import identified
+    from sunlab.reproduce.intervals import identified
     from sunlab.reproduce.table5 import _write_json
 
     keys = [(a, s) for a in stats.ANGLES for s in stats.STATS]

@@ -153,7 +153,7 @@ def test_the_shipped_choice_is_the_rule_applied_by_hand_to_the_shipped_evidence(
 def test_every_published_cell_has_a_90_percent_interval():
     # what the library reads (sunlab/data: presets.json's hypothesis, intervals.csv) is the
     # rule's pick from the studies' evidence, and every published cell has its interval
-    from sunlab.reproduce.pipeline import identified
+    from sunlab.reproduce.intervals import identified
 
     iv = {t: identified(t) for t in ("table4", "table5")}
     assert {v["hypothesis"] for v in iv.values()} == {evidence.identified_hypothesis()}
