@@ -603,6 +603,9 @@ def _add_course(sub) -> None:
                    help="folder of the numbered notebooks (default: the checkout's notebooks/)")
     p.add_argument("--full", action="store_true",
                    help="leave out the first cell that selects the small settings")
+    p.add_argument("--timeout", type=_seconds, default=180.0,
+                   help="with --grade: limit per cell, s (a notebook's budget is 10 limits); "
+                   "past it the notebook's open exercises score 0 (default: 180)")
     p.add_argument("--overwrite", action="store_true",
                    help="replace editions (or a gradebook) written before")
     p.set_defaults(func=_run_course)
@@ -620,29 +623,13 @@ def _run_course(args) -> int:
                                 overwrite=args.overwrite, flag="--overwrite")
         seed = args.seed if args.seed is not None else int.from_bytes(os.urandom(3), "big")
         print(f"hidden checks on fresh inputs drawn from seed {seed}")
-        rows = []
-        for path in args.grade:
-            mine = grading.grade_notebook(path, notebooks=args.notebooks, seed=seed,
-                                          quick=not args.full)
-            rows += mine
-            t = grading.totals(mine)
-            for student, tot in t.items():
-                passed = sum(r["result"] == "pass" for r in mine)
-                checked = sum(r["points"] is not None for r in mine)
-                print(f"{student}/{Path(path).name}: {tot['points']} of {tot['max_points']} "
-                      f"points ({passed} of {checked} checks pass"
-                      + (f"; {tot['written_max_points']} points of written answers to grade "
-                         "by hand)" if tot["written_max_points"] else ")"))
-            for r in mine:
-                pts = "-" if r["points"] is None else r["points"]
-                print(f"  {r['exercise']:<14} {pts}/{r['max_points']}  {r['result']:<12} "
-                      f"{r['message']}".rstrip())
+        _, status = grading.grade_batch(args.grade, notebooks=args.notebooks, seed=seed,
+                                        quick=not args.full, timeout=args.timeout,
+                                        gradebook=args.gradebook, overwrite=args.overwrite)
         if args.gradebook is not None:
-            files = grading.write_gradebook(rows, args.gradebook, seed=seed,
-                                            overwrite=args.overwrite)
-            print("wrote " + ", ".join(map(str, files)))
-        failed = [r for r in rows if r["points"] is not None and r["points"] < r["max_points"]]
-        return 1 if failed else 0
+            print(f"wrote {Path(args.gradebook) / 'gradebook.csv'}, "
+                  f"{Path(args.gradebook) / 'gradebook.json'}")
+        return status
     res = write_course(args.out, notebooks=args.notebooks, quick=not args.full,
                        overwrite=args.overwrite)
     books = {ex.notebook for ex in res["exercises"]}

@@ -34,6 +34,8 @@ from ..errors import ConfigurationError
 from . import hidden
 from .editions import (
     _CHECK,
+    BEGIN_HIDDEN,
+    END_HIDDEN,
     _EXERCISE,
     _WRITTEN,
     WRITTEN_PROMPT,
@@ -78,8 +80,9 @@ def _source_for(path: Path, src: Path) -> Path:
 
 
 def _submitted(nb):
-    """The student's answer cells, check cells and written answers, by exercise number."""
-    answers, checks, texts = {}, {}, {}
+    """The student's answer cells, check cells and written answers, by exercise number, and
+    the exercises whose answer cell is handed in more than once (number -> how many)."""
+    answers, checks, texts, seen = {}, {}, {}, {}
     for cell in nb.cells:
         gid = _grade_id(cell)
         if cell.cell_type == "code":
@@ -87,7 +90,9 @@ def _submitted(nb):
             c = _CHECK.match(_first(cell))
             g = re.fullmatch(r"ex(\d\d)-(\d+)(-check)?", gid)
             if g and not g.group(3) or m:
-                answers.setdefault(m.group(1) if m else f"{g.group(1)}.{g.group(2)}", cell)
+                number = m.group(1) if m else f"{g.group(1)}.{g.group(2)}"
+                answers.setdefault(number, cell)
+                seen[number] = seen.get(number, 0) + 1
             if g and g.group(3) or c:
                 checks.setdefault(c.group(1) if c else f"{g.group(1)}.{g.group(2)}", cell)
         elif cell.cell_type == "markdown":
@@ -95,7 +100,7 @@ def _submitted(nb):
             g = re.fullmatch(r"ex(\d\d)-(\d+)-written", gid)
             if w or g:
                 texts.setdefault(w.group(1) if w else f"{g.group(1)}.{g.group(2)}", cell)
-    return answers, checks, texts
+    return answers, checks, texts, {k: n for k, n in seen.items() if n > 1}
 
 
 def _error_of(cell):
@@ -140,8 +145,16 @@ def _rows_for_unreadable(head, message, exercises, written):
              "result": "unreadable", "message": message} for e in [*exercises, *written]]
 
 
+#: limit per cell, s (``sunlab course --grade --timeout``)
+DEFAULT_TIMEOUT = 180.0
+#: a notebook's budget, in limits per cell (every cell and every hidden check together)
+BUDGET_CELLS = 10
+
+_FAILED = {"time-out", "dead kernel", "crash"}
+
+
 def grade_notebook(path, *, notebooks=None, seed: int | None = None, quick: bool = True,
-                   timeout: float = 900.0) -> list[dict]:
+                   timeout: float = DEFAULT_TIMEOUT, budget: float | None = None) -> list[dict]:
     """Grade one student's notebook against the teacher edition (see the module's text).
 
     Parameters
@@ -156,7 +169,9 @@ def grade_notebook(path, *, notebooks=None, seed: int | None = None, quick: bool
     quick : bool
         Run with the small settings (``SUNLAB_QUICK=1``), as the editions do by default.
     timeout : float
-        Limit per cell, s.
+        Limit per cell (and per hidden check's call), s.
+    budget : float, optional
+        Limit for the whole notebook, s; default :data:`BUDGET_CELLS` times ``timeout``.
 
     Returns
     -------
@@ -164,8 +179,11 @@ def grade_notebook(path, *, notebooks=None, seed: int | None = None, quick: bool
         One row per exercise and per written answer, in order: ``student``, ``notebook``,
         ``exercise``, ``points`` (None for a written answer: graded by hand), ``max_points``,
         ``result`` (``pass``, ``wrong``, ``not answered``, ``syntax error``, ``error``,
-        ``tampered``, ``written``, ``unreadable``) and ``message``.
+        ``tampered``, ``handed in twice``, ``time-out``, ``dead kernel``, ``crash``,
+        ``written``, ``unreadable``), ``message`` and ``flags`` (what the answer reaches into).
     """
+    from . import kernel, probe
+
     nbf = _jupyter("nbformat")
     path = Path(path)
     src = Path(notebooks) if notebooks is not None else default_notebook_dir()
@@ -182,29 +200,183 @@ def grade_notebook(path, *, notebooks=None, seed: int | None = None, quick: bool
         submitted = _read(nbf, path)
     except (ConfigurationError, OSError) as err:
         return _rows_for_unreadable(head, _one_line(err), exercises, written)
-    answers, checks, texts = _submitted(submitted)
+    answers, checks, texts, twice = _submitted(submitted)
     graded, tampered = _graded(source, source_path.name, exercises, answers, checks, quick)
-    seed_value = hidden.DEFAULT_SEED if seed is None else int(seed)
-    _jupyter("nbclient").NotebookClient(
-        graded, timeout=timeout, kernel_name="python3", allow_errors=True,
-        resources={"metadata": {"path": str(path.parent)}}).execute(
-        env={**os.environ, hidden.SEED_VARIABLE: str(seed_value)})  # the kernel's environment
     shift = 1 if quick else 0
+    for number, n in twice.items():
+        ex = next((e for e in exercises if e.number == number), None)
+        if ex is not None:
+            graded.cells[ex.solution_cell + shift].source = (
+                f"raise NotImplementedError('exercise {number} handed in twice')")
+    outside = _hidden_outside(graded, exercises, shift)
+    seed_value = hidden.DEFAULT_SEED if seed is None else int(seed)
+    budget = BUDGET_CELLS * float(timeout) if budget is None else float(budget)
+    verdicts, calls, failure, where = {}, {}, None, 0
+    env = {**os.environ, hidden.SEED_VARIABLE: str(seed_value)}
+    by_check = {ex.check_cell + shift: ex for ex in exercises}
+    try:
+        with kernel.NotebookRun(graded, env=env, timeout=timeout, budget=budget) as run:
+            for i, cell in enumerate(graded.cells):
+                if cell.cell_type != "code":
+                    continue
+                where = i
+                run.execute(cell, i)
+                ex = by_check.get(i)
+                if ex is not None and ex.number in outside:
+                    where = ("hidden", ex.number)
+                    ns = kernel.RemoteNamespace(run)
+                    verdicts[ex.number] = _hidden_verdict(ex.number, ns, seed_value)
+                    calls[ex.number] = ns.calls
+    except kernel.KernelFailure as err:
+        failure = (err.kind, err.message, where)
+    answer_cells = {e.solution_cell + shift for e in exercises}
+    for ex in exercises:
+        setup = probe.setup_source([
+            c.source for j, c in enumerate(graded.cells) if c.cell_type == "code"
+            and j < ex.solution_cell + shift and j not in answer_cells and j not in by_check])
+        mine = [graded.cells[e.solution_cell + shift].source for e in exercises
+                if e.solution_cell <= ex.solution_cell]
+        for call in calls.get(ex.number, []):
+            why = probe.check(call, setup, mine, timeout=timeout)
+            if why and verdicts.get(ex.number) is None:
+                verdicts[ex.number] = f"hidden check {ex.number}: {why}"
+    flags = {ex.number: _flags(answers[ex.number].source) for ex in exercises
+             if ex.number in answers}
     rows = []
     for ex in exercises:
-        result, message = _result(_error_of(graded.cells[ex.solution_cell + shift]),
-                                  _error_of(graded.cells[ex.check_cell + shift]))
+        check_at = ex.check_cell + shift
+        if failure is not None and _not_reached(failure[2], check_at, ex.number):
+            result, message = failure[0], (
+                f"{failure[1]} while running {_cell_name(failure[2], exercises, shift)}; "
+                f"exercise {ex.number} was not checked: scored 0")
+        else:
+            result, message = _result(_error_of(graded.cells[ex.solution_cell + shift]),
+                                      _error_of(graded.cells[check_at]))
+            if result == "pass" and verdicts.get(ex.number):
+                result, message = "wrong", verdicts[ex.number]
         points = ex.points if result == "pass" else 0
-        if ex.number in tampered:
+        if ex.number in twice:
+            result, message, points = "handed in twice", (
+                f"exercise {ex.number} is handed in {twice[ex.number]} times (one answer cell "
+                "each): scored 0; keep one cell per exercise"), 0
+        elif ex.number in tampered and result not in _FAILED:
             points = 0
             ran = "it passes" if result == "pass" else f"{result}: {message}" if message else result
             result, message = "tampered", (
                 f"{tampered[ex.number]}: scored 0 (the teacher's check, restored and run, says "
                 f"{ran})")
+        got = flags.get(ex.number, [])
+        if got:
+            message = (message + " " if message else "") + (
+                f"[flagged for the teacher: the answer reaches into {', '.join(got)}]")
         rows.append({**head, "exercise": ex.number, "points": points, "max_points": ex.points,
-                     "result": result, "message": message})
+                     "result": result, "message": message, "flags": got})
     rows += [_written_row(head, w, texts.get(w.number)) for w in written]
     return rows
+
+
+def _not_reached(where, check_at, number) -> bool:
+    """Whether the failure at ``where`` (a cell index, or ("hidden", NN.k)) came before the
+    exercise's verdict was known."""
+    if isinstance(where, tuple):
+        return where[1] == number or check_at > _HIDDEN_AT.get(where[1], -1)
+    return where <= check_at
+
+
+_HIDDEN_AT: dict = {}
+
+
+def _cell_name(where, exercises, shift) -> str:
+    if isinstance(where, tuple):
+        return f"the hidden check of exercise {where[1]}"
+    for ex in exercises:
+        if where == ex.solution_cell + shift:
+            return f"the answer of exercise {ex.number}"
+        if where == ex.check_cell + shift:
+            return f"the check of exercise {ex.number}"
+    return f"cell {where}"
+
+
+def _hidden_verdict(number, ns, seed_value):
+    """The hidden check run here, on the kernel's outputs: None (passes) or its message."""
+    from .kernel import KernelFailure
+
+    try:
+        hidden.check(number, ns, seed_value)
+    except AssertionError as err:
+        return _one_line(err)
+    except KernelFailure:
+        raise
+    except Exception as err:  # an output the check cannot read
+        return (f"hidden check {number}: your answer's output could not be checked "
+                f"({type(err).__name__}: {_one_line(err)[:200]})")
+    return None
+
+
+def _hidden_outside(graded, exercises, shift) -> set:
+    """Take the standard hidden-test blocks out of the check cells (the grader runs them in
+    its own process); return their exercise numbers."""
+    out = set()
+    for ex in exercises:
+        cell = graded.cells[ex.check_cell + shift]
+        lines = cell.source.splitlines()
+        begin = [k for k, x in enumerate(lines) if x.strip() == BEGIN_HIDDEN]
+        end = [k for k, x in enumerate(lines) if x.strip() == END_HIDDEN]
+        if len(begin) == 1 and len(end) == 1 and begin[0] < end[0]:
+            number = hidden.call_of("\n".join(lines[begin[0] + 1: end[0]]))
+            if number == ex.number:
+                cell.source = strip_hidden(cell.source)
+                out.add(number)
+                _HIDDEN_AT[number] = ex.check_cell + shift
+    return out
+
+
+#: what an answer cell may not reach into without a flag (names and attributes in its code)
+_REACH = {"sys": "sys", "inspect": "frames (inspect)", "builtins": "builtins",
+          "__builtins__": "builtins", "_getframe": "frames", "f_back": "frames",
+          "f_locals": "frames", "f_globals": "frames", "tb_frame": "frames",
+          "gi_frame": "frames", "setprofile": "the profiler", "settrace": "the profiler",
+          "monitoring": "the profiler", "gc": "the garbage collector (gc)",
+          "ctypes": "ctypes", "importlib": "importlib", "__code__": "code objects",
+          "__closure__": "closures", "__globals__": "function globals",
+          "_exit": "os._exit", "subprocess": "subprocess", "signal": "signal",
+          "hidden": "the course package", "course": "the course package",
+          "__import__": "builtins"}
+
+
+def _flags(source: str) -> list[str]:
+    """What an answer cell reaches into: the interpreter, the course package, numpy's
+    attributes (assigned)."""
+    import ast
+
+    try:
+        tree = ast.parse(source)
+    except SyntaxError:
+        return []
+    found = []
+    for node in ast.walk(tree):
+        names = []
+        if isinstance(node, ast.Name):
+            names = [node.id]
+        elif isinstance(node, ast.Attribute):
+            names = [node.attr]
+        elif isinstance(node, ast.Import | ast.ImportFrom):
+            names = [a.name.split(".")[0] for a in node.names] + (
+                (node.module or "").split(".") if isinstance(node, ast.ImportFrom) else [])
+            names += [a.name.split(".")[-1] for a in node.names]
+        for n in names:
+            if n in _REACH and _REACH[n] not in found:
+                found.append(_REACH[n])
+        targets = node.targets if isinstance(node, ast.Assign) else (
+            [node.target] if isinstance(node, ast.AugAssign | ast.AnnAssign) else [])
+        for t in targets:
+            if isinstance(t, ast.Attribute) and isinstance(t.value, ast.Name) and \
+                    t.value.id in ("np", "numpy") and "attributes of numpy" not in found:
+                found.append("attributes of numpy")
+        if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and \
+                node.func.id in ("setattr", "delattr") and "setattr" not in found:
+            found.append("setattr")
+    return found
 
 
 def _graded(source, name, exercises, answers, checks, quick):
@@ -241,29 +413,139 @@ def _written_row(head, w, cell) -> dict:
 
 
 def grade(paths, *, notebooks=None, seed: int | None = None, quick: bool = True,
-          timeout: float = 900.0) -> list[dict]:
-    """Grade several students' notebooks (``grade_notebook`` for each).
+          timeout: float = DEFAULT_TIMEOUT, budget: float | None = None) -> list[dict]:
+    """Grade several students' notebooks (:func:`grade_batch` without a gradebook or report).
 
     Parameters
     ----------
     paths : iterable of str or path-like
         The submitted notebooks, each in a folder named after its student.
-    notebooks : str or path-like, optional
-        The course's notebooks (the teacher's source); default the checkout's.
-    seed : int, optional
-        Draws the hidden checks' fresh inputs; default :data:`sunlab.course.hidden.DEFAULT_SEED`.
-    quick : bool
-        Run with the small settings (``SUNLAB_QUICK=1``).
-    timeout : float
-        Limit per cell, s.
+    notebooks, seed, quick, timeout, budget
+        As :func:`grade_notebook`'s.
 
     Returns
     -------
     list of dict
-        The rows of ``grade_notebook`` of every notebook, in the order of ``paths``.
+        The rows of every notebook, in the order of ``paths`` (a submission refused by the
+        checks before grading has rows with the result ``refused``).
     """
-    return [r for path in paths for r in grade_notebook(path, notebooks=notebooks, seed=seed,
-                                                         quick=quick, timeout=timeout)]
+    return grade_batch(paths, notebooks=notebooks, seed=seed, quick=quick, timeout=timeout,
+                       budget=budget, report=lambda *a: None)[0]
+
+
+def _refused(head, message, exercises=()):
+    return [{**head, "exercise": e.number if e else "-", "points": 0,
+             "max_points": e.points if e else 0, "result": "refused", "message": message,
+             "flags": []} for e in (exercises or [None])]
+
+
+def check_submissions(paths, *, notebooks=None) -> tuple[list, list[dict]]:
+    """Check every submission before any is graded: a file, named after a course notebook,
+    handed in once per student.
+
+    Returns
+    -------
+    (list of Path, list of dict)
+        The submissions to grade, and the rows of those refused (result ``refused``, with the
+        reason).
+    """
+    nbf = _jupyter("nbformat")
+    src = Path(notebooks) if notebooks is not None else default_notebook_dir()
+    keys, ok, refused = {}, [], []
+    for p in map(Path, paths):
+        head = {"student": p.resolve().parent.name, "notebook": p.name}
+        try:
+            course_nb = _source_for(p, src)
+        except ConfigurationError as err:
+            refused += _refused(head, f"refused: {_one_line(err)}")
+            continue
+        keys.setdefault((head["student"], course_nb.name), []).append((p, head, course_nb))
+    for (student, name), items in keys.items():
+        if len(items) == 1:
+            ok.append(items[0][0])
+            continue
+        exercises = find_exercises(_read(nbf, items[0][2]), name)
+        where = ", ".join(str(p) for p, _, _ in items)
+        for _p, head, _ in items:
+            refused += _refused(head, f"refused: {student} handed in {name} {len(items)} "
+                                f"times ({where}); none graded: hand in one", exercises)
+    order = {str(p): k for k, p in enumerate(map(Path, paths))}
+    return sorted(ok, key=lambda p: order[str(p)]), refused
+
+
+def report_rows(path, mine, report=print) -> None:
+    """Print one notebook's rows (``sunlab course --grade``)."""
+    for student, tot in totals(mine).items():
+        passed = sum(r["result"] == "pass" for r in mine)
+        checked = sum(r["points"] is not None for r in mine)
+        report(f"{student}/{Path(path).name}: {tot['points']} of {tot['max_points']} "
+               f"points ({passed} of {checked} checks pass"
+               + (f"; {tot['written_max_points']} points of written answers to grade "
+                  "by hand)" if tot["written_max_points"] else ")"))
+    for r in mine:
+        pts = "-" if r["points"] is None else r["points"]
+        report(f"  {r['exercise']:<14} {pts}/{r['max_points']}  {r['result']:<12} "
+               f"{r['message']}".rstrip())
+
+
+#: ``sunlab course --grade``'s exit status when the grader itself failed on a notebook
+GRADER_FAILED = 4
+
+
+def grade_batch(paths, *, notebooks=None, seed: int | None = None, quick: bool = True,
+                timeout: float = DEFAULT_TIMEOUT, budget: float | None = None,
+                gradebook=None, overwrite: bool = False, report=print) -> tuple[list, int]:
+    """Check every submission, then grade them one by one, the gradebook growing as it goes.
+
+    A submission refused by :func:`check_submissions` gets its rows (``refused``) and the
+    others are graded; a notebook whose kernel fails scores its open exercises 0
+    (:func:`grade_notebook`); a notebook on which the grader itself fails gets rows ``grader
+    error`` with the error, and the batch goes on. With ``gradebook``, the files are rewritten
+    after each notebook (``complete`` false in the JSON until the last).
+
+    Returns
+    -------
+    (list of dict, int)
+        The rows, and the exit status: 0 every check passes, 1 some do not (or a submission
+        was refused), :data:`GRADER_FAILED` the grader failed on a notebook.
+    """
+    paths = list(paths)
+    seed_value = hidden.DEFAULT_SEED if seed is None else int(seed)
+    todo, rows = check_submissions(paths, notebooks=notebooks)
+    for r in rows:
+        report(f"{r['student']}/{r['notebook']}: {r['exercise']} {r['message']}")
+    report(f"{len(todo)} of {len(paths)} submissions to grade")
+    status = 1 if rows else 0
+    written = False
+
+    def save(complete):
+        nonlocal written
+        if gradebook is not None:
+            write_gradebook(rows, gradebook, seed=seed_value, overwrite=overwrite or written,
+                            complete=complete)
+            written = True
+
+    if rows:
+        save(not todo)
+    for k, path in enumerate(todo):
+        try:
+            mine = grade_notebook(path, notebooks=notebooks, seed=seed_value, quick=quick,
+                                  timeout=timeout, budget=budget)
+        except Exception as err:  # the grader's own failure: said, and the batch goes on
+            status = GRADER_FAILED
+            head = {"student": Path(path).resolve().parent.name, "notebook": Path(path).name}
+            mine = [{**head, "exercise": "-", "points": 0, "max_points": 0,
+                     "result": "grader error", "flags": [],
+                     "message": f"the grader failed on this notebook ({type(err).__name__}: "
+                                f"{_one_line(err)[:300]}): not graded; this is a fault of "
+                                "sunlab, not of the student"}]
+        rows += mine
+        report_rows(path, mine, report)
+        save(k == len(todo) - 1)
+    if status != GRADER_FAILED and any(
+            r["points"] is not None and r["points"] < r["max_points"] for r in rows):
+        status = 1
+    return rows, status
 
 
 def totals(rows) -> dict:
@@ -309,7 +591,8 @@ def csv_text(rows) -> str:
         index=False, lineterminator="\n")
 
 
-def write_gradebook(rows, folder, *, seed: int, overwrite: bool = False) -> list[Path]:
+def write_gradebook(rows, folder, *, seed: int, overwrite: bool = False,
+                    complete: bool = True) -> list[Path]:
     """Write ``gradebook.csv`` and ``gradebook.json`` into ``folder``, both or neither.
 
     Parameters
@@ -322,6 +605,8 @@ def write_gradebook(rows, folder, *, seed: int, overwrite: bool = False) -> list
         The hidden checks' seed, recorded in the JSON.
     overwrite : bool
         Replace a gradebook written before.
+    complete : bool
+        Whether every submission is graded (recorded in the JSON; False while a batch grows).
 
     Returns
     -------
@@ -329,10 +614,12 @@ def write_gradebook(rows, folder, *, seed: int, overwrite: bool = False) -> list
         The two files.
     """
     folder = Path(folder)
-    doc = {"schema": "sunlab-gradebook/1", "seed": int(seed), "columns": list(COLUMNS),
-           "rows": rows, "totals": totals(rows)}
+    doc = {"schema": "sunlab-gradebook/1", "seed": int(seed), "complete": bool(complete),
+           "columns": list(COLUMNS), "rows": list(rows), "totals": totals(rows)}
+    text = json.dumps(doc, indent=1) + "\n"
+    record = json.loads(text)  # the CSV is written from the very record the JSON holds
     with atomic.atomic_files(folder, GRADEBOOK_FILES, overwrite=overwrite,
                              flag="--overwrite") as tmp:
-        (tmp / "gradebook.csv").write_text(csv_text(rows), encoding="utf-8")
-        (tmp / "gradebook.json").write_text(json.dumps(doc, indent=1) + "\n", encoding="utf-8")
+        (tmp / "gradebook.csv").write_text(csv_text(record["rows"]), encoding="utf-8")
+        (tmp / "gradebook.json").write_text(text, encoding="utf-8")
     return [folder / name for name in GRADEBOOK_FILES]

@@ -76,12 +76,36 @@ def check(number: str, namespace: dict, seed_value: int | None = None) -> None:
         CHECKS[number](namespace, rng)
     except AssertionError as err:
         raise AssertionError(f"hidden check {number} (fresh inputs, seed {s}): {err}") from None
-    print(f"Hidden check {number} passed (fresh inputs, seed {s}).")
+    if isinstance(namespace, dict):
+        print(f"Hidden check {number} passed (fresh inputs, seed {s}).")
 
 
-def _call(ns, name, *args, forbidden=(), **kwargs):
-    """``ns[name](*args, **kwargs)``, failing when it calls one of ``forbidden`` (library
-    functions) or raises."""
+#: the hidden-test block that the grader runs in its own process (:func:`call_of`)
+_STANDARD = re.compile(r"\s*from sunlab\.course import hidden\s*\n"
+                       r"\s*hidden\.check\(\s*[\"'](\d\d\.\d+)[\"']\s*,\s*globals\(\)\s*\)\s*")
+
+
+def call_of(block: str) -> str | None:
+    """The exercise number of a standard hidden-test block (``hidden.check("NN.k",
+    globals())``), which the grader runs in its own process; None for any other block."""
+    m = _STANDARD.fullmatch(block)
+    return m.group(1) if m and m.group(1) in CHECKS else None
+
+
+def _call(ns, name, *args, forbidden=(), bind=None, **kwargs):
+    """``ns[name](*args, **kwargs)`` with the notebook's names ``bind`` rebound for the call,
+    failing when it calls one of ``forbidden`` (library functions) or raises.
+
+    ``ns`` is the notebook's globals (a dict: the call runs here, the forbidden calls are seen
+    by a profiler), or, when the grader runs the check in its own process, a
+    :class:`sunlab.course.kernel.RemoteNamespace`: the call runs in the student's kernel, its
+    output comes back as data, and the forbidden calls are caught in a fresh process
+    (:mod:`sunlab.course.probe`)."""
+    if not isinstance(ns, dict):
+        return ns.call(name, args, kwargs, bind or {}, forbidden)
+    if bind:
+        with mock.patch.dict(ns, bind):
+            return _call(ns, name, *args, forbidden=forbidden, **kwargs)
     fn = ns.get(name)
     assert fn is not None, f"`{name}` is not defined: the exercise asks you to define it"
     codes = {code: f"{f.__module__}.{f.__qualname__}" for f in forbidden
@@ -139,8 +163,7 @@ def _ex01_2_motion(ns, rng):
     h = 1e-4  # deg: the numerical derivative's error is ~h^2, far below the tolerance
     ref = (geometry.ideal_centroid(a + h, 0 * a, f_mm, p_mm, 0, 0)[0]
            - geometry.ideal_centroid(a - h, 0 * a, f_mm, p_mm, 0, 0)[0]) / (2 * h)
-    with mock.patch.dict(ns, F=f_mm, p=p_mm):
-        mine = [float(_call(ns, "px_per_degree", x)) for x in a]
+    mine = [float(_call(ns, "px_per_degree", x, bind=dict(F=f_mm, p=p_mm))) for x in a]
     _close(np.array(mine) / ref, np.ones_like(ref), 1e-6,
            f"another bench (F = {f_mm:.2f} mm, p = {p_mm * 1e3:.1f} um), px per degree over "
            "the truth")
@@ -220,9 +243,8 @@ def _ex03_1_inverse(ns, rng):
     g = _geometry(rng)
     a, b = rng.uniform(-25, 25, 50), rng.uniform(-25, 25, 50)
     x, y = geometry.ideal_centroid(a, b, g["F"], g["P"], g["X_CF"], g["Y_CF"])
-    with mock.patch.dict(ns, **g):
-        mine = _call(ns, "angles_from_centroid", x, y,
-                     forbidden=(geometry.ideal_angles, geometry.sun_angles))
+    mine = _call(ns, "angles_from_centroid", x, y, bind=g,
+                 forbidden=(geometry.ideal_angles, geometry.sun_angles))
     _close(np.asarray(mine, dtype=float), np.array([a, b]), 1e-9,
            f"another bench (F = {g['F']:.2f} mm), angles back from centroids, deg")
 
@@ -236,9 +258,8 @@ def _ex03_2_delta_f(ns, rng):
     xg, yg = geometry.optimised_centroid(grid, np.full_like(grid, 5.0), g["F"], g["P"], dF,
                                          0.0, 0.0, g["X_CF"], g["Y_CF"])
     measured = geometry.ideal_angles(xg, yg, g["F"], g["P"], g["X_CF"], g["Y_CF"])[0] - grid
-    with mock.patch.dict(ns, **g):
-        mine = _call(ns, "ideal_alpha_error", grid, dF,
-                     forbidden=(geometry.ideal_angles, geometry.optimised_centroid))
+    mine = _call(ns, "ideal_alpha_error", grid, dF, bind=g,
+                 forbidden=(geometry.ideal_angles, geometry.optimised_centroid))
     # the second order in dF / F (below 1 %) is all that may differ
     _close(mine, measured, 0.02 * np.abs(measured).max(),
            f"another bench (F = {g['F']:.2f} mm, dF = {dF:+.3f} mm), error in deg")
