@@ -34,10 +34,10 @@ from ..errors import ConfigurationError
 from . import hidden
 from .editions import (
     _CHECK,
-    BEGIN_HIDDEN,
-    END_HIDDEN,
     _EXERCISE,
     _WRITTEN,
+    BEGIN_HIDDEN,
+    END_HIDDEN,
     WRITTEN_PROMPT,
     _jupyter,
     _read,
@@ -203,7 +203,7 @@ def grade_notebook(path, *, notebooks=None, seed: int | None = None, quick: bool
     answers, checks, texts, twice = _submitted(submitted)
     graded, tampered = _graded(source, source_path.name, exercises, answers, checks, quick)
     shift = 1 if quick else 0
-    for number, n in twice.items():
+    for number in twice:
         ex = next((e for e in exercises if e.number == number), None)
         if ex is not None:
             graded.cells[ex.solution_cell + shift].source = (

@@ -16,11 +16,8 @@ group (``SIGKILL``), so that no process of the student's is left when the marks 
 
 from __future__ import annotations
 
-import base64
 import contextlib
-import json
 import os
-import pickle
 import shutil
 import signal
 import subprocess
@@ -138,12 +135,11 @@ class NotebookRun:
         KernelFailure
             The kernel stopped answering.
         """
-        request = base64.b64encode(pickle.dumps(
-            (what, target, name, tuple(args), dict(kwargs or {}), dict(bind or {})))).decode()
+        text = wire.request(what, target, name, args, kwargs, bind)
         nbf = _jupyter("nbformat")
         cell = nbf.v4.new_code_cell(
             f"__import__('sunlab.course.wire', fromlist=['serve']).serve(globals(), "
-            f"{request!r})")
+            f"{text!r})")
         self.nb.cells.append(cell)  # nbclient stores the cell at its index: a slot of its own
         try:
             self.execute(cell, len(self.nb.cells) - 1)
@@ -155,30 +151,11 @@ class NotebookRun:
             err = next((o for o in cell.get("outputs", []) if o.get("output_type") == "error"),
                        None)
             why = f"{err['ename']}: {err['evalue']}" if err else "no output"
-            raise AnswerRaised("RuntimeError", f"the kernel gave no answer ({why})")
-        try:
-            env = json.loads(texts[-1])
-            if env.get("missing"):
-                return MISSING
-            if "raised" in env:
-                raise AnswerRaised(str(env["raised"]), str(env.get("message", "")))
-            return wire._dec(env["ok"], self)
-        except AnswerRaised:
-            raise
-        except Exception as err:
-            raise AnswerRaised("ValueError", f"an output that is not data ({err})") from None
+            raise wire.AnswerRaised("RuntimeError", f"the kernel gave no answer ({why})")
+        return wire.reply(texts[-1], self)
 
 
-#: what :meth:`NotebookRun.remote` returns for a name the notebook does not define
-MISSING = object()
-
-
-class AnswerRaised(Exception):
-    """The student's function raised ``ename`` in its kernel."""
-
-    def __init__(self, ename: str, message: str):
-        super().__init__(f"{ename}: {message}")
-        self.ename, self.message = ename, message
+MISSING, AnswerRaised = wire.MISSING, wire.AnswerRaised
 
 
 class RemoteNamespace:

@@ -16,7 +16,6 @@ notebook (to dodge this check) fails as well.
 from __future__ import annotations
 
 import ast
-import base64
 import os
 import pickle
 import subprocess

@@ -154,21 +154,30 @@ def decode(text: str, run=None):
     return _dec(json.loads(text), run)
 
 
-def serve(ns: dict, request: str) -> None:
-    """In the kernel: carry out the grader's request and display its result as data.
+def request(what, target, name=None, args=(), kwargs=None, bind=None) -> str:
+    """The grader's request to the kernel (:func:`answer`), as text."""
+    return base64.b64encode(pickle.dumps(
+        (what, target, name, tuple(args), dict(kwargs or {}), dict(bind or {})))).decode()
+
+
+def answer(ns: dict, text: str) -> str:
+    """In the kernel: carry out the grader's request and return its result as JSON text.
 
     Parameters
     ----------
     ns : dict
         The notebook's globals.
-    request : str
-        Base64 of the grader's pickle ``(what, target, name, args, kwargs, bind)``: ``what`` is
-        ``"call"`` (``target`` a name of ``ns`` or a handle) or ``"attr"`` (a handle's
-        attribute); ``bind`` rebinds names of ``ns`` for the call and puts them back.
-    """
-    from IPython.display import display
+    text : str
+        :func:`request`'s text: ``what`` is ``"call"`` (``target`` a name of ``ns`` or a
+        handle) or ``"attr"`` (a handle's attribute); ``bind`` rebinds names of ``ns`` for the
+        call and puts them back.
 
-    what, target, name, args, kwargs, bind = pickle.loads(base64.b64decode(request))
+    Returns
+    -------
+    str
+        JSON of ``{"ok": value}``, ``{"missing": true}`` or ``{"raised": name, "message": ...}``.
+    """
+    what, target, name, args, kwargs, bind = pickle.loads(base64.b64decode(text))
     missing = object()
     saved = {k: ns.get(k, missing) for k in bind}
     ns.update(bind)
@@ -189,7 +198,47 @@ def serve(ns: dict, request: str) -> None:
             else:
                 ns[k] = v
     try:
-        text = json.dumps({k: (_enc(v, 0) if k == "ok" else v) for k, v in out.items()})
+        return json.dumps({k: (_enc(v, 0) if k == "ok" else v) for k, v in out.items()})
     except Exception as err:
-        text = json.dumps({"raised": "TypeError", "message": f"an answer that is not data: {err}"})
-    display({MIME: text}, raw=True)
+        return json.dumps({"raised": "TypeError", "message": f"an answer that is not data: {err}"})
+
+
+def serve(ns: dict, text: str) -> None:
+    """In the kernel: :func:`answer`, displayed (the grader reads it from the cell's output)."""
+    from IPython.display import display
+
+    display({MIME: answer(ns, text)}, raw=True)
+
+
+class Missing:
+    """What :func:`reply` returns for a name the notebook does not define."""
+
+
+MISSING = Missing()
+
+
+class AnswerRaised(Exception):
+    """The student's function raised ``ename`` in its kernel."""
+
+    def __init__(self, ename: str, message: str):
+        super().__init__(f"{ename}: {message}")
+        self.ename, self.message = ename, message
+
+
+def reply(text: str, run=None):
+    """In the grader: the value of :func:`answer`'s text (:data:`MISSING` for an undefined
+    name); raises :class:`AnswerRaised` when the student's function raised or the text is not
+    data."""
+    try:
+        env = json.loads(text)
+        if env.get("missing"):
+            return MISSING
+        if "raised" in env:
+            raise AnswerRaised(str(env["raised"]), str(env.get("message", "")))
+        if len(text) > MAX_BYTES:
+            raise ValueError(f"an answer of {len(text)} bytes (at most {MAX_BYTES})")
+        return _dec(env["ok"], run)
+    except AnswerRaised:
+        raise
+    except Exception as err:
+        raise AnswerRaised("ValueError", f"an output that is not data ({err})") from None
