@@ -615,7 +615,7 @@ def _run_course(args) -> int:
     from pathlib import Path
 
     from .. import atomic
-    from ..course import grading, write_course
+    from ..course import batch, grading, write_course
 
     if args.grade:
         if args.gradebook is not None:  # refused before hours of grading, not after
@@ -623,9 +623,9 @@ def _run_course(args) -> int:
                                 overwrite=args.overwrite, flag="--overwrite")
         seed = args.seed if args.seed is not None else int.from_bytes(os.urandom(3), "big")
         print(f"hidden checks on fresh inputs drawn from seed {seed}")
-        _, status = grading.grade_batch(args.grade, notebooks=args.notebooks, seed=seed,
-                                        quick=not args.full, timeout=args.timeout,
-                                        gradebook=args.gradebook, overwrite=args.overwrite)
+        _, status = batch.grade_batch(args.grade, notebooks=args.notebooks, seed=seed,
+                                      quick=not args.full, timeout=args.timeout,
+                                      gradebook=args.gradebook, overwrite=args.overwrite)
         if args.gradebook is not None:
             print(f"wrote {Path(args.gradebook) / 'gradebook.csv'}, "
                   f"{Path(args.gradebook) / 'gradebook.json'}")

@@ -1,24 +1,30 @@
 """Grading students' notebooks against the teacher edition: a gradebook a teacher can trust.
 
-:func:`grade` does not trust a submitted notebook's check cells. For each notebook it builds the
-notebook to run from the **teacher edition** of the course notebook of the same name, and takes
-only the student's answers from the submission: the code of each exercise cell (``# Exercise
-NN.k``, or nbgrader's ``grade_id`` ``exNN-k``) and the text of each written answer. Every
-other cell, each check cell included, is the teacher's, with its hidden-test block
-(:mod:`sunlab.course.hidden`), which runs the answer on fresh inputs drawn from the grader's
-seed. A submission whose check cell was altered (replaced by a ``print``, edited) or deleted
-scores that exercise 0, whatever the restored check says, and the message names the tampering.
+:func:`sunlab.course.batch.grade_batch` (``sunlab course --grade``) checks every submission
+first (a course notebook's name, handed in once), then grades them one by one, rewriting the
+gradebook after each. :func:`grade_notebook` does not trust a submitted
+notebook's check cells: it builds the notebook to run from the **teacher edition** of the course
+notebook of the same name and takes only the student's answers from the submission (each
+``# Exercise NN.k`` cell, or nbgrader's ``grade_id`` ``exNN-k``, and each written answer). A
+check cell that was altered or deleted scores that exercise 0, and the message names the
+tampering; an exercise handed in twice scores 0.
 
-The notebook runs top to bottom in a fresh kernel in the submission's folder, going on past
-errors. Each exercise then gets its points (the check's ``(N points)``) or 0, and a message:
-the check's own message (visible or hidden) when the answer is wrong, ``not answered`` when the
-stub still raises, ``SyntaxError in your answer`` with the line, or the error. Written answers
-are listed with their points left blank for the teacher.
+The notebook runs cell by cell in a fresh kernel in a scratch folder
+(:class:`sunlab.course.kernel.NotebookRun`: a limit per cell, a budget per notebook, its process
+group killed at the end). Right after each check cell, the exercise's hidden check
+(:mod:`sunlab.course.hidden`) runs **in this process**: the student's function is called in the
+kernel on the fresh inputs and its outputs come back as data (:mod:`sunlab.course.wire`); the
+references and the comparisons never exist in the kernel. Forbidden library calls are caught in
+a fresh process (:mod:`sunlab.course.probe`). A time-out, a dead kernel or a kernel that stops
+answering scores the exercises not yet checked 0 with a message saying which. Each exercise gets
+its points (the check's ``(N points)``) or 0, and a message; answer cells that reach into the
+interpreter are flagged. Written answers are listed with their points left blank for the teacher.
 
 :func:`write_gradebook` writes ``gradebook.csv`` (columns ``student, notebook, exercise,
 points, max_points, message``; the student is the name of the folder that holds the notebook)
-and ``gradebook.json`` (the same rows, with each result, the seed and the totals per student),
-both at once (:func:`sunlab.atomic.atomic_files`).
+and ``gradebook.json`` (the same rows, with each result and flags, the seed, the totals per
+student and whether the batch is complete), both at once (:func:`sunlab.atomic.atomic_files`),
+the CSV from the record the JSON holds.
 """
 
 from __future__ import annotations
@@ -240,7 +246,7 @@ def grade_notebook(path, *, notebooks=None, seed: int | None = None, quick: bool
             why = probe.check(call, setup, mine, timeout=timeout)
             if why and verdicts.get(ex.number) is None:
                 verdicts[ex.number] = f"hidden check {ex.number}: {why}"
-    flags = {ex.number: _flags(answers[ex.number].source) for ex in exercises
+    flags = {ex.number: probe.flags(answers[ex.number].source) for ex in exercises
              if ex.number in answers}
     rows = []
     for ex in exercises:
@@ -331,54 +337,6 @@ def _hidden_outside(graded, exercises, shift) -> set:
     return out
 
 
-#: what an answer cell may not reach into without a flag (names and attributes in its code)
-_REACH = {"sys": "sys", "inspect": "frames (inspect)", "builtins": "builtins",
-          "__builtins__": "builtins", "_getframe": "frames", "f_back": "frames",
-          "f_locals": "frames", "f_globals": "frames", "tb_frame": "frames",
-          "gi_frame": "frames", "setprofile": "the profiler", "settrace": "the profiler",
-          "monitoring": "the profiler", "gc": "the garbage collector (gc)",
-          "ctypes": "ctypes", "importlib": "importlib", "__code__": "code objects",
-          "__closure__": "closures", "__globals__": "function globals",
-          "_exit": "os._exit", "subprocess": "subprocess", "signal": "signal",
-          "hidden": "the course package", "course": "the course package",
-          "__import__": "builtins"}
-
-
-def _flags(source: str) -> list[str]:
-    """What an answer cell reaches into: the interpreter, the course package, numpy's
-    attributes (assigned)."""
-    import ast
-
-    try:
-        tree = ast.parse(source)
-    except SyntaxError:
-        return []
-    found = []
-    for node in ast.walk(tree):
-        names = []
-        if isinstance(node, ast.Name):
-            names = [node.id]
-        elif isinstance(node, ast.Attribute):
-            names = [node.attr]
-        elif isinstance(node, ast.Import | ast.ImportFrom):
-            names = [a.name.split(".")[0] for a in node.names] + (
-                (node.module or "").split(".") if isinstance(node, ast.ImportFrom) else [])
-            names += [a.name.split(".")[-1] for a in node.names]
-        for n in names:
-            if n in _REACH and _REACH[n] not in found:
-                found.append(_REACH[n])
-        targets = node.targets if isinstance(node, ast.Assign) else (
-            [node.target] if isinstance(node, ast.AugAssign | ast.AnnAssign) else [])
-        for t in targets:
-            if isinstance(t, ast.Attribute) and isinstance(t.value, ast.Name) and \
-                    t.value.id in ("np", "numpy") and "attributes of numpy" not in found:
-                found.append("attributes of numpy")
-        if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and \
-                node.func.id in ("setattr", "delattr") and "setattr" not in found:
-            found.append("setattr")
-    return found
-
-
 def _graded(source, name, exercises, answers, checks, quick):
     """The teacher edition with the student's answers in it, and the exercises whose check
     cell was altered or deleted (number -> what happened)."""
@@ -414,7 +372,8 @@ def _written_row(head, w, cell) -> dict:
 
 def grade(paths, *, notebooks=None, seed: int | None = None, quick: bool = True,
           timeout: float = DEFAULT_TIMEOUT, budget: float | None = None) -> list[dict]:
-    """Grade several students' notebooks (:func:`grade_batch` without a gradebook or report).
+    """Grade several students' notebooks (:func:`sunlab.course.batch.grade_batch` without a
+    gradebook or report).
 
     Parameters
     ----------
@@ -429,123 +388,10 @@ def grade(paths, *, notebooks=None, seed: int | None = None, quick: bool = True,
         The rows of every notebook, in the order of ``paths`` (a submission refused by the
         checks before grading has rows with the result ``refused``).
     """
+    from .batch import grade_batch
+
     return grade_batch(paths, notebooks=notebooks, seed=seed, quick=quick, timeout=timeout,
                        budget=budget, report=lambda *a: None)[0]
-
-
-def _refused(head, message, exercises=()):
-    return [{**head, "exercise": e.number if e else "-", "points": 0,
-             "max_points": e.points if e else 0, "result": "refused", "message": message,
-             "flags": []} for e in (exercises or [None])]
-
-
-def check_submissions(paths, *, notebooks=None) -> tuple[list, list[dict]]:
-    """Check every submission before any is graded: a file, named after a course notebook,
-    handed in once per student.
-
-    Returns
-    -------
-    (list of Path, list of dict)
-        The submissions to grade, and the rows of those refused (result ``refused``, with the
-        reason).
-    """
-    nbf = _jupyter("nbformat")
-    src = Path(notebooks) if notebooks is not None else default_notebook_dir()
-    keys, ok, refused = {}, [], []
-    for p in map(Path, paths):
-        head = {"student": p.resolve().parent.name, "notebook": p.name}
-        try:
-            course_nb = _source_for(p, src)
-        except ConfigurationError as err:
-            refused += _refused(head, f"refused: {_one_line(err)}")
-            continue
-        keys.setdefault((head["student"], course_nb.name), []).append((p, head, course_nb))
-    for (student, name), items in keys.items():
-        if len(items) == 1:
-            ok.append(items[0][0])
-            continue
-        exercises = find_exercises(_read(nbf, items[0][2]), name)
-        where = ", ".join(str(p) for p, _, _ in items)
-        for _p, head, _ in items:
-            refused += _refused(head, f"refused: {student} handed in {name} {len(items)} "
-                                f"times ({where}); none graded: hand in one", exercises)
-    order = {str(p): k for k, p in enumerate(map(Path, paths))}
-    return sorted(ok, key=lambda p: order[str(p)]), refused
-
-
-def report_rows(path, mine, report=print) -> None:
-    """Print one notebook's rows (``sunlab course --grade``)."""
-    for student, tot in totals(mine).items():
-        passed = sum(r["result"] == "pass" for r in mine)
-        checked = sum(r["points"] is not None for r in mine)
-        report(f"{student}/{Path(path).name}: {tot['points']} of {tot['max_points']} "
-               f"points ({passed} of {checked} checks pass"
-               + (f"; {tot['written_max_points']} points of written answers to grade "
-                  "by hand)" if tot["written_max_points"] else ")"))
-    for r in mine:
-        pts = "-" if r["points"] is None else r["points"]
-        report(f"  {r['exercise']:<14} {pts}/{r['max_points']}  {r['result']:<12} "
-               f"{r['message']}".rstrip())
-
-
-#: ``sunlab course --grade``'s exit status when the grader itself failed on a notebook
-GRADER_FAILED = 4
-
-
-def grade_batch(paths, *, notebooks=None, seed: int | None = None, quick: bool = True,
-                timeout: float = DEFAULT_TIMEOUT, budget: float | None = None,
-                gradebook=None, overwrite: bool = False, report=print) -> tuple[list, int]:
-    """Check every submission, then grade them one by one, the gradebook growing as it goes.
-
-    A submission refused by :func:`check_submissions` gets its rows (``refused``) and the
-    others are graded; a notebook whose kernel fails scores its open exercises 0
-    (:func:`grade_notebook`); a notebook on which the grader itself fails gets rows ``grader
-    error`` with the error, and the batch goes on. With ``gradebook``, the files are rewritten
-    after each notebook (``complete`` false in the JSON until the last).
-
-    Returns
-    -------
-    (list of dict, int)
-        The rows, and the exit status: 0 every check passes, 1 some do not (or a submission
-        was refused), :data:`GRADER_FAILED` the grader failed on a notebook.
-    """
-    paths = list(paths)
-    seed_value = hidden.DEFAULT_SEED if seed is None else int(seed)
-    todo, rows = check_submissions(paths, notebooks=notebooks)
-    for r in rows:
-        report(f"{r['student']}/{r['notebook']}: {r['exercise']} {r['message']}")
-    report(f"{len(todo)} of {len(paths)} submissions to grade")
-    status = 1 if rows else 0
-    written = False
-
-    def save(complete):
-        nonlocal written
-        if gradebook is not None:
-            write_gradebook(rows, gradebook, seed=seed_value, overwrite=overwrite or written,
-                            complete=complete)
-            written = True
-
-    if rows:
-        save(not todo)
-    for k, path in enumerate(todo):
-        try:
-            mine = grade_notebook(path, notebooks=notebooks, seed=seed_value, quick=quick,
-                                  timeout=timeout, budget=budget)
-        except Exception as err:  # the grader's own failure: said, and the batch goes on
-            status = GRADER_FAILED
-            head = {"student": Path(path).resolve().parent.name, "notebook": Path(path).name}
-            mine = [{**head, "exercise": "-", "points": 0, "max_points": 0,
-                     "result": "grader error", "flags": [],
-                     "message": f"the grader failed on this notebook ({type(err).__name__}: "
-                                f"{_one_line(err)[:300]}): not graded; this is a fault of "
-                                "sunlab, not of the student"}]
-        rows += mine
-        report_rows(path, mine, report)
-        save(k == len(todo) - 1)
-    if status != GRADER_FAILED and any(
-            r["points"] is not None and r["points"] < r["max_points"] for r in rows):
-        status = 1
-    return rows, status
 
 
 def totals(rows) -> dict:

@@ -7,16 +7,20 @@ A check cell of the teacher edition ends with nbgrader's hidden-test block::
     hidden.check("01.1", globals())
     ### END HIDDEN TESTS
 
-The student edition leaves the block out; ``sunlab course --grade`` (and nbgrader's
-``autograde``) put it back. :func:`check` takes the student's function from the notebook's
-namespace and runs it on inputs drawn from a seed the grader picks (the environment variable
-:data:`SEED_VARIABLE`; ``sunlab course --grade --seed``): other angles, another bench geometry
-(the notebook's constants such as ``F`` are rebound for the call), other frames, other benches.
-The reference is computed by the library or by the simulator on the same inputs, never stated
-here. An answer that returns a constant, reads a variable of the notebook that the exercise does
-not name, or calls the library function that the exercise asks the student to write (detected
-with a profiler during the call) fails with an AssertionError that says which, without stating
-the answer.
+The student edition leaves the block out; nbgrader's ``autograde`` puts it back and runs it in
+the student's kernel. ``sunlab course --grade`` instead runs the check **in the grader's
+process** (:mod:`sunlab.course.grading`): the namespace is then a
+:class:`sunlab.course.kernel.RemoteNamespace`, the student's function is called in its kernel
+on the fresh inputs and only its outputs come back, as data. :func:`check` takes the student's
+function from the namespace and runs it on inputs drawn from a seed the grader picks (the
+environment variable :data:`SEED_VARIABLE`; ``sunlab course --grade --seed``): other angles,
+another bench geometry (the notebook's constants such as ``F`` are rebound for the call), other
+frames, other benches. The reference is computed by the library or by the simulator on the same
+inputs, never stated here. An answer that returns a constant, reads a variable of the notebook
+that the exercise does not name, or calls the library function that the exercise asks the
+student to write fails with an AssertionError that says which, without stating the answer. The
+forbidden call is seen by a profiler when the namespace is a dict (nbgrader, the tests), and by
+tripwires in a fresh process when the grader runs the check (:mod:`sunlab.course.probe`).
 """
 
 from __future__ import annotations

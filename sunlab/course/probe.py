@@ -26,7 +26,7 @@ import numpy as np
 
 from . import wire
 
-__all__ = ["check"]
+__all__ = ["check", "flags"]
 
 #: the exit status of a process whose answer called a forbidden function
 TRIPPED = 77
@@ -126,6 +126,75 @@ def _tripwire(fn, spec: str):
     if getattr(target, "__code__", None) is not None and not target.__code__.co_freevars:
         target.__code__ = space["_t"].__code__
     return space["_t"]
+
+
+#: what an answer cell may not reach into without a flag (names and attributes in its code)
+_REACH = {"sys": "sys", "inspect": "frames (inspect)", "builtins": "builtins",
+          "__builtins__": "builtins", "_getframe": "frames", "f_back": "frames",
+          "f_locals": "frames", "f_globals": "frames", "tb_frame": "frames",
+          "gi_frame": "frames", "setprofile": "the profiler", "settrace": "the profiler",
+          "monitoring": "the profiler", "gc": "the garbage collector (gc)",
+          "ctypes": "ctypes", "importlib": "importlib", "__code__": "code objects",
+          "__closure__": "closures", "__globals__": "function globals",
+          "_exit": "os._exit", "subprocess": "subprocess", "signal": "signal",
+          "hidden": "the course package", "course": "the course package",
+          "__import__": "builtins", "exec": "exec/eval", "eval": "exec/eval",
+          "compile": "exec/eval", "open": "files", "read_text": "files",
+          "read_bytes": "files", "nbformat": "notebooks (nbformat)",
+          "globals": "the notebook's globals", "setsid": "a process of its own",
+          "fork": "a process of its own", "Popen": "subprocess"}
+
+
+def flags(source: str) -> list[str]:
+    """What an answer cell reaches into: the interpreter, the course package, numpy's
+    attributes (assigned), files and processes; flagged in the gradebook for the teacher.
+
+    Parameters
+    ----------
+    source : str
+        An answer cell's code.
+
+    Returns
+    -------
+    list of str
+        What it reaches into, each said once, in order of appearance (empty for a SyntaxError).
+
+    Examples
+    --------
+    >>> flags("import sys\\nnp.abs = abs")
+    ['sys', 'attributes of numpy']
+    """
+    try:
+        tree = ast.parse(source)
+    except SyntaxError:
+        return []
+    found = []
+    for node in ast.walk(tree):
+        names = []
+        if isinstance(node, ast.Name):
+            names = [node.id]
+        elif isinstance(node, ast.Attribute):
+            names = [node.attr]
+        elif isinstance(node, ast.Import | ast.ImportFrom):
+            names = [a.name.split(".")[0] for a in node.names] + (
+                (node.module or "").split(".") if isinstance(node, ast.ImportFrom) else [])
+            names += [a.name.split(".")[-1] for a in node.names]
+        for n in names:
+            if n in _REACH and _REACH[n] not in found:
+                found.append(_REACH[n])
+        targets = node.targets if isinstance(node, ast.Assign) else (
+            [node.target] if isinstance(node, ast.AugAssign | ast.AnnAssign) else [])
+        for t in targets:
+            if isinstance(t, ast.Attribute) and isinstance(t.value, ast.Name) and \
+                    t.value.id in ("np", "numpy") and "attributes of numpy" not in found:
+                found.append("attributes of numpy")
+        if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and \
+                node.func.id in ("setattr", "delattr") and "setattr" not in found:
+            found.append("setattr")
+        if isinstance(node, ast.Constant) and isinstance(node.value, str) and \
+                ".ipynb" in node.value and "notebooks (nbformat)" not in found:
+            found.append("notebooks (nbformat)")
+    return found
 
 
 def main() -> None:

@@ -199,7 +199,7 @@ def test_every_submission_is_checked_before_any_is_graded(tmp_path):
     answer = next(c for c in nb.cells if c.source.startswith("# Exercise 01.1"))
     nb.cells.append(nbformat.v4.new_code_cell(answer.source))  # the exercise handed in twice
     nbformat.write(nb, copy)
-    rows, status = course.grading.grade_batch(
+    rows, status = course.batch.grade_batch(
         [ok, unknown, copy, ok], notebooks=tmp_path / "course", seed=7,
         gradebook=tmp_path / "book", report=lambda *a: None)
     got = _points(rows)
