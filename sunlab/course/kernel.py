@@ -31,6 +31,71 @@ from .editions import _jupyter
 __all__ = ["KernelFailure", "NotebookRun", "RemoteNamespace"]
 
 
+#: seconds without a word from the kernel about a sent cell before it is nudged
+NUDGE_S = 3.0
+#: seconds without a word, nudges included, before the kernel is said to have stopped reading
+STALL_S = 30.0
+
+
+def _client_class():
+    """nbclient's NotebookClient, watching for a request the kernel never reads.
+
+    ipykernel 7 can leave a request unread in its shell socket (a reply sent raw on the socket
+    consumes the wake-up of a request that arrives meanwhile: ipython/ipykernel#1554, the hang
+    of microsoft/vscode-jupyter#17228): the kernel sits idle and the client waits for the
+    cell's whole time limit. Each second, with the kernel's liveness, this client checks that
+    the kernel has said something about the cell (its ``busy`` status comes first); after
+    :data:`NUDGE_S` s of silence it sends a ``kernel_info`` request, a new message on the
+    socket that wakes the kernel's reading, every :data:`NUDGE_S` s; after :data:`STALL_S` s it
+    gives up on the cell (``stalled``) instead of waiting for the time limit.
+    """
+    import asyncio
+
+    nbclient = _jupyter("nbclient")
+
+    class Client(nbclient.NotebookClient):
+        stalled = False
+        _sent = 0.0
+        _heard = True
+
+        async def async_execute_cell(self, cell, cell_index, execution_count=None,
+                                     store_history=True):
+            self._sent, self._heard, self.stalled = time.monotonic(), False, False
+            try:
+                return await super().async_execute_cell(cell, cell_index, execution_count,
+                                                        store_history)
+            finally:
+                self._heard = True
+
+        execute_cell = nbclient.util.run_sync(async_execute_cell)
+
+        def process_message(self, msg, cell, cell_index):
+            self._heard = True
+            return super().process_message(msg, cell, cell_index)
+
+        async def _async_poll_kernel_alive(self):
+            nudged = self._sent
+            while True:
+                await asyncio.sleep(1)
+                try:
+                    await self._async_check_alive()
+                except nbclient.exceptions.DeadKernelError:
+                    self.task_poll_for_reply.cancel()
+                    return
+                now = time.monotonic()
+                if self._heard:
+                    continue
+                if now - self._sent > STALL_S:
+                    self.stalled = True
+                    self.task_poll_for_reply.cancel()
+                    return
+                if now - nudged > NUDGE_S:
+                    nudged = now
+                    self.kc.kernel_info()
+
+    return Client
+
+
 class KernelFailure(Exception):
     """The kernel stopped answering: ``kind`` is ``time-out``, ``dead kernel`` or ``crash``."""
 
@@ -63,9 +128,8 @@ class NotebookRun:
         self._deadline = 0.0
 
     def __enter__(self):
-        nbclient = _jupyter("nbclient")
         self.scratch = Path(tempfile.mkdtemp(prefix="sunlab-kernel-"))
-        self.client = nbclient.NotebookClient(
+        self.client = _client_class()(
             self.nb, timeout=self.timeout, kernel_name="python3", allow_errors=True,
             resources={"metadata": {"path": str(self.scratch)}})
         self._deadline = time.monotonic() + self.budget
@@ -111,6 +175,12 @@ class NotebookRun:
                     else f"the limit of {self.timeout:g} s per cell")
             raise KernelFailure("time-out", f"a cell ran past {what}") from None
         except nbclient.exceptions.DeadKernelError:
+            if getattr(self.client, "stalled", False):
+                raise KernelFailure("crash", (
+                    f"the kernel stopped reading requests (nothing for {STALL_S:g} s after "
+                    "the cell was sent, nudges included: the lost-request fault of ipykernel 7, "
+                    "ipython/ipykernel#1554); not the student's fault: grade this notebook "
+                    "again")) from None
             raise KernelFailure("dead kernel", "the kernel died (an answer ended its process)"
                                 ) from None
         except nbclient.exceptions.CellExecutionError:

@@ -212,3 +212,72 @@ def test_every_submission_is_checked_before_any_is_graded(tmp_path):
     assert got[("cy", "01.1")]["points"] == 0
     doc = json.loads((tmp_path / "book" / "gradebook.json").read_text())
     assert doc["complete"] and len(doc["rows"]) == len(rows)
+
+
+def _run_one(_):
+    from sunlab.course import kernel
+
+    cells = [nbformat.v4.new_code_cell(f"x = {k}\nprint(x * 2)") for k in range(15)]
+    cells.append(nbformat.v4.new_code_cell("def twice(v):\n    return 2 * v"))
+    nb = nbformat.v4.new_notebook(cells=cells)
+    with kernel.NotebookRun(nb, env=dict(os.environ), timeout=60, budget=120) as r:
+        for i, c in enumerate(nb.cells):
+            r.execute(c, i)
+        return r.remote("call", "twice", None, (21,)), nb.cells[-2].outputs[0]["text"]
+
+
+def test_several_notebooks_at_once_finish_without_a_wait():
+    """Issue 48: grading runs overlapping (as a grader and the docs build do) must not stall;
+    a request the kernel never reads is nudged (sunlab.course.kernel), so four kernels run
+    side by side, each cell answered in seconds, not at the time limit."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    start = time.monotonic()
+    with ProcessPoolExecutor(4, mp_context=multiprocessing.get_context("spawn")) as pool:
+        outs = list(pool.map(_run_one, range(4)))
+    assert outs == [(42, "28\n")] * 4
+    assert time.monotonic() - start < 60  # a stall waits for the 60 s limit
+
+
+def test_the_kernels_process_group_is_killed_before_the_marks(tmp_path):
+    """A process the answer leaves behind in the kernel's group does not outlive grading."""
+    from sunlab.course import kernel
+
+    pidfile = tmp_path / "pid"
+    code = ("import subprocess, sys\n"
+            "p = subprocess.Popen([sys.executable, '-c', 'import time; time.sleep(600)'])\n"
+            f"open({str(pidfile)!r}, 'w').write(str(p.pid))")
+    nb = nbformat.v4.new_notebook(cells=[nbformat.v4.new_code_cell(code)])
+    with kernel.NotebookRun(nb, env=dict(os.environ), timeout=60, budget=60) as r:
+        r.execute(nb.cells[0], 0)
+        pid = int(pidfile.read_text())
+        assert _alive(pid)  # while the kernel runs
+    time.sleep(0.5)
+    assert not _alive(pid)
+
+
+def _alive(pid):
+    """A process that exists and is not a zombie (killed, waiting to be reaped)."""
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return False
+    return state != "Z"
+
+
+def test_a_kernel_that_stops_answering_is_detected_in_seconds(monkeypatch):
+    """A kernel alive but reading nothing (stopped here with SIGSTOP, as a lost request leaves
+    it idle) is nudged, then given up on after STALL_S, not after the cell's time limit."""
+    import signal
+
+    from sunlab.course import kernel
+
+    monkeypatch.setattr(kernel, "STALL_S", 6.0)
+    nb = nbformat.v4.new_notebook(cells=[nbformat.v4.new_code_cell("1 + 1")])
+    with kernel.NotebookRun(nb, env=dict(os.environ), timeout=120, budget=120) as r:
+        os.kill(r.client.km.provisioner.pid, signal.SIGSTOP)
+        start = time.monotonic()
+        with pytest.raises(kernel.KernelFailure, match="stopped reading requests"):
+            r.execute(nb.cells[0], 0)
+        assert time.monotonic() - start < 20
