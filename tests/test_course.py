@@ -189,6 +189,7 @@ ANSWER_PHRASES = [
     r"c\^2 \+ w\^2 ?/ ?3", r"sin\(alpha\) cos\(alpha\)", r"sin\(2 alpha\)",
     r"tan\(alpha\) = \(x - x_cf\)", r"tan\(beta\) = \(y - y_cf\)", r"tan\(alpha_read\)",
     r"std\(ddof=1\)", r"6 sigma_M", r"c\^2 \+ s\^2 / n", r"half the gap",
+    r"M - 3 sigma_M", r"M \+ 3 sigma_M", r"UNIMODAL_BOUND\) < 1e-9",
 ]
 
 

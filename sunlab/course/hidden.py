@@ -346,16 +346,17 @@ def _ex05_1_areas(ns, rng):
 def _ex06_1_gain(ns, rng):
     from sunlab.multihole import budget
 
-    for _ in range(3):
+    for _ in range(4):
         c, s, n = rng.uniform(0.1, 2.0), rng.uniform(0.1, 2.0), int(rng.integers(2, 150))
-        draws = 100_000
-        e = rng.normal(0, c, (draws, 1)) + rng.normal(0, s, (draws, n))
-        sampled = e[:, 0].std() / e.mean(axis=1).std()
+        # the model itself: the covariance of the n holes' errors, a common part on every pair
+        cov = np.full((n, n), c * c) + np.diag(np.full(n, s * s))
+        weights = np.full(n, 1.0 / n)
+        exact = float(np.sqrt(cov[0, 0] / (weights @ cov @ weights)))
         mine = float(_call(ns, "averaging_gain", c, s, n, forbidden=(budget.error_budget,)))
-        # 1e5 draws: the sampled ratio scatters by about 0.3 %
-        assert abs(mine - sampled) < 0.015 * sampled, (
-            f"common {c:.2f}, specific {s:.2f}, {n} holes: {draws} draws give a gain "
-            f"{mine / sampled:.3f} times yours")
+        # a derivation is exact: a Monte Carlo estimate (0.1 % at best) does not pass
+        assert abs(mine - exact) <= 1e-9 * exact, (
+            f"common {c:.2f}, specific {s:.2f}, {n} holes: your gain is {mine / exact:.6f} "
+            "times the exact one (the exercise asks for a derivation, exact to 1e-9)")
 
 
 # --------------------------------------------------------------------------- notebook 07
@@ -446,14 +447,25 @@ def _ex08_2_calibrate(ns, rng):
 # --------------------------------------------------------------------------- notebook 09
 
 def _ex09_1_bound(ns, rng):
+    from scipy import integrate
+
     for c, w in ((rng.uniform(-1, 1), 1.0), (rng.uniform(1.2, 3), 1.0),
-                 (rng.uniform(0, 0.05), rng.uniform(0.01, 0.1))):
-        e = np.abs(rng.uniform(c - w, c + w, 4 * 10**6))
-        sampled = e.std() / e.mean()
+                 (rng.uniform(0, 0.05), rng.uniform(0.01, 0.1)), (0.0, rng.uniform(0.5, 2))):
+        # the moments of |X| from their definition, integrated to 1e-13 (split at 0)
+        cut = [0.0] if c - w < 0 < c + w else None
+
+        def moment(k, c=c, w=w, cut=cut):
+            return integrate.quad(lambda x: abs(x) ** k / (2 * w), c - w, c + w, points=cut,
+                                  epsabs=0, epsrel=1e-13)[0]
+
+        m1, m2 = moment(1), moment(2)
+        exact = float(np.sqrt(m2 - m1 * m1) / m1)
         mine = float(_call(ns, "abs_ratio_uniform", c, w))
-        # 4e6 draws: the sampled ratio scatters by about 5e-4
-        assert abs(mine - sampled) < 2.5e-3, (
-            f"c = {c:.3f}, w = {w:.3f}: draws disagree with yours by {mine - sampled:+.4f}")
+        # a derivation is exact: draws (1e-3 at best) do not pass
+        assert abs(mine - exact) <= 1e-9 * max(1.0, exact), (
+            f"c = {c:.3f}, w = {w:.3f}: yours differs from the exact ratio by "
+            f"{(mine - exact) / exact:+.2e} of it (the exercise asks for a derivation, exact "
+            "to 1e-9)")
 
 
 def _ex09_2_backlash(ns, rng):
