@@ -229,7 +229,7 @@ def grade_notebook(path, *, notebooks=None, seed: int | None = None, quick: bool
                 run.execute(cell, i)
                 ex = by_check.get(i)
                 if ex is not None and ex.number in outside:
-                    where = ("hidden", ex.number)
+                    where = ("hidden", ex.number, i)
                     ns = kernel.RemoteNamespace(run)
                     verdicts[ex.number] = _hidden_verdict(ex.number, ns, seed_value)
                     calls[ex.number] = ns.calls
@@ -282,14 +282,11 @@ def grade_notebook(path, *, notebooks=None, seed: int | None = None, quick: bool
 
 
 def _not_reached(where, check_at, number) -> bool:
-    """Whether the failure at ``where`` (a cell index, or ("hidden", NN.k)) came before the
-    exercise's verdict was known."""
+    """Whether the failure at ``where`` (a cell index, or ("hidden", NN.k, its check cell))
+    came before the exercise's verdict was known."""
     if isinstance(where, tuple):
-        return where[1] == number or check_at > _HIDDEN_AT.get(where[1], -1)
+        return where[1] == number or check_at > where[2]
     return where <= check_at
-
-
-_HIDDEN_AT: dict = {}
 
 
 def _cell_name(where, exercises, shift) -> str:
@@ -333,7 +330,6 @@ def _hidden_outside(graded, exercises, shift) -> set:
             if number == ex.number:
                 cell.source = strip_hidden(cell.source)
                 out.add(number)
-                _HIDDEN_AT[number] = ex.check_cell + shift
     return out
 
 

@@ -281,3 +281,36 @@ def test_a_kernel_that_stops_answering_is_detected_in_seconds(monkeypatch):
         with pytest.raises(kernel.KernelFailure, match="stopped reading requests"):
             r.execute(nb.cells[0], 0)
         assert time.monotonic() - start < 20
+
+
+def test_the_gradebook_grows_and_a_grader_failure_is_said(tmp_path, monkeypatch):
+    """After each notebook the gradebook holds what is graded (``complete`` false until the
+    last); a failure of the grader itself on one notebook is a row of its own, exit status 4,
+    and the next notebook is still graded."""
+    from sunlab.course import batch
+
+    _course(tmp_path / "course")
+    paths = [_submit(tmp_path, s, "01-mini.ipynb", RIGHT["01.1"]) for s in ("ana", "bo", "cy")]
+    seen = []
+
+    def fake(path, **kw):
+        book = tmp_path / "book" / "gradebook.json"
+        seen.append(json.loads(book.read_text()) if book.exists() else None)
+        if Path(path).parent.name == "bo":
+            raise RuntimeError("a bug of the grader")
+        return [{"student": Path(path).parent.name, "notebook": Path(path).name,
+                 "exercise": "01.1", "points": 2, "max_points": 2, "result": "pass",
+                 "message": "", "flags": []}]
+
+    monkeypatch.setattr(batch, "grade_notebook", fake)
+    rows, status = batch.grade_batch(paths, notebooks=tmp_path / "course", seed=7,
+                                     gradebook=tmp_path / "book", report=lambda *a: None)
+    assert status == batch.GRADER_FAILED
+    assert seen[0] is None and [r["student"] for r in seen[1]["rows"]] == ["ana"]
+    assert seen[1]["complete"] is False and len(seen[2]["rows"]) == 2
+    doc = json.loads((tmp_path / "book" / "gradebook.json").read_text())
+    assert doc["complete"] is True and [r["result"] for r in doc["rows"]] == [
+        "pass", "grader error", "pass"]
+    assert "a bug of the grader" in doc["rows"][1]["message"]
+    csv_lines = (tmp_path / "book" / "gradebook.csv").read_text().splitlines()
+    assert len(csv_lines) == 4 and "the grader failed on this notebook" in csv_lines[2]
