@@ -188,7 +188,7 @@ def grade_notebook(path, *, notebooks=None, seed: int | None = None, quick: bool
         ``tampered``, ``handed in twice``, ``time-out``, ``dead kernel``, ``crash``,
         ``written``, ``unreadable``), ``message`` and ``flags`` (what the answer reaches into).
     """
-    from . import kernel, probe
+    from . import probe
 
     nbf = _jupyter("nbformat")
     path = Path(path)
@@ -207,18 +207,47 @@ def grade_notebook(path, *, notebooks=None, seed: int | None = None, quick: bool
     except (ConfigurationError, OSError) as err:
         return _rows_for_unreadable(head, _one_line(err), exercises, written)
     answers, checks, texts, twice = _submitted(submitted)
-    graded, tampered = _graded(source, source_path.name, exercises, answers, checks, quick)
+    graded, tampered = _graded(source, source_path.name, exercises, answers, checks, quick,
+                               twice)
     shift = 1 if quick else 0
-    for number in twice:
-        ex = next((e for e in exercises if e.number == number), None)
-        if ex is not None:
-            graded.cells[ex.solution_cell + shift].source = (
-                f"raise NotImplementedError('exercise {number} handed in twice')")
     outside = _hidden_outside(graded, exercises, shift)
     seed_value = hidden.DEFAULT_SEED if seed is None else int(seed)
     budget = BUDGET_CELLS * float(timeout) if budget is None else float(budget)
-    verdicts, calls, failure, where = {}, {}, None, 0
     env = {**os.environ, hidden.SEED_VARIABLE: str(seed_value)}
+    verdicts, calls, failure = _run(graded, exercises, outside, shift, env, timeout, budget,
+                                    seed_value)
+    _recheck(graded, exercises, shift, calls, verdicts, timeout)
+    rows = []
+    for ex in exercises:
+        result, message = _outcome(graded, ex, exercises, shift, failure, verdicts)
+        points = ex.points if result == "pass" else 0
+        if ex.number in twice:
+            result, message, points = "handed in twice", (
+                f"exercise {ex.number} is handed in {twice[ex.number]} times (one answer cell "
+                "each): scored 0; keep one cell per exercise"), 0
+        elif ex.number in tampered and result not in _FAILED:
+            points = 0
+            ran = "it passes" if result == "pass" else f"{result}: {message}" if message else result
+            result, message = "tampered", (
+                f"{tampered[ex.number]}: scored 0 (the teacher's check, restored and run, says "
+                f"{ran})")
+        got = probe.flags(answers[ex.number].source) if ex.number in answers else []
+        if got:
+            message = (message + " " if message else "") + (
+                f"[flagged for the teacher: the answer reaches into {', '.join(got)}]")
+        rows.append({**head, "exercise": ex.number, "points": points, "max_points": ex.points,
+                     "result": result, "message": message, "flags": got})
+    rows += [_written_row(head, w, texts.get(w.number)) for w in written]
+    return rows
+
+
+def _run(graded, exercises, outside, shift, env, timeout, budget, seed_value):
+    """Run the graded notebook cell by cell, each standard hidden check here right after its
+    check cell; return the hidden checks' verdicts, their calls with forbidden functions, and
+    the kernel's failure ``(kind, message, where)`` or None."""
+    from . import kernel
+
+    verdicts, calls, where = {}, {}, 0
     by_check = {ex.check_cell + shift: ex for ex in exercises}
     try:
         with kernel.NotebookRun(graded, env=env, timeout=timeout, budget=budget) as run:
@@ -234,51 +263,44 @@ def grade_notebook(path, *, notebooks=None, seed: int | None = None, quick: bool
                     verdicts[ex.number] = _hidden_verdict(ex.number, ns, seed_value)
                     calls[ex.number] = ns.calls
     except kernel.KernelFailure as err:
-        failure = (err.kind, err.message, where)
+        return verdicts, calls, (err.kind, err.message, where)
+    return verdicts, calls, None
+
+
+def _recheck(graded, exercises, shift, calls, verdicts, timeout) -> None:
+    """The forbidden-call check of each exercise in a fresh process (:mod:`.probe`); a failure
+    becomes the exercise's verdict."""
+    from . import probe
+
     answer_cells = {e.solution_cell + shift for e in exercises}
+    check_cells = {e.check_cell + shift for e in exercises}
     for ex in exercises:
+        if not calls.get(ex.number):
+            continue
         setup = probe.setup_source([
             c.source for j, c in enumerate(graded.cells) if c.cell_type == "code"
-            and j < ex.solution_cell + shift and j not in answer_cells and j not in by_check])
+            and j < ex.solution_cell + shift and j not in answer_cells and j not in check_cells])
         mine = [graded.cells[e.solution_cell + shift].source for e in exercises
                 if e.solution_cell <= ex.solution_cell]
-        for call in calls.get(ex.number, []):
-            why = probe.check(call, setup, mine, timeout=timeout)
+        for call in calls[ex.number]:
+            why = probe.recheck(call, setup, mine, timeout=timeout)
             if why and verdicts.get(ex.number) is None:
                 verdicts[ex.number] = f"hidden check {ex.number}: {why}"
-    flags = {ex.number: probe.flags(answers[ex.number].source) for ex in exercises
-             if ex.number in answers}
-    rows = []
-    for ex in exercises:
-        check_at = ex.check_cell + shift
-        if failure is not None and _not_reached(failure[2], check_at, ex.number):
-            result, message = failure[0], (
-                f"{failure[1]} while running {_cell_name(failure[2], exercises, shift)}; "
-                f"exercise {ex.number} was not checked: scored 0")
-        else:
-            result, message = _result(_error_of(graded.cells[ex.solution_cell + shift]),
-                                      _error_of(graded.cells[check_at]))
-            if result == "pass" and verdicts.get(ex.number):
-                result, message = "wrong", verdicts[ex.number]
-        points = ex.points if result == "pass" else 0
-        if ex.number in twice:
-            result, message, points = "handed in twice", (
-                f"exercise {ex.number} is handed in {twice[ex.number]} times (one answer cell "
-                "each): scored 0; keep one cell per exercise"), 0
-        elif ex.number in tampered and result not in _FAILED:
-            points = 0
-            ran = "it passes" if result == "pass" else f"{result}: {message}" if message else result
-            result, message = "tampered", (
-                f"{tampered[ex.number]}: scored 0 (the teacher's check, restored and run, says "
-                f"{ran})")
-        got = flags.get(ex.number, [])
-        if got:
-            message = (message + " " if message else "") + (
-                f"[flagged for the teacher: the answer reaches into {', '.join(got)}]")
-        rows.append({**head, "exercise": ex.number, "points": points, "max_points": ex.points,
-                     "result": result, "message": message, "flags": got})
-    rows += [_written_row(head, w, texts.get(w.number)) for w in written]
-    return rows
+
+
+def _outcome(graded, ex, exercises, shift, failure, verdicts):
+    """(result, message) of one exercise: the kernel's failure before its verdict, its cells'
+    errors, or its hidden check's verdict."""
+    check_at = ex.check_cell + shift
+    if failure is not None and _not_reached(failure[2], check_at, ex.number):
+        return failure[0], (f"{failure[1]} while running "
+                            f"{_cell_name(failure[2], exercises, shift)}; exercise {ex.number} "
+                            "was not checked: scored 0")
+    result, message = _result(_error_of(graded.cells[ex.solution_cell + shift]),
+                              _error_of(graded.cells[check_at]))
+    if result == "pass" and verdicts.get(ex.number):
+        return "wrong", verdicts[ex.number]
+    return result, message
 
 
 def _not_reached(where, check_at, number) -> bool:
@@ -333,15 +355,16 @@ def _hidden_outside(graded, exercises, shift) -> set:
     return out
 
 
-def _graded(source, name, exercises, answers, checks, quick):
-    """The teacher edition with the student's answers in it, and the exercises whose check
-    cell was altered or deleted (number -> what happened)."""
+def _graded(source, name, exercises, answers, checks, quick, twice=()):
+    """The teacher edition with the student's answers in it (none for an exercise handed in
+    ``twice``), and the exercises whose check cell was altered or deleted (number -> what
+    happened)."""
     teacher = edition(source, name, student=False, quick=quick)
     shift = 1 if quick else 0
     graded = copy.deepcopy(teacher)
     tampered = {}
     for ex in exercises:
-        mine = answers.get(ex.number)
+        mine = answers.get(ex.number) if ex.number not in twice else None
         graded.cells[ex.solution_cell + shift].source = (
             mine.source if mine is not None else
             f"raise NotImplementedError('the cell of exercise {ex.number} is missing from the "

@@ -1,7 +1,7 @@
 """The library calls an exercise forbids, caught in a fresh process the student's code never
 set up: ``python -m sunlab.course.probe`` (run by the grader, one per exercise).
 
-The grader (:func:`check`) starts a new Python process and sends it, pickled on its standard
+The grader (:func:`recheck`) starts a new Python process and sends it, pickled on its standard
 input, the notebook's imports and constants (from the teacher's cells), the student's answer
 cells, the forbidden library functions and the first call the hidden check made in the kernel.
 The process first turns every forbidden function into a tripwire (its code object replaced, so
@@ -26,7 +26,7 @@ import numpy as np
 
 from . import wire
 
-__all__ = ["check", "flags"]
+__all__ = ["flags", "recheck"]
 
 #: the exit status of a process whose answer called a forbidden function
 TRIPPED = 77
@@ -68,7 +68,7 @@ def _same(a, b) -> bool:
     return x.shape == y.shape and bool(np.allclose(x, y, rtol=1e-9, atol=1e-12, equal_nan=True))
 
 
-def check(call: dict, setup: str, answers: list[str], *, timeout: float) -> str | None:
+def recheck(call: dict, setup: str, answers: list[str], *, timeout: float) -> str | None:
     """Re-run one answer's call in a fresh process with its forbidden functions as tripwires.
 
     Parameters
@@ -197,7 +197,7 @@ def flags(source: str) -> list[str]:
     return found
 
 
-def main() -> None:
+def _main() -> None:
     """The fresh process: tripwires first, then the answer, then the call."""
     import importlib
 
@@ -230,4 +230,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    _main()

@@ -69,7 +69,7 @@ def test_the_answer_passes_here_and_in_a_fresh_process(number):
     verdict, calls = _graded_here(number, answer)
     assert verdict is None, verdict
     assert calls, "a check with forbidden functions records its call"
-    assert probe.check(calls[0], _setup(number), [answer], timeout=120) is None
+    assert probe.recheck(calls[0], _setup(number), [answer], timeout=120) is None
 
 
 #: the library, imported in the answer cell (a notebook may not import all of it before)
@@ -85,7 +85,7 @@ def test_a_shortcut_with_the_profiler_off_trips_in_a_fresh_process(number):
                         *lines[1:]])
     verdict, calls = _graded_here(number, sneaky)
     assert verdict is None, verdict  # with the profiler off, the kernel alone would pass it
-    why = probe.check(calls[0], _setup(number), [sneaky], timeout=120)
+    why = probe.recheck(calls[0], _setup(number), [sneaky], timeout=120)
     assert why is not None and called in why, why
 
 
@@ -101,7 +101,7 @@ def test_an_answer_that_behaves_otherwise_outside_its_notebook_fails():
     ns["sys"] = types.SimpleNamespace(modules={"ipykernel": 1}, setprofile=lambda f: None)
     ns_remote = RemoteNamespace(LocalRun(ns))
     hidden.check("01.1", ns_remote, 5)
-    why = probe.check(ns_remote.calls[0], _setup("01.1"), [source], timeout=120)
+    why = probe.recheck(ns_remote.calls[0], _setup("01.1"), [source], timeout=120)
     assert why is not None and "another answer" in why, why
 
 
