@@ -231,7 +231,7 @@ MISSING, AnswerRaised = wire.MISSING, wire.AnswerRaised
 class RemoteNamespace:
     """The notebook's globals as the hidden checks see them in the grader's process: a call
     runs in the kernel (:meth:`NotebookRun.remote`), its output comes back as data. The first
-    call of each function with ``forbidden`` library functions is kept in :attr:`calls` for the
+    call of each function with ``forbidden`` library functions is kept in ``calls`` for the
     check in a fresh process (:mod:`sunlab.course.probe`)."""
 
     def __init__(self, run: NotebookRun):

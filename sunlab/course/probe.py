@@ -74,7 +74,7 @@ def recheck(call: dict, setup: str, answers: list[str], *, timeout: float) -> st
     Parameters
     ----------
     call : dict
-        :attr:`sunlab.course.kernel.RemoteNamespace.calls`'s entry.
+        An entry of ``calls`` of :class:`sunlab.course.kernel.RemoteNamespace`.
     setup : str
         The notebook's imports and constants (:func:`setup_source`).
     answers : list of str
