@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import os
 
-from ._args import verb
+from ._args import SECONDS, verb
 
 __all__: list[str] = []
 
@@ -30,6 +30,9 @@ def _add(sub) -> None:
     p.add_argument("--seed", type=int, help="seed of the hidden checks (default: drawn)")
     p.add_argument("--notebooks", metavar="DIR", help="the notebooks (default: notebooks/)")
     p.add_argument("--full", action="store_true", help="without the quick-settings cell")
+    p.add_argument("--timeout", type=SECONDS, default=180.0,
+                   help="with --grade: limit per cell, s (a notebook's budget is 10 limits); "
+                   "past it the notebook's open exercises score 0 (default: 180)")
 
 
 def run_course(args) -> int:
@@ -50,34 +53,22 @@ def run_course(args) -> int:
 
 
 def _grade(args) -> int:
-    """Grade each notebook of ``--grade``; print each student's points and each exercise's."""
+    """Grade every notebook of ``--grade`` (:func:`sunlab.course.batch.grade_batch`, which
+    prints each student's points and each exercise's); the batch's exit status."""
     from pathlib import Path
 
     from .. import atomic
-    from ..course import grading
+    from ..course import batch, grading
 
     if args.gradebook is not None:  # refused before hours of grading, not after
         atomic.check_folder(args.gradebook, grading.GRADEBOOK_FILES, overwrite=args.overwrite,
                             flag="--overwrite")
     seed = args.seed if args.seed is not None else int.from_bytes(os.urandom(3), "big")
     print(f"hidden checks on fresh inputs drawn from seed {seed}")
-    rows = []
-    for path in args.grade:
-        mine = grading.grade_notebook(path, notebooks=args.notebooks, seed=seed,
-                                      quick=not args.full)
-        rows += mine
-        passed = sum(r["result"] == "pass" for r in mine)
-        checked = sum(r["points"] is not None for r in mine)
-        for student, tot in grading.totals(mine).items():
-            hand = tot["written_max_points"]
-            print(f"{student}/{Path(path).name}: {tot['points']} of {tot['max_points']} points "
-                  f"({passed} of {checked} checks pass"
-                  + (f"; {hand} points of written answers to grade by hand)" if hand else ")"))
-        for r in mine:
-            pts = "-" if r["points"] is None else r["points"]
-            print(f"  {r['exercise']:<14} {pts}/{r['max_points']}  {r['result']:<12} "
-                  f"{r['message']}".rstrip())
+    _, status = batch.grade_batch(args.grade, notebooks=args.notebooks, seed=seed,
+                                  quick=not args.full, timeout=args.timeout,
+                                  gradebook=args.gradebook, overwrite=args.overwrite)
     if args.gradebook is not None:
-        files = grading.write_gradebook(rows, args.gradebook, seed=seed, overwrite=args.overwrite)
-        print("wrote " + ", ".join(map(str, files)))
-    return int(any(r["points"] is not None and r["points"] < r["max_points"] for r in rows))
+        print(f"wrote {Path(args.gradebook) / 'gradebook.csv'}, "
+              f"{Path(args.gradebook) / 'gradebook.json'}")
+    return status

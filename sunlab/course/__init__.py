@@ -5,6 +5,9 @@
 * :mod:`sunlab.course.grading`: students' notebooks graded against the teacher edition, and
   the gradebook (:func:`grade`, ``sunlab course --grade ... --gradebook DIR``);
 * :mod:`sunlab.course.hidden`: each exercise's hidden check on fresh inputs;
+* :mod:`sunlab.course.kernel`, :mod:`sunlab.course.wire`, :mod:`sunlab.course.probe`: a
+  submission's kernel (time limits, process group), the data between it and the grader, and the
+  forbidden library calls caught in a fresh process;
 * :mod:`sunlab.course.capstone`: the recordings of notebook 08's capstone, rendered by seed.
 
 docs/course.md (the student syllabus) and docs/teacher-notes.md say how to use them.

@@ -1,24 +1,30 @@
 """Grading students' notebooks against the teacher edition: a gradebook a teacher can trust.
 
-:func:`grade` does not trust a submitted notebook's check cells. For each notebook it builds the
-notebook to run from the **teacher edition** of the course notebook of the same name, and takes
-only the student's answers from the submission: the code of each exercise cell (``# Exercise
-NN.k``, or nbgrader's ``grade_id`` ``exNN-k``) and the text of each written answer. Every
-other cell, each check cell included, is the teacher's, with its hidden-test block
-(:mod:`sunlab.course.hidden`), which runs the answer on fresh inputs drawn from the grader's
-seed. A submission whose check cell was altered (replaced by a ``print``, edited) or deleted
-scores that exercise 0, whatever the restored check says, and the message names the tampering.
+:func:`sunlab.course.batch.grade_batch` (``sunlab course --grade``) checks every submission
+first (a course notebook's name, handed in once), then grades them one by one, rewriting the
+gradebook after each. :func:`grade_notebook` does not trust a submitted
+notebook's check cells: it builds the notebook to run from the **teacher edition** of the course
+notebook of the same name and takes only the student's answers from the submission (each
+``# Exercise NN.k`` cell, or nbgrader's ``grade_id`` ``exNN-k``, and each written answer). A
+check cell that was altered or deleted scores that exercise 0, and the message names the
+tampering; an exercise handed in twice scores 0.
 
-The notebook runs top to bottom in a fresh kernel in the submission's folder, going on past
-errors. Each exercise then gets its points (the check's ``(N points)``) or 0, and a message:
-the check's own message (visible or hidden) when the answer is wrong, ``not answered`` when the
-stub still raises, ``SyntaxError in your answer`` with the line, or the error. Written answers
-are listed with their points left blank for the teacher.
+The notebook runs cell by cell in a fresh kernel in a scratch folder
+(:class:`sunlab.course.kernel.NotebookRun`: a limit per cell, a budget per notebook, its process
+group killed at the end). Right after each check cell, the exercise's hidden check
+(:mod:`sunlab.course.hidden`) runs **in this process**: the student's function is called in the
+kernel on the fresh inputs and its outputs come back as data (:mod:`sunlab.course.wire`); the
+references and the comparisons never exist in the kernel. Forbidden library calls are caught in
+a fresh process (:mod:`sunlab.course.probe`). A time-out, a dead kernel or a kernel that stops
+answering scores the exercises not yet checked 0 with a message saying which. Each exercise gets
+its points (the check's ``(N points)``) or 0, and a message; answer cells that reach into the
+interpreter are flagged. Written answers are listed with their points left blank for the teacher.
 
 :func:`write_gradebook` writes ``gradebook.csv`` (columns ``student, notebook, exercise,
 points, max_points, message``; the student is the name of the folder that holds the notebook)
-and ``gradebook.json`` (the same rows, with each result, the seed and the totals per student),
-both at once (:func:`sunlab.atomic.atomic_files`).
+and ``gradebook.json`` (the same rows, with each result and flags, the seed, the totals per
+student and whether the batch is complete), both at once (:func:`sunlab.atomic.atomic_files`),
+the CSV from the record the JSON holds.
 """
 
 from __future__ import annotations
@@ -36,6 +42,8 @@ from .editions import (
     _CHECK,
     _EXERCISE,
     _WRITTEN,
+    BEGIN_HIDDEN,
+    END_HIDDEN,
     WRITTEN_PROMPT,
     _jupyter,
     _read,
@@ -78,8 +86,9 @@ def _source_for(path: Path, src: Path) -> Path:
 
 
 def _submitted(nb):
-    """The student's answer cells, check cells and written answers, by exercise number."""
-    answers, checks, texts = {}, {}, {}
+    """The student's answer cells, check cells and written answers, by exercise number, and
+    the exercises whose answer cell is handed in more than once (number -> how many)."""
+    answers, checks, texts, seen = {}, {}, {}, {}
     for cell in nb.cells:
         gid = _grade_id(cell)
         if cell.cell_type == "code":
@@ -87,7 +96,9 @@ def _submitted(nb):
             c = _CHECK.match(_first(cell))
             g = re.fullmatch(r"ex(\d\d)-(\d+)(-check)?", gid)
             if g and not g.group(3) or m:
-                answers.setdefault(m.group(1) if m else f"{g.group(1)}.{g.group(2)}", cell)
+                number = m.group(1) if m else f"{g.group(1)}.{g.group(2)}"
+                answers.setdefault(number, cell)
+                seen[number] = seen.get(number, 0) + 1
             if g and g.group(3) or c:
                 checks.setdefault(c.group(1) if c else f"{g.group(1)}.{g.group(2)}", cell)
         elif cell.cell_type == "markdown":
@@ -95,7 +106,7 @@ def _submitted(nb):
             g = re.fullmatch(r"ex(\d\d)-(\d+)-written", gid)
             if w or g:
                 texts.setdefault(w.group(1) if w else f"{g.group(1)}.{g.group(2)}", cell)
-    return answers, checks, texts
+    return answers, checks, texts, {k: n for k, n in seen.items() if n > 1}
 
 
 def _error_of(cell):
@@ -140,8 +151,16 @@ def _rows_for_unreadable(head, message, exercises, written):
              "result": "unreadable", "message": message} for e in [*exercises, *written]]
 
 
+#: limit per cell, s (``sunlab course --grade --timeout``)
+DEFAULT_TIMEOUT = 180.0
+#: a notebook's budget, in limits per cell (every cell and every hidden check together)
+BUDGET_CELLS = 10
+
+_FAILED = {"time-out", "dead kernel", "crash"}
+
+
 def grade_notebook(path, *, notebooks=None, seed: int | None = None, quick: bool = True,
-                   timeout: float = 900.0) -> list[dict]:
+                   timeout: float = DEFAULT_TIMEOUT, budget: float | None = None) -> list[dict]:
     """Grade one student's notebook against the teacher edition (see the module's text).
 
     Parameters
@@ -156,7 +175,9 @@ def grade_notebook(path, *, notebooks=None, seed: int | None = None, quick: bool
     quick : bool
         Run with the small settings (``SUNLAB_QUICK=1``), as the editions do by default.
     timeout : float
-        Limit per cell, s.
+        Limit per cell (and per hidden check's call), s.
+    budget : float, optional
+        Limit for the whole notebook, s; default :data:`BUDGET_CELLS` times ``timeout``.
 
     Returns
     -------
@@ -164,8 +185,11 @@ def grade_notebook(path, *, notebooks=None, seed: int | None = None, quick: bool
         One row per exercise and per written answer, in order: ``student``, ``notebook``,
         ``exercise``, ``points`` (None for a written answer: graded by hand), ``max_points``,
         ``result`` (``pass``, ``wrong``, ``not answered``, ``syntax error``, ``error``,
-        ``tampered``, ``written``, ``unreadable``) and ``message``.
+        ``tampered``, ``handed in twice``, ``time-out``, ``dead kernel``, ``crash``,
+        ``written``, ``unreadable``), ``message`` and ``flags`` (what the answer reaches into).
     """
+    from . import probe
+
     nbf = _jupyter("nbformat")
     path = Path(path)
     src = Path(notebooks) if notebooks is not None else default_notebook_dir()
@@ -182,40 +206,165 @@ def grade_notebook(path, *, notebooks=None, seed: int | None = None, quick: bool
         submitted = _read(nbf, path)
     except (ConfigurationError, OSError) as err:
         return _rows_for_unreadable(head, _one_line(err), exercises, written)
-    answers, checks, texts = _submitted(submitted)
-    graded, tampered = _graded(source, source_path.name, exercises, answers, checks, quick)
-    seed_value = hidden.DEFAULT_SEED if seed is None else int(seed)
-    _jupyter("nbclient").NotebookClient(
-        graded, timeout=timeout, kernel_name="python3", allow_errors=True,
-        resources={"metadata": {"path": str(path.parent)}}).execute(
-        env={**os.environ, hidden.SEED_VARIABLE: str(seed_value)})  # the kernel's environment
+    answers, checks, texts, twice = _submitted(submitted)
+    graded, tampered = _graded(source, source_path.name, exercises, answers, checks, quick,
+                               twice)
     shift = 1 if quick else 0
+    outside = _hidden_outside(graded, exercises, shift)
+    seed_value = hidden.DEFAULT_SEED if seed is None else int(seed)
+    budget = BUDGET_CELLS * float(timeout) if budget is None else float(budget)
+    env = {**os.environ, hidden.SEED_VARIABLE: str(seed_value)}
+    verdicts, calls, failure = _run(graded, exercises, outside, shift, env, timeout, budget,
+                                    seed_value)
+    _recheck(graded, exercises, shift, calls, verdicts, timeout)
     rows = []
     for ex in exercises:
-        result, message = _result(_error_of(graded.cells[ex.solution_cell + shift]),
-                                  _error_of(graded.cells[ex.check_cell + shift]))
+        result, message = _outcome(graded, ex, exercises, shift, failure, verdicts)
         points = ex.points if result == "pass" else 0
-        if ex.number in tampered:
+        if ex.number in twice:
+            result, message, points = "handed in twice", (
+                f"exercise {ex.number} is handed in {twice[ex.number]} times (one answer cell "
+                "each): scored 0; keep one cell per exercise"), 0
+        elif ex.number in tampered and result not in _FAILED:
             points = 0
             ran = "it passes" if result == "pass" else f"{result}: {message}" if message else result
             result, message = "tampered", (
                 f"{tampered[ex.number]}: scored 0 (the teacher's check, restored and run, says "
                 f"{ran})")
+        got = probe.flags(answers[ex.number].source) if ex.number in answers else []
+        if got:
+            message = (message + " " if message else "") + (
+                f"[flagged for the teacher: the answer reaches into {', '.join(got)}]")
         rows.append({**head, "exercise": ex.number, "points": points, "max_points": ex.points,
-                     "result": result, "message": message})
+                     "result": result, "message": message, "flags": got})
     rows += [_written_row(head, w, texts.get(w.number)) for w in written]
     return rows
 
 
-def _graded(source, name, exercises, answers, checks, quick):
-    """The teacher edition with the student's answers in it, and the exercises whose check
-    cell was altered or deleted (number -> what happened)."""
+def _run(graded, exercises, outside, shift, env, timeout, budget, seed_value):
+    """Run the graded notebook cell by cell, each standard hidden check here right after its
+    check cell; return the hidden checks' verdicts, their calls with forbidden functions, and
+    the kernel's failure ``(kind, message, where)`` or None."""
+    from . import kernel
+
+    verdicts, calls, where = {}, {}, 0
+    by_check = {ex.check_cell + shift: ex for ex in exercises}
+    try:
+        with kernel.NotebookRun(graded, env=env, timeout=timeout, budget=budget) as run:
+            for i, cell in enumerate(graded.cells):
+                if cell.cell_type != "code":
+                    continue
+                where = i
+                run.execute(cell, i)
+                ex = by_check.get(i)
+                if ex is not None and ex.number in outside:
+                    where = ("hidden", ex.number, i)
+                    ns = kernel.RemoteNamespace(run)
+                    verdicts[ex.number] = _hidden_verdict(ex.number, ns, seed_value)
+                    calls[ex.number] = ns.calls
+    except kernel.KernelFailure as err:
+        return verdicts, calls, (err.kind, err.message, where)
+    return verdicts, calls, None
+
+
+def _recheck(graded, exercises, shift, calls, verdicts, timeout) -> None:
+    """The forbidden-call check of each exercise in a fresh process (:mod:`.probe`); a failure
+    becomes the exercise's verdict."""
+    from . import probe
+
+    answer_cells = {e.solution_cell + shift for e in exercises}
+    check_cells = {e.check_cell + shift for e in exercises}
+    for ex in exercises:
+        if not calls.get(ex.number):
+            continue
+        setup = probe.setup_source([
+            c.source for j, c in enumerate(graded.cells) if c.cell_type == "code"
+            and j < ex.solution_cell + shift and j not in answer_cells and j not in check_cells])
+        mine = [graded.cells[e.solution_cell + shift].source for e in exercises
+                if e.solution_cell <= ex.solution_cell]
+        for call in calls[ex.number]:
+            why = probe.recheck(call, setup, mine, timeout=timeout)
+            if why and verdicts.get(ex.number) is None:
+                verdicts[ex.number] = f"hidden check {ex.number}: {why}"
+
+
+def _outcome(graded, ex, exercises, shift, failure, verdicts):
+    """(result, message) of one exercise: the kernel's failure before its verdict, its cells'
+    errors, or its hidden check's verdict."""
+    check_at = ex.check_cell + shift
+    if failure is not None and _not_reached(failure[2], check_at, ex.number):
+        return failure[0], (f"{failure[1]} while running "
+                            f"{_cell_name(failure[2], exercises, shift)}; exercise {ex.number} "
+                            "was not checked: scored 0")
+    result, message = _result(_error_of(graded.cells[ex.solution_cell + shift]),
+                              _error_of(graded.cells[check_at]))
+    if result == "pass" and verdicts.get(ex.number):
+        return "wrong", verdicts[ex.number]
+    return result, message
+
+
+def _not_reached(where, check_at, number) -> bool:
+    """Whether the failure at ``where`` (a cell index, or ("hidden", NN.k, its check cell))
+    came before the exercise's verdict was known."""
+    if isinstance(where, tuple):
+        return where[1] == number or check_at > where[2]
+    return where <= check_at
+
+
+def _cell_name(where, exercises, shift) -> str:
+    if isinstance(where, tuple):
+        return f"the hidden check of exercise {where[1]}"
+    for ex in exercises:
+        if where == ex.solution_cell + shift:
+            return f"the answer of exercise {ex.number}"
+        if where == ex.check_cell + shift:
+            return f"the check of exercise {ex.number}"
+    return f"cell {where}"
+
+
+def _hidden_verdict(number, ns, seed_value):
+    """The hidden check run here, on the kernel's outputs: None (passes) or its message."""
+    from .kernel import KernelFailure
+
+    try:
+        hidden.check(number, ns, seed_value)
+    except AssertionError as err:
+        return _one_line(err)
+    except KernelFailure:
+        raise
+    except Exception as err:  # an output the check cannot read
+        return (f"hidden check {number}: your answer's output could not be checked "
+                f"({type(err).__name__}: {_one_line(err)[:200]})")
+    return None
+
+
+def _hidden_outside(graded, exercises, shift) -> set:
+    """Take the standard hidden-test blocks out of the check cells (the grader runs them in
+    its own process); return their exercise numbers."""
+    out = set()
+    for ex in exercises:
+        cell = graded.cells[ex.check_cell + shift]
+        lines = cell.source.splitlines()
+        begin = [k for k, x in enumerate(lines) if x.strip() == BEGIN_HIDDEN]
+        end = [k for k, x in enumerate(lines) if x.strip() == END_HIDDEN]
+        if len(begin) == 1 and len(end) == 1 and begin[0] < end[0]:
+            number = hidden.call_of("\n".join(lines[begin[0] + 1: end[0]]))
+            if number == ex.number:
+                cell.source = strip_hidden(cell.source)
+                out.add(number)
+    return out
+
+
+def _graded(source, name, exercises, answers, checks, quick, twice=()):
+    """The teacher edition with the student's answers in it (none for an exercise handed in
+    ``twice``), and the exercises whose check cell was altered or deleted (number -> what
+    happened)."""
     teacher = edition(source, name, student=False, quick=quick)
     shift = 1 if quick else 0
     graded = copy.deepcopy(teacher)
     tampered = {}
     for ex in exercises:
-        mine = answers.get(ex.number)
+        mine = answers.get(ex.number) if ex.number not in twice else None
         graded.cells[ex.solution_cell + shift].source = (
             mine.source if mine is not None else
             f"raise NotImplementedError('the cell of exercise {ex.number} is missing from the "
@@ -241,29 +390,27 @@ def _written_row(head, w, cell) -> dict:
 
 
 def grade(paths, *, notebooks=None, seed: int | None = None, quick: bool = True,
-          timeout: float = 900.0) -> list[dict]:
-    """Grade several students' notebooks (``grade_notebook`` for each).
+          timeout: float = DEFAULT_TIMEOUT, budget: float | None = None) -> list[dict]:
+    """Grade several students' notebooks (:func:`sunlab.course.batch.grade_batch` without a
+    gradebook or report).
 
     Parameters
     ----------
     paths : iterable of str or path-like
         The submitted notebooks, each in a folder named after its student.
-    notebooks : str or path-like, optional
-        The course's notebooks (the teacher's source); default the checkout's.
-    seed : int, optional
-        Draws the hidden checks' fresh inputs; default :data:`sunlab.course.hidden.DEFAULT_SEED`.
-    quick : bool
-        Run with the small settings (``SUNLAB_QUICK=1``).
-    timeout : float
-        Limit per cell, s.
+    notebooks, seed, quick, timeout, budget
+        As :func:`grade_notebook`'s.
 
     Returns
     -------
     list of dict
-        The rows of ``grade_notebook`` of every notebook, in the order of ``paths``.
+        The rows of every notebook, in the order of ``paths`` (a submission refused by the
+        checks before grading has rows with the result ``refused``).
     """
-    return [r for path in paths for r in grade_notebook(path, notebooks=notebooks, seed=seed,
-                                                         quick=quick, timeout=timeout)]
+    from .batch import grade_batch
+
+    return grade_batch(paths, notebooks=notebooks, seed=seed, quick=quick, timeout=timeout,
+                       budget=budget, report=lambda *a: None)[0]
 
 
 def totals(rows) -> dict:
@@ -309,7 +456,8 @@ def csv_text(rows) -> str:
         index=False, lineterminator="\n")
 
 
-def write_gradebook(rows, folder, *, seed: int, overwrite: bool = False) -> list[Path]:
+def write_gradebook(rows, folder, *, seed: int, overwrite: bool = False,
+                    complete: bool = True) -> list[Path]:
     """Write ``gradebook.csv`` and ``gradebook.json`` into ``folder``, both or neither.
 
     Parameters
@@ -322,6 +470,8 @@ def write_gradebook(rows, folder, *, seed: int, overwrite: bool = False) -> list
         The hidden checks' seed, recorded in the JSON.
     overwrite : bool
         Replace a gradebook written before.
+    complete : bool
+        Whether every submission is graded (recorded in the JSON; False while a batch grows).
 
     Returns
     -------
@@ -329,10 +479,12 @@ def write_gradebook(rows, folder, *, seed: int, overwrite: bool = False) -> list
         The two files.
     """
     folder = Path(folder)
-    doc = {"schema": "sunlab-gradebook/1", "seed": int(seed), "columns": list(COLUMNS),
-           "rows": rows, "totals": totals(rows)}
+    doc = {"schema": "sunlab-gradebook/1", "seed": int(seed), "complete": bool(complete),
+           "columns": list(COLUMNS), "rows": list(rows), "totals": totals(rows)}
+    text = json.dumps(doc, indent=1) + "\n"
+    record = json.loads(text)  # the CSV is written from the very record the JSON holds
     with atomic.atomic_files(folder, GRADEBOOK_FILES, overwrite=overwrite,
                              flag="--overwrite") as tmp:
-        (tmp / "gradebook.csv").write_text(csv_text(rows), encoding="utf-8")
-        (tmp / "gradebook.json").write_text(json.dumps(doc, indent=1) + "\n", encoding="utf-8")
+        (tmp / "gradebook.csv").write_text(csv_text(record["rows"]), encoding="utf-8")
+        (tmp / "gradebook.json").write_text(text, encoding="utf-8")
     return [folder / name for name in GRADEBOOK_FILES]

@@ -7,16 +7,20 @@ A check cell of the teacher edition ends with nbgrader's hidden-test block::
     hidden.check("01.1", globals())
     ### END HIDDEN TESTS
 
-The student edition leaves the block out; ``sunlab course --grade`` (and nbgrader's
-``autograde``) put it back. :func:`check` takes the student's function from the notebook's
-namespace and runs it on inputs drawn from a seed the grader picks (the environment variable
-:data:`SEED_VARIABLE`; ``sunlab course --grade --seed``): other angles, another bench geometry
-(the notebook's constants such as ``F`` are rebound for the call), other frames, other benches.
-The reference is computed by the library or by the simulator on the same inputs, never stated
-here. An answer that returns a constant, reads a variable of the notebook that the exercise does
-not name, or calls the library function that the exercise asks the student to write (detected
-with a profiler during the call) fails with an AssertionError that says which, without stating
-the answer.
+The student edition leaves the block out; nbgrader's ``autograde`` puts it back and runs it in
+the student's kernel. ``sunlab course --grade`` instead runs the check **in the grader's
+process** (:mod:`sunlab.course.grading`): the namespace is then a
+:class:`sunlab.course.kernel.RemoteNamespace`, the student's function is called in its kernel
+on the fresh inputs and only its outputs come back, as data. :func:`check` takes the student's
+function from the namespace and runs it on inputs drawn from a seed the grader picks (the
+environment variable :data:`SEED_VARIABLE`; ``sunlab course --grade --seed``): other angles,
+another bench geometry (the notebook's constants such as ``F`` are rebound for the call), other
+frames, other benches. The reference is computed by the library or by the simulator on the same
+inputs, never stated here. An answer that returns a constant, reads a variable of the notebook
+that the exercise does not name, or calls the library function that the exercise asks the
+student to write fails with an AssertionError that says which, without stating the answer. The
+forbidden call is seen by a profiler when the namespace is a dict (nbgrader, the tests), and by
+tripwires in a fresh process when the grader runs the check (:mod:`sunlab.course.probe`).
 """
 
 from __future__ import annotations
@@ -76,12 +80,36 @@ def check(number: str, namespace: dict, seed_value: int | None = None) -> None:
         CHECKS[number](namespace, rng)
     except AssertionError as err:
         raise AssertionError(f"hidden check {number} (fresh inputs, seed {s}): {err}") from None
-    print(f"Hidden check {number} passed (fresh inputs, seed {s}).")
+    if isinstance(namespace, dict):
+        print(f"Hidden check {number} passed (fresh inputs, seed {s}).")
 
 
-def _call(ns, name, *args, forbidden=(), **kwargs):
-    """``ns[name](*args, **kwargs)``, failing when it calls one of ``forbidden`` (library
-    functions) or raises."""
+#: the hidden-test block that the grader runs in its own process (:func:`call_of`)
+_STANDARD = re.compile(r"\s*from sunlab\.course import hidden\s*\n"
+                       r"\s*hidden\.check\(\s*[\"'](\d\d\.\d+)[\"']\s*,\s*globals\(\)\s*\)\s*")
+
+
+def call_of(block: str) -> str | None:
+    """The exercise number of a standard hidden-test block (``hidden.check("NN.k",
+    globals())``), which the grader runs in its own process; None for any other block."""
+    m = _STANDARD.fullmatch(block)
+    return m.group(1) if m and m.group(1) in CHECKS else None
+
+
+def _call(ns, name, *args, forbidden=(), bind=None, **kwargs):
+    """``ns[name](*args, **kwargs)`` with the notebook's names ``bind`` rebound for the call,
+    failing when it calls one of ``forbidden`` (library functions) or raises.
+
+    ``ns`` is the notebook's globals (a dict: the call runs here, the forbidden calls are seen
+    by a profiler), or, when the grader runs the check in its own process, a
+    :class:`sunlab.course.kernel.RemoteNamespace`: the call runs in the student's kernel, its
+    output comes back as data, and the forbidden calls are caught in a fresh process
+    (:mod:`sunlab.course.probe`)."""
+    if not isinstance(ns, dict):
+        return ns.call(name, args, kwargs, bind or {}, forbidden)
+    if bind:
+        with mock.patch.dict(ns, bind):
+            return _call(ns, name, *args, forbidden=forbidden, **kwargs)
     fn = ns.get(name)
     assert fn is not None, f"`{name}` is not defined: the exercise asks you to define it"
     codes = {code: f"{f.__module__}.{f.__qualname__}" for f in forbidden
@@ -139,8 +167,7 @@ def _ex01_2_motion(ns, rng):
     h = 1e-4  # deg: the numerical derivative's error is ~h^2, far below the tolerance
     ref = (geometry.ideal_centroid(a + h, 0 * a, f_mm, p_mm, 0, 0)[0]
            - geometry.ideal_centroid(a - h, 0 * a, f_mm, p_mm, 0, 0)[0]) / (2 * h)
-    with mock.patch.dict(ns, F=f_mm, p=p_mm):
-        mine = [float(_call(ns, "px_per_degree", x)) for x in a]
+    mine = [float(_call(ns, "px_per_degree", x, bind=dict(F=f_mm, p=p_mm))) for x in a]
     _close(np.array(mine) / ref, np.ones_like(ref), 1e-6,
            f"another bench (F = {f_mm:.2f} mm, p = {p_mm * 1e3:.1f} um), px per degree over "
            "the truth")
@@ -220,9 +247,8 @@ def _ex03_1_inverse(ns, rng):
     g = _geometry(rng)
     a, b = rng.uniform(-25, 25, 50), rng.uniform(-25, 25, 50)
     x, y = geometry.ideal_centroid(a, b, g["F"], g["P"], g["X_CF"], g["Y_CF"])
-    with mock.patch.dict(ns, **g):
-        mine = _call(ns, "angles_from_centroid", x, y,
-                     forbidden=(geometry.ideal_angles, geometry.sun_angles))
+    mine = _call(ns, "angles_from_centroid", x, y, bind=g,
+                 forbidden=(geometry.ideal_angles, geometry.sun_angles))
     _close(np.asarray(mine, dtype=float), np.array([a, b]), 1e-9,
            f"another bench (F = {g['F']:.2f} mm), angles back from centroids, deg")
 
@@ -236,9 +262,8 @@ def _ex03_2_delta_f(ns, rng):
     xg, yg = geometry.optimised_centroid(grid, np.full_like(grid, 5.0), g["F"], g["P"], dF,
                                          0.0, 0.0, g["X_CF"], g["Y_CF"])
     measured = geometry.ideal_angles(xg, yg, g["F"], g["P"], g["X_CF"], g["Y_CF"])[0] - grid
-    with mock.patch.dict(ns, **g):
-        mine = _call(ns, "ideal_alpha_error", grid, dF,
-                     forbidden=(geometry.ideal_angles, geometry.optimised_centroid))
+    mine = _call(ns, "ideal_alpha_error", grid, dF, bind=g,
+                 forbidden=(geometry.ideal_angles, geometry.optimised_centroid))
     # the second order in dF / F (below 1 %) is all that may differ
     _close(mine, measured, 0.02 * np.abs(measured).max(),
            f"another bench (F = {g['F']:.2f} mm, dF = {dF:+.3f} mm), error in deg")
@@ -321,16 +346,17 @@ def _ex05_1_areas(ns, rng):
 def _ex06_1_gain(ns, rng):
     from sunlab.multihole import budget
 
-    for _ in range(3):
+    for _ in range(4):
         c, s, n = rng.uniform(0.1, 2.0), rng.uniform(0.1, 2.0), int(rng.integers(2, 150))
-        draws = 100_000
-        e = rng.normal(0, c, (draws, 1)) + rng.normal(0, s, (draws, n))
-        sampled = e[:, 0].std() / e.mean(axis=1).std()
+        # the model itself: the covariance of the n holes' errors, a common part on every pair
+        cov = np.full((n, n), c * c) + np.diag(np.full(n, s * s))
+        weights = np.full(n, 1.0 / n)
+        exact = float(np.sqrt(cov[0, 0] / (weights @ cov @ weights)))
         mine = float(_call(ns, "averaging_gain", c, s, n, forbidden=(budget.error_budget,)))
-        # 1e5 draws: the sampled ratio scatters by about 0.3 %
-        assert abs(mine - sampled) < 0.015 * sampled, (
-            f"common {c:.2f}, specific {s:.2f}, {n} holes: {draws} draws give a gain "
-            f"{mine / sampled:.3f} times yours")
+        # a derivation is exact: a Monte Carlo estimate (0.1 % at best) does not pass
+        assert abs(mine - exact) <= 1e-9 * exact, (
+            f"common {c:.2f}, specific {s:.2f}, {n} holes: your gain is {mine / exact:.6f} "
+            "times the exact one (the exercise asks for a derivation, exact to 1e-9)")
 
 
 # --------------------------------------------------------------------------- notebook 07
@@ -421,14 +447,25 @@ def _ex08_2_calibrate(ns, rng):
 # --------------------------------------------------------------------------- notebook 09
 
 def _ex09_1_bound(ns, rng):
+    from scipy import integrate
+
     for c, w in ((rng.uniform(-1, 1), 1.0), (rng.uniform(1.2, 3), 1.0),
-                 (rng.uniform(0, 0.05), rng.uniform(0.01, 0.1))):
-        e = np.abs(rng.uniform(c - w, c + w, 4 * 10**6))
-        sampled = e.std() / e.mean()
+                 (rng.uniform(0, 0.05), rng.uniform(0.01, 0.1)), (0.0, rng.uniform(0.5, 2))):
+        # the moments of |X| from their definition, integrated to 1e-13 (split at 0)
+        cut = [0.0] if c - w < 0 < c + w else None
+
+        def moment(k, c=c, w=w, cut=cut):
+            return integrate.quad(lambda x: abs(x) ** k / (2 * w), c - w, c + w, points=cut,
+                                  epsabs=0, epsrel=1e-13)[0]
+
+        m1, m2 = moment(1), moment(2)
+        exact = float(np.sqrt(m2 - m1 * m1) / m1)
         mine = float(_call(ns, "abs_ratio_uniform", c, w))
-        # 4e6 draws: the sampled ratio scatters by about 5e-4
-        assert abs(mine - sampled) < 2.5e-3, (
-            f"c = {c:.3f}, w = {w:.3f}: draws disagree with yours by {mine - sampled:+.4f}")
+        # a derivation is exact: draws (1e-3 at best) do not pass
+        assert abs(mine - exact) <= 1e-9 * max(1.0, exact), (
+            f"c = {c:.3f}, w = {w:.3f}: yours differs from the exact ratio by "
+            f"{(mine - exact) / exact:+.2e} of it (the exercise asks for a derivation, exact "
+            "to 1e-9)")
 
 
 def _ex09_2_backlash(ns, rng):

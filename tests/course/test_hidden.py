@@ -61,3 +61,19 @@ def test_another_bench_is_rebound_for_the_check_and_put_back():
 
 def test_every_exercise_number_has_the_notebook_form():
     assert hidden.CHECKS and all(len(k) >= 4 and k[2] == "." for k in hidden.CHECKS)
+
+
+@pytest.mark.parametrize("number, answer", [
+    ("09.1", "def abs_ratio_uniform(c, w):\n"
+             "    e = np.abs(np.random.default_rng(0).uniform(c - w, c + w, 4 * 10**6))\n"
+             "    return e.std() / e.mean()"),
+    ("06.1", "def averaging_gain(common, specific, n):\n"
+             "    g = np.random.default_rng(0)\n"
+             "    e = g.normal(0, common, (200_000, 1)) + g.normal(0, specific, (200_000, n))\n"
+             "    return e[:, 0].std() / e.mean(axis=1).std()"),
+])
+def test_a_monte_carlo_estimate_fails_a_check_that_asks_for_a_derivation(number, answer):
+    ns = {"np": np}
+    exec(answer, ns)  # noqa: S102 - the answer under test
+    with pytest.raises(AssertionError, match="derivation, exact to 1e-9"):
+        hidden.check(number, ns, seed_value=5)
