@@ -123,16 +123,21 @@ def _disk(dx2, dy2, r):
 def _ring_level(v, ring, lo, hi):
     """Mean, standard deviation and count of the ``ring`` pixels of each stamp whose values lie
     in ``[lo, hi]`` (all the ring's pixels where none does)."""
+    integer = v.dtype.kind == "u" and math.isfinite(lo) and math.isfinite(hi)
+    if integer:  # the same pixels by integer comparisons (no float conversion)
+        lo, hi = max(math.ceil(lo), 0), min(math.floor(hi), np.iinfo(v.dtype).max)
+        lo, hi = (lo, hi) if lo <= hi else (1, 0)
     use = ring & (v >= lo) & (v <= hi)
     n = np.count_nonzero(use, axis=(1, 2))
     if not n.all():
         use |= ring & (n == 0)[:, None, None]
         n = np.count_nonzero(use, axis=(1, 2))
     vu = v * use  # no float64 copy: each fresh temporary of a stamp batch costs page faults
+    s1 = vu.sum((1, 2), dtype=np.uint64 if integer else np.float64)
+    s2 = np.einsum("nij,nij->n", vu, vu, dtype=np.float64)
     with np.errstate(invalid="ignore", divide="ignore"):
-        m = vu.sum((1, 2), dtype=np.float64) / n
-        sd = np.sqrt(np.maximum(np.einsum("nij,nij->n", vu, vu, dtype=np.float64) / n - m * m,
-                                0.0))
+        m = s1 / n
+        sd = np.sqrt(np.maximum(s2 / n - m * m, 0.0))
     return m, sd, n
 
 

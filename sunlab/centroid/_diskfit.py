@@ -179,7 +179,7 @@ def _spline_model(px: _Pixels, q, d_lo, h, nint):
     slope = np.where(d > 1e-9, slope / np.maximum(d, 1e-9), 0.0)
     jac = np.zeros((d.size, q.size))
     jac[:, 0], jac[:, 1] = -slope * dx, -slope * dy
-    np.put_along_axis(jac, cols.T, b.T, axis=1)
+    jac[np.arange(d.size)[:, None], cols.T] = b.T
     return m, jac
 
 

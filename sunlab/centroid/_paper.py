@@ -14,7 +14,6 @@ Examples
 from __future__ import annotations
 
 import numpy as np
-from scipy import ndimage
 
 from .result import (
     _INVALID,
@@ -180,13 +179,17 @@ def _zones(p, base, sigma, nsigma, edge_sigma, min_width):
     holding such a run). Returns a list of (lo, hi, excess), hi exclusive, brightest first."""
     ex = p - base
     floor = max(sigma, 1e-9 * max(abs(base), 1.0))
-    strong, _ = ndimage.label(ex > nsigma * floor)
-    long = np.flatnonzero(np.bincount(strong)[1:] >= min_width) + 1
-    weak, _ = ndimage.label(ex > min(edge_sigma, nsigma) * floor)
-    spans = ndimage.find_objects(weak)
-    zones = [(spans[k - 1][0].start, spans[k - 1][0].stop, float(ex[spans[k - 1][0]].sum()))
-             for k in np.unique(weak[np.isin(strong, long)])]
+    s0, s1 = _runs(ex > nsigma * floor)
+    w0, w1 = _runs(ex > min(edge_sigma, nsigma) * floor)
+    held = np.unique(np.searchsorted(w0, s0[s1 - s0 >= min_width], "right") - 1)
+    zones = [(int(w0[k]), int(w1[k]), float(ex[w0[k]:w1[k]].sum())) for k in held]
     return sorted(zones, key=lambda z: -z[2])
+
+
+def _runs(mask):
+    """Starts and (exclusive) ends of the runs of True in a 1-D boolean array."""
+    edges = np.flatnonzero(np.diff(mask, prepend=False, append=False))
+    return edges[::2], edges[1::2]
 
 
 def projection_window(
@@ -468,5 +471,5 @@ def _profiles(arr):
     """Column and row sums of a prepared frame (uint16: exact integer sums), float64."""
     acc = np.float64 if arr.dtype.kind == "f" else np.uint32 if max(arr.shape) <= 65536 else \
         np.uint64
-    return (np.einsum("ij->j", arr, dtype=acc).astype(np.float64),
-            np.einsum("ij->i", arr, dtype=acc).astype(np.float64))
+    return (np.add.reduce(arr, 0, dtype=acc).astype(np.float64),
+            np.add.reduce(arr, 1, dtype=acc).astype(np.float64))
