@@ -37,6 +37,13 @@ def check_submissions(paths, *, notebooks=None) -> tuple[list, list[dict]]:
     """Check every submission before any is graded: a file, named after a course notebook,
     handed in once per student.
 
+    Parameters
+    ----------
+    paths : sequence of path-like
+        The students' notebooks, ``STUDENT/NN-title.ipynb``.
+    notebooks : path-like, optional
+        The course's notebooks (default: the checkout's ``notebooks/``).
+
     Returns
     -------
     (list of Path, list of dict)
@@ -96,6 +103,27 @@ def grade_batch(paths, *, notebooks=None, seed: int | None = None, quick: bool =
     (:func:`grade_notebook`); a notebook on which the grader itself fails gets rows ``grader
     error`` with the error, and the batch goes on. With ``gradebook``, the files are rewritten
     after each notebook (``complete`` false in the JSON until the last).
+
+    Parameters
+    ----------
+    paths : sequence of path-like
+        The students' notebooks, ``STUDENT/NN-title.ipynb``.
+    notebooks : path-like, optional
+        The course's notebooks (default: the checkout's ``notebooks/``).
+    seed : int, optional
+        Seed of the hidden checks' fresh inputs.
+    quick : bool
+        Run the notebooks on their small settings.
+    timeout : float
+        Limit per cell, s; past it the notebook's open exercises score 0.
+    budget : float, optional
+        Limit per notebook, s (default 10 ``timeout``).
+    gradebook : path-like, optional
+        Folder of ``gradebook.csv`` and ``gradebook.json``, rewritten after each notebook.
+    overwrite : bool
+        Replace a gradebook written before.
+    report : callable
+        Where each student's points and each exercise's line are printed.
 
     Returns
     -------

@@ -204,7 +204,15 @@ def answer(ns: dict, text: str) -> str:
 
 
 def serve(ns: dict, text: str) -> None:
-    """In the kernel: :func:`answer`, displayed (the grader reads it from the cell's output)."""
+    """In the kernel: :func:`answer`, displayed (the grader reads it from the cell's output).
+
+    Parameters
+    ----------
+    ns : dict
+        The notebook's namespace.
+    text : str
+        The grader's request, as :func:`answer` reads it.
+    """
     from IPython.display import display
 
     display({MIME: answer(ns, text)}, raw=True)

@@ -289,6 +289,11 @@ def run_settings(*, full: bool = False, quick: bool = False, seed: int = 0,
                  device: str = "cpu", **_) -> tuple:
     """The settings a :func:`reproduce_learned` call runs with, computed without running it.
 
+    Parameters
+    ----------
+    full, quick, seed, out, step, shots, benches, epochs, threads, device
+        As :func:`reproduce_learned` takes them; other keywords are ignored.
+
     Returns
     -------
     tuple
