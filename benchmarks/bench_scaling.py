@@ -23,8 +23,8 @@ import _timing
 import numpy as np
 
 from sunlab import parallel, sim
-from sunlab.reproduce import experiment_plans, simulate_and_locate
-from sunlab.reproduce.pipeline import locate_runs, simulate_runs
+from sunlab.reproduce import simulate_and_locate
+from sunlab.reproduce.pipeline import experiment_plans, locate_runs, simulate_runs
 from sunlab.sim import render
 
 

@@ -97,11 +97,12 @@ def open_stage(url: str, *, bench=None, seed: int = 0, **driver_kwargs):
     Parameters
     ----------
     url : str
-        ``fake://`` (an in-process :class:`~sunlab.hardware.FakeESP` served on a pseudo-terminal;
-        query options ``velocity`` in deg/s and ``transport=tcp``), ``socket://HOST:PORT``, any
-        other :func:`serial.serial_for_url` URL, a device path (``/dev/ttyUSB0``, ``COM3``), or
-        ``NAME:...`` of a stage registered in the entry point group ``sunlab.stages``
-        (:func:`available_stages`), called as ``open(url, bench=, seed=, **driver_kwargs)``.
+        ``fake://`` (an in-process :class:`~sunlab.hardware.fake.FakeESP` served on a
+        pseudo-terminal; query options ``velocity`` in deg/s and ``transport=tcp``),
+        ``socket://HOST:PORT``, any other :func:`serial.serial_for_url` URL, a device path
+        (``/dev/ttyUSB0``, ``COM3``), or ``NAME:...`` of a stage registered in the entry point
+        group ``sunlab.stages`` (:func:`available_stages`), called as
+        ``open(url, bench=, seed=, **driver_kwargs)``.
     bench : sunlab.sim.Bench, optional
         Platform model of the fake controller (``fake://`` only).
     seed : int

@@ -66,7 +66,7 @@ from scipy import constants, special
 
 from ..errors import ConfigurationError
 
-__all__ = ["fresnel_number", "broadband_intensity"]
+__all__ = []
 
 #: The paper's solar simulator is a 1000 W xenon arc (docs/paper.md sec. 2); no spectrum of it is
 #: given, so its photon flux is a 5778 K blackbody's (a xenon arc's visible continuum is close to

@@ -5,16 +5,10 @@ import numpy as np
 import pytest
 
 from sunlab import ConfigurationError, plans, schema
-from sunlab.sim import (
-    Bench,
-    Hole,
-    Mask,
-    platform_pose,
-    ray_positions,
-    render_frame,
-    simulate,
-    spot_truth,
-)
+from sunlab.sim import Bench, Hole, Mask, render_frame, simulate
+from sunlab.sim.platform import platform_pose
+from sunlab.sim.render import ray_positions
+from sunlab.sim.spots import spot_truth
 
 
 @pytest.fixture(scope="module")

@@ -4,8 +4,9 @@ import numpy as np
 import pytest
 
 from sunlab import ConfigurationError
-from sunlab.sim import Bench, Detector, Hole, fixed_pattern
+from sunlab.sim import Bench, Detector, Hole
 from sunlab.sim import frame as simframe
+from sunlab.sim.detector import fixed_pattern
 
 
 @pytest.fixture(scope="module")
