@@ -237,7 +237,7 @@ def test_defects_injected_in_the_simulator_are_flagged():
 
     mask = sim.Mask.grid(10, 10, 0.5, 0.2, centre_mm=sim.mask.PAPER_GRID_CENTRE_MM)
     mask = mask.with_defects({23: sim.mask.Undersized(0.6),
-                              68: sim.Dust(0.07, 0.0, 0.09, 0.0)})
+                              68: sim.holes.Dust(0.07, 0.0, 0.09, 0.0)})
     bench = sim.Bench.paper_multi_hole(n_bad=0).replace(mask=mask)
     plan = plans.custom([-10.0, -2.0, -6.0], [2.0, 10.0, 6.0], shots=1)
     cen = centroid.locate(sim.simulate(plan, bench, seed=3), "tight", progress=False)
@@ -273,7 +273,7 @@ def dusty_bench():
 
     def dust(az_deg):
         c, s = math.cos(math.radians(az_deg)), math.sin(math.radians(az_deg))
-        return sim.Dust(0.07 * c, 0.07 * s, 0.08, 0.0)
+        return sim.holes.Dust(0.07 * c, 0.07 * s, 0.08, 0.0)
 
     cal = bench.mask.with_defects({k: dust(90.0) for k in DUSTY})
     moved = bench.mask.with_defects({k: dust(270.0) for k in DUSTY})

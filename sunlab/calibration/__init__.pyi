@@ -24,7 +24,6 @@ from .neural import NeuralNet as NeuralNet
 from .polynomial import Polynomial as Polynomial
 from .registry import fit as fit
 from .registry import table4_methods as table4_methods
-from .summary import calibration_summary as calibration_summary
 from .trigonometric import Trigonometric as Trigonometric
 
 __all__: list[str]

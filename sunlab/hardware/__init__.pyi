@@ -17,7 +17,6 @@ from .errors import MotionTimeout as MotionTimeout
 from .esp import ESP300 as ESP300
 from .runner import acquire as acquire
 from .runner import open_run as open_run
-from .stage import Stage as Stage
 from .stage import open_stage as open_stage
 
 __all__: list[str]

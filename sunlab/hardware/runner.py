@@ -311,7 +311,7 @@ def acquire(plan, stage, camera, out, *, resume: bool = False, progress: bool = 
     ----------
     plan : sunlab.plans.Plan
         Poses (alpha outer, beta inner, degrees) and shots per pose.
-    stage : sunlab.hardware.Stage
+    stage : sunlab.hardware.stage.Stage
         The platform; ``move_to`` must return once settled (e.g. :class:`~sunlab.hardware.ESP300`).
     camera : sunlab.hardware.cameras.Camera
         ``grab()``, ``shape``, ``dtype``, ``bit_depth``; optional ``set_index(pose, shot,

@@ -24,7 +24,7 @@ from urllib.parse import parse_qs, urlsplit
 from ..errors import ConfigurationError
 from ._plugins import entry_points, load_plugin, open_device
 
-__all__ = ["Stage", "open_stage"]
+__all__ = ["open_stage"]
 
 #: The entry point group a lab's package registers its stages in: name -> a callable
 #: ``open(url, **options)`` returning a :class:`Stage`; ``--stage NAME:REST`` opens it.

@@ -10,7 +10,6 @@ from . import platform as platform
 from . import remedy as remedy
 from . import table4 as table4
 from . import table5 as table5
-from .pipeline import simulate_and_locate as simulate_and_locate
 from .platform import reproduce_platform as reproduce_platform
 from .table4 import reproduce_table4 as reproduce_table4
 from .table5 import reproduce_table5 as reproduce_table5

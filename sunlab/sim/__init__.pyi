@@ -20,8 +20,6 @@ from .centroids import synthetic_centroids as synthetic_centroids
 from .cube import simulate as simulate
 from .detector import Detector as Detector
 from .frame import render_frame as render_frame
-from .holes import Dust as Dust
-from .holes import Hole as Hole
 from .mask import Mask as Mask
 from .platform import Platform as Platform
 from .source import Source as Source

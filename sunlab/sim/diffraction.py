@@ -337,7 +337,7 @@ class FresnelHole:
     Parameters
     ----------
     affine_mm : numpy.ndarray, shape (2, 2)
-        The map of the unit disk onto the hole, mm (:meth:`sunlab.sim.Hole.affine`).
+        The map of the unit disk onto the hole, mm (:meth:`sunlab.sim.holes.Hole.affine`).
     distance_mm : float
         Optical distance from the hole to the focal plane, mm (a glass lid of thickness t and
         index n counts t / n).

@@ -27,7 +27,7 @@ def small_bench():
     still (no play: the spot is where spot_truth puts it)."""
     return sim.Bench.paper_single_hole().replace(
         detector__nx=128, detector__ny=128, mask__distance_mm=5.0,
-        mask__holes=(sim.Hole(0.0, 0.0, 0.2),), mask__play_x_mm=0.0, mask__play_y_mm=0.0)
+        mask__holes=(sim.holes.Hole(0.0, 0.0, 0.2),), mask__play_x_mm=0.0, mask__play_y_mm=0.0)
 
 
 def _centroid(frame: np.ndarray, background: float) -> tuple[float, float]:

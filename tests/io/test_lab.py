@@ -40,7 +40,7 @@ def test_every_sensor_json_field_is_checked_by_name(tmp_path, doc, field, words)
     path = tmp_path / "sensor.json"
     path.write_text(json.dumps(doc))
     with pytest.raises(SchemaError, match=words) as err:
-        io.read_sensor_json(path)
+        io.sensor.read_sensor_json(path)
     assert err.value.field == f"sensor.json field {field!r}"
 
 
@@ -48,7 +48,7 @@ def test_sensor_json_refuses_unknown_keys_and_names_the_place_for_extras(tmp_pat
     path = tmp_path / "sensor.json"
     path.write_text(json.dumps({"pixel_pitch": 0.007}))
     with pytest.raises(SchemaError, match="extra attributes go under 'attrs'"):
-        io.read_sensor_json(path)
+        io.sensor.read_sensor_json(path)
 
 
 @pytest.mark.parametrize("name", ["../outside.png", "/etc/hostname", "sub/../../x.png"])
