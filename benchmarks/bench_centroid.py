@@ -38,10 +38,11 @@ def frames_from_bench(bench, n, seed=0):
     idx = np.linspace(0, len(plan) - 1, n).round().astype(int)
     out, truth = [], []
     for k, p in enumerate(idx):
-        a, b = sim.platform_pose(bench, plan.alpha[p], plan.beta[p], seed=seed, pose=k, shot=0)
+        a, b = sim.platform.platform_pose(bench, plan.alpha[p], plan.beta[p], seed=seed, pose=k,
+                                          shot=0)
         out.append(sim.render_frame(bench, a, b, seed=seed, pose=k, shot=0))
         # the renderer's truth: the spot of this pose, with the mask where its play put it
-        tx, ty = sim.spot_truth(bench, a, b, play_mm=mask_play(bench, seed, k))
+        tx, ty = sim.spots.spot_truth(bench, a, b, play_mm=mask_play(bench, seed, k))
         truth.append((float(tx[0]), float(ty[0])))
     return out, np.array(truth)
 
@@ -201,9 +202,10 @@ def bench_multi(rep, n_frames=10):
     idx = np.linspace(0, len(plan) - 1, n_frames + 2).round().astype(int)[1:-1]
     frames, truth = [], []
     for k, p in enumerate(idx):
-        a, b = sim.platform_pose(multi, plan.alpha[p], plan.beta[p], seed=0, pose=k, shot=0)
+        a, b = sim.platform.platform_pose(multi, plan.alpha[p], plan.beta[p], seed=0, pose=k,
+                                          shot=0)
         frames.append(sim.render_frame(multi, a, b, seed=0, pose=k, shot=0))
-        truth.append(sim.spot_truth(multi, a, b, play_mm=mask_play(multi, 0, k)))
+        truth.append(sim.spots.spot_truth(multi, a, b, play_mm=mask_play(multi, 0, k)))
     # Where each hole's spot should be, to pick the lattice's integer offset when the spots do
     # not span the whole grid (the outer columns leave the detector at large alpha): here the
     # truth rounded to 5 px; the pipeline predicts it from the mask design and the pose.

@@ -20,7 +20,8 @@ import itertools
 import numpy as np
 
 from sunlab.centroid import projection_window
-from sunlab.sim import Bench, diffraction, render_frame, spot_image, spot_truth
+from sunlab.sim import Bench, diffraction, render_frame
+from sunlab.sim.spots import spot_image, spot_truth
 
 POSES = list(itertools.product((0.0, 10.0, -15.0), repeat=2))
 

@@ -64,10 +64,10 @@ def dust_masks(mask, kind: str, n_bad: int, seed: int = SEED, height_mm=(0.2, 0.
             dist, height = rng.uniform(0.08, 0.13), rng.uniform(*height_mm)
         else:
             dist, height = rng.uniform(0.05, 0.08), 0.0
-        cal[k] = test[k] = sim.Dust(dist * math.cos(ang), dist * math.sin(ang), size, height)
+        cal[k] = test[k] = sim.holes.Dust(dist * math.cos(ang), dist * math.sin(ang), size, height)
         if kind == "moving":
             ang2 = ang + rng.uniform(0.5 * np.pi, 1.5 * np.pi)
-            test[k] = sim.Dust(dist * math.cos(ang2), dist * math.sin(ang2), size, height)
+            test[k] = sim.holes.Dust(dist * math.cos(ang2), dist * math.sin(ang2), size, height)
     return mask.with_defects(cal), mask.with_defects(test), holes
 
 

@@ -2,7 +2,7 @@
 
 Prints the floor u of issue 16 (best of 5 of drawing one 1024 x 1280 frame of float32 standard
 normals with numpy) and ``np.copy`` of a frame, the time of one rendered frame, then the wall
-time of :func:`sunlab.reproduce.simulate_and_locate` (thinned plans, 8 shots) on 1 and 2
+time of :func:`sunlab.reproduce.pipeline.simulate_and_locate` (thinned plans, 8 shots) on 1 and 2
 threads, on Dask's processes scheduler with 1 and 2 processes (sunlab's pool, its workers
 forked warm from a fork server, as ``sunlab reproduce`` runs it) and on a
 :func:`sunlab.parallel.local_cluster` of 1 and 2 worker processes, with the speed-up from 1 to
@@ -23,8 +23,12 @@ import _timing
 import numpy as np
 
 from sunlab import parallel, sim
-from sunlab.reproduce import experiment_plans, simulate_and_locate
-from sunlab.reproduce.pipeline import locate_runs, simulate_runs
+from sunlab.reproduce.pipeline import (
+    experiment_plans,
+    locate_runs,
+    simulate_and_locate,
+    simulate_runs,
+)
 from sunlab.sim import render
 
 

@@ -70,7 +70,7 @@ def budget(n: int = 120) -> None:
         err = []
         for _ in range(n):
             a, be = rng.uniform(-16.5, 1.5), rng.uniform(-1.5, 16.5)
-            tx, ty = sim.spot_truth(b, a, be)
+            tx, ty = sim.spots.spot_truth(b, a, be)
             mean, _ = sim.frame.expected_frame(b, a, be)
             x0, y0 = int(round(tx[0])) - 30, int(round(ty[0])) - 30
             w = mean[y0 : y0 + 61, x0 : x0 + 61].astype(float)

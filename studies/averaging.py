@@ -72,7 +72,7 @@ def mechanisms(hypothesis: str | None = None, seeds=None, *, step: int = 2,
     from sunlab import stats
     from sunlab.calibration import Polynomial
     from sunlab.calibration.registry import POLYNOMIAL_REFIT
-    from sunlab.reproduce import experiment_plans
+    from sunlab.reproduce.pipeline import experiment_plans
     from sunlab.sim.surrogate import surrogate_centroids
 
     from . import evidence as ev

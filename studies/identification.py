@@ -256,7 +256,7 @@ def surrogate_runs(bench, seed: int = 0, step: int = 1, shots: int = 8,
         ``centroids/1`` tables keyed ``"I"``, ``"II"``, ``"III"``.
     """
     from sunlab import plans
-    from sunlab.reproduce import experiment_plans
+    from sunlab.reproduce.pipeline import experiment_plans
     from sunlab.sim.surrogate import surrogate_centroids
 
     out = {}

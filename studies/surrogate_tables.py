@@ -26,7 +26,7 @@ import numpy as np
 import pandas as pd
 
 from sunlab.errors import ConfigurationError
-from sunlab.reproduce import experiment_plans
+from sunlab.reproduce.pipeline import experiment_plans
 from sunlab.sim.surrogate import spot_diameter_px, surrogate_centroids
 
 __all__ = [
@@ -117,7 +117,7 @@ def surrogate_table4(bench, seed: int = 0, *, step: int = 1, shots: int = 8,
     seed : int
         Seed of the experiments (and of the networks, for an ``NN`` method).
     step, shots : int
-        Grid thinning and frames per pose (:func:`sunlab.reproduce.experiment_plans`).
+        Grid thinning and frames per pose (:func:`sunlab.reproduce.pipeline.experiment_plans`).
     noise_px : float
         Per-shot centroid noise, px RMS per axis (:func:`centroid_noise_px`).
     methods : sequence of str
@@ -161,7 +161,7 @@ def surrogate_table5(bench_multi, bench_single, seed: int = 0, *, step: int = 1,
     seed : int
         Seed of the experiments.
     step, shots : int
-        Grid thinning and frames per pose (:func:`sunlab.reproduce.experiment_plans`).
+        Grid thinning and frames per pose (:func:`sunlab.reproduce.pipeline.experiment_plans`).
     order : int
         Polynomial order of the geometric centre and of each hole's polynomial.
     noise_px : float

@@ -31,7 +31,7 @@ import numpy as np
 from . import __version__, atomic
 from .errors import ConfigurationError
 
-__all__ = ["export", "check_c"]
+__all__ = ["export"]
 
 #: Return values of the exported C functions; the export formats; the files' base name.
 FLAGS = {"ok": 0, "outside": 1, "undefined": 2, "bad_input": 3}
@@ -114,7 +114,7 @@ static {T} atan2_{P.tag}({T} y, {T} x)
 
 
 def _optimised_call(P: _Prec, fit, a: str, b: str, mounting: str) -> str:
-    """Code setting a, b (deg) by eqs. (3)-(4) as :func:`sunlab.geometry.optimised_angles`:
+    """Code setting a, b (deg) by eqs. (3)-(4) as :func:`sunlab.geometry.model.optimised_angles`:
     rotation mounting, s = M^T ((x_cf - x) p / F', (y_cf - y) p / F', 1), alpha = atan2(-s_x,
     s_z), beta = atan(-s_y / |(s_x, s_z)|); additive, eq. (1) at F + dF minus the offsets."""
     from .geometry.model import hole_foot, mounting_matrix

@@ -24,7 +24,7 @@ import numpy as np
 
 from .errors import ConfigurationError
 
-__all__ = ["Plan", "experiment", "grid", "custom"]
+__all__ = ["experiment", "grid"]
 
 #: The paper's Table 3: (alpha_min, alpha_max, alpha_step, beta_min, beta_max, beta_step), deg.
 EXPERIMENTS: dict[str, tuple[float, float, float, float, float, float]] = {

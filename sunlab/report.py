@@ -33,7 +33,7 @@ import pandas as pd
 from . import atomic, stats
 from .schema import STATUS, USABLE_STATUS
 
-__all__ = ["REPORT_FILES", "evaluation_document", "write_report"]
+__all__ = ["write_report"]
 
 #: The files of a report, in the order :func:`write_report` lists them: the statistics
 #: (JSON), the per-pose errors (CSV), Fig. 10 (only when the test poses form a grid) and
@@ -127,7 +127,7 @@ def _figures(calibration, local, title: str) -> tuple[dict, list[str]]:
         notes.append(f"no Fig. 10 (error maps): the test poses do not form a grid ({err})")
     else:
         figures[REPORT_FILES[2]] = _png(fig10)
-    fig11 = plots.new_figure(figsize=(9, 3.4), layout="constrained")
+    fig11 = plots.accuracy.new_figure(figsize=(9, 3.4), layout="constrained")
     for ax, a in zip(fig11.subplots(1, 2), stats.ANGLES, strict=True):
         plots.error_histogram(local, angle=a, title=f"local error of {a}", ax=ax)
     figures[REPORT_FILES[3]] = _png(fig11)

@@ -30,7 +30,7 @@ import xarray as xr
 
 from .errors import SchemaError
 
-__all__ = ["STATUS", "frames_dataset", "centroids_dataset"]
+__all__ = []
 
 FRAMES_SCHEMA = "frames/1"
 CENTROIDS_SCHEMA = "centroids/1"

@@ -37,7 +37,7 @@ import numpy as np
 from . import schema
 from .errors import ConfigurationError
 
-__all__ = ["screen_outliers"]
+__all__ = []
 
 #: Default threshold: residuals beyond this many MADs of the inliers' residuals are outliers
 #: (10 MAD = 6.7 standard deviations of Gaussian noise: about one false flag in 10^10 shots).

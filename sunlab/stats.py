@@ -44,8 +44,7 @@ import xarray as xr
 from .errors import ConfigurationError, SchemaError
 from .schema import STATUS, USABLE_STATUS
 
-__all__ = ["evaluate", "shot_errors", "error_summary", "rectangles", "paper_table4",
-           "paper_table5"]
+__all__ = ["evaluate"]
 
 ANGLES = ("alpha", "beta")
 #: Row labels of the global statistics, in the paper's order (Table 4).

@@ -244,8 +244,10 @@ def test_every_room_has_a_layer():
 
 
 #: The most distinct public names: every ``__all__`` of a public module and every name a package's
-#: stub exports, together (the submodules a stub lists aside). Issue 36's smaller surface.
-MAX_PUBLIC_NAMES = 200
+#: stub exports, together (the submodules a stub lists aside). Issue 45's surface: infrastructure
+#: (exceptions a user does not catch, the fake controller, table formatters, simulator internals)
+#: stays importable from its defining module, off the listing.
+MAX_PUBLIC_NAMES = 100
 
 
 def _stub_entries(stub: Path) -> tuple[set[str], dict[str, str]]:
@@ -366,7 +368,7 @@ def test_import_sunlab_reaches_every_package_name_and_submodule():
 
 
 def test_calibration_registry_names_only_calibration_modules():
-    from sunlab.calibration import KINDS
+    from sunlab.calibration.registry import KINDS
 
     assert all("." not in target.partition(":")[0] for target in KINDS.values())
 

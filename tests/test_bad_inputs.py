@@ -773,7 +773,8 @@ row("OK an internal error is one line too (exit 3)", lambda c: c.copy("cube.zarr
 # --- the ESP300 driver: a lost error reply is never a success -----------------------------------
 def _esp_lost(kind: str, after: int, error: bool):
     def act(c):
-        from sunlab.hardware import ESP300, FakeESP
+        from sunlab.hardware import ESP300
+        from sunlab.hardware.fake import FakeESP
 
         fake = FakeESP(velocity_deg_s=float("inf"))
         try:

@@ -159,7 +159,7 @@ from sunlab import multihole as mh
 from sunlab.widgets import HoleExplorer
 
 sunlab.set_options(progress=False)
-from sunlab.reproduce import mounting_offset_px
+from sunlab.reproduce.pipeline import mounting_offset_px
 
 plan = plans.experiment("I").thin(2).with_shots(1)
 # the sensor's mounting moves every spot by more than half the hole pitch: measure it with the

@@ -37,8 +37,8 @@ def test_fit_by_kind_equals_the_class_and_round_trips_through_a_file(tmp_path):
 
 
 def test_every_registered_kind_names_a_calibration_class():
-    for kind in cal.KINDS:
-        assert issubclass(cal.method_class(kind), cal.Calibration), kind
+    for kind in cal.registry.KINDS:
+        assert issubclass(cal.registry.method_class(kind), cal.Calibration), kind
 
 
 def test_fit_and_the_class_give_identical_coefficients_on_a_table_with_an_outlier():

@@ -387,10 +387,10 @@ def test_locate_spots_on_a_rendered_bench_frame_matches_truth():
     from sunlab.sim.surrogate import spot_error_maps
 
     bench = sim.Bench.paper_multi_hole()
-    a, b = sim.platform_pose(bench, -8.0, 7.0, seed=0, pose=0, shot=0)
+    a, b = sim.platform.platform_pose(bench, -8.0, 7.0, seed=0, pose=0, shot=0)
     frame = sim.render_frame(bench, a, b, seed=0)
     # the mask's play of pose 0 moves every spot: the truth with it
-    tx, ty = sim.spot_truth(bench, a, b, play_mm=mask_play(bench, 0, 0))
+    tx, ty = sim.spots.spot_truth(bench, a, b, play_mm=mask_play(bench, 0, 0))
     s = C.locate_spots(frame)
     assert np.all(np.isfinite(tx)) and tx.size == 100
     assert np.all(s.status == STATUS["ok"]) and s.unassigned.shape == (0, 2)

@@ -51,16 +51,16 @@ def test_reproduce_passes_the_scheduler_to_every_table(monkeypatch, tmp_path, ca
                 "runtime_s": 0.0, "files": []}
 
     monkeypatch.setattr(reproduce, "reproduce_table4", table4)
-    monkeypatch.setattr(reproduce, "format_table", lambda res: "table 4")
+    monkeypatch.setattr(reproduce.table4, "format_table", lambda res: "table 4")
     monkeypatch.setattr(reproduce, "reproduce_table5", table5)
-    monkeypatch.setattr(reproduce, "format_table5", lambda res: "table 5")
+    monkeypatch.setattr(reproduce.table5, "format_table5", lambda res: "table 5")
 
     def platform(**kw):
         seen["platform"] = kw
         return {"files": []}
 
     monkeypatch.setattr(reproduce, "reproduce_platform", platform)
-    monkeypatch.setattr(reproduce, "format_platform", lambda res: "platform")
+    monkeypatch.setattr(reproduce.platform, "format_platform", lambda res: "platform")
     for table in ("all", "platform"):
         rc = main(["reproduce", "--table", table, "--quick", "--address", "tcp://10.0.0.1:8786",
                    "--scheduler", "cluster", "--workers", "2", "--method", "fit",

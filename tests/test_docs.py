@@ -101,7 +101,7 @@ def test_a_reference_resolves_only_to_an_object_that_exists():
     found = docs.locate("sunlab.multihole.defects.robust_z")
     import sunlab.multihole
 
-    assert found is not None and found[0] is sunlab.multihole.robust_z
+    assert found is not None and found[0] is sunlab.multihole.defects.robust_z
     assert docs.locate("sunlab.multihole.defects.robust_zz") is None
     assert docs.locate("numpy.mean") is None  # another project's names are not sunlab's
 

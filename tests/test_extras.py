@@ -104,7 +104,7 @@ def test_a_saved_network_predicts_without_torch(hide):
     table = _grid_table()
     doc = calibration.NeuralNet(hidden=2, max_iter=50).fit(table).to_dict()
     hide("torch")
-    back = calibration.from_dict(doc)
+    back = calibration.artifact.from_dict(doc)
     a, _ = back.predict_xy(table.x.values, table.y.values)
     assert np.isfinite(a).all()
 

@@ -28,7 +28,8 @@ import pytest
 from sunlab import atomic, calibration, integrity, io, plans, schema, sim
 from sunlab.calibration import Polynomial
 from sunlab.cli import main
-from sunlab.hardware import ESP300, FakeESP, acquire, open_stage
+from sunlab.hardware import ESP300, acquire, open_stage
+from sunlab.hardware.fake import FakeESP
 from sunlab.hardware.runner import RunLockedError, run_lock
 from sunlab.screening import screen_outliers
 

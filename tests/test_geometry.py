@@ -7,6 +7,7 @@ from numpy.testing import assert_allclose
 from sunlab import geometry
 from sunlab.errors import ConfigurationError
 from sunlab.geometry import _fit
+from sunlab.geometry.model import optimised_angles, pinhole_centroid
 
 F, P = 5.0, 0.007
 TRUTH = {"delta_f_mm": 0.094, "alpha0": 1.864, "beta0": 0.415}
@@ -37,14 +38,14 @@ def test_optimised_model_round_trip_and_zero_pose():
     pars = (F, P, 0.094, 1.864, 0.415, 610.0, 495.0)
     a, b = _grid(2.0)
     x, y = geometry.optimised_centroid(a, b, *pars)
-    assert_allclose(geometry.optimised_angles(x, y, *pars), (a, b), atol=1e-10)
+    assert_allclose(optimised_angles(x, y, *pars), (a, b), atol=1e-10)
     assert_allclose(geometry.optimised_centroid(0.0, 0.0, *pars), (610.0, 495.0), atol=1e-10)
 
 
 def test_optimised_model_reduces_to_ideal():
     a, b = _grid(3.0)
     x, y = geometry.ideal_centroid(a, b, F, P, 640.0, 512.0)
-    assert_allclose(geometry.optimised_angles(x, y, F, P, 0.0, 0.0, 0.0, 640.0, 512.0), (a, b),
+    assert_allclose(optimised_angles(x, y, F, P, 0.0, 0.0, 0.0, 640.0, 512.0), (a, b),
                     atol=1e-12)
 
 
@@ -83,24 +84,24 @@ def test_fit_ignores_nan_and_needs_points():
 
 def test_pinhole_model_matches_ideal_and_optimised_along_alpha():
     a, b = _grid(3.0)
-    assert_allclose(geometry.pinhole_centroid(a, b, F, P, 640.0, 512.0),
+    assert_allclose(pinhole_centroid(a, b, F, P, 640.0, 512.0),
                     geometry.ideal_centroid(a, b, F, P, 640.0, 512.0), atol=1e-9)
     # a pure alpha mounting error adds to alpha exactly: the optimised model is exact then
-    zp = geometry.pinhole_centroid(0.0, 0.0, F, P, 640.0, 512.0, delta_f_mm=0.1,
+    zp = pinhole_centroid(0.0, 0.0, F, P, 640.0, 512.0, delta_f_mm=0.1,
                                    mounting_deg=(1.5, 0.0, 0.0))
-    x, y = geometry.pinhole_centroid(a, b, F, P, 640.0, 512.0, delta_f_mm=0.1,
+    x, y = pinhole_centroid(a, b, F, P, 640.0, 512.0, delta_f_mm=0.1,
                                      mounting_deg=(1.5, 0.0, 0.0))
-    assert_allclose(geometry.optimised_angles(x, y, F, P, 0.1, 1.5, 0.0, *zp), (a, b), atol=1e-9)
+    assert_allclose(optimised_angles(x, y, F, P, 0.1, 1.5, 0.0, *zp), (a, b), atol=1e-9)
 
 
 def test_mounting_beta_error_is_not_additive_off_axis():
     # R_x(beta0) and R_y(-alpha) do not commute: the additive reading of (3)-(4) is approximate
     # off axis (a roll of about beta0 sin(alpha)), the rotation reading exact
-    x, y = geometry.pinhole_centroid(-17.0, 0.0, F, P, 640.0, 512.0, mounting_deg=(0, 0.415, 0))
-    zp = geometry.pinhole_centroid(0.0, 0.0, F, P, 640.0, 512.0, mounting_deg=(0, 0.415, 0))
-    a, b = geometry.optimised_angles(x, y, F, P, 0.0, 0.0, 0.415, *zp, mounting="additive")
+    x, y = pinhole_centroid(-17.0, 0.0, F, P, 640.0, 512.0, mounting_deg=(0, 0.415, 0))
+    zp = pinhole_centroid(0.0, 0.0, F, P, 640.0, 512.0, mounting_deg=(0, 0.415, 0))
+    a, b = optimised_angles(x, y, F, P, 0.0, 0.0, 0.415, *zp, mounting="additive")
     assert 1e-3 < abs(float(a) + 17.0) + abs(float(b)) < 0.2
-    a, b = geometry.optimised_angles(x, y, F, P, 0.0, 0.0, 0.415, *zp, mounting="rotation")
+    a, b = optimised_angles(x, y, F, P, 0.0, 0.0, 0.415, *zp, mounting="rotation")
     assert abs(float(a) + 17.0) + abs(float(b)) < 1e-9
 
 
@@ -132,7 +133,7 @@ def test_analytic_jacobian_matches_finite_differences(mounting, free_zero_pose):
     zp = None if free_zero_pose else (598.0, 523.0)
     model = _fit._AngleResiduals(x, y, a, b, F, P, zp, mounting, w)
     # the residuals are those of optimised_angles, weighted
-    am, bm = geometry.optimised_angles(x, y, F, P, *q[:3], *(zp or q[3:]), mounting=mounting)
+    am, bm = optimised_angles(x, y, F, P, *q[:3], *(zp or q[3:]), mounting=mounting)
     assert_allclose(model.residuals(q), np.concatenate([am - a, bm - b]) * np.tile(w, 2),
                     rtol=0, atol=1e-12)
     jac = model.jacobian(q)
@@ -193,7 +194,7 @@ def _reference_bootstrap_stderr(x, y, a, b, q, blocks, n_boot, seed, jac="2-poin
         pick = np.concatenate([members[i] for i in rng.integers(0, uniq.size, uniq.size)])
 
         def residuals(p, pick=pick):
-            am, bm = geometry.optimised_angles(x[pick], y[pick], F, P, *p)
+            am, bm = optimised_angles(x[pick], y[pick], F, P, *p)
             return np.concatenate([am - a[pick], bm - b[pick]])
 
         reps.append(least_squares(residuals, q, jac=jac, method="trf", x_scale="jac", xtol=1e-14,

@@ -10,7 +10,9 @@ import pytest
 
 from sunlab import ConfigurationError, io, schema
 from sunlab.cli import main
-from sunlab.hardware import CameraError, SimCamera, available_cameras, capture_darks, open_camera
+from sunlab.hardware import SimCamera, open_camera
+from sunlab.hardware.cameras import available_cameras, capture_darks
+from sunlab.hardware.errors import CameraError
 
 LAB_CAMERA = '''
 import numpy as np

@@ -57,7 +57,7 @@ def test_geometric_centre_does_not_jump_when_holes_go_missing():
     c_full = s1.centre(full)
     c_fill = s1.centre(lossy)
     c_plain = mh.GeometricCentre(fill=False).centre(lossy)  # the paper's plain mean
-    lost = (mh.usable(lossy).sum("hole") < 100).values
+    lost = (mh.holes.usable(lossy).sum("hole") < 100).values
     assert lost.sum() > 10
     jump_fill = np.abs(c_fill.x.values - c_full.x.values)[lost]
     jump_plain = np.abs(c_plain.x.values - c_full.x.values)[lost]
@@ -138,7 +138,7 @@ def test_injected_defects_are_flagged_and_only_them(defective):
     m = mh.defect_metrics(train, strategy=s2)
     bad = mh.reject_bad_holes(m)
     assert np.flatnonzero(bad.values).tolist() == sorted(BAD)
-    z = mh.robust_z(m)
+    z = mh.defects.robust_z(m)
     assert float(z.flux_deficit[12]) > 5 and float(z.scatter[47]) > 5
     assert float(z.missing_fraction[88]) > 5
     assert float(m.flux_deficit[12]) == pytest.approx(0.65, abs=0.01)
@@ -237,7 +237,7 @@ def test_defects_injected_in_the_simulator_are_flagged():
 
     mask = sim.Mask.grid(10, 10, 0.5, 0.2, centre_mm=sim.mask.PAPER_GRID_CENTRE_MM)
     mask = mask.with_defects({23: sim.mask.Undersized(0.6),
-                              68: sim.Dust(0.07, 0.0, 0.09, 0.0)})
+                              68: sim.holes.Dust(0.07, 0.0, 0.09, 0.0)})
     bench = sim.Bench.paper_multi_hole(n_bad=0).replace(mask=mask)
     plan = plans.custom([-10.0, -2.0, -6.0], [2.0, 10.0, 6.0], shots=1)
     cen = centroid.locate(sim.simulate(plan, bench, seed=3), "tight", progress=False)
@@ -245,7 +245,7 @@ def test_defects_injected_in_the_simulator_are_flagged():
     bad = np.flatnonzero(mh.reject_bad_holes(m).values).tolist()
     assert bad == [23, 68]
     assert float(m.flux_deficit[23]) == pytest.approx(1 - 0.6**2, abs=0.05)
-    z = mh.robust_z(m)
+    z = mh.defects.robust_z(m)
     assert float(z.asymmetry[68]) > 5
 
 
@@ -273,7 +273,7 @@ def dusty_bench():
 
     def dust(az_deg):
         c, s = math.cos(math.radians(az_deg)), math.sin(math.radians(az_deg))
-        return sim.Dust(0.07 * c, 0.07 * s, 0.08, 0.0)
+        return sim.holes.Dust(0.07 * c, 0.07 * s, 0.08, 0.0)
 
     cal = bench.mask.with_defects({k: dust(90.0) for k in DUSTY})
     moved = bench.mask.with_defects({k: dust(270.0) for k in DUSTY})
@@ -351,7 +351,7 @@ def test_edge_roughness_flags_burred_holes_and_no_good_one():
     cube = sim.simulate(plan, bench.replace(mask=mask), seed=4)
     cen = centroid.locate(cube, "tight", progress=False)
     m = mh.defect_metrics(cen, cube=cube)
-    z = mh.robust_z(m).edge_roughness.values
+    z = mh.defects.robust_z(m).edge_roughness.values
     # the burred holes stand far out; no other hole reaches reject_bad_holes' threshold
     # (kappa = 5 robust z): measured at most 4.1 on the identified bench (36 frames)
     assert z[37] > 6 and z[85] > 6
@@ -359,7 +359,7 @@ def test_edge_roughness_flags_burred_holes_and_no_good_one():
     bad = mh.reject_bad_holes(m, use=["edge_roughness"]).values
     assert np.flatnonzero(bad).tolist() == [37, 85]
     # the moment metrics do not see the burr of hole 85
-    zz = mh.robust_z(m)
+    zz = mh.defects.robust_z(m)
     assert max(float(zz[k][85]) for k in ("flux_deficit", "size_deficit", "asymmetry")) < 3
 
 
@@ -368,7 +368,7 @@ def test_per_hole_calibration_needs_poses_per_coefficient():
     a, b = np.repeat(np.linspace(-8, 2, 4), 4), np.tile(np.linspace(-2, 8, 4), 4)
     cen = synthetic_centroids(a, b, shots=1, layout="grid", defects={3: {"missing": 0.5}}, seed=2)
     s2 = mh.PerHoleAverage(order=3).fit(cen)
-    seen = mh.usable(cen).values[:, 0, 3].sum()
+    seen = mh.holes.usable(cen).values[:, 0, 3].sum()
     assert seen < 15 and s2.calibrations_[3] is None
     assert sum(c is not None for c in s2.calibrations_) == 99
     assert np.isnan(s2.predict_holes(cen).alpha.values[..., 3]).all()

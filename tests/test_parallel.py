@@ -5,7 +5,7 @@ import pytest
 
 from sunlab import parallel
 from sunlab.errors import ConfigurationError
-from sunlab.reproduce import simulate_and_locate
+from sunlab.reproduce.pipeline import simulate_and_locate
 
 
 def _xy(cens):

@@ -10,7 +10,8 @@ import pytest
 
 from sunlab import stats
 from sunlab.cli import build_parser
-from sunlab.reproduce import format_table, reproduce_table4
+from sunlab.reproduce import reproduce_table4
+from sunlab.reproduce.table4 import format_table
 
 
 @pytest.fixture(scope="module")
@@ -189,7 +190,7 @@ def test_cli_arguments():
 
 def test_quick_has_one_meaning_for_every_table():
     from sunlab import plans
-    from sunlab.reproduce import QUICK, experiment_plans
+    from sunlab.reproduce.pipeline import QUICK, experiment_plans
 
     assert QUICK == {"step": 2, "shots": 2}
     for name, p in experiment_plans(quick=True).items():

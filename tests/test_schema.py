@@ -107,8 +107,7 @@ def _readme_examples():
 
 
 def test_readme_examples_follow_the_schemas(tmp_path):
-    from sunlab.io import read_sensor_json
-    from sunlab.io.sensor import SENSOR_FIELDS
+    from sunlab.io.sensor import SENSOR_FIELDS, read_sensor_json
 
     examples = _readme_examples()
     found = set()

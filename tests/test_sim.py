@@ -22,9 +22,9 @@ def test_the_paper_bench_spot_is_where_its_truth_says():
     # few 0.01 px (the CRLB is ~0.01 px), and its bias from PRNU and dark non-uniformity a few
     # 0.01 px: 0.15 px leaves room for both
     bench = sim.Bench.paper_single_hole()
-    a, b = sim.platform_pose(bench, -8.0, 4.0, seed=0, pose=0, shot=0)
+    a, b = sim.platform.platform_pose(bench, -8.0, 4.0, seed=0, pose=0, shot=0)
     frame = sim.render_frame(bench, a, b, seed=0, play_mm=(0.0, 0.0))
-    x, y = sim.spot_truth(bench, a, b)
+    x, y = sim.spots.spot_truth(bench, a, b)
     c = tight_window(frame)
     assert c.ok
     assert abs(c.x - x[0]) < 0.15 and abs(c.y - y[0]) < 0.15
@@ -33,7 +33,7 @@ def test_the_paper_bench_spot_is_where_its_truth_says():
 
 
 def test_synthetic_centroids_follow_the_pinhole_model_exactly():
-    from sunlab.geometry import pinhole_centroid
+    from sunlab.geometry.model import pinhole_centroid
 
     cen = sim.synthetic_centroids([0.0, -5.0], [0.0, 3.0], shots=2)
     x, y = pinhole_centroid(np.array([0.0, -5.0]), np.array([0.0, 3.0]), 5.0, 0.007, 639.5,

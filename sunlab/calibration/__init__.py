@@ -29,7 +29,7 @@ Submodules load on first use; torch (the ``neural`` extra) is imported only when
 Examples
 --------
 >>> import sys, sunlab.calibration as cal
->>> sorted(cal.KINDS)[:2]
+>>> sorted(cal.registry.KINDS)[:2]
 ['ideal', 'interpolation-cubic']
 >>> cal.NeuralNet.__name__
 'NeuralNet'

@@ -14,7 +14,6 @@ from . import registry as registry
 from . import summary as summary
 from . import trigonometric as trigonometric
 from . import windows as windows
-from .artifact import from_dict as from_dict
 from .artifact import load as load
 from .base import Calibration as Calibration
 from .frames import FrameNet as FrameNet
@@ -23,12 +22,8 @@ from .model import IdealModel as IdealModel
 from .model import OptimisedModel as OptimisedModel
 from .neural import NeuralNet as NeuralNet
 from .polynomial import Polynomial as Polynomial
-from .registry import KINDS as KINDS
-from .registry import available_kinds as available_kinds
 from .registry import fit as fit
-from .registry import method_class as method_class
 from .registry import table4_methods as table4_methods
-from .summary import calibration_summary as calibration_summary
 from .trigonometric import Trigonometric as Trigonometric
 
 __all__: list[str]

@@ -2,7 +2,7 @@
 
 :func:`load` reads a JSON file written by :meth:`sunlab.calibration.Calibration.save`,
 :func:`validate_document` checks it against the contract, and :func:`from_dict` rebuilds the
-fitted calibration through the registry (:func:`sunlab.calibration.available_kinds`: the
+fitted calibration through the registry (:func:`sunlab.calibration.registry.available_kinds`: the
 built-in methods and every kind of the entry point group ``sunlab.calibrations``, the
 multi-hole strategies among them), after the class has checked its own parameters: sizes
 before any array is built, finite numbers, sane ranges.
@@ -23,7 +23,7 @@ from .registry import ENTRY_POINT_GROUP, available_kinds, method_class
 if TYPE_CHECKING:
     from .base import Calibration
 
-__all__ = ["from_dict", "load"]
+__all__ = ["load"]
 
 #: Largest calibration file :func:`load` reads (bytes); the biggest real one is a few MB.
 MAX_FILE_BYTES = 64 * 2**20
@@ -89,7 +89,7 @@ def from_dict(doc: dict) -> Calibration:
     ----------
     doc : dict
         The document (:meth:`Calibration.to_dict`, or a parsed JSON file), of any kind of
-        :func:`sunlab.calibration.available_kinds`.
+        :func:`sunlab.calibration.registry.available_kinds`.
 
     Returns
     -------

@@ -362,7 +362,7 @@ class Calibration:
         Returns
         -------
         str
-            :func:`sunlab.calibration.calibration_summary` of :meth:`to_dict`.
+            :func:`sunlab.calibration.summary.calibration_summary` of :meth:`to_dict`.
         """
         return calibration_summary(self.to_dict())
 

@@ -230,7 +230,7 @@ class Interpolation(Calibration):
     @classmethod
     def _check_parameters(cls, p: dict) -> None:
         """Sizes, finiteness and ranges of a document's parameters, before any array is
-        built (:func:`sunlab.calibration.from_dict`)."""
+        built (:func:`sunlab.calibration.artifact.from_dict`)."""
         nodes = p.get("nodes")
         if not isinstance(nodes, dict) or not isinstance(nodes.get("x"), list):
             raise _bad("nodes", type(nodes).__name__, "an object of lists x, y, alpha, beta")

@@ -81,7 +81,7 @@ class IdealModel(Calibration):
     @classmethod
     def _check_parameters(cls, p: dict) -> None:
         """Sizes, finiteness and ranges of a document's parameters, before any array is
-        built (:func:`sunlab.calibration.from_dict`)."""
+        built (:func:`sunlab.calibration.artifact.from_dict`)."""
         for k in _SENSOR:
             _number(p.get(k), k, positive=k in ("mask_distance_mm", "pixel_pitch_mm"))
 
@@ -223,7 +223,7 @@ class OptimisedModel(Calibration):
     @classmethod
     def _check_parameters(cls, p: dict) -> None:
         """Sizes, finiteness and ranges of a document's parameters, before any array is
-        built (:func:`sunlab.calibration.from_dict`)."""
+        built (:func:`sunlab.calibration.artifact.from_dict`)."""
         for k in ("delta_f_mm", "alpha0", "beta0", "x_zp", "y_zp", "x_cf", "y_cf"):
             _number(p.get(k), k)
         for k in ("mask_distance_mm", "pixel_pitch_mm"):

@@ -150,7 +150,7 @@ class NeuralNet(Calibration):
             return np.column_stack([x, y])
         if self.strategy == 2:
             return np.column_stack(self._ideal(x, y))
-        return np.column_stack(geometry.optimised_angles(x, y, *self.optimised.params))
+        return np.column_stack(geometry.model.optimised_angles(x, y, *self.optimised.params))
 
     def _targets(self, d) -> np.ndarray:
         if self.strategy == 4:
@@ -338,7 +338,7 @@ class NeuralNet(Calibration):
     @classmethod
     def _check_parameters(cls, p: dict) -> None:
         """Sizes, finiteness and ranges of a document's parameters, before any array is
-        built (:func:`sunlab.calibration.from_dict`)."""
+        built (:func:`sunlab.calibration.artifact.from_dict`)."""
         h = _count(p.get("hidden"), "hidden", 1)
         scaling = p.get("input_scaling")
         if not isinstance(scaling, dict):

@@ -222,7 +222,7 @@ class Polynomial(Calibration):
     @classmethod
     def _check_parameters(cls, p: dict) -> None:
         """Sizes, finiteness and ranges of a document's parameters, before any array is
-        built (:func:`sunlab.calibration.from_dict`)."""
+        built (:func:`sunlab.calibration.artifact.from_dict`)."""
         order = p.get("order")
         orders = [order] if not isinstance(order, list) else order
         if len(orders) not in (1, 2):

@@ -36,7 +36,7 @@ if TYPE_CHECKING:
 
     from .base import Calibration
 
-__all__ = ["KINDS", "available_kinds", "fit", "method_class", "table4_methods"]
+__all__ = ["fit", "table4_methods"]
 
 #: Default outlier screening of every fit (``Calibration.fit``, :func:`fit`, ``sunlab calibrate
 #: --outlier-mads``), in MADs: :data:`sunlab.screening.N_MAD`, kept here so that the command line
@@ -152,7 +152,7 @@ def method_class(method: str, *, frames: bool = False) -> type[Calibration]:
         raise ConfigurationError(
             f"method: found {method!r}, expected one of "
             f"{sorted(available_kinds(frames=frames))} (or {sorted(ALIASES)}). Fix: name a "
-            f"registered calibration method (sunlab.calibration.available_kinds(); the "
+            f"registered calibration method (sunlab.calibration.registry.available_kinds(); the "
             f"multi-hole strategies are entry points of {ENTRY_POINT_GROUP!r}: if they are "
             "missing, reinstall sunlab, e.g. pip install -e .)")
     try:

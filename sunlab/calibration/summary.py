@@ -18,7 +18,7 @@ calibration/1: polynomial(3) (kind 'polynomial'), order 3
 
 from __future__ import annotations
 
-__all__ = ["calibration_summary"]
+__all__ = []
 
 
 def _num(v, fmt: str = ".5f") -> str:

@@ -137,7 +137,7 @@ class Trigonometric(Calibration):
     @classmethod
     def _check_parameters(cls, p: dict) -> None:
         """Sizes, finiteness and ranges of a document's parameters, before any array is
-        built (:func:`sunlab.calibration.from_dict`)."""
+        built (:func:`sunlab.calibration.artifact.from_dict`)."""
         n = _count(p.get("order"), "order")
         _number(p.get("period"), "period", positive=True)
         _scaling_ok(p)

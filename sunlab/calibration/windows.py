@@ -32,7 +32,8 @@ def detect_spots(cube: xr.Dataset, hole_offset=(0.0, 0.0), *, progress: bool = F
                  workers: int | None = None) -> xr.Dataset:
     """The spots of every frame, by the library's locator: algorithm B for one hole, the
     lattice locator (``"tight"``) for many, its spots numbered with the design places moved by
-    ``hole_offset`` (px; the sensor's mounting, :func:`sunlab.reproduce.mounting_offset_px`).
+    ``hole_offset`` (px; the sensor's mounting,
+    :func:`sunlab.reproduce.pipeline.mounting_offset_px`).
 
     Parameters
     ----------

@@ -4,7 +4,8 @@ One module per group of verbs, each verb a short handler around one library func
 ``reproduce`` (:mod:`sunlab.reproduce`), ``simulate`` and ``acquire`` (the virtual and the real
 bench), ``import``, ``centroid`` and ``info`` (frames and tables), ``calibrate``
 (:func:`sunlab.calibration.fit`), ``evaluate`` (:func:`sunlab.stats.evaluate`) and ``export``,
-``course``. The methods offered are read from the registry :data:`sunlab.calibration.KINDS`.
+``course``. The methods offered are read from the registry
+:data:`sunlab.calibration.registry.KINDS`.
 ``python -m sunlab.cli`` runs the same command line.
 
 Examples

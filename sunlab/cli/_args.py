@@ -80,7 +80,7 @@ def check_out(path, overwrite: bool, kind: str = "auto") -> None:
     from .. import atomic, io
 
     if kind == "auto":
-        kind = "file" if Path(path).suffix.lower() in io.NETCDF_SUFFIXES else "zarr"
+        kind = "file" if Path(path).suffix.lower() in io.write.NETCDF_SUFFIXES else "zarr"
     atomic.check_target(path, overwrite=overwrite, kind=kind, flag="--overwrite")
 
 

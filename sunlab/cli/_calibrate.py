@@ -2,7 +2,7 @@
 centroid table), ``sunlab evaluate`` (:func:`sunlab.stats.evaluate`, printed as the paper's
 Table 4, and its report) and ``sunlab export`` (:func:`sunlab.export.export`, on-board C).
 
-The methods offered are read from the registry :data:`sunlab.calibration.KINDS`; a method's
+The methods offered are read from the registry :data:`sunlab.calibration.registry.KINDS`; a method's
 option given to a method whose class does not take it is refused, naming the methods it applies
 to.
 
@@ -108,7 +108,7 @@ def _method_options(args) -> dict:
     not take is refused, naming the methods it applies to (read from the registry)."""
     import inspect
 
-    from ..calibration import method_class
+    from ..calibration.registry import method_class
     def takes(method, name):
         return name in inspect.signature(method_class(method).__init__).parameters
 

@@ -62,13 +62,13 @@ def run_reproduce(args) -> int:
              "scheduler": scheduler, "workers": args.workers}
     if args.table == "platform":
         res = reproduce.reproduce_platform(out=args.out, **where)
-        print(f"\n{reproduce.format_platform(res)}\n\nwrote " + ", ".join(res["files"]))
+        print(f"\n{reproduce.platform.format_platform(res)}\n\nwrote " + ", ".join(res["files"]))
     if args.table in ("4", "all"):
         res = reproduce.reproduce_table4(neural=not args.no_neural, out=args.out, **where)
-        print(f"\n{reproduce.format_table(res)}\n\nwrote " + ", ".join(res.files))
+        print(f"\n{reproduce.table4.format_table(res)}\n\nwrote " + ", ".join(res.files))
     if args.table in ("5", "all"):
         res = reproduce.reproduce_table5(out=args.out, **where)
-        print(f"\n{reproduce.format_table5(res)}")
+        print(f"\n{reproduce.table5.format_table5(res)}")
         print("Frames removed (status: count): " + "; ".join(
             f"{k}: " + (", ".join(f"{n} {s}" for s, n in v["removed"].items()) or "none")
             for k, v in res["centroid_status"].items()))

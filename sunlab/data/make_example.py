@@ -23,7 +23,7 @@ from PIL import Image
 
 from sunlab import plans, sim
 
-__all__ = ["write_example"]
+__all__ = []
 
 HERE = Path(__file__).resolve().parent / "example"
 SEED = 2005

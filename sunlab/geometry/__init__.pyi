@@ -7,9 +7,7 @@ from ._fit import OptimisedFit as OptimisedFit
 from ._fit import fit_optimised_model as fit_optimised_model
 from .model import ideal_angles as ideal_angles
 from .model import ideal_centroid as ideal_centroid
-from .model import optimised_angles as optimised_angles
 from .model import optimised_centroid as optimised_centroid
-from .model import pinhole_centroid as pinhole_centroid
 from .model import sun_angles as sun_angles
 from .model import sun_vector as sun_vector
 

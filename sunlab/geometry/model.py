@@ -54,8 +54,7 @@ import numpy as np
 
 from ..errors import ConfigurationError
 
-__all__ = ["sun_vector", "sun_angles", "ideal_centroid", "ideal_angles", "optimised_centroid",
-           "optimised_angles", "pinhole_centroid"]
+__all__ = ["sun_vector", "sun_angles", "ideal_centroid", "ideal_angles", "optimised_centroid"]
 
 
 def sun_vector(alpha, beta):

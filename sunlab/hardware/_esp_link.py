@@ -15,7 +15,7 @@ deep, read with ``TB?`` (code 0 when empty; :func:`~sunlab.hardware.errors.decod
 Reading an error removes it from the buffer, so an error query is never retried blindly: a
 ``TB?`` reply that is lost or garbled may have carried an error, the buffer is read again until
 a clean ``0, ..., NO ERROR DETECTED`` proves it empty, and
-:class:`~sunlab.hardware.ErrorReplyLost` is raised.
+:class:`~sunlab.hardware.errors.ErrorReplyLost` is raised.
 """
 
 from __future__ import annotations
@@ -400,7 +400,9 @@ class _Link:
 
         Examples
         --------
-        >>> from sunlab.hardware import ESP300, ErrorReplyLost, FakeESP
+        >>> from sunlab.hardware import ESP300
+        >>> from sunlab.hardware.errors import ErrorReplyLost
+        >>> from sunlab.hardware.fake import FakeESP
         >>> fake = FakeESP()
         >>> stage = ESP300(fake.serve_pty(), retry_delay_s=0.0, timeout=0.2)
         >>> stage.write("9PA1"); [err.code for err in stage.errors("9PA1")]

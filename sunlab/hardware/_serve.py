@@ -1,5 +1,5 @@
 """Serve a CR-terminated line protocol on a pseudo-terminal or a loopback TCP port, each in a
-background thread: the links of :class:`~sunlab.hardware.FakeESP`.
+background thread: the links of :class:`~sunlab.hardware.fake.FakeESP`.
 
 ``answer(line)`` gets each line without its ``CR`` and returns ``(reply, late_s)``: the bytes to
 send (None: nothing), sent ``late_s`` seconds late, or :data:`DISCONNECT` to hang up.

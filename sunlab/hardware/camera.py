@@ -1,4 +1,4 @@
-"""The cameras sunlab ships, each a :class:`~sunlab.hardware.ControlledCamera` (the protocol
+"""The cameras sunlab ships, each a :class:`~sunlab.hardware.cameras.ControlledCamera` (the protocol
 and how a lab's own camera is opened are :mod:`sunlab.hardware.cameras`):
 
 - :class:`SimCamera` renders frames from the virtual bench (:func:`sunlab.sim.render_frame`) at
@@ -35,9 +35,10 @@ class SimCamera:
         Seed of the frame noise and, without ``truth``, of the platform model.
     truth : callable, optional
         ``truth(pose, shot) -> (alpha_true, beta_true)`` in degrees, e.g.
-        :meth:`FakeESP.true_pose <sunlab.hardware.FakeESP.true_pose>` of the controller that moves
-        the platform. Without it the true pose comes from :func:`sunlab.sim.platform_pose` at
-        the read-back angles the runner hands to :meth:`set_index`.
+        :meth:`FakeESP.true_pose <sunlab.hardware.fake.FakeESP.true_pose>` of the controller that
+        moves the platform. Without it the true pose comes from
+        :func:`sunlab.sim.platform.platform_pose` at the read-back angles the runner hands to
+        :meth:`set_index`.
     roi : (y0, y1, x0, x1), optional
         Region of interest of the detector, half-open pixel ranges (rows, then columns).
     binning : int
@@ -145,9 +146,9 @@ class SimCamera:
         -------
         (float, float)
             (alpha, beta) true platform angles, degrees: ``truth(pose, shot)``, or else
-            :func:`sunlab.sim.platform_pose` round the read-back angles.
+            :func:`sunlab.sim.platform.platform_pose` round the read-back angles.
         """
-        from ..sim import platform_pose
+        from ..sim.platform import platform_pose
 
         a, b = (self.truth(self.pose, self.shot) if self.truth is not None else
                 platform_pose(self.bench, self.alpha, self.beta, seed=self.seed,

@@ -10,9 +10,9 @@ the sensor attributes of the frame cube (``pixel_pitch_mm``, ``mask_distance_mm`
 ``set_roi((y0, y1, x0, x1))``, and ``grab_dark()`` (a frame with the light blocked), which
 :func:`capture_darks` stacks into the dark frames of :func:`sunlab.io.with_calibration_frames`.
 
-A lab's own camera is one class with the :class:`~sunlab.hardware.Camera` members (``grab``,
+A lab's own camera is one class with the :class:`~sunlab.hardware.cameras.Camera` members (``grab``,
 ``shape``, ``dtype``, ``bit_depth``; optionally exposure, ROI and dark frames,
-:class:`~sunlab.hardware.ControlledCamera`). sunlab finds it without being edited, in one of
+:class:`~sunlab.hardware.cameras.ControlledCamera`). sunlab finds it without being edited, in one of
 two ways:
 
 * by its import path: ``--camera mypkg.cameras:MyCamera`` imports ``mypkg.cameras`` and takes
@@ -53,7 +53,7 @@ from ..errors import ConfigurationError
 from ._plugins import entry_points, load_plugin, open_device, plugin_failed
 from .errors import CameraError
 
-__all__ = ["Camera", "ControlledCamera", "capture_darks", "available_cameras", "open_camera"]
+__all__ = ["open_camera"]
 
 @runtime_checkable
 class Camera(Protocol):
@@ -255,7 +255,7 @@ def parse_camera_options(pairs) -> dict:
 
 def open_camera(spec: str, **options):
     """A camera object from ``spec`` (see the module): the class called with ``options``,
-    checked against the :class:`~sunlab.hardware.Camera` protocol.
+    checked against the :class:`~sunlab.hardware.cameras.Camera` protocol.
 
     Parameters
     ----------

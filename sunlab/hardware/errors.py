@@ -10,8 +10,7 @@ from __future__ import annotations
 
 from ..errors import SunlabError
 
-__all__ = ["BenchError", "StageError", "ControllerError", "ErrorReplyLost", "LimitError",
-           "ControllerLimitError", "MotionTimeout", "CameraError"]
+__all__ = ["BenchError", "MotionTimeout"]
 
 
 class BenchError(SunlabError):

@@ -24,7 +24,8 @@ Examples
 --------
 Drive the in-process fake controller (same protocol, over a pseudo-terminal):
 
->>> from sunlab.hardware import ESP300, FakeESP
+>>> from sunlab.hardware import ESP300
+>>> from sunlab.hardware.fake import FakeESP
 >>> fake = FakeESP(velocity_deg_s=1e4)
 >>> with ESP300(fake.serve_pty(), retry_delay_s=0.0, poll_s=0.001) as stage:
 ...     stage.move_to(12.5, -3.0)
@@ -109,7 +110,7 @@ class ESP300(_Link):
 
     Examples
     --------
-    >>> from sunlab.hardware import FakeESP
+    >>> from sunlab.hardware.fake import FakeESP
     >>> fake = FakeESP(velocity_deg_s=1e4)
     >>> stage = ESP300(fake.serve_pty(), retry_delay_s=0.0, poll_s=0.001)
     >>> stage.identity.startswith("ESP301"), stage.limits["alpha"]

@@ -31,7 +31,7 @@ Anything else queues error 6 (command does not exist), 37 (axis number missing),
 range), 38 (parameter missing) or 7 (parameter out of range), as the controller does.
 
 The encoders read the commanded angles; :meth:`FakeESP.true_pose` gives the angles the virtual
-bench's platform really takes (:func:`sunlab.sim.platform_pose`; ideal without a bench).
+bench's platform really takes (:func:`sunlab.sim.platform.platform_pose`; ideal without a bench).
 
 Faults are injected with :meth:`FakeESP.inject`:
 
@@ -76,7 +76,7 @@ from . import _serve
 from ._serve import DISCONNECT
 from .errors import decode_error
 
-__all__ = ["FakeESP"]
+__all__ = []
 
 FAULT_KINDS = ("timeout", "garble", "error", "silent", "stuck", "disconnect", "late")
 
@@ -421,7 +421,7 @@ class FakeESP:
 
     def true_pose(self, pose: int = 0, shot: int = 0) -> tuple[float, float]:
         """True platform angles now, from the virtual bench's platform
-        (:func:`sunlab.sim.platform_pose`: deterministic in seed, pose, shot and position).
+        (:func:`sunlab.sim.platform.platform_pose`: deterministic in seed, pose, shot and position).
 
         Parameters
         ----------
@@ -438,7 +438,7 @@ class FakeESP:
         alpha, beta = self.position()
         if self.bench is None:
             return alpha, beta
-        from ..sim import platform_pose
+        from ..sim.platform import platform_pose
 
         a, b = platform_pose(self.bench, alpha, beta, seed=self.seed, pose=pose, shot=shot)
         return float(a), float(b)

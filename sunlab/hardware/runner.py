@@ -156,8 +156,8 @@ def _checked(plan, camera, overshoot_deg) -> _Run:
         dtype, bits = np.dtype(camera.dtype), int(camera.bit_depth)
     except (AttributeError, TypeError, ValueError) as err:
         raise ConfigurationError(
-            f"camera: found {type(camera).__name__}, expected a sunlab.hardware.Camera (grab(), "
-            "shape, dtype, bit_depth)") from err
+            f"camera: found {type(camera).__name__}, expected a sunlab.hardware.cameras.Camera "
+            "(grab(), shape, dtype, bit_depth)") from err
     if len(shape) != 2 or min(shape) < 1 or dtype not in (np.uint8, np.uint16):
         raise ConfigurationError(f"camera: found shape {shape} dtype {dtype}, expected a 2-d "
                                  "(ny, nx) frame of uint8 or uint16")
@@ -311,9 +311,9 @@ def acquire(plan, stage, camera, out, *, resume: bool = False, progress: bool = 
     ----------
     plan : sunlab.plans.Plan
         Poses (alpha outer, beta inner, degrees) and shots per pose.
-    stage : sunlab.hardware.Stage
+    stage : sunlab.hardware.stage.Stage
         The platform; ``move_to`` must return once settled (e.g. :class:`~sunlab.hardware.ESP300`).
-    camera : sunlab.hardware.Camera
+    camera : sunlab.hardware.cameras.Camera
         ``grab()``, ``shape``, ``dtype``, ``bit_depth``; optional ``set_index(pose, shot,
         alpha=, beta=)`` (called before each grab with the read-back angles) and ``attrs``
         (sensor attributes of the cube: ``pixel_pitch_mm``, ``mask_distance_mm``, ``x_cf_px``,

@@ -24,7 +24,7 @@ from urllib.parse import parse_qs, urlsplit
 from ..errors import ConfigurationError
 from ._plugins import entry_points, load_plugin, open_device
 
-__all__ = ["Stage", "open_stage"]
+__all__ = ["open_stage"]
 
 #: The entry point group a lab's package registers its stages in: name -> a callable
 #: ``open(url, **options)`` returning a :class:`Stage`; ``--stage NAME:REST`` opens it.
@@ -97,11 +97,12 @@ def open_stage(url: str, *, bench=None, seed: int = 0, **driver_kwargs):
     Parameters
     ----------
     url : str
-        ``fake://`` (an in-process :class:`~sunlab.hardware.FakeESP` served on a pseudo-terminal;
-        query options ``velocity`` in deg/s and ``transport=tcp``), ``socket://HOST:PORT``, any
-        other :func:`serial.serial_for_url` URL, a device path (``/dev/ttyUSB0``, ``COM3``), or
-        ``NAME:...`` of a stage registered in the entry point group ``sunlab.stages``
-        (:func:`available_stages`), called as ``open(url, bench=, seed=, **driver_kwargs)``.
+        ``fake://`` (an in-process :class:`~sunlab.hardware.fake.FakeESP` served on a
+        pseudo-terminal; query options ``velocity`` in deg/s and ``transport=tcp``),
+        ``socket://HOST:PORT``, any other :func:`serial.serial_for_url` URL, a device path
+        (``/dev/ttyUSB0``, ``COM3``), or ``NAME:...`` of a stage registered in the entry point
+        group ``sunlab.stages`` (:func:`available_stages`), called as
+        ``open(url, bench=, seed=, **driver_kwargs)``.
     bench : sunlab.sim.Bench, optional
         Platform model of the fake controller (``fake://`` only).
     seed : int

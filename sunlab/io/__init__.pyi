@@ -20,8 +20,6 @@ from .folder import example_folder as example_folder
 from .images import read_image as read_image
 from .read import open_centroids as open_centroids
 from .read import open_frames as open_frames
-from .sensor import read_sensor_json as read_sensor_json
-from .write import NETCDF_SUFFIXES as NETCDF_SUFFIXES
 from .write import save_centroids as save_centroids
 from .write import save_frames as save_frames
 

@@ -32,7 +32,7 @@ from pathlib import Path
 from .. import integrity
 from ..errors import SchemaError
 
-__all__ = ["read_sensor_json"]
+__all__ = []
 
 #: The fields of ``sensor.json``: name -> (kind, meaning). Kinds: ``positive`` (a number > 0),
 #: ``number`` (finite), ``bits`` (an integer 8 .. 16), ``bool``, ``text``, ``object``.

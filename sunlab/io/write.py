@@ -20,7 +20,7 @@ from ..schema import validate_centroids, validate_frames
 from .chunks import _checked_dn
 from .codec import _encode_attrs, _strings_as_objects
 
-__all__ = ["NETCDF_SUFFIXES", "save_frames", "save_centroids"]
+__all__ = ["save_frames", "save_centroids"]
 
 #: Path suffixes saved as NetCDF4 (everything else is a Zarr store).
 NETCDF_SUFFIXES = (".nc", ".nc4", ".netcdf", ".h5", ".hdf5")

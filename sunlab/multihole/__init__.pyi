@@ -10,11 +10,8 @@ from . import strategies as strategies
 from .budget import error_budget as error_budget
 from .budget import gain_study as gain_study
 from .defects import defect_metrics as defect_metrics
-from .defects import metric_scale as metric_scale
 from .defects import reject_bad_holes as reject_bad_holes
-from .defects import robust_z as robust_z
 from .holes import centroid_free_layout as centroid_free_layout
-from .holes import usable as usable
 from .strategies import GeometricCentre as GeometricCentre
 from .strategies import PerHoleAverage as PerHoleAverage
 

@@ -25,7 +25,7 @@ from ..errors import ConfigurationError
 from .holes import cutout, usable
 from .strategies import PerHoleAverage
 
-__all__ = ["defect_metrics", "robust_z", "reject_bad_holes", "metric_scale"]
+__all__ = ["defect_metrics", "reject_bad_holes"]
 
 
 #: Defect metrics (name -> meaning); large values are bad for every one of them.

@@ -38,7 +38,7 @@ from .. import geometry, schema
 from ..errors import SchemaError
 from ..options import show_progress
 
-__all__ = ["usable", "centroid_free_layout"]
+__all__ = ["centroid_free_layout"]
 
 
 def hole_grid(cen: xr.Dataset):

@@ -31,7 +31,8 @@ import numpy as np
 import xarray as xr
 
 from .. import schema
-from ..calibration import Calibration, Polynomial, from_dict
+from ..calibration import Calibration, Polynomial
+from ..calibration.artifact import from_dict
 from ..errors import ConfigurationError, SchemaError
 from . import _tables as _t
 from .budget import combine_estimates

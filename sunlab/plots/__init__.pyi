@@ -7,7 +7,6 @@ from . import mask as mask
 from .accuracy import error_histogram as error_histogram
 from .accuracy import error_maps as error_maps
 from .accuracy import error_rectangles as error_rectangles
-from .accuracy import new_figure as new_figure
 from .mask import fig13_frame as fig13_frame
 from .mask import fig14_bad_holes as fig14_bad_holes
 from .mask import fig15_rectangles as fig15_rectangles

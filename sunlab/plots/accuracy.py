@@ -30,7 +30,7 @@ from matplotlib.patches import Rectangle
 from ..errors import ConfigurationError
 from ..stats import ANGLES, rectangles, unstack_poses
 
-__all__ = ["new_figure", "error_maps", "error_histogram", "error_rectangles"]
+__all__ = ["error_maps", "error_histogram", "error_rectangles"]
 
 _LABELS = {"local_error": "local error", "max_error": "maximum error"}
 

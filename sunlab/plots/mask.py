@@ -187,7 +187,7 @@ def plot_metric_map(metrics: xr.Dataset, name: str, *, bad=None, ax=None):
         grid places come from ``hole_i``, ``hole_j`` (a square row-major grid without them).
     name : str
         The metric to colour by (a variable of ``metrics``); the colour scale spans its 2nd to
-        98th percentile over the holes (:func:`sunlab.multihole.metric_scale`).
+        98th percentile over the holes (:func:`sunlab.multihole.defects.metric_scale`).
     bad : array_like of bool, optional
         One per hole: True draws a red cross on the hole (e.g.
         :func:`sunlab.multihole.reject_bad_holes`).

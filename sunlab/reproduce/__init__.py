@@ -16,9 +16,9 @@
 Examples
 --------
 >>> from sunlab import reproduce
->>> reproduce.QUICK
+>>> reproduce.pipeline.QUICK
 {'step': 2, 'shots': 2}
->>> {k: len(p) for k, p in reproduce.experiment_plans(quick=True).items()}
+>>> {k: len(p) for k, p in reproduce.pipeline.experiment_plans(quick=True).items()}
 {'I': 100, 'II': 49, 'III': 100}
 """
 

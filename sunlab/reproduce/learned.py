@@ -47,10 +47,10 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ConfigurationError
-from .learned_files import learned_figure, records_of, records_table
+from .learned_files import learned_figure, records_of, records_table  # noqa: F401 (users import them here)
 from .pipeline import experiment_plans, locate_runs, usable_table
 
-__all__ = ["learned_figure", "records_of", "records_table", "reproduce_learned", "run_settings"]
+__all__ = ["reproduce_learned"]
 
 #: The benches, in the order they run: name -> what it is (the factory is :func:`bench`).
 BENCHES = {
@@ -113,7 +113,7 @@ def bench(name: str):
         return one.replace(detector__hot_pixel_fraction=50 * one.detector.hot_pixel_fraction)
     if name == "dust":
         r = one.mask.holes[0].diameter_mm / 2
-        return one.replace(mask=one.mask.with_defects({0: sim.Dust(0.75 * r, 0.0, 0.6 * r,
+        return one.replace(mask=one.mask.with_defects({0: sim.holes.Dust(0.75 * r, 0.0, 0.6 * r,
                                                                    0.04)}))
     many = sim.Bench.paper_multi_hole()
     if name == "100-holes":
@@ -215,10 +215,10 @@ def reproduce_learned(*, full: bool = False, quick: bool = False, seed: int = 0,
     full : bool
         Every bench, full plans (8 shots per pose; the 100-hole benches :data:`MULTI_SHOTS`).
     quick : bool
-        The tables' quick mode (:data:`sunlab.reproduce.QUICK`): the learned table's default
-        size already; refused with ``full``.
+        The tables' quick mode (:data:`sunlab.reproduce.pipeline.QUICK`): the learned table's
+        default size already; refused with ``full``.
     step, shots
-        Thin the plans (:func:`sunlab.reproduce.experiment_plans`; override the above).
+        Thin the plans (:func:`sunlab.reproduce.pipeline.experiment_plans`; override the above).
     seed : int
         Base of every bench's seeds (:func:`bench_seeds`).
     out : path, optional

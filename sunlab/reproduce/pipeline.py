@@ -34,7 +34,7 @@ import xarray as xr
 
 from ..errors import ConfigurationError
 
-__all__ = ["QUICK", "experiment_plans", "locate_runs", "simulate_and_locate"]
+__all__ = []
 
 #: Experiments of Table 3 and their roles.
 EXPERIMENTS = {"I": "calibration", "II": "validation", "III": "test"}

@@ -47,7 +47,7 @@ import pandas as pd
 
 from .pipeline import experiment_plans, locate_runs, simulate_runs, usable_table, write_json
 
-__all__ = ["ROWS", "reproduce_platform", "format_platform"]
+__all__ = ["reproduce_platform"]
 
 #: The rows of the platform table, in order.
 ROWS = (

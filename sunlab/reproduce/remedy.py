@@ -18,7 +18,7 @@ import xarray as xr
 from ..errors import ConfigurationError
 from .fault import approach_of
 
-__all__ = ["fit_correction"]
+__all__ = []
 
 
 def _pose_means(cen: xr.Dataset):

@@ -49,7 +49,7 @@ from .pipeline import (
     write_json,
 )
 
-__all__ = ["reproduce_table4", "format_table"]
+__all__ = ["reproduce_table4"]
 
 #: Where the strategy-4 network zeroes model (1): on each run's zero-pose check (strategy 2
 #: keeps model (1) as fitted, :func:`sunlab.calibration.table4_methods`).

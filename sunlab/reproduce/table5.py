@@ -46,7 +46,7 @@ from .pipeline import (
     write_json,
 )
 
-__all__ = ["reproduce_table5", "COLUMNS", "REJECTION_COLUMN", "format_table5"]
+__all__ = ["reproduce_table5"]
 
 #: The paper's column labels (:func:`sunlab.stats.paper_table5`).
 COLUMNS = ("100 holes: geometric centre", "100 holes: averaging", "1 hole")
@@ -379,7 +379,7 @@ def _write_figures(result: dict, out: Path) -> list[str]:
     bad = np.isin(np.arange(metrics.sizes["hole"]), result["bad_holes"])
     show = (result["bad_holes"] or result["injected"])[:5]
     cen, frames = result["data"]["centroids_test"], result["data"]["cube_test"]["frames"]
-    p13 = int(np.argmax(mh.usable(cen).values[:, 0, :].sum(axis=1)))  # the most spots whole
+    p13 = int(np.argmax(mh.holes.usable(cen).values[:, 0, :].sum(axis=1)))  # the most spots whole
     p14, ref = _fig14_pose(cen, show, bad)
     figs = {
         "fig13.png": plots.fig13_frame(frames.isel(pose=p13, shot=0).values,
@@ -419,7 +419,7 @@ def _fig14_pose(cen, holes, bad) -> tuple[int, int]:
     """
     from .. import multihole as mh
 
-    seen = mh.usable(cen).values[:, 0, :]  # (pose, hole)
+    seen = mh.holes.usable(cen).values[:, 0, :]  # (pose, hole)
     p = int(np.argmax(seen[:, list(holes)].sum(axis=1))) if len(holes) else 0
     good = np.flatnonzero(~np.asarray(bad) & seen[p])
     return p, int(good[0] if good.size else np.flatnonzero(~np.asarray(bad))[0])

@@ -16,7 +16,7 @@ Examples
 --------
 >>> from sunlab import sim, plans
 >>> bench = sim.Bench.paper_single_hole()
->>> a, b = sim.platform_pose(bench, -8.0, 4.0, seed=0, pose=0, shot=0)
+>>> a, b = sim.platform.platform_pose(bench, -8.0, 4.0, seed=0, pose=0, shot=0)
 >>> frame = sim.render_frame(bench, a, b, seed=0)
 >>> frame.shape, int(frame.max()) <= 1023
 ((1024, 1280), True)

@@ -19,16 +19,9 @@ from .bench import Bench as Bench
 from .centroids import synthetic_centroids as synthetic_centroids
 from .cube import simulate as simulate
 from .detector import Detector as Detector
-from .detector import fixed_pattern as fixed_pattern
 from .frame import render_frame as render_frame
-from .holes import Dust as Dust
-from .holes import Hole as Hole
 from .mask import Mask as Mask
 from .platform import Platform as Platform
-from .platform import platform_pose as platform_pose
-from .render import ray_positions as ray_positions
 from .source import Source as Source
-from .spots import spot_image as spot_image
-from .spots import spot_truth as spot_truth
 
 __all__: list[str]

@@ -120,7 +120,7 @@ def synthetic_centroids(alpha, beta, shots: int = 8, *, layout=None, seed: int =
     seed : int
         Seed of :func:`numpy.random.default_rng`; the table is deterministic in it.
     **errors
-        One hole (exact pinhole model, :func:`sunlab.geometry.pinhole_centroid`):
+        One hole (exact pinhole model, :func:`sunlab.geometry.model.pinhole_centroid`):
         ``mask_distance_mm`` (5), ``pixel_pitch_mm`` (0.007), ``x_cf``, ``y_cf`` (design
         projection, px: 639.5, 511.5), ``delta_f_mm``, ``mounting_deg`` (alpha0, beta0,
         gamma0), ``hole_offset_px``, ``pose_error_deg`` (half-widths of the uniform per-pose
@@ -176,7 +176,7 @@ def _one_hole(alpha, beta, shots: int = 8, *, mask_distance_mm: float = 5.0,
     wa, wb = pose_error_deg
     true_a = alpha[:, None] + rng.uniform(-wa, wa, (n, 1)) + rng.normal(0.0, jitter_deg, shape)
     true_b = beta[:, None] + rng.uniform(-wb, wb, (n, 1)) + rng.normal(0.0, jitter_deg, shape)
-    x, y = geometry.pinhole_centroid(true_a, true_b, mask_distance_mm, pixel_pitch_mm,
+    x, y = geometry.model.pinhole_centroid(true_a, true_b, mask_distance_mm, pixel_pitch_mm,
                                      x_cf + hole_offset_px[0], y_cf + hole_offset_px[1],
                                      delta_f_mm=delta_f_mm, mounting_deg=mounting_deg)
     x = x + rng.normal(0.0, noise_px, shape)

@@ -60,7 +60,7 @@ import numpy as np
 from ..errors import ConfigurationError
 from . import _jit
 
-__all__ = ["Detector", "fixed_pattern"]
+__all__ = ["Detector"]
 
 
 @dataclass(frozen=True)

@@ -66,7 +66,7 @@ from scipy import constants, special
 
 from ..errors import ConfigurationError
 
-__all__ = ["fresnel_number", "broadband_intensity"]
+__all__ = []
 
 #: The paper's solar simulator is a 1000 W xenon arc (docs/paper.md sec. 2); no spectrum of it is
 #: given, so its photon flux is a 5778 K blackbody's (a xenon arc's visible continuum is close to
@@ -337,7 +337,7 @@ class FresnelHole:
     Parameters
     ----------
     affine_mm : numpy.ndarray, shape (2, 2)
-        The map of the unit disk onto the hole, mm (:meth:`sunlab.sim.Hole.affine`).
+        The map of the unit disk onto the hole, mm (:meth:`sunlab.sim.holes.Hole.affine`).
     distance_mm : float
         Optical distance from the hole to the focal plane, mm (a glass lid of thickness t and
         index n counts t / n).

@@ -175,7 +175,7 @@ def render_frame(bench, alpha_true, beta_true, *, seed, pose: int = 0, shot: int
     bench : Bench
         The virtual bench.
     alpha_true, beta_true : float
-        True platform angles (see :func:`sunlab.sim.platform_pose`), deg.
+        True platform angles (see :func:`sunlab.sim.platform.platform_pose`), deg.
     seed : int or sequence of int
         Seed of the experiment.
     pose, shot : int

@@ -26,7 +26,7 @@ import numpy as np
 from ..errors import ConfigurationError
 from ..schema import DEFECT_FLAGS
 
-__all__ = ["Hole", "Dust"]
+__all__ = []
 
 
 def _check(ok: bool, name: str, value, expected: str, fix: str = "") -> None:

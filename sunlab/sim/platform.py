@@ -62,7 +62,7 @@ import numpy as np
 from ..errors import ConfigurationError
 from ..geometry.model import rotation_x, rotation_y, rotation_z
 
-__all__ = ["Platform", "platform_pose"]
+__all__ = ["Platform"]
 
 
 @dataclass(frozen=True)

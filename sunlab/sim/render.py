@@ -43,7 +43,7 @@ import numpy as np
 from ..errors import ConfigurationError
 from .platform import _entropy, sensor_sun_vector
 
-__all__ = ["ray_positions"]
+__all__ = []
 
 _TAG_FRAME = 0xF7A3E
 _TAG_PLAY = 0x91A7

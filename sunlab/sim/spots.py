@@ -37,7 +37,7 @@ from . import _aperture, _jit, diffraction
 from .detector import Detector
 from .render import SpotGeometry, spot_geometry
 
-__all__ = ["spot_truth", "spot_image"]
+__all__ = []
 
 #: spots folded and transformed together (:meth:`_Spectrum.images`)
 _SPOTS_PER_FFT = 8
@@ -354,7 +354,7 @@ def spot_truth(bench, alpha_true, beta_true, *, play_mm=(0.0, 0.0)):
     --------
     >>> from sunlab.sim import Bench
     >>> from sunlab.geometry import ideal_centroid
-    >>> from sunlab.sim import ray_positions
+    >>> from sunlab.sim.render import ray_positions
     >>> b = Bench.paper_single_hole().ideal_platform().ideal_mask().without_lid()
     >>> x_cf, y_cf = ray_positions(b, 0.0, 0.0)               # the zero-pose spot
     >>> x, y = spot_truth(b, -12.0, 7.0)

@@ -54,7 +54,7 @@ import functools
 import numpy as np
 import xarray as xr
 
-__all__ = ["spot_diameter_px", "surrogate_centroids"]
+__all__ = []
 
 
 def spot_diameter_px(bench) -> float:

@@ -31,7 +31,7 @@ def test_from_dict_refuses_an_integer_no_double_can_hold(cal):
     doc = cal.to_dict()
     doc["parameters"]["coefficients"]["alpha"][1] = HUGE
     with pytest.raises(SchemaError, match=r"parameters.coefficients.alpha\[1\].*a finite number"):
-        calibration.from_dict(doc)
+        calibration.artifact.from_dict(doc)
 
 
 def test_load_refuses_a_sealed_file_with_a_400_digit_coefficient(cal, tmp_path):

@@ -15,7 +15,7 @@ from sunlab import calibration, sim, stats
 from sunlab.calibration import FrameNet
 from sunlab.calibration import _frames_torch as T
 from sunlab.errors import ConfigurationError, SchemaError
-from sunlab.reproduce import experiment_plans, locate_runs
+from sunlab.reproduce.pipeline import experiment_plans, locate_runs
 
 torch = pytest.importorskip("torch")
 
@@ -76,14 +76,14 @@ def test_a_corrupt_artifact_is_refused_naming_the_field(fitted, tmp_path, field,
     doc = fitted.to_dict()
     doc["parameters"][field] = value
     with pytest.raises(SchemaError, match=message):
-        calibration.from_dict(doc)
+        calibration.artifact.from_dict(doc)
 
 
 def test_a_wrongly_shaped_weight_is_refused(fitted):
     doc = fitted.to_dict()
     doc["parameters"]["network"]["conv2.weight"] = [[[[0.0]]]]
     with pytest.raises(SchemaError, match="conv2.weight"):
-        calibration.from_dict(doc)
+        calibration.artifact.from_dict(doc)
 
 
 def test_a_centroid_table_is_not_frames(cubes):

@@ -98,7 +98,7 @@ def test_zero_pose_reference_rezeroes_model_1_on_each_runs_zero_pose(bench):
     np.testing.assert_allclose(moved.beta.values - same.beta.values, b1 - b0, atol=1e-9)
     assert float(np.nanmean(np.abs(a1 - a0))) > 0.1  # 2 px is a visible shift
     # the artifact keeps the option; a table without the zero pose is refused, saying why
-    assert calibration.from_dict(net.to_dict()).reference == "zero_pose"
+    assert calibration.artifact.from_dict(net.to_dict()).reference == "zero_pose"
     with pytest.raises(ConfigurationError, match="zero_pose_x_px"):
         net.predict(te)
 

@@ -30,7 +30,7 @@ def train():
     return _table(1)
 
 
-@pytest.mark.parametrize("kind", sorted(calibration.KINDS))
+@pytest.mark.parametrize("kind", sorted(calibration.registry.KINDS))
 def test_every_method_fits_with_defaults_and_round_trips(train, kind):
     try:
         cal = calibration.fit(train, kind)
@@ -38,7 +38,7 @@ def test_every_method_fits_with_defaults_and_round_trips(train, kind):
         assert any(f'"sunlab[{extra}]"' in str(err) for extra in EXTRAS.values())
         return
     assert cal.kind == kind
-    back = calibration.from_dict(json.loads(json.dumps(cal.to_dict())))
+    back = calibration.artifact.from_dict(json.loads(json.dumps(cal.to_dict())))
     assert type(back) is type(cal) and back.kind == kind
     x, y = train.x.values, train.y.values
     for got, want in zip(back.predict_xy(x, y), cal.predict_xy(x, y), strict=True):
@@ -68,7 +68,7 @@ def test_aliases_and_options_reach_the_class(train):
     cal = calibration.fit(train, "cubic", extrapolate="nearest")
     assert cal.kind == "interpolation-cubic" and cal.extrapolate == "nearest"
     assert calibration.fit(train, "polynomial", order=2).label == "polynomial(2)"
-    assert calibration.method_class("linear") is calibration.Interpolation
+    assert calibration.registry.method_class("linear") is calibration.Interpolation
 
 
 def _write_csv(table, path):
@@ -260,7 +260,7 @@ def lab_plugin(tmp_path, monkeypatch):
 
 
 def test_a_plugin_calibration_is_fitted_saved_and_loaded_by_the_registry(lab_plugin, train):
-    assert calibration.available_kinds()["lab-poly"] == "labcal:LabPoly"
+    assert calibration.registry.available_kinds()["lab-poly"] == "labcal:LabPoly"
     cal = calibration.fit(train, "lab-poly", order=2)
     assert type(cal).__name__ == "LabPoly" and cal.kind == "lab-poly"
     back = calibration.load(cal.save(lab_plugin / "lab.json"))
@@ -269,7 +269,7 @@ def test_a_plugin_calibration_is_fitted_saved_and_loaded_by_the_registry(lab_plu
     for got, want in zip(back.predict_xy(x, y), cal.predict_xy(x, y), strict=True):
         assert np.array_equal(got, want, equal_nan=True)
     with pytest.raises(ConfigurationError, match=r"lab-broken.*RuntimeError: licence server"):
-        calibration.method_class("lab-broken")
+        calibration.registry.method_class("lab-broken")
 
 
 # -- the paper's Table 4 recipes (table4_methods) on tables with known truth -------------------

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from sunlab import sim
-from sunlab.calibration import from_dict
+from sunlab.calibration.artifact import from_dict
 from sunlab.calibration.trigonometric import Trigonometric, fourier_basis
 from sunlab.errors import ConfigurationError
 

@@ -15,7 +15,8 @@ import pytest
 from PIL import Image
 
 from sunlab import SchemaError, export, geometry, io, sim
-from sunlab.calibration import Interpolation, calibration_summary, load
+from sunlab.calibration import Interpolation, load
+from sunlab.calibration.summary import calibration_summary
 from sunlab.cli import main
 
 F_MM, PITCH_MM = 5.0, 0.007  # 1 deg ~ 12.5 px

@@ -14,8 +14,10 @@ from numpy.testing import assert_allclose, assert_array_equal
 from PIL import Image
 
 from sunlab import ConfigurationError, sim
-from sunlab.hardware import Camera, CameraError, FakeESP, FolderCamera, SimCamera
-from sunlab.hardware.errors import CameraTimeout
+from sunlab.hardware import FolderCamera, SimCamera
+from sunlab.hardware.cameras import Camera
+from sunlab.hardware.errors import CameraError, CameraTimeout
+from sunlab.hardware.fake import FakeESP
 
 
 @pytest.fixture(scope="module")
@@ -25,7 +27,7 @@ def small_bench():
     still (no play: the spot is where spot_truth puts it)."""
     return sim.Bench.paper_single_hole().replace(
         detector__nx=128, detector__ny=128, mask__distance_mm=5.0,
-        mask__holes=(sim.Hole(0.0, 0.0, 0.2),), mask__play_x_mm=0.0, mask__play_y_mm=0.0)
+        mask__holes=(sim.holes.Hole(0.0, 0.0, 0.2),), mask__play_x_mm=0.0, mask__play_y_mm=0.0)
 
 
 def _centroid(frame: np.ndarray, background: float) -> tuple[float, float]:
@@ -61,7 +63,7 @@ def test_sim_frame_is_the_virtual_bench_frame_at_the_true_pose(small_bench):
     cam = SimCamera(small_bench, seed=1)
     cam.set_index(4, 1, alpha=-0.75, beta=0.5)
     frame = cam.grab()
-    a, b = sim.platform_pose(small_bench, -0.75, 0.5, seed=1, pose=4, shot=1)
+    a, b = sim.platform.platform_pose(small_bench, -0.75, 0.5, seed=1, pose=4, shot=1)
     assert cam.last_truth == (a, b)
     assert abs(a + 0.75) > 0 and abs(a + 0.75) < 0.05  # a platform error, and a small one
     assert_array_equal(frame, sim.render_frame(small_bench, a, b, seed=1, pose=4, shot=1))
@@ -73,7 +75,7 @@ def test_sim_camera_takes_the_true_pose_from_the_controller(small_bench):
     cam = SimCamera(small_bench, seed=2, truth=fake.true_pose)
     cam.set_index(7, 0, alpha=99.0, beta=99.0)  # read-back ignored: the controller knows best
     frame = cam.grab()
-    truth = sim.platform_pose(small_bench, -1.0, 0.5, seed=2, pose=7, shot=0)
+    truth = sim.platform.platform_pose(small_bench, -1.0, 0.5, seed=2, pose=7, shot=0)
     assert cam.last_truth == truth
     assert_array_equal(frame, sim.render_frame(small_bench, *truth, seed=2, pose=7, shot=0))
 
@@ -100,7 +102,7 @@ def test_roi_and_binning_keep_the_pixel_convention(small_bench, binning):
                                (y - (binning - 1) / 2) / binning], atol=1e-3)
     # the whole-frame centroid is the true spot (noise-free frame; 0.05 px allows the blur tail
     # cut by the frame edge and the rounding to DN)
-    tx, ty = sim.spot_truth(bench, 1.0, -0.5)
+    tx, ty = sim.spots.spot_truth(bench, 1.0, -0.5)
     assert_allclose(_centroid(f_full, bias), [tx[0], ty[0]], atol=0.05)
     xd, yd = bench.hole_design_px()
     attrs = cut.attrs

@@ -11,8 +11,8 @@ import pytest
 
 from sunlab import cli
 from sunlab.errors import ConfigurationError
-from sunlab.hardware import available_cameras, open_camera
-from sunlab.hardware.cameras import camera_class
+from sunlab.hardware import open_camera
+from sunlab.hardware.cameras import available_cameras, camera_class
 
 
 @pytest.fixture

@@ -13,15 +13,7 @@ import pytest
 import serial
 
 from sunlab import ConfigurationError
-from sunlab.hardware import (
-    ESP300,
-    ControllerError,
-    ControllerLimitError,
-    ErrorReplyLost,
-    LimitError,
-    MotionTimeout,
-    StageError,
-)
+from sunlab.hardware import ESP300, MotionTimeout
 from sunlab.hardware._esp_link import (
     READ_TERMINATOR,
     WRITE_TERMINATOR,
@@ -29,7 +21,12 @@ from sunlab.hardware._esp_link import (
     open_transport,
 )
 from sunlab.hardware.errors import (
+    ControllerError,
+    ControllerLimitError,
+    ErrorReplyLost,
+    LimitError,
     StageDisconnected,
+    StageError,
     StageProtocolError,
     StageTimeout,
     decode_error,

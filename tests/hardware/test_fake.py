@@ -8,17 +8,15 @@ import time
 
 import pytest
 
-from sunlab.hardware import (
-    ESP300,
+from sunlab.hardware import ESP300, MotionTimeout, open_stage
+from sunlab.hardware.errors import (
     ControllerError,
     ControllerLimitError,
     ErrorReplyLost,
-    FakeESP,
-    MotionTimeout,
-    open_stage,
+    StageDisconnected,
+    StageTimeout,
 )
-from sunlab.hardware.errors import StageDisconnected, StageTimeout
-from sunlab.hardware.fake import DISCONNECT, ManualClock
+from sunlab.hardware.fake import DISCONNECT, FakeESP, ManualClock
 
 FAST = {"timeout": 0.08, "retries": 3, "retry_delay_s": 0.01, "poll_s": 0.001}
 

@@ -20,16 +20,9 @@ import zarr
 from numpy.testing import assert_array_equal
 
 from sunlab import ConfigurationError, plans, schema, sim
-from sunlab.hardware import (
-    ESP300,
-    CameraError,
-    ErrorReplyLost,
-    FakeESP,
-    MotionTimeout,
-    SimCamera,
-    acquire,
-    open_run,
-)
+from sunlab.hardware import ESP300, MotionTimeout, SimCamera, acquire, open_run
+from sunlab.hardware.errors import CameraError, ErrorReplyLost
+from sunlab.hardware.fake import FakeESP
 
 SEED = 5
 NX = 128
@@ -77,7 +70,7 @@ def expected_frames(bench, plan):
     out = np.empty((len(plan), plan.shots, NX // BINNING, NX // BINNING), np.uint16)
     for p in range(len(plan)):
         for s in range(plan.shots):
-            a, b = sim.platform_pose(bench, plan.alpha[p], plan.beta[p], seed=SEED, pose=p,
+            a, b = sim.platform.platform_pose(bench, plan.alpha[p], plan.beta[p], seed=SEED, pose=p,
                                      shot=s)
             f = sim.render_frame(bench, a, b, seed=SEED, pose=p, shot=s).astype(np.uint32)
             out[p, s] = f.reshape(NX // 2, 2, NX // 2, 2).sum(axis=(1, 3))
@@ -293,7 +286,8 @@ cfg = json.loads(sys.argv[1])
 import numpy as np
 import zarr  # noqa: F401  (imported once here, inherited by every forked run)
 from sunlab import plans, sim
-from sunlab.hardware import ESP300, FakeESP, SimCamera, acquire
+from sunlab.hardware import ESP300, SimCamera, acquire
+from sunlab.hardware.fake import FakeESP
 
 bench = sim.Bench.paper_single_hole().replace(detector__nx=cfg["nx"], detector__ny=cfg["nx"])
 plan = plans.custom(cfg["alpha"], cfg["beta"], shots=cfg["shots"], name=cfg["name"])

@@ -95,9 +95,9 @@ def test_a_flat_pixel_clipped_at_full_scale_reads_as_saturated_and_is_counted():
                                       flat=flats)
     prov = cube.attrs["calibration_frames"]["flat"]
     assert prov["clipped_pixels"] == 1 and prov["first_clipped"] == [4, 7]
-    corrected = io.corrected_frames(cube).values
-    assert corrected[0, 0, 4, 7] == io.corrected_saturation(cube)
-    assert np.isfinite(io.corrected_saturation(cube))
+    corrected = io.calframes.corrected_frames(cube).values
+    assert corrected[0, 0, 4, 7] == io.calframes.corrected_saturation(cube)
+    assert np.isfinite(io.calframes.corrected_saturation(cube))
     np.testing.assert_array_equal(np.delete(corrected.ravel(), 4 * NX + 7), 200.0)
 
 

@@ -40,7 +40,7 @@ def test_every_sensor_json_field_is_checked_by_name(tmp_path, doc, field, words)
     path = tmp_path / "sensor.json"
     path.write_text(json.dumps(doc))
     with pytest.raises(SchemaError, match=words) as err:
-        io.read_sensor_json(path)
+        io.sensor.read_sensor_json(path)
     assert err.value.field == f"sensor.json field {field!r}"
 
 
@@ -48,7 +48,7 @@ def test_sensor_json_refuses_unknown_keys_and_names_the_place_for_extras(tmp_pat
     path = tmp_path / "sensor.json"
     path.write_text(json.dumps({"pixel_pitch": 0.007}))
     with pytest.raises(SchemaError, match="extra attributes go under 'attrs'"):
-        io.read_sensor_json(path)
+        io.sensor.read_sensor_json(path)
 
 
 @pytest.mark.parametrize("name", ["../outside.png", "/etc/hostname", "sub/../../x.png"])
@@ -126,7 +126,7 @@ def test_masters_are_medians_and_the_flat_is_normalised(tmp_path):
     cube = io.with_calibration_frames(cube, dark=darks, flat=flats)
     np.testing.assert_allclose(cube.master_dark.values, np.median(darks, axis=0))
     assert float(np.median(cube.master_flat.values)) == pytest.approx(1.0)
-    corrected = io.corrected_frames(cube).values[0, 0]
+    corrected = io.calframes.corrected_frames(cube).values[0, 0]
     # (raw - dark) / flat is uniform: 400 DN x the median response, to the rounding of the DN
     np.testing.assert_allclose(corrected, np.median(400 * response), rtol=0.01)
 
@@ -139,10 +139,10 @@ def test_correction_is_lazy_and_keeps_saturation_recognisable():
     flat = np.full((8, 8), 1.0)
     flat[:, :4] = 0.5
     cube = io.with_calibration_frames(cube, dark=np.full((8, 8), 100), flat=flat * 1000)
-    out = io.corrected_frames(cube)
+    out = io.calframes.corrected_frames(cube)
     assert isinstance(out.data, da.Array)
     values = out.values
-    level = io.corrected_saturation(cube)
+    level = io.calframes.corrected_saturation(cube)
     assert values[1, 0, 4, 4] == level
     unsaturated = np.delete(values.ravel(), np.ravel_multi_index((1, 0, 4, 4), values.shape))
     assert unsaturated.max() < level  # (1022 - 100) / 0.5 would not reach it either
@@ -201,11 +201,11 @@ def test_bias_alone_is_subtracted_and_a_dark_takes_its_place(tmp_path):
     raw = np.full((1, 1, 4, 4), 300, np.uint16)
     cube = schema.frames_dataset(raw, alpha=[0.0], beta=[0.0])
     only_bias = io.with_calibration_frames(cube, bias=np.full((3, 4, 4), 40))
-    assert float(io.corrected_frames(only_bias)[0, 0, 0, 0]) == 260.0
+    assert float(io.calframes.corrected_frames(only_bias)[0, 0, 0, 0]) == 260.0
     both = io.with_calibration_frames(cube, bias=np.full((3, 4, 4), 40),
                                       dark=np.full((3, 4, 4), 70))
     # a dark taken at the frames' exposure holds the bias: subtracted once, not twice
-    assert float(io.corrected_frames(both)[0, 0, 0, 0]) == 230.0
+    assert float(io.calframes.corrected_frames(both)[0, 0, 0, 0]) == 230.0
     assert sorted(both.attrs["calibration_frames"]) == ["bias", "dark"]
 
 

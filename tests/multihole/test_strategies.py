@@ -99,7 +99,7 @@ def test_predict_xy_on_hole_arrays_equals_predict(tables, make):
     # frame, the estimate predict gives from the table (missing holes as NaN)
     train, test = tables
     s = make().fit(train)
-    ok = mh.usable(test).values
+    ok = mh.holes.usable(test).values
     x = np.where(ok, test.x.values, np.nan)
     y = np.where(ok, test.y.values, np.nan)
     a, b = s.predict_xy(x, y)
@@ -126,9 +126,9 @@ def test_strategies_are_entries_of_the_calibration_registry(tables):
     # registered by entry point (multihole sits above calibration), so the registry's own
     # doors list them and fit them
     train, test = tables
-    kinds = calibration.available_kinds()
+    kinds = calibration.registry.available_kinds()
     assert {"multihole-geometric-centre", "multihole-per-hole-average"} <= set(kinds)
-    assert calibration.method_class("multihole-geometric-centre") is mh.GeometricCentre
+    assert calibration.registry.method_class("multihole-geometric-centre") is mh.GeometricCentre
     s2 = calibration.fit(train, "multihole-per-hole-average", order=2, outlier_mads=None)
     assert type(s2) is mh.PerHoleAverage
     _same(s2.predict(test), mh.PerHoleAverage(order=2).fit(train).predict(test))
@@ -138,4 +138,4 @@ def test_an_unregistered_strategy_kind_names_the_entry_point_group(tables):
     doc = mh.GeometricCentre(order=2).fit(tables[0]).to_dict()
     doc["kind"] = "multihole-unknown"
     with pytest.raises(SchemaError, match="sunlab.calibrations"):
-        calibration.from_dict(doc)
+        calibration.artifact.from_dict(doc)

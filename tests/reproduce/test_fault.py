@@ -202,7 +202,8 @@ def test_runner_follows_the_scan_and_overshoots(tmp_path, approach):
 def test_reproduce_platform_writes_its_contract(tmp_path):
     import json
 
-    from sunlab.reproduce import ROWS, reproduce_platform
+    from sunlab.reproduce import reproduce_platform
+    from sunlab.reproduce.platform import ROWS
 
     res = reproduce_platform(engine="surrogate", quick=True, out=tmp_path, progress=False)
     doc = json.loads((tmp_path / "platform.json").read_text())

@@ -5,16 +5,11 @@ import numpy as np
 import pytest
 
 from sunlab import ConfigurationError, plans, schema
-from sunlab.sim import (
-    Bench,
-    Hole,
-    Mask,
-    platform_pose,
-    ray_positions,
-    render_frame,
-    simulate,
-    spot_truth,
-)
+from sunlab.sim import Bench, Mask, render_frame, simulate
+from sunlab.sim.holes import Hole
+from sunlab.sim.platform import platform_pose
+from sunlab.sim.render import ray_positions
+from sunlab.sim.spots import spot_truth
 
 
 @pytest.fixture(scope="module")

@@ -4,8 +4,10 @@ import numpy as np
 import pytest
 
 from sunlab import ConfigurationError
-from sunlab.sim import Bench, Detector, Hole, fixed_pattern
+from sunlab.sim import Bench, Detector
 from sunlab.sim import frame as simframe
+from sunlab.sim.detector import fixed_pattern
+from sunlab.sim.holes import Hole
 
 
 @pytest.fixture(scope="module")

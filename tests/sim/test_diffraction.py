@@ -8,8 +8,9 @@ import pytest
 from scipy import special
 
 from sunlab.errors import ConfigurationError
-from sunlab.sim import Bench, Hole, Mask, _aperture, diffraction, render, spots
+from sunlab.sim import Bench, Mask, _aperture, diffraction, render, spots
 from sunlab.sim import frame as simframe
+from sunlab.sim.holes import Hole
 
 
 def test_fresnel_number_of_the_paper_hole():

@@ -10,8 +10,9 @@ import numpy as np
 import pytest
 
 from sunlab.errors import ConfigurationError
-from sunlab.sim import Bench, spot_truth
+from sunlab.sim import Bench
 from sunlab.sim.frame import expected_frame, render_frame, render_pose
+from sunlab.sim.spots import spot_truth
 
 
 @pytest.fixture(scope="module")

@@ -8,8 +8,8 @@ from numpy.testing import assert_allclose
 
 from sunlab import ConfigurationError
 from sunlab.schema import DEFECT_FLAGS
-from sunlab.sim import Bench, Dust, Hole, Mask, render, spots
-from sunlab.sim.holes import Burred, Elliptical, Undersized
+from sunlab.sim import Bench, Mask, render, spots
+from sunlab.sim.holes import Burred, Dust, Elliptical, Hole, Undersized
 
 
 def _area(poly):

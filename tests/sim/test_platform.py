@@ -6,8 +6,8 @@ from numpy.testing import assert_allclose
 
 from sunlab import ConfigurationError
 from sunlab.geometry import sun_angles, sun_vector
-from sunlab.sim import Bench, Platform, platform_pose
-from sunlab.sim.platform import sensor_sun_vector
+from sunlab.sim import Bench, Platform
+from sunlab.sim.platform import platform_pose, sensor_sun_vector
 
 
 def _draw(bench, n_pose, n_shot, seed=3, a=-7.0, b=6.0):

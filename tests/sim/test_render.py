@@ -8,8 +8,9 @@ from numpy.testing import assert_allclose
 
 from sunlab.errors import ConfigurationError
 from sunlab.geometry import ideal_centroid
-from sunlab.sim import Bench, Dust, Hole, Mask, render, spots
+from sunlab.sim import Bench, Mask, render, spots
 from sunlab.sim import frame as simframe
+from sunlab.sim.holes import Dust, Hole
 from sunlab.sim.mask import Burred
 
 P = 0.007  # pixel pitch, mm

@@ -42,7 +42,7 @@ def test_spot_error_maps_predict_the_rendered_pattern_shift(bench):
     for k, (a, b) in enumerate([(-15.0, 1.0), (-11.0, 4.0), (-7.0, 9.0), (-3.0, 13.0),
                                 (0.0, 15.0), (-13.0, 12.0), (-5.0, 2.0), (-9.0, 16.0)]):
         frame = sim.render_frame(quiet, a, b, seed=0, pose=k)
-        tx, ty = sim.spot_truth(quiet, a, b)
+        tx, ty = sim.spots.spot_truth(quiet, a, b)
         c = centroid.projection_window(frame)
         seen.append(c.x - tx[0])
         pred.append(dx[int(round(ty[0])), int(round(tx[0]))])
