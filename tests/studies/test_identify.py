@@ -92,12 +92,9 @@ def test_the_module_runs_from_the_root_and_refuses_an_unknown_hypothesis(tmp_pat
 
 def test_the_library_never_imports_the_studies():
     # research lives beside the library, not in it: no module of sunlab/ names `studies`
-    # (sunlab/cli/study.py, the retired `sunlab identify` verb, is the CLI's to remove)
     import ast
 
     for path in sorted((ROOT / "sunlab").rglob("*.py")):
-        if path.as_posix().endswith("cli/study.py"):
-            continue
         tree = ast.parse(path.read_text())
         for node in ast.walk(tree):
             names = ([a.name for a in node.names] if isinstance(node, ast.Import) else
