@@ -153,6 +153,23 @@ def generate_api(app, config) -> None:
         path = out / f"{page}.rst"
         if not path.exists() or path.read_text() != text:
             path.write_text(text)
+    # a name or room that left the surface leaves its page too: a stale page of an earlier
+    # build would be a document outside every toctree
+    keep = {f"{page}.rst" for page in pages} | {f"{n}.rst" for n in _entries(pages.values())}
+    for stale in [*out.glob("*.rst"), *(out / "generated").glob("*.rst")]:
+        if stale.name not in keep:
+            stale.unlink()
+
+
+def _entries(texts) -> set[str]:
+    """The full names the autosummary tables of ``texts`` list (their generated pages)."""
+    names, module = set(), ""
+    for line in (ln for text in texts for ln in text.splitlines()):
+        if line.startswith(".. currentmodule:: "):
+            module = line.split(":: ", 1)[1].strip()
+        elif line.startswith("   ") and not line.strip().startswith(":") and line.strip():
+            names.add(f"{module}.{line.strip()}")
+    return names
 
 
 def numpydoc_problems(text: str) -> list[str]:

@@ -1,8 +1,8 @@
 """Calibration functions: from a spot centroid (x, y) to platform angles (alpha, beta).
 
 Every method shares one interface (:class:`Calibration`): ``fit(train, validation=None)``,
-``predict(centroids)``, ``predict_xy(x, y)``, ``to_dict()`` / :func:`from_dict`, ``save(path)``
-/ :func:`load`. Each is registered once in :data:`KINDS` (:mod:`sunlab.calibration.registry`),
+``predict(centroids)``, ``predict_xy(x, y)``, ``to_dict()`` / ``artifact.from_dict``, ``save(path)``
+/ :func:`load`. Each is registered once in ``registry.KINDS`` (:mod:`sunlab.calibration.registry`),
 and :func:`fit` builds and fits one by its kind: ``fit(table, "polynomial", order=3)``.
 
 ========================  ========================================================= ===========
@@ -24,7 +24,7 @@ tables).
 
 Submodules load on first use; torch (the ``neural`` extra) is imported only when a
 :class:`NeuralNet` is fitted, and its absence is an ImportError naming the extra.
-:func:`calibration_summary` describes a saved calibration.
+``summary.calibration_summary`` describes a saved calibration.
 
 Examples
 --------

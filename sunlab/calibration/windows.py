@@ -54,7 +54,7 @@ def detect_spots(cube: xr.Dataset, hole_offset=(0.0, 0.0), *, progress: bool = F
     from .. import centroid
 
     cube = cube.drop_vars(["true_x", "true_y"], errors="ignore")
-    if not centroid.is_multi_hole(cube):
+    if not centroid.cube.is_multi_hole(cube):
         return centroid.locate(cube, "projection", progress=progress, num_workers=workers)
     moved = cube.assign_coords(hole_x_cf=cube["hole_x_cf"] + float(hole_offset[0]),
                                hole_y_cf=cube["hole_y_cf"] + float(hole_offset[1]))

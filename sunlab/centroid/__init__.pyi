@@ -16,7 +16,6 @@ from ._paper import threshold_window as threshold_window
 from .crlb import crlb as crlb
 from .crlb import disk_profile as disk_profile
 from .cube import default_method as default_method
-from .cube import is_multi_hole as is_multi_hole
 from .cube import locate as locate
 from .cube import locate_all as locate_all
 from .estimators import METHODS as METHODS

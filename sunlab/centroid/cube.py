@@ -19,7 +19,7 @@ from ..io.calframes import corrected_frames, corrected_saturation, has_calibrati
 from .estimators import METHODS, PER_SPOT
 from .lattice import SPOT_METRICS, locate_spots
 
-__all__ = ["locate", "locate_all", "is_multi_hole", "default_method"]
+__all__ = ["locate", "locate_all", "default_method"]
 
 
 _FIELDS = ("x", "y", "flux", "x0", "x1", "y0", "y1", "status")

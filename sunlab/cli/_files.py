@@ -84,7 +84,7 @@ def run_centroid(args) -> int:
     method = args.method or centroid.default_method(cube, args.background)
     extra = {}
     if args.background is not None:
-        if method != "tight" or centroid.is_multi_hole(cube):
+        if method != "tight" or centroid.cube.is_multi_hole(cube):
             raise ConfigurationError(
                 f"--background: applies to the single-spot tight window, not --method "
                 f"{method}. Fix: pass --method tight, or drop --background")

@@ -24,7 +24,7 @@ from .grading import (
     write_gradebook,
 )
 
-__all__ = ["check_submissions", "grade_batch"]
+__all__ = ["grade_batch"]
 
 
 def _refused(head, message, exercises=()):

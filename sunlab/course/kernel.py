@@ -28,7 +28,7 @@ from pathlib import Path
 from . import wire
 from .editions import _jupyter
 
-__all__ = ["KernelFailure", "NotebookRun", "RemoteNamespace"]
+__all__: list[str] = []
 
 
 #: seconds without a word from the kernel about a sent cell before it is nudged

@@ -26,7 +26,7 @@ import numpy as np
 
 from . import wire
 
-__all__ = ["flags", "recheck"]
+__all__: list[str] = []
 
 #: the exit status of a process whose answer called a forbidden function
 TRIPPED = 77

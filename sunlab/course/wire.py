@@ -28,7 +28,7 @@ from pathlib import PurePath
 
 import numpy as np
 
-__all__ = ["decode", "encode", "serve"]
+__all__: list[str] = []
 
 #: the MIME type of the kernel's answer in its ``display_data``
 MIME = "text/x-sunlab-result"

@@ -4,9 +4,9 @@
   with timeouts, bounded retries, error decoding, limit checks and a settle time, in
   :mod:`sunlab.hardware.esp` with the wire protocol it speaks; :func:`open_stage` opens one
   from a URL (``fake://``, ``socket://``, a device path) or a lab's own stage by its entry point.
-- :class:`FakeESP`: the same protocol over a pseudo-terminal or loopback TCP, backed by the
+- ``fake.FakeESP``: the same protocol over a pseudo-terminal or loopback TCP, backed by the
   virtual bench's platform model, with fault injection.
-- :class:`Camera`: the camera protocol (:class:`ControlledCamera` adds exposure, ROI and dark
+- ``cameras.Camera``: the camera protocol (``cameras.ControlledCamera`` adds exposure, ROI and dark
   frames); :class:`SimCamera` renders from the virtual bench, :class:`FolderCamera` picks up
   the image files a real camera writes; a lab's own class is opened by :func:`open_camera`
   (``module:Class`` or the entry point group ``sunlab.cameras``).

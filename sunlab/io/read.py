@@ -245,7 +245,7 @@ def open_centroids(path, *, format: str | None = None, lazy: bool = False,
     attrs : dict, optional
         CSV only: attributes of the table, e.g. the sensor's ``pixel_pitch_mm``,
         ``mask_distance_mm``, ``x_cf_px``, ``y_cf_px`` (a geometric model needs them).
-        Default: those of a ``sensor.json`` beside the CSV file (:func:`read_sensor_json`),
+        Default: those of a ``sensor.json`` beside the CSV file (``io.sensor.read_sensor_json``),
         if there is one, recorded in ``attrs['sensor_json']``; ``sunlab calibrate`` and
         ``sunlab evaluate`` read a CSV table the same way.
 

@@ -2,7 +2,7 @@
 
 - :mod:`sunlab.plots.accuracy`: calibration accuracy, Figs. 10-12 (:func:`error_maps`,
   :func:`error_histogram`, :func:`error_rectangles`), built without pyplot as figures that show
-  themselves in any Jupyter kernel (:func:`new_figure`);
+  themselves in any Jupyter kernel (``plots.accuracy.new_figure``);
 - :mod:`sunlab.plots.mask`: the 100-hole mask, Figs. 13-15 (:func:`fig13_frame`,
   :func:`fig14_bad_holes`, :func:`fig15_rectangles`) and the map of a defect metric
   (:func:`plot_metric_map`).

@@ -1,7 +1,7 @@
 """Reproduce the paper's tables on the virtual bench: one pipeline, one module per table.
 
 * :mod:`sunlab.reproduce.pipeline`: what every table shares: the plans of Table 3 and the one
-  meaning of *quick* (:data:`QUICK`: every 2nd angle along each grid axis, 2 shots per pose),
+  meaning of *quick* (``pipeline.QUICK``: every 2nd angle along each grid axis, 2 shots per pose),
   simulating and centroiding every frame in one Dask pass with the table's ``method`` on the
   caller's ``address`` / ``scheduler`` / ``workers``, the usable frames and the counts of the
   removed ones, and the one JSON writer;

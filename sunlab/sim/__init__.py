@@ -9,7 +9,7 @@ documented with its rationale where it is defined; the module docstring of
 :mod:`sunlab.sim.bench` summarises the error budget (docs/paper.md sec. 8).
 
 Main entry points: :func:`simulate` (a lazy cube of a plan), :func:`render_frame` (one frame),
-:func:`platform_pose` (true angles for commanded ones), :func:`spot_truth` (true centroids);
+``platform.platform_pose`` (true angles for commanded ones), ``spots.spot_truth`` (true centroids);
 :func:`synthetic_centroids` (centroid tables with known truth, no frames rendered).
 
 Examples
