@@ -8,6 +8,7 @@ warning, and the test fails naming it.
 """
 
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -150,3 +151,107 @@ def test_the_landing_page_counts_the_notebooks_and_those_with_exercises():
     text = " ".join((ROOT / "docs" / "index.md").read_text(encoding="utf-8").split())
     assert f"{words[len(notebooks)]} notebooks" in text
     assert f"{words[with_exercises]} of them with exercises" in text
+
+
+# ------------------------------------------------------ verdicts the sensitivity table supports
+
+#: within one sentence (a dot inside a file name or a number does not end it)
+_S = r"(?:[^.;]|\.(?=\w))"
+#: phrasings that state a value of F as found; ``{v}`` is a value the table does not identify
+F_CLAIMS = (r"\bF\s*=\s*{v}\s*mm\W+(by|from) the (evidence|data|identification)",
+            r"\b(as|is|was) identified\W+F\s*=\s*{v}\s*mm",
+            r"\bF\s*=\s*{v}\s*mm\W+(is |was )?identified\b",
+            r"\b(evidence|identification|data)\b" + _S + r"{{0,40}}\b(picks|picked|prefers|chose|"
+            r"favou?rs|settles|gives|shows)\b" + _S + r"{{0,60}}\bF\s*=\s*{v}\s*mm",
+            r"\bsettle[sd]\b" + _S + r"{{0,100}}\bat F\s*=\s*{v}\s*mm")
+#: phrasings that state the gear (or its absence) as found
+GEAR_CLAIMS = (r"\b(identified|identification|evidence)\b" + _S + r"{0,40}(?<!nor )(?<!not )"
+               r"\b(found|finds|shows|rules out|ruled out|rejects|rejected|confirms|confirmed)\b"
+               + _S + r"{0,20}\b(a|the|no) gear\b",
+               r"\bgear error\b" + _S + r"{0,30}\b(re-)?identified bench\b",
+               r"\bidentified bench\b" + _S + r"{0,80}\b(and|its) gear\b")
+#: phrasings of any finding by the evidence itself, whatever it is of
+EVIDENCE_CLAIMS = (r"\bthe (held-out )?evidence (picks|prefers|chose|favou?rs)\b",
+                   r"\b(identification|evidence) (found|finds)\b",
+                   r"\bas identified\W+(shows|has|carries|gives)\b",
+                   r"\bas the identification\b" + _S + r"{0,60}\bpicks\b")
+#: results of earlier protocol versions, which only the protocol and its history may quote
+OLD_RESULTS = (r"\bversions? [1-3]\b" + _S + r"{0,80}\b(picked|held(?!-)|gave|chose)\b",
+               r"\bmedian half-width of 0\.72\b", r"\bheld all 56 cells\b")
+
+
+def _prose(path: Path) -> str:
+    """A file's text as one line: a notebook's cell sources and text outputs, comment markers
+    and doctest prompts dropped, every run of white space one space."""
+    import json
+
+    text = path.read_text(encoding="utf-8")
+    if path.suffix == ".ipynb":
+        cells = json.loads(text)["cells"]
+        text = "\n".join("".join(c["source"]) + "\n" + "".join(
+            "".join(o.get("text", "")) for o in c.get("outputs", [])) for c in cells)
+    if path.suffix == ".py":
+        text = re.sub(r"(?m)^\s*(#:?|>>>|\.\.\.)\s?", " ", text)
+    text = text.replace("\\n", " ")
+    return re.sub(r"\s+", " ", text)
+
+
+def _repository_texts():
+    """README, the docs' pages, notebooks, the package's and the studies' sources and notes,
+    the benchmarks and the tests (this file left out: it holds the phrasings)."""
+    paths = [ROOT / "README.md", *sorted(DOCS.glob("*.md")),
+             *sorted(ROOT.glob("notebooks/*.ipynb")),
+             *sorted(ROOT.glob("sunlab/**/*.py")), *sorted(ROOT.glob("sunlab/**/*.pyi")),
+             *sorted(ROOT.glob("sunlab/data/*.json")), *sorted(ROOT.glob("studies/*.py")),
+             *sorted(ROOT.glob("benchmarks/*.py")), *sorted(ROOT.glob("tests/**/*.py"))]
+    return {p.relative_to(ROOT).as_posix(): _prose(p) for p in paths if p != Path(__file__)}
+
+
+def verdict_claims(texts: dict, table) -> list[str]:
+    """Each sentence of ``texts`` (name -> text) that states a verdict the sensitivity table
+    (its ``F`` and ``gear`` columns) does not support, or quotes an earlier protocol version's
+    result outside docs/identification.md's protocol and history (before its Results)."""
+    from studies import sensitivity
+
+    verdicts = sensitivity.verdicts(table)
+    if verdicts["F"] == "not identified":  # every value a row gives is a claim
+        value = "(" + "|".join(sorted({re.escape(v.split()[0]) for v in table["F"]
+                                       if v != "not identified"})) + ")"
+    else:  # any other value is
+        value = rf"(?!{re.escape(verdicts['F'].split(': ', 1)[1].split()[0])}\b)\d+(\.\d+)?"
+    patterns = [p.format(v=value) for p in F_CLAIMS]
+    if verdicts["gear"] == "not identified":
+        patterns += GEAR_CLAIMS
+    if "not identified" in verdicts.values():
+        patterns += EVIDENCE_CLAIMS
+    found = []
+    for name, text in texts.items():
+        after = text.split("## Results", 1)[-1] if name == "docs/identification.md" else text
+        found += [f"{name}: ...{t[max(m.start() - 60, 0):m.end() + 40]}..."
+                  for t, ps in ((text, patterns), (after, OLD_RESULTS)) for p in ps
+                  for m in re.finditer(p, t, re.I)]
+    return found
+
+
+def test_no_sentence_states_a_verdict_the_sensitivity_table_does_not_support():
+    """Issue 46: F and the gear are choices of the presets where the table's rows disagree; no
+    file says the evidence found them, and no earlier version's result is quoted outside the
+    protocol's history."""
+    import pandas as pd
+
+    table = pd.read_csv(ROOT / "studies" / "results" / "sensitivity.csv")
+    found = verdict_claims(_repository_texts(), table)
+    assert not found, "\n".join(found)
+
+
+def test_a_verdict_claim_is_caught():
+    import pandas as pd
+
+    split = pd.DataFrame({"F": ["5 mm", "17 mm"], "gear": ["no gear error", "gear error"]})
+    said = {"a.md": "The paper's bench has F = 5 mm by the evidence. The gear error of the "
+                    "re-identified bench moves beta. Under version 3 the rule picked F5-gear."}
+    assert len(verdict_claims(said, split)) == 3
+    # where every row agrees, saying so is the verdict
+    agreed = pd.DataFrame({"F": ["5 mm", "5 mm"], "gear": ["gear error", "gear error"]})
+    assert verdict_claims({"a.md": "F = 5 mm by the evidence."}, agreed) == []
+    assert len(verdict_claims({"a.md": "F = 17 mm by the evidence."}, agreed)) == 1

@@ -11,8 +11,9 @@ inputs rescaled to the unit square. Outside the convex hull of the nodes the est
 Interpolation passes through its nodes exactly, noise included. Which wins depends on how fast
 the error varies between nodes. A repeatable, spot-specific error that varies smoothly over a
 grid step (a short mask distance: F = 5 mm moves the spot 12.5 px per degree) is learned by the
-table, which then beats a polynomial. On the paper's bench as identified (F = 17 mm, 42 px per
-degree, ``studies.surrogate_tables.interpolation_gap``) the same kind of error changes
+table, which then beats a polynomial. At F = 17 mm (42 px per degree,
+``studies.surrogate_tables.interpolation_gap``; the paper's F is not identified, see
+docs/identification.md, Results) the same kind of error changes
 completely from node to node, so it acts like the platform's per-pose error: noise on the nodes,
 which the table copies and a smoothing polynomial averages. There the polynomial wins on alpha
 (polynomial < linear < cubic interpolation), as in the paper's Table 4; ``sunlab reproduce``

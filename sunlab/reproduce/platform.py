@@ -4,8 +4,8 @@ Called by ``sunlab reproduce --table platform``. On the identified bench
 (:meth:`sunlab.sim.Bench.paper_single_hole`, whose inner axis's zero shifts by
 :data:`sunlab.sim.bench.PAPER_BETA_REHOMING_DEG` between the session of experiment I and that
 of II and III, and whose experiments are scanned serpentine, :data:`sunlab.plans.PAPER_SCAN`;
-the identification found no backlash, and the remedies for one are shown all the same, as a
-lab whose stage has one would run them):
+it has no backlash, a choice: no hypothesis of the identification carries one; the remedies
+for one are shown all the same, as a lab whose stage has one would run them):
 
 1. the paper's protocol: experiments I, II, III of Table 3 scanned as the paper's were,
    polynomial calibration (order chosen on II), statistics on III; plus a zero-pose check

@@ -10,11 +10,11 @@ fitted on a named cell of Table 4 or a nuisance at its prior median. Error budge
   M - mu of its angle), plus photon, dark and read noise on the centroid;
 * per pose, shared by every hole of a frame: the platform's positioning error, uniform within
   +-``PAPER_ALPHA_POSE_DEG`` on alpha and +-``PAPER_BETA_POSE_DEG`` on beta; the inner axis's
-  periodic gear error of ``PAPER_BETA_GEAR_DEG`` with a ``PAPER_BETA_GEAR_PERIOD_DEG`` period
-  (one worm turn; the amplitude pinned by linear interpolation's beta sigma, the period a
-  nuisance): the 1-degree grids see it aliased and neither a polynomial nor an interpolation
+  periodic gear error of ``PAPER_BETA_GEAR_DEG`` (0 in the presets: a choice, the gear is not
+  identified) with a ``PAPER_BETA_GEAR_PERIOD_DEG`` period (one worm turn) where a study switches
+  it on: the 1-degree grids see it aliased and neither a polynomial nor an interpolation
   table follows it; the sensor's mounting (a rotation about the boresight the paper's model
-  leaves out, a choice whose ablation docs/paper.md sec. 10 reports, and alpha0, beta0 set so
+  leaves out, a choice whose ablation docs/identification.md reports, and alpha0, beta0 set so
   that the optimised model returns the paper's fitted 1.864 and 0.415 deg, sec. 4.1); the
   mask's tilt and offset. No wobble and no non-orthogonality: no source gives either;
 * per session: the stage homed again between the session of experiment I and that of II and
@@ -25,8 +25,8 @@ fitted on a named cell of Table 4 or a nuisance at its prior median. Error budge
   mounting" for its worse beta), anywhere within the play at each pose;
 * hole specific: the pixel response under the 35 px spot (PRNU a nuisance, 0.87 % white plus
   0.87 % correlated over 2.8 px at its prior median), fill factor, DSNU and hot pixels;
-* optics: the mask at F = 5 mm (:data:`~sunlab.sim.mask.PAPER_DISTANCE_MM`; the evidence does
-  not tell 5 from 17 mm, docs/paper.md sec. 10) and the detector's 0.5 mm D263 glass lid,
+* optics: the mask at F = 5 mm (:data:`~sunlab.sim.mask.PAPER_DISTANCE_MM`; a choice, not
+  identified: docs/identification.md, Results) and the detector's 0.5 mm D263 glass lid,
   whose refraction bends oblique rays by up to 8 px at 17 deg, non-linearly in angle: a
   distortion the optimised model's three parameters cannot follow and a polynomial can.
 

@@ -59,8 +59,8 @@ class Mask:
         The holes, design positions in the mask frame (see the module notes).
     distance_mm : float
         Nominal (design) mask-to-focal-plane distance F, mm. Default 5.0 (0.08 deg per pixel,
-        a 35 px spot), the paper's bench as the identification of docs/identification.md picks it
-        (:data:`PAPER_DISTANCE_MM`).
+        a 35 px spot): the presets' choice for the paper's bench, not identified
+        (:data:`PAPER_DISTANCE_MM`; docs/identification.md, Results).
     delta_f_mm : float
         Error of the mask distance: the true distance is F + dF, mm (the paper fitted 0.094).
     tilt_x_deg, tilt_y_deg : float

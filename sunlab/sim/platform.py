@@ -91,8 +91,8 @@ class Platform:
         downward as far above, :math:`\\beta_t = \\ldots - d\\,b` with the approach direction
         d = +-1 of :meth:`sunlab.plans.Plan.beta_approach` (the motion history: scan order and
         approach). A serpentine scan alternates d row by row, which makes beta's per-pose error
-        bimodal (:mod:`sunlab.reproduce.fault` finds it from the motion record); the paper's
-        bench, as identified, shows none (docs/identification.md).
+        bimodal (:mod:`sunlab.reproduce.fault` finds it from the motion record); the presets
+        carry none (no hypothesis of docs/identification.md has backlash).
     beta_homing_deg : float
         Half-width of the inner axis's homing (zero) offset, deg: drawn uniformly once per run
         (each time the stage is homed), the same for every pose of the run; a calibration

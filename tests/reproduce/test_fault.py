@@ -216,7 +216,7 @@ def test_reproduce_platform_writes_its_contract(tmp_path):
     assert doc["diagnosis"]["candidate"] == "homing"
     assert doc["paper_shape"]["polynomial beta"]["below_bound"]
     poly, best = doc["rows"][ROWS[0]], doc["must_show"]["best_beta_mu"]
-    # the remedies take the run offset out; what is left of beta is the identified bench's
-    # per-pose error and gear error, which no correction of the run removes
+    # the remedies take the run offset out; what is left of beta is the presets' per-pose
+    # error (and no gear error: a choice), which no correction of the run removes
     assert best < 0.7 * poly["beta.mu"]
     assert res["settings"]["scan"] == "serpentine"

@@ -137,8 +137,8 @@ def test_a_zero_shift_between_sessions_gives_betas_offset_shape_and_the_tables_b
     # sigma / mu of beta's local errors falls below the 0.577 of any symmetric unimodal error
     # (the paper: 0.47 polynomial, 0.48 linear). The polynomial, refitted on I + II, takes part
     # of the shift from II and the table on I's grid does not: linear interpolation loses more
-    # to it on beta than on alpha (the paper: 1.38 and 1.12). The identified bench itself puts
-    # more of beta's error in its per-pose error and gear (docs/paper.md sec. 10).
+    # to it on beta than on alpha (the paper: 1.38 and 1.12). The presets themselves put
+    # more of beta's error in its per-pose error (no gear error: a choice, docs/identification.md).
     bench = bench.replace(platform__beta_pose_error_deg=0.0005, platform__beta_gear_deg=0.0)
     from studies.identification import surrogate_runs
     from sunlab import stats
