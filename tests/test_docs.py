@@ -255,3 +255,20 @@ def test_a_verdict_claim_is_caught():
     agreed = pd.DataFrame({"F": ["5 mm", "5 mm"], "gear": ["gear error", "gear error"]})
     assert verdict_claims({"a.md": "F = 5 mm by the evidence."}, agreed) == []
     assert len(verdict_claims({"a.md": "F = 17 mm by the evidence."}, agreed)) == 1
+
+
+def test_one_list_of_what_the_bench_does_not_explain_read_by_notebooks_05_and_06():
+    """Issue 46: the list is written once (docs/identification.md, Results) and notebooks 05 and
+    06 show it read from there, not a copy."""
+    import json
+
+    heading = "### What the bench does not explain"
+    results = (DOCS / "identification.md").read_text(encoding="utf-8").split("## Results", 1)[1]
+    assert results.count(heading) == 1
+    for name in ("05-single-hole-experiments.ipynb", "06-multi-hole-mask.ipynb"):
+        cells = json.loads((ROOT / "notebooks" / name).read_text(encoding="utf-8"))["cells"]
+        code = ["".join(c["source"]) for c in cells if c["cell_type"] == "code"]
+        assert any(f'"{heading}"' in c and '"identification.md"' in c for c in code), name
+    copies = [p.name for p in DOCS.glob("*.md") if p.name != "identification.md"
+              and heading in p.read_text(encoding="utf-8")]
+    assert not copies, copies
