@@ -65,6 +65,7 @@ from ..errors import ConfigurationError
 from ..extras import installed_version
 from ..options import show_progress
 from ._lock import RunLockedError, run_lock  # noqa: F401 - the CLI takes the lock from here
+from ._plugins import call
 from .errors import BenchError, CameraError
 
 __all__ = ["acquire", "open_run"]
@@ -164,9 +165,9 @@ def _checked(plan, camera, overshoot_deg) -> _Run:
     return _Run(alpha, beta, shots, name, order, motion, overshoot, shape, dtype, bits)
 
 
-def _describe(obj) -> dict:
+def _describe(obj, role: str) -> dict:
     describe = getattr(obj, "describe", None)
-    info = describe() if callable(describe) else {"type": type(obj).__name__}
+    info = call(role, obj, "describe") if callable(describe) else {"type": type(obj).__name__}
     return json.loads(json.dumps(info, default=str))
 
 
@@ -211,8 +212,8 @@ def _create_store(path: Path, run: _Run, camera, stage, attrs) -> None:
         "versions": {"sunlab": __version__, "python": platform.python_version(),
                      "numpy": np.__version__, "xarray": xarray.__version__,
                      "zarr": zarr.__version__, "pyserial": installed_version("pyserial")},
-        "stage": _describe(stage), "camera": _describe(camera), "start": None, "stop": None,
-        "exit_status": "created", "error": None, "sessions": [],
+        "stage": _describe(stage, "stage"), "camera": _describe(camera, "camera"),
+        "start": None, "stop": None, "exit_status": "created", "error": None, "sessions": [],
         "scan_order": run.motion["scan_order"], "approach": run.motion["approach"],
         "visit_order": [int(i) for i in run.order], **dict(attrs or {}),
     })
@@ -278,17 +279,17 @@ def _capture_pose(stage, camera, pose: int, run: _Run):
     approach: the same gear flank at every pose)."""
     alpha, beta = run.alpha[pose], run.beta[pose]
     if run.overshoot:
-        stage.move_to(alpha, beta - run.overshoot)
-    stage.move_to(alpha, beta)
+        call("stage", stage, "move_to", alpha, beta - run.overshoot)
+    call("stage", stage, "move_to", alpha, beta)
     frames = np.empty((run.shots, *run.shape), dtype=run.dtype)
     read, stamps = np.empty((2, run.shots)), np.empty(run.shots)
-    set_index = getattr(camera, "set_index", None)
     for shot in range(run.shots):
-        read[:, shot] = stage.position()
-        if callable(set_index):
-            set_index(pose, shot, alpha=read[0, shot], beta=read[1, shot])
+        read[:, shot] = call("stage", stage, "position")
+        if callable(getattr(camera, "set_index", None)):
+            call("camera", camera, "set_index", pose, shot, alpha=read[0, shot],
+                 beta=read[1, shot])
         stamps[shot] = time.time()
-        frame = np.asarray(camera.grab())
+        frame = np.asarray(call("camera", camera, "grab"))
         if frame.shape != run.shape or frame.dtype != run.dtype:
             raise CameraError(
                 f"camera: pose {pose} shot {shot} gave a {frame.dtype} frame of shape "
