@@ -139,8 +139,8 @@ class Fault:
 class _Axis:
     def __init__(self, low: float, high: float, velocity: float, motor_on: bool):
         self.low, self.high, self.velocity, self.motor_on = low, high, velocity, motor_on
-        self.units, self.home, self.stuck = 7, 0.0, False
-        self.start = self.target = self.t0 = self.t1 = 0.0
+        self.units, self.home, self.stuck, self.start = 7, 0.0, False, 0.0
+        self.target = self.t0 = self.t1 = 0.0
 
     def position(self, now: float) -> float:
         if self.stuck:
@@ -159,8 +159,8 @@ class _Axis:
     def move(self, target: float, now: float, stuck: bool = False) -> None:
         self.start, self.target, self.t0, self.stuck = self.position(now), target, now, stuck
         # an infinite velocity (instant motion) ends the move now, exactly
-        travel_s = 0.0 if math.isinf(self.velocity) else abs(target - self.start) / self.velocity
-        self.t1 = now + travel_s
+        self.t1 = now + (0.0 if math.isinf(self.velocity) else
+                         abs(target - self.start) / self.velocity)
 
     def halt(self, now: float) -> None:
         self.start = self.target = self.position(now)
@@ -258,15 +258,14 @@ class FakeESP:
         return fault
 
     def _take_fault(self, command: str) -> Fault | None:
-        for fault in self._faults:
-            if fault.count > 0 and fault.match in command:
-                if fault.after > 0:  # let this one pass
-                    fault.after -= 1
-                    continue
-                fault.count -= 1
-                if fault.count == 0:
-                    self._faults.remove(fault)
-                return fault
+        for fault in [f for f in self._faults if f.count > 0 and f.match in command]:
+            if fault.after > 0:  # let this one pass
+                fault.after -= 1
+                continue
+            fault.count -= 1
+            if fault.count == 0:
+                self._faults.remove(fault)
+            return fault
         return None
 
     # -- protocol -----------------------------------------------------------------------------
@@ -337,36 +336,32 @@ class FakeESP:
         # a read: "?" after the mnemonic, or TP without it (the manual reads it both ways)
         query = rest == "?" or (rest == "" and mn == "TP")
         if not axis:
-            if query and mn in ("VE", "TB", "TE"):
-                if mn == "VE":
-                    return self.version
+            if query and mn in ("TB", "TE"):
                 code = self._errors.popleft() if self._errors else 0
-                if mn == "TE":
-                    return str(code)
                 message = "NO ERROR DETECTED" if code == 0 else decode_error(code)[1].upper()
-                return f"{code}, {int((now - self._t_boot) * 1000)}, {message}"
-            if (mn, rest) == ("TS", ""):
-                return self._status(now)
+                return str(code) if mn == "TE" else (
+                    f"{code}, {int((now - self._t_boot) * 1000)}, {message}")
             if mn == "AB":
                 for each in self._axes.values():
                     each.halt(now)
                 return None
-            return self._errors.append(37 if mn in _AXIS_COMMANDS else 6)
+            reply = {("VE", "?"): self.version, ("TS", ""): self._status(now)}.get((mn, rest))
+            return self._errors.append(37 if mn in _AXIS_COMMANDS else 6) if reply is None \
+                else reply
         n = int(axis)
         ax = self._axes.get(n)
         if ax is None:
             return self._errors.append(9)
         if query:
-            if mn == "TP":
-                return f"{round(ax.position(now) / self.resolution_deg) * self.resolution_deg:.6f}"
-            if mn == "ID":
-                return f"{self.stage_model}, SN{n:04d}"
             value = {"MD": ax.done(now), "MO": ax.motor_on, "SN": ax.units, "PA": ax.target,
                      "DP": ax.target, "DH": ax.home, "SL": ax.low, "SR": ax.high,
-                     "VA": ax.velocity}.get(mn)
+                     "VA": ax.velocity, "ID": f"{self.stage_model}, SN{n:04d}",
+                     "TP": round(ax.position(now) / self.resolution_deg) * self.resolution_deg,
+                     }.get(mn)
             if value is None:
                 return self._errors.append(6)
-            return str(int(value)) if isinstance(value, int) else f"{value:.6f}"
+            return value if isinstance(value, str) else (
+                str(int(value)) if isinstance(value, int) else f"{value:.6f}")
         if rest == "" and mn in ("MO", "MF", "ST"):
             if mn != "MO":
                 ax.halt(now)
@@ -386,14 +381,13 @@ class FakeESP:
                 self._wait_until = max(self._wait_until, max(ax.t1, now) + value / 1000.0)
         elif mn == "DH":
             ax.define(value, now)
-        elif mn == "SN":
-            ax.units = int(value)
+        elif mn in ("SN", "SL", "SR"):
+            setattr(ax, {"SN": "units", "SL": "low", "SR": "high"}[mn],
+                    int(value) if mn == "SN" else value)
         elif mn == "VA":
             if not value > 0:
                 return self._errors.append(100 * n + 1)
             ax.velocity = value
-        elif mn in ("SL", "SR"):
-            setattr(ax, "low" if mn == "SL" else "high", value)
         elif not ax.motor_on:  # PA, OR
             return self._errors.append(100 * n + 13)
         elif mn == "OR":  # home search: to the home switch, where DH's value reads
