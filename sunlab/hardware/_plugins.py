@@ -5,6 +5,7 @@ bench fault: a device not plugged in)."""
 from __future__ import annotations
 
 import contextlib
+import sys
 import weakref
 
 from ..errors import ConfigurationError, SunlabError
@@ -28,15 +29,24 @@ def plugin_failed(what: str, action: str, err: BaseException, fix: str) -> Confi
 
 
 def load_plugin(ep, what: str, fix: str):
-    """The object an entry point names; one that does not load is named."""
+    """The object an entry point (or a ``module:attr`` spec as one) names; one that does not
+    load is named."""
     try:
         loaded = ep.load()
     except (Exception, SystemExit) as err:  # noqa: BLE001 - a broken plug-in is named
-        raise plugin_failed(what, f"the entry point {ep.value!r} does not load", err,
-                            fix) from err
+        action, module = f"{ep.value!r} does not load", getattr(ep, "module", None)
+        if isinstance(err, ModuleNotFoundError) and err.name == module:
+            raise ConfigurationError(f"{what}: {action}: cannot import {module!r} ({err}). "
+                                     "Fix: install the package that holds it, or run from its "
+                                     "folder") from err
+        if isinstance(err, AttributeError) and module in sys.modules:
+            raise ConfigurationError(f"{what}: {action}: {ep.module!r} has no {ep.attr!r}. "
+                                     "Fix: give module:Class exactly") from err
+        raise plugin_failed(what, action, err, fix) from err
     dist = f" of the distribution {ep.dist.name} {ep.dist.version}" if ep.dist else ""
     with contextlib.suppress(TypeError):
-        _MADE[loaded] = f"the plug-in {ep.name!r} ({ep.group}: {ep.value}{dist})"
+        _MADE[loaded] = (f"the plug-in {ep.name!r} ({ep.group}: {ep.value}{dist})"
+                         if ep.name != ep.value else ep.value)
     return loaded
 
 
