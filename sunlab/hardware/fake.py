@@ -181,40 +181,34 @@ class FakeESP:
         Virtual bench whose platform model maps commanded to true angles; None: ideal platform.
     seed : int
         Seed of the platform model (per-pose error and per-shot jitter).
-    alpha_axis, beta_axis : int
-        Controller axes that carry alpha and beta (for :meth:`true_pose`), of ``n_axes``.
-    n_axes : int
-        Number of axes (ESP301: up to 3).
     velocity_deg_s : float
         Slew rate of every axis, deg/s; ``math.inf`` makes every move instant.
-    limits : (float, float)
-        Software limits ``SL``, ``SR`` of every axis, degrees.
     resolution_deg : float
         Encoder resolution; ``TP?`` reads the position rounded to it, degrees.
     motors_on : bool
         Motor power at start.
-    version : str
-        The ``VE?`` reply.
     stage_model : str
         Positioner model in the ``nID?`` reply (``URS100BCC, SN0001`` for axis 1).
     clock : callable, optional
         Monotonic clock in seconds (default :func:`time.monotonic`); a :class:`ManualClock`
         makes timed behaviour (moves, silences, error time stamps) deterministic.
+
+    Notes
+    -----
+    Three axes, alpha on axis 1 and beta on axis 2 (:meth:`true_pose`), each with the software
+    limits ``SL``, ``SR`` of -170 and 170 degrees; ``VE?`` answers :attr:`version`.
     """
 
-    def __init__(self, *, bench=None, seed: int = 0, alpha_axis: int = 1, beta_axis: int = 2,
-                 n_axes: int = 3, velocity_deg_s: float = 20.0,
-                 limits: tuple[float, float] = (-170.0, 170.0), resolution_deg: float = 1e-4,
-                 motors_on: bool = True,
-                 version: str = "ESP301 Version 3.0.2 6/29/11 (sunlab fake)",
+    version = "ESP301 Version 3.0.2 6/29/11 (sunlab fake)"
+
+    def __init__(self, *, bench=None, seed: int = 0, velocity_deg_s: float = 20.0,
+                 resolution_deg: float = 1e-4, motors_on: bool = True,
                  stage_model: str = "URS100BCC", clock=None):
         if not velocity_deg_s > 0:
             raise ConfigurationError(f"velocity_deg_s: found {velocity_deg_s!r}, expected > 0")
-        self.bench, self.seed = bench, int(seed)
-        self.alpha_axis, self.beta_axis = int(alpha_axis), int(beta_axis)
-        self.resolution_deg, self.version, self.stage_model = resolution_deg, version, stage_model
-        self._axes = {n: _Axis(float(limits[0]), float(limits[1]), float(velocity_deg_s),
-                               motors_on) for n in range(1, n_axes + 1)}
+        self.bench, self.seed, self.resolution_deg = bench, int(seed), resolution_deg
+        self.stage_model = stage_model
+        self._axes = {n: _Axis(-170.0, 170.0, float(velocity_deg_s), motors_on) for n in (1, 2, 3)}
         self._errors: deque[int] = deque(maxlen=10)
         self._faults: list[Fault] = []
         self._silent_until = self._wait_until = -math.inf
@@ -410,8 +404,7 @@ class FakeESP:
         """
         with self._lock:
             now = max(self._clock(), self._wait_until)
-            return (self._axes[self.alpha_axis].position(now),
-                    self._axes[self.beta_axis].position(now))
+            return self._axes[1].position(now), self._axes[2].position(now)
 
     def true_pose(self, pose: int = 0, shot: int = 0) -> tuple[float, float]:
         """True platform angles now, from the virtual bench's platform
