@@ -404,12 +404,9 @@ class FolderCamera:
                     size = path.stat().st_size
                 except FileNotFoundError:
                     continue
-                first = sizes.get(path)
-                if first is None or first[0] != size or size == 0:  # new or still growing
+                if sizes.get(path, (None,))[0] != size:  # new or still growing: time it anew
                     sizes[path] = (size, now)
-                    if self.stable_s > 0 or size == 0:
-                        continue
-                elif now - first[1] < self.stable_s:
+                if size == 0 or now - sizes[path][1] < self.stable_s:
                     continue
                 try:
                     data = _read_new_file(path)

@@ -431,17 +431,6 @@ class FakeESP:
         return float(a), float(b)
 
     # -- transports ---------------------------------------------------------------------------
-    def _answer(self, line: bytes):  # the reply, and how late it is sent
-        reply = self.handle(line)
-        late, self._late_s = self._late_s, 0.0
-        return reply, late
-
-    def _serving(self, link) -> str:
-        address, thread, closer = link
-        self._threads.append(thread)
-        self._closers.append(closer)
-        return address
-
     def serve_pty(self) -> str:
         """Serve the protocol on a new pseudo-terminal, in a background thread.
 
@@ -451,7 +440,7 @@ class FakeESP:
             The slave's device path (e.g. ``/dev/pts/5``), to open as a serial port; POSIX
             only. :meth:`close` stops the thread and closes the terminal.
         """
-        return self._serving(_serve.serve_pty(self._answer, self._stop))
+        return _serve.serve_pty(self)
 
     def serve_tcp(self, port: int = 0) -> str:
         """Serve the protocol on 127.0.0.1:``port``, in a background thread.
@@ -468,7 +457,7 @@ class FakeESP:
         str
             The ``socket://127.0.0.1:PORT`` URL (:func:`serial.serial_for_url` form).
         """
-        return self._serving(_serve.serve_tcp(self._answer, self._stop, port))
+        return _serve.serve_tcp(self, port)
 
     def close(self) -> None:
         """Stop serving and close every transport."""
