@@ -50,7 +50,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 from ..errors import ConfigurationError
-from ._plugins import entry_points, load_plugin, open_device
+from ._plugins import call, entry_points, load_plugin, open_device
 from .errors import CameraError
 
 __all__ = ["open_camera"]
@@ -141,7 +141,7 @@ def capture_darks(camera, n: int = 16) -> np.ndarray:
             f"camera: {type(camera).__name__} cannot take dark frames (no grab_dark). Fix: "
             "give the camera a grab_dark() (close the shutter or switch the source off, then "
             "grab), or take the dark frames by hand into a folder for sunlab import --dark")
-    return np.stack([np.asarray(camera.grab_dark()) for _ in range(int(n))])
+    return np.stack([np.asarray(call("camera", camera, "grab_dark")) for _ in range(int(n))])
 
 
 #: The entry point group a lab's package registers its cameras in.
