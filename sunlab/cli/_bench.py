@@ -98,8 +98,7 @@ def run_acquire(args) -> int:
     taken before the stage is opened); exit 130 when the run stopped before its end."""
     from .. import plans
     from ..hardware import acquire, open_stage
-    from ..hardware._plugins import call
-    from ..hardware.runner import run_lock
+    from ..hardware.runner import call, run_lock
 
     if not args.resume:  # the folder must be writable; an existing run is the runner's
         check_out(args.out, overwrite=True, kind="zarr")

@@ -66,7 +66,7 @@ from ..extras import installed_version
 from ..options import show_progress
 from ..plans import Plan
 from ._lock import RunLockedError, run_lock  # noqa: F401 - the CLI takes the lock from here
-from ._plugins import call
+from ._plugins import call  # the CLI closes the stage through it too
 from .errors import BenchError, CameraError
 
 __all__ = ["acquire", "open_run"]
@@ -330,32 +330,38 @@ def acquire(plan, stage, camera, out, *, resume: bool = False, progress: bool = 
         A stage or camera fault that outlasted its retries; the store then records
         ``exit_status = 'failed'`` and the error, and the failed pose holds nothing.
     """
-    from tqdm.auto import tqdm
-
-    run, path, stop = _checked(plan, camera, overshoot_deg), Path(out), stop or threading.Event()
+    run, path = _checked(plan, camera, overshoot_deg), Path(out)
     with run_lock(path):
         group, arrays = _open_store(path, resume, run, camera, stage, attrs)
-        done = np.asarray(arrays["done"][:], dtype=bool)
-        # one session: the poses not yet done, in visit order, each pose's data written (and
-        # fsync'ed) before its done flag
-        with _session(path, group) as session, _sigint_stops(stop, handle_sigint), tqdm(
-                total=done.size, initial=int(done.sum()), unit="pose",
-                disable=not show_progress(progress), desc=f"acquire {plan.name}".strip()) as bar:
-            for pose in run.order[~done[run.order]]:
-                if stop.is_set():
-                    break
-                frames, read, stamps = _capture_pose(stage, camera, int(pose), run)
-                for name, values in zip(_PER_POSE, (frames, *read, stamps), strict=True):
-                    arrays[name][pose] = values
-                if fsync:
-                    _fsync(path, _PER_POSE, pose)
-                arrays["done"][pose] = 1
-                if fsync:
-                    _fsync(path, ("done",), pose)
-                done[pose] = True
-                session["poses"] += 1
-                bar.update(1)
-            session["exit_status"] = "complete" if done.all() else "interrupted"
+        return _run_poses(path, group, arrays, run, stage, camera, stop or threading.Event(),
+                          handle_sigint, progress, fsync)
+
+
+def _run_poses(path: Path, group, arrays: dict, run: _Run, stage, camera, stop, handle_sigint,
+               progress, fsync) -> RunResult:
+    """The poses of :func:`acquire` not yet done, in visit order, one session: each pose's
+    data are written (and fsync'ed) before its done flag."""
+    from tqdm.auto import tqdm
+
+    done = np.asarray(arrays["done"][:], dtype=bool)
+    with _session(path, group) as session, _sigint_stops(stop, handle_sigint), tqdm(
+            total=done.size, initial=int(done.sum()), unit="pose",
+            disable=not show_progress(progress), desc=f"acquire {run.plan.name}".strip()) as bar:
+        for pose in run.order[~done[run.order]]:
+            if stop.is_set():
+                break
+            frames, read, stamps = _capture_pose(stage, camera, int(pose), run)
+            for name, values in zip(_PER_POSE, (frames, *read, stamps), strict=True):
+                arrays[name][pose] = values
+            if fsync:
+                _fsync(path, _PER_POSE, pose)
+            arrays["done"][pose] = 1
+            if fsync:
+                _fsync(path, ("done",), pose)
+            done[pose] = True
+            session["poses"] += 1
+            bar.update(1)
+        session["exit_status"] = "complete" if done.all() else "interrupted"
     return RunResult(str(path), str(group.attrs["uid"]), session["exit_status"], done.size,
                      int(done.sum()), session["poses"])
 
