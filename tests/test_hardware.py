@@ -7,6 +7,7 @@ import textwrap
 
 import numpy as np
 import pytest
+import zarr
 
 from sunlab import ConfigurationError, io, schema
 from sunlab.cli import main
@@ -21,11 +22,13 @@ import numpy as np
 class LabCamera:
     """A lab's camera: a bright square whose place follows the frame count."""
 
-    def __init__(self, level=500, bit_depth=12):
+    def __init__(self, level=500, bit_depth=12, fail_at=None):
         self.shape, self.dtype, self.bit_depth = (24, 32), np.dtype(np.uint16), bit_depth
-        self.level, self.n = level, 0
+        self.level, self.n, self.fail_at = level, 0, fail_at
 
     def grab(self):
+        if self.n == self.fail_at:
+            raise OSError("USB transfer stalled")
         frame = np.full(self.shape, 20, self.dtype)
         frame[4:8, 2 + self.n:6 + self.n] = self.level
         self.n += 1
@@ -87,6 +90,24 @@ def test_acquire_runs_a_lab_camera_without_editing_sunlab(lab_package, tmp_path,
     cols = [int(np.argmax(cube.frames[p, s, 5].values == 900)) for p in range(2)
             for s in range(2)]
     assert cols == [2, 3, 4, 5]
+
+
+def test_a_lab_camera_that_raises_mid_run_is_named_in_one_line(lab_package, tmp_path, capsys):
+    """Issue 47: the third frame's grab raises; one line names the plug-in and the method,
+    exit 1, and the pose done is kept."""
+    plan = tmp_path / "plan.csv"
+    plan.write_text("alpha,beta\n0,0\n1,0\n")
+    out = tmp_path / "run.zarr"
+    argv = ["acquire", "--stage", "fake://?velocity=1e4", "--camera", "labcam",
+            "--camera-option", "fail_at=2", "--plan", str(plan), "--shots", "2",
+            "--settle", "0", "--out", str(out), "--no-progress"]
+    assert main(argv) == 1
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1, err
+    for words in ("camera LabCamera of the plug-in 'labcam'", "labcams:LabCamera", "grab()",
+                  "OSError: USB transfer stalled"):
+        assert words in err, (words, err)
+    assert zarr.open_group(out, mode="r")["done"][:].tolist() == [1, 0]
 
 
 def test_dark_frames_of_a_camera_become_the_cube_master_dark():

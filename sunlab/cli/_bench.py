@@ -98,7 +98,7 @@ def run_acquire(args) -> int:
     taken before the stage is opened); exit 130 when the run stopped before its end."""
     from .. import plans
     from ..hardware import acquire, open_stage
-    from ..hardware.runner import run_lock
+    from ..hardware.runner import call, run_lock
 
     if not args.resume:  # the folder must be writable; an existing run is the runner's
         check_out(args.out, overwrite=True, kind="zarr")
@@ -111,7 +111,7 @@ def run_acquire(args) -> int:
             result = acquire(plan, stage, _camera(args, bench, stage), args.out,
                              resume=args.resume, progress=not args.no_progress)
         finally:
-            stage.close()
+            call("stage", stage, "close")
     print(f"sunlab acquire: {result.poses_done}/{result.poses_total} poses in {result.path} "
           f"({result.exit_status}; {result.poses_this_session} this session; run {result.uid})")
     return 0 if result.exit_status == "complete" else 130

@@ -113,39 +113,36 @@ def format_number(value: float) -> str:
     return "0" if text in ("", "-0") else text
 
 
-def _parse_float(text: str) -> float:
-    value = float(text)
-    if not math.isfinite(value):
+def _valid(ok: bool, text: str, value):
+    """``value`` parsed from a reply ``text``; a ValueError (a garbled reply) unless ``ok``."""
+    if not ok:
         raise ValueError(text)
     return value
 
 
+def _parse_float(text: str) -> float:
+    return _valid(math.isfinite(value := float(text)), text, value)
+
+
 def _parse_flag(text: str) -> bool:
-    if text not in ("0", "1"):
-        raise ValueError(text)
-    return text == "1"
+    return _valid(text in ("0", "1"), text, text == "1")
 
 
 def _parse_tb(text: str) -> tuple[int, int, str]:
     match = _TB_RE.match(text)
-    if match is None:
-        raise ValueError(text)
-    return int(match.group(1)), int(match.group(2)), match.group(3)
+    return _valid(match is not None, text, match and (int(match[1]), int(match[2]), match[3]))
 
 
 def _parse_text(text: str) -> str:
-    if not text or not text.isprintable():
-        raise ValueError(text)
-    return text
+    return _valid(bool(text) and text.isprintable(), text, text)
 
 
 class _NoReply(Exception):
-    pass
+    """No complete reply within the read timeout."""
 
 
 class _Garbled(Exception):
-    def __init__(self, raw: bytes):
-        self.raw = raw
+    """A reply of the wrong shape; its bytes are ``args[0]``."""
 
 
 def _check_settings(**values) -> None:
@@ -232,10 +229,8 @@ class _Link:
         self._port.reset_input_buffer()
         if not self._out_of_step:
             return
-        deadline = self._clock() + 5 * self.timeout
-        if self._deadline is not None:
-            deadline = min(deadline, self._deadline)
-        ask = True
+        limit = math.inf if self._deadline is None else self._deadline
+        deadline, ask = min(self._clock() + 5 * self.timeout, limit), True
         while self._clock() + self.timeout <= deadline + 1e-9:  # no read may end past it
             if ask:
                 self._send("VE?")
@@ -267,8 +262,8 @@ class _Link:
             log.info("stage: no reply to %r (attempt %d)", command, attempt)
             raise StageTimeout(command, attempt, self.timeout) from None
         except _Garbled as err:
-            log.info("stage: garbled reply %r to %r (attempt %d)", err.raw, command, attempt)
-            raise StageProtocolError(command, err.raw, expected, attempt) from None
+            log.info("stage: garbled reply %r to %r (attempt %d)", err.args[0], command, attempt)
+            raise StageProtocolError(command, err.args[0], expected, attempt) from None
         except OSError as err:  # serial.SerialException is an OSError
             raise StageDisconnected(self.port_name, str(err)) from err
 

@@ -41,21 +41,19 @@ def _publish(lock: Path, me: dict) -> bool:
     """Create ``lock`` holding ``me``, complete, in one step; False if it exists."""
     from .. import atomic
 
-    tmp = atomic.temporary_name(lock)
-    tmp.write_text(json.dumps(me), encoding="utf-8")
+    tmp, text = atomic.temporary_name(lock), json.dumps(me)
+    tmp.write_text(text, encoding="utf-8")
     try:
-        os.link(tmp, lock)  # fails if the lock exists; readers never see it half-written
+        try:
+            os.link(tmp, lock)  # fails if the lock exists; readers never see it half-written
+        except FileExistsError:
+            raise
+        except OSError:  # a file system without hard links: created exclusively, then written
+            with open(lock, "x", encoding="utf-8") as fh:
+                fh.write(text)
         return True
     except FileExistsError:
         return False
-    except OSError:  # a file system without hard links
-        try:
-            fd = os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
-        except FileExistsError:
-            return False
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(json.dumps(me))
-        return True
     finally:
         tmp.unlink(missing_ok=True)
 

@@ -24,6 +24,16 @@ from .errors import CameraError, CameraTimeout
 __all__ = ["SimCamera", "FolderCamera"]
 
 
+def _roi(roi, ny: float = math.inf, nx: float = math.inf) -> tuple[int, int, int, int]:
+    """``(y0, y1, x0, x1)`` as integers, checked to be half-open ranges within ``ny`` rows and
+    ``nx`` columns (the sensor's, when known)."""
+    y0, y1, x0, x1 = (int(v) for v in roi)
+    if not (0 <= y0 < y1 <= ny and 0 <= x0 < x1 <= nx):
+        raise ConfigurationError(f"roi: found {tuple(roi)}, expected (y0, y1, x0, x1) with "
+                                 f"0 <= y0 < y1 <= {ny} and 0 <= x0 < x1 <= {nx}")
+    return y0, y1, x0, x1
+
+
 class SimCamera:
     """A camera on the virtual bench: frames rendered at the platform's true pose.
 
@@ -98,11 +108,7 @@ class SimCamera:
             None reads the whole detector. Both sides must be multiples of ``binning``.
         """
         ny, nx = (int(n) for n in self.bench.detector.shape)
-        y0, y1, x0, x1 = (0, ny, 0, nx) if roi is None else (int(v) for v in roi)
-        if not (0 <= y0 < y1 <= ny and 0 <= x0 < x1 <= nx):
-            raise ConfigurationError(
-                f"roi: found {tuple(roi)}, expected (y0, y1, x0, x1) with 0 <= y0 < y1 <= {ny} "
-                f"and 0 <= x0 < x1 <= {nx}")
+        y0, y1, x0, x1 = _roi((0, ny, 0, nx) if roi is None else roi, ny, nx)
         b = self.binning
         if (y1 - y0) % b or (x1 - x0) % b:
             raise ConfigurationError(f"binning: found {b!r} for a {y1 - y0} x {x1 - x0} roi, "
@@ -349,10 +355,7 @@ class FolderCamera:
             Half-open pixel ranges of the sensor (rows, then columns); ``shape`` becomes
             ``(y1 - y0, x1 - x0)``.
         """
-        y0, y1, x0, x1 = (int(v) for v in roi)
-        if not (0 <= y0 < y1 and 0 <= x0 < x1):
-            raise ConfigurationError(
-                f"roi: found {tuple(roi)}, expected 0 <= y0 < y1, 0 <= x0 < x1")
+        y0, y1, x0, x1 = _roi(roi)
         self.roi, self.shape = (y0, y1, x0, x1), (y1 - y0, x1 - x0)
 
     def grab(self) -> np.ndarray:
@@ -401,12 +404,9 @@ class FolderCamera:
                     size = path.stat().st_size
                 except FileNotFoundError:
                     continue
-                first = sizes.get(path)
-                if first is None or first[0] != size or size == 0:  # new or still growing
+                if sizes.get(path, (None,))[0] != size:  # new or still growing: time it anew
                     sizes[path] = (size, now)
-                    if self.stable_s > 0 or size == 0:
-                        continue
-                elif now - first[1] < self.stable_s:
+                if size == 0 or now - sizes[path][1] < self.stable_s:
                     continue
                 try:
                     data = _read_new_file(path)

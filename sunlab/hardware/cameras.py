@@ -42,15 +42,15 @@ True
 
 from __future__ import annotations
 
-import importlib
 import json
 from collections.abc import Sequence
+from importlib.metadata import EntryPoint
 from typing import Protocol, runtime_checkable
 
 import numpy as np
 
 from ..errors import ConfigurationError
-from ._plugins import entry_points, load_plugin, open_device, plugin_failed
+from ._plugins import call, entry_points, load_plugin, open_device
 from .errors import CameraError
 
 __all__ = ["open_camera"]
@@ -141,7 +141,7 @@ def capture_darks(camera, n: int = 16) -> np.ndarray:
             f"camera: {type(camera).__name__} cannot take dark frames (no grab_dark). Fix: "
             "give the camera a grab_dark() (close the shutter or switch the source off, then "
             "grab), or take the dark frames by hand into a folder for sunlab import --dark")
-    return np.stack([np.asarray(camera.grab_dark()) for _ in range(int(n))])
+    return np.stack([np.asarray(call("camera", camera, "grab_dark")) for _ in range(int(n))])
 
 
 #: The entry point group a lab's package registers its cameras in.
@@ -195,30 +195,19 @@ def camera_class(spec: str):
     """
     what = f"--camera {spec}"
     spec = _BUILTIN.get(spec, spec)
-    if ":" not in spec:
-        eps = entry_points(ENTRY_POINT_GROUP)
-        if spec not in eps:
-            raise ConfigurationError(
-                f"--camera: found {spec!r}, expected 'sim', 'folder:PATH', 'module:Class' or a "
-                f"registered camera ({sorted(eps) or 'none registered'}). Fix: give the class "
-                f"as mypkg.module:MyCamera, or register it in the entry point group "
-                f"{ENTRY_POINT_GROUP!r} of your package (docs/hardware.md)")
-        return load_plugin(eps[spec], what, _FIX)
-    module, _, name = spec.partition(":")
-    try:
-        obj = importlib.import_module(module)
-    except ImportError as err:
+    eps = {} if ":" in spec else entry_points(ENTRY_POINT_GROUP)
+    if ":" not in spec and spec not in eps:
         raise ConfigurationError(
-            f"{what}: cannot import {module!r} ({err}). Fix: install the package that holds "
-            "the camera class, or run from its folder") from err
-    except (Exception, SystemExit) as err:  # noqa: BLE001 - the module raised on import
-        raise plugin_failed(what, f"importing {module!r} failed", err, _FIX) from err
-    for part in name.split("."):
-        if not hasattr(obj, part):
-            raise ConfigurationError(f"{what}: {module!r} has no {name!r}. Fix: give "
-                                     "module:Class exactly")
-        obj = getattr(obj, part)
-    return obj
+            f"--camera: found {spec!r}, expected 'sim', 'folder:PATH', 'module:Class' or a "
+            f"registered camera ({sorted(eps) or 'none registered'}). Fix: give the class "
+            f"as mypkg.module:MyCamera, or register it in the entry point group "
+            f"{ENTRY_POINT_GROUP!r} of your package (docs/hardware.md)")
+    form = EntryPoint.pattern.match(spec) if ":" in spec else None
+    if ":" in spec and (form is None or not form.group("attr")):
+        raise ConfigurationError(f"--camera: found {spec!r}, expected module:Class (Python "
+                                 "names). Fix: e.g. mypkg.cameras:MyCamera")
+    ep = eps.get(spec) or EntryPoint(spec, spec, ENTRY_POINT_GROUP)  # module:Class, loaded alike
+    return load_plugin(ep, what, _FIX)
 
 
 def parse_camera_options(pairs) -> dict:

@@ -177,8 +177,7 @@ class ESP300(_Link):
                     f"stage axis {ax} ({name}) units: found {units} ({meaning}), expected 7 "
                     f"(degree). Fix: send '{ax}SN7' and save with 'SM', or use the controller's "
                     "front panel")
-            low = self.query(f"{ax}SL?", _parse_float, "a number")
-            high = self.query(f"{ax}SR?", _parse_float, "a number")
+            low, high = (self.query(f"{ax}S{side}?", _parse_float, "a number") for side in "LR")
             user = self._user_limits.get(name, (low, high))
             low, high = max(low, float(user[0])), min(high, float(user[1]))
             if not low < high:
@@ -204,8 +203,7 @@ class ESP300(_Link):
         (float, float)
             (alpha, beta), degrees.
         """
-        a, b = (self.query(f"{ax}TP?", _parse_float, "a number") for ax in self.axes)
-        return a, b
+        return tuple(self.query(f"{ax}TP?", _parse_float, "a number") for ax in self.axes)
 
     def motion_done(self) -> bool:
         """Whether both axes report motion done (``nMD?``).

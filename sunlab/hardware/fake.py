@@ -139,8 +139,8 @@ class Fault:
 class _Axis:
     def __init__(self, low: float, high: float, velocity: float, motor_on: bool):
         self.low, self.high, self.velocity, self.motor_on = low, high, velocity, motor_on
-        self.units, self.home, self.stuck = 7, 0.0, False
-        self.start = self.target = self.t0 = self.t1 = 0.0
+        self.units, self.home, self.stuck, self.start = 7, 0.0, False, 0.0
+        self.target = self.t0 = self.t1 = 0.0
 
     def position(self, now: float) -> float:
         if self.stuck:
@@ -159,8 +159,8 @@ class _Axis:
     def move(self, target: float, now: float, stuck: bool = False) -> None:
         self.start, self.target, self.t0, self.stuck = self.position(now), target, now, stuck
         # an infinite velocity (instant motion) ends the move now, exactly
-        travel_s = 0.0 if math.isinf(self.velocity) else abs(target - self.start) / self.velocity
-        self.t1 = now + travel_s
+        self.t1 = now + (0.0 if math.isinf(self.velocity) else
+                         abs(target - self.start) / self.velocity)
 
     def halt(self, now: float) -> None:
         self.start = self.target = self.position(now)
@@ -181,40 +181,34 @@ class FakeESP:
         Virtual bench whose platform model maps commanded to true angles; None: ideal platform.
     seed : int
         Seed of the platform model (per-pose error and per-shot jitter).
-    alpha_axis, beta_axis : int
-        Controller axes that carry alpha and beta (for :meth:`true_pose`), of ``n_axes``.
-    n_axes : int
-        Number of axes (ESP301: up to 3).
     velocity_deg_s : float
         Slew rate of every axis, deg/s; ``math.inf`` makes every move instant.
-    limits : (float, float)
-        Software limits ``SL``, ``SR`` of every axis, degrees.
     resolution_deg : float
         Encoder resolution; ``TP?`` reads the position rounded to it, degrees.
     motors_on : bool
         Motor power at start.
-    version : str
-        The ``VE?`` reply.
     stage_model : str
         Positioner model in the ``nID?`` reply (``URS100BCC, SN0001`` for axis 1).
     clock : callable, optional
         Monotonic clock in seconds (default :func:`time.monotonic`); a :class:`ManualClock`
         makes timed behaviour (moves, silences, error time stamps) deterministic.
+
+    Notes
+    -----
+    Three axes, alpha on axis 1 and beta on axis 2 (:meth:`true_pose`), each with the software
+    limits ``SL``, ``SR`` of -170 and 170 degrees; ``VE?`` answers :attr:`version`.
     """
 
-    def __init__(self, *, bench=None, seed: int = 0, alpha_axis: int = 1, beta_axis: int = 2,
-                 n_axes: int = 3, velocity_deg_s: float = 20.0,
-                 limits: tuple[float, float] = (-170.0, 170.0), resolution_deg: float = 1e-4,
-                 motors_on: bool = True,
-                 version: str = "ESP301 Version 3.0.2 6/29/11 (sunlab fake)",
+    version = "ESP301 Version 3.0.2 6/29/11 (sunlab fake)"
+
+    def __init__(self, *, bench=None, seed: int = 0, velocity_deg_s: float = 20.0,
+                 resolution_deg: float = 1e-4, motors_on: bool = True,
                  stage_model: str = "URS100BCC", clock=None):
         if not velocity_deg_s > 0:
             raise ConfigurationError(f"velocity_deg_s: found {velocity_deg_s!r}, expected > 0")
-        self.bench, self.seed = bench, int(seed)
-        self.alpha_axis, self.beta_axis = int(alpha_axis), int(beta_axis)
-        self.resolution_deg, self.version, self.stage_model = resolution_deg, version, stage_model
-        self._axes = {n: _Axis(float(limits[0]), float(limits[1]), float(velocity_deg_s),
-                               motors_on) for n in range(1, n_axes + 1)}
+        self.bench, self.seed, self.resolution_deg = bench, int(seed), resolution_deg
+        self.stage_model = stage_model
+        self._axes = {n: _Axis(-170.0, 170.0, float(velocity_deg_s), motors_on) for n in (1, 2, 3)}
         self._errors: deque[int] = deque(maxlen=10)
         self._faults: list[Fault] = []
         self._silent_until = self._wait_until = -math.inf
@@ -258,15 +252,14 @@ class FakeESP:
         return fault
 
     def _take_fault(self, command: str) -> Fault | None:
-        for fault in self._faults:
-            if fault.count > 0 and fault.match in command:
-                if fault.after > 0:  # let this one pass
-                    fault.after -= 1
-                    continue
-                fault.count -= 1
-                if fault.count == 0:
-                    self._faults.remove(fault)
-                return fault
+        for fault in [f for f in self._faults if f.count > 0 and f.match in command]:
+            if fault.after > 0:  # let this one pass
+                fault.after -= 1
+                continue
+            fault.count -= 1
+            if fault.count == 0:
+                self._faults.remove(fault)
+            return fault
         return None
 
     # -- protocol -----------------------------------------------------------------------------
@@ -337,36 +330,32 @@ class FakeESP:
         # a read: "?" after the mnemonic, or TP without it (the manual reads it both ways)
         query = rest == "?" or (rest == "" and mn == "TP")
         if not axis:
-            if query and mn in ("VE", "TB", "TE"):
-                if mn == "VE":
-                    return self.version
+            if query and mn in ("TB", "TE"):
                 code = self._errors.popleft() if self._errors else 0
-                if mn == "TE":
-                    return str(code)
                 message = "NO ERROR DETECTED" if code == 0 else decode_error(code)[1].upper()
-                return f"{code}, {int((now - self._t_boot) * 1000)}, {message}"
-            if (mn, rest) == ("TS", ""):
-                return self._status(now)
+                return str(code) if mn == "TE" else (
+                    f"{code}, {int((now - self._t_boot) * 1000)}, {message}")
             if mn == "AB":
                 for each in self._axes.values():
                     each.halt(now)
                 return None
-            return self._errors.append(37 if mn in _AXIS_COMMANDS else 6)
+            reply = {("VE", "?"): self.version, ("TS", ""): self._status(now)}.get((mn, rest))
+            return self._errors.append(37 if mn in _AXIS_COMMANDS else 6) if reply is None \
+                else reply
         n = int(axis)
         ax = self._axes.get(n)
         if ax is None:
             return self._errors.append(9)
         if query:
-            if mn == "TP":
-                return f"{round(ax.position(now) / self.resolution_deg) * self.resolution_deg:.6f}"
-            if mn == "ID":
-                return f"{self.stage_model}, SN{n:04d}"
             value = {"MD": ax.done(now), "MO": ax.motor_on, "SN": ax.units, "PA": ax.target,
                      "DP": ax.target, "DH": ax.home, "SL": ax.low, "SR": ax.high,
-                     "VA": ax.velocity}.get(mn)
+                     "VA": ax.velocity, "ID": f"{self.stage_model}, SN{n:04d}",
+                     "TP": round(ax.position(now) / self.resolution_deg) * self.resolution_deg,
+                     }.get(mn)
             if value is None:
                 return self._errors.append(6)
-            return str(int(value)) if isinstance(value, int) else f"{value:.6f}"
+            return value if isinstance(value, str) else (
+                str(int(value)) if isinstance(value, int) else f"{value:.6f}")
         if rest == "" and mn in ("MO", "MF", "ST"):
             if mn != "MO":
                 ax.halt(now)
@@ -386,14 +375,13 @@ class FakeESP:
                 self._wait_until = max(self._wait_until, max(ax.t1, now) + value / 1000.0)
         elif mn == "DH":
             ax.define(value, now)
-        elif mn == "SN":
-            ax.units = int(value)
+        elif mn in ("SN", "SL", "SR"):
+            setattr(ax, {"SN": "units", "SL": "low", "SR": "high"}[mn],
+                    int(value) if mn == "SN" else value)
         elif mn == "VA":
             if not value > 0:
                 return self._errors.append(100 * n + 1)
             ax.velocity = value
-        elif mn in ("SL", "SR"):
-            setattr(ax, "low" if mn == "SL" else "high", value)
         elif not ax.motor_on:  # PA, OR
             return self._errors.append(100 * n + 13)
         elif mn == "OR":  # home search: to the home switch, where DH's value reads
@@ -416,8 +404,7 @@ class FakeESP:
         """
         with self._lock:
             now = max(self._clock(), self._wait_until)
-            return (self._axes[self.alpha_axis].position(now),
-                    self._axes[self.beta_axis].position(now))
+            return self._axes[1].position(now), self._axes[2].position(now)
 
     def true_pose(self, pose: int = 0, shot: int = 0) -> tuple[float, float]:
         """True platform angles now, from the virtual bench's platform
@@ -444,17 +431,6 @@ class FakeESP:
         return float(a), float(b)
 
     # -- transports ---------------------------------------------------------------------------
-    def _answer(self, line: bytes):  # the reply, and how late it is sent
-        reply = self.handle(line)
-        late, self._late_s = self._late_s, 0.0
-        return reply, late
-
-    def _serving(self, link) -> str:
-        address, thread, closer = link
-        self._threads.append(thread)
-        self._closers.append(closer)
-        return address
-
     def serve_pty(self) -> str:
         """Serve the protocol on a new pseudo-terminal, in a background thread.
 
@@ -464,7 +440,7 @@ class FakeESP:
             The slave's device path (e.g. ``/dev/pts/5``), to open as a serial port; POSIX
             only. :meth:`close` stops the thread and closes the terminal.
         """
-        return self._serving(_serve.serve_pty(self._answer, self._stop))
+        return _serve.serve_pty(self)
 
     def serve_tcp(self, port: int = 0) -> str:
         """Serve the protocol on 127.0.0.1:``port``, in a background thread.
@@ -481,7 +457,7 @@ class FakeESP:
         str
             The ``socket://127.0.0.1:PORT`` URL (:func:`serial.serial_for_url` form).
         """
-        return self._serving(_serve.serve_tcp(self._answer, self._stop, port))
+        return _serve.serve_tcp(self, port)
 
     def close(self) -> None:
         """Stop serving and close every transport."""

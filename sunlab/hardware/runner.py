@@ -64,7 +64,9 @@ import numpy as np
 from ..errors import ConfigurationError
 from ..extras import installed_version
 from ..options import show_progress
+from ..plans import Plan
 from ._lock import RunLockedError, run_lock  # noqa: F401 - the CLI takes the lock from here
+from ._plugins import call  # the CLI closes the stage through it too
 from .errors import BenchError, CameraError
 
 __all__ = ["acquire", "open_run"]
@@ -103,14 +105,11 @@ class RunResult:
 
 @dataclass(frozen=True)
 class _Run:
-    """What one call of :func:`acquire` takes: the plan's arrays and the camera's frames."""
+    """What one call of :func:`acquire` takes: the plan, its visit order and overshoot, and the
+    camera's frames."""
 
-    alpha: np.ndarray
-    beta: np.ndarray
-    shots: int
-    name: str
+    plan: Plan
     order: np.ndarray
-    motion: dict
     overshoot: float
     shape: tuple[int, int]
     dtype: np.dtype
@@ -122,31 +121,12 @@ def _now() -> str:
 
 
 def _checked(plan, camera, overshoot_deg) -> _Run:
-    """The plan and the camera as :func:`acquire` uses them, each checked."""
-    try:
-        alpha = np.asarray(plan.alpha, dtype=float).ravel()
-        beta = np.asarray(plan.beta, dtype=float).ravel()
-        shots, name = int(plan.shots), str(getattr(plan, "name", ""))
-    except (AttributeError, TypeError, ValueError) as err:
+    """The plan (checked when it was made) and the camera as :func:`acquire` uses them."""
+    if not isinstance(plan, Plan):
         raise ConfigurationError(
             f"plan: found {type(plan).__name__}, expected a sunlab.plans.Plan (alpha, beta in "
-            "degrees, shots). Fix: build one with sunlab.plans.experiment/grid/custom") from err
-    if alpha.shape != beta.shape or alpha.size == 0 or shots < 1:
-        raise ConfigurationError(
-            f"plan: found {alpha.size} alpha, {beta.size} beta, shots={shots}, expected equal "
-            "non-empty angle lists and shots >= 1")
-    if not (np.all(np.isfinite(alpha)) and np.all(np.isfinite(beta))):
-        raise ConfigurationError("plan: found non-finite angles, expected finite degrees")
-    # how the stage moves through the plan: visit order, scan, approach, and the direction in
-    # which the inner axis reaches each pose (sunlab.plans.Plan.beta_approach)
-    if callable(getattr(plan, "visit_order", None)):
-        motion = {"scan_order": plan.scan, "approach": plan.approach,
-                  "beta_approach": plan.beta_approach()}
-        order = np.asarray(plan.visit_order())
-    else:
-        motion = {"scan_order": "raster", "approach": "direct", "beta_approach": None}
-        order = np.arange(alpha.size)
-    overshoot = float(overshoot_deg) if motion["approach"] == "unidirectional" else 0.0
+            "degrees, shots). Fix: build one with sunlab.plans.experiment/grid/custom")
+    overshoot = float(overshoot_deg) if plan.approach == "unidirectional" else 0.0
     if not (np.isfinite(overshoot) and overshoot >= 0):
         raise ConfigurationError(
             f"overshoot_deg: found {overshoot_deg!r}; expected a non-negative angle in deg "
@@ -161,12 +141,12 @@ def _checked(plan, camera, overshoot_deg) -> _Run:
     if len(shape) != 2 or min(shape) < 1 or dtype not in (np.uint8, np.uint16):
         raise ConfigurationError(f"camera: found shape {shape} dtype {dtype}, expected a 2-d "
                                  "(ny, nx) frame of uint8 or uint16")
-    return _Run(alpha, beta, shots, name, order, motion, overshoot, shape, dtype, bits)
+    return _Run(plan, np.asarray(plan.visit_order()), overshoot, shape, dtype, bits)
 
 
-def _describe(obj) -> dict:
+def _describe(obj, role: str) -> dict:
     describe = getattr(obj, "describe", None)
-    info = describe() if callable(describe) else {"type": type(obj).__name__}
+    info = call(role, obj, "describe") if callable(describe) else {"type": type(obj).__name__}
     return json.loads(json.dumps(info, default=str))
 
 
@@ -178,27 +158,22 @@ def _create_store(path: Path, run: _Run, camera, stage, attrs) -> None:
 
     from .. import __version__, atomic, schema
 
-    n, shots = run.alpha.size, run.shots
-    sensor = {"bit_depth": run.bits, **dict(getattr(camera, "attrs", None) or {})}
-    nan = da.full((n, shots), np.nan, chunks=(1, shots))
-    read = "encoder read-back of the {} axis"
-    coords = {
-        "alpha_read": (("pose", "shot"), nan, {"units": "deg", "long_name": read.format("outer")}),
-        "beta_read": (("pose", "shot"), nan, {"units": "deg", "long_name": read.format("inner")}),
-        "time": (("pose", "shot"), da.full((n, shots), np.datetime64("NaT", "ns"),
-                                           chunks=(1, shots)),
-                 {"long_name": "start of the frame's capture, UTC"}),
-        "done": ("pose", da.zeros(n, dtype=np.uint8, chunks=1),
-                 {"flag_values": [0, 1], "flag_meanings": "pending done",
-                  "long_name": "pose fully written"}),
-    }
-    if run.motion["beta_approach"] is not None:
-        coords["beta_approach"] = ("pose", np.asarray(run.motion["beta_approach"], np.int8), {
-            "long_name": "direction in which the inner axis reached the pose (+1 up, -1 down)"})
-    ny, nx = run.shape
+    plan, (ny, nx) = run.plan, run.shape
+    n, shots = len(plan), plan.shots
+    coords = {f"{ax}_read": (("pose", "shot"), da.full((n, shots), np.nan, chunks=(1, shots)),
+                             {"units": "deg", "long_name": f"encoder read-back of the {side} axis"})
+              for ax, side in (("alpha", "outer"), ("beta", "inner"))}
+    coords["time"] = (("pose", "shot"), da.full((n, shots), np.datetime64("NaT", "ns"),
+                                                chunks=(1, shots)),
+                      {"long_name": "start of the frame's capture, UTC"})
+    coords["done"] = ("pose", da.zeros(n, dtype=np.uint8, chunks=1), {
+        "flag_values": [0, 1], "flag_meanings": "pending done", "long_name": "pose fully written"})
+    coords["beta_approach"] = ("pose", np.asarray(plan.beta_approach(), np.int8), {
+        "long_name": "direction in which the inner axis reached the pose (+1 up, -1 down)"})
     zeros = da.zeros((n, shots, ny, nx), dtype=run.dtype, chunks=(1, 1, ny, nx))  # lazily
-    cube = schema.frames_dataset(zeros, run.alpha, run.beta, experiment=run.name, coords=coords,
-                                 **sensor)
+    cube = schema.frames_dataset(zeros, plan.alpha, plan.beta, experiment=plan.name,
+                                 coords=coords, **{"bit_depth": run.bits,
+                                                   **dict(getattr(camera, "attrs", None) or {})})
     tmp = atomic.temporary_name(path)  # a later run removes it if this one is killed
     # time is stored as float seconds since the epoch (NaN until taken), decoded to datetime64
     encoding = {v: {"_FillValue": np.nan} for v in ("alpha_read", "beta_read")}
@@ -206,14 +181,13 @@ def _create_store(path: Path, run: _Run, camera, stage, attrs) -> None:
                         "dtype": "float64", "_FillValue": np.nan}
     cube.to_zarr(tmp, compute=False, consolidated=False, encoding=encoding)
     zarr.open_group(tmp, mode="r+").attrs.update({
-        "uid": uuid.uuid4().hex,
-        "plan": {"name": run.name, "n_poses": int(n), "shots": int(shots)},
+        "uid": uuid.uuid4().hex, "plan": {"name": plan.name, "n_poses": n, "shots": shots},
         "versions": {"sunlab": __version__, "python": platform.python_version(),
                      "numpy": np.__version__, "xarray": xarray.__version__,
                      "zarr": zarr.__version__, "pyserial": installed_version("pyserial")},
-        "stage": _describe(stage), "camera": _describe(camera), "start": None, "stop": None,
-        "exit_status": "created", "error": None, "sessions": [],
-        "scan_order": run.motion["scan_order"], "approach": run.motion["approach"],
+        "stage": _describe(stage, "stage"), "camera": _describe(camera, "camera"),
+        "start": None, "stop": None, "exit_status": "created", "error": None, "sessions": [],
+        "scan_order": plan.scan, "approach": plan.approach,
         "visit_order": [int(i) for i in run.order], **dict(attrs or {}),
     })
     os.replace(tmp, path)
@@ -243,13 +217,13 @@ def _open_store(path: Path, resume: bool, run: _Run, camera, stage, attrs):
             f"out: {group.store} is not a sunlab acquisition store (no frames/1 schema, uid or "
             "done flags). Fix: choose a new path")
     found = (tuple(arrays["frames"].shape), np.dtype(arrays["frames"].dtype))
-    expected = ((run.alpha.size, run.shots, *run.shape), run.dtype)
+    expected = ((len(run.plan), run.plan.shots, *run.shape), run.dtype)
     if found != expected:
         raise ConfigurationError(
             f"out: store frames {found} do not match this plan and camera {expected}. Fix: "
             "resume with the plan and camera settings of the original run, or choose a new path")
-    if not (np.array_equal(arrays["alpha"][:], run.alpha)
-            and np.array_equal(arrays["beta"][:], run.beta)):
+    if not (np.array_equal(arrays["alpha"][:], run.plan.alpha)
+            and np.array_equal(arrays["beta"][:], run.plan.beta)):
         raise ConfigurationError("out: the store's commanded angles differ from the plan's. Fix: "
                                  "resume with the original plan, or choose a new path")
     return group, arrays
@@ -261,34 +235,33 @@ def _fsync(root: Path, names, pose: int) -> None:
         base = root / name / "c" / str(pose)
         files = [base] if base.is_file() else sorted(p for p in base.rglob("*") if p.is_file())
         for path in [*files, *{f.parent for f in files}]:
+            fd = os.open(path, os.O_RDONLY)
             try:
-                fd = os.open(path, os.O_RDONLY)
-                try:
-                    os.fsync(fd)
-                finally:
-                    os.close(fd)
+                os.fsync(fd)
             except OSError:  # a folder cannot be fsync'ed on every file system
                 if path.is_file():
                     raise
+            finally:
+                os.close(fd)
 
 
 def _capture_pose(stage, camera, pose: int, run: _Run):
     """Move and capture one pose into memory; nothing is written here. With an overshoot the
     inner axis first goes that far below the target, then up to it (a unidirectional
     approach: the same gear flank at every pose)."""
-    alpha, beta = run.alpha[pose], run.beta[pose]
+    alpha, beta, shots = run.plan.alpha[pose], run.plan.beta[pose], run.plan.shots
     if run.overshoot:
-        stage.move_to(alpha, beta - run.overshoot)
-    stage.move_to(alpha, beta)
-    frames = np.empty((run.shots, *run.shape), dtype=run.dtype)
-    read, stamps = np.empty((2, run.shots)), np.empty(run.shots)
-    set_index = getattr(camera, "set_index", None)
-    for shot in range(run.shots):
-        read[:, shot] = stage.position()
-        if callable(set_index):
-            set_index(pose, shot, alpha=read[0, shot], beta=read[1, shot])
+        call("stage", stage, "move_to", alpha, beta - run.overshoot)
+    call("stage", stage, "move_to", alpha, beta)
+    frames = np.empty((shots, *run.shape), dtype=run.dtype)
+    read, stamps = np.empty((2, shots)), np.empty(shots)
+    for shot in range(shots):
+        read[:, shot] = call("stage", stage, "position")
+        if callable(getattr(camera, "set_index", None)):
+            call("camera", camera, "set_index", pose, shot, alpha=read[0, shot],
+                 beta=read[1, shot])
         stamps[shot] = time.time()
-        frame = np.asarray(camera.grab())
+        frame = np.asarray(call("camera", camera, "grab"))
         if frame.shape != run.shape or frame.dtype != run.dtype:
             raise CameraError(
                 f"camera: pose {pose} shot {shot} gave a {frame.dtype} frame of shape "
@@ -373,12 +346,12 @@ def _run_poses(path: Path, group, arrays: dict, run: _Run, stage, camera, stop, 
     done = np.asarray(arrays["done"][:], dtype=bool)
     with _session(path, group) as session, _sigint_stops(stop, handle_sigint), tqdm(
             total=done.size, initial=int(done.sum()), unit="pose",
-            disable=not show_progress(progress), desc=f"acquire {run.name}".strip()) as bar:
+            disable=not show_progress(progress), desc=f"acquire {run.plan.name}".strip()) as bar:
         for pose in run.order[~done[run.order]]:
             if stop.is_set():
                 break
             frames, read, stamps = _capture_pose(stage, camera, int(pose), run)
-            for name, values in zip(_PER_POSE, (frames, read[0], read[1], stamps), strict=True):
+            for name, values in zip(_PER_POSE, (frames, *read, stamps), strict=True):
                 arrays[name][pose] = values
             if fsync:
                 _fsync(path, _PER_POSE, pose)

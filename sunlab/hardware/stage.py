@@ -141,11 +141,10 @@ def _open_fake(url: str, bench, seed: int, driver_kwargs: dict):
 
     query = parse_qs(urlsplit(url).query, keep_blank_values=True)  # "velocity=" is an error
     options = {k: v[-1] for k, v in query.items()}
-    if set(options) - {"velocity", "transport"}:
-        raise ConfigurationError(
-            f"stage {url!r}: unknown options {sorted(set(options) - {'velocity', 'transport'})}, "
-            "expected 'velocity' (deg/s) and 'transport' (pty or tcp)")
-    text = options.get("velocity", "200")
+    if unknown := sorted(set(options) - {"velocity", "transport"}):
+        raise ConfigurationError(f"stage {url!r}: unknown options {unknown}, expected "
+                                 "'velocity' (deg/s) and 'transport' (pty or tcp)")
+    text, transport = options.get("velocity", "200"), options.get("transport", "pty")
     try:
         velocity = float(text)
     except ValueError:
@@ -154,7 +153,6 @@ def _open_fake(url: str, bench, seed: int, driver_kwargs: dict):
         raise ConfigurationError(
             f"stage {url!r}: velocity={text!r}, expected a number of deg/s from 0.001 to 1e9 "
             "(or inf: instant moves). Fix: e.g. fake://?velocity=200")
-    transport = options.get("transport", "pty")
     if transport not in ("pty", "tcp"):
         raise ConfigurationError(f"stage {url!r}: transport={transport!r}, expected pty or tcp")
     fake = FakeESP(bench=bench, seed=seed, velocity_deg_s=velocity)

@@ -1,18 +1,23 @@
 """The registry of stages (sunlab.hardware.stage): built-ins by URL scheme, a lab's own stage
-by the entry point group ``sunlab.stages`` (issue 36), and a stage plug-in that fails named
-in one line (issue 37)."""
+by the entry point group ``sunlab.stages`` (issue 36), a stage plug-in that fails named
+in one line (issue 37), when it opens or mid-run (issue 47)."""
 
 from __future__ import annotations
 
+import os
+import subprocess
 import sys
 import textwrap
+from pathlib import Path
 
 import pytest
+import zarr
 
 from sunlab import cli
 from sunlab.errors import ConfigurationError
 from sunlab.hardware import ESP300, open_stage
 from sunlab.hardware.stage import available_stages
+from sunlab.sim import _jit
 
 
 @pytest.fixture
@@ -37,14 +42,25 @@ def plugin(tmp_path, monkeypatch):
 
         def open_dead(url, **options):
             raise RuntimeError("controller not found on the bus")
+
+        class Flaky(Rig):  # "flaky:N": the N-th move raises, as a driver's own bug would
+            def move_to(self, alpha, beta):
+                self.moves = getattr(self, "moves", 0) + 1
+                if self.url == f"flaky:{self.moves}":
+                    raise KeyError("encoder frame 0x7f")
+                return super().move_to(alpha, beta)
+
+        def open_flaky(url, **options):
+            return Flaky(url)
         """))
     info = tmp_path / "labstages-0.1.dist-info"
     info.mkdir()
     (info / "METADATA").write_text("Metadata-Version: 2.1\nName: labstages\nVersion: 0.1\n")
     (info / "entry_points.txt").write_text(
-        "[sunlab.stages]\nrig = labstages:open_rig\ndead = labstages:open_dead\n")
+        "[sunlab.stages]\nrig = labstages:open_rig\ndead = labstages:open_dead\n"
+        "flaky = labstages:open_flaky\n")
     monkeypatch.syspath_prepend(str(tmp_path))
-    yield
+    yield tmp_path
     sys.modules.pop("labstages", None)
 
 
@@ -80,3 +96,34 @@ def test_acquire_through_a_registered_stage(plugin, tmp_path, capsys):
                        "--no-progress"])
     err = capsys.readouterr().err.strip()
     assert status == 1 and len(err.splitlines()) == 1 and "controller not found" in err
+
+
+def test_a_stage_plugin_that_raises_mid_run_ends_the_cli_in_one_line_and_resumes(plugin):
+    """The real ``sunlab`` in a process of its own, the plug-in's distribution on its path: the
+    third move raises; the command names the plug-in and the method in one line, exit 1, and
+    the two poses done are kept for ``--resume``."""
+    out = plugin / "run.zarr"
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(plugin),
+                                                       str(Path(__file__).parents[2])]))
+
+    def sunlab(stage, *extra):
+        return subprocess.run(
+            [sys.executable, "-m", "sunlab.cli", "acquire", "--stage", stage, "--camera", "sim",
+             "--plan", "I", "--step", "30", "--shots", "1", "--binning", "8", "--out", str(out),
+             "--no-progress", *extra], env=env, capture_output=True, text=True, timeout=300)
+
+    failed = sunlab("flaky:3")
+    lines = [n for n in failed.stderr.splitlines() if n and n != _jit.MESSAGE]  # once a machine
+    assert failed.returncode == 1 and len(lines) == 1, failed.stderr
+    line = lines[0]
+    for words in ("'flaky'", "labstages:open_flaky", "labstages 0.1", "move_to", "KeyError",
+                  "encoder frame 0x7f", "--resume"):
+        assert words in line, (words, line)
+    assert zarr.open_group(out, mode="r")["done"][:].tolist() == [1, 1] + [0] * 12
+    resumed = sunlab("flaky:never", "--resume")
+    assert resumed.returncode == 0, resumed.stderr
+    assert "14/14 poses" in resumed.stdout and "12 this session" in resumed.stdout
+    group = zarr.open_group(out, mode="r")
+    sessions = group.attrs["sessions"]
+    assert [s["exit_status"] for s in sessions] == ["failed", "complete"]
+    assert sessions[0]["poses"] == 2 and group["done"][:].all()
