@@ -107,6 +107,9 @@ def _check_parts(folder: Path, protocol: dict) -> None:
                 f"{old.get('protocol_version')}, code {old.get('code_commit')}). Fix: remove "
                 "the folder to run them again under this one.")
         return
+    if folder.is_dir() and any(folder.iterdir()):  # not ours: it would go with the runs
+        raise ConfigurationError(f"{folder}: a folder that holds no runs (no stamp.json). Fix: "
+                                 "move it away or choose another --out.")
     folder.mkdir(parents=True, exist_ok=True)
     write_text(file, json.dumps(stamp, indent=2) + "\n")
 

@@ -61,3 +61,9 @@ def test_parts_of_another_protocol_or_code_are_refused(tmp_path):
     stamp.write_text(stamp.read_text().replace('"source_sha256": "', '"source_sha256": "0'))
     with pytest.raises(evidence.ConfigurationError, match=r"Fix: remove the folder"):
         evidence._check_parts(tmp_path, protocol)
+    # a folder of the user's own under that name is never taken for (and removed with) runs
+    (tmp_path / "mine").mkdir()
+    (tmp_path / "mine" / "notes.txt").write_text("kept")
+    with pytest.raises(evidence.ConfigurationError, match="holds no runs"):
+        evidence._check_parts(tmp_path / "mine", protocol)
+    assert (tmp_path / "mine" / "notes.txt").read_text() == "kept"
