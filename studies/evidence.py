@@ -43,10 +43,10 @@ Z90 = 1.6448536269514722
 #: CPU seconds of one (hypothesis, seed) run, without and with a gear (its period profiled on
 #: 7 grid points), and of the presets, profiles and ablations after the runs, measured on the
 #: project's machine (2026-11-28, BLAS on one thread: F5 5.9 s, F5-gear 21.0 s once a process
-#: is warm, 7 s more for its first; presets 6.6 s, 20 profile points 3.7 s each, 16 ablated
-#: predictions 6.2 s each): the estimate printed before a run.
+#: is warm, 7 s more for its first; the three stages whole 104 s, with 2 processes): the
+#: estimate printed before a run.
 RUN_SECONDS = {False: 7.0, True: 22.0}
-STAGES_SECONDS = 200.0
+STAGES_SECONDS = 110.0
 
 
 def run_protocol(protocol: dict, names=None, seeds=None, *, jobs: int = 1, parts=None,
