@@ -27,6 +27,7 @@ from .identification import (
     _quantity,
     hypothesis_bench,
     load_protocol,
+    run_all,
     scored_quantities,
 )
 
@@ -89,13 +90,8 @@ def ablation(name: str | None = None, seeds=None, evidence: pd.DataFrame | None 
         tasks += [(comp, int(seed), (protocol, name, nuis, fitted, int(seed),
                                      float(rec["noise_px"]), change))
                   for comp, change in {"none": {}, **ABLATIONS}.items()]
-    if jobs > 1:
-        from concurrent.futures import ProcessPoolExecutor
-
-        with ProcessPoolExecutor(jobs) as pool:
-            preds = list(pool.map(_ablated_cells, *zip(*(t[2] for t in tasks), strict=True)))
-    else:
-        preds = [_ablated_cells(*t[2]) for t in tasks]
+    preds = dict(run_all(_ablated_cells, [t[2] for t in tasks], jobs))
+    preds = [preds[i] for i in range(len(tasks))]
     rows = []
     for (comp, seed, _), pred in zip(tasks, preds, strict=True):
         lp = np.array([math.log(max(_quantity(pred, *x), 1e-9)) for x in q])

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import math
+import time
 from collections.abc import Callable, Iterable
 from pathlib import Path
 
@@ -28,6 +29,7 @@ from .identification import (
     _paper_cells,
     _quantity,
     load_protocol,
+    run_all,
     run_hypothesis,
     scored_quantities,
 )
@@ -38,51 +40,127 @@ __all__ = ["regenerate", "write_evidence", "identified_hypothesis", "interval_ro
 Z90 = 1.6448536269514722
 
 
-def run_protocol(protocol: dict, names=None, seeds=None, *, jobs: int = 1,
-        progress: Callable | None = None) -> pd.DataFrame:
+#: CPU seconds of one (hypothesis, seed) run, without and with a gear (its period profiled on
+#: 7 grid points), and of the presets, profiles and ablations after the runs, measured on the
+#: project's machine (2026-11-28, BLAS on one thread: F5 5.9 s, F5-gear 21.0 s once a process
+#: is warm, 7 s more for its first; the three stages whole 104 s, with 2 processes): the
+#: estimate printed before a run.
+RUN_SECONDS = {False: 7.0, True: 22.0}
+STAGES_SECONDS = 110.0
+
+
+def run_protocol(protocol: dict, names=None, seeds=None, *, jobs: int = 1, parts=None,
+                 progress: Callable | None = None, after_s: float = 0.0) -> pd.DataFrame:
     """Every (hypothesis, seed) of the protocol: the long table of predicted cells.
 
-    ``jobs`` > 1 runs them in that many processes (each builds its own surrogate maps).
+    ``jobs`` > 1 runs them in that many processes (each builds its own surrogate maps). With
+    ``parts`` (a folder), each run's cells are written there as it finishes
+    (``HYPOTHESIS-SEED.csv``, atomically, beside ``stamp.json``: the protocol's version and a
+    digest of the code) and a later call skips the runs found there: an interrupted run
+    resumes. Parts of another protocol version or code are refused. ``progress(line,
+    always)`` gets the estimate first (``always`` True; ``after_s``: CPU seconds of the work
+    that follows the runs), then a line as each run ends.
     """
+    from sunlab.atomic import write_text
+
     names = list(names or protocol["hypotheses"])
     seeds = list(seeds if seeds is not None else protocol["confirmation_seeds"])
-    tasks = [(h, s) for h in names for s in seeds]
-    out = []
-    if jobs <= 1:
-        for h, s in tasks:
-            if progress:
-                progress(f"{h} seed {s}")
-            out.append(run_hypothesis(protocol, h, s))
-    else:
-        from concurrent.futures import ProcessPoolExecutor, as_completed
+    tasks = [(h, int(s)) for h in names for s in seeds]
+    gear = {h: bool(protocol["hypotheses"][h]["gear"]) for h in names}
+    path = {t: Path(parts) / f"{t[0]}-{t[1]}.csv" for t in tasks} if parts else {}
+    if parts:
+        _check_parts(Path(parts), protocol)
+    todo = sorted((t for t in tasks if not path or not path[t].exists()),
+                  key=lambda t: not gear[t[0]])  # the long runs first: the processes end together
+    left = sum(RUN_SECONDS[gear[h]] for h, _ in todo)
+    if progress:
+        progress(f"{len(todo)} of {len(tasks)} runs to go: about "
+                 f"{(left + after_s) / 60 / jobs:.1f} min on {jobs} idle cores", True)
+    start, done, cells = time.monotonic(), 0.0, {}
+    for i, df in run_all(run_hypothesis, [(protocol, h, s) for h, s in todo], jobs):
+        if parts:
+            write_text(path[todo[i]], df.to_csv(index=False), overwrite=True)
+        cells[todo[i]] = df
+        done += RUN_SECONDS[gear[todo[i][0]]]
+        if progress:
+            rest = (time.monotonic() - start) * (left - done) / done
+            progress(f"{len(cells)}/{len(todo)} runs: {todo[i][0]} seed {todo[i][1]} done, "
+                     f"about {rest / 60:.1f} min of runs left", False)
+    if parts:  # every run as its file has it: a resumed run's table is an uninterrupted one's
+        cells = {t: pd.read_csv(path[t]) for t in tasks}
+    return pd.concat([cells[t] for t in tasks], ignore_index=True)
 
-        with ProcessPoolExecutor(jobs) as pool:
-            futs = {pool.submit(run_hypothesis, protocol, h, s): (h, s) for h, s in tasks}
-            for f in as_completed(futs):
-                if progress:
-                    progress("{} seed {}".format(*futs[f]))
-                out.append(f.result())
-    return pd.concat(out, ignore_index=True)
+
+def _check_parts(folder: Path, protocol: dict) -> None:
+    """Make the parts' folder and its stamp, or refuse a folder of another protocol or code."""
+    from sunlab.atomic import write_text
+
+    stamp = {"protocol_version": protocol["version"], "source_sha256": source_digest(),
+             **code_commit()}
+    file = folder / "stamp.json"
+    if file.exists():
+        old = json.loads(file.read_text(encoding="utf-8"))
+        if [old.get(k) for k in ("protocol_version", "source_sha256")] != [
+                stamp["protocol_version"], stamp["source_sha256"]]:
+            raise ConfigurationError(
+                f"{folder}: runs of another protocol version or code (protocol "
+                f"{old.get('protocol_version')}, code {old.get('code_commit')}). Fix: remove "
+                "the folder to run them again under this one.")
+        return
+    if folder.is_dir() and any(folder.iterdir()):  # not ours: it would go with the runs
+        raise ConfigurationError(f"{folder}: a folder that holds no runs (no stamp.json). Fix: "
+                                 "move it away or choose another --out.")
+    folder.mkdir(parents=True, exist_ok=True)
+    write_text(file, json.dumps(stamp, indent=2) + "\n")
+
+
+def source_digest(root=None) -> str:
+    """SHA-256 of the code a run depends on: ``sunlab/**/*.py``, ``studies/**/*.py`` and
+    ``studies/protocol.json``, their paths and contents in path order."""
+    import hashlib
+
+    root = Path(root) if root is not None else HERE.parent
+    h = hashlib.sha256()
+    for f in sorted([*root.glob("sunlab/**/*.py"), *root.glob("studies/**/*.py"),
+                     root / "studies" / "protocol.json"]):
+        h.update(f.relative_to(root).as_posix().encode() + b"\0" + f.read_bytes() + b"\0")
+    return h.hexdigest()
 
 
 def regenerate(out_dir, *, names=None, seeds=None, jobs: int = 2, overwrite: bool = False,
-               presets: bool = True, progress: Callable | None = None) -> dict:
+               presets: bool = True, progress: Callable | None = None,
+               command: str = "python -m studies.identify --out DIR") -> dict:
     """Run the whole protocol and write its evidence into ``out_dir`` (:func:`write_evidence`).
+
+    Each run's cells go to ``out_dir/runs/`` as it finishes (:func:`run_protocol`), so that a
+    stopped regeneration started again resumes; the folder is removed once the tables are
+    written. ``progress(line, always)`` is called with the estimate (``always`` True) before
+    the runs and a line as each run or stage ends. ``command`` (the command line that runs
+    this) is recorded in ``evidence_provenance.json`` and ``presets.json``.
 
     Returns
     -------
     dict
         As :func:`write_evidence`.
     """
+    import shutil
+
     from sunlab.atomic import check_folder
 
     protocol = load_protocol()
     check_folder(out_dir, _evidence_files(protocol, presets), overwrite=overwrite,
                  flag="--overwrite")
-    started = code_commit()  # the code the runs start from, before the first run
-    cells = run_protocol(protocol, names, seeds, jobs=jobs, progress=progress)
-    return write_evidence(out_dir, cells, jobs=jobs, overwrite=overwrite, presets=presets,
-                          progress=progress, provenance=started)
+    # the code the runs start from, before the first run
+    started = {**code_commit(), "command": command}
+    cells = run_protocol(protocol, names, seeds, jobs=jobs, progress=progress,
+                         parts=Path(out_dir) / "runs",
+                         after_s=STAGES_SECONDS if len(_evidence_files(protocol, presets)) > 4
+                         else 0.0)
+    out = write_evidence(out_dir, cells, jobs=jobs, overwrite=overwrite, presets=presets,
+                         progress=progress and (lambda m: progress(m, False)),
+                         provenance=started)
+    shutil.rmtree(Path(out_dir) / "runs")
+    return out
 
 
 def code_commit(root=None) -> dict:
@@ -182,8 +260,9 @@ def write_evidence(out_dir, cells: pd.DataFrame, *, jobs: int = 2, overwrite: bo
         (Path(staging) / files[3]).write_text(json.dumps(record, indent=2) + "\n",
                                              encoding="utf-8")
         if len(files) > 4:
+            command = {"command": started["command"]} if "command" in started else {}
             (Path(staging) / "presets.json").write_text(
-                json.dumps(out["presets"], indent=2) + "\n", encoding="utf-8")
+                json.dumps({**out["presets"], **command}, indent=2) + "\n", encoding="utf-8")
             out["profiles"].to_csv(Path(staging) / "profiles.csv", index=False)
             out["ablation"].to_csv(Path(staging) / "ablation.csv", index=False)
     return out

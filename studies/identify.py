@@ -6,7 +6,9 @@ period on the protocol's grid), predicts every published cell on the centroid-le
 scores the held-out ones and writes ``evidence_cells.csv``, ``evidence.csv`` and
 ``intervals.csv`` into ``--out``, then the chosen hypothesis's ``presets.json`` (one fit at the
 prior medians), ``profiles.csv`` (each fitted parameter's profile likelihood) and
-``ablation.csv``; prints the evidence and the hypothesis the protocol's rule picks. The shipped
+``ablation.csv``; prints its estimate first, the evidence and the hypothesis the protocol's rule
+picks last. Each (hypothesis, seed) run is kept in ``DIR/runs/`` as it ends: started again, a
+stopped run resumes (the folder goes once the tables are written). The shipped
 files: ``presets.json`` and ``intervals.csv`` in ``sunlab/data/`` (the library reads them), the
 others in ``studies/results/``.
 """
@@ -14,6 +16,7 @@ others in ``studies/results/``.
 from __future__ import annotations
 
 import argparse
+import shlex
 import sys
 
 
@@ -73,11 +76,17 @@ def main(argv=None) -> int:
                                      f"some of {sorted(protocol['hypotheses'])}.")
         if args.jobs < 1:
             raise ConfigurationError(f"--jobs: found {args.jobs}; expected 1 or more.")
-        quiet = not sys.stderr.isatty()
-        res = evidence.regenerate(
-            args.out, names=args.hypotheses, seeds=args.seeds, jobs=args.jobs,
-            overwrite=args.overwrite, presets=args.presets,
-            progress=None if quiet else (lambda m: print("  done " + m, file=sys.stderr)))
+        tty = sys.stderr.isatty()  # the estimate always, the progress in a terminal only
+
+        def progress(line, always=False):
+            if always or tty:
+                print(line, file=sys.stderr, flush=True)
+
+        res = evidence.regenerate(args.out, names=args.hypotheses, seeds=args.seeds,
+                                  jobs=args.jobs, overwrite=args.overwrite,
+                                  presets=args.presets, progress=progress,
+                                  command=shlex.join(["python", "-m", "studies.identify",
+                                                      *(sys.argv[1:] if argv is None else argv)]))
     except (SunlabError, OSError) as err:
         print(f"python -m studies.identify: error: {err}", file=sys.stderr)
         return 1

@@ -149,6 +149,13 @@ def preset_sources() -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+def build_parser() -> argparse.ArgumentParser:
+    """The arguments of ``python -m studies.preset_sources``."""
+    p = argparse.ArgumentParser(prog="python -m studies.preset_sources")
+    p.add_argument("--out", default=str(_FILE), metavar="CSV")
+    return p
+
+
 def main(argv=None) -> int:
     """Write ``sunlab/data/preset_sources.csv`` (or ``--out``) and print the count by source.
 
@@ -157,9 +164,7 @@ def main(argv=None) -> int:
     int
         0.
     """
-    p = argparse.ArgumentParser(prog="python -m studies.preset_sources")
-    p.add_argument("--out", default=str(_FILE), metavar="CSV")
-    args = p.parse_args(argv)
+    args = build_parser().parse_args(argv)
     t = preset_sources()
     t.to_csv(args.out, index=False)
     print(t.groupby(["bench", "source"]).size().to_string())

@@ -104,13 +104,8 @@ def profile_likelihood(protocol: dict, presets: dict, tau: float, *,
     factors = [float(f) for f in protocol["profiles"]["factors"]]
     tasks = [(k, f, fitted[k] * f) for k in fitted if k != "gear_period_deg" for f in factors]
     args = [(protocol, presets, k, v) for k, _, v in tasks]
-    if jobs > 1:
-        from concurrent.futures import ProcessPoolExecutor
-
-        with ProcessPoolExecutor(jobs) as pool:
-            ssr = list(pool.map(_profile_point, *zip(*args, strict=True)))
-    else:
-        ssr = [_profile_point(*a) for a in args]
+    ssr = dict(idn.run_all(_profile_point, args, jobs))
+    ssr = [ssr[i] for i in range(len(args))]
     rows = [{"parameter": k, "factor": f, "value": v, "fit_ssr": s}
             for (k, f, v), s in zip(tasks, ssr, strict=True)]
     rows += [{"parameter": k, "factor": 1.0, "value": v, "fit_ssr": presets["fit_ssr"]}

@@ -282,6 +282,15 @@ def verdicts(table: pd.DataFrame) -> dict[str, str]:
     return out
 
 
+def build_parser() -> argparse.ArgumentParser:
+    """The arguments of ``python -m studies.sensitivity``."""
+    p = argparse.ArgumentParser(prog="python -m studies.sensitivity",
+                                description="the verdicts' sensitivity table from the "
+                                            "shipped per-cell evidence")
+    p.add_argument("--out", default=str(HERE / "results" / "sensitivity.csv"), metavar="CSV")
+    return p
+
+
 def main(argv=None) -> int:
     """Write the sensitivity table (``--out``, default ``studies/results/sensitivity.csv``) and
     print it with the verdicts.
@@ -291,11 +300,7 @@ def main(argv=None) -> int:
     int
         0.
     """
-    p = argparse.ArgumentParser(prog="python -m studies.sensitivity",
-                                description="the verdicts' sensitivity table from the "
-                                            "shipped per-cell evidence")
-    p.add_argument("--out", default=str(HERE / "results" / "sensitivity.csv"), metavar="CSV")
-    args = p.parse_args(argv)
+    args = build_parser().parse_args(argv)
     t = sensitivity_table()
     t.to_csv(args.out, index=False, float_format="%.4g")
     cols = ["row", "quantities", *[c for c in t.columns if c.startswith("score_")], "pick",
