@@ -426,24 +426,27 @@ def atomic_files(folder, names, *, overwrite: bool = False, flag: str = "overwri
             if not folder.exists():
                 os.rename(staging, folder)
             else:
-                _move_in(staging, folder, overwrite, flag)
+                move_in(staging, folder, overwrite, flag)
     finally:
         if staging.exists():
             _remove(staging)
 
 
-def _move_in(staging: Path, folder: Path, overwrite: bool, flag: str) -> None:
-    """Move every file of ``staging`` into ``folder``; on a failure, undo the moves made."""
+def move_in(staging: Path, folder: Path, overwrite: bool, flag: str) -> None:
+    """Move every file of ``staging`` (at any depth; sub-folders made as needed) into
+    ``folder``, setting aside the files it replaces; on a failure, undo the moves made."""
     aside = staging / ".old"
     aside.mkdir()
     done: list[tuple[Path, Path | None]] = []
     try:
-        for new in sorted(p for p in staging.iterdir() if p != aside):
-            target, old = folder / new.name, None
+        for new in sorted(p for p in staging.rglob("*") if p.is_file() and aside not in p.parents):
+            rel = new.relative_to(staging)
+            target, old = folder / rel, None
+            target.parent.mkdir(exist_ok=True)
             if _exists(target):
                 if not overwrite:
                     raise _exists_error(target, flag, meanwhile=True, what="folder")
-                old = aside / new.name
+                (old := aside / rel).parent.mkdir(parents=True, exist_ok=True)
                 os.replace(target, old)
             done.append((target, old))
             os.replace(new, target)

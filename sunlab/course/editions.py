@@ -24,7 +24,6 @@ DIR``). The package's docstring shows :func:`replace_solution` and :func:`soluti
 
 from __future__ import annotations
 
-import contextlib
 import copy
 import importlib
 import os
@@ -391,36 +390,6 @@ def edition(nb, name: str = "notebook", *, student: bool, quick: bool = True):
     return out
 
 
-def _move_editions(staging: Path, out: Path, overwrite: bool) -> None:
-    """Move the editions of ``staging`` into ``out``; undo the moves made if one fails."""
-    if not out.exists():
-        os.replace(staging, out)  # one atomic rename
-        return
-    done: list[tuple[Path, Path | None]] = []  # (target, the old file set aside or None)
-    (staging / ".old").mkdir()
-    try:
-        for new in sorted(staging.glob("*/*.ipynb")):
-            target, old = out / new.parent.name / new.name, None
-            target.parent.mkdir(exist_ok=True)
-            if target.exists() or target.is_symlink():
-                if not overwrite:  # created by someone else since the check
-                    raise atomic.OutputExistsError(
-                        f"{target}: was created while sunlab was writing the course; nothing "
-                        "was changed. Fix: pass --overwrite to replace it, or choose a new folder")
-                old = staging / ".old" / f"{new.parent.name}-{new.name}"
-                os.replace(target, old)
-            done.append((target, old))
-            os.replace(new, target)
-    except BaseException:
-        for target, old in reversed(done):
-            with contextlib.suppress(OSError):
-                if old is not None:
-                    os.replace(old, target)
-                else:
-                    target.unlink()
-        raise
-
-
 def write_course(out, *, notebooks=None, quick: bool = True, overwrite: bool = False) -> dict:
     """Write the student and teacher editions of the course's notebooks, all or nothing.
 
@@ -489,7 +458,10 @@ def write_course(out, *, notebooks=None, quick: bool = True, overwrite: bool = F
                 (staging / kind / name).write_text(nbf.writes(edition(
                     nb, name, student=kind == "student", quick=quick)) + "\n", encoding="utf-8")
         with atomic.signals_held():
-            _move_editions(staging, out, overwrite)
+            if not out.exists():
+                os.replace(staging, out)  # one atomic rename
+            else:
+                atomic.move_in(staging, out, overwrite, "--overwrite")
     finally:
         shutil.rmtree(staging, ignore_errors=True)
     return {kind: [out / kind / name for name in books] for kind in ("student", "teacher")} | {
