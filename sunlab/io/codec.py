@@ -31,7 +31,8 @@ def _encode_attrs(attrs: Mapping, where: str) -> dict:
             continue
         if isinstance(value, bool | list | tuple | dict | type(None)) or (
                 isinstance(value, int) and not -(2**63) <= value < 2**63) or (
-                isinstance(value, str) and not value.isascii() and _surrogates(value)):
+                isinstance(value, str) and any("\ud800" <= c <= "\udfff" for c in value)):
+            # (a lone surrogate: a byte of a name that is not UTF-8, which HDF5 cannot store)
             try:
                 out[key] = json.dumps(value, allow_nan=False, default=_json_default)
             except (TypeError, ValueError) as exc:
@@ -55,16 +56,6 @@ def _encode_attrs(attrs: Mapping, where: str) -> dict:
     if codec:
         out[_CODEC_ATTR] = json.dumps(codec)
     return out
-
-
-def _surrogates(text: str) -> bool:
-    """Whether ``text`` holds a lone surrogate (a byte of a path that is not UTF-8, decoded
-    with ``surrogateescape``), which HDF5 cannot store as text."""
-    try:
-        text.encode("utf-8")
-    except UnicodeEncodeError:
-        return True
-    return False
 
 
 def _json_default(obj):
