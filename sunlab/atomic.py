@@ -375,9 +375,10 @@ def check_folder(folder, names, *, overwrite: bool = False, flag: str = "overwri
 
 
 @contextlib.contextmanager
-def atomic_files(folder, names, *, overwrite: bool = False, flag: str = "overwrite=True"):
-    """Yield a temporary folder to write the files ``names`` in; move them into ``folder``
-    together when the block ends without error.
+def atomic_files(folder, names=(), *, overwrite: bool = False, flag: str = "overwrite=True"):
+    """Yield a temporary folder to write the files ``names`` in (without ``names``: any files,
+    sub-folders too, not checked beforehand); move them into ``folder`` together when the block
+    ends without error.
 
     Everything is checked before the block runs (:func:`check_folder`), and ``folder`` is not
     created until the files are complete: a missing ``folder`` is the temporary folder renamed
@@ -390,7 +391,7 @@ def atomic_files(folder, names, *, overwrite: bool = False, flag: str = "overwri
     ----------
     folder : str or path-like
         The output folder (created if missing).
-    names : iterable of str
+    names : iterable of str, optional
         The files that may be written (checked for existence first); the block may leave some
         out.
     overwrite : bool
@@ -418,7 +419,7 @@ def atomic_files(folder, names, *, overwrite: bool = False, flag: str = "overwri
             yield staging
         except OSError as err:
             raise _named(err, staging, folder) from err.__cause__
-        unknown = sorted(p.name for p in staging.iterdir() if p.name not in names)
+        unknown = sorted(p.name for p in staging.iterdir() if names and p.name not in names)
         if unknown:
             raise SunlabError(f"{folder}: unexpected outputs {unknown}. Fix: this is a bug in "
                               "the writer")

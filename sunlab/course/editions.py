@@ -26,9 +26,7 @@ from __future__ import annotations
 
 import copy
 import importlib
-import os
 import re
-import shutil
 from pathlib import Path
 from typing import NamedTuple
 
@@ -395,8 +393,8 @@ def write_course(out, *, notebooks=None, quick: bool = True, overwrite: bool = F
 
     Every target is checked before anything is written: without ``overwrite``, a notebook of
     either edition already in ``out`` (a student's work, perhaps) stops the run with nothing
-    written. Both editions are written into a temporary sibling of ``out`` and moved into place
-    together (with SIGINT, SIGTERM and SIGHUP held back for the moves); an interrupt before
+    written. Both editions are written into a temporary folder (:func:`sunlab.atomic.atomic_files`)
+    and moved into place together (SIGINT, SIGTERM and SIGHUP held back); an interrupt before
     that (Ctrl-C; SIGTERM or SIGHUP under ``sunlab course``, whose signal handling raises them)
     removes the temporary folder and leaves ``out`` as it was, and a later run clears what a
     killed writer left (:func:`sunlab.atomic.remove_stale`).
@@ -450,19 +448,11 @@ def write_course(out, *, notebooks=None, quick: bool = True, overwrite: bool = F
     books = {p.name: _read(nbf, p) for p in paths}
     exercises = [ex for name, nb in books.items() for ex in find_exercises(nb, name)]
     written_answers = [w for name, nb in books.items() for w in find_written(nb, name)]
-    staging = atomic.temporary_name(out)
-    try:
+    with atomic.atomic_files(out, overwrite=overwrite, flag="--overwrite") as staging:
         for kind in ("teacher", "student"):
             (staging / kind).mkdir(parents=True)
             for name, nb in books.items():
                 (staging / kind / name).write_text(nbf.writes(edition(
                     nb, name, student=kind == "student", quick=quick)) + "\n", encoding="utf-8")
-        with atomic.signals_held():
-            if not out.exists():
-                os.replace(staging, out)  # one atomic rename
-            else:
-                atomic.move_in(staging, out, overwrite, "--overwrite")
-    finally:
-        shutil.rmtree(staging, ignore_errors=True)
     return {kind: [out / kind / name for name in books] for kind in ("student", "teacher")} | {
         "exercises": exercises, "written": written_answers}
