@@ -200,7 +200,8 @@ def check_target(path, *, overwrite: bool = False, kind: str = "file",
         ``path`` exists and ``overwrite`` is False.
     SunlabError
         The parent folder is missing or not writable, or ``path`` is a folder that must not be
-        replaced, or a named pipe, a socket or a device, or ``nbytes`` cannot fit on the disk.
+        replaced, or a named pipe, a socket or a device, or its name is too long, or ``nbytes``
+        cannot fit on the disk.
 
     Examples
     --------
@@ -223,13 +224,18 @@ def check_target(path, *, overwrite: bool = False, kind: str = "file",
         raise SunlabError(f"{path}: the folder {parent} is not writable. Fix: choose an output "
                           "path in a folder you can write to, or change the folder's permissions")
     remove_stale(path)
-    with contextlib.suppress(OSError):  # missing, or a dangling link: nothing a write reaches
+    try:
         mode = os.stat(path).st_mode
-        for test, name in _SPECIAL:
-            if test(mode):
-                raise SunlabError(f"{path}: is {name}, not a regular file; sunlab never replaces "
-                                  "one (a reader may hold it open). Fix: choose a path for a new "
-                                  "file")
+    except OSError as err:  # missing, or a dangling link: nothing a write reaches
+        if err.errno == errno.ENAMETOOLONG:
+            raise SunlabError(f"{path}: the name is longer than the file system allows ("
+                              f"{len(os.fsencode(path.name))} bytes). Fix: choose a shorter "
+                              "name") from None
+        mode = 0
+    for test, name in _SPECIAL:
+        if test(mode):
+            raise SunlabError(f"{path}: is {name}, not a regular file; sunlab never replaces "
+                              "one (a reader may hold it open). Fix: choose a path for a new file")
     zarr = kind == "zarr" and any(_exists(path / n) for n in ("zarr.json", ".zgroup", ".zarray"))
     if path.is_dir() and not path.is_symlink() and not zarr:
         if kind == "zarr":

@@ -152,6 +152,9 @@ def test_any_legal_name_is_written_whatever_its_temporary(tmp_path):
     assert sorted(len(p.name) for p in tmp_path.iterdir()) == [longest] * 3
     assert sorted(p.name for p in (tmp_path / name("")).iterdir()) == [
         "sunlab_calibration.c", "sunlab_calibration.h"]
+    with pytest.raises(SunlabError, match=f"{name('.json')}x: the name is longer than the "
+                       f"file system allows \\({longest + 1} bytes\\)"):
+        atomic.write_text(tmp_path / (name(".json") + "x"), "{}")
 
 
 def test_a_folder_whose_name_is_not_utf8_takes_every_output_format(tmp_path, capsys):
