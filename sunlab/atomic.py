@@ -209,11 +209,6 @@ def check_target(path, *, overwrite: bool = False, kind: str = "file",
     >>> folder = pathlib.Path(tempfile.mkdtemp())
     >>> check_target(folder / "c.json").name
     'c.json'
-    >>> try:
-    ...     check_target(folder / "nodir" / "c.json")
-    ... except SunlabError as err:
-    ...     print("does not exist" in str(err))
-    True
     """
     path = Path(path)
     parent = path.parent
