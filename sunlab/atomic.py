@@ -15,7 +15,7 @@ caller says so (``overwrite=True`` / ``--overwrite``):
   source, ``evaluate``'s tables and figures): all the old files or all the new ones;
 * :func:`write_text` does both for a small file (JSON, CSV), flushed to disk first.
 
-Temporary names are short whatever the output's name (``.sl-PID-XXXXXXXX.tmp``, at most 29
+Temporary names are short whatever the output's name (``.sl-PID-XXXXXXXX.tmp``, at most 24
 bytes, so that any legal name can be written; an old output is set aside, under its own name, in
 a folder ``.sl-PID-XXXXXXXX.old``) and carry the writer's process id: a later write in the same
 folder removes the leftovers of a writer that was killed (its process is gone), and puts back an
@@ -98,7 +98,8 @@ def temporary_name(path, what: str = "tmp") -> Path:
     -------
     pathlib.Path
         In ``path``'s folder, naming this process's id (for :func:`remove_stale`) and 8
-        random hexadecimal digits; at most 29 bytes, whatever the length of ``path``'s name.
+        random hexadecimal digits; at most 24 bytes (a Linux process id, up to
+        2**22 = 4194304 by pid_max, has at most 7 digits).
 
     Examples
     --------
