@@ -427,14 +427,10 @@ int main(void) { double x, y, a, b; float af, bf; int flag, flagf;
 
 def run_c(folder, x, y, *, cc: str | None = None, timeout: float = 60.0) -> dict:
     """Compile the export in ``folder`` with a driver (``-std=c99 -Wall -Wextra -Werror
-    -pedantic``, ``-lm``, built in a folder of its own) and evaluate it at centroids (px).
-
-    Parameters
-    ----------
-    folder : path-like
-    x, y : array_like
-    cc : str, optional
-    timeout : float
+    -pedantic``, ``-lm``; compiler ``cc``, limit ``timeout`` s) and evaluate it at centroids
+    ``x``, ``y`` (px). The header and source are copied into a private build folder and compiled
+    there by their own names: no path of the user's reaches the compiler (a folder named like
+    an option, ``-o...``, stays a folder).
 
     Returns
     -------
@@ -448,16 +444,18 @@ def run_c(folder, x, y, *, cc: str | None = None, timeout: float = 60.0) -> dict
     x, y = (np.asarray(v, dtype=float).ravel().tolist() for v in (x, y))
     with tempfile.TemporaryDirectory(prefix="sunlab-check-") as build:
         build = Path(build)
+        for name in (f"{BASENAME}.h", f"{BASENAME}.c"):
+            shutil.copyfile(Path(folder) / name, build / name)
         (build / "sunlab_driver.c").write_text(_DRIVER, encoding="utf-8")
-        exe = build / "sunlab_driver"
-        cmd = [cc, "-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-pedantic", "-I",
-               str(folder), "-o", str(exe), str(build / "sunlab_driver.c"),
-               str(Path(folder) / f"{BASENAME}.c"), "-lm"]
-        done = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, check=False)
+        cmd = [cc, "-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-pedantic", "-o",
+               "sunlab_driver", "sunlab_driver.c", f"{BASENAME}.c", "-lm"]
+        done = subprocess.run(cmd, cwd=build, capture_output=True, text=True, timeout=timeout,
+                              check=False)
         if done.returncode:
             raise ConfigurationError(f"{' '.join(cmd)} failed:\n{done.stderr}")
         stdin = "".join(f"{a!r} {b!r}\n" for a, b in zip(x, y, strict=True))
-        run = subprocess.run([str(exe)], input=stdin, capture_output=True, text=True,
+        run = subprocess.run([str(build / "sunlab_driver")], input=stdin, capture_output=True,
+                             text=True,
                              timeout=timeout, check=True)
     rows = np.array([line.split() for line in run.stdout.splitlines()], float).reshape(-1, 6)
     return {"flag": rows[:, 0].astype(int), "alpha": rows[:, 1], "beta": rows[:, 2],

@@ -324,12 +324,9 @@ def _set_root_attr(path: Path, group, value) -> None:
         attrs[ATTR] = value
     elif attrs.pop(ATTR, None) is None:
         return
-    tmp = path / f".zarr.json.tmp-{os.getpid()}"
-    with open(tmp, "w", encoding="utf-8") as fh:
-        json.dump(doc, fh, indent=2)
-        fh.flush()
-        os.fsync(fh.fileno())
-    os.replace(tmp, meta)
+    from . import atomic
+
+    atomic.write_text(meta, json.dumps(doc, indent=2), overwrite=True)
 
 
 def seal_zarr(path, group=None) -> str:

@@ -475,7 +475,7 @@ def test_a_signal_while_writing_leaves_nothing_and_a_rerun_works(tmp_path, many_
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     staging = []
     for _ in range(6000):  # wait (up to 60 s) until the editions are being written
-        staging = [p for p in tmp_path.iterdir() if p.name.startswith(".class.tmp-")]
+        staging = [p for p in tmp_path.iterdir() if p.name.startswith(".sl-")]
         if any(p.rglob("*.ipynb") for p in staging) or proc.poll() is not None:
             break
         time.sleep(0.01)
@@ -492,7 +492,7 @@ def test_a_signal_while_writing_leaves_nothing_and_a_rerun_works(tmp_path, many_
 
 def test_a_killed_writers_leftovers_go_at_the_next_run(tmp_path):
     """SIGKILL cannot be caught: the next run removes what the dead writer left."""
-    stale = tmp_path / ".class.tmp-999999999-deadbeef"
+    stale = tmp_path / ".sl-999999999-deadbeef.tmp"
     (stale / "student").mkdir(parents=True)
     (stale / "student" / "01-x.ipynb").write_text("{}")
     res = _sunlab("course", "--out", str(tmp_path / "class"))

@@ -149,3 +149,23 @@ def test_fit_refuses_too_few_distinct_poses():
         Polynomial(order=2).fit(cen)
     with pytest.raises(ConfigurationError, match="distinct poses"):
         NeuralNet(hidden=8).fit(_table(step=6.0))  # 16 poses < 33 weights
+
+
+@needs_cc
+def test_check_hands_no_folder_of_the_users_to_the_compiler(train, tmp_path, monkeypatch,
+                                                            capsys):
+    """``export --check`` into a folder named like an option (``-otrap``: ``-o`` with the
+    output ``trap/...``): the compiler never sees it, and the lab's ``trap/`` file stays."""
+    from sunlab import cli
+
+    monkeypatch.chdir(tmp_path)
+    Polynomial(order=2).fit(train).save(tmp_path / "cal.json")
+    (tmp_path / "trap").mkdir()
+    (tmp_path / "trap" / "sunlab_calibration.c").write_text("the lab's file")
+    status = cli.main(["export", "cal.json", "--out=-otrap", "--check"])
+    out, err = capsys.readouterr()
+    assert status == 0 and "domain flags agree: True" in out, err
+    assert (tmp_path / "trap" / "sunlab_calibration.c").read_text() == "the lab's file"
+    assert sorted(p.name for p in (tmp_path / "-otrap").iterdir()) == [
+        "sunlab_calibration.c", "sunlab_calibration.h"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["-otrap", "cal.json", "trap"]

@@ -163,7 +163,7 @@ def test_a_killed_write_leaves_a_temporary_store_that_the_next_run_removes(tmp_p
     proc = _sunlab("simulate", "--experiment", "III", "--shots", "2", "--out", "s.zarr",
                    "--no-progress", cwd=tmp_path)
     try:
-        tmp = _wait_for(lambda: [p for p in tmp_path.iterdir() if ".s.zarr.tmp-" in p.name])
+        tmp = _wait_for(lambda: [p for p in tmp_path.iterdir() if p.name.startswith(".sl-")])
     finally:
         proc.kill()  # SIGKILL: no clean-up can run
         proc.communicate()
@@ -179,8 +179,8 @@ def test_an_old_output_set_aside_by_a_killed_writer_is_put_back(tmp_path):
     (tmp_path / "store" / "zarr.json").write_text("{}")
     dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
                           capture_output=True, text=True, check=True).stdout.strip()
-    aside = tmp_path / f".store.old-{dead}-0123abcd"
-    os.replace(tmp_path / "store", aside)  # killed between the two renames of a swap
+    (aside := tmp_path / f".sl-{dead}-0123abcd.old").mkdir()
+    os.replace(tmp_path / "store", aside / "store")  # killed between the two renames of a swap
     atomic.check_target(tmp_path / "store", overwrite=True, kind="zarr")
     assert (tmp_path / "store" / "zarr.json").read_text() == "{}" and not aside.exists()
 
@@ -216,7 +216,7 @@ def test_a_signal_during_simulate_ends_in_one_line_and_leaves_nothing(tmp_path, 
     (tmp_path / "keep.txt").write_text("mine")
     proc = _sunlab("simulate", "--experiment", "III", "--shots", "2", "--out", "s.zarr",
                    "--no-progress", cwd=tmp_path)
-    _wait_for(lambda: [p for p in tmp_path.iterdir() if ".s.zarr.tmp-" in p.name])
+    _wait_for(lambda: [p for p in tmp_path.iterdir() if p.name.startswith(".sl-")])
     proc.send_signal(sig)  # mid-write: the temporary store exists
     _, err = proc.communicate(timeout=120)
     assert proc.returncode == status

@@ -72,6 +72,8 @@ def main(argv: list[str] | None = None) -> int:
         Exit status: 0 success, 1 an error in the inputs, files or settings (one stderr line
         naming it and the fix), 2 a bad command line, 3 an internal error, 130, 143, 129 on
         SIGINT, SIGTERM, SIGHUP (one line, temporary outputs removed, workers stopped)."""
+    with contextlib.suppress(AttributeError, ValueError):  # a path that is not UTF-8 is
+        sys.stdout.reconfigure(errors="backslashreplace")  # shown escaped, as on stderr
     parser = build_parser()
     args = parser.parse_args(argv)
     if getattr(args, "func", None) is None:

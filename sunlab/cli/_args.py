@@ -68,20 +68,21 @@ def integer(low: int, high: int | None = None):
 POSITIVE = integer(1)
 SEED = integer(0, 2**32 - 1)  # what numpy, Dask and torch all take
 SHOTS = integer(1, 10_000)  # frames per pose, threads, processes: bounded so that a typo
-WORKERS = integer(1, 1024)  # cannot exhaust the machine
+WORKERS = integer(1, 1024)  # cannot exhaust the machine (outputs: check_out's nbytes)
 SECONDS = typed(float, lambda v: 0 <= v < math.inf, "finite seconds >= 0")
 
 
-def check_out(path, overwrite: bool, kind: str = "auto") -> None:
+def check_out(path, overwrite: bool, kind: str = "auto", nbytes: int = 0) -> None:
     """Check an output path before the work starts (its folder, permissions, an existing
-    output); ``kind`` ``"auto"``: a NetCDF file by its suffix, else a Zarr store."""
+    output, its size of ``nbytes`` uncompressed against the free space); ``kind`` ``"auto"``:
+    a NetCDF file by its suffix, else a Zarr store."""
     from pathlib import Path
 
     from .. import atomic, io
 
     if kind == "auto":
         kind = "file" if Path(path).suffix.lower() in io.write.NETCDF_SUFFIXES else "zarr"
-    atomic.check_target(path, overwrite=overwrite, kind=kind, flag="--overwrite")
+    atomic.check_target(path, overwrite=overwrite, kind=kind, flag="--overwrite", nbytes=nbytes)
 
 
 def printable(text: str, keep: str = "") -> str:

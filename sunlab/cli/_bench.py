@@ -79,9 +79,10 @@ def run_simulate(args) -> int:
 
     from .. import io, plans, sim
 
-    check_out(args.out, args.overwrite)
     plan = plans.experiment(args.experiment, shots=args.shots).thin(args.subset)
     bench = _bench(args.mask, args.seed)
+    ny, nx = bench.detector.shape  # uint16 frames: refused before any work if they cannot fit
+    check_out(args.out, args.overwrite, nbytes=2 * ny * nx * len(plan) * plan.shots)
     bench = bench.noise_free() if args.noise_free else bench
     bench = bench.ideal_platform() if args.ideal_platform else bench
     cube = sim.simulate(plan, bench, seed=args.seed)

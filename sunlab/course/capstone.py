@@ -42,6 +42,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .. import atomic
 from ..geometry import sun_vector
 
 __all__ = ["write_recording"]
@@ -114,7 +115,8 @@ def _expose(light, dark, response, rng):
 
 
 def write_recording(root, seed: int = STUDENT_SEED, *, step: float = 1.5) -> Recording:
-    """Render a capstone recording into ``root`` (created if missing).
+    """Render a capstone recording into ``root`` (created if missing; every file or none,
+    :func:`sunlab.atomic.atomic_files`).
 
     Parameters
     ----------
@@ -147,29 +149,30 @@ def write_recording(root, seed: int = STUDENT_SEED, *, step: float = 1.5) -> Rec
     plans = {"train": [(a, b) for a in grid for b in grid],
              "test": [(a, b) for a in mid for b in mid]}
     truth, poses = {}, {}
-    for name, plan in plans.items():
-        folder = root / name
-        folder.mkdir(parents=True, exist_ok=True)
-        rows, centres = ["file,alpha,beta,shot"], []
-        for p, (a, b) in enumerate(plan):
-            xc, yc = _centre(a, b, geometry["mask_distance_mm"], geometry["x_cf_px"],
-                             geometry["y_cf_px"], geometry["mounting_deg"])
-            centres.append([(xc, yc)] * SHOTS)
-            light = peak * _disk(xc, yc, radius_px)
-            for s in range(SHOTS):
-                Image.fromarray(_expose(light, dark, response, rng)).save(
-                    folder / f"p{p:03d}_s{s}.png")
-                rows.append(f"p{p:03d}_s{s}.png,{a:g},{b:g},{s}")
-        (folder / "manifest.csv").write_text("\n".join(rows) + "\n", encoding="utf-8")
-        sensor = {"pixel_pitch_mm": PITCH_MM, "mask_distance_mm": NOMINAL_F_MM, "bit_depth": BITS,
-                  "experiment": f"capstone-{name}"}
-        (folder / "sensor.json").write_text(json.dumps(sensor, indent=1) + "\n",
-                                            encoding="utf-8")
-        truth[name], poses[name] = np.array(centres), np.array(plan, dtype=float)
-    for what, level in (("dark", 0.0), ("flat", peak)):
-        folder = root / what
-        folder.mkdir(parents=True, exist_ok=True)
-        for k in range(N_CAL):
-            Image.fromarray(_expose(np.full((NY, NX), level), dark, response, rng)).save(
-                folder / f"{what}{k}.png")
+    with atomic.atomic_files(root, overwrite=True, flag="") as tmp:  # all or nothing
+        for name, plan in plans.items():
+            folder = tmp / name
+            folder.mkdir(parents=True, exist_ok=True)
+            rows, centres = ["file,alpha,beta,shot"], []
+            for p, (a, b) in enumerate(plan):
+                xc, yc = _centre(a, b, geometry["mask_distance_mm"], geometry["x_cf_px"],
+                                 geometry["y_cf_px"], geometry["mounting_deg"])
+                centres.append([(xc, yc)] * SHOTS)
+                light = peak * _disk(xc, yc, radius_px)
+                for s in range(SHOTS):
+                    Image.fromarray(_expose(light, dark, response, rng)).save(
+                        folder / f"p{p:03d}_s{s}.png")
+                    rows.append(f"p{p:03d}_s{s}.png,{a:g},{b:g},{s}")
+            (folder / "manifest.csv").write_text("\n".join(rows) + "\n", encoding="utf-8")
+            sensor = {"pixel_pitch_mm": PITCH_MM, "mask_distance_mm": NOMINAL_F_MM,
+                      "bit_depth": BITS, "experiment": f"capstone-{name}"}
+            (folder / "sensor.json").write_text(json.dumps(sensor, indent=1) + "\n",
+                                                encoding="utf-8")
+            truth[name], poses[name] = np.array(centres), np.array(plan, dtype=float)
+        for what, level in (("dark", 0.0), ("flat", peak)):
+            folder = tmp / what
+            folder.mkdir(parents=True, exist_ok=True)
+            for k in range(N_CAL):
+                Image.fromarray(_expose(np.full((NY, NX), level), dark, response, rng)).save(
+                    folder / f"{what}{k}.png")
     return Recording(root, truth, poses, geometry)

@@ -24,12 +24,9 @@ DIR``). The package's docstring shows :func:`replace_solution` and :func:`soluti
 
 from __future__ import annotations
 
-import contextlib
 import copy
 import importlib
-import os
 import re
-import shutil
 from pathlib import Path
 from typing import NamedTuple
 
@@ -391,43 +388,13 @@ def edition(nb, name: str = "notebook", *, student: bool, quick: bool = True):
     return out
 
 
-def _move_editions(staging: Path, out: Path, overwrite: bool) -> None:
-    """Move the editions of ``staging`` into ``out``; undo the moves made if one fails."""
-    if not out.exists():
-        os.replace(staging, out)  # one atomic rename
-        return
-    done: list[tuple[Path, Path | None]] = []  # (target, the old file set aside or None)
-    (staging / ".old").mkdir()
-    try:
-        for new in sorted(staging.glob("*/*.ipynb")):
-            target, old = out / new.parent.name / new.name, None
-            target.parent.mkdir(exist_ok=True)
-            if target.exists() or target.is_symlink():
-                if not overwrite:  # created by someone else since the check
-                    raise atomic.OutputExistsError(
-                        f"{target}: was created while sunlab was writing the course; nothing "
-                        "was changed. Fix: pass --overwrite to replace it, or choose a new folder")
-                old = staging / ".old" / f"{new.parent.name}-{new.name}"
-                os.replace(target, old)
-            done.append((target, old))
-            os.replace(new, target)
-    except BaseException:
-        for target, old in reversed(done):
-            with contextlib.suppress(OSError):
-                if old is not None:
-                    os.replace(old, target)
-                else:
-                    target.unlink()
-        raise
-
-
 def write_course(out, *, notebooks=None, quick: bool = True, overwrite: bool = False) -> dict:
     """Write the student and teacher editions of the course's notebooks, all or nothing.
 
     Every target is checked before anything is written: without ``overwrite``, a notebook of
     either edition already in ``out`` (a student's work, perhaps) stops the run with nothing
-    written. Both editions are written into a temporary sibling of ``out`` and moved into place
-    together (with SIGINT, SIGTERM and SIGHUP held back for the moves); an interrupt before
+    written. Both editions are written into a temporary folder (:func:`sunlab.atomic.atomic_files`)
+    and moved into place together (SIGINT, SIGTERM and SIGHUP held back); an interrupt before
     that (Ctrl-C; SIGTERM or SIGHUP under ``sunlab course``, whose signal handling raises them)
     removes the temporary folder and leaves ``out`` as it was, and a later run clears what a
     killed writer left (:func:`sunlab.atomic.remove_stale`).
@@ -481,16 +448,11 @@ def write_course(out, *, notebooks=None, quick: bool = True, overwrite: bool = F
     books = {p.name: _read(nbf, p) for p in paths}
     exercises = [ex for name, nb in books.items() for ex in find_exercises(nb, name)]
     written_answers = [w for name, nb in books.items() for w in find_written(nb, name)]
-    staging = atomic.temporary_name(out)
-    try:
+    with atomic.atomic_files(out, overwrite=overwrite, flag="--overwrite") as staging:
         for kind in ("teacher", "student"):
             (staging / kind).mkdir(parents=True)
             for name, nb in books.items():
                 (staging / kind / name).write_text(nbf.writes(edition(
                     nb, name, student=kind == "student", quick=quick)) + "\n", encoding="utf-8")
-        with atomic.signals_held():
-            _move_editions(staging, out, overwrite)
-    finally:
-        shutil.rmtree(staging, ignore_errors=True)
     return {kind: [out / kind / name for name in books] for kind in ("student", "teacher")} | {
         "exercises": exercises, "written": written_answers}

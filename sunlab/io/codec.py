@@ -1,7 +1,8 @@
 """Attribute codec: exact round trips of dataset attributes through NetCDF and Zarr.
 
 Attribute values that NetCDF or Zarr cannot hold natively (booleans, None, lists, dicts, numpy
-arrays in Zarr) are stored as JSON text or flat arrays and listed, per dataset or variable, in the
+arrays in Zarr, text that is not UTF-8 such as the name of a folder that is not) are stored as
+JSON text (ASCII) or flat arrays and listed, per dataset or variable, in the
 attribute ``sunlab_attr_codec``, which the readers use to restore them; other readers see plain
 text. Numpy scalar attributes come back as the Python ``int``, ``float`` or ``bool`` of the same
 value. The writers (:mod:`sunlab.io.write`) encode, the readers (:mod:`sunlab.io.read`) decode.
@@ -29,7 +30,9 @@ def _encode_attrs(attrs: Mapping, where: str) -> dict:
         if key == _CODEC_ATTR:
             continue
         if isinstance(value, bool | list | tuple | dict | type(None)) or (
-                isinstance(value, int) and not -(2**63) <= value < 2**63):
+                isinstance(value, int) and not -(2**63) <= value < 2**63) or (
+                isinstance(value, str) and any("\ud800" <= c <= "\udfff" for c in value)):
+            # (a lone surrogate: a byte of a name that is not UTF-8, which HDF5 cannot store)
             try:
                 out[key] = json.dumps(value, allow_nan=False, default=_json_default)
             except (TypeError, ValueError) as exc:

@@ -35,14 +35,16 @@ _CHUNKING = ("frame", "pose")
 NETCDF_IN_MEMORY_MAX = 1 << 30
 
 
-def _target(path, format: str | None, overwrite: bool) -> tuple[Path, str]:
+def _target(path, format: str | None, overwrite: bool, nbytes: int) -> tuple[Path, str]:
     """The output and its format; an existing output without ``overwrite``, a missing or
-    read-only folder refused early (before any frame is computed)."""
+    read-only folder, a dataset of ``nbytes`` far past the free space refused early (before
+    any frame is computed)."""
     path = Path(path)
     if format not in ("zarr", "netcdf", None):
         raise SchemaError("format", format, "'zarr', 'netcdf' or None (from the suffix)")
     fmt = format or ("netcdf" if path.suffix.lower() in NETCDF_SUFFIXES else "zarr")
-    atomic.check_target(path, overwrite=overwrite, kind="zarr" if fmt == "zarr" else "file")
+    atomic.check_target(path, overwrite=overwrite, kind="zarr" if fmt == "zarr" else "file",
+                        nbytes=nbytes)
     return path, fmt
 
 
@@ -167,7 +169,7 @@ def save_frames(
     ...     print(back.frames.dtype, back.frames.data.chunksize)
     uint16 (1, 1, 3, 4)
     """
-    path, fmt = _target(path, format, overwrite)
+    path, fmt = _target(path, format, overwrite, cube.nbytes)
     validate_frames(cube)
     if chunks not in _CHUNKING:
         raise SchemaError("chunks", chunks, f"one of {_CHUNKING}", "per frame or per pose")
@@ -245,7 +247,7 @@ def save_centroids(
     >>> open_centroids(path).status.values.tolist()
     [[0, 1]]
     """
-    path, fmt = _target(path, format, overwrite)
+    path, fmt = _target(path, format, overwrite, centroids.nbytes)
     validate_centroids(centroids)
     ds = _prepare(centroids)
     _write(ds.chunk({d: -1 for d in ds.dims}), path, fmt, {}, progress=False,

@@ -180,20 +180,25 @@ def table_of(records):
 def write(result: dict, out: Path) -> list[str]:
     """``learned.json`` (the command, the settings and the records), ``learned_settings.json``
     (the settings with the floors and the training histories), ``learned.png`` and
-    ``models/<bench>.json`` (written as each bench finished); the paths."""
+    ``models/<bench>.json`` (written as each bench finished); the paths. The first three are
+    written together or not at all (:func:`sunlab.atomic.atomic_files`)."""
     import matplotlib.pyplot as plt
 
-    files = [str(out / "models" / f"{n}.json") for n in result["models"]]
-    files.append(write_json({"command": result["command"], "settings": result["settings"],
-                             "records": result["records"]}, out / "learned.json"))
+    from .. import atomic
+
+    names = ["learned.json", "learned_settings.json", "learned.png"]
     doc = {**result["settings"], "floors": result["floors"], "histories": result["histories"]}
-    files.append(write_json(json.loads(json.dumps(doc, default=float)),
-                            out / "learned_settings.json"))
     fig = learned_figure(result["records"])
-    fig.savefig(out / "learned.png", dpi=110)
-    plt.close(fig)
-    files.append(str(out / "learned.png"))
-    return files
+    try:
+        with atomic.atomic_files(out, names, overwrite=True, flag="") as tmp:
+            write_json({"command": result["command"], "settings": result["settings"],
+                        "records": result["records"]}, tmp / names[0])
+            write_json(json.loads(json.dumps(doc, default=float)), tmp / names[1])
+            fig.savefig(tmp / names[2], dpi=110)
+    finally:
+        plt.close(fig)
+    return [str(out / "models" / f"{n}.json") for n in result["models"]] + [
+        str(out / n) for n in names]
 
 
 def records_of(doc) -> list[dict]:

@@ -42,7 +42,7 @@ def test_a_signal_during_import_ends_in_one_line_and_leaves_nothing(tmp_path, mo
         with lock:
             calls.append(args[0])
             if len(calls) == 6:  # mid-write: the temporary store exists
-                assert [p for p in tmp_path.iterdir() if ".cube.zarr.tmp-" in p.name]
+                assert [p for p in tmp_path.iterdir() if p.name.startswith(".sl-")]
                 os.kill(os.getpid(), sig)  # the real signal, to this process
         return real(*args)
 
