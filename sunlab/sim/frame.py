@@ -26,8 +26,7 @@ import numpy as np
 
 from ..errors import ConfigurationError
 from .detector import Detector, adc_frame, adc_region, fixed_pattern, normal_table
-from .platform import sensor_sun_vector
-from .render import _hole_centres_mm, _rays, frame_key, mask_play, spot_geometry
+from .render import _geometry, frame_key, mask_play, spot_geometry
 from .spots import _groups
 
 __all__ = ["render_frame"]
@@ -55,14 +54,9 @@ def _pose_stamps(bench, alphas, betas, play_mm, shape_angles):
             else [] for a, b in zip(alphas, betas, strict=True)
         ]
     det = bench.detector
-    n_m = bench.mask.rotation_matrix()[:, 2]
-    q = _hole_centres_mm(bench, play_mm)
-    shots = []  # (shot, rays, q_e) of the lit shots
-    for k, (a, b) in enumerate(zip(alphas, betas, strict=True)):
-        sv = sensor_sun_vector(bench.platform, float(a), float(b))
-        if sv[2] > 1e-6 and float(sv @ n_m) > 1e-6:
-            shots.append((k, _rays(q, sv, sv[2], det),
-                          geom.q_e * (sv[2] / geom.s[2])))  # the flux's cosine factor, per shot
+    sv, lit, ray_k, *_ = _geometry(bench, alphas, betas, [play_mm] * len(alphas))
+    # (shot, rays, q_e) of the lit shots; the flux's cosine factor per shot
+    shots = [(k, ray_k[k], geom.q_e * (sv[k, 2] / geom.s[2])) for k in np.flatnonzero(lit)]
     out = [[] for _ in alphas]
     for g in _groups(bench, geom):
         r = g.radius

@@ -245,7 +245,7 @@ def sensor_sun_vector(platform: Platform, alpha_true, beta_true) -> np.ndarray:
     ca, sa = np.cos(a), np.sin(a)
     g = np.stack([ca * v[..., 0] - sa * v[..., 2], v[..., 1], sa * v[..., 0] + ca * v[..., 2]],
                  axis=-1)
-    return g @ platform.mount_matrix().T
+    return np.einsum("...j,ij->...i", g, platform.mount_matrix())  # the same sums for any n
 
 
 # --------------------------------------------------------------------------- random errors
