@@ -23,16 +23,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import ConfigurationError
 from ..schema import DEFECT_FLAGS
+from .source import _check
 
 __all__ = []
-
-
-def _check(ok: bool, name: str, value, expected: str, fix: str = "") -> None:
-    if not ok:
-        raise ConfigurationError(f"{name}: found {value!r}; expected {expected}." +
-                                 (f" Fix: {fix}" if fix else ""))
 
 
 def _positive(name: str, value: float, fix: str) -> None:

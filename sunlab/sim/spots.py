@@ -29,9 +29,7 @@ import functools
 import math
 from typing import NamedTuple
 
-import numba
 import numpy as np
-from numba.extending import overload
 
 from . import _aperture, _jit, diffraction
 from .detector import Detector
@@ -51,35 +49,14 @@ def _fold_phase_numpy(t4, wy, wx, ey, ex):
     return np.einsum("naij,na->nij", folded, wy) * ey[:, :, None] * ex[:, None, :]
 
 
-def _accumulate_row(t4, a, i, b, w, rr, ri):
-    """(rr + i ri) += t4[a, i, b, :] w, for a real or complex ``t4`` (compiled only)."""
-
-
-@overload(_accumulate_row, inline="always")
-def _accumulate_row_impl(t4, a, i, b, w, rr, ri):
-    if isinstance(t4.dtype, numba.types.Complex):
-        def impl_complex(t4, a, i, b, w, rr, ri):
-            for j in range(rr.shape[0]):
-                tr, ti = t4[a, i, b, j].real, t4[a, i, b, j].imag
-                rr[j] += tr * w.real - ti * w.imag
-                ri[j] += tr * w.imag + ti * w.real
-        return impl_complex
-
-    def impl_real(t4, a, i, b, w, rr, ri):
-        for j in range(rr.shape[0]):
-            rr[j] += t4[a, i, b, j] * w.real
-            ri[j] += t4[a, i, b, j] * w.imag
-    return impl_real
-
-
 @_jit.kernel(_fold_phase_numpy)
 def fold_phase(t4, wy, wx, ey, ex):
     """Fold alias bands and apply each spot's position phase.
 
     acc[n, i, j] = ey[n, i] ex[n, j] sum_a wy[n, a] sum_b t4[a, i, b, j] wx[n, b]
 
-    ``t4`` complex (a polygon's spectrum) or real (an affine aperture's: compiled apart, half
-    the arithmetic, the same sums term by term). The loops run along j, the contiguous axis.
+    ``t4`` complex (a polygon's spectrum) or real (an affine aperture's: its imaginary parts
+    are zeros, and the sums the same term by term). The loops run along j, the contiguous axis.
 
     Parameters
     ----------
@@ -106,7 +83,11 @@ def fold_phase(t4, wy, wx, ey, ex):
                 rr[:] = 0.0
                 ri[:] = 0.0
                 for b in range(na):
-                    _accumulate_row(t4, a, i, b, wx[q, b], rr, ri)
+                    w = wx[q, b]
+                    for j in range(m2):  # (rr + i ri) += t4[a, i, b, j] w
+                        tr, ti = t4[a, i, b, j].real, t4[a, i, b, j].imag
+                        rr[j] += tr * w.real - ti * w.imag
+                        ri[j] += tr * w.imag + ti * w.real
                 w = wy[q, a]
                 for j in range(m2):  # (sr + i si) += (rr + i ri) w
                     sr[j] += rr[j] * w.real - ri[j] * w.imag
