@@ -393,13 +393,11 @@ def adc_frame(mean_dn, sigma_dn, table, state, max_dn, out):
         k = 4 * b
         for q in range(4):
             o[k + q] = _to_dn32(m[k + q] + s[k + q] * table[(r >> np.uint64(16 * q)) & low], top)
-    steps = n4 + (1 if n > 4 * n4 else 0)
-    if n > 4 * n4:
-        r = _mix64(s0 + np.uint64(steps) * _GOLDEN)
-        for k in range(4 * n4, n):
-            o[k] = _to_dn32(m[k] + s[k] * table[r & low], top)
-            r = r >> np.uint64(16)
-    state[0] = s0 + np.uint64(steps) * _GOLDEN
+    r = _mix64(s0 + np.uint64(n4 + 1) * _GOLDEN)  # the last pixels' output, if any
+    for k in range(4 * n4, n):
+        o[k] = _to_dn32(m[k] + s[k] * table[r & low], top)
+        r = r >> np.uint64(16)
+    state[0] = s0 + np.uint64((n + 3) // 4) * _GOLDEN
 
 
 def _adc_region_numpy(y0, x0, signal_e, gain, dark_e, offset_dn, table, state, read_var_e,
@@ -449,15 +447,10 @@ def adc_region(y0, x0, signal_e, gain, dark_e, offset_dn, table, state, read_var
     noisy = table.shape[0] > 0
     z = np.zeros(n if noisy else 0, dtype=np.float32)
     if noisy:
-        s0, low, n4 = state[0], np.uint64(0xFFFF), n // 4
-        for b in range(n4):
+        s0, low, steps = state[0], np.uint64(0xFFFF), (n + 3) // 4
+        for b in range(steps):
             r = _mix64(s0 + np.uint64(b + 1) * _GOLDEN)
-            for q in range(4):
-                z[4 * b + q] = table[(r >> np.uint64(16 * q)) & low]
-        steps = n4 + (1 if n > 4 * n4 else 0)
-        if n > 4 * n4:
-            r = _mix64(s0 + np.uint64(steps) * _GOLDEN)
-            for k in range(4 * n4, n):
+            for k in range(4 * b, min(4 * b + 4, n)):
                 z[k] = table[r & low]
                 r = r >> np.uint64(16)
         state[0] = s0 + np.uint64(steps) * _GOLDEN
