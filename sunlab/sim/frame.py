@@ -90,34 +90,18 @@ def _clip_region(img, x0, y0, det: Detector):
 
 def _signal_map(stamps, det: Detector):
     """The regions [(signal, xa, ya), ...] of the stamps clipped to the detector, in their order;
-    where stamps overlap, each region holds the sum of all stamps over it."""
+    where stamps overlap, each region holds the sum of all stamps over it (summed in their
+    order on the stamps' bounding box)."""
     regions = [c for c in (_clip_region(img, x0, y0, det) for img, x0, y0 in stamps) if c]
     if len(regions) < 2:
         return regions
-    box = np.array([(xa, ya, xa + p.shape[1], ya + p.shape[0]) for p, xa, ya in regions])
-    meet = ((box[:, None, 0] < box[None, :, 2]) & (box[None, :, 0] < box[:, None, 2])
-            & (box[:, None, 1] < box[None, :, 3]) & (box[None, :, 1] < box[:, None, 3]))
-    if np.count_nonzero(meet) == len(regions):  # each meets only itself
-        return regions
-    from scipy.sparse.csgraph import connected_components
-
-    _, label = connected_components(meet, directed=False)
-    out = list(regions)
-    for c in np.unique(label):
-        members = np.flatnonzero(label == c)
-        if members.size == 1:
-            continue
-        xa, ya = box[members, 0].min(), box[members, 1].min()
-        sig = np.zeros((box[members, 3].max() - ya, box[members, 2].max() - xa))
-        views = []
-        for k in members:  # summed in the stamps' order
-            p, x, y = regions[k]
-            v = sig[y - ya : y - ya + p.shape[0], x - xa : x - xa + p.shape[1]]
-            v += p
-            views.append((k, v, x, y))
-        for k, v, x, y in views:
-            out[k] = (v, x, y)
-    return out
+    box = np.array([(x, y, x + p.shape[1], y + p.shape[0]) for p, x, y in regions])
+    (xa, ya), (xb, yb) = box[:, :2].min(axis=0), box[:, 2:].max(axis=0)
+    total = np.zeros((yb - ya, xb - xa))
+    views = [total[y - ya:y - ya + p.shape[0], x - xa:x - xa + p.shape[1]] for p, x, y in regions]
+    for v, (p, _, _) in zip(views, regions, strict=True):
+        v += p
+    return [(v, x, y) for v, (_, x, y) in zip(views, regions, strict=True)]
 
 
 def expected_frame(bench, alpha_true, beta_true, *, play_mm=(0.0, 0.0)):
@@ -201,11 +185,10 @@ def render_frame(bench, alpha_true, beta_true, *, seed, pose: int = 0, shot: int
     ('uint16', (1024, 1280), True)
     """
     out = _output(out, bench.detector.shape)
-    if play_mm is None:
-        play_mm = mask_play(bench, seed, pose)
+    play = mask_play(bench, seed, pose) if play_mm is None else play_mm
     ref = (alpha_true, beta_true) if shape_angles is None else shape_angles
-    stamps = _pose_stamps(bench, [alpha_true], [beta_true], play_mm, ref)[0]
-    _expose(bench, stamps, seed, pose, shot, out)
+    _expose(bench, _pose_stamps(bench, [alpha_true], [beta_true], play, ref)[0], seed, pose, shot,
+            out)
     return out
 
 
@@ -260,23 +243,19 @@ def render_pose(bench, alpha_true, beta_true, *, seed, pose: int = 0, out=None) 
 
 def _output(out, shape):
     """``out``, checked, or a new uint16 array of ``shape``."""
-    if out is None:
-        return np.empty(shape, dtype=np.uint16)
-    if out.shape != shape or out.dtype != np.uint16 or not out.flags.c_contiguous:
+    if out is not None and (out.shape, out.dtype, out.flags.c_contiguous) != (shape, "u2", True):
         raise ConfigurationError(
             f"out: found {out.dtype} {out.shape}; expected a C-contiguous uint16 array of shape "
             f"{shape}. Fix: pass numpy.empty({shape}, dtype=numpy.uint16) or omit out.")
-    return out
+    return np.empty(shape, dtype=np.uint16) if out is None else out
 
 
 def _expose(bench, stamps, seed, pose, shot, out):
     """The ADC of a frame: the dark frame's noise and rounding everywhere, then the pixels that
     hold spot signal (``stamps``) recomputed with their photon noise."""
-    det = bench.detector
-    fp = fixed_pattern(det)
+    det, fp, max_dn = bench.detector, fixed_pattern(bench.detector), float(bench.detector.max_dn)
     table = normal_table() if det.temporal_noise else np.empty(0, dtype=np.float32)
     state = frame_key(seed, pose, shot).generate_state(1, dtype=np.uint64)
-    max_dn = float(det.max_dn)
     adc_frame(fp.bg_mean_dn, fp.bg_sigma_dn, table, state, max_dn, out)
     read_var = float(det.read_noise_e**2) if det.temporal_noise else 0.0
     for part, xa, ya in _signal_map(stamps, det):

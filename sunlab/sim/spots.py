@@ -97,10 +97,6 @@ def fold_phase(t4, wy, wx, ey, ex):
     return acc
 
 
-def _axes(f):
-    return np.ascontiguousarray(np.ravel(f), dtype=float)
-
-
 class _Group:
     """Holes of one frame sharing an aperture design (identical affine holes, or one polygon
     hole). Spectrum of hole h relative to its ray: ``common(f) * exp(-2 pi i f . shift_h)``, so
@@ -119,12 +115,9 @@ class _Group:
                       - np.asarray(det.sensitive_offset_px)[None, :])
         self.centre = self.ray + self.shift
         hbar = float(np.mean(h))
-        cov = geom.kernel_cov * hbar * hbar
-        if np.any(cov):
-            w, v = np.linalg.eigh(cov / geom.second_moment)
-            self.kernel_m = (v * np.sqrt(np.clip(w, 0, None))) @ v.T
-        else:
-            self.kernel_m = np.zeros((2, 2))
+        # the symmetric square root of the kernel's covariance over the profile's <x^2>
+        w, v = np.linalg.eigh(geom.kernel_cov * hbar * hbar / geom.second_moment)
+        self.kernel_m = (v * np.sqrt(np.clip(w, 0, None))) @ v.T
         self.u, self.diff = float(geom.limb_darkening), float(det.diffusion_px)
         self.ax, self.ay = det.sensitive_size_px
         self.cut, self.fresnel, self.poly = [], None, None
@@ -154,7 +147,7 @@ class _Group:
 
         ``tabulated``: interpolate the disk transforms in tables (images; error below 2e-10 of
         the peak); the truth uses the direct evaluation."""
-        fx, fy = _axes(fx), _axes(fy)
+        fx, fy = (np.ascontiguousarray(np.ravel(f), dtype=float) for f in (fx, fy))
         ax, ay = (self.ax, self.ay) if pixel else (0.0, 0.0)
         args = (fx, fy, self.affine, self.area, self.kernel_m, self.u, ax, ay,
                 self.diff if pixel else 0.0, self.poly is None and self.fresnel is None)
@@ -257,27 +250,18 @@ class _Aperture(NamedTuple):
     occluders: tuple
 
 
-def _aperture_of(hole, idx) -> _Aperture:
-    aff, occ = hole.affine(), tuple(hole.occluders())
-    idx = np.atleast_1d(np.asarray(idx, dtype=int))
-    if aff is not None and not occ:
-        return _Aperture(idx, aff, None, ())
-    return _Aperture(idx, None, hole.outline(), occ)
-
-
 @functools.lru_cache(maxsize=16)
 def _apertures(mask) -> tuple:
     """The mask's apertures grouped by design (affine holes without dust share a spectrum):
     each other hole alone, in order, then the shared designs; built once per mask."""
-    keyed: dict = {}
-    out = []
+    keyed, out = {}, []
     for k, h in enumerate(mask.holes):
-        aff = h.affine()
-        if aff is not None and not h.occluders():
-            keyed.setdefault(tuple(np.round(aff, 12).ravel()), []).append(k)
+        aff, occ = h.affine(), tuple(h.occluders())
+        if aff is not None and not occ:
+            keyed.setdefault(tuple(np.round(aff, 12).ravel()), (aff, []))[1].append(k)
         else:
-            out.append(_aperture_of(h, [k]))
-    return tuple(out + [_aperture_of(mask.holes[idx[0]], idx) for idx in keyed.values()])
+            out.append(_Aperture(np.array([k]), None, h.outline(), occ))
+    return tuple(out + [_Aperture(np.array(idx), aff, None, ()) for aff, idx in keyed.values()])
 
 
 def _groups(bench, geom: SpotGeometry) -> list[_Group]:
@@ -381,8 +365,8 @@ def spot_image(bench, alpha_true, beta_true, *, hole: int = 0, oversample: int =
     ((48, 48), 1.0)
     """
     geom = spot_geometry(bench, alpha_true, beta_true, play_mm)
-    g = _Group(geom, bench.detector, _aperture_of(bench.mask.holes[hole], [hole]),
-               bench.mask.diffraction)
+    ap = next(a for a in _apertures(bench.mask) if hole in a.idx)._replace(idx=np.array([hole]))
+    g = _Group(geom, bench.detector, ap, bench.mask.diffraction)
     spec = g.spectrum(size, int(oversample), pixel)
     imgs, x0, y0 = spec.images(g.ray, g.centre, geom.q_e)
     return imgs[0], int(x0[0]), int(y0[0]), spec.step
