@@ -54,7 +54,7 @@ def _pose_stamps(bench, alphas, betas, play_mm, shape_angles):
             else [] for a, b in zip(alphas, betas, strict=True)
         ]
     det = bench.detector
-    sv, lit, ray_k, *_ = _geometry(bench, alphas, betas, [play_mm] * len(alphas))
+    sv, lit, ray_k, *_ = _geometry(bench, alphas, betas, [play_mm] * len(alphas), "none")
     # (shot, rays, q_e) of the lit shots; the flux's cosine factor per shot
     shots = [(k, ray_k[k], geom.q_e * (sv[k, 2] / geom.s[2])) for k in np.flatnonzero(lit)]
     out = [[] for _ in alphas]
@@ -90,18 +90,34 @@ def _clip_region(img, x0, y0, det: Detector):
 
 def _signal_map(stamps, det: Detector):
     """The regions [(signal, xa, ya), ...] of the stamps clipped to the detector, in their order;
-    where stamps overlap, each region holds the sum of all stamps over it (summed in their
-    order on the stamps' bounding box)."""
+    where stamps overlap, each region holds the sum of all stamps over it."""
     regions = [c for c in (_clip_region(img, x0, y0, det) for img, x0, y0 in stamps) if c]
     if len(regions) < 2:
         return regions
-    box = np.array([(x, y, x + p.shape[1], y + p.shape[0]) for p, x, y in regions])
-    (xa, ya), (xb, yb) = box[:, :2].min(axis=0), box[:, 2:].max(axis=0)
-    total = np.zeros((yb - ya, xb - xa))
-    views = [total[y - ya:y - ya + p.shape[0], x - xa:x - xa + p.shape[1]] for p, x, y in regions]
-    for v, (p, _, _) in zip(views, regions, strict=True):
-        v += p
-    return [(v, x, y) for v, (_, x, y) in zip(views, regions, strict=True)]
+    box = np.array([(xa, ya, xa + p.shape[1], ya + p.shape[0]) for p, xa, ya in regions])
+    meet = ((box[:, None, 0] < box[None, :, 2]) & (box[None, :, 0] < box[:, None, 2])
+            & (box[:, None, 1] < box[None, :, 3]) & (box[None, :, 1] < box[:, None, 3]))
+    if np.count_nonzero(meet) == len(regions):  # each meets only itself
+        return regions
+    from scipy.sparse.csgraph import connected_components
+
+    _, label = connected_components(meet, directed=False)
+    out = list(regions)
+    for c in np.unique(label):
+        members = np.flatnonzero(label == c)
+        if members.size == 1:
+            continue
+        xa, ya = box[members, 0].min(), box[members, 1].min()
+        sig = np.zeros((box[members, 3].max() - ya, box[members, 2].max() - xa))
+        views = []
+        for k in members:  # summed in the stamps' order
+            p, x, y = regions[k]
+            v = sig[y - ya : y - ya + p.shape[0], x - xa : x - xa + p.shape[1]]
+            v += p
+            views.append((k, v, x, y))
+        for k, v, x, y in views:
+            out[k] = (v, x, y)
+    return out
 
 
 def expected_frame(bench, alpha_true, beta_true, *, play_mm=(0.0, 0.0)):

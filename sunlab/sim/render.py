@@ -178,7 +178,7 @@ def spot_geometry(bench, alpha_true, beta_true, play_mm=(0.0, 0.0)) -> SpotGeome
 
 @functools.lru_cache(maxsize=4096)
 def _spot_geometry_cached(bench, a, b, px, py) -> SpotGeometry:
-    s, lit, ray, height, mu, cov, q_e = _geometry(bench, [a], [b], [[px, py]], moments=True)
+    s, lit, ray, height, mu, cov, q_e = _geometry(bench, [a], [b], [[px, py]], "all")
     rot = bench.mask.rotation_matrix()
     sz, p = (s[0, 2] if lit[0] else 1.0), bench.detector.pixel_pitch_mm
     proj = (rot[:2, :2] - np.outer(s[0, :2], rot[2, :2]) / sz) / p
@@ -191,11 +191,12 @@ def _spot_geometry_cached(bench, a, b, px, py) -> SpotGeometry:
     return g
 
 
-def _geometry(bench, alpha_true, beta_true, play_mm, moments: bool = False):
+def _geometry(bench, alpha_true, beta_true, play_mm, kernel: str = "mean"):
     """The geometry of n frames in one pass of array arithmetic: sun vectors (n, 3), lit (n,),
-    rays (n, holes, 2) px through the lid (:func:`ray_positions`), hole heights (holes,) mm,
-    and the sun-disk kernel's mean (n, 2) px/mm; with ``moments`` also its covariance
-    (n, 2, 2) px^2/mm^2 and the photo-electrons per px^2 q_e (n,), else None for both.
+    rays (n, holes, 2) px through the lid (:func:`ray_positions`), hole heights (holes,) mm;
+    with ``kernel`` "mean" or "all" the sun-disk kernel's mean (n, 2) px/mm, with "all" also
+    its covariance (n, 2, 2) px^2/mm^2 and the photo-electrons per px^2 q_e (n,) (None for
+    what is not asked: "none" gives the rays alone).
 
     The kernel is the distribution of -(d_xy / d_z - s_xy / s_z) / p over the source's
     directions d (Gauss-Legendre in radius, midpoints in angle), weighted by radiance and by
@@ -227,6 +228,8 @@ def _geometry(bench, alpha_true, beta_true, play_mm, moments: bool = False):
         shift = np.where(r > 0, t * (r / sz - tan_in) / safe, 0.0)
         ray = ray + (shift[:, None] * s[:, :2])[:, None, :]
     ray = ray / p
+    if kernel == "none":
+        return s, lit, ray, q0[:, 2], None, None, None
     n = len(a)
     mu, cov, flux = np.zeros((n, 2)), np.zeros((n, 2, 2)), np.ones(n)
     rho = src.radius_rad
@@ -248,11 +251,11 @@ def _geometry(bench, alpha_true, beta_true, play_mm, moments: bool = False):
         disp = -(d[..., :2] / d[..., 2:3] - (sl[:, :2] / sl[:, 2:3])[:, None, None, :]) / p
         wsum = w.sum(axis=(1, 2))
         mu[lit] = (w[..., None] * disp).sum(axis=(1, 2)) / wsum[:, None]
-        if moments:
+        if kernel == "all":
             dd = disp - mu[lit][:, None, None, :]
             cov[lit] = np.einsum("nij,nijk,nijl->nkl", w, dd, dd) / wsum[:, None, None]
             flux[lit] = wsum / (radiance.sum() * phi.size) / sn[lit]
-    if not moments:
+    if kernel != "all":
         return s, lit, ray, q0[:, 2], mu, None, None
     q_e = np.where(lit, src.fluence_photons_per_um2 * (p * 1e3) ** 2 * det.qe * sz * flux, 0.0)
     return s, lit, ray, q0[:, 2].copy(), mu, cov, q_e
