@@ -15,11 +15,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import ConfigurationError
 from .bench import Bench
 from .frame import render_frame, render_pose
 from .platform import _entropy, _platform_table
 from .render import mask_play, spot_geometry
+from .source import _check
 from .spots import _truth
 
 __all__ = ["simulate"]
@@ -84,18 +84,13 @@ def simulate(plan, bench: Bench | None = None, seed=0, chunks: str = "frame"):
     from .. import schema
     from ..plans import Plan
 
-    if not isinstance(plan, Plan):
-        raise ConfigurationError(
-            f"plan: found {type(plan).__name__}; expected a sunlab.plans.Plan. Fix: use "
-            "sunlab.plans.experiment('III') or sunlab.plans.custom(alpha, beta).")
+    _check(isinstance(plan, Plan), "plan", type(plan).__name__, "a sunlab.plans.Plan",
+           "use sunlab.plans.experiment('III') or sunlab.plans.custom(alpha, beta).")
     bench = Bench.paper_single_hole() if bench is None else bench
-    if not isinstance(bench, Bench):
-        raise ConfigurationError(f"bench: found {type(bench).__name__}; expected a "
-                                 "sunlab.sim.Bench.")
-    if chunks not in ("frame", "pose"):
-        raise ConfigurationError(
-            f"chunks: found {chunks!r}; expected 'frame' or 'pose'. Fix: chunks='frame' (one "
-            "frame per chunk) or chunks='pose' (all shots of a pose per chunk).")
+    _check(isinstance(bench, Bench), "bench", type(bench).__name__, "a sunlab.sim.Bench",
+           "pass sunlab.sim.Bench.paper_single_hole() or omit bench.")
+    _check(chunks in ("frame", "pose"), "chunks", chunks, "'frame' or 'pose'", "chunks='frame' "
+           "(one frame per chunk) or chunks='pose' (all shots of a pose per chunk).")
     key = _entropy(seed) + [plan.crc32()]
     ta, tb = _platform_table(bench, plan, key)
     token = tokenize(bench.to_json(), key, ta, tb)
