@@ -198,8 +198,7 @@ class Detector:
     @property
     def sensitive_size_px(self) -> tuple[float, float]:
         """Width and height of the sensitive rectangle, px."""
-        a = math.sqrt(self.fill_factor)
-        r = math.sqrt(self.sensitive_aspect)
+        a, r = math.sqrt(self.fill_factor), math.sqrt(self.sensitive_aspect)
         return (a * r, a / r)
 
     @property
@@ -276,12 +275,10 @@ def fixed_pattern(det: Detector) -> FixedPattern:
         hot = rng.random(shape) < det.hot_pixel_fraction
         dark[hot] += rng.exponential(det.hot_pixel_dark_e, int(hot.sum()))
         dark = np.clip(dark, 0.0, None)
-        offset = det.bias_dn + det.column_fpn_dn * rng.standard_normal(det.nx)[None, :]
-        offset = np.broadcast_to(offset, shape)
+        offset = np.broadcast_to(det.bias_dn + det.column_fpn_dn * rng.standard_normal(det.nx),
+                                 shape)  # a column pattern
     else:
-        gain = np.ones(shape)
-        dark = np.full(shape, det.dark_signal_e)
-        offset = np.full(shape, det.bias_dn)
+        gain, dark, offset = (np.full(shape, v) for v in (1.0, det.dark_signal_e, det.bias_dn))
     g = det.gain_e_per_dn
     bg_mean = offset + dark / g
     bg_sigma = np.sqrt(dark + det.read_noise_e**2) / g if det.temporal_noise else np.zeros(shape)

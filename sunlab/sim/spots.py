@@ -273,25 +273,15 @@ def _groups(bench, geom: SpotGeometry) -> list[_Group]:
     return geom.groups
 
 
-def _on_detector(group: _Group, det: Detector) -> np.ndarray:
-    r = group.radius
-    x, y = group.ray[:, 0], group.ray[:, 1]
-    return (x - r >= -0.5) & (y - r >= -0.5) & (x + r <= det.nx - 0.5) & (y + r <= det.ny - 0.5)
-
-
 def _truth(bench, geom: SpotGeometry):
-    n = len(bench.mask.holes)
-    x = np.full(n, np.nan)
-    y = np.full(n, np.nan)
-    if not geom.lit:
-        return x, y
-    for g in _groups(bench, geom):
-        ok = _on_detector(g, bench.detector)
+    """True centroids (x, y) of a frame's spots, NaN for a spot not wholly on the detector."""
+    xy, det = np.full((2, len(bench.mask.holes)), np.nan), bench.detector
+    for g in _groups(bench, geom) if geom.lit else ():
+        r, (x, y) = g.radius, g.ray.T
+        ok = (x - r >= -0.5) & (y - r >= -0.5) & (x + r <= det.nx - 0.5) & (y + r <= det.ny - 0.5)
         if np.any(ok):
-            cx, cy, _ = g.centroids()
-            x[g.idx[ok]] = cx[ok]
-            y[g.idx[ok]] = cy[ok]
-    return x, y
+            xy[:, g.idx[ok]] = np.array(g.centroids()[:2])[:, ok]
+    return xy[0], xy[1]
 
 
 def spot_truth(bench, alpha_true, beta_true, *, play_mm=(0.0, 0.0)):
