@@ -27,14 +27,11 @@ __all__ = ["simulate"]
 
 def _truth_task(bench, a_row, b_row, key, pose):
     """(4, 1, shots, holes): true x, true y, ray x, ray y of every shot of one pose."""
-    n_s = len(a_row)
-    out = np.full((4, 1, n_s, bench.n_holes), np.nan)
+    out = np.full((4, 1, len(a_row), bench.n_holes), np.nan)
     play = mask_play(bench, key, pose)
-    for s in range(n_s):
-        geom = spot_geometry(bench, a_row[s], b_row[s], play)
-        out[2, 0, s] = geom.ray[:, 0]
-        out[3, 0, s] = geom.ray[:, 1]
-        out[0, 0, s], out[1, 0, s] = _truth(bench, geom)
+    for s, (a, b) in enumerate(zip(a_row, b_row, strict=True)):
+        geom = spot_geometry(bench, a, b, play)
+        out[:2, 0, s], out[2:, 0, s] = _truth(bench, geom), geom.ray.T
     return out
 
 
@@ -115,12 +112,12 @@ def _frames_block(index, bench, key, ta, tb):
     poses, or frame numbers pose * shots + shot (pose, shot) for a block of single frames;
     returns (poses, shots, ny, nx), each frame rendered in place."""
     n_s = ta.shape[1]
+    shots = (n_s,) if index.ndim == 1 else ()  # a block of whole poses, or of single frames
+    out = np.empty(index.shape + shots + bench.detector.shape, dtype=np.uint16)
     if index.ndim == 1:
-        out = np.empty((index.size, n_s) + bench.detector.shape, dtype=np.uint16)
         for i, p in enumerate(index):
             render_pose(bench, ta[p], tb[p], seed=key, pose=int(p), out=out[i])
         return out
-    out = np.empty(index.shape + bench.detector.shape, dtype=np.uint16)
     for (i, j), k in np.ndenumerate(index):
         p, s = divmod(int(k), n_s)
         render_frame(bench, ta[p, s], tb[p, s], seed=key, pose=p, shot=s, out=out[i, j],
