@@ -216,17 +216,12 @@ class _Spectrum(NamedTuple):
         """Stamps (n, m, m) of spots centred at ``centre`` (n, 2) px, each placed round its
         ``ray`` (n, 2): (images, x0, y0), image[n, i, j] at x = x0[n] + j step, y = y0[n] + i
         step; ``q_e`` a scalar or one value per spot."""
-        x0 = np.floor(ray[:, 0]).astype(int) - self.size // 2 + 1
-        y0 = np.floor(ray[:, 1]).astype(int) - self.size // 2 + 1
-        dx = centre[:, 0] - x0
-        dy = centre[:, 1] - y0
+        x0, y0 = (np.floor(ray[:, i]).astype(int) - self.size // 2 + 1 for i in (0, 1))
+        dx, dy = centre[:, 0] - x0, centre[:, 1] - y0
         # Phase of hole n at alias (a, b) and base frequency (i, j) factorises:
         # exp(-2 pi i (al_a + fy_i) dy_n) exp(-2 pi i (al_b + fx_j) dx_n).
-        al = self.al
-        wy = np.exp(-2j * np.pi * al[None, :] * dy[:, None])
-        wx = np.exp(-2j * np.pi * al[None, :] * dx[:, None])
-        ey = np.exp(-2j * np.pi * self.fyb[None, :] * dy[:, None])
-        ex = np.exp(-2j * np.pi * self.fxb[None, :] * dx[:, None])
+        wy, wx, ey, ex = (np.exp(-2j * np.pi * f[None, :] * d[:, None]) for f, d in (
+            (self.al, dy), (self.al, dx), (self.fyb, dy), (self.fxb, dx)))
         m = self.m
         scale = np.broadcast_to(np.asarray(q_e, dtype=float) / self.step**2, (len(x0),))
         imgs = np.empty((len(x0), m, m))
