@@ -190,8 +190,7 @@ class Platform:
             The encoder's scale and offset applied to each axis, plus on beta the wobble (a
             sinusoid of alpha) and the gear error (a sinusoid of beta), deg.
         """
-        a = np.asarray(alpha_cmd, dtype=float)
-        b = np.asarray(beta_cmd, dtype=float)
+        a, b = np.asarray(alpha_cmd, dtype=float), np.asarray(beta_cmd, dtype=float)
         at = a * (1 + self.alpha_scale) + self.alpha_offset_deg
         bt = b * (1 + self.beta_scale) + self.beta_offset_deg
         if self.beta_wobble_deg:
@@ -402,10 +401,8 @@ def _platform_table(bench, plan, key: list[int]):
     """True angles (pose, shot) of a whole plan; identical to :func:`platform_pose` per frame
     (with each pose's approach direction from the plan's motion and the plan's name as run)."""
     plat = bench.platform
-    ta = np.empty((len(plan), plan.shots))
-    tb = np.empty((len(plan), plan.shots))
-    approach = plan.beta_approach()
-    home = _homing(plat, key[:-1], plan.name)
+    ta, tb = np.empty((2, len(plan), plan.shots))
+    approach, home = plan.beta_approach(), _homing(plat, key[:-1], plan.name)
     for p in range(len(plan)):
         # scalar arithmetic, as in platform_pose, so that both agree to the last bit
         at, bt = plat.systematic(float(plan.alpha[p]), float(plan.beta[p]))

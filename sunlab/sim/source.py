@@ -111,6 +111,5 @@ class Source:
         >>> Source().second_moment()
         0.25
         """
-        u = self.limb_darkening
-        r2 = ((1 - u) / 4 + 2 * u / 15) / ((1 - u) / 2 + u / 3)
-        return r2 / 2.0
+        u = self.limb_darkening  # <r^2> of the profile, over 2
+        return ((1 - u) / 4 + 2 * u / 15) / ((1 - u) / 2 + u / 3) / 2.0

@@ -193,19 +193,17 @@ def surrogate_centroids(bench, plan, seed=0, *, noise_px: float = 0.004,
     ta, tb = _platform_table(bench, plan, key)
     n_p, n_s, n_h = len(plan), plan.shots, bench.n_holes
     play = np.repeat([mask_play(bench, key, p) for p in range(n_p)], n_s, axis=0)
-    x, y = spot_centres(bench, np.ravel(ta), np.ravel(tb), play.reshape(-1, 2))
-    x, y = x.reshape(n_p, n_s, n_h), y.reshape(n_p, n_s, n_h)
+    x, y = (v.reshape(n_p, n_s, n_h)
+            for v in spot_centres(bench, np.ravel(ta), np.ravel(tb), play.reshape(-1, 2)))
     ny, nx = bench.detector.shape
     edge = spot_diameter_px(bench) / 2 + 4.0 if edge_px is None else float(edge_px)
     clipped = (x < edge) | (x > nx - 1 - edge) | (y < edge) | (y > ny - 1 - edge)
     if spot_error:
-        dx, dy = spot_error_maps(bench)
         c = np.stack([np.clip(y, 0, ny - 1).ravel(), np.clip(x, 0, nx - 1).ravel()])
-        x = x + ndimage.map_coordinates(dx, c, order=1).reshape(x.shape)
-        y = y + ndimage.map_coordinates(dy, c, order=1).reshape(y.shape)
+        x, y = (v + ndimage.map_coordinates(d, c, order=1).reshape(v.shape)
+                for v, d in zip((x, y), spot_error_maps(bench), strict=True))
     rng = np.random.default_rng(np.random.SeedSequence(key + [0x5B26]))
-    x = x + rng.normal(0.0, noise_px, x.shape)
-    y = y + rng.normal(0.0, noise_px, y.shape)
+    x, y = (v + rng.normal(0.0, noise_px, v.shape) for v in (x, y))
     return _surrogate_table(bench, plan, x, y, clipped, ta, tb)
 
 
