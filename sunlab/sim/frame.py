@@ -147,10 +147,8 @@ def expected_frame(bench, alpha_true, beta_true, *, play_mm=(0.0, 0.0)):
     >>> mean.shape, bool(mean.max() > 300)
     ((1024, 1280), True)
     """
-    det = bench.detector
-    fp = fixed_pattern(det)
-    g = det.gain_e_per_dn
-    e = fp.dark_e.astype(np.float64).copy()
+    det, fp, g = bench.detector, fixed_pattern(bench.detector), bench.detector.gain_e_per_dn
+    e = fp.dark_e.astype(np.float64)
     for part, xa, ya in _signal_map(_signal_stamps(bench, alpha_true, beta_true, play_mm), det):
         sl = (slice(ya, ya + part.shape[0]), slice(xa, xa + part.shape[1]))
         e[sl] = fp.dark_e[sl] + fp.gain[sl] * part

@@ -113,12 +113,10 @@ class Mask:
                "a positive mask-to-focal-plane distance F in mm", "pass distance_mm=5.0.")
         _check(math.isfinite(df) and f + df > 0, "mask.delta_f_mm", df,
                f"a true distance F + dF = {f + df!r} mm > 0", "keep |dF| < F.")
-        for name, ok, expected in (("tilt_x_deg", lambda v: abs(v) < 30.0, "|tilt| < 30 deg"),
-                                   ("tilt_y_deg", lambda v: abs(v) < 30.0, "|tilt| < 30 deg"),
-                                   ("play_x_mm", lambda v: v >= 0, "a half-width >= 0 mm"),
-                                   ("play_y_mm", lambda v: v >= 0, "a half-width >= 0 mm")):
-            v = getattr(self, name)
-            _check(math.isfinite(v) and ok(v), f"mask.{name}", v, expected, "0 for none.")
+        for name in ("tilt_x_deg", "tilt_y_deg", "play_x_mm", "play_y_mm"):
+            v, tilt = getattr(self, name), name.startswith("tilt")
+            _check(math.isfinite(v) and (abs(v) < 30.0 if tilt else v >= 0), f"mask.{name}", v,
+                   "|tilt| < 30 deg" if tilt else "a half-width >= 0 mm", "0 for none.")
         w, h = self.size_mm
         for k, hole in enumerate(self.holes):
             r = hole.max_radius_mm()
