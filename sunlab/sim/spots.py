@@ -106,9 +106,7 @@ class _Group:
     scales with the hole's height) minus the sensitive area's offset."""
 
     def __init__(self, geom: SpotGeometry, det: Detector, ap: _Aperture, fresnel: bool = False):
-        self.idx = ap.idx
-        self.ray = geom.ray[self.idx]
-        h = geom.height_mm[self.idx]
+        self.idx, self.ray, h = ap.idx, geom.ray[ap.idx], geom.height_mm[ap.idx]
         # the spot's centre relative to its ray: the kernel's centroid, which scales with the
         # hole's height, minus the sensitive area's offset
         self.shift = (geom.kernel_mu[None, :] * h[:, None]
@@ -188,13 +186,10 @@ class _Group:
         :meth:`_Spectrum.images` for any spot positions (one evaluation serves every shot of a
         pose, :func:`sunlab.sim.frame.render_pose`)."""
         size = self.stamp_size() if size is None else int(size)
-        step = 1.0 / oversample
-        m = size * oversample
-        fxb = np.arange(m // 2 + 1) / size
-        fyb = np.fft.fftfreq(m, d=step)
+        step, m = 1.0 / oversample, size * oversample
+        fxb, fyb = np.arange(m // 2 + 1) / size, np.fft.fftfreq(m, d=step)
         al = np.arange(-n_alias, n_alias + 1) * oversample
-        fx = (al[:, None] + fxb[None, :]).ravel()
-        fy = (al[:, None] + fyb[None, :]).ravel()
+        fx, fy = ((al[:, None] + f[None, :]).ravel() for f in (fxb, fyb))
         t = self.common(fx, fy, pixel=pixel, tabulated=True)  # real for an affine aperture
         t4 = np.ascontiguousarray(t.reshape(al.size, m, al.size, m // 2 + 1))
         return _Spectrum(t4, al, fxb, fyb, size, m, step)
