@@ -108,10 +108,7 @@ def polygon_ft(vx, vy, fx, fy):
     n, nfx, nfy = vx.shape[0], fx.shape[0], fy.shape[0]
     acc_re = np.zeros((nfy, nfx))
     acc_im = np.zeros((nfy, nfx))
-    area = 0.0
-    for k in range(n):
-        area += vx[k] * vy[(k + 1) % n] - vx[(k + 1) % n] * vy[k]
-    area *= 0.5
+    area = 0.5 * np.sum(vx * np.roll(vy, -1) - np.roll(vx, -1) * vy)  # the shoelace formula
     exr, exi, hxr, hxi = np.empty(nfx), np.empty(nfx), np.empty(nfx), np.empty(nfx)
     tx = np.empty(nfx)
     for k in range(n):
