@@ -55,27 +55,17 @@ def _pose_stamps(bench, alphas, betas, play_mm, shape_angles):
         ]
     det = bench.detector
     sv, lit, ray_k, *_ = _geometry(bench, alphas, betas, [play_mm] * len(alphas), "none")
-    # (shot, rays, q_e) of the lit shots; the flux's cosine factor per shot
-    shots = [(k, ray_k[k], geom.q_e * (sv[k, 2] / geom.s[2])) for k in np.flatnonzero(lit)]
+    q_k = geom.q_e * (sv[:, 2] / geom.s[2])  # the flux's cosine factor, per shot
     out = [[] for _ in alphas]
-    for g in _groups(bench, geom):
-        r = g.radius
-        who, rays, shifts, q_e = [], [], [], []
-        for k, ray_all, qk in shots:
-            x, y = ray_all[g.idx, 0], ray_all[g.idx, 1]
-            vis = ~((x + r < -0.5) | (y + r < -0.5) | (x - r > det.nx - 0.5)
-                    | (y - r > det.ny - 0.5))
-            members = np.flatnonzero(vis)
-            who += [k] * members.size
-            rays.append(ray_all[g.idx[members]])
-            shifts.append(g.shift[members])
-            q_e.append(np.full(members.size, qk))
-        if not who:
-            continue
-        ray = np.concatenate(rays)
-        imgs, x0, y0 = g.spectrum().images(ray, ray + np.concatenate(shifts), np.concatenate(q_e))
-        for n, k in enumerate(who):
-            out[k].append((imgs[n], int(x0[n]), int(y0[n])))
+    for g in _groups(bench, geom):  # every lit shot's spots that reach the detector, in order
+        (x, y), r = ray_k[:, g.idx].transpose(2, 0, 1), g.radius
+        kk, mm = np.nonzero(lit[:, None] & (x + r >= -0.5) & (y + r >= -0.5)
+                            & (x - r <= det.nx - 0.5) & (y - r <= det.ny - 0.5))
+        if kk.size:
+            ray = ray_k[kk, g.idx[mm]]
+            imgs, x0, y0 = g.spectrum().images(ray, ray + g.shift[mm], q_k[kk])
+            for n, k in enumerate(kk):
+                out[k].append((imgs[n], int(x0[n]), int(y0[n])))
     return out
 
 
