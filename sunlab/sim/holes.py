@@ -194,9 +194,8 @@ class Hole:
                "defect.")
         d = self.defect
         d = () if d is None else (d,) if isinstance(d, _DEFECT_TYPES) else tuple(d)
-        for item in d:
-            _check(isinstance(item, _DEFECT_TYPES), "hole.defect", item,
-                   "Dust, Elliptical, Burred or Undersized")
+        _check(all(isinstance(item, _DEFECT_TYPES) for item in d), "hole.defect", d,
+               "Dust, Elliptical, Burred or Undersized (or a tuple of them)")
         object.__setattr__(self, "defect", d)
 
     def _find(self, kind):
