@@ -93,8 +93,8 @@ def mask_play(bench, seed, pose: int) -> tuple[float, float]:
     m = bench.mask
     if m.play_x_mm == 0 and m.play_y_mm == 0:
         return (0.0, 0.0)
-    rng = np.random.default_rng(np.random.SeedSequence(_entropy(seed) + [_TAG_PLAY, int(pose)]))
-    u = rng.uniform(-1.0, 1.0, 2)
+    u = np.random.default_rng(np.random.SeedSequence(_entropy(seed) + [_TAG_PLAY, int(pose)]))
+    u = u.uniform(-1.0, 1.0, 2)
     return (float(u[0] * m.play_x_mm), float(u[1] * m.play_y_mm))
 
 

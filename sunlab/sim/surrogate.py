@@ -92,10 +92,9 @@ def _spot_profile(bench) -> np.ndarray:
     """The expected single-spot image at zenith (electrons, before PRNU), centred stamp."""
     from .spots import spot_image
 
-    one = bench.replace(mask=bench.mask.replace(holes=bench.mask.holes[:1]))
-    one = one.replace(platform=one.platform.ideal()).ideal_mask()
-    img, *_ = spot_image(one, 0.0, 0.0)
-    return np.asarray(img, dtype=float)
+    one = bench.replace(mask=bench.mask.replace(holes=bench.mask.holes[:1]),
+                        platform=bench.platform.ideal()).ideal_mask()
+    return np.asarray(spot_image(one, 0.0, 0.0)[0], dtype=float)
 
 
 @functools.lru_cache(maxsize=8)
