@@ -3,10 +3,10 @@ disk), the limb-darkened sun disk and the pixel's sensitive rectangle, and their
 spot's real, centred spectrum (:mod:`sunlab.sim.spots` phases and folds it into stamps).
 
 The stamps evaluate the spectrum on thousands of frequencies per pose: there it is a compiled
-kernel, :func:`spectrum_tabulated`, with the two disk transforms interpolated in tables built by
-the kernel's own Bessel J1 (Numerical Recipes' approximation, |error| < 1e-8: scipy's J1 cannot
-be called from compiled code). The truth's few frequencies use :func:`spectrum_direct`, numpy
-with :func:`scipy.special.j1`, which is also the tabulated kernel's numpy reference
+kernel, :func:`spectrum_tabulated`, with the two disk transforms interpolated in tables of
+:func:`scipy.special.j1` (scipy's J1 cannot be called from compiled code; a table long enough
+for the grid's highest frequency). The truth's few frequencies use :func:`spectrum_direct`,
+numpy with the same J1, which is also the tabulated kernel's numpy reference
 (``sunlab.set_options(kernels="numpy")``). The polygon's transform is compiled too (a dusty or
 burred hole's stamp); its numpy reference agrees to rounding.
 """
@@ -18,8 +18,8 @@ import math
 
 import numba
 import numpy as np
+from scipy import special
 
-from ..options import OPTIONS
 from . import _jit
 
 #: Spacing and range of the tabulated disk transforms (:func:`disk_ft_table`).
@@ -108,10 +108,7 @@ def polygon_ft(vx, vy, fx, fy):
     n, nfx, nfy = vx.shape[0], fx.shape[0], fy.shape[0]
     acc_re = np.zeros((nfy, nfx))
     acc_im = np.zeros((nfy, nfx))
-    area = 0.0
-    for k in range(n):
-        area += vx[k] * vy[(k + 1) % n] - vx[(k + 1) % n] * vy[k]
-    area *= 0.5
+    area = 0.5 * np.sum(vx * np.roll(vy, -1) - np.roll(vx, -1) * vy)  # the shoelace formula
     exr, exi, hxr, hxi = np.empty(nfx), np.empty(nfx), np.empty(nfx), np.empty(nfx)
     tx = np.empty(nfx)
     for k in range(n):
@@ -146,101 +143,48 @@ def polygon_ft(vx, vy, fx, fy):
     return out
 
 
-@numba.njit(inline="always")
-def _bessel_j1(x):
-    """J1(x) by the rational and asymptotic approximations of Numerical Recipes (|error| < 1e-8)."""
-    ax = abs(x)
-    if ax < 8.0:
-        y = x * x
-        a1 = x * (72362614232.0 + y * (-7895059235.0 + y * (242396853.1 + y * (
-            -2972611.439 + y * (15704.48260 + y * (-30.16036606))))))
-        a2 = 144725228442.0 + y * (2300535178.0 + y * (18583304.74 + y * (
-            99447.43394 + y * (376.9991397 + y * 1.0))))
-        return a1 / a2
-    z = 8.0 / ax
-    y = z * z
-    xx = ax - 2.356194491
-    a1 = 1.0 + y * (0.183105e-2 + y * (-0.3516396496e-4 + y * (0.2457520174e-5 + y * (
-        -0.240337019e-6))))
-    a2 = 0.04687499995 + y * (-0.2002690873e-3 + y * (0.8449199096e-5 + y * (
-        -0.88228987e-6 + y * 0.105787412e-6)))
-    ans = math.sqrt(0.636619772 / ax) * (math.cos(xx) * a1 - z * math.sin(xx) * a2)
-    return -ans if x < 0.0 else ans
-
-
-@numba.njit(inline="always")
 def _disk_ft(k, u):
-    """Normalised transform of the unit disk with linear limb darkening u at k = 2 pi |f| r."""
-    if k < 1e-4:
-        jinc = 1.0 - k * k / 8.0
-        ld = 1.0 / 3.0 - k * k / 30.0
-    else:
-        jinc = 2.0 * _bessel_j1(k) / k
-        if u == 0.0:
-            return jinc
-        ld = 1.0 / 3.0 - k * k / 30.0 if k < 0.05 else (math.sin(k) / k - math.cos(k)) / (k * k)
-    if u == 0.0:
-        return jinc
-    return ((1.0 - u) * 0.5 * jinc + u * ld) / ((1.0 - u) * 0.5 + u / 3.0)
-
-
-def _disk_ft_numpy(k, u):
-    """:func:`_disk_ft` on an array, with scipy's J1."""
-    from scipy.special import j1
-
+    """Normalised transform of the unit disk with linear limb darkening u at k = 2 pi |f| r:
+    the jinc 2 J1(k) / k (u = 0), else the profile's mix of it and (sin k / k - cos k) / k^2
+    (the transform of sqrt(1 - r^2)); series below k = 1e-4 and 0.05."""
     k = np.asarray(k, dtype=np.float64)
     small = k < 1e-4
     ks = np.where(small, 1.0, k)
-    jinc = np.where(small, 1.0 - k * k / 8.0, 2.0 * j1(ks) / ks)
+    jinc = np.where(small, 1.0 - k * k / 8.0, 2.0 * special.j1(ks) / ks)
     if u == 0.0:
         return jinc
     ld = np.where(k < 0.05, 1.0 / 3.0 - k * k / 30.0, (np.sin(ks) / ks - np.cos(ks)) / (ks * ks))
     return ((1.0 - u) * 0.5 * jinc + u * ld) / ((1.0 - u) * 0.5 + u / 3.0)
 
 
-def _build_table_numpy(u, h, n):
-    return _disk_ft_numpy(np.abs(np.arange(n + 3) - 1) * h, u)
-
-
-@_jit.kernel(_build_table_numpy)
-def _build_table(u, h, n):
-    tab = np.empty(n + 3)
-    for i in range(n + 3):
-        tab[i] = _disk_ft(abs(i - 1) * h, u)
-    return tab
-
-
-def disk_ft_table(u: float) -> np.ndarray:
-    """The disk's transform at k = (i - 1) h, i = 0 .. n + 2 (h = :data:`TABLE_STEP`, n h =
-    :data:`TABLE_KMAX`), read-only, built by the kernels the option ``kernels`` selects.
+@functools.lru_cache(maxsize=8)
+def disk_ft_table(u: float, n: int = round(TABLE_KMAX / TABLE_STEP)) -> np.ndarray:
+    """The disk's transform at k = (i - 1) h, i = 0 .. n + 2 (h = :data:`TABLE_STEP`), read-only.
 
     Parameters
     ----------
     u : float
         Linear limb-darkening coefficient (0 for the aperture's jinc).
+    n : int
+        Steps of the table: it serves k < n h (default n h = :data:`TABLE_KMAX`).
 
     Returns
     -------
     ndarray of float64, shape (n + 3,)
     """
-    return _disk_ft_table(float(u), OPTIONS["kernels"])
-
-
-@functools.lru_cache(maxsize=8)
-def _disk_ft_table(u: float, kernels: str) -> np.ndarray:
-    tab = _build_table(u, TABLE_STEP, int(round(TABLE_KMAX / TABLE_STEP)))
+    tab = _disk_ft(np.abs(np.arange(n + 3) - 1) * TABLE_STEP, float(u))
     tab.setflags(write=False)
     return tab
 
 
 @numba.njit(inline="always")
-def _lookup(tab, inv_h, k, u):
-    """Cubic (4-point Lagrange) interpolation of a :func:`disk_ft_table` at k >= 0, or the exact
-    transform beyond the table. Error bound (3/128) h^4 max|f''''| < 1e-9 for h = 1/64."""
+def _lookup(tab, inv_h, k):
+    """Cubic (4-point Lagrange) interpolation of a :func:`disk_ft_table` at 0 <= k < n h.
+    Error bound (3/128) h^4 max|f''''| < 1e-9 for h = 1/64."""
     x = k * inv_h
     i = int(x)
-    if i + 3 >= tab.shape[0]:
-        return _disk_ft(k, u)
+    if i + 3 >= tab.shape[0]:  # beyond the table (spectrum_tabulated sizes it): never silent
+        return math.nan
     t = x - i
     tm1, tm2, tp1 = t - 1.0, t - 2.0, t + 1.0
     return (-tab[i] * t * tm1 * tm2 + 3.0 * tab[i + 1] * tp1 * tm1 * tm2
@@ -280,9 +224,9 @@ def spectrum_direct(fx, fy, ap, area, km, u, ax, ay, diff, use_ap):
                    ((ay, fy), (ax, fx))))
     if use_ap:
         g1, g2 = ap[0, 0] * f1 + ap[1, 0] * f2, ap[0, 1] * f1 + ap[1, 1] * f2
-        v = v * area * _disk_ft_numpy(2.0 * np.pi * np.hypot(g1, g2), 0.0)
+        v = v * area * _disk_ft(2.0 * np.pi * np.hypot(g1, g2), 0.0)
     h1, h2 = km[0, 0] * f1 + km[1, 0] * f2, km[0, 1] * f1 + km[1, 1] * f2
-    v = v * _disk_ft_numpy(2.0 * np.pi * np.hypot(h1, h2), u)
+    v = v * _disk_ft(2.0 * np.pi * np.hypot(h1, h2), u)
     if diff > 0.0:
         v = v * np.exp(-2.0 * (np.pi * diff) ** 2 * (f1 * f1 + f2 * f2))
     return v
@@ -311,9 +255,9 @@ def _spectrum_tabulated(fx, fy, ap, area, km, u, ax, ay, diff, use_ap, tab_ap, t
             v = sx[a] * sy
             if use_ap:
                 g1, g2 = ap[0, 0] * f1 + ap[1, 0] * f2, ap[0, 1] * f1 + ap[1, 1] * f2
-                v *= area * _lookup(tab_ap, inv_h, tp * math.sqrt(g1 * g1 + g2 * g2), 0.0)
+                v *= area * _lookup(tab_ap, inv_h, tp * math.sqrt(g1 * g1 + g2 * g2))
             h1, h2 = km[0, 0] * f1 + km[1, 0] * f2, km[0, 1] * f1 + km[1, 1] * f2
-            v *= _lookup(tab_u, inv_h, tp * math.sqrt(h1 * h1 + h2 * h2), u)
+            v *= _lookup(tab_u, inv_h, tp * math.sqrt(h1 * h1 + h2 * h2))
             if diff > 0.0:
                 v *= math.exp(-2.0 * (math.pi * diff) ** 2 * (f1 * f1 + f2 * f2))
             out[b, a] = v
@@ -323,8 +267,9 @@ def _spectrum_tabulated(fx, fy, ap, area, km, u, ax, ay, diff, use_ap, tab_ap, t
 def spectrum_tabulated(fx, fy, ap, area, km, u, ax, ay, diff, use_ap):
     """:func:`spectrum_direct` with the two disk transforms interpolated in tables (compiled).
 
-    The interpolation error, below 2e-10 of the spectrum's peak on the paper's bench, is
-    smaller than the 1e-8 of the Bessel approximation; no trigonometric call per frequency.
+    The interpolation error, below 2e-10 of the spectrum's peak on the paper's bench, is far
+    below a photo-electron; no trigonometric call per frequency. The tables reach past the
+    grid's largest k = 2 pi |f| max(norm(ap), norm(km)), doubling from :data:`TABLE_KMAX`.
 
     Parameters
     ----------
@@ -335,5 +280,10 @@ def spectrum_tabulated(fx, fy, ap, area, km, u, ax, ay, diff, use_ap):
     -------
     ndarray of float64, shape (nfy, nfx)
     """
+    k = 2 * math.pi * math.hypot(np.abs(fx).max(), np.abs(fy).max()) * max(  # Frobenius norms:
+        math.hypot(*ap.ravel()) if use_ap else 0.0, math.hypot(*km.ravel()))  # bounds, cheap
+    n = round(TABLE_KMAX / TABLE_STEP)
+    while n * TABLE_STEP <= k:
+        n *= 2
     return _spectrum_tabulated(fx, fy, ap, area, km, u, ax, ay, diff, use_ap,
-                               disk_ft_table(0.0), disk_ft_table(u))
+                               disk_ft_table(0.0, n), disk_ft_table(float(u), n))

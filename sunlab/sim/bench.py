@@ -50,7 +50,7 @@ from ..errors import ConfigurationError
 from .detector import Detector
 from .mask import PAPER_DISTANCE_MM, PAPER_TRACK_CENTRE_MM, Mask
 from .platform import Platform
-from .source import Source
+from .source import Source, _check
 
 __all__ = ["Bench"]
 
@@ -140,10 +140,9 @@ class Bench:
 
     def __post_init__(self):
         for name, kind in _PARTS.items():
-            if not isinstance(getattr(self, name), kind):
-                raise ConfigurationError(
-                    f"bench.{name}: found {type(getattr(self, name)).__name__}; expected a "
-                    f"{kind.__name__}. Fix: build it with sunlab.sim.{kind.__name__}(...).")
+            _check(isinstance(getattr(self, name), kind), f"bench.{name}",
+                   type(getattr(self, name)).__name__, f"a {kind.__name__}",
+                   f"build it with sunlab.sim.{kind.__name__}(...).")
 
     # ---------------------------------------------------------------- presets
     @classmethod
@@ -251,18 +250,15 @@ class Bench:
         >>> Bench().replace(detector__read_noise_e=0.0).detector.read_noise_e
         0.0
         """
-        top = {k: v for k, v in changes.items() if "__" not in k}
-        nested: dict[str, dict] = {}
+        top, nested = {k: v for k, v in changes.items() if "__" not in k}, {}
         for key, value in changes.items():
-            if "__" in key:
+            if "__" in key:  # a part's fields are changed together: validated once
                 part, name = key.split("__", 1)
+                _check(part in _PARTS, "replace", key, "source, mask, detector or platform "
+                       "before the __", "e.g. mask__distance_mm=17.0.")
                 nested.setdefault(part, {})[name] = value
-        if set(nested) - set(_PARTS):
-            raise ConfigurationError(f"replace: found {sorted(set(nested) - set(_PARTS))}; "
-                                     "expected source, mask, detector or platform.")
         try:
-            for part, kw in nested.items():
-                top[part] = replace(top.get(part, getattr(self, part)), **kw)
+            top |= {p: replace(top.get(p, getattr(self, p)), **kw) for p, kw in nested.items()}
             return replace(self, **top)
         except TypeError as err:
             raise ConfigurationError(f"replace: {err}. Fix: check the field names.") from None

@@ -22,8 +22,9 @@ import numpy as np
 import xarray as xr
 
 from .. import geometry, schema
-from ..errors import ConfigurationError, SchemaError
+from ..errors import SchemaError
 from .mask import Mask
+from .source import _check
 
 __all__ = ["synthetic_centroids"]
 
@@ -94,13 +95,11 @@ class HoleLayout:
         """
         if isinstance(layout, HoleLayout):
             return layout
-        if isinstance(layout, Mask):
-            return cls.from_mask(layout, pixel_pitch_mm=pixel_pitch_mm)
-        if isinstance(layout, str) and layout == "grid":
-            return cls.from_mask(Mask.grid(), pixel_pitch_mm=pixel_pitch_mm)
-        raise ConfigurationError(
-            f"layout: found {layout!r}, expected None (one hole), 'grid', a sunlab.sim.Mask or a "
-            "HoleLayout. Fix: pass layout='grid' for the paper's 100-hole mask")
+        _check(isinstance(layout, Mask) or (isinstance(layout, str) and layout == "grid"),
+               "layout", layout, "None (one hole), 'grid', a sunlab.sim.Mask or a HoleLayout",
+               "pass layout='grid' for the paper's 100-hole mask.")
+        return cls.from_mask(Mask.grid() if isinstance(layout, str) else layout,
+                             pixel_pitch_mm=pixel_pitch_mm)
 
 
 def synthetic_centroids(alpha, beta, shots: int = 8, *, layout=None, seed: int = 0,
@@ -163,24 +162,17 @@ def _one_hole(alpha, beta, shots: int = 8, *, mask_distance_mm: float = 5.0,
               seed: int = 0, experiment: str = ""):
     """One hole: the bench's per-pose error, jitter, mounting and noise (see the caller)."""
     alpha, beta = np.asarray(alpha, dtype=float).ravel(), np.asarray(beta, dtype=float).ravel()
-    if alpha.shape != beta.shape:
-        raise ConfigurationError(
-            f"alpha, beta: found shapes {alpha.shape} and {beta.shape}, expected equal lengths "
-            "(one pair per pose). Fix: pass flat arrays of the plan's poses"
-        )
-    if int(shots) < 1:
-        raise ConfigurationError(f"shots: found {shots}, expected >= 1")
+    _check(alpha.shape == beta.shape, "alpha, beta", (alpha.shape, beta.shape),
+           "equal lengths (one pair per pose)", "pass flat arrays of the plan's poses.")
+    _check(int(shots) >= 1, "shots", shots, ">= 1")
     rng = np.random.default_rng(seed)
-    n = alpha.size
-    shape = (n, int(shots))
-    wa, wb = pose_error_deg
-    true_a = alpha[:, None] + rng.uniform(-wa, wa, (n, 1)) + rng.normal(0.0, jitter_deg, shape)
-    true_b = beta[:, None] + rng.uniform(-wb, wb, (n, 1)) + rng.normal(0.0, jitter_deg, shape)
+    n, shape = alpha.size, (alpha.size, int(shots))
+    true_a, true_b = (v[:, None] + rng.uniform(-w, w, (n, 1)) + rng.normal(0.0, jitter_deg, shape)
+                      for v, w in zip((alpha, beta), pose_error_deg, strict=True))
     x, y = geometry.model.pinhole_centroid(true_a, true_b, mask_distance_mm, pixel_pitch_mm,
-                                     x_cf + hole_offset_px[0], y_cf + hole_offset_px[1],
-                                     delta_f_mm=delta_f_mm, mounting_deg=mounting_deg)
-    x = x + rng.normal(0.0, noise_px, shape)
-    y = y + rng.normal(0.0, noise_px, shape)
+                                           x_cf + hole_offset_px[0], y_cf + hole_offset_px[1],
+                                           delta_f_mm=delta_f_mm, mounting_deg=mounting_deg)
+    x, y = (v + rng.normal(0.0, noise_px, shape) for v in (x, y))
     attrs = {"pixel_pitch_mm": float(pixel_pitch_mm), "mask_distance_mm": float(mask_distance_mm),
              "x_cf_px": float(x_cf), "y_cf_px": float(y_cf), "experiment": str(experiment)}
     return schema.centroids_dataset(x, y, alpha=alpha, beta=beta, method="synthetic", attrs=attrs,
@@ -205,13 +197,10 @@ def _apply_defects(rng, x, y, f, defects: Mapping[int, Mapping] | None):
     for h, d in (defects or {}).items():
         h = int(h)
         f[h] *= float(d.get("flux", 1.0))
-        s = float(d.get("sigma_px", 0.0))
-        nz = float(d.get("noise_px", 0.0))
-        x[..., h] += rng.normal(0, s, (n_p, 1)) + rng.normal(0, nz, (n_p, shots))
-        y[..., h] += rng.normal(0, s, (n_p, 1)) + rng.normal(0, nz, (n_p, shots))
-        bx, by = d.get("bias_px", (0.0, 0.0))
-        x[..., h] += bx
-        y[..., h] += by
+        s, nz = float(d.get("sigma_px", 0.0)), float(d.get("noise_px", 0.0))
+        for v, bias in zip((x, y), d.get("bias_px", (0.0, 0.0)), strict=True):
+            v[..., h] += rng.normal(0, s, (n_p, 1)) + rng.normal(0, nz, (n_p, shots))
+            v[..., h] += bias
         lost[..., h] |= rng.random((n_p, shots)) < float(d.get("missing", 0.0))
     return lost
 
@@ -223,24 +212,19 @@ def _many_holes(alpha, beta, shots: int, layout: HoleLayout, *, mask_distance_mm
                 detector_shape=(1024, 1280), edge_px: float = 20.0, seed: int = 0):
     """Many holes: common, hole-specific and per-frame errors and defects (see the caller)."""
     rng = np.random.default_rng(seed)
-    alpha = np.atleast_1d(np.asarray(alpha, dtype=float))
-    beta = np.atleast_1d(np.asarray(beta, dtype=float))
+    alpha, beta = (np.atleast_1d(np.asarray(v, dtype=float)) for v in (alpha, beta))
     if alpha.shape != beta.shape or alpha.ndim != 1:
         raise SchemaError("alpha, beta", f"shapes {alpha.shape}, {beta.shape}", "equal 1-d shapes")
     x_cf, y_cf = np.asarray(layout.x_cf, float), np.asarray(layout.y_cf, float)
     n_h, n_p = x_cf.size, alpha.size
     scale = np.ones(n_h) if hole_scale is None else np.asarray(hole_scale, dtype=float)
     shape = (n_p, shots, n_h)
-    ca, cb = np.broadcast_to(np.asarray(common_sigma_deg, dtype=float), (2,))
-    ta = alpha[:, None] + _uniform(rng, ca, (n_p, 1)) + rng.normal(0, shot_sigma_deg, (n_p, shots))
-    tb = beta[:, None] + _uniform(rng, cb, (n_p, 1)) + rng.normal(0, shot_sigma_deg, (n_p, shots))
+    ta, tb = (v[:, None] + _uniform(rng, c, (n_p, 1)) + rng.normal(0, shot_sigma_deg, (n_p, shots))
+              for v, c in zip((alpha, beta), np.broadcast_to(common_sigma_deg, (2,)), strict=True))
     dx, dy = geometry.ideal_centroid(ta, tb, mask_distance_mm, pixel_pitch_mm, 0.0, 0.0)
-    x = x_cf + scale * dx[..., None]
-    y = y_cf + scale * dy[..., None]
-    hx = rng.normal(0, hole_sigma_px, (n_p, 1, n_h))
-    hy = rng.normal(0, hole_sigma_px, (n_p, 1, n_h))
-    x = x + hx + rng.normal(0, noise_px, shape)
-    y = y + hy + rng.normal(0, noise_px, shape)
+    hx, hy = (rng.normal(0, hole_sigma_px, (n_p, 1, n_h)) for _ in range(2))
+    x, y = (c + scale * d[..., None] + h + rng.normal(0, noise_px, shape)
+            for c, d, h in ((x_cf, dx, hx), (y_cf, dy, hy)))
     f = np.full(n_h, 2e5) if flux is None else np.asarray(flux, dtype=float).copy()
     lost = _apply_defects(rng, x, y, f, defects)
     ny, nx = detector_shape

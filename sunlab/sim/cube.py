@@ -15,11 +15,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import ConfigurationError
 from .bench import Bench
 from .frame import render_frame, render_pose
 from .platform import _entropy, _platform_table
 from .render import mask_play, spot_geometry
+from .source import _check
 from .spots import _truth
 
 __all__ = ["simulate"]
@@ -27,14 +27,11 @@ __all__ = ["simulate"]
 
 def _truth_task(bench, a_row, b_row, key, pose):
     """(4, 1, shots, holes): true x, true y, ray x, ray y of every shot of one pose."""
-    n_s = len(a_row)
-    out = np.full((4, 1, n_s, bench.n_holes), np.nan)
+    out = np.full((4, 1, len(a_row), bench.n_holes), np.nan)
     play = mask_play(bench, key, pose)
-    for s in range(n_s):
-        geom = spot_geometry(bench, a_row[s], b_row[s], play)
-        out[2, 0, s] = geom.ray[:, 0]
-        out[3, 0, s] = geom.ray[:, 1]
-        out[0, 0, s], out[1, 0, s] = _truth(bench, geom)
+    for s, (a, b) in enumerate(zip(a_row, b_row, strict=True)):
+        geom = spot_geometry(bench, a, b, play)
+        out[:2, 0, s], out[2:, 0, s] = _truth(bench, geom), geom.ray.T
     return out
 
 
@@ -84,18 +81,13 @@ def simulate(plan, bench: Bench | None = None, seed=0, chunks: str = "frame"):
     from .. import schema
     from ..plans import Plan
 
-    if not isinstance(plan, Plan):
-        raise ConfigurationError(
-            f"plan: found {type(plan).__name__}; expected a sunlab.plans.Plan. Fix: use "
-            "sunlab.plans.experiment('III') or sunlab.plans.custom(alpha, beta).")
+    _check(isinstance(plan, Plan), "plan", type(plan).__name__, "a sunlab.plans.Plan",
+           "use sunlab.plans.experiment('III') or sunlab.plans.custom(alpha, beta).")
     bench = Bench.paper_single_hole() if bench is None else bench
-    if not isinstance(bench, Bench):
-        raise ConfigurationError(f"bench: found {type(bench).__name__}; expected a "
-                                 "sunlab.sim.Bench.")
-    if chunks not in ("frame", "pose"):
-        raise ConfigurationError(
-            f"chunks: found {chunks!r}; expected 'frame' or 'pose'. Fix: chunks='frame' (one "
-            "frame per chunk) or chunks='pose' (all shots of a pose per chunk).")
+    _check(isinstance(bench, Bench), "bench", type(bench).__name__, "a sunlab.sim.Bench",
+           "pass sunlab.sim.Bench.paper_single_hole() or omit bench.")
+    _check(chunks in ("frame", "pose"), "chunks", chunks, "'frame' or 'pose'", "chunks='frame' "
+           "(one frame per chunk) or chunks='pose' (all shots of a pose per chunk).")
     key = _entropy(seed) + [plan.crc32()]
     ta, tb = _platform_table(bench, plan, key)
     token = tokenize(bench.to_json(), key, ta, tb)
@@ -120,12 +112,12 @@ def _frames_block(index, bench, key, ta, tb):
     poses, or frame numbers pose * shots + shot (pose, shot) for a block of single frames;
     returns (poses, shots, ny, nx), each frame rendered in place."""
     n_s = ta.shape[1]
+    shots = (n_s,) if index.ndim == 1 else ()  # a block of whole poses, or of single frames
+    out = np.empty(index.shape + shots + bench.detector.shape, dtype=np.uint16)
     if index.ndim == 1:
-        out = np.empty((index.size, n_s) + bench.detector.shape, dtype=np.uint16)
         for i, p in enumerate(index):
             render_pose(bench, ta[p], tb[p], seed=key, pose=int(p), out=out[i])
         return out
-    out = np.empty(index.shape + bench.detector.shape, dtype=np.uint16)
     for (i, j), k in np.ndenumerate(index):
         p, s = divmod(int(k), n_s)
         render_frame(bench, ta[p, s], tb[p, s], seed=key, pose=p, shot=s, out=out[i, j],

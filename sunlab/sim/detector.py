@@ -57,10 +57,20 @@ from typing import NamedTuple
 import numba
 import numpy as np
 
-from ..errors import ConfigurationError
 from . import _jit
+from .source import _check
 
 __all__ = ["Detector"]
+
+#: Each float field's rule: (fields, test, what is expected, the fix).
+_RULES = [(("pixel_pitch_mm", "fill_factor", "qe"), lambda v: 0 < v <= 1, "0 < value <= 1",
+           "e.g. a 0.007 mm pitch (the Ibis4), fill factor 0.6, QE 0.58."),
+          (("gain_e_per_dn", "full_well_e", "sensitive_aspect", "prnu_correlation_px"),
+           lambda v: v > 0, "a positive value", "e.g. 40 e-/DN, 62500 e-, aspect 1, 6 px."),
+          (("lid_index",), lambda v: v >= 1, "a refractive index >= 1", "Schott D263: 1.523."),
+          (("read_noise_e", "dark_signal_e", "dsnu", "column_fpn_dn", "bias_dn", "prnu",
+            "prnu_correlated", "hot_pixel_fraction", "hot_pixel_dark_e", "diffusion_px",
+            "lid_thickness_mm"), lambda v: v >= 0, "a value >= 0", "0 turns it off.")]
 
 
 @dataclass(frozen=True)
@@ -156,37 +166,17 @@ class Detector:
                            tuple(float(v) for v in self.sensitive_offset_px))
         for name in ("nx", "ny", "bit_depth"):
             v = getattr(self, name)
-            if not isinstance(v, int | np.integer) or v < 1 or (name == "bit_depth" and v > 16):
-                raise ConfigurationError(f"detector.{name}: found {v!r}; expected a positive "
-                                         "integer (bit_depth <= 16: uint16 frames).")
-        checks = {"pixel_pitch_mm": (1.0, "e.g. 0.007 for the Ibis4"),
-                  "fill_factor": (1.0, "the sensitive fraction of the pixel, e.g. 0.5"),
-                  "qe": (1.0, "e.g. 0.7"), "gain_e_per_dn": (math.inf, "e.g. 40"),
-                  "full_well_e": (math.inf, "e.g. 62500"),
-                  "sensitive_aspect": (math.inf, "1 for a square photodiode")}
-        for name, (hi, fix) in checks.items():
-            v = getattr(self, name)
-            if not (math.isfinite(v) and 0.0 < v <= hi):
-                raise ConfigurationError(
-                    f"detector.{name}: found {v!r}; expected 0.0 < value <= {hi}. Fix: {fix}.")
-        for name in ("read_noise_e", "dark_signal_e", "dsnu", "column_fpn_dn", "bias_dn", "prnu",
-                     "prnu_correlated", "hot_pixel_fraction", "hot_pixel_dark_e", "diffusion_px",
-                     "lid_thickness_mm"):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v >= 0):
-                raise ConfigurationError(f"detector.{name}: found {v!r}; expected a value >= 0.")
-        if not (math.isfinite(self.lid_index) and self.lid_index >= 1.0):
-            raise ConfigurationError(f"detector.lid_index: found {self.lid_index!r}; expected a "
-                                     "refractive index >= 1 (Schott D263: 1.523).")
-        if self.prnu_correlation_px <= 0:
-            raise ConfigurationError(f"detector.prnu_correlation_px: found "
-                                     f"{self.prnu_correlation_px!r}; expected > 0 px.")
-        ax, ay = self.sensitive_size_px
-        ox, oy = self.sensitive_offset_px
-        if abs(ox) + ax / 2 > 0.5 + 1e-12 or abs(oy) + ay / 2 > 0.5 + 1e-12:
-            raise ConfigurationError(
-                f"detector.sensitive_offset_px: found {self.sensitive_offset_px}; the {ax:.3f} x "
-                f"{ay:.3f} px sensitive area must stay inside its pixel. Fix: reduce the offset.")
+            _check(isinstance(v, int | np.integer) and 0 < v <= (16 if name == "bit_depth" else v),
+                   f"detector.{name}", v, "a positive integer (bit_depth <= 16: uint16 frames)",
+                   "e.g. 1280 x 1024 pixels, 10 bits.")
+        for names, ok, expected, fix in _RULES:
+            for name in names:
+                v = getattr(self, name)
+                _check(math.isfinite(v) and ok(v), f"detector.{name}", v, expected, fix)
+        (ax, ay), (ox, oy) = self.sensitive_size_px, self.sensitive_offset_px
+        _check(abs(ox) + ax / 2 <= 0.5 + 1e-12 and abs(oy) + ay / 2 <= 0.5 + 1e-12,
+               "detector.sensitive_offset_px", self.sensitive_offset_px,
+               f"the {ax:.3f} x {ay:.3f} px sensitive area inside its pixel", "reduce the offset.")
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -208,8 +198,7 @@ class Detector:
     @property
     def sensitive_size_px(self) -> tuple[float, float]:
         """Width and height of the sensitive rectangle, px."""
-        a = math.sqrt(self.fill_factor)
-        r = math.sqrt(self.sensitive_aspect)
+        a, r = math.sqrt(self.fill_factor), math.sqrt(self.sensitive_aspect)
         return (a * r, a / r)
 
     @property
@@ -286,12 +275,10 @@ def fixed_pattern(det: Detector) -> FixedPattern:
         hot = rng.random(shape) < det.hot_pixel_fraction
         dark[hot] += rng.exponential(det.hot_pixel_dark_e, int(hot.sum()))
         dark = np.clip(dark, 0.0, None)
-        offset = det.bias_dn + det.column_fpn_dn * rng.standard_normal(det.nx)[None, :]
-        offset = np.broadcast_to(offset, shape)
+        offset = np.broadcast_to(det.bias_dn + det.column_fpn_dn * rng.standard_normal(det.nx),
+                                 shape)  # a column pattern
     else:
-        gain = np.ones(shape)
-        dark = np.full(shape, det.dark_signal_e)
-        offset = np.full(shape, det.bias_dn)
+        gain, dark, offset = (np.full(shape, v) for v in (1.0, det.dark_signal_e, det.bias_dn))
     g = det.gain_e_per_dn
     bg_mean = offset + dark / g
     bg_sigma = np.sqrt(dark + det.read_noise_e**2) / g if det.temporal_noise else np.zeros(shape)
@@ -403,13 +390,11 @@ def adc_frame(mean_dn, sigma_dn, table, state, max_dn, out):
         k = 4 * b
         for q in range(4):
             o[k + q] = _to_dn32(m[k + q] + s[k + q] * table[(r >> np.uint64(16 * q)) & low], top)
-    steps = n4 + (1 if n > 4 * n4 else 0)
-    if n > 4 * n4:
-        r = _mix64(s0 + np.uint64(steps) * _GOLDEN)
-        for k in range(4 * n4, n):
-            o[k] = _to_dn32(m[k] + s[k] * table[r & low], top)
-            r = r >> np.uint64(16)
-    state[0] = s0 + np.uint64(steps) * _GOLDEN
+    r = _mix64(s0 + np.uint64(n4 + 1) * _GOLDEN)  # the last pixels' output, if any
+    for k in range(4 * n4, n):
+        o[k] = _to_dn32(m[k] + s[k] * table[r & low], top)
+        r = r >> np.uint64(16)
+    state[0] = s0 + np.uint64((n + 3) // 4) * _GOLDEN
 
 
 def _adc_region_numpy(y0, x0, signal_e, gain, dark_e, offset_dn, table, state, read_var_e,
@@ -459,15 +444,10 @@ def adc_region(y0, x0, signal_e, gain, dark_e, offset_dn, table, state, read_var
     noisy = table.shape[0] > 0
     z = np.zeros(n if noisy else 0, dtype=np.float32)
     if noisy:
-        s0, low, n4 = state[0], np.uint64(0xFFFF), n // 4
-        for b in range(n4):
+        s0, low, steps = state[0], np.uint64(0xFFFF), (n + 3) // 4
+        for b in range(steps):
             r = _mix64(s0 + np.uint64(b + 1) * _GOLDEN)
-            for q in range(4):
-                z[4 * b + q] = table[(r >> np.uint64(16 * q)) & low]
-        steps = n4 + (1 if n > 4 * n4 else 0)
-        if n > 4 * n4:
-            r = _mix64(s0 + np.uint64(steps) * _GOLDEN)
-            for k in range(4 * n4, n):
+            for k in range(4 * b, min(4 * b + 4, n)):
                 z[k] = table[r & low]
                 r = r >> np.uint64(16)
         state[0] = s0 + np.uint64(steps) * _GOLDEN

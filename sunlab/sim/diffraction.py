@@ -64,7 +64,7 @@ import math
 import numpy as np
 from scipy import constants, special
 
-from ..errors import ConfigurationError
+from .source import _check
 
 __all__ = []
 
@@ -256,10 +256,8 @@ def broadband_transform(q, radius_mm: float, distance_mm: float):
     """
     q = np.abs(np.asarray(q, dtype=float))
     nodes = 32 + int(2.0 * math.pi * float(np.max(q, initial=0.0)))
-    out = np.zeros(q.shape)
-    for lam, w in zip(*spectral_weights(), strict=True):
-        out += w * _lens_ft(q, fresnel_number(radius_mm, distance_mm, lam), nodes)
-    return out
+    return _spectral_sum(lambda n: _lens_ft(q, n, nodes),
+                         fresnel_number(radius_mm, distance_mm, 1.0))
 
 
 def broadband_intensity(rho, radius_mm: float, distance_mm: float):
@@ -277,11 +275,15 @@ def broadband_intensity(rho, radius_mm: float, distance_mm: float):
     numpy.ndarray
         sum_lambda w(lambda) I(rho; a^2 / (lambda z)) (:func:`monochromatic_intensity`).
     """
-    rho = np.asarray(rho, dtype=float)
-    out = np.zeros(rho.shape)
-    for lam, w in zip(*spectral_weights(), strict=True):
-        out += w * monochromatic_intensity(rho, fresnel_number(radius_mm, distance_mm, lam))
-    return out
+    return _spectral_sum(lambda n: monochromatic_intensity(rho, n),
+                         fresnel_number(radius_mm, distance_mm, 1.0))
+
+
+def _spectral_sum(fn, n1: float):
+    """sum_lambda w(lambda) fn(N1 / lambda) over :func:`spectral_weights` (lambda in um), for
+    N1 the Fresnel number at 1 um."""
+    lam, w = spectral_weights()
+    return sum(w_k * fn(n1 / lam_k) for lam_k, w_k in zip(lam, w, strict=True))
 
 
 @functools.lru_cache(maxsize=32)
@@ -291,14 +293,10 @@ def _table(key: int):
     from scipy.interpolate import CubicSpline
 
     n1 = math.exp(key * _KEY_STEP)
-    lam, w = spectral_weights()
-    k_end = 2.0 * math.pi * 2.0 * n1 / float(lam.min())  # the shortest wavelength's cutoff
+    # the shortest wavelength's cutoff, and the table's points up to it
+    k_end = 2.0 * math.pi * 2.0 * n1 / float(spectral_weights()[0].min())
     k = np.arange(0.0, k_end + 4 * _TABLE_STEP, _TABLE_STEP)
-    q = k / (2.0 * math.pi)
-    nodes = 32 + int(k_end)
-    val = np.zeros(k.shape)
-    for lam_k, w_k in zip(lam, w, strict=True):
-        val += w_k * _lens_ft(q, n1 / lam_k, nodes)
+    val = _spectral_sum(lambda n: _lens_ft(k / (2.0 * math.pi), n, 32 + int(k_end)), n1)
     return float(k[-1]), CubicSpline(k, val)
 
 
@@ -357,13 +355,10 @@ class FresnelHole:
         self.radius_mm = math.sqrt(abs(float(np.linalg.det(np.asarray(affine_mm, dtype=float)))))
         self.distance_mm = float(distance_mm)
         n = fresnel_number(self.radius_mm, self.distance_mm) if self.distance_mm > 0 else math.inf
-        if not (self.radius_mm > 0 and 0 < n <= _MAX_FRESNEL):
-            raise ConfigurationError(
-                f"mask.diffraction: the hole of radius {self.radius_mm:g} mm at {distance_mm:g} mm "
-                f"has Fresnel number {n:g} at 550 nm; diffraction is built for 0 < N <= "
-                f"{_MAX_FRESNEL:g}, beyond which the geometric shadow holds. Fix: "
-                "mask.diffraction=False."
-            )
+        _check(self.radius_mm > 0 and 0 < n <= _MAX_FRESNEL, "mask.diffraction",
+               f"the hole of radius {self.radius_mm:g} mm at {distance_mm:g} mm: N = {n:g} at 550 "
+               "nm", f"0 < N <= {_MAX_FRESNEL:g}, beyond which the geometric shadow holds",
+               "mask.diffraction=False.")
         lam, w = spectral_weights()
         n1 = fresnel_number(self.radius_mm, self.distance_mm, 1.0)
         self.reach = max(1.0, float(w @ lam) / (math.pi**2 * n1 * HALO_FRACTION))

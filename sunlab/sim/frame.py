@@ -26,8 +26,7 @@ import numpy as np
 
 from ..errors import ConfigurationError
 from .detector import Detector, adc_frame, adc_region, fixed_pattern, normal_table
-from .platform import sensor_sun_vector
-from .render import _hole_centres_mm, _rays, frame_key, mask_play, spot_geometry
+from .render import _geometry, frame_key, mask_play, spot_geometry
 from .spots import _groups
 
 __all__ = ["render_frame"]
@@ -55,33 +54,18 @@ def _pose_stamps(bench, alphas, betas, play_mm, shape_angles):
             else [] for a, b in zip(alphas, betas, strict=True)
         ]
     det = bench.detector
-    n_m = bench.mask.rotation_matrix()[:, 2]
-    q = _hole_centres_mm(bench, play_mm)
-    shots = []  # (shot, rays, q_e) of the lit shots
-    for k, (a, b) in enumerate(zip(alphas, betas, strict=True)):
-        sv = sensor_sun_vector(bench.platform, float(a), float(b))
-        if sv[2] > 1e-6 and float(sv @ n_m) > 1e-6:
-            shots.append((k, _rays(q, sv, sv[2], det),
-                          geom.q_e * (sv[2] / geom.s[2])))  # the flux's cosine factor, per shot
+    sv, lit, ray_k, *_ = _geometry(bench, alphas, betas, [play_mm] * len(alphas), "none")
+    q_k = geom.q_e * (sv[:, 2] / geom.s[2])  # the flux's cosine factor, per shot
     out = [[] for _ in alphas]
-    for g in _groups(bench, geom):
-        r = g.radius
-        who, rays, shifts, q_e = [], [], [], []
-        for k, ray_all, qk in shots:
-            x, y = ray_all[g.idx, 0], ray_all[g.idx, 1]
-            vis = ~((x + r < -0.5) | (y + r < -0.5) | (x - r > det.nx - 0.5)
-                    | (y - r > det.ny - 0.5))
-            members = np.flatnonzero(vis)
-            who += [k] * members.size
-            rays.append(ray_all[g.idx[members]])
-            shifts.append(g.shift[members])
-            q_e.append(np.full(members.size, qk))
-        if not who:
-            continue
-        ray = np.concatenate(rays)
-        imgs, x0, y0 = g.spectrum().images(ray, ray + np.concatenate(shifts), np.concatenate(q_e))
-        for n, k in enumerate(who):
-            out[k].append((imgs[n], int(x0[n]), int(y0[n])))
+    for g in _groups(bench, geom):  # every lit shot's spots that reach the detector, in order
+        (x, y), r = ray_k[:, g.idx].transpose(2, 0, 1), g.radius
+        kk, mm = np.nonzero(lit[:, None] & (x + r >= -0.5) & (y + r >= -0.5)
+                            & (x - r <= det.nx - 0.5) & (y - r <= det.ny - 0.5))
+        if kk.size:
+            ray = ray_k[kk, g.idx[mm]]
+            imgs, x0, y0 = g.spectrum().images(ray, ray + g.shift[mm], q_k[kk])
+            for n, k in enumerate(kk):
+                out[k].append((imgs[n], int(x0[n]), int(y0[n])))
     return out
 
 
@@ -153,10 +137,8 @@ def expected_frame(bench, alpha_true, beta_true, *, play_mm=(0.0, 0.0)):
     >>> mean.shape, bool(mean.max() > 300)
     ((1024, 1280), True)
     """
-    det = bench.detector
-    fp = fixed_pattern(det)
-    g = det.gain_e_per_dn
-    e = fp.dark_e.astype(np.float64).copy()
+    det, fp, g = bench.detector, fixed_pattern(bench.detector), bench.detector.gain_e_per_dn
+    e = fp.dark_e.astype(np.float64)
     for part, xa, ya in _signal_map(_signal_stamps(bench, alpha_true, beta_true, play_mm), det):
         sl = (slice(ya, ya + part.shape[0]), slice(xa, xa + part.shape[1]))
         e[sl] = fp.dark_e[sl] + fp.gain[sl] * part
@@ -207,11 +189,10 @@ def render_frame(bench, alpha_true, beta_true, *, seed, pose: int = 0, shot: int
     ('uint16', (1024, 1280), True)
     """
     out = _output(out, bench.detector.shape)
-    if play_mm is None:
-        play_mm = mask_play(bench, seed, pose)
+    play = mask_play(bench, seed, pose) if play_mm is None else play_mm
     ref = (alpha_true, beta_true) if shape_angles is None else shape_angles
-    stamps = _pose_stamps(bench, [alpha_true], [beta_true], play_mm, ref)[0]
-    _expose(bench, stamps, seed, pose, shot, out)
+    _expose(bench, _pose_stamps(bench, [alpha_true], [beta_true], play, ref)[0], seed, pose, shot,
+            out)
     return out
 
 
@@ -266,23 +247,19 @@ def render_pose(bench, alpha_true, beta_true, *, seed, pose: int = 0, out=None) 
 
 def _output(out, shape):
     """``out``, checked, or a new uint16 array of ``shape``."""
-    if out is None:
-        return np.empty(shape, dtype=np.uint16)
-    if out.shape != shape or out.dtype != np.uint16 or not out.flags.c_contiguous:
+    if out is not None and (out.shape, out.dtype, out.flags.c_contiguous) != (shape, "u2", True):
         raise ConfigurationError(
             f"out: found {out.dtype} {out.shape}; expected a C-contiguous uint16 array of shape "
             f"{shape}. Fix: pass numpy.empty({shape}, dtype=numpy.uint16) or omit out.")
-    return out
+    return np.empty(shape, dtype=np.uint16) if out is None else out
 
 
 def _expose(bench, stamps, seed, pose, shot, out):
     """The ADC of a frame: the dark frame's noise and rounding everywhere, then the pixels that
     hold spot signal (``stamps``) recomputed with their photon noise."""
-    det = bench.detector
-    fp = fixed_pattern(det)
+    det, fp, max_dn = bench.detector, fixed_pattern(bench.detector), float(bench.detector.max_dn)
     table = normal_table() if det.temporal_noise else np.empty(0, dtype=np.float32)
     state = frame_key(seed, pose, shot).generate_state(1, dtype=np.uint64)
-    max_dn = float(det.max_dn)
     adc_frame(fp.bg_mean_dn, fp.bg_sigma_dn, table, state, max_dn, out)
     read_var = float(det.read_noise_e**2) if det.temporal_noise else 0.0
     for part, xa, ya in _signal_map(stamps, det):

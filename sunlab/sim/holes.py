@@ -23,16 +23,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import ConfigurationError
 from ..schema import DEFECT_FLAGS
+from .source import _check
 
 __all__ = []
-
-
-def _check(ok: bool, name: str, value, expected: str, fix: str = "") -> None:
-    if not ok:
-        raise ConfigurationError(f"{name}: found {value!r}; expected {expected}." +
-                                 (f" Fix: {fix}" if fix else ""))
 
 
 def _positive(name: str, value: float, fix: str) -> None:
@@ -200,9 +194,8 @@ class Hole:
                "defect.")
         d = self.defect
         d = () if d is None else (d,) if isinstance(d, _DEFECT_TYPES) else tuple(d)
-        for item in d:
-            _check(isinstance(item, _DEFECT_TYPES), "hole.defect", item,
-                   "Dust, Elliptical, Burred or Undersized")
+        _check(all(isinstance(item, _DEFECT_TYPES) for item in d), "hole.defect", d,
+               "Dust, Elliptical, Burred or Undersized (or a tuple of them)")
         object.__setattr__(self, "defect", d)
 
     def _find(self, kind):
@@ -255,9 +248,7 @@ class Hole:
         r = self.effective_diameter_mm / 2.0
         if self.shape == "square":
             # Polar radius of a square of side 2 r, sampled at the same angles plus its corners.
-            c = np.cos(phi)
-            s = np.sin(phi)
-            rho = r / np.maximum(np.abs(c), np.abs(s))
+            rho = r / np.maximum(np.abs(np.cos(phi)), np.abs(np.sin(phi)))
         else:
             # vertices slightly outside the circle so that the polygon keeps the circle's area
             rho = np.full(n, r * math.sqrt((2 * math.pi / n) / math.sin(2 * math.pi / n)))
@@ -282,13 +273,10 @@ class Hole:
             One entry per :class:`Dust` defect: its outline (n, 2) mm and its height above the
             mask, mm; empty for a clean hole.
         """
-        out = []
         phi = np.linspace(0.0, 2 * np.pi, n, endpoint=False)
-        for d in self._find(Dust):
-            r = d.diameter_mm / 2.0
-            poly = np.stack([d.dx_mm + r * np.cos(phi), d.dy_mm + r * np.sin(phi)], axis=-1)
-            out.append((poly, float(d.height_mm)))
-        return out
+        return [(np.stack([d.dx_mm + d.diameter_mm / 2.0 * np.cos(phi),
+                           d.dy_mm + d.diameter_mm / 2.0 * np.sin(phi)], axis=-1),
+                 float(d.height_mm)) for d in self._find(Dust)]
 
     def area_mm2(self) -> float:
         """Open area of the aperture at normal incidence, mm^2 (dust in the hole plane removed
@@ -303,8 +291,7 @@ class Hole:
         a = self.affine()
         if a is not None:
             return float(math.pi * abs(np.linalg.det(a)))
-        p = self.outline(512)
-        x, y = p[:, 0], p[:, 1]
+        x, y = self.outline(512).T
         return float(0.5 * np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
 
     def max_radius_mm(self) -> float:

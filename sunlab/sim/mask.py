@@ -25,7 +25,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .holes import _DEFECT_TYPES, Burred, Dust, Elliptical, Hole, Undersized, _check, _positive
+from .holes import _DEFECT_TYPES, Burred, Dust, Elliptical, Hole, Undersized, _positive
+from .source import _check
 
 __all__ = ["Mask"]
 
@@ -100,29 +101,22 @@ class Mask:
     diffraction: bool = False
 
     def __post_init__(self):
-        object.__setattr__(self, "holes", tuple(self.holes))
         _check(isinstance(self.diffraction, bool | np.bool_), "mask.diffraction", self.diffraction,
-               "True or False", "pass diffraction=True for the Fresnel spot, False for the "
-               "geometric shadow.")
-        object.__setattr__(self, "diffraction", bool(self.diffraction))
-        object.__setattr__(self, "size_mm", tuple(float(v) for v in self.size_mm))
-        _check(bool(self.holes), "mask.holes", self.holes, "at least one Hole",
-               "use Mask.single_hole() or Mask.grid().")
-        for h in self.holes:
-            _check(isinstance(h, Hole), "mask.holes", h, "Hole objects")
-        _check(math.isfinite(self.distance_mm) and self.distance_mm > 0, "mask.distance_mm",
-               self.distance_mm, "a positive mask-to-focal-plane distance F in mm",
-               "pass distance_mm=5.0.")
-        _check(math.isfinite(self.delta_f_mm) and self.distance_mm + self.delta_f_mm > 0,
-               "mask.delta_f_mm", self.delta_f_mm, "a true distance F + dF = "
-               f"{self.distance_mm + self.delta_f_mm!r} mm > 0", "keep |dF| < F.")
-        for name in ("tilt_x_deg", "tilt_y_deg"):
-            v = getattr(self, name)
-            _check(math.isfinite(v) and abs(v) < 30.0, f"mask.{name}", v,
-                   "a small tilt |tilt| < 30 deg")
-        for name in ("play_x_mm", "play_y_mm"):
-            v = getattr(self, name)
-            _check(math.isfinite(v) and v >= 0, f"mask.{name}", v, "a half-width >= 0 mm")
+               "True or False", "True for the Fresnel spot, False for the geometric shadow.")
+        for name, v in (("holes", tuple(self.holes)), ("diffraction", bool(self.diffraction)),
+                        ("size_mm", tuple(float(v) for v in self.size_mm))):
+            object.__setattr__(self, name, v)
+        _check(bool(self.holes) and all(isinstance(h, Hole) for h in self.holes), "mask.holes",
+               self.holes, "at least one Hole", "use Mask.single_hole() or Mask.grid().")
+        f, df = self.distance_mm, self.delta_f_mm
+        _check(math.isfinite(f) and f > 0, "mask.distance_mm", f,
+               "a positive mask-to-focal-plane distance F in mm", "pass distance_mm=5.0.")
+        _check(math.isfinite(df) and f + df > 0, "mask.delta_f_mm", df,
+               f"a true distance F + dF = {f + df!r} mm > 0", "keep |dF| < F.")
+        for name in ("tilt_x_deg", "tilt_y_deg", "play_x_mm", "play_y_mm"):
+            v, tilt = getattr(self, name), name.startswith("tilt")
+            _check(math.isfinite(v) and (abs(v) < 30.0 if tilt else v >= 0), f"mask.{name}", v,
+                   "|tilt| < 30 deg" if tilt else "a half-width >= 0 mm", "0 for none.")
         w, h = self.size_mm
         for k, hole in enumerate(self.holes):
             r = hole.max_radius_mm()

@@ -59,8 +59,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..errors import ConfigurationError
 from ..geometry.model import rotation_x, rotation_y, rotation_z
+from .source import _check
 
 __all__ = ["Platform"]
 
@@ -146,9 +146,8 @@ class Platform:
         rules += [(n, "a small angle (|value| < 45 deg)", lambda v: abs(v) < 45)
                   for n in ("alpha0_deg", "beta0_deg", "gamma0_deg", "nonorthogonality_deg")]
         for name, expected, ok in rules:
-            if not ok(getattr(self, name)):
-                raise ConfigurationError(
-                    f"platform.{name}: found {getattr(self, name)!r}; expected {expected}.")
+            _check(ok(getattr(self, name)), f"platform.{name}", getattr(self, name), expected,
+                   "see the defaults of sunlab.sim.Platform.")
 
     @classmethod
     def ideal(cls) -> Platform:
@@ -191,8 +190,7 @@ class Platform:
             The encoder's scale and offset applied to each axis, plus on beta the wobble (a
             sinusoid of alpha) and the gear error (a sinusoid of beta), deg.
         """
-        a = np.asarray(alpha_cmd, dtype=float)
-        b = np.asarray(beta_cmd, dtype=float)
+        a, b = np.asarray(alpha_cmd, dtype=float), np.asarray(beta_cmd, dtype=float)
         at = a * (1 + self.alpha_scale) + self.alpha_offset_deg
         bt = b * (1 + self.beta_scale) + self.beta_offset_deg
         if self.beta_wobble_deg:
@@ -245,7 +243,7 @@ def sensor_sun_vector(platform: Platform, alpha_true, beta_true) -> np.ndarray:
     ca, sa = np.cos(a), np.sin(a)
     g = np.stack([ca * v[..., 0] - sa * v[..., 2], v[..., 1], sa * v[..., 0] + ca * v[..., 2]],
                  axis=-1)
-    return g @ platform.mount_matrix().T
+    return np.einsum("...j,ij->...i", g, platform.mount_matrix())  # the same sums for any n
 
 
 # --------------------------------------------------------------------------- random errors
@@ -264,20 +262,17 @@ _TAG_HOME = 0x803E
 def _entropy(seed) -> list[int]:
     """Seed as a list of non-negative ints (an int or a sequence of ints)."""
     items = [seed] if isinstance(seed, int | np.integer) else list(seed)
-    for v in items:
-        if isinstance(v, bool) or not isinstance(v, int | np.integer) or v < 0:
-            raise ConfigurationError(
-                f"seed: found {seed!r}; expected a non-negative integer or a sequence of them. "
-                "Fix: pass seed=0.")
+    _check(all(isinstance(v, int | np.integer) and not isinstance(v, bool) and v >= 0
+               for v in items), "seed", seed, "a non-negative integer or a sequence of them",
+           "pass seed=0.")
     return [int(v) for v in items]
 
 
 def _check_cmd(alpha_cmd, beta_cmd):
     for name, v in (("alpha_cmd", alpha_cmd), ("beta_cmd", beta_cmd)):
         v = np.asarray(v, dtype=float)
-        if not np.all(np.isfinite(v)) or np.any(np.abs(v) >= 90.0):
-            raise ConfigurationError(f"{name}: found {v!r}; expected finite angles with "
-                                     "|angle| < 90 deg. Fix: command platform angles in degrees.")
+        _check(bool(np.all(np.isfinite(v)) and np.all(np.abs(v) < 90.0)), name, v,
+               "finite angles with |angle| < 90 deg", "command platform angles in degrees.")
 
 
 def _pose_error(plat: Platform, key: list[int], pose: int, approach: int = 1,
@@ -395,9 +390,7 @@ def platform_pose(bench, alpha_cmd: float, beta_cmd: float, *, seed, pose: int, 
     plat = bench.platform
     at, bt = plat.systematic(float(alpha_cmd), float(beta_cmd))
     key = _entropy(seed)
-    if approach not in (1, -1):
-        raise ConfigurationError(f"approach: found {approach!r}; expected +1 (reached upward) "
-                                 "or -1 (downward).")
+    _check(approach in (1, -1), "approach", approach, "+1 (reached upward) or -1 (downward)")
     home = 0.0 if run is None else _homing(plat, key, run)
     ea, eb = _pose_error(plat, key, pose, approach, home)
     ja, jb = _jitter(plat, key, pose, shot)
@@ -408,10 +401,8 @@ def _platform_table(bench, plan, key: list[int]):
     """True angles (pose, shot) of a whole plan; identical to :func:`platform_pose` per frame
     (with each pose's approach direction from the plan's motion and the plan's name as run)."""
     plat = bench.platform
-    ta = np.empty((len(plan), plan.shots))
-    tb = np.empty((len(plan), plan.shots))
-    approach = plan.beta_approach()
-    home = _homing(plat, key[:-1], plan.name)
+    ta, tb = np.empty((2, len(plan), plan.shots))
+    approach, home = plan.beta_approach(), _homing(plat, key[:-1], plan.name)
     for p in range(len(plan)):
         # scalar arithmetic, as in platform_pose, so that both agree to the last bit
         at, bt = plat.systematic(float(plan.alpha[p]), float(plan.beta[p]))

@@ -35,7 +35,6 @@ Examples
 from __future__ import annotations
 
 import functools
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -94,8 +93,8 @@ def mask_play(bench, seed, pose: int) -> tuple[float, float]:
     m = bench.mask
     if m.play_x_mm == 0 and m.play_y_mm == 0:
         return (0.0, 0.0)
-    rng = np.random.default_rng(np.random.SeedSequence(_entropy(seed) + [_TAG_PLAY, int(pose)]))
-    u = rng.uniform(-1.0, 1.0, 2)
+    u = np.random.default_rng(np.random.SeedSequence(_entropy(seed) + [_TAG_PLAY, int(pose)]))
+    u = u.uniform(-1.0, 1.0, 2)
     return (float(u[0] * m.play_x_mm), float(u[1] * m.play_y_mm))
 
 
@@ -142,15 +141,6 @@ class SpotGeometry:
     groups: list | None = field(default=None, repr=False, compare=False)
 
 
-@functools.lru_cache(maxsize=8)
-def _quadrature(n_r: int = 8, n_phi: int = 16):
-    x, w = np.polynomial.legendre.leggauss(n_r)
-    r = 0.5 * (x + 1.0)
-    wr = 0.5 * w
-    phi = (np.arange(n_phi) + 0.5) * 2 * np.pi / n_phi
-    return r, wr, phi
-
-
 def spot_geometry(bench, alpha_true, beta_true, play_mm=(0.0, 0.0)) -> SpotGeometry:
     """Ray positions, projections and the sun-disk kernel for true platform angles (deg).
 
@@ -179,68 +169,96 @@ def spot_geometry(bench, alpha_true, beta_true, play_mm=(0.0, 0.0)) -> SpotGeome
     >>> round(float(g.ray[0, 0] - g0.ray[0, 0]), 2)  # F tan(10 deg) / p, F = 5 mm, p = 7 um
     125.95
     """
-    a, b = float(alpha_true), float(beta_true)
-    if not (abs(a) < 90 and abs(b) < 90):
-        raise ConfigurationError(
-            f"alpha_true, beta_true: found ({a!r}, {b!r}) deg; expected |angle| < 90 deg (the sun "
-            "in front of the mask). Fix: pass platform angles in degrees."
-        )
-    play = (float(play_mm[0]), float(play_mm[1]))
+    key = (float(alpha_true), float(beta_true), float(play_mm[0]), float(play_mm[1]))
     try:
-        return _spot_geometry_cached(bench, a, b, play)
+        return _spot_geometry_cached(bench, *key)
     except TypeError:  # a bench holding something unhashable: no cache
-        return _spot_geometry(bench, a, b, play)
+        return _spot_geometry_cached.__wrapped__(bench, *key)
 
 
 @functools.lru_cache(maxsize=4096)
-def _spot_geometry_cached(bench, a, b, play_mm) -> SpotGeometry:
-    g = _spot_geometry(bench, a, b, play_mm)
+def _spot_geometry_cached(bench, a, b, px, py) -> SpotGeometry:
+    s, lit, ray, height, mu, cov, q_e = _geometry(bench, [a], [b], [[px, py]], "all")
+    rot = bench.mask.rotation_matrix()
+    sz, p = (s[0, 2] if lit[0] else 1.0), bench.detector.pixel_pitch_mm
+    proj = (rot[:2, :2] - np.outer(s[0, :2], rot[2, :2]) / sz) / p
+    proj_w = (rot[:2, 2] - s[0, :2] * rot[2, 2] / sz) / p
+    g = SpotGeometry(s[0], bool(lit[0]), ray[0], height, proj, proj_w, float(q_e[0]), mu[0],
+                     cov[0], bench.source.limb_darkening, bench.source.second_moment())
     for v in vars(g).values():
         if isinstance(v, np.ndarray):
             v.setflags(write=False)
     return g
 
 
-def _spot_geometry(bench, a, b, play_mm) -> SpotGeometry:
+def _geometry(bench, alpha_true, beta_true, play_mm, kernel: str = "mean"):
+    """The geometry of n frames in one pass of array arithmetic: sun vectors (n, 3), lit (n,),
+    rays (n, holes, 2) px through the lid (:func:`ray_positions`), hole heights (holes,) mm;
+    with ``kernel`` "mean" or "all" the sun-disk kernel's mean (n, 2) px/mm, with "all" also
+    its covariance (n, 2, 2) px^2/mm^2 and the photo-electrons per px^2 q_e (n,) (None for
+    what is not asked: "none" gives the rays alone).
+
+    The kernel is the distribution of -(d_xy / d_z - s_xy / s_z) / p over the source's
+    directions d (Gauss-Legendre in radius, midpoints in angle), weighted by radiance and by
+    the aperture's projected area d . n_mask; q_e is the fluence times s_z, times that
+    weight's share of the radiance over s . n_mask (the hole's cosine projection), times QE.
+    """
+    a, b = np.asarray(alpha_true, dtype=float).ravel(), np.asarray(beta_true, dtype=float).ravel()
+    play = np.asarray(play_mm, dtype=float).reshape(-1, 2)
+    if not (np.all(np.abs(a) < 90) and np.all(np.abs(b) < 90)):
+        raise ConfigurationError(
+            "alpha_true, beta_true: found an angle with |angle| >= 90 deg; expected the sun in "
+            "front of the mask. Fix: pass platform angles in degrees.")
     det, mask, src = bench.detector, bench.mask, bench.source
     p = det.pixel_pitch_mm
-    s = sensor_sun_vector(bench.platform, a, b)
-    rot = mask.rotation_matrix()
-    n_m = rot[:, 2]
-    sn = float(s @ n_m)
-    lit = bool(s[2] > 1e-6 and sn > 1e-6)
-    sz = s[2] if lit else 1.0
-    q = _hole_centres_mm(bench, play_mm)
-    ray = _rays(q, s, sz, det)
-    proj = (rot[:2, :2] - np.outer(s[:2], rot[2, :2]) / sz) / p
-    proj_w = (rot[:2, 2] - s[:2] * rot[2, 2] / sz) / p
-    # Sun-disk kernel by quadrature over the source (per mm of hole height).
+    s = sensor_sun_vector(bench.platform, a, b)  # (n, 3)
+    n_m = mask.rotation_matrix()[:, 2]
+    sn = s @ n_m
+    lit = (s[:, 2] > 1e-6) & (sn > 1e-6)
+    sz = np.where(lit, s[:, 2], 1.0)
+    q0 = _hole_centres_mm(bench)  # (h, 3); the play shifts x and y only
+    tan = s[:, :2] / sz[:, None]
+    ray = q0[None, :, :2] + play[:, None, :] - q0[None, :, 2:3] * tan[:, None, :]
+    t = det.lid_thickness_mm
+    if t > 0:  # Snell's law in a plane-parallel plate: the ray lands closer to the hole's foot
+        r = np.hypot(s[:, 0], s[:, 1])
+        safe = np.where(r > 0, r, 1.0)
+        sin_t = r / np.sqrt(r * r + sz**2)
+        tan_in = sin_t / np.sqrt(det.lid_index**2 - sin_t**2)
+        shift = np.where(r > 0, t * (r / sz - tan_in) / safe, 0.0)
+        ray = ray + (shift[:, None] * s[:, :2])[:, None, :]
+    ray = ray / p
+    if kernel == "none":
+        return s, lit, ray, q0[:, 2], None, None, None
+    n = len(a)
+    mu, cov, flux = np.zeros((n, 2)), np.zeros((n, 2, 2)), np.ones(n)
     rho = src.radius_rad
-    if rho > 0 and lit:
-        r, wr, phi = _quadrature()
-        e1 = np.cross([0.0, 1.0, 0.0], s)
-        e1 /= np.linalg.norm(e1)
-        e2 = np.cross(s, e1)
-        rr = (r * rho)[:, None]
-        d = np.cos(rr)[..., None] * s + np.sin(rr)[..., None] * (
-            np.cos(phi)[None, :, None] * e1 + np.sin(phi)[None, :, None] * e2
-        )
-        w = (src.profile(r)[:, None] * wr[:, None] * np.sin(rr)) * np.clip(d @ n_m, 0, None)
-        w = np.broadcast_to(w, d.shape[:2])
-        disp = -(d[..., :2] / d[..., 2:3] - s[:2] / sz) / p
-        wsum = w.sum()
-        mu = (w[..., None] * disp).sum(axis=(0, 1)) / wsum
-        dd = disp - mu
-        cov = np.einsum("ij,ijk,ijl->kl", w, dd, dd) / wsum
-        lsum = (src.profile(r)[:, None] * wr[:, None] * np.sin(rr) * np.ones_like(phi)).sum()
-        flux_factor = wsum / lsum / sn
-    else:
-        mu = np.zeros(2)
-        cov = np.zeros((2, 2))
-        flux_factor = 1.0
-    q_e = src.fluence_photons_per_um2 * (p * 1e3) ** 2 * det.qe * sz * flux_factor if lit else 0.0
-    return SpotGeometry(s, lit, ray, q[:, 2].copy(), proj, proj_w, float(q_e), mu, cov,
-                        src.limb_darkening, src.second_moment())
+    if rho > 0 and lit.any():
+        x, wx = np.polynomial.legendre.leggauss(8)
+        rq, wr = 0.5 * (x + 1.0), 0.5 * wx
+        phi = (np.arange(16) + 0.5) * 2 * np.pi / 16
+        sl = s[lit]
+        e1 = np.cross([0.0, 1.0, 0.0], sl)
+        e1 /= np.linalg.norm(e1, axis=-1, keepdims=True)
+        e2 = np.cross(sl, e1)
+        rr = rq * rho  # (r,)
+        ring = (np.cos(phi)[None, None, :, None] * e1[:, None, None, :]
+                + np.sin(phi)[None, None, :, None] * e2[:, None, None, :])  # (n, 1, phi, 3)
+        d = (np.cos(rr)[None, :, None, None] * sl[:, None, None, :]
+             + np.sin(rr)[None, :, None, None] * ring)
+        radiance = src.profile(rq) * wr * np.sin(rr)
+        w = radiance[None, :, None] * np.clip(d @ n_m, 0, None)
+        disp = -(d[..., :2] / d[..., 2:3] - (sl[:, :2] / sl[:, 2:3])[:, None, None, :]) / p
+        wsum = w.sum(axis=(1, 2))
+        mu[lit] = (w[..., None] * disp).sum(axis=(1, 2)) / wsum[:, None]
+        if kernel == "all":
+            dd = disp - mu[lit][:, None, None, :]
+            cov[lit] = np.einsum("nij,nijk,nijl->nkl", w, dd, dd) / wsum[:, None, None]
+            flux[lit] = wsum / (radiance.sum() * phi.size) / sn[lit]
+    if kernel != "all":
+        return s, lit, ray, q0[:, 2], mu, None, None
+    q_e = np.where(lit, src.fluence_photons_per_um2 * (p * 1e3) ** 2 * det.qe * sz * flux, 0.0)
+    return s, lit, ray, q0[:, 2].copy(), mu, cov, q_e
 
 
 def spot_centres(bench, alpha_true, beta_true, play_mm) -> tuple[np.ndarray, np.ndarray]:
@@ -273,82 +291,21 @@ def spot_centres(bench, alpha_true, beta_true, play_mm) -> tuple[np.ndarray, np.
     >>> bool(np.allclose(x[0], g.ray[:, 0] + g.kernel_mu[0] * g.height_mm, atol=1e-9))
     True
     """
-    a, b = np.asarray(alpha_true, dtype=float).ravel(), np.asarray(beta_true, dtype=float).ravel()
-    play = np.asarray(play_mm, dtype=float).reshape(-1, 2)
-    if not (np.all(np.abs(a) < 90) and np.all(np.abs(b) < 90)):
-        raise ConfigurationError(
-            "alpha_true, beta_true: found an angle with |angle| >= 90 deg; expected the sun in "
-            "front of the mask. Fix: pass platform angles in degrees."
-        )
-    det, mask, src = bench.detector, bench.mask, bench.source
-    p = det.pixel_pitch_mm
-    s = sensor_sun_vector(bench.platform, a, b)  # (n, 3)
-    rot = mask.rotation_matrix()
-    n_m = rot[:, 2]
-    lit = (s[:, 2] > 1e-6) & (s @ n_m > 1e-6)
-    sz = np.where(lit, s[:, 2], 1.0)
-    q0 = _hole_centres_mm(bench, (0.0, 0.0))  # (h, 3); the play shifts x and y only
-    qxy = q0[None, :, :2] + play[:, None, :]
-    tan = s[:, :2] / sz[:, None]
-    ray = qxy - q0[None, :, 2:3] * tan[:, None, :]
-    t = det.lid_thickness_mm
-    if t > 0:
-        r = np.hypot(s[:, 0], s[:, 1])
-        safe = np.where(r > 0, r, 1.0)
-        sin_t = r / np.sqrt(r * r + sz**2)
-        tan_in = sin_t / np.sqrt(det.lid_index**2 - sin_t**2)
-        shift = np.where(r > 0, t * (r / sz - tan_in) / safe, 0.0)
-        ray = ray + (shift[:, None] * s[:, :2])[:, None, :]
-    ray = ray / p
-    mu = np.zeros((len(a), 2))
-    rho = src.radius_rad
-    if rho > 0 and lit.any():
-        rq, wr, phi = _quadrature()
-        sl = s[lit]
-        e1 = np.cross([0.0, 1.0, 0.0], sl)
-        e1 /= np.linalg.norm(e1, axis=-1, keepdims=True)
-        e2 = np.cross(sl, e1)
-        rr = rq * rho  # (r,)
-        ring = (np.cos(phi)[None, None, :, None] * e1[:, None, None, :]
-                + np.sin(phi)[None, None, :, None] * e2[:, None, None, :])  # (n, 1, phi, 3)
-        d = (np.cos(rr)[None, :, None, None] * sl[:, None, None, :]
-             + np.sin(rr)[None, :, None, None] * ring)
-        w = (src.profile(rq) * wr * np.sin(rr))[None, :, None] * np.clip(d @ n_m, 0, None)
-        disp = -(d[..., :2] / d[..., 2:3] - (sl[:, :2] / sl[:, 2:3])[:, None, None, :]) / p
-        mu[lit] = (w[..., None] * disp).sum(axis=(1, 2)) / w.sum(axis=(1, 2))[:, None]
-    off = mu[:, None, :] * q0[None, :, 2:3]
-    return ray[..., 0] + off[..., 0], ray[..., 1] + off[..., 1]
+    _, _, ray, height, mu, _, _ = _geometry(bench, alpha_true, beta_true, play_mm)
+    c = ray + mu[:, None, :] * height[None, :, None]
+    return c[..., 0], c[..., 1]
 
 
-def _hole_centres_mm(bench, play_mm) -> np.ndarray:
-    """Centres of the holes in the detector frame, mm (n, 3): the mask's layout placed by its
-    offset, rotation, true distance and the pose's play."""
+def _hole_centres_mm(bench) -> np.ndarray:
+    """Centres of the holes in the detector frame without play, mm (n, 3): the mask's layout
+    placed by its offset, rotation and true distance."""
     det, mask = bench.detector, bench.mask
     p = det.pixel_pitch_mm
     xr, yr = det.reference_px
-    origin = np.array([xr * p + mask.offset_x_mm + play_mm[0],
-                       yr * p + mask.offset_y_mm + play_mm[1], mask.true_distance_mm])
+    origin = np.array([xr * p + mask.offset_x_mm, yr * p + mask.offset_y_mm,
+                       mask.true_distance_mm])
     uv = np.array([[h.x_mm, h.y_mm] for h in mask.holes], dtype=float)
     return origin[None, :] + uv @ mask.rotation_matrix()[:, :2].T
-
-
-def _rays(q, s, sz, det):
-    """The geometric ray of each hole centre q (n, 3) mm for the sun vector s: px (n, 2).
-
-    Through the detector's glass lid (thickness t, index n, :class:`~sunlab.sim.Detector`) the
-    ray travels at the refracted angle, sin(theta') = sin(theta) / n, so it lands closer to the
-    hole's foot by t (tan(theta) - tan(theta')) along the sun's azimuth (Snell's law for a
-    plane-parallel plate; docs/paper.md sec. 10).
-    """
-    ray = q[:, :2] - q[:, 2:3] * (s[:2] / sz)[None, :]
-    t = det.lid_thickness_mm
-    if t > 0:
-        r = math.hypot(float(s[0]), float(s[1]))
-        if r > 0:
-            sin_t = r / math.sqrt(r * r + float(sz) ** 2)
-            tan_in = sin_t / math.sqrt(det.lid_index**2 - sin_t**2)
-            ray = ray + t * (r / float(sz) - tan_in) * (s[:2] / r)[None, :]
-    return ray / det.pixel_pitch_mm
 
 
 def ray_positions(bench, alpha_true, beta_true, play_mm=(0.0, 0.0)):

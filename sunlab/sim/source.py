@@ -25,6 +25,14 @@ from ..errors import ConfigurationError
 
 __all__ = ["Source"]
 
+def _check(ok: bool, name: str, value, expected: str, fix: str = "") -> None:
+    """Raise a :class:`~sunlab.errors.ConfigurationError` naming ``name``, the value found, what
+    is expected and the fix, unless ``ok`` (every part of the bench validates with it)."""
+    if not ok:
+        raise ConfigurationError(f"{name}: found {value!r}; expected {expected}." +
+                                 (f" Fix: {fix}" if fix else ""))
+
+
 #: 2 atan(6.82 mm / 1500 mm): the integrating-sphere port seen through the collimating lens, deg.
 PAPER_SOURCE_DIAMETER_DEG = math.degrees(2.0 * math.atan(6.82 / 1500.0))
 
@@ -60,21 +68,13 @@ class Source:
     fluence_photons_per_um2: float = 800.0
 
     def __post_init__(self):
-        if not (math.isfinite(self.diameter_deg) and 0.0 <= self.diameter_deg < 10.0):
-            raise ConfigurationError(
-                f"source.diameter_deg: found {self.diameter_deg!r}; expected 0 <= diameter < 10 deg"
-                " (the paper: 0.52). Fix: pass diameter_deg=0.52."
-            )
-        if not (0.0 <= self.limb_darkening <= 1.0):
-            raise ConfigurationError(
-                f"source.limb_darkening: found {self.limb_darkening!r}; expected 0 <= u <= 1. "
-                "Fix: 0 for the integrating sphere, about 0.6 for the real Sun."
-            )
-        if not (math.isfinite(self.fluence_photons_per_um2) and self.fluence_photons_per_um2 >= 0):
-            raise ConfigurationError(
-                f"source.fluence_photons_per_um2: found {self.fluence_photons_per_um2!r}; expected "
-                "a non-negative photon fluence. Fix: pass e.g. 800."
-            )
+        d, u, f = self.diameter_deg, self.limb_darkening, self.fluence_photons_per_um2
+        _check(math.isfinite(d) and 0.0 <= d < 10.0, "source.diameter_deg", d,
+               "0 <= diameter < 10 deg (the paper: 0.52)", "pass diameter_deg=0.52.")
+        _check(0.0 <= u <= 1.0, "source.limb_darkening", u, "0 <= u <= 1",
+               "0 for the integrating sphere, about 0.6 for the real Sun.")
+        _check(math.isfinite(f) and f >= 0, "source.fluence_photons_per_um2", f,
+               "a non-negative photon fluence", "pass e.g. 800.")
 
     @property
     def radius_rad(self) -> float:
@@ -111,6 +111,5 @@ class Source:
         >>> Source().second_moment()
         0.25
         """
-        u = self.limb_darkening
-        r2 = ((1 - u) / 4 + 2 * u / 15) / ((1 - u) / 2 + u / 3)
-        return r2 / 2.0
+        u = self.limb_darkening  # <r^2> of the profile, over 2
+        return ((1 - u) / 4 + 2 * u / 15) / ((1 - u) / 2 + u / 3) / 2.0

@@ -29,9 +29,7 @@ import functools
 import math
 from typing import NamedTuple
 
-import numba
 import numpy as np
-from numba.extending import overload
 
 from . import _aperture, _jit, diffraction
 from .detector import Detector
@@ -51,35 +49,14 @@ def _fold_phase_numpy(t4, wy, wx, ey, ex):
     return np.einsum("naij,na->nij", folded, wy) * ey[:, :, None] * ex[:, None, :]
 
 
-def _accumulate_row(t4, a, i, b, w, rr, ri):
-    """(rr + i ri) += t4[a, i, b, :] w, for a real or complex ``t4`` (compiled only)."""
-
-
-@overload(_accumulate_row, inline="always")
-def _accumulate_row_impl(t4, a, i, b, w, rr, ri):
-    if isinstance(t4.dtype, numba.types.Complex):
-        def impl_complex(t4, a, i, b, w, rr, ri):
-            for j in range(rr.shape[0]):
-                tr, ti = t4[a, i, b, j].real, t4[a, i, b, j].imag
-                rr[j] += tr * w.real - ti * w.imag
-                ri[j] += tr * w.imag + ti * w.real
-        return impl_complex
-
-    def impl_real(t4, a, i, b, w, rr, ri):
-        for j in range(rr.shape[0]):
-            rr[j] += t4[a, i, b, j] * w.real
-            ri[j] += t4[a, i, b, j] * w.imag
-    return impl_real
-
-
 @_jit.kernel(_fold_phase_numpy)
 def fold_phase(t4, wy, wx, ey, ex):
     """Fold alias bands and apply each spot's position phase.
 
     acc[n, i, j] = ey[n, i] ex[n, j] sum_a wy[n, a] sum_b t4[a, i, b, j] wx[n, b]
 
-    ``t4`` complex (a polygon's spectrum) or real (an affine aperture's: compiled apart, half
-    the arithmetic, the same sums term by term). The loops run along j, the contiguous axis.
+    ``t4`` complex (a polygon's spectrum) or real (an affine aperture's: its imaginary parts
+    are zeros, and the sums the same term by term). The loops run along j, the contiguous axis.
 
     Parameters
     ----------
@@ -106,7 +83,11 @@ def fold_phase(t4, wy, wx, ey, ex):
                 rr[:] = 0.0
                 ri[:] = 0.0
                 for b in range(na):
-                    _accumulate_row(t4, a, i, b, wx[q, b], rr, ri)
+                    w = wx[q, b]
+                    for j in range(m2):  # (rr + i ri) += t4[a, i, b, j] w
+                        tr, ti = t4[a, i, b, j].real, t4[a, i, b, j].imag
+                        rr[j] += tr * w.real - ti * w.imag
+                        ri[j] += tr * w.imag + ti * w.real
                 w = wy[q, a]
                 for j in range(m2):  # (sr + i si) += (rr + i ri) w
                     sr[j] += rr[j] * w.real - ri[j] * w.imag
@@ -114,10 +95,6 @@ def fold_phase(t4, wy, wx, ey, ex):
             for j in range(m2):
                 acc[q, i, j] = complex(sr[j], si[j]) * ey[q, i] * ex[q, j]
     return acc
-
-
-def _axes(f):
-    return np.ascontiguousarray(np.ravel(f), dtype=float)
 
 
 class _Group:
@@ -129,21 +106,16 @@ class _Group:
     scales with the hole's height) minus the sensitive area's offset."""
 
     def __init__(self, geom: SpotGeometry, det: Detector, ap: _Aperture, fresnel: bool = False):
-        self.idx = ap.idx
-        self.ray = geom.ray[self.idx]
-        h = geom.height_mm[self.idx]
+        self.idx, self.ray, h = ap.idx, geom.ray[ap.idx], geom.height_mm[ap.idx]
         # the spot's centre relative to its ray: the kernel's centroid, which scales with the
         # hole's height, minus the sensitive area's offset
         self.shift = (geom.kernel_mu[None, :] * h[:, None]
                       - np.asarray(det.sensitive_offset_px)[None, :])
         self.centre = self.ray + self.shift
         hbar = float(np.mean(h))
-        cov = geom.kernel_cov * hbar * hbar
-        if np.any(cov):
-            w, v = np.linalg.eigh(cov / geom.second_moment)
-            self.kernel_m = (v * np.sqrt(np.clip(w, 0, None))) @ v.T
-        else:
-            self.kernel_m = np.zeros((2, 2))
+        # the symmetric square root of the kernel's covariance over the profile's <x^2>
+        w, v = np.linalg.eigh(geom.kernel_cov * hbar * hbar / geom.second_moment)
+        self.kernel_m = (v * np.sqrt(np.clip(w, 0, None))) @ v.T
         self.u, self.diff = float(geom.limb_darkening), float(det.diffusion_px)
         self.ax, self.ay = det.sensitive_size_px
         self.cut, self.fresnel, self.poly = [], None, None
@@ -173,7 +145,7 @@ class _Group:
 
         ``tabulated``: interpolate the disk transforms in tables (images; error below 2e-10 of
         the peak); the truth uses the direct evaluation."""
-        fx, fy = _axes(fx), _axes(fy)
+        fx, fy = (np.ascontiguousarray(np.ravel(f), dtype=float) for f in (fx, fy))
         ax, ay = (self.ax, self.ay) if pixel else (0.0, 0.0)
         args = (fx, fy, self.affine, self.area, self.kernel_m, self.u, ax, ay,
                 self.diff if pixel else 0.0, self.poly is None and self.fresnel is None)
@@ -214,13 +186,10 @@ class _Group:
         :meth:`_Spectrum.images` for any spot positions (one evaluation serves every shot of a
         pose, :func:`sunlab.sim.frame.render_pose`)."""
         size = self.stamp_size() if size is None else int(size)
-        step = 1.0 / oversample
-        m = size * oversample
-        fxb = np.arange(m // 2 + 1) / size
-        fyb = np.fft.fftfreq(m, d=step)
+        step, m = 1.0 / oversample, size * oversample
+        fxb, fyb = np.arange(m // 2 + 1) / size, np.fft.fftfreq(m, d=step)
         al = np.arange(-n_alias, n_alias + 1) * oversample
-        fx = (al[:, None] + fxb[None, :]).ravel()
-        fy = (al[:, None] + fyb[None, :]).ravel()
+        fx, fy = ((al[:, None] + f[None, :]).ravel() for f in (fxb, fyb))
         t = self.common(fx, fy, pixel=pixel, tabulated=True)  # real for an affine aperture
         t4 = np.ascontiguousarray(t.reshape(al.size, m, al.size, m // 2 + 1))
         return _Spectrum(t4, al, fxb, fyb, size, m, step)
@@ -242,17 +211,12 @@ class _Spectrum(NamedTuple):
         """Stamps (n, m, m) of spots centred at ``centre`` (n, 2) px, each placed round its
         ``ray`` (n, 2): (images, x0, y0), image[n, i, j] at x = x0[n] + j step, y = y0[n] + i
         step; ``q_e`` a scalar or one value per spot."""
-        x0 = np.floor(ray[:, 0]).astype(int) - self.size // 2 + 1
-        y0 = np.floor(ray[:, 1]).astype(int) - self.size // 2 + 1
-        dx = centre[:, 0] - x0
-        dy = centre[:, 1] - y0
+        x0, y0 = (np.floor(ray[:, i]).astype(int) - self.size // 2 + 1 for i in (0, 1))
+        dx, dy = centre[:, 0] - x0, centre[:, 1] - y0
         # Phase of hole n at alias (a, b) and base frequency (i, j) factorises:
         # exp(-2 pi i (al_a + fy_i) dy_n) exp(-2 pi i (al_b + fx_j) dx_n).
-        al = self.al
-        wy = np.exp(-2j * np.pi * al[None, :] * dy[:, None])
-        wx = np.exp(-2j * np.pi * al[None, :] * dx[:, None])
-        ey = np.exp(-2j * np.pi * self.fyb[None, :] * dy[:, None])
-        ex = np.exp(-2j * np.pi * self.fxb[None, :] * dx[:, None])
+        wy, wx, ey, ex = (np.exp(-2j * np.pi * f[None, :] * d[:, None]) for f, d in (
+            (self.al, dy), (self.al, dx), (self.fyb, dy), (self.fxb, dx)))
         m = self.m
         scale = np.broadcast_to(np.asarray(q_e, dtype=float) / self.step**2, (len(x0),))
         imgs = np.empty((len(x0), m, m))
@@ -276,27 +240,18 @@ class _Aperture(NamedTuple):
     occluders: tuple
 
 
-def _aperture_of(hole, idx) -> _Aperture:
-    aff, occ = hole.affine(), tuple(hole.occluders())
-    idx = np.atleast_1d(np.asarray(idx, dtype=int))
-    if aff is not None and not occ:
-        return _Aperture(idx, aff, None, ())
-    return _Aperture(idx, None, hole.outline(), occ)
-
-
 @functools.lru_cache(maxsize=16)
 def _apertures(mask) -> tuple:
     """The mask's apertures grouped by design (affine holes without dust share a spectrum):
     each other hole alone, in order, then the shared designs; built once per mask."""
-    keyed: dict = {}
-    out = []
+    keyed, out = {}, []
     for k, h in enumerate(mask.holes):
-        aff = h.affine()
-        if aff is not None and not h.occluders():
-            keyed.setdefault(tuple(np.round(aff, 12).ravel()), []).append(k)
+        aff, occ = h.affine(), tuple(h.occluders())
+        if aff is not None and not occ:
+            keyed.setdefault(tuple(np.round(aff, 12).ravel()), (aff, []))[1].append(k)
         else:
-            out.append(_aperture_of(h, [k]))
-    return tuple(out + [_aperture_of(mask.holes[idx[0]], idx) for idx in keyed.values()])
+            out.append(_Aperture(np.array([k]), None, h.outline(), occ))
+    return tuple(out + [_Aperture(np.array(idx), aff, None, ()) for aff, idx in keyed.values()])
 
 
 def _groups(bench, geom: SpotGeometry) -> list[_Group]:
@@ -308,25 +263,15 @@ def _groups(bench, geom: SpotGeometry) -> list[_Group]:
     return geom.groups
 
 
-def _on_detector(group: _Group, det: Detector) -> np.ndarray:
-    r = group.radius
-    x, y = group.ray[:, 0], group.ray[:, 1]
-    return (x - r >= -0.5) & (y - r >= -0.5) & (x + r <= det.nx - 0.5) & (y + r <= det.ny - 0.5)
-
-
 def _truth(bench, geom: SpotGeometry):
-    n = len(bench.mask.holes)
-    x = np.full(n, np.nan)
-    y = np.full(n, np.nan)
-    if not geom.lit:
-        return x, y
-    for g in _groups(bench, geom):
-        ok = _on_detector(g, bench.detector)
+    """True centroids (x, y) of a frame's spots, NaN for a spot not wholly on the detector."""
+    xy, det = np.full((2, len(bench.mask.holes)), np.nan), bench.detector
+    for g in _groups(bench, geom) if geom.lit else ():
+        r, (x, y) = g.radius, g.ray.T
+        ok = (x - r >= -0.5) & (y - r >= -0.5) & (x + r <= det.nx - 0.5) & (y + r <= det.ny - 0.5)
         if np.any(ok):
-            cx, cy, _ = g.centroids()
-            x[g.idx[ok]] = cx[ok]
-            y[g.idx[ok]] = cy[ok]
-    return x, y
+            xy[:, g.idx[ok]] = np.array(g.centroids()[:2])[:, ok]
+    return xy[0], xy[1]
 
 
 def spot_truth(bench, alpha_true, beta_true, *, play_mm=(0.0, 0.0)):
@@ -400,8 +345,8 @@ def spot_image(bench, alpha_true, beta_true, *, hole: int = 0, oversample: int =
     ((48, 48), 1.0)
     """
     geom = spot_geometry(bench, alpha_true, beta_true, play_mm)
-    g = _Group(geom, bench.detector, _aperture_of(bench.mask.holes[hole], [hole]),
-               bench.mask.diffraction)
+    ap = next(a for a in _apertures(bench.mask) if hole in a.idx)._replace(idx=np.array([hole]))
+    g = _Group(geom, bench.detector, ap, bench.mask.diffraction)
     spec = g.spectrum(size, int(oversample), pixel)
     imgs, x0, y0 = spec.images(g.ray, g.centre, geom.q_e)
     return imgs[0], int(x0[0]), int(y0[0]), spec.step

@@ -24,8 +24,8 @@ from sunlab.sim.detector import Detector, fixed_pattern
 ROOT = Path(__file__).resolve().parents[2]
 #: every compiled kernel of the simulator, beside the concept it serves
 KERNELS = {"adc_frame": D.adc_frame, "adc_region": D.adc_region, "polygon_ft": A.polygon_ft,
-           "_build_table": A._build_table, "_spectrum_tabulated": A._spectrum_tabulated,
-           "fold_phase": spots.fold_phase, "_clip_convex": A.clip_convex}
+           "_spectrum_tabulated": A._spectrum_tabulated, "fold_phase": spots.fold_phase,
+           "_clip_convex": A.clip_convex}
 
 _MASK64 = (1 << 64) - 1
 
@@ -81,20 +81,21 @@ def test_disk_table_matches_the_transforms():
     k = (i - 1) * A.TABLE_STEP  # entry i holds k = (i - 1) h
     tab = A.disk_ft_table(0.0)
     jinc = np.where(k > 0, 2 * special.j1(np.maximum(k, 1e-30)) / np.maximum(k, 1e-30), 1.0)
-    np.testing.assert_allclose(tab[i], jinc, atol=2e-8)  # the kernel's own Bessel accuracy
+    np.testing.assert_allclose(tab[i], jinc, atol=2e-8)  # scipy's J1, as the truth's
     assert not tab.flags.writeable
+    longer = A.disk_ft_table(0.0, 4 * 16384)  # a longer table: the same entries, and more
+    np.testing.assert_array_equal(longer[: tab.size], tab)
 
 
 @pytest.mark.parametrize("bench", [Bench.paper_single_hole(), Bench.paper_multi_hole(),
                                    Bench.paper_single_hole().replace(
                                        source__limb_darkening=0.6)],
                          ids=["one-hole", "100-hole", "limb-darkened"])
-def test_tabulated_spectrum_and_stamps_match_the_direct_ones(bench, monkeypatch):
-    # The images use the tabulated transforms, the truth the direct ones: with the tables' own
-    # Bessel J1 in the direct path (the truth's scipy J1 differs by its 1e-8), the spectra agree
-    # to 1e-9 of their peak (cubic interpolation, h = 1/64: bound (3/128) h^4 max|f''''|), and
-    # the stamps' pixels to 1e-9 of the peak pixel, far below one photo-electron.
-    monkeypatch.setattr(A, "_disk_ft_numpy", np.vectorize(A._disk_ft))
+def test_tabulated_spectrum_and_stamps_match_the_direct_ones(bench):
+    # The images use the tabulated transforms, the truth the direct ones, both of scipy's J1:
+    # the spectra agree to 1e-9 of their peak (cubic interpolation, h = 1/64: bound
+    # (3/128) h^4 max|f''''|), and the stamps' pixels to 1e-9 of the peak pixel, far below one
+    # photo-electron.
     for alpha, beta in [(0.0, 0.0), (-12.0, 7.3), (9.0, -11.0)]:
         geom = render.spot_geometry(bench, alpha, beta)
         for g in spots._groups(bench, geom):
@@ -166,19 +167,21 @@ def _spectrum_args(u):
 
 @pytest.mark.parametrize("u", [0.0, 0.6])
 @pytest.mark.parametrize("use_ap", [True, False])
-def test_the_spectrum_references_agree_to_the_bessel_approximation(u, use_ap):
-    # the references use scipy's J1, the kernels Numerical Recipes' (|error| < 1e-8, a jinc
-    # 2 J1(k)/k in each of two factors): 3e-8 of the peak bounds it; the tables add 2e-10
+def test_the_spectrum_references_agree_to_the_interpolation(u, use_ap):
+    # both use scipy's J1; the kernel interpolates it in tables (2e-10 of the peak per factor):
+    # 3e-8 of the peak bounds it with room
     args = (*_spectrum_args(u), use_ap)
     ref = A.spectrum_direct(*args)
     peak = np.abs(ref).max()
-    tabs = (A.disk_ft_table(0.0), A.disk_ft_table(u))
+    tabs = (A.disk_ft_table(0.0, 65536), A.disk_ft_table(u, 65536))  # to k = 1024
     assert np.abs(A._spectrum_tabulated.compiled(*args, *tabs) - ref).max() < 3e-8 * peak
     np.testing.assert_array_equal(A._spectrum_tabulated.numpy(*args, *tabs), ref)
     with sunlab.set_options(kernels="numpy"):
         np.testing.assert_array_equal(A.spectrum_tabulated(*args), ref)
-    tab = A._build_table.numpy(u, A.TABLE_STEP, 4096)
-    assert np.abs(A._build_table.compiled(u, A.TABLE_STEP, 4096) - tab).max() < 3e-8
+    # a grid beyond the default table's reach (k = 2 pi |f| |km| = 540 > 256): longer tables
+    far = (args[0] * 3, args[1] * 3, *args[2:])
+    peak = np.abs(A.spectrum_direct(*far)).max()
+    assert np.abs(A.spectrum_tabulated(*far) - A.spectrum_direct(*far)).max() < 3e-8 * peak
 
 
 def test_clip_convex_cuts_a_polygon_by_a_convex_one():
