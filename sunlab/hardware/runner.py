@@ -174,23 +174,25 @@ def _create_store(path: Path, run: _Run, camera, stage, attrs) -> None:
     cube = schema.frames_dataset(zeros, plan.alpha, plan.beta, experiment=plan.name,
                                  coords=coords, **{"bit_depth": run.bits,
                                                    **dict(getattr(camera, "attrs", None) or {})})
-    tmp = atomic.temporary_name(path)  # a later run removes it if this one is killed
-    # time is stored as float seconds since the epoch (NaN until taken), decoded to datetime64
-    encoding = {v: {"_FillValue": np.nan} for v in ("alpha_read", "beta_read")}
-    encoding["time"] = {"units": TIME_UNITS, "calendar": "proleptic_gregorian",
-                        "dtype": "float64", "_FillValue": np.nan}
-    cube.to_zarr(tmp, compute=False, consolidated=False, encoding=encoding)
-    zarr.open_group(tmp, mode="r+").attrs.update({
-        "uid": uuid.uuid4().hex, "plan": {"name": plan.name, "n_poses": n, "shots": shots},
-        "versions": {"sunlab": __version__, "python": platform.python_version(),
-                     "numpy": np.__version__, "xarray": xarray.__version__,
-                     "zarr": zarr.__version__, "pyserial": installed_version("pyserial")},
-        "stage": _describe(stage, "stage"), "camera": _describe(camera, "camera"),
-        "start": None, "stop": None, "exit_status": "created", "error": None, "sessions": [],
-        "scan_order": plan.scan, "approach": plan.approach,
-        "visit_order": [int(i) for i in run.order], **dict(attrs or {}),
-    })
-    os.replace(tmp, path)
+    # refused at once where the whole run cannot fit on the disk (issue 47, size before work);
+    # allocated in a temporary sibling, renamed into place (removed if this run is killed)
+    atomic.check_target(path, kind="zarr", nbytes=zeros.nbytes)
+    with atomic.atomic_output(path, kind="zarr") as tmp:
+        # time is stored as float seconds since the epoch (NaN until taken), decoded to datetime64
+        encoding = {v: {"_FillValue": np.nan} for v in ("alpha_read", "beta_read")}
+        encoding["time"] = {"units": TIME_UNITS, "calendar": "proleptic_gregorian",
+                            "dtype": "float64", "_FillValue": np.nan}
+        cube.to_zarr(tmp, compute=False, consolidated=False, encoding=encoding)
+        zarr.open_group(tmp, mode="r+").attrs.update({
+            "uid": uuid.uuid4().hex, "plan": {"name": plan.name, "n_poses": n, "shots": shots},
+            "versions": {"sunlab": __version__, "python": platform.python_version(),
+                         "numpy": np.__version__, "xarray": xarray.__version__,
+                         "zarr": zarr.__version__, "pyserial": installed_version("pyserial")},
+            "stage": _describe(stage, "stage"), "camera": _describe(camera, "camera"),
+            "start": None, "stop": None, "exit_status": "created", "error": None, "sessions": [],
+            "scan_order": plan.scan, "approach": plan.approach,
+            "visit_order": [int(i) for i in run.order], **dict(attrs or {}),
+        })
 
 
 def _open_store(path: Path, resume: bool, run: _Run, camera, stage, attrs):

@@ -446,6 +446,26 @@ def test_cli_acquire_with_the_fake_stage(tmp_path, capsys):
     assert "folder:PATH" in capsys.readouterr().err
 
 
+def test_a_run_the_disk_cannot_hold_is_refused_before_the_stage_moves(tmp_path, capsys):
+    """Issue 47 (size before work): 10,000 shots of experiment III's 361 poses in full 10-bit
+    frames (uint16, ~9.5 TB) are refused at once with the estimate, before any move; nothing is
+    made."""
+    import shutil
+
+    from sunlab.cli import main
+
+    nbytes = 2 * 1024 * 1280 * 361 * 10_000
+    if shutil.disk_usage(tmp_path).free > nbytes / 5:  # 5: sunlab.atomic.COMPRESSION
+        pytest.skip("this disk could hold the run")
+    out = tmp_path / "big.zarr"
+    args = ["acquire", "--stage", "fake://?velocity=1e4", "--camera", "sim", "--plan", "III",
+            "--out", str(out), "--shots", "10000", "--settle", "0", "--no-progress"]
+    assert main(args) == 1
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and f"{nbytes / 1e9:,.1f} GB uncompressed" in err, err
+    assert not out.exists() and not [p for p in tmp_path.iterdir() if p.name.startswith(".sl-")]
+
+
 def test_a_lock_that_is_a_directory_is_named_as_one(tmp_path):
     from sunlab.hardware.runner import RunLockedError, run_lock
 
