@@ -55,12 +55,13 @@ def _groups(arr, stride, thr, bkg):
     w = g.ravel()[sel] - bkg
     cnt = np.bincount(k, minlength=n)
     s = np.bincount(k, w, minlength=n)
-    box = np.array([(sy.start, sy.stop - 1, sx.start, sx.stop - 1)
-                    for sy, sx in ndimage.find_objects(lab)], float).reshape(n, 4)
-    box = off + box * stride
     with np.errstate(invalid="ignore", divide="ignore"):
-        cx = np.where(s > 0, np.bincount(k, w * c, minlength=n) / s, 0.5 * (box[:, 2] + box[:, 3]))
-        cy = np.where(s > 0, np.bincount(k, w * r, minlength=n) / s, 0.5 * (box[:, 0] + box[:, 1]))
+        cx, cy = np.bincount(k, w * c, minlength=n) / s, np.bincount(k, w * r, minlength=n) / s
+    bad = np.flatnonzero(~(s > 0))
+    if bad.size:
+        box = off + stride * np.array([(sy.start, sy.stop - 1, sx.start, sx.stop - 1) for sy, sx
+                                       in ndimage.find_objects(lab)], float)[bad]
+        cx[bad], cy[bad] = 0.5 * (box[:, 2] + box[:, 3]), 0.5 * (box[:, 0] + box[:, 1])
     return cnt, s, cx, cy
 
 
