@@ -177,7 +177,10 @@ def _raw(v, disk, bkg, order):
     n, size, _ = v.shape
     pw = (np.arange(size) - size // 2)[:, None] ** np.arange(order + 1.0)
     cum = np.concatenate([np.zeros((1, order + 1)), np.cumsum(pw, axis=0)])
-    rows = ((v * inside).reshape(-1, size).astype(np.float64) @ pw).reshape(n, size, order + 1)
+    im = (v * inside).reshape(-1, size).astype(np.float64)
+    # two powers at a time: BLAS's kernel for two columns is several times faster than for four
+    rows = np.concatenate([im @ np.ascontiguousarray(pw[:, k:k + 2])
+                           for k in range(0, order + 1, 2)], axis=1).reshape(n, size, order + 1)
     rows -= bkg[:, None, None] * (np.take(cum, b, axis=0) - np.take(cum, a, axis=0))
     return pw.T @ rows
 
