@@ -113,9 +113,8 @@ def _stamps(arr, xs, ys, radius):
     r0 = np.minimum(np.maximum(np.rint(ys).astype(np.intp) - half, 0), arr.shape[0] - size)
     v = sliding_window_view(arr, (size, size))[r0, c0]
     rows = r0[:, None] + np.arange(size)
-    dy = rows - ys[:, None]
-    return (v, c0 + half, r0 + half, np.where(rows < ny, dy * dy, np.inf), (xs - c0)[:, None],
-            np.minimum(nx - c0, size)[:, None])
+    return (v, c0 + half, r0 + half, np.where(rows < ny, (rows - ys[:, None]) ** 2, np.inf),
+            (xs - c0)[:, None], np.minimum(nx - c0, size)[:, None])
 
 
 def _disk(st, r):
@@ -123,8 +122,7 @@ def _disk(st, r):
     of the centre, and the first and end column (n, s) of each row's run of them: the run
     ``|c - x| <= sqrt(r^2 - dy^2)`` of each row, the mask looked up in a table of runs (one
     gather, not a comparison per pixel)."""
-    dy2, xc, ncol = st[3:]
-    size = st[0].shape[1]
+    (dy2, xc, ncol), size = st[3:], st[0].shape[1]
     q = (r * r)[:, None] - dy2
     t = np.sqrt(q, out=np.full(q.shape, -1.0), where=q >= 0)  # -1: no pixel in the row
     a = np.clip(np.ceil(xc - t), 0, size).astype(np.intp)
@@ -162,9 +160,10 @@ def _ring_level(v, ring, lo, hi):
 
 
 def _annulus(arr, xs, ys, r_in, r_out, lo, hi):
-    """:func:`_ring_level` of each ring ``r_in < d <= r_out`` about (xs, ys)."""
+    """:func:`_ring_level` of each ring ``r_in < d <= r_out`` about (xs, ys) (``a > b``: in
+    the outer disk ``a`` and not in the inner ``b``)."""
     st = _stamps(arr, xs, ys, float(np.max(r_out)))
-    return _ring_level(st[0], _disk(st, r_out)[0] & ~_disk(st, r_in)[0], lo, hi)
+    return _ring_level(st[0], _disk(st, r_out)[0] > _disk(st, r_in)[0], lo, hi)
 
 
 def _raw(v, disk, bkg, order):
@@ -190,10 +189,7 @@ def _com_of(cx, cy, p):
     (cx, cy); NaN where the sum is not positive."""
     s = p[:, 0, 0]
     with np.errstate(invalid="ignore", divide="ignore"):
-        x, y = cx + p[:, 0, 1] / s, cy + p[:, 1, 0] / s
-    bad = ~(s > 0)
-    x[bad], y[bad] = np.nan, np.nan
-    return s, x, y
+        return s, *(np.where(s > 0, c + p[:, i, 1 - i] / s, np.nan) for i, c in ((0, cx), (1, cy)))
 
 
 def _com(arr, xs, ys, r, bkg):
@@ -252,14 +248,12 @@ def _measure(arr, xs, ys, r0s, margin, annulus, lo, hi, n_iter, sat):
     NaN rows for spots that failed).
     """
     xs, ys, r = (np.array(a, dtype=np.float64).reshape(-1) for a in (xs, ys, r0s))
-    out = np.full((xs.size, len(MEASURE_FIELDS)), np.nan)
     # a few spots at a time: their stamps stay in the cache (and below the size at which
     # each temporary array is a fresh memory map)
     step = max(_CHUNK // (2 * math.ceil(float(np.max(r, initial=0)) + annulus) + 5) ** 2, 1)
-    for k in range(0, xs.size, step):
-        out[k:k + step] = _measure_some(arr, xs[k:k + step], ys[k:k + step], r[k:k + step],
-                                        margin, annulus, lo, hi, n_iter, sat)
-    return out
+    return np.concatenate([np.empty((0, len(MEASURE_FIELDS)))] + [
+        _measure_some(arr, xs[k:k + step], ys[k:k + step], r[k:k + step], margin, annulus, lo,
+                      hi, n_iter, sat) for k in range(0, xs.size, step)])
 
 
 _CHUNK = 2**19  # pixels of the spots' stamps measured at a time
@@ -270,7 +264,7 @@ def _measure_some(arr, xs, ys, r, margin, annulus, lo, hi, n_iter, sat):
     # the ring and the first aperture from the same stamps
     st = _stamps(arr, xs, ys, float(np.max(r)) + 1.0 + annulus)
     v, cx, cy = st[:3]
-    bkg, bsd, nb = _ring_level(v, _disk(st, r + 1.0 + annulus)[0] & ~_disk(st, r + 1.0)[0],
+    bkg, bsd, nb = _ring_level(v, _disk(st, r + 1.0 + annulus)[0] > _disk(st, r + 1.0)[0],
                                lo, hi)
     live = nb > 0
     for it in range(int(n_iter) - 1):

@@ -29,21 +29,12 @@ METRIC_FIELDS = ("peak", "background", "mxx", "myy", "mxy", "radius", "elliptici
 
 def _neighbour_vectors(q, pitch, k=5):
     """Vectors from each point of ``q`` (m, 2) to those of its ``k`` nearest points (itself
-    included; ties by index) that lie between 0.7 and 1.3 ``pitch`` away, (n_vectors, 2): the
-    pairs in that range, each kept when its rank among the point's neighbours is below ``k``,
-    in order of point and rank."""
+    included; ties by index) that lie between 0.7 and 1.3 ``pitch`` away, (n_vectors, 2)."""
     dx, dy = q[None, :, 0] - q[:, None, 0], q[None, :, 1] - q[:, None, 1]
-    d2 = dx * dx + dy * dy
-    i, j = np.nonzero((d2 > 0.48 * pitch**2) & (d2 < 1.7 * pitch**2))  # (0.7, 1.3)^2 and margin
-    dist = np.hypot(dx[i, j], dy[i, j])
-    near = (dist > 0.7 * pitch) & (dist < 1.3 * pitch)
-    i, j = i[near], j[near]
-    row, e = d2[i], d2[i, j][:, None]
-    rank = np.count_nonzero(row < e, axis=1)
-    rank += np.count_nonzero((row == e) & (np.arange(len(q)) < j[:, None]), axis=1)
-    order = np.lexsort((rank, i))
-    i, j = i[order[rank[order] < k]], j[order[rank[order] < k]]
-    return np.column_stack([dx[i, j], dy[i, j]])
+    near = np.argsort(dx * dx + dy * dy, axis=1, kind="stable")[:, :k]
+    v = np.stack([np.take_along_axis(dx, near, 1), np.take_along_axis(dy, near, 1)], -1)
+    dist = np.hypot(v[..., 0], v[..., 1])
+    return v[(dist > 0.7 * pitch) & (dist < 1.3 * pitch)]
 
 
 def _nodes(p, origin, basis):
