@@ -8,6 +8,9 @@ The limits are those of issue 16:
 * ``sunlab reproduce --table 5`` (full: 6,088 frames of 100 spots and as many of one): at
   most 1.6 x (6,088 u / 2).
 
+Each is also printed in the frame-noise unit ``frames x u / 2`` against issue 45's targets
+(:data:`TARGETS`: Table 4 at most 0.3, Table 5 at most 1.0).
+
 Each command runs in its own process, as a user runs it (imports, figures and files included),
 writing to a temporary folder; its own timing summary is printed beside.
 
@@ -29,6 +32,9 @@ from bench_scaling import floor_u  # the floor u of issue 16, one definition
 
 #: (frames in the limit's formula, factor) of each table's limit: factor x (frames x u / 2).
 LIMITS = {"4": (7440, 0.4), "5": (6088, 1.6)}
+#: Issue 45's targets in the frame-noise unit frames x u / 2: the speed before the reproduction
+#: became linear.
+TARGETS = {"4": 0.3, "5": 1.0}
 
 
 def run_table(table: str, scheduler: str) -> dict:
@@ -62,6 +68,9 @@ def main(argv=None):
         print(f"Table {table}: {r['wall']:.1f} s wall; u {r['u'][0] * 1e3:.2f} / "
               f"{r['u'][1] * 1e3:.2f} ms (before / after); limit {factor} x ({frames} u / 2) "
               f"= {limit:.1f} s; wall / limit = {r['wall'] / limit:.2f}")
+        units, target = r["wall"] / (frames * u / 2), TARGETS[table]
+        print(f"  in the frame-noise unit ({frames} u / 2 = {frames * u / 2:.1f} s): {units:.2f} "
+              f"(issue 45's target: at most {target}: {'met' if units <= target else 'not met'})")
         parts = ", ".join(f"{k} {v:.1f} s" for k, v in r["timings"].items() if v is not None)
         print(f"  its own timings: {parts}")
 

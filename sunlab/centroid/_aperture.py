@@ -8,6 +8,7 @@ centres lie within ``r`` of ``(x, y)``, or at ``r_in < d <= r_out``.
 
 from __future__ import annotations
 
+import functools
 import math
 from typing import NamedTuple
 
@@ -54,12 +55,13 @@ def _groups(arr, stride, thr, bkg):
     w = g.ravel()[sel] - bkg
     cnt = np.bincount(k, minlength=n)
     s = np.bincount(k, w, minlength=n)
-    box = np.array([(sy.start, sy.stop - 1, sx.start, sx.stop - 1)
-                    for sy, sx in ndimage.find_objects(lab)], float).reshape(n, 4)
-    box = off + box * stride
     with np.errstate(invalid="ignore", divide="ignore"):
-        cx = np.where(s > 0, np.bincount(k, w * c, minlength=n) / s, 0.5 * (box[:, 2] + box[:, 3]))
-        cy = np.where(s > 0, np.bincount(k, w * r, minlength=n) / s, 0.5 * (box[:, 0] + box[:, 1]))
+        cx, cy = np.bincount(k, w * c, minlength=n) / s, np.bincount(k, w * r, minlength=n) / s
+    bad = np.flatnonzero(~(s > 0))
+    if bad.size:
+        box = off + stride * np.array([(sy.start, sy.stop - 1, sx.start, sx.stop - 1) for sy, sx
+                                       in ndimage.find_objects(lab)], float)[bad]
+        cx[bad], cy[bad] = 0.5 * (box[:, 2] + box[:, 3]), 0.5 * (box[:, 0] + box[:, 1])
     return cnt, s, cx, cy
 
 
@@ -98,9 +100,10 @@ def _aperture_window(x, y, r, nx, ny):
 def _stamps(arr, xs, ys, radius):
     """Stamps (n, s, s) of the frame holding each circle of ``radius`` (the largest of the
     spots') about ``(xs, ys)``, cut from a sliding-window view (a stamp at the frame's edge is
-    moved inside it), the column and row of each stamp's middle pixel, and the squared offsets
-    ``dx2``, ``dy2`` (n, s) of the stamps' columns and rows from the centres (infinite beyond
-    a frame smaller than a stamp)."""
+    moved inside it), the column and row of each stamp's middle pixel, the squared offsets
+    ``dy2`` (n, s) of the stamps' rows from the centres (infinite beyond a frame smaller than a
+    stamp), the centres' columns within the stamps and the stamps' columns inside the frame
+    (n, 1)."""
     half = math.ceil(radius + 0.5)
     size = 2 * half + 1
     ny, nx = arr.shape
@@ -109,32 +112,47 @@ def _stamps(arr, xs, ys, radius):
     c0 = np.minimum(np.maximum(np.rint(xs).astype(np.intp) - half, 0), arr.shape[1] - size)
     r0 = np.minimum(np.maximum(np.rint(ys).astype(np.intp) - half, 0), arr.shape[0] - size)
     v = sliding_window_view(arr, (size, size))[r0, c0]
-    cols, rows = c0[:, None] + np.arange(size), r0[:, None] + np.arange(size)
-    dx, dy = cols - xs[:, None], rows - ys[:, None]
-    return (v, c0 + half, r0 + half, np.where(cols < nx, dx * dx, np.inf),
-            np.where(rows < ny, dy * dy, np.inf))
+    rows = r0[:, None] + np.arange(size)
+    return (v, c0 + half, r0 + half, np.where(rows < ny, (rows - ys[:, None]) ** 2, np.inf),
+            (xs - c0)[:, None], np.minimum(nx - c0, size)[:, None])
 
 
-def _disk(dx2, dy2, r):
-    """Pixels (n, s, s) whose centres lie within ``r`` of the centre."""
-    return dx2[:, None, :] <= ((r * r)[:, None] - dy2)[:, :, None]
+def _disk(st, r):
+    """Pixels (n, s, s) of the stamps ``st`` (:func:`_stamps`) whose centres lie within ``r``
+    of the centre, and the first and end column (n, s) of each row's run of them: the run
+    ``|c - x| <= sqrt(r^2 - dy^2)`` of each row, the mask looked up in a table of runs (one
+    gather, not a comparison per pixel)."""
+    (dy2, xc, ncol), size = st[3:], st[0].shape[1]
+    q = (r * r)[:, None] - dy2
+    t = np.sqrt(q, out=np.full(q.shape, -1.0), where=q >= 0)  # -1: no pixel in the row
+    a = np.clip(np.ceil(xc - t), 0, size).astype(np.intp)
+    b = np.maximum(np.clip(np.floor(xc + t) + 1, 0, ncol).astype(np.intp), a)
+    return np.take(_runs(size), a * (size + 1) + b, axis=0), a, b
+
+
+@functools.lru_cache(maxsize=8)
+def _runs(size):
+    """Table ((size + 1)^2, size) of rows of ``size`` pixels: row ``a (size + 1) + b`` holds the
+    run of columns ``a <= c < b``."""
+    c, k = np.arange(size), np.arange(size + 1)
+    return ((k[:, None, None] <= c) & (c < k[None, :, None])).reshape(-1, size)
 
 
 def _ring_level(v, ring, lo, hi):
     """Mean, standard deviation and count of the ``ring`` pixels of each stamp whose values lie
     in ``[lo, hi]`` (all the ring's pixels where none does)."""
-    integer = v.dtype.kind == "u" and math.isfinite(lo) and math.isfinite(hi)
-    if integer:  # the same pixels by integer comparisons (no float conversion)
+    if v.dtype.kind == "u" and math.isfinite(lo) and math.isfinite(hi):
+        # the same pixels by integer comparisons (no float conversion)
         lo, hi = max(math.ceil(lo), 0), min(math.floor(hi), np.iinfo(v.dtype).max)
         lo, hi = (lo, hi) if lo <= hi else (1, 0)
     use = ring & (v >= lo) & (v <= hi)
-    n = np.count_nonzero(use, axis=(1, 2))
+    n = use.reshape(len(v), -1).view(np.uint8).sum(1, dtype=np.uint32).astype(np.int64)
     if not n.all():
         use |= ring & (n == 0)[:, None, None]
-        n = np.count_nonzero(use, axis=(1, 2))
-    vu = v * use  # no float64 copy: each fresh temporary of a stamp batch costs page faults
-    s1 = vu.sum((1, 2), dtype=np.uint64 if integer else np.float64)
-    s2 = np.einsum("nij,nij->n", vu, vu, dtype=np.float64)
+        n = use.reshape(len(v), -1).sum(1, dtype=np.int64)
+    # integer sums below 2^53: exact in float64, in any order
+    vu = (v * use).reshape(len(v), 1, -1).astype(np.float64)
+    s1, s2 = vu.sum((1, 2)), (vu @ vu.transpose(0, 2, 1)).reshape(-1)
     with np.errstate(invalid="ignore", divide="ignore"):
         m = s1 / n
         sd = np.sqrt(np.maximum(s2 / n - m * m, 0.0))
@@ -142,21 +160,28 @@ def _ring_level(v, ring, lo, hi):
 
 
 def _annulus(arr, xs, ys, r_in, r_out, lo, hi):
-    """:func:`_ring_level` of each ring ``r_in < d <= r_out`` about (xs, ys)."""
-    v, _, _, dx2, dy2 = _stamps(arr, xs, ys, float(np.max(r_out)))
-    return _ring_level(v, _disk(dx2, dy2, r_out) & ~_disk(dx2, dy2, r_in), lo, hi)
+    """:func:`_ring_level` of each ring ``r_in < d <= r_out`` about (xs, ys) (``a > b``: in
+    the outer disk ``a`` and not in the inner ``b``)."""
+    st = _stamps(arr, xs, ys, float(np.max(r_out)))
+    return _ring_level(st[0], _disk(st, r_out)[0] > _disk(st, r_in)[0], lo, hi)
 
 
-def _raw(v, inside, bkg, order):
-    """Moments ``p[:, l, k]`` = sum of ``(I - bkg) v^l u^k`` over each aperture, l, k <=
-    ``order``, u and v the column and row offsets from the stamp's middle pixel: one matrix
-    product of all the stamps' rows with the powers of u, then one with those of v."""
+def _raw(v, disk, bkg, order):
+    """Moments ``p[:, l, k]`` = sum of ``(I - bkg) v^l u^k`` over each aperture ``disk``
+    (:func:`_disk`), l, k <= ``order``, u and v the column and row offsets from the stamp's
+    middle pixel: one matrix product of the masked stamps' rows with the powers of u, less the
+    background over each row's run (from cumulative sums of the powers), then one with the
+    powers of v."""
+    inside, a, b = disk
     n, size, _ = v.shape
     pw = (np.arange(size) - size // 2)[:, None] ** np.arange(order + 1.0)
-    w = v.astype(np.float64)
-    w -= bkg[:, None, None]
-    w *= inside
-    return pw.T @ (w.reshape(-1, size) @ pw).reshape(n, size, order + 1)
+    cum = np.concatenate([np.zeros((1, order + 1)), np.cumsum(pw, axis=0)])
+    im = (v * inside).reshape(-1, size).astype(np.float64)
+    # two powers at a time: BLAS's kernel for two columns is several times faster than for four
+    rows = np.concatenate([im @ np.ascontiguousarray(pw[:, k:k + 2])
+                           for k in range(0, order + 1, 2)], axis=1).reshape(n, size, order + 1)
+    rows -= bkg[:, None, None] * (np.take(cum, b, axis=0) - np.take(cum, a, axis=0))
+    return pw.T @ rows
 
 
 def _com_of(cx, cy, p):
@@ -164,25 +189,23 @@ def _com_of(cx, cy, p):
     (cx, cy); NaN where the sum is not positive."""
     s = p[:, 0, 0]
     with np.errstate(invalid="ignore", divide="ignore"):
-        x, y = cx + p[:, 0, 1] / s, cy + p[:, 1, 0] / s
-    bad = ~(s > 0)
-    x[bad], y[bad] = np.nan, np.nan
-    return s, x, y
+        return s, *(np.where(s > 0, c + p[:, i, 1 - i] / s, np.nan) for i, c in ((0, cx), (1, cy)))
 
 
 def _com(arr, xs, ys, r, bkg):
     """Sum and centre of mass of ``I - bkg`` in each aperture of radius ``r`` about (xs, ys)."""
-    v, cx, cy, dx2, dy2 = _stamps(arr, xs, ys, float(np.max(r)))
-    return _com_of(cx, cy, _raw(v, _disk(dx2, dy2, r), bkg, 1))
+    st = _stamps(arr, xs, ys, float(np.max(r)))
+    return _com_of(st[1], st[2], _raw(st[0], _disk(st, r), bkg, 1))
 
 
 def _moments(arr, xs, ys, r, bkg, sat):
     """Moments of ``I - bkg`` in each aperture of radius ``r`` about (xs, ys): an (n, 13) array,
     columns the first 13 of :data:`MEASURE_FIELDS` (central moments about the centre of mass;
     NaN where the sum is not positive, but for the sum, peak, pixel and saturated counts)."""
-    v, cx, cy, dx2, dy2 = _stamps(arr, xs, ys, float(np.max(r)))
-    inside = _disk(dx2, dy2, r)
-    p = _raw(v, inside, bkg, 3)
+    st = _stamps(arr, xs, ys, float(np.max(r)))
+    v, cx, cy = st[:3]
+    inside, a, b = disk = _disk(st, r)
+    p = _raw(v, disk, bkg, 3)
     s, x, y = _com_of(cx, cy, p)
     with np.errstate(invalid="ignore", divide="ignore"):
         p = p / s[:, None, None]
@@ -192,10 +215,12 @@ def _moments(arr, xs, ys, r, bkg, sat):
     out[:, FLUX], out[:, X], out[:, Y] = s, x, y
     out[:, MXX:M03 + 1] = c[:, [0, 2, 1, 0, 1, 2, 3], [2, 0, 1, 3, 2, 1, 0]]
     out[~(s > 0), X:M03 + 1] = np.nan
-    out[:, PEAK] = np.max(v, axis=(1, 2), where=inside,
-                          initial=0 if v.dtype.kind == "u" else -np.inf)
-    out[:, NPIX] = np.count_nonzero(inside, axis=(1, 2))
-    out[:, NSAT] = np.count_nonzero(inside & (v >= sat), axis=(1, 2))
+    out[:, PEAK] = ((v * inside).max((1, 2)) if v.dtype.kind == "u" else
+                    np.max(v, axis=(1, 2), where=inside, initial=-np.inf))
+    out[:, NPIX] = (b - a).sum(1)
+    hot = out[:, PEAK] >= sat  # only these can hold pixels at full scale
+    out[:, NSAT] = 0
+    out[hot, NSAT] = np.count_nonzero(inside[hot] & (v[hot] >= sat), axis=(1, 2))
     return out
 
 
@@ -223,28 +248,27 @@ def _measure(arr, xs, ys, r0s, margin, annulus, lo, hi, n_iter, sat):
     NaN rows for spots that failed).
     """
     xs, ys, r = (np.array(a, dtype=np.float64).reshape(-1) for a in (xs, ys, r0s))
-    out = np.full((xs.size, len(MEASURE_FIELDS)), np.nan)
     # a few spots at a time: their stamps stay in the cache (and below the size at which
     # each temporary array is a fresh memory map)
     step = max(_CHUNK // (2 * math.ceil(float(np.max(r, initial=0)) + annulus) + 5) ** 2, 1)
-    for k in range(0, xs.size, step):
-        out[k:k + step] = _measure_some(arr, xs[k:k + step], ys[k:k + step], r[k:k + step],
-                                        margin, annulus, lo, hi, n_iter, sat)
-    return out
+    return np.concatenate([np.empty((0, len(MEASURE_FIELDS)))] + [
+        _measure_some(arr, xs[k:k + step], ys[k:k + step], r[k:k + step], margin, annulus, lo,
+                      hi, n_iter, sat) for k in range(0, xs.size, step)])
 
 
-_CHUNK = 2**18  # pixels of the spots' stamps measured at a time
+_CHUNK = 2**19  # pixels of the spots' stamps measured at a time
 
 
 def _measure_some(arr, xs, ys, r, margin, annulus, lo, hi, n_iter, sat):
     out = np.full((xs.size, len(MEASURE_FIELDS)), np.nan)
     # the ring and the first aperture from the same stamps
-    v, cx, cy, dx2, dy2 = _stamps(arr, xs, ys, float(np.max(r)) + 1.0 + annulus)
-    bkg, bsd, nb = _ring_level(v, _disk(dx2, dy2, r + 1.0 + annulus) & ~_disk(dx2, dy2, r + 1.0),
+    st = _stamps(arr, xs, ys, float(np.max(r)) + 1.0 + annulus)
+    v, cx, cy = st[:3]
+    bkg, bsd, nb = _ring_level(v, _disk(st, r + 1.0 + annulus)[0] > _disk(st, r + 1.0)[0],
                                lo, hi)
     live = nb > 0
     for it in range(int(n_iter) - 1):
-        s, x1, y1 = (_com_of(cx, cy, _raw(v, _disk(dx2, dy2, r), bkg, 1)) if it == 0
+        s, x1, y1 = (_com_of(cx, cy, _raw(v, _disk(st, r), bkg, 1)) if it == 0
                      else _com(arr, xs, ys, r, bkg))
         live &= (s > 0) & (np.abs(x1 - xs) < r) & (np.abs(y1 - ys) < r)
         xs, ys = np.where(live, x1, xs), np.where(live, y1, ys)

@@ -30,8 +30,9 @@ METRIC_FIELDS = ("peak", "background", "mxx", "myy", "mxy", "radius", "elliptici
 def _neighbour_vectors(q, pitch, k=5):
     """Vectors from each point of ``q`` (m, 2) to those of its ``k`` nearest points (itself
     included; ties by index) that lie between 0.7 and 1.3 ``pitch`` away, (n_vectors, 2)."""
-    d2 = ((q[:, None, :] - q[None, :, :]) ** 2).sum(-1)
-    v = q[np.argsort(d2, axis=1, kind="stable")[:, :k]] - q[:, None, :]
+    dx, dy = q[None, :, 0] - q[:, None, 0], q[None, :, 1] - q[:, None, 1]
+    near = np.argsort(dx * dx + dy * dy, axis=1, kind="stable")[:, :k]
+    v = np.stack([np.take_along_axis(dx, near, 1), np.take_along_axis(dy, near, 1)], -1)
     dist = np.hypot(v[..., 0], v[..., 1])
     return v[(dist > 0.7 * pitch) & (dist < 1.3 * pitch)]
 
@@ -116,25 +117,21 @@ def _grid_offset(ij, pts, lut, exp):
     grid's centre."""
     rows, cols = lut.shape
     lo, hi = ij.min(0), ij.max(0)
-    dj = range(-lo[0], cols - hi[0]) if hi[0] - lo[0] < cols else range(-lo[0], 1 - lo[0])
-    di = range(-lo[1], rows - hi[1]) if hi[1] - lo[1] < rows else range(-lo[1], 1 - lo[1])
-    best, arg = np.inf, (dj[0], di[0])
-    if len(dj) * len(di) == 1:
-        return arg
-    mj, mi = ij.mean(0)
-    for a in dj:
-        for b in di:
-            if exp is None:
-                cost = abs(mj + a - (cols - 1) / 2) + abs(mi + b - (rows - 1) / 2)
-            else:
-                h = lut[np.clip(ij[:, 1] + b, 0, rows - 1), np.clip(ij[:, 0] + a, 0, cols - 1)]
-                e = np.where((h >= 0)[:, None], exp[np.maximum(h, 0)], np.nan)
-                d = np.hypot(*(pts - e).T)
-                d = d[np.isfinite(d)]
-                cost = d.mean() if d.size else np.inf
-            if cost < best:
-                best, arg = cost, (a, b)
-    return arg
+    dj = np.arange(-lo[0], cols - hi[0]) if hi[0] - lo[0] < cols else -lo[:1]
+    di = np.arange(-lo[1], rows - hi[1]) if hi[1] - lo[1] < rows else -lo[1:]
+    a, b = (g.ravel() for g in np.meshgrid(dj, di, indexing="ij"))  # dj outer, di inner
+    if exp is None:
+        mj, mi = ij.mean(0)
+        cost = np.abs(mj + a - (cols - 1) / 2) + np.abs(mi + b - (rows - 1) / 2)
+    else:  # (offset, spot)
+        h = lut[np.clip(ij[:, 1] + b[:, None], 0, rows - 1),
+                np.clip(ij[:, 0] + a[:, None], 0, cols - 1)]
+        e = np.where((h >= 0)[..., None], exp[np.maximum(h, 0)], np.nan)
+        d = np.hypot(pts[:, 0] - e[..., 0], pts[:, 1] - e[..., 1])
+        n = np.isfinite(d).sum(1)
+        cost = np.where(n > 0, np.where(np.isfinite(d), d, 0.0).sum(1) / np.maximum(n, 1), np.inf)
+    k = int(np.argmin(cost))  # the first of equal costs
+    return int(a[k]), int(b[k])
 
 
 def _assign(m, win, st, good, fit, max_residual, lut, exp, vals, window, status, ambiguous):

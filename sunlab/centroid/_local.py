@@ -16,6 +16,8 @@ import math
 
 import numpy as np
 
+from .result import _hot_medians
+
 __all__: list[str] = []
 
 
@@ -27,19 +29,11 @@ def _repair_isolated(cut, saturation):
     spot saturates), in which case nothing is repaired.
     """
     rows, cols = np.nonzero(cut >= saturation)
-    if rows.size == 0:
-        return 0, False
-    ny, nx = cut.shape
-    fixes = []
-    for r, c in zip(rows, cols, strict=True):
-        r0, r1, c0, c1 = max(r - 1, 0), min(r + 2, ny), max(c - 1, 0), min(c + 2, nx)
-        nb = np.delete(cut[r0:r1, c0:c1].ravel(), (r - r0) * (c1 - c0) + (c - c0))
-        if nb.size < 3 or (nb >= saturation).any():
-            return 0, True
-        fixes.append((r, c, float(np.median(nb))))
-    for r, c, value in fixes:
-        cut[r, c] = value
-    return len(fixes), False
+    med = _hot_medians(cut, rows, cols, saturation)
+    if med is None:
+        return 0, True
+    cut[rows, cols] = med
+    return len(med), False
 
 
 def _background(cut, dx, dy, ring, plane: bool):

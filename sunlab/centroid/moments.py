@@ -142,12 +142,11 @@ def spot_moments(
     """
     saturation = _full_scale(frame, saturation)
     arr, _ = _prepare(frame)
-    x, y, r = float(x), float(y), float(radius)
-    lo, hi = (float(v) for v in band)
-    xs, ys, rs = np.array([x]), np.array([y]), np.array([r])
-    bkg, bsd, _ = _annulus(arr, xs, ys, rs + 1.0, rs + 1.0 + float(annulus), lo, hi)
+    xs, ys, rs = (np.array([float(v)]) for v in (x, y, radius))
+    bkg, bsd, _ = _annulus(arr, xs, ys, rs + 1.0, rs + 1.0 + float(annulus),
+                           *(float(v) for v in band))
     m = _moments(arr, xs, ys, rs, bkg, float(saturation))[0]
-    return SpotMoments(*(float(v) for v in m), float(bkg[0]), float(bsd[0]), r)
+    return SpotMoments(*(float(v) for v in m), float(bkg[0]), float(bsd[0]), float(rs[0]))
 
 
 def stamp_moments(img) -> tuple[float, float, float]:

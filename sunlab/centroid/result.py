@@ -130,25 +130,31 @@ def _repair_hot(arr, window, bkg, s, x, y, saturation, threshold=False):
     Returns ``(s, x, y, n_repaired, saturated)``.
     """
     x0, x1, y0, y1 = window
-    sub = arr[y0:y1, x0:x1]
-    rows, cols = np.nonzero(sub >= saturation)
-    if rows.size == 0:
-        return s, x, y, 0, False
-    ny, nx = arr.shape
+    rows, cols = np.nonzero(arr[y0:y1, x0:x1] >= saturation)
+    rows, cols = rows + y0, cols + x0
+    med = _hot_medians(arr, rows, cols, saturation)
+    if not med:  # None: the spot saturates; []: no clipped pixel
+        return s, x, y, 0, med is None
     sx, sy = x * s, y * s
-    n = 0
-    for r, c in zip(rows + y0, cols + x0, strict=True):
-        r0, r1, c0, c1 = max(r - 1, 0), min(r + 2, ny), max(c - 1, 0), min(c + 2, nx)
-        nb = arr[r0:r1, c0:c1].astype(float).ravel()
-        centre = (r - r0) * (c1 - c0) + (c - c0)
-        nb = np.delete(nb, centre)
-        if nb.size < 3 or (nb >= saturation).any():
-            return s, x, y, 0, True
-        m = float(np.median(nb))
+    for r, c, m in zip(rows, cols, med, strict=True):
         d = float(arr[r, c]) - bkg - (max(m - bkg, 0.0) if threshold else m - bkg)
         s, sx, sy = s - d, sx - d * c, sy - d * r
-        n += 1
-    return s, sx / s, sy / s, n, False
+    return s, sx / s, sy / s, len(med), False
+
+
+def _hot_medians(img, rows, cols, saturation):
+    """Median of the 8 neighbours (those inside ``img``) of each clipped pixel (rows, cols), a
+    hot pixel when they are all below ``saturation``; None when one of them is not (two
+    clipped pixels touch: the spot saturates) or a pixel has fewer than 3 neighbours."""
+    ny, nx = img.shape
+    med = []
+    for r, c in zip(rows, cols, strict=True):
+        r0, r1, c0, c1 = max(r - 1, 0), min(r + 2, ny), max(c - 1, 0), min(c + 2, nx)
+        nb = np.delete(img[r0:r1, c0:c1].astype(float).ravel(), (r - r0) * (c1 - c0) + (c - c0))
+        if nb.size < 3 or (nb >= saturation).any():
+            return None
+        med.append(float(np.median(nb)))
+    return med
 
 
 def _check_positive(name, value, fix="use a positive value"):
