@@ -94,6 +94,23 @@ def _ok_mask(ds: xr.Dataset) -> np.ndarray:
     return usable & np.isfinite(v["x"].values) & np.isfinite(v["y"].values)
 
 
+def _check_spots_move(ds: xr.Dataset, name: str) -> None:
+    """Refuse a training table whose usable spot does not move along x or y from pose to pose
+    (of any hole): no kind can learn angles from a spot that stays put (a camera that kept one
+    frame), and most would fit one anyway, with errors of degrees."""
+    ok = _ok_mask(ds)
+    seen = ok.any(axis=(0, 1))
+    for c in ("x", "y"):
+        v = np.asarray(ds[c].values, dtype=float)
+        span = (np.max(np.where(ok, v, -np.inf), axis=(0, 1))
+                - np.min(np.where(ok, v, np.inf), axis=(0, 1)))
+        if np.any(seen) and not np.any(span[seen] > 0):
+            raise ConfigurationError(
+                f"{name}: every usable shot has its spot at the same {c} "
+                f"({float(v[ok][0]):g} px) at every pose, nothing to calibrate. Fix: calibrate "
+                "on poses that move the spot along both axes (a grid such as experiment I)")
+
+
 def _points(centroids: xr.Dataset, average: str, name: str) -> SimpleNamespace:
     """The flat training points of a table: ``x``, ``y`` (px), ``alpha``, ``beta`` (deg), one
     per pose mean or per usable shot, with ``n_poses``, ``n_shots`` (usable), ``n_repaired``
@@ -279,6 +296,8 @@ class Calibration:
             if validation is not None:
                 validation, excluded["validation_excluded"] = screen_outliers(validation,
                                                                               outlier_mads)
+        _check_table(train, "train", fitting=False)
+        _check_spots_move(train, "train")
         self._fit_tables(train, validation)
         if outlier_mads:
             self.training.update(outlier_mads=float(outlier_mads), **excluded)
