@@ -43,14 +43,14 @@ True
 from __future__ import annotations
 
 import importlib
-import json
 from collections.abc import Sequence
 from typing import Protocol, runtime_checkable
 
 import numpy as np
 
+from .. import integrity
 from ..errors import ConfigurationError
-from ._plugins import entry_points, load_plugin, open_device, plugin_failed
+from ..extras import entry_points, load_plugin, open_device, plugin_failed
 from .errors import CameraError
 
 __all__ = ["open_camera"]
@@ -246,10 +246,7 @@ def parse_camera_options(pairs) -> dict:
         if not sep or not key.strip().isidentifier():
             raise ConfigurationError(
                 f"--camera-option: found {pair!r}, expected KEY=VALUE with KEY a Python name")
-        try:
-            out[key.strip()] = json.loads(value)
-        except json.JSONDecodeError:
-            out[key.strip()] = value
+        out[key.strip()] = integrity.loads(value, f"--camera-option {key.strip()}", or_text=True)
     return out
 
 
