@@ -130,10 +130,6 @@ def name_plugin_errors(cls) -> None:
         setattr(cls, name, classmethod(call) if isinstance(method, classmethod) else call)
 
 
-def _entry_points() -> dict:
-    return entry_points(ENTRY_POINT_GROUP)
-
-
 def _plugin_class(ep) -> type[Calibration]:
     """The class of a calibration entry point, checked against :data:`PLUGIN_INTERFACE` when it
     is loaded (not by an AttributeError in the middle of a fit)."""
@@ -172,7 +168,7 @@ def available_kinds(*, frames: bool = True) -> dict[str, str]:
     True
     """
     found = {**KINDS, **(FRAME_KINDS if frames else {})}
-    return found | {k: ep.value for k, ep in _entry_points().items()
+    return found | {k: ep.value for k, ep in entry_points(ENTRY_POINT_GROUP).items()
                     if k not in KINDS and k not in FRAME_KINDS}
 
 
@@ -202,7 +198,7 @@ def method_class(method: str, *, frames: bool = False) -> type[Calibration]:
     if kind in builtin:
         module, name = builtin[kind].split(":")
         return getattr(importlib.import_module(f"{__package__}.{module}"), name)
-    eps = _entry_points()
+    eps = entry_points(ENTRY_POINT_GROUP)
     if kind not in eps:
         raise ConfigurationError(
             f"method: found {method!r}, expected one of "
