@@ -311,13 +311,13 @@ class FrameNet(Calibration):
             the estimate lies outside the training poses' range widened by the largest training
             error (an extrapolation), attribute ``n_out_of_domain`` counting them; coordinates
             ``alpha_cmd``, ``beta_cmd`` (the commanded angles): what
-            :func:`sunlab.stats.evaluate` reads.
+            :func:`sunlab.stats.evaluate` reads. Attribute ``timings`` (str) gives the seconds
+            of each stage.
 
         Raises
         ------
         SchemaError
             Frames of another shape, bit depth or number of holes than the training frames.
-            Attribute ``timings`` (str) gives the seconds of each stage.
         """
         self.check_fitted()
         self.timings = {}
