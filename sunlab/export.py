@@ -47,8 +47,9 @@ class _Prec:
     def lit(self, value: float) -> str:
         """A C literal of ``value`` in this precision (round trip exact)."""
         value = float(value)
-        if not math.isfinite(value):
-            raise ConfigurationError(f"parameter value {value!r}: not finite, cannot export")
+        if not (math.isfinite(value) and (self.double or abs(value) <= 3.4028234663852886e38)):
+            raise ConfigurationError(f"parameter value {value!r}: not a finite {self.t} (a float"
+                                     " is at most 3.4e+38), cannot export. Fix: re-fit")
         text = repr(value if self.double else float(np.float32(value)))
         return (text if "e" in text or "." in text else text + ".0") + ("" if self.double else "f")
 

@@ -87,8 +87,8 @@ def _check(stamp, found: str, source) -> None:
         return
     if isinstance(stamp, str | bytes):
         try:
-            stamp = json.loads(stamp)
-        except ValueError:
+            stamp = loads(stamp, source)
+        except SunlabError:
             stamp = None
     if (not isinstance(stamp, dict) or stamp.get("algorithm") != "sha256"
             or not isinstance(stamp.get("digest"), str)):
@@ -215,31 +215,14 @@ def read_json(path, *, max_bytes: int, what: str = "a JSON document", fix: str =
         The file.
     max_bytes : int
         Largest file accepted, bytes (checked before it is read).
-    what : str
-        What the file should be, for the message.
-    fix : str
-        How to mend a bad file, for the message.
+    what, fix : str
+        What the file should be and how to mend it, for the messages.
 
     Returns
     -------
     object
-        The parsed document (a dict for every file sunlab writes).
-
-    Raises
-    ------
-    SunlabError
-        Naming the file: missing, a folder, too large, not UTF-8, not JSON, or nested too deep.
-
-    Examples
-    --------
-    >>> import pathlib, tempfile
-    >>> path = pathlib.Path(tempfile.mkdtemp()) / "deep.json"
-    >>> _ = path.write_text("[" * 10000 + "]" * 10000)
-    >>> try:
-    ...     read_json(path, max_bytes=2**20)
-    ... except SunlabError as err:
-    ...     print("nested" in str(err))
-    True
+        The parsed document (a dict for every file sunlab writes); a :class:`SunlabError`
+        names the file if missing, a folder, too large, not UTF-8, not JSON, or too deep.
     """
     path = Path(path)
     fix = fix or f"give {what}"
@@ -256,16 +239,53 @@ def read_json(path, *, max_bytes: int, what: str = "a JSON document", fix: str =
     if len(raw) > max_bytes:
         raise SunlabError(f"{path}: more than the {max_bytes} bytes of {what}. Fix: {fix}")
     try:
-        doc = json.loads(raw.decode("utf-8"))
+        text = raw.decode("utf-8")
     except UnicodeDecodeError as err:
         raise SunlabError(f"{path}: not UTF-8 text ({err.reason} at byte {err.start}), "
                           f"expected {what}. Fix: {fix}") from None
+    return loads(text, path, what=what, fix=fix)
+
+
+def loads(text, source, *, what: str = "a JSON document", fix: str = "", or_text: bool = False):
+    """Parse JSON text: sunlab's one JSON reading path (files, a store's metadata and
+    attributes, a command-line option's value), with the depth limit of :func:`check_depth`.
+
+    Parameters
+    ----------
+    text, source : str
+        The JSON text, and where it came from (a file, an option) for the messages.
+    what, fix : str
+        What it should be and how to mend it, for the messages.
+    or_text : bool
+        Return ``text`` itself when it is not JSON at all (an option's plain string value).
+
+    Returns
+    -------
+    object
+        The parsed document; a :class:`SunlabError` names ``source`` if the text is not JSON,
+        nests deeper than :data:`MAX_JSON_DEPTH` levels or holds an integer no double holds.
+
+    Examples
+    --------
+    >>> loads('{"a": [1, 2]}', "x")
+    {'a': [1, 2]}
+    >>> try:
+    ...     loads("[" * 5000 + "]" * 5000, "--option roi")
+    ... except SunlabError as err:
+    ...     print(str(err)[:30])
+    --option roi: JSON nested more
+    """
+    fix = fix or f"give {what}"
+    try:
+        doc = json.loads(text)
     except RecursionError:
-        raise SunlabError(f"{path}: JSON nested more than {MAX_JSON_DEPTH} levels deep, "
+        raise SunlabError(f"{source}: JSON nested more than {MAX_JSON_DEPTH} levels deep, "
                           f"expected {what}. Fix: {fix}") from None
     except ValueError as err:
-        raise SunlabError(f"{path}: invalid JSON ({err}), expected {what}. Fix: {fix}") from None
-    check_depth(doc, path, fix, f", expected {what}")
+        if or_text:
+            return text
+        raise SunlabError(f"{source}: invalid JSON ({err}), expected {what}. Fix: {fix}") from None
+    check_depth(doc, source, fix, f", expected {what}")
     return doc
 
 
@@ -277,10 +297,12 @@ def _zarr_documents(root: Path) -> list[tuple[str, dict]]:
                               and (Path(e.path) / "zarr.json").is_file()):
         meta = root / name / "zarr.json"
         try:
-            docs.append((name, json.loads(meta.read_text(encoding="utf-8"))))
-        except (OSError, UnicodeDecodeError, ValueError) as err:
+            text = meta.read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError) as err:
             raise IntegrityError(f"{meta}: corrupt Zarr metadata ({type(err).__name__}: {err})."
                                  f" Fix: {_FIX}") from None
+        docs.append((name, loads(text, f"{meta}: corrupt Zarr metadata", what="a zarr.json",
+                                 fix=_FIX)))
     return docs
 
 
@@ -318,7 +340,7 @@ def _set_root_attr(path: Path, group, value) -> None:
             del group.attrs[ATTR]
         return
     meta = path / "zarr.json"
-    doc = json.loads(meta.read_text(encoding="utf-8"))
+    doc = loads(meta.read_text(encoding="utf-8"), meta, what="Zarr metadata", fix=_FIX)
     attrs = doc.setdefault("attributes", {})
     if value is not None:
         attrs[ATTR] = value

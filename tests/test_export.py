@@ -169,3 +169,17 @@ def test_check_hands_no_folder_of_the_users_to_the_compiler(train, tmp_path, mon
     assert sorted(p.name for p in (tmp_path / "-otrap").iterdir()) == [
         "sunlab_calibration.c", "sunlab_calibration.h"]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["-otrap", "cal.json", "trap"]
+
+
+def test_a_coefficient_beyond_single_precision_is_refused_naming_it(train, tmp_path, capsys):
+    # 1e39 is a double (up to 1.8e308) but no float (up to 3.4e38): the float tables of the C
+    # source would hold an infinity that does not compile
+    cal = Polynomial(order=2).fit(train)
+    cal.coefficients["alpha"][-1] = 1e39
+    path = cal.save(tmp_path / "cal.json")
+    from sunlab import cli
+
+    status = cli.main(["export", str(path), "--out", str(tmp_path / "onboard")])
+    err = capsys.readouterr().err.strip()
+    assert status == 1 and len(err.splitlines()) == 1 and "1e+39" in err and "float" in err
+    assert not (tmp_path / "onboard").exists()

@@ -91,3 +91,53 @@ def test_netcdf_values_are_sealed_and_a_changed_value_is_found(tmp_path):
     changed["x"].values[1] = 2.5000001
     with pytest.raises(I.IntegrityError, match="cen.nc: checksum mismatch"):
         I.verify_netcdf(changed, path)
+
+
+DEEP = "[" * 100_000 + "]" * 100_000  # beyond the JSON parser's recursion limit
+
+
+@pytest.mark.parametrize("sealed", [True, False])
+def test_a_store_whose_metadata_nests_deep_is_refused_in_one_line(tmp_path, capsys, sealed):
+    from sunlab import cli, io, sim
+
+    store = tmp_path / "cen.zarr"
+    io.save_centroids(sim.synthetic_centroids([0.0, 1, 2], [0.0, 0, 1]), store)
+    if not sealed:
+        I.unseal_zarr(store)
+    meta = store / "zarr.json"
+    meta.write_text(meta.read_text().replace('"attributes": {', f'"attributes": {{"d": {DEEP},', 1))
+    with pytest.raises(SunlabError, match="cen.zarr/zarr.json: corrupt Zarr metadata.*nested"):
+        io.open_centroids(store)
+    assert cli.main(["info", str(store)]) == 1
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "nested more than 64 levels" in err
+
+
+def test_a_store_attribute_that_nests_deep_is_refused_naming_it(tmp_path):
+    from sunlab import io, sim
+
+    store = tmp_path / "cen.zarr"
+    cen = sim.synthetic_centroids([0.0, 1, 2], [0.0, 0, 1]).assign_attrs(roi=[0, 4, 0, 4])
+    io.save_centroids(cen, store)
+    I.unseal_zarr(store)  # an attribute's JSON text is a string: the store's own check passes
+    meta = store / "zarr.json"
+    doc = json.loads(meta.read_text())
+    key = next(k for k, v in doc["attributes"].items() if v == "[0, 4, 0, 4]")
+    doc["attributes"][key] = DEEP
+    meta.write_text(json.dumps(doc))
+    with pytest.raises(SunlabError, match=f"attribute '{key}': JSON nested more than 64"):
+        io.open_centroids(store)
+
+
+def test_a_command_line_option_value_that_nests_deep_is_refused_in_one_line(tmp_path, capsys):
+    from sunlab import cli
+
+    # a lab's camera class (module:Class) is handed the options; "sim" takes none
+    status = cli.main(["acquire", "--stage", "fake://", "--camera", "sunlab.hardware:SimCamera",
+                       "--plan", "I", "--step", "50", "--shots", "1", "--out",
+                       str(tmp_path / "run.zarr"), "--camera-option", f"roi={DEEP}",
+                       "--no-progress"])
+    err = capsys.readouterr().err.strip()
+    assert status == 1 and len(err.splitlines()) == 1
+    assert "--camera-option roi: JSON nested more than 64 levels" in err
+    assert not (tmp_path / "run.zarr").exists()

@@ -1,4 +1,5 @@
-"""Checks of a ``calibration/1`` document's parameters, shared by the calibration classes.
+"""Checks shared by the calibration classes: of training data (:func:`_check_spots_move`) and
+of a ``calibration/1`` document's parameters.
 
 Each class checks its own parameters (``_check_parameters``) with these helpers before it
 builds any array, so that a corrupt file is refused with a :class:`sunlab.SchemaError` naming
@@ -9,9 +10,31 @@ from __future__ import annotations
 
 import math
 
-from ..errors import SchemaError
+import numpy as np
+
+from ..errors import ConfigurationError, SchemaError
+from ..schema import STATUS, USABLE_STATUS
 
 __all__: list[str] = []
+
+
+def _ok_mask(ds) -> np.ndarray:
+    """The usable shots: a usable status (:data:`sunlab.schema.USABLE_STATUS`), finite x, y."""
+    v = ds.variables
+    usable = np.isin(np.asarray(v["status"].values), [STATUS[k] for k in USABLE_STATUS])
+    return usable & np.isfinite(v["x"].values) & np.isfinite(v["y"].values)
+
+
+def _check_spots_move(x: np.ndarray, y: np.ndarray, name: str) -> None:
+    """Refuse training points whose spot (``x``, ``y``, px) never moves along an axis from pose
+    to pose: no kind learns angles from a spot that stays put (a camera that kept one frame),
+    and most would fit one anyway, with errors of degrees."""
+    for c, v in (("x", x), ("y", y)):
+        if not np.ptp(v) > 0:
+            raise ConfigurationError(
+                f"{name}: every usable shot has its spot at the same {c} ({v[0]:g} px) at "
+                "every pose, nothing to calibrate. Fix: calibrate on poses that move the spot "
+                "along both axes (a grid such as experiment I)")
 
 
 def _bad(field: str, found, expected: str, fix: str = "the file is corrupt or edited by hand; "
@@ -50,9 +73,11 @@ def _number(value, field: str, *, positive: bool = False) -> float:
     return value
 
 
-def _count(value, field: str, low: int = 0) -> int:
-    if isinstance(value, bool) or not isinstance(value, int) or value < low:
-        raise _bad(field, value, f"an integer >= {low}")
+def _count(value, field: str, low: int = 0, high: int | None = None) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or value < low or (
+            high is not None and value > high):
+        raise _bad(field, value, f"an integer >= {low}" if high is None
+                   else f"an integer from {low} to {high}")
     return value
 
 

@@ -263,17 +263,12 @@ def to_arrays(net) -> dict:
 
 
 def from_arrays(arrays: dict, channels: int, device: str = "cpu"):
-    """A network of ``channels`` rebuilt from :func:`to_arrays`' output."""
+    """A network of ``channels`` rebuilt from :func:`to_arrays`' output (of the layers and
+    shapes a model file was checked for: ``FrameNet._check_parameters``)."""
     torch = _torch()
     net = build(channels, n_features(channels), 0)
-    shapes = {k: tuple(v.shape) for k, v in net.state_dict().items()}
-    for k, shape in shapes.items():
-        if k not in arrays or tuple(np.shape(arrays[k])) != shape:
-            raise ConfigurationError(
-                f"network.{k}: found shape {np.shape(arrays.get(k))}, expected {shape} for "
-                f"{channels} channels")
     net.load_state_dict({k: torch.as_tensor(np.asarray(arrays[k]), dtype=torch.float32)
-                         for k in shapes})
+                         for k in net.state_dict()})
     return net.to(torch.device(device))
 
 

@@ -190,6 +190,10 @@ def load(path) -> Calibration:
         ) from err
     # a depth limit; the fields; the checksum Calibration.save wrote
     integrity.check_depth(doc, path)
-    cal = from_dict(doc)
+    try:
+        cal = from_dict(doc)
+    except SchemaError as err:  # the file named too, not only its field
+        err.args = (f"{path}: {err}",)
+        raise
     integrity.verify_document(doc, path)
     return cal

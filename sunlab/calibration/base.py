@@ -40,10 +40,11 @@ import xarray as xr
 
 from .. import __version__, atomic, integrity
 from ..errors import ConfigurationError, SchemaError
-from ..schema import CALIBRATION_SCHEMA, CENTROIDS_SCHEMA, STATUS, USABLE_STATUS
+from ..schema import CALIBRATION_SCHEMA, CENTROIDS_SCHEMA, STATUS
 from ..screening import screen_outliers
+from ._checks import _check_spots_move, _ok_mask
 from .artifact import validate_document
-from .registry import OUTLIER_MADS
+from .registry import OUTLIER_MADS, name_plugin_errors
 from .summary import calibration_summary
 
 __all__ = ["Calibration"]
@@ -51,7 +52,6 @@ __all__ = ["Calibration"]
 _SENSOR = ("mask_distance_mm", "pixel_pitch_mm", "x_cf_px", "y_cf_px")
 #: Largest commanded angle a training table may hold, deg (beyond 90 the sun is behind the mask).
 _MAX_ANGLE_DEG = 90.0
-_USABLE = [STATUS[k] for k in USABLE_STATUS]
 
 
 def _check_table(ds, name: str, fitting: bool = True) -> None:
@@ -84,14 +84,6 @@ def _check_table(ds, name: str, fitting: bool = True) -> None:
                 f"a finite commanded angle within (-{_MAX_ANGLE_DEG:g}, {_MAX_ANGLE_DEG:g}) deg "
                 "(the sun in front of the mask)", f"correct or drop the pose(s) ({bad.size} such "
                 f"pose(s)), e.g. table.drop_isel(pose={int(bad[0])})")
-
-
-def _ok_mask(ds: xr.Dataset) -> np.ndarray:
-    """The usable shots: a usable status (:data:`sunlab.schema.USABLE_STATUS`), finite x, y."""
-    v = ds.variables
-    status = np.asarray(v["status"].values)
-    usable = np.logical_or.reduce([status == code for code in _USABLE])
-    return usable & np.isfinite(v["x"].values) & np.isfinite(v["y"].values)
 
 
 def _points(centroids: xr.Dataset, average: str, name: str) -> SimpleNamespace:
@@ -231,6 +223,10 @@ class Calibration:
     #: shots (the multi-hole strategies, which judge whole holes, set None).
     default_outlier_mads: ClassVar[float | None] = OUTLIER_MADS
 
+    def __init_subclass__(cls, **kwargs) -> None:  # a plug-in's exceptions named in one line
+        super().__init_subclass__(**kwargs)
+        name_plugin_errors(cls)
+
     def __init__(self) -> None:
         self.training: dict | None = None
         self.domain: dict | None = None
@@ -292,6 +288,7 @@ class Calibration:
                 f"train: {distinct} distinct poses (alpha, beta) in {data.n_poses} poses with "
                 f"ok shots, but {self.label} needs at least {self.min_poses()}. Fix: calibrate "
                 "on more distinct poses (a grid such as experiment I), or choose a smaller model")
+        _check_spots_move(data.x, data.y, "train")
         val = None if validation is None else _points(validation, self.average, "validation")
         self._fit(data, val)
 

@@ -69,6 +69,12 @@ from .windows import _with_hole_uv, detect_spots, spot_windows
 __all__ = ["FrameNet"]
 
 _USABLE = [STATUS[k] for k in USABLE_STATUS]
+#: The bounds (lowest, highest) of every size and setting a FrameNet takes and its model file
+#: holds: a window of 512 px, 64 channels and order 12 are far beyond any useful network, and
+#: an edited file cannot ask for terabytes of windows or a million threads.
+_LIMITS = {"window": (8, 512), "pad": (0, 64), "channels": (1, 64), "order": (1, 12),
+           "epochs": (0, 100_000), "patience": (1, 100_000), "batch": (1, 100_000),
+           "threads": (1, 256), "spots": (1, 10_000), "seed": (0, 2**63 - 1)}
 
 
 class FrameNet(Calibration):
@@ -123,14 +129,15 @@ class FrameNet(Calibration):
                  lr: float = 3e-3, seed: int = 0, threads: int = 2, device: str = "cpu",
                  hole_offset=(0.0, 0.0), spots: int = 16):
         super().__init__()
-        for name, v, low in (("window", window, 8), ("pad", pad, 0), ("channels", channels, 1),
-                             ("order", order, 1), ("epochs", epochs, 0),
-                             ("patience", patience, 1), ("threads", threads, 1),
-                             ("spots", spots, 1)):
-            if isinstance(v, bool) or int(v) != v or v < low:
-                raise ConfigurationError(f"{name}: found {v!r}, expected an integer >= {low}")
-        if batch is not None and (int(batch) != batch or batch < 1):
-            raise ConfigurationError(f"batch: found {batch!r}, expected a positive integer")
+        given = {"window": window, "pad": pad, "channels": channels, "order": order,
+                 "epochs": epochs, "patience": patience, "threads": threads, "spots": spots,
+                 "seed": seed, **({} if batch is None else {"batch": batch})}
+        for name, v in given.items():
+            low, high = _LIMITS[name]
+            if isinstance(v, bool) or not isinstance(v, int | float | np.integer) or \
+                    int(v) != v or not low <= v <= high:
+                raise ConfigurationError(
+                    f"{name}: found {v!r}, expected an integer from {low} to {high}")
         if not (np.isfinite(lr) and lr > 0):
             raise ConfigurationError(f"lr: found {lr!r}, expected a positive learning rate")
         if device not in ("cpu", "cuda"):
@@ -253,7 +260,8 @@ class FrameNet(Calibration):
                     "n_poses": int(np.unique(d["pose"]).size), "n_shots": int(d["shape"][1])}
 
         pred, pos = self._predict_data(data)
-        self.training = {**summary(train, data), "n_samples": int(data["n_frames"]),
+        self.training = {**summary(train, data), **_frames_kind(train),
+                         "n_samples": int(data["n_frames"]),
                          "n_ok_shots": int(data["n_frames"]), "average": "shot",
                          "centroid_method": "learned from frames",
                          "validation": None if val is None else summary(validation, val)}
@@ -299,9 +307,17 @@ class FrameNet(Calibration):
         -------
         xarray.Dataset
             ``alpha``, ``beta`` (deg) on (pose, shot), NaN for a frame without a usable spot;
-            ``status`` (``ok``, or ``no_spot``), ``n_spots``; coordinates ``alpha_cmd``,
-            ``beta_cmd`` (the commanded angles): what :func:`sunlab.stats.evaluate` reads.
-            Attribute ``timings`` (str) gives the seconds of each stage.
+            ``status`` (``ok``, or ``no_spot``), ``n_spots``; ``in_domain`` (bool): False where
+            the estimate lies outside the training poses' range widened by the largest training
+            error (an extrapolation), attribute ``n_out_of_domain`` counting them; coordinates
+            ``alpha_cmd``, ``beta_cmd`` (the commanded angles): what
+            :func:`sunlab.stats.evaluate` reads. Attribute ``timings`` (str) gives the seconds
+            of each stage.
+
+        Raises
+        ------
+        SchemaError
+            Frames of another shape, bit depth or number of holes than the training frames.
         """
         self.check_fitted()
         self.timings = {}
@@ -310,6 +326,11 @@ class FrameNet(Calibration):
             raise SchemaError("cube", f"a {'multi' if multi else 'one'}-hole cube",
                               f"a {'multi' if self.multi else 'one'}-hole cube, as trained",
                               "predict with a model trained on frames of this mask")
+        for key, found in _frames_kind(cube).items():  # recorded since issue 47
+            if key in self.training and found != self.training[key]:
+                raise SchemaError(f"cube {key}", found, f"{self.training[key]}, the frames the "
+                                  "model was trained on", "predict with a model trained on "
+                                  "frames of this detector and mask, or train one on these")
         data = _with_hole_uv(self._data(cube, detections, "cube"), self.scaling)
         t = time.perf_counter()
         pred, _ = self._predict_data(data)
@@ -320,16 +341,25 @@ class FrameNet(Calibration):
         n = np.zeros(shape, dtype=np.int32)
         n[data["pose"], data["shot"]] = np.diff(data["start"])
         status = np.where(n > 0, STATUS["ok"], STATUS["no_spot"]).astype(np.int8)
+        inside = np.ones(shape, dtype=bool)  # the estimate within the training poses' range,
+        for k, a in enumerate(("alpha", "beta")):  # widened by the largest training error
+            tol = ((self.residuals or {}).get(a) or {}).get("max_abs") or 0.0
+            lo, hi = self.domain[a]
+            inside &= (out[..., k] >= lo - tol) & (out[..., k] <= hi + tol)
+        finite = np.isfinite(out[..., 0])
         dims = ("pose", "shot")
         return xr.Dataset(
             {"alpha": (dims, out[..., 0], {"units": "deg", "long_name": "estimated alpha"}),
              "beta": (dims, out[..., 1], {"units": "deg", "long_name": "estimated beta"}),
-             "status": (dims, status), "n_spots": (dims, n)},
+             "status": (dims, status), "n_spots": (dims, n),
+             "in_domain": (dims, inside | ~finite, {"long_name": "estimate inside the training "
+                                                    "domain (False: extrapolated)"})},
             coords={"pose": cube["pose"].values, "shot": cube["shot"].values,
                     "alpha_cmd": ("pose", cube["alpha"].values, {"units": "deg"}),
                     "beta_cmd": ("pose", cube["beta"].values, {"units": "deg"})},
             attrs={"calibration": self.kind, "label": self.label,
                    "experiment": str(cube.attrs.get("experiment", "")),
+                   "n_out_of_domain": int((finite & ~inside).sum()),
                    "timings": repr({k: round(v, 3) for k, v in self.timings.items()})})
 
     def predict(self, cube: xr.Dataset) -> xr.Dataset:
@@ -387,10 +417,7 @@ class FrameNet(Calibration):
     @classmethod
     def _check_parameters(cls, p: dict) -> None:
         for key in ("window", "pad", "channels", "order"):
-            _count(p.get(key), key, 0 if key == "pad" else 1)
-        if p["window"] > 512 or p["channels"] > 64 or p["order"] > 12:
-            raise _bad("window/channels/order", [p["window"], p["channels"], p["order"]],
-                       "at most 512 px, 64 channels, order 12")
+            _count(p.get(key), key, *_LIMITS[key])
         if not isinstance(p.get("multi"), bool):
             raise _bad("multi", p.get("multi"), "true or false")
         _numbers(p.get("hole_offset_px"), "hole_offset_px", 2)
@@ -409,13 +436,21 @@ class FrameNet(Calibration):
         net = p.get("network")
         if not isinstance(net, dict):
             raise _bad("network", type(net).__name__, "an object of weight arrays")
-        for k, v in net.items():
-            flat = np.asarray(v, dtype=object).ravel().tolist() if isinstance(v, list) else v
-            _numbers(flat if isinstance(flat, list) else [flat], f"network.{k}")
+        shapes = _shapes(p["channels"])
+        for k in sorted(set(net) | set(shapes)):  # a layer more is refused, not left unused
+            v = np.asarray(net[k], dtype=object) if k in net else None
+            if v is None or k not in shapes or v.shape != shapes[k]:
+                raise _bad(f"network.{k}", None if v is None else f"shape {list(v.shape)}",
+                           f"the layers {sorted(shapes)} of shapes for {p['channels']} "
+                           "channels" if k not in shapes else f"shape {list(shapes[k])}")
+            _numbers(v.ravel().tolist(), f"network.{k}")
         settings = p.get("settings")
         if not isinstance(settings, dict):
             raise _bad("settings", type(settings).__name__, "an object")
         _number(settings.get("lr"), "settings.lr", positive=True)
+        for key in ("epochs", "patience", "threads", "seed", "spots", "batch"):
+            if settings.get(key) is not None or key not in ("batch", "spots"):
+                _count(settings.get(key), f"settings.{key}", *_LIMITS[key])
 
     @classmethod
     def _from_parameters(cls, p: dict):
@@ -427,14 +462,16 @@ class FrameNet(Calibration):
         obj.multi = bool(p["multi"])
         obj.scaling = {k: np.asarray(v, dtype=float) for k, v in p["scaling"].items()}
         obj.arrays = {k: np.asarray(v, dtype=float) for k, v in p["network"].items()}
-        shapes = _shapes(obj.channels)
-        for k, shape in shapes.items():
-            if k not in obj.arrays or obj.arrays[k].shape != shape:
-                raise _bad(f"network.{k}", None if k not in obj.arrays else
-                           list(obj.arrays[k].shape), f"shape {list(shape)}")
         obj.coef = np.asarray(p["head"], dtype=float)
         obj.history = p.get("history")
         return obj
+
+
+def _frames_kind(cube: xr.Dataset) -> dict:
+    """What a model is trained for: the frames' shape (px), bit depth and number of holes."""
+    return {"frame_shape": [int(n) for n in cube["frames"].shape[-2:]],
+            "bit_depth": int(cube.attrs.get("bit_depth", 0)),
+            "n_holes": int(cube.sizes.get("hole", 1))}
 
 
 def _shapes(c: int) -> dict:

@@ -80,12 +80,9 @@ def design_matrix(u, v, order: int) -> np.ndarray:
     return np.stack([u**i * v**j for i, j in monomial_exponents(order)], axis=-1)
 
 
-def _scaling(values: np.ndarray, name: str) -> list[float]:
-    lo, hi = float(np.min(values)), float(np.max(values))
-    if not hi > lo:
-        raise ConfigurationError(f"{name}: the training centroids span [{lo}, {hi}] px, expected "
-                                 "a range. Fix: calibrate on poses that move the spot in both axes")
-    return [lo, hi]
+def _scaling(values: np.ndarray) -> list[float]:
+    """The training range ``[lo, hi]`` (px); the spot moves (checked by ``Calibration.fit``)."""
+    return [float(np.min(values)), float(np.max(values))]
 
 
 def _scale(values, bounds) -> np.ndarray:
@@ -173,7 +170,7 @@ class Polynomial(Calibration):
         return max(len(monomial_exponents(n)) for n in self.orders)
 
     def _fit(self, data, validation) -> None:
-        self.scaling = {"x": _scaling(data.x, "x"), "y": _scaling(data.y, "y")}
+        self.scaling = {"x": _scaling(data.x), "y": _scaling(data.y)}
         self.coefficients = {a: _lstsq(self.basis(data.x, data.y, a), getattr(data, a), str(n))
                              for a, n in zip(("alpha", "beta"), self.orders, strict=True)}
 

@@ -23,13 +23,15 @@ Examples
 
 from __future__ import annotations
 
+import functools
 import importlib
 import inspect
 from collections.abc import Callable
 from functools import partial
 from typing import TYPE_CHECKING
 
-from ..errors import ConfigurationError
+from ..errors import ConfigurationError, SunlabError
+from ..extras import entry_points, load_plugin, plugin_failed
 
 if TYPE_CHECKING:
     import xarray as xr
@@ -90,10 +92,59 @@ RECIPES: dict[str, tuple[str, dict]] = {
 }
 
 
-def _entry_points() -> dict:
-    from importlib.metadata import entry_points
+#: What a plug-in's class must define beyond :class:`~sunlab.calibration.Calibration` (one
+#: name of each group): the fit, the map, and the parameters written and read back.
+PLUGIN_INTERFACE = (("_fit", "_fit_tables"), ("_predict_xy", "predict_xy"), ("_parameters",),
+                    ("_from_parameters",))
+_FIX = ("install the package that provides it, or repair its code (a calibration plug-in is "
+        "a sunlab.calibration.Calibration subclass: help(sunlab.calibration.Calibration))")
 
-    return {ep.name: ep for ep in entry_points(group=ENTRY_POINT_GROUP)}
+
+#: The methods sunlab calls on a calibration: those a plug-in's class (one defined outside
+#: sunlab) defines have their exceptions turned into one line naming the class.
+_CALLS = ("fit", "predict", "predict_xy", "_fit", "_fit_tables", "_predict_xy", "_parameters",
+          "_check_parameters", "_from_parameters", "min_poses", "inside")
+
+
+def name_plugin_errors(cls) -> None:
+    """Wrap the :data:`_CALLS` that a class defined outside sunlab defines, so that an
+    exception in its code (not a :class:`~sunlab.errors.SunlabError`) becomes one
+    :class:`~sunlab.errors.ConfigurationError` naming the class (``Calibration`` calls it on
+    every subclass)."""
+    if cls.__module__.partition(".")[0] == "sunlab":
+        return
+    for name in set(_CALLS) & set(vars(cls)):
+        method = vars(cls)[name]
+        func = getattr(method, "__func__", method)  # a classmethod's function
+
+        @functools.wraps(func)
+        def call(*args, _func=func, _name=name, **kwargs):
+            try:
+                return _func(*args, **kwargs)
+            except SunlabError:
+                raise
+            except Exception as err:  # noqa: BLE001 - a plug-in's fault, named in one line
+                raise plugin_failed(f"calibration plug-in {cls.__module__}:{cls.__qualname__}",
+                                    f"{_name} raised", err, "repair the plug-in's code, or "
+                                    "calibrate with a built-in kind") from err
+        setattr(cls, name, classmethod(call) if isinstance(method, classmethod) else call)
+
+
+def _plugin_class(ep) -> type[Calibration]:
+    """The class of a calibration entry point, checked against :data:`PLUGIN_INTERFACE` when it
+    is loaded (not by an AttributeError in the middle of a fit)."""
+    from .base import Calibration
+
+    what = f"calibration plug-in {ep.name!r} ({ep.value})"
+    cls = load_plugin(ep, what, _FIX)
+    if not (isinstance(cls, type) and issubclass(cls, Calibration)):
+        raise ConfigurationError(f"{what}: {cls!r} is not a Calibration subclass. Fix: {_FIX}")
+    own = set().union(*(vars(k) for k in cls.__mro__[:cls.__mro__.index(Calibration)]))
+    missing = [" or ".join(names) for names in PLUGIN_INTERFACE if own.isdisjoint(names)]
+    if missing:
+        raise ConfigurationError(f"{what}: {cls.__name__} lacks {missing} of the Calibration "
+                                 f"interface. Fix: {_FIX}")
+    return cls
 
 
 def available_kinds(*, frames: bool = True) -> dict[str, str]:
@@ -117,7 +168,7 @@ def available_kinds(*, frames: bool = True) -> dict[str, str]:
     True
     """
     found = {**KINDS, **(FRAME_KINDS if frames else {})}
-    return found | {k: ep.value for k, ep in _entry_points().items()
+    return found | {k: ep.value for k, ep in entry_points(ENTRY_POINT_GROUP).items()
                     if k not in KINDS and k not in FRAME_KINDS}
 
 
@@ -147,7 +198,7 @@ def method_class(method: str, *, frames: bool = False) -> type[Calibration]:
     if kind in builtin:
         module, name = builtin[kind].split(":")
         return getattr(importlib.import_module(f"{__package__}.{module}"), name)
-    eps = _entry_points()
+    eps = entry_points(ENTRY_POINT_GROUP)
     if kind not in eps:
         raise ConfigurationError(
             f"method: found {method!r}, expected one of "
@@ -155,13 +206,7 @@ def method_class(method: str, *, frames: bool = False) -> type[Calibration]:
             f"registered calibration method (sunlab.calibration.registry.available_kinds(); the "
             f"multi-hole strategies are entry points of {ENTRY_POINT_GROUP!r}: if they are "
             "missing, reinstall sunlab, e.g. pip install -e .)")
-    try:
-        return eps[kind].load()
-    except Exception as err:  # noqa: BLE001 - a broken plug-in is named, not a traceback
-        raise ConfigurationError(
-            f"method {kind!r}: the entry point {eps[kind].value!r} of {ENTRY_POINT_GROUP!r} does "
-            f"not load ({type(err).__name__}: {err}). Fix: install the package that provides "
-            "it, or repair its code") from err
+    return _plugin_class(eps[kind])
 
 
 def fit(table: xr.Dataset, method: str, validation: xr.Dataset | None = None, *,

@@ -115,7 +115,7 @@ class Trigonometric(Calibration):
         return (2 * self.order + 1) ** 2
 
     def _fit(self, data, validation) -> None:
-        self.scaling = {"x": _scaling(data.x, "x"), "y": _scaling(data.y, "y")}
+        self.scaling = {"x": _scaling(data.x), "y": _scaling(data.y)}
         A = self._design(data.x, data.y)
         self.coefficients = {a: _lstsq(A, getattr(data, a), str(self.order))
                              for a in ("alpha", "beta")}

@@ -42,15 +42,16 @@ True
 
 from __future__ import annotations
 
-import json
 from collections.abc import Sequence
 from importlib.metadata import EntryPoint
 from typing import Protocol, runtime_checkable
 
 import numpy as np
 
+from .. import integrity
 from ..errors import ConfigurationError
-from ._plugins import call, entry_points, load_plugin, open_device
+from ..extras import entry_points, load_plugin, open_device
+from ._plugins import call
 from .errors import CameraError
 
 __all__ = ["open_camera"]
@@ -235,10 +236,7 @@ def parse_camera_options(pairs) -> dict:
         if not sep or not key.strip().isidentifier():
             raise ConfigurationError(
                 f"--camera-option: found {pair!r}, expected KEY=VALUE with KEY a Python name")
-        try:
-            out[key.strip()] = json.loads(value)
-        except json.JSONDecodeError:
-            out[key.strip()] = value
+        out[key.strip()] = integrity.loads(value, f"--camera-option {key.strip()}", or_text=True)
     return out
 
 

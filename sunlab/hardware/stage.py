@@ -22,7 +22,7 @@ from typing import Protocol, runtime_checkable
 from urllib.parse import parse_qs, urlsplit
 
 from ..errors import ConfigurationError
-from ._plugins import entry_points, load_plugin, open_device
+from ..extras import entry_points, load_plugin, open_device
 
 __all__ = ["open_stage"]
 

@@ -16,6 +16,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from ..errors import SchemaError
+from ..integrity import loads
 
 __all__: list[str] = []
 
@@ -66,7 +67,7 @@ def _json_default(obj):
 
 def _decode_attrs(attrs: Mapping) -> dict:
     """Inverse of :func:`_encode_attrs`."""
-    codec = json.loads(attrs.get(_CODEC_ATTR, "{}"))
+    codec = loads(attrs.get(_CODEC_ATTR, "{}"), f"attribute {_CODEC_ATTR!r}")
     out = {}
     for key, value in attrs.items():
         rule = codec.get(key)
@@ -75,9 +76,10 @@ def _decode_attrs(attrs: Mapping) -> dict:
         if rule is None:
             out[key] = value.item() if isinstance(value, np.generic) else value
         elif rule in ("json", "tuple"):
-            out[key] = (tuple if rule == "tuple" else lambda v: v)(json.loads(value))
+            value = loads(value, f"attribute {key!r}")
+            out[key] = tuple(value) if rule == "tuple" else value
         else:
-            value = json.loads(value) if isinstance(value, str) else value
+            value = loads(value, f"attribute {key!r}") if isinstance(value, str) else value
             out[key] = np.asarray(value, dtype=np.dtype(rule["ndarray"])).reshape(rule["shape"])
     return out
 

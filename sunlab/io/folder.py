@@ -132,12 +132,15 @@ def _check_columns(table, mname: str) -> None:
                               "rename the column")
         # an extra column becomes a variable of the store: Zarr and NetCDF name nodes by path,
         # so '..', '../../x' or 'a/b' would name another place (or be refused deep in the writer)
+        # and 'zarr.json' the store's own metadata file (a folder cannot replace it)
         if col not in _REQUIRED_COLUMNS and (len(col) > 100 or col.startswith((".", "__")) or
+                                             col.lower() == "zarr.json" or
                                              not re.fullmatch(r"\w[\w .()\-]*", col, re.A)):
             raise SchemaError(
                 f"manifest {mname} column {col!r}", "a name that cannot name a variable",
                 "letters, digits, spaces and _ - . ( ) , not starting with '.' or '__', no "
-                "'/' or '\\', at most 100 characters", "rename the column (e.g. exposure_ms)")
+                "'/' or '\\', not zarr.json, at most 100 characters",
+                "rename the column (e.g. exposure_ms)")
 
 
 def _image_paths(folder: Path, table, mname: str):

@@ -8,7 +8,6 @@ against their digest (:mod:`sunlab.integrity`) and attributes restored (:mod:`su
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import xarray as xr
@@ -30,8 +29,8 @@ def _fail_zarr(path: Path, exc: Exception):
     """Raise a SunlabError that says which file of a Zarr store is broken and what to do."""
     for meta in sorted(path.rglob("zarr.json")):
         try:
-            json.loads(meta.read_text(encoding="utf-8"))
-        except (UnicodeDecodeError, ValueError) as err:
+            integrity.loads(meta.read_text(encoding="utf-8"), meta)
+        except (UnicodeDecodeError, SunlabError) as err:
             raise SunlabError(
                 f"{meta}: corrupt Zarr metadata ({err}). Fix: restore this file from a backup or "
                 "copy the store again from its source; a store written by sunlab.io can also be "

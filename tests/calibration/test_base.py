@@ -264,3 +264,25 @@ def test_a_hot_pixel_repaired_in_the_window_keeps_the_shot_in_the_calibration(tm
     assert cli.main(["calibrate", str(tmp_path / "train.nc"), "--method", "polynomial",
                      "--order", "1", "--out", str(tmp_path / "cal.json")]) == 0
     assert "20 of the 25 shots used are 'repaired'" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("argv", [
+    ["--method", "ideal"], ["--method", "optimised"], ["--method", "polynomial", "--order", "2"],
+    ["--method", "trigonometric", "--order", "1"], ["--method", "linear"],
+    ["--method", "cubic", "--extrapolate"], ["--method", "neural", "--hidden", "2"],
+])
+def test_a_table_whose_spot_never_moves_is_refused_by_every_kind(tables, tmp_path, argv, capsys):
+    # every pose gives the same spot (a camera that kept one frame): no map from the spot to
+    # the angles can be learned, whatever the kind
+    from sunlab import io
+    from sunlab.cli import main
+
+    train = tables[0].copy(deep=True)
+    train["x"][:] = 512.25
+    train["y"][:] = 498.75
+    io.save_centroids(train, tmp_path / "I.nc")
+    out = tmp_path / "cal.json"
+    rc = main(["calibrate", str(tmp_path / "I.nc"), *argv, "--out", str(out)])
+    err = capsys.readouterr().err.strip()
+    assert rc == 1 and len(err.splitlines()) == 1 and "train" in err and "spot" in err
+    assert not out.exists()

@@ -7,14 +7,16 @@ the accuracy of a full training, which ``sunlab reproduce --table learned`` meas
 """
 
 import json
+import re
 
 import numpy as np
 import pytest
 
-from sunlab import calibration, sim, stats
+from sunlab import calibration, integrity, sim, stats
 from sunlab.calibration import FrameNet
 from sunlab.calibration import _frames_torch as T
 from sunlab.errors import ConfigurationError, SchemaError
+from sunlab.plans import custom
 from sunlab.reproduce.pipeline import experiment_plans, locate_runs
 
 torch = pytest.importorskip("torch")
@@ -84,6 +86,49 @@ def test_a_wrongly_shaped_weight_is_refused(fitted):
     doc["parameters"]["network"]["conv2.weight"] = [[[[0.0]]]]
     with pytest.raises(SchemaError, match="conv2.weight"):
         calibration.artifact.from_dict(doc)
+
+
+@pytest.mark.parametrize("edit, field", [
+    (lambda p: p["network"].update({"conv4.weight": [[[[1.0]]]]}), "network.conv4.weight"),
+    (lambda p: p["network"].pop("conv2.bias"), "network.conv2.bias"),
+    (lambda p: p.update(pad=100_000), "pad"),
+    (lambda p: p["settings"].update(threads=10**6), "settings.threads"),
+    (lambda p: p["settings"].update(epochs=10**12), "settings.epochs"),
+    (lambda p: p["settings"].update(patience=10**12), "settings.patience"),
+    (lambda p: p["settings"].update(spots=10**9), "settings.spots"),
+    (lambda p: p["settings"].update(batch=10**12), "settings.batch"),
+    (lambda p: p["settings"].update(seed=-1), "settings.seed"),
+])
+def test_an_edited_model_file_is_refused_naming_the_file_and_field(fitted, tmp_path, edit,
+                                                                    field):
+    # the file on disk edited (a layer more or less, a size out of all proportion) and sealed
+    # again, as a tool that rewrites it would: the checksum cannot catch it, the loader must
+    path = fitted.save(tmp_path / "frames.json")
+    doc = json.loads(path.read_text())
+    edit(doc["parameters"])
+    path.write_text(json.dumps(integrity.seal_document(doc)))
+    with pytest.raises(SchemaError, match=re.escape(f"{path}: parameters.{field}: found")):
+        calibration.load(path)
+
+
+def test_frames_the_model_was_not_trained_for_are_refused(fitted, cubes):
+    cube = cubes["III"]
+    for other, key in ((cube.assign_attrs(bit_depth=12), "bit_depth"),
+                       (cube.isel(y=slice(0, 960)), "frame_shape")):
+        with pytest.raises(SchemaError, match=f"cube {key}: found .*trained on"):
+            fitted.predict_frames(other)
+
+
+def test_poses_outside_the_training_domain_are_flagged(fitted, cubes):
+    # experiment I spans alpha -17..-1, beta -2..14 deg; its own frames are inside by
+    # construction (every estimate within the largest training error of its pose)
+    est = fitted.predict_frames(cubes["I"])
+    assert bool(est["in_domain"].all()) and est.attrs["n_out_of_domain"] == 0
+    bench = sim.Bench.paper_single_hole().noise_free().ideal_platform()
+    far = sim.simulate(custom([-9.0, 5.0], [5.0, 5.0], shots=1), bench, seed=4).load()
+    est = fitted.predict_frames(far)
+    assert est["in_domain"].values[:, 0].tolist() == [True, False]
+    assert est.attrs["n_out_of_domain"] == 1
 
 
 def test_a_centroid_table_is_not_frames(cubes):

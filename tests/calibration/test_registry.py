@@ -272,6 +272,82 @@ def test_a_plugin_calibration_is_fitted_saved_and_loaded_by_the_registry(lab_plu
         calibration.registry.method_class("lab-broken")
 
 
+LAB_PLUGINS = """
+import os
+from sunlab.calibration import Calibration, Polynomial
+
+class Half(Calibration):  # no _fit, no map: what the registry needs is missing
+    kind = "lab-half"
+
+    def _parameters(self):
+        return {}
+
+class Flaky(Polynomial):  # fails where LABCAL_FAIL says, as a lab's code can
+    kind = "lab-flaky"
+
+    def _fit(self, data, val):
+        if os.environ.get("LABCAL_FAIL") == "fit":
+            raise ZeroDivisionError("no light in the lab's model")
+        return super()._fit(data, val)
+
+    def _predict_xy(self, x, y):
+        if os.environ.get("LABCAL_FAIL") == "predict":
+            raise KeyError("lookup table")
+        return super()._predict_xy(x, y)
+"""
+
+
+FIT = ("import sys\nfrom sunlab import calibration, io\nfrom sunlab.errors import SunlabError\n"
+       "kw = {'order': 2} if sys.argv[2] == 'lab-flaky' else {}\ntry:\n    calibration.fit("
+       "io.open_centroids(sys.argv[1]), sys.argv[2], **kw).save(sys.argv[3])\n"
+       "except SunlabError as err:\n    sys.exit(f'{err}')\n")
+
+
+@pytest.mark.parametrize("method, fail, message", [
+    ("lab-half", "", r"calibration plug-in 'lab-half' \(labcal2:Half\): Half lacks "
+     r"\['_fit or _fit_tables', '_predict_xy or predict_xy', '_from_parameters'\]"),
+    ("lab-flaky", "fit", r"calibration plug-in labcal2:Flaky: _fit raised "
+     r"\(ZeroDivisionError: no light in the lab's model\)"),
+    ("lab-flaky", "predict", r"calibration plug-in labcal2:Flaky: _predict_xy raised "
+     r"\(KeyError: 'lookup table'\)"),
+])
+def test_a_plugin_that_lacks_the_interface_or_raises_is_named_in_one_line(train, tmp_path,
+                                                                           method, fail,
+                                                                           message):
+    # a real distribution on the path of real processes: the library fits (sunlab calibrate
+    # offers the built-in kinds only), `python -m sunlab evaluate` predicts
+    import os
+    import re
+    import subprocess
+    import sys
+
+    (tmp_path / "labcal2.py").write_text(LAB_PLUGINS)
+    info = tmp_path / "labcal2-0.1.dist-info"
+    info.mkdir()
+    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: labcal2\nVersion: 0.1\n")
+    (info / "entry_points.txt").write_text(
+        "[sunlab.calibrations]\nlab-half = labcal2:Half\nlab-flaky = labcal2:Flaky\n")
+    from sunlab import io
+
+    io.save_centroids(train, tmp_path / "I.nc")
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(tmp_path), *sys.path])}
+
+    def python(*args, fail=""):
+        return subprocess.run([sys.executable, *map(str, args)], text=True, timeout=300,
+                              capture_output=True, env={**env, "LABCAL_FAIL": fail})
+
+    cal = tmp_path / "cal.json"
+    run = python("-c", FIT, tmp_path / "I.nc", method, cal, fail=fail if fail == "fit" else "")
+    if fail == "predict":  # fitted and saved while the lab's code works, then it fails
+        assert run.returncode == 0, run.stderr
+        run = python("-m", "sunlab", "evaluate", cal, tmp_path / "I.nc", fail=fail)
+    else:
+        assert not cal.exists()
+    err = run.stderr.strip()
+    assert run.returncode == 1 and len(err.splitlines()) == 1, err
+    assert re.search(message, err) and "Fix:" in err, err
+
+
 # -- the paper's Table 4 recipes (table4_methods) on tables with known truth -------------------
 # The tables come from the exact pinhole model of a sensor whose mask sits 0.05 mm off its
 # nominal F = 5 mm and is mounted at (0.5, -0.3) deg: the ideal model (1) cannot know either,

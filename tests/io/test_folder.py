@@ -33,7 +33,8 @@ def _tree(root):
             if p.is_file()}
 
 
-@pytest.mark.parametrize("name", ["..", "../../x", "a/b", ".hidden", "__x"])
+@pytest.mark.parametrize("name", ["..", "../../x", "a/b", ".hidden", "__x", "zarr.json",
+                                  "ZARR.JSON"])
 def test_an_extra_column_that_names_a_path_is_refused(folder, tmp_path, capsys, name):
     _manifest(folder, f"file,alpha,beta,shot,{name}", (",1", ",2"))
     with pytest.raises(SchemaError, match="cannot name a variable"):
