@@ -12,6 +12,7 @@ Examples
 
 from __future__ import annotations
 
+from ..errors import ConfigurationError
 from ._args import POSITIVE, SECONDS, SEED, SHOTS, WORKERS, check_out, typed, verb
 
 __all__: list[str] = []
@@ -124,6 +125,13 @@ def _camera(args, bench, stage):
     from ..hardware import FolderCamera, SimCamera, open_camera
     from ..hardware.cameras import parse_camera_options
 
+    builtin = "sim" if args.camera == "sim" else "folder" if args.camera.startswith("folder:") \
+        else None
+    if builtin and args.camera_option:  # taken silently, the lab's setting would be lost
+        raise ConfigurationError(
+            f"--camera-option {args.camera_option[0]!r}: the built-in camera {builtin!r} takes "
+            "no options. Fix: set it with --roi, --binning, --shape, --bit-depth or "
+            "--frame-timeout, or give --camera-option to a plug-in camera")
     if args.camera == "sim":
         fake = getattr(stage, "fake", None)
         return SimCamera(bench, seed=args.seed, roi=args.roi, binning=args.binning,

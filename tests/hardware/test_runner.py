@@ -466,6 +466,20 @@ def test_a_run_the_disk_cannot_hold_is_refused_before_the_stage_moves(tmp_path, 
     assert not out.exists() and not [p for p in tmp_path.iterdir() if p.name.startswith(".sl-")]
 
 
+def test_camera_options_given_to_a_built_in_camera_are_refused_not_dropped(tmp_path, capsys):
+    """Issue 47: ``--camera sim --camera-option exposure_s=0.002`` took the option silently;
+    a lab's setting is refused in one line naming it, before the stage opens."""
+    from sunlab.cli import main
+
+    out = tmp_path / "run.zarr"
+    for camera in ("sim", f"folder:{tmp_path}"):
+        assert main(["acquire", "--stage", "fake://", "--camera", camera, "--camera-option",
+                     "exposure_s=0.002", "--plan", "I", "--out", str(out)]) == 1
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and "'exposure_s=0.002'" in err and "Fix:" in err
+    assert not out.exists()
+
+
 def test_a_lock_that_is_a_directory_is_named_as_one(tmp_path):
     from sunlab.hardware.runner import RunLockedError, run_lock
 
