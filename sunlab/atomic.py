@@ -263,17 +263,31 @@ def _remove(path: Path) -> None:
 def signals_held():
     """Hold SIGINT, SIGTERM and SIGHUP back while the block runs (delivered when it ends):
     for a few renames, or a step whose writes run on another thread that an interrupt of this
-    one would not stop (they would recreate a temporary output after its removal)."""
+    one would not stop (they would recreate a temporary output after its removal).
+
+    The Python-level handlers are swapped for ones that only note the signal: a thread's signal
+    mask would not do, as the kernel then hands a process-directed signal to another thread
+    (zarr's I/O loop, a dask worker) and Python still runs its handler in the main thread.
+    Outside the main thread (where handlers cannot be set) the block runs as it is."""
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    got: list[int] = []
     held = {signal.SIGINT, signal.SIGTERM, getattr(signal, "SIGHUP", signal.SIGTERM)}
-    try:
-        old = signal.pthread_sigmask(signal.SIG_BLOCK, held)
-    except (AttributeError, OSError, ValueError):  # no POSIX signal masks (Windows)
-        old = None
+    previous = {sig: signal.getsignal(sig) for sig in held}
+    for sig in held:
+        if previous[sig] is not None:  # None: a handler set outside Python, left alone
+            signal.signal(sig, lambda signum, frame: got.append(signum))
     try:
         yield
     finally:
-        if old is not None:
-            signal.pthread_sigmask(signal.SIG_SETMASK, old)
+        for sig, handler in previous.items():
+            if handler is not None:
+                signal.signal(sig, handler)
+        if got:  # delivered now, to the handler the caller had
+            signal.raise_signal(got[0])
 
 
 def _named(err: OSError, tmp: Path, path: Path) -> BaseException:

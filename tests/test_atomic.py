@@ -202,3 +202,31 @@ def test_a_request_of_terabytes_is_refused_before_any_work(tmp_path):
     assert f"big.zarr: would be about {nbytes / 1e9:,.1f} GB uncompressed" in line
     assert "GB free; nothing was done" in line
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_signal_sent_during_a_held_block_is_delivered_at_its_end():
+    """The kernel may hand a process-directed SIGINT to any thread that does not block it (here
+    one started before the block, as zarr's I/O loop and dask's workers are): Python still runs
+    the handler in the main thread, so a thread's signal mask held nothing back, and zarr's
+    metadata writes recreated a removed temporary store (a leftover ``.sl-*.tmp`` under load)."""
+    import threading
+
+    go, sent = threading.Event(), threading.Event()
+
+    def sender():
+        go.wait()
+        os.kill(os.getpid(), signal.SIGINT)
+        sent.set()
+
+    thread = threading.Thread(target=sender)
+    thread.start()
+    steps = []
+    with pytest.raises(KeyboardInterrupt):
+        with atomic.signals_held():
+            go.set()
+            assert sent.wait(30)
+            for _ in range(10_000):  # bytecodes run: a pending handler would fire here
+                steps.append(None)
+            steps.append("end")
+    thread.join()
+    assert steps[-1] == "end"
