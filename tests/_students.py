@@ -4,7 +4,7 @@
 ``ROOT/tampered/NN.ipynb`` from the student edition of course notebooks:
 
 * **right**: every exercise answered with the teacher's answer, every written answer written;
-* **wrong**: every exercise answered with the plausible wrong answer of ``WRONG`` (test_course.py),
+* **wrong**: every exercise answered with the plausible wrong answer of ``WRONG`` (_answers.py),
   except the second exercise of each notebook, which holds a SyntaxError;
 * **tampered**: the wrong answers, the first check cell replaced by a ``print`` that claims a
   pass, every other check cell deleted.
@@ -30,7 +30,7 @@ NOTEBOOK_DIR = REPO / "notebooks"
 
 def _wrong():
     sys.path.insert(0, str(Path(__file__).parent))
-    from test_course import WRONG
+    from _answers import WRONG
 
     return WRONG
 

@@ -3,7 +3,8 @@ reader sees when they run.
 
 ``test_executed_notebook_shows_what_a_reader_expects`` executes every notebook in quick mode
 (``SUNLAB_QUICK=1``, one kernel per notebook, nbclient; the ``executed_notebook`` fixture of
-conftest.py, shared with the HTML-export test) and checks its outputs: at least one
+conftest.py, shared with the HTML-export test and the course's teacher-edition test: it runs
+the teacher edition, these cells with a quick cell first) and checks its outputs: at least one
 figure, a PNG from every cell that makes a figure, and none of the noise that hides results (a
 ``<Figure size ...>`` text instead of the figure, ``Text(...)`` or ``np.float64(...)`` reprs,
 Dask or tqdm progress bars, ``<... object at 0x...>`` reprs). This is how ``make test`` runs
