@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ConfigurationError
-from .pipeline import write_json
+from .pipeline import write_files, write_json
 
 #: Seconds of work per frame on 2 cores (render, detect, train, test and the classical fits,
 #: spread over a bench's frames): the CPU seconds of sunlab's own runs at the quick plans
@@ -182,23 +182,13 @@ def write(result: dict, out: Path) -> list[str]:
     (the settings with the floors and the training histories), ``learned.png`` and
     ``models/<bench>.json`` (written as each bench finished); the paths. The first three are
     written together or not at all (:func:`sunlab.atomic.atomic_files`)."""
-    import matplotlib.pyplot as plt
-
-    from .. import atomic
-
-    names = ["learned.json", "learned_settings.json", "learned.png"]
     doc = {**result["settings"], "floors": result["floors"], "histories": result["histories"]}
-    fig = learned_figure(result["records"])
-    try:
-        with atomic.atomic_files(out, names, overwrite=True, flag="") as tmp:
-            write_json({"command": result["command"], "settings": result["settings"],
-                        "records": result["records"]}, tmp / names[0])
-            write_json(json.loads(json.dumps(doc, default=float)), tmp / names[1])
-            fig.savefig(tmp / names[2], dpi=110)
-    finally:
-        plt.close(fig)
-    return [str(out / "models" / f"{n}.json") for n in result["models"]] + [
-        str(out / n) for n in names]
+    record = {k: result[k] for k in ("command", "settings", "records")}
+    return [str(out / "models" / f"{n}.json") for n in result["models"]] + write_files(out, {
+        "learned.json": lambda path: write_json(record, path),
+        "learned_settings.json": lambda path: write_json(json.loads(json.dumps(doc, default=float)),
+                                                         path),
+        "learned.png": learned_figure(result["records"])})
 
 
 def records_of(doc) -> list[dict]:

@@ -14,8 +14,9 @@ steps, and this module is the one place that renders frames and centroids them:
    one hole (with their zero-pose checks for Table 4);
 3. :func:`usable_table` and :func:`centroid_status`: which frames the calibrations use, and the
    counts of the frames removed;
-4. :func:`write_json`, the one writer of every results file (the identified bench's intervals
-   are :mod:`sunlab.reproduce.intervals`).
+4. :func:`write_json`, the one writer of every results file, and :func:`write_files`, the one
+   writer of a table's files together or not at all (the identified bench's intervals are
+   :mod:`sunlab.reproduce.intervals`).
 
 Examples
 --------
@@ -405,3 +406,81 @@ def write_json(doc: dict, path: str | Path) -> str:
     atomic.write_text(Path(path), json.dumps(doc, indent=2, default=plain), overwrite=True,
                       flag="")
     return str(path)
+
+
+def write_files(out: str | Path, files: dict) -> list[str]:
+    """Write a table's files under ``out`` together or not at all
+    (:func:`sunlab.atomic.atomic_files`): an interrupted run leaves the previous results.
+
+    Parameters
+    ----------
+    out : str or pathlib.Path
+        The folder (made with its parents where missing).
+    files : dict of str to callable or matplotlib.figure.Figure
+        File name -> a function that writes the file at the path it is given, or a figure
+        (saved at 110 dpi, then closed).
+
+    Returns
+    -------
+    list of str
+        The paths written, in the order of ``files``.
+
+    Examples
+    --------
+    >>> import pathlib, tempfile
+    >>> out = pathlib.Path(tempfile.mkdtemp()) / "r"
+    >>> [pathlib.Path(p).name for p in write_files(out, {"a.json": lambda p: write_json({}, p)})]
+    ['a.json']
+    """
+    import matplotlib.pyplot as plt
+
+    from .. import atomic
+
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    try:
+        with atomic.atomic_files(out, list(files), overwrite=True, flag="") as tmp:
+            for name, what in files.items():
+                what.savefig(tmp / name, dpi=110) if hasattr(what, "savefig") else what(tmp / name)
+    finally:
+        for what in files.values():
+            if hasattr(what, "savefig"):
+                plt.close(what)
+    return [str(out / name) for name in files]
+
+
+def cells(table, name=str, value=float) -> dict:
+    """``{name(column): {"angle.stat": value(v)}}`` of a statistics table.
+
+    Parameters
+    ----------
+    table : pandas.DataFrame
+        Index ``(angle, stat)`` as :func:`sunlab.stats.evaluate` gives it, values in deg.
+    name, value : callable
+        The key of each column and the conversion of each value.
+
+    Returns
+    -------
+    dict
+        What the results files and the interval coverage read, deg.
+
+    Examples
+    --------
+    >>> import pandas as pd
+    >>> cells(pd.DataFrame({"m": [0.5]}, index=pd.MultiIndex.from_tuples([("alpha", "mu")])))
+    {'m': {'alpha.mu': 0.5}}
+    """
+    return {name(c): {f"{a}.{s}": value(v) for (a, s), v in table[c].items()}
+            for c in table.columns}
+
+
+def finite(v) -> float | None:
+    """``float(v)``, None where it is not finite (JSON has no NaN).
+
+    Examples
+    --------
+    >>> finite(0.5), finite(float("nan"))
+    (0.5, None)
+    """
+    v = float(v)
+    return v if np.isfinite(v) else None

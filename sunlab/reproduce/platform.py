@@ -45,7 +45,14 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .pipeline import experiment_plans, locate_runs, simulate_runs, usable_table, write_json
+from .pipeline import (
+    cells,
+    experiment_plans,
+    locate_runs,
+    simulate_runs,
+    usable_table,
+    write_json,
+)
 
 __all__ = ["reproduce_platform"]
 
@@ -242,14 +249,13 @@ def _platform_doc(table, jc, truth: dict, from_row: str, diag) -> dict:
                       "z": ((p["fitted"] - truth[k]) / p["stderr"] if p["stderr"] > 0
                             else float("inf")), "from": from_row}
                   for k, p in jc.parameters.items()}
-    cells = {r: {f"{a}.{s}": float(table.loc[(a, s), r]) for a in stats.ANGLES
-                 for s in stats.STATS} for r in table.columns}
-    poly, remedies = cells[ROWS[0]], {r: cells[r]["beta.mu"] for r in list(cells)[1:]}
+    rows = cells(table)
+    poly, remedies = rows[ROWS[0]], {r: rows[r]["beta.mu"] for r in list(rows)[1:]}
     best = min(remedies, key=remedies.get)
     return {
         "table": "platform",
         "source": "sunlab virtual bench (ours); the paper's own statistics for paper_shape",
-        "rows": cells, "parameters": parameters,
+        "rows": rows, "parameters": parameters,
         "diagnosis": {**dataclasses.asdict(diag), "polynomial_shape": {
             a: poly[f"{a}.sigma"] / poly[f"{a}.mu"] for a in stats.ANGLES}},
         "paper_shape": {f"{m} {a}": {"ratio": float(r["ratio"]),

@@ -34,8 +34,9 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ConfigurationError
-from .intervals import _span, _stat_line, coverage_lines, identified
+from .intervals import identified, stat_lines
 from .pipeline import (
+    cells,
     centroid_status,
     experiment_plans,
     locate_runs,
@@ -43,6 +44,7 @@ from .pipeline import (
     simulate_runs,
     spot_method,
     usable_table,
+    write_files,
     write_json,
 )
 
@@ -137,9 +139,7 @@ def reproduce_table5(quick: bool = True, seed: int = 0, out: Path | str | None =
 
 def _write_json(result: dict, out: Path, *, quick: bool, seed: int, method: str) -> str:
     """``table5.json``: the table, the bad holes, the budget, sizes, timings and settings."""
-    table = result["table"]
-    doc = {"table5": {f"{c[0]} [{c[1]}]": {f"{a}.{st}": float(v) for (a, st), v in
-                                            table[c].items()} for c in table.columns},
+    doc = {"table5": cells(result["table"], name=lambda c: f"{c[0]} [{c[1]}]"),
            **{k: result[k] for k in ("bad_holes", "injected", "budget", "sizes", "runtime_s",
                                      "timings_s")},
            "quick": quick, "centroid_status": result["centroid_status"],
@@ -296,28 +296,13 @@ def format_table5(result: dict) -> str:
     -------
     str
     """
-    from .. import stats
-
-    keys = [(a, st) for a in stats.ANGLES for st in stats.STATS]
-    lines = ["Table 5 - polynomial calibration, 100 holes vs one hole (deg)",
-             "paper = the 2005 preprint; ours = sunlab virtual bench (simulated frames); our 90 % "
-             "interval = the identified bench's predictive interval (docs/identification.md)",
-             "", f"{'column':<34s}" + "".join(f"{a[0] + ' ' + st:>12s}" for a, st in keys)]
-    table, iv = result["table"], result.get("interval90", {})
-    for col in (*COLUMNS, REJECTION_COLUMN):
-        published = (col, "paper") in table.columns
-        if published:
-            lines.append(_stat_line(col, [table.loc[k, (col, "paper")] for k in keys], "paper", 34))
-        lines.append(_stat_line("" if published else col,
-                               [table.loc[k, (col, "sunlab")] for k in keys], "ours", 34))
-        cell = iv.get(f"{col} [sunlab]")
-        if cell:
-            lines.append(_stat_line("", [_span(*cell[f"{a}.{st}"]) for a, st in keys],
-                                   "our 90 % interval", 34))
-    cells = {src: {f"{c} [sunlab]": {f"{a}.{st}": float(v)
-                                     for (a, st), v in table[(c, src)].items()}
-                   for c in COLUMNS if (c, src) in table.columns} for src in ("paper", "sunlab")}
-    lines += coverage_lines(iv, result.get("interval_role", {}), cells["paper"], cells["sunlab"])
+    table = result["table"]
+    plain = {k: {c.removesuffix(" [sunlab]"): v for c, v in result.get(k, {}).items()}
+             for k in ("interval90", "interval_role")}
+    lines = stat_lines("Table 5 - polynomial calibration, 100 holes vs one hole (deg)", "column",
+                       34, table.xs("paper", axis=1, level=1),
+                       table.xs("sunlab", axis=1, level=1)[[*COLUMNS, REJECTION_COLUMN]],
+                       plain["interval90"], plain["interval_role"])
     return "\n".join(lines)
 
 
@@ -370,10 +355,8 @@ def _with_residual_metrics(hole_metrics, strategy, cen):
 
 def _write_figures(result: dict, out: Path) -> list[str]:
     """``table5.csv``, ``hole_metrics.csv`` and Figs. 13-15 under ``out``; the paths."""
-    import matplotlib.pyplot as plt
-
-    from .. import atomic, plots
     from .. import multihole as mh
+    from .. import plots
 
     metrics, ours = result["metrics"], result["ours"]
     bad = np.isin(np.arange(metrics.sizes["hole"]), result["bad_holes"])
@@ -381,7 +364,7 @@ def _write_figures(result: dict, out: Path) -> list[str]:
     cen, frames = result["data"]["centroids_test"], result["data"]["cube_test"]["frames"]
     p13 = int(np.argmax(mh.holes.usable(cen).values[:, 0, :].sum(axis=1)))  # the most spots whole
     p14, ref = _fig14_pose(cen, show, bad)
-    figs = {
+    return write_files(out, {
         "fig13.png": plots.fig13_frame(frames.isel(pose=p13, shot=0).values,
                                        cen.isel(pose=p13, shot=0), bad=bad),
         "fig14.png": plots.fig14_bad_holes(frames.isel(pose=p14, shot=0).values,
@@ -391,17 +374,8 @@ def _write_figures(result: dict, out: Path) -> list[str]:
             {k: {a: {"M": float(ours.loc[(a, "M"), k]),
                      "sigma_M": float(ours.loc[(a, "sigma_M"), k])} for a in ("alpha", "beta")}
              for k in ours.columns}),
-    }
-    names = [*figs, "table5.csv", "hole_metrics.csv"]
-    out.parent.mkdir(parents=True, exist_ok=True)
-    # every file or none: an interrupted run leaves the previous results (sunlab.atomic)
-    with atomic.atomic_files(out, names, overwrite=True, flag="") as tmp:
-        for name, fig in figs.items():
-            fig.savefig(tmp / name, dpi=110)
-            plt.close(fig)
-        result["table"].to_csv(tmp / "table5.csv")
-        metrics.to_dataframe().to_csv(tmp / "hole_metrics.csv")
-    return [str(out / name) for name in names]
+        "table5.csv": result["table"].to_csv,
+        "hole_metrics.csv": lambda path: metrics.to_dataframe().to_csv(path)})
 
 
 def _fig14_pose(cen, holes, bad) -> tuple[int, int]:
