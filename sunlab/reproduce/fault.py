@@ -27,13 +27,16 @@ Examples
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
 import xarray as xr
 
+from .. import stats
 from ..errors import ConfigurationError
+from ..plans import Plan
 
 __all__ = ["diagnose"]
 
@@ -101,7 +104,6 @@ def paper_shape() -> pd.DataFrame:
     >>> round(float(t.loc[("linear interp.", "beta"), "ratio"]), 2)
     0.48
     """
-    from .. import stats
 
     return pd.concat([shape_test(stats.paper_table4()),
                       shape_test(stats.paper_table5().drop(columns="1 hole"))])
@@ -132,9 +134,7 @@ def signed_pose_errors(estimate: xr.Dataset, reference=None) -> xr.Dataset:
     >>> [round(float(e.alpha[0]), 6), round(float(e.beta[0]), 6)]
     [0.2, -0.2]
     """
-    import warnings
 
-    from .. import stats
 
     err = stats.shot_errors(estimate, reference, absolute=False)
     with warnings.catch_warnings():
@@ -162,7 +162,6 @@ def approach_of(source) -> np.ndarray:
     >>> approach_of(plans.grid(0, 1, 1, 0, 1, 1, shots=1, scan="serpentine")).tolist()
     [1, 1, -1, 1]
     """
-    from ..plans import Plan
 
     if isinstance(source, np.ndarray | list | tuple) and np.isin(source, (-1, 1)).all():
         return np.asarray(source, dtype=int)

@@ -13,8 +13,11 @@ import json
 from importlib import resources
 
 import numpy as np
+import pandas as pd
 
+from .. import stats
 from ..errors import ConfigurationError
+from .pipeline import cells
 
 __all__: list[str] = []
 
@@ -60,7 +63,6 @@ def identified(table: str) -> dict:
 
 def _intervals(name: str):
     """The shipped intervals of one hypothesis (``sunlab/data/intervals.csv``)."""
-    import pandas as pd
 
     with resources.as_file(resources.files("sunlab") / "data" / "intervals.csv") as path:
         ints = pd.read_csv(path)
@@ -149,8 +151,6 @@ def stat_lines(title: str, head: str, width: int, paper, ours, interval90: dict,
     list of str
         Values to 4 decimals, intervals as ``.0071-.0118`` (deg).
     """
-    from .. import stats
-    from .pipeline import cells
 
     def line(label, values, tag):
         return f"{label:<{width}s}" + "".join(

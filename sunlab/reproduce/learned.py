@@ -46,9 +46,12 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import centroid, sim, stats
+from ..calibration import Polynomial
 from ..errors import ConfigurationError
+from ..multihole import GeometricCentre
 from .learned_files import learned_figure, records_of, records_table  # noqa: F401 (users import them here)
-from .pipeline import experiment_plans, locate_runs, usable_table
+from .pipeline import experiment_plans, locate_runs, mounting_offset_px, usable_table
 
 __all__ = ["reproduce_learned"]
 
@@ -177,7 +180,6 @@ def crlb_floor(bench_, cen_test, calibration) -> dict:
         ``sigma_px`` (the bound's standard deviations in x and y, px), ``flux_dn`` (the median
         test flux, DN), ``alpha`` and ``beta`` (the floor's mean ``|error|``, deg).
     """
-    from .. import centroid
 
     det, src, mask = bench_.detector, bench_.source, bench_.mask
     radius = mask.holes[0].diameter_mm / 2 / det.pixel_pitch_mm
@@ -338,7 +340,6 @@ def _mounting_offset(seed: int) -> tuple[float, float]:
     """Where the one-hole spot falls off its design track, px, from a thinned experiment I on
     the paper bench: the prior that numbers the 100 spots (as Table 5 does)."""
     from .. import sim
-    from .pipeline import mounting_offset_px
 
     plan = experiment_plans(("I",), step=4, shots=1)["I"]
     cen = locate_runs({"I": (sim.simulate(plan, sim.Bench.paper_single_hole(),
@@ -350,7 +351,6 @@ def _mounting_offset(seed: int) -> tuple[float, float]:
 def _run_bench(name: str, plans_: dict, seed: int, opts: dict, offset, stage=None) -> dict:
     """One bench: render, detect, train and test both routes; records and the table.
     ``stage(what, fraction)`` hears of each stage done and the fraction of the bench done."""
-    from .. import sim, stats
     from ..calibration import FrameNet
     from ..calibration.windows import detect_spots
 
@@ -399,8 +399,6 @@ def _run_bench(name: str, plans_: dict, seed: int, opts: dict, offset, stage=Non
 def _classical(multi: bool, tables: dict, cubes: dict, bench_, opts) -> dict:
     """The classical routes: method -> (calibration, fit seconds, test table, detection
     seconds of the test run or None when it is the learned route's detection)."""
-    from ..calibration import Polynomial
-    from ..multihole import GeometricCentre
 
     def timed(fit, *args, **kw):
         t = time.perf_counter()

@@ -22,7 +22,9 @@ import time
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 
+from ..calibration import load
 from ..errors import ConfigurationError
 from .pipeline import write_files, write_json
 
@@ -113,7 +115,6 @@ def read_back(out: Path, doc: dict) -> dict:
     """A stored bench (:func:`stored`) as :func:`sunlab.reproduce.learned.reproduce_learned`
     uses it: ``records``, ``model`` (loaded, its training history restored), ``table`` and
     ``floor`` where the bench has one."""
-    from ..calibration import load
 
     name = doc["settings"]["bench"]
     model = load(out / "models" / f"{name}.json")
@@ -169,7 +170,6 @@ class Progress:
 
 def table_of(records):
     """The statistics table of one bench's records (rows angle and stat, columns methods)."""
-    import pandas as pd
 
     rows = [r for r in records if r["angle"] is not None and r["method"] != "CRLB floor"]
     df = pd.DataFrame(rows).pivot_table(index=["angle", "stat"], columns="method",
@@ -227,7 +227,6 @@ def records_table(records, stat: str = "mu"):
     >>> records_table(recs).loc[("paper", "alpha")].tolist()
     [0.01, 0.012]
     """
-    import pandas as pd
 
     df = pd.DataFrame([r for r in records_of(records) if r["stat"] == stat])
     if df.empty:

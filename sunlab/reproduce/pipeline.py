@@ -33,7 +33,11 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
+from .. import atomic, centroid, plans, sim
+from ..centroid.estimators import PER_SPOT
 from ..errors import ConfigurationError
+from ..geometry import ideal_centroid
+from ..schema import STATUS, STATUS_NAMES, USABLE_STATUS
 
 __all__ = []
 
@@ -67,7 +71,6 @@ def experiment_plans(names=tuple(EXPERIMENTS), *, quick: bool = False, step: int
     >>> {k: (len(p), p.shots) for k, p in experiment_plans(("I", "III"), step=4).items()}
     {'I': (25, 8), 'III': (25, 8)}
     """
-    from .. import plans
 
     step = step or (QUICK["step"] if quick else 1)
     shots = shots or (QUICK["shots"] if quick else 8)
@@ -149,7 +152,6 @@ def locate_runs(cubes: dict, *, method: str = "projection", hole_offset=(0.0, 0.
     >>> int((cens["III"].status == 0).sum()), "true_x" in cens["III"]
     (9, False)
     """
-    from .. import centroid
 
     moved = {}
     for name, cube in cubes.items():
@@ -209,7 +211,6 @@ def simulate_and_locate(bench=None, *, seed: int = 0, quick: bool = False,
     >>> {k: int(v.sizes["pose"]) for k, v in cens.items()}, "zero_pose_x_px" in cens["I"].attrs
     ({'I': 9, 'II': 4, 'III': 9}, True)
     """
-    from .. import plans, sim
 
     bench = sim.Bench.paper_single_hole() if bench is None else bench
     plans_ = experiment_plans(quick=quick, step=step, shots=shots)
@@ -258,7 +259,6 @@ def spot_method(method: str) -> str:
     ...
     sunlab.errors.ConfigurationError: method: found 'nearest'; expected one of [...]
     """
-    from ..centroid.estimators import PER_SPOT
 
     if method not in PER_SPOT:
         raise ConfigurationError(f"method: found {method!r}; expected one of {sorted(PER_SPOT)}")
@@ -295,7 +295,6 @@ def mounting_offset_px(one_hole) -> tuple[float, float]:
     >>> [round(v, 6) for v in mounting_offset_px(cen)]
     [80.0, 18.0]
     """
-    from ..geometry import ideal_centroid
 
     a = one_hole["alpha"].values[:, None]
     b = one_hole["beta"].values[:, None]
@@ -328,7 +327,6 @@ def usable_table(cen: xr.Dataset) -> xr.Dataset:
     >>> usable_table(cen).status.values.tolist()
     [[0, 0]]
     """
-    from ..schema import STATUS, USABLE_STATUS
 
     st = cen["status"]
     usable = st.isin([STATUS[k] for k in USABLE_STATUS])
@@ -358,7 +356,6 @@ def centroid_status(cens: dict) -> dict:
     >>> centroid_status({"III": cen})
     {'III': {'ok': 1, 'saturated': 1, 'removed': {'saturated': 1}}}
     """
-    from ..schema import STATUS_NAMES, USABLE_STATUS
 
     out = {}
     for name, cen in cens.items():
@@ -396,7 +393,6 @@ def write_json(doc: dict, path: str | Path) -> str:
     >>> path.read_text().split()
     ['{', '"mu":', '0.5,', '"n":', '[', '0,', '1', ']', '}']
     """
-    from .. import atomic
 
     def plain(o):
         if isinstance(o, np.generic | np.ndarray):
@@ -434,7 +430,6 @@ def write_files(out: str | Path, files: dict) -> list[str]:
     """
     import matplotlib.pyplot as plt
 
-    from .. import atomic
 
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)

@@ -41,16 +41,8 @@ import pandas as pd
 from .. import __version__, parallel, stats
 from ..calibration import table4_methods
 from ..errors import ConfigurationError
+from . import pipeline as pl
 from .intervals import identified, stat_lines
-from .pipeline import (
-    cells,
-    centroid_status,
-    finite,
-    simulate_and_locate,
-    usable_table,
-    write_files,
-    write_json,
-)
 
 __all__ = ["reproduce_table4"]
 
@@ -122,9 +114,10 @@ class Table4Result:
         return {
             "sunlab_version": __version__, "table": "4",
             "source": "sunlab virtual bench (ours) beside docs/paper.md Table 4 (paper)",
-            "ours": cells(self.table, value=finite),
-            "paper": cells(self.paper, value=finite),
-            "rectangle_area_deg2": {str(k): finite(v) for k, v in self.rectangles["area"].items()},
+            "ours": pl.cells(self.table, value=pl.finite),
+            "paper": pl.cells(self.paper, value=pl.finite),
+            "rectangle_area_deg2": {str(k): pl.finite(v)
+                                    for k, v in self.rectangles["area"].items()},
             "optimised_model": self.optimised,
             "polynomial_order": [int(n) for n in self.polynomial_order],
             "centroid_status": self.centroid_status,
@@ -223,7 +216,7 @@ def reproduce_table4(*, quick: bool = False, seed: int = 0, method: str = "proje
 
     custom, bench = bench, sim.Bench.paper_single_hole() if bench is None else bench
     t0 = time.perf_counter()
-    cens = simulate_and_locate(bench, seed=seed, quick=quick, step=step, shots=shots,
+    cens = pl.simulate_and_locate(bench, seed=seed, quick=quick, step=step, shots=shots,
                                method=method, progress=progress, address=address,
                                scheduler=scheduler, workers=workers, zero_pose=True)
     centroided = time.perf_counter() - t0
@@ -282,7 +275,7 @@ def table4_statistics(cens: dict, bench, *, neural: bool = True, seed: int = 0) 
         raise ConfigurationError(
             f"cens: found runs {sorted(cens)}; expected 'I', 'II' and 'III'. Fix: the "
             "tables of simulate_and_locate(..., zero_pose=True).")
-    train, val, test = (usable_table(cens[k]) for k in ("I", "II", "III"))
+    train, val, test = (pl.usable_table(cens[k]) for k in ("I", "II", "III"))
     # every method fitted on I (II for model selection), BLAS on one thread (small problems, a
     # busy machine: idle BLAS threads slow them several-fold); a method whose extra is not
     # installed goes into not_run, with the ImportError's message (which names the extra)
@@ -300,13 +293,13 @@ def table4_statistics(cens: dict, bench, *, neural: bool = True, seed: int = 0) 
     table, _, local = stats.evaluate(fitted, test, return_errors=True)
     opt, truth = fitted["optimised model (3)-(4)"].result, bench_optimised_truth(bench)
     optimised = {k: {"fitted": float(getattr(opt, k)),
-                     "stderr": finite(opt.stderr.get(k, np.nan)),
+                     "stderr": pl.finite(opt.stderr.get(k, np.nan)),
                      "bench": float(truth[k]), "paper": PAPER_OPTIMISED[k],
                      "stderr_method": opt.stderr_method} for k in PAPER_OPTIMISED}
     return Table4Result(
         table=table, paper=stats.paper_table4(), rectangles=stats.rectangles(table), local=local,
         optimised=optimised, polynomial_order=tuple(int(n) for n in fitted["polynomial"].orders),
-        centroid_status=centroid_status(cens), timings=timings,
+        centroid_status=pl.centroid_status(cens), timings=timings,
         settings={"not_run": not_run, "poses": {k: int(v.sizes["pose"]) for k, v in cens.items()},
                   "shots": int(test.sizes["shot"]), "bench": json.loads(bench.to_json()),
                   "network_reference": NN_REFERENCE})
@@ -351,9 +344,9 @@ def _write_outputs(res: Table4Result, out: Path) -> list[str]:
 
     local, table = res.local["polynomial"], res.table
     side = stats.side_by_side(table, res.paper, names=("sunlab", "paper"))
-    return write_files(out, {
+    return pl.write_files(out, {
         "table4_sunlab.csv": table.to_csv, "table4_side_by_side.csv": side.to_csv,
-        "table4.json": lambda path: write_json(res.to_dict(), path),
+        "table4.json": lambda path: pl.write_json(res.to_dict(), path),
         "fig10_error_maps_polynomial.png": plots.error_maps(
             local, title="Fig. 10: local errors, polynomial (virtual bench)"),
         "fig11_alpha_histogram_polynomial.png": plots.error_histogram(
