@@ -77,16 +77,11 @@ def shape_test(table: pd.DataFrame) -> pd.DataFrame:
         raise ConfigurationError(
             "table: expected a DataFrame indexed (angle, stat) as sunlab.stats.evaluate "
             "returns. Fix: pass stats.evaluate(...) or stats.paper_table4().")
-    rows = {}
-    for m in table.columns:
-        for a in ("alpha", "beta"):
-            mu, sd = float(table.loc[(a, "mu"), m]), float(table.loc[(a, "sigma"), m])
-            ratio = sd / mu if mu > 0 else float("nan")
-            rows[(str(m), a)] = {"mu": mu, "sigma": sd, "ratio": ratio,
-                                 "below_bound": bool(ratio < UNIMODAL_BOUND)}
-    out = pd.DataFrame.from_dict(rows, orient="index")
-    out.index = pd.MultiIndex.from_tuples(out.index, names=["method", "angle"])
-    return out
+    mu, sd = (table.xs(st, level=1).loc[["alpha", "beta"]].T.astype(float).stack()
+              for st in ("mu", "sigma"))
+    ratio = sd / mu.where(mu > 0)
+    return pd.DataFrame({"mu": mu, "sigma": sd, "ratio": ratio,
+                         "below_bound": ratio < UNIMODAL_BOUND}).rename_axis(["method", "angle"])
 
 
 def paper_shape() -> pd.DataFrame:

@@ -221,8 +221,8 @@ def simulate_and_locate(bench=None, *, seed: int = 0, quick: bool = False,
         for name, plan in plans_.items():
             print(f"experiment {name} ({EXPERIMENTS[name]}): {len(plan)} poses x "
                   f"{plan.shots} shots", flush=True)
-        n_frames = sum(len(p) * p.shots for p in plans_.values())
-        print(f"rendering and centroiding {n_frames} frames ({method})", flush=True)
+        print(f"rendering and centroiding {sum(len(p) * p.shots for p in plans_.values())} "
+              f"frames ({method})", flush=True)
     cens = locate_runs(simulate_runs(runs, seed=seed), method=method, progress=progress,
                        address=address, scheduler=scheduler, workers=workers)
     out = {k: cens[k] for k in plans_}
@@ -375,7 +375,8 @@ def write_json(doc: dict, path: str | Path) -> str:
     Parameters
     ----------
     doc : dict
-        The results; NumPy scalars and arrays are written as numbers and lists.
+        The results; NumPy scalars and arrays are written as numbers and lists, any other
+        object ``float`` takes as a number (a TypeError for the rest).
     path : str or pathlib.Path
         The file to write (replaced if it exists).
 
@@ -394,10 +395,8 @@ def write_json(doc: dict, path: str | Path) -> str:
     ['{', '"mu":', '0.5,', '"n":', '[', '0,', '1', ']', '}']
     """
 
-    def plain(o):
-        if isinstance(o, np.generic | np.ndarray):
-            return o.tolist()
-        raise TypeError(type(o).__name__)
+    def plain(o):  # anything else that is a number (a torch scalar): float; not one: TypeError
+        return o.tolist() if isinstance(o, np.generic | np.ndarray) else float(o)
 
     atomic.write_text(Path(path), json.dumps(doc, indent=2, default=plain), overwrite=True,
                       flag="")

@@ -48,7 +48,6 @@ import pandas as pd
 from .. import plans, sim, stats
 from ..calibration import Polynomial, table4_methods
 from ..errors import ConfigurationError
-from ..sim import Bench
 from . import pipeline as pl
 from .fault import diagnose, fault_bench, paper_shape
 from .remedy import fit_correction
@@ -363,7 +362,7 @@ def candidate_table(sizes: dict, *, bench=None, seed: int = 0, shots: int = 1,
     """
     from ..sim.surrogate import surrogate_centroids
 
-    bench = Bench.paper_single_hole() if bench is None else bench
+    bench = sim.Bench.paper_single_hole() if bench is None else bench
     exps = experiment_plans or pl.experiment_plans(step=1, shots=shots)
     fits = table4_methods(neural=False, seed=seed)
     rows = {}
