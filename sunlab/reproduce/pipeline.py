@@ -296,9 +296,8 @@ def mounting_offset_px(one_hole) -> tuple[float, float]:
     [80.0, 18.0]
     """
 
-    a = one_hole["alpha"].values[:, None]
-    b = one_hole["beta"].values[:, None]
-    x0, y0 = ideal_centroid(a, b, *(float(one_hole.attrs[k]) for k in (
+    x0, y0 = ideal_centroid(one_hole["alpha"].values[:, None], one_hole["beta"].values[:, None],
+                            *(float(one_hole.attrs[k]) for k in (
         "mask_distance_mm", "pixel_pitch_mm", "x_cf_px", "y_cf_px")))
     return (float(np.nanmedian(one_hole["x"].values - x0)),
             float(np.nanmedian(one_hole["y"].values - y0)))
@@ -359,8 +358,8 @@ def centroid_status(cens: dict) -> dict:
 
     out = {}
     for name, cen in cens.items():
-        codes, counts = np.unique(np.asarray(cen["status"].values), return_counts=True)
-        n = {STATUS_NAMES[int(c)]: int(k) for c, k in zip(codes, counts, strict=True)}
+        n = {STATUS_NAMES[int(c)]: int(k)
+             for c, k in zip(*np.unique(cen["status"].values, return_counts=True), strict=True)}
         out[name] = {**n, "removed": {k: v for k, v in n.items() if k not in USABLE_STATUS}}
     return out
 
