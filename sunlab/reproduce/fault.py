@@ -210,17 +210,15 @@ def approach_split(beta_error, approach) -> dict:
     """
     e, d = _finite(np.asarray(beta_error, dtype=float), np.asarray(approach))
     up, down = e[d > 0], e[d < 0]
+    out = {"mean_up": float(up.mean()) if up.size else float("nan"),
+           "mean_down": float(down.mean()) if down.size else float("nan"),
+           "n_up": int(up.size), "n_down": int(down.size)}
     if up.size < 2 or down.size < 2:
-        return {"mean_up": float(np.mean(up)) if up.size else float("nan"),
-                "mean_down": float(np.mean(down)) if down.size else float("nan"),
-                "n_up": int(up.size), "n_down": int(down.size), "backlash_deg": float("nan"),
-                "stderr_deg": float("nan"), "z": 0.0}
+        return {**out, "backlash_deg": float("nan"), "stderr_deg": float("nan"), "z": 0.0}
     resid = np.concatenate([up - up.mean(), down - down.mean()])
-    s2 = float(resid @ resid) / (e.size - 2)
-    se = 0.5 * math.sqrt(s2 * (1 / up.size + 1 / down.size))
+    se = 0.5 * math.sqrt(float(resid @ resid) / (e.size - 2) * (1 / up.size + 1 / down.size))
     b = 0.5 * float(down.mean() - up.mean())
-    return {"mean_up": float(up.mean()), "mean_down": float(down.mean()), "n_up": int(up.size),
-            "n_down": int(down.size), "backlash_deg": b, "stderr_deg": se,
+    return {**out, "backlash_deg": b, "stderr_deg": se,
             "z": abs(b) / se if se > 0 else float("inf")}
 
 
