@@ -27,13 +27,16 @@ Examples
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
 import xarray as xr
 
+from .. import stats
 from ..errors import ConfigurationError
+from ..plans import Plan
 
 __all__ = ["diagnose"]
 
@@ -74,16 +77,11 @@ def shape_test(table: pd.DataFrame) -> pd.DataFrame:
         raise ConfigurationError(
             "table: expected a DataFrame indexed (angle, stat) as sunlab.stats.evaluate "
             "returns. Fix: pass stats.evaluate(...) or stats.paper_table4().")
-    rows = {}
-    for m in table.columns:
-        for a in ("alpha", "beta"):
-            mu, sd = float(table.loc[(a, "mu"), m]), float(table.loc[(a, "sigma"), m])
-            ratio = sd / mu if mu > 0 else float("nan")
-            rows[(str(m), a)] = {"mu": mu, "sigma": sd, "ratio": ratio,
-                                 "below_bound": bool(ratio < UNIMODAL_BOUND)}
-    out = pd.DataFrame.from_dict(rows, orient="index")
-    out.index = pd.MultiIndex.from_tuples(out.index, names=["method", "angle"])
-    return out
+    mu, sd = (table.xs(st, level=1).loc[["alpha", "beta"]].T.astype(float).stack()
+              for st in ("mu", "sigma"))
+    ratio = sd / mu.where(mu > 0)
+    return pd.DataFrame({"mu": mu, "sigma": sd, "ratio": ratio,
+                         "below_bound": ratio < UNIMODAL_BOUND}).rename_axis(["method", "angle"])
 
 
 def paper_shape() -> pd.DataFrame:
@@ -101,7 +99,6 @@ def paper_shape() -> pd.DataFrame:
     >>> round(float(t.loc[("linear interp.", "beta"), "ratio"]), 2)
     0.48
     """
-    from .. import stats
 
     return pd.concat([shape_test(stats.paper_table4()),
                       shape_test(stats.paper_table5().drop(columns="1 hole"))])
@@ -132,9 +129,7 @@ def signed_pose_errors(estimate: xr.Dataset, reference=None) -> xr.Dataset:
     >>> [round(float(e.alpha[0]), 6), round(float(e.beta[0]), 6)]
     [0.2, -0.2]
     """
-    import warnings
 
-    from .. import stats
 
     err = stats.shot_errors(estimate, reference, absolute=False)
     with warnings.catch_warnings():
@@ -162,7 +157,6 @@ def approach_of(source) -> np.ndarray:
     >>> approach_of(plans.grid(0, 1, 1, 0, 1, 1, shots=1, scan="serpentine")).tolist()
     [1, 1, -1, 1]
     """
-    from ..plans import Plan
 
     if isinstance(source, np.ndarray | list | tuple) and np.isin(source, (-1, 1)).all():
         return np.asarray(source, dtype=int)
@@ -216,17 +210,15 @@ def approach_split(beta_error, approach) -> dict:
     """
     e, d = _finite(np.asarray(beta_error, dtype=float), np.asarray(approach))
     up, down = e[d > 0], e[d < 0]
+    out = {"mean_up": float(up.mean()) if up.size else float("nan"),
+           "mean_down": float(down.mean()) if down.size else float("nan"),
+           "n_up": int(up.size), "n_down": int(down.size)}
     if up.size < 2 or down.size < 2:
-        return {"mean_up": float(np.mean(up)) if up.size else float("nan"),
-                "mean_down": float(np.mean(down)) if down.size else float("nan"),
-                "n_up": int(up.size), "n_down": int(down.size), "backlash_deg": float("nan"),
-                "stderr_deg": float("nan"), "z": 0.0}
+        return {**out, "backlash_deg": float("nan"), "stderr_deg": float("nan"), "z": 0.0}
     resid = np.concatenate([up - up.mean(), down - down.mean()])
-    s2 = float(resid @ resid) / (e.size - 2)
-    se = 0.5 * math.sqrt(s2 * (1 / up.size + 1 / down.size))
+    se = 0.5 * math.sqrt(float(resid @ resid) / (e.size - 2) * (1 / up.size + 1 / down.size))
     b = 0.5 * float(down.mean() - up.mean())
-    return {"mean_up": float(up.mean()), "mean_down": float(down.mean()), "n_up": int(up.size),
-            "n_down": int(down.size), "backlash_deg": b, "stderr_deg": se,
+    return {**out, "backlash_deg": b, "stderr_deg": se,
             "z": abs(b) / se if se > 0 else float("inf")}
 
 

@@ -13,8 +13,11 @@ import json
 from importlib import resources
 
 import numpy as np
+import pandas as pd
 
+from .. import stats
 from ..errors import ConfigurationError
+from .pipeline import cells
 
 __all__: list[str] = []
 
@@ -60,7 +63,6 @@ def identified(table: str) -> dict:
 
 def _intervals(name: str):
     """The shipped intervals of one hypothesis (``sunlab/data/intervals.csv``)."""
-    import pandas as pd
 
     with resources.as_file(resources.files("sunlab") / "data" / "intervals.csv") as path:
         ints = pd.read_csv(path)
@@ -127,13 +129,43 @@ def coverage_lines(interval90: dict, interval_role: dict, paper: dict, ours: dic
     return lines
 
 
-def _stat_line(label: str, values, tag: str, width: int) -> str:
-    """One line of a printed table: the label, then each value in 12 characters, then the tag
-    (values are numbers, printed to 4 decimals, or ready-made strings)."""
-    return f"{label:<{width}s}" + "".join(
-        f"{v:>12s}" if isinstance(v, str) else f"{v:12.4f}" for v in values) + f"   {tag}"
+def stat_lines(title: str, head: str, width: int, paper, ours, interval90: dict,
+               interval_role: dict) -> list[str]:
+    """The printed lines of Table 4 or 5: per column the paper's eight statistics, ours and our
+    90 % interval, then the interval coverage (:func:`coverage_lines`).
 
+    Parameters
+    ----------
+    title : str
+        The first line.
+    head, width : str, int
+        The label column's heading and its width, characters.
+    paper, ours : pandas.DataFrame
+        The paper's statistics and ours, index ``(angle, stat)``, a column per method (deg);
+        every column of ``ours`` is printed, the paper's line above it where it has one.
+    interval90, interval_role : dict
+        As :func:`identified` gives them, keyed by ``ours``' columns (empty: no intervals).
 
-def _span(lo: float, hi: float) -> str:
-    """An interval in 11 characters: ``.0071-.0118`` (deg, below 1)."""
-    return f"{lo:.4f}-{hi:.4f}".replace("0.", ".")
+    Returns
+    -------
+    list of str
+        Values to 4 decimals, intervals as ``.0071-.0118`` (deg).
+    """
+
+    def line(label, values, tag):
+        return f"{label:<{width}s}" + "".join(
+            f"{v:>12s}" if isinstance(v, str) else f"{v:12.4f}" for v in values) + f"   {tag}"
+
+    keys = [(a, st) for a in stats.ANGLES for st in stats.STATS]
+    lines = [title, "paper = the 2005 preprint; ours = sunlab virtual bench (simulated frames); "
+             "our 90 % interval = the identified bench's predictive interval "
+             "(docs/identification.md)", "",
+             f"{head:<{width}s}" + "".join(f"{a[0] + ' ' + st:>12s}" for a, st in keys)]
+    for c in ours.columns:
+        if c in paper.columns:
+            lines.append(line(c, [paper.loc[k, c] for k in keys], "paper"))
+        lines.append(line("" if c in paper.columns else c, [ours.loc[k, c] for k in keys], "ours"))
+        if interval90.get(c):
+            lines.append(line("", [f"{lo:.4f}-{hi:.4f}".replace("0.", ".") for lo, hi in (
+                interval90[c][f"{a}.{st}"] for a, st in keys)], "our 90 % interval"))
+    return lines + coverage_lines(interval90, interval_role, cells(paper), cells(ours))

@@ -40,15 +40,19 @@ Examples
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import time
 from pathlib import Path
 
 import numpy as np
 
+from .. import centroid, sim, stats
+from ..calibration import Polynomial
 from ..errors import ConfigurationError
+from ..multihole import GeometricCentre
 from .learned_files import learned_figure, records_of, records_table  # noqa: F401 (users import them here)
-from .pipeline import experiment_plans, locate_runs, usable_table
+from .pipeline import experiment_plans, finite, locate_runs, mounting_offset_px, usable_table
 
 __all__ = ["reproduce_learned"]
 
@@ -177,7 +181,6 @@ def crlb_floor(bench_, cen_test, calibration) -> dict:
         ``sigma_px`` (the bound's standard deviations in x and y, px), ``flux_dn`` (the median
         test flux, DN), ``alpha`` and ``beta`` (the floor's mean ``|error|``, deg).
     """
-    from .. import centroid
 
     det, src, mask = bench_.detector, bench_.source, bench_.mask
     radius = mask.holes[0].diameter_mm / 2 / det.pixel_pitch_mm
@@ -255,22 +258,16 @@ def reproduce_learned(*, full: bool = False, quick: bool = False, seed: int = 0,
                  sum(map(bool, olds.values())))
     result = {"records": [], "command": settings["command"], "settings": settings,
               "tables": {}, "floors": {}, "models": {}, "reused": [], "histories": {}}
-    offset = None
-    for name in per:
+    for name, s in per.items():
         if (old := olds[name]) is not None:
             res = run.read_back(out, old)
             result["reused"].append(name)
         else:
             t = time.perf_counter()
-            multi = bench(name).n_holes > 1
-            if multi and offset is None:
-                offset = _mounting_offset(seed)
-            res = _run_bench(name, thin if multi else plans_, seed,
-                             {"epochs": per[name]["epochs"], "threads": threads,
-                              "device": device, "seed": seed}, offset if multi else (0, 0),
-                             stage=lambda what, f, name=name: bar.stage(name, what, f))
+            res = _run_bench(name, thin if bench(name).n_holes > 1 else plans_, s,
+                             lambda what, f, name=name: bar.stage(name, what, f))
             if out is not None:  # the bench is done: a stopped run resumes after it
-                run.store(out, per[name], res, time.perf_counter() - t)
+                run.store(out, s, res, time.perf_counter() - t)
         if progress:
             print(f"{name}:\n{res['table'].round(5).to_string()}", flush=True)
         bar.finished(name, reused=old is not None)
@@ -313,13 +310,11 @@ def run_settings(*, full: bool = False, quick: bool = False, seed: int = 0,
         raise ConfigurationError("quick: found quick and full together, expected one of them")
     names = (list(BENCHES) if full else list(DEFAULT_BENCHES)) if benches is None else \
         (list(BENCHES) if list(benches) == ["all"] else list(benches))
-    for name in names:
-        bench(name)  # an unknown name is refused before anything runs
     plans_ = experiment_plans(quick=not full, step=step, shots=shots)
     thin = experiment_plans(quick=not full, step=step,
                             shots=min(MULTI_SHOTS, plans_["I"].shots))
     per = {}
-    for name in names:
+    for name in names:  # an unknown name is refused here, before anything runs
         multi = bench(name).n_holes > 1
         per[name] = run.bench_settings(
             name, {k: (len(p), p.shots) for k, p in (thin if multi else plans_).items()},
@@ -334,11 +329,11 @@ def run_settings(*, full: bool = False, quick: bool = False, seed: int = 0,
     return settings, plans_, thin
 
 
+@functools.cache
 def _mounting_offset(seed: int) -> tuple[float, float]:
     """Where the one-hole spot falls off its design track, px, from a thinned experiment I on
     the paper bench: the prior that numbers the 100 spots (as Table 5 does)."""
     from .. import sim
-    from .pipeline import mounting_offset_px
 
     plan = experiment_plans(("I",), step=4, shots=1)["I"]
     cen = locate_runs({"I": (sim.simulate(plan, sim.Bench.paper_single_hole(),
@@ -347,17 +342,17 @@ def _mounting_offset(seed: int) -> tuple[float, float]:
     return mounting_offset_px(usable_table(cen))
 
 
-def _run_bench(name: str, plans_: dict, seed: int, opts: dict, offset, stage=None) -> dict:
+def _run_bench(name: str, plans_: dict, opts: dict, stage) -> dict:
     """One bench: render, detect, train and test both routes; records and the table.
+    ``opts`` are the bench's settings (:func:`sunlab.reproduce.learned_files.bench_settings`);
     ``stage(what, fraction)`` hears of each stage done and the fraction of the bench done."""
-    from .. import sim, stats
     from ..calibration import FrameNet
     from ..calibration.windows import detect_spots
 
-    b, seeds = bench(name), bench_seeds(name, seed)
+    b = bench(name)
     multi = b.n_holes > 1
-    off = offset if multi else (0.0, 0.0)
-    cubes = {k: sim.simulate(p, b, seed=seeds[k]) for k, p in plans_.items()}
+    off = _mounting_offset(opts["seed"]) if multi else (0.0, 0.0)
+    cubes = {k: sim.simulate(p, b, seed=opts["seeds"][k]) for k, p in plans_.items()}
     if sum(c["frames"].nbytes for c in cubes.values()) < IN_MEMORY_BYTES:
         # rendered once: the detection, the windows and the disk fit read them again
         cubes = {k: c.load() for k, c in cubes.items()}
@@ -366,7 +361,6 @@ def _run_bench(name: str, plans_: dict, seed: int, opts: dict, offset, stage=Non
         t = time.perf_counter()
         det[k] = detect_spots(cube, off, workers=opts["threads"])
         secs[f"detect {k}"] = time.perf_counter() - t
-    stage = stage or (lambda what, fraction: None)
     stage("rendered and detected I, II, III", 0.4)
     tables = {k: usable_table(c) for k, c in det.items()}
     n_test = int(cubes["III"].sizes["pose"] * cubes["III"].sizes["shot"])
@@ -399,8 +393,6 @@ def _run_bench(name: str, plans_: dict, seed: int, opts: dict, offset, stage=Non
 def _classical(multi: bool, tables: dict, cubes: dict, bench_, opts) -> dict:
     """The classical routes: method -> (calibration, fit seconds, test table, detection
     seconds of the test run or None when it is the learned route's detection)."""
-    from ..calibration import Polynomial
-    from ..multihole import GeometricCentre
 
     def timed(fit, *args, **kw):
         t = time.perf_counter()
@@ -426,15 +418,10 @@ def _classical(multi: bool, tables: dict, cubes: dict, bench_, opts) -> dict:
 def _records(name: str, table, timing: dict) -> list[dict]:
     def rec(method, angle, stat, value):
         return {"bench": name, "method": str(method), "angle": angle, "stat": stat,
-                "value": _num(value)}
+                "value": finite(value)}
 
     recs = [rec(m, a, s, v) for m in table.columns for (a, s), v in table[m].items()]
     for m, (train_s, infer_s, *cpu) in timing.items():
         recs += [rec(m, None, "train_s", train_s), *[rec(m, None, "train_cpu_s", c) for c in cpu],
                  rec(m, None, "infer_s_per_frame", infer_s)]
     return recs
-
-
-def _num(v):
-    v = float(v)
-    return v if math.isfinite(v) else None

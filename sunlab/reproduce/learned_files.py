@@ -22,9 +22,11 @@ import time
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 
+from ..calibration import load
 from ..errors import ConfigurationError
-from .pipeline import write_json
+from .pipeline import write_files, write_json
 
 #: Seconds of work per frame on 2 cores (render, detect, train, test and the classical fits,
 #: spread over a bench's frames): the CPU seconds of sunlab's own runs at the quick plans
@@ -86,14 +88,12 @@ def command(*, out, full: bool, quick: bool, seed: int, benches, threads: int, d
 
 def stored(out: Path | None, settings: dict) -> dict | None:
     """The bench's record under ``out`` when it was written with these settings, else None."""
-    if out is None:
-        return None
-    path, model = out / "benches" / f"{settings['bench']}.json", out / "models"
-    if not path.exists() or not (model / f"{settings['bench']}.json").exists():
+    name = settings["bench"]
+    if out is None or not (out / "models" / f"{name}.json").exists():
         return None
     try:
-        doc = json.loads(path.read_text())
-    except (OSError, ValueError):
+        doc = json.loads((out / "benches" / f"{name}.json").read_text())
+    except (OSError, ValueError):  # missing or cut short: the bench is computed again
         return None
     return doc if doc.get("settings") == settings else None
 
@@ -101,19 +101,18 @@ def stored(out: Path | None, settings: dict) -> dict | None:
 def store(out: Path, settings: dict, res: dict, seconds: float) -> None:
     """Write the bench's model, then its record (``benches/<bench>.json``), each atomically."""
     name = settings["bench"]
-    (out / "models").mkdir(parents=True, exist_ok=True)
-    (out / "benches").mkdir(parents=True, exist_ok=True)
+    for folder in ("models", "benches"):
+        (out / folder).mkdir(parents=True, exist_ok=True)
     res["model"].save(out / "models" / f"{name}.json", overwrite=True)
     doc = {"settings": settings, "records": res["records"], "floor": res.get("floor"),
            "history": res["model"].history, "seconds": seconds}
-    write_json(json.loads(json.dumps(doc, default=float)), out / "benches" / f"{name}.json")
+    write_json(doc, out / "benches" / f"{name}.json")
 
 
 def read_back(out: Path, doc: dict) -> dict:
     """A stored bench (:func:`stored`) as :func:`sunlab.reproduce.learned.reproduce_learned`
     uses it: ``records``, ``model`` (loaded, its training history restored), ``table`` and
     ``floor`` where the bench has one."""
-    from ..calibration import load
 
     name = doc["settings"]["bench"]
     model = load(out / "models" / f"{name}.json")
@@ -132,17 +131,21 @@ class Progress:
         self.estimates, self.show = dict(estimates), show
         self.start, self.done_est, self.done = time.perf_counter(), 0.0, []
 
-    def announce(self, frames: int, reused: int = 0, machine: str = "2 idle cores") -> None:
-        """Print the work and its estimate when it exceeds :data:`ANNOUNCE_S`."""
-        total = sum(self.estimates.values())
+    def announce(self, frames: int, reused: int = 0) -> None:
+        """Print the work and its estimate (on 2 idle cores) when it exceeds
+        :data:`ANNOUNCE_S`."""
+        total, n = sum(self.estimates.values()), len(self.estimates)
         if self.show and total > ANNOUNCE_S:
             again = f" ({reused} read back from an earlier run)" if reused else ""
-            n = len(self.estimates)
             print(f"learned: {n} bench{'es' * (n != 1)}{again}, {frames} frames to render "
                   f"and detect, training up to the epochs set: about {math.ceil(total / 60)} "
-                  f"min on {machine} (docs/learned/README.md)", flush=True)
+                  f"min on 2 idle cores (docs/learned/README.md)", flush=True)
 
-    def _line(self, head: str, rest_s: float) -> None:
+    def _line(self, head: str, less_s: float = 0.0) -> None:
+        """Print the bar with ``head``: the benches not done less ``less_s`` of work remain."""
+        if not self.show:
+            return
+        rest_s = sum(v for k, v in self.estimates.items() if k not in self.done) - less_s
         elapsed = time.perf_counter() - self.start
         pace = elapsed / self.done_est if self.done_est > 0 and elapsed > 5 else 1.0
         total = sum(self.estimates.values()) or 1.0
@@ -152,24 +155,18 @@ class Progress:
 
     def stage(self, name: str, what: str, fraction: float) -> None:
         """A stage of bench ``name`` is done, and ``fraction`` of the bench with it."""
-        if self.show:
-            rest = sum(v for k, v in self.estimates.items() if k not in self.done)
-            self._line(f"{name}: {what}", rest - fraction * self.estimates[name])
+        self._line(f"{name}: {what}", fraction * self.estimates[name])
 
     def finished(self, name: str, reused: bool = False) -> None:
         """Bench ``name`` is done (``reused``: read back from an earlier run)."""
         self.done.append(name)
-        if not reused:
-            self.done_est += self.estimates[name]
-        if self.show:
-            rest = sum(v for k, v in self.estimates.items() if k not in self.done)
-            self._line(f"{len(self.done)}/{len(self.estimates)} benches ({name}"
-                       f"{', read back from an earlier run' if reused else ''})", rest)
+        self.done_est += 0.0 if reused else self.estimates[name]
+        self._line(f"{len(self.done)}/{len(self.estimates)} benches ({name}"
+                   f"{', read back from an earlier run' if reused else ''})")
 
 
 def table_of(records):
     """The statistics table of one bench's records (rows angle and stat, columns methods)."""
-    import pandas as pd
 
     rows = [r for r in records if r["angle"] is not None and r["method"] != "CRLB floor"]
     df = pd.DataFrame(rows).pivot_table(index=["angle", "stat"], columns="method",
@@ -182,23 +179,12 @@ def write(result: dict, out: Path) -> list[str]:
     (the settings with the floors and the training histories), ``learned.png`` and
     ``models/<bench>.json`` (written as each bench finished); the paths. The first three are
     written together or not at all (:func:`sunlab.atomic.atomic_files`)."""
-    import matplotlib.pyplot as plt
-
-    from .. import atomic
-
-    names = ["learned.json", "learned_settings.json", "learned.png"]
     doc = {**result["settings"], "floors": result["floors"], "histories": result["histories"]}
-    fig = learned_figure(result["records"])
-    try:
-        with atomic.atomic_files(out, names, overwrite=True, flag="") as tmp:
-            write_json({"command": result["command"], "settings": result["settings"],
-                        "records": result["records"]}, tmp / names[0])
-            write_json(json.loads(json.dumps(doc, default=float)), tmp / names[1])
-            fig.savefig(tmp / names[2], dpi=110)
-    finally:
-        plt.close(fig)
-    return [str(out / "models" / f"{n}.json") for n in result["models"]] + [
-        str(out / n) for n in names]
+    record = {k: result[k] for k in ("command", "settings", "records")}
+    return [str(out / "models" / f"{n}.json") for n in result["models"]] + write_files(out, {
+        "learned.json": lambda path: write_json(record, path),
+        "learned_settings.json": lambda path: write_json(doc, path),
+        "learned.png": learned_figure(result["records"])})
 
 
 def records_of(doc) -> list[dict]:
@@ -237,7 +223,6 @@ def records_table(records, stat: str = "mu"):
     >>> records_table(recs).loc[("paper", "alpha")].tolist()
     [0.01, 0.012]
     """
-    import pandas as pd
 
     df = pd.DataFrame([r for r in records_of(records) if r["stat"] == stat])
     if df.empty:

@@ -14,8 +14,9 @@ steps, and this module is the one place that renders frames and centroids them:
    one hole (with their zero-pose checks for Table 4);
 3. :func:`usable_table` and :func:`centroid_status`: which frames the calibrations use, and the
    counts of the frames removed;
-4. :func:`write_json`, the one writer of every results file (the identified bench's intervals
-   are :mod:`sunlab.reproduce.intervals`).
+4. :func:`write_json`, the one writer of every results file, and :func:`write_files`, the one
+   writer of a table's files together or not at all (the identified bench's intervals are
+   :mod:`sunlab.reproduce.intervals`).
 
 Examples
 --------
@@ -32,7 +33,11 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
+from .. import atomic, centroid, plans, sim
+from ..centroid.estimators import PER_SPOT
 from ..errors import ConfigurationError
+from ..geometry import ideal_centroid
+from ..schema import STATUS, STATUS_NAMES, USABLE_STATUS
 
 __all__ = []
 
@@ -66,7 +71,6 @@ def experiment_plans(names=tuple(EXPERIMENTS), *, quick: bool = False, step: int
     >>> {k: (len(p), p.shots) for k, p in experiment_plans(("I", "III"), step=4).items()}
     {'I': (25, 8), 'III': (25, 8)}
     """
-    from .. import plans
 
     step = step or (QUICK["step"] if quick else 1)
     shots = shots or (QUICK["shots"] if quick else 8)
@@ -148,7 +152,6 @@ def locate_runs(cubes: dict, *, method: str = "projection", hole_offset=(0.0, 0.
     >>> int((cens["III"].status == 0).sum()), "true_x" in cens["III"]
     (9, False)
     """
-    from .. import centroid
 
     moved = {}
     for name, cube in cubes.items():
@@ -208,7 +211,6 @@ def simulate_and_locate(bench=None, *, seed: int = 0, quick: bool = False,
     >>> {k: int(v.sizes["pose"]) for k, v in cens.items()}, "zero_pose_x_px" in cens["I"].attrs
     ({'I': 9, 'II': 4, 'III': 9}, True)
     """
-    from .. import plans, sim
 
     bench = sim.Bench.paper_single_hole() if bench is None else bench
     plans_ = experiment_plans(quick=quick, step=step, shots=shots)
@@ -219,8 +221,8 @@ def simulate_and_locate(bench=None, *, seed: int = 0, quick: bool = False,
         for name, plan in plans_.items():
             print(f"experiment {name} ({EXPERIMENTS[name]}): {len(plan)} poses x "
                   f"{plan.shots} shots", flush=True)
-        n_frames = sum(len(p) * p.shots for p in plans_.values())
-        print(f"rendering and centroiding {n_frames} frames ({method})", flush=True)
+        print(f"rendering and centroiding {sum(len(p) * p.shots for p in plans_.values())} "
+              f"frames ({method})", flush=True)
     cens = locate_runs(simulate_runs(runs, seed=seed), method=method, progress=progress,
                        address=address, scheduler=scheduler, workers=workers)
     out = {k: cens[k] for k in plans_}
@@ -257,7 +259,6 @@ def spot_method(method: str) -> str:
     ...
     sunlab.errors.ConfigurationError: method: found 'nearest'; expected one of [...]
     """
-    from ..centroid.estimators import PER_SPOT
 
     if method not in PER_SPOT:
         raise ConfigurationError(f"method: found {method!r}; expected one of {sorted(PER_SPOT)}")
@@ -294,11 +295,9 @@ def mounting_offset_px(one_hole) -> tuple[float, float]:
     >>> [round(v, 6) for v in mounting_offset_px(cen)]
     [80.0, 18.0]
     """
-    from ..geometry import ideal_centroid
 
-    a = one_hole["alpha"].values[:, None]
-    b = one_hole["beta"].values[:, None]
-    x0, y0 = ideal_centroid(a, b, *(float(one_hole.attrs[k]) for k in (
+    x0, y0 = ideal_centroid(one_hole["alpha"].values[:, None], one_hole["beta"].values[:, None],
+                            *(float(one_hole.attrs[k]) for k in (
         "mask_distance_mm", "pixel_pitch_mm", "x_cf_px", "y_cf_px")))
     return (float(np.nanmedian(one_hole["x"].values - x0)),
             float(np.nanmedian(one_hole["y"].values - y0)))
@@ -327,7 +326,6 @@ def usable_table(cen: xr.Dataset) -> xr.Dataset:
     >>> usable_table(cen).status.values.tolist()
     [[0, 0]]
     """
-    from ..schema import STATUS, USABLE_STATUS
 
     st = cen["status"]
     usable = st.isin([STATUS[k] for k in USABLE_STATUS])
@@ -357,12 +355,11 @@ def centroid_status(cens: dict) -> dict:
     >>> centroid_status({"III": cen})
     {'III': {'ok': 1, 'saturated': 1, 'removed': {'saturated': 1}}}
     """
-    from ..schema import STATUS_NAMES, USABLE_STATUS
 
     out = {}
     for name, cen in cens.items():
-        codes, counts = np.unique(np.asarray(cen["status"].values), return_counts=True)
-        n = {STATUS_NAMES[int(c)]: int(k) for c, k in zip(codes, counts, strict=True)}
+        n = {STATUS_NAMES[int(c)]: int(k)
+             for c, k in zip(*np.unique(cen["status"].values, return_counts=True), strict=True)}
         out[name] = {**n, "removed": {k: v for k, v in n.items() if k not in USABLE_STATUS}}
     return out
 
@@ -377,7 +374,8 @@ def write_json(doc: dict, path: str | Path) -> str:
     Parameters
     ----------
     doc : dict
-        The results; NumPy scalars and arrays are written as numbers and lists.
+        The results; NumPy scalars and arrays are written as numbers and lists, any other
+        object ``float`` takes as a number (a TypeError for the rest).
     path : str or pathlib.Path
         The file to write (replaced if it exists).
 
@@ -395,13 +393,87 @@ def write_json(doc: dict, path: str | Path) -> str:
     >>> path.read_text().split()
     ['{', '"mu":', '0.5,', '"n":', '[', '0,', '1', ']', '}']
     """
-    from .. import atomic
 
-    def plain(o):
-        if isinstance(o, np.generic | np.ndarray):
-            return o.tolist()
-        raise TypeError(type(o).__name__)
+    def plain(o):  # anything else that is a number (a torch scalar): float; not one: TypeError
+        return o.tolist() if isinstance(o, np.generic | np.ndarray) else float(o)
 
     atomic.write_text(Path(path), json.dumps(doc, indent=2, default=plain), overwrite=True,
                       flag="")
     return str(path)
+
+
+def write_files(out: str | Path, files: dict) -> list[str]:
+    """Write a table's files under ``out`` together or not at all
+    (:func:`sunlab.atomic.atomic_files`): an interrupted run leaves the previous results.
+
+    Parameters
+    ----------
+    out : str or pathlib.Path
+        The folder (made with its parents where missing).
+    files : dict of str to callable or matplotlib.figure.Figure
+        File name -> a function that writes the file at the path it is given, or a figure
+        (saved at 110 dpi, then closed).
+
+    Returns
+    -------
+    list of str
+        The paths written, in the order of ``files``.
+
+    Examples
+    --------
+    >>> import pathlib, tempfile
+    >>> out = pathlib.Path(tempfile.mkdtemp()) / "r"
+    >>> [pathlib.Path(p).name for p in write_files(out, {"a.json": lambda p: write_json({}, p)})]
+    ['a.json']
+    """
+    import matplotlib.pyplot as plt
+
+
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    try:
+        with atomic.atomic_files(out, list(files), overwrite=True, flag="") as tmp:
+            for name, what in files.items():
+                what.savefig(tmp / name, dpi=110) if hasattr(what, "savefig") else what(tmp / name)
+    finally:
+        for what in files.values():
+            if hasattr(what, "savefig"):
+                plt.close(what)
+    return [str(out / name) for name in files]
+
+
+def cells(table, name=str, value=float) -> dict:
+    """``{name(column): {"angle.stat": value(v)}}`` of a statistics table.
+
+    Parameters
+    ----------
+    table : pandas.DataFrame
+        Index ``(angle, stat)`` as :func:`sunlab.stats.evaluate` gives it, values in deg.
+    name, value : callable
+        The key of each column and the conversion of each value.
+
+    Returns
+    -------
+    dict
+        What the results files and the interval coverage read, deg.
+
+    Examples
+    --------
+    >>> import pandas as pd
+    >>> cells(pd.DataFrame({"m": [0.5]}, index=pd.MultiIndex.from_tuples([("alpha", "mu")])))
+    {'m': {'alpha.mu': 0.5}}
+    """
+    return {name(c): {f"{a}.{s}": value(v) for (a, s), v in table[c].items()}
+            for c in table.columns}
+
+
+def finite(v) -> float | None:
+    """``float(v)``, None where it is not finite (JSON has no NaN).
+
+    Examples
+    --------
+    >>> finite(0.5), finite(float("nan"))
+    (0.5, None)
+    """
+    v = float(v)
+    return v if np.isfinite(v) else None

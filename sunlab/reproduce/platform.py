@@ -45,7 +45,12 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .pipeline import experiment_plans, locate_runs, simulate_runs, usable_table, write_json
+from .. import plans, sim, stats
+from ..calibration import Polynomial, table4_methods
+from ..errors import ConfigurationError
+from . import pipeline as pl
+from .fault import diagnose, fault_bench, paper_shape
+from .remedy import fit_correction
 
 __all__ = ["reproduce_platform"]
 
@@ -110,9 +115,9 @@ def _centroids(bench, sets: dict, *, seed, method, engine, progress, where) -> d
         if progress:
             print(f"rendering and centroiding {sum(len(p) * p.shots for p in sets.values())} "
                   f"frames ({method})", flush=True)
-        cens = locate_runs(simulate_runs({k: (p, bench) for k, p in sets.items()}, seed=seed),
+        cens = pl.locate_runs(pl.simulate_runs({k: (p, bench) for k, p in sets.items()}, seed=seed),
                            method=method, progress=progress, **where)
-    return {k: usable_table(v) for k, v in cens.items()}
+    return {k: pl.usable_table(v) for k, v in cens.items()}
 
 
 def reproduce_platform(*, quick: bool = False, seed: int = 0, method: str = "projection",
@@ -161,14 +166,12 @@ def reproduce_platform(*, quick: bool = False, seed: int = 0, method: str = "pro
     >>> res["diagnosis"]["candidate"]  # the run's offset, the drift of the zero, leads
     'homing'
     """
-    from .. import plans, sim, stats
-    from ..errors import ConfigurationError
 
     if engine not in ("render", "surrogate"):
         raise ConfigurationError(f"engine: found {engine!r}; expected 'render' or 'surrogate'.")
     t0 = time.perf_counter()
     bench = sim.Bench.paper_single_hole() if bench is None else bench
-    paper = experiment_plans(quick=quick, step=step, shots=shots)
+    paper = pl.experiment_plans(quick=quick, step=step, shots=shots)
     protocols = {"paper": paper,
                  "uni": {k: p.with_motion(approach="unidirectional") for k, p in paper.items()}}
     # every run of both protocols, and one zero-pose check per run, taken after homing (its
@@ -193,16 +196,13 @@ def reproduce_platform(*, quick: bool = False, seed: int = 0, method: str = "pro
               "files": []}
     if out is not None:
         Path(out).mkdir(parents=True, exist_ok=True)
-        result["files"] = [write_json(result, Path(out) / "platform.json")]
+        result["files"] = [pl.write_json(result, Path(out) / "platform.json")]
     return result
 
 
 def _rows(cens: dict, protocols: dict):
     """The estimate and reference angles of every row of the table, the polynomial orders of
     each protocol, the diagnosis, the joint fit whose parameters are reported and its row."""
-    from ..calibration import Polynomial
-    from .fault import diagnose
-    from .remedy import fit_correction
 
     zeros = {"zero_train": cens["zero I"], "zero_test": cens["zero III"]}
 
@@ -235,21 +235,18 @@ def _platform_doc(table, jc, truth: dict, from_row: str, diag) -> dict:
     """The platform table's results: rows, the joint fit's parameters beside the bench's
     (``truth``) with their z-scores, the diagnosis, the paper's shape test and the must-show
     checks (the orders, settings, timings and files are added by the caller)."""
-    from .. import stats
-    from .fault import paper_shape
 
     parameters = {k: {"fitted": p["fitted"], "stderr": p["stderr"], "bench": truth[k],
                       "z": ((p["fitted"] - truth[k]) / p["stderr"] if p["stderr"] > 0
                             else float("inf")), "from": from_row}
                   for k, p in jc.parameters.items()}
-    cells = {r: {f"{a}.{s}": float(table.loc[(a, s), r]) for a in stats.ANGLES
-                 for s in stats.STATS} for r in table.columns}
-    poly, remedies = cells[ROWS[0]], {r: cells[r]["beta.mu"] for r in list(cells)[1:]}
+    rows = pl.cells(table)
+    poly, remedies = rows[ROWS[0]], {r: rows[r]["beta.mu"] for r in list(rows)[1:]}
     best = min(remedies, key=remedies.get)
     return {
         "table": "platform",
         "source": "sunlab virtual bench (ours); the paper's own statistics for paper_shape",
-        "rows": cells, "parameters": parameters,
+        "rows": rows, "parameters": parameters,
         "diagnosis": {**dataclasses.asdict(diag), "polynomial_shape": {
             a: poly[f"{a}.sigma"] / poly[f"{a}.mu"] for a in stats.ANGLES}},
         "paper_shape": {f"{m} {a}": {"ratio": float(r["ratio"]),
@@ -363,13 +360,10 @@ def candidate_table(sizes: dict, *, bench=None, seed: int = 0, shots: int = 1,
     >>> list(t.columns), bool(0.005 < t.loc["backlash", "polynomial mu"] < 0.03)
     (['size_deg', 'polynomial mu', 'polynomial sigma', 'score', 'shape_excess'], True)
     """
-    from ..calibration import table4_methods
-    from ..sim import Bench
     from ..sim.surrogate import surrogate_centroids
-    from .fault import fault_bench
 
-    bench = Bench.paper_single_hole() if bench is None else bench
-    exps = experiment_plans or experiment_plans(step=1, shots=shots)
+    bench = sim.Bench.paper_single_hole() if bench is None else bench
+    exps = experiment_plans or pl.experiment_plans(step=1, shots=shots)
     fits = table4_methods(neural=False, seed=seed)
     rows = {}
     for kind, size in sizes.items():
@@ -384,7 +378,6 @@ def candidate_table(sizes: dict, *, bench=None, seed: int = 0, shots: int = 1,
 def _beta_cells(cen: dict, fits: dict, methods) -> dict:
     """Table 4's beta mu and sigma of each method calibrated on ``cen["I"]`` (order on II) and
     applied to III, their ``score`` against the paper's and the ``shape_excess``."""
-    from .. import stats
 
     paper = stats.paper_table4()
     row, logs = {}, []

@@ -10,12 +10,15 @@ from its recorded motion (``sunlab reproduce --table platform``, notebook 09).
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
 import xarray as xr
 
+from ..calibration import Polynomial
 from ..errors import ConfigurationError
+from ..schema import STATUS, USABLE_STATUS
 from .fault import approach_of
 
 __all__ = []
@@ -23,9 +26,7 @@ __all__ = []
 
 def _pose_means(cen: xr.Dataset):
     """Pose-mean centroids of the usable shots, px (NaN for a pose without one)."""
-    import warnings
 
-    from ..schema import STATUS, USABLE_STATUS
 
     ok = np.asarray(cen["status"].isin([STATUS[k] for k in USABLE_STATUS]).values)
     x = np.where(ok, np.asarray(cen["x"].values, dtype=float), np.nan)
@@ -156,7 +157,6 @@ def fit_correction(train: xr.Dataset, train_motion, validation: xr.Dataset | Non
     >>> abs(p["fitted"] - 0.02) < 3 * p["stderr"] < 0.002
     True
     """
-    from ..calibration import Polynomial
 
     if validation is not None:
         cal, _ = Polynomial.select_order(train, validation)

@@ -41,13 +41,8 @@ import pandas as pd
 from .. import __version__, parallel, stats
 from ..calibration import table4_methods
 from ..errors import ConfigurationError
-from .intervals import _span, _stat_line, coverage_lines, identified
-from .pipeline import (
-    centroid_status,
-    simulate_and_locate,
-    usable_table,
-    write_json,
-)
+from . import pipeline as pl
+from .intervals import identified, stat_lines
 
 __all__ = ["reproduce_table4"]
 
@@ -114,17 +109,15 @@ class Table4Result:
             fit, held-out or duplicate; :func:`sunlab.reproduce.intervals.identified`).
         """
 
-        def frame(df: pd.DataFrame) -> dict:
-            return {str(c): {f"{a}.{s}": _num(v) for (a, s), v in df[c].items()}
-                    for c in df.columns}
-
         tops = ("interval90", "interval_role")
         settings = {k: v for k, v in self.settings.items() if k not in tops}
         return {
             "sunlab_version": __version__, "table": "4",
             "source": "sunlab virtual bench (ours) beside docs/paper.md Table 4 (paper)",
-            "ours": frame(self.table), "paper": frame(self.paper),
-            "rectangle_area_deg2": {str(k): _num(v) for k, v in self.rectangles["area"].items()},
+            "ours": pl.cells(self.table, value=pl.finite),
+            "paper": pl.cells(self.paper, value=pl.finite),
+            "rectangle_area_deg2": {str(k): pl.finite(v)
+                                    for k, v in self.rectangles["area"].items()},
             "optimised_model": self.optimised,
             "polynomial_order": [int(n) for n in self.polynomial_order],
             "centroid_status": self.centroid_status,
@@ -132,17 +125,6 @@ class Table4Result:
             "settings": settings,
             **{k: self.settings[k] for k in tops if k in self.settings},
         }
-
-
-def _cells(df: pd.DataFrame, keys: dict) -> dict:
-    """``{column: {"angle.stat": value}}`` of a table's columns that ``keys`` names."""
-    return {c: {f"{a}.{st}": float(v) for (a, st), v in df[c].items()}
-            for c in df.columns if c in keys}
-
-
-def _num(v) -> float | None:
-    v = float(v)
-    return None if not np.isfinite(v) else v
 
 
 def bench_optimised_truth(bench) -> dict:
@@ -234,7 +216,7 @@ def reproduce_table4(*, quick: bool = False, seed: int = 0, method: str = "proje
 
     custom, bench = bench, sim.Bench.paper_single_hole() if bench is None else bench
     t0 = time.perf_counter()
-    cens = simulate_and_locate(bench, seed=seed, quick=quick, step=step, shots=shots,
+    cens = pl.simulate_and_locate(bench, seed=seed, quick=quick, step=step, shots=shots,
                                method=method, progress=progress, address=address,
                                scheduler=scheduler, workers=workers, zero_pose=True)
     centroided = time.perf_counter() - t0
@@ -293,7 +275,7 @@ def table4_statistics(cens: dict, bench, *, neural: bool = True, seed: int = 0) 
         raise ConfigurationError(
             f"cens: found runs {sorted(cens)}; expected 'I', 'II' and 'III'. Fix: the "
             "tables of simulate_and_locate(..., zero_pose=True).")
-    train, val, test = (usable_table(cens[k]) for k in ("I", "II", "III"))
+    train, val, test = (pl.usable_table(cens[k]) for k in ("I", "II", "III"))
     # every method fitted on I (II for model selection), BLAS on one thread (small problems, a
     # busy machine: idle BLAS threads slow them several-fold); a method whose extra is not
     # installed goes into not_run, with the ImportError's message (which names the extra)
@@ -310,13 +292,14 @@ def table4_statistics(cens: dict, bench, *, neural: bool = True, seed: int = 0) 
             timings[f"fit {label}"] = time.perf_counter() - t
     table, _, local = stats.evaluate(fitted, test, return_errors=True)
     opt, truth = fitted["optimised model (3)-(4)"].result, bench_optimised_truth(bench)
-    optimised = {k: {"fitted": float(getattr(opt, k)), "stderr": _num(opt.stderr.get(k, np.nan)),
+    optimised = {k: {"fitted": float(getattr(opt, k)),
+                     "stderr": pl.finite(opt.stderr.get(k, np.nan)),
                      "bench": float(truth[k]), "paper": PAPER_OPTIMISED[k],
                      "stderr_method": opt.stderr_method} for k in PAPER_OPTIMISED}
     return Table4Result(
         table=table, paper=stats.paper_table4(), rectangles=stats.rectangles(table), local=local,
         optimised=optimised, polynomial_order=tuple(int(n) for n in fitted["polynomial"].orders),
-        centroid_status=centroid_status(cens), timings=timings,
+        centroid_status=pl.centroid_status(cens), timings=timings,
         settings={"not_run": not_run, "poses": {k: int(v.sizes["pose"]) for k, v in cens.items()},
                   "shots": int(test.sizes["shot"]), "bench": json.loads(bench.to_json()),
                   "network_reference": NN_REFERENCE})
@@ -357,28 +340,20 @@ def _write_outputs(res: Table4Result, out: Path) -> list[str]:
     import matplotlib
 
     matplotlib.use("Agg", force=False)
-    from .. import atomic, plots
+    from .. import plots
 
-    local = res.local["polynomial"]
-    figs = {
+    local, table = res.local["polynomial"], res.table
+    side = stats.side_by_side(table, res.paper, names=("sunlab", "paper"))
+    return pl.write_files(out, {
+        "table4_sunlab.csv": table.to_csv, "table4_side_by_side.csv": side.to_csv,
+        "table4.json": lambda path: pl.write_json(res.to_dict(), path),
         "fig10_error_maps_polynomial.png": plots.error_maps(
             local, title="Fig. 10: local errors, polynomial (virtual bench)"),
         "fig11_alpha_histogram_polynomial.png": plots.error_histogram(
             local, angle="alpha", title="Fig. 11: alpha local error, polynomial (virtual bench)"),
         "fig12_rectangles.png": plots.error_rectangles(
-            res.table[comparable_methods(res.table)],
-            title="Fig. 12: [M - 3 sigma_M, M + 3 sigma_M],\nexperiment III (virtual bench)"),
-    }
-    files = ["table4_sunlab.csv", "table4_side_by_side.csv", "table4.json", *figs]
-    out.parent.mkdir(parents=True, exist_ok=True)
-    # every file or none: an interrupted run leaves the previous results (sunlab.atomic)
-    with atomic.atomic_files(out, files, overwrite=True, flag="") as tmp:
-        res.table.to_csv(tmp / files[0])
-        stats.side_by_side(res.table, res.paper, names=("sunlab", "paper")).to_csv(tmp / files[1])
-        write_json(res.to_dict(), tmp / files[2])
-        for name, fig in figs.items():
-            fig.savefig(tmp / name, dpi=110)  # constrained layout: no tight bbox (a 2nd draw)
-    return [str(out / f) for f in files]
+            table[comparable_methods(table)],
+            title="Fig. 12: [M - 3 sigma_M, M + 3 sigma_M],\nexperiment III (virtual bench)")})
 
 
 def format_table(res: Table4Result) -> str:
@@ -404,22 +379,9 @@ def format_table(res: Table4Result) -> str:
     """
     if not isinstance(res, Table4Result):
         raise ConfigurationError(f"res: found {type(res).__name__}; expected a Table4Result")
-    keys = [(a, st) for a in stats.ANGLES for st in stats.STATS]
-    lines = ["Table 4 - global statistics on experiment III, one hole (deg)",
-             "paper = the 2005 preprint; ours = sunlab virtual bench (simulated frames); our 90 % "
-             "interval = the identified bench's predictive interval (docs/identification.md)",
-             "", f"{'method':<26s}" + "".join(f"{a[0] + ' ' + st:>12s}" for a, st in keys)]
-    iv = res.settings.get("interval90", {})
-    for c in res.table.columns:
-        if c in res.paper.columns:
-            lines.append(_stat_line(c, [res.paper.loc[k, c] for k in keys], "paper", 26))
-        lines.append(_stat_line("" if c in res.paper.columns else c,
-                               [res.table.loc[k, c] for k in keys], "ours", 26))
-        if c in iv:
-            lines.append(_stat_line("", [_span(*iv[c][f"{a}.{st}"]) for a, st in keys],
-                                   "our 90 % interval", 26))
-    lines += coverage_lines(iv, res.settings.get("interval_role", {}),
-                            _cells(res.paper, iv), _cells(res.table, iv))
+    lines = stat_lines("Table 4 - global statistics on experiment III, one hole (deg)",
+                       "method", 26, res.paper, res.table, res.settings.get("interval90", {}),
+                       res.settings.get("interval_role", {}))
     not_run = res.settings.get("not_run", {})
     lines += [f"{label:<26s}not run: its extra is not installed" for label in not_run]
     lines += [f"  ({why})" for why in dict.fromkeys(not_run.values())]

@@ -32,19 +32,16 @@ import time
 from pathlib import Path
 
 import numpy as np
+import xarray as xr
 
+from .. import multihole as mh
+from .. import parallel, sim, stats
+from ..calibration import Polynomial
+from ..calibration.registry import POLYNOMIAL_REFIT
 from ..errors import ConfigurationError
-from .intervals import _span, _stat_line, coverage_lines, identified
-from .pipeline import (
-    centroid_status,
-    experiment_plans,
-    locate_runs,
-    mounting_offset_px,
-    simulate_runs,
-    spot_method,
-    usable_table,
-    write_json,
-)
+from ..multihole.defects import DEFECT_METRICS, residual_metrics
+from . import pipeline as pl
+from .intervals import identified, stat_lines
 
 __all__ = ["reproduce_table5"]
 
@@ -112,7 +109,7 @@ def reproduce_table5(quick: bool = True, seed: int = 0, out: Path | str | None =
     >>> res["table"].loc[("alpha", "mu")]  # doctest: +SKIP
     """
     t0 = time.perf_counter()
-    plans_ = experiment_plans(("I", "II", "III"), quick=quick, step=step, shots=shots)
+    plans_ = pl.experiment_plans(("I", "II", "III"), quick=quick, step=step, shots=shots)
     tables, hole_metrics, cubes = multi_hole_tables(
         plans_, seed=seed, method=method, progress=progress, address=address,
         scheduler=scheduler, workers=workers)
@@ -137,16 +134,14 @@ def reproduce_table5(quick: bool = True, seed: int = 0, out: Path | str | None =
 
 def _write_json(result: dict, out: Path, *, quick: bool, seed: int, method: str) -> str:
     """``table5.json``: the table, the bad holes, the budget, sizes, timings and settings."""
-    table = result["table"]
-    doc = {"table5": {f"{c[0]} [{c[1]}]": {f"{a}.{st}": float(v) for (a, st), v in
-                                            table[c].items()} for c in table.columns},
+    doc = {"table5": pl.cells(result["table"], name=lambda c: f"{c[0]} [{c[1]}]"),
            **{k: result[k] for k in ("bad_holes", "injected", "budget", "sizes", "runtime_s",
                                      "timings_s")},
            "quick": quick, "centroid_status": result["centroid_status"],
            "findings": result["findings"], "seed": seed, "order": result["order"],
            "centroid_method": method, "settings": {"hypothesis": result["hypothesis"]},
            "interval90": result["interval90"], "interval_role": result["interval_role"]}
-    return write_json(doc, out / "table5.json")
+    return pl.write_json(doc, out / "table5.json")
 
 
 def multi_hole_tables(plans_: dict, *, seed: int = 0, method: str = "projection",
@@ -186,8 +181,6 @@ def multi_hole_tables(plans_: dict, *, seed: int = 0, method: str = "projection"
         :class:`sunlab.widgets.HoleExplorer` (the same frames the tables were measured on).
 
     """
-    from .. import multihole as mh
-    from .. import parallel, sim
 
     one = {f"1 hole {k}": (p, sim.Bench.paper_single_hole()) for k, p in plans_.items()}
     many = {f"100 holes {k}": (p, sim.Bench.paper_multi_hole()) for k, p in plans_.items()
@@ -195,15 +188,16 @@ def multi_hole_tables(plans_: dict, *, seed: int = 0, method: str = "projection"
     where = {"progress": progress, "address": address, "scheduler": scheduler,
              "workers": workers}
     with parallel.worker_pool(scheduler, workers, address) as pool:
-        tables = locate_runs(simulate_runs(one, seed=seed), method=method, pool=pool, **where)
-        tables.update(locate_runs(simulate_runs(many, seed=seed), method=spot_method(method),
-                                  hole_offset=mounting_offset_px(tables["1 hole I"]),
-                                  pool=pool, **where))
+        tables = pl.locate_runs(pl.simulate_runs(one, seed=seed), method=method, pool=pool, **where)
+        tables.update(pl.locate_runs(pl.simulate_runs(many, seed=seed),
+                                     method=pl.spot_method(method), pool=pool,
+                                     hole_offset=pl.mounting_offset_px(tables["1 hole I"]),
+                                     **where))
     # the passes take whole poses (one Dask task each); the cubes handed on serve single
     # frames (the metrics sample frames, figures, the explorer), so they are chunked by frame:
     # the same frames either way
-    cubes = simulate_runs({**one, **many}, seed=seed, chunks="frame")
-    hole_metrics = mh.defect_metrics(usable_table(tables["100 holes I"]),
+    cubes = pl.simulate_runs({**one, **many}, seed=seed, chunks="frame")
+    hole_metrics = mh.defect_metrics(pl.usable_table(tables["100 holes I"]),
                                      cube=cubes["100 holes I"])
     return tables, hole_metrics, cubes
 
@@ -243,15 +237,13 @@ def table5_statistics(tables: dict, hole_metrics, *, order: int | None = None) -
         ``files`` (empty) and ``data`` (centroid tables and the averaging strategy, for figures
         and :class:`sunlab.widgets.HoleExplorer`).
     """
-    from .. import multihole as mh
-    from .. import stats
 
     names = ("100 holes I", "100 holes III", "1 hole I", "1 hole III")
     missing = [k for k in (*names, "1 hole II") if k not in tables]
     if missing:
         raise ConfigurationError(
             f"tables: missing {missing}. Fix: the tables of multi_hole_tables(...).")
-    cens = {k: usable_table(tables[k]) for k in (*names, "1 hole II")}
+    cens = {k: pl.usable_table(tables[k]) for k in (*names, "1 hole II")}
     one_hole, order = _one_hole_polynomial(cens, order)
     cen_tr, cen_te = cens["100 holes I"], cens["100 holes III"]
     s2, metrics, bad, est, preds = _strategies(cen_tr, cen_te, hole_metrics, order)
@@ -277,7 +269,7 @@ def table5_statistics(tables: dict, hole_metrics, *, order: int | None = None) -
         # what the figures and the hole explorer need (not written); the caller adds the cubes
         "data": {"centroids_train": cen_tr, "centroids_test": cen_te, "strategy": s2,
                  "one_hole_test": cens["1 hole III"]},
-        "order": order, "centroid_status": centroid_status({k: tables[k] for k in names}),
+        "order": order, "centroid_status": pl.centroid_status({k: tables[k] for k in names}),
         "sizes": {"train_poses": int(size["pose"]),
                   "test_poses": int(tables["100 holes III"].sizes["pose"]),
                   "shots": int(size["shot"]), "holes": int(size["hole"])},
@@ -296,28 +288,13 @@ def format_table5(result: dict) -> str:
     -------
     str
     """
-    from .. import stats
-
-    keys = [(a, st) for a in stats.ANGLES for st in stats.STATS]
-    lines = ["Table 5 - polynomial calibration, 100 holes vs one hole (deg)",
-             "paper = the 2005 preprint; ours = sunlab virtual bench (simulated frames); our 90 % "
-             "interval = the identified bench's predictive interval (docs/identification.md)",
-             "", f"{'column':<34s}" + "".join(f"{a[0] + ' ' + st:>12s}" for a, st in keys)]
-    table, iv = result["table"], result.get("interval90", {})
-    for col in (*COLUMNS, REJECTION_COLUMN):
-        published = (col, "paper") in table.columns
-        if published:
-            lines.append(_stat_line(col, [table.loc[k, (col, "paper")] for k in keys], "paper", 34))
-        lines.append(_stat_line("" if published else col,
-                               [table.loc[k, (col, "sunlab")] for k in keys], "ours", 34))
-        cell = iv.get(f"{col} [sunlab]")
-        if cell:
-            lines.append(_stat_line("", [_span(*cell[f"{a}.{st}"]) for a, st in keys],
-                                   "our 90 % interval", 34))
-    cells = {src: {f"{c} [sunlab]": {f"{a}.{st}": float(v)
-                                     for (a, st), v in table[(c, src)].items()}
-                   for c in COLUMNS if (c, src) in table.columns} for src in ("paper", "sunlab")}
-    lines += coverage_lines(iv, result.get("interval_role", {}), cells["paper"], cells["sunlab"])
+    table = result["table"]
+    plain = {k: {c.removesuffix(" [sunlab]"): v for c, v in result.get(k, {}).items()}
+             for k in ("interval90", "interval_role")}
+    lines = stat_lines("Table 5 - polynomial calibration, 100 holes vs one hole (deg)", "column",
+                       34, table.xs("paper", axis=1, level=1),
+                       table.xs("sunlab", axis=1, level=1)[[*COLUMNS, REJECTION_COLUMN]],
+                       plain["interval90"], plain["interval_role"])
     return "\n".join(lines)
 
 
@@ -325,8 +302,6 @@ def _one_hole_polynomial(cens: dict, order: int | None):
     """The one hole's polynomial on I and the order of every calibration of the table: chosen
     on the one hole's II as Table 4 chooses it (the larger of its orders for the 100-hole
     strategies, which take one order), unless ``order`` is given."""
-    from ..calibration import Polynomial
-    from ..calibration.registry import POLYNOMIAL_REFIT
 
     if order is not None:
         return Polynomial(order).fit(cens["1 hole I"]), int(order)
@@ -339,7 +314,6 @@ def _strategies(cen_tr, cen_te, hole_metrics, order: int):
     training run's defect metrics (spot shape and the edge roughness that finds burrs, with the
     averaging's residual metrics added as :func:`sunlab.multihole.defect_metrics` adds them),
     the per-hole estimates on III and each 100-hole column's estimate."""
-    from .. import multihole as mh
 
     s2 = mh.PerHoleAverage(order=order).fit(cen_tr)
     metrics = _with_residual_metrics(hole_metrics, s2, cen_tr)
@@ -357,9 +331,7 @@ def _with_residual_metrics(hole_metrics, strategy, cen):
     residual metrics of the fitted ``strategy`` on ``cen`` added: the dataset that
     ``defect_metrics(cen, strategy=strategy, ...)`` gives, variables in its order (the data,
     then the hole coordinates: the columns of ``hole_metrics.csv``)."""
-    import xarray as xr
 
-    from ..multihole.defects import DEFECT_METRICS, residual_metrics
 
     rm = residual_metrics(strategy.predict_holes(cen))
     data = {k: hole_metrics[k].variable for k in hole_metrics.data_vars}
@@ -370,10 +342,7 @@ def _with_residual_metrics(hole_metrics, strategy, cen):
 
 def _write_figures(result: dict, out: Path) -> list[str]:
     """``table5.csv``, ``hole_metrics.csv`` and Figs. 13-15 under ``out``; the paths."""
-    import matplotlib.pyplot as plt
-
-    from .. import atomic, plots
-    from .. import multihole as mh
+    from .. import plots
 
     metrics, ours = result["metrics"], result["ours"]
     bad = np.isin(np.arange(metrics.sizes["hole"]), result["bad_holes"])
@@ -381,7 +350,7 @@ def _write_figures(result: dict, out: Path) -> list[str]:
     cen, frames = result["data"]["centroids_test"], result["data"]["cube_test"]["frames"]
     p13 = int(np.argmax(mh.holes.usable(cen).values[:, 0, :].sum(axis=1)))  # the most spots whole
     p14, ref = _fig14_pose(cen, show, bad)
-    figs = {
+    return pl.write_files(out, {
         "fig13.png": plots.fig13_frame(frames.isel(pose=p13, shot=0).values,
                                        cen.isel(pose=p13, shot=0), bad=bad),
         "fig14.png": plots.fig14_bad_holes(frames.isel(pose=p14, shot=0).values,
@@ -391,17 +360,8 @@ def _write_figures(result: dict, out: Path) -> list[str]:
             {k: {a: {"M": float(ours.loc[(a, "M"), k]),
                      "sigma_M": float(ours.loc[(a, "sigma_M"), k])} for a in ("alpha", "beta")}
              for k in ours.columns}),
-    }
-    names = [*figs, "table5.csv", "hole_metrics.csv"]
-    out.parent.mkdir(parents=True, exist_ok=True)
-    # every file or none: an interrupted run leaves the previous results (sunlab.atomic)
-    with atomic.atomic_files(out, names, overwrite=True, flag="") as tmp:
-        for name, fig in figs.items():
-            fig.savefig(tmp / name, dpi=110)
-            plt.close(fig)
-        result["table"].to_csv(tmp / "table5.csv")
-        metrics.to_dataframe().to_csv(tmp / "hole_metrics.csv")
-    return [str(out / name) for name in names]
+        "table5.csv": result["table"].to_csv,
+        "hole_metrics.csv": lambda path: metrics.to_dataframe().to_csv(path)})
 
 
 def _fig14_pose(cen, holes, bad) -> tuple[int, int]:
@@ -417,7 +377,6 @@ def _fig14_pose(cen, holes, bad) -> tuple[int, int]:
     >>> _fig14_pose(cen, [2, 3], np.array([False, False, True, True]))
     (1, 0)
     """
-    from .. import multihole as mh
 
     seen = mh.holes.usable(cen).values[:, 0, :]  # (pose, hole)
     p = int(np.argmax(seen[:, list(holes)].sum(axis=1))) if len(holes) else 0
