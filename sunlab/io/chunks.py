@@ -101,12 +101,9 @@ class _ChunkReader:
 
 
 def _stored_chunks(var: xr.Variable) -> tuple[int, ...]:
-    enc = var.encoding
-    if enc.get("preferred_chunks"):
-        return tuple(int(enc["preferred_chunks"].get(d, n))
-                     for d, n in zip(var.dims, var.shape, strict=True))
-    chunks = enc.get("chunks") or enc.get("chunksizes")
-    return tuple(int(c) for c in (chunks if chunks and len(chunks) == var.ndim else var.shape))
+    """The chunks on disk (xarray's backends say them; a contiguous variable is one chunk)."""
+    pref = var.encoding.get("preferred_chunks") or {}
+    return tuple(int(pref.get(d, n)) for d, n in zip(var.dims, var.shape, strict=True))
 
 
 def _checked_lazy(ds: xr.Dataset, path: Path, fmt: str) -> xr.Dataset:

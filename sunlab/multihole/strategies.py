@@ -352,10 +352,7 @@ class PerHoleAverage(Calibration):
             raise ConfigurationError(
                 f"weighting: found {self.weighting!r}, expected 'equal' or 'inverse_variance'")
         factory = self.model or (lambda: Polynomial(self.order))
-        probe = factory()
-        order = getattr(probe, "order", self.order)
-        n_coef = int(probe.min_poses()) if hasattr(probe, "min_poses") else \
-            (order + 1) * (order + 2) // 2
+        n_coef = int(factory().min_poses())  # a Calibration: one pose per free coefficient
         need = max(math.ceil(self.poses_per_coef * n_coef), 3)
         ok = usable(cen, self.accept)
         # each hole's own table (centroids/1 on (pose, shot)), built directly: unusable frames
