@@ -56,13 +56,12 @@ class _ChunkReader:
     """Array-like over one lazily opened variable that names its chunk when a read fails.
 
     Dask reads the stored chunks through it, one ``__getitem__`` per chunk; a checksum mismatch,
-    a decompression error or DN above the bit depth becomes a :class:`SunlabError` naming the
-    store, the variable, the chunk index and its file.
+    or a decompression error becomes a :class:`SunlabError` naming the store, the variable, the
+    chunk index and its file (DN above the bit depth: :func:`_checked_dn`, on the frames).
     """
 
-    def __init__(self, var: xr.Variable, path: Path, name: str, fmt: str, chunks, bits):
-        self.var, self.path, self.name, self.fmt, self.chunks, self.bits = (
-            var, path, name, fmt, chunks, bits)
+    def __init__(self, var: xr.Variable, path: Path, name: str, fmt: str, chunks):
+        self.var, self.path, self.name, self.fmt, self.chunks = var, path, name, fmt, chunks
         self.shape, self.ndim = var.shape, var.ndim
         self.dtype = var.dtype if var.dtype.kind in "OSUT" else var.dtype.newbyteorder("=")
 
@@ -74,9 +73,6 @@ class _ChunkReader:
             block = np.asarray(self.var[key].values, dtype=self.dtype)
         except Exception as exc:  # noqa: BLE001 - any decoder failure is reported with the chunk
             raise self._error(index, exc) from exc
-        if self.bits is not None and block.size and int(block.max()) >= 2**self.bits:
-            raise _dn_error(str(self.path), _chunk_label(self.var.dims, index), int(block.max()),
-                            self.bits)
         return block
 
     def _error(self, index, exc: Exception) -> SunlabError:
@@ -101,12 +97,9 @@ class _ChunkReader:
 
 
 def _stored_chunks(var: xr.Variable) -> tuple[int, ...]:
-    enc = var.encoding
-    if enc.get("preferred_chunks"):
-        return tuple(int(enc["preferred_chunks"].get(d, n))
-                     for d, n in zip(var.dims, var.shape, strict=True))
-    chunks = enc.get("chunks") or enc.get("chunksizes")
-    return tuple(int(c) for c in (chunks if chunks and len(chunks) == var.ndim else var.shape))
+    """The chunks on disk (xarray's backends say them; a contiguous variable is one chunk)."""
+    pref = var.encoding.get("preferred_chunks") or {}
+    return tuple(int(pref.get(d, n)) for d, n in zip(var.dims, var.shape, strict=True))
 
 
 def _checked_lazy(ds: xr.Dataset, path: Path, fmt: str) -> xr.Dataset:
@@ -123,14 +116,14 @@ def _checked_lazy(ds: xr.Dataset, path: Path, fmt: str) -> xr.Dataset:
         if name in ds.indexes or var.ndim == 0:
             continue
         chunks = _stored_chunks(var)
-        check = bits if name == "frames" and var.dtype.kind == "u" else None
         # the backend's lazily indexed array
-        reader = _ChunkReader(xr.Variable(var.dims, var._data), path, str(name), fmt, chunks,
-                              check)
-        new[name] = var.copy(deep=False, data=da.from_array(
-            reader, chunks=chunks, asarray=False, fancy=False,
-            name=f"sunlab-open-{name}-{tokenize(str(path), stamp, name, chunks)}",
-            meta=np.empty((0,) * var.ndim, reader.dtype)))
+        reader = _ChunkReader(xr.Variable(var.dims, var._data), path, str(name), fmt, chunks)
+        data = da.from_array(reader, chunks=chunks, asarray=False, fancy=False,
+                             name=f"sunlab-open-{name}-{tokenize(str(path), stamp, name, chunks)}",
+                             meta=np.empty((0,) * var.ndim, reader.dtype))
+        checked = name == "frames" and bits is not None and var.dims == ("pose", "shot", "y", "x")
+        new[name] = var.copy(deep=False, data=_checked_dn(data, bits, str(path)) if checked
+                             else data)
     coords = {n: v for n, v in new.items() if n in ds.coords}
     return ds.assign_coords(coords).assign({n: v for n, v in new.items() if n not in coords})
 

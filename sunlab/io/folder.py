@@ -78,9 +78,8 @@ def _from_images(path: Path, manifest=None, *, lazy=True, dark=None, flat=None, 
         peak = int(frames.max()) if frames.size and dtype != np.uint8 else 0
         bit_depth = next(b for b in (8, 10, 12, 14, 16) if peak < 2**b)
     attrs = {"source": str(folder.resolve()), "left_aligned": left_aligned,
-             **dict(doc.get("attrs") or {})}
-    if found is not None:
-        attrs["sensor_json"] = str(found.resolve())
+             **dict(doc.get("attrs") or {}), **({"sensor_json": str(found.resolve())} if found
+                                                 else {})}
     kw = {k: given[k] for k in ("x_cf_px", "y_cf_px", "mask") if given[k] is not None}
     cube = frames_dataset(
         frames, alpha=[a for a, _ in poses], beta=[b for _, b in poses], bit_depth=bit_depth,

@@ -206,18 +206,16 @@ def open_frames(path, manifest=None, *, format: str | None = None, check_chunks:
     return _finish(_open_raw(path, format), validate_frames, check_chunks)
 
 
-#: The sensor constants a CSV centroid table takes from the ``sensor.json`` beside it.
-CSV_SENSOR_KEYS = ("pixel_pitch_mm", "mask_distance_mm", "x_cf_px", "y_cf_px")
-
-
 def _sensor_attrs(path) -> dict | None:
-    """The sensor attributes of a CSV table from the ``sensor.json`` in its folder, or None."""
+    """The sensor attributes of a CSV table (pitch, mask distance, design centre) from the
+    ``sensor.json`` in its folder, or None."""
     from .sensor import find_sensor_json, read_sensor_json
 
-    found = find_sensor_json(Path(path).resolve().parent)
-    sensor = read_sensor_json(found) if found else None
-    return None if found is None else {**{k: sensor[k] for k in CSV_SENSOR_KEYS if k in sensor},
-                                       "sensor_json": str(found)}
+    if (found := find_sensor_json(Path(path).resolve().parent)) is None:
+        return None
+    doc = read_sensor_json(found)
+    return {**{k: doc[k] for k in ("pixel_pitch_mm", "mask_distance_mm", "x_cf_px", "y_cf_px")
+               if k in doc}, "sensor_json": str(found)}
 
 
 def open_centroids(path, *, format: str | None = None, lazy: bool = False,
@@ -290,8 +288,9 @@ def open_centroids(path, *, format: str | None = None, lazy: bool = False,
     return loaded
 
 
-def _open_any(path, check_chunks: bool = False) -> xr.Dataset:
-    """A frame cube (lazy) or a centroid table (lazy), whichever the file's contract names."""
+def _open_any(path) -> xr.Dataset:
+    """A frame cube (lazy) or a centroid table (lazy), whichever the file's contract names;
+    missing Zarr chunks allowed."""
     ds = _open_raw(path)
     centroids = ds.attrs.get("sunlab_schema") == CENTROIDS_SCHEMA
-    return _finish(ds, validate_centroids if centroids else validate_frames, check_chunks)
+    return _finish(ds, validate_centroids if centroids else validate_frames, False)

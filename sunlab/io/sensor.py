@@ -130,15 +130,11 @@ def _checked(path: Path, key: str, value):
         "object": isinstance(value, dict),
     }[kind]
     if not ok:
-        hint = ""
-        if isinstance(value, str) and kind in ("positive", "number", "bits"):
-            hint = f"write {key}: {value.strip()} without quotes; "
-        elif isinstance(value, str) and kind == "bool":
-            hint = f"write {key}: true or false without quotes; "
-        elif isinstance(value, str) and kind == "text":
-            hint = "remove the control characters (ESC, tabs, line breaks); "
-        if isinstance(value, str) and not value.isprintable():
-            hint = hint.replace(value.strip(), ascii(value.strip())[1:-1])
+        text = str(value).strip()  # a string's hint, control characters escaped
+        text = text if text.isprintable() else ascii(text)[1:-1]
+        hint = {"bool": f"write {key}: true or false without quotes; ", "object": "",
+                "text": "remove the control characters (ESC, tabs, line breaks); "}.get(
+                    kind, f"write {key}: {text} without quotes; ") if isinstance(value, str) else ""
         raise SchemaError(f"{path.name} field {key!r}", value, f"{_EXPECTED[kind]}: {meaning}",
                           f"{hint}correct it in {path}")
     return int(value) if kind == "bits" else value

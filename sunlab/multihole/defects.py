@@ -45,8 +45,8 @@ DEFECT_METRICS: dict[str, str] = {
 _SHAPE = ("radius", "ellipticity", "asymmetry")
 
 
-def stamp_metrics(cube: xr.Dataset, cen: xr.Dataset, *, poses=None, shot: int = 0,
-                 half: int = 30, max_frames: int = 6) -> xr.Dataset:
+def stamp_metrics(cube: xr.Dataset, cen: xr.Dataset, *, shot: int = 0, half: int = 30,
+                  max_frames: int = 6) -> xr.Dataset:
     """Shape metrics of every hole's spot from its pixels: size, ellipticity, asymmetry.
 
     A stamp of ``2 * half + 1`` px is cut around each centroid in a few frames, the background
@@ -62,14 +62,12 @@ def stamp_metrics(cube: xr.Dataset, cen: xr.Dataset, *, poses=None, shot: int = 
         Frame cube (contract ``frames/1``).
     cen : xarray.Dataset
         Its centroid table on (pose, shot, hole).
-    poses : sequence of int, optional
-        Poses to sample (default ``max_frames`` evenly spread).
     shot : int
         Shot to use.
     half : int
         Half-size of the stamp, px (a spot is about 35 px across on the paper bench).
     max_frames : int
-        Number of poses sampled when ``poses`` is not given.
+        Number of poses sampled, evenly spread.
 
     Returns
     -------
@@ -88,8 +86,7 @@ def stamp_metrics(cube: xr.Dataset, cen: xr.Dataset, *, poses=None, shot: int = 
     True
     """
     n_p = cube.sizes["pose"]
-    if poses is None:
-        poses = np.unique(np.linspace(0, n_p - 1, min(max_frames, n_p)).round().astype(int))
+    poses = np.unique(np.linspace(0, n_p - 1, min(max_frames, n_p)).round().astype(int))
     ok, x, y = usable(cen).values[:, shot], cen["x"].values[:, shot], cen["y"].values[:, shot]
     res = np.full((len(poses), cen.sizes["hole"], 3), np.nan)
     for n, (p, frame) in enumerate(_frames_of(cube, poses, shot)):
@@ -216,27 +213,14 @@ def _frames_of(cube, poses, shot, batch: int = 32):
 
 def _cubic_stamps(frame, x, y, n_r):
     """Stamps (spot, 2 n_r + 1, 2 n_r + 1) of ``frame`` on the pixel grid -n_r..n_r about each
-    (x, y): ``scipy.ndimage.map_coordinates(frame, ..., order=3, mode="nearest")``, done as
-    the separable 4-tap B-spline sum it is on a shifted pixel grid (several times faster)."""
-    iy, ix = np.floor(y).astype(int), np.floor(x).astype(int)
-    m = n_r + 24  # the part of the frame the spots' taps reach, and 22 px the filter sees
-    y0, x0 = max(iy.min() - m, 0), max(ix.min() - m, 0)
-    sub = np.asarray(frame[y0:iy.max() + m, x0:ix.max() + m], dtype=float)
-    # padded by 12 px of edge values before the prefilter, as map_coordinates does, and each
-    # tap beyond the coefficients takes the nearest one ("nearest")
-    coef = ndimage.spline_filter(np.pad(sub, 12, mode="edge"), 3, mode="nearest")
-    taps = np.arange(-n_r - 1, n_r + 3)
-    rows = np.clip(iy[:, None] + taps - y0 + 12, 0, coef.shape[0] - 1)
-    cols = np.clip(ix[:, None] + taps - x0 + 12, 0, coef.shape[1] - 1)
-    blocks, n = coef[rows[:, :, None], cols[:, None, :]], 2 * n_r + 1  # (spot, n + 3, n + 3)
-
-    def weights(f):  # the cubic B-spline at the taps -1..2 about the offset f in [0, 1)
-        return np.stack([(1 - f) ** 3, 3 * f**3 - 6 * f**2 + 4, -3 * f**3 + 3 * f**2 + 3 * f + 1,
-                         f**3], axis=1) / 6
-
-    wy, wx = weights(y - iy), weights(x - ix)
-    rows = sum(wy[:, k, None, None] * blocks[:, k:k + n] for k in range(4))
-    return sum(wx[:, k, None, None] * rows[:, :, k:k + n] for k in range(4))
+    (x, y) (px): ``scipy.ndimage.map_coordinates(..., order=3, mode="nearest")`` on the part of
+    the frame the spots' taps reach, with the 22 px its spline prefilter sees."""
+    m = n_r + 24
+    y0, x0 = max(int(np.floor(y.min())) - m, 0), max(int(np.floor(x.min())) - m, 0)
+    sub = np.asarray(frame[y0:int(np.floor(y.max())) + m, x0:int(np.floor(x.max())) + m], float)
+    g = np.arange(-n_r, n_r + 1)
+    coords = np.broadcast_arrays((y - y0)[:, None, None] + g[:, None], (x - x0)[:, None, None] + g)
+    return ndimage.map_coordinates(sub, coords, order=3, mode="nearest")
 
 
 def _harmonic_amplitudes(cube, ok, xs, ys, poses, shot, radius_px, harmonics):
@@ -316,7 +300,7 @@ def residual_metrics(est: xr.Dataset, kappa: float = 5.0) -> xr.Dataset:
 
 
 def defect_metrics(cen: xr.Dataset, *, strategy: PerHoleAverage | None = None, cube=None,
-                   accept: Sequence[str] = ("ok",), **spot_kw) -> xr.Dataset:
+                   accept: Sequence[str] = ("ok",)) -> xr.Dataset:
     """All defect metrics of every hole (``DEFECT_METRICS``), large = bad.
 
     Parameters
@@ -332,8 +316,6 @@ def defect_metrics(cen: xr.Dataset, *, strategy: PerHoleAverage | None = None, c
         when :func:`sunlab.centroid.locate` measured them.
     accept : sequence of str
         Status codes counted as present.
-    **spot_kw
-        Passed to :func:`stamp_metrics`.
 
     Returns
     -------
@@ -357,7 +339,7 @@ def defect_metrics(cen: xr.Dataset, *, strategy: PerHoleAverage | None = None, c
         rel = (flux / flux.median("hole")).median(("pose", "shot"))
         ds = xr.Dataset({"missing_fraction": lost.mean(("pose", "shot")), "flux_deficit": 1 - rel})
         if cube is not None:  # from the frames
-            ds.update(stamp_metrics(cube, cen, **spot_kw).drop_vars("hole"))
+            ds.update(stamp_metrics(cube, cen).drop_vars("hole"))
             ds["edge_roughness"] = ("hole", edge_roughness(cube, cen).values)
         elif all(k in cen for k in _SHAPE):  # per spot, by the centroiding (centroid.locate)
             ds.update({k: cen[k].where(ok).median(("pose", "shot")) for k in _SHAPE})

@@ -124,12 +124,11 @@ def centroid_free_layout(cube: xr.Dataset, *, half: int = 38, progress: bool = F
         if c not in cube.coords:
             raise SchemaError(c, "missing", "design positions of the holes on 'hole', px",
                               "simulate a multi-hole mask or assign the coordinates")
-    dx = np.asarray(cube["hole_x_cf"].values, float)
-    dy = np.asarray(cube["hole_y_cf"].values, float)
+    dx, dy = (np.asarray(cube[c].values, float) for c in ("hole_x_cf", "hole_y_cf"))
     n_p, n_s, n_h = cube.sizes["pose"], cube.sizes["shot"], dx.size
-    F = float(cube.attrs["mask_distance_mm"])
-    pitch = float(cube.attrs["pixel_pitch_mm"])
-    sx, sy = geometry.ideal_centroid(cube["alpha"].values, cube["beta"].values, F, pitch, 0.0, 0.0)
+    sx, sy = geometry.ideal_centroid(cube["alpha"].values, cube["beta"].values,
+                                     float(cube.attrs["mask_distance_mm"]),
+                                     float(cube.attrs["pixel_pitch_mm"]), 0.0, 0.0)
     res = np.full((n_p, n_s, n_h, 8), np.nan)
     status = np.full((n_p, n_s, n_h), schema.STATUS["no_spot"], dtype=np.int8)
     options.setdefault("saturation", 2 ** int(cube.attrs.get("bit_depth", 10)) - 1)
@@ -151,18 +150,15 @@ def centroid_free_layout(cube: xr.Dataset, *, half: int = 38, progress: bool = F
                 r, e, a = centroid.stamp_moments(st)
                 res[p, s, h] = (c.x + x0, c.y + y0, c.flux, c.window[0] + x0, c.window[1] + x0,
                                 r, e, a)
-    ok = status == schema.STATUS["ok"]
-    x = np.where(ok, res[..., 0], np.nan)
-    y = np.where(ok, res[..., 1], np.nan)
-    dims = ("pose", "shot", "hole")
+    ok, dims = status == schema.STATUS["ok"], ("pose", "shot", "hole")
     cen = schema.centroids_dataset(
-        x, y, flux=res[..., 2], status=status, alpha=cube["alpha"].values,
-        beta=cube["beta"].values, method="tight (layout)",
+        np.where(ok, res[..., 0], np.nan), np.where(ok, res[..., 1], np.nan), flux=res[..., 2],
+        status=status, alpha=cube["alpha"].values, beta=cube["beta"].values,
+        method="tight (layout)",
         attrs={k: cube.attrs[k] for k in ("pixel_pitch_mm", "mask_distance_mm", "bit_depth")
                if k in cube.attrs},
-        extra={"radius": (dims, res[..., 5]), "ellipticity": (dims, res[..., 6]),
-               "asymmetry": (dims, res[..., 7])},
-    )
+        extra={k: (dims, res[..., 5 + i]) for i, k in enumerate(("radius", "ellipticity",
+                                                                  "asymmetry"))})
     coords = {c: ("hole", cube[c].values) for c in ("hole_i", "hole_j", "hole_x_cf", "hole_y_cf",
                                                     "hole_defect") if c in cube.coords}
     return cen.assign_coords(coords)

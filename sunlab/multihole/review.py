@@ -171,10 +171,8 @@ def review_holes(centroids: xr.Dataset, *, strategy: PerHoleAverage | None = Non
     ([7], 25)
     """
     if "hole" not in centroids.dims:
-        raise ConfigurationError(
-            "centroids: found dims " f"{tuple(centroids.dims)}, expected (pose, shot, hole); "
-            "centroid the cube with a multi-spot method"
-        )
+        raise ConfigurationError(f"centroids: found dims {tuple(centroids.dims)}, expected (pose, "
+                                 "shot, hole); centroid the cube with a multi-spot method")
     base = train if train is not None else centroids
     strategy = strategy or PerHoleAverage(order=order).fit(base)
     metrics = metrics if metrics is not None else defect_metrics(base, strategy=strategy)

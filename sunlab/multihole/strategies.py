@@ -42,7 +42,26 @@ __all__ = ["GeometricCentre", "PerHoleAverage"]
 
 
 @dataclass(repr=False)
-class GeometricCentre(Calibration):
+class _HoleStrategy(Calibration):
+    """What both strategies share (each documents its parameters): the calibration factory,
+    the holes used and the accepted status codes; no shot screening by default, as holes
+    are judged whole."""
+
+    default_outlier_mads = None
+    order: int = 5
+    model: Callable | None = None
+    holes: np.ndarray | None = None
+    accept: Sequence[str] = ("ok",)
+
+    def __post_init__(self):
+        Calibration.__init__(self)
+
+    def _factory(self) -> Callable:
+        return self.model or (lambda: Polynomial(self.order))
+
+
+@dataclass(repr=False)
+class GeometricCentre(_HoleStrategy):
     """Strategy 1 of the paper: one calibration of the geometric centre of the spots.
 
     When all holes are present the centre is the mean of the centroids, as in the paper. To stay
@@ -84,14 +103,9 @@ class GeometricCentre(Calibration):
     True
     """
 
-    default_outlier_mads = None  # no shot screening by default: holes are judged whole
     kind: ClassVar[str] = "multihole-geometric-centre"
-    order: int = 5
-    model: Callable | None = None
-    holes: np.ndarray | None = None
     fill: bool = True
     min_holes: int = 3
-    accept: Sequence[str] = ("ok",)
     A_: np.ndarray | None = field(default=None, repr=False)
     M_: np.ndarray | None = field(default=None, repr=False)
     calibration_: object | None = field(default=None, repr=False)
@@ -212,12 +226,9 @@ class GeometricCentre(Calibration):
         if (np.isfinite(centre["x"]) & np.isfinite(centre["y"])).sum() < 3:
             raise ConfigurationError("too few usable frames to fit a calibration (fewer than 3)")
         # the strategy judges holes whole: no shot screening inside its calibrations
-        self.calibration_ = (self.model or (lambda: Polynomial(self.order)))().fit(
+        self.calibration_ = self._factory()().fit(
             centre, outlier_mads=None)
         return _t._record_fit(self, cen, self._ok(cen), self.calibration_.residuals, validation)
-
-    def __post_init__(self):
-        Calibration.__init__(self)
 
     def predict_xy(self, x, y):
         """Angles (alpha, beta), deg, of frames given as centroid arrays ``x``, ``y`` (px)
@@ -275,7 +286,7 @@ class GeometricCentre(Calibration):
 
 
 @dataclass(repr=False)
-class PerHoleAverage(Calibration):
+class PerHoleAverage(_HoleStrategy):
     """Strategy 2 of the paper: a calibration per hole (f1_ij, f2_ij), then the average.
 
     .. math:: \\alpha = \\frac{1}{N}\\sum_{ij} f_1^{ij}(x_c^{ij}, y_c^{ij}), \\qquad
@@ -319,14 +330,9 @@ class PerHoleAverage(Calibration):
     True
     """
 
-    default_outlier_mads = None  # no shot screening by default: holes are judged whole
     kind: ClassVar[str] = "multihole-per-hole-average"
-    order: int = 5
-    model: Callable | None = None
-    holes: np.ndarray | None = None
     weighting: str = "equal"
     clip: float | None = None
-    accept: Sequence[str] = ("ok",)
     poses_per_coef: float = 1.5
     calibrations_: list | None = field(default=None, repr=False)
     variance_: np.ndarray | None = field(default=None, repr=False)
@@ -351,11 +357,8 @@ class PerHoleAverage(Calibration):
         if self.weighting not in ("equal", "inverse_variance"):
             raise ConfigurationError(
                 f"weighting: found {self.weighting!r}, expected 'equal' or 'inverse_variance'")
-        factory = self.model or (lambda: Polynomial(self.order))
-        probe = factory()
-        order = getattr(probe, "order", self.order)
-        n_coef = int(probe.min_poses()) if hasattr(probe, "min_poses") else \
-            (order + 1) * (order + 2) // 2
+        factory = self._factory()
+        n_coef = int(factory().min_poses())  # a Calibration: one pose per free coefficient
         need = max(math.ceil(self.poses_per_coef * n_coef), 3)
         ok = usable(cen, self.accept)
         # each hole's own table (centroids/1 on (pose, shot)), built directly: unusable frames
@@ -385,9 +388,6 @@ class PerHoleAverage(Calibration):
         mean = self.combine(est)
         return _t._record_fit(self, cen, ok, {a: _t._error_stats(mean[a], mean[f"{a}_cmd"])
                                            for a in ("alpha", "beta")}, validation)
-
-    def __post_init__(self):
-        Calibration.__init__(self)
 
     def predict_xy(self, x, y):
         """Angles (alpha, beta), deg, of frames given as centroid arrays ``x``, ``y`` (px)
