@@ -93,9 +93,9 @@ def stored(out: Path | None, settings: dict) -> dict | None:
         return None
     try:
         doc = json.loads((out / "benches" / f"{name}.json").read_text())
-    except (OSError, ValueError):  # missing or cut short: the bench is computed again
-        return None
-    return doc if doc.get("settings") == settings else None
+    except (OSError, ValueError, RecursionError):  # missing, cut short or not ours: computed
+        return None                                   # again, and the record replaced
+    return doc if isinstance(doc, dict) and doc.get("settings") == settings else None
 
 
 def store(out: Path, settings: dict, res: dict, seconds: float) -> None:

@@ -201,3 +201,17 @@ def test_a_long_run_prints_its_estimate_and_the_time_left(capsys):
     full, _, _ = run_settings(full=True, out="DIR")
     hours = sum(learned_files.estimate_s(s) for s in full["benches"].values()) / 3600
     assert 2 < hours < 5  # the paper-size run: the hours docs/learned/README.md states
+
+
+@pytest.mark.parametrize("text", ["[" * 100_000 + "]" * 100_000, "[1, 2]"],
+                         ids=["deep", "not-a-record"])
+def test_a_bench_record_that_is_not_ours_is_computed_again(tmp_path, text):
+    """Issue 47 class 7: a resume folder's record nested past the parser's recursion limit (or
+    not a record at all) ended the run in a RecursionError (AttributeError); it is recomputed."""
+    from sunlab.reproduce import learned_files
+
+    for folder in ("models", "benches"):
+        (tmp_path / folder).mkdir()
+    (tmp_path / "models" / "paper.json").write_text("{}")
+    (tmp_path / "benches" / "paper.json").write_text(text)
+    assert learned_files.stored(tmp_path, {"bench": "paper"}) is None
