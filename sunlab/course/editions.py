@@ -31,7 +31,7 @@ from pathlib import Path
 from typing import NamedTuple
 
 from .. import atomic
-from ..errors import ConfigurationError, SunlabError
+from ..errors import ConfigurationError
 
 __all__ = ["write_course"]
 
@@ -431,10 +431,7 @@ def write_course(out, *, notebooks=None, quick: bool = True, overwrite: bool = F
         raise ConfigurationError(
             f"notebooks: no numbered notebook (NN-title.ipynb) in {src}. Fix: give the "
             "notebooks folder of a sunlab checkout")
-    out = Path(out)
-    if out.exists() and not out.is_dir():
-        raise SunlabError(f"{out}: exists and is not a folder. Fix: choose another folder")
-    atomic.remove_stale(out)  # leftovers of a killed writer
+    out = atomic.check_folder(out, (), flag="--overwrite")  # a folder, or one that can be made
     if not overwrite:
         taken = [out / e / p.name for e in ("teacher", "student") for p in paths
                  if (out / e / p.name).exists()]
@@ -443,8 +440,6 @@ def write_course(out, *, notebooks=None, quick: bool = True, overwrite: bool = F
                 f"{taken[0]}: exists ({len(taken)} notebook(s) of the editions are already in "
                 f"{out}); nothing was written. Fix: pass --overwrite to replace them, or "
                 "choose a new folder")
-    atomic.check_target(out if not out.exists() else out / ".sunlab-course-probe",
-                        overwrite=True)
     books = {p.name: _read(nbf, p) for p in paths}
     exercises = [ex for name, nb in books.items() for ex in find_exercises(nb, name)]
     written_answers = [w for name, nb in books.items() for w in find_written(nb, name)]

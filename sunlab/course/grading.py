@@ -148,7 +148,8 @@ def _result(answer_err, check_err):
 def _rows_for_unreadable(head, message, exercises, written):
     return [{**head, "exercise": e.number + (" (written)" if e in written else ""),
              "points": None if e in written else 0, "max_points": e.points,
-             "result": "unreadable", "message": message} for e in [*exercises, *written]]
+             "result": "unreadable", "message": message, "flags": []}
+            for e in [*exercises, *written]]
 
 
 #: limit per cell, s (``sunlab course --grade --timeout``)
@@ -338,20 +339,20 @@ def _hidden_verdict(number, ns, seed_value):
     return None
 
 
+_HIDDEN_BLOCK = re.compile(rf"^[ \t]*{re.escape(BEGIN_HIDDEN)}[ \t]*\n(.*?)\n[ \t]*"
+                           rf"{re.escape(END_HIDDEN)}[ \t]*$", re.M | re.S)
+
+
 def _hidden_outside(graded, exercises, shift) -> set:
     """Take the standard hidden-test blocks out of the check cells (the grader runs them in
     its own process); return their exercise numbers."""
     out = set()
     for ex in exercises:
         cell = graded.cells[ex.check_cell + shift]
-        lines = cell.source.splitlines()
-        begin = [k for k, x in enumerate(lines) if x.strip() == BEGIN_HIDDEN]
-        end = [k for k, x in enumerate(lines) if x.strip() == END_HIDDEN]
-        if len(begin) == 1 and len(end) == 1 and begin[0] < end[0]:
-            number = hidden.call_of("\n".join(lines[begin[0] + 1: end[0]]))
-            if number == ex.number:
-                cell.source = strip_hidden(cell.source)
-                out.add(number)
+        blocks = _HIDDEN_BLOCK.findall(cell.source)
+        if len(blocks) == 1 and hidden.call_of(blocks[0]) == ex.number:
+            cell.source = strip_hidden(cell.source)
+            out.add(ex.number)
     return out
 
 

@@ -62,9 +62,7 @@ def _enc(obj, depth):
     mod = type(obj).__module__.split(".")[0]
     if mod == "xarray":
         return {"__xr__": type(obj).__name__, "d": _enc(obj.to_dict(data="array"), depth + 1)}
-    if mod == "pandas" and hasattr(obj, "items") and hasattr(obj, "index"):
-        return {"__dict__": [[_enc(k, depth + 1), _enc(v, depth + 1)] for k, v in obj.items()]}
-    if isinstance(obj, dict):
+    if isinstance(obj, dict) or mod == "pandas" and hasattr(obj, "items") and hasattr(obj, "index"):
         return {"__dict__": [[_enc(k, depth + 1), _enc(v, depth + 1)] for k, v in obj.items()]}
     key = len(_HANDLES)
     _HANDLES[key] = obj
