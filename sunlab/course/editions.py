@@ -108,6 +108,12 @@ class Written(NamedTuple):
         return f"ex{self.number.replace('.', '-')}-written"
 
 
+def _points(source: str) -> int:
+    """What a check or written answer is worth: ``(N points)`` on its first line, or 1."""
+    m = _POINTS.search(source.split("\n", 1)[0])
+    return int(m.group(1)) if m else 1
+
+
 def _jupyter(name: str):
     """nbformat or nbclient, which read, write and run the course's notebooks."""
     try:
@@ -264,10 +270,8 @@ def find_exercises(nb, name: str = "notebook") -> list[Exercise]:
             raise ConfigurationError(
                 f"{where}: exercise {m.group(1)} has no '# Check {m.group(1)}' cell within the "
                 f"next {CHECK_WITHIN} code cells. Fix: add the check cell after the answer")
-        first = nb.cells[checks[0]].source.split("\n", 1)[0]
-        points = _POINTS.search(first)
         out.append(Exercise(name, m.group(1), m.group(2).strip(), i, checks[0],
-                            solution_hint(src), int(points.group(1)) if points else 1))
+                            solution_hint(src), _points(nb.cells[checks[0]].source)))
     return out
 
 
@@ -287,16 +291,8 @@ def find_written(nb, name: str = "notebook") -> list[Written]:
     list of Written
         One per written answer, in order, with its cell index and points (1 when not said).
     """
-    out = []
-    for i, c in enumerate(nb.cells):
-        if c.cell_type != "markdown":
-            continue
-        first = c.source.split("\n", 1)[0]
-        m = _WRITTEN.match(first)
-        if m:
-            points = _POINTS.search(first)
-            out.append(Written(name, m.group(1), i, int(points.group(1)) if points else 1))
-    return out
+    return [Written(name, m.group(1), i, _points(c.source)) for i, c in enumerate(nb.cells)
+            if c.cell_type == "markdown" and (m := _WRITTEN.match(c.source))]
 
 
 def strip_hidden(source: str) -> str:

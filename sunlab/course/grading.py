@@ -208,10 +208,9 @@ def grade_notebook(path, *, notebooks=None, seed: int | None = None, quick: bool
     except (ConfigurationError, OSError) as err:
         return _rows_for_unreadable(head, _one_line(err), exercises, written)
     answers, checks, texts, twice = _submitted(submitted)
-    graded, tampered = _graded(source, source_path.name, exercises, answers, checks, quick,
-                               twice)
+    graded, tampered, outside = _graded(source, source_path.name, exercises, answers, checks,
+                                        quick, twice)
     shift = 1 if quick else 0
-    outside = _hidden_outside(graded, exercises, shift)
     seed_value = hidden.DEFAULT_SEED if seed is None else int(seed)
     budget = BUDGET_CELLS * float(timeout) if budget is None else float(budget)
     env = {**os.environ, hidden.SEED_VARIABLE: str(seed_value)}
@@ -343,27 +342,15 @@ _HIDDEN_BLOCK = re.compile(rf"^[ \t]*{re.escape(BEGIN_HIDDEN)}[ \t]*\n(.*?)\n[ \
                            rf"{re.escape(END_HIDDEN)}[ \t]*$", re.M | re.S)
 
 
-def _hidden_outside(graded, exercises, shift) -> set:
-    """Take the standard hidden-test blocks out of the check cells (the grader runs them in
-    its own process); return their exercise numbers."""
-    out = set()
-    for ex in exercises:
-        cell = graded.cells[ex.check_cell + shift]
-        blocks = _HIDDEN_BLOCK.findall(cell.source)
-        if len(blocks) == 1 and hidden.call_of(blocks[0]) == ex.number:
-            cell.source = strip_hidden(cell.source)
-            out.add(ex.number)
-    return out
-
-
 def _graded(source, name, exercises, answers, checks, quick, twice=()):
     """The teacher edition with the student's answers in it (none for an exercise handed in
-    ``twice``), and the exercises whose check cell was altered or deleted (number -> what
-    happened)."""
+    ``twice``), the exercises whose check cell was altered or deleted (number -> what
+    happened), and those whose standard hidden-test block was taken out of the check cell (the
+    grader runs it in its own process)."""
     teacher = edition(source, name, student=False, quick=quick)
     shift = 1 if quick else 0
     graded = copy.deepcopy(teacher)
-    tampered = {}
+    tampered, outside = {}, set()
     for ex in exercises:
         mine = answers.get(ex.number) if ex.number not in twice else None
         graded.cells[ex.solution_cell + shift].source = (
@@ -376,7 +363,12 @@ def _graded(source, name, exercises, answers, checks, quick, twice=()):
             tampered[ex.number] = "check cell deleted"
         elif _norm(check.source) != _norm(expected):
             tampered[ex.number] = "check cell altered"
-    return graded, tampered
+        cell = graded.cells[ex.check_cell + shift]
+        blocks = _HIDDEN_BLOCK.findall(cell.source)
+        if len(blocks) == 1 and hidden.call_of(blocks[0]) == ex.number:
+            cell.source = expected
+            outside.add(ex.number)
+    return graded, tampered, outside
 
 
 def _written_row(head, w, cell) -> dict:
