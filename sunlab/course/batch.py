@@ -14,7 +14,7 @@ from pathlib import Path
 
 from ..errors import ConfigurationError
 from . import hidden
-from .editions import _jupyter, _read, default_notebook_dir, find_exercises
+from .editions import _read, default_notebook_dir, find_exercises
 from .grading import (
     DEFAULT_TIMEOUT,
     _one_line,
@@ -50,7 +50,6 @@ def check_submissions(paths, *, notebooks=None) -> tuple[list, list[dict]]:
         The submissions to grade, and the rows of those refused (result ``refused``, with the
         reason).
     """
-    nbf = _jupyter("nbformat")
     src = Path(notebooks) if notebooks is not None else default_notebook_dir()
     keys, ok, refused = {}, [], []
     for p in map(Path, paths):
@@ -65,7 +64,7 @@ def check_submissions(paths, *, notebooks=None) -> tuple[list, list[dict]]:
         if len(items) == 1:
             ok.append(items[0][0])
             continue
-        exercises = find_exercises(_read(nbf, items[0][2]), name)
+        exercises = find_exercises(_read(items[0][2]), name)
         where = ", ".join(str(p) for p, _, _ in items)
         for _p, head, _ in items:
             refused += _rows(head, f"refused: {student} handed in {name} {len(items)} "

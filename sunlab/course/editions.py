@@ -124,10 +124,10 @@ def _jupyter(name: str):
             "Fix: pip install nbformat nbclient ipykernel (they come with Jupyter)") from None
 
 
-def _read(nbf, path: Path):
+def _read(path: Path):
     """A notebook read with nbformat; a file that is not one gives a clear error."""
     try:
-        return nbf.read(path, as_version=4)
+        return _jupyter("nbformat").read(path, as_version=4)
     except OSError:
         raise
     except Exception as err:  # NotJSONError, a schema ValidationError, a missing key ...
@@ -178,13 +178,9 @@ def solution_hint(source: str) -> str:
         if line.strip() == BEGIN_SOLUTION:
             break
         m = _HINT.match(line)
-        if m:
-            inside = True
-            lines.append(m.group(1).strip())
-        elif inside and line.lstrip().startswith("#"):
-            lines.append(line.lstrip()[1:].strip())
-        else:
-            inside = False
+        inside = bool(m) or inside and line.lstrip().startswith("#")
+        if inside:
+            lines.append((m.group(1) if m else line.lstrip()[1:]).strip())
     return " ".join(x for x in lines if x)
 
 
@@ -436,7 +432,7 @@ def write_course(out, *, notebooks=None, quick: bool = True, overwrite: bool = F
                 f"{taken[0]}: exists ({len(taken)} notebook(s) of the editions are already in "
                 f"{out}); nothing was written. Fix: pass --overwrite to replace them, or "
                 "choose a new folder")
-    books = {p.name: _read(nbf, p) for p in paths}
+    books = {p.name: _read(p) for p in paths}
     exercises = [ex for name, nb in books.items() for ex in find_exercises(nb, name)]
     written_answers = [w for name, nb in books.items() for w in find_written(nb, name)]
     with atomic.atomic_files(out, overwrite=overwrite, flag="--overwrite") as staging:

@@ -45,7 +45,6 @@ from .editions import (
     BEGIN_HIDDEN,
     END_HIDDEN,
     WRITTEN_PROMPT,
-    _jupyter,
     _read,
     default_notebook_dir,
     edition,
@@ -191,11 +190,10 @@ def grade_notebook(path, *, notebooks=None, seed: int | None = None, quick: bool
     """
     from . import probe
 
-    nbf = _jupyter("nbformat")
     path = Path(path)
     src = Path(notebooks) if notebooks is not None else default_notebook_dir()
     source_path = _source_for(path, src)
-    source = _read(nbf, source_path)
+    source = _read(source_path)
     exercises = find_exercises(source, source_path.name)
     written = find_written(source, source_path.name)
     if not exercises and not written:
@@ -204,7 +202,7 @@ def grade_notebook(path, *, notebooks=None, seed: int | None = None, quick: bool
             "give the notebooks that carry exercises")
     head = {"student": path.resolve().parent.name, "notebook": path.name}
     try:
-        submitted = _read(nbf, path)
+        submitted = _read(path)
     except (ConfigurationError, OSError) as err:
         return _rows_for_unreadable(head, _one_line(err), exercises, written)
     answers, checks, texts, twice = _submitted(submitted)
@@ -244,26 +242,27 @@ def grade_notebook(path, *, notebooks=None, seed: int | None = None, quick: bool
 def _run(graded, exercises, outside, shift, env, timeout, budget, seed_value):
     """Run the graded notebook cell by cell, each standard hidden check here right after its
     check cell; return the hidden checks' verdicts, their calls with forbidden functions, and
-    the kernel's failure ``(kind, message, where)`` or None."""
+    the kernel's failure ``(kind, message, cell index, number of the hidden check or None)``
+    or None."""
     from . import kernel
 
-    verdicts, calls, where = {}, {}, 0
+    verdicts, calls, where, hid = {}, {}, 0, None
     by_check = {ex.check_cell + shift: ex for ex in exercises}
     try:
         with kernel.NotebookRun(graded, env=env, timeout=timeout, budget=budget) as run:
             for i, cell in enumerate(graded.cells):
                 if cell.cell_type != "code":
                     continue
-                where = i
+                where, hid = i, None
                 run.execute(cell, i)
                 ex = by_check.get(i)
                 if ex is not None and ex.number in outside:
-                    where = ("hidden", ex.number, i)
+                    hid = ex.number
                     ns = kernel.RemoteNamespace(run)
                     verdicts[ex.number] = _hidden_verdict(ex.number, ns, seed_value)
                     calls[ex.number] = ns.calls
     except kernel.KernelFailure as err:
-        return verdicts, calls, (err.kind, err.message, where)
+        return verdicts, calls, (err.kind, err.message, where, hid)
     return verdicts, calls, None
 
 
@@ -292,9 +291,9 @@ def _outcome(graded, ex, exercises, shift, failure, verdicts):
     """(result, message) of one exercise: the kernel's failure before its verdict, its cells'
     errors, or its hidden check's verdict."""
     check_at = ex.check_cell + shift
-    if failure is not None and _not_reached(failure[2], check_at, ex.number):
+    if failure is not None and failure[2] <= check_at:  # a failure before its verdict
         return failure[0], (f"{failure[1]} while running "
-                            f"{_cell_name(failure[2], exercises, shift)}; exercise {ex.number} "
+                            f"{_cell_name(*failure[2:], exercises, shift)}; exercise {ex.number} "
                             "was not checked: scored 0")
     result, message = _result(_error_of(graded.cells[ex.solution_cell + shift]),
                               _error_of(graded.cells[check_at]))
@@ -303,17 +302,9 @@ def _outcome(graded, ex, exercises, shift, failure, verdicts):
     return result, message
 
 
-def _not_reached(where, check_at, number) -> bool:
-    """Whether the failure at ``where`` (a cell index, or ("hidden", NN.k, its check cell))
-    came before the exercise's verdict was known."""
-    if isinstance(where, tuple):
-        return where[1] == number or check_at > where[2]
-    return where <= check_at
-
-
-def _cell_name(where, exercises, shift) -> str:
-    if isinstance(where, tuple):
-        return f"the hidden check of exercise {where[1]}"
+def _cell_name(where, hid, exercises, shift) -> str:
+    if hid is not None:
+        return f"the hidden check of exercise {hid}"
     for ex in exercises:
         if where == ex.solution_cell + shift:
             return f"the answer of exercise {ex.number}"
