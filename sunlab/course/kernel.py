@@ -139,8 +139,7 @@ class NotebookRun:
             self._kill()
             raise KernelFailure("crash", f"the kernel did not start ({type(err).__name__}: "
                                 f"{err})") from None
-        prov = getattr(self.client.km, "provisioner", None)
-        self._pgid = getattr(prov, "pgid", None)
+        self._pgid = getattr(getattr(self.client.km, "provisioner", None), "pgid", None)
         return self
 
     def __exit__(self, *exc):
