@@ -14,7 +14,7 @@ from pathlib import Path
 
 from ..errors import ConfigurationError
 from . import hidden
-from .editions import _jupyter, _read, default_notebook_dir, find_exercises
+from .editions import _read, default_notebook_dir, find_exercises
 from .grading import (
     DEFAULT_TIMEOUT,
     _one_line,
@@ -27,9 +27,9 @@ from .grading import (
 __all__ = ["grade_batch"]
 
 
-def _refused(head, message, exercises=()):
+def _rows(head, message, exercises=(), result="refused"):
     return [{**head, "exercise": e.number if e else "-", "points": 0,
-             "max_points": e.points if e else 0, "result": "refused", "message": message,
+             "max_points": e.points if e else 0, "result": result, "message": message,
              "flags": []} for e in (exercises or [None])]
 
 
@@ -50,7 +50,6 @@ def check_submissions(paths, *, notebooks=None) -> tuple[list, list[dict]]:
         The submissions to grade, and the rows of those refused (result ``refused``, with the
         reason).
     """
-    nbf = _jupyter("nbformat")
     src = Path(notebooks) if notebooks is not None else default_notebook_dir()
     keys, ok, refused = {}, [], []
     for p in map(Path, paths):
@@ -58,20 +57,19 @@ def check_submissions(paths, *, notebooks=None) -> tuple[list, list[dict]]:
         try:
             course_nb = _source_for(p, src)
         except ConfigurationError as err:
-            refused += _refused(head, f"refused: {_one_line(err)}")
+            refused += _rows(head, f"refused: {_one_line(err)}")
             continue
         keys.setdefault((head["student"], course_nb.name), []).append((p, head, course_nb))
     for (student, name), items in keys.items():
         if len(items) == 1:
             ok.append(items[0][0])
             continue
-        exercises = find_exercises(_read(nbf, items[0][2]), name)
+        exercises = find_exercises(_read(items[0][2]), name)
         where = ", ".join(str(p) for p, _, _ in items)
         for _p, head, _ in items:
-            refused += _refused(head, f"refused: {student} handed in {name} {len(items)} "
+            refused += _rows(head, f"refused: {student} handed in {name} {len(items)} "
                                 f"times ({where}); none graded: hand in one", exercises)
-    order = {str(p): k for k, p in enumerate(map(Path, paths))}
-    return sorted(ok, key=lambda p: order[str(p)]), refused
+    return ok, refused  # in the order of ``paths``: each key first seen at its only path
 
 
 def report_rows(path, mine, report=print) -> None:
@@ -156,11 +154,9 @@ def grade_batch(paths, *, notebooks=None, seed: int | None = None, quick: bool =
         except Exception as err:  # the grader's own failure: said, and the batch goes on
             status = GRADER_FAILED
             head = {"student": Path(path).resolve().parent.name, "notebook": Path(path).name}
-            mine = [{**head, "exercise": "-", "points": 0, "max_points": 0,
-                     "result": "grader error", "flags": [],
-                     "message": f"the grader failed on this notebook ({type(err).__name__}: "
-                                f"{_one_line(err)[:300]}): not graded; this is a fault of "
-                                "sunlab, not of the student"}]
+            mine = _rows(head, f"the grader failed on this notebook ({type(err).__name__}: "
+                         f"{_one_line(err)[:300]}): not graded; this is a fault of sunlab, not "
+                         "of the student", result="grader error")
         rows += mine
         report_rows(path, mine, report)
         save(k == len(todo) - 1)

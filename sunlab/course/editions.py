@@ -31,7 +31,7 @@ from pathlib import Path
 from typing import NamedTuple
 
 from .. import atomic
-from ..errors import ConfigurationError, SunlabError
+from ..errors import ConfigurationError
 
 __all__ = ["write_course"]
 
@@ -108,6 +108,12 @@ class Written(NamedTuple):
         return f"ex{self.number.replace('.', '-')}-written"
 
 
+def _points(source: str) -> int:
+    """What a check or written answer is worth: ``(N points)`` on its first line, or 1."""
+    m = _POINTS.search(source.split("\n", 1)[0])
+    return int(m.group(1)) if m else 1
+
+
 def _jupyter(name: str):
     """nbformat or nbclient, which read, write and run the course's notebooks."""
     try:
@@ -118,10 +124,10 @@ def _jupyter(name: str):
             "Fix: pip install nbformat nbclient ipykernel (they come with Jupyter)") from None
 
 
-def _read(nbf, path: Path):
+def _read(path: Path):
     """A notebook read with nbformat; a file that is not one gives a clear error."""
     try:
-        return nbf.read(path, as_version=4)
+        return _jupyter("nbformat").read(path, as_version=4)
     except OSError:
         raise
     except Exception as err:  # NotJSONError, a schema ValidationError, a missing key ...
@@ -172,13 +178,9 @@ def solution_hint(source: str) -> str:
         if line.strip() == BEGIN_SOLUTION:
             break
         m = _HINT.match(line)
-        if m:
-            inside = True
-            lines.append(m.group(1).strip())
-        elif inside and line.lstrip().startswith("#"):
-            lines.append(line.lstrip()[1:].strip())
-        else:
-            inside = False
+        inside = bool(m) or inside and line.lstrip().startswith("#")
+        if inside:
+            lines.append((m.group(1) if m else line.lstrip()[1:]).strip())
     return " ".join(x for x in lines if x)
 
 
@@ -264,10 +266,8 @@ def find_exercises(nb, name: str = "notebook") -> list[Exercise]:
             raise ConfigurationError(
                 f"{where}: exercise {m.group(1)} has no '# Check {m.group(1)}' cell within the "
                 f"next {CHECK_WITHIN} code cells. Fix: add the check cell after the answer")
-        first = nb.cells[checks[0]].source.split("\n", 1)[0]
-        points = _POINTS.search(first)
         out.append(Exercise(name, m.group(1), m.group(2).strip(), i, checks[0],
-                            solution_hint(src), int(points.group(1)) if points else 1))
+                            solution_hint(src), _points(nb.cells[checks[0]].source)))
     return out
 
 
@@ -287,16 +287,8 @@ def find_written(nb, name: str = "notebook") -> list[Written]:
     list of Written
         One per written answer, in order, with its cell index and points (1 when not said).
     """
-    out = []
-    for i, c in enumerate(nb.cells):
-        if c.cell_type != "markdown":
-            continue
-        first = c.source.split("\n", 1)[0]
-        m = _WRITTEN.match(first)
-        if m:
-            points = _POINTS.search(first)
-            out.append(Written(name, m.group(1), i, int(points.group(1)) if points else 1))
-    return out
+    return [Written(name, m.group(1), i, _points(c.source)) for i, c in enumerate(nb.cells)
+            if c.cell_type == "markdown" and (m := _WRITTEN.match(c.source))]
 
 
 def strip_hidden(source: str) -> str:
@@ -431,10 +423,7 @@ def write_course(out, *, notebooks=None, quick: bool = True, overwrite: bool = F
         raise ConfigurationError(
             f"notebooks: no numbered notebook (NN-title.ipynb) in {src}. Fix: give the "
             "notebooks folder of a sunlab checkout")
-    out = Path(out)
-    if out.exists() and not out.is_dir():
-        raise SunlabError(f"{out}: exists and is not a folder. Fix: choose another folder")
-    atomic.remove_stale(out)  # leftovers of a killed writer
+    out = atomic.check_folder(out, (), flag="--overwrite")  # a folder, or one that can be made
     if not overwrite:
         taken = [out / e / p.name for e in ("teacher", "student") for p in paths
                  if (out / e / p.name).exists()]
@@ -443,9 +432,7 @@ def write_course(out, *, notebooks=None, quick: bool = True, overwrite: bool = F
                 f"{taken[0]}: exists ({len(taken)} notebook(s) of the editions are already in "
                 f"{out}); nothing was written. Fix: pass --overwrite to replace them, or "
                 "choose a new folder")
-    atomic.check_target(out if not out.exists() else out / ".sunlab-course-probe",
-                        overwrite=True)
-    books = {p.name: _read(nbf, p) for p in paths}
+    books = {p.name: _read(p) for p in paths}
     exercises = [ex for name, nb in books.items() for ex in find_exercises(nb, name)]
     written_answers = [w for name, nb in books.items() for w in find_written(nb, name)]
     with atomic.atomic_files(out, overwrite=overwrite, flag="--overwrite") as staging:

@@ -45,7 +45,6 @@ from .editions import (
     BEGIN_HIDDEN,
     END_HIDDEN,
     WRITTEN_PROMPT,
-    _jupyter,
     _read,
     default_notebook_dir,
     edition,
@@ -148,7 +147,8 @@ def _result(answer_err, check_err):
 def _rows_for_unreadable(head, message, exercises, written):
     return [{**head, "exercise": e.number + (" (written)" if e in written else ""),
              "points": None if e in written else 0, "max_points": e.points,
-             "result": "unreadable", "message": message} for e in [*exercises, *written]]
+             "result": "unreadable", "message": message, "flags": []}
+            for e in [*exercises, *written]]
 
 
 #: limit per cell, s (``sunlab course --grade --timeout``)
@@ -190,11 +190,10 @@ def grade_notebook(path, *, notebooks=None, seed: int | None = None, quick: bool
     """
     from . import probe
 
-    nbf = _jupyter("nbformat")
     path = Path(path)
     src = Path(notebooks) if notebooks is not None else default_notebook_dir()
     source_path = _source_for(path, src)
-    source = _read(nbf, source_path)
+    source = _read(source_path)
     exercises = find_exercises(source, source_path.name)
     written = find_written(source, source_path.name)
     if not exercises and not written:
@@ -203,14 +202,13 @@ def grade_notebook(path, *, notebooks=None, seed: int | None = None, quick: bool
             "give the notebooks that carry exercises")
     head = {"student": path.resolve().parent.name, "notebook": path.name}
     try:
-        submitted = _read(nbf, path)
+        submitted = _read(path)
     except (ConfigurationError, OSError) as err:
         return _rows_for_unreadable(head, _one_line(err), exercises, written)
     answers, checks, texts, twice = _submitted(submitted)
-    graded, tampered = _graded(source, source_path.name, exercises, answers, checks, quick,
-                               twice)
+    graded, tampered, outside = _graded(source, source_path.name, exercises, answers, checks,
+                                        quick, twice)
     shift = 1 if quick else 0
-    outside = _hidden_outside(graded, exercises, shift)
     seed_value = hidden.DEFAULT_SEED if seed is None else int(seed)
     budget = BUDGET_CELLS * float(timeout) if budget is None else float(budget)
     env = {**os.environ, hidden.SEED_VARIABLE: str(seed_value)}
@@ -244,26 +242,27 @@ def grade_notebook(path, *, notebooks=None, seed: int | None = None, quick: bool
 def _run(graded, exercises, outside, shift, env, timeout, budget, seed_value):
     """Run the graded notebook cell by cell, each standard hidden check here right after its
     check cell; return the hidden checks' verdicts, their calls with forbidden functions, and
-    the kernel's failure ``(kind, message, where)`` or None."""
+    the kernel's failure ``(kind, message, cell index, number of the hidden check or None)``
+    or None."""
     from . import kernel
 
-    verdicts, calls, where = {}, {}, 0
+    verdicts, calls, where, hid = {}, {}, 0, None
     by_check = {ex.check_cell + shift: ex for ex in exercises}
     try:
         with kernel.NotebookRun(graded, env=env, timeout=timeout, budget=budget) as run:
             for i, cell in enumerate(graded.cells):
                 if cell.cell_type != "code":
                     continue
-                where = i
+                where, hid = i, None
                 run.execute(cell, i)
                 ex = by_check.get(i)
                 if ex is not None and ex.number in outside:
-                    where = ("hidden", ex.number, i)
+                    hid = ex.number
                     ns = kernel.RemoteNamespace(run)
                     verdicts[ex.number] = _hidden_verdict(ex.number, ns, seed_value)
                     calls[ex.number] = ns.calls
     except kernel.KernelFailure as err:
-        return verdicts, calls, (err.kind, err.message, where)
+        return verdicts, calls, (err.kind, err.message, where, hid)
     return verdicts, calls, None
 
 
@@ -292,9 +291,9 @@ def _outcome(graded, ex, exercises, shift, failure, verdicts):
     """(result, message) of one exercise: the kernel's failure before its verdict, its cells'
     errors, or its hidden check's verdict."""
     check_at = ex.check_cell + shift
-    if failure is not None and _not_reached(failure[2], check_at, ex.number):
+    if failure is not None and failure[2] <= check_at:  # a failure before its verdict
         return failure[0], (f"{failure[1]} while running "
-                            f"{_cell_name(failure[2], exercises, shift)}; exercise {ex.number} "
+                            f"{_cell_name(*failure[2:], exercises, shift)}; exercise {ex.number} "
                             "was not checked: scored 0")
     result, message = _result(_error_of(graded.cells[ex.solution_cell + shift]),
                               _error_of(graded.cells[check_at]))
@@ -303,17 +302,9 @@ def _outcome(graded, ex, exercises, shift, failure, verdicts):
     return result, message
 
 
-def _not_reached(where, check_at, number) -> bool:
-    """Whether the failure at ``where`` (a cell index, or ("hidden", NN.k, its check cell))
-    came before the exercise's verdict was known."""
-    if isinstance(where, tuple):
-        return where[1] == number or check_at > where[2]
-    return where <= check_at
-
-
-def _cell_name(where, exercises, shift) -> str:
-    if isinstance(where, tuple):
-        return f"the hidden check of exercise {where[1]}"
+def _cell_name(where, hid, exercises, shift) -> str:
+    if hid is not None:
+        return f"the hidden check of exercise {hid}"
     for ex in exercises:
         if where == ex.solution_cell + shift:
             return f"the answer of exercise {ex.number}"
@@ -338,31 +329,19 @@ def _hidden_verdict(number, ns, seed_value):
     return None
 
 
-def _hidden_outside(graded, exercises, shift) -> set:
-    """Take the standard hidden-test blocks out of the check cells (the grader runs them in
-    its own process); return their exercise numbers."""
-    out = set()
-    for ex in exercises:
-        cell = graded.cells[ex.check_cell + shift]
-        lines = cell.source.splitlines()
-        begin = [k for k, x in enumerate(lines) if x.strip() == BEGIN_HIDDEN]
-        end = [k for k, x in enumerate(lines) if x.strip() == END_HIDDEN]
-        if len(begin) == 1 and len(end) == 1 and begin[0] < end[0]:
-            number = hidden.call_of("\n".join(lines[begin[0] + 1: end[0]]))
-            if number == ex.number:
-                cell.source = strip_hidden(cell.source)
-                out.add(number)
-    return out
+_HIDDEN_BLOCK = re.compile(rf"^[ \t]*{re.escape(BEGIN_HIDDEN)}[ \t]*\n(.*?)\n[ \t]*"
+                           rf"{re.escape(END_HIDDEN)}[ \t]*$", re.M | re.S)
 
 
 def _graded(source, name, exercises, answers, checks, quick, twice=()):
     """The teacher edition with the student's answers in it (none for an exercise handed in
-    ``twice``), and the exercises whose check cell was altered or deleted (number -> what
-    happened)."""
+    ``twice``), the exercises whose check cell was altered or deleted (number -> what
+    happened), and those whose standard hidden-test block was taken out of the check cell (the
+    grader runs it in its own process)."""
     teacher = edition(source, name, student=False, quick=quick)
     shift = 1 if quick else 0
     graded = copy.deepcopy(teacher)
-    tampered = {}
+    tampered, outside = {}, set()
     for ex in exercises:
         mine = answers.get(ex.number) if ex.number not in twice else None
         graded.cells[ex.solution_cell + shift].source = (
@@ -375,7 +354,12 @@ def _graded(source, name, exercises, answers, checks, quick, twice=()):
             tampered[ex.number] = "check cell deleted"
         elif _norm(check.source) != _norm(expected):
             tampered[ex.number] = "check cell altered"
-    return graded, tampered
+        cell = graded.cells[ex.check_cell + shift]
+        blocks = _HIDDEN_BLOCK.findall(cell.source)
+        if len(blocks) == 1 and hidden.call_of(blocks[0]) == ex.number:
+            cell.source = expected
+            outside.add(ex.number)
+    return graded, tampered, outside
 
 
 def _written_row(head, w, cell) -> dict:

@@ -34,6 +34,8 @@ from unittest import mock
 
 import numpy as np
 
+from .capstone import write_recording
+
 __all__ = ["check"]
 
 #: environment variable that carries the grader's seed into the notebook's kernel
@@ -385,15 +387,9 @@ def _affine_rms(measured, truth):
     return float(np.sqrt(np.mean(np.sum((design @ coef - t) ** 2, axis=1))))
 
 
-def _recording(rng, folder):
-    from .capstone import write_recording
-
-    return write_recording(folder, seed=int(rng.integers(1 << 30)))
-
-
 def _ex08_1_import(ns, rng):
     with tempfile.TemporaryDirectory(prefix="sunlab-hidden-") as tmp:
-        rec = _recording(rng, tmp)
+        rec = write_recording(tmp, seed=int(rng.integers(1 << 30)))
         for name in ("train", "test"):
             cen = _call(ns, "centroids_of", rec.folder / name, rec.folder / "dark",
                         rec.folder / "flat")
@@ -419,7 +415,7 @@ def _ex08_2_calibrate(ns, rng):
     from sunlab import centroid, export, io, stats
 
     with tempfile.TemporaryDirectory(prefix="sunlab-hidden-") as tmp:
-        rec = _recording(rng, Path(tmp) / "run")
+        rec = write_recording(Path(tmp) / "run", seed=int(rng.integers(1 << 30)))
         cen = {name: centroid.locate(io.open_frames(rec.folder / name,
                                                     dark=rec.folder / "dark",
                                                     flat=rec.folder / "flat"),

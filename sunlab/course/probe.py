@@ -118,14 +118,17 @@ def recheck(call: dict, setup: str, answers: list[str], *, timeout: float) -> st
 
 
 def _tripwire(fn, spec: str):
+    """A function that ends the process with :data:`TRIPPED`, put in ``fn``'s code where it
+    has plain code (so every alias trips); return it and whether ``fn`` itself was rewired."""
     src = (f"def _t(*a, **k):\n import os\n os.write(2, b'SUNLAB-FORBIDDEN {spec}\\n')\n"
            f" os._exit({TRIPPED})\n")
     space: dict = {}
     exec(compile(src, "<tripwire>", "exec"), space)
     target = getattr(fn, "__func__", fn)
-    if getattr(target, "__code__", None) is not None and not target.__code__.co_freevars:
+    plain = getattr(target, "__code__", None) is not None and not target.__code__.co_freevars
+    if plain:
         target.__code__ = space["_t"].__code__
-    return space["_t"]
+    return space["_t"], plain
 
 
 #: what an answer cell may not reach into without a flag (names and attributes in its code)
@@ -179,22 +182,18 @@ def flags(source: str) -> list[str]:
             names = [a.name.split(".")[0] for a in node.names] + (
                 (node.module or "").split(".") if isinstance(node, ast.ImportFrom) else [])
             names += [a.name.split(".")[-1] for a in node.names]
-        for n in names:
-            if n in _REACH and _REACH[n] not in found:
-                found.append(_REACH[n])
+        found += [_REACH[n] for n in names if n in _REACH]
         targets = node.targets if isinstance(node, ast.Assign) else (
             [node.target] if isinstance(node, ast.AugAssign | ast.AnnAssign) else [])
-        for t in targets:
-            if isinstance(t, ast.Attribute) and isinstance(t.value, ast.Name) and \
-                    t.value.id in ("np", "numpy") and "attributes of numpy" not in found:
-                found.append("attributes of numpy")
+        if any(isinstance(t, ast.Attribute) and isinstance(t.value, ast.Name)
+               and t.value.id in ("np", "numpy") for t in targets):
+            found.append("attributes of numpy")
         if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and \
-                node.func.id in ("setattr", "delattr") and "setattr" not in found:
+                node.func.id in ("setattr", "delattr"):
             found.append("setattr")
-        if isinstance(node, ast.Constant) and isinstance(node.value, str) and \
-                ".ipynb" in node.value and "notebooks (nbformat)" not in found:
+        if isinstance(node, ast.Constant) and ".ipynb" in str(node.value):
             found.append("notebooks (nbformat)")
-    return found
+    return list(dict.fromkeys(found))
 
 
 def _main() -> None:
@@ -207,9 +206,8 @@ def _main() -> None:
         owner, obj = None, importlib.import_module(mod)
         for part in qual.split("."):
             owner, obj = obj, getattr(obj, part)
-        wire_fn = _tripwire(obj, spec.replace(":", "."))
-        if getattr(getattr(obj, "__func__", obj), "__code__", None) is None or \
-                getattr(obj, "__func__", obj).__code__.co_freevars:
+        wire_fn, plain = _tripwire(obj, spec.replace(":", "."))
+        if not plain:
             setattr(owner, qual.split(".")[-1], wire_fn)
     ns: dict = {"__name__": "__main__"}
     for src in [req["setup"], *req["answers"]]:

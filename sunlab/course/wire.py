@@ -25,6 +25,7 @@ import io
 import json
 import pickle
 from pathlib import PurePath
+from unittest import mock
 
 import numpy as np
 
@@ -62,9 +63,7 @@ def _enc(obj, depth):
     mod = type(obj).__module__.split(".")[0]
     if mod == "xarray":
         return {"__xr__": type(obj).__name__, "d": _enc(obj.to_dict(data="array"), depth + 1)}
-    if mod == "pandas" and hasattr(obj, "items") and hasattr(obj, "index"):
-        return {"__dict__": [[_enc(k, depth + 1), _enc(v, depth + 1)] for k, v in obj.items()]}
-    if isinstance(obj, dict):
+    if isinstance(obj, dict) or mod == "pandas" and hasattr(obj, "items") and hasattr(obj, "index"):
         return {"__dict__": [[_enc(k, depth + 1), _enc(v, depth + 1)] for k, v in obj.items()]}
     key = len(_HANDLES)
     _HANDLES[key] = obj
@@ -170,7 +169,7 @@ def answer(ns: dict, text: str) -> str:
     text : str
         :func:`request`'s text: ``what`` is ``"call"`` (``target`` a name of ``ns`` or a
         handle) or ``"attr"`` (a handle's attribute); ``bind`` rebinds names of ``ns`` for the
-        call and puts them back.
+        call, and ``ns`` is put back as it was after it.
 
     Returns
     -------
@@ -178,25 +177,15 @@ def answer(ns: dict, text: str) -> str:
         JSON of ``{"ok": value}``, ``{"missing": true}`` or ``{"raised": name, "message": ...}``.
     """
     what, target, name, args, kwargs, bind = pickle.loads(base64.b64decode(text))
-    missing = object()
-    saved = {k: ns.get(k, missing) for k in bind}
-    ns.update(bind)
     try:
-        obj = ns.get(target) if isinstance(target, str) else _HANDLES[target]
-        if what == "attr":
-            out = {"ok": getattr(obj, name)}
-        elif obj is None:
-            out = {"missing": True}
-        else:
-            out = {"ok": obj(*args, **kwargs)}
+        with mock.patch.dict(ns, bind):  # the notebook's globals as they were, after the call
+            obj = ns.get(target) if isinstance(target, str) else _HANDLES[target]
+            if what == "attr":
+                out = {"ok": getattr(obj, name)}
+            else:
+                out = {"missing": True} if obj is None else {"ok": obj(*args, **kwargs)}
     except BaseException as err:  # the answer's own error, reported as data
         out = {"raised": type(err).__name__, "message": str(err)[:500]}
-    finally:
-        for k, v in saved.items():
-            if v is missing:
-                ns.pop(k, None)
-            else:
-                ns[k] = v
     try:
         return json.dumps({k: (_enc(v, 0) if k == "ok" else v) for k, v in out.items()})
     except Exception as err:
@@ -238,15 +227,13 @@ def reply(text: str, run=None):
     name); raises :class:`AnswerRaised` when the student's function raised or the text is not
     data."""
     try:
-        env = json.loads(text)
+        env = decode(text, run)  # the envelope's own keys are plain JSON
         if env.get("missing"):
             return MISSING
-        if "raised" in env:
-            raise AnswerRaised(str(env["raised"]), str(env.get("message", "")))
-        if len(text) > MAX_BYTES:
-            raise ValueError(f"an answer of {len(text)} bytes (at most {MAX_BYTES})")
-        return _dec(env["ok"], run)
-    except AnswerRaised:
-        raise
+        raised = ("raised" in env and (str(env["raised"]), str(env.get("message", ""))))
+        out = None if raised else env["ok"]
     except Exception as err:
         raise AnswerRaised("ValueError", f"an output that is not data ({err})") from None
+    if raised:
+        raise AnswerRaised(*raised)
+    return out
