@@ -60,15 +60,14 @@ import xarray as xr
 
 from ..errors import ConfigurationError, SchemaError
 from ..extras import require
-from ..schema import STATUS, USABLE_STATUS
+from ..schema import STATUS
 from . import _frames_torch as T
-from ._checks import _bad, _count, _number, _numbers
-from .base import Calibration, _err_summary
+from ._checks import _bad, _check_spots_move, _count, _number, _numbers
+from .base import Calibration, _err_summary, _estimates
 from .windows import _with_hole_uv, detect_spots, spot_windows
 
 __all__ = ["FrameNet"]
 
-_USABLE = [STATUS[k] for k in USABLE_STATUS]
 #: The bounds (lowest, highest) of every size and setting a FrameNet takes and its model file
 #: holds: a window of 512 px, 64 channels and order 12 are far beyond any useful network, and
 #: an edited file cannot ask for terabytes of windows or a million threads.
@@ -142,12 +141,9 @@ class FrameNet(Calibration):
             raise ConfigurationError(f"lr: found {lr!r}, expected a positive learning rate")
         if device not in ("cpu", "cuda"):
             raise ConfigurationError(f"device: found {device!r}, expected 'cpu' or 'cuda'")
-        self.window, self.pad, self.channels = int(window), int(pad), int(channels)
-        self.order, self.epochs, self.patience = int(order), int(epochs), int(patience)
-        self.batch = None if batch is None else int(batch)
-        self.lr, self.seed, self.threads, self.device = float(lr), int(seed), int(threads), device
+        self.batch, self.lr, self.device = None, float(lr), device
+        vars(self).update({k: int(v) for k, v in given.items()})  # batch too, when given
         self.hole_offset = (float(hole_offset[0]), float(hole_offset[1]))
-        self.spots = int(spots)
         self.multi: bool | None = None
         self.scaling: dict | None = None
         self.arrays: dict | None = None
@@ -192,13 +188,9 @@ class FrameNet(Calibration):
     def _scaling(self, data: dict) -> dict:
         d = data["corner"] + data["window"] / 2 + data["pad"] - data["hole"]
         hole = data["hole"]
-        std = d.std(axis=0)
-        if not np.all(std > 0):
-            raise ConfigurationError(
-                "train: the spots do not move along both axes. Fix: train on a grid of poses "
-                "(experiment I)")
+        _check_spots_move(d[:, 0], d[:, 1], "train")
         hstd = hole.std(axis=0)
-        return {"d_mean": d.mean(axis=0), "d_std": std, "hole_mean": hole.mean(axis=0),
+        return {"d_mean": d.mean(axis=0), "d_std": d.std(axis=0), "hole_mean": hole.mean(axis=0),
                 "hole_std": np.where(hstd > 0, hstd, 1.0)}
 
     def _state(self) -> dict:
@@ -265,19 +257,15 @@ class FrameNet(Calibration):
                          "n_ok_shots": int(data["n_frames"]), "average": "shot",
                          "centroid_method": "learned from frames",
                          "validation": None if val is None else summary(validation, val)}
-        t = data["target"]
-        self.domain = {"alpha": [float(t[:, 0].min()), float(t[:, 0].max())],
-                       "beta": [float(t[:, 1].min()), float(t[:, 1].max())],
-                       "x": [float(pos[:, 0].min()), float(pos[:, 0].max())],
-                       "y": [float(pos[:, 1].min()), float(pos[:, 1].max())]}
-        res = {a: _err_summary(pred[:, k], t[:, k]) for k, a in enumerate(("alpha", "beta"))}
-        if val is not None:
-            pv, _ = self._predict_data(val)
-            res["validation"] = {a: _err_summary(pv[:, k], val["target"][:, k])
-                                 for k, a in enumerate(("alpha", "beta"))}
-        else:
-            res["validation"] = None
-        self.residuals = res
+        self.domain = {a: [float(v.min()), float(v.max())] for a, v in
+                       zip(("alpha", "beta", "x", "y"), [*data["target"].T, *pos.T], strict=True)}
+
+        def errors(d, p):
+            return {a: _err_summary(p[:, k], d["target"][:, k])
+                    for k, a in enumerate(("alpha", "beta"))}
+
+        self.residuals = {**errors(data, pred), "validation": None if val is None
+                          else errors(val, self._predict_data(val)[0])}
 
     # --- predict -----------------------------------------------------------------------------
     def _predict_data(self, data: dict):
@@ -346,21 +334,11 @@ class FrameNet(Calibration):
             tol = ((self.residuals or {}).get(a) or {}).get("max_abs") or 0.0
             lo, hi = self.domain[a]
             inside &= (out[..., k] >= lo - tol) & (out[..., k] <= hi + tol)
-        finite = np.isfinite(out[..., 0])
-        dims = ("pose", "shot")
-        return xr.Dataset(
-            {"alpha": (dims, out[..., 0], {"units": "deg", "long_name": "estimated alpha"}),
-             "beta": (dims, out[..., 1], {"units": "deg", "long_name": "estimated beta"}),
-             "status": (dims, status), "n_spots": (dims, n),
-             "in_domain": (dims, inside | ~finite, {"long_name": "estimate inside the training "
-                                                    "domain (False: extrapolated)"})},
-            coords={"pose": cube["pose"].values, "shot": cube["shot"].values,
-                    "alpha_cmd": ("pose", cube["alpha"].values, {"units": "deg"}),
-                    "beta_cmd": ("pose", cube["beta"].values, {"units": "deg"})},
-            attrs={"calibration": self.kind, "label": self.label,
-                   "experiment": str(cube.attrs.get("experiment", "")),
-                   "n_out_of_domain": int((finite & ~inside).sum()),
-                   "timings": repr({k: round(v, 3) for k, v in self.timings.items()})})
+        est = _estimates(self, cube, ("pose", "shot"), out[..., 0], out[..., 1],
+                         np.isfinite(out[..., 0]), inside, status=(("pose", "shot"), status),
+                         n_spots=(("pose", "shot"), n))
+        est.attrs["timings"] = repr({k: round(v, 3) for k, v in self.timings.items()})
+        return est
 
     def predict(self, cube: xr.Dataset) -> xr.Dataset:
         """:meth:`predict_frames`: a frame calibration reads frames, not centroids.

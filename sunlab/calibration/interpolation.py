@@ -38,7 +38,7 @@ from scipy.interpolate import (
     LinearNDInterpolator,
     NearestNDInterpolator,
 )
-from scipy.spatial import Delaunay, QhullError, cKDTree
+from scipy.spatial import QhullError, cKDTree
 
 from ..errors import ConfigurationError
 from ._checks import _bad, _numbers
@@ -98,10 +98,6 @@ class Interpolation(Calibration):
     def _build(self) -> None:
         pts = np.column_stack([self.nodes["x"], self.nodes["y"]])
         vals = np.column_stack([self.nodes["alpha"], self.nodes["beta"]])
-        if len(pts) < 3:
-            raise ConfigurationError(
-                f"nodes: found {len(pts)} poses, expected at least 3 for a triangulation"
-            )
         cls = LinearNDInterpolator if self.method == "linear" else CloughTocher2DInterpolator
         try:
             self._interp = cls(pts, vals, fill_value=np.nan, rescale=True)
@@ -187,23 +183,13 @@ class Interpolation(Calibration):
         k = min(int(neighbours) + 1, len(z))
         _, idx = cKDTree(z).query(z, k=k)
         est = np.full(vals.shape, np.nan)
+        cls = LinearNDInterpolator if self.method == "linear" else CloughTocher2DInterpolator
         for i, near in enumerate(np.atleast_2d(idx)):
             near = near[near != i]
             if len(near) < 3:
                 continue
-            try:
-                if self.method == "linear":  # barycentric weights on the Delaunay triangle
-                    tri = Delaunay(z[near])
-                    s = int(tri.find_simplex(z[i]))
-                    if s < 0:
-                        continue
-                    T = tri.transform[s]
-                    c = T[:2] @ (z[i] - T[2])
-                    w = np.append(c, 1.0 - c.sum())
-                    est[i] = w @ vals[near][tri.simplices[s]]
-                else:
-                    est[i] = CloughTocher2DInterpolator(z[near], vals[near],
-                                                        fill_value=np.nan)(z[i:i + 1])[0]
+            try:  # the same interpolant on the node's neighbours (rescaled plane)
+                est[i] = cls(z[near], vals[near], fill_value=np.nan)(z[i:i + 1])[0]
             except QhullError:  # degenerate neighbourhood (collinear nodes): skip the node
                 continue
         return {"alpha": _err_summary(est[:, 0], vals[:, 0]),
@@ -244,9 +230,7 @@ class Interpolation(Calibration):
     @classmethod
     def _from_parameters(cls, p: dict):
         obj = cls(method=p["method"], extrapolate=p.get("extrapolate"))
-        nodes = {k: np.asarray(p["nodes"][k], dtype=float) for k in ("x", "y", "alpha", "beta")}
-        if len({v.shape for v in nodes.values()}) != 1 or nodes["x"].ndim != 1:
-            raise ValueError("nodes x, y, alpha, beta must be flat lists of equal length")
-        obj.nodes = nodes
+        obj.nodes = {k: np.asarray(p["nodes"][k], dtype=float)
+                     for k in ("x", "y", "alpha", "beta")}
         obj._build()
         return obj

@@ -25,6 +25,9 @@ from .base import _SENSOR, Calibration, sensor_attrs
 
 __all__ = ["IdealModel", "OptimisedModel"]
 
+#: The numbers of a saved optimised fit (mm, deg, px).
+_FIT_NUMBERS = ("delta_f_mm", "alpha0", "beta0", "x_zp", "y_zp", "x_cf", "y_cf",
+                "mask_distance_mm", "pixel_pitch_mm")
 #: Poses within this distance of alpha = beta = 0 (deg) count as the zero pose.
 ZERO_POSE_TOL_DEG = 1e-9
 
@@ -224,10 +227,8 @@ class OptimisedModel(Calibration):
     def _check_parameters(cls, p: dict) -> None:
         """Sizes, finiteness and ranges of a document's parameters, before any array is
         built (:func:`sunlab.calibration.artifact.from_dict`)."""
-        for k in ("delta_f_mm", "alpha0", "beta0", "x_zp", "y_zp", "x_cf", "y_cf"):
-            _number(p.get(k), k)
-        for k in ("mask_distance_mm", "pixel_pitch_mm"):
-            _number(p.get(k), k, positive=True)
+        for k in _FIT_NUMBERS:
+            _number(p.get(k), k, positive=k in ("mask_distance_mm", "pixel_pitch_mm"))
 
     @classmethod
     def _from_parameters(cls, p: dict):
@@ -265,7 +266,4 @@ def optimised_fit_from_dict(p: dict) -> geometry.OptimisedFit:
     defaults = {"mounting": "additive", "stderr_method": "jacobian"}
     kw = {k: p.get(k, defaults.get(k)) for k in fields}
     kw["stderr"] = {k: (np.nan if v is None else float(v)) for k, v in kw["stderr"].items()}
-    for k in ("delta_f_mm", "alpha0", "beta0", "x_zp", "y_zp", "x_cf", "y_cf",
-              "mask_distance_mm", "pixel_pitch_mm"):
-        kw[k] = float(kw[k])
-    return geometry.OptimisedFit(**kw)
+    return geometry.OptimisedFit(**kw | {k: float(kw[k]) for k in _FIT_NUMBERS})

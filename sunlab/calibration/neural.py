@@ -49,7 +49,7 @@ from ..errors import ConfigurationError
 from ..extras import require
 from ._checks import _bad, _count, _number, _numbers
 from .base import Calibration, sensor_attrs
-from .model import fit_optimised, optimised_fit_from_dict
+from .model import IdealModel, fit_optimised, optimised_fit_from_dict
 
 __all__ = ["NeuralNet"]
 
@@ -140,10 +140,7 @@ class NeuralNet(Calibration):
         return f"NN strategy {self.strategy}"
 
     # --- inputs and targets of each strategy -----------------------------------------------
-    def _ideal(self, x, y):
-        s = self.sensor
-        return geometry.ideal_angles(x, y, s["mask_distance_mm"], s["pixel_pitch_mm"],
-                                     s["x_cf_px"], s["y_cf_px"])
+    _ideal = IdealModel._predict_xy  # model (1) of ``sensor``
 
     def _inputs(self, x, y) -> np.ndarray:
         if self.strategy in (1, 4):
@@ -343,9 +340,8 @@ class NeuralNet(Calibration):
         scaling = p.get("input_scaling")
         if not isinstance(scaling, dict):
             raise _bad("input_scaling", type(scaling).__name__, "an object {'mean', 'std'}")
-        n_in = len(scaling.get("mean") or [])
-        _numbers(scaling.get("mean"), "input_scaling.mean")
-        _numbers(scaling.get("std"), "input_scaling.std", n_in, positive=True)
+        _numbers(scaling.get("mean"), "input_scaling.mean", 2)  # two inputs per strategy
+        _numbers(scaling.get("std"), "input_scaling.std", 2, positive=True)
         nets = p.get("networks")
         if not isinstance(nets, dict):
             raise _bad("networks", type(nets).__name__, "an object {'alpha': ..., 'beta': ...}")
@@ -358,7 +354,7 @@ class NeuralNet(Calibration):
                 raise _bad(f"networks.{angle}.W1", f"{len(w1) if isinstance(w1, list) else w1}"
                            " rows", f"{h} rows (hidden = {h})")
             for i, row in enumerate(w1):
-                _numbers(row, f"networks.{angle}.W1[{i}]", n_in or None)
+                _numbers(row, f"networks.{angle}.W1[{i}]", 2)
             _numbers(net.get("b1"), f"networks.{angle}.b1", h)
             _numbers(net.get("W2"), f"networks.{angle}.W2", h)
             for k in ("b2", "target_mean"):
@@ -373,14 +369,9 @@ class NeuralNet(Calibration):
             obj.optimised = optimised_fit_from_dict(p["optimised"])
         obj.input_scaling = {k: np.asarray(p["input_scaling"][k], dtype=float)
                              for k in ("mean", "std")}
-        obj.networks = {}
-        h = obj.hidden
-        for angle in ("alpha", "beta"):
-            q = p["networks"][angle]
-            net = {k: np.asarray(q[k], dtype=float) for k in ("W1", "b1", "W2")} | {
-                k: float(q[k]) for k in ("b2", "target_mean", "target_std")}
-            if net["W1"].shape != (h, 2) or net["b1"].shape != (h,) or net["W2"].shape != (h,):
-                raise ValueError(f"{angle} network weights do not match hidden={h}")
-            obj.networks[angle] = net
+        nets = p["networks"]  # sizes checked by _check_parameters
+        obj.networks = {a: {k: np.asarray(nets[a][k], dtype=float) for k in ("W1", "b1", "W2")}
+                        | {k: float(nets[a][k]) for k in ("b2", "target_mean", "target_std")}
+                        for a in ("alpha", "beta")}
         obj.history = p.get("history")
         return obj
