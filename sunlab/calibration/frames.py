@@ -122,6 +122,7 @@ class FrameNet(Calibration):
     """
 
     kind = "learned-frames"
+    label = "learned (frames)"
 
     def __init__(self, window: int = 44, pad: int = 3, channels: int = 6, order: int = 5, *,
                  epochs: int = 40, patience: int = 6, batch: int | None = None,
@@ -150,10 +151,6 @@ class FrameNet(Calibration):
         self.coef: np.ndarray | None = None
         self.history: dict | None = None
         self.timings: dict = {}
-
-    @property
-    def label(self) -> str:
-        return "learned (frames)"
 
     def min_poses(self) -> int:
         """Fewest distinct training poses: one per coefficient of the head's polynomial.

@@ -208,11 +208,8 @@ class Interpolation(Calibration):
         return out[:, 0], out[:, 1]
 
     def _parameters(self) -> dict:
-        return {
-            "method": self.method,
-            "extrapolate": self.extrapolate,
-            "nodes": {k: np.asarray(v).tolist() for k, v in self.nodes.items()},
-        }
+        return {"method": self.method, "extrapolate": self.extrapolate,
+                "nodes": {k: np.asarray(v).tolist() for k, v in self.nodes.items()}}
 
     @classmethod
     def _check_parameters(cls, p: dict) -> None:

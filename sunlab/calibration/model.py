@@ -58,16 +58,13 @@ class IdealModel(Calibration):
     """
 
     kind = "ideal"
+    label = "ideal model (1)"
 
     def __init__(self, mask_distance_mm=None, pixel_pitch_mm=None, x_cf_px=None, y_cf_px=None):
         super().__init__()
         self._given = {"mask_distance_mm": mask_distance_mm, "pixel_pitch_mm": pixel_pitch_mm,
                        "x_cf_px": x_cf_px, "y_cf_px": y_cf_px}
         self.sensor: dict | None = None
-
-    @property
-    def label(self) -> str:
-        return "ideal model (1)"
 
     def _fit(self, data, validation) -> None:
         attrs = {**data.attrs, **{k: v for k, v in self._given.items() if v is not None}}
@@ -189,6 +186,7 @@ class OptimisedModel(Calibration):
     """
 
     kind = "optimised"
+    label = "optimised model (3)-(4)"
 
     def __init__(self, fit_zero_pose: bool | None = True, average: str = "pose",
                  n_boot: int = 200):
@@ -197,10 +195,6 @@ class OptimisedModel(Calibration):
         self.average = average
         self.n_boot = int(n_boot)
         self.result: geometry.OptimisedFit | None = None
-
-    @property
-    def label(self) -> str:
-        return "optimised model (3)-(4)"
 
     def min_poses(self) -> int:
         """Fewest distinct training poses: two equations per pose for dF, alpha0, beta0 and the

@@ -223,19 +223,13 @@ class NeuralNet(Calibration):
         std = np.where(std > 0, std, 1.0)
         self.input_scaling = {"mean": mean, "std": std}
         Z = (X - mean) / std
-        Zv = Tv = None
-        if validation is not None:
-            Zv = (self._inputs(validation.x, validation.y) - mean) / std
-            Tv = self._targets(validation)
+        v = validation
+        Zv = None if v is None else (self._inputs(v.x, v.y) - mean) / std
         self.networks, self.history = {}, {}
         for k, angle in enumerate(("alpha", "beta")):
             t_mean, t_std = float(T[:, k].mean()), float(T[:, k].std()) or 1.0
-            net, hist = self._train_one(
-                Z, (T[:, k] - t_mean) / t_std,
-                None if Zv is None else Zv,
-                None if Tv is None else (Tv[:, k] - t_mean) / t_std,
-                self.seed + k,
-            )
+            tv = None if v is None else (self._targets(v)[:, k] - t_mean) / t_std
+            net, hist = self._train_one(Z, (T[:, k] - t_mean) / t_std, Zv, tv, self.seed + k)
             net.update(target_mean=t_mean, target_std=t_std)
             self.networks[angle] = net
             self.history[angle] = hist
@@ -309,14 +303,10 @@ class NeuralNet(Calibration):
     # --- prediction (NumPy) ------------------------------------------------------------------
     def _predict_xy(self, x, y):
         Z = (self._inputs(x, y) - self.input_scaling["mean"]) / self.input_scaling["std"]
-        out = [
-            _forward(Z, net) * net["target_std"] + net["target_mean"]
-            for net in (self.networks["alpha"], self.networks["beta"])
-        ]
-        if self.strategy == 4:
-            ia, ib = self._ideal(x, y)
-            out = [ia + out[0], ib + out[1]]
-        return out[0], out[1]
+        out = [_forward(Z, self.networks[a]) * self.networks[a]["target_std"]
+               + self.networks[a]["target_mean"] for a in ("alpha", "beta")]
+        zero = self._ideal(x, y) if self.strategy == 4 else (0.0, 0.0)  # model (1) + error
+        return out[0] + zero[0], out[1] + zero[1]
 
     # --- artifact ----------------------------------------------------------------------------
     def _parameters(self) -> dict:
