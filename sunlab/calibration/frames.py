@@ -76,6 +76,10 @@ _LIMITS = {"window": (8, 512), "pad": (0, 64), "channels": (1, 64), "order": (1,
            "threads": (1, 256), "spots": (1, 10_000), "seed": (0, 2**63 - 1)}
 
 
+#: The training settings a model file keeps (``settings``).
+_SETTINGS = ("epochs", "patience", "batch", "lr", "seed", "threads", "spots")
+
+
 class FrameNet(Calibration):
     """A calibration learned from the frames (module docstring): one hole or a set of spots.
 
@@ -378,9 +382,7 @@ class FrameNet(Calibration):
             "window": self.window, "pad": self.pad, "channels": self.channels,
             "order": self.order, "multi": self.multi,
             "hole_offset_px": list(self.hole_offset),
-            "settings": {"epochs": self.epochs, "patience": self.patience,
-                         "batch": self.batch, "lr": self.lr, "seed": self.seed,
-                         "threads": self.threads, "spots": self.spots},
+            "settings": {k: getattr(self, k) for k in _SETTINGS},
             "scaling": {k: np.asarray(v, dtype=float).tolist() for k, v in self.scaling.items()},
             "network": {k: np.asarray(v).tolist() for k, v in self.arrays.items()},
             "head": np.asarray(self.coef).tolist(),
@@ -430,10 +432,8 @@ class FrameNet(Calibration):
     @classmethod
     def _from_parameters(cls, p: dict):
         s = p["settings"]
-        obj = cls(window=p["window"], pad=p["pad"], channels=p["channels"], order=p["order"],
-                  epochs=s["epochs"], patience=s["patience"], batch=s["batch"], lr=s["lr"],
-                  seed=s["seed"], threads=s["threads"], hole_offset=p["hole_offset_px"],
-                  spots=s.get("spots", 16))
+        obj = cls(**{k: p[k] for k in ("window", "pad", "channels", "order")},
+                  hole_offset=p["hole_offset_px"], **{k: s[k] for k in _SETTINGS if k in s})
         obj.multi = bool(p["multi"])
         obj.scaling = {k: np.asarray(v, dtype=float) for k, v in p["scaling"].items()}
         obj.arrays = {k: np.asarray(v, dtype=float) for k, v in p["network"].items()}

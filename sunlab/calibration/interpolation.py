@@ -88,8 +88,7 @@ class Interpolation(Calibration):
         self.with_leave_one_out = bool(leave_one_out)
         self.average = "pose"
         self.nodes: dict | None = None
-        self._interp = None
-        self._nearest = None
+        self._interp = self._nearest = None  # scipy interpolants of the nodes (_build)
 
     @property
     def label(self) -> str:
@@ -139,9 +138,8 @@ class Interpolation(Calibration):
         x, y = np.broadcast_arrays(np.asarray(x, dtype=float), np.asarray(y, dtype=float))
         ok = np.isfinite(x) & np.isfinite(y)
         pts = np.column_stack([np.where(ok, x, 0.0).ravel(), np.where(ok, y, 0.0).ravel()])
-        tri = self._interp.tri
         scaled = (pts - self._interp.offset) / self._interp.scale
-        return ((tri.find_simplex(scaled) >= 0).reshape(x.shape)) & ok
+        return (self._interp.tri.find_simplex(scaled) >= 0).reshape(x.shape) & ok
 
     def leave_one_out(self, neighbours: int = 24) -> dict:
         """Leave-one-out errors of the table: each node predicted without it, deg.
