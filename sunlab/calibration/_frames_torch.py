@@ -275,9 +275,7 @@ def from_arrays(arrays: dict, channels: int, device: str = "cpu"):
 def check_device(device: str) -> str:
     """``device`` if torch can use it: ``"cpu"``, or ``"cuda"`` where a GPU exists."""
     torch = _torch()
-    if device == "cpu":
-        return device
-    if device == "cuda" and torch.cuda.is_available():
+    if device == "cpu" or (device == "cuda" and torch.cuda.is_available()):
         return device
     raise ConfigurationError(
         f"device: found {device!r}, expected 'cpu' or 'cuda' (a GPU torch can see: "

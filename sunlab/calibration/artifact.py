@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 
 from .. import integrity
 from ..errors import SchemaError
-from ..schema import CALIBRATION_SCHEMA, validate_calibration
+from ..schema import validate_calibration
 from ._checks import _bad
 from .registry import ENTRY_POINT_GROUP, available_kinds, method_class
 
@@ -32,7 +32,7 @@ MAX_FILE_BYTES = 64 * 2**20
 def validate_document(doc) -> dict:
     """Check a ``calibration/1`` document; return it unchanged.
 
-    Checks the schema tag, then the JSON Schema of ``data_schema/`` with
+    Checks the schema tag and the JSON Schema of ``data_schema/`` with
     :func:`sunlab.schema.validate_calibration`, then that the kind is one sunlab can load.
 
     Parameters
@@ -61,13 +61,6 @@ def validate_document(doc) -> dict:
     if not isinstance(doc, dict):
         raise SchemaError("calibration document", type(doc).__name__, "a JSON object",
                           "pass a file written by Calibration.save")
-    found = doc.get("sunlab_schema")
-    if found != CALIBRATION_SCHEMA:
-        raise SchemaError(
-            "sunlab_schema", found, repr(CALIBRATION_SCHEMA),
-            "this file was not written by Calibration.save of this sunlab version; re-fit the "
-            "calibration (sunlab calibrate) or convert it with the version that wrote it",
-        )
     validate_calibration(doc)
     kind = doc.get("kind")
     registry = available_kinds()

@@ -41,10 +41,9 @@ import xarray as xr
 from .. import __version__, atomic, integrity
 from ..errors import ConfigurationError, SchemaError
 from ..schema import CALIBRATION_SCHEMA, CENTROIDS_SCHEMA, STATUS
-from ..screening import screen_outliers
 from ._checks import _check_spots_move, _ok_mask
 from .artifact import validate_document
-from .registry import OUTLIER_MADS, name_plugin_errors
+from .registry import OUTLIER_MADS, _screened, name_plugin_errors
 from .summary import calibration_summary
 
 __all__ = ["Calibration"]
@@ -206,6 +205,25 @@ def _err_summary(est, ref) -> dict:
             "max_abs": float(np.abs(e).max()), "n": int(e.size)}
 
 
+def _estimates(cal, table, dims, a, b, finite, inside, **variables) -> xr.Dataset:
+    """What ``predict`` returns: angles ``a``, ``b`` (deg) on ``dims``, ``variables``,
+    ``in_domain`` (``inside``, or not ``finite``: no estimate to flag), the commanded angles
+    of ``table`` (a centroid table or a frame cube) as ``alpha_cmd``, ``beta_cmd``."""
+    coords = {d: (d, table[d].values) for d in dims if d in table.coords}
+    for c in ("alpha", "beta"):
+        if c in table.coords:
+            coords[f"{c}_cmd"] = (table[c].dims, table[c].values,
+                                  {"units": "deg", "long_name": f"commanded {c}"})
+    return xr.Dataset(
+        {"alpha": (dims, a, {"units": "deg", "long_name": "estimated outer-axis angle"}),
+         "beta": (dims, b, {"units": "deg", "long_name": "estimated inner-axis angle"}),
+         **variables, "in_domain": (dims, inside | ~finite, {
+             "long_name": "inside the calibrated domain (False: extrapolated)"})},
+        coords=coords, attrs={"calibration": cal.kind, "label": cal.label,
+                              "experiment": str(table.attrs.get("experiment", "")),
+                              "n_out_of_domain": int((finite & ~inside).sum())})
+
+
 class Calibration:
     """Base class of the calibration functions: fit, predict, save.
 
@@ -267,18 +285,8 @@ class Calibration:
         Calibration
             ``self``, fitted: ``training``, ``domain`` (deg, px) and ``residuals`` (deg).
         """
-        if outlier_mads == "default":
-            outlier_mads = self.default_outlier_mads
-        excluded = {}
-        if outlier_mads:
-            train, excluded["excluded"] = screen_outliers(train, outlier_mads)
-            if validation is not None:
-                validation, excluded["validation_excluded"] = screen_outliers(validation,
-                                                                              outlier_mads)
-        self._fit_tables(train, validation)
-        if outlier_mads:
-            self.training.update(outlier_mads=float(outlier_mads), **excluded)
-        return self
+        return _screened(lambda t, v: self._fit_tables(t, v) or self, type(self), train,
+                         validation, outlier_mads)
 
     def _fit_tables(self, train: xr.Dataset, validation: xr.Dataset | None) -> None:
         data = _points(train, self.average, "train")
@@ -407,23 +415,9 @@ class Calibration:
         _check_table(centroids, "centroids", fitting=False)
         x, y = centroids["x"].values, centroids["y"].values
         a, b = self.predict_xy(x, y)
-        finite, inside = np.isfinite(x) & np.isfinite(y), self.inside(x, y)
-        dims = centroids["x"].dims
-        coords = {d: (d, centroids[d].values) for d in dims if d in centroids.coords}
-        for c in ("alpha", "beta"):
-            if c in centroids.coords:
-                coords[f"{c}_cmd"] = (centroids[c].dims, centroids[c].values,
-                                      {"units": "deg", "long_name": f"commanded {c}"})
-        return xr.Dataset(
-            {"alpha": (dims, a, {"units": "deg", "long_name": "estimated outer-axis angle"}),
-             "beta": (dims, b, {"units": "deg", "long_name": "estimated inner-axis angle"}),
-             "status": centroids["status"].variable.copy(),
-             "in_domain": (dims, inside | ~finite, {
-                 "long_name": "centroid inside the calibrated domain (False: extrapolated)"})},
-            coords=coords,
-            attrs={"calibration": self.kind, "label": self.label,
-                   "experiment": str(centroids.attrs.get("experiment", "")),
-                   "n_out_of_domain": int((finite & ~inside).sum())})
+        return _estimates(self, centroids, centroids["x"].dims, a, b, np.isfinite(x) &
+                          np.isfinite(y), self.inside(x, y),
+                          status=centroids["status"].variable.copy())
 
     def to_dict(self) -> dict:
         """The ``calibration/1`` document (JSON-ready).

@@ -60,21 +60,24 @@ import xarray as xr
 
 from ..errors import ConfigurationError, SchemaError
 from ..extras import require
-from ..schema import STATUS, USABLE_STATUS
+from ..schema import STATUS
 from . import _frames_torch as T
-from ._checks import _bad, _count, _number, _numbers
-from .base import Calibration, _err_summary
+from ._checks import _bad, _check_spots_move, _count, _number, _numbers
+from .base import Calibration, _err_summary, _estimates
 from .windows import _with_hole_uv, detect_spots, spot_windows
 
 __all__ = ["FrameNet"]
 
-_USABLE = [STATUS[k] for k in USABLE_STATUS]
 #: The bounds (lowest, highest) of every size and setting a FrameNet takes and its model file
 #: holds: a window of 512 px, 64 channels and order 12 are far beyond any useful network, and
 #: an edited file cannot ask for terabytes of windows or a million threads.
 _LIMITS = {"window": (8, 512), "pad": (0, 64), "channels": (1, 64), "order": (1, 12),
            "epochs": (0, 100_000), "patience": (1, 100_000), "batch": (1, 100_000),
            "threads": (1, 256), "spots": (1, 10_000), "seed": (0, 2**63 - 1)}
+
+
+#: The training settings a model file keeps (``settings``).
+_SETTINGS = ("epochs", "patience", "batch", "lr", "seed", "threads", "spots")
 
 
 class FrameNet(Calibration):
@@ -123,6 +126,7 @@ class FrameNet(Calibration):
     """
 
     kind = "learned-frames"
+    label = "learned (frames)"
 
     def __init__(self, window: int = 44, pad: int = 3, channels: int = 6, order: int = 5, *,
                  epochs: int = 40, patience: int = 6, batch: int | None = None,
@@ -142,22 +146,15 @@ class FrameNet(Calibration):
             raise ConfigurationError(f"lr: found {lr!r}, expected a positive learning rate")
         if device not in ("cpu", "cuda"):
             raise ConfigurationError(f"device: found {device!r}, expected 'cpu' or 'cuda'")
-        self.window, self.pad, self.channels = int(window), int(pad), int(channels)
-        self.order, self.epochs, self.patience = int(order), int(epochs), int(patience)
-        self.batch = None if batch is None else int(batch)
-        self.lr, self.seed, self.threads, self.device = float(lr), int(seed), int(threads), device
+        self.batch, self.lr, self.device = None, float(lr), device
+        vars(self).update({k: int(v) for k, v in given.items()})  # batch too, when given
         self.hole_offset = (float(hole_offset[0]), float(hole_offset[1]))
-        self.spots = int(spots)
         self.multi: bool | None = None
         self.scaling: dict | None = None
         self.arrays: dict | None = None
         self.coef: np.ndarray | None = None
         self.history: dict | None = None
         self.timings: dict = {}
-
-    @property
-    def label(self) -> str:
-        return "learned (frames)"
 
     def min_poses(self) -> int:
         """Fewest distinct training poses: one per coefficient of the head's polynomial.
@@ -192,13 +189,9 @@ class FrameNet(Calibration):
     def _scaling(self, data: dict) -> dict:
         d = data["corner"] + data["window"] / 2 + data["pad"] - data["hole"]
         hole = data["hole"]
-        std = d.std(axis=0)
-        if not np.all(std > 0):
-            raise ConfigurationError(
-                "train: the spots do not move along both axes. Fix: train on a grid of poses "
-                "(experiment I)")
+        _check_spots_move(d[:, 0], d[:, 1], "train")
         hstd = hole.std(axis=0)
-        return {"d_mean": d.mean(axis=0), "d_std": std, "hole_mean": hole.mean(axis=0),
+        return {"d_mean": d.mean(axis=0), "d_std": d.std(axis=0), "hole_mean": hole.mean(axis=0),
                 "hole_std": np.where(hstd > 0, hstd, 1.0)}
 
     def _state(self) -> dict:
@@ -265,19 +258,15 @@ class FrameNet(Calibration):
                          "n_ok_shots": int(data["n_frames"]), "average": "shot",
                          "centroid_method": "learned from frames",
                          "validation": None if val is None else summary(validation, val)}
-        t = data["target"]
-        self.domain = {"alpha": [float(t[:, 0].min()), float(t[:, 0].max())],
-                       "beta": [float(t[:, 1].min()), float(t[:, 1].max())],
-                       "x": [float(pos[:, 0].min()), float(pos[:, 0].max())],
-                       "y": [float(pos[:, 1].min()), float(pos[:, 1].max())]}
-        res = {a: _err_summary(pred[:, k], t[:, k]) for k, a in enumerate(("alpha", "beta"))}
-        if val is not None:
-            pv, _ = self._predict_data(val)
-            res["validation"] = {a: _err_summary(pv[:, k], val["target"][:, k])
-                                 for k, a in enumerate(("alpha", "beta"))}
-        else:
-            res["validation"] = None
-        self.residuals = res
+        self.domain = {a: [float(v.min()), float(v.max())] for a, v in
+                       zip(("alpha", "beta", "x", "y"), [*data["target"].T, *pos.T], strict=True)}
+
+        def errors(d, p):
+            return {a: _err_summary(p[:, k], d["target"][:, k])
+                    for k, a in enumerate(("alpha", "beta"))}
+
+        self.residuals = {**errors(data, pred), "validation": None if val is None
+                          else errors(val, self._predict_data(val)[0])}
 
     # --- predict -----------------------------------------------------------------------------
     def _predict_data(self, data: dict):
@@ -346,21 +335,11 @@ class FrameNet(Calibration):
             tol = ((self.residuals or {}).get(a) or {}).get("max_abs") or 0.0
             lo, hi = self.domain[a]
             inside &= (out[..., k] >= lo - tol) & (out[..., k] <= hi + tol)
-        finite = np.isfinite(out[..., 0])
-        dims = ("pose", "shot")
-        return xr.Dataset(
-            {"alpha": (dims, out[..., 0], {"units": "deg", "long_name": "estimated alpha"}),
-             "beta": (dims, out[..., 1], {"units": "deg", "long_name": "estimated beta"}),
-             "status": (dims, status), "n_spots": (dims, n),
-             "in_domain": (dims, inside | ~finite, {"long_name": "estimate inside the training "
-                                                    "domain (False: extrapolated)"})},
-            coords={"pose": cube["pose"].values, "shot": cube["shot"].values,
-                    "alpha_cmd": ("pose", cube["alpha"].values, {"units": "deg"}),
-                    "beta_cmd": ("pose", cube["beta"].values, {"units": "deg"})},
-            attrs={"calibration": self.kind, "label": self.label,
-                   "experiment": str(cube.attrs.get("experiment", "")),
-                   "n_out_of_domain": int((finite & ~inside).sum()),
-                   "timings": repr({k: round(v, 3) for k, v in self.timings.items()})})
+        est = _estimates(self, cube, ("pose", "shot"), out[..., 0], out[..., 1],
+                         np.isfinite(out[..., 0]), inside, status=(("pose", "shot"), status),
+                         n_spots=(("pose", "shot"), n))
+        est.attrs["timings"] = repr({k: round(v, 3) for k, v in self.timings.items()})
+        return est
 
     def predict(self, cube: xr.Dataset) -> xr.Dataset:
         """:meth:`predict_frames`: a frame calibration reads frames, not centroids.
@@ -403,9 +382,7 @@ class FrameNet(Calibration):
             "window": self.window, "pad": self.pad, "channels": self.channels,
             "order": self.order, "multi": self.multi,
             "hole_offset_px": list(self.hole_offset),
-            "settings": {"epochs": self.epochs, "patience": self.patience,
-                         "batch": self.batch, "lr": self.lr, "seed": self.seed,
-                         "threads": self.threads, "spots": self.spots},
+            "settings": {k: getattr(self, k) for k in _SETTINGS},
             "scaling": {k: np.asarray(v, dtype=float).tolist() for k, v in self.scaling.items()},
             "network": {k: np.asarray(v).tolist() for k, v in self.arrays.items()},
             "head": np.asarray(self.coef).tolist(),
@@ -455,10 +432,8 @@ class FrameNet(Calibration):
     @classmethod
     def _from_parameters(cls, p: dict):
         s = p["settings"]
-        obj = cls(window=p["window"], pad=p["pad"], channels=p["channels"], order=p["order"],
-                  epochs=s["epochs"], patience=s["patience"], batch=s["batch"], lr=s["lr"],
-                  seed=s["seed"], threads=s["threads"], hole_offset=p["hole_offset_px"],
-                  spots=s.get("spots", 16))
+        obj = cls(**{k: p[k] for k in ("window", "pad", "channels", "order")},
+                  hole_offset=p["hole_offset_px"], **{k: s[k] for k in _SETTINGS if k in s})
         obj.multi = bool(p["multi"])
         obj.scaling = {k: np.asarray(v, dtype=float) for k, v in p["scaling"].items()}
         obj.arrays = {k: np.asarray(v, dtype=float) for k, v in p["network"].items()}

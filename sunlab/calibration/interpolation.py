@@ -38,7 +38,7 @@ from scipy.interpolate import (
     LinearNDInterpolator,
     NearestNDInterpolator,
 )
-from scipy.spatial import Delaunay, QhullError, cKDTree
+from scipy.spatial import QhullError, cKDTree
 
 from ..errors import ConfigurationError
 from ._checks import _bad, _numbers
@@ -88,8 +88,7 @@ class Interpolation(Calibration):
         self.with_leave_one_out = bool(leave_one_out)
         self.average = "pose"
         self.nodes: dict | None = None
-        self._interp = None
-        self._nearest = None
+        self._interp = self._nearest = None  # scipy interpolants of the nodes (_build)
 
     @property
     def label(self) -> str:
@@ -98,10 +97,6 @@ class Interpolation(Calibration):
     def _build(self) -> None:
         pts = np.column_stack([self.nodes["x"], self.nodes["y"]])
         vals = np.column_stack([self.nodes["alpha"], self.nodes["beta"]])
-        if len(pts) < 3:
-            raise ConfigurationError(
-                f"nodes: found {len(pts)} poses, expected at least 3 for a triangulation"
-            )
         cls = LinearNDInterpolator if self.method == "linear" else CloughTocher2DInterpolator
         try:
             self._interp = cls(pts, vals, fill_value=np.nan, rescale=True)
@@ -143,9 +138,8 @@ class Interpolation(Calibration):
         x, y = np.broadcast_arrays(np.asarray(x, dtype=float), np.asarray(y, dtype=float))
         ok = np.isfinite(x) & np.isfinite(y)
         pts = np.column_stack([np.where(ok, x, 0.0).ravel(), np.where(ok, y, 0.0).ravel()])
-        tri = self._interp.tri
         scaled = (pts - self._interp.offset) / self._interp.scale
-        return ((tri.find_simplex(scaled) >= 0).reshape(x.shape)) & ok
+        return (self._interp.tri.find_simplex(scaled) >= 0).reshape(x.shape) & ok
 
     def leave_one_out(self, neighbours: int = 24) -> dict:
         """Leave-one-out errors of the table: each node predicted without it, deg.
@@ -187,23 +181,13 @@ class Interpolation(Calibration):
         k = min(int(neighbours) + 1, len(z))
         _, idx = cKDTree(z).query(z, k=k)
         est = np.full(vals.shape, np.nan)
+        cls = LinearNDInterpolator if self.method == "linear" else CloughTocher2DInterpolator
         for i, near in enumerate(np.atleast_2d(idx)):
             near = near[near != i]
             if len(near) < 3:
                 continue
-            try:
-                if self.method == "linear":  # barycentric weights on the Delaunay triangle
-                    tri = Delaunay(z[near])
-                    s = int(tri.find_simplex(z[i]))
-                    if s < 0:
-                        continue
-                    T = tri.transform[s]
-                    c = T[:2] @ (z[i] - T[2])
-                    w = np.append(c, 1.0 - c.sum())
-                    est[i] = w @ vals[near][tri.simplices[s]]
-                else:
-                    est[i] = CloughTocher2DInterpolator(z[near], vals[near],
-                                                        fill_value=np.nan)(z[i:i + 1])[0]
+            try:  # the same interpolant on the node's neighbours (rescaled plane)
+                est[i] = cls(z[near], vals[near], fill_value=np.nan)(z[i:i + 1])[0]
             except QhullError:  # degenerate neighbourhood (collinear nodes): skip the node
                 continue
         return {"alpha": _err_summary(est[:, 0], vals[:, 0]),
@@ -222,11 +206,8 @@ class Interpolation(Calibration):
         return out[:, 0], out[:, 1]
 
     def _parameters(self) -> dict:
-        return {
-            "method": self.method,
-            "extrapolate": self.extrapolate,
-            "nodes": {k: np.asarray(v).tolist() for k, v in self.nodes.items()},
-        }
+        return {"method": self.method, "extrapolate": self.extrapolate,
+                "nodes": {k: np.asarray(v).tolist() for k, v in self.nodes.items()}}
 
     @classmethod
     def _check_parameters(cls, p: dict) -> None:
@@ -244,9 +225,7 @@ class Interpolation(Calibration):
     @classmethod
     def _from_parameters(cls, p: dict):
         obj = cls(method=p["method"], extrapolate=p.get("extrapolate"))
-        nodes = {k: np.asarray(p["nodes"][k], dtype=float) for k in ("x", "y", "alpha", "beta")}
-        if len({v.shape for v in nodes.values()}) != 1 or nodes["x"].ndim != 1:
-            raise ValueError("nodes x, y, alpha, beta must be flat lists of equal length")
-        obj.nodes = nodes
+        obj.nodes = {k: np.asarray(p["nodes"][k], dtype=float)
+                     for k in ("x", "y", "alpha", "beta")}
         obj._build()
         return obj

@@ -25,6 +25,9 @@ from .base import _SENSOR, Calibration, sensor_attrs
 
 __all__ = ["IdealModel", "OptimisedModel"]
 
+#: The numbers of a saved optimised fit (mm, deg, px).
+_FIT_NUMBERS = ("delta_f_mm", "alpha0", "beta0", "x_zp", "y_zp", "x_cf", "y_cf",
+                "mask_distance_mm", "pixel_pitch_mm")
 #: Poses within this distance of alpha = beta = 0 (deg) count as the zero pose.
 ZERO_POSE_TOL_DEG = 1e-9
 
@@ -55,16 +58,13 @@ class IdealModel(Calibration):
     """
 
     kind = "ideal"
+    label = "ideal model (1)"
 
     def __init__(self, mask_distance_mm=None, pixel_pitch_mm=None, x_cf_px=None, y_cf_px=None):
         super().__init__()
         self._given = {"mask_distance_mm": mask_distance_mm, "pixel_pitch_mm": pixel_pitch_mm,
                        "x_cf_px": x_cf_px, "y_cf_px": y_cf_px}
         self.sensor: dict | None = None
-
-    @property
-    def label(self) -> str:
-        return "ideal model (1)"
 
     def _fit(self, data, validation) -> None:
         attrs = {**data.attrs, **{k: v for k, v in self._given.items() if v is not None}}
@@ -186,6 +186,7 @@ class OptimisedModel(Calibration):
     """
 
     kind = "optimised"
+    label = "optimised model (3)-(4)"
 
     def __init__(self, fit_zero_pose: bool | None = True, average: str = "pose",
                  n_boot: int = 200):
@@ -194,10 +195,6 @@ class OptimisedModel(Calibration):
         self.average = average
         self.n_boot = int(n_boot)
         self.result: geometry.OptimisedFit | None = None
-
-    @property
-    def label(self) -> str:
-        return "optimised model (3)-(4)"
 
     def min_poses(self) -> int:
         """Fewest distinct training poses: two equations per pose for dF, alpha0, beta0 and the
@@ -224,10 +221,8 @@ class OptimisedModel(Calibration):
     def _check_parameters(cls, p: dict) -> None:
         """Sizes, finiteness and ranges of a document's parameters, before any array is
         built (:func:`sunlab.calibration.artifact.from_dict`)."""
-        for k in ("delta_f_mm", "alpha0", "beta0", "x_zp", "y_zp", "x_cf", "y_cf"):
-            _number(p.get(k), k)
-        for k in ("mask_distance_mm", "pixel_pitch_mm"):
-            _number(p.get(k), k, positive=True)
+        for k in _FIT_NUMBERS:
+            _number(p.get(k), k, positive=k in ("mask_distance_mm", "pixel_pitch_mm"))
 
     @classmethod
     def _from_parameters(cls, p: dict):
@@ -265,7 +260,4 @@ def optimised_fit_from_dict(p: dict) -> geometry.OptimisedFit:
     defaults = {"mounting": "additive", "stderr_method": "jacobian"}
     kw = {k: p.get(k, defaults.get(k)) for k in fields}
     kw["stderr"] = {k: (np.nan if v is None else float(v)) for k, v in kw["stderr"].items()}
-    for k in ("delta_f_mm", "alpha0", "beta0", "x_zp", "y_zp", "x_cf", "y_cf",
-              "mask_distance_mm", "pixel_pitch_mm"):
-        kw[k] = float(kw[k])
-    return geometry.OptimisedFit(**kw)
+    return geometry.OptimisedFit(**kw | {k: float(kw[k]) for k in _FIT_NUMBERS})

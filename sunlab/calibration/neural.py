@@ -49,7 +49,7 @@ from ..errors import ConfigurationError
 from ..extras import require
 from ._checks import _bad, _count, _number, _numbers
 from .base import Calibration, sensor_attrs
-from .model import fit_optimised, optimised_fit_from_dict
+from .model import IdealModel, fit_optimised, optimised_fit_from_dict
 
 __all__ = ["NeuralNet"]
 
@@ -140,10 +140,7 @@ class NeuralNet(Calibration):
         return f"NN strategy {self.strategy}"
 
     # --- inputs and targets of each strategy -----------------------------------------------
-    def _ideal(self, x, y):
-        s = self.sensor
-        return geometry.ideal_angles(x, y, s["mask_distance_mm"], s["pixel_pitch_mm"],
-                                     s["x_cf_px"], s["y_cf_px"])
+    _ideal = IdealModel._predict_xy  # model (1) of ``sensor``
 
     def _inputs(self, x, y) -> np.ndarray:
         if self.strategy in (1, 4):
@@ -226,19 +223,13 @@ class NeuralNet(Calibration):
         std = np.where(std > 0, std, 1.0)
         self.input_scaling = {"mean": mean, "std": std}
         Z = (X - mean) / std
-        Zv = Tv = None
-        if validation is not None:
-            Zv = (self._inputs(validation.x, validation.y) - mean) / std
-            Tv = self._targets(validation)
+        v = validation
+        Zv = None if v is None else (self._inputs(v.x, v.y) - mean) / std
         self.networks, self.history = {}, {}
         for k, angle in enumerate(("alpha", "beta")):
             t_mean, t_std = float(T[:, k].mean()), float(T[:, k].std()) or 1.0
-            net, hist = self._train_one(
-                Z, (T[:, k] - t_mean) / t_std,
-                None if Zv is None else Zv,
-                None if Tv is None else (Tv[:, k] - t_mean) / t_std,
-                self.seed + k,
-            )
+            tv = None if v is None else (self._targets(v)[:, k] - t_mean) / t_std
+            net, hist = self._train_one(Z, (T[:, k] - t_mean) / t_std, Zv, tv, self.seed + k)
             net.update(target_mean=t_mean, target_std=t_std)
             self.networks[angle] = net
             self.history[angle] = hist
@@ -312,14 +303,10 @@ class NeuralNet(Calibration):
     # --- prediction (NumPy) ------------------------------------------------------------------
     def _predict_xy(self, x, y):
         Z = (self._inputs(x, y) - self.input_scaling["mean"]) / self.input_scaling["std"]
-        out = [
-            _forward(Z, net) * net["target_std"] + net["target_mean"]
-            for net in (self.networks["alpha"], self.networks["beta"])
-        ]
-        if self.strategy == 4:
-            ia, ib = self._ideal(x, y)
-            out = [ia + out[0], ib + out[1]]
-        return out[0], out[1]
+        out = [_forward(Z, self.networks[a]) * self.networks[a]["target_std"]
+               + self.networks[a]["target_mean"] for a in ("alpha", "beta")]
+        zero = self._ideal(x, y) if self.strategy == 4 else (0.0, 0.0)  # model (1) + error
+        return out[0] + zero[0], out[1] + zero[1]
 
     # --- artifact ----------------------------------------------------------------------------
     def _parameters(self) -> dict:
@@ -343,9 +330,8 @@ class NeuralNet(Calibration):
         scaling = p.get("input_scaling")
         if not isinstance(scaling, dict):
             raise _bad("input_scaling", type(scaling).__name__, "an object {'mean', 'std'}")
-        n_in = len(scaling.get("mean") or [])
-        _numbers(scaling.get("mean"), "input_scaling.mean")
-        _numbers(scaling.get("std"), "input_scaling.std", n_in, positive=True)
+        _numbers(scaling.get("mean"), "input_scaling.mean", 2)  # two inputs per strategy
+        _numbers(scaling.get("std"), "input_scaling.std", 2, positive=True)
         nets = p.get("networks")
         if not isinstance(nets, dict):
             raise _bad("networks", type(nets).__name__, "an object {'alpha': ..., 'beta': ...}")
@@ -358,7 +344,7 @@ class NeuralNet(Calibration):
                 raise _bad(f"networks.{angle}.W1", f"{len(w1) if isinstance(w1, list) else w1}"
                            " rows", f"{h} rows (hidden = {h})")
             for i, row in enumerate(w1):
-                _numbers(row, f"networks.{angle}.W1[{i}]", n_in or None)
+                _numbers(row, f"networks.{angle}.W1[{i}]", 2)
             _numbers(net.get("b1"), f"networks.{angle}.b1", h)
             _numbers(net.get("W2"), f"networks.{angle}.W2", h)
             for k in ("b2", "target_mean"):
@@ -373,14 +359,9 @@ class NeuralNet(Calibration):
             obj.optimised = optimised_fit_from_dict(p["optimised"])
         obj.input_scaling = {k: np.asarray(p["input_scaling"][k], dtype=float)
                              for k in ("mean", "std")}
-        obj.networks = {}
-        h = obj.hidden
-        for angle in ("alpha", "beta"):
-            q = p["networks"][angle]
-            net = {k: np.asarray(q[k], dtype=float) for k in ("W1", "b1", "W2")} | {
-                k: float(q[k]) for k in ("b2", "target_mean", "target_std")}
-            if net["W1"].shape != (h, 2) or net["b1"].shape != (h,) or net["W2"].shape != (h,):
-                raise ValueError(f"{angle} network weights do not match hidden={h}")
-            obj.networks[angle] = net
+        nets = p["networks"]  # sizes checked by _check_parameters
+        obj.networks = {a: {k: np.asarray(nets[a][k], dtype=float) for k in ("W1", "b1", "W2")}
+                        | {k: float(nets[a][k]) for k in ("b2", "target_mean", "target_std")}
+                        for a in ("alpha", "beta")}
         obj.history = p.get("history")
         return obj

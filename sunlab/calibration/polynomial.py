@@ -80,11 +80,6 @@ def design_matrix(u, v, order: int) -> np.ndarray:
     return np.stack([u**i * v**j for i, j in monomial_exponents(order)], axis=-1)
 
 
-def _scaling(values: np.ndarray) -> list[float]:
-    """The training range ``[lo, hi]`` (px); the spot moves (checked by ``Calibration.fit``)."""
-    return [float(np.min(values)), float(np.max(values))]
-
-
 def _scale(values, bounds) -> np.ndarray:
     lo, hi = bounds
     return (2.0 * np.asarray(values, dtype=float) - (lo + hi)) / (hi - lo)
@@ -96,18 +91,6 @@ def _lstsq(A: np.ndarray, target: np.ndarray, what: str) -> np.ndarray:
                                  f"table has {A.shape[0]} points. Fix: lower the order or add "
                                  "poses")
     return np.linalg.lstsq(A, target, rcond=None)[0]
-
-
-def _read_series(obj, p: dict, sizes: dict):
-    """Scaling and coefficients of a saved series (polynomial or trigonometric)."""
-    obj.scaling = {k: [float(v[0]), float(v[1])] for k, v in p["scaling"].items()}
-    obj.coefficients = {}
-    for angle, n in sizes.items():
-        coef = np.asarray(p["coefficients"][angle], dtype=float)
-        if coef.shape != (n,):
-            raise ValueError(f"{angle} has {coef.size} coefficients, expected {n}")
-        obj.coefficients[angle] = coef
-    return obj
 
 
 def _orders(order) -> tuple[int, int]:
@@ -123,7 +106,36 @@ def _orders(order) -> tuple[int, int]:
 _METRICS = ("mean_abs", "rms", "max_abs")
 
 
-class Polynomial(Calibration):
+class _Series(Calibration):
+    """A linear series in the centroid scaled to [-1, 1] over the training range (px):
+    ``basis(x, y, angle) @ coefficients[angle]``, fitted by least squares (the polynomial
+    and the trigonometric expansion)."""
+
+    scaling: dict | None = None
+    coefficients: dict | None = None
+
+    def _fit(self, data, validation) -> None:
+        self.scaling = {k: [float(np.min(v)), float(np.max(v))]  # the spot moves (base fit)
+                        for k, v in (("x", data.x), ("y", data.y))}
+        self.coefficients = {a: _lstsq(self.basis(data.x, data.y, a), getattr(data, a),
+                                       self.label) for a in ("alpha", "beta")}
+
+    def _predict_xy(self, x, y):
+        return tuple(self.basis(x, y, a) @ self.coefficients[a] for a in ("alpha", "beta"))
+
+    def _series(self) -> dict:
+        return {"scaling": self.scaling,
+                "coefficients": {a: np.asarray(c).tolist() for a, c in self.coefficients.items()}}
+
+    def _read(self, p: dict):
+        """Scaling and coefficients of a saved series (sizes checked by ``_check_parameters``)."""
+        self.scaling = {k: [float(v[0]), float(v[1])] for k, v in p["scaling"].items()}
+        self.coefficients = {a: np.asarray(p["coefficients"][a], dtype=float)
+                             for a in ("alpha", "beta")}
+        return self
+
+
+class Polynomial(_Series):
     """Polynomial calibration of total degree n, one coefficient set per angle.
 
     Parameters
@@ -151,8 +163,6 @@ class Polynomial(Calibration):
         super().__init__()
         self.orders = _orders(order)
         self.average = average
-        self.scaling: dict | None = None
-        self.coefficients: dict | None = None
 
     @property
     def label(self) -> str:
@@ -168,11 +178,6 @@ class Polynomial(Calibration):
             ``(n + 1)(n + 2) / 2`` for the larger order n of ``(n_alpha, n_beta)``.
         """
         return max(len(monomial_exponents(n)) for n in self.orders)
-
-    def _fit(self, data, validation) -> None:
-        self.scaling = {"x": _scaling(data.x), "y": _scaling(data.y)}
-        self.coefficients = {a: _lstsq(self.basis(data.x, data.y, a), getattr(data, a), str(n))
-                             for a, n in zip(("alpha", "beta"), self.orders, strict=True)}
 
     def basis(self, x, y, angle: str = "beta") -> np.ndarray:
         """The design matrix of centroids ``x``, ``y`` (px) for one angle's polynomial: the
@@ -203,17 +208,12 @@ class Polynomial(Calibration):
         u, v = _scale(x, self.scaling["x"]), _scale(y, self.scaling["y"])
         return design_matrix(u, v, self.orders[("alpha", "beta").index(angle)])
 
-    def _predict_xy(self, x, y):
-        return tuple(self.basis(x, y, angle) @ self.coefficients[angle]
-                     for angle in ("alpha", "beta"))
-
     def _parameters(self) -> dict:
         return {
             "order": list(self.orders),
             "basis": "monomials u^(k-l) v^l, k = 0..n, l = 0..k, u = (2x - x_min - x_max) / "
                      "(x_max - x_min), v likewise for y",
-            "scaling": self.scaling,
-            "coefficients": {a: np.asarray(c).tolist() for a, c in self.coefficients.items()},
+            **self._series(),
         }
 
     @classmethod
@@ -231,9 +231,7 @@ class Polynomial(Calibration):
 
     @classmethod
     def _from_parameters(cls, p: dict):
-        obj = cls(order=tuple(p["order"]))
-        return _read_series(obj, p, {a: len(monomial_exponents(n))
-                                     for a, n in zip(("alpha", "beta"), obj.orders, strict=True)})
+        return cls(order=tuple(p["order"]))._read(p)
 
     @classmethod
     def select_order(cls, train, validation, orders=range(1, 9), *, metric: str = "mean_abs",

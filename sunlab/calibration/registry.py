@@ -264,11 +264,29 @@ def fit(table: xr.Dataset, method: str, validation: xr.Dataset | None = None, *,
     return cal.fit(table, validation, outlier_mads=outlier_mads)
 
 
+def _screened(fit, cls, train, validation, outlier_mads):
+    """``fit(train, validation)`` on both tables screened for outliers
+    (:func:`sunlab.screening.screen_outliers`, ``outlier_mads`` MADs; ``"default"``: the
+    class's), the excluded shots recorded in the fitted calibration's ``training``."""
+    from ..screening import screen_outliers
+
+    if outlier_mads == "default":
+        outlier_mads = cls.default_outlier_mads
+    excluded = {}
+    if outlier_mads:
+        train, excluded["excluded"] = screen_outliers(train, outlier_mads)
+        if validation is not None:
+            validation, excluded["validation_excluded"] = screen_outliers(validation,
+                                                                          outlier_mads)
+    cal = fit(train, validation)
+    if outlier_mads:
+        cal.training.update(outlier_mads=float(outlier_mads), **excluded)
+    return cal
+
+
 def _auto_order(cls, kind: str, table, validation, outlier_mads, options: dict):
     """``order="auto"``: the order the validation table prefers (scores in ``order_scores``),
     on the tables screened once."""
-    from ..screening import screen_outliers
-
     if "order" not in inspect.signature(cls.__init__).parameters:
         raise ConfigurationError(f"order: 'auto' applies to the methods that take an order "
                                  f"(e.g. 'polynomial', 'trigonometric'), not {kind!r}. Fix: "
@@ -276,18 +294,14 @@ def _auto_order(cls, kind: str, table, validation, outlier_mads, options: dict):
     if validation is None:
         raise ConfigurationError("order: found 'auto' without a validation table. Fix: pass "
                                  "validation= (experiment II), or an integer order")
-    if outlier_mads == "default":
-        outlier_mads = cls.default_outlier_mads
-    excluded = {}
-    if outlier_mads:
-        table, excluded["excluded"] = screen_outliers(table, outlier_mads)
-        validation, excluded["validation_excluded"] = screen_outliers(validation, outlier_mads)
     rest = {k: v for k, v in options.items() if k != "order"}
     select = getattr(cls, "select_order", None) or partial(_select_on_validation, cls)
-    cal, cal.order_scores = select(table, validation, **rest)
-    if outlier_mads:
-        cal.training.update(outlier_mads=float(outlier_mads), **excluded)
-    return cal
+
+    def fit_best(train, val):
+        cal, cal.order_scores = select(train, val, **rest)
+        return cal
+
+    return _screened(fit_best, cls, table, validation, outlier_mads)
 
 
 def _select_on_validation(cls, train, validation, orders=range(1, 9), **options):

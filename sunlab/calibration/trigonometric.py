@@ -27,8 +27,7 @@ import numpy as np
 
 from ..errors import ConfigurationError
 from ._checks import _coefficients_ok, _count, _number, _scaling_ok
-from .base import Calibration
-from .polynomial import _lstsq, _read_series, _scale, _scaling
+from .polynomial import _scale, _Series
 
 __all__ = ["Trigonometric"]
 
@@ -63,7 +62,7 @@ def fourier_basis(u, order: int, period: float = 4.0) -> np.ndarray:
     return np.stack(cols, axis=-1)
 
 
-class Trigonometric(Calibration):
+class Trigonometric(_Series):
     """2-D Fourier-series calibration, one coefficient set per angle.
 
     Parameters
@@ -92,14 +91,20 @@ class Trigonometric(Calibration):
         self.order = int(order)
         self.period = float(period)
         self.average = average
-        self.scaling: dict | None = None
-        self.coefficients: dict | None = None
 
     @property
     def label(self) -> str:
         return f"trigonometric({self.order})"
 
-    def _design(self, x, y) -> np.ndarray:
+    def basis(self, x, y, angle: str = "beta") -> np.ndarray:
+        """The design matrix of centroids ``x``, ``y`` (px): the tensor products of the 1-D
+        bases (:func:`fourier_basis`) of the scaled coordinates, the same for both angles.
+
+        Returns
+        -------
+        numpy.ndarray
+            Shape ``(x.size, (2n + 1)**2)``.
+        """
         bu = fourier_basis(_scale(x, self.scaling["x"]), self.order, self.period)
         bv = fourier_basis(_scale(y, self.scaling["y"]), self.order, self.period)
         return (bu[:, :, None] * bv[:, None, :]).reshape(len(bu), -1)
@@ -114,24 +119,13 @@ class Trigonometric(Calibration):
         """
         return (2 * self.order + 1) ** 2
 
-    def _fit(self, data, validation) -> None:
-        self.scaling = {"x": _scaling(data.x), "y": _scaling(data.y)}
-        A = self._design(data.x, data.y)
-        self.coefficients = {a: _lstsq(A, getattr(data, a), str(self.order))
-                             for a in ("alpha", "beta")}
-
-    def _predict_xy(self, x, y):
-        A = self._design(x, y)
-        return A @ self.coefficients["alpha"], A @ self.coefficients["beta"]
-
     def _parameters(self) -> dict:
         return {
             "order": self.order,
             "period": self.period,
             "basis": "tensor product of [1, cos(k w u), sin(k w u)] k=1..n in u and v, "
                      "w = 2 pi / period, u, v scaled to [-1, 1]",
-            "scaling": self.scaling,
-            "coefficients": {a: np.asarray(c).tolist() for a, c in self.coefficients.items()},
+            **self._series(),
         }
 
     @classmethod
@@ -145,5 +139,4 @@ class Trigonometric(Calibration):
 
     @classmethod
     def _from_parameters(cls, p: dict):
-        obj = cls(order=int(p["order"]), period=float(p["period"]))
-        return _read_series(obj, p, dict.fromkeys(("alpha", "beta"), (2 * obj.order + 1) ** 2))
+        return cls(order=int(p["order"]), period=float(p["period"]))._read(p)

@@ -21,11 +21,10 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 import xarray as xr
 
-from ..schema import STATUS, USABLE_STATUS
+from ._checks import _ok_mask
 
 __all__: list[str] = []
 
-_USABLE = [STATUS[k] for k in USABLE_STATUS]
 
 
 def detect_spots(cube: xr.Dataset, hole_offset=(0.0, 0.0), *, progress: bool = False,
@@ -109,7 +108,7 @@ def spot_windows(cube: xr.Dataset, detections: xr.Dataset, *, window: int = 44, 
     """
     multi = "hole" in detections["x"].dims
     x, y = (np.asarray(detections[v].values, dtype=float) for v in ("x", "y"))
-    ok = np.isin(detections["status"].values, _USABLE) & np.isfinite(x) & np.isfinite(y)
+    ok = _ok_mask(detections)
     if not multi:
         x, y, ok = x[..., None], y[..., None], ok[..., None]
     size, half = window + 2 * pad, window // 2 + pad
