@@ -20,10 +20,9 @@ bytes, so that any legal name can be written; an old output is set aside, under 
 a folder ``.sl-PID-XXXXXXXX.old``) and carry the writer's process id: a later write in the same
 folder removes the leftovers of a writer that was killed (its process is gone), and puts back an
 old output that such a writer had set aside but not yet replaced. The moves into place run
-with SIGINT, SIGTERM and SIGHUP held back, so Ctrl-C (or a closed terminal) cannot split them.
-A full disk (or a file-size limit) is reported naming the output, and an output far larger
-than the free space of its disk is refused before any work (:func:`check_target`'s
-``nbytes``).
+with SIGINT, SIGTERM and SIGHUP held back (Ctrl-C cannot split them). A full disk or a
+file-size limit is named with the output; an output far larger than its disk's free space is
+refused before any work (:func:`check_target`'s ``nbytes``).
 
 Examples
 --------
@@ -51,6 +50,7 @@ import re
 import shutil
 import signal
 import stat
+import threading
 import uuid
 from pathlib import Path
 
@@ -261,31 +261,24 @@ def _remove(path: Path) -> None:
 
 @contextlib.contextmanager
 def signals_held():
-    """Hold SIGINT, SIGTERM and SIGHUP back while the block runs (delivered when it ends):
-    for a few renames, or a step whose writes run on another thread that an interrupt of this
-    one would not stop (they would recreate a temporary output after its removal).
-
-    The Python-level handlers are swapped for ones that only note the signal: a thread's signal
-    mask would not do, as the kernel then hands a process-directed signal to another thread
-    (zarr's I/O loop, a dask worker) and Python still runs its handler in the main thread.
-    Outside the main thread (where handlers cannot be set) the block runs as it is."""
-    import threading
-
-    if threading.current_thread() is not threading.main_thread():
+    """Hold SIGINT, SIGTERM and SIGHUP back while the block runs (delivered when it ends): for
+    a few renames, or writes on another thread that would recreate a removed temporary. The
+    Python handlers are swapped (a thread's signal mask would not do: the kernel hands the signal
+    to another thread, and Python runs the handler in the main thread all the same)."""
+    if threading.current_thread() is not threading.main_thread():  # no handlers to set there
         yield
         return
     got: list[int] = []
     held = {signal.SIGINT, signal.SIGTERM, getattr(signal, "SIGHUP", signal.SIGTERM)}
-    previous = {sig: signal.getsignal(sig) for sig in held}
-    for sig in held:
-        if previous[sig] is not None:  # None: a handler set outside Python, left alone
-            signal.signal(sig, lambda signum, frame: got.append(signum))
+    # None: a handler set outside Python, left alone
+    previous = {sig: h for sig in held if (h := signal.getsignal(sig)) is not None}
+    for sig in previous:
+        signal.signal(sig, lambda signum, frame: got.append(signum))
     try:
         yield
     finally:
         for sig, handler in previous.items():
-            if handler is not None:
-                signal.signal(sig, handler)
+            signal.signal(sig, handler)
         if got:  # delivered now, to the handler the caller had
             signal.raise_signal(got[0])
 

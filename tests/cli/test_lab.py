@@ -203,7 +203,12 @@ def test_import_asks_for_no_geometry_and_the_geometric_models_name_sensor_json(
     folder = tmp_path / "frames"
     folder.mkdir()
     src = lab["cube"].parent / "train_frames"
-    lines = (src / "manifest.csv").read_text().splitlines()[:3]  # header + one pose
+    # header + one shot of two poses apart on both axes: the spot moves (a table whose spot
+    # never moves is refused before the model is asked for its geometry)
+    rows = (src / "manifest.csv").read_text().splitlines()
+    first = rows[1].split(",")
+    lines = [rows[0], rows[1], next(r for r in rows[2:] if all(
+        u != v for u, v in zip(r.split(",")[1:3], first[1:3], strict=True)))]
     for line in lines[1:]:
         name = line.split(",")[0]
         (folder / name).write_bytes((src / name).read_bytes())
