@@ -194,7 +194,7 @@ def reproduce_table4(*, quick: bool = False, seed: int = 0, method: str = "proje
     step, shots : int, optional
         Keep every ``step``-th pose and take ``shots`` frames per pose (override ``quick``).
     scheduler, workers
-        Local scheduler and its threads or processes (:func:`simulate_and_locate`).
+        Local scheduler and its threads or processes (``pipeline.simulate_and_locate``).
 
     Returns
     -------

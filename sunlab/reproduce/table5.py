@@ -79,7 +79,7 @@ def reproduce_table5(quick: bool = True, seed: int = 0, out: Path | str | None =
         Centroid method of every frame (:func:`sunlab.centroid.locate`), the same as Table 4's
         (default ``"projection"``, algorithm B: the paper presents it as its method and names
         no other for its experiments, so we infer it used B for both tables). On the 100-hole
-        frames each spot gets the estimator :func:`spot_method` names (a tight window for the
+        frames each spot gets the estimator ``pipeline.spot_method`` names (a tight window for the
         single-spot algorithms); ``"fit"`` or ``"tight"`` apply to both masks.
     address : str, optional
         A ``dask.distributed`` scheduler address (workers started separately).
@@ -161,7 +161,7 @@ def multi_hole_tables(plans_: dict, *, seed: int = 0, method: str = "projection"
     seed : int
         Seed of the virtual bench.
     method : str
-        Centroid method of the one-hole frames; the 100-hole frames get :func:`spot_method`'s.
+        Centroid method of the one-hole frames; the 100-hole frames get ``pipeline.spot_method``'s.
     progress : bool
         Show progress bars.
     address, scheduler, workers
