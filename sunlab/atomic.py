@@ -304,7 +304,7 @@ def _named(err: OSError, tmp: Path, path: Path) -> BaseException:
 
 @contextlib.contextmanager
 def atomic_output(path, *, overwrite: bool = False, kind: str = "file",
-                  flag: str = "overwrite=True"):
+                  flag: str = "overwrite=True", nbytes: int = 0):
     """Yield a temporary sibling of ``path`` to write; move it into place on success.
 
     The temporary name is hidden (``.sl-PID-XXXXXXXX.tmp``) and in the same folder, so the final
@@ -315,7 +315,7 @@ def atomic_output(path, *, overwrite: bool = False, kind: str = "file",
     ----------
     path : str or path-like
         The final output (a file, or a directory such as a Zarr store).
-    overwrite, kind, flag
+    overwrite, kind, flag, nbytes
         As in :func:`check_target`, which runs first.
 
     Examples
@@ -328,7 +328,7 @@ def atomic_output(path, *, overwrite: bool = False, kind: str = "file",
     >>> sorted(p.name for p in path.iterdir())
     ['zarr.json']
     """
-    path = check_target(path, overwrite=overwrite, kind=kind, flag=flag)
+    path = check_target(path, overwrite=overwrite, kind=kind, flag=flag, nbytes=nbytes)
     tmp = temporary_name(path)
     try:
         try:

@@ -176,8 +176,7 @@ def _create_store(path: Path, run: _Run, camera, stage, attrs) -> None:
                                                    **dict(getattr(camera, "attrs", None) or {})})
     # refused at once where the whole run cannot fit on the disk (issue 47, size before work);
     # allocated in a temporary sibling, renamed into place (removed if this run is killed)
-    atomic.check_target(path, kind="zarr", nbytes=zeros.nbytes)
-    with atomic.atomic_output(path, kind="zarr") as tmp:
+    with atomic.atomic_output(path, kind="zarr", nbytes=zeros.nbytes) as tmp:
         # time is stored as float seconds since the epoch (NaN until taken), decoded to datetime64
         encoding = {v: {"_FillValue": np.nan} for v in ("alpha_read", "beta_read")}
         encoding["time"] = {"units": TIME_UNITS, "calendar": "proleptic_gregorian",
