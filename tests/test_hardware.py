@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import textwrap
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -76,14 +77,19 @@ def test_a_wrong_camera_spec_says_what_and_how(lab_package, spec, words):
         open_camera(spec)
 
 
-def test_acquire_runs_a_lab_camera_without_editing_sunlab(lab_package, tmp_path, capsys):
+def _acquire_labcam(tmp_path, option: str) -> tuple[int, Path]:
+    """``sunlab acquire`` of two poses x 2 shots with the lab's camera given ``option``."""
     plan = tmp_path / "plan.csv"
     plan.write_text("alpha,beta\n0,0\n1,0\n")
     out = tmp_path / "run.zarr"
-    argv = ["acquire", "--stage", "fake://?velocity=1e4", "--camera", "labcam",
-            "--camera-option", "level=900", "--plan", str(plan), "--shots", "2",
-            "--settle", "0", "--out", str(out), "--no-progress"]
-    assert main(argv) == 0
+    return main(["acquire", "--stage", "fake://?velocity=1e4", "--camera", "labcam",
+                 "--camera-option", option, "--plan", str(plan), "--shots", "2",
+                 "--settle", "0", "--out", str(out), "--no-progress"]), out
+
+
+def test_acquire_runs_a_lab_camera_without_editing_sunlab(lab_package, tmp_path, capsys):
+    status, out = _acquire_labcam(tmp_path, "level=900")
+    assert status == 0
     cube = io.open_frames(out)
     assert cube.attrs["bit_depth"] == 12 and dict(cube.sizes)["pose"] == 2
     # the lab camera's frames, in the order it gave them: the square moves one column a frame
@@ -95,13 +101,8 @@ def test_acquire_runs_a_lab_camera_without_editing_sunlab(lab_package, tmp_path,
 def test_a_lab_camera_that_raises_mid_run_is_named_in_one_line(lab_package, tmp_path, capsys):
     """Issue 47: the third frame's grab raises; one line names the plug-in and the method,
     exit 1, and the pose done is kept."""
-    plan = tmp_path / "plan.csv"
-    plan.write_text("alpha,beta\n0,0\n1,0\n")
-    out = tmp_path / "run.zarr"
-    argv = ["acquire", "--stage", "fake://?velocity=1e4", "--camera", "labcam",
-            "--camera-option", "fail_at=2", "--plan", str(plan), "--shots", "2",
-            "--settle", "0", "--out", str(out), "--no-progress"]
-    assert main(argv) == 1
+    status, out = _acquire_labcam(tmp_path, "fail_at=2")
+    assert status == 1
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1, err
     for words in ("camera LabCamera of the plug-in 'labcam'", "labcams:LabCamera", "grab()",
