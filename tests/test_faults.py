@@ -288,14 +288,20 @@ def test_a_second_session_is_refused_naming_the_holder(tmp_path):
     assert not (tmp_path / "run.zarr.lock").exists()
 
 
-def test_a_stale_lock_is_taken_over_and_the_run_holds_exactly_its_plan(tmp_path, capsys):
+def test_a_stale_lock_is_taken_over_and_the_run_holds_exactly_its_plan(tmp_path):
+    """A session killed while it holds the lock leaves its lock file; the kernel released the
+    flock with the process, so the next session takes the run (its lock file then names it)."""
     out = tmp_path / "run.zarr"
-    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
-                          capture_output=True, text=True, check=True).stdout.strip()
-    import socket
-
-    (tmp_path / "run.zarr.lock").write_text(json.dumps(
-        {"pid": int(dead), "host": socket.gethostname(), "start": "2026-01-01T00:00:00Z"}))
+    dead = subprocess.run([sys.executable, "-c", textwrap.dedent(f"""
+        import os
+        from sunlab.hardware.runner import run_lock
+        held = run_lock({str(out)!r})
+        held.__enter__()
+        print(os.getpid(), flush=True)
+        os._exit(9)  # killed: no cleanup runs
+    """)], env=dict(os.environ, PYTHONPATH=str(ROOT)), capture_output=True, text=True)
+    assert dead.returncode == 9
+    assert f'"pid": {dead.stdout.strip()}' in (tmp_path / "run.zarr.lock").read_text()
     plan = plans.custom([0.0, 1.0, 2.0, 3.0, 4.0], [0.0] * 5, shots=2)
     stage = open_stage("fake://?velocity=inf", retry_delay_s=0.0, poll_s=0.001)
 
@@ -309,7 +315,6 @@ def test_a_stale_lock_is_taken_over_and_the_run_holds_exactly_its_plan(tmp_path,
         stop_after_two = _StopAfter(2)
         first = acquire(plan, stage, stop_after_two.camera(Ramp()), out, progress=False,
                         stop=stop_after_two.event, handle_sigint=False)
-        assert f"pid {dead}" in capsys.readouterr().err
         second = acquire(plan, stage, Ramp(), out, resume=True, progress=False)
     finally:
         stage.close()
@@ -317,6 +322,7 @@ def test_a_stale_lock_is_taken_over_and_the_run_holds_exactly_its_plan(tmp_path,
     run = io.open_frames(out)  # sealed at the end of the session: the checksum holds
     assert run.sizes["pose"] == 5 and int(run.done.sum()) == 5
     assert sum(s["poses"] for s in run.attrs["sessions"]) == 5
+    assert not (tmp_path / "run.zarr.lock").exists()
 
 
 class _StopAfter:

@@ -13,11 +13,11 @@ either complete and flagged, or unflagged; restarting with ``resume=True`` conti
 unflagged pose and rewrites it whole. The store itself is created in a temporary directory and
 renamed into place, so a half-created store is never mistaken for a run.
 
-One session writes a run at a time: :func:`run_lock` takes ``OUT.lock`` (the process id, host
+One session writes a run at a time: :func:`run_lock` flocks ``OUT.lock`` (the process id, host
 and start time of the session) before the stage moves; a second session on the same run is
-refused, naming the holder, and a lock left by a session that died on this host is taken over
-with a message. The store's metadata are sealed with a checksum (:mod:`sunlab.integrity`) when a
-session ends and unsealed when the next one starts.
+refused, naming the holder, and the kernel releases the lock of a session that dies. The
+store's metadata are sealed with a checksum (:mod:`sunlab.integrity`) when a session ends and
+unsealed when the next one starts.
 
 Run metadata live in the store's attributes: ``uid``, ``plan``, ``versions``, ``start``,
 ``stop``, ``exit_status`` (``running``, ``complete``, ``interrupted``, ``failed``), ``error``,

@@ -484,18 +484,29 @@ def test_a_lock_that_is_a_directory_is_named_as_one(tmp_path):
     from sunlab.hardware.runner import RunLockedError, run_lock
 
     (tmp_path / "run.zarr.lock").mkdir()
-    with pytest.raises(RunLockedError, match=r"run.zarr.lock is a directory, not a lock file "
-                                             r"that sunlab writes"), \
+    with pytest.raises(RunLockedError, match=r"run.zarr.lock is not a lock file that sunlab "
+                                             r"writes \(Is a directory\)"), \
             run_lock(tmp_path / "run.zarr"):
         pass
     assert (tmp_path / "run.zarr.lock").is_dir()
 
 
-def test_a_lock_without_a_session_is_named_not_reported_as_pid_none(tmp_path):
+def test_a_held_lock_without_a_session_is_named_not_reported_as_pid_none(tmp_path):
+    """A holder that has not yet written its id (or a lock file another tool flocks) is
+    refused as held, its holder unknown, not as ``pid None``; an unheld file with garbage is
+    taken (flock, not the file's content, says who holds the run)."""
+    import fcntl
+
     from sunlab.hardware.runner import RunLockedError, run_lock
 
-    (tmp_path / "run.zarr.lock").write_text("garbage")
-    with pytest.raises(RunLockedError, match=r"holds no session") as info, \
-            run_lock(tmp_path / "run.zarr"):
-        pass
+    lock = tmp_path / "run.zarr.lock"
+    lock.write_text("garbage")
+    with open(lock) as other:
+        fcntl.flock(other, fcntl.LOCK_EX)
+        with pytest.raises(RunLockedError, match=r"holder unknown") as info, \
+                run_lock(tmp_path / "run.zarr"):
+            pass
     assert "pid None" not in str(info.value)
+    with run_lock(tmp_path / "run.zarr"):
+        assert f'"pid": {os.getpid()}' in lock.read_text()
+    assert not lock.exists()
