@@ -8,6 +8,10 @@ All derive from :class:`sunlab.SunlabError`, so ``sunlab acquire`` reports them 
 
 from __future__ import annotations
 
+import functools
+import json
+from importlib import resources
+
 from ..errors import SunlabError
 
 __all__ = ["BenchError", "MotionTimeout"]
@@ -83,42 +87,13 @@ class StageDisconnected(StageError):
             "controller, then resume the run with `--resume`")
 
 
-#: General (controller) error codes, below 100 (ESP300/301 manuals, "Error Messages").
-GENERAL_ERRORS = {
-    0: "no error detected", 1: "PCI communication time-out", 4: "emergency stop activated",
-    6: "command does not exist", 7: "parameter out of range", 8: "cable interlock error",
-    9: "axis number out of range", 13: "group number missing", 14: "group number out of range",
-    15: "group number not assigned", 16: "group number already assigned",
-    17: "group axis out of range", 18: "group axis already assigned",
-    19: "group axis duplicated", 20: "data acquisition is busy",
-    21: "data acquisition setup error", 22: "data acquisition not enabled",
-    23: "servo cycle (400 us) tick failure", 25: "download in progress",
-    26: "stored program not started", 27: "command not allowed",
-    28: "stored program flash area full", 29: "group parameter missing",
-    30: "group parameter out of range", 31: "group maximum velocity exceeded",
-    32: "group maximum acceleration exceeded", 33: "group maximum deceleration exceeded",
-    34: "group move not allowed during motion", 35: "program not found",
-    37: "axis number missing", 38: "command parameter missing", 39: "program label not found",
-    40: "last command cannot be repeated", 41: "maximum number of labels per program exceeded",
-}
+@functools.cache
+def _codes() -> dict:
+    """The ESP300/301 error tables (``sunlab/data/esp_errors.json``, from the manuals' "Error
+    Messages"): ``general`` codes below 100, ``axis`` codes reported as ``axis * 100 + code``."""
+    return json.loads((resources.files("sunlab") / "data" / "esp_errors.json")
+                      .read_text(encoding="utf-8"))
 
-#: Axis error codes: the controller reports ``axis * 100 + code``.
-AXIS_ERRORS = {
-    0: "motor type not defined", 1: "parameter out of range", 2: "amplifier fault detected",
-    3: "following error threshold exceeded", 4: "positive hardware limit detected",
-    5: "negative hardware limit detected", 6: "positive software limit detected",
-    7: "negative software limit detected", 8: "motor / stage not connected",
-    9: "feedback signal fault detected", 10: "maximum velocity exceeded",
-    11: "maximum acceleration exceeded", 13: "motor not enabled", 15: "maximum jerk exceeded",
-    16: "maximum DAC offset exceeded", 17: "ESP critical settings are protected",
-    18: "ESP stage device error", 19: "ESP stage data invalid", 20: "homing aborted",
-    21: "motor current not defined", 22: "unidrive communications error",
-    23: "unidrive not detected", 24: "speed out of range", 25: "invalid trajectory master axis",
-    26: "parameter change not allowed", 27: "invalid trajectory mode for homing",
-    28: "invalid encoder step ratio", 29: "digital I/O interlock detected",
-    30: "command not allowed during homing", 31: "command not allowed due to group assignment",
-    32: "invalid trajectory mode for moving",
-}
 
 def decode_error(code: int) -> tuple[int | None, str]:
     """Axis and meaning of an ESP300/301 error code.
@@ -142,8 +117,8 @@ def decode_error(code: int) -> tuple[int | None, str]:
     """
     axis, sub = divmod(int(code), 100)
     if axis:
-        return axis, AXIS_ERRORS.get(sub, f"unknown axis error {sub}")
-    return None, GENERAL_ERRORS.get(sub, f"unknown error {sub}")
+        return axis, _codes()["axis"].get(str(sub), f"unknown axis error {sub}")
+    return None, _codes()["general"].get(str(sub), f"unknown error {sub}")
 
 
 #: The fix of a controller error: by axis sub-code (axis errors) or by general code.
