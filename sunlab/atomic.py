@@ -110,27 +110,6 @@ def temporary_name(path, what: str = "tmp") -> Path:
     return Path(path).with_name(f".sl-{os.getpid()}-{uuid.uuid4().hex[:8]}.{what}")
 
 
-def process_alive(pid) -> bool:
-    """Whether process ``pid`` runs on this host (this process, or another user's, counts);
-    False only for a positive int that names no running process.
-
-    Examples
-    --------
-    >>> import os
-    >>> process_alive(os.getpid())
-    True
-    """
-    if not isinstance(pid, int) or pid <= 0 or pid == os.getpid():
-        return True
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:  # another user's process
-        pass
-    return True
-
-
 def remove_stale(path) -> list[Path]:
     """Clear what killed writers left beside ``path``; return what was cleared.
 
@@ -160,7 +139,14 @@ def remove_stale(path) -> list[Path]:
     with contextlib.suppress(OSError):
         for stale in sorted(Path(path).parent.iterdir()):
             match = _TEMPORARY.fullmatch(stale.name)
-            if match is None or process_alive(int(match.group(1))):
+            if match is None:
+                continue
+            try:
+                os.kill(int(match.group(1)), 0)  # this process, or another user's, runs
+                continue
+            except ProcessLookupError:  # the writer is gone
+                pass
+            except PermissionError:  # another user's process
                 continue
             cleared.append(stale)
             for old in stale.iterdir() if match.group(2) == "old" else ():
@@ -234,11 +220,9 @@ def check_target(path, *, overwrite: bool = False, kind: str = "file",
                               "one (a reader may hold it open). Fix: choose a path for a new file")
     zarr = kind == "zarr" and any(_exists(path / n) for n in ("zarr.json", ".zgroup", ".zarray"))
     if path.is_dir() and not path.is_symlink() and not zarr:
-        if kind == "zarr":
-            raise SunlabError(f"{path}: is a directory, not a Zarr store; sunlab will not delete "
-                              "it. Fix: choose another path")
-        raise SunlabError(f"{path}: is a directory, expected a file; sunlab will not delete it. "
-                          f"Fix: give a file path (e.g. {path / 'out'}{path.suffix or ''})")
+        what = "a Zarr store" if kind == "zarr" else "a file"
+        raise SunlabError(f"{path}: is a directory, not {what}; sunlab will not delete it. Fix: "
+                          "choose another path")
     if _exists(path) and not overwrite:
         raise _exists_error(path, flag)
     free = shutil.disk_usage(parent).free if nbytes else 0
@@ -436,13 +420,13 @@ def atomic_files(folder, names=(), *, overwrite: bool = False, flag: str = "over
             if not folder.exists():
                 os.rename(staging, folder)
             else:
-                move_in(staging, folder, overwrite, flag)
+                _move_in(staging, folder, overwrite, flag)
     finally:
         if staging.exists():
             _remove(staging)
 
 
-def move_in(staging: Path, folder: Path, overwrite: bool, flag: str) -> None:
+def _move_in(staging: Path, folder: Path, overwrite: bool, flag: str) -> None:
     """Move every file of ``staging`` (at any depth; sub-folders made as needed) into
     ``folder``, setting aside the files it replaces; on a failure, undo the moves made."""
     aside = staging / ".old"

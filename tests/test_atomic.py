@@ -53,7 +53,7 @@ def test_a_folder_given_as_an_output_file_is_named_as_a_folder(table, tmp_path, 
     for extra in ([], ["--overwrite"]):
         status = cli.main(["calibrate", str(table), "--out", str(tmp_path / "out"), *extra])
         err = capsys.readouterr().err
-        assert status == 1 and "is a directory, expected a file" in err
+        assert status == 1 and "is a directory, not a file" in err
         assert "a directory, a directory" not in err and "pass --overwrite" not in err
 
 
