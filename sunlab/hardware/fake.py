@@ -3,7 +3,7 @@
 :class:`FakeESP` answers the manual's commands below exactly as the controller does: commands
 end with ``CR``, query replies end with ``CR LF``, errors queue in a 10-deep buffer, axis errors
 are ``axis * 100 + code``. Axes move at a finite velocity (``math.inf``: instant moves, for
-protocol tests) on any monotonic clock (a :class:`ManualClock` that a test advances by hand). It
+protocol tests) on any monotonic clock (one that a test advances by hand, say). It
 serves a pseudo-terminal (:meth:`FakeESP.serve_pty`) and a loopback TCP port
 (:meth:`FakeESP.serve_tcp`), which the driver opens like any serial port.
 
@@ -87,43 +87,6 @@ _SETTERS = frozenset({"WS", "OR", "DH", "SN", "PA", "SL", "SR", "VA"})
 _AXIS_COMMANDS = _SETTERS | {"TP", "DP", "MD", "MO", "MF", "ST", "ID"}
 
 
-class ManualClock:
-    """A monotonic clock that moves only when told to, for tests of timed behaviour.
-
-    Parameters
-    ----------
-    start : float
-        The time it reads at first, s.
-
-    Examples
-    --------
-    >>> clock = ManualClock()
-    >>> fake = FakeESP(velocity_deg_s=10.0, clock=clock)
-    >>> fake.handle(b"1PA5"); fake.handle(b"1MD?")       # 0.5 s move, no time has passed
-    b'0\\r\\n'
-    >>> clock.advance(0.5); fake.handle(b"1MD?"), fake.handle(b"1TP?")
-    (b'1\\r\\n', b'5.000000\\r\\n')
-    """
-
-    def __init__(self, start: float = 0.0):
-        self.now = float(start)
-
-    def __call__(self) -> float:
-        return self.now
-
-    def advance(self, seconds: float) -> None:
-        """Move the clock forward.
-
-        Parameters
-        ----------
-        seconds : float
-            How far, s (>= 0: the clock is monotonic).
-        """
-        if not seconds >= 0:
-            raise ConfigurationError(f"advance: found {seconds!r} s, expected >= 0")
-        self.now += float(seconds)
-
-
 @dataclass
 class Fault:
     """One injected fault (see the module docstring for the kinds)."""
@@ -190,7 +153,7 @@ class FakeESP:
     stage_model : str
         Positioner model in the ``nID?`` reply (``URS100BCC, SN0001`` for axis 1).
     clock : callable, optional
-        Monotonic clock in seconds (default :func:`time.monotonic`); a :class:`ManualClock`
+        Monotonic clock in seconds (default :func:`time.monotonic`); a clock advanced by hand
         makes timed behaviour (moves, silences, error time stamps) deterministic.
 
     Notes

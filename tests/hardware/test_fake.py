@@ -16,7 +16,22 @@ from sunlab.hardware.errors import (
     StageDisconnected,
     StageTimeout,
 )
-from sunlab.hardware.fake import DISCONNECT, FakeESP, ManualClock
+from sunlab.hardware.fake import DISCONNECT, FakeESP
+
+
+class ManualClock:
+    """A monotonic clock that moves only when told to (``advance``), for timed behaviour."""
+
+    def __init__(self):
+        self.now = 0.0
+
+    def __call__(self) -> float:
+        return self.now
+
+    def advance(self, seconds: float) -> None:
+        assert seconds >= 0  # monotonic
+        self.now += seconds
+
 
 FAST = {"timeout": 0.08, "retries": 3, "retry_delay_s": 0.01, "poll_s": 0.001}
 
