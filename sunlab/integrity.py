@@ -329,26 +329,17 @@ def zarr_digest(path) -> str:
 
 
 def _set_root_attr(path: Path, group, value) -> None:
-    """Set (a dict) or remove (None) the digest in a store's root attributes: through ``group``
+    """Set (a dict) or remove (None) the digest in a store's root attributes, through ``group``
     when the caller holds it open (an open group writes its cached metadata back on its next
-    change, undoing an edit of the file behind its back), else by replacing the root
-    ``zarr.json`` atomically."""
-    if group is not None:
-        if value is not None:
-            group.attrs[ATTR] = value
-        elif ATTR in group.attrs:
-            del group.attrs[ATTR]
-        return
-    meta = path / "zarr.json"
-    doc = loads(meta.read_text(encoding="utf-8"), meta, what="Zarr metadata", fix=_FIX)
-    attrs = doc.setdefault("attributes", {})
+    change, undoing an edit of the file behind its back), else through the group opened here
+    (Zarr replaces ``zarr.json`` atomically: a temporary file, then a rename)."""
+    import zarr
+
+    attrs = (zarr.open_group(path, mode="r+") if group is None else group).attrs
     if value is not None:
         attrs[ATTR] = value
-    elif attrs.pop(ATTR, None) is None:
-        return
-    from . import atomic
-
-    atomic.write_text(meta, json.dumps(doc, indent=2), overwrite=True)
+    elif ATTR in attrs:
+        del attrs[ATTR]
 
 
 def seal_zarr(path, group=None) -> str:
