@@ -108,12 +108,11 @@ class Plan:
                "widen the range or the slice.")
         alpha.setflags(write=False)
         beta.setflags(write=False)
-        object.__setattr__(self, "alpha", alpha)
-        object.__setattr__(self, "beta", beta)
-        object.__setattr__(self, "shots", _positive_int(
-            "shots", self.shots, "a positive integer number of frames per pose (the paper takes "
-            "8)", "pass shots=8."))
-        object.__setattr__(self, "name", str(self.name))
+        shots = _positive_int("shots", self.shots, "a positive integer number of frames per pose "
+                              "(the paper takes 8)", "pass shots=8.")
+        for name, value in (("alpha", alpha), ("beta", beta), ("shots", shots),
+                            ("name", str(self.name))):
+            object.__setattr__(self, name, value)
         _check(self.scan in SCANS, "scan", repr(self.scan), f"one of {SCANS}",
                "scan='serpentine'.")
         _check(self.approach in APPROACHES, "approach", repr(self.approach),
@@ -133,11 +132,6 @@ class Plan:
             np.array_equal(getattr(self, f.name), getattr(other, f.name)) for f in fields(self))
 
     __hash__ = None  # mutable-looking contents: plans are compared by value, not hashed
-
-    @property
-    def n_frames(self) -> int:
-        """Number of frames of the plan: ``len(plan) * plan.shots``."""
-        return len(self) * self.shots
 
     def subset(self, step: int) -> Plan:
         """Every ``step``-th pose, for quick runs (``step=1`` returns an equal plan).
@@ -172,15 +166,11 @@ class Plan:
             Same name, shots and motion; ``ceil(n_alpha / step) * ceil(n_beta / step)`` poses for a
             full grid, ``ceil(len / step)`` otherwise.
         """
-        self.subset(step)  # the same check of step
-        shape = self.unstack_shape()
-        if shape is None or step == 1:
-            return self.subset(step)
-        n_alpha, n_beta = shape
-        ia = np.arange(0, n_alpha, int(step))
-        ib = np.arange(0, n_beta, int(step))
-        index = (ia[:, None] * n_beta + ib[None, :]).ravel()
-        return self[index]
+        subset, shape = self.subset(step), self.unstack_shape()  # subset checks step
+        if shape is None:
+            return subset
+        ia, ib = np.arange(0, shape[0], step), np.arange(0, shape[1], step)
+        return self[(ia[:, None] * shape[1] + ib).ravel()]
 
     def with_shots(self, shots: int) -> Plan:
         """The same poses with ``shots`` (a positive integer) frames per pose.

@@ -33,7 +33,7 @@ def test_experiment_steps_exact():
 
 def test_grid_and_custom_and_slicing():
     g = plans.grid(-1, 1, 0.5, 0, 1, 1, shots=2, name="g")
-    assert len(g) == 10 and g.n_frames == 20
+    assert len(g) == 10 and g.shots == 2
     assert g.alpha.tolist()[:3] == [-1.0, -1.0, -0.5]
     c = plans.custom([0.0, 1.0, 2.0], [3.0, 4.0, 5.0], shots=1)
     assert c[1:].alpha.tolist() == [1.0, 2.0]
