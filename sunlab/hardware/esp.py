@@ -36,7 +36,6 @@ Drive the in-process fake controller (same protocol, over a pseudo-terminal):
 from __future__ import annotations
 
 import math
-import time
 from collections.abc import Sequence
 
 from ..errors import ConfigurationError
@@ -95,8 +94,8 @@ class ESP300(_Link):
     connect : bool
         Run the :meth:`connect` handshake at once.
     sleep, clock : callable
-        The waits (:func:`time.sleep`) and the clock of the resynchronisation's deadline
-        (:func:`time.monotonic`), replaceable to test the driver's timing.
+        The waits (:func:`time.sleep`) and the clock of the deadlines (resynchronisation,
+        motion timeout; :func:`time.monotonic`), replaceable to test the driver's timing.
 
     Notes
     -----
@@ -161,8 +160,7 @@ class ESP300(_Link):
         StageError
             When a motor is off and ``enable_motors`` is False.
         """
-        self._port.reset_input_buffer()
-        self.identity = self.query("VE?")
+        self.identity = self.query("VE?")  # the query drops what the link holds first
         self.stale_errors, lost = self._drain()
         if lost is not None and not lost.empty:
             raise lost
@@ -291,11 +289,11 @@ class ESP300(_Link):
         for ax, value in target.items():
             self.write(f"{ax}PA{format_number(value)}")
         self.check_errors("PA")
-        t_end = time.monotonic() + self.motion_timeout_s
+        t_end = self._clock() + self.motion_timeout_s
         pending = list(self.axes)
         while pending := [ax for ax in pending if not self.query(f"{ax}MD?", _parse_flag,
                                                                    "0 or 1")]:
-            if time.monotonic() > t_end:
+            if self._clock() > t_end:
                 self.stop()
                 found, lost = self._drain("ST")
                 for err in found if lost is None else [lost]:
