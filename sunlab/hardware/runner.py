@@ -150,7 +150,7 @@ def _describe(obj, role: str) -> dict:
     return json.loads(json.dumps(info, default=str))
 
 
-def _create_store(path: Path, run: _Run, camera, stage, attrs) -> None:
+def _create_store(path: Path, run: _Run, camera, stage) -> None:
     """Allocate the store of the whole run in a temporary sibling, then rename it into place."""
     import dask.array as da
     import xarray
@@ -190,11 +190,11 @@ def _create_store(path: Path, run: _Run, camera, stage, attrs) -> None:
             "stage": _describe(stage, "stage"), "camera": _describe(camera, "camera"),
             "start": None, "stop": None, "exit_status": "created", "error": None, "sessions": [],
             "scan_order": plan.scan, "approach": plan.approach,
-            "visit_order": [int(i) for i in run.order], **dict(attrs or {}),
+            "visit_order": [int(i) for i in run.order],
         })
 
 
-def _open_store(path: Path, resume: bool, run: _Run, camera, stage, attrs):
+def _open_store(path: Path, resume: bool, run: _Run, camera, stage):
     """Create the store (allocated up front), or reopen it to resume; check it fits the run."""
     import zarr
 
@@ -206,7 +206,7 @@ def _open_store(path: Path, resume: bool, run: _Run, camera, stage, attrs):
                                  "to continue that run, or choose a new path")
     if not path.exists():
         path.parent.mkdir(parents=True, exist_ok=True)
-        _create_store(path, run, camera, stage, attrs)
+        _create_store(path, run, camera, stage)
     for leftover in path.rglob("*.partial"):  # temporary chunk files of a killed writer
         leftover.unlink(missing_ok=True)
     with zarr.config.set({"array.write_empty_chunks": True}):  # a dark frame is a chunk too
@@ -277,8 +277,8 @@ def _capture_pose(stage, camera, pose: int, run: _Run):
 
 
 def acquire(plan, stage, camera, out, *, resume: bool = False, progress: bool = True,
-            stop: threading.Event | None = None, fsync: bool = True, attrs: dict | None = None,
-            handle_sigint: bool = True, overshoot_deg: float = 0.5) -> RunResult:
+            stop: threading.Event | None = None, fsync: bool = True, handle_sigint: bool = True,
+            overshoot_deg: float = 0.5) -> RunResult:
     """Run a plan on the bench into a resumable Zarr store.
 
     Parameters
@@ -304,8 +304,6 @@ def acquire(plan, stage, camera, out, *, resume: bool = False, progress: bool = 
     fsync : bool
         fsync each pose's chunk files before flagging it done (survives a power cut as well as
         a killed process).
-    attrs : dict, optional
-        Extra JSON-able attributes recorded when the store is created.
     handle_sigint : bool
         In the main thread, turn the first Ctrl-C into a stop between poses (a second one
         interrupts at once).
@@ -333,7 +331,7 @@ def acquire(plan, stage, camera, out, *, resume: bool = False, progress: bool = 
     """
     run, path = _checked(plan, camera, overshoot_deg), Path(out)
     with run_lock(path):
-        group, arrays = _open_store(path, resume, run, camera, stage, attrs)
+        group, arrays = _open_store(path, resume, run, camera, stage)
         return _run_poses(path, group, arrays, run, stage, camera, stop or threading.Event(),
                           handle_sigint, progress, fsync)
 
