@@ -200,11 +200,10 @@ class _Link:
     def _once(self, command: str, parse: Callable[[str], object] | None):
         """Send ``command`` once; with ``parse``, read and parse its reply. A reply that does
         not come, or does not have the shape ``parse`` wants, marks the link out of step."""
-        if parse is not None:
-            self._sync()
-        self._send(command)
         if parse is None:
-            return None
+            return self._send(command)
+        self._sync()
+        self._send(command)
         try:
             raw = self._readline()
             for _ in range(4):  # a marker sent twice by _sync is answered twice: drop it

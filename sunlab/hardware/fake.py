@@ -112,9 +112,7 @@ class _Axis:
             return self.target
         if now <= self.t0:  # a move that starts after a WS wait has not started yet
             return self.start
-        # between start and target whatever the velocity (a tiny or rounded move time)
-        fraction = min(max((now - self.t0) / (self.t1 - self.t0), 0.0), 1.0)
-        return self.start + (self.target - self.start) * fraction
+        return self.start + (self.target - self.start) * (now - self.t0) / (self.t1 - self.t0)
 
     def done(self, now: float) -> bool:
         return not self.stuck and now >= self.t1
@@ -129,10 +127,6 @@ class _Axis:
         self.start = self.target = self.position(now)
         self.t0, self.t1, self.stuck = now, now, False
 
-    def define(self, value: float, now: float) -> None:
-        """``DH``: the position here now reads ``value`` (the whole move shifts with it)."""
-        shift = value - self.position(now)
-        self.start, self.target, self.home = self.start + shift, self.target + shift, value
 
 
 class FakeESP:
@@ -279,7 +273,7 @@ class FakeESP:
     def _status(self, now: float) -> str:
         """``TS``: bit n-1 set while axis n moves, bit 4 while any motor is on; bit 6 is set
         as in the manual's example replies, which keeps the byte a printable character."""
-        moving = sum(1 << (n - 1) for n, ax in self._axes.items() if n <= 3 and not ax.done(now))
+        moving = sum(1 << (n - 1) for n, ax in self._axes.items() if not ax.done(now))
         return chr(0x40 | moving | (0x10 if any(a.motor_on for a in self._axes.values()) else 0))
 
     def _execute(self, command: str, now: float, stuck: bool) -> str | None:
@@ -336,8 +330,9 @@ class FakeESP:
         if mn == "WS":  # wait for stop, then ``value`` ms; a stuck axis is not awaited
             if not ax.stuck:
                 self._wait_until = max(self._wait_until, max(ax.t1, now) + value / 1000.0)
-        elif mn == "DH":
-            ax.define(value, now)
+        elif mn == "DH":  # the position here now reads value (the whole move shifts with it)
+            shift = value - ax.position(now)
+            ax.start, ax.target, ax.home = ax.start + shift, ax.target + shift, value
         elif mn in ("SN", "SL", "SR"):
             setattr(ax, {"SN": "units", "SL": "low", "SR": "high"}[mn],
                     int(value) if mn == "SN" else value)
