@@ -25,7 +25,7 @@ from ..errors import SchemaError, SunlabError
 from ..schema import frames_dataset
 from .calframes import with_calibration_frames
 from .codec import _short
-from .csvtable import _line, _numbers, _poses, read_csv_table
+from .csvtable import _line, _numbers, _poses, _require, read_csv_table
 from .images import IMAGE_SUFFIXES, _image_header, _raw_dtype, _read_checked
 from .sensor import find_sensor_json, read_sensor_json
 
@@ -35,12 +35,6 @@ _REQUIRED_COLUMNS = ("file", "alpha", "beta", "shot")
 _RESERVED_COLUMNS = ("pose", "x", "y", "frames", "hole", "shot_label")
 _SENSOR = ("pixel_pitch_mm", "mask_distance_mm", "x_cf_px", "y_cf_px", "bit_depth",
            "left_aligned", "mask", "experiment")
-_FIX_COLUMN = {"file": " with the image file name of each row",
-               "alpha": " with the commanded outer-axis angle in degrees",
-               "beta": " with the commanded inner-axis angle in degrees",
-               "shot": " numbering the frames of each pose 0, 1, ..."}
-#: Largest page number of a TIFF stack in a manifest (a stack of 2**31 frames is no stack).
-_MAX_PAGE = 2**31 - 1
 
 
 def _from_images(path: Path, manifest=None, *, lazy=True, dark=None, flat=None, bias=None,
@@ -62,12 +56,7 @@ def _from_images(path: Path, manifest=None, *, lazy=True, dark=None, flat=None, 
         table.attrs["lines"] = lines
     _check_columns(table, mname)
     alpha, beta, shot = (_numbers(table, c, f"manifest {mname}", "degrees" if c != "shot"
-                                  else None) for c in ("alpha", "beta", "shot"))
-    if np.any(shot != np.round(shot)):
-        i = int(np.flatnonzero(shot != np.round(shot))[0])
-        raise SchemaError(f"manifest {mname} line {_line(table, i)} column 'shot'",
-                          table["shot"].iloc[i], "an integer shot label",
-                          "number the frames of each pose 0, 1, 2, ...")
+                                  else "integer") for c in ("alpha", "beta", "shot"))
     files, paths = _image_paths(folder, table, mname)
     pages = _page_column(table, files, mname)
     poses, labels, order = _pose_grid(table, alpha, beta, shot.astype(np.int64), mname)
@@ -116,30 +105,22 @@ def _manifest_table(folder: Path, manifest):
 
 def _check_columns(table, mname: str) -> None:
     """The manifest has rows, the required columns and no reserved or unstorable name."""
-    if len(table) == 0:
-        raise SchemaError(f"manifest {mname}", "no rows", "one row per image",
-                          "add the rows for the images")
-    for col in _REQUIRED_COLUMNS:
-        if col not in table.columns:
-            raise SchemaError(
-                f"manifest {mname} column {col!r}", f"missing (columns: {list(table.columns)})",
-                "columns file, alpha, beta, shot", f"add a {col!r} column{_FIX_COLUMN[col]}")
+    _require(table, f"manifest {mname}", _REQUIRED_COLUMNS, "one row per image",
+             "add them: file = the image's name, alpha, beta = commanded angles in degrees, "
+             "shot = the frame's number within its pose (0, 1, ...)")
     for col in table.columns:
-        if col in _RESERVED_COLUMNS:
-            raise SchemaError(f"manifest {mname} column {col!r}", "a reserved name",
-                              f"extra columns named other than {_RESERVED_COLUMNS}",
-                              "rename the column")
         # an extra column becomes a variable of the store: Zarr and NetCDF name nodes by path,
         # so '..', '../../x' or 'a/b' would name another place (or be refused deep in the writer)
         # and 'zarr.json' the store's own metadata file (a folder cannot replace it)
         if col not in _REQUIRED_COLUMNS and (len(col) > 100 or col.startswith((".", "__")) or
                                              col.lower() == "zarr.json" or
+                                             col in _RESERVED_COLUMNS or
                                              not re.fullmatch(r"\w[\w .()\-]*", col, re.A)):
             raise SchemaError(
                 f"manifest {mname} column {col!r}", "a name that cannot name a variable",
                 "letters, digits, spaces and _ - . ( ) , not starting with '.' or '__', no "
-                "'/' or '\\', not zarr.json, at most 100 characters",
-                "rename the column (e.g. exposure_ms)")
+                f"'/' or '\\', not zarr.json nor one of {_RESERVED_COLUMNS}, at most 100 "
+                "characters", "rename the column (e.g. exposure_ms)")
 
 
 def _image_paths(folder: Path, table, mname: str):
@@ -183,15 +164,7 @@ def _page_column(table, files, mname: str):
     image (file, page) listed twice."""
     pages, keys = None, list(files)
     if "page" in table.columns:
-        values = pd.to_numeric(table["page"], errors="coerce").to_numpy(dtype=float)
-        bad = np.flatnonzero(~np.isfinite(values) | (values < 0) | (values > _MAX_PAGE)
-                             | (values != np.round(values)))
-        if bad.size:
-            raise SchemaError(
-                f"manifest {mname} line {_line(table, bad[0])} column 'page'",
-                table["page"].iloc[bad[0]], f"an integer page 0, 1, ... (at most {_MAX_PAGE}) "
-                "of the TIFF stack named in 'file'", f"correct the value ({bad.size} bad row(s))")
-        pages = values.astype(np.int64)
+        pages = _numbers(table, "page", f"manifest {mname}", "page").astype(np.int64)
         keys = list(zip(files, pages.tolist(), strict=True))
     first: dict = {}
     for i, key in enumerate(keys):
