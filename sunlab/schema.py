@@ -226,22 +226,22 @@ def frames_dataset(frames, alpha: Sequence[float], beta: Sequence[float], *,
     return validate_frames(xr.Dataset(frames, coords=coords, attrs=all_attrs))
 
 
-def _check_schema_attr(ds: xr.Dataset, expected: str) -> None:
-    found = ds.attrs.get("sunlab_schema")
+def _check_contract(found, expected: str, field: str) -> None:
+    """The contract's name and version (``sunlab_schema``) is the one expected."""
     family, _, version = str(found).partition("/")
     if found is None:
-        fix = "build the dataset with sunlab.schema or set the attribute after checking the layout"
+        fix = f"build it with sunlab.schema, or set {field} = {expected!r} after checking it"
     elif family == expected.partition("/")[0]:
         fix = (f"this sunlab reads {expected!r} but the file holds version {version!r}: open it "
-               "with the sunlab version that wrote it (see attrs['sunlab_version'] if present) "
-               "and save it again, or upgrade sunlab")
+               "with the sunlab version that wrote it (its 'sunlab_version') and save it again "
+               "(a calibration: refit it), or upgrade sunlab")
     elif found in SCHEMA_FILES:
         fix = (f"this is a {found!r} dataset, not {expected!r}: open a frame cube with "
                "sunlab.io.open_frames, a centroid table with sunlab.io.open_centroids")
     else:
-        fix = "rebuild the dataset with sunlab.schema"
+        fix = "rebuild it with sunlab.schema"
     if found != expected:
-        raise SchemaError("attrs['sunlab_schema']", found, repr(expected), fix)
+        raise SchemaError(field, "missing" if found is None else found, repr(expected), fix)
 
 
 def _check_dims(ds: xr.Dataset, var: str, allowed: Sequence[tuple[str, ...]]) -> None:
@@ -301,8 +301,9 @@ def validate_frames(ds: xr.Dataset) -> xr.Dataset:
     """
     if not isinstance(ds, xr.Dataset):
         raise SchemaError("cube", type(ds).__name__, "an xarray.Dataset", "open it with sunlab.io")
-    _check_schema_attr(ds, FRAMES_SCHEMA)
+    _check_contract(ds.attrs.get("sunlab_schema"), FRAMES_SCHEMA, "attrs['sunlab_schema']")
     _check_dims(ds, "frames", [("pose", "shot", "y", "x")])
+    _check_indices(ds)
     # dims, dtypes and attribute types: the published contract; then what it cannot say
     _check_json_schema(_jsonable(ds.to_dict(data=False)), FRAMES_SCHEMA, _dataset_field)
     frames = ds["frames"]
@@ -310,7 +311,6 @@ def validate_frames(ds: xr.Dataset) -> xr.Dataset:
         if not np.all(np.isfinite(ds[name].values)):
             raise SchemaError(name, "non-finite angles", "finite commanded angles in degrees")
     _check_sensor(ds, frames.dtype)
-    _check_indices(ds)
     bits = int(ds.attrs["bit_depth"])
     # in-memory frames: every DN below 2**bit_depth (lazy ones are checked on read and write)
     if frames.chunks is None and frames.size and bits < 8 * frames.dtype.itemsize:
@@ -402,15 +402,15 @@ def validate_centroids(ds: xr.Dataset) -> xr.Dataset:
     """
     if not isinstance(ds, xr.Dataset):
         raise SchemaError("centroids", type(ds).__name__, "an xarray.Dataset")
-    _check_schema_attr(ds, CENTROIDS_SCHEMA)
+    _check_contract(ds.attrs.get("sunlab_schema"), CENTROIDS_SCHEMA, "attrs['sunlab_schema']")
     _check_dims(ds, "x", [("pose", "shot"), ("pose", "shot", "hole")])
     for name in ("y", "flux", "status", "x0", "x1", "y0", "y1"):
         _check_dims(ds, name, [ds["x"].dims])
+    _check_indices(ds)
     _check_json_schema(_jsonable(ds.to_dict(data=False)), CENTROIDS_SCHEMA, _dataset_field)
     unknown = sorted(set(np.unique(ds["status"].values).tolist()) - set(STATUS.values()))
     if unknown:
         raise SchemaError("status", unknown, f"codes in {STATUS}")
-    _check_indices(ds)
     return ds
 
 
@@ -459,13 +459,7 @@ def validate_calibration(doc: Mapping) -> Mapping:
         raise SchemaError(
             "calibration", type(doc).__name__, f"a JSON object of contract {CALIBRATION_SCHEMA!r}",
             "read the file with json.load or sunlab.calibration.load")
-    found = doc.get("sunlab_schema")
-    if found != CALIBRATION_SCHEMA:
-        raise SchemaError(
-            "sunlab_schema", "missing" if found is None else found, repr(CALIBRATION_SCHEMA),
-            "set 'sunlab_schema': 'calibration/1' when writing the artifact" if found is None
-            else "this sunlab reads 'calibration/1': refit with this version, or load the file "
-            "with the sunlab version that wrote it")
+    _check_contract(doc.get("sunlab_schema"), CALIBRATION_SCHEMA, "sunlab_schema")
     _check_json_values(doc, [])
     _check_json_schema(_jsonable(doc), CALIBRATION_SCHEMA, _json_field)
     for name in ("alpha", "beta", "x", "y"):

@@ -54,11 +54,6 @@ def _uncommented(text: str) -> str:
     return text
 
 
-def _printable(name: str) -> str:
-    """A column name for a message: control characters (a terminal's ESC) escaped."""
-    return name if name.isprintable() else name.encode("unicode_escape").decode("ascii")
-
-
 def _read_text(path: Path, name: str) -> str:
     """The file's text (UTF-8, a BOM dropped), at most :data:`MAX_CSV_BYTES`."""
     try:
@@ -91,7 +86,8 @@ def _checked_header(header: list, name: str, head_line: int) -> list:
             raise SchemaError(f"{name} line {head_line}", f"no name for column {k + 1}",
                               "a name for every column", "name the column or remove it")
         if not col.isprintable():
-            raise SchemaError(f"{name} line {head_line} column {k + 1}", _printable(col),
+            raise SchemaError(f"{name} line {head_line} column {k + 1}",
+                              col.encode("unicode_escape").decode("ascii"),
                               "a column name of printable characters",
                               "rename the column (control characters such as ESC are refused)")
         if col in seen:
