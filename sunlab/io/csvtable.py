@@ -258,13 +258,22 @@ def _shot_numbers(table, pose, name: str):
     if "shot" not in table.columns:
         return pd.Series(pose).groupby(pose).cumcount().to_numpy()
     labels = _numbers(table, "shot", name, "label")
+    _once(table, list(zip(pose.tolist(), labels.tolist(), strict=True)), name,
+          lambda i: f"alpha={table['alpha'].iloc[i]}, beta={table['beta'].iloc[i]}, shot="
+          f"{table['shot'].iloc[i]}", "one row per (alpha, beta, shot)", "remove the duplicate row")
     frame = pd.DataFrame({"p": pose, "s": labels})
-    dup = frame.duplicated().to_numpy()
-    if dup.any():
-        raise SchemaError(f"{name} line {_line(table, np.flatnonzero(dup)[0])}",
-                          "the same pose and shot again", "one row per (alpha, beta, shot)",
-                          "remove the duplicate row")
     return frame.groupby("p")["s"].rank(method="first").to_numpy(dtype=int) - 1
+
+
+def _once(table, keys: list, name: str, what, expected: str, fix: str) -> None:
+    """Each row's key (a file, a page, a pose and shot) once: a repeat names its line, the
+    first line, and ``what(row)`` was repeated."""
+    first: dict = {}
+    for i, key in enumerate(keys):
+        if key in first:
+            raise SchemaError(f"{name} line {_line(table, i)}", f"{what(i)} again (first on "
+                              f"line {_line(table, first[key])})", expected, fix)
+        first[key] = i
 
 
 def _status_codes(table, num: dict, name: str):

@@ -25,7 +25,7 @@ from ..errors import SchemaError, SunlabError
 from ..schema import frames_dataset
 from .calframes import with_calibration_frames
 from .codec import _short
-from .csvtable import _line, _numbers, _poses, _require, read_csv_table
+from .csvtable import _line, _numbers, _once, _poses, _require, read_csv_table
 from .images import IMAGE_SUFFIXES, _image_header, _raw_dtype, _read_checked
 from .sensor import find_sensor_json, read_sensor_json
 
@@ -162,20 +162,13 @@ def _is_file(path: Path) -> bool:
 def _page_column(table, files, mname: str):
     """The ``page`` of each row (None without the column): a non-negative integer, and no
     image (file, page) listed twice."""
-    pages, keys = None, list(files)
+    pages = None
     if "page" in table.columns:
         pages = _numbers(table, "page", f"manifest {mname}", "page").astype(np.int64)
-        keys = list(zip(files, pages.tolist(), strict=True))
-    first: dict = {}
-    for i, key in enumerate(keys):
-        if key in first:
-            what = f"file {key[0]!r} page {key[1]}" if pages is not None else f"file {key!r}"
-            raise SchemaError(
-                f"manifest {mname} line {_line(table, i)}",
-                f"{what} again (first on line {_line(table, first[key])})",
-                "one image per (pose, shot)",
-                "give each row its own image" + (" or page" if pages is not None else ""))
-        first[key] = i
+    _once(table, list(files) if pages is None else list(zip(files, pages.tolist(), strict=True)),
+          f"manifest {mname}", lambda i: f"file {files.iloc[i]!r}" + (
+              "" if pages is None else f" page {pages[i]}"), "one image per (pose, shot)",
+          "give each row its own image" + (" or page" if pages is not None else ""))
     return pages
 
 
@@ -183,15 +176,9 @@ def _pose_grid(table, alpha, beta, shot, mname: str):
     """The poses (unique (alpha, beta) pairs in manifest order), the shot labels (sorted) and
     ``order``, the manifest row of each (pose, shot)."""
     poses, pose = _poses(alpha, beta)
-    seen: dict = {}
-    for i, key in enumerate(zip(pose.tolist(), shot.tolist(), strict=True)):
-        if key in seen:
-            raise SchemaError(
-                f"manifest {mname} line {_line(table, i)}", f"alpha={alpha[i]:g}, "
-                f"beta={beta[i]:g}, shot={shot[i]} again (first on line "
-                f"{_line(table, seen[key])})", "one row per (pose, shot)",
-                "remove the duplicate row or give it the next shot number")
-        seen[key] = i
+    _once(table, list(zip(pose.tolist(), shot.tolist(), strict=True)), f"manifest {mname}",
+          lambda i: f"alpha={alpha[i]:g}, beta={beta[i]:g}, shot={shot[i]}",
+          "one row per (pose, shot)", "remove the duplicate row or give it the next shot number")
     labels = np.unique(shot)
     for p, (a, b) in enumerate(poses):
         have = set(shot[pose == p].tolist())
