@@ -58,7 +58,13 @@ def _from_images(path: Path, manifest=None, *, lazy=True, dark=None, flat=None, 
     alpha, beta, shot = (_numbers(table, c, f"manifest {mname}", "degrees" if c != "shot"
                                   else "integer") for c in ("alpha", "beta", "shot"))
     files, paths = _image_paths(folder, table, mname)
-    pages = _page_column(table, files, mname)
+    # the page of each row of a TIFF stack (None without the column); no image listed twice
+    pages = (_numbers(table, "page", f"manifest {mname}", "page").astype(np.int64)
+             if "page" in table.columns else None)
+    _once(table, list(files) if pages is None else list(zip(files, pages.tolist(), strict=True)),
+          f"manifest {mname}", lambda i: f"file {files.iloc[i]!r}" + (
+              "" if pages is None else f" page {pages[i]}"), "one image per (pose, shot)",
+          "give each row its own image" + (" or page" if pages is not None else ""))
     poses, labels, order = _pose_grid(table, alpha, beta, shot.astype(np.int64), mname)
     shape, dtype = _common_header(table, paths, order, pages, mname)
     bit_depth = _checked_bit_depth(bit_depth, dtype, left_aligned)
@@ -157,19 +163,6 @@ def _is_file(path: Path) -> bool:
         return path.is_file()
     except OSError:
         return False
-
-
-def _page_column(table, files, mname: str):
-    """The ``page`` of each row (None without the column): a non-negative integer, and no
-    image (file, page) listed twice."""
-    pages = None
-    if "page" in table.columns:
-        pages = _numbers(table, "page", f"manifest {mname}", "page").astype(np.int64)
-    _once(table, list(files) if pages is None else list(zip(files, pages.tolist(), strict=True)),
-          f"manifest {mname}", lambda i: f"file {files.iloc[i]!r}" + (
-              "" if pages is None else f" page {pages[i]}"), "one image per (pose, shot)",
-          "give each row its own image" + (" or page" if pages is not None else ""))
-    return pages
 
 
 def _pose_grid(table, alpha, beta, shot, mname: str):
