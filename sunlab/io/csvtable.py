@@ -282,12 +282,11 @@ def _status_codes(table, num: dict, name: str):
     if "status" not in table.columns:
         return np.where(np.isfinite(num["x"]) & np.isfinite(num["y"]), STATUS["ok"],
                         STATUS["no_spot"])
-    codes = []
-    for i, v in enumerate(table["status"].tolist()):
-        text = str(v).strip()
-        code = int(text) if text.isdigit() else STATUS.get(text)
-        if code not in STATUS.values():
-            raise SchemaError(f"{name} line {_line(table, i)} column 'status'", v,
-                              f"a status name or code of {STATUS}", "correct the value")
-        codes.append(code)
-    return codes
+    codes = table["status"].astype(str).str.strip().map(
+        lambda text: int(text) if text.isdigit() else STATUS.get(text, -1))
+    bad = np.flatnonzero(~codes.isin(list(STATUS.values())).to_numpy())
+    if bad.size:
+        raise SchemaError(f"{name} line {_line(table, bad[0])} column 'status'",
+                          table["status"].iloc[bad[0]], f"a status name or code of {STATUS}",
+                          "correct the value")
+    return codes.to_numpy(dtype=np.int8)

@@ -92,3 +92,13 @@ def test_a_repeated_pose_and_shot_is_refused_naming_both_lines(tmp_path):
                                           r"\(first on line 3\)'") as err:
         io.open_centroids(path)
     assert "remove the duplicate row" in err.value.fix
+
+
+def test_a_status_column_reads_names_and_codes_and_refuses_others_naming_the_line(tmp_path):
+    rows = ["0,0,640,512,ok", "1,0,,,no_spot", "2,0,700,512,2"]
+    cen = io.open_centroids(_write(tmp_path / "s.csv", "alpha,beta,x,y,status", rows))
+    assert cen.status.values.ravel().tolist() == [0, 1, 2]  # ok, no_spot, saturated
+    path = _write(tmp_path / "t.csv", "alpha,beta,x,y,status", [*rows[:2], "2,0,700,512,lost"])
+    with pytest.raises(SchemaError, match=r"t.csv line 4 column 'status': found 'lost'") as err:
+        io.open_centroids(path)
+    assert "no_spot" in err.value.expected and err.value.fix
