@@ -1,9 +1,9 @@
 """The on-disk data contract: build and validate frame cubes, centroid tables, calibrations.
 
 The contracts are JSON Schema files shipped in ``sunlab/schemas/`` (``data_schema/`` holds the
-prose). Every check runs in two stages: explicit Python checks first (the most specific
-messages, and what JSON Schema cannot check, such as the DN range), then the JSON Schema file
-against ``ds.to_dict(data=False)``, so the code and the published contract cannot drift. Errors
+prose). The JSON Schema file checks ``ds.to_dict(data=False)`` (dims, dtypes, attribute types),
+so the code and the published contract cannot drift; Python checks only what it cannot say (the
+contract's name, dims in another order, finite values, the DN range, the index coordinates). Errors
 are :class:`sunlab.SchemaError`: the field, the value found, the value expected and the fix.
 Pixel coordinates are (x = column, y = row), the centre of the first pixel at 0; angles in deg.
 
@@ -55,13 +55,6 @@ DEFECT_FLAGS: dict[str, int] = {"dust": 1, "elliptical": 2, "burred": 4, "unders
 
 #: The paper's detector (docs/paper.md sec. 1): Ibis4, 1280 x 1024 pixels of 7 um, 10-bit ADC.
 IBIS4 = {"nx": 1280, "ny": 1024, "pixel_pitch_mm": 0.007, "bit_depth": 10}
-
-_CENTRE = "of the design projection of the hole centre (sun at zenith), px"
-_SENSOR_ATTRS = {"pixel_pitch_mm": "pixel pitch in mm (Ibis4: 0.007)",
-                 "mask_distance_mm": "nominal mask-to-focal-plane distance F in mm",
-                 "x_cf_px": "column " + _CENTRE, "y_cf_px": "row " + _CENTRE,
-                 "bit_depth": "ADC bit depth (Ibis4: 10)"}
-
 
 def status_name(code: int) -> str:
     """Name of a centroid status code, e.g. ``status_name(1) == 'no_spot'``.
@@ -145,6 +138,12 @@ def _json_field(path: Sequence) -> str:
     return out or "document"
 
 
+#: The fix of a JSON Schema failure where "correct FIELD" says too little.
+_FIXES = {"frames.dtype": "convert with np.asarray(frames).astype(np.uint16) after checking the "
+                          "range",
+          "status.dtype": "store the status codes as int8"}
+
+
 def _check_json_schema(instance, contract: str, field_of) -> None:
     """Validate ``instance`` against the contract's JSON Schema; raise the most relevant error."""
     from jsonschema.exceptions import best_match
@@ -160,9 +159,10 @@ def _check_json_schema(instance, contract: str, field_of) -> None:
                           prop.get("description") or f"a required field {name!r}",
                           f"add {name!r}; {where}")
     expected = error.schema.get("description") if isinstance(error.schema, Mapping) else None
-    raise SchemaError(field_of(path), _short(error.instance),
+    field = field_of(path)
+    raise SchemaError(field, _short(error.instance),
                       f"{expected} ({error.message})" if expected else error.message,
-                      f"correct the value; {where}")
+                      f"{_FIXES.get(field, f'correct {field}')}; {where}")
 
 
 def frames_dataset(frames, alpha: Sequence[float], beta: Sequence[float], *,
@@ -226,22 +226,22 @@ def frames_dataset(frames, alpha: Sequence[float], beta: Sequence[float], *,
     return validate_frames(xr.Dataset(frames, coords=coords, attrs=all_attrs))
 
 
-def _check_schema_attr(ds: xr.Dataset, expected: str) -> None:
-    found = ds.attrs.get("sunlab_schema")
+def _check_contract(found, expected: str, field: str) -> None:
+    """The contract's name and version (``sunlab_schema``) is the one expected."""
     family, _, version = str(found).partition("/")
     if found is None:
-        fix = "build the dataset with sunlab.schema or set the attribute after checking the layout"
+        fix = f"build it with sunlab.schema, or set {field} = {expected!r} after checking it"
     elif family == expected.partition("/")[0]:
         fix = (f"this sunlab reads {expected!r} but the file holds version {version!r}: open it "
-               "with the sunlab version that wrote it (see attrs['sunlab_version'] if present) "
-               "and save it again, or upgrade sunlab")
+               "with the sunlab version that wrote it (its 'sunlab_version') and save it again "
+               "(a calibration: refit it), or upgrade sunlab")
     elif found in SCHEMA_FILES:
         fix = (f"this is a {found!r} dataset, not {expected!r}: open a frame cube with "
                "sunlab.io.open_frames, a centroid table with sunlab.io.open_centroids")
     else:
-        fix = "rebuild the dataset with sunlab.schema"
+        fix = "rebuild it with sunlab.schema"
     if found != expected:
-        raise SchemaError("attrs['sunlab_schema']", found, repr(expected), fix)
+        raise SchemaError(field, "missing" if found is None else found, repr(expected), fix)
 
 
 def _check_dims(ds: xr.Dataset, var: str, allowed: Sequence[tuple[str, ...]]) -> None:
@@ -271,22 +271,14 @@ def _check_indices(ds: xr.Dataset) -> None:
 
 
 def _check_sensor(ds: xr.Dataset, dtype) -> None:
-    """The sensor attributes are numbers (the pitch and F may be absent: not said), positive
-    but the design centre; the bit depth an integer that the frames' type holds."""
-    for name, meaning in _SENSOR_ATTRS.items():
+    """What the JSON Schema cannot say: the sensor's numbers are finite, and the bit depth fits
+    the frames' type."""
+    for name in ("pixel_pitch_mm", "mask_distance_mm", "x_cf_px", "y_cf_px"):
         value = ds.attrs.get(name)
-        fix = f"set cube.attrs[{name!r}] (frames_dataset takes it as a keyword)"
-        if value is None and name in ("pixel_pitch_mm", "mask_distance_mm"):
-            continue  # not said (a lab's frames): the methods that need it ask for it
-        if value is None:
-            raise SchemaError(f"attrs[{name!r}]", None, meaning, fix)
-        if isinstance(value, bool | np.bool_ | str) or not np.isscalar(value):
-            raise SchemaError(f"attrs[{name!r}]", value, f"a number: {meaning}", fix)
-        if not np.isfinite(float(value)) or (name not in ("x_cf_px", "y_cf_px") and value <= 0):
-            raise SchemaError(f"attrs[{name!r}]", value, meaning, fix)
+        if isinstance(value, float | np.floating) and not np.isfinite(value):
+            raise SchemaError(f"attrs[{name!r}]", value, "a finite number",
+                              f"set cube.attrs[{name!r}] (frames_dataset takes it as a keyword)")
     bits = ds.attrs["bit_depth"]
-    if isinstance(bits, bool | np.bool_) or float(bits) != int(bits) or int(bits) < 1:
-        raise SchemaError("attrs['bit_depth']", bits, "an integer number of bits >= 1, e.g. 10")
     if int(bits) > 8 * dtype.itemsize:
         raise SchemaError("attrs['bit_depth']", bits, f"<= {8 * dtype.itemsize} for {dtype} "
                           "frames", "store frames of more than 8 bits as uint16")
@@ -309,26 +301,16 @@ def validate_frames(ds: xr.Dataset) -> xr.Dataset:
     """
     if not isinstance(ds, xr.Dataset):
         raise SchemaError("cube", type(ds).__name__, "an xarray.Dataset", "open it with sunlab.io")
-    _check_schema_attr(ds, FRAMES_SCHEMA)
+    _check_contract(ds.attrs.get("sunlab_schema"), FRAMES_SCHEMA, "attrs['sunlab_schema']")
     _check_dims(ds, "frames", [("pose", "shot", "y", "x")])
+    _check_indices(ds)
+    # dims, dtypes and attribute types: the published contract; then what it cannot say
+    _check_json_schema(_jsonable(ds.to_dict(data=False)), FRAMES_SCHEMA, _dataset_field)
     frames = ds["frames"]
-    if frames.dtype not in (np.dtype(np.uint8), np.dtype(np.uint16)):
-        raise SchemaError(
-            "frames.dtype", str(frames.dtype), "uint8 or uint16 digital numbers",
-            "convert with np.asarray(frames).astype(np.uint16) after checking the range")
     for name in ("alpha", "beta"):
-        _check_dims(ds, name, [("pose",)])
-        if not np.issubdtype(ds[name].dtype, np.floating):
-            raise SchemaError(f"{name}.dtype", str(ds[name].dtype), "float degrees")
         if not np.all(np.isfinite(ds[name].values)):
             raise SchemaError(name, "non-finite angles", "finite commanded angles in degrees")
-    for name in ("alpha_read", "beta_read", "time", "true_alpha", "true_beta", "true_x",
-                 "true_y"):
-        if name in ds.variables:
-            _check_dims(ds, name, [("pose", "shot")] + [("pose", "shot", "hole")] * (
-                name.startswith("true_") and name[-1] in "xy"))
     _check_sensor(ds, frames.dtype)
-    _check_indices(ds)
     bits = int(ds.attrs["bit_depth"])
     # in-memory frames: every DN below 2**bit_depth (lazy ones are checked on read and write)
     if frames.chunks is None and frames.size and bits < 8 * frames.dtype.itemsize:
@@ -340,7 +322,6 @@ def validate_frames(ds: xr.Dataset) -> xr.Dataset:
                 f"{bits}", "give the true ADC bit depth (frames_dataset(bit_depth=...)); if the "
                 "camera left-aligns its data in the 16-bit word, divide the frames by "
                 "2**(16 - bit_depth)")
-    _check_json_schema(_jsonable(ds.to_dict(data=False)), FRAMES_SCHEMA, _dataset_field)
     return ds
 
 
@@ -421,17 +402,15 @@ def validate_centroids(ds: xr.Dataset) -> xr.Dataset:
     """
     if not isinstance(ds, xr.Dataset):
         raise SchemaError("centroids", type(ds).__name__, "an xarray.Dataset")
-    _check_schema_attr(ds, CENTROIDS_SCHEMA)
+    _check_contract(ds.attrs.get("sunlab_schema"), CENTROIDS_SCHEMA, "attrs['sunlab_schema']")
     _check_dims(ds, "x", [("pose", "shot"), ("pose", "shot", "hole")])
     for name in ("y", "flux", "status", "x0", "x1", "y0", "y1"):
         _check_dims(ds, name, [ds["x"].dims])
-    if not np.issubdtype(ds["status"].dtype, np.integer):
-        raise SchemaError("status.dtype", str(ds["status"].dtype), "integer status codes")
+    _check_indices(ds)
+    _check_json_schema(_jsonable(ds.to_dict(data=False)), CENTROIDS_SCHEMA, _dataset_field)
     unknown = sorted(set(np.unique(ds["status"].values).tolist()) - set(STATUS.values()))
     if unknown:
         raise SchemaError("status", unknown, f"codes in {STATUS}")
-    _check_indices(ds)
-    _check_json_schema(_jsonable(ds.to_dict(data=False)), CENTROIDS_SCHEMA, _dataset_field)
     return ds
 
 
@@ -480,13 +459,7 @@ def validate_calibration(doc: Mapping) -> Mapping:
         raise SchemaError(
             "calibration", type(doc).__name__, f"a JSON object of contract {CALIBRATION_SCHEMA!r}",
             "read the file with json.load or sunlab.calibration.load")
-    found = doc.get("sunlab_schema")
-    if found != CALIBRATION_SCHEMA:
-        raise SchemaError(
-            "sunlab_schema", "missing" if found is None else found, repr(CALIBRATION_SCHEMA),
-            "set 'sunlab_schema': 'calibration/1' when writing the artifact" if found is None
-            else "this sunlab reads 'calibration/1': refit with this version, or load the file "
-            "with the sunlab version that wrote it")
+    _check_contract(doc.get("sunlab_schema"), CALIBRATION_SCHEMA, "sunlab_schema")
     _check_json_values(doc, [])
     _check_json_schema(_jsonable(doc), CALIBRATION_SCHEMA, _json_field)
     for name in ("alpha", "beta", "x", "y"):

@@ -253,7 +253,7 @@ def _edit_manifest(folder, old, new):
 def test_missing_manifest_column(tmp_path):
     folder, _ = _folder(tmp_path, extra=False)
     _edit_manifest(folder, "file,alpha,beta,shot", "file,alpha,beta,frame")
-    with pytest.raises(SchemaError, match=r"column 'shot'.*Fix: add a 'shot' column") as err:
+    with pytest.raises(SchemaError, match=r"columns \['shot'\].*Fix: add them: file") as err:
         io.open_frames(folder)
     assert "frame" in str(err.value.found)
 

@@ -4,12 +4,6 @@ table or calibration holds), and the opening of centroid tables the other verbs 
 
 Only the standard library is imported at module level, so that ``sunlab --help`` and
 ``sunlab info CAL.json`` start fast.
-
-Examples
---------
->>> import tempfile
->>> _is_image_folder(tempfile.mkdtemp())
-False
 """
 
 from __future__ import annotations
@@ -79,8 +73,7 @@ def run_centroid(args) -> int:
     """``sunlab centroid``: :func:`sunlab.centroid.locate` saved as a table."""
     from .. import centroid, io
     check_out(args.out, args.overwrite)
-    cube = (_cube_from_folder(args.cube, args) if _is_image_folder(args.cube)
-            else io.open_frames(args.cube))
+    cube = _cube_from_folder(args.cube, args)  # a store refuses the folder options
     method = args.method or centroid.default_method(cube, args.background)
     extra = {}
     if args.background is not None:
@@ -130,13 +123,12 @@ def _calibration_json(path) -> dict | None:
         path, max_bytes=integrity.MAX_DOCUMENT_BYTES, what="a calibration/1 JSON document",
         fix="the file is corrupt, truncated or not a calibration; re-fit the calibration with "
             "`sunlab calibrate`"), path)
-    if not isinstance(doc, dict) or "sunlab_schema" not in doc:
-        raise SchemaError(f"{path}: sunlab_schema", "missing", "a calibration/1 JSON document",
+    found = doc.get("sunlab_schema", "missing") if isinstance(doc, dict) else "missing"
+    if str(found).partition("/")[0] != "calibration":
+        raise SchemaError(f"{path}: sunlab_schema", found, "a calibration/1 JSON document",
                           "this JSON file was not written by sunlab (sunlab calibrate / "
-                          "Calibration.save)")
-    if str(doc["sunlab_schema"]).partition("/")[0] != "calibration":
-        raise SchemaError(f"{path}: sunlab_schema", doc["sunlab_schema"], "'calibration/1'",
-                          "info reads frame cubes, centroid tables and calibration files")
+                          "Calibration.save); info reads frame cubes, centroid tables and "
+                          "calibration files")
     return doc
 
 
@@ -151,16 +143,6 @@ def open_centroid_table(path, name: str):
         if err.field != str(path):
             raise
         raise SchemaError(f"{name} {path}", err.found, err.expected, err.fix) from err
-
-
-def _is_image_folder(path) -> bool:
-    """True for a directory without Zarr metadata that holds ``manifest.csv`` or a PNG or
-    TIFF file."""
-    path = Path(path)
-    if not path.is_dir() or (path / "zarr.json").exists() or (path / ".zgroup").exists():
-        return False
-    return (path / "manifest.csv").exists() or any(
-        p.suffix.lower() in (".png", ".tif", ".tiff") for p in path.iterdir())
 
 
 def _add_folder_options(p) -> None:
@@ -181,7 +163,7 @@ def _add_folder_options(p) -> None:
 
 
 def _cube_from_folder(folder, args):
-    """A lazy cube of an image folder with the folder options of ``args``
+    """A lazy cube of an image folder (or a store) with the folder options of ``args``
     (:func:`sunlab.io.open_frames`)."""
     from .. import io
 

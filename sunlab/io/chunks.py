@@ -28,18 +28,15 @@ def _chunk_file(arr, path: Path, index) -> str:
     return str(path / arr.metadata.chunk_key_encoding.encode_chunk_key(tuple(index)))
 
 
-def _dn_error(where: str, label: str, peak: int, bits: int) -> SchemaError:
-    return SchemaError(
-        f"{where} frames chunk ({label})", f"DN up to {peak}",
-        f"< 2**{bits} = {2**bits} DN for attrs['bit_depth'] = {bits}",
-        "set the true ADC bit depth (frames_dataset(bit_depth=...)); if the camera left-aligns "
-        "its data in the 16-bit word, divide the frames by 2**(16 - bit_depth) first")
-
-
 def _check_dn_block(block, bits, where, dims, block_info=None):
     if block.size and int(block.max()) >= 2**bits:
         loc = (block_info or {}).get(0, {}).get("chunk-location") or ()
-        raise _dn_error(where, _chunk_label(dims, loc) if loc else "?", int(block.max()), bits)
+        raise SchemaError(
+            f"{where} frames chunk ({_chunk_label(dims, loc) if loc else '?'})",
+            f"DN up to {int(block.max())}", f"< 2**{bits} = {2**bits} DN for "
+            f"attrs['bit_depth'] = {bits}", "set the true ADC bit depth (frames_dataset("
+            "bit_depth=...)); if the camera left-aligns its data in the 16-bit word, divide the "
+            "frames by 2**(16 - bit_depth) first")
     return block
 
 

@@ -14,6 +14,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import SchemaError
+from ..plans import MAX_ANGLE_DEG
 from ..schema import STATUS, centroids_dataset
 
 __all__: list[str] = []
@@ -23,6 +24,23 @@ CSV_SUFFIXES = (".csv", ".txt")
 
 #: Largest CSV table read (bytes): a million shots is about 40 MB.
 MAX_CSV_BYTES = 512 * 2**20
+
+#: Largest page number of a TIFF stack in a manifest (a stack of 2**31 frames is no stack).
+_MAX_PAGE = 2**31 - 1
+
+#: The numeric columns of manifests and centroid tables, one rule each: what a value must be,
+#: and its test on the parsed floats ``v`` (NaN: no number) and ``empty`` (an empty field).
+_RULES = {
+    "degrees": (f"a commanded angle within (-{MAX_ANGLE_DEG:g}, {MAX_ANGLE_DEG:g}) deg, a finite "
+                "number of degrees (the sun in front of the mask; the paper's platform spans a "
+                "few tens of degrees)", lambda v, empty: np.abs(v) < MAX_ANGLE_DEG),
+    "pixels": ("a number of pixels, or empty (no spot)", lambda v, empty: ~np.isnan(v) | empty),
+    "label": ("a finite number", lambda v, empty: np.isfinite(v)),
+    "integer": ("an integer (frames of a pose numbered 0, 1, 2, ...)",
+                lambda v, empty: np.isfinite(v) & (v == np.round(v))),
+    "page": (f"an integer page 0 .. {_MAX_PAGE} of the TIFF stack named in 'file'",
+             lambda v, empty: (v >= 0) & (v <= _MAX_PAGE) & (v == np.round(v))),
+}
 
 
 def _uncommented(text: str) -> str:
@@ -34,11 +52,6 @@ def _uncommented(text: str) -> str:
         elif ch == "#" and not quoted:
             return text[:i]
     return text
-
-
-def _printable(name: str) -> str:
-    """A column name for a message: control characters (a terminal's ESC) escaped."""
-    return name if name.isprintable() else name.encode("unicode_escape").decode("ascii")
 
 
 def _read_text(path: Path, name: str) -> str:
@@ -73,7 +86,8 @@ def _checked_header(header: list, name: str, head_line: int) -> list:
             raise SchemaError(f"{name} line {head_line}", f"no name for column {k + 1}",
                               "a name for every column", "name the column or remove it")
         if not col.isprintable():
-            raise SchemaError(f"{name} line {head_line} column {k + 1}", _printable(col),
+            raise SchemaError(f"{name} line {head_line} column {k + 1}",
+                              col.encode("unicode_escape").decode("ascii"),
                               "a column name of printable characters",
                               "rename the column (control characters such as ESC are refused)")
         if col in seen:
@@ -196,15 +210,20 @@ def csv_line_of(path, shot: dict) -> int | None:
 def _read_csv_table(path: Path):
     """The CSV as a DataFrame, with the columns alpha, beta, x, y and at least one row."""
     table = read_csv_table(path, "")
-    missing = [c for c in ("alpha", "beta", "x", "y") if c not in table.columns]
-    if missing:
-        raise SchemaError(
-            f"{path.name} columns {missing}", f"missing (columns: {list(table.columns)})",
-            "columns alpha, beta (deg), x, y (px); shot and status optional",
-            "rename the columns (x = centroid column, y = centroid row, in pixels)")
-    if len(table) == 0:
-        raise SchemaError(path.name, "no rows", "one row per shot", "add the rows")
+    _require(table, path.name, ("alpha", "beta", "x", "y"), "one row per shot", "add or rename "
+             "them (alpha, beta: commanded angles, deg; x = centroid column, y = centroid row, "
+             "px; shot and status optional)")
     return table
+
+
+def _require(table, name: str, columns, rows: str, fix: str) -> None:
+    """The table has the ``columns`` and at least one row."""
+    missing = [c for c in columns if c not in table.columns]
+    if missing:
+        raise SchemaError(f"{name} columns {missing}", f"missing (columns: "
+                          f"{list(table.columns)})", f"columns {', '.join(columns)}", fix)
+    if len(table) == 0:
+        raise SchemaError(name, "no rows", rows, "add the rows")
 
 
 def _line(table, i) -> int:
@@ -212,27 +231,17 @@ def _line(table, i) -> int:
     return int(table.attrs["lines"][int(i)])
 
 
-def _numbers(table, col: str, name: str, unit: str | None):
-    """A column as floats; a value that is not a number names its line (pixels may be empty:
-    no spot). Degrees are commanded angles: one a pinhole sensor cannot see (|angle| >= 90
-    deg, the sun behind the mask) is refused, as one typo would bend a whole calibration."""
+def _numbers(table, col: str, name: str, rule: str):
+    """A column as floats, each value checked against its rule of :data:`_RULES`; the first bad
+    one names its line (a commanded angle a pinhole sensor cannot see, |angle| >= 90 deg, is
+    refused, as one typo would bend a whole calibration)."""
+    expected, ok = _RULES[rule]
     v = pd.to_numeric(table[col], errors="coerce").to_numpy(dtype=float)
-    bad = np.flatnonzero(np.isnan(v) & table[col].notna().to_numpy() if unit == "pixels"
-                         else ~np.isfinite(v))
+    bad = np.flatnonzero(~ok(v, table[col].isna().to_numpy()))
     if bad.size:
         raise SchemaError(f"{name} line {_line(table, bad[0])} column {col!r}",
-                          table[col].iloc[bad[0]], "a finite number" + (f" of {unit}" if unit
-                                                                        else ""),
-                          f"correct the value ({bad.size} bad row(s))")
-    from ..plans import MAX_ANGLE_DEG
-
-    bad = np.flatnonzero(np.abs(v) >= MAX_ANGLE_DEG) if unit == "degrees" else []
-    if len(bad):
-        raise SchemaError(
-            f"{name} line {_line(table, bad[0])} column {col!r}", table[col].iloc[bad[0]],
-            f"a commanded angle within (-{MAX_ANGLE_DEG:g}, {MAX_ANGLE_DEG:g}) deg (the sun in "
-            "front of the mask; the paper's platform spans a few tens of degrees)",
-            f"correct the value, or remove the row ({len(bad)} such row(s))")
+                          table[col].iloc[bad[0]], expected,
+                          f"correct the value, or remove the row ({bad.size} such row(s))")
     return v
 
 
@@ -248,14 +257,23 @@ def _shot_numbers(table, pose, name: str):
     """Each row's shot within its pose: the rank of its ``shot`` label, or its order."""
     if "shot" not in table.columns:
         return pd.Series(pose).groupby(pose).cumcount().to_numpy()
-    labels = _numbers(table, "shot", name, None)
+    labels = _numbers(table, "shot", name, "label")
+    _once(table, list(zip(pose.tolist(), labels.tolist(), strict=True)), name,
+          lambda i: f"alpha={table['alpha'].iloc[i]}, beta={table['beta'].iloc[i]}, shot="
+          f"{table['shot'].iloc[i]}", "one row per (alpha, beta, shot)", "remove the duplicate row")
     frame = pd.DataFrame({"p": pose, "s": labels})
-    dup = frame.duplicated().to_numpy()
-    if dup.any():
-        raise SchemaError(f"{name} line {_line(table, np.flatnonzero(dup)[0])}",
-                          "the same pose and shot again", "one row per (alpha, beta, shot)",
-                          "remove the duplicate row")
     return frame.groupby("p")["s"].rank(method="first").to_numpy(dtype=int) - 1
+
+
+def _once(table, keys: list, name: str, what, expected: str, fix: str) -> None:
+    """Each row's key (a file, a page, a pose and shot) once: a repeat names its line, the
+    first line, and ``what(row)`` was repeated."""
+    first: dict = {}
+    for i, key in enumerate(keys):
+        if key in first:
+            raise SchemaError(f"{name} line {_line(table, i)}", f"{what(i)} again (first on "
+                              f"line {_line(table, first[key])})", expected, fix)
+        first[key] = i
 
 
 def _status_codes(table, num: dict, name: str):
@@ -264,12 +282,11 @@ def _status_codes(table, num: dict, name: str):
     if "status" not in table.columns:
         return np.where(np.isfinite(num["x"]) & np.isfinite(num["y"]), STATUS["ok"],
                         STATUS["no_spot"])
-    codes = []
-    for i, v in enumerate(table["status"].tolist()):
-        text = str(v).strip()
-        code = int(text) if text.isdigit() else STATUS.get(text)
-        if code not in STATUS.values():
-            raise SchemaError(f"{name} line {_line(table, i)} column 'status'", v,
-                              f"a status name or code of {STATUS}", "correct the value")
-        codes.append(code)
-    return codes
+    codes = table["status"].astype(str).str.strip().map(
+        lambda text: int(text) if text.isdigit() else STATUS.get(text, -1))
+    bad = np.flatnonzero(~codes.isin(list(STATUS.values())).to_numpy())
+    if bad.size:
+        raise SchemaError(f"{name} line {_line(table, bad[0])} column 'status'",
+                          table["status"].iloc[bad[0]], f"a status name or code of {STATUS}",
+                          "correct the value")
+    return codes.to_numpy(dtype=np.int8)

@@ -25,7 +25,7 @@ from ..errors import SchemaError, SunlabError
 from ..schema import frames_dataset
 from .calframes import with_calibration_frames
 from .codec import _short
-from .csvtable import _line, _numbers, _poses, read_csv_table
+from .csvtable import _line, _numbers, _once, _poses, _require, read_csv_table
 from .images import IMAGE_SUFFIXES, _image_header, _raw_dtype, _read_checked
 from .sensor import find_sensor_json, read_sensor_json
 
@@ -35,12 +35,6 @@ _REQUIRED_COLUMNS = ("file", "alpha", "beta", "shot")
 _RESERVED_COLUMNS = ("pose", "x", "y", "frames", "hole", "shot_label")
 _SENSOR = ("pixel_pitch_mm", "mask_distance_mm", "x_cf_px", "y_cf_px", "bit_depth",
            "left_aligned", "mask", "experiment")
-_FIX_COLUMN = {"file": " with the image file name of each row",
-               "alpha": " with the commanded outer-axis angle in degrees",
-               "beta": " with the commanded inner-axis angle in degrees",
-               "shot": " numbering the frames of each pose 0, 1, ..."}
-#: Largest page number of a TIFF stack in a manifest (a stack of 2**31 frames is no stack).
-_MAX_PAGE = 2**31 - 1
 
 
 def _from_images(path: Path, manifest=None, *, lazy=True, dark=None, flat=None, bias=None,
@@ -62,14 +56,15 @@ def _from_images(path: Path, manifest=None, *, lazy=True, dark=None, flat=None, 
         table.attrs["lines"] = lines
     _check_columns(table, mname)
     alpha, beta, shot = (_numbers(table, c, f"manifest {mname}", "degrees" if c != "shot"
-                                  else None) for c in ("alpha", "beta", "shot"))
-    if np.any(shot != np.round(shot)):
-        i = int(np.flatnonzero(shot != np.round(shot))[0])
-        raise SchemaError(f"manifest {mname} line {_line(table, i)} column 'shot'",
-                          table["shot"].iloc[i], "an integer shot label",
-                          "number the frames of each pose 0, 1, 2, ...")
+                                  else "integer") for c in ("alpha", "beta", "shot"))
     files, paths = _image_paths(folder, table, mname)
-    pages = _page_column(table, files, mname)
+    # the page of each row of a TIFF stack (None without the column); no image listed twice
+    pages = (_numbers(table, "page", f"manifest {mname}", "page").astype(np.int64)
+             if "page" in table.columns else None)
+    _once(table, list(files) if pages is None else list(zip(files, pages.tolist(), strict=True)),
+          f"manifest {mname}", lambda i: f"file {files.iloc[i]!r}" + (
+              "" if pages is None else f" page {pages[i]}"), "one image per (pose, shot)",
+          "give each row its own image" + (" or page" if pages is not None else ""))
     poses, labels, order = _pose_grid(table, alpha, beta, shot.astype(np.int64), mname)
     shape, dtype = _common_header(table, paths, order, pages, mname)
     bit_depth = _checked_bit_depth(bit_depth, dtype, left_aligned)
@@ -116,30 +111,22 @@ def _manifest_table(folder: Path, manifest):
 
 def _check_columns(table, mname: str) -> None:
     """The manifest has rows, the required columns and no reserved or unstorable name."""
-    if len(table) == 0:
-        raise SchemaError(f"manifest {mname}", "no rows", "one row per image",
-                          "add the rows for the images")
-    for col in _REQUIRED_COLUMNS:
-        if col not in table.columns:
-            raise SchemaError(
-                f"manifest {mname} column {col!r}", f"missing (columns: {list(table.columns)})",
-                "columns file, alpha, beta, shot", f"add a {col!r} column{_FIX_COLUMN[col]}")
+    _require(table, f"manifest {mname}", _REQUIRED_COLUMNS, "one row per image",
+             "add them: file = the image's name, alpha, beta = commanded angles in degrees, "
+             "shot = the frame's number within its pose (0, 1, ...)")
     for col in table.columns:
-        if col in _RESERVED_COLUMNS:
-            raise SchemaError(f"manifest {mname} column {col!r}", "a reserved name",
-                              f"extra columns named other than {_RESERVED_COLUMNS}",
-                              "rename the column")
         # an extra column becomes a variable of the store: Zarr and NetCDF name nodes by path,
         # so '..', '../../x' or 'a/b' would name another place (or be refused deep in the writer)
         # and 'zarr.json' the store's own metadata file (a folder cannot replace it)
         if col not in _REQUIRED_COLUMNS and (len(col) > 100 or col.startswith((".", "__")) or
                                              col.lower() == "zarr.json" or
+                                             col in _RESERVED_COLUMNS or
                                              not re.fullmatch(r"\w[\w .()\-]*", col, re.A)):
             raise SchemaError(
                 f"manifest {mname} column {col!r}", "a name that cannot name a variable",
                 "letters, digits, spaces and _ - . ( ) , not starting with '.' or '__', no "
-                "'/' or '\\', not zarr.json, at most 100 characters",
-                "rename the column (e.g. exposure_ms)")
+                f"'/' or '\\', not zarr.json nor one of {_RESERVED_COLUMNS}, at most 100 "
+                "characters", "rename the column (e.g. exposure_ms)")
 
 
 def _image_paths(folder: Path, table, mname: str):
@@ -178,47 +165,13 @@ def _is_file(path: Path) -> bool:
         return False
 
 
-def _page_column(table, files, mname: str):
-    """The ``page`` of each row (None without the column): a non-negative integer, and no
-    image (file, page) listed twice."""
-    pages, keys = None, list(files)
-    if "page" in table.columns:
-        values = pd.to_numeric(table["page"], errors="coerce").to_numpy(dtype=float)
-        bad = np.flatnonzero(~np.isfinite(values) | (values < 0) | (values > _MAX_PAGE)
-                             | (values != np.round(values)))
-        if bad.size:
-            raise SchemaError(
-                f"manifest {mname} line {_line(table, bad[0])} column 'page'",
-                table["page"].iloc[bad[0]], f"an integer page 0, 1, ... (at most {_MAX_PAGE}) "
-                "of the TIFF stack named in 'file'", f"correct the value ({bad.size} bad row(s))")
-        pages = values.astype(np.int64)
-        keys = list(zip(files, pages.tolist(), strict=True))
-    first: dict = {}
-    for i, key in enumerate(keys):
-        if key in first:
-            what = f"file {key[0]!r} page {key[1]}" if pages is not None else f"file {key!r}"
-            raise SchemaError(
-                f"manifest {mname} line {_line(table, i)}",
-                f"{what} again (first on line {_line(table, first[key])})",
-                "one image per (pose, shot)",
-                "give each row its own image" + (" or page" if pages is not None else ""))
-        first[key] = i
-    return pages
-
-
 def _pose_grid(table, alpha, beta, shot, mname: str):
     """The poses (unique (alpha, beta) pairs in manifest order), the shot labels (sorted) and
     ``order``, the manifest row of each (pose, shot)."""
     poses, pose = _poses(alpha, beta)
-    seen: dict = {}
-    for i, key in enumerate(zip(pose.tolist(), shot.tolist(), strict=True)):
-        if key in seen:
-            raise SchemaError(
-                f"manifest {mname} line {_line(table, i)}", f"alpha={alpha[i]:g}, "
-                f"beta={beta[i]:g}, shot={shot[i]} again (first on line "
-                f"{_line(table, seen[key])})", "one row per (pose, shot)",
-                "remove the duplicate row or give it the next shot number")
-        seen[key] = i
+    _once(table, list(zip(pose.tolist(), shot.tolist(), strict=True)), f"manifest {mname}",
+          lambda i: f"alpha={alpha[i]:g}, beta={beta[i]:g}, shot={shot[i]}",
+          "one row per (pose, shot)", "remove the duplicate row or give it the next shot number")
     labels = np.unique(shot)
     for p, (a, b) in enumerate(poses):
         have = set(shot[pose == p].tolist())

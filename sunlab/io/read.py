@@ -89,22 +89,19 @@ def _open_raw(path, format: str | None = None) -> xr.Dataset:
         except Exception as exc:  # noqa: BLE001 - turned into a message naming the file
             _fail_zarr(path, exc)
     else:
+        ds = None
         try:
             ds = xr.open_dataset(path, engine="h5netcdf", chunks=None)
+            integrity.verify_netcdf(ds, path)  # every value but the frames' (Fletcher-32)
         except Exception as exc:  # noqa: BLE001 - turned into a message naming the file
+            if ds is not None:
+                ds.close()
+            if isinstance(exc, SunlabError):
+                raise
             raise SunlabError(
                 f"{path}: cannot be read as NetCDF4/HDF5 ({type(exc).__name__}: {exc}). Fix: "
                 "the file is probably truncated or corrupt (an interrupted copy or write); copy "
                 "it again from its source or re-create it with sunlab.io.save_frames") from exc
-        try:
-            integrity.verify_netcdf(ds, path)  # every value but the frames' (Fletcher-32)
-        except Exception as exc:
-            ds.close()
-            if isinstance(exc, SunlabError):
-                raise
-            raise SunlabError(f"{path}: a variable cannot be read ({type(exc).__name__}: {exc})"
-                              ". Fix: the file is corrupt; copy it again from its source or "
-                              "re-create it") from exc
     ds.attrs.pop(integrity.ATTR, None)
     try:
         ds = _strings_as_objects(ds)

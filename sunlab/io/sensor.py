@@ -35,7 +35,8 @@ from ..errors import SchemaError
 __all__ = []
 
 #: The fields of ``sensor.json``: name -> (kind, meaning). Kinds: ``positive`` (a number > 0),
-#: ``number`` (finite), ``bits`` (an integer 8 .. 16), ``bool``, ``text``, ``object``.
+#: ``number`` (finite), ``bits`` (an integer 8 .. 16), ``bool``, ``text``, ``note`` (any
+#: string), ``object``.
 SENSOR_FIELDS = {
     "pixel_pitch_mm": ("positive", "pixel pitch, mm (Ibis4: 0.007)"),
     "mask_distance_mm": ("positive", "nominal mask-to-focal-plane distance F, mm"),
@@ -47,16 +48,24 @@ SENSOR_FIELDS = {
     "mask": ("text", "mask description, e.g. 'single' or 'grid10x10'"),
     "experiment": ("text", "experiment name stored in the cube"),
     "attrs": ("object", "extra attributes stored in the cube"),
-    "comment": ("text", "free text, ignored"),
+    "comment": ("note", "free text, ignored"),
 }
 
-_EXPECTED = {
-    "positive": "a number > 0 (JSON number, not a string)",
-    "number": "a finite number (JSON number, not a string)",
-    "bits": "an integer 8 .. 16 (JSON number)",
-    "bool": "true or false (JSON boolean)",
-    "text": "a string of printable characters",
-    "object": "a JSON object",
+def _number(value) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
+
+
+#: Each kind of field: what a value must be (for the message), and its test.
+_KINDS = {
+    "positive": ("a number > 0 (JSON number, not a string)", lambda v: _number(v) and v > 0),
+    "number": ("a finite number (JSON number, not a string)", _number),
+    "bits": ("an integer 8 .. 16 (JSON number)",
+             lambda v: _number(v) and float(v).is_integer() and 8 <= v <= 16),
+    "bool": ("true or false (JSON boolean)", lambda v: isinstance(v, bool)),
+    # a control character (a terminal's ESC) in a name would reach every summary printed
+    "text": ("a string of printable characters", lambda v: isinstance(v, str) and v.isprintable()),
+    "note": ("a string", lambda v: isinstance(v, str)),
+    "object": ("a JSON object", lambda v: isinstance(v, dict)),
 }
 
 
@@ -119,22 +128,13 @@ def read_sensor_json(path) -> dict:
 def _checked(path: Path, key: str, value):
     """One field's value, checked against its kind in ``SENSOR_FIELDS``."""
     kind, meaning = SENSOR_FIELDS[key]
-    is_number = isinstance(value, int | float) and not isinstance(value, bool)
-    ok = {
-        "positive": is_number and math.isfinite(value) and value > 0,
-        "number": is_number and math.isfinite(value),
-        "bits": is_number and float(value).is_integer() and 8 <= value <= 16,
-        "bool": isinstance(value, bool),
-        # a control character (a terminal's ESC) in a name would reach every summary printed
-        "text": isinstance(value, str) and (value.isprintable() or key == "comment"),
-        "object": isinstance(value, dict),
-    }[kind]
-    if not ok:
+    expected, ok = _KINDS[kind]
+    if not ok(value):
         text = str(value).strip()  # a string's hint, control characters escaped
         text = text if text.isprintable() else ascii(text)[1:-1]
         hint = {"bool": f"write {key}: true or false without quotes; ", "object": "",
                 "text": "remove the control characters (ESC, tabs, line breaks); "}.get(
                     kind, f"write {key}: {text} without quotes; ") if isinstance(value, str) else ""
-        raise SchemaError(f"{path.name} field {key!r}", value, f"{_EXPECTED[kind]}: {meaning}",
+        raise SchemaError(f"{path.name} field {key!r}", value, f"{expected}: {meaning}",
                           f"{hint}correct it in {path}")
     return int(value) if kind == "bits" else value

@@ -83,3 +83,22 @@ def test_calibrate_refuses_a_misread_table_in_one_line(tmp_path, capsys, header,
     err = capsys.readouterr().err.strip()
     assert status == 1 and len(err.splitlines()) == 1 and "Fix:" in err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["t.csv"]
+
+
+def test_a_repeated_pose_and_shot_is_refused_naming_both_lines(tmp_path):
+    path = _write(tmp_path / "t.csv", "alpha,beta,x,y,shot",
+                  ["0,0,640,512,0", "0,0,641,512,1", "0,0,642,512,1"])
+    with pytest.raises(SchemaError, match=r"t.csv line 4: found 'alpha=0, beta=0, shot=1 again "
+                                          r"\(first on line 3\)'") as err:
+        io.open_centroids(path)
+    assert "remove the duplicate row" in err.value.fix
+
+
+def test_a_status_column_reads_names_and_codes_and_refuses_others_naming_the_line(tmp_path):
+    rows = ["0,0,640,512,ok", "1,0,,,no_spot", "2,0,700,512,2"]
+    cen = io.open_centroids(_write(tmp_path / "s.csv", "alpha,beta,x,y,status", rows))
+    assert cen.status.values.ravel().tolist() == [0, 1, 2]  # ok, no_spot, saturated
+    path = _write(tmp_path / "t.csv", "alpha,beta,x,y,status", [*rows[:2], "2,0,700,512,lost"])
+    with pytest.raises(SchemaError, match=r"t.csv line 4 column 'status': found 'lost'") as err:
+        io.open_centroids(path)
+    assert "no_spot" in err.value.expected and err.value.fix
