@@ -280,6 +280,18 @@ def _long_to_quantities(cells: pd.DataFrame, quantities) -> pd.DataFrame:
     return df
 
 
+def scored_logs(cells: pd.DataFrame, protocol: dict) -> tuple[dict, pd.DataFrame, pd.DataFrame]:
+    """The logs the score compares: the paper's on each side (``"fit"``, ``"held_out"``:
+    arrays over :func:`scored_quantities`), and the predictions' on the fit side and held out
+    (:func:`_long_to_quantities`)."""
+    q = scored_quantities(protocol)
+    paper = _paper_cells()
+    log_paper = {side: np.array([math.log(_quantity(paper, *x)) for x in q[side]])
+                 for side in q}
+    return log_paper, _long_to_quantities(cells, q["fit"]), _long_to_quantities(cells,
+                                                                                q["held_out"])
+
+
 def score_table(cells: pd.DataFrame, protocol: dict) -> pd.DataFrame:
     """The evidence table: each hypothesis's held-out score on each seed.
 
@@ -297,12 +309,7 @@ def score_table(cells: pd.DataFrame, protocol: dict) -> pd.DataFrame:
         discrepancy, log units), ``held_out_rms_log``, ``held_out_within_1.25``, and the
         nuisance draw and fitted parameters.
     """
-    q = scored_quantities(protocol)
-    paper = _paper_cells()
-    log_paper = {side: np.array([math.log(_quantity(paper, *x)) for x in q[side]])
-                 for side in q}
-    fit_side = _long_to_quantities(cells, q["fit"])
-    held = _long_to_quantities(cells, q["held_out"])
+    log_paper, fit_side, held = scored_logs(cells, protocol)
     extra_cols = [c for c in cells.columns if c not in
                   ("hypothesis", "seed", "table", "column", "angle", "stat", "value")]
     extras = cells.groupby(["hypothesis", "seed"])[extra_cols].first()
@@ -347,14 +354,18 @@ def chosen_hypothesis(evidence: pd.DataFrame, protocol: dict | None = None) -> s
     >>> chosen_hypothesis(t)     # b is best (2.7 +- 0.8), a (2.0) lies within it: simpler
     'a'
     """
-    g = evidence.groupby("hypothesis")
-    mean = g["score"].mean()
-    n = g["score"].count()
-    se = (g["score"].std(ddof=1) / np.sqrt(n)).fillna(0.0)
-    params = g["parameters"].first()
-    best = mean.idxmax()
-    eligible = mean[mean >= mean[best] - se[best]].index
-    return str(min(eligible, key=lambda h: (params[h], -mean[h])))
+    g = evidence.groupby("hypothesis")["score"]
+    se = (g.std(ddof=1) / np.sqrt(g.count())).fillna(0.0)
+    params = evidence.groupby("hypothesis")["parameters"].first()
+    return one_se_rule(g.mean().to_dict(), se.to_dict(), params.to_dict())[0]
+
+
+def one_se_rule(mean: dict, se: dict, params: dict) -> tuple[str, list[str]]:
+    """The one-standard-error rule on each hypothesis's mean score, its standard error and its
+    parameter count: (pick, eligible hypotheses, sorted)."""
+    best = max(mean, key=mean.get)
+    eligible = sorted(h for h in mean if mean[h] >= mean[best] - se[best])
+    return str(min(eligible, key=lambda h: (params[h], -mean[h]))), eligible
 
 
 def interval_role(protocol: dict, table: str, column: str) -> str:

@@ -95,15 +95,17 @@ def run_all(fn, tasks, jobs: int = 1):
 
 
 # ----------------------------------------------------------------------------- cells
+def _cells(**tables) -> dict[tuple, float]:
+    """``(table, column, angle, stat) -> value`` of tables laid out as
+    :func:`sunlab.stats.evaluate` lays them out, keyed by table name (``table4=...``)."""
+    return {(name, col, angle, stat): float(v) for name, table in tables.items()
+            for col in table.columns for (angle, stat), v in table[col].items()}
+
+
 def _paper_cells() -> dict[tuple, float]:
     from sunlab import stats
 
-    out = {}
-    for name, table in (("table4", stats.paper_table4()), ("table5", stats.paper_table5())):
-        for col in table.columns:
-            for (angle, stat), v in table[col].items():
-                out[(name, col, angle, stat)] = float(v)
-    return out
+    return _cells(table4=stats.paper_table4(), table5=stats.paper_table5())
 
 
 def _quantity(cells: dict, table: str, col: str, angle: str, stat: str) -> float:
@@ -285,12 +287,6 @@ def surrogate_runs(bench, seed: int = 0, step: int = 1, shots: int = 8,
     return out
 
 
-def _noise_px(bench) -> float:
-    from .surrogate_tables import centroid_noise_px
-
-    return centroid_noise_px(bench, frames=6)
-
-
 #: The rescaling power of each fitted parameter (its cell grows about as the parameter to
 #: 1 / power: the one-hole's alpha mu adds the pixel response in quadrature, the linear
 #: interpolation's beta sigma adds the gear error to the rest in quadrature; M - mu grows
@@ -343,7 +339,10 @@ def fit_hypothesis(protocol: dict, name: str, nuisances: dict, *, seed: int,
     step_bounds = protocol["fit"]["step_bounds"]
     bounds = protocol["fit"]["parameter_bounds_deg"]
     if noise_px is None:
-        noise_px = _noise_px(hypothesis_bench(protocol, name, nuisances, fitted))
+        from .surrogate_tables import centroid_noise_px
+
+        noise_px = centroid_noise_px(hypothesis_bench(protocol, name, nuisances, fitted),
+                                     frames=6)
     for _ in range(iterations):
         table = _fit_side_cells(protocol, name, nuisances, fitted, seed, noise_px)
         fitted = {k: v if k in fixed else
@@ -372,9 +371,7 @@ def _fit_side_cells(protocol: dict, name: str, nuisances: dict, fitted: dict, se
     extra = {"polynomial": {}, "linear interp.": {"leave_one_out": False}}
     cols = {m: fit(cens["I"], RECIPES[m][0], cens["II"], outlier_mads=None,
                    **RECIPES[m][1], **extra[m]) for m in extra}
-    t4 = stats.evaluate(cols, cens["III"])
-    return {("table4", col, a, st): float(v) for col in t4.columns
-            for (a, st), v in t4[col].items()}
+    return _cells(table4=stats.evaluate(cols, cens["III"]))
 
 
 def fit_draw(protocol: dict, name: str, nuisances: dict, *, seed: int,
@@ -438,12 +435,7 @@ def _predict_benches(protocol: dict, single, multi, seed: int, noise_px: float) 
     t5 = surrogate_table5(multi, single, seed, step=setting["table5_step"],
                           shots=setting["shots"], order=int(max(fitted_cal["polynomial"].orders)),
                           one_hole=fitted_cal["polynomial"], noise_px=noise_px)
-    out = {}
-    for tname, table in (("table4", t4), ("table5", t5)):
-        for col in table.columns:
-            for (angle, stat), v in table[col].items():
-                out[(tname, col, angle, stat)] = float(v)
-    return out
+    return _cells(table4=t4, table5=t5)
 
 
 def run_hypothesis(protocol: dict, name: str, seed: int) -> pd.DataFrame:
