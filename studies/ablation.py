@@ -16,20 +16,12 @@ import pandas as pd
 from .evidence import (
     _data,
     _log_density,
-    _long_to_quantities,
     chosen_hypothesis,
     load_evidence,
     recorded_draw,
+    scored_logs,
 )
-from .identification import (
-    _paper_cells,
-    _predict_benches,
-    _quantity,
-    hypothesis_bench,
-    load_protocol,
-    run_all,
-    scored_quantities,
-)
+from .identification import _predict_benches, _quantity, hypothesis_bench, load_protocol, run_all
 
 __all__ = ["ablation"]
 
@@ -76,17 +68,14 @@ def ablation(name: str | None = None, seeds=None, evidence: pd.DataFrame | None 
     cells = _data("evidence_cells.csv") if cells is None else cells
     name = name or chosen_hypothesis(evidence, protocol)
     seeds = protocol["confirmation_seeds"][:1] if seeds is None else seeds
-    q = scored_quantities(protocol)["held_out"]
-    paper = _paper_cells()
-    log_paper = np.array([math.log(_quantity(paper, *x)) for x in q])
-    held = _long_to_quantities(cells[cells["hypothesis"] == name], q).loc[name]
-    sd2 = held.to_numpy().std(axis=0, ddof=1) ** 2
+    lp, _, held = scored_logs(cells[cells["hypothesis"] == name], protocol)
+    q, log_paper = list(held.columns), lp["held_out"]
+    sd2 = held.loc[name].to_numpy().std(axis=0, ddof=1) ** 2
     tau = float(evidence.loc[evidence["hypothesis"] == name, "tau"].iloc[0])
     var = sd2 + tau**2
     tasks = []
     for seed in seeds:
-        rec = evidence[(evidence["hypothesis"] == name) & (evidence["seed"] == seed)].iloc[0]
-        nuis, fitted = recorded_draw(protocol, rec)
+        rec, nuis, fitted = recorded_draw(protocol, evidence, name, seed)
         tasks += [(comp, int(seed), (protocol, name, nuis, fitted, int(seed),
                                      float(rec["noise_px"]), change))
                   for comp, change in {"none": {}, **ABLATIONS}.items()]

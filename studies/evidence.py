@@ -498,24 +498,31 @@ def identified_hypothesis() -> str:
     return chosen_hypothesis(load_evidence(), load_protocol())
 
 
-def recorded_draw(protocol: dict, record) -> tuple[dict, dict]:
-    """The nuisance draw and the fitted parameters of one row of the evidence table.
+def recorded_draw(protocol: dict, evidence: pd.DataFrame, hypothesis: str,
+                  seed: int) -> tuple[pd.Series, dict, dict]:
+    """The evidence's row of one hypothesis and seed, its nuisance draw and fitted parameters.
 
     Parameters
     ----------
     protocol : dict
-    record : pandas.Series or mapping
-        One row of :func:`load_evidence`.
+    evidence : pandas.DataFrame
+        :func:`load_evidence`.
+    hypothesis : str
+    seed : int
 
     Returns
     -------
+    record : pandas.Series
+        The row.
     nuisances, fitted : dict
         As :func:`draw_nuisances` and :func:`fit_hypothesis` gave them for that seed.
     """
+    record = evidence[(evidence["hypothesis"] == hypothesis)
+                      & (evidence["seed"] == seed)].iloc[0]
     nuis = {k: float(record[k]) for k in protocol["priors"]}
     fitted = {k: float(record[k]) for k in [*protocol["cells"]["pinning"], "gear_period_deg"]
               if k in record and pd.notna(record[k]) and k not in nuis}
-    return nuis, fitted
+    return record, nuis, fitted
 
 
 def _log_density(residual: np.ndarray, var: np.ndarray) -> float:

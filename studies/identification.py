@@ -67,14 +67,16 @@ def load_protocol(path=None) -> dict:
         ``hypotheses`` (name -> ``F_mm``, ``gear``, ``parameters``), ``priors``, ``cells``,
         ``score``, ``rule``, ``confirmation_seeds``, ``history``.
     """
-    path = Path(path) if path is not None else HERE / "protocol.json"
+    return read_json(HERE / "protocol.json" if path is None else path, "restore the file from "
+                     "git; a change of protocol is a new dated entry, never an edit.")
+
+
+def read_json(path, fix: str):
+    """The JSON file at ``path``; one that is not JSON is refused with ``fix``."""
     try:
-        return json.loads(path.read_text(encoding="utf-8"))
+        return json.loads(Path(path).read_text(encoding="utf-8"))
     except json.JSONDecodeError as err:
-        raise ConfigurationError(
-            f"{path}: not JSON ({err}). Fix: restore the file "
-            "from git; a change of protocol is a new dated entry, never an edit."
-        ) from None
+        raise ConfigurationError(f"{path}: not JSON ({err}). Fix: {fix}") from None
 
 
 def run_all(fn, tasks, jobs: int = 1):
