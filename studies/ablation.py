@@ -19,7 +19,7 @@ from .evidence import (
     chosen_hypothesis,
     load_evidence,
     recorded_draw,
-    scored_logs,
+    scored_arrays,
 )
 from .identification import _predict_benches, _quantity, hypothesis_bench, load_protocol, run_all
 
@@ -68,9 +68,9 @@ def ablation(name: str | None = None, seeds=None, evidence: pd.DataFrame | None 
     cells = _data("evidence_cells.csv") if cells is None else cells
     name = name or chosen_hypothesis(evidence, protocol)
     seeds = protocol["confirmation_seeds"][:1] if seeds is None else seeds
-    lp, _, held = scored_logs(cells[cells["hypothesis"] == name], protocol)
-    q, log_paper = list(held.columns), lp["held_out"]
-    sd2 = held.loc[name].to_numpy().std(axis=0, ddof=1) ** 2
+    a = scored_arrays(cells[cells["hypothesis"] == name], protocol)
+    q, log_paper = a["quantities"], a["paper"]
+    sd2 = a["by_h"][name]["held"].std(axis=0, ddof=1) ** 2
     tau = float(evidence.loc[evidence["hypothesis"] == name, "tau"].iloc[0])
     var = sd2 + tau**2
     tasks = []

@@ -114,12 +114,12 @@ def _check_parts(folder: Path, protocol: dict) -> None:
     write_text(file, json.dumps(stamp, indent=2) + "\n")
 
 
-def source_digest(root=None) -> str:
+def source_digest() -> str:
     """SHA-256 of the code a run depends on: ``sunlab/**/*.py``, ``studies/**/*.py`` and
     ``studies/protocol.json``, their paths and contents in path order."""
     import hashlib
 
-    root = Path(root) if root is not None else HERE.parent
+    root = HERE.parent
     h = hashlib.sha256()
     for f in sorted([*root.glob("sunlab/**/*.py"), *root.glob("studies/**/*.py"),
                      root / "studies" / "protocol.json"]):
@@ -148,14 +148,13 @@ def regenerate(out_dir, *, names=None, seeds=None, jobs: int = 2, overwrite: boo
     from sunlab.atomic import check_folder
 
     protocol = load_protocol()
-    check_folder(out_dir, _evidence_files(protocol, presets), overwrite=overwrite,
-                 flag="--overwrite")
+    files = _evidence_files(protocol, presets)
+    check_folder(out_dir, files, overwrite=overwrite, flag="--overwrite")
     # the code the runs start from, before the first run
     started = {**code_commit(), "command": command}
     cells = run_protocol(protocol, names, seeds, jobs=jobs, progress=progress,
                          parts=Path(out_dir) / "runs",
-                         after_s=STAGES_SECONDS if len(_evidence_files(protocol, presets)) > 4
-                         else 0.0)
+                         after_s=STAGES_SECONDS if len(files) > 4 else 0.0)
     out = write_evidence(out_dir, cells, jobs=jobs, overwrite=overwrite, presets=presets,
                          progress=progress and (lambda m: progress(m, False)),
                          provenance=started)
@@ -269,27 +268,38 @@ def write_evidence(out_dir, cells: pd.DataFrame, *, jobs: int = 2, overwrite: bo
 
 
 # ----------------------------------------------------------------------------- scoring
-def _long_to_quantities(cells: pd.DataFrame, quantities) -> pd.DataFrame:
-    """(hypothesis, seed) x quantity table of log predictions."""
-    out = {}
-    for (h, s), g in cells.groupby(["hypothesis", "seed"]):
-        d = {(r.table, r.column, r.angle, r.stat): r.value for r in g.itertuples()}
-        out[(h, s)] = {q: math.log(max(_quantity(d, *q), 1e-9)) for q in quantities}
-    df = pd.DataFrame.from_dict(out, orient="index")
-    df.index.names = ["hypothesis", "seed"]
-    return df
-
-
-def scored_logs(cells: pd.DataFrame, protocol: dict) -> tuple[dict, pd.DataFrame, pd.DataFrame]:
-    """The logs the score compares: the paper's on each side (``"fit"``, ``"held_out"``:
-    arrays over :func:`scored_quantities`), and the predictions' on the fit side and held out
-    (:func:`_long_to_quantities`)."""
+def scored_arrays(cells: pd.DataFrame, protocol: dict) -> dict:
+    """What the score compares, as arrays: ``paper`` (the paper's held-out logs, over
+    ``quantities``, :func:`scored_quantities`), ``n_fit`` (the fit side's size) and ``by_h``:
+    per hypothesis its ``seeds``, ``ss`` (the fit side's sum of squared log residuals, per
+    seed) and ``held`` (the held-out log predictions, seeds x quantities)."""
     q = scored_quantities(protocol)
     paper = _paper_cells()
-    log_paper = {side: np.array([math.log(_quantity(paper, *x)) for x in q[side]])
-                 for side in q}
-    return log_paper, _long_to_quantities(cells, q["fit"]), _long_to_quantities(cells,
-                                                                                q["held_out"])
+    lp = {side: np.array([math.log(_quantity(paper, *x)) for x in q[side]]) for side in q}
+    logs = {}  # (hypothesis, seed) -> side -> log predictions over its quantities
+    for (h, seed), g in cells.groupby(["hypothesis", "seed"]):
+        d = {(r.table, r.column, r.angle, r.stat): r.value for r in g.itertuples()}
+        logs[(h, seed)] = {side: [math.log(max(_quantity(d, *x), 1e-9)) for x in q[side]]
+                           for side in q}
+    fit, held = (pd.DataFrame({k: v[side] for k, v in logs.items()}).T.rename_axis(
+        ["hypothesis", "seed"]) for side in ("fit", "held_out"))
+    by_h = {h: {"seeds": [int(s) for s in held.loc[h].index],
+                "ss": np.sum((fit.loc[h].to_numpy() - lp["fit"]) ** 2, axis=1),
+                "held": held.loc[h].to_numpy()} for h in held.index.unique("hypothesis")}
+    return {"by_h": by_h, "paper": lp["held_out"], "quantities": q["held_out"],
+            "n_fit": len(q["fit"])}
+
+
+def tau2(ss: np.ndarray, k: int, n: int) -> float:
+    """The protocol's tau^2: the mean fit-side sum of squares over (n - fitted parameters)."""
+    return float(np.mean(ss)) / (n - k)
+
+
+def seed_scores(held: np.ndarray, paper: np.ndarray, tau2_: float) -> np.ndarray:
+    """The score of each seed (a row of ``held``, log predictions): the log density of the
+    paper's logs under N(prediction, spread over the seeds^2 + tau^2)."""
+    sd2 = held.std(axis=0, ddof=1) ** 2 if len(held) > 1 else 0.0
+    return np.array([_log_density(paper - h, sd2 + tau2_) for h in held])
 
 
 def score_table(cells: pd.DataFrame, protocol: dict) -> pd.DataFrame:
@@ -309,25 +319,19 @@ def score_table(cells: pd.DataFrame, protocol: dict) -> pd.DataFrame:
         discrepancy, log units), ``held_out_rms_log``, ``held_out_within_1.25``, and the
         nuisance draw and fitted parameters.
     """
-    log_paper, fit_side, held = scored_logs(cells, protocol)
+    a = scored_arrays(cells, protocol)
     extra_cols = [c for c in cells.columns if c not in
                   ("hypothesis", "seed", "table", "column", "angle", "stat", "value")]
     extras = cells.groupby(["hypothesis", "seed"])[extra_cols].first()
     rows = []
-    for h in held.index.get_level_values("hypothesis").unique():
-        hyp = protocol["hypotheses"][h]
-        k = _fitted_count(protocol, h)
-        ff = fit_side.loc[h].to_numpy()
-        hh = held.loc[h].to_numpy()
-        tau2 = float(np.mean(np.sum((ff - log_paper["fit"]) ** 2, axis=1))) / (ff.shape[1] - k)
-        sd2 = hh.std(axis=0, ddof=1) ** 2 if hh.shape[0] > 1 else np.zeros(hh.shape[1])
-        var = sd2 + tau2
-        for i, seed in enumerate(held.loc[h].index):
-            r = log_paper["held_out"] - hh[i]
-            ll = _log_density(r, var)
-            rows.append({"hypothesis": h, "seed": int(seed),
-                         "parameters": int(hyp["parameters"]), "score": ll,
-                         "tau": math.sqrt(tau2),
+    for h, v in a["by_h"].items():
+        t2 = tau2(v["ss"], _fitted_count(protocol, h), a["n_fit"])
+        for seed, hh, ll in zip(v["seeds"], v["held"], seed_scores(v["held"], a["paper"], t2),
+                                strict=True):
+            r = a["paper"] - hh
+            rows.append({"hypothesis": h, "seed": seed,
+                         "parameters": int(protocol["hypotheses"][h]["parameters"]),
+                         "score": ll, "tau": math.sqrt(t2),
                          "held_out_rms_log": float(np.sqrt(np.mean(r**2))),
                          "held_out_within_1.25": int(np.sum(np.abs(r) <= math.log(1.25))),
                          **extras.loc[(h, seed)].to_dict()})

@@ -27,7 +27,15 @@ import sys
 import numpy as np
 import pandas as pd
 
-from .evidence import Z90, _data, _fitted_count, _log_density, one_se_rule, scored_logs
+from .evidence import (
+    Z90,
+    _data,
+    _fitted_count,
+    one_se_rule,
+    scored_arrays,
+    seed_scores,
+    tau2,
+)
 from .identification import HERE, load_protocol
 
 __all__ = ["interval_coverage", "quantity_z", "sensitivity_table", "verdicts"]
@@ -39,17 +47,6 @@ BOOTSTRAP_SEED = 46
 
 #: The seed-paired differences each row reports (first minus second, nats).
 PAIRS = (("F5", "F17"), ("F5-gear", "F17-gear"), ("F5-gear", "F5"), ("F17-gear", "F17"))
-
-
-def _arrays(cells: pd.DataFrame, protocol: dict) -> dict:
-    """Per hypothesis: the seeds, the fit side's sums of squared log residuals (per seed) and
-    the held-out log predictions (seeds x quantities)."""
-    lp, fit, held = scored_logs(cells, protocol)
-    out = {h: {"seeds": [int(s) for s in held.loc[h].index],
-               "ss": np.sum((fit.loc[h].to_numpy() - lp["fit"]) ** 2, axis=1),
-               "held": held.loc[h].to_numpy()} for h in held.index.unique("hypothesis")}
-    return {"by_h": out, "paper": lp["held_out"], "n_fit": len(lp["fit"]),
-            "quantities": list(held.columns)}
 
 
 def _selections(quantities: list) -> dict:
@@ -65,38 +62,29 @@ def _selections(quantities: list) -> dict:
     }
 
 
-def _tau2(ss: np.ndarray, k: int, n: int) -> float:
-    """The protocol's tau^2: the mean fit-side sum of squares over (n - fitted parameters)."""
-    return float(np.mean(ss)) / (n - k)
-
-
 #: tau's variants (row -> tau^2 of the fit-side sums, the fitted count and the fit side's size).
 TAU_ROWS = {
-    "tau dof 12 - 6 for the gear": lambda ss, k, n: _tau2(ss, min(k, 6), n),
-    "tau without dof correction": lambda ss, k, n: _tau2(ss, 0, n),
-    "tau x 2": lambda ss, k, n: 4.0 * _tau2(ss, k, n),
-    "tau x 3": lambda ss, k, n: 9.0 * _tau2(ss, k, n),
+    "tau dof 12 - 6 for the gear": lambda ss, k, n: tau2(ss, min(k, 6), n),
+    "tau without dof correction": lambda ss, k, n: tau2(ss, 0, n),
+    "tau x 2": lambda ss, k, n: 4.0 * tau2(ss, k, n),
+    "tau x 3": lambda ss, k, n: 9.0 * tau2(ss, k, n),
 }
 
 
 def _per_seed_scores(a: dict, protocol: dict, mask, tau2_of) -> dict[str, np.ndarray]:
     """Each hypothesis's score on each seed under a row (the protocol's formula)."""
-    out = {}
-    for h, v in a["by_h"].items():
-        sel = np.ones(len(a["paper"]), bool) if mask is None else mask
-        hh = v["held"][:, sel]
-        tau2 = tau2_of(v["ss"], _fitted_count(protocol, h), a["n_fit"])
-        var = hh.std(axis=0, ddof=1) ** 2 + tau2
-        out[h] = np.array([_log_density(a["paper"][sel] - hh[i], var) for i in range(len(hh))])
-    return out
+    sel = np.ones(len(a["paper"]), bool) if mask is None else mask
+    return {h: seed_scores(v["held"][:, sel], a["paper"][sel],
+                           tau2_of(v["ss"], _fitted_count(protocol, h), a["n_fit"]))
+            for h, v in a["by_h"].items()}
 
 
 def _pooled(v: dict, paper: np.ndarray, idx: np.ndarray, k: int, n_fit: int) -> float:
     """The pooled predictive density of the seeds ``idx``: per quantity the mixture of
     N(log pred_s, tau^2) over them, tau from the same seeds; summed over quantities."""
-    tau2 = float(np.mean(v["ss"][idx])) / (n_fit - k)
+    t2 = tau2(v["ss"][idx], k, n_fit)
     r = paper[None, :] - v["held"][idx]
-    logn = -0.5 * r**2 / tau2 - 0.5 * math.log(2 * math.pi * tau2)
+    logn = -0.5 * r**2 / t2 - 0.5 * math.log(2 * math.pi * t2)
     m = logn.max(axis=0)
     return float(np.sum(m + np.log(np.mean(np.exp(logn - m), axis=0))))
 
@@ -135,11 +123,11 @@ def sensitivity_table(cells: pd.DataFrame | None = None, protocol: dict | None =
     """
     protocol = protocol or load_protocol()
     cells = _data("evidence_cells.csv") if cells is None else cells
-    a = _arrays(cells, protocol)
+    a = scored_arrays(cells, protocol)
     names = sorted(a["by_h"])
     params = {h: int(protocol["hypotheses"][h]["parameters"]) for h in names}
-    rows = [("protocol", None, _tau2),
-            *[(name, mask, _tau2) for name, mask in _selections(a["quantities"]).items()],
+    rows = [("protocol", None, tau2),
+            *[(name, mask, tau2) for name, mask in _selections(a["quantities"]).items()],
             *[(name, None, f) for name, f in TAU_ROWS.items()]]
     out = []
     for name, mask, tau2_of in rows:
@@ -231,10 +219,10 @@ def quantity_z(cells: pd.DataFrame | None = None, hypothesis: str = "F5",
     """
     protocol = protocol or load_protocol()
     cells = _data("evidence_cells.csv") if cells is None else cells
-    a = _arrays(cells[cells["hypothesis"] == hypothesis], protocol)
+    a = scored_arrays(cells[cells["hypothesis"] == hypothesis], protocol)
     v = a["by_h"][hypothesis]
-    tau2 = _tau2(v["ss"], _fitted_count(protocol, hypothesis), a["n_fit"])
-    sd = np.sqrt(v["held"].std(axis=0, ddof=1) ** 2 + tau2)
+    sd = np.sqrt(v["held"].std(axis=0, ddof=1) ** 2
+                 + tau2(v["ss"], _fitted_count(protocol, hypothesis), a["n_fit"]))
     z = (a["paper"] - v["held"].mean(axis=0)) / sd
     return pd.DataFrame([(*q, float(zi), bool(abs(zi) <= Z90))
                          for q, zi in zip(a["quantities"], z, strict=True)],
