@@ -21,7 +21,7 @@ from .evidence import (
     recorded_draw,
     scored_arrays,
 )
-from .identification import _predict_benches, _quantity, hypothesis_bench, load_protocol, run_all
+from .identification import _quantity, load_protocol, predict_cells, run_all
 
 __all__ = ["ablation"]
 
@@ -76,10 +76,13 @@ def ablation(name: str | None = None, seeds=None, evidence: pd.DataFrame | None 
     tasks = []
     for seed in seeds:
         rec, nuis, fitted = recorded_draw(protocol, evidence, name, seed)
+        # "drift": the fitted zero shift at a new homing as a drift per run of half its size
+        drift = {"platform__beta_rehoming_deg": 0.0,
+                 "platform__beta_drift_deg": fitted["beta_zero_shift_deg"] / 2}
         tasks += [(comp, int(seed), (protocol, name, nuis, fitted, int(seed),
-                                     float(rec["noise_px"]), change))
-                  for comp, change in {"none": {}, **ABLATIONS}.items()]
-    preds = dict(run_all(_ablated_cells, [t[2] for t in tasks], jobs))
+                                     float(rec["noise_px"]), drift if ch == "drift" else ch))
+                  for comp, ch in {"none": {}, **ABLATIONS}.items()]
+    preds = dict(run_all(predict_cells, [t[2] for t in tasks], jobs))
     preds = [preds[i] for i in range(len(tasks))]
     rows = []
     for (comp, seed, _), pred in zip(tasks, preds, strict=True):
@@ -89,14 +92,3 @@ def ablation(name: str | None = None, seeds=None, evidence: pd.DataFrame | None 
                      "score": _log_density(r, var),
                      "held_out_rms_log": float(np.sqrt(np.mean(r**2)))})
     return pd.DataFrame(rows)
-
-
-def _ablated_cells(protocol, name, nuis, fitted, seed, noise_px, change) -> dict:
-    """:func:`predict_cells` with one component of both benches turned off."""
-    single = hypothesis_bench(protocol, name, nuis, fitted)
-    multi = hypothesis_bench(protocol, name, nuis, fitted, multi=True)
-    if change == "drift":
-        shift = single.platform.beta_rehoming_deg
-        change = {"platform__beta_rehoming_deg": 0.0, "platform__beta_drift_deg": shift / 2}
-    return _predict_benches(protocol, single.replace(**change), multi.replace(**change), seed,
-                            noise_px)

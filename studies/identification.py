@@ -405,27 +405,26 @@ def fit_draw(protocol: dict, name: str, nuisances: dict, *, seed: int,
     return {**fits[best], "period_ssr": {float(p): fits[p]["fit_ssr"] for p in grid}}
 
 
-def predict_cells(protocol: dict, name: str, nuisances: dict, fitted: dict, *, seed: int,
-                  noise_px: float) -> dict[tuple, float]:
+def predict_cells(protocol: dict, name: str, nuisances: dict, fitted: dict, seed: int,
+                  noise_px: float, change: dict | None = None) -> dict[tuple, float]:
     """Every published cell of Tables 4 and 5 as one fitted hypothesis predicts it.
 
     Table 4's four columns (the paper's recipes, NN strategy 4 re-zeroed on each run's zero
     pose) and Table 5's three (the 100-hole calibrations take the order Table 4's polynomial
-    chose, as ``sunlab reproduce --table 5`` does).
+    chose, as ``sunlab reproduce --table 5`` does), on the protocol's surrogate settings.
+    ``change`` (:meth:`sunlab.sim.Bench.replace`'s keywords) is applied to both benches, the
+    one-hole and the 100-hole (an ablation's, :mod:`studies.ablation`).
     """
-    single = hypothesis_bench(protocol, name, nuisances, fitted)
-    multi = hypothesis_bench(protocol, name, nuisances, fitted, multi=True)
-    return _predict_benches(protocol, single, multi, seed, noise_px)
-
-
-def _predict_benches(protocol: dict, single, multi, seed: int, noise_px: float) -> dict:
-    """Every published cell from a one-hole and a 100-hole bench (the protocol's settings)."""
     from sunlab import stats
     from sunlab.calibration import table4_methods
     from sunlab.calibration.registry import RECIPES, fit
 
     from .surrogate_tables import surrogate_table5
 
+    single, multi = (hypothesis_bench(protocol, name, nuisances, fitted, multi=m)
+                     for m in (False, True))
+    if change:
+        single, multi = single.replace(**change), multi.replace(**change)
     setting = protocol["fit"]["predict"]
     cens = surrogate_runs(single, seed, setting["step"], setting["shots"], noise_px)
     fits = table4_methods(seed=seed, reference="zero_pose")
