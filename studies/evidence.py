@@ -269,10 +269,22 @@ def write_evidence(out_dir, cells: pd.DataFrame, *, jobs: int = 2, overwrite: bo
 
 # ----------------------------------------------------------------------------- scoring
 def scored_arrays(cells: pd.DataFrame, protocol: dict) -> dict:
-    """What the score compares, as arrays: ``paper`` (the paper's held-out logs, over
-    ``quantities``, :func:`scored_quantities`), ``n_fit`` (the fit side's size) and ``by_h``:
-    per hypothesis its ``seeds``, ``ss`` (the fit side's sum of squared log residuals, per
-    seed) and ``held`` (the held-out log predictions, seeds x quantities)."""
+    """What the score compares, as arrays.
+
+    Parameters
+    ----------
+    cells : pandas.DataFrame
+        The rows of :func:`run_hypothesis` for every hypothesis and seed.
+    protocol : dict
+
+    Returns
+    -------
+    dict
+        ``paper`` (the paper's held-out logs, over ``quantities``, :func:`scored_quantities`),
+        ``n_fit`` (the fit side's size) and ``by_h``: per hypothesis its ``seeds``, ``ss`` (the
+        fit side's sum of squared log residuals, per seed) and ``held`` (the held-out log
+        predictions, seeds x quantities).
+    """
     q = scored_quantities(protocol)
     paper = _paper_cells()
     lp = {side: np.array([math.log(_quantity(paper, *x)) for x in q[side]]) for side in q}
@@ -291,13 +303,41 @@ def scored_arrays(cells: pd.DataFrame, protocol: dict) -> dict:
 
 
 def tau2(ss: np.ndarray, k: int, n: int) -> float:
-    """The protocol's tau^2: the mean fit-side sum of squares over (n - fitted parameters)."""
+    """The protocol's tau^2: the mean fit-side sum of squares over (n - fitted parameters).
+
+    Parameters
+    ----------
+    ss : numpy.ndarray
+        The fit side's sums of squared log residuals, one per seed.
+    k, n : int
+        The fitted parameters and the fit side's quantities.
+
+    Returns
+    -------
+    float
+        tau^2, squared log units.
+    """
     return float(np.mean(ss)) / (n - k)
 
 
 def seed_scores(held: np.ndarray, paper: np.ndarray, tau2_: float) -> np.ndarray:
-    """The score of each seed (a row of ``held``, log predictions): the log density of the
-    paper's logs under N(prediction, spread over the seeds^2 + tau^2)."""
+    """The score of each seed: the log density of the paper's logs under N(prediction,
+    spread over the seeds^2 + tau^2).
+
+    Parameters
+    ----------
+    held : numpy.ndarray
+        Log predictions, seeds x quantities.
+    paper : numpy.ndarray
+        The paper's logs, one per quantity.
+    tau2_ : float
+        The model's discrepancy tau^2 (:func:`tau2`).
+
+    Returns
+    -------
+    numpy.ndarray
+        One score per seed, nats.
+    """
     sd2 = held.std(axis=0, ddof=1) ** 2 if len(held) > 1 else 0.0
     return np.array([_log_density(paper - h, sd2 + tau2_) for h in held])
 
@@ -365,8 +405,21 @@ def chosen_hypothesis(evidence: pd.DataFrame, protocol: dict | None = None) -> s
 
 
 def one_se_rule(mean: dict, se: dict, params: dict) -> tuple[str, list[str]]:
-    """The one-standard-error rule on each hypothesis's mean score, its standard error and its
-    parameter count: (pick, eligible hypotheses, sorted)."""
+    """The one-standard-error rule on each hypothesis's mean score.
+
+    Parameters
+    ----------
+    mean, se, params : dict
+        Per hypothesis: the mean score over seeds, its standard error (nats) and its
+        parameter count.
+
+    Returns
+    -------
+    pick : str
+        The eligible hypothesis with the fewest parameters (a tie to the higher mean).
+    eligible : list of str
+        Every hypothesis within one standard error of the best, sorted.
+    """
     best = max(mean, key=mean.get)
     eligible = sorted(h for h in mean if mean[h] >= mean[best] - se[best])
     return str(min(eligible, key=lambda h: (params[h], -mean[h]))), eligible

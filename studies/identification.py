@@ -72,7 +72,19 @@ def load_protocol(path=None) -> dict:
 
 
 def read_json(path, fix: str):
-    """The JSON file at ``path``; one that is not JSON is refused with ``fix``."""
+    """The JSON file at ``path``; one that is not JSON is refused with ``fix``.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+    fix : str
+        What to do about a file that is not JSON (the error's ``Fix:``).
+
+    Returns
+    -------
+    object
+        The parsed document.
+    """
     try:
         return json.loads(Path(path).read_text(encoding="utf-8"))
     except json.JSONDecodeError as err:
@@ -414,6 +426,25 @@ def predict_cells(protocol: dict, name: str, nuisances: dict, fitted: dict, seed
     chose, as ``sunlab reproduce --table 5`` does), on the protocol's surrogate settings.
     ``change`` (:meth:`sunlab.sim.Bench.replace`'s keywords) is applied to both benches, the
     one-hole and the 100-hole (an ablation's, :mod:`studies.ablation`).
+
+    Parameters
+    ----------
+    protocol : dict
+    name : str
+        A hypothesis of the protocol.
+    nuisances, fitted : dict
+        :func:`draw_nuisances` and the fitted parameters (deg).
+    seed : int
+        Seed of the surrogate's runs.
+    noise_px : float
+        Per-shot centroid noise, px.
+    change : dict, optional
+        Bench changes applied to both benches.
+
+    Returns
+    -------
+    dict
+        ``(table, column, angle, stat) -> value`` (deg).
     """
     from sunlab import stats
     from sunlab.calibration import table4_methods
