@@ -16,20 +16,12 @@ import pandas as pd
 from .evidence import (
     _data,
     _log_density,
-    _long_to_quantities,
     chosen_hypothesis,
     load_evidence,
     recorded_draw,
+    scored_arrays,
 )
-from .identification import (
-    _paper_cells,
-    _predict_benches,
-    _quantity,
-    hypothesis_bench,
-    load_protocol,
-    run_all,
-    scored_quantities,
-)
+from .identification import _quantity, load_protocol, predict_cells, run_all
 
 __all__ = ["ablation"]
 
@@ -76,21 +68,21 @@ def ablation(name: str | None = None, seeds=None, evidence: pd.DataFrame | None 
     cells = _data("evidence_cells.csv") if cells is None else cells
     name = name or chosen_hypothesis(evidence, protocol)
     seeds = protocol["confirmation_seeds"][:1] if seeds is None else seeds
-    q = scored_quantities(protocol)["held_out"]
-    paper = _paper_cells()
-    log_paper = np.array([math.log(_quantity(paper, *x)) for x in q])
-    held = _long_to_quantities(cells[cells["hypothesis"] == name], q).loc[name]
-    sd2 = held.to_numpy().std(axis=0, ddof=1) ** 2
+    a = scored_arrays(cells[cells["hypothesis"] == name], protocol)
+    q, log_paper = a["quantities"], a["paper"]
+    sd2 = a["by_h"][name]["held"].std(axis=0, ddof=1) ** 2
     tau = float(evidence.loc[evidence["hypothesis"] == name, "tau"].iloc[0])
     var = sd2 + tau**2
     tasks = []
     for seed in seeds:
-        rec = evidence[(evidence["hypothesis"] == name) & (evidence["seed"] == seed)].iloc[0]
-        nuis, fitted = recorded_draw(protocol, rec)
+        rec, nuis, fitted = recorded_draw(protocol, evidence, name, seed)
+        # "drift": the fitted zero shift at a new homing as a drift per run of half its size
+        drift = {"platform__beta_rehoming_deg": 0.0,
+                 "platform__beta_drift_deg": fitted["beta_zero_shift_deg"] / 2}
         tasks += [(comp, int(seed), (protocol, name, nuis, fitted, int(seed),
-                                     float(rec["noise_px"]), change))
-                  for comp, change in {"none": {}, **ABLATIONS}.items()]
-    preds = dict(run_all(_ablated_cells, [t[2] for t in tasks], jobs))
+                                     float(rec["noise_px"]), drift if ch == "drift" else ch))
+                  for comp, ch in {"none": {}, **ABLATIONS}.items()]
+    preds = dict(run_all(predict_cells, [t[2] for t in tasks], jobs))
     preds = [preds[i] for i in range(len(tasks))]
     rows = []
     for (comp, seed, _), pred in zip(tasks, preds, strict=True):
@@ -100,14 +92,3 @@ def ablation(name: str | None = None, seeds=None, evidence: pd.DataFrame | None 
                      "score": _log_density(r, var),
                      "held_out_rms_log": float(np.sqrt(np.mean(r**2)))})
     return pd.DataFrame(rows)
-
-
-def _ablated_cells(protocol, name, nuis, fitted, seed, noise_px, change) -> dict:
-    """:func:`predict_cells` with one component of both benches turned off."""
-    single = hypothesis_bench(protocol, name, nuis, fitted)
-    multi = hypothesis_bench(protocol, name, nuis, fitted, multi=True)
-    if change == "drift":
-        shift = single.platform.beta_rehoming_deg
-        change = {"platform__beta_rehoming_deg": 0.0, "platform__beta_drift_deg": shift / 2}
-    return _predict_benches(protocol, single.replace(**change), multi.replace(**change), seed,
-                            noise_px)

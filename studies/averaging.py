@@ -89,8 +89,7 @@ def mechanisms(hypothesis: str | None = None, seeds=None, *, step: int = 2,
         hyp = next(h for h, v in protocol["hypotheses"].items()
                    if v["F_mm"] == mech["F_mm"] and v["gear"] == gear)
         for seed in seeds:
-            rec = evidence[(evidence["hypothesis"] == hyp) & (evidence["seed"] == seed)].iloc[0]
-            nuis, fitted = ev.recorded_draw(protocol, rec)
+            rec, nuis, fitted = ev.recorded_draw(protocol, evidence, hyp, seed)
             multi = idn.hypothesis_bench(protocol, hyp, nuis, fitted, multi=True)
             exps = experiment_plans(step=step, shots=shots)
             noise = float(rec["noise_px"])

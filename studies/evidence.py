@@ -114,12 +114,12 @@ def _check_parts(folder: Path, protocol: dict) -> None:
     write_text(file, json.dumps(stamp, indent=2) + "\n")
 
 
-def source_digest(root=None) -> str:
+def source_digest() -> str:
     """SHA-256 of the code a run depends on: ``sunlab/**/*.py``, ``studies/**/*.py`` and
     ``studies/protocol.json``, their paths and contents in path order."""
     import hashlib
 
-    root = Path(root) if root is not None else HERE.parent
+    root = HERE.parent
     h = hashlib.sha256()
     for f in sorted([*root.glob("sunlab/**/*.py"), *root.glob("studies/**/*.py"),
                      root / "studies" / "protocol.json"]):
@@ -148,14 +148,13 @@ def regenerate(out_dir, *, names=None, seeds=None, jobs: int = 2, overwrite: boo
     from sunlab.atomic import check_folder
 
     protocol = load_protocol()
-    check_folder(out_dir, _evidence_files(protocol, presets), overwrite=overwrite,
-                 flag="--overwrite")
+    files = _evidence_files(protocol, presets)
+    check_folder(out_dir, files, overwrite=overwrite, flag="--overwrite")
     # the code the runs start from, before the first run
     started = {**code_commit(), "command": command}
     cells = run_protocol(protocol, names, seeds, jobs=jobs, progress=progress,
                          parts=Path(out_dir) / "runs",
-                         after_s=STAGES_SECONDS if len(_evidence_files(protocol, presets)) > 4
-                         else 0.0)
+                         after_s=STAGES_SECONDS if len(files) > 4 else 0.0)
     out = write_evidence(out_dir, cells, jobs=jobs, overwrite=overwrite, presets=presets,
                          progress=progress and (lambda m: progress(m, False)),
                          provenance=started)
@@ -269,15 +268,78 @@ def write_evidence(out_dir, cells: pd.DataFrame, *, jobs: int = 2, overwrite: bo
 
 
 # ----------------------------------------------------------------------------- scoring
-def _long_to_quantities(cells: pd.DataFrame, quantities) -> pd.DataFrame:
-    """(hypothesis, seed) x quantity table of log predictions."""
-    out = {}
-    for (h, s), g in cells.groupby(["hypothesis", "seed"]):
+def scored_arrays(cells: pd.DataFrame, protocol: dict) -> dict:
+    """What the score compares, as arrays.
+
+    Parameters
+    ----------
+    cells : pandas.DataFrame
+        The rows of :func:`run_hypothesis` for every hypothesis and seed.
+    protocol : dict
+
+    Returns
+    -------
+    dict
+        ``paper`` (the paper's held-out logs, over ``quantities``, :func:`scored_quantities`),
+        ``n_fit`` (the fit side's size) and ``by_h``: per hypothesis its ``seeds``, ``ss`` (the
+        fit side's sum of squared log residuals, per seed) and ``held`` (the held-out log
+        predictions, seeds x quantities).
+    """
+    q = scored_quantities(protocol)
+    paper = _paper_cells()
+    lp = {side: np.array([math.log(_quantity(paper, *x)) for x in q[side]]) for side in q}
+    logs = {}  # (hypothesis, seed) -> side -> log predictions over its quantities
+    for (h, seed), g in cells.groupby(["hypothesis", "seed"]):
         d = {(r.table, r.column, r.angle, r.stat): r.value for r in g.itertuples()}
-        out[(h, s)] = {q: math.log(max(_quantity(d, *q), 1e-9)) for q in quantities}
-    df = pd.DataFrame.from_dict(out, orient="index")
-    df.index.names = ["hypothesis", "seed"]
-    return df
+        logs[(h, seed)] = {side: [math.log(max(_quantity(d, *x), 1e-9)) for x in q[side]]
+                           for side in q}
+    fit, held = (pd.DataFrame({k: v[side] for k, v in logs.items()}).T.rename_axis(
+        ["hypothesis", "seed"]) for side in ("fit", "held_out"))
+    by_h = {h: {"seeds": [int(s) for s in held.loc[h].index],
+                "ss": np.sum((fit.loc[h].to_numpy() - lp["fit"]) ** 2, axis=1),
+                "held": held.loc[h].to_numpy()} for h in held.index.unique("hypothesis")}
+    return {"by_h": by_h, "paper": lp["held_out"], "quantities": q["held_out"],
+            "n_fit": len(q["fit"])}
+
+
+def tau2(ss: np.ndarray, k: int, n: int) -> float:
+    """The protocol's tau^2: the mean fit-side sum of squares over (n - fitted parameters).
+
+    Parameters
+    ----------
+    ss : numpy.ndarray
+        The fit side's sums of squared log residuals, one per seed.
+    k, n : int
+        The fitted parameters and the fit side's quantities.
+
+    Returns
+    -------
+    float
+        tau^2, squared log units.
+    """
+    return float(np.mean(ss)) / (n - k)
+
+
+def seed_scores(held: np.ndarray, paper: np.ndarray, tau2_: float) -> np.ndarray:
+    """The score of each seed: the log density of the paper's logs under N(prediction,
+    spread over the seeds^2 + tau^2).
+
+    Parameters
+    ----------
+    held : numpy.ndarray
+        Log predictions, seeds x quantities.
+    paper : numpy.ndarray
+        The paper's logs, one per quantity.
+    tau2_ : float
+        The model's discrepancy tau^2 (:func:`tau2`).
+
+    Returns
+    -------
+    numpy.ndarray
+        One score per seed, nats.
+    """
+    sd2 = held.std(axis=0, ddof=1) ** 2 if len(held) > 1 else 0.0
+    return np.array([_log_density(paper - h, sd2 + tau2_) for h in held])
 
 
 def score_table(cells: pd.DataFrame, protocol: dict) -> pd.DataFrame:
@@ -297,30 +359,19 @@ def score_table(cells: pd.DataFrame, protocol: dict) -> pd.DataFrame:
         discrepancy, log units), ``held_out_rms_log``, ``held_out_within_1.25``, and the
         nuisance draw and fitted parameters.
     """
-    q = scored_quantities(protocol)
-    paper = _paper_cells()
-    log_paper = {side: np.array([math.log(_quantity(paper, *x)) for x in q[side]])
-                 for side in q}
-    fit_side = _long_to_quantities(cells, q["fit"])
-    held = _long_to_quantities(cells, q["held_out"])
+    a = scored_arrays(cells, protocol)
     extra_cols = [c for c in cells.columns if c not in
                   ("hypothesis", "seed", "table", "column", "angle", "stat", "value")]
     extras = cells.groupby(["hypothesis", "seed"])[extra_cols].first()
     rows = []
-    for h in held.index.get_level_values("hypothesis").unique():
-        hyp = protocol["hypotheses"][h]
-        k = _fitted_count(protocol, h)
-        ff = fit_side.loc[h].to_numpy()
-        hh = held.loc[h].to_numpy()
-        tau2 = float(np.mean(np.sum((ff - log_paper["fit"]) ** 2, axis=1))) / (ff.shape[1] - k)
-        sd2 = hh.std(axis=0, ddof=1) ** 2 if hh.shape[0] > 1 else np.zeros(hh.shape[1])
-        var = sd2 + tau2
-        for i, seed in enumerate(held.loc[h].index):
-            r = log_paper["held_out"] - hh[i]
-            ll = _log_density(r, var)
-            rows.append({"hypothesis": h, "seed": int(seed),
-                         "parameters": int(hyp["parameters"]), "score": ll,
-                         "tau": math.sqrt(tau2),
+    for h, v in a["by_h"].items():
+        t2 = tau2(v["ss"], _fitted_count(protocol, h), a["n_fit"])
+        for seed, hh, ll in zip(v["seeds"], v["held"], seed_scores(v["held"], a["paper"], t2),
+                                strict=True):
+            r = a["paper"] - hh
+            rows.append({"hypothesis": h, "seed": seed,
+                         "parameters": int(protocol["hypotheses"][h]["parameters"]),
+                         "score": ll, "tau": math.sqrt(t2),
                          "held_out_rms_log": float(np.sqrt(np.mean(r**2))),
                          "held_out_within_1.25": int(np.sum(np.abs(r) <= math.log(1.25))),
                          **extras.loc[(h, seed)].to_dict()})
@@ -347,14 +398,31 @@ def chosen_hypothesis(evidence: pd.DataFrame, protocol: dict | None = None) -> s
     >>> chosen_hypothesis(t)     # b is best (2.7 +- 0.8), a (2.0) lies within it: simpler
     'a'
     """
-    g = evidence.groupby("hypothesis")
-    mean = g["score"].mean()
-    n = g["score"].count()
-    se = (g["score"].std(ddof=1) / np.sqrt(n)).fillna(0.0)
-    params = g["parameters"].first()
-    best = mean.idxmax()
-    eligible = mean[mean >= mean[best] - se[best]].index
-    return str(min(eligible, key=lambda h: (params[h], -mean[h])))
+    g = evidence.groupby("hypothesis")["score"]
+    se = (g.std(ddof=1) / np.sqrt(g.count())).fillna(0.0)
+    params = evidence.groupby("hypothesis")["parameters"].first()
+    return one_se_rule(g.mean().to_dict(), se.to_dict(), params.to_dict())[0]
+
+
+def one_se_rule(mean: dict, se: dict, params: dict) -> tuple[str, list[str]]:
+    """The one-standard-error rule on each hypothesis's mean score.
+
+    Parameters
+    ----------
+    mean, se, params : dict
+        Per hypothesis: the mean score over seeds, its standard error (nats) and its
+        parameter count.
+
+    Returns
+    -------
+    pick : str
+        The eligible hypothesis with the fewest parameters (a tie to the higher mean).
+    eligible : list of str
+        Every hypothesis within one standard error of the best, sorted.
+    """
+    best = max(mean, key=mean.get)
+    eligible = sorted(h for h in mean if mean[h] >= mean[best] - se[best])
+    return str(min(eligible, key=lambda h: (params[h], -mean[h]))), eligible
 
 
 def interval_role(protocol: dict, table: str, column: str) -> str:
@@ -487,24 +555,31 @@ def identified_hypothesis() -> str:
     return chosen_hypothesis(load_evidence(), load_protocol())
 
 
-def recorded_draw(protocol: dict, record) -> tuple[dict, dict]:
-    """The nuisance draw and the fitted parameters of one row of the evidence table.
+def recorded_draw(protocol: dict, evidence: pd.DataFrame, hypothesis: str,
+                  seed: int) -> tuple[pd.Series, dict, dict]:
+    """The evidence's row of one hypothesis and seed, its nuisance draw and fitted parameters.
 
     Parameters
     ----------
     protocol : dict
-    record : pandas.Series or mapping
-        One row of :func:`load_evidence`.
+    evidence : pandas.DataFrame
+        :func:`load_evidence`.
+    hypothesis : str
+    seed : int
 
     Returns
     -------
+    record : pandas.Series
+        The row.
     nuisances, fitted : dict
         As :func:`draw_nuisances` and :func:`fit_hypothesis` gave them for that seed.
     """
+    record = evidence[(evidence["hypothesis"] == hypothesis)
+                      & (evidence["seed"] == seed)].iloc[0]
     nuis = {k: float(record[k]) for k in protocol["priors"]}
     fitted = {k: float(record[k]) for k in [*protocol["cells"]["pinning"], "gear_period_deg"]
               if k in record and pd.notna(record[k]) and k not in nuis}
-    return nuis, fitted
+    return record, nuis, fitted
 
 
 def _log_density(residual: np.ndarray, var: np.ndarray) -> float:

@@ -67,14 +67,28 @@ def load_protocol(path=None) -> dict:
         ``hypotheses`` (name -> ``F_mm``, ``gear``, ``parameters``), ``priors``, ``cells``,
         ``score``, ``rule``, ``confirmation_seeds``, ``history``.
     """
-    path = Path(path) if path is not None else HERE / "protocol.json"
+    return read_json(HERE / "protocol.json" if path is None else path, "restore the file from "
+                     "git; a change of protocol is a new dated entry, never an edit.")
+
+
+def read_json(path, fix: str):
+    """The JSON file at ``path``; one that is not JSON is refused with ``fix``.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+    fix : str
+        What to do about a file that is not JSON (the error's ``Fix:``).
+
+    Returns
+    -------
+    object
+        The parsed document.
+    """
     try:
-        return json.loads(path.read_text(encoding="utf-8"))
+        return json.loads(Path(path).read_text(encoding="utf-8"))
     except json.JSONDecodeError as err:
-        raise ConfigurationError(
-            f"{path}: not JSON ({err}). Fix: restore the file "
-            "from git; a change of protocol is a new dated entry, never an edit."
-        ) from None
+        raise ConfigurationError(f"{path}: not JSON ({err}). Fix: {fix}") from None
 
 
 def run_all(fn, tasks, jobs: int = 1):
@@ -95,15 +109,17 @@ def run_all(fn, tasks, jobs: int = 1):
 
 
 # ----------------------------------------------------------------------------- cells
+def _cells(**tables) -> dict[tuple, float]:
+    """``(table, column, angle, stat) -> value`` of tables laid out as
+    :func:`sunlab.stats.evaluate` lays them out, keyed by table name (``table4=...``)."""
+    return {(name, col, angle, stat): float(v) for name, table in tables.items()
+            for col in table.columns for (angle, stat), v in table[col].items()}
+
+
 def _paper_cells() -> dict[tuple, float]:
     from sunlab import stats
 
-    out = {}
-    for name, table in (("table4", stats.paper_table4()), ("table5", stats.paper_table5())):
-        for col in table.columns:
-            for (angle, stat), v in table[col].items():
-                out[(name, col, angle, stat)] = float(v)
-    return out
+    return _cells(table4=stats.paper_table4(), table5=stats.paper_table5())
 
 
 def _quantity(cells: dict, table: str, col: str, angle: str, stat: str) -> float:
@@ -285,12 +301,6 @@ def surrogate_runs(bench, seed: int = 0, step: int = 1, shots: int = 8,
     return out
 
 
-def _noise_px(bench) -> float:
-    from .surrogate_tables import centroid_noise_px
-
-    return centroid_noise_px(bench, frames=6)
-
-
 #: The rescaling power of each fitted parameter (its cell grows about as the parameter to
 #: 1 / power: the one-hole's alpha mu adds the pixel response in quadrature, the linear
 #: interpolation's beta sigma adds the gear error to the rest in quadrature; M - mu grows
@@ -343,7 +353,10 @@ def fit_hypothesis(protocol: dict, name: str, nuisances: dict, *, seed: int,
     step_bounds = protocol["fit"]["step_bounds"]
     bounds = protocol["fit"]["parameter_bounds_deg"]
     if noise_px is None:
-        noise_px = _noise_px(hypothesis_bench(protocol, name, nuisances, fitted))
+        from .surrogate_tables import centroid_noise_px
+
+        noise_px = centroid_noise_px(hypothesis_bench(protocol, name, nuisances, fitted),
+                                     frames=6)
     for _ in range(iterations):
         table = _fit_side_cells(protocol, name, nuisances, fitted, seed, noise_px)
         fitted = {k: v if k in fixed else
@@ -372,9 +385,7 @@ def _fit_side_cells(protocol: dict, name: str, nuisances: dict, fitted: dict, se
     extra = {"polynomial": {}, "linear interp.": {"leave_one_out": False}}
     cols = {m: fit(cens["I"], RECIPES[m][0], cens["II"], outlier_mads=None,
                    **RECIPES[m][1], **extra[m]) for m in extra}
-    t4 = stats.evaluate(cols, cens["III"])
-    return {("table4", col, a, st): float(v) for col in t4.columns
-            for (a, st), v in t4[col].items()}
+    return _cells(table4=stats.evaluate(cols, cens["III"]))
 
 
 def fit_draw(protocol: dict, name: str, nuisances: dict, *, seed: int,
@@ -406,27 +417,45 @@ def fit_draw(protocol: dict, name: str, nuisances: dict, *, seed: int,
     return {**fits[best], "period_ssr": {float(p): fits[p]["fit_ssr"] for p in grid}}
 
 
-def predict_cells(protocol: dict, name: str, nuisances: dict, fitted: dict, *, seed: int,
-                  noise_px: float) -> dict[tuple, float]:
+def predict_cells(protocol: dict, name: str, nuisances: dict, fitted: dict, seed: int,
+                  noise_px: float, change: dict | None = None) -> dict[tuple, float]:
     """Every published cell of Tables 4 and 5 as one fitted hypothesis predicts it.
 
     Table 4's four columns (the paper's recipes, NN strategy 4 re-zeroed on each run's zero
     pose) and Table 5's three (the 100-hole calibrations take the order Table 4's polynomial
-    chose, as ``sunlab reproduce --table 5`` does).
+    chose, as ``sunlab reproduce --table 5`` does), on the protocol's surrogate settings.
+    ``change`` (:meth:`sunlab.sim.Bench.replace`'s keywords) is applied to both benches, the
+    one-hole and the 100-hole (an ablation's, :mod:`studies.ablation`).
+
+    Parameters
+    ----------
+    protocol : dict
+    name : str
+        A hypothesis of the protocol.
+    nuisances, fitted : dict
+        :func:`draw_nuisances` and the fitted parameters (deg).
+    seed : int
+        Seed of the surrogate's runs.
+    noise_px : float
+        Per-shot centroid noise, px.
+    change : dict, optional
+        Bench changes applied to both benches.
+
+    Returns
+    -------
+    dict
+        ``(table, column, angle, stat) -> value`` (deg).
     """
-    single = hypothesis_bench(protocol, name, nuisances, fitted)
-    multi = hypothesis_bench(protocol, name, nuisances, fitted, multi=True)
-    return _predict_benches(protocol, single, multi, seed, noise_px)
-
-
-def _predict_benches(protocol: dict, single, multi, seed: int, noise_px: float) -> dict:
-    """Every published cell from a one-hole and a 100-hole bench (the protocol's settings)."""
     from sunlab import stats
     from sunlab.calibration import table4_methods
     from sunlab.calibration.registry import RECIPES, fit
 
     from .surrogate_tables import surrogate_table5
 
+    single, multi = (hypothesis_bench(protocol, name, nuisances, fitted, multi=m)
+                     for m in (False, True))
+    if change:
+        single, multi = single.replace(**change), multi.replace(**change)
     setting = protocol["fit"]["predict"]
     cens = surrogate_runs(single, seed, setting["step"], setting["shots"], noise_px)
     fits = table4_methods(seed=seed, reference="zero_pose")
@@ -438,12 +467,7 @@ def _predict_benches(protocol: dict, single, multi, seed: int, noise_px: float) 
     t5 = surrogate_table5(multi, single, seed, step=setting["table5_step"],
                           shots=setting["shots"], order=int(max(fitted_cal["polynomial"].orders)),
                           one_hole=fitted_cal["polynomial"], noise_px=noise_px)
-    out = {}
-    for tname, table in (("table4", t4), ("table5", t5)):
-        for col in table.columns:
-            for (angle, stat), v in table[col].items():
-                out[(tname, col, angle, stat)] = float(v)
-    return out
+    return _cells(table4=t4, table5=t5)
 
 
 def run_hypothesis(protocol: dict, name: str, seed: int) -> pd.DataFrame:

@@ -21,14 +21,10 @@ Examples
 
 from __future__ import annotations
 
-import json
 import math
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
-
-from sunlab.errors import ConfigurationError
 
 from . import identification as idn
 
@@ -178,13 +174,8 @@ def load_presets(path=None) -> dict:
     dict
         As :func:`fit_presets` wrote it.
     """
-    path = Path(path) if path is not None else idn.LIBRARY_DATA / "presets.json"
-    try:
-        return json.loads(path.read_text(encoding="utf-8"))
-    except json.JSONDecodeError as err:
-        raise ConfigurationError(
-            f"{path}: not JSON ({err}). Fix: run `python -m studies.identify --out DIR` "
-            "again.") from None
+    return idn.read_json(idn.LIBRARY_DATA / "presets.json" if path is None else path,
+                         "run `python -m studies.identify --out DIR` again.")
 
 
 def load_profiles(path=None) -> pd.DataFrame:

@@ -27,8 +27,16 @@ import sys
 import numpy as np
 import pandas as pd
 
-from .evidence import _data, _log_density
-from .identification import HERE, _paper_cells, _quantity, load_protocol, scored_quantities
+from .evidence import (
+    Z90,
+    _data,
+    _fitted_count,
+    one_se_rule,
+    scored_arrays,
+    seed_scores,
+    tau2,
+)
+from .identification import HERE, load_protocol
 
 __all__ = ["interval_coverage", "quantity_z", "sensitivity_table", "verdicts"]
 
@@ -39,29 +47,6 @@ BOOTSTRAP_SEED = 46
 
 #: The seed-paired differences each row reports (first minus second, nats).
 PAIRS = (("F5", "F17"), ("F5-gear", "F17-gear"), ("F5-gear", "F5"), ("F17-gear", "F17"))
-
-
-def _arrays(cells: pd.DataFrame, protocol: dict) -> dict:
-    """Per hypothesis: the seeds, the fit side's sums of squared log residuals (per seed) and
-    the held-out log residuals' ingredients (log predictions, seeds x quantities)."""
-    q = scored_quantities(protocol)
-    paper = _paper_cells()
-    lp = {side: np.array([math.log(_quantity(paper, *x)) for x in q[side]]) for side in q}
-    out = {}
-    for h, g in cells.groupby("hypothesis"):
-        seeds, ss, held = [], [], []
-        for seed, gs in g.groupby("seed"):
-            d = {(r.table, r.column, r.angle, r.stat): r.value for r in gs.itertuples()}
-
-            def logs(side, d=d):
-                return np.array([math.log(max(_quantity(d, *x), 1e-9)) for x in q[side]])
-
-            seeds.append(int(seed))
-            ss.append(float(np.sum((logs("fit") - lp["fit"]) ** 2)))
-            held.append(logs("held_out"))
-        out[h] = {"seeds": seeds, "ss": np.array(ss), "held": np.array(held)}
-    return {"by_h": out, "paper": lp["held_out"], "quantities": q["held_out"],
-            "n_fit": len(q["fit"])}
 
 
 def _selections(quantities: list) -> dict:
@@ -77,52 +62,31 @@ def _selections(quantities: list) -> dict:
     }
 
 
-def _tau2(ss: np.ndarray, k: int, n: int) -> float:
-    """The protocol's tau^2: the mean fit-side sum of squares over (n - fitted parameters)."""
-    return float(np.mean(ss)) / (n - k)
-
-
 #: tau's variants (row -> tau^2 of the fit-side sums, the fitted count and the fit side's size).
 TAU_ROWS = {
-    "tau dof 12 - 6 for the gear": lambda ss, k, n: _tau2(ss, min(k, 6), n),
-    "tau without dof correction": lambda ss, k, n: _tau2(ss, 0, n),
-    "tau x 2": lambda ss, k, n: 4.0 * _tau2(ss, k, n),
-    "tau x 3": lambda ss, k, n: 9.0 * _tau2(ss, k, n),
+    "tau dof 12 - 6 for the gear": lambda ss, k, n: tau2(ss, min(k, 6), n),
+    "tau without dof correction": lambda ss, k, n: tau2(ss, 0, n),
+    "tau x 2": lambda ss, k, n: 4.0 * tau2(ss, k, n),
+    "tau x 3": lambda ss, k, n: 9.0 * tau2(ss, k, n),
 }
-
-
-def _fitted(protocol: dict, h: str) -> int:
-    key = "with gear" if protocol["hypotheses"][h]["gear"] else "without gear"
-    return int(protocol["score"]["fitted_parameters"][key])
 
 
 def _per_seed_scores(a: dict, protocol: dict, mask, tau2_of) -> dict[str, np.ndarray]:
     """Each hypothesis's score on each seed under a row (the protocol's formula)."""
-    out = {}
-    for h, v in a["by_h"].items():
-        sel = np.ones(len(a["paper"]), bool) if mask is None else mask
-        hh = v["held"][:, sel]
-        tau2 = tau2_of(v["ss"], _fitted(protocol, h), a["n_fit"])
-        var = hh.std(axis=0, ddof=1) ** 2 + tau2
-        out[h] = np.array([_log_density(a["paper"][sel] - hh[i], var) for i in range(len(hh))])
-    return out
+    sel = np.ones(len(a["paper"]), bool) if mask is None else mask
+    return {h: seed_scores(v["held"][:, sel], a["paper"][sel],
+                           tau2_of(v["ss"], _fitted_count(protocol, h), a["n_fit"]))
+            for h, v in a["by_h"].items()}
 
 
 def _pooled(v: dict, paper: np.ndarray, idx: np.ndarray, k: int, n_fit: int) -> float:
     """The pooled predictive density of the seeds ``idx``: per quantity the mixture of
     N(log pred_s, tau^2) over them, tau from the same seeds; summed over quantities."""
-    tau2 = float(np.mean(v["ss"][idx])) / (n_fit - k)
+    t2 = tau2(v["ss"][idx], k, n_fit)
     r = paper[None, :] - v["held"][idx]
-    logn = -0.5 * r**2 / tau2 - 0.5 * math.log(2 * math.pi * tau2)
+    logn = -0.5 * r**2 / t2 - 0.5 * math.log(2 * math.pi * t2)
     m = logn.max(axis=0)
     return float(np.sum(m + np.log(np.mean(np.exp(logn - m), axis=0))))
-
-
-def _rule(mean: dict, se: dict, params: dict) -> tuple[str, list[str]]:
-    """The one-standard-error rule: (pick, eligible hypotheses)."""
-    best = max(mean, key=mean.get)
-    eligible = sorted(h for h in mean if mean[h] >= mean[best] - se[best])
-    return min(eligible, key=lambda h: (params[h], -mean[h])), eligible
 
 
 def _component(protocol: dict, eligible: list[str], pick: str) -> dict:
@@ -159,11 +123,11 @@ def sensitivity_table(cells: pd.DataFrame | None = None, protocol: dict | None =
     """
     protocol = protocol or load_protocol()
     cells = _data("evidence_cells.csv") if cells is None else cells
-    a = _arrays(cells, protocol)
+    a = scored_arrays(cells, protocol)
     names = sorted(a["by_h"])
     params = {h: int(protocol["hypotheses"][h]["parameters"]) for h in names}
-    rows = [("protocol", None, _tau2),
-            *[(name, mask, _tau2) for name, mask in _selections(a["quantities"]).items()],
+    rows = [("protocol", None, tau2),
+            *[(name, mask, tau2) for name, mask in _selections(a["quantities"]).items()],
             *[(name, None, f) for name, f in TAU_ROWS.items()]]
     out = []
     for name, mask, tau2_of in rows:
@@ -188,7 +152,7 @@ def _pooled_row(a: dict, protocol: dict, names: list[str], params: dict) -> dict
         raise ValueError("the pooled row pairs the hypotheses by seed: every hypothesis needs "
                          "the same seeds")
     n = n_seeds.pop()
-    k = {h: _fitted(protocol, h) for h in names}
+    k = {h: _fitted_count(protocol, h) for h in names}
     every = np.arange(n)
     point = {h: _pooled(a["by_h"][h], a["paper"], every, k[h], a["n_fit"]) for h in names}
     rng = np.random.default_rng(BOOTSTRAP_SEED)
@@ -206,7 +170,7 @@ def _pooled_row(a: dict, protocol: dict, names: list[str], params: dict) -> dict
 
 
 def _record(protocol, name, nq, mean, se, d, params) -> dict:
-    pick, eligible = _rule(mean, se, params)
+    pick, eligible = one_se_rule(mean, se, params)
     rec = {"row": name, "quantities": nq}
     for h in sorted(mean):
         rec[f"score_{h}"], rec[f"se_{h}"] = mean[h], se[h]
@@ -255,12 +219,12 @@ def quantity_z(cells: pd.DataFrame | None = None, hypothesis: str = "F5",
     """
     protocol = protocol or load_protocol()
     cells = _data("evidence_cells.csv") if cells is None else cells
-    a = _arrays(cells[cells["hypothesis"] == hypothesis], protocol)
+    a = scored_arrays(cells[cells["hypothesis"] == hypothesis], protocol)
     v = a["by_h"][hypothesis]
-    tau2 = _tau2(v["ss"], _fitted(protocol, hypothesis), a["n_fit"])
-    sd = np.sqrt(v["held"].std(axis=0, ddof=1) ** 2 + tau2)
+    sd = np.sqrt(v["held"].std(axis=0, ddof=1) ** 2
+                 + tau2(v["ss"], _fitted_count(protocol, hypothesis), a["n_fit"]))
     z = (a["paper"] - v["held"].mean(axis=0)) / sd
-    return pd.DataFrame([(*q, float(zi), bool(abs(zi) <= 1.6448536269514722))
+    return pd.DataFrame([(*q, float(zi), bool(abs(zi) <= Z90))
                          for q, zi in zip(a["quantities"], z, strict=True)],
                         columns=["table", "column", "angle", "stat", "z", "inside"])
 

@@ -2,20 +2,13 @@
 
 The paper reports statistics, not its bench. The functions here calibrate the surrogate
 centroids of :mod:`sunlab.sim.surrogate` the way ``sunlab reproduce`` calibrates rendered ones
-and compute the paper's statistics from them, in seconds instead of minutes: Table 4
-(:func:`surrogate_table4`) and Table 5 (:func:`surrogate_table5`) of a bench, their distance to
-the paper's (:func:`score`), how learnable the
-pixel-response error is at each mask distance (:func:`interpolation_gap`); which fault of the
-inner axis explains the paper's beta cells is :func:`sunlab.reproduce.platform.candidate_table`.
-The per-shot
-centroid noise the surrogate adds is measured on rendered frames by :func:`centroid_noise_px`.
+and compute the paper's statistics from them, in seconds instead of minutes: Table 5
+(:func:`surrogate_table5`) of a bench (Table 4's cells: :mod:`studies.identification`), and how
+learnable the pixel-response error is at each mask distance (:func:`interpolation_gap`); which
+fault of the inner axis explains the paper's beta cells is
+:func:`sunlab.reproduce.platform.candidate_table`. The per-shot centroid noise the surrogate
+adds is measured on rendered frames by :func:`centroid_noise_px`.
 :mod:`studies.identification` builds its protocol on these.
-
-Examples
---------
->>> t = PAPER_TARGETS
->>> t["table4"].loc[("alpha", "mu"), "polynomial"], t["roi_over_spot"]
-(np.float64(0.0089), 2.5)
 """
 
 from __future__ import annotations
@@ -25,35 +18,11 @@ import math
 import numpy as np
 import pandas as pd
 
-from sunlab.errors import ConfigurationError
 from sunlab.reproduce.pipeline import experiment_plans
 from sunlab.sim.surrogate import spot_diameter_px, surrogate_centroids
 
-__all__ = [
-    "PAPER_TARGETS",
-    "centroid_noise_px",
-    "surrogate_table4",
-    "surrogate_table5",
-    "score",
-    "interpolation_gap",
-]
+__all__ = ["centroid_noise_px", "surrogate_table5", "interpolation_gap"]
 
-def _targets() -> dict:
-    from sunlab import stats
-
-    return {
-        "table4": stats.paper_table4(),
-        "table5": stats.paper_table5(),
-        # "the 130 x 130 ROI is about 2.5 times the spot" (docs/paper.md sec. 1, sec. 3 step 4)
-        "roi_over_spot": 2.5,
-        # M - mu "about 0.001 deg" in every column of Table 4 (docs/paper.md sec. 5)
-        "m_minus_mu": 0.001,
-    }
-
-
-#: What the paper states that the bench must explain (docs/paper.md sec. 1, 5, 6): Table 4
-#: (32 cells), Table 5 (24 cells), the ROI-to-spot ratio of algorithm A, and M - mu.
-PAPER_TARGETS: dict = _targets()
 
 def centroid_noise_px(bench, *, frames: int = 6, method: str = "projection",
                       seed: int = 0) -> float:
@@ -100,50 +69,6 @@ def centroid_noise_px(bench, *, frames: int = 6, method: str = "projection",
     sx = float(np.nanstd(cen.x.values, ddof=1))
     sy = float(np.nanstd(cen.y.values, ddof=1))
     return math.sqrt(0.5 * (sx**2 + sy**2))
-
-
-def surrogate_table4(bench, seed: int = 0, *, step: int = 1, shots: int = 8,
-                     noise_px: float = 0.004, methods=("polynomial", "linear interp.",
-                                                       "cubic interp.")) -> pd.DataFrame:
-    """Table 4 (statistics on experiment III) of the surrogate bench, one column per method.
-
-    The calibrations are the library's own (:func:`sunlab.calibration.table4_methods`), fitted on
-    experiment I (polynomial order chosen on II) and applied to III, as ``sunlab reproduce``
-    does on rendered frames.
-
-    Parameters
-    ----------
-    bench : sunlab.sim.Bench
-    seed : int
-        Seed of the experiments (and of the networks, for an ``NN`` method).
-    step, shots : int
-        Grid thinning and frames per pose (:func:`sunlab.reproduce.pipeline.experiment_plans`).
-    noise_px : float
-        Per-shot centroid noise, px RMS per axis (:func:`centroid_noise_px`).
-    methods : sequence of str
-        Columns of the paper's Table 4 (keys of :func:`sunlab.calibration.table4_methods`).
-
-    Returns
-    -------
-    pandas.DataFrame
-        Index ``(angle, stat)`` as :func:`sunlab.stats.evaluate` (mu, sigma, M, m; deg),
-        one column per method.
-
-    Examples
-    --------
-    >>> from sunlab.sim import Bench
-    >>> t = surrogate_table4(Bench.paper_single_hole(), step=3, shots=2,
-    ...                      methods=("polynomial",))
-    >>> bool(0.002 < t.loc[("alpha", "mu"), "polynomial"] < 0.03)
-    True
-    """
-    from sunlab import stats
-    from sunlab.calibration import table4_methods
-
-    cens = {n: surrogate_centroids(bench, p, seed, noise_px=noise_px)
-            for n, p in experiment_plans(step=step, shots=shots).items()}
-    fits = table4_methods(neural=any(m.startswith("NN") for m in methods), seed=seed)
-    return stats.evaluate({m: fits[m](cens["I"], cens["II"]) for m in methods}, cens["III"])
 
 
 def surrogate_table5(bench_multi, bench_single, seed: int = 0, *, step: int = 1,
@@ -201,42 +126,6 @@ def surrogate_table5(bench_multi, bench_single, seed: int = 0, *, step: int = 1,
         "1 hole": one_hole.predict(te_1),
     }
     return stats.evaluate(preds)
-
-
-def score(table: pd.DataFrame, paper: pd.DataFrame | None = None,
-          cells=(("alpha", "mu"), ("alpha", "M"), ("beta", "mu"), ("beta", "M"))) -> float:
-    """RMS of log(ours / paper) over the given cells of the columns both tables have.
-
-    0 is a perfect match; 0.3 means a typical cell off by a factor of about 1.35.
-
-    Parameters
-    ----------
-    table : pandas.DataFrame
-        Ours, laid out as :func:`sunlab.stats.evaluate` (index ``(angle, stat)``).
-    paper : pandas.DataFrame, optional
-        The reference; default the paper's Table 4.
-    cells : sequence of (str, str)
-        The ``(angle, stat)`` rows compared.
-
-    Returns
-    -------
-    float
-        RMS of the natural log of the ratios, over every cell of every shared column.
-
-    Examples
-    --------
-    >>> p = PAPER_TARGETS["table4"]
-    >>> score(p, p)
-    0.0
-    """
-    paper = PAPER_TARGETS["table4"] if paper is None else paper
-    cols = [c for c in table.columns if c in paper.columns]
-    if not cols:
-        raise ConfigurationError(
-            f"table: found columns {list(table.columns)}; expected at least one of the paper's "
-            f"{list(paper.columns)}. Fix: name the columns as stats.paper_table4 does.")
-    r = [math.log(float(table.loc[c, k]) / float(paper.loc[c, k])) for k in cols for c in cells]
-    return float(math.sqrt(np.mean(np.square(r))))
 
 
 def interpolation_gap(bench, distances_mm, *, seed: int = 0, shots: int = 2,

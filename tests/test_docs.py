@@ -203,6 +203,7 @@ def _repository_texts():
              *sorted(ROOT.glob("notebooks/*.ipynb")),
              *sorted(ROOT.glob("sunlab/**/*.py")), *sorted(ROOT.glob("sunlab/**/*.pyi")),
              *sorted(ROOT.glob("sunlab/data/*.json")), *sorted(ROOT.glob("studies/*.py")),
+             ROOT / "studies" / "preset_sources.json",  # the preset sources' references
              *sorted(ROOT.glob("benchmarks/*.py")), *sorted(ROOT.glob("tests/**/*.py"))]
     return {p.relative_to(ROOT).as_posix(): _prose(p) for p in paths if p != Path(__file__)}
 

@@ -137,7 +137,7 @@ def signed_pose_errors(estimate: xr.Dataset, reference=None) -> xr.Dataset:
         return err.mean("shot", skipna=True).assign_attrs(units="deg")
 
 
-def approach_of(source) -> np.ndarray:
+def approach_of(source, poses: int | None = None, name: str = "source") -> np.ndarray:
     """The inner axis's approach direction (+1 up, -1 down) per pose, from the motion record.
 
     Parameters
@@ -145,6 +145,10 @@ def approach_of(source) -> np.ndarray:
     source : sunlab.plans.Plan or xarray.Dataset or array_like
         The plan that was run, a cube with the coordinate ``beta_approach`` (what
         :func:`sunlab.sim.simulate` and the acquisition runner record), or the directions.
+    poses : int, optional
+        The run's pose count, checked against the record's.
+    name : str
+        The argument ``source`` came in, named in the errors.
 
     Returns
     -------
@@ -159,15 +163,21 @@ def approach_of(source) -> np.ndarray:
     """
 
     if isinstance(source, np.ndarray | list | tuple) and np.isin(source, (-1, 1)).all():
-        return np.asarray(source, dtype=int)
-    if isinstance(source, Plan):
-        return source.beta_approach().astype(int)
-    if isinstance(source, xr.Dataset) and "beta_approach" in source.variables:
-        return np.asarray(source["beta_approach"].values, dtype=int)
-    raise ConfigurationError(
-        f"source: found {type(source).__name__} without a motion record; expected the "
-        "sunlab.plans.Plan that was run or a cube with a 'beta_approach' coordinate. Fix: pass "
-        "the plan (its scan and approach say how each pose was reached).")
+        d = np.asarray(source, dtype=int)
+    elif isinstance(source, Plan):
+        d = source.beta_approach().astype(int)
+    elif isinstance(source, xr.Dataset) and "beta_approach" in source.variables:
+        d = np.asarray(source["beta_approach"].values, dtype=int)
+    else:
+        raise ConfigurationError(
+            f"{name}: found {type(source).__name__} without a motion record; expected the "
+            "sunlab.plans.Plan that was run or a cube with a 'beta_approach' coordinate. Fix: "
+            "pass the plan (its scan and approach say how each pose was reached).")
+    if poses is not None and d.size != poses:
+        raise ConfigurationError(
+            f"{name}: found {d.size} approach directions for {poses} poses; expected one per "
+            "pose of the run. Fix: pass the plan of that run.")
+    return d
 
 
 def _finite(e, *arrays):
@@ -176,17 +186,21 @@ def _finite(e, *arrays):
 
 
 def _approach_fit(e, d):
-    """The least-squares fit of the errors on [1, d]: the design, coefficients, residuals."""
+    """The least-squares fit of the errors on [1, d]: coefficients, their standard errors (from
+    the residuals' scatter: independent per-pose errors) and the residuals."""
     A = np.column_stack([np.ones_like(e), d])
     coef, *_ = np.linalg.lstsq(A, e, rcond=None)
-    return A, coef, e - A @ coef
+    r = e - A @ coef
+    cov = float(r @ r) / max(e.size - 2, 1) * np.linalg.pinv(A.T @ A)
+    return coef, np.sqrt(np.diag(cov)), r
 
 
 def approach_split(beta_error, approach) -> dict:
     """Mean signed beta error of the poses reached upward and downward; the backlash they imply.
 
     With the backlash b the error is -b on poses reached upward and +b on poses reached
-    downward, so b = (mean_down - mean_up) / 2; its standard error is from the scatter of the
+    downward, so b = (mean_down - mean_up) / 2, minus the slope of the errors on the direction
+    (:func:`run_offset`'s regression on [1, d]); its standard error is from the scatter of the
     poses about their group means (independent per-pose errors).
 
     Parameters
@@ -215,9 +229,8 @@ def approach_split(beta_error, approach) -> dict:
            "n_up": int(up.size), "n_down": int(down.size)}
     if up.size < 2 or down.size < 2:
         return {**out, "backlash_deg": float("nan"), "stderr_deg": float("nan"), "z": 0.0}
-    resid = np.concatenate([up - up.mean(), down - down.mean()])
-    se = 0.5 * math.sqrt(float(resid @ resid) / (e.size - 2) * (1 / up.size + 1 / down.size))
-    b = 0.5 * float(down.mean() - up.mean())
+    coef, se, _ = _approach_fit(e, d.astype(float))  # the slope on d is -b
+    b, se = -float(coef[1]), float(se[1])
     return {**out, "backlash_deg": b, "stderr_deg": se,
             "z": abs(b) / se if se > 0 else float("inf")}
 
@@ -279,10 +292,8 @@ def run_offset(beta_error, approach) -> dict:
     (0.02, True)
     """
     e, d = _finite(np.asarray(beta_error, dtype=float), np.asarray(approach, dtype=float))
-    A, coef, r = _approach_fit(e, d)
-    s2 = float(r @ r) / max(e.size - 2, 1)
-    cov = s2 * np.linalg.pinv(A.T @ A)
-    se = math.sqrt(cov[0, 0])
+    coef, se, _ = _approach_fit(e, d)
+    se = float(se[0])
     return {"offset_deg": float(coef[0]), "stderr_deg": se,
             "z": abs(float(coef[0])) / se if se > 0 else float("inf")}
 
@@ -416,13 +427,9 @@ def diagnose(estimate: xr.Dataset, motion, *, threshold: float = 4.0) -> Diagnos
     >>> diagnose(est, plan).candidate
     'backlash'
     """
-    d = approach_of(motion)
     err = signed_pose_errors(estimate)
     e = np.asarray(err["beta"].values, dtype=float)
-    if d.shape != e.shape:
-        raise ConfigurationError(
-            f"motion: found {d.size} approach directions for {e.size} poses; expected one per "
-            "pose of the test run. Fix: pass the plan of the run that was predicted.")
+    d = approach_of(motion, e.size, "motion")
     b_cmd = np.asarray(estimate["beta_cmd"].values, dtype=float)
     a_cmd = np.asarray(estimate["alpha_cmd"].values, dtype=float)
     ap = approach_split(e, d)

@@ -51,7 +51,13 @@ def identified(table: str) -> dict:
     """
     name = json.loads((resources.files("sunlab") / "data" / "presets.json")
                       .read_text("utf-8"))["hypothesis"]
-    ints = _intervals(name)
+    with resources.as_file(resources.files("sunlab") / "data" / "intervals.csv") as path:
+        ints = pd.read_csv(path)
+    if "role" not in ints.columns:
+        raise ConfigurationError(
+            f"{path}: no 'role' column. Fix: rewrite it with `python -m studies.identify` "
+            "(studies.evidence.intervals gives each cell its role).")
+    ints = ints[ints["hypothesis"] == name]
     out: dict = {}
     role: dict = {}
     for r in ints[ints["table"] == table].itertuples():
@@ -59,18 +65,6 @@ def identified(table: str) -> dict:
         out.setdefault(key, {})[f"{r.angle}.{r.stat}"] = [float(r.lo), float(r.hi)]
         role.setdefault(key, {})[f"{r.angle}.{r.stat}"] = str(r.role)
     return {"hypothesis": name, "interval90": out, "interval_role": role}
-
-
-def _intervals(name: str):
-    """The shipped intervals of one hypothesis (``sunlab/data/intervals.csv``)."""
-
-    with resources.as_file(resources.files("sunlab") / "data" / "intervals.csv") as path:
-        ints = pd.read_csv(path)
-    if "role" not in ints.columns:
-        raise ConfigurationError(
-            f"{path}: no 'role' column. Fix: rewrite it with `python -m studies.identify` "
-            "(studies.evidence.intervals gives each cell its role).")
-    return ints[ints["hypothesis"] == name]
 
 
 def interval_coverage(interval90: dict, interval_role: dict, values: dict) -> dict:

@@ -92,7 +92,7 @@ class JointCorrection:
         dict
             ``alpha`` and ``beta`` (xarray.DataArray on pose), deg.
         """
-        d = approach_of(motion).astype(float)
+        d = approach_of(motion, estimate.sizes["pose"], "motion").astype(float)
         b_cmd = estimate["beta_cmd"]
         beta = b_cmd - self._coef.get("backlash", 0.0) * xr.DataArray(d, dims=b_cmd.dims)
         if self.gear_frequency is not None:
@@ -164,11 +164,7 @@ def fit_correction(train: xr.Dataset, train_motion, validation: xr.Dataset | Non
         cal = Polynomial(5 if order is None else order).fit(train)
     xm, ym = _pose_means(train)
     b_cmd = np.asarray(train["beta"].values, dtype=float)
-    d = approach_of(train_motion).astype(float)
-    if d.shape != b_cmd.shape:
-        raise ConfigurationError(
-            f"train_motion: found {d.size} approach directions for {b_cmd.size} poses; "
-            "expected the motion record of the calibration run. Fix: pass its plan.")
+    d = approach_of(train_motion, b_cmd.size, "train_motion").astype(float)
     params, extra = _joint_beta_fit(cal, xm, ym, d, b_cmd, backlash=backlash,
                                     gear_frequency=gear_frequency)
     if (zero_train is None) != (zero_test is None):

@@ -147,6 +147,10 @@ def test_bad_inputs_name_the_field():
         pf.fault_bench(Bench.paper_single_hole(), "wobble", 0.01)
     with pytest.raises(ConfigurationError, match="source"):
         pf.approach_of([1, 2, 3])
+    # one record per pose of the run: diagnose's motion and fit_correction's train_motion
+    with pytest.raises(ConfigurationError, match="^train_motion: found 2 approach directions "
+                                                 "for 3 poses"):
+        pf.approach_of([1, -1], 3, "train_motion")
     with pytest.raises(ConfigurationError, match="table"):
         pf.shape_test("not a table")
 

@@ -1,13 +1,45 @@
 """The centroid-level surrogate (sunlab.sim.surrogate) and the paper's tables computed on it
-(studies.surrogate_tables) against known truth."""
+against known truth."""
+
+import math
 
 import numpy as np
+import pandas as pd
 import pytest
 from numpy.testing import assert_allclose
 
-from studies import surrogate_tables
-from sunlab import plans, sim
+from sunlab import plans, sim, stats
+from sunlab.errors import ConfigurationError
+from sunlab.reproduce.pipeline import experiment_plans
 from sunlab.sim import surrogate
+
+#: "the 130 x 130 ROI is about 2.5 times the spot" (docs/paper.md sec. 1, sec. 3 step 4)
+ROI_OVER_SPOT = 2.5
+
+
+def surrogate_table4(bench, seed=0, *, step=1, shots=8, noise_px=0.004,
+                     methods=("polynomial", "linear interp.", "cubic interp.")):
+    """Table 4 of the surrogate bench: the library's calibrations (table4_methods) fitted on
+    I (order on II), applied to III, as `sunlab reproduce` does on rendered frames."""
+    from sunlab.calibration import table4_methods
+
+    cens = {n: surrogate.surrogate_centroids(bench, p, seed, noise_px=noise_px)
+            for n, p in experiment_plans(step=step, shots=shots).items()}
+    fits = table4_methods(neural=any(m.startswith("NN") for m in methods), seed=seed)
+    return stats.evaluate({m: fits[m](cens["I"], cens["II"]) for m in methods}, cens["III"])
+
+
+def score(table, paper=None, cells=(("alpha", "mu"), ("alpha", "M"), ("beta", "mu"),
+                                    ("beta", "M"))):
+    """RMS of log(ours / paper) over ``cells`` of the shared columns (default: Table 4's)."""
+    paper = stats.paper_table4() if paper is None else paper
+    cols = [c for c in table.columns if c in paper.columns]
+    if not cols:
+        raise ConfigurationError(
+            f"table: found columns {list(table.columns)}; expected at least one of the paper's "
+            f"{list(paper.columns)}. Fix: name the columns as stats.paper_table4 does.")
+    r = [math.log(float(table.loc[c, k]) / float(paper.loc[c, k])) for k in cols for c in cells]
+    return float(math.sqrt(np.mean(np.square(r))))
 
 
 @pytest.fixture(scope="module")
@@ -60,12 +92,12 @@ def test_scan_recovers_a_planted_pose_error(bench):
         return ideal.replace(platform__alpha_pose_error_deg=w)
 
     methods = ("polynomial", "linear interp.")
-    target = surrogate_tables.surrogate_table4(make(0.012), seed=5, step=2, shots=2,
+    target = surrogate_table4(make(0.012), seed=5, step=2, shots=2,
                                                methods=methods)
     scores = []
     for w in (0.004, 0.008, 0.012, 0.018, 0.024):
-        t = surrogate_tables.surrogate_table4(make(w), seed=5, step=2, shots=2, methods=methods)
-        scores.append(surrogate_tables.score(t, target, cells=(("alpha", "mu"), ("alpha", "M"))))
+        t = surrogate_table4(make(w), seed=5, step=2, shots=2, methods=methods)
+        scores.append(score(t, target, cells=(("alpha", "mu"), ("alpha", "M"))))
     assert int(np.argmin(scores)) == 2
     assert scores[2] < 0.05
 
@@ -77,13 +109,13 @@ def test_identified_bench_gives_the_papers_alpha_ordering(bench):
     # polynomial < linear interp. as in Table 4. A pattern correlated over 6 px without the
     # play is partly learned by the table at F = 5 mm (12.5 px per degree), and the order flips.
     methods = ("polynomial", "linear interp.")
-    t = surrogate_tables.surrogate_table4(bench, seed=0, step=1, shots=2, methods=methods)
+    t = surrogate_table4(bench, seed=0, step=1, shots=2, methods=methods)
     assert t.loc[("alpha", "mu"), "polynomial"] < 0.95 * t.loc[("alpha", "mu"),
                                                                "linear interp."]
     learnable = bench.replace(mask__play_x_mm=0.0, mask__play_y_mm=0.0,
                               detector__prnu_correlated=0.12, detector__prnu_correlation_px=6.0,
                               platform__alpha_pose_error_deg=0.002)
-    t6 = surrogate_tables.surrogate_table4(learnable, seed=0, step=1, shots=2, methods=methods)
+    t6 = surrogate_table4(learnable, seed=0, step=1, shots=2, methods=methods)
     assert t6.loc[("alpha", "mu"), "polynomial"] > t6.loc[("alpha", "mu"), "linear interp."]
 
 
@@ -94,17 +126,13 @@ def test_spot_size_and_what_the_roi_clue_would_need(bench):
     assert surrogate.spot_diameter_px(bench) == pytest.approx(expected, rel=1e-12)
     # "the 130 x 130 ROI is about 2.5 times the spot" would need a 52 px spot, F of 17-19 mm:
     # the clue the presets' F = 5 mm sets aside (sunlab.sim.mask.PAPER_DISTANCE_MM)
-    f_clue = (130 / surrogate_tables.PAPER_TARGETS["roi_over_spot"] * 0.007 - 0.2) / theta
+    f_clue = (130 / ROI_OVER_SPOT * 0.007 - 0.2) / theta
     assert 17.0 < f_clue < 19.0 and bench.mask_distance_mm == 5.0
 
 
 def test_score_names_the_problem():
-    import pandas as pd
-
-    from sunlab.errors import ConfigurationError
-
     with pytest.raises(ConfigurationError, match="columns"):
-        surrogate_tables.score(pd.DataFrame({"x": [1.0]}))
+        score(pd.DataFrame({"x": [1.0]}))
 
 
 def test_linear_interpolation_is_left_with_138_percent_of_an_aliased_gear_error(bench):
