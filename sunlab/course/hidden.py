@@ -10,7 +10,7 @@ A check cell of the teacher edition ends with nbgrader's hidden-test block::
 The student edition leaves the block out; nbgrader's ``autograde`` puts it back and runs it in
 the student's kernel. ``sunlab course --grade`` instead runs the check **in the grader's
 process** (:mod:`sunlab.course.grading`): the namespace is then a
-:class:`sunlab.course.kernel.RemoteNamespace`, the student's function is called in its kernel
+:class:`sunlab.course.kernel.NotebookRun`, the student's function is called in its kernel
 on the fresh inputs and only its outputs come back, as data. :func:`check` takes the student's
 function from the namespace and runs it on inputs drawn from a seed the grader picks (the
 environment variable :data:`SEED_VARIABLE`; ``sunlab course --grade --seed``): other angles,
@@ -30,10 +30,10 @@ import re
 import sys
 import tempfile
 from pathlib import Path
-from unittest import mock
 
 import numpy as np
 
+from . import wire
 from .capstone import write_recording
 
 __all__ = ["check"]
@@ -100,20 +100,21 @@ def call_of(block: str) -> str | None:
 
 def _call(ns, name, *args, forbidden=(), bind=None, **kwargs):
     """``ns[name](*args, **kwargs)`` with the notebook's names ``bind`` rebound for the call,
-    failing when it calls one of ``forbidden`` (library functions) or raises.
+    failing when it calls one of ``forbidden`` (library functions) or raises; its output
+    always comes back as data (:mod:`sunlab.course.wire`).
 
     ``ns`` is the notebook's globals (a dict: the call runs here, the forbidden calls are seen
     by a profiler), or, when the grader runs the check in its own process, a
-    :class:`sunlab.course.kernel.RemoteNamespace`: the call runs in the student's kernel, its
-    output comes back as data, and the forbidden calls are caught in a fresh process
-    (:mod:`sunlab.course.probe`)."""
+    :class:`sunlab.course.kernel.NotebookRun`: the call runs in the student's kernel, and the
+    first call with forbidden functions is kept in its ``calls`` for the check in a fresh
+    process (:mod:`sunlab.course.probe`)."""
     if not isinstance(ns, dict):
-        return ns.call(name, args, kwargs, bind or {}, forbidden)
-    if bind:
-        with mock.patch.dict(ns, bind):
-            return _call(ns, name, *args, forbidden=forbidden, **kwargs)
-    fn = ns.get(name)
-    assert fn is not None, f"`{name}` is not defined: the exercise asks you to define it"
+        out = ns.call(name, args, kwargs, bind)
+        if forbidden and not any(c["name"] == name for c in ns.calls):
+            ns.calls.append({"name": name, "args": tuple(args), "kwargs": dict(kwargs),
+                             "bind": dict(bind or {}), "output": out, "forbidden": [
+                                 f"{f.__module__}:{f.__qualname__}" for f in forbidden]})
+        return out
     codes = {code: f"{f.__module__}.{f.__qualname__}" for f in forbidden
              if (code := getattr(getattr(f, "__func__", f), "__code__", None))}
     hits: list[str] = []
@@ -125,17 +126,13 @@ def _call(ns, name, *args, forbidden=(), bind=None, **kwargs):
     old = sys.getprofile()
     sys.setprofile(profile if codes else old)
     try:
-        out = fn(*args, **kwargs)
-    except AssertionError:
-        raise
-    except Exception as err:  # an answer that only works on the notebook's own inputs
-        raise AssertionError(f"your `{name}` raised {type(err).__name__}: {err}") from None
+        text = wire.answer(ns, name, args, kwargs, bind)
     finally:
         sys.setprofile(old)
     assert not hits, (
         f"your `{name}` calls {hits[0]}, the library's version of what this exercise asks you "
         "to write: write it yourself (numpy is enough)")
-    return out
+    return wire.reply(text, name)
 
 
 def _close(mine, ref, tol, what):

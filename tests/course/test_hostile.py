@@ -223,7 +223,7 @@ def _run_one(_):
     with kernel.NotebookRun(nb, env=dict(os.environ), timeout=60, budget=120) as r:
         for i, c in enumerate(nb.cells):
             r.execute(c, i)
-        return r.remote("call", "twice", None, (21,)), nb.cells[-2].outputs[0]["text"]
+        return r.call("twice", (21,)), nb.cells[-2].outputs[0]["text"]
 
 
 def test_several_notebooks_at_once_finish_without_a_wait():
