@@ -42,8 +42,6 @@ from .editions import (
     _CHECK,
     _EXERCISE,
     _WRITTEN,
-    BEGIN_HIDDEN,
-    END_HIDDEN,
     WRITTEN_PROMPT,
     _read,
     default_notebook_dir,
@@ -144,11 +142,13 @@ def _result(answer_err, check_err):
     return "error", f"{check_err['ename']}: {_one_line(check_err['evalue'])}"
 
 
-def _rows_for_unreadable(head, message, exercises, written):
-    return [{**head, "exercise": e.number + (" (written)" if e in written else ""),
-             "points": None if e in written else 0, "max_points": e.points,
-             "result": "unreadable", "message": message, "flags": []}
-            for e in [*exercises, *written]]
+def result_rows(head, message, exercises=(), result="refused", written=()) -> list[dict]:
+    """Rows of one result and message: one per exercise and per written answer (its points
+    None), or one row ``-`` when there is none."""
+    return [{**head, "exercise": e.number + (" (written)" if e in written else "") if e else "-",
+             "points": None if e in written else 0, "max_points": e.points if e else 0,
+             "result": result, "message": message, "flags": []}
+            for e in [*exercises, *written] or [None]]
 
 
 #: limit per cell, s (``sunlab course --grade --timeout``)
@@ -204,7 +204,7 @@ def grade_notebook(path, *, notebooks=None, seed: int | None = None, quick: bool
     try:
         submitted = _read(path)
     except (ConfigurationError, OSError) as err:
-        return _rows_for_unreadable(head, _one_line(err), exercises, written)
+        return result_rows(head, _one_line(err), exercises, "unreadable", written)
     answers, checks, texts, twice = _submitted(submitted)
     graded, tampered, outside = _graded(source, source_path.name, exercises, answers, checks,
                                         quick, twice)
@@ -328,10 +328,6 @@ def _hidden_verdict(number, ns, seed_value):
     return None
 
 
-_HIDDEN_BLOCK = re.compile(rf"^[ \t]*{re.escape(BEGIN_HIDDEN)}[ \t]*\n(.*?)\n[ \t]*"
-                           rf"{re.escape(END_HIDDEN)}[ \t]*$", re.M | re.S)
-
-
 def _graded(source, name, exercises, answers, checks, quick, twice=()):
     """The teacher edition with the student's answers in it (none for an exercise handed in
     ``twice``), the exercises whose check cell was altered or deleted (number -> what
@@ -353,10 +349,8 @@ def _graded(source, name, exercises, answers, checks, quick, twice=()):
             tampered[ex.number] = "check cell deleted"
         elif _norm(check.source) != _norm(expected):
             tampered[ex.number] = "check cell altered"
-        cell = graded.cells[ex.check_cell + shift]
-        blocks = _HIDDEN_BLOCK.findall(cell.source)
-        if len(blocks) == 1 and hidden.call_of(blocks[0]) == ex.number:
-            cell.source = expected
+        if hidden.call_of(graded.cells[ex.check_cell + shift].source) == ex.number:
+            graded.cells[ex.check_cell + shift].source = expected
             outside.add(ex.number)
     return graded, tampered, outside
 

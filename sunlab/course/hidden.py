@@ -35,6 +35,7 @@ import numpy as np
 
 from . import wire
 from .capstone import write_recording
+from .editions import _HIDDEN_BLOCK
 
 __all__ = ["check"]
 
@@ -86,15 +87,17 @@ def check(number: str, namespace: dict, seed_value: int | None = None) -> None:
         print(f"Hidden check {number} passed (fresh inputs, seed {s}).")
 
 
-#: the hidden-test block that the grader runs in its own process (:func:`call_of`)
+#: the body of the standard hidden-test block, which the grader runs in its own process
 _STANDARD = re.compile(r"\s*from sunlab\.course import hidden\s*\n"
                        r"\s*hidden\.check\(\s*[\"'](\d\d\.\d+)[\"']\s*,\s*globals\(\)\s*\)\s*")
 
 
-def call_of(block: str) -> str | None:
-    """The exercise number of a standard hidden-test block (``hidden.check("NN.k",
-    globals())``), which the grader runs in its own process; None for any other block."""
-    m = _STANDARD.fullmatch(block)
+def call_of(source: str) -> str | None:
+    """The exercise number of a check cell whose one hidden-test block is the standard
+    ``hidden.check("NN.k", globals())``, which the grader runs in its own process; None for
+    any other cell."""
+    blocks = _HIDDEN_BLOCK.findall(source)
+    m = len(blocks) == 1 and _STANDARD.fullmatch(blocks[0])
     return m.group(1) if m and m.group(1) in CHECKS else None
 
 
