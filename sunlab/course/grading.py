@@ -58,14 +58,6 @@ COLUMNS = ("student", "notebook", "exercise", "points", "max_points", "message")
 GRADEBOOK_FILES = ("gradebook.csv", "gradebook.json")
 
 
-def _grade_id(cell) -> str:
-    return str(cell.get("metadata", {}).get("nbgrader", {}).get("grade_id", ""))
-
-
-def _first(cell) -> str:
-    return cell.source.split("\n", 1)[0]
-
-
 def _norm(source: str) -> str:
     return "\n".join(line.rstrip() for line in source.strip().splitlines())
 
@@ -83,27 +75,25 @@ def _source_for(path: Path, src: Path) -> Path:
 
 
 def _submitted(nb):
-    """The student's answer cells, check cells and written answers, by exercise number, and
-    the exercises whose answer cell is handed in more than once (number -> how many)."""
-    answers, checks, texts, seen = {}, {}, {}, {}
+    """The student's answer cells, check cells and written answers (``""``, ``"-check"``,
+    ``"-written"``) by exercise number, each found by its first line or its nbgrader grade id,
+    and the exercises whose answer cell is handed in more than once (number -> how many)."""
+    found: dict = {"": {}, "-check": {}, "-written": {}}
+    seen: dict = {}
     for cell in nb.cells:
-        gid = _grade_id(cell)
-        if cell.cell_type == "code":
-            m = _EXERCISE.match(_first(cell))
-            c = _CHECK.match(_first(cell))
-            g = re.fullmatch(r"ex(\d\d)-(\d+)(-check)?", gid)
-            if g and not g.group(3) or m:
-                number = m.group(1) if m else f"{g.group(1)}.{g.group(2)}"
-                answers.setdefault(number, cell)
-                seen[number] = seen.get(number, 0) + 1
-            if g and g.group(3) or c:
-                checks.setdefault(c.group(1) if c else f"{g.group(1)}.{g.group(2)}", cell)
-        elif cell.cell_type == "markdown":
-            w = _WRITTEN.match(_first(cell))
-            g = re.fullmatch(r"ex(\d\d)-(\d+)-written", gid)
-            if w or g:
-                texts.setdefault(w.group(1) if w else f"{g.group(1)}.{g.group(2)}", cell)
-    return answers, checks, texts, {k: n for k, n in seen.items() if n > 1}
+        first = cell.source.split("\n", 1)[0]
+        gid = str(cell.get("metadata", {}).get("nbgrader", {}).get("grade_id", ""))
+        for pattern, kind in _KINDS.get(cell.cell_type, ()):
+            m = pattern.match(first) or re.fullmatch(rf"ex(\d\d)-(\d+){kind}", gid)
+            if m:
+                number = m.group(1) if m.re is pattern else f"{m.group(1)}.{m.group(2)}"
+                found[kind].setdefault(number, cell)
+                seen[number] = seen.get(number, 0) + (kind == "")
+    return *found.values(), {k: n for k, n in seen.items() if n > 1}
+
+
+#: how a cell of a submission is found: its first line, or nbgrader's grade id ``exNN-k`` + kind
+_KINDS = {"code": ((_EXERCISE, ""), (_CHECK, "-check")), "markdown": ((_WRITTEN, "-written"),)}
 
 
 def _error_of(cell):
@@ -193,9 +183,10 @@ def grade_notebook(path, *, notebooks=None, seed: int | None = None, quick: bool
     path = Path(path)
     src = Path(notebooks) if notebooks is not None else default_notebook_dir()
     source_path = _source_for(path, src)
-    source = _read(source_path)
-    exercises = find_exercises(source, source_path.name)
-    written = find_written(source, source_path.name)
+    # the teacher edition, as it runs: its exercises' cell indices count the quick cell
+    teacher = edition(_read(source_path), source_path.name, student=False, quick=quick)
+    exercises = find_exercises(teacher, source_path.name)
+    written = find_written(teacher, source_path.name)
     if not exercises and not written:
         raise ConfigurationError(
             f"{path}: the course notebook {source_path.name} has no exercise to grade. Fix: "
@@ -206,18 +197,16 @@ def grade_notebook(path, *, notebooks=None, seed: int | None = None, quick: bool
     except (ConfigurationError, OSError) as err:
         return result_rows(head, _one_line(err), exercises, "unreadable", written)
     answers, checks, texts, twice = _submitted(submitted)
-    graded, tampered, outside = _graded(source, source_path.name, exercises, answers, checks,
-                                        quick, twice)
-    shift = 1 if quick else 0
+    graded, tampered, outside = _graded(teacher, exercises, answers, checks, twice)
     seed_value = hidden.DEFAULT_SEED if seed is None else int(seed)
     budget = BUDGET_CELLS * float(timeout) if budget is None else float(budget)
     env = {**os.environ, hidden.SEED_VARIABLE: str(seed_value)}
-    verdicts, calls, failure = _run(graded, exercises, outside, shift, env, timeout, budget,
+    verdicts, calls, failure = _run(graded, exercises, outside, env, timeout, budget,
                                     seed_value)
-    _recheck(graded, exercises, shift, calls, verdicts, timeout)
+    _recheck(graded, exercises, calls, verdicts, timeout)
     rows = []
     for ex in exercises:
-        result, message = _outcome(graded, ex, exercises, shift, failure, verdicts)
+        result, message = _outcome(graded, ex, exercises, failure, verdicts)
         points = ex.points if result == "pass" else 0
         if ex.number in twice:
             result, message, points = "handed in twice", (
@@ -239,7 +228,7 @@ def grade_notebook(path, *, notebooks=None, seed: int | None = None, quick: bool
     return rows
 
 
-def _run(graded, exercises, outside, shift, env, timeout, budget, seed_value):
+def _run(graded, exercises, outside, env, timeout, budget, seed_value):
     """Run the graded notebook cell by cell, each standard hidden check here right after its
     check cell; return the hidden checks' verdicts, their calls with forbidden functions, and
     the kernel's failure ``(kind, message, cell index, number of the hidden check or None)``
@@ -247,7 +236,7 @@ def _run(graded, exercises, outside, shift, env, timeout, budget, seed_value):
     from . import kernel
 
     verdicts, calls, where, hid = {}, {}, 0, None
-    by_check = {ex.check_cell + shift: ex for ex in exercises}
+    by_check = {ex.check_cell: ex for ex in exercises}
     try:
         with kernel.NotebookRun(graded, env=env, timeout=timeout, budget=budget) as run:
             for i, cell in enumerate(graded.cells):
@@ -265,20 +254,20 @@ def _run(graded, exercises, outside, shift, env, timeout, budget, seed_value):
     return verdicts, calls, None
 
 
-def _recheck(graded, exercises, shift, calls, verdicts, timeout) -> None:
+def _recheck(graded, exercises, calls, verdicts, timeout) -> None:
     """The forbidden-call check of each exercise in a fresh process (:mod:`.probe`); a failure
     becomes the exercise's verdict."""
     from . import probe
 
-    answer_cells = {e.solution_cell + shift for e in exercises}
-    check_cells = {e.check_cell + shift for e in exercises}
+    answer_cells = {e.solution_cell for e in exercises}
+    check_cells = {e.check_cell for e in exercises}
     for ex in exercises:
         if not calls.get(ex.number):
             continue
         setup = probe.setup_source([
             c.source for j, c in enumerate(graded.cells) if c.cell_type == "code"
-            and j < ex.solution_cell + shift and j not in answer_cells and j not in check_cells])
-        mine = [graded.cells[e.solution_cell + shift].source for e in exercises
+            and j < ex.solution_cell and j not in answer_cells and j not in check_cells])
+        mine = [graded.cells[e.solution_cell].source for e in exercises
                 if e.solution_cell <= ex.solution_cell]
         for call in calls[ex.number]:
             why = probe.recheck(call, setup, mine, timeout=timeout)
@@ -286,28 +275,28 @@ def _recheck(graded, exercises, shift, calls, verdicts, timeout) -> None:
                 verdicts[ex.number] = f"hidden check {ex.number}: {why}"
 
 
-def _outcome(graded, ex, exercises, shift, failure, verdicts):
+def _outcome(graded, ex, exercises, failure, verdicts):
     """(result, message) of one exercise: the kernel's failure before its verdict, its cells'
     errors, or its hidden check's verdict."""
-    check_at = ex.check_cell + shift
+    check_at = ex.check_cell
     if failure is not None and failure[2] <= check_at:  # a failure before its verdict
         return failure[0], (f"{failure[1]} while running "
-                            f"{_cell_name(*failure[2:], exercises, shift)}; exercise {ex.number} "
+                            f"{_cell_name(*failure[2:], exercises)}; exercise {ex.number} "
                             "was not checked: scored 0")
-    result, message = _result(_error_of(graded.cells[ex.solution_cell + shift]),
+    result, message = _result(_error_of(graded.cells[ex.solution_cell]),
                               _error_of(graded.cells[check_at]))
     if result == "pass" and verdicts.get(ex.number):
         return "wrong", verdicts[ex.number]
     return result, message
 
 
-def _cell_name(where, hid, exercises, shift) -> str:
+def _cell_name(where, hid, exercises) -> str:
     if hid is not None:
         return f"the hidden check of exercise {hid}"
     for ex in exercises:
-        if where == ex.solution_cell + shift:
+        if where == ex.solution_cell:
             return f"the answer of exercise {ex.number}"
-        if where == ex.check_cell + shift:
+        if where == ex.check_cell:
             return f"the check of exercise {ex.number}"
     return f"cell {where}"
 
@@ -328,29 +317,27 @@ def _hidden_verdict(number, ns, seed_value):
     return None
 
 
-def _graded(source, name, exercises, answers, checks, quick, twice=()):
+def _graded(teacher, exercises, answers, checks, twice=()):
     """The teacher edition with the student's answers in it (none for an exercise handed in
     ``twice``), the exercises whose check cell was altered or deleted (number -> what
     happened), and those whose standard hidden-test block was taken out of the check cell (the
     grader runs it in its own process)."""
-    teacher = edition(source, name, student=False, quick=quick)
-    shift = 1 if quick else 0
     graded = copy.deepcopy(teacher)
     tampered, outside = {}, set()
     for ex in exercises:
         mine = answers.get(ex.number) if ex.number not in twice else None
-        graded.cells[ex.solution_cell + shift].source = (
+        graded.cells[ex.solution_cell].source = (
             mine.source if mine is not None else
             f"raise NotImplementedError('the cell of exercise {ex.number} is missing from the "
             "submission')")
         check = checks.get(ex.number)
-        expected = strip_hidden(teacher.cells[ex.check_cell + shift].source)
+        expected = strip_hidden(teacher.cells[ex.check_cell].source)
         if check is None:
             tampered[ex.number] = "check cell deleted"
         elif _norm(check.source) != _norm(expected):
             tampered[ex.number] = "check cell altered"
-        if hidden.call_of(graded.cells[ex.check_cell + shift].source) == ex.number:
-            graded.cells[ex.check_cell + shift].source = expected
+        if hidden.call_of(graded.cells[ex.check_cell].source) == ex.number:
+            graded.cells[ex.check_cell].source = expected
             outside.add(ex.number)
     return graded, tampered, outside
 

@@ -147,6 +147,15 @@ def _close(mine, ref, tol, what):
     assert np.isfinite(mine).all() and worst <= tol, f"{what}: off by up to {worst:.3g}"
 
 
+def _entries(mine, ref, what):
+    """Each entry of ``ref`` (a mapping) in ``mine``, within 1e-9 of it (relative)."""
+    for key, value in ref.items():
+        got = mine.get(key) if hasattr(mine, "get") else None
+        assert got is not None and abs(float(got) - value) <= 1e-9 * abs(value), (
+            what.format(key) + ": "
+            + ("missing" if got is None else f"{float(got) / value:.6f} times the truth"))
+
+
 # --------------------------------------------------------------------------- notebook 01
 
 def _ex01_1_flux(ns, rng):
@@ -315,11 +324,7 @@ def _ex04_2_global(ns, rng):
     ref = stats.evaluate(est).iloc[:, 0]
     mine = _call(ns, "global_statistics", stats.shot_errors(est),
                  forbidden=(stats.evaluate, stats.error_summary))
-    for key, value in ref.items():
-        got = mine.get(key) if hasattr(mine, "get") else None
-        assert got is not None and abs(float(got) - value) <= 1e-9 * abs(value), (
-            f"{key} on errors you have not seen: "
-            + ("missing" if got is None else f"{float(got) / value:.6f} times the library's"))
+    _entries(mine, ref, "{} on errors you have not seen")
 
 
 # --------------------------------------------------------------------------- notebook 05
@@ -336,11 +341,7 @@ def _ex05_1_areas(ns, rng):
                          columns=methods)
     ref = stats.rectangles(table)["area"]
     mine = _call(ns, "rectangle_areas", table, forbidden=(stats.rectangles,))
-    for m in methods:
-        got = mine.get(m) if hasattr(mine, "get") else None
-        assert got is not None and abs(float(got) - ref[m]) <= 1e-9 * ref[m], (
-            f"the area of '{m}' in a table you have not seen: "
-            + ("missing" if got is None else f"{float(got) / ref[m]:.4f} times the truth"))
+    _entries(mine, ref, "the area of '{}' in a table you have not seen")
 
 
 # --------------------------------------------------------------------------- notebook 06
