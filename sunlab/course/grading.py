@@ -230,9 +230,9 @@ def grade_notebook(path, *, notebooks=None, seed: int | None = None, quick: bool
 
 def _run(graded, exercises, outside, env, timeout, budget, seed_value):
     """Run the graded notebook cell by cell, each standard hidden check here right after its
-    check cell; return the hidden checks' verdicts, their calls with forbidden functions, and
-    the kernel's failure ``(kind, message, cell index, number of the hidden check or None)``
-    or None."""
+    check cell when that passed; return the hidden checks' verdicts, their calls with
+    forbidden functions, and the kernel's failure ``(kind, message, cell index, number of the
+    hidden check or None)`` or None."""
     from . import kernel
 
     verdicts, calls, where, hid = {}, {}, 0, None
@@ -245,7 +245,8 @@ def _run(graded, exercises, outside, env, timeout, budget, seed_value):
                 where, hid = i, None
                 run.execute(cell, i)
                 ex = by_check.get(i)
-                if ex is not None and ex.number in outside:
+                # a check cell that failed has decided: its hidden check would not count
+                if ex is not None and ex.number in outside and _error_of(cell) is None:
                     hid = ex.number
                     run.calls = calls[ex.number] = []
                     verdicts[ex.number] = _hidden_verdict(ex.number, run, seed_value)
