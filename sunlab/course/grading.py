@@ -11,7 +11,7 @@ tampering; an exercise handed in twice scores 0.
 
 The notebook runs cell by cell in a fresh kernel in a scratch folder
 (:class:`sunlab.course.kernel.NotebookRun`: a limit per cell, a budget per notebook, its process
-group killed at the end). Right after each check cell, the exercise's hidden check
+group killed at the end). Right after each check cell that passes, the hidden check
 (:mod:`sunlab.course.hidden`) runs **in this process**: the student's function is called in the
 kernel on the fresh inputs and its outputs come back as data (:mod:`sunlab.course.wire`); the
 references and the comparisons never exist in the kernel. Forbidden library calls are caught in
