@@ -133,8 +133,26 @@ def _result(answer_err, check_err):
 
 
 def result_rows(head, message, exercises=(), result="refused", written=()) -> list[dict]:
-    """Rows of one result and message: one per exercise and per written answer (its points
-    None), or one row ``-`` when there is none."""
+    """Rows of one result and message, with 0 points.
+
+    Parameters
+    ----------
+    head : dict
+        ``student`` and ``notebook``.
+    message : str
+        Each row's message.
+    exercises : sequence of Exercise
+        One row each; none: one row ``-`` (0 of 0 points).
+    result : str
+        Each row's result (``refused``, ``unreadable``, ``grader error``).
+    written : sequence of Written
+        One row each too, its points None (graded by hand).
+
+    Returns
+    -------
+    list of dict
+        Gradebook rows.
+    """
     return [{**head, "exercise": e.number + (" (written)" if e in written else "") if e else "-",
              "points": None if e in written else 0, "max_points": e.points if e else 0,
              "result": result, "message": message, "flags": []}

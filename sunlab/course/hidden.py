@@ -93,9 +93,20 @@ _STANDARD = re.compile(r"\s*from sunlab\.course import hidden\s*\n"
 
 
 def call_of(source: str) -> str | None:
-    """The exercise number of a check cell whose one hidden-test block is the standard
-    ``hidden.check("NN.k", globals())``, which the grader runs in its own process; None for
-    any other cell."""
+    """The exercise whose standard hidden check a check cell holds: the grader runs it in its
+    own process.
+
+    Parameters
+    ----------
+    source : str
+        A check cell's source.
+
+    Returns
+    -------
+    str or None
+        ``"NN.k"`` when the cell's one hidden-test block is ``hidden.check("NN.k",
+        globals())`` for an exercise of :data:`CHECKS`; None for any other cell.
+    """
     blocks = _HIDDEN_BLOCK.findall(source)
     m = len(blocks) == 1 and _STANDARD.fullmatch(blocks[0])
     return m.group(1) if m and m.group(1) in CHECKS else None
