@@ -33,6 +33,7 @@ Examples
 from __future__ import annotations
 
 import base64
+import functools
 import html
 import io
 
@@ -155,19 +156,20 @@ class HoleExplorer:
         self._i, self._j = r.hole_i, r.hole_j
         self.included = np.ones(r.n_holes, dtype=bool)
         self.selected = 0
-        self._frame_cache: dict = {}
+        # the frame of the close-up, read once per pose and shot (a lazy cube reads from disk)
+        self._frame = functools.lru_cache(maxsize=1)(
+            lambda p, s: np.asarray(cube["frames"].isel(pose=p, shot=s).values))
         names = list(self.metrics.data_vars)
         if metric is None:
             metric = "scatter" if "scatter" in names else names[0]
         if metric not in names:
             raise ConfigurationError(f"metric: found {metric!r}, expected one of {names}")
         self._build_widgets(names, metric, pose, shot)
-        self._connect()
-        self.ui = self._layout()
         self._paint()
         self.select(self.selected)
 
     def _build_widgets(self, names, metric, pose, shot) -> None:
+        """The widgets, their callbacks and their layout (:attr:`ui`)."""
         w = require("ipywidgets", purpose="the hole explorer")
         nc = self.review.n_cols
         self.metric = w.Dropdown(options=names, value=metric, description="colour by")
@@ -204,31 +206,24 @@ class HoleExplorer:
                             (self.residual_out, "sunlab-residuals"),
                             (self.colorbar_out, "sunlab-colorbar"), (self.info, "sunlab-info")):
             widget.add_class(css)  # stable handles for browser tests and styling
-
-    def _connect(self) -> None:
-        n_h = self.review.n_holes
         self.metric.observe(lambda ch: self._paint(), names="value")
         self.include.observe(self._on_include, names="value")
         self.reject.on_click(lambda _: self.set_included(self.included & ~self.flagged))
-        self.include_all.on_click(lambda _: self.set_included(np.ones(n_h, bool)))
+        self.include_all.on_click(lambda _: self.set_included(np.ones(self.review.n_holes, bool)))
         self.pose.observe(lambda ch: self._show_stamp(), names="value")
         self.shot.observe(lambda ch: self._show_stamp(), names="value")
-
-    def _layout(self):
-        w = require("ipywidgets", purpose="the hole explorer")
-        nc = self.review.n_cols
         left = w.VBox([self.metric, self.grid, self.colorbar_out, self.legend,
                        w.HBox([self.reject, self.include_all])],
                       layout=w.Layout(width=f"{50 * nc + 20}px", flex="0 0 auto"))
         right = w.VBox([w.HBox([self.include, self.pose, self.shot]),
                         w.HBox([self.stamp_out, self.residual_out]), self.info],
                        layout=w.Layout(flex="1 1 auto"))
-        return w.VBox([w.HTML("<b>Holes of the mask</b>: click a hole; colour = defect "
-                              "metric; ⚑ = flagged by the automatic rejection; "
-                              "✕ = left out of the average"
-                              + ("; <u>underlined</u> = defect injected by the simulator"
-                                 if self.injected else "")),
-                       w.HBox([left, right]), self.stats_html])
+        self.ui = w.VBox([w.HTML("<b>Holes of the mask</b>: click a hole; colour = defect "
+                                 "metric; ⚑ = flagged by the automatic rejection; "
+                                 "✕ = left out of the average"
+                                 + ("; <u>underlined</u> = defect injected by the simulator"
+                                    if self.injected else "")),
+                          w.HBox([left, right]), self.stats_html])
 
     # ---------------------------------------------------------------------- display
     def _repr_mimebundle_(self, **kwargs):
@@ -374,13 +369,6 @@ class HoleExplorer:
         self.info.value = (f"<b>hole {h}</b> (row {self._i[h]}, column {self._j[h]}){flag}{inj}"
                            "<table><tr><th>metric</th><th>value</th><th>robust z</th></tr>"
                            f"{rows}</table>")
-
-    def _frame(self, p, s):
-        key = (p, s)
-        if key not in self._frame_cache:
-            self._frame_cache.clear()
-            self._frame_cache[key] = np.asarray(self.cube["frames"].isel(pose=p, shot=s).values)
-        return self._frame_cache[key]
 
     def _show_stamp(self) -> None:
         import matplotlib.pyplot as plt

@@ -20,17 +20,12 @@ from .grading import (
     _one_line,
     _source_for,
     grade_notebook,
+    result_rows,
     totals,
     write_gradebook,
 )
 
 __all__ = ["grade_batch"]
-
-
-def _rows(head, message, exercises=(), result="refused"):
-    return [{**head, "exercise": e.number if e else "-", "points": 0,
-             "max_points": e.points if e else 0, "result": result, "message": message,
-             "flags": []} for e in (exercises or [None])]
 
 
 def check_submissions(paths, *, notebooks=None) -> tuple[list, list[dict]]:
@@ -57,7 +52,7 @@ def check_submissions(paths, *, notebooks=None) -> tuple[list, list[dict]]:
         try:
             course_nb = _source_for(p, src)
         except ConfigurationError as err:
-            refused += _rows(head, f"refused: {_one_line(err)}")
+            refused += result_rows(head, f"refused: {_one_line(err)}")
             continue
         keys.setdefault((head["student"], course_nb.name), []).append((p, head, course_nb))
     for (student, name), items in keys.items():
@@ -67,8 +62,9 @@ def check_submissions(paths, *, notebooks=None) -> tuple[list, list[dict]]:
         exercises = find_exercises(_read(items[0][2]), name)
         where = ", ".join(str(p) for p, _, _ in items)
         for _p, head, _ in items:
-            refused += _rows(head, f"refused: {student} handed in {name} {len(items)} "
-                                f"times ({where}); none graded: hand in one", exercises)
+            refused += result_rows(head, f"refused: {student} handed in {name} "
+                                   f"{len(items)} times ({where}); none graded: hand in one",
+                                   exercises)
     return ok, refused  # in the order of ``paths``: each key first seen at its only path
 
 
@@ -154,9 +150,9 @@ def grade_batch(paths, *, notebooks=None, seed: int | None = None, quick: bool =
         except Exception as err:  # the grader's own failure: said, and the batch goes on
             status = GRADER_FAILED
             head = {"student": Path(path).resolve().parent.name, "notebook": Path(path).name}
-            mine = _rows(head, f"the grader failed on this notebook ({type(err).__name__}: "
-                         f"{_one_line(err)[:300]}): not graded; this is a fault of sunlab, not "
-                         "of the student", result="grader error")
+            mine = result_rows(head, f"the grader failed on this notebook ({type(err).__name__}"
+                               f": {_one_line(err)[:300]}): not graded; this is a fault of "
+                               "sunlab, not of the student", result="grader error")
         rows += mine
         report_rows(path, mine, report)
         save(k == len(todo) - 1)

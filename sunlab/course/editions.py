@@ -48,6 +48,9 @@ _CHECK = re.compile(r"^# Check (\d\d\.\d+)\b")
 _POINTS = re.compile(r"\((\d+) points?\)")
 _WRITTEN = re.compile(r"^\*\*Written answer (\d\d\.\d+)\*\*")
 _HINT = re.compile(r"^\s*# Hint: ?(.*)$")
+#: a hidden-test block, markers included (one left open runs to the end of the cell)
+_HIDDEN_BLOCK = re.compile(
+    rf"^[ \t]*{BEGIN_HIDDEN}[ \t]*\n(.*?)(?:^[ \t]*{END_HIDDEN}[ \t]*(?:\n|\Z)|\Z)", re.M | re.S)
 #: how many code cells after a solution cell its check cell may come
 CHECK_WITHIN = 2
 
@@ -310,15 +313,7 @@ def strip_hidden(source: str) -> str:
     >>> print(strip_hidden("assert x\\n### BEGIN HIDDEN TESTS\\ncheck()\\n### END HIDDEN TESTS\\n"))
     assert x
     """
-    lines, out, inside = source.splitlines(), [], False
-    for line in lines:
-        if line.strip() == BEGIN_HIDDEN:
-            inside = True
-        elif line.strip() == END_HIDDEN:
-            inside = False
-        elif not inside:
-            out.append(line)
-    return "\n".join(out).rstrip("\n")
+    return _HIDDEN_BLOCK.sub("", source).rstrip("\n")
 
 
 def edition(nb, name: str = "notebook", *, student: bool, quick: bool = True):

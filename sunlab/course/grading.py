@@ -11,7 +11,7 @@ tampering; an exercise handed in twice scores 0.
 
 The notebook runs cell by cell in a fresh kernel in a scratch folder
 (:class:`sunlab.course.kernel.NotebookRun`: a limit per cell, a budget per notebook, its process
-group killed at the end). Right after each check cell, the exercise's hidden check
+group killed at the end). Right after each check cell that passes, the hidden check
 (:mod:`sunlab.course.hidden`) runs **in this process**: the student's function is called in the
 kernel on the fresh inputs and its outputs come back as data (:mod:`sunlab.course.wire`); the
 references and the comparisons never exist in the kernel. Forbidden library calls are caught in
@@ -42,8 +42,6 @@ from .editions import (
     _CHECK,
     _EXERCISE,
     _WRITTEN,
-    BEGIN_HIDDEN,
-    END_HIDDEN,
     WRITTEN_PROMPT,
     _read,
     default_notebook_dir,
@@ -58,14 +56,6 @@ __all__ = ["grade", "write_gradebook"]
 #: the columns of gradebook.csv
 COLUMNS = ("student", "notebook", "exercise", "points", "max_points", "message")
 GRADEBOOK_FILES = ("gradebook.csv", "gradebook.json")
-
-
-def _grade_id(cell) -> str:
-    return str(cell.get("metadata", {}).get("nbgrader", {}).get("grade_id", ""))
-
-
-def _first(cell) -> str:
-    return cell.source.split("\n", 1)[0]
 
 
 def _norm(source: str) -> str:
@@ -85,27 +75,25 @@ def _source_for(path: Path, src: Path) -> Path:
 
 
 def _submitted(nb):
-    """The student's answer cells, check cells and written answers, by exercise number, and
-    the exercises whose answer cell is handed in more than once (number -> how many)."""
-    answers, checks, texts, seen = {}, {}, {}, {}
+    """The student's answer cells, check cells and written answers (``""``, ``"-check"``,
+    ``"-written"``) by exercise number, each found by its first line or its nbgrader grade id,
+    and the exercises whose answer cell is handed in more than once (number -> how many)."""
+    found: dict = {"": {}, "-check": {}, "-written": {}}
+    seen: dict = {}
     for cell in nb.cells:
-        gid = _grade_id(cell)
-        if cell.cell_type == "code":
-            m = _EXERCISE.match(_first(cell))
-            c = _CHECK.match(_first(cell))
-            g = re.fullmatch(r"ex(\d\d)-(\d+)(-check)?", gid)
-            if g and not g.group(3) or m:
-                number = m.group(1) if m else f"{g.group(1)}.{g.group(2)}"
-                answers.setdefault(number, cell)
-                seen[number] = seen.get(number, 0) + 1
-            if g and g.group(3) or c:
-                checks.setdefault(c.group(1) if c else f"{g.group(1)}.{g.group(2)}", cell)
-        elif cell.cell_type == "markdown":
-            w = _WRITTEN.match(_first(cell))
-            g = re.fullmatch(r"ex(\d\d)-(\d+)-written", gid)
-            if w or g:
-                texts.setdefault(w.group(1) if w else f"{g.group(1)}.{g.group(2)}", cell)
-    return answers, checks, texts, {k: n for k, n in seen.items() if n > 1}
+        first = cell.source.split("\n", 1)[0]
+        gid = str(cell.get("metadata", {}).get("nbgrader", {}).get("grade_id", ""))
+        for pattern, kind in _KINDS.get(cell.cell_type, ()):
+            m = pattern.match(first) or re.fullmatch(rf"ex(\d\d)-(\d+){kind}", gid)
+            if m:
+                number = m.group(1) if m.re is pattern else f"{m.group(1)}.{m.group(2)}"
+                found[kind].setdefault(number, cell)
+                seen[number] = seen.get(number, 0) + (kind == "")
+    return *found.values(), {k: n for k, n in seen.items() if n > 1}
+
+
+#: how a cell of a submission is found: its first line, or nbgrader's grade id ``exNN-k`` + kind
+_KINDS = {"code": ((_EXERCISE, ""), (_CHECK, "-check")), "markdown": ((_WRITTEN, "-written"),)}
 
 
 def _error_of(cell):
@@ -144,11 +132,31 @@ def _result(answer_err, check_err):
     return "error", f"{check_err['ename']}: {_one_line(check_err['evalue'])}"
 
 
-def _rows_for_unreadable(head, message, exercises, written):
-    return [{**head, "exercise": e.number + (" (written)" if e in written else ""),
-             "points": None if e in written else 0, "max_points": e.points,
-             "result": "unreadable", "message": message, "flags": []}
-            for e in [*exercises, *written]]
+def result_rows(head, message, exercises=(), result="refused", written=()) -> list[dict]:
+    """Rows of one result and message, with 0 points.
+
+    Parameters
+    ----------
+    head : dict
+        ``student`` and ``notebook``.
+    message : str
+        Each row's message.
+    exercises : sequence of Exercise
+        One row each; none: one row ``-`` (0 of 0 points).
+    result : str
+        Each row's result (``refused``, ``unreadable``, ``grader error``).
+    written : sequence of Written
+        One row each too, its points None (graded by hand).
+
+    Returns
+    -------
+    list of dict
+        Gradebook rows.
+    """
+    return [{**head, "exercise": e.number + (" (written)" if e in written else "") if e else "-",
+             "points": None if e in written else 0, "max_points": e.points if e else 0,
+             "result": result, "message": message, "flags": []}
+            for e in [*exercises, *written] or [None]]
 
 
 #: limit per cell, s (``sunlab course --grade --timeout``)
@@ -193,9 +201,10 @@ def grade_notebook(path, *, notebooks=None, seed: int | None = None, quick: bool
     path = Path(path)
     src = Path(notebooks) if notebooks is not None else default_notebook_dir()
     source_path = _source_for(path, src)
-    source = _read(source_path)
-    exercises = find_exercises(source, source_path.name)
-    written = find_written(source, source_path.name)
+    # the teacher edition, as it runs: its exercises' cell indices count the quick cell
+    teacher = edition(_read(source_path), source_path.name, student=False, quick=quick)
+    exercises = find_exercises(teacher, source_path.name)
+    written = find_written(teacher, source_path.name)
     if not exercises and not written:
         raise ConfigurationError(
             f"{path}: the course notebook {source_path.name} has no exercise to grade. Fix: "
@@ -204,20 +213,18 @@ def grade_notebook(path, *, notebooks=None, seed: int | None = None, quick: bool
     try:
         submitted = _read(path)
     except (ConfigurationError, OSError) as err:
-        return _rows_for_unreadable(head, _one_line(err), exercises, written)
+        return result_rows(head, _one_line(err), exercises, "unreadable", written)
     answers, checks, texts, twice = _submitted(submitted)
-    graded, tampered, outside = _graded(source, source_path.name, exercises, answers, checks,
-                                        quick, twice)
-    shift = 1 if quick else 0
+    graded, tampered, outside = _graded(teacher, exercises, answers, checks, twice)
     seed_value = hidden.DEFAULT_SEED if seed is None else int(seed)
     budget = BUDGET_CELLS * float(timeout) if budget is None else float(budget)
     env = {**os.environ, hidden.SEED_VARIABLE: str(seed_value)}
-    verdicts, calls, failure = _run(graded, exercises, outside, shift, env, timeout, budget,
+    verdicts, calls, failure = _run(graded, exercises, outside, env, timeout, budget,
                                     seed_value)
-    _recheck(graded, exercises, shift, calls, verdicts, timeout)
+    _recheck(graded, exercises, calls, verdicts, timeout)
     rows = []
     for ex in exercises:
-        result, message = _outcome(graded, ex, exercises, shift, failure, verdicts)
+        result, message = _outcome(graded, ex, exercises, failure, verdicts)
         points = ex.points if result == "pass" else 0
         if ex.number in twice:
             result, message, points = "handed in twice", (
@@ -239,15 +246,15 @@ def grade_notebook(path, *, notebooks=None, seed: int | None = None, quick: bool
     return rows
 
 
-def _run(graded, exercises, outside, shift, env, timeout, budget, seed_value):
+def _run(graded, exercises, outside, env, timeout, budget, seed_value):
     """Run the graded notebook cell by cell, each standard hidden check here right after its
-    check cell; return the hidden checks' verdicts, their calls with forbidden functions, and
-    the kernel's failure ``(kind, message, cell index, number of the hidden check or None)``
-    or None."""
+    check cell when that passed; return the hidden checks' verdicts, their calls with
+    forbidden functions, and the kernel's failure ``(kind, message, cell index, number of the
+    hidden check or None)`` or None."""
     from . import kernel
 
     verdicts, calls, where, hid = {}, {}, 0, None
-    by_check = {ex.check_cell + shift: ex for ex in exercises}
+    by_check = {ex.check_cell: ex for ex in exercises}
     try:
         with kernel.NotebookRun(graded, env=env, timeout=timeout, budget=budget) as run:
             for i, cell in enumerate(graded.cells):
@@ -256,30 +263,30 @@ def _run(graded, exercises, outside, shift, env, timeout, budget, seed_value):
                 where, hid = i, None
                 run.execute(cell, i)
                 ex = by_check.get(i)
-                if ex is not None and ex.number in outside:
+                # a check cell that failed has decided: its hidden check would not count
+                if ex is not None and ex.number in outside and _error_of(cell) is None:
                     hid = ex.number
-                    ns = kernel.RemoteNamespace(run)
-                    verdicts[ex.number] = _hidden_verdict(ex.number, ns, seed_value)
-                    calls[ex.number] = ns.calls
+                    run.calls = calls[ex.number] = []
+                    verdicts[ex.number] = _hidden_verdict(ex.number, run, seed_value)
     except kernel.KernelFailure as err:
         return verdicts, calls, (err.kind, err.message, where, hid)
     return verdicts, calls, None
 
 
-def _recheck(graded, exercises, shift, calls, verdicts, timeout) -> None:
+def _recheck(graded, exercises, calls, verdicts, timeout) -> None:
     """The forbidden-call check of each exercise in a fresh process (:mod:`.probe`); a failure
     becomes the exercise's verdict."""
     from . import probe
 
-    answer_cells = {e.solution_cell + shift for e in exercises}
-    check_cells = {e.check_cell + shift for e in exercises}
+    answer_cells = {e.solution_cell for e in exercises}
+    check_cells = {e.check_cell for e in exercises}
     for ex in exercises:
         if not calls.get(ex.number):
             continue
         setup = probe.setup_source([
             c.source for j, c in enumerate(graded.cells) if c.cell_type == "code"
-            and j < ex.solution_cell + shift and j not in answer_cells and j not in check_cells])
-        mine = [graded.cells[e.solution_cell + shift].source for e in exercises
+            and j < ex.solution_cell and j not in answer_cells and j not in check_cells])
+        mine = [graded.cells[e.solution_cell].source for e in exercises
                 if e.solution_cell <= ex.solution_cell]
         for call in calls[ex.number]:
             why = probe.recheck(call, setup, mine, timeout=timeout)
@@ -287,28 +294,28 @@ def _recheck(graded, exercises, shift, calls, verdicts, timeout) -> None:
                 verdicts[ex.number] = f"hidden check {ex.number}: {why}"
 
 
-def _outcome(graded, ex, exercises, shift, failure, verdicts):
+def _outcome(graded, ex, exercises, failure, verdicts):
     """(result, message) of one exercise: the kernel's failure before its verdict, its cells'
     errors, or its hidden check's verdict."""
-    check_at = ex.check_cell + shift
+    check_at = ex.check_cell
     if failure is not None and failure[2] <= check_at:  # a failure before its verdict
         return failure[0], (f"{failure[1]} while running "
-                            f"{_cell_name(*failure[2:], exercises, shift)}; exercise {ex.number} "
+                            f"{_cell_name(*failure[2:], exercises)}; exercise {ex.number} "
                             "was not checked: scored 0")
-    result, message = _result(_error_of(graded.cells[ex.solution_cell + shift]),
+    result, message = _result(_error_of(graded.cells[ex.solution_cell]),
                               _error_of(graded.cells[check_at]))
     if result == "pass" and verdicts.get(ex.number):
         return "wrong", verdicts[ex.number]
     return result, message
 
 
-def _cell_name(where, hid, exercises, shift) -> str:
+def _cell_name(where, hid, exercises) -> str:
     if hid is not None:
         return f"the hidden check of exercise {hid}"
     for ex in exercises:
-        if where == ex.solution_cell + shift:
+        if where == ex.solution_cell:
             return f"the answer of exercise {ex.number}"
-        if where == ex.check_cell + shift:
+        if where == ex.check_cell:
             return f"the check of exercise {ex.number}"
     return f"cell {where}"
 
@@ -329,35 +336,27 @@ def _hidden_verdict(number, ns, seed_value):
     return None
 
 
-_HIDDEN_BLOCK = re.compile(rf"^[ \t]*{re.escape(BEGIN_HIDDEN)}[ \t]*\n(.*?)\n[ \t]*"
-                           rf"{re.escape(END_HIDDEN)}[ \t]*$", re.M | re.S)
-
-
-def _graded(source, name, exercises, answers, checks, quick, twice=()):
+def _graded(teacher, exercises, answers, checks, twice=()):
     """The teacher edition with the student's answers in it (none for an exercise handed in
     ``twice``), the exercises whose check cell was altered or deleted (number -> what
     happened), and those whose standard hidden-test block was taken out of the check cell (the
     grader runs it in its own process)."""
-    teacher = edition(source, name, student=False, quick=quick)
-    shift = 1 if quick else 0
     graded = copy.deepcopy(teacher)
     tampered, outside = {}, set()
     for ex in exercises:
         mine = answers.get(ex.number) if ex.number not in twice else None
-        graded.cells[ex.solution_cell + shift].source = (
+        graded.cells[ex.solution_cell].source = (
             mine.source if mine is not None else
             f"raise NotImplementedError('the cell of exercise {ex.number} is missing from the "
             "submission')")
         check = checks.get(ex.number)
-        expected = strip_hidden(teacher.cells[ex.check_cell + shift].source)
+        expected = strip_hidden(teacher.cells[ex.check_cell].source)
         if check is None:
             tampered[ex.number] = "check cell deleted"
         elif _norm(check.source) != _norm(expected):
             tampered[ex.number] = "check cell altered"
-        cell = graded.cells[ex.check_cell + shift]
-        blocks = _HIDDEN_BLOCK.findall(cell.source)
-        if len(blocks) == 1 and hidden.call_of(blocks[0]) == ex.number:
-            cell.source = expected
+        if hidden.call_of(graded.cells[ex.check_cell].source) == ex.number:
+            graded.cells[ex.check_cell].source = expected
             outside.add(ex.number)
     return graded, tampered, outside
 

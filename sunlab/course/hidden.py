@@ -10,7 +10,7 @@ A check cell of the teacher edition ends with nbgrader's hidden-test block::
 The student edition leaves the block out; nbgrader's ``autograde`` puts it back and runs it in
 the student's kernel. ``sunlab course --grade`` instead runs the check **in the grader's
 process** (:mod:`sunlab.course.grading`): the namespace is then a
-:class:`sunlab.course.kernel.RemoteNamespace`, the student's function is called in its kernel
+:class:`sunlab.course.kernel.NotebookRun`, the student's function is called in its kernel
 on the fresh inputs and only its outputs come back, as data. :func:`check` takes the student's
 function from the namespace and runs it on inputs drawn from a seed the grader picks (the
 environment variable :data:`SEED_VARIABLE`; ``sunlab course --grade --seed``): other angles,
@@ -30,11 +30,12 @@ import re
 import sys
 import tempfile
 from pathlib import Path
-from unittest import mock
 
 import numpy as np
 
+from . import wire
 from .capstone import write_recording
+from .editions import _HIDDEN_BLOCK
 
 __all__ = ["check"]
 
@@ -86,34 +87,48 @@ def check(number: str, namespace: dict, seed_value: int | None = None) -> None:
         print(f"Hidden check {number} passed (fresh inputs, seed {s}).")
 
 
-#: the hidden-test block that the grader runs in its own process (:func:`call_of`)
+#: the body of the standard hidden-test block, which the grader runs in its own process
 _STANDARD = re.compile(r"\s*from sunlab\.course import hidden\s*\n"
                        r"\s*hidden\.check\(\s*[\"'](\d\d\.\d+)[\"']\s*,\s*globals\(\)\s*\)\s*")
 
 
-def call_of(block: str) -> str | None:
-    """The exercise number of a standard hidden-test block (``hidden.check("NN.k",
-    globals())``), which the grader runs in its own process; None for any other block."""
-    m = _STANDARD.fullmatch(block)
+def call_of(source: str) -> str | None:
+    """The exercise whose standard hidden check a check cell holds: the grader runs it in its
+    own process.
+
+    Parameters
+    ----------
+    source : str
+        A check cell's source.
+
+    Returns
+    -------
+    str or None
+        ``"NN.k"`` when the cell's one hidden-test block is ``hidden.check("NN.k",
+        globals())`` for an exercise of :data:`CHECKS`; None for any other cell.
+    """
+    blocks = _HIDDEN_BLOCK.findall(source)
+    m = len(blocks) == 1 and _STANDARD.fullmatch(blocks[0])
     return m.group(1) if m and m.group(1) in CHECKS else None
 
 
 def _call(ns, name, *args, forbidden=(), bind=None, **kwargs):
     """``ns[name](*args, **kwargs)`` with the notebook's names ``bind`` rebound for the call,
-    failing when it calls one of ``forbidden`` (library functions) or raises.
+    failing when it calls one of ``forbidden`` (library functions) or raises; its output
+    always comes back as data (:mod:`sunlab.course.wire`).
 
     ``ns`` is the notebook's globals (a dict: the call runs here, the forbidden calls are seen
     by a profiler), or, when the grader runs the check in its own process, a
-    :class:`sunlab.course.kernel.RemoteNamespace`: the call runs in the student's kernel, its
-    output comes back as data, and the forbidden calls are caught in a fresh process
-    (:mod:`sunlab.course.probe`)."""
+    :class:`sunlab.course.kernel.NotebookRun`: the call runs in the student's kernel, and the
+    first call with forbidden functions is kept in its ``calls`` for the check in a fresh
+    process (:mod:`sunlab.course.probe`)."""
     if not isinstance(ns, dict):
-        return ns.call(name, args, kwargs, bind or {}, forbidden)
-    if bind:
-        with mock.patch.dict(ns, bind):
-            return _call(ns, name, *args, forbidden=forbidden, **kwargs)
-    fn = ns.get(name)
-    assert fn is not None, f"`{name}` is not defined: the exercise asks you to define it"
+        out = ns.call(name, args, kwargs, bind)
+        if forbidden and not any(c["name"] == name for c in ns.calls):
+            ns.calls.append({"name": name, "args": tuple(args), "kwargs": dict(kwargs),
+                             "bind": dict(bind or {}), "output": out, "forbidden": [
+                                 f"{f.__module__}:{f.__qualname__}" for f in forbidden]})
+        return out
     codes = {code: f"{f.__module__}.{f.__qualname__}" for f in forbidden
              if (code := getattr(getattr(f, "__func__", f), "__code__", None))}
     hits: list[str] = []
@@ -125,17 +140,13 @@ def _call(ns, name, *args, forbidden=(), bind=None, **kwargs):
     old = sys.getprofile()
     sys.setprofile(profile if codes else old)
     try:
-        out = fn(*args, **kwargs)
-    except AssertionError:
-        raise
-    except Exception as err:  # an answer that only works on the notebook's own inputs
-        raise AssertionError(f"your `{name}` raised {type(err).__name__}: {err}") from None
+        text = wire.answer(ns, name, args, kwargs, bind)
     finally:
         sys.setprofile(old)
     assert not hits, (
         f"your `{name}` calls {hits[0]}, the library's version of what this exercise asks you "
         "to write: write it yourself (numpy is enough)")
-    return out
+    return wire.reply(text, name)
 
 
 def _close(mine, ref, tol, what):
@@ -145,6 +156,15 @@ def _close(mine, ref, tol, what):
         f"{what}: {mine.size} values for {ref.size} inputs")
     worst = float(np.nanmax(np.abs(mine.reshape(ref.shape) - ref)))
     assert np.isfinite(mine).all() and worst <= tol, f"{what}: off by up to {worst:.3g}"
+
+
+def _entries(mine, ref, what):
+    """Each entry of ``ref`` (a mapping) in ``mine``, within 1e-9 of it (relative)."""
+    for key, value in ref.items():
+        got = mine.get(key) if hasattr(mine, "get") else None
+        assert got is not None and abs(float(got) - value) <= 1e-9 * abs(value), (
+            what.format(key) + ": "
+            + ("missing" if got is None else f"{float(got) / value:.6f} times the truth"))
 
 
 # --------------------------------------------------------------------------- notebook 01
@@ -315,11 +335,7 @@ def _ex04_2_global(ns, rng):
     ref = stats.evaluate(est).iloc[:, 0]
     mine = _call(ns, "global_statistics", stats.shot_errors(est),
                  forbidden=(stats.evaluate, stats.error_summary))
-    for key, value in ref.items():
-        got = mine.get(key) if hasattr(mine, "get") else None
-        assert got is not None and abs(float(got) - value) <= 1e-9 * abs(value), (
-            f"{key} on errors you have not seen: "
-            + ("missing" if got is None else f"{float(got) / value:.6f} times the library's"))
+    _entries(mine, ref, "{} on errors you have not seen")
 
 
 # --------------------------------------------------------------------------- notebook 05
@@ -336,11 +352,7 @@ def _ex05_1_areas(ns, rng):
                          columns=methods)
     ref = stats.rectangles(table)["area"]
     mine = _call(ns, "rectangle_areas", table, forbidden=(stats.rectangles,))
-    for m in methods:
-        got = mine.get(m) if hasattr(mine, "get") else None
-        assert got is not None and abs(float(got) - ref[m]) <= 1e-9 * ref[m], (
-            f"the area of '{m}' in a table you have not seen: "
-            + ("missing" if got is None else f"{float(got) / ref[m]:.4f} times the truth"))
+    _entries(mine, ref, "the area of '{}' in a table you have not seen")
 
 
 # --------------------------------------------------------------------------- notebook 06

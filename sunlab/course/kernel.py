@@ -6,18 +6,20 @@ folder (a copy of nothing: the submission is read by the grader, never by the ke
 graded notebook's cells one at a time (:meth:`NotebookRun.execute`), and turns every way a
 kernel can fail into :class:`KernelFailure`: a cell past its limit (``timeout``) or past the
 notebook's budget, a kernel that died (``os._exit`` in an answer: nbclient's poll sees it within
-about a second), or an error of the client itself. :meth:`NotebookRun.remote` asks the kernel
+about a second), or an error of the client itself. :meth:`NotebookRun.call` asks the kernel
 to call one of the notebook's functions on the grader's inputs and returns its output as data
-(:mod:`sunlab.course.wire`); :class:`RemoteNamespace` is what the hidden checks
-(:mod:`sunlab.course.hidden`) see in place of the notebook's globals when the grader runs them
-in its own process. Leaving the ``with`` block shuts the kernel down and then kills its process
-group (``SIGKILL``), so that no process of the student's is left when the marks are written.
+(:mod:`sunlab.course.wire`): the hidden checks (:mod:`sunlab.course.hidden`) see the run in
+place of the notebook's globals when the grader runs them in its own process. Leaving the
+``with`` block shuts the kernel down and then kills its process group (``SIGKILL``), so that
+no process of the student's is left when the marks are written.
 """
 
 from __future__ import annotations
 
+import base64
 import contextlib
 import os
+import pickle
 import shutil
 import signal
 import subprocess
@@ -122,6 +124,9 @@ class NotebookRun:
     def __init__(self, nb, *, env: dict, timeout: float, budget: float):
         self.nb, self.env, self.timeout, self.budget = nb, env, float(timeout), float(budget)
         self.scratch: Path | None = None
+        #: the first call of each function with forbidden library functions, for the check in
+        #: a fresh process (:mod:`sunlab.course.probe`); the hidden checks append to it
+        self.calls: list[dict] = []
         self._pgid: int | None = None
 
     def __enter__(self):
@@ -183,28 +188,35 @@ class NotebookRun:
             raise KernelFailure("crash", f"the kernel stopped answering ({type(err).__name__}: "
                                 f"{' '.join(str(err).split())[:200]})") from None
 
-    def remote(self, what, target, name=None, args=(), kwargs=None, bind=None):
-        """Ask the kernel for ``target(*args, **kwargs)`` (``what="call"``) or a handle's
-        attribute (``"attr"``); return the output as data.
+    def call(self, name: str, args=(), kwargs=None, bind=None):
+        """Call the notebook's function ``name`` in the kernel, the names ``bind`` of the
+        notebook rebound for the call (:func:`sunlab.course.wire.answer`); return its output
+        as data. A hidden check (:mod:`sunlab.course.hidden`) calls this in place of the
+        notebook's globals, and keeps in :attr:`calls` the calls to check in a fresh process.
+
+        Parameters
+        ----------
+        name : str
+            The notebook's function.
+        args, kwargs, bind : tuple, dict, dict
+            Its arguments, and the notebook's names rebound for the call.
 
         Returns
         -------
         object
-            The decoded output, or :data:`~sunlab.course.wire.MISSING` when ``target`` is
-            not defined.
+            The decoded output (:func:`sunlab.course.wire.reply`).
 
         Raises
         ------
-        AnswerRaised
-            The student's function raised (its type and message).
+        AssertionError
+            The function is not defined, raised (its type and message) or gave no data.
         KernelFailure
             The kernel stopped answering.
         """
-        text = wire.request(what, target, name, args, kwargs, bind)
-        nbf = _jupyter("nbformat")
-        cell = nbf.v4.new_code_cell(
-            f"__import__('sunlab.course.wire', fromlist=['serve']).serve(globals(), "
-            f"{text!r})")
+        text = base64.b64encode(pickle.dumps((name, tuple(args), dict(kwargs or {}),
+                                              dict(bind or {})))).decode()
+        cell = _jupyter("nbformat").v4.new_code_cell(
+            f"__import__('sunlab.course.wire', fromlist=['serve']).serve(globals(), {text!r})")
         self.nb.cells.append(cell)  # nbclient stores the cell at its index: a slot of its own
         try:
             self.execute(cell, len(self.nb.cells) - 1)
@@ -215,32 +227,5 @@ class NotebookRun:
         if not texts:
             err = next((o for o in cell.outputs if o.get("output_type") == "error"), None)
             why = f"{err['ename']}: {err['evalue']}" if err else "no output"
-            raise wire.AnswerRaised("RuntimeError", f"the kernel gave no answer ({why})")
-        return wire.reply(texts[-1], self)
-
-
-class RemoteNamespace:
-    """The notebook's globals as the hidden checks see them in the grader's process: a call
-    runs in the kernel (:meth:`NotebookRun.remote`), its output comes back as data. The first
-    call of each function with ``forbidden`` library functions is kept in ``calls`` for the
-    check in a fresh process (:mod:`sunlab.course.probe`)."""
-
-    def __init__(self, run: NotebookRun):
-        self.run = run
-        self.calls: list[dict] = []
-
-    def call(self, name, args, kwargs, bind, forbidden):
-        try:
-            out = self.run.remote("call", name, None, args, kwargs, bind)
-        except wire.AnswerRaised as err:  # an answer that only works on the notebook's own inputs
-            raise AssertionError(f"your `{name}` raised {err.ename}: {err.message}") from None
-        if out is wire.MISSING:
-            raise AssertionError(f"`{name}` is not defined: the exercise asks you to define it")
-        if forbidden and not any(c["name"] == name for c in self.calls):
-            self.calls.append({"name": name, "args": tuple(args), "kwargs": dict(kwargs),
-                               "bind": dict(bind),
-                               "forbidden": [f"{getattr(f, '__module__', '')}:"
-                                             f"{getattr(f, '__qualname__', '')}"
-                                             for f in forbidden],
-                               "output": out})
-        return out
+            raise AssertionError(f"your `{name}` gave no answer ({why})")
+        return wire.reply(texts[-1], name)

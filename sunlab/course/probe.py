@@ -74,7 +74,7 @@ def recheck(call: dict, setup: str, answers: list[str], *, timeout: float) -> st
     Parameters
     ----------
     call : dict
-        An entry of ``calls`` of :class:`sunlab.course.kernel.RemoteNamespace`.
+        An entry of ``calls`` of :class:`sunlab.course.kernel.NotebookRun`.
     setup : str
         The notebook's imports and constants (:func:`setup_source`).
     answers : list of str

@@ -1,14 +1,15 @@
 """Data between a student's kernel and the grader: the grader sends inputs, the kernel sends back
 outputs as data, never as objects the grader would run.
 
-The grader (:mod:`sunlab.course.kernel`) asks the kernel to call one of the notebook's functions
-on the hidden check's fresh inputs (pickled by the grader: the kernel trusts the grader, never
-the other way). :func:`serve` runs in the kernel: it calls the function and displays its return
-value :func:`encode`-d as JSON (numbers, strings, lists, dicts, numpy arrays saved without
-pickle, pandas series as dicts, xarray objects as their ``to_dict``); anything else stays in the
-kernel as a *handle* the grader may call methods of, again as data. :func:`decode` rebuilds the
-value in the grader from that JSON alone: a student's kernel can make its answer say anything,
-but it cannot make the grader run code.
+The grader (:meth:`sunlab.course.kernel.NotebookRun.call`) asks the kernel to call one of the
+notebook's functions on the hidden check's fresh inputs (pickled by the grader: the kernel trusts
+the grader, never the other way). :func:`serve` runs in the kernel: it calls the function
+(:func:`answer`) and displays its return value :func:`encode`-d as JSON (numbers, strings, lists,
+dicts, numpy arrays saved without pickle, pandas series as dicts, xarray objects as their
+``to_dict``, a sunlab calibration as its ``calibration/1`` document); anything else is refused.
+:func:`reply` rebuilds the value in the grader from that JSON alone (a calibration through
+:func:`sunlab.calibration.artifact.from_dict`, which checks the document as it checks a file): a
+student's kernel can make its answer say anything, but it cannot make the grader run code.
 
 Examples
 --------
@@ -35,8 +36,6 @@ __all__: list[str] = []
 MIME = "text/x-sunlab-result"
 #: the largest answer the grader reads, bytes
 MAX_BYTES = 64 * 1024 * 1024
-#: objects the kernel keeps for the grader's later calls (handles)
-_HANDLES: dict = {}
 
 
 def _nd(a) -> dict:
@@ -63,12 +62,12 @@ def _enc(obj, depth):
     mod = type(obj).__module__.split(".")[0]
     if mod == "xarray":
         return {"__xr__": type(obj).__name__, "d": _enc(obj.to_dict(data="array"), depth + 1)}
+    if mod == "sunlab" and hasattr(obj, "to_dict"):  # a calibration: its calibration/1 document
+        return {"__calibration__": obj.to_dict()}
     if isinstance(obj, dict) or mod == "pandas" and hasattr(obj, "items") and hasattr(obj, "index"):
         return {"__dict__": [[_enc(k, depth + 1), _enc(v, depth + 1)] for k, v in obj.items()]}
-    key = len(_HANDLES)
-    _HANDLES[key] = obj
-    names = [n for n in dir(obj) if not n.startswith("_")]
-    return {"__handle__": key, "type": type(obj).__name__, "names": names}
+    raise TypeError(f"a {type(obj).__name__} is not data: the grader reads numbers, arrays, "
+                    "tables and sunlab calibrations")
 
 
 def encode(obj) -> str:
@@ -87,62 +86,40 @@ def encode(obj) -> str:
     return json.dumps(_enc(obj, 0))
 
 
-class Handle:
-    """An object that stayed in the kernel: its attributes are fetched, its methods called there
-    (:meth:`sunlab.course.kernel.NotebookRun.remote`), the results again as data."""
-
-    def __init__(self, run, key: int, type_name: str, names):
-        self._run, self._key, self._type, self._names = run, key, type_name, set(names)
-
-    def __getattr__(self, name):
-        if name.startswith("_") or name not in self._names:
-            raise AttributeError(name)
-        return self._run.remote("attr", self._key, name)
-
-    def __call__(self, *args, **kwargs):
-        return self._run.remote("call", self._key, None, args, kwargs)
-
-    def __repr__(self):
-        return f"<{self._type} in the student's kernel>"
-
-
-def _dec(obj, run):
+def _dec(obj):
     if isinstance(obj, list):
-        return [_dec(v, run) for v in obj]
+        return [_dec(v) for v in obj]
     if not isinstance(obj, dict):
         return obj
     if "__nd__" in obj:
         return np.load(io.BytesIO(base64.b64decode(obj["__nd__"])), allow_pickle=False)
     if "__tuple__" in obj:
-        return tuple(_dec(v, run) for v in obj["__tuple__"])
+        return tuple(_dec(v) for v in obj["__tuple__"])
     if "__dict__" in obj:
         out = {}
         for k, v in obj["__dict__"]:
-            k = _dec(k, run)
-            out[tuple(k) if isinstance(k, list) else k] = _dec(v, run)
+            k = _dec(k)
+            out[tuple(k) if isinstance(k, list) else k] = _dec(v)
         return out
     if "__xr__" in obj:
         import xarray as xr
 
-        d = _dec(obj["d"], run)
+        d = _dec(obj["d"])
         return (xr.DataArray if obj["__xr__"] == "DataArray" else xr.Dataset).from_dict(d)
-    if "__handle__" in obj:
-        if run is None:
-            raise ValueError("an object that is not data")
-        return Handle(run, int(obj["__handle__"]), str(obj.get("type", "object")),
-                      obj.get("names", []))
-    return {k: _dec(v, run) for k, v in obj.items()}
+    if "__calibration__" in obj:
+        from ..calibration.artifact import from_dict
+
+        return from_dict(obj["__calibration__"])
+    return {k: _dec(v) for k, v in obj.items()}
 
 
-def decode(text: str, run=None):
+def decode(text: str):
     """The value of :func:`encode`'s JSON, rebuilt from data only; run in the grader.
 
     Parameters
     ----------
     text : str
         JSON text from the kernel.
-    run : sunlab.course.kernel.NotebookRun, optional
-        The kernel that keeps the handles; without it a handle is refused.
 
     Returns
     -------
@@ -150,90 +127,81 @@ def decode(text: str, run=None):
     """
     if len(text) > MAX_BYTES:
         raise ValueError(f"an answer of {len(text)} bytes (at most {MAX_BYTES})")
-    return _dec(json.loads(text), run)
+    return _dec(json.loads(text))
 
 
-def request(what, target, name=None, args=(), kwargs=None, bind=None) -> str:
-    """The grader's request to the kernel (:func:`answer`), as text."""
-    return base64.b64encode(pickle.dumps(
-        (what, target, name, tuple(args), dict(kwargs or {}), dict(bind or {})))).decode()
-
-
-def answer(ns: dict, text: str) -> str:
-    """In the kernel: carry out the grader's request and return its result as JSON text.
+def answer(ns: dict, name: str, args=(), kwargs=None, bind=None) -> str:
+    """In the kernel: ``ns[name](*args, **kwargs)`` with the names ``bind`` of ``ns`` rebound
+    for the call (``ns`` is put back as it was after it), as JSON text for :func:`reply`.
 
     Parameters
     ----------
     ns : dict
         The notebook's globals.
-    text : str
-        :func:`request`'s text: ``what`` is ``"call"`` (``target`` a name of ``ns`` or a
-        handle) or ``"attr"`` (a handle's attribute); ``bind`` rebinds names of ``ns`` for the
-        call, and ``ns`` is put back as it was after it.
+    name : str
+        The function to call.
+    args, kwargs, bind : tuple, dict, dict
+        Its arguments, and the notebook's names rebound for the call.
 
     Returns
     -------
     str
         JSON of ``{"ok": value}``, ``{"missing": true}`` or ``{"raised": name, "message": ...}``.
     """
-    what, target, name, args, kwargs, bind = pickle.loads(base64.b64decode(text))
     try:
-        with mock.patch.dict(ns, bind):  # the notebook's globals as they were, after the call
-            obj = ns.get(target) if isinstance(target, str) else _HANDLES[target]
-            if what == "attr":
-                out = {"ok": getattr(obj, name)}
-            else:
-                out = {"missing": True} if obj is None else {"ok": obj(*args, **kwargs)}
-    except BaseException as err:  # the answer's own error, reported as data
+        with mock.patch.dict(ns, bind or {}):  # the notebook's globals as they were, after
+            fn = ns.get(name)
+            out = {"missing": True} if fn is None else {"ok": _enc(fn(*args, **(kwargs or {})),
+                                                                   0)}
+    except BaseException as err:  # the answer's own error (or output not data), as data
         out = {"raised": type(err).__name__, "message": str(err)[:500]}
-    try:
-        return json.dumps({k: (_enc(v, 0) if k == "ok" else v) for k, v in out.items()})
-    except Exception as err:
-        return json.dumps({"raised": "TypeError", "message": f"an answer that is not data: {err}"})
+    return json.dumps(out)
 
 
 def serve(ns: dict, text: str) -> None:
-    """In the kernel: :func:`answer`, displayed (the grader reads it from the cell's output).
+    """In the kernel: :func:`answer` to the grader's pickled ``(name, args, kwargs, bind)``,
+    displayed (the grader reads it from the cell's output).
 
     Parameters
     ----------
     ns : dict
         The notebook's namespace.
     text : str
-        The grader's request, as :func:`answer` reads it.
+        The grader's request, base64 of the pickled tuple.
     """
     from IPython.display import display
 
-    display({MIME: answer(ns, text)}, raw=True)
+    display({MIME: answer(ns, *pickle.loads(base64.b64decode(text)))}, raw=True)
 
 
-class Missing:
-    """What :func:`reply` returns for a name the notebook does not define."""
+def reply(text: str, name: str):
+    """In the grader: the value of :func:`answer`'s text about the function ``name``.
 
+    Parameters
+    ----------
+    text : str
+        :func:`answer`'s JSON text.
+    name : str
+        The function called, named in the messages.
 
-MISSING = Missing()
+    Returns
+    -------
+    object
+        The function's output, rebuilt from data.
 
-
-class AnswerRaised(Exception):
-    """The student's function raised ``ename`` in its kernel."""
-
-    def __init__(self, ename: str, message: str):
-        super().__init__(f"{ename}: {message}")
-        self.ename, self.message = ename, message
-
-
-def reply(text: str, run=None):
-    """In the grader: the value of :func:`answer`'s text (:data:`MISSING` for an undefined
-    name); raises :class:`AnswerRaised` when the student's function raised or the text is not
-    data."""
+    Raises
+    ------
+    AssertionError
+        The function is not defined, raised, or gave an output that is not data (the message
+        says which, for the student).
+    """
     try:
-        env = decode(text, run)  # the envelope's own keys are plain JSON
-        if env.get("missing"):
-            return MISSING
-        raised = ("raised" in env and (str(env["raised"]), str(env.get("message", ""))))
-        out = None if raised else env["ok"]
+        env = decode(text)  # the envelope's own keys are plain JSON
+        missing, raised, out = env.get("missing"), env.get("raised"), env.get("ok")
     except Exception as err:
-        raise AnswerRaised("ValueError", f"an output that is not data ({err})") from None
-    if raised:
-        raise AnswerRaised(*raised)
+        raise AssertionError(f"your `{name}` gave an output that is not data ({err})") from None
+    if missing:
+        raise AssertionError(f"`{name}` is not defined: the exercise asks you to define it")
+    if raised is not None:
+        raise AssertionError(f"your `{name}` raised {raised}: {env.get('message', '')}")
     return out

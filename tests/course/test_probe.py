@@ -15,21 +15,20 @@ import numpy as np
 import pytest
 
 from sunlab.course import editions, hidden, probe, wire
-from sunlab.course.kernel import RemoteNamespace
 
 sys.path.insert(0, str(Path(__file__).parents[1]))
 from test_course import BOOKS, EXERCISES, SHORTCUTS, _namespace, _solution  # noqa: E402
 
 
 class LocalRun:
-    """A notebook's namespace answering the grader's requests as a kernel does."""
+    """A notebook's namespace answering the grader's requests as a kernel does (the same JSON
+    text, without the kernel: kernel.NotebookRun.call's part here)."""
 
     def __init__(self, ns):
-        self.ns = ns
+        self.ns, self.calls = ns, []
 
-    def remote(self, what, target, name=None, args=(), kwargs=None, bind=None):
-        return wire.reply(wire.answer(self.ns, wire.request(what, target, name, args, kwargs,
-                                                            bind)), self)
+    def call(self, name, args=(), kwargs=None, bind=None):
+        return wire.reply(wire.answer(self.ns, name, args, kwargs, bind), name)
 
 
 def _setup(number):
@@ -54,7 +53,7 @@ def _notebook(source):
 
 
 def _graded_here(number, source):
-    ns = RemoteNamespace(LocalRun(_notebook(source)))
+    ns = LocalRun(_notebook(source))
     try:
         hidden.check(number, ns, 5)
         verdict = None
@@ -99,25 +98,26 @@ def test_an_answer_that_behaves_otherwise_outside_its_notebook_fails():
     ns = _namespace(source)
     import types
     ns["sys"] = types.SimpleNamespace(modules={"ipykernel": 1}, setprofile=lambda f: None)
-    ns_remote = RemoteNamespace(LocalRun(ns))
+    ns_remote = LocalRun(ns)
     hidden.check("01.1", ns_remote, 5)
     why = probe.recheck(ns_remote.calls[0], _setup("01.1"), [source], timeout=120)
     assert why is not None and "another answer" in why, why
 
 
-def test_data_comes_back_as_data_and_objects_as_handles():
-    class Cal:
-        domain = {"x": (0, 1)}
+def test_data_comes_back_as_data_and_a_calibration_as_its_document():
+    from sunlab import sim
+    from sunlab.calibration import Polynomial
 
-        def predict(self, v):
-            return np.asarray(v) * 2
-
-    run = LocalRun({"make": Cal})
-    cal = run.remote("call", "make")
-    assert isinstance(cal, wire.Handle) and hasattr(cal, "predict")
-    assert cal.domain == {"x": (0, 1)}
-    assert cal.predict([1.0, 2.0]).tolist() == [2.0, 4.0]
-    with pytest.raises(wire.AnswerRaised, match="ZeroDivisionError"):
-        LocalRun({"f": lambda: 1 / 0}).remote("call", "f")
-    assert LocalRun({}).remote("call", "nothing") is wire.MISSING
+    cen = sim.synthetic_centroids([0.0, 1, 2, 0, 1, 2], [0.0, 0, 0, 1, 1, 1])
+    fitted = Polynomial(order=1).fit(cen)
+    run = LocalRun({"make": lambda: fitted, "obj": lambda: {1, 2}})
+    cal = run.call("make")
+    assert cal is not fitted and isinstance(cal, Polynomial)  # rebuilt here from its document
+    np.testing.assert_array_equal(cal.predict(cen)["alpha"], fitted.predict(cen)["alpha"])
+    with pytest.raises(AssertionError, match="raised TypeError: a set is not data"):
+        run.call("obj")  # any other object stays in the kernel, refused
+    with pytest.raises(AssertionError, match="raised ZeroDivisionError"):
+        LocalRun({"f": lambda: 1 / 0}).call("f")
+    with pytest.raises(AssertionError, match="`nothing` is not defined"):
+        LocalRun({}).call("nothing")
     assert editions.strip_hidden("a\n### BEGIN HIDDEN TESTS\nb\n### END HIDDEN TESTS") == "a"
