@@ -1,4 +1,6 @@
-"""The torch half of :class:`sunlab.calibration.FrameNet`: the network, its training, its use.
+"""The torch half of :class:`sunlab.calibration.FrameNet`: the network, its training, its use;
+and what both torch paths (:class:`~sunlab.calibration.NeuralNet` too) share: the torch
+session (:func:`session`) and the early stopping (:class:`EarlyStop`).
 
 Private to :mod:`sunlab.calibration`; torch is imported inside the functions, so importing
 this module costs nothing. The numbers that describe a fitted network (convolution weights,
@@ -11,6 +13,7 @@ Shapes: ``E`` spots (elements) in ``F`` frames (sets); a window is ``W x W`` px,
 
 from __future__ import annotations
 
+import contextlib
 import math
 import time
 
@@ -29,6 +32,42 @@ ATTENTION_HIDDEN = 16
 
 def _torch():
     return require("torch", purpose="the calibration learned from frames (FrameNet)")
+
+
+@contextlib.contextmanager
+def session(threads: int, purpose: str, *, deterministic: bool = False, device: str = "cpu"):
+    """torch (imported now: its absence is an ImportError naming the extra and ``purpose``)
+    with ``threads`` threads, and deterministic algorithms if asked; both restored after.
+    ``device="cuda"`` without a GPU torch can see is refused first."""
+    torch = require("torch", purpose=purpose)
+    if device == "cuda" and not torch.cuda.is_available():
+        raise ConfigurationError("device: found 'cuda', but torch sees no GPU here. Fix: "
+                                 "device='cpu'")
+    before = torch.get_num_threads(), torch.are_deterministic_algorithms_enabled()
+    torch.set_num_threads(threads)
+    torch.use_deterministic_algorithms(deterministic or before[1])
+    try:
+        yield torch
+    finally:
+        torch.set_num_threads(before[0])
+        torch.use_deterministic_algorithms(before[1])
+
+
+class EarlyStop:
+    """Early stopping on a validation score: :meth:`step` after every step (an epoch, an
+    iteration) keeps the state of the best score so far, and says when ``patience`` steps have
+    passed without a better one. ``steps`` counts the steps, ``best`` is the best one's."""
+
+    def __init__(self, patience, score: float = math.inf, state=None):
+        self.patience, self.score, self.state, self.steps, self.best = patience, score, state, 0, 0
+
+    def step(self, score: float, state) -> bool:
+        """Record one step's ``score``; ``state()`` is called (and kept) only when it is the
+        best. Returns True when training should stop."""
+        self.steps += 1
+        if score < self.score:
+            self.score, self.best, self.state = score, self.steps, state()
+        return self.steps - self.best >= self.patience
 
 
 def build(channels: int, n_features: int, seed: int):
@@ -205,11 +244,11 @@ def train(net, data: dict, val: dict | None, st: dict, opts: dict) -> dict:
     t0, c0 = time.perf_counter(), time.process_time()
     phi, _ = forward_all(net, data, st, device)
     st["coef"] = solve_head(phi, data["target"])
-    best = {"score": _score(net, val or data, st, device), "epoch": 0,
-            "state": _snapshot(net), "coef": st["coef"].copy()}
-    hist = {"train_loss": [], "val_loss": [best["score"]]}
+    stop = EarlyStop(opts["patience"], _score(net, val or data, st, device),
+                     (_snapshot(net), st["coef"].copy()))
+    hist = {"train_loss": [], "val_loss": [stop.score]}
     target = torch.as_tensor(data["target"], dtype=torch.float64, device=device)
-    for epoch in range(1, opts["epochs"] + 1):
+    for _ in range(opts["epochs"]):
         order = rng.permutation(data["n_frames"])
         coef_t = torch.as_tensor(st["coef"], dtype=torch.float64, device=device)
         phis, seen, total = [], [], 0.0
@@ -231,16 +270,13 @@ def train(net, data: dict, val: dict | None, st: dict, opts: dict) -> dict:
         score = _score(net, val or data, st, device)
         hist["train_loss"].append(total / order.size)
         hist["val_loss"].append(score)
-        if score < best["score"]:
-            best = {"score": score, "epoch": epoch, "state": _snapshot(net),
-                    "coef": st["coef"].copy()}
-        elif epoch - best["epoch"] >= opts["patience"]:
+        if stop.step(score, lambda: (_snapshot(net), st["coef"].copy())):
             break
-    net.load_state_dict(best["state"])
-    st["coef"] = best["coef"]
+    net.load_state_dict(stop.state[0])
+    st["coef"] = stop.state[1]
     phi, _ = forward_all(net, data, st, device)  # the head for the kept weights
     st["coef"] = solve_head(phi, data["target"])
-    return {"epochs": len(hist["train_loss"]), "best_epoch": best["epoch"],
+    return {"epochs": len(hist["train_loss"]), "best_epoch": stop.best,
             "train_loss": hist["train_loss"], "val_loss": hist["val_loss"],
             "loss_unit_deg": LOSS_SCALE_DEG, "seconds": time.perf_counter() - t0,
             "cpu_seconds": time.process_time() - c0}
@@ -270,13 +306,3 @@ def from_arrays(arrays: dict, channels: int, device: str = "cpu"):
     net.load_state_dict({k: torch.as_tensor(np.asarray(arrays[k]), dtype=torch.float32)
                          for k in net.state_dict()})
     return net.to(torch.device(device))
-
-
-def check_device(device: str) -> str:
-    """``device`` if torch can use it: ``"cpu"``, or ``"cuda"`` where a GPU exists."""
-    torch = _torch()
-    if device == "cpu" or (device == "cuda" and torch.cuda.is_available()):
-        return device
-    raise ConfigurationError(
-        f"device: found {device!r}, expected 'cpu' or 'cuda' (a GPU torch can see: "
-        f"{'yes' if torch.cuda.is_available() else 'none here'}). Fix: device='cpu'")

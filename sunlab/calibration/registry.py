@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import functools
 import importlib
-import inspect
 from collections.abc import Callable
 from functools import partial
 from typing import TYPE_CHECKING
@@ -233,9 +232,9 @@ def fit(table: xr.Dataset, method: str, validation: xr.Dataset | None = None, *,
         class's, :data:`OUTLIER_MADS` for the single-hole methods; 0 or None keeps every shot.
     **options
         Keywords of the method's class, e.g. ``order=3``. ``order="auto"`` (with
-        ``validation``): the order the validation table prefers (:meth:`Polynomial.select_order`;
-        for another method the order of ``orders`` (default 1 to 8) whose mean local error on
-        the validation table, alpha and beta, is smallest); its scores are ``order_scores``.
+        ``validation``, a polynomial or trigonometric method): the order the validation table
+        prefers (:meth:`Polynomial.select_order`, whose keywords ``orders``, ``per_angle``,
+        ``refit`` apply); its scores are ``order_scores``.
 
     Returns
     -------
@@ -285,47 +284,23 @@ def _screened(fit, cls, train, validation, outlier_mads):
 
 
 def _auto_order(cls, kind: str, table, validation, outlier_mads, options: dict):
-    """``order="auto"``: the order the validation table prefers (scores in ``order_scores``),
-    on the tables screened once."""
-    if "order" not in inspect.signature(cls.__init__).parameters:
-        raise ConfigurationError(f"order: 'auto' applies to the methods that take an order "
-                                 f"(e.g. 'polynomial', 'trigonometric'), not {kind!r}. Fix: "
-                                 "drop order")
+    """``order="auto"``: the order the validation table prefers (the class's ``select_order``,
+    its scores in ``order_scores``), on the tables screened once."""
+    from .base import _screen
+
+    if not hasattr(cls, "select_order"):
+        raise ConfigurationError(f"order: 'auto' applies to the methods that choose their order "
+                                 f"(select_order: 'polynomial', 'trigonometric'), not {kind!r}. "
+                                 "Fix: drop order, or give an integer")
     if validation is None:
         raise ConfigurationError("order: found 'auto' without a validation table. Fix: pass "
                                  "validation= (experiment II), or an integer order")
-    rest = {k: v for k, v in options.items() if k != "order"}
-    select = getattr(cls, "select_order", None) or partial(_select_on_validation, cls)
-
-    def fit_best(train, val):
-        cal, cal.order_scores = select(train, val, **rest)
-        return cal
-
-    return _screened(fit_best, cls, table, validation, outlier_mads)
-
-
-def _select_on_validation(cls, train, validation, orders=range(1, 9), **options):
-    """Fit at each order the training table supports; keep the one with the smallest mean
-    local error (alpha and beta, deg) on the validation table, as the paper picks orders.
-    Returns the calibration and the error of every order tried (a DataFrame on ``order``)."""
-    import pandas as pd
-
-    from ..stats import evaluate
-
-    best, best_err, rows = None, float("inf"), {}
-    for order in orders:
-        try:
-            cal = cls(order=int(order), **options).fit(train, validation, outlier_mads=None)
-        except ConfigurationError:  # more coefficients than training points
-            break
-        rows[int(order)] = float(evaluate(cal, validation).xs("mu", level="stat").mean().iloc[0])
-        if rows[int(order)] < best_err:
-            best, best_err = cal, rows[int(order)]
-    if best is None:
-        raise ConfigurationError(f"train: {train.sizes['pose']} poses support no order of "
-                                 f"{cls.kind!r} in {list(orders)}. Fix: calibrate on more "
-                                 "poses, or give lower orders")
-    return best, pd.DataFrame({"mean_local_error": rows}).rename_axis("order")
+    table, validation, screened = _screen(table, validation, outlier_mads,
+                                          cls.default_outlier_mads)
+    cal, cal.order_scores = cls.select_order(
+        table, validation, **{k: v for k, v in options.items() if k != "order"})
+    cal.training.update(screened)
+    return cal
 
 
 def table4_methods(*, neural: bool = True, hidden: int = 8, seed: int = 0,

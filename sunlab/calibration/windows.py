@@ -21,7 +21,7 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 import xarray as xr
 
-from ._checks import _ok_mask
+from .base import _ok_mask
 
 __all__: list[str] = []
 
