@@ -288,18 +288,11 @@ def rectangles(table: pd.DataFrame) -> pd.DataFrame:
     >>> r.loc["polynomial", "alpha_high"].round(4), r["area"].idxmin()
     (np.float64(0.0261), 'NN strategy 4')
     """
-    rows = {}
-    for method in table.columns:
-        col = table[method]
-        row = {}
-        for a in ANGLES:
-            m, s = col[(a, "M")], col[(a, "sigma_M")]
-            row[f"{a}_low"], row[f"{a}_high"] = m - 3 * s, m + 3 * s
-        row["area"] = ((row["alpha_high"] - row["alpha_low"])
-                       * (row["beta_high"] - row["beta_low"]))
-        rows[method] = row
-    out = pd.DataFrame.from_dict(rows, orient="index")
-    out.index.name = "method"
+    M, s = table.xs("M", level="stat"), table.xs("sigma_M", level="stat")  # angle x method
+    out = pd.DataFrame({f"{a}_{side}": M.loc[a] + k * 3 * s.loc[a] for a in ANGLES
+                        for side, k in (("low", -1), ("high", 1))}).rename_axis("method")
+    out["area"] = ((out["alpha_high"] - out["alpha_low"])
+                   * (out["beta_high"] - out["beta_low"]))
     return out
 
 
@@ -438,8 +431,6 @@ def side_by_side(ours: pd.DataFrame, paper: pd.DataFrame,
             f"columns: ours {list(ours.columns)} and the paper's {list(paper.columns)} share no "
             "method. Fix: rename our columns to the paper's labels"
         )
-    parts = {(c, names[0]): ours[c] for c in common}
-    out = pd.DataFrame({k: v for c in common for k, v in
-                        (((c, names[0]), parts[(c, names[0])]), ((c, names[1]), paper[c]))})
-    out.columns = pd.MultiIndex.from_tuples(out.columns, names=["method", "source"])
-    return out
+    out = pd.concat({(c, n): t[c] for c in common for n, t in zip(names, (ours, paper),
+                                                                   strict=True)}, axis=1)
+    return out.rename_axis(columns=["method", "source"])
