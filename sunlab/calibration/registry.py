@@ -263,26 +263,6 @@ def fit(table: xr.Dataset, method: str, validation: xr.Dataset | None = None, *,
     return cal.fit(table, validation, outlier_mads=outlier_mads)
 
 
-def _screened(fit, cls, train, validation, outlier_mads):
-    """``fit(train, validation)`` on both tables screened for outliers
-    (:func:`sunlab.screening.screen_outliers`, ``outlier_mads`` MADs; ``"default"``: the
-    class's), the excluded shots recorded in the fitted calibration's ``training``."""
-    from ..screening import screen_outliers
-
-    if outlier_mads == "default":
-        outlier_mads = cls.default_outlier_mads
-    excluded = {}
-    if outlier_mads:
-        train, excluded["excluded"] = screen_outliers(train, outlier_mads)
-        if validation is not None:
-            validation, excluded["validation_excluded"] = screen_outliers(validation,
-                                                                          outlier_mads)
-    cal = fit(train, validation)
-    if outlier_mads:
-        cal.training.update(outlier_mads=float(outlier_mads), **excluded)
-    return cal
-
-
 def _auto_order(cls, kind: str, table, validation, outlier_mads, options: dict):
     """``order="auto"``: the order the validation table prefers (the class's ``select_order``,
     its scores in ``order_scores``), on the tables screened once."""
