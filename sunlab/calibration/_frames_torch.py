@@ -70,7 +70,7 @@ class EarlyStop:
         return self.steps - self.best >= self.patience
 
 
-def build(channels: int, n_features: int, seed: int):
+def build(channels: int, seed: int):
     """The network: a small CNN whose last layer weights the window's pixels (a learned
     centre of light) and an attention MLP that scores each spot of a set. Weights drawn from a
     ``torch.Generator`` seeded with ``seed``; the pixel-weight layer and the attention's output
@@ -83,7 +83,7 @@ def build(channels: int, n_features: int, seed: int):
         "conv1": nn.Conv2d(1, channels, 5, padding=2),
         "conv2": nn.Conv2d(channels, channels, 3, padding=1),
         "conv3": nn.Conv2d(channels, 1, 1),
-        "att1": nn.Linear(n_features, ATTENTION_HIDDEN),
+        "att1": nn.Linear(n_features(channels), ATTENTION_HIDDEN),
         "att2": nn.Linear(ATTENTION_HIDDEN, 1),
     })
     with torch.no_grad():
@@ -185,7 +185,7 @@ def _batch(data: dict, frames: np.ndarray, offsets, device, elements=None) -> di
     as tensors on ``device``."""
     torch = _torch()
     sel, remap = _elements(data, frames) if elements is None else elements
-    n, pad = data["window"], data["pad"]
+    n = data["window"]
     ox, oy = offsets[:, 0], offsets[:, 1]
     rows = oy[:, None] + np.arange(n)[None, :]
     cols = ox[:, None] + np.arange(n)[None, :]
@@ -196,13 +196,7 @@ def _batch(data: dict, frames: np.ndarray, offsets, device, elements=None) -> di
             "hole": torch.as_tensor(data["hole"][sel], dtype=torch.float64, device=device),
             "hole_uv": torch.as_tensor(data["hole_uv"][sel], dtype=torch.float32,
                                        device=device),
-            "frame": torch.as_tensor(remap, device=device), "n_frames": int(frames.size),
-            "n_elements": int(sel.size), "pad": pad}
-
-
-def _centred(data: dict, frames: np.ndarray, device) -> dict:
-    n_el = int(np.diff(data["start"])[frames].sum())
-    return _batch(data, frames, np.full((n_el, 2), data["pad"], dtype=int), device)
+            "frame": torch.as_tensor(remap, device=device), "n_frames": int(frames.size)}
 
 
 def forward_all(net, data: dict, st: dict, device, chunk: int = 256) -> tuple:
@@ -212,21 +206,18 @@ def forward_all(net, data: dict, st: dict, device, chunk: int = 256) -> tuple:
     with torch.no_grad():
         for lo in range(0, data["n_frames"], chunk):
             frames = np.arange(lo, min(lo + chunk, data["n_frames"]))
-            phi, pos = pooled(net, _centred(data, frames, device), st)
+            centred = np.full((int(np.diff(data["start"])[frames].sum()), 2), data["pad"])
+            phi, pos = pooled(net, _batch(data, frames, centred, device), st)
             phis.append(phi.cpu().numpy())
             poss.append(pos.cpu().numpy())
     return np.concatenate(phis), np.concatenate(poss)
 
 
-def solve_head(phi: np.ndarray, target: np.ndarray) -> np.ndarray:
-    """Least-squares coefficients (T, 2) of the head on pooled regressors, float64."""
-    coef, *_ = np.linalg.lstsq(phi, target, rcond=None)
-    return coef
-
-
-def _loss(phi, coef, target):
-    err = (phi @ coef - target) / LOSS_SCALE_DEG
-    return (err**2).sum(dim=1).mean()
+def _solve_head(net, data: dict, st: dict, device) -> None:
+    """``st["coef"]``: the head's least-squares coefficients (T, 2), float64, on the pooled
+    regressors of every frame of ``data`` (centred windows)."""
+    phi, _ = forward_all(net, data, st, device)
+    st["coef"] = np.linalg.lstsq(phi, data["target"], rcond=None)[0]
 
 
 def train(net, data: dict, val: dict | None, st: dict, opts: dict) -> dict:
@@ -242,8 +233,7 @@ def train(net, data: dict, val: dict | None, st: dict, opts: dict) -> dict:
               if st["multi"] or not name.startswith("att")]
     optim = torch.optim.Adam(params, lr=opts["lr"])
     t0, c0 = time.perf_counter(), time.process_time()
-    phi, _ = forward_all(net, data, st, device)
-    st["coef"] = solve_head(phi, data["target"])
+    _solve_head(net, data, st, device)
     stop = EarlyStop(opts["patience"], _score(net, val or data, st, device),
                      (_snapshot(net), st["coef"].copy()))
     hist = {"train_loss": [], "val_loss": [stop.score]}
@@ -258,7 +248,7 @@ def train(net, data: dict, val: dict | None, st: dict, opts: dict) -> dict:
             b = _batch(data, frames, rng.integers(0, 2 * data["pad"] + 1, (els[0].size, 2)),
                        device, els)
             phi_b, _ = pooled(net, b, st)
-            loss = _loss(phi_b, coef_t, target[frames])
+            loss = (((phi_b @ coef_t - target[frames]) / LOSS_SCALE_DEG) ** 2).sum(dim=1).mean()
             optim.zero_grad()
             loss.backward()
             optim.step()
@@ -266,7 +256,7 @@ def train(net, data: dict, val: dict | None, st: dict, opts: dict) -> dict:
             phis.append(phi_b.detach().cpu().numpy())
             seen.append(frames)
         seen = np.concatenate(seen)
-        st["coef"] = solve_head(np.concatenate(phis), data["target"][seen])
+        st["coef"] = np.linalg.lstsq(np.concatenate(phis), data["target"][seen], rcond=None)[0]
         score = _score(net, val or data, st, device)
         hist["train_loss"].append(total / order.size)
         hist["val_loss"].append(score)
@@ -274,8 +264,7 @@ def train(net, data: dict, val: dict | None, st: dict, opts: dict) -> dict:
             break
     net.load_state_dict(stop.state[0])
     st["coef"] = stop.state[1]
-    phi, _ = forward_all(net, data, st, device)  # the head for the kept weights
-    st["coef"] = solve_head(phi, data["target"])
+    _solve_head(net, data, st, device)  # the head for the kept weights
     return {"epochs": len(hist["train_loss"]), "best_epoch": stop.best,
             "train_loss": hist["train_loss"], "val_loss": hist["val_loss"],
             "loss_unit_deg": LOSS_SCALE_DEG, "seconds": time.perf_counter() - t0,
@@ -302,7 +291,7 @@ def from_arrays(arrays: dict, channels: int, device: str = "cpu"):
     """A network of ``channels`` rebuilt from :func:`to_arrays`' output (of the layers and
     shapes a model file was checked for: ``FrameNet._check_parameters``)."""
     torch = _torch()
-    net = build(channels, n_features(channels), 0)
+    net = build(channels, 0)
     net.load_state_dict({k: torch.as_tensor(np.asarray(arrays[k]), dtype=torch.float32)
                          for k in net.state_dict()})
     return net.to(torch.device(device))

@@ -186,14 +186,6 @@ class FrameNet(Calibration):
                               "check the cube (sunlab info) and its detection")
         return data
 
-    def _scaling(self, data: dict) -> dict:
-        d = data["corner"] + data["window"] / 2 + data["pad"] - data["hole"]
-        hole = data["hole"]
-        _check_spots_move(d[:, 0], d[:, 1], "train")
-        hstd = hole.std(axis=0)
-        return {"d_mean": d.mean(axis=0), "d_std": d.std(axis=0), "hole_mean": hole.mean(axis=0),
-                "hole_std": np.where(hstd > 0, hstd, 1.0)}
-
     def _state(self) -> dict:
         return {**self.scaling, "order": self.order, "multi": self.multi}
 
@@ -223,17 +215,20 @@ class FrameNet(Calibration):
                 raise ConfigurationError(
                     f"train: {distinct} distinct poses, but a head of order {self.order} needs at "
                     f"least {self.min_poses()}. Fix: train on more poses or lower order")
-            self.scaling = self._scaling(data)
+            d, hole = data["corner"] + data["window"] / 2 + data["pad"] - data["hole"], data["hole"]
+            _check_spots_move(d[:, 0], d[:, 1], "train")
+            hstd = hole.std(axis=0)
+            self.scaling = {"d_mean": d.mean(axis=0), "d_std": d.std(axis=0), "hole_mean":
+                            hole.mean(axis=0), "hole_std": np.where(hstd > 0, hstd, 1.0)}
             data = _with_hole_uv(data, self.scaling)
             val = None if validation is None else _with_hole_uv(
                 self._data(validation, val_detections, "validation"), self.scaling)
-            net = T.build(self.channels, T.n_features(self.channels), self.seed)
+            net = T.build(self.channels, self.seed)
             st = self._state()
-            opts = {"device": self.device, "seed": self.seed, "lr": self.lr,
-                    "epochs": self.epochs, "patience": self.patience,
-                    "batch": self.batch or (8 if self.multi else 32),
-                    "spots": self.spots}
-            self.history = T.train(net, data, val, st, opts)
+            self.history = T.train(net, data, val, st, {
+                "device": self.device, "seed": self.seed, "lr": self.lr, "epochs": self.epochs,
+                "patience": self.patience, "batch": self.batch or (8 if self.multi else 32),
+                "spots": self.spots})
         self.timings["train network"] = self.history["seconds"]
         self.arrays, self.coef = T.to_arrays(net), np.asarray(st["coef"], dtype=float)
         self._record(train, validation, data, val)

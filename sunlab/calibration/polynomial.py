@@ -85,24 +85,6 @@ def _scale(values, bounds) -> np.ndarray:
     return (2.0 * np.asarray(values, dtype=float) - (lo + hi)) / (hi - lo)
 
 
-def _lstsq(A: np.ndarray, target: np.ndarray, what: str) -> np.ndarray:
-    if A.shape[0] < A.shape[1]:
-        raise ConfigurationError(f"order: {what} needs {A.shape[1]} coefficients but the training "
-                                 f"table has {A.shape[0]} points. Fix: lower the order or add "
-                                 "poses")
-    return np.linalg.lstsq(A, target, rcond=None)[0]
-
-
-def _orders(order) -> tuple[int, int]:
-    orders = (order, order) if np.ndim(order) == 0 else tuple(order)
-    if len(orders) != 2 or any(int(n) != n or n < 0 for n in orders):
-        raise ConfigurationError(
-            f"order: found {order!r}, expected a non-negative integer or a pair (alpha, beta). "
-            "Fix: e.g. order=5 or order=(5, 6)"
-        )
-    return int(orders[0]), int(orders[1])
-
-
 _METRICS = ("mean_abs", "rms", "max_abs")
 
 
@@ -117,8 +99,9 @@ class _Series(Calibration):
     def _fit(self, data, validation) -> None:
         self.scaling = {k: [float(np.min(v)), float(np.max(v))]  # the spot moves (base fit)
                         for k, v in (("x", data.x), ("y", data.y))}
-        self.coefficients = {a: _lstsq(self.basis(data.x, data.y, a), getattr(data, a),
-                                       self.label) for a in ("alpha", "beta")}
+        # as many distinct poses as coefficients at least (min_poses, checked by the base fit)
+        self.coefficients = {a: np.linalg.lstsq(self.basis(data.x, data.y, a), getattr(data, a),
+                                                rcond=None)[0] for a in ("alpha", "beta")}
 
     def _predict_xy(self, x, y):
         return tuple(self.basis(x, y, a) @ self.coefficients[a] for a in ("alpha", "beta"))
@@ -238,7 +221,12 @@ class Polynomial(_Series):
 
     def __init__(self, order=5, average: str = "pose"):
         super().__init__()
-        self.orders = _orders(order)
+        orders = (order, order) if np.ndim(order) == 0 else tuple(order)
+        if len(orders) != 2 or any(int(n) != n or n < 0 for n in orders):
+            raise ConfigurationError(
+                f"order: found {order!r}, expected a non-negative integer or a pair (alpha, "
+                "beta). Fix: e.g. order=5 or order=(5, 6)")
+        self.orders = int(orders[0]), int(orders[1])
         self.average = average
 
     @property
