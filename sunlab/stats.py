@@ -55,26 +55,6 @@ _REFERENCE = ("docs/paper.md sec. 5, Tables 4 and 5 (the 2005 preprint on the Na
               "laboratory tests and calibration)")
 
 
-def _reference_arrays(estimate: xr.Dataset, reference) -> dict:
-    if reference is None:
-        missing = [f"{a}_cmd" for a in ANGLES if f"{a}_cmd" not in estimate.variables]
-        if missing:
-            raise SchemaError(
-                "estimate", f"no coordinates {missing}", "commanded angles alpha_cmd, beta_cmd",
-                "predict from a centroid table with alpha/beta coordinates, or pass reference=",
-            )
-        return {a: estimate[f"{a}_cmd"] for a in ANGLES}
-    if isinstance(reference, (xr.Dataset, Mapping)):
-        try:
-            return {a: reference[a] for a in ANGLES}
-        except KeyError as err:
-            raise SchemaError("reference", f"keys {list(reference.keys())}",
-                              "a mapping with 'alpha' and 'beta' (deg)",
-                              "e.g. {'alpha': cube.true_alpha, 'beta': cube.true_beta}") from err
-    raise SchemaError("reference", type(reference).__name__,
-                      "None (commanded angles) or a mapping with 'alpha' and 'beta'")
-
-
 def shot_errors(estimate: xr.Dataset, reference=None, *, absolute: bool = True) -> xr.Dataset:
     """Per-shot error of the estimated angles, degrees.
 
@@ -102,10 +82,27 @@ def shot_errors(estimate: xr.Dataset, reference=None, *, absolute: bool = True) 
     ...             absolute=False).alpha.values.tolist()
     [-1.0, 1.0]
     """
-    ref = _reference_arrays(estimate, reference)
+    if reference is None:
+        missing = [f"{a}_cmd" for a in ANGLES if f"{a}_cmd" not in estimate.variables]
+        if missing:
+            raise SchemaError(
+                "estimate", f"no coordinates {missing}", "commanded angles alpha_cmd, beta_cmd",
+                "predict from a centroid table with alpha/beta coordinates, or pass reference=",
+            )
+        reference = {a: estimate[f"{a}_cmd"] for a in ANGLES}
+    elif isinstance(reference, (xr.Dataset, Mapping)):
+        try:
+            reference = {a: reference[a] for a in ANGLES}
+        except KeyError as err:
+            raise SchemaError("reference", f"keys {list(reference.keys())}",
+                              "a mapping with 'alpha' and 'beta' (deg)",
+                              "e.g. {'alpha': cube.true_alpha, 'beta': cube.true_beta}") from err
+    else:
+        raise SchemaError("reference", type(reference).__name__,
+                          "None (commanded angles) or a mapping with 'alpha' and 'beta'")
     out = {}
     for a in ANGLES:
-        e = estimate[a] - ref[a]
+        e = estimate[a] - reference[a]
         if absolute:
             e = abs(e)
         if "status" in estimate.variables:
@@ -116,10 +113,10 @@ def shot_errors(estimate: xr.Dataset, reference=None, *, absolute: bool = True) 
     return xr.Dataset(out, attrs=dict(estimate.attrs))
 
 
-def _local_errors(estimate: xr.Dataset, reference=None, dim: str = "shot") -> xr.Dataset:
+def _local_errors(estimate: xr.Dataset, reference=None) -> xr.Dataset:
     """``local_error`` (mean over the shots of the absolute error) and ``max_error`` per pose
     and angle (deg, NaN for a pose without a usable shot), and ``n_shots``."""
-    err = shot_errors(estimate, reference)
+    err, dim = shot_errors(estimate, reference), "shot"
     if dim not in err.dims:
         raise SchemaError("estimate.dims", tuple(err.dims), f"a {dim!r} dimension to reduce")
     e = xr.concat([err[a] for a in ANGLES], dim=pd.Index(list(ANGLES), name="angle"))

@@ -38,7 +38,24 @@ def _torch():
 def session(threads: int, purpose: str, *, deterministic: bool = False, device: str = "cpu"):
     """torch (imported now: its absence is an ImportError naming the extra and ``purpose``)
     with ``threads`` threads, and deterministic algorithms if asked; both restored after.
-    ``device="cuda"`` without a GPU torch can see is refused first."""
+    ``device="cuda"`` without a GPU torch can see is refused first.
+
+    Parameters
+    ----------
+    threads : int
+        torch's threads inside the block.
+    purpose : str
+        What needs torch, for the message when it is missing.
+    deterministic : bool
+        Deterministic algorithms inside the block (NeuralNet's reproducible fits).
+    device : {"cpu", "cuda"}
+        Where the block will run.
+
+    Returns
+    -------
+    contextlib.AbstractContextManager
+        Yields the ``torch`` module.
+    """
     torch = require("torch", purpose=purpose)
     if device == "cuda" and not torch.cuda.is_available():
         raise ConfigurationError("device: found 'cuda', but torch sees no GPU here. Fix: "
@@ -63,7 +80,20 @@ class EarlyStop:
 
     def step(self, score: float, state) -> bool:
         """Record one step's ``score``; ``state()`` is called (and kept) only when it is the
-        best. Returns True when training should stop."""
+        best.
+
+        Parameters
+        ----------
+        score : float
+            The step's validation loss (smaller is better).
+        state : callable
+            Returns what to keep (weights) when the step is the best so far.
+
+        Returns
+        -------
+        bool
+            True when ``patience`` steps have passed since the best one: stop training.
+        """
         self.steps += 1
         if score < self.score:
             self.score, self.best, self.state = score, self.steps, state()

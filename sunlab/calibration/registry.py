@@ -252,8 +252,22 @@ def fit(table: xr.Dataset, method: str, validation: xr.Dataset | None = None, *,
     cls = method_class(kind)
     if kind.startswith("interpolation-"):
         options = {"method": kind.removeprefix("interpolation-"), **options}
-    if options.get("order") == "auto":
-        return _auto_order(cls, kind, table, validation, outlier_mads, options)
+    if options.get("order") == "auto":  # the order the validation table prefers
+        from .base import _screen
+
+        if not hasattr(cls, "select_order"):
+            raise ConfigurationError(f"order: 'auto' applies to the methods that choose their "
+                                     f"order (select_order: 'polynomial', 'trigonometric'), not "
+                                     f"{kind!r}. Fix: drop order, or give an integer")
+        if validation is None:
+            raise ConfigurationError("order: found 'auto' without a validation table. Fix: "
+                                     "pass validation= (experiment II), or an integer order")
+        table, validation, screened = _screen(table, validation, outlier_mads,
+                                              cls.default_outlier_mads)  # once, for all orders
+        cal, cal.order_scores = cls.select_order(
+            table, validation, **{k: v for k, v in options.items() if k != "order"})
+        cal.training.update(screened)
+        return cal
     try:
         cal = cls(**options)
     except TypeError as err:  # an option the class does not take
@@ -261,26 +275,6 @@ def fit(table: xr.Dataset, method: str, validation: xr.Dataset | None = None, *,
                                  f"{cls.__name__} (help(sunlab.calibration.{cls.__name__}))"
                                  ) from err
     return cal.fit(table, validation, outlier_mads=outlier_mads)
-
-
-def _auto_order(cls, kind: str, table, validation, outlier_mads, options: dict):
-    """``order="auto"``: the order the validation table prefers (the class's ``select_order``,
-    its scores in ``order_scores``), on the tables screened once."""
-    from .base import _screen
-
-    if not hasattr(cls, "select_order"):
-        raise ConfigurationError(f"order: 'auto' applies to the methods that choose their order "
-                                 f"(select_order: 'polynomial', 'trigonometric'), not {kind!r}. "
-                                 "Fix: drop order, or give an integer")
-    if validation is None:
-        raise ConfigurationError("order: found 'auto' without a validation table. Fix: pass "
-                                 "validation= (experiment II), or an integer order")
-    table, validation, screened = _screen(table, validation, outlier_mads,
-                                          cls.default_outlier_mads)
-    cal, cal.order_scores = cls.select_order(
-        table, validation, **{k: v for k, v in options.items() if k != "order"})
-    cal.training.update(screened)
-    return cal
 
 
 def table4_methods(*, neural: bool = True, hidden: int = 8, seed: int = 0,
