@@ -359,30 +359,10 @@ int sunlab_calibration_eval{"" if P.double else "f"}({P.t} x_px, {P.t} y_px, {P.
     return header, source
 
 
-def export_c(cal, out, *, overwrite: bool = False) -> tuple[Path, Path]:
-    """Write ``out/sunlab_calibration.h`` and ``.c`` (:func:`c_sources`) together or not at
-    all (existing files only with ``overwrite``); return their paths.
-
-    Parameters
-    ----------
-    cal : sunlab.calibration.Calibration or path-like
-    out : str or path-like
-    overwrite : bool
-
-    Returns
-    -------
-    header, source : pathlib.Path
-    """
-    texts = dict(zip((f"{BASENAME}.h", f"{BASENAME}.c"), c_sources(cal), strict=True))
-    with atomic.atomic_files(out, list(texts), overwrite=overwrite, flag="--overwrite") as tmp:
-        for name, text in texts.items():
-            (tmp / name).write_text(text, encoding="utf-8")
-    return tuple(Path(out) / name for name in texts)
-
-
 def export(cal, out, format: str = "c", *, overwrite: bool = False) -> list[Path]:
     """Export a calibration (or its JSON file) into the folder ``out``: ``"c"`` (header and
-    source, :func:`export_c`) or ``"json"`` (``sunlab_calibration.json``, ``calibration/1``).
+    source, :func:`c_sources`) or ``"json"`` (``sunlab_calibration.json``, ``calibration/1``),
+    their files written together or not at all (existing ones only with ``overwrite``).
 
     Parameters
     ----------
@@ -398,12 +378,15 @@ def export(cal, out, format: str = "c", *, overwrite: bool = False) -> list[Path
     if format not in FORMATS:
         raise ConfigurationError(f"format: found {format!r}, expected one of {FORMATS}")
     cal = _load(cal)
-    if format == "c":
-        return list(export_c(cal, out, overwrite=overwrite))
-    name = f"{BASENAME}.json"
-    with atomic.atomic_files(out, [name], overwrite=overwrite, flag="--overwrite") as tmp:
-        cal.save(tmp / name)
-    return [Path(out) / name]
+    texts = dict(zip((f"{BASENAME}.h", f"{BASENAME}.c"), c_sources(cal), strict=True)) \
+        if format == "c" else {f"{BASENAME}.json": None}
+    with atomic.atomic_files(out, list(texts), overwrite=overwrite, flag="--overwrite") as tmp:
+        for name, text in texts.items():
+            if text is None:
+                cal.save(tmp / name)
+            else:
+                (tmp / name).write_text(text, encoding="utf-8")
+    return [Path(out) / name for name in texts]
 
 
 def find_c_compiler() -> str | None:

@@ -97,19 +97,6 @@ def evaluation_document(calibration, table, evaluation=None, *, paper: bool = Fa
     return doc
 
 
-def _errors_table(table, estimate, local) -> pd.DataFrame:
-    """``errors.csv``: per pose the commanded angles, local and maximum errors (deg), the
-    shots counted and whether every shot's centroid lies in the calibrated domain."""
-    return pd.DataFrame({
-        "pose": table["pose"].values,
-        "alpha_cmd": table["alpha"].values, "beta_cmd": table["beta"].values,
-        **{f"{a}_{v}": local[v].sel(angle=a).values for a in stats.ANGLES
-           for v in ("local_error", "max_error")},
-        "n_shots": local["n_shots"].sel(angle="alpha").values,
-        "in_domain": estimate["in_domain"].all("shot").values,
-    })
-
-
 def _png(fig) -> bytes:
     buf = _io.BytesIO()
     fig.savefig(buf, format="png", dpi=110, facecolor="white")
@@ -188,9 +175,15 @@ def write_report(out, calibration, table, evaluation=None, *, paper: bool = Fals
     _, estimate, local = evaluation
     title = Path(str((sources or {}).get("test", "the test table"))).name
     figures, notes = _figures(calibration, local, title)
+    errors = pd.DataFrame({  # per pose: the commanded angles, errors, shots, in the domain
+        "pose": table["pose"].values,
+        "alpha_cmd": table["alpha"].values, "beta_cmd": table["beta"].values,
+        **{f"{a}_{v}": local[v].sel(angle=a).values for a in stats.ANGLES
+           for v in ("local_error", "max_error")},
+        "n_shots": local["n_shots"].sel(angle="alpha").values,
+        "in_domain": estimate["in_domain"].all("shot").values})
     texts = {REPORT_FILES[0]: json.dumps(doc, indent=1) + "\n",
-             REPORT_FILES[1]: _errors_table(table, estimate, local).to_csv(
-                 index=False, float_format="%.8g")}
+             REPORT_FILES[1]: errors.to_csv(index=False, float_format="%.8g")}
     with atomic.atomic_files(out, REPORT_FILES, overwrite=overwrite, flag=flag) as tmp:
         for name, text in texts.items():
             (tmp / name).write_text(text, encoding="utf-8")

@@ -68,8 +68,32 @@ def _robust_residuals(A: np.ndarray, z: np.ndarray, n_mad: float) -> tuple[np.nd
     return r - np.median(r[keep]), mad
 
 
-def _flag(centroids, n_mad: float) -> tuple[np.ndarray, list]:
-    """The table's status with its outliers set ``invalid``, and the list of them."""
+def screen_outliers(centroids, n_mad: float = N_MAD):
+    """Flag the shots of a centroid table whose centroid a robust fit cannot explain.
+
+    Parameters
+    ----------
+    centroids : xarray.Dataset
+        A ``centroids/1`` table on (pose, shot) or (pose, shot, hole); commanded angles
+        ``alpha``, ``beta`` (deg) on pose.
+    n_mad : float
+        Threshold in MADs of the inliers' residuals (:data:`N_MAD`); residuals are in px.
+
+    Returns
+    -------
+    screened : xarray.Dataset
+        A copy whose flagged shots have status ``invalid``; ``attrs['screened_outliers']``
+        lists them (and the threshold in ``attrs['screening']``).
+    outliers : list of dict
+        One per flagged shot: ``pose``, ``shot`` (and ``hole``), ``alpha``, ``beta`` (deg),
+        ``x``, ``y`` (px), ``residual_px`` (the larger of the two coordinates') and ``mads``.
+        Empty when there are too few usable shots to screen (fewer than 6 per hole).
+
+    Raises
+    ------
+    ConfigurationError
+        ``n_mad`` is not a number above 3 (a lower threshold flags ordinary noise).
+    """
     if not (isinstance(n_mad, int | float) and np.isfinite(n_mad) and n_mad > 3):
         raise ConfigurationError(f"n_mad: found {n_mad!r}, expected a number of MADs above 3 "
                                  f"(default {N_MAD:g})")
@@ -102,36 +126,6 @@ def _flag(centroids, n_mad: float) -> tuple[np.ndarray, list]:
                              "alpha": float(alpha[p, s]), "beta": float(beta[p, s]),
                              "x": float(x[where]), "y": float(y[where]),
                              "residual_px": float(worst[k]), "mads": float(mads[k])})
-    return status, outliers
-
-
-def screen_outliers(centroids, n_mad: float = N_MAD):
-    """Flag the shots of a centroid table whose centroid a robust fit cannot explain.
-
-    Parameters
-    ----------
-    centroids : xarray.Dataset
-        A ``centroids/1`` table on (pose, shot) or (pose, shot, hole); commanded angles
-        ``alpha``, ``beta`` (deg) on pose.
-    n_mad : float
-        Threshold in MADs of the inliers' residuals (:data:`N_MAD`); residuals are in px.
-
-    Returns
-    -------
-    screened : xarray.Dataset
-        A copy whose flagged shots have status ``invalid``; ``attrs['screened_outliers']``
-        lists them (and the threshold in ``attrs['screening']``).
-    outliers : list of dict
-        One per flagged shot: ``pose``, ``shot`` (and ``hole``), ``alpha``, ``beta`` (deg),
-        ``x``, ``y`` (px), ``residual_px`` (the larger of the two coordinates') and ``mads``.
-        Empty when there are too few usable shots to screen (fewer than 6 per hole).
-
-    Raises
-    ------
-    ConfigurationError
-        ``n_mad`` is not a number above 3 (a lower threshold flags ordinary noise).
-    """
-    status, outliers = _flag(centroids, n_mad)
     screened = centroids.copy()  # shallow: the new status replaces the copy's only
     screened["status"].values = status
     screened.attrs["screening"] = {"n_mad": float(n_mad), "mad_floor_px": MAD_FLOOR_PX,

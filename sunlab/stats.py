@@ -55,26 +55,6 @@ _REFERENCE = ("docs/paper.md sec. 5, Tables 4 and 5 (the 2005 preprint on the Na
               "laboratory tests and calibration)")
 
 
-def _reference_arrays(estimate: xr.Dataset, reference) -> dict:
-    if reference is None:
-        missing = [f"{a}_cmd" for a in ANGLES if f"{a}_cmd" not in estimate.variables]
-        if missing:
-            raise SchemaError(
-                "estimate", f"no coordinates {missing}", "commanded angles alpha_cmd, beta_cmd",
-                "predict from a centroid table with alpha/beta coordinates, or pass reference=",
-            )
-        return {a: estimate[f"{a}_cmd"] for a in ANGLES}
-    if isinstance(reference, (xr.Dataset, Mapping)):
-        try:
-            return {a: reference[a] for a in ANGLES}
-        except KeyError as err:
-            raise SchemaError("reference", f"keys {list(reference.keys())}",
-                              "a mapping with 'alpha' and 'beta' (deg)",
-                              "e.g. {'alpha': cube.true_alpha, 'beta': cube.true_beta}") from err
-    raise SchemaError("reference", type(reference).__name__,
-                      "None (commanded angles) or a mapping with 'alpha' and 'beta'")
-
-
 def shot_errors(estimate: xr.Dataset, reference=None, *, absolute: bool = True) -> xr.Dataset:
     """Per-shot error of the estimated angles, degrees.
 
@@ -102,10 +82,27 @@ def shot_errors(estimate: xr.Dataset, reference=None, *, absolute: bool = True) 
     ...             absolute=False).alpha.values.tolist()
     [-1.0, 1.0]
     """
-    ref = _reference_arrays(estimate, reference)
+    if reference is None:
+        missing = [f"{a}_cmd" for a in ANGLES if f"{a}_cmd" not in estimate.variables]
+        if missing:
+            raise SchemaError(
+                "estimate", f"no coordinates {missing}", "commanded angles alpha_cmd, beta_cmd",
+                "predict from a centroid table with alpha/beta coordinates, or pass reference=",
+            )
+        reference = {a: estimate[f"{a}_cmd"] for a in ANGLES}
+    elif isinstance(reference, (xr.Dataset, Mapping)):
+        try:
+            reference = {a: reference[a] for a in ANGLES}
+        except KeyError as err:
+            raise SchemaError("reference", f"keys {list(reference.keys())}",
+                              "a mapping with 'alpha' and 'beta' (deg)",
+                              "e.g. {'alpha': cube.true_alpha, 'beta': cube.true_beta}") from err
+    else:
+        raise SchemaError("reference", type(reference).__name__,
+                          "None (commanded angles) or a mapping with 'alpha' and 'beta'")
     out = {}
     for a in ANGLES:
-        e = estimate[a] - ref[a]
+        e = estimate[a] - reference[a]
         if absolute:
             e = abs(e)
         if "status" in estimate.variables:
@@ -116,10 +113,10 @@ def shot_errors(estimate: xr.Dataset, reference=None, *, absolute: bool = True) 
     return xr.Dataset(out, attrs=dict(estimate.attrs))
 
 
-def _local_errors(estimate: xr.Dataset, reference=None, dim: str = "shot") -> xr.Dataset:
+def _local_errors(estimate: xr.Dataset, reference=None) -> xr.Dataset:
     """``local_error`` (mean over the shots of the absolute error) and ``max_error`` per pose
     and angle (deg, NaN for a pose without a usable shot), and ``n_shots``."""
-    err = shot_errors(estimate, reference)
+    err, dim = shot_errors(estimate, reference), "shot"
     if dim not in err.dims:
         raise SchemaError("estimate.dims", tuple(err.dims), f"a {dim!r} dimension to reduce")
     e = xr.concat([err[a] for a in ANGLES], dim=pd.Index(list(ANGLES), name="angle"))
@@ -288,18 +285,11 @@ def rectangles(table: pd.DataFrame) -> pd.DataFrame:
     >>> r.loc["polynomial", "alpha_high"].round(4), r["area"].idxmin()
     (np.float64(0.0261), 'NN strategy 4')
     """
-    rows = {}
-    for method in table.columns:
-        col = table[method]
-        row = {}
-        for a in ANGLES:
-            m, s = col[(a, "M")], col[(a, "sigma_M")]
-            row[f"{a}_low"], row[f"{a}_high"] = m - 3 * s, m + 3 * s
-        row["area"] = ((row["alpha_high"] - row["alpha_low"])
-                       * (row["beta_high"] - row["beta_low"]))
-        rows[method] = row
-    out = pd.DataFrame.from_dict(rows, orient="index")
-    out.index.name = "method"
+    M, s = table.xs("M", level="stat"), table.xs("sigma_M", level="stat")  # angle x method
+    out = pd.DataFrame({f"{a}_{side}": M.loc[a] + k * 3 * s.loc[a] for a in ANGLES
+                        for side, k in (("low", -1), ("high", 1))}).rename_axis("method")
+    out["area"] = ((out["alpha_high"] - out["alpha_low"])
+                   * (out["beta_high"] - out["beta_low"]))
     return out
 
 
@@ -438,8 +428,6 @@ def side_by_side(ours: pd.DataFrame, paper: pd.DataFrame,
             f"columns: ours {list(ours.columns)} and the paper's {list(paper.columns)} share no "
             "method. Fix: rename our columns to the paper's labels"
         )
-    parts = {(c, names[0]): ours[c] for c in common}
-    out = pd.DataFrame({k: v for c in common for k, v in
-                        (((c, names[0]), parts[(c, names[0])]), ((c, names[1]), paper[c]))})
-    out.columns = pd.MultiIndex.from_tuples(out.columns, names=["method", "source"])
-    return out
+    out = pd.concat({(c, n): t[c] for c in common for n, t in zip(names, (ours, paper),
+                                                                   strict=True)}, axis=1)
+    return out.rename_axis(columns=["method", "source"])

@@ -87,7 +87,7 @@ def test_c_flags_and_extrapolation(train, tmp_path):
 
 
 def test_header_declares_the_interface(train, tmp_path):
-    h, c = export.export_c(Polynomial(order=2).fit(train), tmp_path)
+    h, c = export.export(Polynomial(order=2).fit(train), tmp_path)
     header, source = h.read_text(), c.read_text()
     assert ("int sunlab_calibration_eval(double x_px, double y_px, double *alpha_deg, "
             "double *beta_deg);") in header
@@ -103,7 +103,7 @@ def test_header_declares_the_interface(train, tmp_path):
 
 def test_polynomial_coefficients_are_exported_exactly(train, tmp_path):
     cal = Polynomial(order=2).fit(train)
-    _, c = export.export_c(cal, tmp_path)
+    _, c = export.export(cal, tmp_path)
     text = c.read_text()
     for value in cal.coefficients["alpha"]:
         assert repr(float(value)) in text

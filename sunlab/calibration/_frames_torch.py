@@ -1,4 +1,6 @@
-"""The torch half of :class:`sunlab.calibration.FrameNet`: the network, its training, its use.
+"""The torch half of :class:`sunlab.calibration.FrameNet`: the network, its training, its use;
+and what both torch paths (:class:`~sunlab.calibration.NeuralNet` too) share: the torch
+session (:func:`session`) and the early stopping (:class:`EarlyStop`).
 
 Private to :mod:`sunlab.calibration`; torch is imported inside the functions, so importing
 this module costs nothing. The numbers that describe a fitted network (convolution weights,
@@ -11,6 +13,7 @@ Shapes: ``E`` spots (elements) in ``F`` frames (sets); a window is ``W x W`` px,
 
 from __future__ import annotations
 
+import contextlib
 import math
 import time
 
@@ -31,7 +34,73 @@ def _torch():
     return require("torch", purpose="the calibration learned from frames (FrameNet)")
 
 
-def build(channels: int, n_features: int, seed: int):
+@contextlib.contextmanager
+def session(threads: int, purpose: str, *, deterministic: bool = False, device: str = "cpu"):
+    """torch (imported now: its absence is an ImportError naming the extra and ``purpose``)
+    with ``threads`` threads, and deterministic algorithms if asked; both restored after.
+    ``device="cuda"`` without a GPU torch can see is refused first.
+
+    Parameters
+    ----------
+    threads : int
+        torch's threads inside the block.
+    purpose : str
+        What needs torch, for the message when it is missing.
+    deterministic : bool
+        Deterministic algorithms inside the block (NeuralNet's reproducible fits).
+    device : {"cpu", "cuda"}
+        Where the block will run.
+
+    Returns
+    -------
+    contextlib.AbstractContextManager
+        Yields the ``torch`` module.
+    """
+    torch = require("torch", purpose=purpose)
+    if device == "cuda" and not torch.cuda.is_available():
+        raise ConfigurationError("device: found 'cuda', but torch sees no GPU here. Fix: "
+                                 "device='cpu'")
+    before = torch.get_num_threads(), torch.are_deterministic_algorithms_enabled()
+    torch.set_num_threads(threads)
+    torch.use_deterministic_algorithms(deterministic or before[1])
+    try:
+        yield torch
+    finally:
+        torch.set_num_threads(before[0])
+        torch.use_deterministic_algorithms(before[1])
+
+
+class EarlyStop:
+    """Early stopping on a validation score: :meth:`step` after every step (an epoch, an
+    iteration) keeps the state of the best score so far, and says when ``patience`` steps have
+    passed without a better one. ``steps`` counts the steps, ``best`` is the best one's."""
+
+    def __init__(self, patience, score: float = math.inf, state=None):
+        self.patience, self.score, self.state, self.steps, self.best = patience, score, state, 0, 0
+
+    def step(self, score: float, state) -> bool:
+        """Record one step's ``score``; ``state()`` is called (and kept) only when it is the
+        best.
+
+        Parameters
+        ----------
+        score : float
+            The step's validation loss (smaller is better).
+        state : callable
+            Returns what to keep (weights) when the step is the best so far.
+
+        Returns
+        -------
+        bool
+            True when ``patience`` steps have passed since the best one: stop training.
+        """
+        self.steps += 1
+        if score < self.score:
+            self.score, self.best, self.state = score, self.steps, state()
+        return self.steps - self.best >= self.patience
+
+
+def build(channels: int, seed: int):
     """The network: a small CNN whose last layer weights the window's pixels (a learned
     centre of light) and an attention MLP that scores each spot of a set. Weights drawn from a
     ``torch.Generator`` seeded with ``seed``; the pixel-weight layer and the attention's output
@@ -44,7 +113,7 @@ def build(channels: int, n_features: int, seed: int):
         "conv1": nn.Conv2d(1, channels, 5, padding=2),
         "conv2": nn.Conv2d(channels, channels, 3, padding=1),
         "conv3": nn.Conv2d(channels, 1, 1),
-        "att1": nn.Linear(n_features, ATTENTION_HIDDEN),
+        "att1": nn.Linear(n_features(channels), ATTENTION_HIDDEN),
         "att2": nn.Linear(ATTENTION_HIDDEN, 1),
     })
     with torch.no_grad():
@@ -146,7 +215,7 @@ def _batch(data: dict, frames: np.ndarray, offsets, device, elements=None) -> di
     as tensors on ``device``."""
     torch = _torch()
     sel, remap = _elements(data, frames) if elements is None else elements
-    n, pad = data["window"], data["pad"]
+    n = data["window"]
     ox, oy = offsets[:, 0], offsets[:, 1]
     rows = oy[:, None] + np.arange(n)[None, :]
     cols = ox[:, None] + np.arange(n)[None, :]
@@ -157,13 +226,7 @@ def _batch(data: dict, frames: np.ndarray, offsets, device, elements=None) -> di
             "hole": torch.as_tensor(data["hole"][sel], dtype=torch.float64, device=device),
             "hole_uv": torch.as_tensor(data["hole_uv"][sel], dtype=torch.float32,
                                        device=device),
-            "frame": torch.as_tensor(remap, device=device), "n_frames": int(frames.size),
-            "n_elements": int(sel.size), "pad": pad}
-
-
-def _centred(data: dict, frames: np.ndarray, device) -> dict:
-    n_el = int(np.diff(data["start"])[frames].sum())
-    return _batch(data, frames, np.full((n_el, 2), data["pad"], dtype=int), device)
+            "frame": torch.as_tensor(remap, device=device), "n_frames": int(frames.size)}
 
 
 def forward_all(net, data: dict, st: dict, device, chunk: int = 256) -> tuple:
@@ -173,21 +236,18 @@ def forward_all(net, data: dict, st: dict, device, chunk: int = 256) -> tuple:
     with torch.no_grad():
         for lo in range(0, data["n_frames"], chunk):
             frames = np.arange(lo, min(lo + chunk, data["n_frames"]))
-            phi, pos = pooled(net, _centred(data, frames, device), st)
+            centred = np.full((int(np.diff(data["start"])[frames].sum()), 2), data["pad"])
+            phi, pos = pooled(net, _batch(data, frames, centred, device), st)
             phis.append(phi.cpu().numpy())
             poss.append(pos.cpu().numpy())
     return np.concatenate(phis), np.concatenate(poss)
 
 
-def solve_head(phi: np.ndarray, target: np.ndarray) -> np.ndarray:
-    """Least-squares coefficients (T, 2) of the head on pooled regressors, float64."""
-    coef, *_ = np.linalg.lstsq(phi, target, rcond=None)
-    return coef
-
-
-def _loss(phi, coef, target):
-    err = (phi @ coef - target) / LOSS_SCALE_DEG
-    return (err**2).sum(dim=1).mean()
+def _solve_head(net, data: dict, st: dict, device) -> None:
+    """``st["coef"]``: the head's least-squares coefficients (T, 2), float64, on the pooled
+    regressors of every frame of ``data`` (centred windows)."""
+    phi, _ = forward_all(net, data, st, device)
+    st["coef"] = np.linalg.lstsq(phi, data["target"], rcond=None)[0]
 
 
 def train(net, data: dict, val: dict | None, st: dict, opts: dict) -> dict:
@@ -203,13 +263,12 @@ def train(net, data: dict, val: dict | None, st: dict, opts: dict) -> dict:
               if st["multi"] or not name.startswith("att")]
     optim = torch.optim.Adam(params, lr=opts["lr"])
     t0, c0 = time.perf_counter(), time.process_time()
-    phi, _ = forward_all(net, data, st, device)
-    st["coef"] = solve_head(phi, data["target"])
-    best = {"score": _score(net, val or data, st, device), "epoch": 0,
-            "state": _snapshot(net), "coef": st["coef"].copy()}
-    hist = {"train_loss": [], "val_loss": [best["score"]]}
+    _solve_head(net, data, st, device)
+    stop = EarlyStop(opts["patience"], _score(net, val or data, st, device),
+                     (_snapshot(net), st["coef"].copy()))
+    hist = {"train_loss": [], "val_loss": [stop.score]}
     target = torch.as_tensor(data["target"], dtype=torch.float64, device=device)
-    for epoch in range(1, opts["epochs"] + 1):
+    for _ in range(opts["epochs"]):
         order = rng.permutation(data["n_frames"])
         coef_t = torch.as_tensor(st["coef"], dtype=torch.float64, device=device)
         phis, seen, total = [], [], 0.0
@@ -219,7 +278,7 @@ def train(net, data: dict, val: dict | None, st: dict, opts: dict) -> dict:
             b = _batch(data, frames, rng.integers(0, 2 * data["pad"] + 1, (els[0].size, 2)),
                        device, els)
             phi_b, _ = pooled(net, b, st)
-            loss = _loss(phi_b, coef_t, target[frames])
+            loss = (((phi_b @ coef_t - target[frames]) / LOSS_SCALE_DEG) ** 2).sum(dim=1).mean()
             optim.zero_grad()
             loss.backward()
             optim.step()
@@ -227,20 +286,16 @@ def train(net, data: dict, val: dict | None, st: dict, opts: dict) -> dict:
             phis.append(phi_b.detach().cpu().numpy())
             seen.append(frames)
         seen = np.concatenate(seen)
-        st["coef"] = solve_head(np.concatenate(phis), data["target"][seen])
+        st["coef"] = np.linalg.lstsq(np.concatenate(phis), data["target"][seen], rcond=None)[0]
         score = _score(net, val or data, st, device)
         hist["train_loss"].append(total / order.size)
         hist["val_loss"].append(score)
-        if score < best["score"]:
-            best = {"score": score, "epoch": epoch, "state": _snapshot(net),
-                    "coef": st["coef"].copy()}
-        elif epoch - best["epoch"] >= opts["patience"]:
+        if stop.step(score, lambda: (_snapshot(net), st["coef"].copy())):
             break
-    net.load_state_dict(best["state"])
-    st["coef"] = best["coef"]
-    phi, _ = forward_all(net, data, st, device)  # the head for the kept weights
-    st["coef"] = solve_head(phi, data["target"])
-    return {"epochs": len(hist["train_loss"]), "best_epoch": best["epoch"],
+    net.load_state_dict(stop.state[0])
+    st["coef"] = stop.state[1]
+    _solve_head(net, data, st, device)  # the head for the kept weights
+    return {"epochs": len(hist["train_loss"]), "best_epoch": stop.best,
             "train_loss": hist["train_loss"], "val_loss": hist["val_loss"],
             "loss_unit_deg": LOSS_SCALE_DEG, "seconds": time.perf_counter() - t0,
             "cpu_seconds": time.process_time() - c0}
@@ -266,17 +321,7 @@ def from_arrays(arrays: dict, channels: int, device: str = "cpu"):
     """A network of ``channels`` rebuilt from :func:`to_arrays`' output (of the layers and
     shapes a model file was checked for: ``FrameNet._check_parameters``)."""
     torch = _torch()
-    net = build(channels, n_features(channels), 0)
+    net = build(channels, 0)
     net.load_state_dict({k: torch.as_tensor(np.asarray(arrays[k]), dtype=torch.float32)
                          for k in net.state_dict()})
     return net.to(torch.device(device))
-
-
-def check_device(device: str) -> str:
-    """``device`` if torch can use it: ``"cpu"``, or ``"cuda"`` where a GPU exists."""
-    torch = _torch()
-    if device == "cpu" or (device == "cuda" and torch.cuda.is_available()):
-        return device
-    raise ConfigurationError(
-        f"device: found {device!r}, expected 'cpu' or 'cuda' (a GPU torch can see: "
-        f"{'yes' if torch.cuda.is_available() else 'none here'}). Fix: device='cpu'")

@@ -4,20 +4,21 @@
 :func:`validate_document` checks it against the contract, and :func:`from_dict` rebuilds the
 fitted calibration through the registry (:func:`sunlab.calibration.registry.available_kinds`: the
 built-in methods and every kind of the entry point group ``sunlab.calibrations``, the
-multi-hole strategies among them), after the class has checked its own parameters: sizes
-before any array is built, finite numbers, sane ranges.
+multi-hole strategies among them), after the class has checked its own parameters
+(:func:`check_parameters` on the class's table of rules): sizes before any array is built,
+finite numbers, sane ranges.
 """
 
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from .. import integrity
 from ..errors import SchemaError
 from ..schema import validate_calibration
-from ._checks import _bad
 from .registry import ENTRY_POINT_GROUP, available_kinds, method_class
 
 if TYPE_CHECKING:
@@ -27,6 +28,82 @@ __all__ = ["load"]
 
 #: Largest calibration file :func:`load` reads (bytes); the biggest real one is a few MB.
 MAX_FILE_BYTES = 64 * 2**20
+#: Rules of :func:`check_parameters`: a count (an integer >= 0), the first element of a rule
+#: of positive numbers (``(POSITIVE, 2)``: two), a range of centroids ``[lo, hi]`` (px, hi > lo).
+COUNT, POSITIVE, SPAN = range(2**63), "+", "span"
+_REFIT = "the file is corrupt or edited by hand; re-fit the calibration with `sunlab calibrate`"
+
+
+def _bad(field: str, found, expected: str, fix: str = _REFIT) -> SchemaError:
+    return SchemaError(f"parameters.{field}", found, expected, fix)
+
+
+def _numbers(v, field: str, shape: tuple, positive: bool) -> None:
+    """Nested lists of finite numbers of ``shape`` (``()``: one number), checked without
+    building an array; a JSON integer of 400 digits is no double (``float()`` overflows)."""
+    if not shape:
+        try:
+            ok = not isinstance(v, bool) and math.isfinite(float(v)) and (v > 0 or not positive)
+        except (TypeError, ValueError, OverflowError):
+            ok = False
+        if not ok:
+            raise _bad(field, v, "a finite positive number" if positive else "a finite number")
+    elif not isinstance(v, list) or len(v) != shape[0]:
+        raise _bad(field, f"{len(v)} values" if isinstance(v, list) else type(v).__name__,
+                   f"{shape[0]} values")
+    else:
+        for i, x in enumerate(v):
+            _numbers(x, f"{field}[{i}]", shape[1:], positive)
+
+
+def check_parameters(p: dict, rules: dict, prefix: str = "") -> None:
+    """Check a document's parameters ``p`` against a class's table of ``rules`` (field ->
+    rule), before any array is built; raise a :class:`~sunlab.errors.SchemaError` naming the
+    first field at fault (``parameters.FIELD``) and the fix.
+
+    Parameters
+    ----------
+    p : dict
+        The parameters (or an object within them).
+    rules : dict
+        Per field: a dict (an object of exactly these fields: a layer more is refused, not left
+        unused), a tuple of sizes (nested lists of finite numbers of that shape, ``()`` one
+        number; positive ones after :data:`POSITIVE`), a ``range`` (an integer in it,
+        :data:`COUNT`: any >= 0), ``bool`` (true or false), :data:`SPAN`, or None (not checked).
+    prefix : str
+        The path of ``p`` in the parameters (``"networks.alpha."``).
+
+    Examples
+    --------
+    >>> check_parameters({"order": 3, "period": 0}, {"order": COUNT, "period": (POSITIVE,)})
+    Traceback (most recent call last):
+    ...
+    sunlab.errors.SchemaError: parameters.period: found 0, expected a finite positive number. \
+Fix: the file is corrupt or edited by hand; re-fit the calibration with `sunlab calibrate`
+    """
+    for key, rule in rules.items():
+        field, v = prefix + key, p.get(key)
+        if isinstance(rule, dict):
+            if not isinstance(v, dict):
+                raise _bad(field, type(v).__name__, f"an object of {sorted(rule)}")
+            if extra := sorted(set(v) - set(rule)):
+                raise _bad(f"{field}.{extra[0]}", "a field more", f"only {sorted(rule)}")
+            check_parameters(v, rule, field + ".")
+        elif isinstance(rule, range) and (isinstance(v, bool) or not isinstance(v, int)
+                                          or v not in rule):
+            raise _bad(field, v, f"an integer >= {rule.start}" if rule.stop > 2**62
+                       else f"an integer from {rule.start} to {rule.stop - 1}")
+        elif rule is bool and not isinstance(v, bool):
+            raise _bad(field, v, "true or false")
+        elif rule == SPAN:
+            _numbers(v, field, (2,), False)
+            if not v[1] > v[0]:
+                raise _bad(field, v, "[lo, hi] with hi > lo (a range of centroids, px)",
+                           "a zero or negative range divides by zero in predict; re-fit the "
+                           "calibration on poses that move the spot along both axes")
+        elif isinstance(rule, tuple):
+            positive = rule[:1] == (POSITIVE,)
+            _numbers(v, field, rule[positive:], positive)
 
 
 def validate_document(doc) -> dict:

@@ -40,17 +40,49 @@ import xarray as xr
 
 from .. import __version__, atomic, integrity
 from ..errors import ConfigurationError, SchemaError
-from ..schema import CALIBRATION_SCHEMA, CENTROIDS_SCHEMA, STATUS
-from ._checks import _check_spots_move, _ok_mask
+from ..schema import CALIBRATION_SCHEMA, CENTROIDS_SCHEMA, STATUS, USABLE_STATUS
+from ..screening import screen_outliers
 from .artifact import validate_document
-from .registry import OUTLIER_MADS, _screened, name_plugin_errors
+from .registry import OUTLIER_MADS, name_plugin_errors
 from .summary import calibration_summary
 
 __all__ = ["Calibration"]
 
-_SENSOR = ("mask_distance_mm", "pixel_pitch_mm", "x_cf_px", "y_cf_px")
 #: Largest commanded angle a training table may hold, deg (beyond 90 the sun is behind the mask).
 _MAX_ANGLE_DEG = 90.0
+
+
+def _ok_mask(ds) -> np.ndarray:
+    """The usable shots: a usable status (:data:`sunlab.schema.USABLE_STATUS`), finite x, y."""
+    v = ds.variables
+    usable = np.isin(np.asarray(v["status"].values), [STATUS[k] for k in USABLE_STATUS])
+    return usable & np.isfinite(v["x"].values) & np.isfinite(v["y"].values)
+
+
+def _check_spots_move(x: np.ndarray, y: np.ndarray, name: str) -> None:
+    """Refuse training points whose spot (``x``, ``y``, px) never moves along an axis from pose
+    to pose: no kind learns angles from a spot that stays put (a camera that kept one frame),
+    and most would fit one anyway, with errors of degrees."""
+    for c, v in (("x", x), ("y", y)):
+        if not np.ptp(v) > 0:
+            raise ConfigurationError(
+                f"{name}: every usable shot has its spot at the same {c} ({v[0]:g} px) at "
+                "every pose, nothing to calibrate. Fix: calibrate on poses that move the spot "
+                "along both axes (a grid such as experiment I)")
+
+
+def _screen(train, validation, outlier_mads, default):
+    """Both tables screened for outliers (:func:`sunlab.screening.screen_outliers`,
+    ``outlier_mads`` MADs; ``"default"``: ``default``), and what to add to the fitted
+    calibration's ``training``: the threshold and the excluded shots."""
+    outlier_mads = default if outlier_mads == "default" else outlier_mads
+    if not outlier_mads:
+        return train, validation, {}
+    train, excluded = screen_outliers(train, outlier_mads)
+    more = {"outlier_mads": float(outlier_mads), "excluded": excluded}
+    if validation is not None:
+        validation, more["validation_excluded"] = screen_outliers(validation, outlier_mads)
+    return train, validation, more
 
 
 def _check_table(ds, name: str, fitting: bool = True) -> None:
@@ -110,42 +142,6 @@ def _points(centroids: xr.Dataset, average: str, name: str) -> SimpleNamespace:
     return SimpleNamespace(**dict(zip(("x", "y", "alpha", "beta"), pts, strict=True)),
                            n_poses=int(keep.sum()), n_shots=int(ok.sum()),
                            n_repaired=int(repaired.sum()), attrs=dict(centroids.attrs))
-
-
-def sensor_attrs(attrs: dict, *, name: str = "train") -> dict:
-    """The sensor attributes a geometric model needs, read from a table's attributes.
-
-    Parameters
-    ----------
-    attrs : dict
-        Attributes of a centroid table (or frame cube).
-    name : str
-        The table's name in an error message.
-
-    Returns
-    -------
-    dict
-        ``{"mask_distance_mm", "pixel_pitch_mm", "x_cf_px", "y_cf_px"}`` as floats (mm, mm,
-        px, px).
-
-    Examples
-    --------
-    >>> sensor_attrs({"mask_distance_mm": 5, "pixel_pitch_mm": 0.007, "x_cf_px": 1, "y_cf_px": 2})
-    {'mask_distance_mm': 5.0, 'pixel_pitch_mm': 0.007, 'x_cf_px': 1.0, 'y_cf_px': 2.0}
-    """
-    out = {}
-    for key in _SENSOR:
-        value = attrs.get(key)
-        if value is None or not np.isfinite(float(value)):
-            raise SchemaError(f"{name}.attrs[{key!r}]", value, "the sensor attribute of the frame "
-                              "cube", f"a geometric model needs it: write {key} in the frames' "
-                              "sensor.json (or pass it to sunlab import), carry the cube's attrs "
-                              "into the centroid table (a CSV table: sunlab.io.open_centroids("
-                              "path, attrs={...}), or a sensor.json beside it for the command "
-                              "line), or pass the value to the model explicitly; the polynomial "
-                              "and interpolation methods do not need it")
-        out[key] = float(value)
-    return out
 
 
 def combine(*tables: xr.Dataset) -> xr.Dataset:
@@ -285,8 +281,11 @@ class Calibration:
         Calibration
             ``self``, fitted: ``training``, ``domain`` (deg, px) and ``residuals`` (deg).
         """
-        return _screened(lambda t, v: self._fit_tables(t, v) or self, type(self), train,
-                         validation, outlier_mads)
+        train, validation, screened = _screen(train, validation, outlier_mads,
+                                              self.default_outlier_mads)
+        self._fit_tables(train, validation)
+        self.training.update(screened)
+        return self
 
     def _fit_tables(self, train: xr.Dataset, validation: xr.Dataset | None) -> None:
         data = _points(train, self.average, "train")

@@ -59,11 +59,10 @@ import numpy as np
 import xarray as xr
 
 from ..errors import ConfigurationError, SchemaError
-from ..extras import require
 from ..schema import STATUS
 from . import _frames_torch as T
-from ._checks import _bad, _check_spots_move, _count, _number, _numbers
-from .base import Calibration, _err_summary, _estimates
+from .artifact import POSITIVE, check_parameters
+from .base import Calibration, _check_spots_move, _err_summary, _estimates
 from .windows import _with_hole_uv, detect_spots, spot_windows
 
 __all__ = ["FrameNet"]
@@ -76,6 +75,7 @@ _LIMITS = {"window": (8, 512), "pad": (0, 64), "channels": (1, 64), "order": (1,
            "threads": (1, 256), "spots": (1, 10_000), "seed": (0, 2**63 - 1)}
 
 
+_PURPOSE = "the calibration learned from frames (FrameNet)"
 #: The training settings a model file keeps (``settings``).
 _SETTINGS = ("epochs", "patience", "batch", "lr", "seed", "threads", "spots")
 
@@ -186,14 +186,6 @@ class FrameNet(Calibration):
                               "check the cube (sunlab info) and its detection")
         return data
 
-    def _scaling(self, data: dict) -> dict:
-        d = data["corner"] + data["window"] / 2 + data["pad"] - data["hole"]
-        hole = data["hole"]
-        _check_spots_move(d[:, 0], d[:, 1], "train")
-        hstd = hole.std(axis=0)
-        return {"d_mean": d.mean(axis=0), "d_std": d.std(axis=0), "hole_mean": hole.mean(axis=0),
-                "hole_std": np.where(hstd > 0, hstd, 1.0)}
-
     def _state(self) -> dict:
         return {**self.scaling, "order": self.order, "multi": self.multi}
 
@@ -214,32 +206,29 @@ class FrameNet(Calibration):
         FrameNet
             ``self``, fitted.
         """
-        torch = require("torch", purpose="the calibration learned from frames (FrameNet)")
-        T.check_device(self.device)
-        self.timings = {}
-        data = self._data(train, detections, "train")
-        self.multi = bool(data["multi"])
-        distinct = len({(a, b) for a, b in data["target"].tolist()})
-        if distinct < self.min_poses():
-            raise ConfigurationError(
-                f"train: {distinct} distinct poses, but a head of order {self.order} needs at "
-                f"least {self.min_poses()}. Fix: train on more poses or lower order")
-        self.scaling = self._scaling(data)
-        data = _with_hole_uv(data, self.scaling)
-        val = None if validation is None else _with_hole_uv(
-            self._data(validation, val_detections, "validation"), self.scaling)
-        threads = torch.get_num_threads()
-        torch.set_num_threads(self.threads)
-        try:
-            net = T.build(self.channels, T.n_features(self.channels), self.seed)
+        with T.session(self.threads, _PURPOSE, device=self.device):  # checked first
+            self.timings = {}
+            data = self._data(train, detections, "train")
+            self.multi = bool(data["multi"])
+            distinct = len({(a, b) for a, b in data["target"].tolist()})
+            if distinct < self.min_poses():
+                raise ConfigurationError(
+                    f"train: {distinct} distinct poses, but a head of order {self.order} needs at "
+                    f"least {self.min_poses()}. Fix: train on more poses or lower order")
+            d, hole = data["corner"] + data["window"] / 2 + data["pad"] - data["hole"], data["hole"]
+            _check_spots_move(d[:, 0], d[:, 1], "train")
+            hstd = hole.std(axis=0)
+            self.scaling = {"d_mean": d.mean(axis=0), "d_std": d.std(axis=0), "hole_mean":
+                            hole.mean(axis=0), "hole_std": np.where(hstd > 0, hstd, 1.0)}
+            data = _with_hole_uv(data, self.scaling)
+            val = None if validation is None else _with_hole_uv(
+                self._data(validation, val_detections, "validation"), self.scaling)
+            net = T.build(self.channels, self.seed)
             st = self._state()
-            opts = {"device": self.device, "seed": self.seed, "lr": self.lr,
-                    "epochs": self.epochs, "patience": self.patience,
-                    "batch": self.batch or (8 if self.multi else 32),
-                    "spots": self.spots}
-            self.history = T.train(net, data, val, st, opts)
-        finally:
-            torch.set_num_threads(threads)
+            self.history = T.train(net, data, val, st, {
+                "device": self.device, "seed": self.seed, "lr": self.lr, "epochs": self.epochs,
+                "patience": self.patience, "batch": self.batch or (8 if self.multi else 32),
+                "spots": self.spots})
         self.timings["train network"] = self.history["seconds"]
         self.arrays, self.coef = T.to_arrays(net), np.asarray(st["coef"], dtype=float)
         self._record(train, validation, data, val)
@@ -270,14 +259,9 @@ class FrameNet(Calibration):
 
     # --- predict -----------------------------------------------------------------------------
     def _predict_data(self, data: dict):
-        torch = require("torch", purpose="the calibration learned from frames (FrameNet)")
-        threads = torch.get_num_threads()
-        torch.set_num_threads(self.threads)
-        try:
+        with T.session(self.threads, _PURPOSE, device=self.device) as torch:
             net = T.from_arrays(self.arrays, self.channels, self.device)
             phi, pos = T.forward_all(net, data, self._state(), torch.device(self.device))
-        finally:
-            torch.set_num_threads(threads)
         return phi @ self.coef, pos
 
     def predict_frames(self, cube: xr.Dataset, *, detections: xr.Dataset | None = None
@@ -393,41 +377,19 @@ class FrameNet(Calibration):
 
     @classmethod
     def _check_parameters(cls, p: dict) -> None:
-        for key in ("window", "pad", "channels", "order"):
-            _count(p.get(key), key, *_LIMITS[key])
-        if not isinstance(p.get("multi"), bool):
-            raise _bad("multi", p.get("multi"), "true or false")
-        _numbers(p.get("hole_offset_px"), "hole_offset_px", 2)
-        scaling = p.get("scaling")
-        if not isinstance(scaling, dict):
-            raise _bad("scaling", type(scaling).__name__, "an object of four pairs")
-        for key in ("d_mean", "d_std", "hole_mean", "hole_std"):
-            _numbers(scaling.get(key), f"scaling.{key}", 2, positive=key.endswith("std"))
-        n_terms = (p["order"] + 1) * (p["order"] + 2) // 2 + (6 if p["multi"] else 0)
-        head = p.get("head")
-        if not isinstance(head, list) or len(head) != n_terms:
-            raise _bad("head", f"{len(head) if isinstance(head, list) else head} rows",
-                       f"{n_terms} rows (order {p['order']})")
-        for i, row in enumerate(head):
-            _numbers(row, f"head[{i}]", 2)
-        net = p.get("network")
-        if not isinstance(net, dict):
-            raise _bad("network", type(net).__name__, "an object of weight arrays")
-        shapes = _shapes(p["channels"])
-        for k in sorted(set(net) | set(shapes)):  # a layer more is refused, not left unused
-            v = np.asarray(net[k], dtype=object) if k in net else None
-            if v is None or k not in shapes or v.shape != shapes[k]:
-                raise _bad(f"network.{k}", None if v is None else f"shape {list(v.shape)}",
-                           f"the layers {sorted(shapes)} of shapes for {p['channels']} "
-                           "channels" if k not in shapes else f"shape {list(shapes[k])}")
-            _numbers(v.ravel().tolist(), f"network.{k}")
-        settings = p.get("settings")
-        if not isinstance(settings, dict):
-            raise _bad("settings", type(settings).__name__, "an object")
-        _number(settings.get("lr"), "settings.lr", positive=True)
-        for key in ("epochs", "patience", "threads", "seed", "spots", "batch"):
-            if settings.get(key) is not None or key not in ("batch", "spots"):
-                _count(settings.get(key), f"settings.{key}", *_LIMITS[key])
+        limits = {k: range(low, high + 1) for k, (low, high) in _LIMITS.items()}
+        check_parameters(p, {k: limits[k] for k in ("window", "pad", "channels", "order")}
+                         | {"multi": bool})
+        s = p.get("settings") if isinstance(p.get("settings"), dict) else {}
+        check_parameters(p, {
+            "hole_offset_px": (2,),
+            "scaling": {k: (POSITIVE, 2) if k.endswith("std") else (2,)
+                        for k in ("d_mean", "d_std", "hole_mean", "hole_std")},
+            "head": ((p["order"] + 1) * (p["order"] + 2) // 2 + 6 * p["multi"], 2),
+            "network": _shapes(p["channels"]),  # a layer more is refused, not left unused
+            "settings": {"lr": (POSITIVE,)} | {  # batch and spots: None is the default
+                k: None if k in ("batch", "spots") and s.get(k) is None else limits[k]
+                for k in ("epochs", "patience", "threads", "seed", "spots", "batch")}})
 
     @classmethod
     def _from_parameters(cls, p: dict):

@@ -41,7 +41,7 @@ from scipy.interpolate import (
 from scipy.spatial import QhullError, cKDTree
 
 from ..errors import ConfigurationError
-from ._checks import _bad, _numbers
+from .artifact import _bad, check_parameters
 from .base import Calibration, _err_summary
 
 __all__ = ["Interpolation"]
@@ -214,13 +214,10 @@ class Interpolation(Calibration):
         """Sizes, finiteness and ranges of a document's parameters, before any array is
         built (:func:`sunlab.calibration.artifact.from_dict`)."""
         nodes = p.get("nodes")
-        if not isinstance(nodes, dict) or not isinstance(nodes.get("x"), list):
-            raise _bad("nodes", type(nodes).__name__, "an object of lists x, y, alpha, beta")
-        n = len(nodes["x"])
+        n = len(nodes["x"]) if isinstance(nodes, dict) and isinstance(nodes.get("x"), list) else 0
         if n < 3:
             raise _bad("nodes.x", f"{n} nodes", "at least 3 nodes (one triangle)")
-        for k in ("x", "y", "alpha", "beta"):
-            _numbers(nodes.get(k), f"nodes.{k}", n)
+        check_parameters(p, {"nodes": dict.fromkeys(("x", "y", "alpha", "beta"), (n,))})
 
     @classmethod
     def _from_parameters(cls, p: dict):

@@ -19,15 +19,59 @@ from __future__ import annotations
 import numpy as np
 
 from .. import geometry
-from ..errors import ConfigurationError
-from ._checks import _number
-from .base import _SENSOR, Calibration, sensor_attrs
+from ..errors import ConfigurationError, SchemaError
+from .artifact import POSITIVE, check_parameters
+from .base import Calibration
 
 __all__ = ["IdealModel", "OptimisedModel"]
 
+_SENSOR = ("mask_distance_mm", "pixel_pitch_mm", "x_cf_px", "y_cf_px")
 #: The numbers of a saved optimised fit (mm, deg, px).
 _FIT_NUMBERS = ("delta_f_mm", "alpha0", "beta0", "x_zp", "y_zp", "x_cf", "y_cf",
                 "mask_distance_mm", "pixel_pitch_mm")
+
+
+def _number_rules(keys) -> dict:
+    """One finite number per key, the lengths (mm) positive."""
+    return {k: (POSITIVE,) if k in ("mask_distance_mm", "pixel_pitch_mm") else () for k in keys}
+
+
+def sensor_attrs(attrs: dict, *, name: str = "train") -> dict:
+    """The sensor attributes a geometric model needs, read from a table's attributes.
+
+    Parameters
+    ----------
+    attrs : dict
+        Attributes of a centroid table (or frame cube).
+    name : str
+        The table's name in an error message.
+
+    Returns
+    -------
+    dict
+        ``{"mask_distance_mm", "pixel_pitch_mm", "x_cf_px", "y_cf_px"}`` as floats (mm, mm,
+        px, px).
+
+    Examples
+    --------
+    >>> sensor_attrs({"mask_distance_mm": 5, "pixel_pitch_mm": 0.007, "x_cf_px": 1, "y_cf_px": 2})
+    {'mask_distance_mm': 5.0, 'pixel_pitch_mm': 0.007, 'x_cf_px': 1.0, 'y_cf_px': 2.0}
+    """
+    out = {}
+    for key in _SENSOR:
+        value = attrs.get(key)
+        if value is None or not np.isfinite(float(value)):
+            raise SchemaError(f"{name}.attrs[{key!r}]", value, "the sensor attribute of the frame "
+                              "cube", f"a geometric model needs it: write {key} in the frames' "
+                              "sensor.json (or pass it to sunlab import), carry the cube's attrs "
+                              "into the centroid table (a CSV table: sunlab.io.open_centroids("
+                              "path, attrs={...}), or a sensor.json beside it for the command "
+                              "line), or pass the value to the model explicitly; the polynomial "
+                              "and interpolation methods do not need it")
+        out[key] = float(value)
+    return out
+
+
 #: Poses within this distance of alpha = beta = 0 (deg) count as the zero pose.
 ZERO_POSE_TOL_DEG = 1e-9
 
@@ -82,8 +126,7 @@ class IdealModel(Calibration):
     def _check_parameters(cls, p: dict) -> None:
         """Sizes, finiteness and ranges of a document's parameters, before any array is
         built (:func:`sunlab.calibration.artifact.from_dict`)."""
-        for k in _SENSOR:
-            _number(p.get(k), k, positive=k in ("mask_distance_mm", "pixel_pitch_mm"))
+        check_parameters(p, _number_rules(_SENSOR))
 
     @classmethod
     def _from_parameters(cls, p: dict):
@@ -221,8 +264,7 @@ class OptimisedModel(Calibration):
     def _check_parameters(cls, p: dict) -> None:
         """Sizes, finiteness and ranges of a document's parameters, before any array is
         built (:func:`sunlab.calibration.artifact.from_dict`)."""
-        for k in _FIT_NUMBERS:
-            _number(p.get(k), k, positive=k in ("mask_distance_mm", "pixel_pitch_mm"))
+        check_parameters(p, _number_rules(_FIT_NUMBERS))
 
     @classmethod
     def _from_parameters(cls, p: dict):

@@ -47,9 +47,10 @@ from scipy.optimize import minimize
 from .. import geometry, parallel
 from ..errors import ConfigurationError
 from ..extras import require
-from ._checks import _bad, _count, _number, _numbers
-from .base import Calibration, sensor_attrs
-from .model import IdealModel, fit_optimised, optimised_fit_from_dict
+from ._frames_torch import EarlyStop, session
+from .artifact import POSITIVE, check_parameters
+from .base import Calibration
+from .model import IdealModel, fit_optimised, optimised_fit_from_dict, sensor_attrs
 
 __all__ = ["NeuralNet"]
 
@@ -62,6 +63,7 @@ STRATEGIES = {
 }
 
 
+_PURPOSE = "the neural-network calibration (NeuralNet)"
 _SETTINGS = ("strategy", "hidden", "seed", "max_iter", "patience", "weight_decay")
 
 
@@ -209,7 +211,7 @@ class NeuralNet(Calibration):
             self.sensor = fitted
 
     def _fit_tables(self, train, validation) -> None:
-        require("torch", purpose="the neural-network calibration (NeuralNet)")  # checked first
+        require("torch", purpose=_PURPOSE)  # checked first
         super()._fit_tables(train, validation)
 
     def _fit(self, data, validation) -> None:
@@ -235,8 +237,6 @@ class NeuralNet(Calibration):
             self.history[angle] = hist
 
     def _train_one(self, Z, t, Zv, tv, seed):
-        torch = require("torch", purpose="the neural-network calibration (NeuralNet)")
-
         n_in, h = Z.shape[1], self.hidden
         sizes = [h * n_in, h, h, 1]
         cuts = np.cumsum(sizes)[:-1]
@@ -245,11 +245,8 @@ class NeuralNet(Calibration):
             W1, b1, W2, b2 = np.split(theta, cuts)
             return {"W1": W1.reshape(h, n_in), "b1": b1, "W2": W2, "b2": float(b2[0])}
 
-        threads = torch.get_num_threads()
-        was_det = torch.are_deterministic_algorithms_enabled()
-        torch.set_num_threads(1)  # tiny full-batch problems: threads only add overhead
-        torch.use_deterministic_algorithms(True)
-        try:
+        # tiny full-batch problems: threads only add overhead
+        with session(1, _PURPOSE, deterministic=True) as torch:
             gen = torch.Generator().manual_seed(seed)
             bounds = (1.0 / np.sqrt(n_in),) * 2 + (1.0 / np.sqrt(h),) * 2
             theta0 = np.concatenate([
@@ -269,19 +266,14 @@ class NeuralNet(Calibration):
                 loss.backward()
                 return float(loss.detach()), p.grad.numpy().astype(float)
 
-            state = {"it": 0, "best": np.inf, "best_it": 0, "theta": theta0.copy()}
+            # early stopping on the validation loss; without one every iteration is the best
+            stop = EarlyStop(self.patience, state=theta0.copy())
 
             def callback(intermediate_result):
-                state["it"] += 1
-                if Zv is None:
-                    state["theta"] = intermediate_result.x.copy()
-                    state["best_it"] = state["it"]
-                    return
-                score = float(np.mean((_forward(Zv, unpack(intermediate_result.x)) - tv) ** 2))
-                if score < state["best"]:
-                    state.update(best=score, best_it=state["it"],
-                                 theta=intermediate_result.x.copy())
-                elif state["it"] - state["best_it"] >= self.patience:
+                x = intermediate_result.x
+                score = -stop.steps if Zv is None else float(
+                    np.mean((_forward(Zv, unpack(x)) - tv) ** 2))
+                if stop.step(score, x.copy):
                     raise StopIteration
 
             with parallel.single_threaded_blas():
@@ -289,15 +281,10 @@ class NeuralNet(Calibration):
                                callback=callback,
                                options={"maxiter": self.max_iter, "maxcor": 20,
                                         "ftol": 1e-15, "gtol": 1e-12})
-            if Zv is None:
-                state["theta"] = res.x.copy()
-        finally:
-            torch.use_deterministic_algorithms(was_det)
-            torch.set_num_threads(threads)
-        net = unpack(state["theta"])
+        net = unpack(res.x if Zv is None else stop.state)
         train_loss = float(np.mean((_forward(Z, net) - t) ** 2))
         val_loss = None if Zv is None else float(np.mean((_forward(Zv, net) - tv) ** 2))
-        return net, {"iterations": int(state["it"]), "best_iteration": int(state["best_it"]),
+        return net, {"iterations": stop.steps, "best_iteration": stop.best,
                      "train_loss": train_loss, "val_loss": val_loss}
 
     # --- prediction (NumPy) ------------------------------------------------------------------
@@ -326,30 +313,12 @@ class NeuralNet(Calibration):
     def _check_parameters(cls, p: dict) -> None:
         """Sizes, finiteness and ranges of a document's parameters, before any array is
         built (:func:`sunlab.calibration.artifact.from_dict`)."""
-        h = _count(p.get("hidden"), "hidden", 1)
-        scaling = p.get("input_scaling")
-        if not isinstance(scaling, dict):
-            raise _bad("input_scaling", type(scaling).__name__, "an object {'mean', 'std'}")
-        _numbers(scaling.get("mean"), "input_scaling.mean", 2)  # two inputs per strategy
-        _numbers(scaling.get("std"), "input_scaling.std", 2, positive=True)
-        nets = p.get("networks")
-        if not isinstance(nets, dict):
-            raise _bad("networks", type(nets).__name__, "an object {'alpha': ..., 'beta': ...}")
-        for angle in ("alpha", "beta"):
-            net = nets.get(angle)
-            if not isinstance(net, dict):
-                raise _bad(f"networks.{angle}", type(net).__name__, "an object of weights")
-            w1 = net.get("W1")
-            if not isinstance(w1, list) or len(w1) != h:
-                raise _bad(f"networks.{angle}.W1", f"{len(w1) if isinstance(w1, list) else w1}"
-                           " rows", f"{h} rows (hidden = {h})")
-            for i, row in enumerate(w1):
-                _numbers(row, f"networks.{angle}.W1[{i}]", 2)
-            _numbers(net.get("b1"), f"networks.{angle}.b1", h)
-            _numbers(net.get("W2"), f"networks.{angle}.W2", h)
-            for k in ("b2", "target_mean"):
-                _number(net.get(k), f"networks.{angle}.{k}")
-            _number(net.get("target_std"), f"networks.{angle}.target_std", positive=True)
+        check_parameters(p, {"hidden": range(1, 2**63)})
+        h = p["hidden"]
+        net = {"W1": (h, 2), "b1": (h,), "W2": (h,), "b2": (), "target_mean": (),
+               "target_std": (POSITIVE,)}  # two inputs per strategy
+        check_parameters(p, {"input_scaling": {"mean": (2,), "std": (POSITIVE, 2)},
+                             "networks": {"alpha": net, "beta": net}})
 
     @classmethod
     def _from_parameters(cls, p: dict):

@@ -27,7 +27,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import ConfigurationError
-from ._checks import _bad, _coefficients_ok, _count, _scaling_ok
+from .artifact import COUNT, SPAN, _bad, check_parameters
 from .base import Calibration, combine
 
 __all__ = ["Polynomial"]
@@ -85,24 +85,6 @@ def _scale(values, bounds) -> np.ndarray:
     return (2.0 * np.asarray(values, dtype=float) - (lo + hi)) / (hi - lo)
 
 
-def _lstsq(A: np.ndarray, target: np.ndarray, what: str) -> np.ndarray:
-    if A.shape[0] < A.shape[1]:
-        raise ConfigurationError(f"order: {what} needs {A.shape[1]} coefficients but the training "
-                                 f"table has {A.shape[0]} points. Fix: lower the order or add "
-                                 "poses")
-    return np.linalg.lstsq(A, target, rcond=None)[0]
-
-
-def _orders(order) -> tuple[int, int]:
-    orders = (order, order) if np.ndim(order) == 0 else tuple(order)
-    if len(orders) != 2 or any(int(n) != n or n < 0 for n in orders):
-        raise ConfigurationError(
-            f"order: found {order!r}, expected a non-negative integer or a pair (alpha, beta). "
-            "Fix: e.g. order=5 or order=(5, 6)"
-        )
-    return int(orders[0]), int(orders[1])
-
-
 _METRICS = ("mean_abs", "rms", "max_abs")
 
 
@@ -117,8 +99,9 @@ class _Series(Calibration):
     def _fit(self, data, validation) -> None:
         self.scaling = {k: [float(np.min(v)), float(np.max(v))]  # the spot moves (base fit)
                         for k, v in (("x", data.x), ("y", data.y))}
-        self.coefficients = {a: _lstsq(self.basis(data.x, data.y, a), getattr(data, a),
-                                       self.label) for a in ("alpha", "beta")}
+        # as many distinct poses as coefficients at least (min_poses, checked by the base fit)
+        self.coefficients = {a: np.linalg.lstsq(self.basis(data.x, data.y, a), getattr(data, a),
+                                                rcond=None)[0] for a in ("alpha", "beta")}
 
     def _predict_xy(self, x, y):
         return tuple(self.basis(x, y, a) @ self.coefficients[a] for a in ("alpha", "beta"))
@@ -126,6 +109,83 @@ class _Series(Calibration):
     def _series(self) -> dict:
         return {"scaling": self.scaling,
                 "coefficients": {a: np.asarray(c).tolist() for a, c in self.coefficients.items()}}
+
+    @classmethod
+    def select_order(cls, train, validation, orders=range(1, 9), *, metric: str = "mean_abs",
+                     per_angle: bool = False, refit: bool = False, **options):
+        """Pick the order on a validation table (experiment II), as the paper does; the tables
+        are taken as given (``calibration.fit(train, kind, validation, order="auto")`` screens
+        them first, then calls this).
+
+        Parameters
+        ----------
+        train, validation : xarray.Dataset
+            ``centroids/1`` tables (experiments I and II).
+        orders : iterable of int
+            Candidate total degrees.
+        metric : {"mean_abs", "rms", "max_abs"}
+            Per-shot validation error to minimise (``mean_abs`` is the paper's mu-like measure).
+        per_angle : bool
+            :class:`Polynomial`: choose the order of each angle separately; otherwise minimise
+            the sum over both.
+        refit : bool
+            Refit the chosen order on ``train`` and ``validation`` together (the paper, sec.
+            5: experiment II "may also be added to I for the polynomial"): the order is still
+            chosen on II alone, by fits on I.
+        **options
+            Further keywords of the class (``average``; a trigonometric ``period``).
+
+        Returns
+        -------
+        best : Polynomial or Trigonometric
+            Fitted on ``train`` (with ``validation`` recorded), or on both with ``refit``, at
+            the chosen order.
+        scores : pandas.DataFrame
+            Validation errors (deg) per candidate order: columns ``alpha_mean_abs`` ...
+            ``beta_max_abs``.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from sunlab import sim
+        >>> g = lambda s: np.meshgrid(np.arange(-17.0, 3.0, s), np.arange(-2.0, 18.0, s))
+        >>> (a, b), (va, vb) = g(2.0), g(1.5)
+        >>> kw = dict(delta_f_mm=0.1, mounting_deg=(1.8, 0.4, 0.0))
+        >>> tr = sim.synthetic_centroids(a.ravel(), b.ravel(), **kw)
+        >>> va = sim.synthetic_centroids(va.ravel(), vb.ravel(), **kw)
+        >>> best, scores = Polynomial.select_order(tr, va, orders=[1, 2, 3])
+        >>> best.orders, list(scores.index)
+        ((3, 3), [1, 2, 3])
+        """
+        if metric not in _METRICS:
+            raise ConfigurationError(f"metric: found {metric!r}, expected one of {_METRICS}")
+        rows = {}
+        for n in orders:
+            try:
+                cal = cls(order=int(n), **options).fit(train, outlier_mads=None)
+            except ConfigurationError:
+                continue
+            res = cal._residuals(validation)
+            rows[int(n)] = {f"{a}_{s}": res[a][s] for a in ("alpha", "beta") for s in _METRICS}
+        if not rows:
+            raise ConfigurationError(f"train: {train.sizes['pose']} poses support no order of "
+                                     f"{cls.kind!r} in {list(orders)}. Fix: calibrate on more "
+                                     "poses, or give lower orders")
+        scores = pd.DataFrame.from_dict(rows, orient="index").astype(float)
+        scores.index.name = "order"
+        if per_angle:
+            chosen = (int(scores[f"alpha_{metric}"].idxmin()),
+                      int(scores[f"beta_{metric}"].idxmin()))
+        else:
+            chosen = int((scores[f"alpha_{metric}"] + scores[f"beta_{metric}"]).idxmin())
+        fit_on = (combine(train, validation), None) if refit else (train, validation)
+        return cls(order=chosen, **options).fit(*fit_on, outlier_mads=None), scores
+
+    @staticmethod
+    def _check_series(p: dict, n_alpha: int, n_beta: int) -> None:
+        """Check a saved series' scaling and its ``n_alpha``, ``n_beta`` coefficients."""
+        check_parameters(p, {"scaling": {"x": SPAN, "y": SPAN},
+                             "coefficients": {"alpha": (n_alpha,), "beta": (n_beta,)}})
 
     def _read(self, p: dict):
         """Scaling and coefficients of a saved series (sizes checked by ``_check_parameters``)."""
@@ -161,7 +221,12 @@ class Polynomial(_Series):
 
     def __init__(self, order=5, average: str = "pose"):
         super().__init__()
-        self.orders = _orders(order)
+        orders = (order, order) if np.ndim(order) == 0 else tuple(order)
+        if len(orders) != 2 or any(int(n) != n or n < 0 for n in orders):
+            raise ConfigurationError(
+                f"order: found {order!r}, expected a non-negative integer or a pair (alpha, "
+                "beta). Fix: e.g. order=5 or order=(5, 6)")
+        self.orders = int(orders[0]), int(orders[1])
         self.average = average
 
     @property
@@ -221,85 +286,13 @@ class Polynomial(_Series):
         """Sizes, finiteness and ranges of a document's parameters, before any array is
         built (:func:`sunlab.calibration.artifact.from_dict`)."""
         order = p.get("order")
-        orders = [order] if not isinstance(order, list) else order
+        orders = order if isinstance(order, list) else [order]
         if len(orders) not in (1, 2):
             raise _bad("order", order, "an integer or [order_alpha, order_beta]")
-        orders = [_count(n, "order") for n in orders] * (3 - len(orders))
-        _scaling_ok(p)
-        _coefficients_ok(p, {a: (n + 1) * (n + 2) // 2
-                             for a, n in zip(("alpha", "beta"), orders[:2], strict=True)})
+        for n in orders:
+            check_parameters({"order": n}, {"order": COUNT})
+        cls._check_series(p, *((n + 1) * (n + 2) // 2 for n in orders * (3 - len(orders))))
 
     @classmethod
     def _from_parameters(cls, p: dict):
         return cls(order=tuple(p["order"]))._read(p)
-
-    @classmethod
-    def select_order(cls, train, validation, orders=range(1, 9), *, metric: str = "mean_abs",
-                     per_angle: bool = False, average: str = "pose", refit: bool = False):
-        """Pick the order on a validation table (experiment II), as the paper does; the tables
-        are taken as given (``calibration.fit(train, "polynomial", validation, order="auto")``
-        screens them first).
-
-        Parameters
-        ----------
-        train, validation : xarray.Dataset
-            ``centroids/1`` tables (experiments I and II).
-        orders : iterable of int
-            Candidate total degrees.
-        metric : {"mean_abs", "rms", "max_abs"}
-            Per-shot validation error to minimise (``mean_abs`` is the paper's mu-like measure).
-        per_angle : bool
-            Choose the order of each angle separately; otherwise minimise the sum over both.
-        average : {"pose", "shot"}
-            Passed to the constructor.
-        refit : bool
-            Refit the chosen order on ``train`` and ``validation`` together (the paper, sec.
-            5: experiment II "may also be added to I for the polynomial"): the order is still
-            chosen on II alone, by fits on I.
-
-        Returns
-        -------
-        best : Polynomial
-            Fitted on ``train`` (with ``validation`` recorded), or on both with ``refit``, at
-            the chosen order.
-        scores : pandas.DataFrame
-            Validation errors (deg) per candidate order: columns ``alpha_mean_abs`` ...
-            ``beta_max_abs``.
-
-        Examples
-        --------
-        >>> import numpy as np
-        >>> from sunlab import sim
-        >>> g = lambda s: np.meshgrid(np.arange(-17.0, 3.0, s), np.arange(-2.0, 18.0, s))
-        >>> (a, b), (va, vb) = g(2.0), g(1.5)
-        >>> kw = dict(delta_f_mm=0.1, mounting_deg=(1.8, 0.4, 0.0))
-        >>> tr = sim.synthetic_centroids(a.ravel(), b.ravel(), **kw)
-        >>> va = sim.synthetic_centroids(va.ravel(), vb.ravel(), **kw)
-        >>> best, scores = Polynomial.select_order(tr, va, orders=[1, 2, 3])
-        >>> best.orders, list(scores.index)
-        ((3, 3), [1, 2, 3])
-        """
-        if metric not in _METRICS:
-            raise ConfigurationError(f"metric: found {metric!r}, expected one of {_METRICS}")
-        rows = {}
-        for n in orders:
-            try:
-                cal = cls(order=int(n), average=average).fit(train, outlier_mads=None)
-            except ConfigurationError:
-                continue
-            res = cal._residuals(validation)
-            rows[int(n)] = {f"{a}_{s}": res[a][s] for a in ("alpha", "beta") for s in _METRICS}
-        if not rows:
-            raise ConfigurationError(
-                f"orders: none of {list(orders)} could be fitted. Fix: lower the orders"
-            )
-        scores = pd.DataFrame.from_dict(rows, orient="index").astype(float)
-        scores.index.name = "order"
-        if per_angle:
-            chosen = (int(scores[f"alpha_{metric}"].idxmin()),
-                      int(scores[f"beta_{metric}"].idxmin()))
-        else:
-            n = int((scores[f"alpha_{metric}"] + scores[f"beta_{metric}"]).idxmin())
-            chosen = (n, n)
-        fit_on = (combine(train, validation), None) if refit else (train, validation)
-        return cls(order=chosen, average=average).fit(*fit_on, outlier_mads=None), scores

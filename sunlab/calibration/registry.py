@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import functools
 import importlib
-import inspect
 from collections.abc import Callable
 from functools import partial
 from typing import TYPE_CHECKING
@@ -233,9 +232,9 @@ def fit(table: xr.Dataset, method: str, validation: xr.Dataset | None = None, *,
         class's, :data:`OUTLIER_MADS` for the single-hole methods; 0 or None keeps every shot.
     **options
         Keywords of the method's class, e.g. ``order=3``. ``order="auto"`` (with
-        ``validation``): the order the validation table prefers (:meth:`Polynomial.select_order`;
-        for another method the order of ``orders`` (default 1 to 8) whose mean local error on
-        the validation table, alpha and beta, is smallest); its scores are ``order_scores``.
+        ``validation``, a polynomial or trigonometric method): the order the validation table
+        prefers (:meth:`Polynomial.select_order`, whose keywords ``orders``, ``per_angle``,
+        ``refit`` apply); its scores are ``order_scores``.
 
     Returns
     -------
@@ -253,8 +252,22 @@ def fit(table: xr.Dataset, method: str, validation: xr.Dataset | None = None, *,
     cls = method_class(kind)
     if kind.startswith("interpolation-"):
         options = {"method": kind.removeprefix("interpolation-"), **options}
-    if options.get("order") == "auto":
-        return _auto_order(cls, kind, table, validation, outlier_mads, options)
+    if options.get("order") == "auto":  # the order the validation table prefers
+        from .base import _screen
+
+        if not hasattr(cls, "select_order"):
+            raise ConfigurationError(f"order: 'auto' applies to the methods that choose their "
+                                     f"order (select_order: 'polynomial', 'trigonometric'), not "
+                                     f"{kind!r}. Fix: drop order, or give an integer")
+        if validation is None:
+            raise ConfigurationError("order: found 'auto' without a validation table. Fix: "
+                                     "pass validation= (experiment II), or an integer order")
+        table, validation, screened = _screen(table, validation, outlier_mads,
+                                              cls.default_outlier_mads)  # once, for all orders
+        cal, cal.order_scores = cls.select_order(
+            table, validation, **{k: v for k, v in options.items() if k != "order"})
+        cal.training.update(screened)
+        return cal
     try:
         cal = cls(**options)
     except TypeError as err:  # an option the class does not take
@@ -262,70 +275,6 @@ def fit(table: xr.Dataset, method: str, validation: xr.Dataset | None = None, *,
                                  f"{cls.__name__} (help(sunlab.calibration.{cls.__name__}))"
                                  ) from err
     return cal.fit(table, validation, outlier_mads=outlier_mads)
-
-
-def _screened(fit, cls, train, validation, outlier_mads):
-    """``fit(train, validation)`` on both tables screened for outliers
-    (:func:`sunlab.screening.screen_outliers`, ``outlier_mads`` MADs; ``"default"``: the
-    class's), the excluded shots recorded in the fitted calibration's ``training``."""
-    from ..screening import screen_outliers
-
-    if outlier_mads == "default":
-        outlier_mads = cls.default_outlier_mads
-    excluded = {}
-    if outlier_mads:
-        train, excluded["excluded"] = screen_outliers(train, outlier_mads)
-        if validation is not None:
-            validation, excluded["validation_excluded"] = screen_outliers(validation,
-                                                                          outlier_mads)
-    cal = fit(train, validation)
-    if outlier_mads:
-        cal.training.update(outlier_mads=float(outlier_mads), **excluded)
-    return cal
-
-
-def _auto_order(cls, kind: str, table, validation, outlier_mads, options: dict):
-    """``order="auto"``: the order the validation table prefers (scores in ``order_scores``),
-    on the tables screened once."""
-    if "order" not in inspect.signature(cls.__init__).parameters:
-        raise ConfigurationError(f"order: 'auto' applies to the methods that take an order "
-                                 f"(e.g. 'polynomial', 'trigonometric'), not {kind!r}. Fix: "
-                                 "drop order")
-    if validation is None:
-        raise ConfigurationError("order: found 'auto' without a validation table. Fix: pass "
-                                 "validation= (experiment II), or an integer order")
-    rest = {k: v for k, v in options.items() if k != "order"}
-    select = getattr(cls, "select_order", None) or partial(_select_on_validation, cls)
-
-    def fit_best(train, val):
-        cal, cal.order_scores = select(train, val, **rest)
-        return cal
-
-    return _screened(fit_best, cls, table, validation, outlier_mads)
-
-
-def _select_on_validation(cls, train, validation, orders=range(1, 9), **options):
-    """Fit at each order the training table supports; keep the one with the smallest mean
-    local error (alpha and beta, deg) on the validation table, as the paper picks orders.
-    Returns the calibration and the error of every order tried (a DataFrame on ``order``)."""
-    import pandas as pd
-
-    from ..stats import evaluate
-
-    best, best_err, rows = None, float("inf"), {}
-    for order in orders:
-        try:
-            cal = cls(order=int(order), **options).fit(train, validation, outlier_mads=None)
-        except ConfigurationError:  # more coefficients than training points
-            break
-        rows[int(order)] = float(evaluate(cal, validation).xs("mu", level="stat").mean().iloc[0])
-        if rows[int(order)] < best_err:
-            best, best_err = cal, rows[int(order)]
-    if best is None:
-        raise ConfigurationError(f"train: {train.sizes['pose']} poses support no order of "
-                                 f"{cls.kind!r} in {list(orders)}. Fix: calibrate on more "
-                                 "poses, or give lower orders")
-    return best, pd.DataFrame({"mean_local_error": rows}).rename_axis("order")
 
 
 def table4_methods(*, neural: bool = True, hidden: int = 8, seed: int = 0,

@@ -25,7 +25,19 @@ def _num(v, fmt: str = ".5f") -> str:
     return "n/a" if v is None else format(float(v), fmt)
 
 
-def _errors_line(res) -> str:
+def errors_line(res) -> str:
+    """``alpha mean|e| ..., rms ..., max ...; beta ...`` (deg) of a ``residuals`` entry, or
+    ``n/a`` (``sunlab info`` and ``sunlab calibrate`` print it).
+
+    Parameters
+    ----------
+    res : dict or None
+        Per angle the statistics ``mean_abs``, ``rms``, ``max_abs`` (deg).
+
+    Returns
+    -------
+    str
+    """
     if not isinstance(res, dict):
         return "n/a"
     parts = []
@@ -98,13 +110,13 @@ def calibration_summary(doc: dict) -> str:
                      "its nodes)")
         loo = res.get("leave_one_out")
         lines.append("  leave-one-out errors (deg): "
-                     + (_errors_line(loo) if loo else "n/a (fitted by an older sunlab)"))
+                     + (errors_line(loo) if loo else "n/a (fitted by an older sunlab)"))
     else:
-        lines.append(f"  training residuals (deg): {_errors_line(res)}")
+        lines.append(f"  training residuals (deg): {errors_line(res)}")
     val = res.get("validation")
     v = t.get("validation") or {}
     lines.append("  validation errors (deg): " + (
-        f"{_errors_line(val)} (experiment {v.get('experiment') or '?'!r}, "
+        f"{errors_line(val)} (experiment {v.get('experiment') or '?'!r}, "
         f"{v.get('n_poses', '?')} poses)" if val else "none (fitted without a validation table)"))
     prov = [f"sunlab {doc.get('sunlab_version', '?')}"]
     if doc.get("created"):

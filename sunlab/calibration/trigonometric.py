@@ -26,7 +26,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import ConfigurationError
-from ._checks import _coefficients_ok, _count, _number, _scaling_ok
+from .artifact import COUNT, POSITIVE, check_parameters
 from .polynomial import _scale, _Series
 
 __all__ = ["Trigonometric"]
@@ -132,10 +132,8 @@ class Trigonometric(_Series):
     def _check_parameters(cls, p: dict) -> None:
         """Sizes, finiteness and ranges of a document's parameters, before any array is
         built (:func:`sunlab.calibration.artifact.from_dict`)."""
-        n = _count(p.get("order"), "order")
-        _number(p.get("period"), "period", positive=True)
-        _scaling_ok(p)
-        _coefficients_ok(p, {"alpha": (2 * n + 1) ** 2, "beta": (2 * n + 1) ** 2})
+        check_parameters(p, {"order": COUNT, "period": (POSITIVE,)})
+        cls._check_series(p, (2 * p["order"] + 1) ** 2, (2 * p["order"] + 1) ** 2)
 
     @classmethod
     def _from_parameters(cls, p: dict):

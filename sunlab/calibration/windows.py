@@ -21,7 +21,7 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 import xarray as xr
 
-from ._checks import _ok_mask
+from .base import _ok_mask
 
 __all__: list[str] = []
 
@@ -121,8 +121,8 @@ def spot_windows(cube: xr.Dataset, detections: xr.Dataset, *, window: int = 44, 
         per_pose = list(ex.map(one, range(x.shape[0])))
     holes = (np.column_stack([cube["hole_x_cf"].values, cube["hole_y_cf"].values]) if multi
              else np.zeros((1, 2)))
+    # in (pose, shot, hole) order: poses in turn, and each pose's spots in C order of (shot, hole)
     els = [(p, s, h, x0, y0, w) for p, items in enumerate(per_pose) for s, h, x0, y0, w in items]
-    els.sort(key=lambda e: (e[0], e[1], e[2]))
     key = np.array([(e[0], e[1]) for e in els], dtype=int).reshape(-1, 2)
     first = np.flatnonzero(np.r_[True, np.any(key[1:] != key[:-1], axis=1)]) if len(els) else \
         np.zeros(0, int)

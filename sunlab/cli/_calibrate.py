@@ -143,22 +143,18 @@ def _print_excluded(found, path, name: str, n_mad: float) -> None:
 def _print_fit(cal, out, elapsed: float) -> None:
     """The fit's residuals (leave-one-out for an interpolant), repaired shots, warnings."""
     from ..calibration.plausibility import implausible
+    from ..calibration.summary import errors_line
 
     res = cal.residuals
-
-    def fmt(r):
-        return ", ".join(f"{a} mean|e| {r[a]['mean_abs'] or math.nan:.5f} "
-                         f"max {r[a]['max_abs'] or math.nan:.5f}" for a in ("alpha", "beta"))
-
     if res.get("leave_one_out"):  # an interpolant passes through its nodes: ~0 residuals
-        line = ("leave-one-out errors (deg): " + fmt(res["leave_one_out"])
+        line = ("leave-one-out errors (deg): " + errors_line(res["leave_one_out"])
                 + " (training residuals ~0 by construction)")
     else:
-        line = "training residuals (deg): " + fmt(res)
+        line = "training residuals (deg): " + errors_line(res)
     print(f"{out}: {cal.label} fitted on {cal.training['n_poses']} poses in {elapsed:.2f} s; "
           f"{line}")
     if res.get("validation"):
-        print("  validation residuals (deg): " + fmt(res["validation"]))
+        print("  validation residuals (deg): " + errors_line(res["validation"]))
     if cal.training.get("n_repaired_shots"):
         print(f"  {cal.training['n_repaired_shots']} of the {cal.training['n_ok_shots']} shots "
               "used are 'repaired' (an isolated hot pixel in the centroid window, replaced by "

@@ -173,7 +173,7 @@ def _set_data(rng, n_frames=3, per_frame=(5, 3, 7), window=20, pad=2):
 def test_the_set_network_does_not_depend_on_the_order_of_the_spots():
     rng = np.random.default_rng(0)
     data = _set_data(rng)
-    net = T.build(4, T.n_features(4), seed=1)
+    net = T.build(4, seed=1)
     with torch.no_grad():  # a non-zero attention, so that the weights differ between spots
         for p in net.parameters():
             p.add_(0.3 * torch.randn(p.shape, generator=torch.Generator().manual_seed(2)))
@@ -198,7 +198,7 @@ def test_the_set_network_does_not_depend_on_the_order_of_the_spots():
 def test_the_untrained_net_is_the_centre_of_light_of_the_window():
     rng = np.random.default_rng(3)
     data = _set_data(rng, n_frames=1, per_frame=(4,))
-    net = T.build(3, T.n_features(3), seed=0)
+    net = T.build(3, seed=0)
     st = {"order": 1, "multi": False, "d_mean": np.zeros(2), "d_std": np.ones(2)}
     _, pos = T.forward_all(net, {**data, "start": np.array([0, 4])}, st, torch.device("cpu"))
     w = data["win"][:, 2:-2, 2:-2].astype(float)  # the centred crop

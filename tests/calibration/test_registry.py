@@ -164,22 +164,26 @@ def test_order_auto_is_the_librarys(tmp_path):
     assert cal.orders == best.orders and cal.order_scores.equals(scores)
     with pytest.raises(ConfigurationError, match="without a validation table"):
         calibration.fit(_table(1), "polynomial", order="auto")
-    with pytest.raises(ConfigurationError, match="methods that take an order"):
+    with pytest.raises(ConfigurationError, match="methods that choose their order"):
         calibration.fit(_table(1), "linear", _table(2), order="auto")
 
 
 def test_order_auto_of_another_method_keeps_the_best_validation_error():
-    # the trigonometric expansion has no select_order: each order is fitted on I and scored
-    # by its mean local error on II (alpha + beta), as the paper picks its orders
+    # the trigonometric expansion chooses its order by the same select_order as the
+    # polynomial: each order fitted on I, scored by its mean absolute error on II's shots
+    # (alpha + beta), as the paper picks its orders
     train, val = _table(1, n=7), _table(2, n=7)
     cal = calibration.fit(train, "trigonometric", val, order="auto", orders=(1, 2, 3),
-                          outlier_mads=None)
+                          period=2.0, outlier_mads=None)
     errors = {}
     for order in (1, 2, 3):
-        fitted = calibration.Trigonometric(order).fit(train, val)
-        errors[order] = float(stats.evaluate(fitted, val).xs("mu", level="stat").mean().iloc[0])
-    assert cal.order == min(errors, key=errors.get)
-    assert cal.order_scores["mean_local_error"].to_dict() == errors
+        est = calibration.Trigonometric(order, period=2.0).fit(train).predict(val)
+        errors[order] = float(abs(est.alpha - est.alpha_cmd).mean()
+                              + abs(est.beta - est.beta_cmd).mean())
+    assert cal.order == min(errors, key=errors.get) and cal.period == 2.0
+    scores = cal.order_scores
+    np.testing.assert_allclose(scores["alpha_mean_abs"] + scores["beta_mean_abs"],
+                               list(errors.values()), rtol=1e-12)
 
 
 def test_table4_recipes_are_registry_entries_fitted_by_fit():
