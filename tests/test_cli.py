@@ -47,7 +47,8 @@ def test_reproduce_passes_the_scheduler_to_every_table(monkeypatch, tmp_path, ca
 
     def table5(**kw):
         seen[5] = kw
-        return {"table": pd.DataFrame({"x": [1.0]}), "centroid_status": {},
+        return {"table": pd.DataFrame({"x": [1.0]}),
+                "centroid_status": {"I": {"removed": {"saturated": 2}}, "II": {"removed": {}}},
                 "runtime_s": 0.0, "files": []}
 
     monkeypatch.setattr(reproduce, "reproduce_table4", table4)
@@ -66,6 +67,8 @@ def test_reproduce_passes_the_scheduler_to_every_table(monkeypatch, tmp_path, ca
                    "--scheduler", "cluster", "--workers", "2", "--method", "fit",
                    "--out", str(tmp_path)])
         assert rc == 0
+    # Table 5's removed frames, in the words of Table 4's text (one function for both)
+    assert "\nFrames removed (status: count): I: 2 saturated; II: none\n" in capsys.readouterr().out
     for k in (4, 5, "platform"):
         assert (seen[k]["address"], seen[k]["scheduler"], seen[k]["workers"],
                 seen[k]["method"]) == ("tcp://10.0.0.1:8786", "cluster", 2, "fit"), k

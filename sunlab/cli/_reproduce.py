@@ -69,9 +69,7 @@ def run_reproduce(args) -> int:
     if args.table in ("5", "all"):
         res = reproduce.reproduce_table5(out=args.out, **where)
         print(f"\n{reproduce.table5.format_table5(res)}")
-        print("Frames removed (status: count): " + "; ".join(
-            f"{k}: " + (", ".join(f"{n} {s}" for s, n in v["removed"].items()) or "none")
-            for k, v in res["centroid_status"].items()))
+        print(reproduce.table4.removed_line(res["centroid_status"]))
         print(f"\n{res['runtime_s']:.0f} s; wrote " + ", ".join(map(str, res["files"])))
     return 0
 

@@ -38,6 +38,7 @@ Examples
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 import time
 from pathlib import Path
@@ -144,7 +145,8 @@ def reproduce_platform(*, quick: bool = False, seed: int = 0, method: str = "pro
         Rendered frames (default) or the centroid-level surrogate
         (:func:`sunlab.sim.surrogate.surrogate_centroids`, seconds instead of minutes).
     bench : sunlab.sim.Bench, optional
-        Default :meth:`sunlab.sim.Bench.paper_single_hole`.
+        Default :meth:`sunlab.sim.Bench.paper_single_hole`; ``settings["bench"]`` names that
+        constructor, or holds a passed bench's parameters (:meth:`sunlab.sim.Bench.to_json`).
     checks : int
         Zero-pose visits per run (:func:`sunlab.plans.zero_check`).
     address, scheduler, workers
@@ -170,6 +172,7 @@ def reproduce_platform(*, quick: bool = False, seed: int = 0, method: str = "pro
     if engine not in ("render", "surrogate"):
         raise ConfigurationError(f"engine: found {engine!r}; expected 'render' or 'surrogate'.")
     t0 = time.perf_counter()
+    used = "sunlab.sim.Bench.paper_single_hole()" if bench is None else json.loads(bench.to_json())
     bench = sim.Bench.paper_single_hole() if bench is None else bench
     paper = pl.experiment_plans(quick=quick, step=step, shots=shots)
     protocols = {"paper": paper,
@@ -190,7 +193,7 @@ def reproduce_platform(*, quick: bool = False, seed: int = 0, method: str = "pro
                            "centroid_method": method, "scan": paper["III"].scan,
                            "zero_checks": checks, "poses": {k: len(p) for k, p in paper.items()},
                            "shots": paper["III"].shots,
-                           "bench": "sunlab.sim.Bench.paper_single_hole()"},
+                           "bench": used},
               "timings_s": {"simulate_and_centroid": round(t_sim, 2),
                             "total": round(time.perf_counter() - t0, 2)},
               "files": []}

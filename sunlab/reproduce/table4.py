@@ -405,9 +405,33 @@ def format_table(res: Table4Result) -> str:
     lines.append("Centroid status: " + "; ".join(
         f"{k}: " + ", ".join(f"{n} {s}" for s, n in v.items() if s != "removed")
         for k, v in res.centroid_status.items()))
-    lines.append("Frames removed (status: count): " + "; ".join(
-        f"{k}: " + (", ".join(f"{n} {s}" for s, n in v["removed"].items()) or "none")
-        for k, v in res.centroid_status.items()))
+    lines.append(removed_line(res.centroid_status))
     lines.append(f"Time: {res.timings['simulate_and_centroid']:.1f} s simulate + centroid, "
                  f"{res.timings['total']:.1f} s in all")
     return "\n".join(lines)
+
+
+def removed_line(status: dict) -> str:
+    """The frames each run's statistics leave out, by status, on one line (Tables 4 and 5).
+
+    Parameters
+    ----------
+    status : dict of str to dict
+        Per run, :func:`sunlab.reproduce.pipeline.centroid_status`'s counts; its ``removed``
+        maps a status name to a number of frames.
+
+    Returns
+    -------
+    str
+        ``Frames removed (status: count): `` then ``run: count status, ...`` (``none`` where
+        nothing was removed), runs separated by ``; ``.
+
+    Examples
+    --------
+    >>> removed_line({"I": {"ok": 8, "removed": {"saturated": 2, "no_spot": 1}},
+    ...               "II": {"ok": 9, "removed": {}}})
+    'Frames removed (status: count): I: 2 saturated, 1 no_spot; II: none'
+    """
+    return "Frames removed (status: count): " + "; ".join(
+        f"{k}: " + (", ".join(f"{n} {s}" for s, n in v["removed"].items()) or "none")
+        for k, v in status.items())

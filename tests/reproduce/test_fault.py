@@ -224,3 +224,17 @@ def test_reproduce_platform_writes_its_contract(tmp_path):
     # error (and no gear error: a choice), which no correction of the run removes
     assert best < 0.7 * poly["beta.mu"]
     assert res["settings"]["scan"] == "serpentine"
+
+
+def test_platform_json_records_the_bench_it_ran_on(tmp_path):
+    import json
+
+    from sunlab.reproduce import reproduce_platform
+
+    bench = Bench.paper_single_hole().replace(platform__beta_backlash_deg=0.01)
+    reproduce_platform(engine="surrogate", quick=True, out=tmp_path, bench=bench,
+                       progress=False)
+    settings = json.loads((tmp_path / "platform.json").read_text())["settings"]
+    # a passed bench is not the constructor's: its own parameters, not the constructor's name
+    assert settings["bench"] == json.loads(bench.to_json())
+    assert settings["bench"]["platform"]["beta_backlash_deg"] == 0.01

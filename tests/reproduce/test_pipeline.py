@@ -107,3 +107,26 @@ def test_each_interval_carries_its_role_and_the_held_out_coverage_is_reported_ap
     assert counts == {"held-out": [26, 32], "all": [50, 56]}
     assert np.median(widths["held-out"]) == pytest.approx(0.565, abs=5e-4)
     assert np.median(widths["all"]) == pytest.approx(0.240, abs=5e-4)
+
+
+def test_intervals_without_their_role_column_are_refused(tmp_path, monkeypatch):
+    # an intervals file written before the roles were added is refused, naming it and the fix,
+    # never read as if every cell were held out
+    import importlib.resources
+    import types
+
+    import pandas as pd
+
+    from sunlab import ConfigurationError
+    from sunlab.reproduce import intervals
+
+    data = importlib.resources.files("sunlab") / "data"
+    (tmp_path / "data").mkdir()
+    (tmp_path / "data" / "presets.json").write_text((data / "presets.json").read_text("utf-8"))
+    old = pd.read_csv(data / "intervals.csv").drop(columns="role")
+    old.to_csv(tmp_path / "data" / "intervals.csv", index=False)
+    monkeypatch.setattr(intervals, "resources", types.SimpleNamespace(
+        files=lambda package: tmp_path, as_file=importlib.resources.as_file))
+    with pytest.raises(ConfigurationError, match=r"intervals\.csv: no 'role' column\. Fix: "
+                                                 r"rewrite it with `python -m studies\.identify`"):
+        intervals.identified("table4")
