@@ -44,6 +44,7 @@ def built_site(tmp_path_factory):
     env = dict(os.environ, SUNLAB_DOCS_EXECUTE="off", PYTHONPATH=str(ROOT))
     proc = subprocess.run(
         [sys.executable, "-m", "sphinx", "-b", "html", "-n", "-W", "--keep-going", "-q",
+         "-j", "auto",  # pages read on every core: the suite's process only waits here
          "-d", str(out / "doctrees"), str(DOCS), str(out / "html")],
         cwd=ROOT, env=env, capture_output=True, text=True, timeout=1200)
     return proc, out / "html"

@@ -156,9 +156,17 @@ def test_a_stopped_run_resumes_after_the_benches_it_finished(tmp_path, monkeypat
     assert [r for r in recs if r["bench"] == "paper"] == first["records"]
     assert {r["bench"] for r in recs} == {"paper", "prnu-x3"}
     assert res["models"]["paper"].kind == "learned-frames"
-    # other settings for a bench: it is computed again, not read back
+    # other settings for a bench: it is computed again, not read back (the bench's run is
+    # reached, and stopped there: what it computes is the run above's)
     calls.clear()
-    reproduce_learned(**{**opts, "benches": ["paper"], "epochs": 2})
+
+    def reached(name, *args, **kw):
+        calls.append(name)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(learned, "_run_bench", reached)
+    with pytest.raises(KeyboardInterrupt):
+        reproduce_learned(**{**opts, "benches": ["paper"], "epochs": 2})
     assert calls == ["paper"]
 
 
