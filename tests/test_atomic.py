@@ -215,7 +215,11 @@ def test_a_signal_sent_during_a_held_block_is_delivered_at_its_end():
 
     def sender():
         go.wait()
-        os.kill(os.getpid(), signal.SIGINT)
+        # SIGINT handed to this thread, as the kernel may hand a process-directed one: directed
+        # at the calling thread, it is taken before pthread_kill returns (os.kill gives no such
+        # promise when another thread leaves it unblocked: under load it could land after the
+        # block, and the test failed once so)
+        signal.pthread_kill(threading.get_ident(), signal.SIGINT)
         sent.set()
 
     thread = threading.Thread(target=sender)
