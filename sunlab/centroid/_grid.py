@@ -101,6 +101,13 @@ def _metrics(m, resid):
             np.hypot(m[:, M30] + m[:, M12], m[:, M21] + m[:, M03]) / tr**1.5, resid])
 
 
+def _new_holes(n_holes, no_spot):
+    """Per-hole outputs before any spot is assigned: values (3 + 9, n_holes) (rows x, y, flux,
+    then the metrics) NaN, windows (4, n_holes) -1, status ``no_spot``."""
+    return (np.full((3 + len(METRIC_FIELDS), n_holes), np.nan),
+            np.full((4, n_holes), -1, np.int32), np.full(n_holes, no_spot, np.int8))
+
+
 def _grid_offset(ij, pts, lut, exp):
     """The offset (dj, di) that puts the lattice indices ``ij`` (n, 2) of the reference spots
     on the mask's grid (``lut``, (rows, cols)). Forced when they span the grid; else, of the
@@ -130,9 +137,9 @@ def _grid_offset(ij, pts, lut, exp):
 def _assign(m, win, st, good, fit, max_residual, lut, exp, vals, window, status, ambiguous):
     """Step 4 of :func:`sunlab.centroid.locate_spots`: reference spots (within ``max_residual``
     pitch of a node and good, or on a node if none is good), the grid offset, then each hole's
-    nearest spot written into ``vals``, ``window`` and ``status`` (NaN, -1 and ``no_spot``
-    before; ``ambiguous`` where several spots claim a hole).
-    Returns (positions of the spots assigned to no hole (k, 2), lattice (3, 2):
+    nearest spot written into
+    ``vals``, ``window`` and ``status`` (:func:`_new_holes`; ``ambiguous`` where several spots
+    claim a hole). Returns (positions of the spots assigned to no hole (k, 2), lattice (3, 2):
     origin of hole (0, 0) and the steps along j and i; NaN when no spot is a reference)."""
     ij, origin, basis, resid = fit
     pts = m[:, [X, Y]]

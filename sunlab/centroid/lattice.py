@@ -15,7 +15,7 @@ import numpy as np
 from ..errors import ConfigurationError
 from ._aperture import FLUX, X, Y, _background_band, _detect, _first_radius, _measure
 from ._diskfit import _fit_from
-from ._grid import METRIC_FIELDS, _assign, _fit_lattice, _spot_table
+from ._grid import METRIC_FIELDS, _assign, _fit_lattice, _new_holes, _spot_table
 from ._local import _local_centroid
 from .estimators import PER_SPOT
 from .moments import SpotMoments
@@ -27,6 +27,7 @@ from .result import (
     _OK,
     _REPAIRED,
     _SATURATED,
+    _all_zero,
     _check_positive,
     _full_scale,
     _prepare,
@@ -99,6 +100,8 @@ class Spots(NamedTuple):
         return pd.DataFrame(cols).rename_axis("hole")
 
 
+
+
 def locate_spots(
     frame, *, shape: tuple[int, int] = (10, 10), pitch: float = 0.5 / 0.007, holes=None,
     expected=None, method: str = "tight", max_residual: float = 0.3, stride: int = 8,
@@ -166,52 +169,81 @@ def locate_spots(
     if method not in (spot := sorted(set(PER_SPOT.values()))):  # the per-spot estimators
         raise ConfigurationError(f"method: found {method!r}, expected one of {spot}")
     _check_positive("pitch", pitch, "give the hole pitch on the detector in px")
+    hi, hj, lut = _hole_table(shape, holes)
+    exp = None if expected is None else np.asarray(expected, dtype=float).reshape(hi.size, 2)
+    vals, window, status = _new_holes(hi.size, _NO_SPOT)
+    unassigned, lattice = _locate(frame, method, lut, exp, vals, window, status, stride, nsigma,
+                                  min_contrast, min_samples, float(margin), float(annulus),
+                                  int(n_iter), _full_scale(frame, saturation), float(pitch),
+                                  float(max_residual))
+    # x, y, flux and the metrics (the order of SPOT_METRICS) are rows of one block.
+    metrics = dict(zip(METRIC_FIELDS, vals[3:], strict=True))
+    return Spots(vals[0], vals[1], vals[2], window, status, hi, hj, metrics, unassigned, lattice)
+
+
+def _locate(frame, method, lut, exp, vals, window, status, stride, nsigma, min_contrast,
+            min_samples, margin, annulus, n_iter, saturation, pitch, max_residual):
+    """Steps 1-4 of :func:`locate_spots` into the per-hole outputs ``vals``, ``window`` and
+    ``status``; returns (unassigned spots, lattice)."""
+    arr, usable = _prepare(frame)
+    det = _detect(arr, stride, nsigma, min_contrast, min_samples) if usable else None
+    if not usable or (det.count.size == 0 and det.sample_max == 0 and _all_zero(arr)):
+        status[:] = _INVALID
+    if not usable or det.count.size == 0:
+        return np.zeros((0, 2)), np.full((3, 2), np.nan)
+    m = _measure(arr, det.x, det.y, _first_radius(det.count, stride, margin), margin, annulus,
+                 *_background_band(det), n_iter, saturation)
+    m = m[m[:, FLUX] > 0]
+    win, st = _spot_table(m, arr.shape[1], arr.shape[0], _OK, _SATURATED, _CLIPPED)
+    if method == "fit":
+        _fit_spots(arr, m, win, st, saturation)
+    good = (st == _OK) & (m[:, FLUX] > 0.3 * np.median(m[:, FLUX])) if len(m) else st == 0
+    fit = _fit_lattice(m[:, [X, Y]], good if good.any() else np.ones(len(m), bool), pitch,
+                       max_residual)
+    out = np.zeros((0, 2)), np.full((3, 2), np.nan)
+    if fit is not None:
+        out = _assign(m, win, st, good, fit, max_residual, lut, exp, vals, window, status,
+                      _AMBIGUOUS)
+    if method == "tight":
+        _repair_hot_spots(arr, vals, window, status, annulus, n_iter, saturation)
+    return out
+
+
+def _hole_table(shape, holes):
+    """Grid row and column of each output hole and the (rows, cols) lookup table of the hole
+    at each grid place (-1: not an output hole)."""
     rows, cols = (int(v) for v in shape)
     if rows < 1 or cols < 1:
         raise ConfigurationError(f"shape: found {shape!r}, expected (rows, cols) >= (1, 1)")
-    # grid row and column of each output hole; lut: the hole at each grid place (-1: none)
     hi, hj = (np.divmod(np.arange(rows * cols), cols) if holes is None else
               (np.asarray(h, dtype=int) for h in holes))
     lut = np.full((rows, cols), -1, dtype=int)
     inside = (hi >= 0) & (hi < rows) & (hj >= 0) & (hj < cols)
     lut[hi[inside], hj[inside]] = np.flatnonzero(inside)
-    exp = None if expected is None else np.asarray(expected, dtype=float).reshape(hi.size, 2)
-    # per hole: x, y, flux and the metrics (the order of SPOT_METRICS) as rows of one block
-    vals = np.full((3 + len(METRIC_FIELDS), hi.size), np.nan)
-    window = np.full((4, hi.size), -1, np.int32)
-    status = np.full(hi.size, _NO_SPOT, np.int8)
-    unassigned, lattice = np.zeros((0, 2)), np.full((3, 2), np.nan)
-    saturation = _full_scale(frame, saturation)
-    arr, usable = _prepare(frame)
-    det = _detect(arr, stride, nsigma, min_contrast, min_samples) if usable else None
-    if not usable or (det.count.size == 0 and det.sample_max == 0 and not arr.any()):
-        status[:] = _INVALID
-    if usable and det.count.size:
-        m = _measure(arr, det.x, det.y, _first_radius(det.count, stride, margin), float(margin),
-                     float(annulus), *_background_band(det), int(n_iter), saturation)
-        m = m[m[:, FLUX] > 0]
-        win, st = _spot_table(m, arr.shape[1], arr.shape[0], _OK, _SATURATED, _CLIPPED)
-        for k in range(len(m) if method == "fit" else 0):
-            # x, y, flux and window of the disk fit started from the spot's moments
-            c = _fit_from(arr, SpotMoments(*m[k]), int(st[k]), 1.5, 30, True, saturation)
-            if np.isfinite(c.x):
-                m[k, X], m[k, Y], m[k, FLUX] = c.x, c.y, c.flux
-                win[:, k] = c.window
-        good = (st == _OK) & (m[:, FLUX] > 0.3 * np.median(m[:, FLUX])) if len(m) else st == 0
-        fit = _fit_lattice(m[:, [X, Y]], good if good.any() else np.ones(len(m), bool),
-                           float(pitch), float(max_residual))
-        if fit is not None:
-            unassigned, lattice = _assign(m, win, st, good, fit, float(max_residual), lut, exp,
-                                          vals, window, status, _AMBIGUOUS)
-        for k in np.flatnonzero(status == _SATURATED) if method == "tight" else ():
-            # isolated pixels at full scale (hot pixels) in the window: repaired by the median
-            # of their neighbours and x, y, flux measured again, as the tight window does;
-            # touching clipped pixels stay ``saturated``; the metrics keep the first values
-            flux, x, y, n_hot, saturated = _local_centroid(
-                arr, float(vals[0, k]), float(vals[1, k]), 0.5 * (window[1, k] - window[0, k] - 1),
-                float(annulus), int(n_iter), saturation, False)
-            if n_hot and not saturated and flux > 0:
-                vals[0, k], vals[1, k], vals[2, k] = x, y, flux
-                status[k] = _REPAIRED
-    metrics = dict(zip(METRIC_FIELDS, vals[3:], strict=True))
-    return Spots(vals[0], vals[1], vals[2], window, status, hi, hj, metrics, unassigned, lattice)
+    return hi, hj, lut
+
+
+def _fit_spots(arr, m, win, st, saturation) -> None:
+    """``method="fit"``: each measured spot's x, y and flux (rows of ``m``) and window replaced,
+    in place, by those of its disk fit (:func:`sunlab.centroid.disk_fit` started from its
+    moments) where the fit converges."""
+    for k in range(len(m)):
+        c = _fit_from(arr, SpotMoments(*m[k]), int(st[k]), 1.5, 30, True, saturation)
+        if np.isfinite(c.x):
+            m[k, X], m[k, Y], m[k, FLUX] = c.x, c.y, c.flux
+            win[:, k] = c.window
+
+
+def _repair_hot_spots(arr, vals, window, status, annulus, n_iter, saturation) -> None:
+    """Spots flagged ``saturated`` for isolated pixels at full scale (hot pixels) in their
+    window: those pixels replaced by the median of their neighbours and x, y, flux measured
+    again (the tight window's repair, :func:`tight_window`), status ``repaired``; a spot with
+    touching clipped pixels stays ``saturated``. The metrics keep the first values."""
+    for k in np.flatnonzero(status == _SATURATED):
+        x0, x1 = int(window[0, k]), int(window[1, k])
+        flux, x, y, n_hot, saturated = _local_centroid(
+            arr, float(vals[0, k]), float(vals[1, k]), 0.5 * (x1 - x0 - 1), annulus, n_iter,
+            saturation, False)
+        if n_hot and not saturated and flux > 0:
+            vals[0, k], vals[1, k], vals[2, k] = x, y, flux
+            status[k] = _REPAIRED
