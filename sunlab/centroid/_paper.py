@@ -19,7 +19,6 @@ from .result import (
     _INVALID,
     _NO_SPOT,
     Centroid,
-    _all_zero,
     _fail,
     _full_scale,
     _prepare,
@@ -129,7 +128,7 @@ def _algorithm_a(arr, border, factor, test_size, test_count, roi_size, roi_borde
     hits = np.flatnonzero(arr > thr)
     r, c = _scan_first(arr, thr, *test, (1, ny - 1, 1, nx - 1), hits=hits)
     if r < 0:
-        return _fail(_INVALID if _all_zero(arr) else _NO_SPOT)
+        return _fail(_NO_SPOT if arr.any() else _INVALID)
     roi, clipped = _roi(r, c, roi_size, ny, nx)
     ambiguous = False
     if check_ambiguous:
