@@ -328,10 +328,18 @@ def _prepare(cube, method, multi, options) -> _Prepared:
     frames = _chunked_frames(cube)
     if corrected:  # dark, bias and flat applied in the task that centroids each frame
         frames = corrected_frames(cube.assign(frames=frames))
-    if multi:
-        res, dims = _apply_multi(cube, frames, method, options)
-    else:
-        res, dims = _apply_single(frames, METHODS[method], options)
+    if multi:  # the lazy (pose, shot, hole, field) table of locate_spots
+        spot_opts = _multi_options(cube, method, options)
+        design, shift_x, shift_y = _design_shift(cube)
+        dims = ("pose", "shot", "hole")
+        res = _map_frames(frames, _multi_block, {"hole": spot_opts["holes"][0].size,
+                                                 "field": len(_FIELDS) + len(SPOT_METRICS)},
+                          per_pose={"shift_x": shift_x, "shift_y": shift_y}, kwargs=spot_opts,
+                          design=design)
+    else:  # the lazy (pose, shot, field) table of a single-spot estimator
+        dims = ("pose", "shot")
+        res = _map_frames(frames, _single_block, {"field": len(_FIELDS)},
+                          estimator=METHODS[method], kwargs=options)
     truth = tuple(n for n in _TRUTH if n in cube.variables and set(cube[n].dims) <= set(dims))
     return _Prepared(res.transpose(*dims, "field"), dims, options, multi, truth)
 
@@ -349,13 +357,6 @@ def _chunked_frames(cube):
     if all(len(frames.chunks[frames.dims.index(d)]) == 1 for d in ("y", "x")):
         return frames
     return frames.chunk({"y": -1, "x": -1})
-
-
-def _apply_single(frames, func, options):
-    """Lazy (pose, shot, field) table of a single-spot estimator over every frame."""
-    res = _map_frames(frames, _single_block, {"field": len(_FIELDS)}, estimator=func,
-                      kwargs=options)
-    return res, ("pose", "shot")
 
 
 def _multi_options(cube, method, options):
@@ -392,18 +393,6 @@ def _design_shift(cube):
                             float(cube.attrs["mask_distance_mm"]),
                             float(cube.attrs["pixel_pitch_mm"]), 0.0, 0.0)
     return design, np.asarray(dx, dtype=float), np.asarray(dy, dtype=float)
-
-
-def _apply_multi(cube, frames, method, options):
-    """Lazy (pose, shot, hole, field) table of :func:`locate_spots` over every frame."""
-    spot_opts = _multi_options(cube, method, options)
-    design, shift_x, shift_y = _design_shift(cube)
-    n_holes = spot_opts["holes"][0].size
-    res = _map_frames(
-        frames, _multi_block, {"hole": n_holes, "field": len(_FIELDS) + len(SPOT_METRICS)},
-        per_pose={"shift_x": shift_x, "shift_y": shift_y}, kwargs=spot_opts, design=design,
-    )
-    return res, ("pose", "shot", "hole")
 
 
 def _centroid_table(cube, res, dims, method, options, multi, computed):
