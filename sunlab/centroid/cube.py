@@ -329,12 +329,35 @@ def _prepare(cube, method, multi, options) -> _Prepared:
     if corrected:  # dark, bias and flat applied in the task that centroids each frame
         frames = corrected_frames(cube.assign(frames=frames))
     if multi:  # the lazy (pose, shot, hole, field) table of locate_spots
-        spot_opts = _multi_options(cube, method, options)
-        design, shift_x, shift_y = _design_shift(cube)
+        if method not in PER_SPOT.values():
+            raise ConfigurationError(
+                f"method: found {method!r} for a multi-hole cube (dimension 'hole'); {method!r} "
+                f"is a single-spot algorithm. Fix: pass method={PER_SPOT.get(method, 'tight')!r} "
+                f"(one of {sorted(set(PER_SPOT.values()))}: 'tight', the tight window of every "
+                "spot; 'fit', a disk fit of every spot), or multi=False for one spot per frame"
+            )
+        if "hole_i" not in cube.variables or "hole_j" not in cube.variables:
+            raise SchemaError("hole_i, hole_j", "missing", "grid row/column of each hole on dim "
+                              "'hole'", "simulate with a multi-hole bench or add the coordinates")
+        hi = np.asarray(cube["hole_i"].values, dtype=int)
+        hj = np.asarray(cube["hole_j"].values, dtype=int)
+        spot_opts = {**options, "method": method, "holes": (hi, hj)}
+        spot_opts.setdefault("shape", (int(hi.max()) + 1, int(hj.max()) + 1))
+        # the design positions of the holes' spots (n_holes, 2) and the shift of each pose (the
+        # ideal centroid at its angles); None and NaN shifts when the cube has no design
+        design, shift = None, np.full((2, cube.sizes["pose"]), np.nan)
+        if "hole_x_cf" in cube.variables and "hole_y_cf" in cube.variables:
+            from ..geometry import ideal_centroid
+
+            design = np.column_stack([cube["hole_x_cf"].values, cube["hole_y_cf"].values])
+            shift = np.array(ideal_centroid(cube["alpha"].values, cube["beta"].values,
+                                            float(cube.attrs["mask_distance_mm"]),
+                                            float(cube.attrs["pixel_pitch_mm"]), 0.0, 0.0),
+                             dtype=float)
         dims = ("pose", "shot", "hole")
         res = _map_frames(frames, _multi_block, {"hole": spot_opts["holes"][0].size,
                                                  "field": len(_FIELDS) + len(SPOT_METRICS)},
-                          per_pose={"shift_x": shift_x, "shift_y": shift_y}, kwargs=spot_opts,
+                          per_pose={"shift_x": shift[0], "shift_y": shift[1]}, kwargs=spot_opts,
                           design=design)
     else:  # the lazy (pose, shot, field) table of a single-spot estimator
         dims = ("pose", "shot")
@@ -357,42 +380,6 @@ def _chunked_frames(cube):
     if all(len(frames.chunks[frames.dims.index(d)]) == 1 for d in ("y", "x")):
         return frames
     return frames.chunk({"y": -1, "x": -1})
-
-
-def _multi_options(cube, method, options):
-    """Options of :func:`locate_spots` for a multi-hole cube: its holes and grid shape."""
-    if method not in PER_SPOT.values():
-        raise ConfigurationError(
-            f"method: found {method!r} for a multi-hole cube (dimension 'hole'); {method!r} is a "
-            f"single-spot algorithm. Fix: pass method={PER_SPOT.get(method, 'tight')!r} (one of "
-            f"{sorted(set(PER_SPOT.values()))}: 'tight', the tight window of every spot; 'fit', "
-            "a disk fit of every spot), or multi=False for one spot per frame"
-        )
-    if "hole_i" not in cube.variables or "hole_j" not in cube.variables:
-        raise SchemaError("hole_i, hole_j", "missing", "grid row/column of each hole on dim "
-                          "'hole'", "simulate with a multi-hole bench or add the coordinates")
-    hi = np.asarray(cube["hole_i"].values, dtype=int)
-    hj = np.asarray(cube["hole_j"].values, dtype=int)
-    spot_opts = {k: v for k, v in options.items() if k != "method"}
-    spot_opts["method"] = method
-    spot_opts.setdefault("shape", (int(hi.max()) + 1, int(hj.max()) + 1))
-    spot_opts["holes"] = (hi, hj)
-    return spot_opts
-
-
-def _design_shift(cube):
-    """Design positions of the holes' spots (n_holes, 2) and the shift of each pose (ideal
-    centroid at the pose's angles), or None and NaN shifts when the cube has no design."""
-    if "hole_x_cf" not in cube.variables or "hole_y_cf" not in cube.variables:
-        nan = np.full(cube.sizes["pose"], np.nan)
-        return None, nan, nan
-    from ..geometry import ideal_centroid
-
-    design = np.column_stack([cube["hole_x_cf"].values, cube["hole_y_cf"].values])
-    dx, dy = ideal_centroid(cube["alpha"].values, cube["beta"].values,
-                            float(cube.attrs["mask_distance_mm"]),
-                            float(cube.attrs["pixel_pitch_mm"]), 0.0, 0.0)
-    return design, np.asarray(dx, dtype=float), np.asarray(dy, dtype=float)
 
 
 def _centroid_table(cube, res, dims, method, options, multi, computed):
