@@ -64,7 +64,7 @@ def _multi_block(frames, shift_x, shift_y, kwargs, design):
 
 def _map_frames(frames, block_func, sizes: dict, per_pose: dict | None = None, **kwargs):
     """The lazy (pose, shot, *sizes) table of ``block_func`` over the frame blocks of a
-    (pose, shot, y, x) Dask-backed DataArray of whole frames (:func:`_chunked_frames`), one
+    (pose, shot, y, x) Dask-backed DataArray of whole frames (chunked by :func:`_prepare`), one
     task per block; ``per_pose`` arrays (pose,) reach ``block_func`` as keywords sliced to the
     block's poses, ``kwargs`` whole.
 
@@ -314,6 +314,8 @@ class _Prepared(NamedTuple):
 
 def _prepare(cube, method, multi, options) -> _Prepared:
     """Validate a cube and make its lazy table of every field of every frame (and hole)."""
+    import dask.array as da
+
     from .. import schema
 
     schema.validate_frames(cube)
@@ -325,7 +327,15 @@ def _prepare(cube, method, multi, options) -> _Prepared:
                        else float(2 ** int(cube.attrs["bit_depth"]) - 1))
     if multi is None:
         multi = is_multi_hole(cube)
-    frames = _chunked_frames(cube)
+    # the frames as a Dask array, one chunk per frame (or the cube's own pose/shot chunks) and
+    # whole frames in each; a cube already chunked so is left as it is: a rechunk layer, even
+    # a no-op one, keeps Dask from fusing the estimator with the task that makes the frames
+    # (e.g. renders them), and the frames would then travel between workers
+    frames = cube["frames"]
+    if not isinstance(frames.data, da.Array):
+        frames = frames.chunk({"pose": 1, "shot": 1})
+    if any(len(frames.chunks[frames.dims.index(d)]) > 1 for d in ("y", "x")):
+        frames = frames.chunk({"y": -1, "x": -1})
     if corrected:  # dark, bias and flat applied in the task that centroids each frame
         frames = corrected_frames(cube.assign(frames=frames))
     if multi:  # the lazy (pose, shot, hole, field) table of locate_spots
@@ -365,21 +375,6 @@ def _prepare(cube, method, multi, options) -> _Prepared:
                           estimator=METHODS[method], kwargs=options)
     truth = tuple(n for n in _TRUTH if n in cube.variables and set(cube[n].dims) <= set(dims))
     return _Prepared(res.transpose(*dims, "field"), dims, options, multi, truth)
-
-
-def _chunked_frames(cube):
-    """The cube's frames as a Dask array, one chunk per frame (or the cube's own pose/shot
-    chunks) and whole frames in each. A cube already chunked so is left as it is: a rechunk
-    layer, even a no-op one, keeps Dask from fusing the estimator with the task that makes the
-    frames (e.g. renders them), and the frames would then travel between workers."""
-    import dask.array as da
-
-    frames = cube["frames"]
-    if not isinstance(frames.data, da.Array):
-        frames = frames.chunk({"pose": 1, "shot": 1})
-    if all(len(frames.chunks[frames.dims.index(d)]) == 1 for d in ("y", "x")):
-        return frames
-    return frames.chunk({"y": -1, "x": -1})
 
 
 def _centroid_table(cube, res, dims, method, options, multi, computed):
