@@ -33,27 +33,36 @@ from sunlab import plans, sim  # noqa: E402
 from sunlab.sim.render import mask_play  # noqa: E402
 
 
-def frames_from_bench(bench, n, seed=0):
+def render(bench, idx, seed=0):
+    """Frames of ``bench`` at the poses ``idx`` of experiment III and the renderer's truth of
+    each: every spot of the pose, with the mask where its play put it."""
     plan = plans.experiment("III", shots=1)
-    idx = np.linspace(0, len(plan) - 1, n).round().astype(int)
-    out, truth = [], []
+    frames, truth = [], []
     for k, p in enumerate(idx):
         a, b = sim.platform.platform_pose(bench, plan.alpha[p], plan.beta[p], seed=seed, pose=k,
                                           shot=0)
-        out.append(sim.render_frame(bench, a, b, seed=seed, pose=k, shot=0))
-        # the renderer's truth: the spot of this pose, with the mask where its play put it
-        tx, ty = sim.spots.spot_truth(bench, a, b, play_mm=mask_play(bench, seed, k))
-        truth.append((float(tx[0]), float(ty[0])))
-    return out, np.array(truth)
+        frames.append(sim.render_frame(bench, a, b, seed=seed, pose=k, shot=0))
+        truth.append(sim.spots.spot_truth(bench, a, b, play_mm=mask_play(bench, seed, k)))
+    return frames, truth
 
 
-def peer_sep(frame):
+def frames_from_bench(bench, n, seed=0):
+    n_plan = len(plans.experiment("III", shots=1))
+    frames, truth = render(bench, np.linspace(0, n_plan - 1, n).round().astype(int), seed)
+    return frames, np.array([(float(tx[0]), float(ty[0])) for tx, ty in truth])
+
+
+def sep_objects(frame):
+    """sep's background and extraction of every object (float32 input): its object table."""
     import sep
 
     data = frame.astype(np.float32)
     bkg = sep.Background(data)
-    sub = data - bkg
-    objs = sep.extract(sub, 5.0, err=bkg.globalrms, minarea=20)
+    return sep.extract(data - bkg, 5.0, err=bkg.globalrms, minarea=20)
+
+
+def peer_sep(frame):
+    objs = sep_objects(frame)
     if len(objs) == 0:
         return math.nan, math.nan
     k = int(np.argmax(objs["flux"]))
@@ -182,30 +191,14 @@ def main(argv=None):
     bench_multi(rep)
 
 
-def _sep_all(frame):
-    # sep's detection and windowed centroids of every object (the multi-spot peer).
-    import sep
-
-    data = frame.astype(np.float32)
-    bkg = sep.Background(data)
-    objs = sep.extract(data - bkg, 5.0, err=bkg.globalrms, minarea=20)
-    return np.column_stack([objs["x"], objs["y"]])
-
-
 def bench_multi(rep, n_frames=10):
     """Multi-hole frames of the paper's 100-hole bench (poses spread over experiment III):
     ``locate_spots`` beside sep (background + extract of all objects) and ``np.copy``, ms per
     frame as the best over repeats of the mean over the frames, the methods interleaved in
     each repeat so that they share the machine's state; rms / max error against truth."""
-    multi = sim.Bench.paper_multi_hole()
-    plan = plans.experiment("III", shots=1)
-    idx = np.linspace(0, len(plan) - 1, n_frames + 2).round().astype(int)[1:-1]
-    frames, truth = [], []
-    for k, p in enumerate(idx):
-        a, b = sim.platform.platform_pose(multi, plan.alpha[p], plan.beta[p], seed=0, pose=k,
-                                          shot=0)
-        frames.append(sim.render_frame(multi, a, b, seed=0, pose=k, shot=0))
-        truth.append(sim.spots.spot_truth(multi, a, b, play_mm=mask_play(multi, 0, k)))
+    n_plan = len(plans.experiment("III", shots=1))
+    frames, truth = render(sim.Bench.paper_multi_hole(),
+                           np.linspace(0, n_plan - 1, n_frames + 2).round().astype(int)[1:-1])
     # Where each hole's spot should be, to pick the lattice's integer offset when the spots do
     # not span the whole grid (the outer columns leave the detector at large alpha): here the
     # truth rounded to 5 px; the pipeline predicts it from the mask design and the pose.
@@ -213,7 +206,7 @@ def bench_multi(rep, n_frames=10):
     # every method takes (frame, its index); only locate_spots uses the index
     methods = {
         "locate_spots": lambda f, k: C.locate_spots(f, expected=expected[k]),
-        "sep (bkg + extract)": lambda f, k: _sep_all(f),
+        "sep (bkg + extract)": lambda f, k: np.column_stack([(o := sep_objects(f))["x"], o["y"]]),
         "np.copy (memory floor)": lambda f, k: np.copy(f),
     }
     best = dict.fromkeys(methods, math.inf)

@@ -90,13 +90,6 @@ def _background_band(det: _Detection) -> tuple[float, float]:
     return det.background - half, det.background + half
 
 
-def _aperture_window(x, y, r, nx, ny):
-    x0, x1 = math.ceil(x - r), math.floor(x + r) + 1
-    y0, y1 = math.ceil(y - r), math.floor(y + r) + 1
-    clipped = x0 < 0 or y0 < 0 or x1 > nx or y1 > ny
-    return (max(x0, 0), min(x1, nx), max(y0, 0), min(y1, ny)), clipped
-
-
 def _stamps(arr, xs, ys, radius):
     """Stamps (n, s, s) of the frame holding each circle of ``radius`` (the largest of the
     spots') about ``(xs, ys)``, cut from a sliding-window view (a stamp at the frame's edge is

@@ -126,26 +126,18 @@ def _clipped(v):
     return use.size, m, var
 
 
-def _zone_noise(px: _Pixels, x, y, d_in, d_out):
-    """Model-free noise model of a spot: mean and variance of the pixels farther than ``d_out``
-    from (x, y) (background: v0) and nearer than ``d_in`` (plateau: v0 + vk (mean -
-    background)), each sigma-clipped. Returns (v0, vk, n_background, n_plateau)."""
-    d = px.dist(x, y)[2]
-    nb, mb, vb = _clipped(px.v[d * d >= d_out * d_out])
-    if nb < 2:
-        return np.nan, 0.0, nb, 0
-    n_in, mp, vp = _clipped(px.v[d * d < d_in * d_in])
-    vk = max((vp - vb) / (mp - mb), 0.0) if n_in >= 2 and mp > mb else 0.0
-    return vb, vk, nb, n_in
-
-
 def _noise_model(px: _Pixels, p):
     """Pixel variance ``v0 + vk (m - b)`` of a spot fitted with parameters ``p``, from the
     background beyond ``R + 3 s + 2`` and the plateau within ``R - 3 s - 2`` (model-free: a
     mismatch of the fitted edge does not leak into it); the fit's residuals where either zone
-    has too few pixels. ``v0`` is at least 1/12 DN^2 (quantisation)."""
+    has too few pixels. ``v0`` is at least 1/12 DN^2 (quantisation). Each zone's mean and
+    variance are sigma-clipped; the plateau's variance is ``v0 + vk (mean - background)``."""
     pad = 3.0 * p[5] + 2.0
-    v0, vk, n_bkg, n_plateau = _zone_noise(px, p[0], p[1], p[2] - pad, p[2] + pad)
+    d_in, d_out = p[2] - pad, p[2] + pad
+    d = px.dist(p[0], p[1])[2]
+    n_bkg, mb, v0 = _clipped(px.v[d * d >= d_out * d_out])
+    n_plateau, mp, vp = _clipped(px.v[d * d < d_in * d_in])
+    vk = max((vp - v0) / (mp - mb), 0.0) if n_bkg >= 2 and n_plateau >= 2 and mp > mb else 0.0
     if n_bkg < 20 or not np.isfinite(v0):
         v0, vk = _disk_noise(px, p)
     elif n_plateau < 10:
@@ -216,19 +208,6 @@ def _profile_noise(px: _Pixels, q, d_lo, h, nint, b):
     return v0, vk
 
 
-def _profile_flux(q, d_lo, h, nint, n_sub=8):
-    """Integral over the plane of the radial spline above its outer (background) level:
-    2 pi int_0^d_hi (m(d) - m(d_hi)) d dd, midpoint rule with n_sub steps per knot step (the
-    plateau inside d_lo exactly)."""
-    bg = (q[-3] + 4.0 * q[-2] + q[-1]) / 6.0
-    top = (q[2] + 4.0 * q[3] + q[4]) / 6.0
-    step = h / n_sub
-    d = d_lo + (np.arange(nint * n_sub) + 0.5) * step
-    j, b, _ = _bspline((d - d_lo) / h, nint)
-    m = (q[j[None, :] + 2 + np.arange(4)[:, None]] * b).sum(0)
-    return math.pi * max(d_lo, 0.0) ** 2 * (top - bg) + (2.0 * math.pi * step * d * (m - bg)).sum()
-
-
 def _fit_from(arr, m: SpotMoments, status, edge, max_iter, reweight, saturation,
               profile="spline") -> Centroid:
     """Disk fit of :func:`sunlab.centroid.disk_fit` started from a spot's tight-window
@@ -283,5 +262,16 @@ def _fit_spline(arr, p, max_iter, v0, vk, sat):
                 q = q1
     out = p.copy()
     out[0], out[1] = q[0], q[1]
-    flux = _profile_flux(q, d_lo, h, nint) if np.all(np.isfinite(q)) else math.nan
+    flux = math.nan
+    if np.all(np.isfinite(q)):
+        # the integral over the plane of the spline above its outer (background) level:
+        # 2 pi int_0^d_hi (m(d) - m(d_hi)) d dd, midpoint rule with 8 steps per knot step (the
+        # plateau inside d_lo exactly)
+        bg, top = (q[-3] + 4.0 * q[-2] + q[-1]) / 6.0, (q[2] + 4.0 * q[3] + q[4]) / 6.0
+        step = h / 8
+        d = d_lo + (np.arange(nint * 8) + 0.5) * step
+        j, bs, _ = _bspline((d - d_lo) / h, nint)
+        m = (q[j[None, :] + 2 + np.arange(4)[:, None]] * bs).sum(0)
+        flux = (math.pi * max(d_lo, 0.0) ** 2 * (top - bg)
+                + (2.0 * math.pi * step * d * (m - bg)).sum())
     return out, float(flux), box

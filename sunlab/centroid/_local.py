@@ -21,45 +21,9 @@ from .result import _hot_medians
 __all__: list[str] = []
 
 
-def _repair_isolated(cut, saturation):
-    """Replace, in place, each pixel at or above ``saturation`` whose 8 neighbours are all
-    below it (a hot pixel, not spot light at full scale) by the median of its neighbours.
-
-    Returns ``(n_repaired, saturated)``: ``saturated`` when two clipped pixels touch (the
-    spot saturates), in which case nothing is repaired.
-    """
-    rows, cols = np.nonzero(cut >= saturation)
-    med = _hot_medians(cut, rows, cols, saturation)
-    if med is None:
-        return 0, True
-    cut[rows, cols] = med
-    return len(med), False
-
-
-def _background(cut, dx, dy, ring, plane: bool):
-    """Background of the cut-out: a plane (or a constant) fitted to the ring by least
-    squares, twice clipped at 3 sigma (a neighbouring spot or a hot pixel in the ring)."""
-    use = ring.copy()
-    coef = np.zeros(3)
-    for _ in range(3):
-        design = np.column_stack([np.ones(use.sum()), dx[use], dy[use]]) if plane else \
-            np.ones((use.sum(), 1))
-        if design.shape[0] < design.shape[1] + 2:
-            break
-        sol, *_ = np.linalg.lstsq(design, cut[use], rcond=None)
-        coef[: sol.size] = sol
-        resid = cut - (coef[0] + coef[1] * dx + coef[2] * dy)
-        sigma = 1.4826 * np.median(np.abs(resid[use]))
-        keep = ring & (np.abs(resid) <= 3.0 * max(sigma, 1e-12))
-        if keep.sum() == use.sum():
-            break
-        use = keep
-    return coef[0] + coef[1] * dx + coef[2] * dy
-
-
 def _local_centroid(arr, x, y, r_ap, annulus, n_iter, saturation, plane: bool):
     """Centre of mass of ``I - background`` in the circle of radius ``r_ap`` about ``(x, y)``,
-    re-centred ``n_iter`` times, with the background of :func:`_background` fitted to the ring
+    re-centred ``n_iter`` times, with the background fitted to the ring
     ``r_ap < r <= r_ap + annulus`` and isolated hot pixels repaired first.
 
     Returns ``(flux, x, y, n_repaired, saturated)``; flux NaN when the window is empty.
@@ -73,13 +37,37 @@ def _local_centroid(arr, x, y, r_ap, annulus, n_iter, saturation, plane: bool):
         if x1 - x0 < 3 or y1 - y0 < 3:
             return math.nan, x, y, n_hot, saturated
         cut = arr[y0:y1, x0:x1].astype(np.float64)
-        n_hot, saturated = _repair_isolated(cut, saturation)
+        # each pixel at or above saturation whose 8 neighbours are all below it (a hot pixel,
+        # not spot light at full scale) replaced by the median of its neighbours; nothing
+        # repaired when two clipped pixels touch (the spot saturates)
+        rows, cols = np.nonzero(cut >= saturation)
+        med = _hot_medians(cut, rows, cols, saturation)
+        n_hot, saturated = (0, True) if med is None else (len(med), False)
+        if med:
+            cut[rows, cols] = med
         dx = np.arange(x0, x1)[None, :] - x + np.zeros((y1 - y0, 1))
         dy = np.arange(y0, y1)[:, None] - y + np.zeros((1, x1 - x0))
         d2 = dx**2 + dy**2
         inside = d2 <= r_ap**2
         ring = (d2 > r_ap**2) & (d2 <= outer**2)
-        w = (cut - _background(cut, dx, dy, ring, plane))[inside]
+        # the background: a plane (or a constant) fitted to the ring by least squares, twice
+        # clipped at 3 sigma (a neighbouring spot or a hot pixel in the ring)
+        use = ring.copy()
+        coef = np.zeros(3)
+        for _ in range(3):
+            design = np.column_stack([np.ones(use.sum()), dx[use], dy[use]]) if plane else \
+                np.ones((use.sum(), 1))
+            if design.shape[0] < design.shape[1] + 2:
+                break
+            sol, *_ = np.linalg.lstsq(design, cut[use], rcond=None)
+            coef[: sol.size] = sol
+            resid = cut - (coef[0] + coef[1] * dx + coef[2] * dy)
+            sigma = 1.4826 * np.median(np.abs(resid[use]))
+            keep = ring & (np.abs(resid) <= 3.0 * max(sigma, 1e-12))
+            if keep.sum() == use.sum():
+                break
+            use = keep
+        w = (cut - (coef[0] + coef[1] * dx + coef[2] * dy))[inside]
         flux = float(w.sum())
         if not flux > 0:
             return math.nan, x, y, n_hot, saturated

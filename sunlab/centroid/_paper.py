@@ -19,7 +19,6 @@ from .result import (
     _INVALID,
     _NO_SPOT,
     Centroid,
-    _all_zero,
     _fail,
     _full_scale,
     _prepare,
@@ -129,27 +128,18 @@ def _algorithm_a(arr, border, factor, test_size, test_count, roi_size, roi_borde
     hits = np.flatnonzero(arr > thr)
     r, c = _scan_first(arr, thr, *test, (1, ny - 1, 1, nx - 1), hits=hits)
     if r < 0:
-        return _fail(_INVALID if _all_zero(arr) else _NO_SPOT)
-    roi, clipped = _roi(r, c, roi_size, ny, nx)
+        return _fail(_NO_SPOT if arr.any() else _INVALID)
+    # step 3: the roi_size x roi_size ROI about the first hit, cut at the frame edge
+    h0 = roi_size // 2
+    rr0, rr1, cc0, cc1 = r - h0, r - h0 + roi_size, c - h0, c - h0 + roi_size
+    clipped = rr0 < 0 or cc0 < 0 or rr1 > ny or cc1 > nx
+    rr0, rr1, cc0, cc1 = max(rr0, 0), min(rr1, ny), max(cc0, 0), min(cc1, nx)
     ambiguous = False
     if check_ambiguous:
-        ambiguous = _scan_first(arr, thr, *test, (1, ny - 1, 1, nx - 1), roi, hits)[0] >= 0
-    return _roi_centroid(arr, roi, roi_border, saturation, clipped, ambiguous)
-
-
-def _roi(r, c, size, ny, nx):
-    """Step 3 of algorithm A: the ``size`` x ``size`` ROI about the first hit (r, c), as rows
-    and columns ``(r0, r1, c0, c1)`` cut at the frame edge, and whether it was cut."""
-    h0 = size // 2
-    rr0, rr1, cc0, cc1 = r - h0, r - h0 + size, c - h0, c - h0 + size
-    clipped = rr0 < 0 or cc0 < 0 or rr1 > ny or cc1 > nx
-    return (max(rr0, 0), min(rr1, ny), max(cc0, 0), min(cc1, nx)), clipped
-
-
-def _roi_centroid(arr, roi, roi_border, saturation, clipped, ambiguous) -> Centroid:
-    """Steps 4-5 of algorithm A: the ROI border's mean as the new threshold, then the centre
-    of mass of the pixels above it in the inner ROI (hot pixels repaired)."""
-    rr0, rr1, cc0, cc1 = roi
+        ambiguous = _scan_first(arr, thr, *test, (1, ny - 1, 1, nx - 1), (rr0, rr1, cc0, cc1),
+                                hits)[0] >= 0
+    # steps 4-5: the ROI border's mean as the new threshold, then the centre of mass of the
+    # pixels above it in the inner ROI (hot pixels repaired)
     thr2 = _ring_mean(arr, rr0, rr1, cc0, cc1, roi_border)
     ir0, ir1, ic0, ic1 = rr0 + 1, rr1 - 1, cc0 + 1, cc1 - 1
     s, x, y, vmax = _box_com(arr, ir0, ir1, ic0, ic1, thr2, above=True)
@@ -282,8 +272,20 @@ def _algorithm_b(arr, nsigma, edge_sigma, margin, min_width, subtract_background
     ambiguous = any(len(z) > 1 and z[1][2] >= ambiguity_ratio * z[0][2] for z in (zx, zy))
     bkg = 0.5 * (bx / ny + by / nx) if subtract_background else 0.0
     n_zones = 2 if ambiguous else 1
-    s, x, y, vmax, window, clipped = _brightest_window(arr, zx[:n_zones], zy[:n_zones], margin,
-                                                       bkg)
+    # step 4: of the windows of every pairing of a column zone and a row zone (each widened by
+    # margin), the one whose centre of mass of I - bkg holds the most flux (with several zones
+    # the brightest column zone and row zone may belong to different spots)
+    best = None
+    for a in zx[:n_zones]:
+        for b in zy[:n_zones]:
+            x0, x1 = a[0] - margin, a[1] + margin
+            y0, y1 = b[0] - margin, b[1] + margin
+            clipped = x0 <= 0 or y0 <= 0 or x1 >= nx or y1 >= ny
+            x0, x1, y0, y1 = max(x0, 0), min(x1, nx), max(y0, 0), min(y1, ny)
+            s, x, y, vmax = _box_com(arr, y0, y1, x0, x1, bkg)
+            if best is None or s > best[0]:
+                best = (s, x, y, vmax, (x0, x1, y0, y1), clipped)
+    s, x, y, vmax, window, clipped = best
     n_hot, saturated = 0, False
     if vmax >= saturation:
         s, x, y, n_hot, saturated = _repair_hot(arr, window, bkg, s, x, y, saturation)
@@ -292,25 +294,6 @@ def _algorithm_b(arr, nsigma, edge_sigma, margin, min_width, subtract_background
     status = _status(clipped=clipped, saturated=saturated, ambiguous=ambiguous,
                      repaired=n_hot > 0)
     return Centroid(float(x), float(y), float(s), window, status)
-
-
-def _brightest_window(arr, zx, zy, margin, bkg):
-    """Step 4 of algorithm B: of the windows of every pairing of a column zone and a row zone
-    (each widened by ``margin``), the one whose centre of mass of ``I - bkg`` holds the most
-    flux (with several zones the brightest column zone and row zone may belong to different
-    spots). Returns (sum, x, y, peak, window (x0, x1, y0, y1), clipped)."""
-    ny, nx = arr.shape
-    best = None
-    for a in zx:
-        for b in zy:
-            x0, x1 = a[0] - margin, a[1] + margin
-            y0, y1 = b[0] - margin, b[1] + margin
-            clipped = x0 <= 0 or y0 <= 0 or x1 >= nx or y1 >= ny
-            x0, x1, y0, y1 = max(x0, 0), min(x1, nx), max(y0, 0), min(y1, ny)
-            s, x, y, vmax = _box_com(arr, y0, y1, x0, x1, bkg)
-            if best is None or s > best[0]:
-                best = (s, x, y, vmax, (x0, x1, y0, y1), clipped)
-    return best
 
 
 # ------------------------------------------------------------------------------------------------

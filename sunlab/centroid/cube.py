@@ -64,7 +64,7 @@ def _multi_block(frames, shift_x, shift_y, kwargs, design):
 
 def _map_frames(frames, block_func, sizes: dict, per_pose: dict | None = None, **kwargs):
     """The lazy (pose, shot, *sizes) table of ``block_func`` over the frame blocks of a
-    (pose, shot, y, x) Dask-backed DataArray of whole frames (:func:`_chunked_frames`), one
+    (pose, shot, y, x) Dask-backed DataArray of whole frames (chunked by :func:`_prepare`), one
     task per block; ``per_pose`` arrays (pose,) reach ``block_func`` as keywords sliced to the
     block's poses, ``kwargs`` whole.
 
@@ -314,6 +314,8 @@ class _Prepared(NamedTuple):
 
 def _prepare(cube, method, multi, options) -> _Prepared:
     """Validate a cube and make its lazy table of every field of every frame (and hole)."""
+    import dask.array as da
+
     from .. import schema
 
     schema.validate_frames(cube)
@@ -325,85 +327,54 @@ def _prepare(cube, method, multi, options) -> _Prepared:
                        else float(2 ** int(cube.attrs["bit_depth"]) - 1))
     if multi is None:
         multi = is_multi_hole(cube)
-    frames = _chunked_frames(cube)
-    if corrected:  # dark, bias and flat applied in the task that centroids each frame
-        frames = corrected_frames(cube.assign(frames=frames))
-    if multi:
-        res, dims = _apply_multi(cube, frames, method, options)
-    else:
-        res, dims = _apply_single(frames, METHODS[method], options)
-    truth = tuple(n for n in _TRUTH if n in cube.variables and set(cube[n].dims) <= set(dims))
-    return _Prepared(res.transpose(*dims, "field"), dims, options, multi, truth)
-
-
-def _chunked_frames(cube):
-    """The cube's frames as a Dask array, one chunk per frame (or the cube's own pose/shot
-    chunks) and whole frames in each. A cube already chunked so is left as it is: a rechunk
-    layer, even a no-op one, keeps Dask from fusing the estimator with the task that makes the
-    frames (e.g. renders them), and the frames would then travel between workers."""
-    import dask.array as da
-
+    # the frames as a Dask array, one chunk per frame (or the cube's own pose/shot chunks) and
+    # whole frames in each; a cube already chunked so is left as it is: a rechunk layer, even
+    # a no-op one, keeps Dask from fusing the estimator with the task that makes the frames
+    # (e.g. renders them), and the frames would then travel between workers
     frames = cube["frames"]
     if not isinstance(frames.data, da.Array):
         frames = frames.chunk({"pose": 1, "shot": 1})
-    if all(len(frames.chunks[frames.dims.index(d)]) == 1 for d in ("y", "x")):
-        return frames
-    return frames.chunk({"y": -1, "x": -1})
+    if any(len(frames.chunks[frames.dims.index(d)]) > 1 for d in ("y", "x")):
+        frames = frames.chunk({"y": -1, "x": -1})
+    if corrected:  # dark, bias and flat applied in the task that centroids each frame
+        frames = corrected_frames(cube.assign(frames=frames))
+    if multi:  # the lazy (pose, shot, hole, field) table of locate_spots
+        if method not in PER_SPOT.values():
+            raise ConfigurationError(
+                f"method: found {method!r} for a multi-hole cube (dimension 'hole'); {method!r} "
+                f"is a single-spot algorithm. Fix: pass method={PER_SPOT.get(method, 'tight')!r} "
+                f"(one of {sorted(set(PER_SPOT.values()))}: 'tight', the tight window of every "
+                "spot; 'fit', a disk fit of every spot), or multi=False for one spot per frame"
+            )
+        if "hole_i" not in cube.variables or "hole_j" not in cube.variables:
+            raise SchemaError("hole_i, hole_j", "missing", "grid row/column of each hole on dim "
+                              "'hole'", "simulate with a multi-hole bench or add the coordinates")
+        hi = np.asarray(cube["hole_i"].values, dtype=int)
+        hj = np.asarray(cube["hole_j"].values, dtype=int)
+        spot_opts = {**options, "method": method, "holes": (hi, hj)}
+        spot_opts.setdefault("shape", (int(hi.max()) + 1, int(hj.max()) + 1))
+        # the design positions of the holes' spots (n_holes, 2) and the shift of each pose (the
+        # ideal centroid at its angles); None and NaN shifts when the cube has no design
+        design, shift = None, np.full((2, cube.sizes["pose"]), np.nan)
+        if "hole_x_cf" in cube.variables and "hole_y_cf" in cube.variables:
+            from ..geometry import ideal_centroid
 
-
-def _apply_single(frames, func, options):
-    """Lazy (pose, shot, field) table of a single-spot estimator over every frame."""
-    res = _map_frames(frames, _single_block, {"field": len(_FIELDS)}, estimator=func,
-                      kwargs=options)
-    return res, ("pose", "shot")
-
-
-def _multi_options(cube, method, options):
-    """Options of :func:`locate_spots` for a multi-hole cube: its holes and grid shape."""
-    if method not in PER_SPOT.values():
-        raise ConfigurationError(
-            f"method: found {method!r} for a multi-hole cube (dimension 'hole'); {method!r} is a "
-            f"single-spot algorithm. Fix: pass method={PER_SPOT.get(method, 'tight')!r} (one of "
-            f"{sorted(set(PER_SPOT.values()))}: 'tight', the tight window of every spot; 'fit', "
-            "a disk fit of every spot), or multi=False for one spot per frame"
-        )
-    if "hole_i" not in cube.variables or "hole_j" not in cube.variables:
-        raise SchemaError("hole_i, hole_j", "missing", "grid row/column of each hole on dim "
-                          "'hole'", "simulate with a multi-hole bench or add the coordinates")
-    hi = np.asarray(cube["hole_i"].values, dtype=int)
-    hj = np.asarray(cube["hole_j"].values, dtype=int)
-    spot_opts = {k: v for k, v in options.items() if k != "method"}
-    spot_opts["method"] = method
-    spot_opts.setdefault("shape", (int(hi.max()) + 1, int(hj.max()) + 1))
-    spot_opts["holes"] = (hi, hj)
-    return spot_opts
-
-
-def _design_shift(cube):
-    """Design positions of the holes' spots (n_holes, 2) and the shift of each pose (ideal
-    centroid at the pose's angles), or None and NaN shifts when the cube has no design."""
-    if "hole_x_cf" not in cube.variables or "hole_y_cf" not in cube.variables:
-        nan = np.full(cube.sizes["pose"], np.nan)
-        return None, nan, nan
-    from ..geometry import ideal_centroid
-
-    design = np.column_stack([cube["hole_x_cf"].values, cube["hole_y_cf"].values])
-    dx, dy = ideal_centroid(cube["alpha"].values, cube["beta"].values,
-                            float(cube.attrs["mask_distance_mm"]),
-                            float(cube.attrs["pixel_pitch_mm"]), 0.0, 0.0)
-    return design, np.asarray(dx, dtype=float), np.asarray(dy, dtype=float)
-
-
-def _apply_multi(cube, frames, method, options):
-    """Lazy (pose, shot, hole, field) table of :func:`locate_spots` over every frame."""
-    spot_opts = _multi_options(cube, method, options)
-    design, shift_x, shift_y = _design_shift(cube)
-    n_holes = spot_opts["holes"][0].size
-    res = _map_frames(
-        frames, _multi_block, {"hole": n_holes, "field": len(_FIELDS) + len(SPOT_METRICS)},
-        per_pose={"shift_x": shift_x, "shift_y": shift_y}, kwargs=spot_opts, design=design,
-    )
-    return res, ("pose", "shot", "hole")
+            design = np.column_stack([cube["hole_x_cf"].values, cube["hole_y_cf"].values])
+            shift = np.array(ideal_centroid(cube["alpha"].values, cube["beta"].values,
+                                            float(cube.attrs["mask_distance_mm"]),
+                                            float(cube.attrs["pixel_pitch_mm"]), 0.0, 0.0),
+                             dtype=float)
+        dims = ("pose", "shot", "hole")
+        res = _map_frames(frames, _multi_block, {"hole": spot_opts["holes"][0].size,
+                                                 "field": len(_FIELDS) + len(SPOT_METRICS)},
+                          per_pose={"shift_x": shift[0], "shift_y": shift[1]}, kwargs=spot_opts,
+                          design=design)
+    else:  # the lazy (pose, shot, field) table of a single-spot estimator
+        dims = ("pose", "shot")
+        res = _map_frames(frames, _single_block, {"field": len(_FIELDS)},
+                          estimator=METHODS[method], kwargs=options)
+    truth = tuple(n for n in _TRUTH if n in cube.variables and set(cube[n].dims) <= set(dims))
+    return _Prepared(res.transpose(*dims, "field"), dims, options, multi, truth)
 
 
 def _centroid_table(cube, res, dims, method, options, multi, computed):

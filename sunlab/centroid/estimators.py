@@ -21,12 +21,13 @@ Examples
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 
 import numpy as np
 
 from ..errors import ConfigurationError
-from ._aperture import _aperture_window, _background_band, _detect, _first_radius, _measure
+from ._aperture import _background_band, _detect, _first_radius, _measure
 from ._diskfit import _fit_from
 from ._local import _local_centroid
 from ._paper import projection_window, threshold_window
@@ -35,7 +36,6 @@ from .result import (
     _INVALID,
     _NO_SPOT,
     Centroid,
-    _all_zero,
     _fail,
     _full_scale,
     _prepare,
@@ -137,7 +137,7 @@ def _tight(arr, stride, nsigma, min_contrast, min_samples, margin, annulus, n_it
         )
     det = _detect(arr, stride, nsigma, min_contrast, min_samples)
     if det.count.size == 0:
-        return _fail(_INVALID if det.sample_max == 0 and _all_zero(arr) else _NO_SPOT), None
+        return _fail(_INVALID if det.sample_max == 0 and not arr.any() else _NO_SPOT), None
     order = np.argsort(-det.flux)
     k = order[0]
     ambiguous = det.count.size > 1 and det.flux[order[1]] >= ambiguity_ratio * det.flux[k]
@@ -158,7 +158,10 @@ def _tight(arr, stride, nsigma, min_contrast, min_samples, margin, annulus, n_it
         flux, x, y, n_hot, saturated = local
         if not flux > 0:
             return _fail(_NO_SPOT), None
-    window, clipped = _aperture_window(x, y, r_ap, nx, ny)
+    x0, x1 = math.ceil(x - r_ap), math.floor(x + r_ap) + 1
+    y0, y1 = math.ceil(y - r_ap), math.floor(y + r_ap) + 1
+    clipped = x0 < 0 or y0 < 0 or x1 > nx or y1 > ny
+    window = (max(x0, 0), min(x1, nx), max(y0, 0), min(y1, ny))
     status = _status(clipped=clipped, saturated=saturated, ambiguous=ambiguous,
                      repaired=n_hot > 0)
     return Centroid(x, y, flux, window, status), m
@@ -267,8 +270,7 @@ def _disk_fit_start(detect, profile):
             f"disk_fit: profile={profile!r}; expected 'spline' (fitted radial profile) or "
             "'erfc' (the erfc edge only)."
         )
-    opts.update(detect)
-    return opts
+    return {**opts, **detect}
 
 
 #: Single-spot estimators by name (the ``method=`` of :func:`locate`).

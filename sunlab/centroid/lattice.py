@@ -27,7 +27,6 @@ from .result import (
     _OK,
     _REPAIRED,
     _SATURATED,
-    _all_zero,
     _check_positive,
     _full_scale,
     _prepare,
@@ -187,7 +186,7 @@ def _locate(frame, method, lut, exp, vals, window, status, stride, nsigma, min_c
     ``status``; returns (unassigned spots, lattice)."""
     arr, usable = _prepare(frame)
     det = _detect(arr, stride, nsigma, min_contrast, min_samples) if usable else None
-    if not usable or (det.count.size == 0 and det.sample_max == 0 and _all_zero(arr)):
+    if not usable or (det.count.size == 0 and det.sample_max == 0 and not arr.any()):
         status[:] = _INVALID
     if not usable or det.count.size == 0:
         return np.zeros((0, 2)), np.full((3, 2), np.nan)
@@ -195,8 +194,12 @@ def _locate(frame, method, lut, exp, vals, window, status, stride, nsigma, min_c
                  *_background_band(det), n_iter, saturation)
     m = m[m[:, FLUX] > 0]
     win, st = _spot_table(m, arr.shape[1], arr.shape[0], _OK, _SATURATED, _CLIPPED)
-    if method == "fit":
-        _fit_spots(arr, m, win, st, saturation)
+    for k in range(len(m) if method == "fit" else 0):
+        # x, y, flux and window of the disk fit started from the spot's moments, if it converges
+        c = _fit_from(arr, SpotMoments(*m[k]), int(st[k]), 1.5, 30, True, saturation)
+        if np.isfinite(c.x):
+            m[k, X], m[k, Y], m[k, FLUX] = c.x, c.y, c.flux
+            win[:, k] = c.window
     good = (st == _OK) & (m[:, FLUX] > 0.3 * np.median(m[:, FLUX])) if len(m) else st == 0
     fit = _fit_lattice(m[:, [X, Y]], good if good.any() else np.ones(len(m), bool), pitch,
                        max_residual)
@@ -204,8 +207,16 @@ def _locate(frame, method, lut, exp, vals, window, status, stride, nsigma, min_c
     if fit is not None:
         out = _assign(m, win, st, good, fit, max_residual, lut, exp, vals, window, status,
                       _AMBIGUOUS)
-    if method == "tight":
-        _repair_hot_spots(arr, vals, window, status, annulus, n_iter, saturation)
+    for k in np.flatnonzero(status == _SATURATED) if method == "tight" else ():
+        # isolated pixels at full scale (hot pixels) in the window: repaired by the median of
+        # their neighbours and x, y, flux measured again, as the tight window does; touching
+        # clipped pixels stay ``saturated``; the metrics keep the first values
+        flux, x, y, n_hot, saturated = _local_centroid(
+            arr, float(vals[0, k]), float(vals[1, k]), 0.5 * (window[1, k] - window[0, k] - 1),
+            annulus, n_iter, saturation, False)
+        if n_hot and not saturated and flux > 0:
+            vals[0, k], vals[1, k], vals[2, k] = x, y, flux
+            status[k] = _REPAIRED
     return out
 
 
@@ -221,29 +232,3 @@ def _hole_table(shape, holes):
     inside = (hi >= 0) & (hi < rows) & (hj >= 0) & (hj < cols)
     lut[hi[inside], hj[inside]] = np.flatnonzero(inside)
     return hi, hj, lut
-
-
-def _fit_spots(arr, m, win, st, saturation) -> None:
-    """``method="fit"``: each measured spot's x, y and flux (rows of ``m``) and window replaced,
-    in place, by those of its disk fit (:func:`sunlab.centroid.disk_fit` started from its
-    moments) where the fit converges."""
-    for k in range(len(m)):
-        c = _fit_from(arr, SpotMoments(*m[k]), int(st[k]), 1.5, 30, True, saturation)
-        if np.isfinite(c.x):
-            m[k, X], m[k, Y], m[k, FLUX] = c.x, c.y, c.flux
-            win[:, k] = c.window
-
-
-def _repair_hot_spots(arr, vals, window, status, annulus, n_iter, saturation) -> None:
-    """Spots flagged ``saturated`` for isolated pixels at full scale (hot pixels) in their
-    window: those pixels replaced by the median of their neighbours and x, y, flux measured
-    again (the tight window's repair, :func:`tight_window`), status ``repaired``; a spot with
-    touching clipped pixels stays ``saturated``. The metrics keep the first values."""
-    for k in np.flatnonzero(status == _SATURATED):
-        x0, x1 = int(window[0, k]), int(window[1, k])
-        flux, x, y, n_hot, saturated = _local_centroid(
-            arr, float(vals[0, k]), float(vals[1, k]), 0.5 * (x1 - x0 - 1), annulus, n_iter,
-            saturation, False)
-        if n_hot and not saturated and flux > 0:
-            vals[0, k], vals[1, k], vals[2, k] = x, y, flux
-            status[k] = _REPAIRED

@@ -105,10 +105,6 @@ def _full_scale(frame, saturation) -> float:
     return math.inf
 
 
-def _all_zero(arr: np.ndarray) -> bool:
-    return not arr.any()
-
-
 def _status(*, clipped=False, saturated=False, ambiguous=False, repaired=False) -> int:
     """The status by precedence: ambiguous > clipped > saturated > repaired > ok."""
     for flag, code in ((ambiguous, _AMBIGUOUS), (clipped, _CLIPPED), (saturated, _SATURATED),
