@@ -397,34 +397,54 @@ def adc_frame(mean_dn, sigma_dn, table, state, max_dn, out):
     state[0] = s0 + np.uint64((n + 3) // 4) * _GOLDEN
 
 
-def _adc_region_numpy(y0, x0, signal_e, gain, dark_e, offset_dn, table, state, read_var_e,
+def _stamp_regions(boxes, shape):
+    """Each stamp's box (offset, y0, x0, ny, nx) clipped to the frame: (ya, yb, xa, xb) rows."""
+    b = np.asarray(boxes, dtype=np.int64).reshape(-1, 5)
+    return np.stack([np.maximum(b[:, 1], 0), np.minimum(b[:, 1] + b[:, 3], shape[0]),
+                     np.maximum(b[:, 2], 0), np.minimum(b[:, 2] + b[:, 4], shape[1])], axis=1)
+
+
+def _adc_stamps_numpy(boxes, signal_e, gain, dark_e, offset_dn, table, state, read_var_e,
                       inv_gain, full_well_e, max_dn, out):
-    """numpy reference of :func:`adc_region`."""
-    ny, nx = signal_e.shape
-    box = (slice(y0, y0 + ny), slice(x0, x0 + nx))
-    e = np.maximum(gain[box] * signal_e + dark_e[box], 0.0)
-    if table.shape[0] > 0:
-        z = _normal_deviates(table, state, signal_e.size).reshape(signal_e.shape)
-        e = e + np.sqrt(e + read_var_e) * z.astype(np.float64)
-    out[box] = _round_clip(offset_dn[box] + np.minimum(e, full_well_e) * inv_gain, max_dn)
+    """numpy reference of :func:`adc_stamps`."""
+    clip = _stamp_regions(boxes, out.shape)
+    for ya, yb, xa, xb in clip:
+        if ya >= yb or xa >= xb:
+            continue
+        sig = np.zeros((yb - ya, xb - xa))
+        for (o, y0, x0, ny, nx), (ja, jb, ia, ib) in zip(boxes, clip, strict=True):
+            ra, rb, ca, cb = max(ya, ja), min(yb, jb), max(xa, ia), min(xb, ib)
+            if ra < rb and ca < cb:  # every stamp over this one's pixels, in stamp order
+                stamp = signal_e[o : o + ny * nx].reshape(ny, nx)
+                sig[ra - ya : rb - ya, ca - xa : cb - xa] += stamp[ra - y0 : rb - y0,
+                                                                   ca - x0 : cb - x0]
+        box = (slice(ya, yb), slice(xa, xb))
+        e = np.maximum(gain[box] * sig + dark_e[box], 0.0)
+        if table.shape[0] > 0:
+            z = _normal_deviates(table, state, sig.size).reshape(sig.shape)
+            e = e + np.sqrt(e + read_var_e) * z.astype(np.float64)
+        out[box] = _round_clip(offset_dn[box] + np.minimum(e, full_well_e) * inv_gain, max_dn)
 
 
-@_jit.kernel(_adc_region_numpy)
-def adc_region(y0, x0, signal_e, gain, dark_e, offset_dn, table, state, read_var_e, inv_gain,
+@_jit.kernel(_adc_stamps_numpy)
+def adc_stamps(boxes, signal_e, gain, dark_e, offset_dn, table, state, read_var_e, inv_gain,
                full_well_e, max_dn, out):
-    """Recompute the pixels of a region holding spot signal, continuing the frame's stream.
+    """Recompute the pixels under a frame's spot stamps, continuing the frame's stream.
 
-    Electrons e = max(gain signal + dark, 0), plus sqrt(e + read noise^2) z (photon and dark
-    shot noise in the Gaussian limit), saturated at the full well, rounded and clipped by the
-    ADC. The deviates are drawn first, then each row is computed branch-free (the compiler
-    vectorises it).
+    Stamp by stamp, in order, over its box clipped to the frame (a box wholly off the frame
+    draws nothing): the signal is the sum of every stamp over each pixel, in stamp order (so
+    overlapping stamps add); electrons e = max(gain signal + dark, 0), plus sqrt(e + read
+    noise^2) z (photon and dark shot noise in the Gaussian limit), saturated at the full well,
+    rounded and clipped by the ADC. The box's deviates are drawn first, then each row is
+    computed branch-free (the compiler vectorises it).
 
     Parameters
     ----------
-    y0, x0 : int
-        Row and column of the region's first pixel in the frame.
-    signal_e : ndarray of float64, shape (ny, nx)
-        Photo-electrons of the spot signal before PRNU.
+    boxes : ndarray of int64, shape (stamps, 5)
+        Each stamp's offset in ``signal_e``, its first row and column in the frame and its rows
+        and columns (offset, y0, x0, ny, nx).
+    signal_e : ndarray of float64, shape (n,)
+        The stamps' photo-electrons before PRNU, each row-major at its offset.
     gain, dark_e, offset_dn : ndarray of float32, shape of the frame
         PRNU gain, dark electrons and offset (DN) of every pixel.
     table, state
@@ -432,33 +452,69 @@ def adc_region(y0, x0, signal_e, gain, dark_e, offset_dn, table, state, read_var
     read_var_e, inv_gain, full_well_e, max_dn : float
         Read-noise variance (e^2), DN per electron, saturation (e), full scale (DN).
     out : ndarray of uint16, shape of the frame
-        The frame; the region's pixels are rewritten.
+        The frame; the stamps' pixels are rewritten.
 
     Returns
     -------
     None
         ``out`` and ``state`` are written in place.
     """
-    ny, nx = signal_e.shape
-    n = ny * nx
+    n_s = boxes.shape[0]
+    fy, fx = out.shape
     noisy = table.shape[0] > 0
-    z = np.zeros(n if noisy else 0, dtype=np.float32)
-    if noisy:
-        s0, low, steps = state[0], np.uint64(0xFFFF), (n + 3) // 4
-        for b in range(steps):
-            r = _mix64(s0 + np.uint64(b + 1) * _GOLDEN)
-            for k in range(4 * b, min(4 * b + 4, n)):
-                z[k] = table[r & low]
-                r = r >> np.uint64(16)
-        state[0] = s0 + np.uint64(steps) * _GOLDEN
+    clip = np.empty((n_s, 4), dtype=np.int64)
+    size = 0
+    for k in range(n_s):
+        y0, x0, ny, nx = boxes[k, 1], boxes[k, 2], boxes[k, 3], boxes[k, 4]
+        clip[k, 0], clip[k, 1] = max(y0, 0), min(y0 + ny, fy)
+        clip[k, 2], clip[k, 3] = max(x0, 0), min(x0 + nx, fx)
+        size = max(size, (clip[k, 1] - clip[k, 0]) * (clip[k, 3] - clip[k, 2]))
+    z = np.zeros(size if noisy else 1, dtype=np.float32)
+    row = np.empty(fx)
+    meet = np.empty(n_s, dtype=np.int64)
     top = max_dn + 0.5
-    for i in range(ny):
-        yy, xb = y0 + i, x0 + nx
-        g, d, off, o = gain[yy, x0:xb], dark_e[yy, x0:xb], offset_dn[yy, x0:xb], out[yy, x0:xb]
-        sig, zi = signal_e[i], z[i * nx:(i + 1) * nx] if noisy else z
-        for j in range(nx):
-            e = max(g[j] * sig[j] + d[j], 0.0)
-            if noisy:
-                e += math.sqrt(e + read_var_e) * zi[j]
-            e = min(e, full_well_e)
-            o[j] = np.uint16(np.int32(min(max(np.float64(off[j] + e * inv_gain) + 0.5, 0.0), top)))
+    for k in range(n_s):
+        ya, yb, xa, xb = clip[k, 0], clip[k, 1], clip[k, 2], clip[k, 3]
+        if ya >= yb or xa >= xb:
+            continue
+        n_meet = 0  # the stamps over this one's pixels (itself included), in stamp order
+        for j in range(n_s):
+            if (clip[j, 0] < yb and ya < clip[j, 1] and clip[j, 2] < xb and xa < clip[j, 3]):
+                meet[n_meet] = j
+                n_meet += 1
+        nx = xb - xa
+        n = (yb - ya) * nx
+        if noisy:
+            s0, low, steps = state[0], np.uint64(0xFFFF), (n + 3) // 4
+            for b in range(steps):
+                r = _mix64(s0 + np.uint64(b + 1) * _GOLDEN)
+                for q in range(4 * b, min(4 * b + 4, n)):
+                    z[q] = table[r & low]
+                    r = r >> np.uint64(16)
+            state[0] = s0 + np.uint64(steps) * _GOLDEN
+        for yy in range(ya, yb):
+            i = yy - ya
+            if n_meet == 1:  # the stamp alone: its own row
+                o, y0, x0, w = boxes[k, 0], boxes[k, 1], boxes[k, 2], boxes[k, 4]
+                start = o + (yy - y0) * w + xa - x0
+                sig = signal_e[start:start + nx]
+            else:
+                sig = row[:nx]
+                sig[:] = 0.0
+                for m in range(n_meet):
+                    j = meet[m]
+                    if clip[j, 0] <= yy < clip[j, 1]:
+                        o, y0, x0, w = boxes[j, 0], boxes[j, 1], boxes[j, 2], boxes[j, 4]
+                        ca, cb = max(xa, clip[j, 2]), min(xb, clip[j, 3])
+                        start = o + (yy - y0) * w - x0
+                        for c in range(ca, cb):
+                            sig[c - xa] += signal_e[start + c]
+            g, d, off, ob = gain[yy, xa:xb], dark_e[yy, xa:xb], offset_dn[yy, xa:xb], out[yy, xa:xb]
+            zi = z[i * nx:(i + 1) * nx] if noisy else z
+            for c in range(nx):
+                e = max(g[c] * sig[c] + d[c], 0.0)
+                if noisy:
+                    e += math.sqrt(e + read_var_e) * zi[c]
+                e = min(e, full_well_e)
+                ob[c] = np.uint16(np.int32(min(max(np.float64(off[c] + e * inv_gain) + 0.5, 0.0),
+                                               top)))
