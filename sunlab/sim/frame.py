@@ -25,7 +25,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import ConfigurationError
-from .detector import _stamp_regions, adc_frame, adc_stamps, fixed_pattern, normal_table
+from ._adc import adc_frame, adc_stamps, normal_table, stamp_signal
+from .detector import fixed_pattern
 from .render import _geometry, frame_key, mask_play, spot_geometry
 from .spots import _groups
 
@@ -35,7 +36,7 @@ __all__ = ["render_frame"]
 def _pose_stamps(bench, alphas, betas, play_mm, shape_angles):
     """The expected photo-electron stamps of several shots of one pose, the spots' shapes
     evaluated once: one flat buffer, and per shot the boxes (offset, y0, x0, ny, nx) of its
-    stamps in order (int64, (stamps, 5): :func:`sunlab.sim.detector.adc_stamps`).
+    stamps in order (int64, (stamps, 5): :func:`sunlab.sim._adc.adc_stamps`).
 
     Every shot's spots sit at their own rays (the sun vector of the shot's true angles) with the
     flux of their own obliquity; their shape (aperture projection, sun-disk kernel, the
@@ -112,13 +113,7 @@ def expected_frame(bench, alpha_true, beta_true, *, play_mm=(0.0, 0.0)):
     det, fp, g = bench.detector, fixed_pattern(bench.detector), bench.detector.gain_e_per_dn
     buf, (boxes,) = _pose_stamps(bench, [alpha_true], [beta_true], play_mm,
                                  (alpha_true, beta_true))
-    signal = np.zeros(det.shape)  # every stamp added over the detector, in order
-    for (o, y0, x0, ny, nx), (ya, yb, xa, xb) in zip(boxes, _stamp_regions(boxes, det.shape),
-                                                     strict=True):
-        if ya < yb and xa < xb:
-            stamp = buf[o : o + ny * nx].reshape(ny, nx)
-            signal[ya:yb, xa:xb] += stamp[ya - y0 : yb - y0, xa - x0 : xb - x0]
-    e = np.clip(fp.dark_e + fp.gain * signal, 0, None)
+    e = np.clip(fp.dark_e + fp.gain * stamp_signal(boxes, buf, det.shape), 0, None)
     mean = fp.offset_dn + e / g
     var = (e + det.read_noise_e**2) / g**2 if det.temporal_noise else np.zeros_like(mean)
     return mean, var

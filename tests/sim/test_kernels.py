@@ -17,8 +17,8 @@ from scipy import special
 import sunlab
 from sunlab.errors import ConfigurationError
 from sunlab.sim import Bench, _jit, render, spots
+from sunlab.sim import _adc as D
 from sunlab.sim import _aperture as A
-from sunlab.sim import detector as D
 from sunlab.sim.detector import Detector, fixed_pattern
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -232,7 +232,7 @@ def _stamps(bench, alphas, betas, shape_angles):
 def test_overlapping_stamps_add_and_clip_to_the_frame():
     # without noise, at unit gain and no dark signal, every stamped pixel is the rounded sum of
     # all stamps over it, clipped to the detector; the pixels under no stamp keep their value
-    from sunlab.sim import detector as D
+    from sunlab.sim import _adc as D
 
     shape = (150, 200)
     rng = np.random.default_rng(1)
