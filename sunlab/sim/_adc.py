@@ -212,8 +212,7 @@ def adc_stamps(boxes, signal_e, gain, dark_e, offset_dn, table, state, read_var_
             if clip[j, 0] < yb and ya < clip[j, 1] and clip[j, 2] < xb and xa < clip[j, 3]:
                 meet[n_meet] = j
                 n_meet += 1
-        nx = xb - xa
-        n = (yb - ya) * nx
+        nx, n = xb - xa, (yb - ya) * (xb - xa)
         if noisy:
             s0, low, steps = state[0], np.uint64(0xFFFF), (n + 3) // 4
             for b in range(steps):
@@ -223,9 +222,13 @@ def adc_stamps(boxes, signal_e, gain, dark_e, offset_dn, table, state, read_var_
                     r = r >> np.uint64(16)
             state[0] = s0 + np.uint64(steps) * _GOLDEN
         for yy in range(ya, yb):
-            sig = row[:nx]
-            sig[:] = 0.0
-            for j in meet[:n_meet]:
+            if n_meet == 1:  # the stamp alone: its own row
+                start = boxes[k, 0] + (yy - boxes[k, 1]) * boxes[k, 4] + xa - boxes[k, 2]
+                sig = signal_e[start:start + nx]
+            else:
+                sig = row[:nx]
+                sig[:] = 0.0
+            for j in meet[:n_meet] if n_meet > 1 else meet[:0]:
                 if clip[j, 0] <= yy < clip[j, 1]:
                     start = boxes[j, 0] + (yy - boxes[j, 1]) * boxes[j, 4] - boxes[j, 2]
                     for c in range(max(xa, clip[j, 2]), min(xb, clip[j, 3])):
