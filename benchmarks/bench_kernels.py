@@ -27,7 +27,8 @@ import numpy as np  # noqa: E402
 import sunlab  # noqa: E402
 from sunlab import sim  # noqa: E402
 from sunlab.sim import render, spots  # noqa: E402
-from sunlab.sim.detector import adc_frame, fixed_pattern, normal_table  # noqa: E402
+from sunlab.sim._adc import adc_frame, normal_table  # noqa: E402
+from sunlab.sim.detector import fixed_pattern  # noqa: E402
 
 
 def _cases():

@@ -185,11 +185,6 @@ def _truth(ta, tb) -> dict:
             "true_beta": (("pose", "shot"), tb, {"units": "deg"})}
 
 
-def _uniform(rng, sigma, size):
-    """Zero-mean uniform draws of standard deviation ``sigma`` (bounded, like a stage's steps)."""
-    return rng.uniform(-np.sqrt(3.0), np.sqrt(3.0), size) * sigma
-
-
 def _apply_defects(rng, x, y, f, defects: Mapping[int, Mapping] | None):
     """Add each defective hole's extra errors in place; return the frames that lose the spot."""
     n_p, shots, _ = x.shape
@@ -219,7 +214,9 @@ def _many_holes(alpha, beta, shots: int, layout: HoleLayout, *, mask_distance_mm
     n_h, n_p = x_cf.size, alpha.size
     scale = np.ones(n_h) if hole_scale is None else np.asarray(hole_scale, dtype=float)
     shape = (n_p, shots, n_h)
-    ta, tb = (v[:, None] + _uniform(rng, c, (n_p, 1)) + rng.normal(0, shot_sigma_deg, (n_p, shots))
+    # the common error: zero-mean uniform of standard deviation c (bounded, like a stage's steps)
+    ta, tb = (v[:, None] + rng.uniform(-np.sqrt(3.0), np.sqrt(3.0), (n_p, 1)) * c
+              + rng.normal(0, shot_sigma_deg, (n_p, shots))
               for v, c in zip((alpha, beta), np.broadcast_to(common_sigma_deg, (2,)), strict=True))
     dx, dy = geometry.ideal_centroid(ta, tb, mask_distance_mm, pixel_pitch_mm, 0.0, 0.0)
     hx, hy = (rng.normal(0, hole_sigma_px, (n_p, 1, n_h)) for _ in range(2))

@@ -25,89 +25,62 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import ConfigurationError
-from .detector import Detector, adc_frame, adc_region, fixed_pattern, normal_table
+from ._adc import adc_frame, adc_stamps, normal_table, stamp_signal
+from .detector import fixed_pattern
 from .render import _geometry, frame_key, mask_play, spot_geometry
 from .spots import _groups
 
 __all__ = ["render_frame"]
 
 
-def _signal_stamps(bench, alpha_true, beta_true, play_mm):
-    """The expected photo-electron stamps [(image, x0, y0), ...] of one frame, exact."""
-    return _pose_stamps(bench, [alpha_true], [beta_true], play_mm, (alpha_true, beta_true))[0]
-
-
 def _pose_stamps(bench, alphas, betas, play_mm, shape_angles):
-    """The stamps of several shots of one pose, the spots' shapes evaluated once.
+    """The expected photo-electron stamps of several shots of one pose, the spots' shapes
+    evaluated once: one flat buffer, and per shot the boxes (offset, y0, x0, ny, nx) of its
+    stamps in order (int64, (stamps, 5): :func:`sunlab.sim._adc.adc_stamps`).
 
     Every shot's spots sit at their own rays (the sun vector of the shot's true angles) with the
     flux of their own obliquity; their shape (aperture projection, sun-disk kernel, the
     kernel's centroid offset) is that of the angles ``shape_angles``, the pose's first shot in
     a cube. The jitter between the shots of a pose (0.0005 deg RMS on the paper's bench)
     changes the shape by parts in 1e5; ``tests/sim/test_render.py`` bounds the difference
-    from the exact stamps. Returns one list [(image, x0, y0), ...] per shot.
+    from the exact stamps.
     """
     geom = spot_geometry(bench, shape_angles[0], shape_angles[1], play_mm)
     if not geom.lit:  # no shared shape: each shot on its own (the sun at the mask's horizon)
-        return [
-            _pose_stamps(bench, [a], [b], play_mm, (a, b))[0] if (a, b) != tuple(shape_angles)
-            else [] for a, b in zip(alphas, betas, strict=True)
-        ]
+        bufs, boxes, o = [], [], 0
+        for a, b in zip(alphas, betas, strict=True):
+            buf, (box,) = (_pose_stamps(bench, [a], [b], play_mm, (a, b))
+                           if (a, b) != tuple(shape_angles) else (np.empty(0), [_NO_STAMPS]))
+            bufs.append(buf)
+            boxes.append(box + np.array([o, 0, 0, 0, 0]))
+            o += buf.size
+        return np.concatenate(bufs), boxes
     det = bench.detector
     sv, lit, ray_k, *_ = _geometry(bench, alphas, betas, [play_mm] * len(alphas), "none")
     q_k = geom.q_e * (sv[:, 2] / geom.s[2])  # the flux's cosine factor, per shot
-    out = [[] for _ in alphas]
+    todo = []
     for g in _groups(bench, geom):  # every lit shot's spots that reach the detector, in order
         (x, y), r = ray_k[:, g.idx].transpose(2, 0, 1), g.radius
         kk, mm = np.nonzero(lit[:, None] & (x + r >= -0.5) & (y + r >= -0.5)
                             & (x - r <= det.nx - 0.5) & (y - r <= det.ny - 0.5))
         if kk.size:
-            ray = ray_k[kk, g.idx[mm]]
-            imgs, x0, y0 = g.spectrum().images(ray, ray + g.shift[mm], q_k[kk])
-            for n, k in enumerate(kk):
-                out[k].append((imgs[n], int(x0[n]), int(y0[n])))
-    return out
+            todo.append((g, g.spectrum(), kk, mm))
+    starts = np.cumsum([0] + [kk.size * spec.m**2 for _, spec, kk, _ in todo])
+    buf, rows, shot = np.empty(starts[-1]), [], []
+    for (g, spec, kk, mm), o in zip(todo, starts, strict=False):
+        ray, m = ray_k[kk, g.idx[mm]], spec.m
+        _, x0, y0 = spec.images(ray, ray + g.shift[mm], q_k[kk],
+                                out=buf[o : o + kk.size * m * m].reshape(-1, m, m))
+        rows.append(np.stack([o + m * m * np.arange(kk.size), y0, x0, np.full_like(x0, m),
+                              np.full_like(x0, m)], axis=1))
+        shot.append(kk)
+    rows = np.concatenate(rows or [_NO_STAMPS]).astype(np.int64)
+    shot = np.concatenate(shot or [np.empty(0, int)])
+    return buf, [rows[shot == k] for k in range(len(alphas))]
 
 
-def _clip_region(img, x0, y0, det: Detector):
-    n_y, n_x = img.shape
-    xa, ya = max(x0, 0), max(y0, 0)
-    xb, yb = min(x0 + n_x, det.nx), min(y0 + n_y, det.ny)
-    if xa >= xb or ya >= yb:
-        return None
-    return img[ya - y0 : yb - y0, xa - x0 : xb - x0], xa, ya
-
-
-def _signal_map(stamps, det: Detector):
-    """The regions [(signal, xa, ya), ...] of the stamps clipped to the detector, in their order;
-    where stamps overlap, each region holds the sum of all stamps over it."""
-    regions = [c for c in (_clip_region(img, x0, y0, det) for img, x0, y0 in stamps) if c]
-    if len(regions) < 2:
-        return regions
-    box = np.array([(xa, ya, xa + p.shape[1], ya + p.shape[0]) for p, xa, ya in regions])
-    meet = ((box[:, None, 0] < box[None, :, 2]) & (box[None, :, 0] < box[:, None, 2])
-            & (box[:, None, 1] < box[None, :, 3]) & (box[None, :, 1] < box[:, None, 3]))
-    if np.count_nonzero(meet) == len(regions):  # each meets only itself
-        return regions
-    from scipy.sparse.csgraph import connected_components
-
-    _, label = connected_components(meet, directed=False)
-    out = list(regions)
-    for c in np.unique(label):
-        members = np.flatnonzero(label == c)
-        if members.size == 1:
-            continue
-        xa, ya = box[members, 0].min(), box[members, 1].min()
-        sig = np.zeros((box[members, 3].max() - ya, box[members, 2].max() - xa))
-        views = []
-        for k in members:  # summed in the stamps' order
-            p, x, y = regions[k]
-            v = sig[y - ya : y - ya + p.shape[0], x - xa : x - xa + p.shape[1]]
-            v += p
-            views.append((k, v, x, y))
-        for k, v, x, y in views:
-            out[k] = (v, x, y)
-    return out
+#: no stamps: the boxes of a shot whose spots all miss the detector
+_NO_STAMPS = np.empty((0, 5), dtype=np.int64)
 
 
 def expected_frame(bench, alpha_true, beta_true, *, play_mm=(0.0, 0.0)):
@@ -138,11 +111,9 @@ def expected_frame(bench, alpha_true, beta_true, *, play_mm=(0.0, 0.0)):
     ((1024, 1280), True)
     """
     det, fp, g = bench.detector, fixed_pattern(bench.detector), bench.detector.gain_e_per_dn
-    e = fp.dark_e.astype(np.float64)
-    for part, xa, ya in _signal_map(_signal_stamps(bench, alpha_true, beta_true, play_mm), det):
-        sl = (slice(ya, ya + part.shape[0]), slice(xa, xa + part.shape[1]))
-        e[sl] = fp.dark_e[sl] + fp.gain[sl] * part
-    e = np.clip(e, 0, None)
+    buf, (boxes,) = _pose_stamps(bench, [alpha_true], [beta_true], play_mm,
+                                 (alpha_true, beta_true))
+    e = np.clip(fp.dark_e + fp.gain * stamp_signal(boxes, buf, det.shape), 0, None)
     mean = fp.offset_dn + e / g
     var = (e + det.read_noise_e**2) / g**2 if det.temporal_noise else np.zeros_like(mean)
     return mean, var
@@ -191,8 +162,8 @@ def render_frame(bench, alpha_true, beta_true, *, seed, pose: int = 0, shot: int
     out = _output(out, bench.detector.shape)
     play = mask_play(bench, seed, pose) if play_mm is None else play_mm
     ref = (alpha_true, beta_true) if shape_angles is None else shape_angles
-    _expose(bench, _pose_stamps(bench, [alpha_true], [beta_true], play, ref)[0], seed, pose, shot,
-            out)
+    buf, (boxes,) = _pose_stamps(bench, [alpha_true], [beta_true], play, ref)
+    _expose(bench, buf, boxes, seed, pose, shot, out)
     return out
 
 
@@ -239,9 +210,9 @@ def render_pose(bench, alpha_true, beta_true, *, seed, pose: int = 0, out=None) 
             "arrays of the same length (one angle per shot).")
     out = _output(out, (a.size,) + bench.detector.shape)
     play_mm = mask_play(bench, seed, pose)
-    per_shot = _pose_stamps(bench, a, b, play_mm, (a[0], b[0]))
-    for k, stamps in enumerate(per_shot):
-        _expose(bench, stamps, seed, pose, k, out[k])
+    buf, boxes = _pose_stamps(bench, a, b, play_mm, (a[0], b[0]))
+    for k, box in enumerate(boxes):
+        _expose(bench, buf, box, seed, pose, k, out[k])
     return out
 
 
@@ -254,15 +225,14 @@ def _output(out, shape):
     return np.empty(shape, dtype=np.uint16) if out is None else out
 
 
-def _expose(bench, stamps, seed, pose, shot, out):
-    """The ADC of a frame: the dark frame's noise and rounding everywhere, then the pixels that
-    hold spot signal (``stamps``) recomputed with their photon noise."""
+def _expose(bench, buf, boxes, seed, pose, shot, out):
+    """The ADC of a frame: the dark frame's noise and rounding everywhere, then the pixels under
+    the spot stamps (``buf``, ``boxes``: :func:`_pose_stamps`) recomputed with their photon
+    noise."""
     det, fp, max_dn = bench.detector, fixed_pattern(bench.detector), float(bench.detector.max_dn)
     table = normal_table() if det.temporal_noise else np.empty(0, dtype=np.float32)
     state = frame_key(seed, pose, shot).generate_state(1, dtype=np.uint64)
     adc_frame(fp.bg_mean_dn, fp.bg_sigma_dn, table, state, max_dn, out)
     read_var = float(det.read_noise_e**2) if det.temporal_noise else 0.0
-    for part, xa, ya in _signal_map(stamps, det):
-        adc_region(ya, xa, np.ascontiguousarray(part, dtype=np.float64), fp.gain, fp.dark_e,
-                   fp.offset_dn, table, state, read_var, 1.0 / det.gain_e_per_dn,
-                   float(det.full_well_e), max_dn, out)
+    adc_stamps(boxes, buf, fp.gain, fp.dark_e, fp.offset_dn, table, state, read_var,
+               1.0 / det.gain_e_per_dn, float(det.full_well_e), max_dn, out)

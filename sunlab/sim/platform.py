@@ -268,13 +268,6 @@ def _entropy(seed) -> list[int]:
     return [int(v) for v in items]
 
 
-def _check_cmd(alpha_cmd, beta_cmd):
-    for name, v in (("alpha_cmd", alpha_cmd), ("beta_cmd", beta_cmd)):
-        v = np.asarray(v, dtype=float)
-        _check(bool(np.all(np.isfinite(v)) and np.all(np.abs(v) < 90.0)), name, v,
-               "finite angles with |angle| < 90 deg", "command platform angles in degrees.")
-
-
 def _pose_error(plat: Platform, key: list[int], pose: int, approach: int = 1,
                 homing: float = 0.0) -> tuple[float, float]:
     """Per-pose errors (alpha, beta), deg: uniform positioning errors, plus on beta the
@@ -386,7 +379,10 @@ def platform_pose(bench, alpha_cmd: float, beta_cmd: float, *, seed, pose: int, 
     >>> platform_pose(b.ideal_platform(), -10.0, 5.0, seed=0, pose=3, shot=0)
     (-10.0, 5.0)
     """
-    _check_cmd(alpha_cmd, beta_cmd)
+    for name, v in (("alpha_cmd", alpha_cmd), ("beta_cmd", beta_cmd)):
+        v = np.asarray(v, dtype=float)
+        _check(bool(np.all(np.isfinite(v)) and np.all(np.abs(v) < 90.0)), name, v,
+               "finite angles with |angle| < 90 deg", "command platform angles in degrees.")
     plat = bench.platform
     at, bt = plat.systematic(float(alpha_cmd), float(beta_cmd))
     key = _entropy(seed)

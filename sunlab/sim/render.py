@@ -216,7 +216,13 @@ def _geometry(bench, alpha_true, beta_true, play_mm, kernel: str = "mean"):
     sn = s @ n_m
     lit = (s[:, 2] > 1e-6) & (sn > 1e-6)
     sz = np.where(lit, s[:, 2], 1.0)
-    q0 = _hole_centres_mm(bench)  # (h, 3); the play shifts x and y only
+    # the holes' centres without play, mm (h, 3): the mask's layout placed by its offset,
+    # rotation and true distance (the play shifts x and y only)
+    xr, yr = det.reference_px
+    origin = np.array([xr * p + mask.offset_x_mm, yr * p + mask.offset_y_mm,
+                       mask.true_distance_mm])
+    uv = np.array([[h.x_mm, h.y_mm] for h in mask.holes], dtype=float)
+    q0 = origin[None, :] + uv @ mask.rotation_matrix()[:, :2].T
     tan = s[:, :2] / sz[:, None]
     ray = q0[None, :, :2] + play[:, None, :] - q0[None, :, 2:3] * tan[:, None, :]
     t = det.lid_thickness_mm
@@ -294,18 +300,6 @@ def spot_centres(bench, alpha_true, beta_true, play_mm) -> tuple[np.ndarray, np.
     _, _, ray, height, mu, _, _ = _geometry(bench, alpha_true, beta_true, play_mm)
     c = ray + mu[:, None, :] * height[None, :, None]
     return c[..., 0], c[..., 1]
-
-
-def _hole_centres_mm(bench) -> np.ndarray:
-    """Centres of the holes in the detector frame without play, mm (n, 3): the mask's layout
-    placed by its offset, rotation and true distance."""
-    det, mask = bench.detector, bench.mask
-    p = det.pixel_pitch_mm
-    xr, yr = det.reference_px
-    origin = np.array([xr * p + mask.offset_x_mm, yr * p + mask.offset_y_mm,
-                       mask.true_distance_mm])
-    uv = np.array([[h.x_mm, h.y_mm] for h in mask.holes], dtype=float)
-    return origin[None, :] + uv @ mask.rotation_matrix()[:, :2].T
 
 
 def ray_positions(bench, alpha_true, beta_true, play_mm=(0.0, 0.0)):

@@ -207,10 +207,10 @@ class _Spectrum(NamedTuple):
     m: int
     step: float
 
-    def images(self, ray, centre, q_e):
+    def images(self, ray, centre, q_e, out=None):
         """Stamps (n, m, m) of spots centred at ``centre`` (n, 2) px, each placed round its
         ``ray`` (n, 2): (images, x0, y0), image[n, i, j] at x = x0[n] + j step, y = y0[n] + i
-        step; ``q_e`` a scalar or one value per spot."""
+        step; ``q_e`` a scalar or one value per spot; written into ``out`` when given."""
         x0, y0 = (np.floor(ray[:, i]).astype(int) - self.size // 2 + 1 for i in (0, 1))
         dx, dy = centre[:, 0] - x0, centre[:, 1] - y0
         # Phase of hole n at alias (a, b) and base frequency (i, j) factorises:
@@ -219,7 +219,7 @@ class _Spectrum(NamedTuple):
             (self.al, dy), (self.al, dx), (self.fyb, dy), (self.fxb, dx)))
         m = self.m
         scale = np.broadcast_to(np.asarray(q_e, dtype=float) / self.step**2, (len(x0),))
-        imgs = np.empty((len(x0), m, m))
+        imgs = np.empty((len(x0), m, m)) if out is None else out
         # a few spots at a time, so that the folded spectra and their images stay in cache
         for c in range(0, len(x0), _SPOTS_PER_FFT):
             sl = slice(c, c + _SPOTS_PER_FFT)

@@ -88,22 +88,17 @@ def spot_diameter_px(bench) -> float:
     return (d + bench.mask.true_distance_mm * theta) / bench.detector.pixel_pitch_mm
 
 
-def _spot_profile(bench) -> np.ndarray:
-    """The expected single-spot image at zenith (electrons, before PRNU), centred stamp."""
-    from .spots import spot_image
-
-    one = bench.replace(mask=bench.mask.replace(holes=bench.mask.holes[:1]),
-                        platform=bench.platform.ideal()).ideal_mask()
-    return np.asarray(spot_image(one, 0.0, 0.0)[0], dtype=float)
-
-
 @functools.lru_cache(maxsize=8)
 def _maps(bench):
     from scipy.signal import fftconvolve
 
     from .detector import fixed_pattern
+    from .spots import spot_image
 
-    s = _spot_profile(bench)
+    # the expected single-spot image at zenith (electrons, before PRNU), a centred stamp
+    one = bench.replace(mask=bench.mask.replace(holes=bench.mask.holes[:1]),
+                        platform=bench.platform.ideal()).ideal_mask()
+    s = np.asarray(spot_image(one, 0.0, 0.0)[0], dtype=float)
     m = s.shape[0]
     u = np.arange(m) - (m - 1) / 2.0
     ux, uy = np.broadcast_to(u[None, :], s.shape), np.broadcast_to(u[:, None], s.shape)

@@ -17,13 +17,13 @@ from scipy import special
 import sunlab
 from sunlab.errors import ConfigurationError
 from sunlab.sim import Bench, _jit, render, spots
+from sunlab.sim import _adc as D
 from sunlab.sim import _aperture as A
-from sunlab.sim import detector as D
 from sunlab.sim.detector import Detector, fixed_pattern
 
 ROOT = Path(__file__).resolve().parents[2]
 #: every compiled kernel of the simulator, beside the concept it serves
-KERNELS = {"adc_frame": D.adc_frame, "adc_region": D.adc_region, "polygon_ft": A.polygon_ft,
+KERNELS = {"adc_frame": D.adc_frame, "adc_stamps": D.adc_stamps, "polygon_ft": A.polygon_ft,
            "_spectrum_tabulated": A._spectrum_tabulated, "fold_phase": spots.fold_phase,
            "_clip_convex": A.clip_convex}
 
@@ -144,14 +144,17 @@ def test_the_adc_references_draw_the_same_stream_bit_for_bit(shape, noisy):
     sigma = rng.uniform(0.5, 30.0, shape).astype(np.float32)
     gain, dark, offset = (rng.uniform(lo, hi, shape).astype(np.float32)
                           for lo, hi in ((0.9, 1.1), (0.0, 50.0), (10.0, 40.0)))
-    signal = rng.uniform(0.0, 4e4, (shape[0], max(shape[1] - 2, 1)))  # saturates some
+    # stamps over the frame, one overlapping another and one off its edge (saturating some)
+    boxes = np.array([[0, 0, 1, shape[0], max(shape[1] - 2, 1)], [0, -2, shape[1] - 3, 4, 5],
+                      [20, shape[0] - 1, -3, 3, 4]], dtype=np.int64)
+    signal = rng.uniform(0.0, 4e4, shape[0] * shape[1] + 40)
     table = D.normal_table() if noisy else np.empty(0, np.float32)
     frames, states = [], []
     for run in (lambda k: k.compiled, lambda k: k.numpy):
         state = np.array([0xFEDCBA9876543210], dtype=np.uint64)
         out = np.empty(shape, dtype=np.uint16)
         run(D.adc_frame)(mean, sigma, table, state, 1023.0, out)
-        run(D.adc_region)(0, 1, signal, gain, dark, offset, table, state, 100.0, 1 / 20.0,
+        run(D.adc_stamps)(boxes, signal, gain, dark, offset, table, state, 100.0, 1 / 20.0,
                           3e4, 1023.0, out)
         frames.append(out)
         states.append(int(state[0]))

@@ -191,8 +191,8 @@ def test_pose_shared_shape_is_within_its_bound(bench):
     # centroids by under 1e-4 px, far below one photo-electron and the 0.001 px of the truth.
     d = 0.002
     for a, b in [(-12.0, 7.3), (9.0, -11.0), (0.3, 0.2)]:
-        exact = simframe._signal_stamps(bench, a + d, b - d, (0.0, 0.0))
-        shared = simframe._pose_stamps(bench, [a, a + d], [b, b - d], (0.0, 0.0), (a, b))
+        exact = _stamps(bench, [a + d], [b - d], (a + d, b - d))[0]
+        shared = _stamps(bench, [a, a + d], [b, b - d], (a, b))
         assert [(x, y) for _, x, y in shared[1]] == [(x, y) for _, x, y in exact]
         for (i1, _, _), (i2, _, _) in zip(exact, shared[1], strict=True):
             assert np.abs(i1 - i2).max() < 1e-4 * i1.max()
@@ -202,8 +202,8 @@ def test_pose_shared_shape_is_within_its_bound(bench):
             assert np.abs(c1 - c2).max() < 1e-4
             assert abs(i2.sum() / i1.sum() - 1) < 1e-5
         # the first shot is the exact frame's: its shape is its own
-        for (i1, x1, y1), (i0, x0, y0) in zip(simframe._signal_stamps(bench, a, b, (0.0, 0.0)),
-                                              shared[0], strict=True):
+        for (i1, x1, y1), (i0, x0, y0) in zip(_stamps(bench, [a], [b], (a, b))[0], shared[0],
+                                              strict=True):
             assert (x1, y1) == (x0, y0) and np.array_equal(i1, i0)
 
 
@@ -222,25 +222,39 @@ def test_render_pose_is_render_frame_with_the_pose_shape():
         simframe.render_pose(bench, a, b[:2], seed=3)
 
 
-def test_signal_map_is_the_full_frame_sum_over_each_stamp():
-    # overlapping stamps are summed over their connected bounding box only; every region must
-    # equal the full-frame sum of all stamps over it, clipped to the detector, in stamp order
-    from sunlab.sim.detector import Detector
+def _stamps(bench, alphas, betas, shape_angles):
+    """Per shot, the list of (image, x0, y0) of _pose_stamps' buffer and boxes."""
+    buf, boxes = simframe._pose_stamps(bench, alphas, betas, (0.0, 0.0), shape_angles)
+    return [[(buf[o : o + ny * nx].reshape(ny, nx), x0, y0) for o, y0, x0, ny, nx in box]
+            for box in boxes]
 
-    det = Detector(nx=200, ny=150)
+
+def test_overlapping_stamps_add_and_clip_to_the_frame():
+    # without noise, at unit gain and no dark signal, every stamped pixel is the rounded sum of
+    # all stamps over it, clipped to the detector; the pixels under no stamp keep their value
+    from sunlab.sim import _adc as D
+
+    shape = (150, 200)
     rng = np.random.default_rng(1)
+    ones, zeros = np.ones(shape, np.float32), np.zeros(shape, np.float32)
     for _ in range(100):
-        stamps = [(rng.normal(size=(s, s)), int(rng.integers(-30, 200)),
-                   int(rng.integers(-30, 150))) for s in rng.integers(5, 40, rng.integers(1, 12))]
-        full = np.zeros(det.shape)
-        kept = [c for c in (simframe._clip_region(i, x, y, det) for i, x, y in stamps) if c]
-        for p, x, y in kept:
-            full[y : y + p.shape[0], x : x + p.shape[1]] += p
-        got = simframe._signal_map(stamps, det)
-        assert [(x, y) for _, x, y in got] == [(x, y) for _, x, y in kept]
-        for (p, x, y), (q, _, _) in zip(got, kept, strict=True):
-            assert p.shape == q.shape
-            np.testing.assert_array_equal(p, full[y : y + p.shape[0], x : x + p.shape[1]])
+        sizes = rng.integers(5, 40, rng.integers(1, 12))
+        offsets = np.concatenate([[0], np.cumsum(sizes**2)])
+        buf = rng.uniform(0.0, 300.0, offsets[-1])
+        boxes = np.array([(o, rng.integers(-30, 150), rng.integers(-30, 200), n, n)
+                          for o, n in zip(offsets, sizes, strict=False)], dtype=np.int64)
+        full, hit = np.zeros(shape), np.zeros(shape, bool)
+        for o, y0, x0, ny, nx in boxes:
+            big = np.zeros((shape[0] + 80, shape[1] + 80))  # room beyond every edge
+            big[y0 + 40 : y0 + 40 + ny, x0 + 40 : x0 + 40 + nx] = buf[o : o + ny * nx].reshape(
+                ny, nx)
+            full += big[40:-40, 40:-40]
+            hit |= big[40:-40, 40:-40] > 0
+        out = np.full(shape, 7, np.uint16)
+        D.adc_stamps(boxes, buf, ones, zeros, zeros, np.empty(0, np.float32),
+                     np.zeros(1, np.uint64), 0.0, 1.0, 1e9, 65535.0, out)
+        np.testing.assert_array_equal(out[hit], np.floor(full[hit] + 0.5))
+        assert (out[~hit] == 7).all()
 
 
 @pytest.mark.parametrize("theta_deg", [5.0, 17.0])
