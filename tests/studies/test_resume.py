@@ -6,6 +6,7 @@ import signal
 import subprocess
 import sys
 import time
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import pytest
@@ -23,27 +24,30 @@ def test_a_stopped_identification_resumes_and_equals_an_uninterrupted_one(tmp_pa
     cmd = [sys.executable, "-m", "studies.identify", "--out", str(out), "--hypotheses", "F5",
            "--seeds", *seeds, "--jobs", "1", "--no-presets"]
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    first = subprocess.Popen(cmd, cwd=ROOT, env=env, start_new_session=True,
-                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    part = out / "runs" / "F5-3000.csv"
-    while not part.exists() and first.poll() is None:
-        time.sleep(0.2)
-    os.killpg(first.pid, signal.SIGKILL)  # stopped hard, after its first run's file
-    _, err = first.communicate()
-    assert part.exists(), err
-    assert "2 of 2 runs to go" in err  # the estimate, printed though stderr is no terminal
-    assert not (out / "evidence_cells.csv").exists()  # no table of a half-run
 
-    second = subprocess.Popen(cmd, cwd=ROOT, env=env, stdout=subprocess.PIPE,
-                              stderr=subprocess.PIPE, text=True)
-    # meanwhile, an uninterrupted run of the same two (in this process, no parts): the two
-    # runs share the suite's two cores instead of following each other
-    try:
-        protocol = idn.load_protocol()
-        cells = evidence.run_protocol(protocol, ["F5"], [int(s) for s in seeds])
+    def uninterrupted():  # the same two runs in this process (no parts), for the reference
+        cells = evidence.run_protocol(idn.load_protocol(), ["F5"], [int(s) for s in seeds])
         evidence.write_evidence(tmp_path / "ref", cells, presets=False)
-    finally:
+
+    # the reference runs on a thread from the start, beside both commands: on two cores the
+    # command's two runs and the reference's two overlap instead of following each other
+    with ThreadPoolExecutor(1) as pool:  # an error or a failed assert waits for it
+        reference = pool.submit(uninterrupted)
+        first = subprocess.Popen(cmd, cwd=ROOT, env=env, start_new_session=True,
+                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        part = out / "runs" / "F5-3000.csv"
+        while not part.exists() and first.poll() is None:
+            time.sleep(0.2)
+        os.killpg(first.pid, signal.SIGKILL)  # stopped hard, after its first run's file
+        _, err = first.communicate()
+        assert part.exists(), err
+        assert "2 of 2 runs to go" in err  # the estimate, printed though stderr is no terminal
+        assert not (out / "evidence_cells.csv").exists()  # no table of a half-run
+
+        second = subprocess.Popen(cmd, cwd=ROOT, env=env, stdout=subprocess.PIPE,
+                                  stderr=subprocess.PIPE, text=True)
         stdout, stderr = second.communicate()
+        reference.result()  # the uninterrupted run's error, if any, raised here
     assert second.returncode == 0, stderr
     assert "1 of 2 runs to go" in stderr  # the finished run skipped, not redone
     assert "runs: F5 seed" not in stderr  # no progress lines where no one watches
