@@ -116,7 +116,8 @@ def shot_errors(estimate: xr.Dataset, reference=None, *, absolute: bool = True) 
 def _local_errors(estimate: xr.Dataset, reference=None) -> xr.Dataset:
     """``local_error`` (mean over the shots of the absolute error) and ``max_error`` per pose
     and angle (deg, NaN for a pose without a usable shot), and ``n_shots``."""
-    err, dim = shot_errors(estimate, reference), "shot"
+    err = shot_errors(estimate, reference)
+    dim = "shot"  # the shots of a pose are averaged
     if dim not in err.dims:
         raise SchemaError("estimate.dims", tuple(err.dims), f"a {dim!r} dimension to reduce")
     e = xr.concat([err[a] for a in ANGLES], dim=pd.Index(list(ANGLES), name="angle"))

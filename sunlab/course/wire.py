@@ -158,6 +158,27 @@ def answer(ns: dict, name: str, args=(), kwargs=None, bind=None) -> str:
     return json.dumps(out)
 
 
+def request(name: str, args=(), kwargs=None, bind=None) -> str:
+    """In the grader: the code of a cell that makes the kernel :func:`serve` the call
+    ``name(*args, **kwargs)`` with the notebook's names ``bind`` rebound.
+
+    Parameters
+    ----------
+    name : str
+        The notebook's function.
+    args, kwargs, bind : tuple, dict, dict
+        Its arguments, and the notebook's names rebound for the call.
+
+    Returns
+    -------
+    str
+        One line of Python: :func:`serve` on the pickled request (base64).
+    """
+    text = base64.b64encode(pickle.dumps((name, tuple(args), dict(kwargs or {}),
+                                          dict(bind or {})))).decode()
+    return f"__import__('sunlab.course.wire', fromlist=['serve']).serve(globals(), {text!r})"
+
+
 def serve(ns: dict, text: str) -> None:
     """In the kernel: :func:`answer` to the grader's pickled ``(name, args, kwargs, bind)``,
     displayed (the grader reads it from the cell's output).
@@ -167,7 +188,7 @@ def serve(ns: dict, text: str) -> None:
     ns : dict
         The notebook's namespace.
     text : str
-        The grader's request, base64 of the pickled tuple.
+        The grader's request, base64 of the pickled tuple (:func:`request`).
     """
     from IPython.display import display
 
