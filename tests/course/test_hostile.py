@@ -158,10 +158,7 @@ def _sunlab(*args):
 
 
 def test_a_dead_kernel_and_an_endless_loop_do_not_sink_the_batch(tmp_path):
-    """Issue 48's must-show: three students (a dead kernel, an endless loop, a right answer)
-    graded within 3 minutes. The loop runs to the limit per cell, so the test passes a small
-    one: 10 s, several times what a cell or a probe of the right answer takes on a loaded
-    machine (issue 48 graded with --timeout 30)."""
+    """Issue 48's must-show: three students graded with --timeout 30 within 3 minutes."""
     _course(tmp_path / "course")
     dead = _submit(tmp_path, "exits", "01-mini.ipynb",
                    "import os\nos._exit(0)\n" + RIGHT["01.1"])
@@ -169,7 +166,7 @@ def test_a_dead_kernel_and_an_endless_loop_do_not_sink_the_batch(tmp_path):
     ok = _submit(tmp_path, "right", "01-mini.ipynb", RIGHT["01.1"])
     start = time.monotonic()
     res = _sunlab("course", "--grade", str(dead), str(loop), str(ok), "--notebooks",
-                  str(tmp_path / "course"), "--seed", "7", "--timeout", "10",
+                  str(tmp_path / "course"), "--seed", "7", "--timeout", "30",
                   "--gradebook", str(tmp_path / "book"))
     took = time.monotonic() - start
     assert res.returncode == 1, res.stdout + res.stderr
@@ -184,7 +181,7 @@ def test_a_dead_kernel_and_an_endless_loop_do_not_sink_the_batch(tmp_path):
     assert "exercise 01.1 was not checked" in got[("exits", "01.1")]["message"]
     assert got[("loops", "01.1")]["points"] == 0
     assert got[("loops", "01.1")]["result"] == "time-out"
-    assert "10 s per cell" in got[("loops", "01.1")]["message"]
+    assert "30 s per cell" in got[("loops", "01.1")]["message"]
     lines = (tmp_path / "book" / "gradebook.csv").read_text().splitlines()
     assert len(lines) == 1 + 3 and "Traceback" not in res.stderr
 
@@ -277,8 +274,7 @@ def test_a_kernel_that_stops_answering_is_detected_in_seconds(monkeypatch):
 
     from sunlab.course import kernel
 
-    monkeypatch.setattr(kernel, "NUDGE_S", 1.0)
-    monkeypatch.setattr(kernel, "STALL_S", 3.0)
+    monkeypatch.setattr(kernel, "STALL_S", 6.0)
     nb = nbformat.v4.new_notebook(cells=[nbformat.v4.new_code_cell("1 + 1")])
     with kernel.NotebookRun(nb, env=dict(os.environ), timeout=120, budget=120) as r:
         os.kill(r.client.km.provisioner.pid, signal.SIGSTOP)
